@@ -1,0 +1,359 @@
+#include "core/generators.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <unordered_set>
+
+#include "core/error.h"
+#include "core/random.h"
+
+namespace rcb {
+namespace {
+
+// Stream numbers for mix_seed: each kind of randomness has its own stream (see generators.h).
+constexpr std::uint64_t kObjectStream = 1;
+constexpr std::uint64_t kDynamicsStream = 1'000'000;
+constexpr std::uint64_t kRayStream = 2'000'000;
+
+Aabb box_from(const Vec3d& min, const Vec3d& max) { return {min.as<float>(), max.as<float>()}; }
+
+Aabb box_around(const Vec3d& center, const Vec3d& extent) {
+    return box_from(center - extent * 0.5, center + extent * 0.5);
+}
+
+/// "uni" (thesis §6.1): similar-sized boxes evenly spread without overlap. Each object gets its own
+/// cell of a k×k×k lattice (k = ⌈∛n⌉, cells chosen at random) and lies strictly inside it.
+std::vector<Object> uniform_objects(const SceneSettings& s, Random& rng) {
+    const std::uint32_t n = s.objects;
+    std::uint64_t k = 1;
+    while (k * k * k < n) ++k;
+    constexpr double cell = 10.0;
+    // Partial Fisher–Yates: the first n entries become a uniform random choice of n cells.
+    std::vector<std::uint32_t> cells(k * k * k);
+    std::iota(cells.begin(), cells.end(), 0u);
+    std::vector<Object> objects(n);
+    for (std::uint32_t i = 0; i < n; ++i) {
+        std::swap(cells[i], cells[i + rng.below(cells.size() - i)]);
+        const std::uint64_t c = cells[i];
+        const Vec3d origin{double(c % k) * cell, double((c / k) % k) * cell, double(c / (k * k)) * cell};
+        Vec3d extent, min;
+        for (int a = 0; a < 3; ++a) {
+            extent[a] = cell * rng.uniform(0.4, 0.7);
+            min[a] = origin[a] + 0.05 * cell + rng.uniform(0.0, 0.9 * cell - extent[a]);
+        }
+        objects[i] = {i + 1, box_from(min, min + extent)};
+    }
+    return objects;
+}
+
+/// "irreg" (thesis §6.1, exported from a game engine): a ground of terrain tiles, a few buildings,
+/// most objects small and crowded into clusters (many inside buildings), some medium props
+/// scattered over the ground. Sizes span four orders of magnitude. y is up.
+std::vector<Object> irregular_objects(const SceneSettings& s, Random& rng) {
+    const std::uint32_t n = s.objects;
+    // The world grows with the object count so that density stays game-like across presets.
+    const double world = std::max(128.0, 1024.0 * std::cbrt(double(n) / 14021.0));
+    const double height = world / 4;
+    std::vector<Object> objects;
+    objects.reserve(n);
+    Uid next = 1;
+    auto add = [&](const Aabb& box) {
+        if (objects.size() < n) objects.push_back({next++, box});
+    };
+
+    // Large objects: 0.4% of the scene, at least two (a terrain tile and a building).
+    const std::uint32_t large = std::min<std::uint32_t>(n, std::max<std::uint32_t>(2, std::lround(n * 0.004)));
+    const std::uint32_t tiles_per_side = std::max<std::uint32_t>(1, std::lround(std::sqrt(large / 4.0)));
+    const double tile = world / tiles_per_side;
+    for (std::uint32_t i = 0; i < tiles_per_side * tiles_per_side && objects.size() + 1 < large; ++i) {
+        const double x = (i % tiles_per_side) * tile, z = (i / tiles_per_side) * tile;
+        const double relief = height * rng.uniform(0.02, 0.08);
+        add(box_from({x, -relief, z}, {x + tile, relief * rng.uniform(0.2, 1.0), z + tile}));
+    }
+    std::vector<Aabb> buildings;
+    while (objects.size() < large) {
+        const Vec3d extent{world * rng.uniform(0.03, 0.12), height * rng.uniform(0.1, 0.6), world * rng.uniform(0.03, 0.12)};
+        const Vec3d min{rng.uniform(0, world - extent.x), 0.0, rng.uniform(0, world - extent.z)};
+        buildings.push_back(box_from(min, min + extent));
+        add(buildings.back());
+    }
+
+    // Clusters of small objects; sizes of clusters follow a Zipf-like law (a few very dense ones).
+    const std::uint32_t rest = n - static_cast<std::uint32_t>(objects.size());
+    const std::uint32_t scattered = rest * 15 / 100;
+    const std::uint32_t clustered = rest - scattered;
+    const std::uint32_t cluster_count = std::max<std::uint32_t>(2, n / 400);
+    struct Cluster {
+        Vec3d center;
+        double radius;
+        double weight;
+    };
+    std::vector<Cluster> clusters(cluster_count);
+    double total_weight = 0;
+    for (std::uint32_t c = 0; c < cluster_count; ++c) {
+        Cluster& k = clusters[c];
+        if (!buildings.empty() && rng.uniform() < 0.6) {  // inside a building: small objects in large ones
+            const Aabb& b = buildings[rng.below(buildings.size())];
+            const Aabbd bd = b.as<double>();
+            k.center = {rng.uniform(bd.min.x, bd.max.x), rng.uniform(bd.min.y, bd.max.y), rng.uniform(bd.min.z, bd.max.z)};
+            k.radius = 0.25 * std::min(bd.extent().x, bd.extent().z);
+        } else {
+            k.center = {rng.uniform(0, world), rng.uniform(0, 0.1 * height), rng.uniform(0, world)};
+            k.radius = world * rng.uniform(0.005, 0.03);
+        }
+        k.weight = 1.0 / std::pow(c + 1.0, 0.8);
+        total_weight += k.weight;
+    }
+    // Cluster sizes by largest remainder, so they add up to `clustered` exactly.
+    std::vector<std::uint32_t> members(cluster_count);
+    std::uint32_t assigned = 0;
+    for (std::uint32_t c = 0; c < cluster_count; ++c) {
+        members[c] = static_cast<std::uint32_t>(clustered * clusters[c].weight / total_weight);
+        assigned += members[c];
+    }
+    for (std::uint32_t c = 0; assigned < clustered; c = (c + 1) % cluster_count, ++assigned) ++members[c];
+    for (std::uint32_t c = 0; c < cluster_count; ++c) {
+        for (std::uint32_t m = 0; m < members[c]; ++m) {
+            const Cluster& k = clusters[c];
+            Vec3d center{k.center.x + k.radius * rng.normal(), k.center.y + 0.5 * k.radius * rng.normal(),
+                         k.center.z + k.radius * rng.normal()};
+            center.y = std::max(center.y, 0.0);
+            const double size = rng.log_uniform(0.05, 3.0);
+            add(box_around(center, {size * rng.uniform(0.5, 1.5), size * rng.uniform(0.5, 1.5), size * rng.uniform(0.5, 1.5)}));
+        }
+    }
+    // Medium props (trees, vehicles, rocks) scattered over the whole ground.
+    while (objects.size() < n) {
+        const double size = rng.log_uniform(1.0, 15.0);
+        const Vec3d extent{size * rng.uniform(0.5, 1.5), size * rng.uniform(0.5, 2.0), size * rng.uniform(0.5, 1.5)};
+        const Vec3d min{rng.uniform(0, world), 0.0, rng.uniform(0, world)};
+        add(box_from(min, min + extent));
+    }
+    return objects;
+}
+
+/// Picks `k` distinct indices below `n` (k much smaller than n: rejection is cheap).
+std::vector<std::size_t> distinct_indices(std::size_t k, std::size_t n, Random& rng) {
+    std::vector<std::size_t> out;
+    std::unordered_set<std::size_t> used;
+    k = std::min(k, n);
+    if (2 * k > n) {  // dense choice: shuffle instead of rejecting
+        std::vector<std::size_t> all(n);
+        std::iota(all.begin(), all.end(), std::size_t{0});
+        for (std::size_t i = 0; i < k; ++i) std::swap(all[i], all[i + rng.below(n - i)]);
+        return {all.begin(), all.begin() + k};
+    }
+    while (out.size() < k) {
+        std::size_t i = rng.below(n);
+        if (used.insert(i).second) out.push_back(i);
+    }
+    return out;
+}
+
+Frame frame_changes(const LiveSet& live, const DynamicsSettings& d, Uid& next_uid, Random& rng) {
+    Frame f;
+    const std::size_t n = live.size();
+    if (n == 0) return f;
+    const auto changes = static_cast<std::size_t>(std::llround(d.change_fraction * n));
+    const auto inserts = static_cast<std::size_t>(std::llround(changes * d.insert_share));
+    const auto removes = std::min(n, static_cast<std::size_t>(std::llround(changes * d.remove_share)));
+    const std::size_t moves = std::min(n - removes, changes - std::min(changes, inserts + removes));
+    const auto& objects = live.objects();
+    const std::vector<std::size_t> picked = distinct_indices(removes + moves, n, rng);
+    for (std::size_t i = 0; i < removes; ++i) f.removes.push_back(objects[picked[i]].uid);
+    for (std::size_t i = removes; i < picked.size(); ++i) {
+        const Object& o = objects[picked[i]];
+        const double reach = d.move_scale * double(o.box.longest_edge());
+        const Vec3d shift{reach * rng.uniform(-1, 1), reach * rng.uniform(-1, 1), reach * rng.uniform(-1, 1)};
+        f.moves.push_back({o.uid, box_from(o.box.min.as<double>() + shift, o.box.max.as<double>() + shift)});
+    }
+    // An insert copies the size of a random live object and lands near another one, so inserts
+    // follow the scene's own size and position distribution, whatever the scene.
+    for (std::size_t i = 0; i < inserts; ++i) {
+        const Aabbd shape = objects[rng.below(n)].box.as<double>();
+        const Aabbd anchor = objects[rng.below(n)].box.as<double>();
+        Vec3d center = anchor.center();
+        for (int a = 0; a < 3; ++a) center[a] += rng.uniform(-1, 1) * std::max(anchor.extent()[a], shape.extent()[a]);
+        f.inserts.push_back({next_uid++, box_around(center, shape.extent())});
+    }
+    return f;
+}
+
+/// The densest cell of a 16³ grid over the bounds: `dense` rays aim there.
+Aabbd densest_region(const std::vector<Object>& live, const Aabbd& bounds) {
+    constexpr int k = 16;
+    std::vector<std::uint32_t> count(k * k * k, 0);
+    const Vec3d size = bounds.extent();
+    auto cell_of = [&](double v, int a) {
+        if (size[a] <= 0) return 0;
+        return std::clamp(int((v - bounds.min[a]) / size[a] * k), 0, k - 1);
+    };
+    for (const Object& o : live) {
+        const Vec3d c = o.box.as<double>().center();
+        ++count[(cell_of(c.z, 2) * k + cell_of(c.y, 1)) * k + cell_of(c.x, 0)];
+    }
+    const int best = int(std::max_element(count.begin(), count.end()) - count.begin());
+    const Vec3d cell = size * (1.0 / k);
+    const Vec3d min = bounds.min + Vec3d{cell.x * (best % k), cell.y * ((best / k) % k), cell.z * (best / (k * k))};
+    return {min, min + cell};
+}
+
+Segment segment_from(const Vec3d& p0, const Vec3d& p1) { return {p0.as<float>(), p1.as<float>()}; }
+
+}  // namespace
+
+std::vector<std::string> ray_mode_names() { return {"center", "dense", "los", "ground", "shots"}; }
+
+std::vector<std::string> preset_names() {
+    return {"uni-s", "uni-m", "uni-l", "irreg-s", "irreg-m", "irreg-l", "irreg-xl"};
+}
+
+SceneSettings preset_settings(std::string_view name) {
+    SceneSettings s;
+    s.preset = std::string(name);
+    const std::string n(name);
+    if (n.rfind("uni-", 0) == 0) s.kind = "uniform";
+    else if (n.rfind("irreg-", 0) == 0) s.kind = "irregular";
+    const std::string size = n.substr(n.find('-') + 1);
+    if (size == "s") s.objects = 99;
+    else if (size == "m") s.objects = 5104;
+    else if (size == "l") s.objects = 14021;
+    else if (size == "xl" && s.kind == "irregular") s.objects = 1'000'000;
+    else s.kind.clear();
+    if (n.find('-') == std::string::npos || s.kind.empty()) {
+        std::string known;
+        for (const std::string& p : preset_names()) known += (known.empty() ? "" : ", ") + p;
+        throw InputError("unknown preset '" + n + "' (known: " + known + ")");
+    }
+    return s;
+}
+
+std::vector<RayMode> parse_ray_mix(const std::string& text) {
+    std::vector<RayMode> mix;
+    std::size_t start = 0;
+    const auto modes = ray_mode_names();
+    while (start <= text.size()) {
+        std::size_t comma = text.find(',', start);
+        std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+        RayMode m;
+        std::size_t colon = item.find(':');
+        m.mode = item.substr(0, colon);
+        if (colon != std::string::npos) {
+            const std::string w = item.substr(colon + 1);
+            char* end = nullptr;
+            m.weight = std::strtod(w.c_str(), &end);
+            if (w.empty() || *end != '\0' || !std::isfinite(m.weight) || m.weight < 0)
+                throw InputError("ray mix '" + text + "': weight '" + w + "' of " + m.mode + " is not a non-negative number");
+        }
+        if (std::find(modes.begin(), modes.end(), m.mode) == modes.end())
+            throw InputError("ray mix '" + text + "': unknown mode '" + m.mode + "' (known: center, dense, los, ground, shots)");
+        mix.push_back(m);
+        if (comma == std::string::npos) break;
+        start = comma + 1;
+    }
+    double total = 0;
+    for (const RayMode& m : mix) total += m.weight;
+    if (!(total > 0)) throw InputError("ray mix '" + text + "': the weights add up to zero");
+    return mix;
+}
+
+std::vector<Object> generate_objects(const SceneSettings& s) {
+    Random rng(mix_seed(s.seed, kObjectStream));
+    if (s.kind == "uniform") return uniform_objects(s, rng);
+    if (s.kind == "irregular") return irregular_objects(s, rng);
+    throw InputError("unknown scene kind '" + s.kind + "' (known: uniform, irregular)");
+}
+
+std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySettings& settings, std::uint64_t seed,
+                                   std::uint32_t frame) {
+    std::vector<Segment> rays;
+    if (live.empty() || settings.per_frame == 0) return rays;
+    Random rng(mix_seed(seed, kRayStream + frame));
+    const Aabbd bounds = bounds_of(live).as<double>();
+    const Vec3d center = bounds.center();
+    const Vec3d ext = bounds.extent();
+    const double diagonal = std::sqrt(ext.x * ext.x + ext.y * ext.y + ext.z * ext.z);
+    const double reach = std::max(0.55 * diagonal, 1e-3);  // from the centre, past every face
+    // Rays per mode by largest remainder, so the mix is exact and in a fixed order.
+    double total = 0;
+    for (const RayMode& m : settings.mix) total += m.weight;
+    std::vector<std::uint32_t> counts;
+    std::uint32_t assigned = 0;
+    for (const RayMode& m : settings.mix) {
+        counts.push_back(static_cast<std::uint32_t>(settings.per_frame * (m.weight / total)));
+        assigned += counts.back();
+    }
+    for (std::size_t i = 0; assigned < settings.per_frame; i = (i + 1) % counts.size())
+        if (settings.mix[i].weight > 0) ++counts[i], ++assigned;
+
+    const Aabbd dense = densest_region(live, bounds);
+    auto random_object = [&]() -> Aabbd { return live[rng.below(live.size())].box.as<double>(); };
+    for (std::size_t m = 0; m < settings.mix.size(); ++m) {
+        const std::string& mode = settings.mix[m].mode;
+        for (std::uint32_t i = 0; i < counts[m]; ++i) {
+            if (mode == "center") {
+                rays.push_back(segment_from(center, center + rng.direction() * reach));
+            } else if (mode == "dense") {
+                const Vec3d target{rng.uniform(dense.min.x, dense.max.x), rng.uniform(dense.min.y, dense.max.y),
+                                   rng.uniform(dense.min.z, dense.max.z)};
+                Vec3d d = target - center;
+                const double len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+                d = len > 0 ? d * (1.0 / len) : rng.direction();
+                rays.push_back(segment_from(center, center + d * reach));
+            } else if (mode == "los") {
+                rays.push_back(segment_from(random_object().center(), random_object().center()));
+            } else if (mode == "ground") {
+                const Aabbd o = random_object();
+                const Vec3d top{0.5 * (o.min.x + o.max.x), o.max.y, 0.5 * (o.min.z + o.max.z)};
+                const double depth = o.extent().y + 0.02 * ext.y;
+                rays.push_back(segment_from(top, top - Vec3d{0, depth, 0}));
+            } else if (mode == "shots") {
+                const Aabbd o = random_object();
+                const double len = std::clamp(20.0 * std::max({o.extent().x, o.extent().y, o.extent().z}), 0.01 * diagonal,
+                                              0.2 * diagonal);
+                rays.push_back(segment_from(o.center(), o.center() + rng.direction() * len));
+            }
+        }
+    }
+    return rays;
+}
+
+Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dynamics, const RaySettings& rays,
+                       std::uint32_t frames, std::uint64_t seed, nlohmann::json meta) {
+    Recording r;
+    meta["frames"] = frames;
+    meta["seed"] = seed;
+    meta["dynamics"] = {{"change_fraction", dynamics.change_fraction},
+                        {"insert_share", dynamics.insert_share},
+                        {"remove_share", dynamics.remove_share},
+                        {"move_scale", dynamics.move_scale}};
+    nlohmann::json mix = nlohmann::json::array();
+    for (const RayMode& m : rays.mix) mix.push_back({{"mode", m.mode}, {"weight", m.weight}});
+    meta["rays"] = {{"per_frame", rays.per_frame}, {"mix", mix}};
+    r.meta = meta.dump();
+    r.initial = std::move(initial);
+    LiveSet live(r.initial);
+    Uid next_uid = 0;
+    for (const Object& o : r.initial) next_uid = std::max(next_uid, o.uid + 1);
+    for (std::uint32_t f = 1; f <= frames; ++f) {
+        Random rng(mix_seed(seed, kDynamicsStream + f));
+        Frame frame = frame_changes(live, dynamics, next_uid, rng);
+        live.apply(frame);
+        frame.rays = generate_rays(live.objects(), rays, seed, f);
+        r.frames.push_back(std::move(frame));
+    }
+    return r;
+}
+
+nlohmann::json to_json(const SceneSettings& s) {
+    nlohmann::json j = {{"generator", "rcbench"}, {"kind", s.kind}, {"objects", s.objects}};
+    if (!s.preset.empty()) j["preset"] = s.preset;
+    return j;
+}
+
+Recording generate_scene(const SceneSettings& s) {
+    return add_dynamics(generate_objects(s), s.dynamics, s.rays, s.frames, s.seed, to_json(s));
+}
+
+}  // namespace rcb

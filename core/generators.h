@@ -1,0 +1,76 @@
+#pragma once
+/// Scene generators (the thesis' data generator, §5.2.1, rebuilt without Unity): a static object
+/// set, per-frame dynamics, and per-frame rays. Deterministic: the same settings give the same
+/// recording, byte for byte. Scene, dynamics and rays draw from separate streams derived from the
+/// seed, so e.g. changing the number of rays does not change the dynamics.
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/scene.h"
+
+namespace rcb {
+
+/// How the objects change from frame to frame (thesis §5.2.1: 1% per frame by default).
+struct DynamicsSettings {
+    double change_fraction = 0.01;  ///< objects changed per frame, as a fraction of the live count
+    double insert_share = 0.1;      ///< of the changes, the share that are inserts
+    double remove_share = 0.1;      ///< … removes (the rest are moves)
+    double move_scale = 0.1;        ///< a move shifts each axis by up to this × the object's longest edge
+};
+
+/// Ray modes: `center` (thesis §6.1: from the scene centre in uniform directions, long enough to
+/// leave the scene), `dense` (§6.4: from the centre towards the densest region), and game uses
+/// (§3.2): `los` (line of sight between two objects' centres), `ground` (short downward rays from
+/// object tops), `shots` (short segments from objects in random directions).
+struct RayMode {
+    std::string mode;
+    double weight = 1;
+};
+
+struct RaySettings {
+    std::uint32_t per_frame = 1000;
+    std::vector<RayMode> mix{{"center", 1.0}};
+};
+
+struct SceneSettings {
+    std::string kind = "irregular";  ///< "uniform" or "irregular"
+    std::uint32_t objects = 14021;
+    std::uint64_t seed = 1;
+    std::uint32_t frames = 10;
+    DynamicsSettings dynamics;
+    RaySettings rays;
+    std::string preset;  ///< the preset it came from, if any (recorded in the meta)
+};
+
+/// The thesis' scenes (§6.1) by name: uni-s, uni-m, uni-l, irreg-s, irreg-m, irreg-l (99, 5 104
+/// and 14 021 objects), plus irreg-xl (1 000 000 objects).
+SceneSettings preset_settings(std::string_view name);
+std::vector<std::string> preset_names();
+
+/// "center", "center:0.7,los:0.3": modes with weights. Throws InputError on unknown modes.
+std::vector<RayMode> parse_ray_mix(const std::string& text);
+std::vector<std::string> ray_mode_names();
+
+/// Frame 0's objects of a generated scene.
+std::vector<Object> generate_objects(const SceneSettings& settings);
+
+/// A full recording: generated objects, then `settings.frames` frames of dynamics and rays.
+Recording generate_scene(const SceneSettings& settings);
+
+/// Gives any static object set (an import) the same dynamics and rays. `meta` is stored as given,
+/// with the dynamics, ray settings, frames and seed added.
+Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dynamics, const RaySettings& rays,
+                       std::uint32_t frames, std::uint64_t seed, nlohmann::json meta);
+
+/// The rays of one frame for the given live objects (used by add_dynamics; exposed for tests).
+std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySettings& rays, std::uint64_t seed,
+                                   std::uint32_t frame);
+
+nlohmann::json to_json(const SceneSettings& settings);
+
+}  // namespace rcb

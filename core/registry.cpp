@@ -1,0 +1,36 @@
+#include "core/registry.h"
+
+#include "core/structures/brute_force.h"
+
+namespace rcb {
+
+const std::vector<StructureInfo>& structure_registry() {
+    static const std::vector<StructureInfo> all = {
+        describe_structure<BruteForce>("bf", "brute force: every object's box tested (the baseline, thesis §4.1)"),
+    };
+    return all;
+}
+
+const StructureInfo& find_structure(std::string_view name) {
+    for (const StructureInfo& info : structure_registry())
+        if (info.name == name) return info;
+    std::string known;
+    for (const StructureInfo& info : structure_registry()) known += (known.empty() ? "" : ", ") + info.name;
+    throw InputError("unknown structure '" + std::string(name) + "' (known: " + known + ")");
+}
+
+nlohmann::json StructureInfo::defaults() const {
+    nlohmann::json j = nlohmann::json::object();
+    for (const ParamSpec& p : params) j[p.name] = p.default_value;
+    return j;
+}
+
+nlohmann::json StructureInfo::complete(const nlohmann::json& params, const std::string& path) const {
+    check_params(this->params, params, path, name);
+    nlohmann::json j = defaults();
+    if (params.is_object())
+        for (const auto& [k, v] : params.items()) j[k] = v;
+    return j;
+}
+
+}  // namespace rcb

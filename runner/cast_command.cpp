@@ -1,0 +1,46 @@
+// rcbench cast: a user's own segments against a scene's first frame, as JSON Lines.
+#include <algorithm>
+#include <iostream>
+#include <memory>
+
+#include "core/csv.h"
+#include "core/recording_io.h"
+#include "core/registry.h"
+#include "runner/commands.h"
+#include "runner/structure_options.h"
+
+namespace rcb {
+
+void add_cast_command(CLI::App& app) {
+    struct Options {
+        std::string scene;
+        std::string rays;
+        StructureOptions structure;
+    };
+    auto o = std::make_shared<Options>();
+    CLI::App* cmd = app.add_subcommand("cast", "Cast the segments of a CSV file (x0,y0,z0,x1,y1,z1) against a scene's frame 0; "
+                                               "prints one JSON line per ray: {\"ray\": i, \"hits\": [uid, ...]}");
+    cmd->add_option("--scene", o->scene, "Recording file, or a boxes CSV (uid,minx,miny,minz,maxx,maxy,maxz)")->required();
+    cmd->add_option("--rays", o->rays, "Rays CSV; ray i is the i-th data line, from 0")->required();
+    add_structure_options(*cmd, o->structure);
+    cmd->callback([o] {
+        const StructureInfo& info = find_structure(o->structure.name);
+        std::unique_ptr<Structure> s = info.make(o->structure.params(), "--param");
+        const bool csv = o->scene.size() >= 4 && o->scene.compare(o->scene.size() - 4, 4, ".csv") == 0;
+        const std::vector<Object> objects = csv ? read_boxes_csv(o->scene) : read_recording(o->scene).initial;
+        const std::vector<Segment> rays = read_rays_csv(o->rays);
+        s->build(objects);
+        s->commit();
+        HitLists hits;
+        s->cast(rays, hits);
+        std::vector<Uid> sorted;
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            auto h = hits.of(i);
+            sorted.assign(h.begin(), h.end());
+            std::sort(sorted.begin(), sorted.end());
+            std::cout << nlohmann::json{{"ray", i}, {"hits", sorted}}.dump() << '\n';
+        }
+    });
+}
+
+}  // namespace rcb

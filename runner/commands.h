@@ -1,0 +1,15 @@
+#pragma once
+/// The `rcbench` subcommands. Each `add_*` registers a subcommand and its options on the CLI11
+/// app; the work runs in the subcommand's callback. Errors are exceptions: InputError for bad
+/// input (exit 2), anything else a failure (exit 1); main() turns them into one line.
+
+#include <CLI/CLI.hpp>
+
+namespace rcb {
+
+void add_scene_commands(CLI::App& app);
+void add_simulate_command(CLI::App& app);
+void add_cast_command(CLI::App& app);
+void add_structures_command(CLI::App& app);
+
+}  // namespace rcb

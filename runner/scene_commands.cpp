@@ -1,0 +1,210 @@
+// rcbench scene gen | import | info
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+
+#include "core/csv.h"
+#include "core/error.h"
+#include "core/generators.h"
+#include "core/recording_io.h"
+#include "runner/commands.h"
+#include "runner/table.h"
+
+namespace rcb {
+namespace {
+
+/// Options shared by `gen` and `import`: how the scene moves and which rays it casts.
+struct DynamicsOptions {
+    std::uint32_t frames = 10;
+    std::uint64_t seed = 1;
+    std::uint32_t rays = 1000;
+    std::string ray_mix = "center";
+    DynamicsSettings dynamics;
+};
+
+void add_dynamics_options(CLI::App& cmd, DynamicsOptions& o) {
+    cmd.add_option("--frames", o.frames, "Frames after frame 0")->capture_default_str()->check(CLI::Range(0u, 1'000'000u));
+    cmd.add_option("--seed", o.seed, "Seed of every random choice (recorded in the file)")->capture_default_str();
+    cmd.add_option("--rays", o.rays, "Rays per frame")->capture_default_str()->check(CLI::Range(0u, 100'000'000u));
+    cmd.add_option("--ray-mix", o.ray_mix,
+                   "Ray modes with weights: center, dense, los, ground, shots (e.g. center:0.7,los:0.3)")
+        ->capture_default_str();
+    cmd.add_option("--change-fraction", o.dynamics.change_fraction, "Objects changed per frame, as a fraction")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 1.0));
+    cmd.add_option("--insert-share", o.dynamics.insert_share, "Share of the changes that are inserts")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 1.0));
+    cmd.add_option("--remove-share", o.dynamics.remove_share, "Share of the changes that are removes (the rest move)")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 1.0));
+    cmd.add_option("--move-scale", o.dynamics.move_scale, "A move shifts each axis by up to this x the object's longest edge")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 1000.0));
+}
+
+RaySettings ray_settings(const DynamicsOptions& o) {
+    if (o.dynamics.insert_share + o.dynamics.remove_share > 1.0)
+        throw InputError("--insert-share plus --remove-share must not exceed 1");
+    RaySettings r;
+    r.per_frame = o.rays;
+    r.mix = parse_ray_mix(o.ray_mix);
+    return r;
+}
+
+void ensure_parent_dir(const std::string& path) {
+    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+    if (parent.empty()) return;
+    std::error_code ec;
+    std::filesystem::create_directories(parent, ec);
+    if (ec) throw InputError(path + ": cannot create folder " + parent.string() + " (" + ec.message() + ")");
+}
+
+void print_written(const Recording& r, const std::string& path) {
+    std::size_t rays = 0;
+    for (const Frame& f : r.frames) rays += f.rays.size();
+    std::cout << "wrote " << path << ": " << r.initial.size() << " objects, " << r.frames.size() << " frames, " << rays
+              << " rays\n";
+}
+
+double percentile(std::vector<double>& sorted, double p) {
+    if (sorted.empty()) return 0;
+    const double pos = p * double(sorted.size() - 1);
+    const std::size_t i = static_cast<std::size_t>(pos);
+    const double frac = pos - double(i);
+    return i + 1 < sorted.size() ? sorted[i] * (1 - frac) + sorted[i + 1] * frac : sorted[i];
+}
+
+void scene_info(const std::string& path, bool as_json) {
+    const Recording r = read_recording(path);
+    const Aabb bounds = bounds_of(r.initial);
+    std::vector<double> edges;
+    edges.reserve(r.initial.size());
+    for (const Object& o : r.initial) edges.push_back(o.box.longest_edge());
+    std::sort(edges.begin(), edges.end());
+    std::size_t rays = 0, changes = 0, inserts = 0, removes = 0, moves = 0;
+    for (const Frame& f : r.frames) {
+        rays += f.rays.size();
+        changes += f.change_count();
+        inserts += f.inserts.size(), removes += f.removes.size(), moves += f.moves.size();
+    }
+    const double frames = std::max<double>(1, r.frames.size());
+    nlohmann::json size = {{"min", edges.empty() ? 0 : edges.front()},
+                           {"p10", percentile(edges, 0.1)},
+                           {"median", percentile(edges, 0.5)},
+                           {"p90", percentile(edges, 0.9)},
+                           {"max", edges.empty() ? 0 : edges.back()}};
+    nlohmann::json meta = nlohmann::json::parse(r.meta, nullptr, false);
+    nlohmann::json j = {{"file", path},
+                        {"objects", r.initial.size()},
+                        {"frames", r.frames.size()},
+                        {"rays", rays},
+                        {"rays_per_frame", rays / frames},
+                        {"changes_per_frame", changes / frames},
+                        {"inserts", inserts},
+                        {"removes", removes},
+                        {"moves", moves},
+                        {"bounds", {{"min", {bounds.min.x, bounds.min.y, bounds.min.z}}, {"max", {bounds.max.x, bounds.max.y, bounds.max.z}}}},
+                        {"longest_edge", size},
+                        {"meta", meta.is_discarded() ? nlohmann::json(r.meta) : meta}};
+    if (as_json) {
+        std::cout << j.dump(2) << '\n';
+        return;
+    }
+    std::cout << path << '\n';
+    TextTable t({"", ""});
+    t.add({"objects (frame 0)", std::to_string(r.initial.size())});
+    t.add({"frames", std::to_string(r.frames.size())});
+    t.add({"rays per frame", fixed(rays / frames, 1)});
+    t.add({"changes per frame", fixed(changes / frames, 1) + " (inserts " + std::to_string(inserts) + ", removes " +
+                                    std::to_string(removes) + ", moves " + std::to_string(moves) + " in all)"});
+    t.add({"bounds min", fixed(bounds.min.x, 3) + ", " + fixed(bounds.min.y, 3) + ", " + fixed(bounds.min.z, 3)});
+    t.add({"bounds max", fixed(bounds.max.x, 3) + ", " + fixed(bounds.max.y, 3) + ", " + fixed(bounds.max.z, 3)});
+    t.add({"longest edge min / p10 / median / p90 / max",
+           fixed(size["min"], 3) + " / " + fixed(size["p10"], 3) + " / " + fixed(size["median"], 3) + " / " +
+               fixed(size["p90"], 3) + " / " + fixed(size["max"], 3)});
+    if (!edges.empty() && edges.front() > 0)
+        t.add({"size span (max / min)", fixed(edges.back() / edges.front(), 1)});
+    t.add({"origin", r.meta});
+    t.print(std::cout);
+}
+
+}  // namespace
+
+void add_scene_commands(CLI::App& app) {
+    CLI::App* scene = app.add_subcommand("scene", "Generate, import and inspect scene recordings");
+    scene->require_subcommand(1);
+
+    // scene gen
+    struct GenOptions {
+        std::string preset;
+        std::string kind;
+        std::uint32_t objects = 0;
+        std::string out;
+        DynamicsOptions dyn;
+    };
+    auto gen = std::make_shared<GenOptions>();
+    CLI::App* g = scene->add_subcommand("gen", "Generate a scene recording from a preset or a kind");
+    g->add_option("--preset", gen->preset, "uni-s, uni-m, uni-l, irreg-s, irreg-m, irreg-l (99, 5104, 14021 objects), irreg-xl (1M)");
+    g->add_option("--kind", gen->kind, "uniform or irregular (instead of a preset, with --objects)")
+        ->check(CLI::IsMember({"uniform", "irregular"}));
+    g->add_option("--objects", gen->objects, "Object count (overrides the preset's)")->check(CLI::Range(1u, 100'000'000u));
+    g->add_option("-o,--output", gen->out, "Recording file to write")->required();
+    add_dynamics_options(*g, gen->dyn);
+    g->callback([gen] {
+        SceneSettings s;
+        if (!gen->preset.empty()) s = preset_settings(gen->preset);
+        else if (!gen->kind.empty()) s.kind = gen->kind;
+        else throw InputError("scene gen: give --preset or --kind");
+        if (!gen->kind.empty()) s.kind = gen->kind;
+        if (gen->objects) s.objects = gen->objects;
+        else if (gen->preset.empty()) throw InputError("scene gen: --kind needs --objects");
+        s.seed = gen->dyn.seed;
+        s.frames = gen->dyn.frames;
+        s.dynamics = gen->dyn.dynamics;
+        s.rays = ray_settings(gen->dyn);
+        const Recording r = generate_scene(s);
+        ensure_parent_dir(gen->out);
+        write_recording(r, gen->out);
+        print_written(r, gen->out);
+    });
+
+    // scene import
+    struct ImportOptions {
+        std::string input;
+        std::string out;
+        DynamicsOptions dyn;
+    };
+    auto imp = std::make_shared<ImportOptions>();
+    CLI::App* i = scene->add_subcommand("import", "Import a static scene (CSV: uid,minx,miny,minz,maxx,maxy,maxz) and give it dynamics and rays");
+    i->add_option("input", imp->input, "Boxes file (.csv)")->required();
+    i->add_option("-o,--output", imp->out, "Recording file to write")->required();
+    add_dynamics_options(*i, imp->dyn);
+    i->callback([imp] {
+        std::vector<Object> objects = read_boxes_csv(imp->input);
+        if (objects.empty()) throw InputError(imp->input + ": no boxes to import");
+        nlohmann::json meta = {{"generator", "rcbench import"},
+                               {"source", std::filesystem::path(imp->input).filename().string()},
+                               {"objects", objects.size()}};
+        const Recording r = add_dynamics(std::move(objects), imp->dyn.dynamics, ray_settings(imp->dyn), imp->dyn.frames,
+                                         imp->dyn.seed, meta);
+        ensure_parent_dir(imp->out);
+        write_recording(r, imp->out);
+        print_written(r, imp->out);
+    });
+
+    // scene info
+    struct InfoOptions {
+        std::string file;
+        bool json = false;
+    };
+    auto info = std::make_shared<InfoOptions>();
+    CLI::App* n = scene->add_subcommand("info", "Describe a recording: objects, frames, rays, bounds, size distribution");
+    n->add_option("file", info->file, "Recording file")->required();
+    n->add_flag("--json", info->json, "Print one JSON object");
+    n->callback([info] { scene_info(info->file, info->json); });
+}
+
+}  // namespace rcb

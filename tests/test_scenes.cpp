@@ -1,0 +1,259 @@
+#include "tests/test_scenes.h"
+
+#include <gtest/gtest.h>
+
+#include "core/generators.h"
+#include "core/random.h"
+#include "core/recording_io.h"
+#include "core/registry.h"
+
+namespace rcb::test {
+namespace {
+
+Aabb box(float x0, float y0, float z0, float x1, float y1, float z1) { return {{x0, y0, z0}, {x1, y1, z1}}; }
+
+/// Rays that probe the places structures get wrong: along axes through box faces, edges and
+/// corners; starting inside, on and outside the bounds; ending mid-scene; of zero length.
+std::vector<Segment> probe_rays(const std::vector<Object>& live, std::uint64_t seed, std::size_t count) {
+    std::vector<Segment> rays;
+    if (live.empty()) {
+        rays.push_back({{-1, -1, -1}, {1, 1, 1}});
+        return rays;
+    }
+    Random rng(seed);
+    const Aabb b = bounds_of(live);
+    const Vec3 lo = b.min, hi = b.max, c = b.center();
+    const Vec3 pad = (hi - lo) * 0.25f + Vec3{1, 1, 1};
+    auto pick = [&]() -> const Aabb& { return live[rng.below(live.size())].box; };
+    auto point_in = [&](const Aabb& a) {
+        return Vec3{float(rng.uniform(a.min.x, a.max.x)), float(rng.uniform(a.min.y, a.max.y)),
+                    float(rng.uniform(a.min.z, a.max.z))};
+    };
+    const Aabb around{lo - pad, hi + pad};
+    for (std::size_t i = 0; i < count; ++i) {
+        switch (i % 8) {
+            case 0:  // anywhere to anywhere, may start and end outside
+                rays.push_back({point_in(around), point_in(around)});
+                break;
+            case 1: {  // axis-parallel through a box's face plane and edge lines
+                const Aabb& o = pick();
+                const int axis = int(rng.below(3));
+                Vec3 p = rng.below(2) ? o.min : o.max;
+                Vec3 q = p;
+                p[axis] = around.min[axis];
+                q[axis] = around.max[axis];
+                rays.push_back({p, q});
+                break;
+            }
+            case 2: {  // axis-parallel through a face's interior, starting inside the object
+                const Aabb& o = pick();
+                const int axis = int(rng.below(3));
+                Vec3 p = point_in(o);
+                p[(axis + 1) % 3] = o.min[(axis + 1) % 3];
+                Vec3 q = p;
+                q[axis] = rng.below(2) ? around.min[axis] : around.max[axis];
+                rays.push_back({p, q});
+                break;
+            }
+            case 3: {  // zero-length at a box corner or inside
+                const Aabb& o = pick();
+                const Vec3 p = rng.below(2) ? o.max : point_in(o);
+                rays.push_back({p, p});
+                break;
+            }
+            case 4: {  // from exactly a face of the bounds inwards, ending mid-scene
+                const int axis = int(rng.below(3));
+                Vec3 p = point_in(b);
+                p[axis] = rng.below(2) ? lo[axis] : hi[axis];
+                rays.push_back({p, point_in(b)});
+                break;
+            }
+            case 5: {  // ending exactly on a box's face
+                const Aabb& o = pick();
+                Vec3 q = point_in(o);
+                q.x = o.min.x;
+                rays.push_back({point_in(around), q});
+                break;
+            }
+            case 6:  // from the centre outwards (the thesis' rays)
+                rays.push_back({c, c + (point_in(around) - c) * 4.0f});
+                break;
+            default: {  // diagonal through a box corner
+                const Aabb& o = pick();
+                const Vec3 d{1, 1, 1};
+                rays.push_back({o.min - d * (hi.x - lo.x + 1), o.min + d * (hi.x - lo.x + 1)});
+                break;
+            }
+        }
+    }
+    return rays;
+}
+
+/// A recording from explicit objects and per-frame changes, with probe rays in every frame.
+Recording with_rays(std::vector<Object> initial, std::vector<Frame> frames, std::uint64_t seed, std::size_t rays = 64) {
+    Recording r;
+    r.meta = R"({"generator":"tests"})";
+    r.initial = std::move(initial);
+    r.frames = std::move(frames);
+    LiveSet live(r.initial);
+    for (std::size_t f = 0; f < r.frames.size(); ++f) {
+        live.apply(r.frames[f]);
+        r.frames[f].rays = probe_rays(live.objects(), seed * 1000 + f, rays);
+    }
+    validate_recording(r, "test scene");
+    return r;
+}
+
+/// Frames of random moves (and a few inserts/removes) for a hand-made object set.
+std::vector<Frame> jiggle(const std::vector<Object>& initial, std::size_t frames, std::uint64_t seed) {
+    std::vector<Frame> out;
+    LiveSet live(initial);
+    Random rng(seed);
+    Uid next = 1'000'000;
+    for (std::size_t f = 0; f < frames; ++f) {
+        Frame fr;
+        if (live.size() > 2) {
+            fr.removes.push_back(live.objects()[rng.below(live.size())].uid);
+            const Object& moved = live.objects()[rng.below(live.size())];
+            if (moved.uid != fr.removes[0]) {
+                const float s = std::max(0.5f, moved.box.longest_edge());
+                const Vec3 d{float(rng.uniform(-s, s)), float(rng.uniform(-s, s)), float(rng.uniform(-s, s))};
+                fr.moves.push_back({moved.uid, {moved.box.min + d, moved.box.max + d}});
+            }
+        }
+        if (!live.objects().empty()) {
+            const Aabb copy = live.objects()[rng.below(live.size())].box;
+            fr.inserts.push_back({next++, copy});
+        }
+        live.apply(fr);
+        out.push_back(std::move(fr));
+    }
+    return out;
+}
+
+}  // namespace
+
+Recording generated_scene(const std::string& kind, std::uint32_t objects, std::uint32_t frames, std::uint64_t seed,
+                          double change_fraction) {
+    SceneSettings s;
+    s.kind = kind;
+    s.objects = objects;
+    s.frames = frames;
+    s.seed = seed;
+    s.dynamics.change_fraction = change_fraction;
+    s.rays.per_frame = 100;
+    s.rays.mix = parse_ray_mix("center:2,dense:1,los:1,ground:1,shots:1");
+    return generate_scene(s);
+}
+
+std::vector<NamedScene> hard_scenes() {
+    std::vector<NamedScene> scenes;
+    Random rng(7);
+
+    // Empty, then objects arrive, then leave.
+    {
+        std::vector<Frame> frames(3);
+        frames[0].inserts = {{1, box(0, 0, 0, 1, 1, 1)}, {2, box(2, 2, 2, 3, 3, 3)}};
+        frames[1].moves = {{1, box(5, 0, 0, 6, 1, 1)}};
+        frames[2].removes = {1, 2};
+        scenes.push_back({"empty-then-some", with_rays({}, frames, 1)});
+    }
+    // One object.
+    scenes.push_back({"single", with_rays({{7, box(-1, -1, -1, 1, 1, 1)}}, jiggle({{7, box(-1, -1, -1, 1, 1, 1)}}, 3, 2), 2)});
+    // Identical boxes.
+    {
+        std::vector<Object> objs;
+        for (Uid i = 0; i < 300; ++i) objs.push_back({i, box(1, 2, 3, 2, 3, 4)});
+        scenes.push_back({"identical", with_rays(objs, jiggle(objs, 4, 3), 3)});
+    }
+    // Identical centroids, sizes from 0.01 to 100.
+    {
+        std::vector<Object> objs;
+        for (Uid i = 0; i < 300; ++i) {
+            const float h = float(0.005 * std::pow(10000.0, i / 299.0));
+            objs.push_back({i, box(5 - h, 5 - h, 5 - h, 5 + h, 5 + h, 5 + h)});
+        }
+        scenes.push_back({"same-centroid", with_rays(objs, jiggle(objs, 4, 4), 4)});
+    }
+    // Flat: every box in the plane y = 0, zero thickness.
+    {
+        std::vector<Object> objs;
+        for (Uid i = 0; i < 400; ++i) {
+            const float x = float(rng.uniform(0, 100)), z = float(rng.uniform(0, 100));
+            objs.push_back({i, box(x, 0, z, x + float(rng.uniform(0.1, 3)), 0, z + float(rng.uniform(0.1, 3)))});
+        }
+        scenes.push_back({"flat", with_rays(objs, jiggle(objs, 4, 5), 5, 96)});
+    }
+    // Zero-volume: points and lines.
+    {
+        std::vector<Object> objs;
+        for (Uid i = 0; i < 300; ++i) {
+            const Vec3 p{float(rng.uniform(0, 20)), float(rng.uniform(0, 20)), float(rng.uniform(0, 20))};
+            Vec3 q = p;
+            if (i % 2) q[int(i % 3)] += float(rng.uniform(0, 5));
+            objs.push_back({i, {p, q}});
+        }
+        scenes.push_back({"zero-volume", with_rays(objs, jiggle(objs, 4, 6), 6, 96)});
+    }
+    // Teapot in a stadium: a huge box around a tiny dense cluster.
+    {
+        std::vector<Object> objs{{0, box(-1000, -1000, -1000, 1000, 1000, 1000)}};
+        for (Uid i = 1; i < 500; ++i) {
+            const Vec3 p{float(rng.normal() * 0.5), float(rng.normal() * 0.5), float(rng.normal() * 0.5)};
+            objs.push_back({i, {p, p + Vec3{0.01f, 0.01f, 0.01f}}});
+        }
+        scenes.push_back({"stadium", with_rays(objs, jiggle(objs, 4, 7), 7)});
+    }
+    // Unit boxes on an integer lattice, touching each other: rays along shared faces and edges.
+    {
+        std::vector<Object> objs;
+        Uid uid = 0;
+        for (int x = 0; x < 8; ++x)
+            for (int y = 0; y < 8; ++y)
+                for (int z = 0; z < 8; ++z) objs.push_back({uid++, box(float(x), float(y), float(z), x + 1.f, y + 1.f, z + 1.f)});
+        Recording r = with_rays(objs, jiggle(objs, 3, 8), 8);
+        for (Frame& f : r.frames)
+            for (int k = 0; k <= 8; ++k) {
+                f.rays.push_back({{float(k), -1, float(k)}, {float(k), 9, float(k)}});    // along an edge line
+                f.rays.push_back({{-1, float(k), 0.5f}, {9, float(k), 0.5f}});            // along a face plane
+                f.rays.push_back({{float(k), float(k), float(k)}, {8, 8, 8}});           // diagonal through corners
+            }
+        scenes.push_back({"lattice-faces", std::move(r)});
+    }
+    // Inserts and moves far outside the initial bounds.
+    {
+        std::vector<Object> objs;
+        for (Uid i = 0; i < 200; ++i) {
+            const Vec3 p{float(rng.uniform(0, 10)), float(rng.uniform(0, 10)), float(rng.uniform(0, 10))};
+            objs.push_back({i, {p, p + Vec3{0.5f, 0.5f, 0.5f}}});
+        }
+        std::vector<Frame> frames(4);
+        frames[0].inserts = {{500, box(1000, 1000, 1000, 1001, 1001, 1001)}, {501, box(-2000, 5, 5, -1990, 6, 6)}};
+        frames[1].moves = {{3, box(5, 5000, 5, 6, 5001, 6)}, {500, box(-50, -50, -50, 50, 50, 50)}};
+        frames[2].inserts = {{502, box(-1e5f, -1e5f, -1e5f, 1e5f, 1e5f, 1e5f)}};
+        frames[3].removes = {502, 501};
+        scenes.push_back({"outside-bounds", with_rays(objs, frames, 9)});
+    }
+    scenes.push_back({"uniform-small", generated_scene("uniform", 600, 4, 11)});
+    scenes.push_back({"irregular-small", generated_scene("irregular", 1500, 4, 12)});
+    scenes.push_back({"irregular-churn", generated_scene("irregular", 400, 40, 13, 0.3)});
+    return scenes;
+}
+
+SimulationResult expect_matches_ground_truth(const Recording& r, const std::string& structure, const nlohmann::json& params,
+                                             const std::string& scene_name) {
+    SimulationOptions o;
+    o.verify = true;
+    o.count = true;
+    o.validate = true;
+    SimulationResult res = simulate(r, find_structure(structure), params, o);
+    std::string examples;
+    static const char* kinds[] = {"missed", "extra", "duplicate"};
+    for (const auto& [frame, d] : res.examples)
+        examples += "\n  frame " + std::to_string(frame) + " ray " + std::to_string(d.ray) + " uid " + std::to_string(d.uid) +
+                    ": " + kinds[d.kind];
+    EXPECT_EQ(res.mismatches(), 0u) << structure << ' ' << params.dump() << " on scene " << scene_name << examples;
+    return res;
+}
+
+}  // namespace rcb::test

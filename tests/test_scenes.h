@@ -1,0 +1,39 @@
+#pragma once
+/// Scenes every structure must get right, and the differential check against brute force.
+///
+/// `expect_matches_ground_truth` replays a recording through the simulator with verification,
+/// the counting pass and Structure::validate() after every frame, and fails on any mismatch,
+/// naming the structure, parameters and the first discrepancies.
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/scene.h"
+#include "core/simulator.h"
+
+namespace rcb::test {
+
+struct NamedScene {
+    std::string name;
+    Recording recording;
+};
+
+/// Small generated presets (uniform, irregular) plus hand-made hard cases: an empty scene, one
+/// object, identical boxes, identical centroids with different sizes, flat and zero-volume boxes,
+/// one huge object around a dense cluster, axis-parallel rays along box faces, rays starting
+/// inside, on and outside the bounds, zero-length rays, inserts far outside the initial bounds,
+/// and churn (many inserts, removes, moves). Each has several frames.
+std::vector<NamedScene> hard_scenes();
+
+/// A generated scene of `kind` ("uniform"/"irregular") with `objects`, `frames`, all ray modes.
+Recording generated_scene(const std::string& kind, std::uint32_t objects, std::uint32_t frames, std::uint64_t seed,
+                          double change_fraction = 0.05);
+
+/// Replays `r` with verification, counting and validation after every frame; expects 0 mismatches.
+SimulationResult expect_matches_ground_truth(const Recording& r, const std::string& structure,
+                                             const nlohmann::json& params = nlohmann::json::object(),
+                                             const std::string& scene_name = "");
+
+}  // namespace rcb::test
