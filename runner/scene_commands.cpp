@@ -114,7 +114,7 @@ void scene_info(const std::string& path, bool as_json) {
         return;
     }
     std::cout << path << '\n';
-    TextTable t({"", ""});
+    TextTable t({"", ""});  // label, value
     t.add({"objects (frame 0)", std::to_string(r.initial.size())});
     t.add({"frames", std::to_string(r.frames.size())});
     t.add({"rays per frame", fixed(rays / frames, 1)});
@@ -127,8 +127,8 @@ void scene_info(const std::string& path, bool as_json) {
                fixed(size["p90"], 3) + " / " + fixed(size["max"], 3)});
     if (!edges.empty() && edges.front() > 0)
         t.add({"size span (max / min)", fixed(edges.back() / edges.front(), 1)});
-    t.add({"origin", r.meta});
     t.print(std::cout);
+    std::cout << "origin  " << r.meta << '\n';
 }
 
 }  // namespace

@@ -1,11 +1,13 @@
 // rcbench simulate: one structure over one recording, as a table (thesis Tables 6.1/6.2) or JSON.
+#include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <memory>
 
 #include "core/recording_io.h"
 #include "core/simulator.h"
 #include "runner/commands.h"
-#include "runner/structure_options.h"
+#include "core/error.h"
 #include "runner/table.h"
 
 namespace rcb {
@@ -40,43 +42,113 @@ void print_table(const std::string& scene, const SimulationResult& res) {
     }
 }
 
+/// Thesis Tables 6.1 and 6.2: structures × scenes, build ms; ray-cast ms per frame (update ms).
+void print_grid(const std::vector<std::string>& scenes, const std::vector<std::vector<SimulationResult>>& results) {
+    std::vector<std::string> header{"build ms"};
+    for (const std::string& s : scenes) header.push_back(std::filesystem::path(s).stem().string());
+    TextTable build(header);
+    header[0] = "ray cast ms (update ms)";
+    TextTable cast(header);
+    header[0] = "memory B/object";
+    TextTable memory(header);
+    header[0] = "mismatches";
+    TextTable wrong(header);
+    for (std::size_t k = 0; k < results.front().size(); ++k) {
+        const std::string name = results.front()[k].structure;
+        std::vector<std::string> b{name}, c{name}, m{name}, w{name};
+        for (const auto& per_scene : results) {
+            const SimulationResult& r = per_scene[k];
+            b.push_back(fixed(r.build_ns / 1e6, 3));
+            c.push_back(fixed(r.raycast_ns().median / 1e6, 3) + " (" + fixed(r.update_ns().median / 1e6, 4) + ")");
+            m.push_back(fixed(r.objects ? double(r.memory_bytes) / double(r.objects) : 0.0, 1));
+            w.push_back(r.verified ? std::to_string(r.mismatches()) : "-");
+        }
+        build.add(b), cast.add(c), memory.add(m), wrong.add(w);
+    }
+    std::cout << "Medians over frames; ray cast is the frame's whole batch of rays.\n\n";
+    build.print(std::cout);
+    std::cout << '\n';
+    cast.print(std::cout);
+    std::cout << '\n';
+    memory.print(std::cout);
+    std::cout << '\n';
+    wrong.print(std::cout);
+}
+
 }  // namespace
 
 void add_simulate_command(CLI::App& app) {
     struct Options {
-        std::string scene;
-        StructureOptions structure;
+        std::vector<std::string> scenes;
+        std::vector<std::string> structures;
+        std::vector<std::string> params_text;
         SimulationOptions sim;
         bool no_verify = false;
         bool no_count = false;
         bool json = false;
+        std::string json_out;
     };
     auto o = std::make_shared<Options>();
-    CLI::App* cmd = app.add_subcommand("simulate", "Replay a recording against one structure: build, update and ray-cast "
-                                                   "times per frame, verified against brute-force ground truth");
-    cmd->add_option("--scene", o->scene, "Recording file (from rcbench scene gen/import)")->required();
-    add_structure_options(*cmd, o->structure);
+    CLI::App* cmd = app.add_subcommand(
+        "simulate",
+        "Replay recordings against structures: build, update and ray-cast times per frame, verified against brute-force "
+        "ground truth. One scene and one structure: a per-frame table; several: the thesis' Tables 6.1/6.2 (structures x scenes)");
+    cmd->add_option("--scene", o->scenes, "Recording file (from rcbench scene gen/import); repeatable")->required();
+    cmd->add_option("--structure", o->structures, "Structure name (rcbench structures lists them), or all; repeatable")->required();
+    cmd->add_option("--param", o->params_text, "Structure parameter key=value (repeatable; with one --structure only)");
     cmd->add_option("--frames", o->sim.max_frames, "Replay at most this many frames (0: all)")->capture_default_str();
     cmd->add_option("--warmup", o->sim.warmup_frames, "Frames left out of the medians")->capture_default_str();
     cmd->add_flag("--no-verify", o->no_verify, "Skip the ground-truth comparison (faster on huge scenes)");
     cmd->add_flag("--no-count", o->no_count, "Skip the counting pass (N_T, N_RB, N_TP)");
     cmd->add_flag("--validate", o->sim.validate, "Check the structure's invariants after every frame");
-    cmd->add_flag("--json", o->json, "Print one JSON object instead of the table");
+    cmd->add_flag("--json", o->json, "Print one JSON object per run (one line each) instead of tables");
+    cmd->add_option("--json-out", o->json_out, "Also write one JSON object per run (one line each) to this file");
     cmd->callback([o] {
-        const Recording r = read_recording(o->scene);
+        if (!o->params_text.empty() && o->structures.size() != 1)
+            throw InputError("--param needs exactly one --structure (got " + std::to_string(o->structures.size()) + ")");
         o->sim.verify = !o->no_verify;
         o->sim.count = !o->no_count;
-        const StructureInfo& info = find_structure(o->structure.name);
-        const SimulationResult res = simulate(r, info, o->structure.params(), o->sim, "--param");
-        if (o->json) {
-            nlohmann::json j = res.to_json();
-            j["scene"] = o->scene;
-            std::cout << j.dump() << '\n';
-        } else {
-            print_table(o->scene, res);
+        nlohmann::json params = nlohmann::json::object();
+        for (const std::string& kv : o->params_text) {
+            auto [key, value] = parse_key_value(kv);
+            params[key] = value;
         }
-        if (res.mismatches() > 0)
-            throw std::runtime_error(std::to_string(res.mismatches()) + " hits disagree with the ground truth");
+        // "all" is every registered structure; every name is looked up before the first (possibly long) run.
+        std::vector<std::string> names;
+        for (const std::string& name : o->structures) {
+            if (name == "all") {
+                for (const StructureInfo& info : structure_registry()) names.push_back(info.name);
+            } else {
+                names.push_back(find_structure(name).name);
+            }
+        }
+        o->structures = names;
+        std::ofstream json_out;
+        if (!o->json_out.empty()) {
+            json_out.open(o->json_out, std::ios::trunc);
+            if (!json_out) throw InputError(o->json_out + ": cannot open for writing");
+        }
+        std::vector<std::vector<SimulationResult>> results;
+        std::uint64_t mismatches = 0;
+        for (const std::string& scene : o->scenes) {
+            const Recording r = read_recording(scene);
+            results.emplace_back();
+            for (const std::string& name : o->structures) {
+                SimulationResult res = simulate(r, find_structure(name), params, o->sim, "--param");
+                mismatches += res.mismatches();
+                nlohmann::json j = res.to_json();
+                j["scene"] = scene;
+                if (json_out.is_open()) json_out << j.dump() << std::endl;
+                if (o->json) {
+                    std::cout << j.dump() << std::endl;
+                } else if (o->scenes.size() == 1 && o->structures.size() == 1) {
+                    print_table(scene, res);
+                }
+                results.back().push_back(std::move(res));
+            }
+        }
+        if (!o->json && (o->scenes.size() > 1 || o->structures.size() > 1)) print_grid(o->scenes, results);
+        if (mismatches > 0) throw std::runtime_error(std::to_string(mismatches) + " hits disagree with the ground truth");
     });
 }
 

@@ -1,1 +1,83 @@
+// Typed parameters: JSON in and out, and validation messages with the JSON path.
 #include <gtest/gtest.h>
+
+#include "core/params.h"
+#include "core/registry.h"
+
+namespace rcb {
+namespace {
+
+struct ExampleParams {
+    double density = 2.0;
+    int max_depth = 4;
+    bool rotate = true;
+    std::string quality = "low";
+    static constexpr auto fields() {
+        return std::tuple{Field{"density", &ExampleParams::density, 0.01, 64.0, "objects per cell", true, true},
+                          Field{"max_depth", &ExampleParams::max_depth, 1, 16, "levels"},
+                          Field{"rotate", &ExampleParams::rotate, 0, 1, "tree rotations", false},
+                          Field{"quality", &ExampleParams::quality, 0, 0, "build quality", false, false, "low,medium"}};
+    }
+};
+
+std::string error_of(const nlohmann::json& j) {
+    try {
+        params_from_json<ExampleParams>(j, "structures[2].params", "example");
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+TEST(Params, DefaultsOverriddenByJsonAndBack) {
+    const ExampleParams p = params_from_json<ExampleParams>({{"max_depth", 7}, {"quality", "medium"}}, "p", "example");
+    EXPECT_EQ(p.max_depth, 7);
+    EXPECT_EQ(p.density, 2.0);
+    EXPECT_EQ(p.quality, "medium");
+    EXPECT_EQ(params_to_json(p), (nlohmann::json{{"density", 2.0}, {"max_depth", 7}, {"rotate", true}, {"quality", "medium"}}));
+}
+
+TEST(Params, ValidationMessagesNameThePathAndTheExpectation) {
+    EXPECT_EQ(error_of({{"max_depth", "x"}}), "structures[2].params.max_depth: expected an integer in 1..16, got \"x\"");
+    EXPECT_EQ(error_of({{"max_depth", 17}}), "structures[2].params.max_depth: expected an integer in 1..16, got 17");
+    EXPECT_EQ(error_of({{"max_depth", 2.5}}), "structures[2].params.max_depth: expected an integer in 1..16, got 2.5");
+    EXPECT_EQ(error_of({{"density", 0}}), "structures[2].params.density: expected a number in 0.01..64, got 0");
+    EXPECT_EQ(error_of({{"rotate", 1}}), "structures[2].params.rotate: expected true or false, got 1");
+    EXPECT_EQ(error_of({{"quality", "high"}}), "structures[2].params.quality: expected one of low, medium, got \"high\"");
+    EXPECT_EQ(error_of({{"max_deph", 3}}),
+              "structures[2].params.max_deph: unknown parameter of example (known: density, max_depth, rotate, quality)");
+    EXPECT_EQ(error_of(nlohmann::json::array()), "structures[2].params: expected an object of parameters, got []");
+}
+
+TEST(Params, SpecsDescribeTypesRangesAndDefaults) {
+    const auto specs = param_specs<ExampleParams>();
+    ASSERT_EQ(specs.size(), 4u);
+    EXPECT_EQ(specs[0].kind, ParamKind::real);
+    EXPECT_TRUE(specs[0].log_scale);
+    EXPECT_EQ(specs[1].kind, ParamKind::integer);
+    EXPECT_EQ(specs[1].default_value, 4);
+    EXPECT_EQ(specs[2].kind, ParamKind::boolean);
+    EXPECT_FALSE(specs[2].tunable);
+    EXPECT_EQ(specs[3].choices, (std::vector<std::string>{"low", "medium"}));
+}
+
+TEST(Params, CommandLineKeyValues) {
+    EXPECT_EQ(parse_key_value("density=2.5").second, 2.5);
+    EXPECT_EQ(parse_key_value("max_depth=3").second, 3);
+    EXPECT_EQ(parse_key_value("rotate=false").second, false);
+    EXPECT_EQ(parse_key_value("quality=medium").second, "medium");
+    EXPECT_THROW(parse_key_value("density"), InputError);
+}
+
+TEST(Registry, UnknownStructureListsTheKnownOnes) {
+    try {
+        find_structure("kdtree");
+        FAIL();
+    } catch (const InputError& e) {
+        EXPECT_EQ(std::string(e.what()).find("unknown structure 'kdtree' (known: bf"), 0u) << e.what();
+    }
+    EXPECT_EQ(find_structure("bf").name, "bf");
+}
+
+}  // namespace
+}  // namespace rcb

@@ -1,1 +1,129 @@
+// The recording file: round trip, determinism, and every kind of corruption rejected with a
+// message naming the file, the frame and the uid or ray.
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "core/error.h"
+#include "core/generators.h"
+#include "core/recording_io.h"
+
+namespace rcb {
+namespace {
+
+Recording small_recording() {
+    SceneSettings s = preset_settings("irreg-s");
+    s.frames = 5;
+    s.rays.per_frame = 20;
+    return generate_scene(s);
+}
+
+std::string error_of(const std::string& bytes) {
+    try {
+        decode_recording(bytes, "scene.rcbscene");
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+std::string error_of(const Recording& r) { return error_of(encode_recording(r)); }
+
+TEST(Recording, RoundTripsThroughAFile) {
+    const Recording r = small_recording();
+    const std::string path = (std::filesystem::temp_directory_path() / "rcb_roundtrip.rcbscene").string();
+    write_recording(r, path);
+    EXPECT_EQ(read_recording(path), r);
+    EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+    std::filesystem::remove(path);
+}
+
+TEST(Recording, HeaderIsLittleEndianAndVersioned) {
+    const std::string bytes = encode_recording(small_recording());
+    EXPECT_EQ(bytes.substr(0, 8), "RCBSCENE");
+    EXPECT_EQ(bytes[8], 1);  // version 1, little-endian
+    EXPECT_EQ(bytes[9], 0);
+    EXPECT_EQ(std::uint8_t(bytes[12]), 0x04);  // byte-order mark 0x01020304, low byte first
+}
+
+TEST(Recording, RejectsBadMagicVersionAndChecksum) {
+    std::string bytes = encode_recording(small_recording());
+    std::string bad = bytes;
+    bad[0] = 'X';
+    EXPECT_NE(error_of(bad).find("not an rcbench scene recording"), std::string::npos);
+    bad = bytes;
+    bad[8] = 9;
+    EXPECT_NE(error_of(bad).find("format version 9 is not supported"), std::string::npos);
+    bad = bytes;
+    bad[bytes.size() / 2] ^= 0x40;  // inside a payload
+    EXPECT_NE(error_of(bad).find("checksum mismatch"), std::string::npos) << error_of(bad);
+}
+
+TEST(Recording, EveryTruncationIsAnErrorNeverACrash) {
+    const std::string bytes = encode_recording(small_recording());
+    for (std::size_t cut = 0; cut < bytes.size(); cut += 1 + cut / 50) {
+        const std::string message = error_of(bytes.substr(0, cut));
+        ASSERT_FALSE(message.empty()) << "truncated at " << cut << " was accepted";
+        EXPECT_EQ(message.find("scene.rcbscene"), 0u) << message;
+    }
+    EXPECT_NE(error_of(bytes.substr(0, bytes.size() - 16)).find("truncated"), std::string::npos);
+}
+
+TEST(Recording, RandomByteFlipsAreRejectedNeverACrash) {
+    const std::string bytes = encode_recording(small_recording());
+    std::uint64_t x = 12345;
+    for (int i = 0; i < 2000; ++i) {
+        x = x * 6364136223846793005ULL + 1442695040888963407ULL;
+        std::string bad = bytes;
+        bad[(x >> 20) % bad.size()] ^= char(1 + (x >> 8) % 255);
+        EXPECT_FALSE(error_of(bad).empty()) << "flip " << i << " accepted";
+    }
+}
+
+TEST(Recording, RejectsDuplicateAndUnknownUidsNamingFrameAndUid) {
+    Recording r = small_recording();
+    Recording dup = r;
+    dup.initial[3].uid = dup.initial[4].uid;
+    EXPECT_EQ(error_of(dup), "scene.rcbscene: frame 0: duplicate uid " + std::to_string(r.initial[4].uid));
+
+    Recording rem = r;
+    rem.frames[2].removes.push_back(999999);
+    EXPECT_EQ(error_of(rem), "scene.rcbscene: frame 3: remove of unknown uid 999999");
+
+    Recording mov = r;
+    mov.frames[1].moves.push_back({888888, {{0, 0, 0}, {1, 1, 1}}});
+    EXPECT_EQ(error_of(mov), "scene.rcbscene: frame 2: move of unknown uid 888888");
+
+    Recording ins = r;
+    ins.frames[0].inserts.push_back({r.initial[0].uid, {{0, 0, 0}, {1, 1, 1}}});
+    EXPECT_NE(error_of(ins).find("frame 1: "), std::string::npos);
+    EXPECT_NE(error_of(ins).find("uid " + std::to_string(r.initial[0].uid)), std::string::npos);
+}
+
+TEST(Recording, RejectsNonFiniteCoordinatesAndInvertedBoxes) {
+    Recording r = small_recording();
+    Recording nan = r;
+    nan.initial[7].box.min.y = std::nanf("");
+    EXPECT_EQ(error_of(nan), "scene.rcbscene: frame 0: uid " + std::to_string(r.initial[7].uid) + ": non-finite coordinate");
+
+    Recording inf = r;
+    inf.frames[3].moves.at(0).box.max.z = INFINITY;
+    EXPECT_EQ(error_of(inf), "scene.rcbscene: frame 4: uid " + std::to_string(r.frames[3].moves[0].uid) + ": non-finite coordinate");
+
+    Recording inverted = r;
+    std::swap(inverted.initial[2].box.min.x, inverted.initial[2].box.max.x);
+    EXPECT_EQ(error_of(inverted), "scene.rcbscene: frame 0: uid " + std::to_string(r.initial[2].uid) + ": min > max on axis x");
+
+    Recording ray = r;
+    ray.frames[1].rays[5].p1.x = std::nanf("");
+    EXPECT_EQ(error_of(ray), "scene.rcbscene: frame 2: ray 5: non-finite coordinate");
+}
+
+TEST(Recording, ReadingAMissingFileOrAFolderIsAnInputError) {
+    EXPECT_THROW(read_recording("/nonexistent/scene.rcbscene"), InputError);
+    EXPECT_THROW(read_recording(std::filesystem::temp_directory_path().string()), InputError);
+}
+
+}  // namespace
+}  // namespace rcb

@@ -1,1 +1,80 @@
+// The simulator: phases, results, and that verification really catches a wrong structure.
 #include <gtest/gtest.h>
+
+#include "core/registry.h"
+#include "core/simulator.h"
+#include "core/structures/brute_force.h"
+#include "tests/test_scenes.h"
+
+namespace rcb {
+namespace {
+
+/// Brute force that forgets the last hit of every ray with two or more hits.
+class ForgetfulBruteForce : public StructureBase<ForgetfulBruteForce> {
+public:
+    struct Params {
+        static constexpr auto fields() { return std::tuple{}; }
+    };
+    explicit ForgetfulBruteForce(const Params& = {}) {}
+    void build(std::span<const Object> o) override { bf_.build(o); }
+    void insert(const Object& o) override { bf_.insert(o); }
+    void remove(Uid u) override { bf_.remove(u); }
+    void move(const Object& o) override { bf_.move(o); }
+    std::size_t size() const override { return bf_.size(); }
+    std::size_t memory_bytes() const override { return bf_.memory_bytes(); }
+    void validate() const override { bf_.validate(); }
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit) {
+        std::vector<std::pair<Uid, float>> all;
+        bf_.traverse(s, count, [&](Uid u, float t) { return all.emplace_back(u, t), true; });
+        if (all.size() >= 2) all.pop_back();
+        for (auto [u, t] : all)
+            if (!visit(u, t)) return;
+    }
+
+private:
+    BruteForce bf_;
+};
+
+TEST(Simulator, ReportsEveryFramePhaseAndCounter) {
+    const Recording r = test::generated_scene("irregular", 2000, 6, 5);
+    SimulationOptions o;
+    o.warmup_frames = 2;
+    const SimulationResult res = simulate(r, find_structure("bf"), nlohmann::json::object(), o);
+    ASSERT_EQ(res.frames.size(), 6u);
+    EXPECT_TRUE(res.frames[1].warmup);
+    EXPECT_FALSE(res.frames[2].warmup);
+    EXPECT_EQ(res.mismatches(), 0u);
+    EXPECT_GT(res.memory_bytes, 2000u * 28);
+    for (const FrameResult& f : res.frames) {
+        EXPECT_EQ(f.rays, 100u);
+        EXPECT_GT(f.raycast_ns, 0u);
+        EXPECT_EQ(f.counters.n_tp, f.hits);           // the counting pass sees the same hits
+        EXPECT_GE(f.counters.n_rb, 100u * 1900);       // BF tests every live object per ray
+    }
+    const nlohmann::json j = res.to_json();
+    for (const char* key : {"structure", "params", "build_ns", "memory_bytes", "mismatches", "update_ns", "raycast_ns", "hits",
+                            "n_t", "n_rb", "n_tp"})
+        EXPECT_TRUE(j.contains(key)) << key;
+    EXPECT_EQ(j["update_ns"].size(), 6u);
+}
+
+TEST(Simulator, VerificationCatchesAStructureThatDropsHits) {
+    const Recording r = test::generated_scene("irregular", 1500, 3, 6);
+    StructureInfo broken = describe_structure<ForgetfulBruteForce>("forgetful", "drops hits");
+    const SimulationResult res = simulate(r, broken, nlohmann::json::object());
+    EXPECT_GT(res.mismatches(), 0u);
+    EXPECT_EQ(res.mismatches(), res.frames[0].missed + res.frames[1].missed + res.frames[2].missed);
+    ASSERT_FALSE(res.examples.empty());
+    EXPECT_EQ(res.examples[0].second.kind, Discrepancy::missed);
+}
+
+TEST(Simulator, MedianAndMadOfFrames) {
+    const Spread s = spread_of({1, 2, 3, 4, 100});
+    EXPECT_EQ(s.median, 3);
+    EXPECT_EQ(s.mad, 1);
+    EXPECT_EQ(spread_of({2, 4}).median, 3);
+}
+
+}  // namespace
+}  // namespace rcb
