@@ -1,12 +1,16 @@
 #include "core/registry.h"
 
 #include "core/structures/brute_force.h"
+#include "core/structures/dynamic_bvh.h"
+#include "core/structures/linear_bvh.h"
 
 namespace rcb {
 
 const std::vector<StructureInfo>& structure_registry() {
     static const std::vector<StructureInfo> all = {
         describe_structure<BruteForce>("bf", "brute force: every object's box tested (the baseline, thesis §4.1)"),
+        describe_structure<DynamicBvh>("dbvh", "dynamic BVH: Catto/Box2D SAH insertion with branch and bound, fat boxes, rotations, optional full binned-SAH rebuilds (thesis §4.4)"),
+        describe_structure<LinearBvh>("lbvh", "linear BVH: Karras 2012 Morton codes, radix sort, parallel radix tree, atomic bottom-up bounds, rebuilt every frame (thesis §4.5)"),
     };
     return all;
 }

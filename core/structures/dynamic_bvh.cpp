@@ -1,0 +1,473 @@
+#include "core/structures/dynamic_bvh.h"
+
+#include <algorithm>
+#include <array>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace rcb {
+
+namespace {
+float area(const Aabb& b) { return b.half_area(); }
+}  // namespace
+
+DynamicBvh::DynamicBvh() : DynamicBvh(Params{}) {}
+
+DynamicBvh::DynamicBvh(const Params& p) : params_(p), rebuild_mode_(p.mode == "rebuild") {}
+
+std::uint32_t DynamicBvh::allocate() {
+    if (free_ != kNullNode) {
+        const std::uint32_t n = free_;
+        free_ = nodes_[n].child[0];
+        --free_count_;
+        return n;
+    }
+    nodes_.push_back({});
+    tight_.push_back({});
+    return std::uint32_t(nodes_.size() - 1);
+}
+
+void DynamicBvh::release(std::uint32_t n) {
+    nodes_[n].height = -1;
+    nodes_[n].parent = kNullNode;
+    nodes_[n].child[0] = free_;
+    nodes_[n].child[1] = kNullNode;
+    free_ = n;
+    ++free_count_;
+}
+
+Aabb DynamicBvh::fat_box(const Aabb& b) const {
+    const float m = float(params_.margin) * b.longest_edge();
+    return {b.min - Vec3{m, m, m}, b.max + Vec3{m, m, m}};
+}
+
+std::uint32_t DynamicBvh::make_leaf(const Object& o) {
+    const std::uint32_t n = allocate();
+    nodes_[n] = Node{fat_box(o.box), kNullNode, {o.uid, kNullNode}, 0};
+    tight_[n] = o.box;
+    leaf_of_[o.uid] = n;
+    return n;
+}
+
+void DynamicBvh::build(std::span<const Object> objects) {
+    nodes_.clear();
+    tight_.clear();
+    leaf_of_.clear();
+    root_ = free_ = kNullNode;
+    free_count_ = 0;
+    dirty_ = false;
+    nodes_.reserve(2 * objects.size());
+    tight_.reserve(2 * objects.size());
+    leaf_of_.reserve(objects.size());
+    if (rebuild_mode_) {
+        for (const Object& o : objects) make_leaf(o);
+        rebuild();
+    } else {
+        // Incremental construction (thesis §4.4): the objects are inserted one by one.
+        for (const Object& o : objects) insert_leaf(make_leaf(o));
+    }
+}
+
+void DynamicBvh::insert(const Object& o) {
+    if (rebuild_mode_ && !dirty_ && params_.rebuild_every > 0 &&
+        frames_since_build_ + 1 >= std::uint32_t(params_.rebuild_every))
+        dirty_ = true;  // this frame ends in a rebuild: only the leaves change until commit
+    const std::uint32_t leaf = make_leaf(o);
+    if (!dirty_) insert_leaf(leaf);
+}
+
+void DynamicBvh::remove(Uid uid) {
+    if (rebuild_mode_ && !dirty_ && params_.rebuild_every > 0 &&
+        frames_since_build_ + 1 >= std::uint32_t(params_.rebuild_every))
+        dirty_ = true;
+    auto it = leaf_of_.find(uid);
+    const std::uint32_t leaf = it->second;
+    leaf_of_.erase(it);
+    if (!dirty_) remove_leaf(leaf);
+    release(leaf);
+}
+
+void DynamicBvh::move(const Object& o) {
+    if (rebuild_mode_ && !dirty_ && params_.rebuild_every > 0 &&
+        frames_since_build_ + 1 >= std::uint32_t(params_.rebuild_every))
+        dirty_ = true;
+    const std::uint32_t leaf = leaf_of_.at(o.uid);
+    tight_[leaf] = o.box;
+    // Inside the fat box: the tree still encloses the object, nothing else to do (Box2D's enlarged
+    // AABB; the traversal tests the object's own box).
+    if (nodes_[leaf].box.contains(o.box)) return;
+    if (!dirty_) remove_leaf(leaf);
+    nodes_[leaf].box = fat_box(o.box);
+    if (!dirty_) insert_leaf(leaf);
+}
+
+void DynamicBvh::commit() {
+    if (!rebuild_mode_) return;
+    ++frames_since_build_;
+    if (dirty_) {
+        rebuild();
+    } else if (params_.rebuild_growth > 0 && root_ != kNullNode && sah_cost() > params_.rebuild_growth * cost_after_build_) {
+        rebuild();
+    }
+}
+
+// ---- incremental insertion and removal (Box2D v3 dynamic_tree.c) ----
+
+/// Box2D v3 b_FindBestSibling: a descent with branch and bound. The cost of making node X the
+/// sibling of the new leaf L is SA(X ∪ L) plus the inherited cost, the growth of every ancestor's
+/// area, Σ SA(P ∪ L) − SA(P). Below an inner child C the cost is at least the inherited cost plus
+/// SA(C ∪ L) + min(SA(L) − SA(C), 0); the search stops when neither child's lower bound can beat the
+/// best cost found, and otherwise descends into the child with the smaller bound.
+std::uint32_t DynamicBvh::find_best_sibling(const Aabb& box_d) const {
+    const float area_d = area(box_d);
+    std::uint32_t index = root_;
+    const Aabb& root_box = nodes_[index].box;
+    float area_index = area(root_box);
+    float direct_cost = area(merge(root_box, box_d));
+    float inherited_cost = 0.0f;
+    std::uint32_t best_sibling = index;
+    float best_cost = direct_cost;
+    while (nodes_[index].height > 0) {
+        const std::uint32_t c1 = nodes_[index].child[0], c2 = nodes_[index].child[1];
+        const float cost = direct_cost + inherited_cost;
+        if (cost < best_cost) {
+            best_sibling = index;
+            best_cost = cost;
+        }
+        inherited_cost += direct_cost - area_index;
+
+        const bool leaf1 = nodes_[c1].height == 0, leaf2 = nodes_[c2].height == 0;
+        float lower1 = std::numeric_limits<float>::max(), lower2 = lower1;
+        const float direct1 = area(merge(nodes_[c1].box, box_d));
+        const float direct2 = area(merge(nodes_[c2].box, box_d));
+        float area1 = 0.0f, area2 = 0.0f;
+        if (leaf1) {
+            const float cost1 = direct1 + inherited_cost;
+            if (cost1 < best_cost) {
+                best_sibling = c1;
+                best_cost = cost1;
+            }
+        } else {
+            area1 = area(nodes_[c1].box);
+            lower1 = inherited_cost + direct1 + std::min(area_d - area1, 0.0f);
+        }
+        if (leaf2) {
+            const float cost2 = direct2 + inherited_cost;
+            if (cost2 < best_cost) {
+                best_sibling = c2;
+                best_cost = cost2;
+            }
+        } else {
+            area2 = area(nodes_[c2].box);
+            lower2 = inherited_cost + direct2 + std::min(area_d - area2, 0.0f);
+        }
+        if (leaf1 && leaf2) break;
+        if (best_cost <= lower1 && best_cost <= lower2) break;
+        if (lower1 == lower2 && !leaf1) {
+            // No clear choice by the bound (both children contain the new box, common for points
+            // and identical boxes): Box2D falls back to the distance of the centres.
+            const Vec3 c = box_d.center();
+            const Vec3 d1 = nodes_[c1].box.center() - c, d2 = nodes_[c2].box.center() - c;
+            lower1 = d1.x * d1.x + d1.y * d1.y + d1.z * d1.z;
+            lower2 = d2.x * d2.x + d2.y * d2.y + d2.z * d2.z;
+        }
+        if (lower1 < lower2 && !leaf1) {
+            index = c1;
+            area_index = area1;
+            direct_cost = direct1;
+        } else {
+            index = c2;
+            area_index = area2;
+            direct_cost = direct2;
+        }
+    }
+    return best_sibling;
+}
+
+void DynamicBvh::insert_leaf(std::uint32_t leaf) {
+    if (root_ == kNullNode) {
+        root_ = leaf;
+        nodes_[leaf].parent = kNullNode;
+        return;
+    }
+    const Aabb leaf_box = nodes_[leaf].box;
+    const std::uint32_t sibling = find_best_sibling(leaf_box);
+    const std::uint32_t old_parent = nodes_[sibling].parent;
+    const std::uint32_t new_parent = allocate();
+    nodes_[new_parent] = Node{merge(leaf_box, nodes_[sibling].box), old_parent, {sibling, leaf},
+                              nodes_[sibling].height + 1};
+    if (old_parent == kNullNode) root_ = new_parent;
+    else nodes_[old_parent].child[nodes_[old_parent].child[0] == sibling ? 0 : 1] = new_parent;
+    nodes_[sibling].parent = new_parent;
+    nodes_[leaf].parent = new_parent;
+    refit_from(new_parent);
+}
+
+void DynamicBvh::remove_leaf(std::uint32_t leaf) {
+    if (leaf == root_) {
+        root_ = kNullNode;
+        return;
+    }
+    const std::uint32_t parent = nodes_[leaf].parent;
+    const std::uint32_t grand = nodes_[parent].parent;
+    const std::uint32_t sibling = nodes_[parent].child[nodes_[parent].child[0] == leaf ? 1 : 0];
+    nodes_[sibling].parent = grand;
+    if (grand == kNullNode) root_ = sibling;
+    else nodes_[grand].child[nodes_[grand].child[0] == parent ? 0 : 1] = sibling;
+    release(parent);
+    nodes_[leaf].parent = kNullNode;
+    refit_from(grand);
+}
+
+void DynamicBvh::refit_from(std::uint32_t n) {
+    while (n != kNullNode) {
+        Node& node = nodes_[n];
+        const Node& a = nodes_[node.child[0]];
+        const Node& b = nodes_[node.child[1]];
+        node.box = merge(a.box, b.box);
+        node.height = 1 + std::max(a.height, b.height);
+        if (params_.rotate) rotate_nodes(n);
+        n = nodes_[n].parent;
+    }
+}
+
+/// Box2D v3 b_RotateNodes: swap a child of A with a grandchild on the other side when that shrinks
+/// the area of the inner node that changes (the total SAH area, eq. 3.2, falls by the same amount).
+///         A
+///       /   \
+///      B     C
+///     / \   / \
+///    D   E F   G
+void DynamicBvh::rotate_nodes(std::uint32_t ia) {
+    Node& A = nodes_[ia];
+    if (A.height < 2) return;
+    const std::uint32_t ib = A.child[0], ic = A.child[1];
+    Node& B = nodes_[ib];
+    Node& C = nodes_[ic];
+    auto h = [&](std::uint32_t n) { return nodes_[n].height; };
+    if (B.height == 0) {
+        const std::uint32_t f = C.child[0], g = C.child[1];
+        const float base = area(C.box);
+        const float cost_bf = area(merge(B.box, nodes_[g].box));
+        const float cost_bg = area(merge(B.box, nodes_[f].box));
+        if (base <= cost_bf && base <= cost_bg) return;
+        if (cost_bf < cost_bg) {  // swap B and F
+            A.child[0] = f, C.child[0] = ib, B.parent = ic, nodes_[f].parent = ia;
+            C.box = merge(B.box, nodes_[g].box), C.height = 1 + std::max(B.height, h(g));
+            A.height = 1 + std::max(C.height, h(f));
+        } else {  // swap B and G
+            A.child[0] = g, C.child[1] = ib, B.parent = ic, nodes_[g].parent = ia;
+            C.box = merge(B.box, nodes_[f].box), C.height = 1 + std::max(B.height, h(f));
+            A.height = 1 + std::max(C.height, h(g));
+        }
+    } else if (C.height == 0) {
+        const std::uint32_t d = B.child[0], e = B.child[1];
+        const float base = area(B.box);
+        const float cost_cd = area(merge(C.box, nodes_[e].box));
+        const float cost_ce = area(merge(C.box, nodes_[d].box));
+        if (base <= cost_cd && base <= cost_ce) return;
+        if (cost_cd < cost_ce) {  // swap C and D
+            A.child[1] = d, B.child[0] = ic, C.parent = ib, nodes_[d].parent = ia;
+            B.box = merge(C.box, nodes_[e].box), B.height = 1 + std::max(C.height, h(e));
+            A.height = 1 + std::max(B.height, h(d));
+        } else {  // swap C and E
+            A.child[1] = e, B.child[1] = ic, C.parent = ib, nodes_[e].parent = ia;
+            B.box = merge(C.box, nodes_[d].box), B.height = 1 + std::max(C.height, h(d));
+            A.height = 1 + std::max(B.height, h(e));
+        }
+    } else {
+        const std::uint32_t d = B.child[0], e = B.child[1], f = C.child[0], g = C.child[1];
+        const float area_b = area(B.box), area_c = area(C.box);
+        const float base = area_b + area_c;
+        const std::array<float, 4> cost = {area_b + area(merge(B.box, nodes_[g].box)),   // B↔F
+                                           area_b + area(merge(B.box, nodes_[f].box)),   // B↔G
+                                           area_c + area(merge(C.box, nodes_[e].box)),   // C↔D
+                                           area_c + area(merge(C.box, nodes_[d].box))};  // C↔E
+        int best = -1;
+        float best_cost = base;
+        for (int i = 0; i < 4; ++i)
+            if (cost[i] < best_cost) best = i, best_cost = cost[i];
+        switch (best) {
+            case 0:
+                A.child[0] = f, C.child[0] = ib, B.parent = ic, nodes_[f].parent = ia;
+                C.box = merge(B.box, nodes_[g].box), C.height = 1 + std::max(B.height, h(g));
+                A.height = 1 + std::max(C.height, h(f));
+                break;
+            case 1:
+                A.child[0] = g, C.child[1] = ib, B.parent = ic, nodes_[g].parent = ia;
+                C.box = merge(B.box, nodes_[f].box), C.height = 1 + std::max(B.height, h(f));
+                A.height = 1 + std::max(C.height, h(g));
+                break;
+            case 2:
+                A.child[1] = d, B.child[0] = ic, C.parent = ib, nodes_[d].parent = ia;
+                B.box = merge(C.box, nodes_[e].box), B.height = 1 + std::max(C.height, h(e));
+                A.height = 1 + std::max(B.height, h(d));
+                break;
+            case 3:
+                A.child[1] = e, B.child[1] = ic, C.parent = ib, nodes_[e].parent = ia;
+                B.box = merge(C.box, nodes_[d].box), B.height = 1 + std::max(C.height, h(d));
+                A.height = 1 + std::max(B.height, h(e));
+                break;
+            default:
+                break;
+        }
+    }
+}
+
+// ---- full top-down binned-SAH build (rebuild mode) ----
+
+void DynamicBvh::rebuild() {
+    build_leaves_.clear();
+    build_leaves_.reserve(leaf_of_.size());
+    for (std::uint32_t n = 0; n < nodes_.size(); ++n) {
+        if (nodes_[n].height > 0) release(n);
+        else if (nodes_[n].height == 0) build_leaves_.push_back(n);
+    }
+    std::vector<Aabb> scratch;
+    root_ = build_leaves_.empty() ? kNullNode
+                                  : build_range(build_leaves_.data(), std::uint32_t(build_leaves_.size()), scratch);
+    if (root_ != kNullNode) nodes_[root_].parent = kNullNode;
+    dirty_ = false;
+    frames_since_build_ = 0;
+    cost_after_build_ = params_.rebuild_growth > 0 ? sah_cost() : 0.0;
+}
+
+/// Builds the subtree over leaves[0, count): binned SAH over the leaves' centroids (Wald 2007), one
+/// leaf per object; falls back to a median split when the centroids coincide or no split helps.
+std::uint32_t DynamicBvh::build_range(std::uint32_t* leaves, std::uint32_t count, std::vector<Aabb>& scratch) {
+    if (count == 1) return leaves[0];
+    Aabb cbounds = Aabb::empty();
+    for (std::uint32_t i = 0; i < count; ++i) {
+        const Vec3 c = nodes_[leaves[i]].box.center();
+        cbounds = merge(cbounds, Aabb{c, c});
+    }
+    const int bins = params_.bins;
+    std::uint32_t mid = count / 2;
+    int best_axis = -1, best_split = 0;
+    if (count > 2) {
+        struct Bin {
+            Aabb box = Aabb::empty();
+            std::uint32_t n = 0;
+        };
+        std::array<Bin, 256> bin;
+        std::array<float, 256> right_cost;
+        float best_cost = std::numeric_limits<float>::max();
+        for (int axis = 0; axis < 3; ++axis) {
+            const float lo = cbounds.min[axis], ext = cbounds.max[axis] - lo;
+            if (!(ext > 0)) continue;
+            const float scale = float(bins) / ext;
+            for (int b = 0; b < bins; ++b) bin[b] = Bin{};
+            for (std::uint32_t i = 0; i < count; ++i) {
+                const Aabb& box = nodes_[leaves[i]].box;
+                const int b = std::min(bins - 1, int((box.center()[axis] - lo) * scale));
+                bin[b].box = merge(bin[b].box, box);
+                ++bin[b].n;
+            }
+            Aabb acc = Aabb::empty();
+            std::uint32_t n = 0;
+            for (int b = bins - 1; b > 0; --b) {
+                acc = merge(acc, bin[b].box), n += bin[b].n;
+                right_cost[b] = n ? area(acc) * float(n) : 0.0f;
+            }
+            acc = Aabb::empty(), n = 0;
+            for (int b = 0; b < bins - 1; ++b) {
+                acc = merge(acc, bin[b].box), n += bin[b].n;
+                if (n == 0 || n == count) continue;
+                const float cost = area(acc) * float(n) + right_cost[b + 1];
+                if (cost < best_cost) best_cost = cost, best_axis = axis, best_split = b + 1;
+            }
+        }
+        if (best_axis >= 0) {
+            const float lo = cbounds.min[best_axis];
+            const float scale = float(bins) / (cbounds.max[best_axis] - lo);
+            std::uint32_t* split = std::partition(leaves, leaves + count, [&](std::uint32_t l) {
+                return std::min(bins - 1, int((nodes_[l].box.center()[best_axis] - lo) * scale)) < best_split;
+            });
+            mid = std::uint32_t(split - leaves);
+            if (mid == 0 || mid == count) mid = count / 2;  // cannot happen with exact binning; be safe
+        }
+    }
+    (void)scratch;
+    const std::uint32_t left = build_range(leaves, mid, scratch);
+    const std::uint32_t right = build_range(leaves + mid, count - mid, scratch);
+    const std::uint32_t n = allocate();
+    nodes_[n] = Node{merge(nodes_[left].box, nodes_[right].box), kNullNode, {left, right},
+                     1 + std::max(nodes_[left].height, nodes_[right].height)};
+    nodes_[left].parent = n;
+    nodes_[right].parent = n;
+    return n;
+}
+
+// ---- measures and invariants ----
+
+double DynamicBvh::sah_cost() const {
+    return rcb::sah_cost(
+        root_, [&](std::uint32_t n) -> const Aabb& { return nodes_[n].box; },
+        [&](std::uint32_t n, std::vector<std::uint32_t>& stack) {
+            if (nodes_[n].height > 0) stack.push_back(nodes_[n].child[0]), stack.push_back(nodes_[n].child[1]);
+        },
+        std::uint32_t(nodes_.size()));
+}
+
+std::size_t DynamicBvh::memory_bytes() const {
+    return nodes_.capacity() * sizeof(Node) + tight_.capacity() * sizeof(Aabb) +
+           stack_.capacity() * sizeof(std::uint32_t) + build_leaves_.capacity() * sizeof(std::uint32_t) +
+           leaf_of_.bucket_count() * sizeof(void*) +
+           leaf_of_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) + sizeof(*this);
+}
+
+nlohmann::json DynamicBvh::stats() const {
+    return {{"sah_cost", sah_cost()}, {"depth", height()}, {"nodes", nodes_.size() - free_count_}};
+}
+
+void DynamicBvh::validate() const {
+    auto fail = [](const std::string& what) { throw std::logic_error("dbvh: " + what); };
+    if (dirty_) fail("tree not rebuilt after changes (commit missing)");
+    const std::uint32_t total = std::uint32_t(nodes_.size());
+    // Free list: every entry a free node, no cycles.
+    std::uint32_t free_seen = 0;
+    for (std::uint32_t n = free_; n != kNullNode; n = nodes_[n].child[0]) {
+        if (n >= total) fail("free list points outside the node array");
+        if (nodes_[n].height != -1) fail("node " + std::to_string(n) + " on the free list is in use");
+        if (++free_seen > total) fail("free list has a cycle");
+    }
+    if (free_seen != free_count_) fail("free list holds " + std::to_string(free_seen) + " nodes, count says " + std::to_string(free_count_));
+    std::uint32_t marked_free = 0;
+    for (const Node& node : nodes_) marked_free += node.height == -1;
+    if (marked_free != free_seen) fail("free nodes not on the free list");
+    // The tree: links, bounds, heights, leaves.
+    std::uint32_t reached = 0, leaves = 0;
+    if (root_ != kNullNode) {
+        if (root_ >= total || nodes_[root_].parent != kNullNode) fail("root has a parent or is out of range");
+        std::vector<std::uint32_t> stack{root_};
+        while (!stack.empty()) {
+            const std::uint32_t n = stack.back();
+            stack.pop_back();
+            if (++reached > total) fail("tree has a cycle");
+            const Node& node = nodes_[n];
+            if (node.height < 0) fail("free node " + std::to_string(n) + " is in the tree");
+            if (node.height == 0) {
+                ++leaves;
+                auto it = leaf_of_.find(node.child[0]);
+                if (it == leaf_of_.end() || it->second != n) fail("leaf " + std::to_string(n) + " (uid " + std::to_string(node.child[0]) + ") not in the uid index");
+                if (!node.box.contains(tight_[n])) fail("fat box of uid " + std::to_string(node.child[0]) + " does not enclose its box");
+                continue;
+            }
+            int hmax = -1;
+            for (int k = 0; k < 2; ++k) {
+                const std::uint32_t c = node.child[k];
+                if (c >= total) fail("child out of range");
+                if (nodes_[c].parent != n) fail("child " + std::to_string(c) + " does not point back to parent " + std::to_string(n));
+                if (!node.box.contains(nodes_[c].box)) fail("node " + std::to_string(n) + " does not enclose child " + std::to_string(c));
+                hmax = std::max(hmax, nodes_[c].height);
+                stack.push_back(c);
+            }
+            if (node.height != 1 + hmax) fail("node " + std::to_string(n) + " has a wrong height");
+        }
+    }
+    if (leaves != leaf_of_.size()) fail(std::to_string(leaf_of_.size()) + " live uids but " + std::to_string(leaves) + " leaves in the tree");
+    if (reached + free_seen != total) fail("nodes neither in the tree nor free: " + std::to_string(total - reached - free_seen));
+}
+
+}  // namespace rcb

@@ -1,0 +1,132 @@
+#pragma once
+/// Dynamic BVH (thesis §4.4), after Catto's incremental tree as in Box2D v3 (src/dynamic_tree.c):
+/// insertion finds the best sibling by the SAH cost with branch and bound, creates a new parent and
+/// refits the ancestors (optionally rotating nodes on the way up, b_RotateNodes); removal replaces
+/// the parent by the sibling; a move that stays inside the leaf's enlarged ("fat") box changes
+/// nothing in the tree, otherwise it is a remove plus an insert.
+///
+/// The hit set stays exact with fat boxes: traversal tests the object's own box at the leaf (one
+/// N_RB test), never the fat box (bvh_traversal.h).
+///
+/// `mode = rebuild` replaces incremental construction by a full top-down binned-SAH build (the
+/// thesis' Table 6.4 "full SAH" variant; binning after Wald 2007, "On fast construction of
+/// SAH-based bounding volume hierarchies"), repeated at commit every `rebuild_every` frames or when
+/// the tree's SAH cost has grown by `rebuild_growth` over the cost right after the last build.
+/// Between rebuilds, changes are applied incrementally; in a frame that ends in a rebuild they only
+/// update the leaves and the tree is rebuilt once at commit.
+///
+/// Nodes live in one flat array addressed by index, with a free list; no per-node allocation.
+
+#include <cstdint>
+#include <string>
+#include <tuple>
+#include <unordered_map>
+#include <vector>
+
+#include "core/params.h"
+#include "core/structure.h"
+#include "core/structures/bvh_traversal.h"
+
+namespace rcb {
+
+class DynamicBvh : public StructureBase<DynamicBvh> {
+public:
+    struct Params {
+        /// Leaf boxes are enlarged on every side by this fraction of the object's longest edge.
+        double margin = 0.1;
+        /// Tree rotations on the refit path (Box2D v3 b_RotateNodes).
+        bool rotate = true;
+        /// "incremental": Catto insertion only; "rebuild": full binned-SAH builds (see above).
+        std::string mode = "incremental";
+        /// rebuild mode: rebuild at commit every this many frames (0: never by count).
+        int rebuild_every = 1;
+        /// rebuild mode: rebuild when sah_cost > this × the cost after the last build (0: never).
+        double rebuild_growth = 0.0;
+        /// rebuild mode: SAH bins per axis of the top-down build.
+        int bins = 16;
+
+        static constexpr auto fields() {
+            return std::tuple{
+                Field{"margin", &Params::margin, 0.0, 4.0, "fat-box margin, × the object's longest edge per side"},
+                Field{"rotate", &Params::rotate, 0, 1, "tree rotations on the refit path (Box2D v3)"},
+                Field{"mode", &Params::mode, 0, 0, "incremental insertion, or full binned-SAH rebuilds", true,
+                      false, "incremental,rebuild"},
+                Field{"rebuild_every", &Params::rebuild_every, 0, 1000000,
+                      "rebuild mode: full rebuild every k frames (0: never by count)", true, true},
+                Field{"rebuild_growth", &Params::rebuild_growth, 0.0, 100.0,
+                      "rebuild mode: full rebuild when the SAH cost grew by this factor (0: never)"},
+                Field{"bins", &Params::bins, 2, 256, "rebuild mode: SAH bins per axis", true, true}};
+        }
+    };
+
+    DynamicBvh();
+    explicit DynamicBvh(const Params& p);
+
+    void build(std::span<const Object> objects) override;
+    void insert(const Object& object) override;
+    void remove(Uid uid) override;
+    void move(const Object& object) override;
+    void commit() override;
+    std::size_t size() const override { return leaf_of_.size(); }
+    std::size_t memory_bytes() const override;
+    nlohmann::json stats() const override;
+    void validate() const override;
+
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit) {
+        if (dirty_) rebuild();
+        const std::uint32_t need = root_ == kNullNode ? 1u : std::uint32_t(nodes_[root_].height) + 2u;
+        if (stack_.size() < need) stack_.resize(need);
+        traverse_bvh(*this, root_, stack_.data(), s, count, visit);
+    }
+
+    /// The SAH cost of the tree (thesis eq. 3.2, C_T = C_I = 1; leaves with their fat boxes).
+    double sah_cost() const;
+    int height() const { return root_ == kNullNode ? -1 : nodes_[root_].height; }
+
+    // The tree interface of traverse_bvh.
+    bool is_leaf(std::uint32_t n) const { return nodes_[n].height == 0; }
+    const Aabb& node_box(std::uint32_t n) const { return nodes_[n].box; }
+    std::uint32_t child(std::uint32_t n, int k) const { return nodes_[n].child[k]; }
+    const Aabb& object_box(std::uint32_t n) const { return tight_[n]; }
+    Uid leaf_uid(std::uint32_t n) const { return nodes_[n].child[0]; }
+
+private:
+    struct Node {
+        Aabb box;                 // 24 B: the fat box for a leaf, the union of the children otherwise
+        std::uint32_t parent;     // 4 B: kNullNode at the root
+        std::uint32_t child[2];   // 8 B: a leaf keeps its uid in child[0]; a free node its successor
+        std::int32_t height;      // 4 B: 0 leaf, -1 free, else 1 + max(children)
+    };
+    static_assert(sizeof(Node) == 40);
+
+    std::uint32_t allocate();
+    void release(std::uint32_t n);
+    Aabb fat_box(const Aabb& box) const;
+    std::uint32_t make_leaf(const Object& o);
+    void insert_leaf(std::uint32_t leaf);
+    void remove_leaf(std::uint32_t leaf);
+    std::uint32_t find_best_sibling(const Aabb& box) const;
+    void refit_from(std::uint32_t n);
+    void rotate_nodes(std::uint32_t a);
+    void rebuild();
+    std::uint32_t build_range(std::uint32_t* leaves, std::uint32_t count, std::vector<Aabb>& scratch);
+    bool deferring() const { return dirty_; }
+
+    Params params_;
+    bool rebuild_mode_ = false;
+    std::vector<Node> nodes_;
+    std::vector<Aabb> tight_;  // per node: the object's own box (leaves only)
+    std::uint32_t root_ = kNullNode;
+    std::uint32_t free_ = kNullNode;
+    std::uint32_t free_count_ = 0;
+    std::unordered_map<Uid, std::uint32_t> leaf_of_;
+    std::vector<std::uint32_t> stack_;
+    // Rebuild mode.
+    bool dirty_ = false;              // leaves changed, tree to be rebuilt at commit
+    std::uint32_t frames_since_build_ = 0;
+    double cost_after_build_ = 0.0;
+    std::vector<std::uint32_t> build_leaves_;
+};
+
+}  // namespace rcb

@@ -1,0 +1,357 @@
+#include "core/structures/linear_bvh.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+namespace rcb {
+
+struct LinearBvh::Arena {
+    explicit Arena(int threads) : arena(threads) {}
+    tbb::task_arena arena;
+};
+
+namespace {
+
+/// Spreads the low 21 bits of v to every third bit (the classic magic-number interleave).
+std::uint64_t spread_bits(std::uint64_t v) {
+    v &= 0x1fffffu;
+    v = (v | v << 32) & 0x1f00000000ffffull;
+    v = (v | v << 16) & 0x1f0000ff0000ffull;
+    v = (v | v << 8) & 0x100f00f00f00f00full;
+    v = (v | v << 4) & 0x10c30c30c30c30c3ull;
+    v = (v | v << 2) & 0x1249249249249249ull;
+    return v;
+}
+
+constexpr int kDigitBits = 11;
+constexpr std::uint32_t kDigits = 1u << kDigitBits;
+constexpr int kPasses = (63 + kDigitBits - 1) / kDigitBits;  // 6
+
+}  // namespace
+
+LinearBvh::LinearBvh() : LinearBvh(Params{}) {}
+
+LinearBvh::LinearBvh(const Params& p) : params_(p) {
+    if (params_.threads > 1) arena_ = std::make_unique<Arena>(params_.threads);
+}
+
+LinearBvh::~LinearBvh() = default;
+
+template <class F>
+void LinearBvh::parallel(std::size_t n, std::size_t grain, F&& f) {
+    if (!arena_ || n <= grain) {
+        f(std::size_t(0), n);
+        return;
+    }
+    arena_->arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain),
+                          [&](const tbb::blocked_range<std::size_t>& r) { f(r.begin(), r.end()); });
+    });
+}
+
+void LinearBvh::build(std::span<const Object> objects) {
+    uids_.clear();
+    boxes_.clear();
+    slot_.clear();
+    uids_.reserve(objects.size());
+    boxes_.reserve(objects.size());
+    slot_.reserve(objects.size());
+    for (const Object& o : objects) {
+        slot_.emplace(o.uid, std::uint32_t(uids_.size()));
+        uids_.push_back(o.uid);
+        boxes_.push_back(o.box);
+    }
+    rebuild();
+}
+
+void LinearBvh::insert(const Object& o) {
+    slot_.emplace(o.uid, std::uint32_t(uids_.size()));
+    uids_.push_back(o.uid);
+    boxes_.push_back(o.box);
+    dirty_ = true;
+}
+
+void LinearBvh::remove(Uid uid) {
+    auto it = slot_.find(uid);
+    const std::uint32_t slot = it->second;
+    slot_.erase(it);
+    const std::uint32_t last = std::uint32_t(uids_.size() - 1);
+    if (slot != last) {
+        uids_[slot] = uids_[last];
+        boxes_[slot] = boxes_[last];
+        slot_[uids_[slot]] = slot;
+    }
+    uids_.pop_back();
+    boxes_.pop_back();
+    dirty_ = true;
+}
+
+void LinearBvh::move(const Object& o) {
+    boxes_[slot_.at(o.uid)] = o.box;
+    dirty_ = true;
+}
+
+void LinearBvh::commit() {
+    if (dirty_) rebuild();
+}
+
+/// Stable LSD radix sort of codes_ with order_ as payload. Per pass each chunk of the input counts
+/// its digits, an exclusive scan over (digit, chunk) gives every chunk its output offsets, and each
+/// chunk scatters its own range in order: stable, and the same result for any chunk count.
+void LinearBvh::radix_sort() {
+    const std::size_t n = codes_.size();
+    const std::size_t chunks = arena_ && n >= 65536 ? std::size_t(params_.threads) * 4 : 1;
+    const std::size_t chunk_len = (n + chunks - 1) / chunks;
+    histograms_.assign(chunks * kDigits, 0);
+    codes_tmp_.resize(n);
+    order_tmp_.resize(n);
+    std::uint64_t* src_k = codes_.data();
+    std::uint64_t* dst_k = codes_tmp_.data();
+    std::uint32_t* src_v = order_.data();
+    std::uint32_t* dst_v = order_tmp_.data();
+    // Bits in which the codes differ at all: passes over constant digits are skipped.
+    std::uint64_t all_or = 0, all_and = ~0ull;
+    for (std::size_t i = 0; i < n; ++i) all_or |= src_k[i], all_and &= src_k[i];
+    const std::uint64_t varying = all_or ^ all_and;
+    for (int pass = 0; pass < kPasses; ++pass) {
+        const int shift = pass * kDigitBits;
+        if (((varying >> shift) & (kDigits - 1)) == 0) continue;
+        std::fill(histograms_.begin(), histograms_.end(), 0u);
+        parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+            for (std::size_t c = c0; c < c1; ++c) {
+                std::uint32_t* h = histograms_.data() + c * kDigits;
+                const std::size_t b = std::min(n, c * chunk_len), e = std::min(n, b + chunk_len);
+                for (std::size_t i = b; i < e; ++i) ++h[(src_k[i] >> shift) & (kDigits - 1)];
+            }
+        });
+        std::uint32_t sum = 0;
+        for (std::uint32_t d = 0; d < kDigits; ++d)
+            for (std::size_t c = 0; c < chunks; ++c) {
+                std::uint32_t& h = histograms_[c * kDigits + d];
+                const std::uint32_t count = h;
+                h = sum;
+                sum += count;
+            }
+        parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+            for (std::size_t c = c0; c < c1; ++c) {
+                std::uint32_t* h = histograms_.data() + c * kDigits;
+                const std::size_t b = std::min(n, c * chunk_len), e = std::min(n, b + chunk_len);
+                for (std::size_t i = b; i < e; ++i) {
+                    const std::uint32_t at = h[(src_k[i] >> shift) & (kDigits - 1)]++;
+                    dst_k[at] = src_k[i];
+                    dst_v[at] = src_v[i];
+                }
+            }
+        });
+        std::swap(src_k, dst_k);
+        std::swap(src_v, dst_v);
+    }
+    if (src_k != codes_.data()) {
+        codes_.swap(codes_tmp_);
+        order_.swap(order_tmp_);
+    }
+}
+
+void LinearBvh::rebuild() {
+    dirty_ = false;
+    const std::size_t n = uids_.size();
+    if (n == 0) {
+        nodes_.clear();
+        codes_.clear();
+        order_.clear();
+        leaf_base_ = 0;
+        stack_.assign(1, 0);
+        return;
+    }
+    constexpr std::size_t kGrain = 4096;
+    // 1. Morton codes of the centroids in the bounds of the centroids (min and max are exact, so
+    //    the chunking does not change them).
+    const std::size_t chunks = arena_ ? std::size_t(params_.threads) * 4 : 1;
+    std::vector<Aabb> part(chunks, Aabb::empty());
+    const std::size_t chunk_len = (n + chunks - 1) / chunks;
+    parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+        for (std::size_t c = c0; c < c1; ++c) {
+            Aabb b = Aabb::empty();
+            const std::size_t e = std::min(n, (c + 1) * chunk_len);
+            for (std::size_t i = c * chunk_len; i < e; ++i) {
+                const Vec3 m = boxes_[i].center();
+                b.min = rcb::min(b.min, m), b.max = rcb::max(b.max, m);
+            }
+            part[c] = b;
+        }
+    });
+    Aabb cb = Aabb::empty();
+    for (const Aabb& b : part) cb = merge(cb, b);
+    Vec3 scale;
+    constexpr float kMax = float((1u << 21) - 1);
+    for (int a = 0; a < 3; ++a) {
+        const float ext = cb.max[a] - cb.min[a];
+        scale[a] = ext > 0 ? kMax / ext : 0.0f;
+    }
+    codes_.resize(n);
+    order_.resize(n);
+    parallel(n, kGrain, [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) {
+            const Vec3 c = boxes_[i].center();
+            std::uint64_t q[3];
+            for (int a = 0; a < 3; ++a) {
+                const float v = std::clamp((c[a] - cb.min[a]) * scale[a], 0.0f, kMax);
+                q[a] = std::uint64_t(v);
+            }
+            codes_[i] = spread_bits(q[0]) << 2 | spread_bits(q[1]) << 1 | spread_bits(q[2]);
+            order_[i] = std::uint32_t(i);
+        }
+    });
+    // 2. Sort.
+    radix_sort();
+    // Leaves in sorted order.
+    nodes_.resize(2 * n - 1);
+    leaf_base_ = std::uint32_t(n - 1);
+    parallel(n, kGrain, [&](std::size_t b, std::size_t e) {
+        for (std::size_t k = b; k < e; ++k) {
+            const std::uint32_t slot = order_[k];
+            nodes_[leaf_base_ + k] = Node{boxes_[slot], {uids_[slot], kNullNode}, kNullNode, 0};
+        }
+    });
+    if (n > 1) {
+        // 3. Karras Algorithm 3: every inner node i finds its range [i, j] and split γ on its own.
+        const std::uint64_t* codes = codes_.data();
+        const std::int64_t count = std::int64_t(n);
+        parallel(n - 1, kGrain, [&](std::size_t b, std::size_t e) {
+            for (std::size_t ui = b; ui < e; ++ui) {
+                const std::int64_t i = std::int64_t(ui);
+                const std::uint64_t ci = codes[ui];
+                // Karras 2012 δ(i, j): the length of the common prefix of the sorted keys i and j,
+                // −1 outside the array; equal codes compare their indices instead (the keys are in
+                // effect code·2^32 + index).
+                auto delta_i = [&](std::int64_t j) -> int {
+                    if (std::uint64_t(j) >= std::uint64_t(count)) return -1;
+                    const std::uint64_t x = ci ^ codes[j];
+                    return x ? __builtin_clzll(x) : 64 + __builtin_clz(std::uint32_t(i) ^ std::uint32_t(j));
+                };
+                const int d = delta_i(i + 1) - delta_i(i - 1) > 0 ? 1 : -1;
+                const int delta_min = delta_i(i - d);
+                std::int64_t l_max = 2;
+                while (delta_i(i + l_max * d) > delta_min) l_max *= 2;
+                std::int64_t l = 0;
+                for (std::int64_t t = l_max / 2; t >= 1; t /= 2)
+                    if (delta_i(i + (l + t) * d) > delta_min) l += t;
+                const std::int64_t j = i + l * d;
+                const int delta_node = delta_i(j);
+                std::int64_t s = 0;
+                // Ceil-halving search (Karras' Figure 4: t = ⌈l / 2^k⌉), so that a split at any
+                // offset of the range can be reached.
+                for (int k = 1;; ++k) {
+                    const std::int64_t t = (l + (std::int64_t(1) << k) - 1) >> k;
+                    if (delta_i(i + (s + t) * d) > delta_node) s += t;
+                    if (t == 1) break;
+                }
+                const std::int64_t gamma = i + s * d + std::min(d, 0);
+                Node& node = nodes_[ui];
+                node.child[0] = std::min(i, j) == gamma ? leaf_base_ + std::uint32_t(gamma) : std::uint32_t(gamma);
+                node.child[1] =
+                    std::max(i, j) == gamma + 1 ? leaf_base_ + std::uint32_t(gamma + 1) : std::uint32_t(gamma + 1);
+                nodes_[node.child[0]].parent = std::uint32_t(ui);
+                nodes_[node.child[1]].parent = std::uint32_t(ui);
+            }
+        });
+        nodes_[0].parent = kNullNode;
+        // 4. Karras Algorithm 4: bounds bottom up; the first thread to reach a node stops, the
+        //    second merges (acq_rel: it sees the first one's child box).
+        if (flags_size_ < n - 1) {
+            flags_ = std::make_unique<std::atomic<std::uint32_t>[]>(n - 1);
+            flags_size_ = n - 1;
+        }
+        parallel(n - 1, kGrain, [&](std::size_t b, std::size_t e) {
+            for (std::size_t i = b; i < e; ++i) flags_[i].store(0, std::memory_order_relaxed);
+        });
+        parallel(n, kGrain, [&](std::size_t b, std::size_t e) {
+            for (std::size_t k = b; k < e; ++k) {
+                std::uint32_t p = nodes_[leaf_base_ + k].parent;
+                while (p != kNullNode) {
+                    if (flags_[p].fetch_add(1, std::memory_order_acq_rel) == 0) break;
+                    Node& node = nodes_[p];
+                    const Node& a = nodes_[node.child[0]];
+                    const Node& c = nodes_[node.child[1]];
+                    node.box = merge(a.box, c.box);
+                    node.height = 1 + std::max(a.height, c.height);
+                    p = node.parent;
+                }
+            }
+        });
+    }
+    stack_.assign(std::size_t(nodes_[0].height) + 2, 0);
+}
+
+double LinearBvh::sah_cost() const {
+    return rcb::sah_cost(
+        root(), [&](std::uint32_t n) -> const Aabb& { return nodes_[n].box; },
+        [&](std::uint32_t n, std::vector<std::uint32_t>& stack) {
+            if (!is_leaf(n)) stack.push_back(nodes_[n].child[0]), stack.push_back(nodes_[n].child[1]);
+        },
+        std::uint32_t(nodes_.size()));
+}
+
+std::size_t LinearBvh::memory_bytes() const {
+    return nodes_.capacity() * sizeof(Node) + uids_.capacity() * sizeof(Uid) + boxes_.capacity() * sizeof(Aabb) +
+           (codes_.capacity() + codes_tmp_.capacity()) * sizeof(std::uint64_t) +
+           (order_.capacity() + order_tmp_.capacity() + histograms_.capacity() + stack_.capacity()) *
+               sizeof(std::uint32_t) +
+           flags_size_ * sizeof(std::atomic<std::uint32_t>) + slot_.bucket_count() * sizeof(void*) +
+           slot_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) + sizeof(*this);
+}
+
+nlohmann::json LinearBvh::stats() const {
+    return {{"sah_cost", sah_cost()}, {"depth", height()}, {"nodes", nodes_.size()}};
+}
+
+void LinearBvh::validate() const {
+    auto fail = [](const std::string& what) { throw std::logic_error("lbvh: " + what); };
+    if (dirty_) fail("tree not rebuilt after changes (commit missing)");
+    const std::size_t n = uids_.size();
+    if (slot_.size() != n || boxes_.size() != n) fail("object arrays differ in size");
+    if (nodes_.size() != (n ? 2 * n - 1 : 0)) fail("node array has " + std::to_string(nodes_.size()) + " nodes for " + std::to_string(n) + " objects");
+    for (std::size_t k = 1; k < codes_.size(); ++k)
+        if (codes_[k - 1] > codes_[k]) fail("Morton codes not sorted at " + std::to_string(k));
+    if (n == 0) return;
+    std::vector<std::uint8_t> seen(nodes_.size(), 0);
+    std::vector<std::uint32_t> stack{0};
+    if (nodes_[0].parent != kNullNode) fail("root has a parent");
+    std::size_t leaves = 0;
+    std::vector<std::uint8_t> slot_seen(n, 0);
+    while (!stack.empty()) {
+        const std::uint32_t v = stack.back();
+        stack.pop_back();
+        if (v >= nodes_.size()) fail("child out of range");
+        if (seen[v]++) fail("node " + std::to_string(v) + " reached twice");
+        const Node& node = nodes_[v];
+        if (is_leaf(v)) {
+            ++leaves;
+            if (node.height != 0) fail("leaf with a height");
+            auto it = slot_.find(node.child[0]);
+            if (it == slot_.end()) fail("leaf " + std::to_string(v) + " holds unknown uid " + std::to_string(node.child[0]));
+            if (slot_seen[it->second]++) fail("uid " + std::to_string(node.child[0]) + " in two leaves");
+            if (!(boxes_[it->second] == node.box)) fail("leaf box of uid " + std::to_string(node.child[0]) + " is stale");
+            continue;
+        }
+        int hmax = -1;
+        for (int k = 0; k < 2; ++k) {
+            const std::uint32_t c = node.child[k];
+            if (c >= nodes_.size()) fail("child out of range");
+            if (nodes_[c].parent != v) fail("child " + std::to_string(c) + " does not point back to " + std::to_string(v));
+            if (!node.box.contains(nodes_[c].box)) fail("node " + std::to_string(v) + " does not enclose child " + std::to_string(c));
+            hmax = std::max(hmax, nodes_[c].height);
+            stack.push_back(c);
+        }
+        if (node.height != 1 + hmax) fail("node " + std::to_string(v) + " has a wrong height");
+    }
+    if (leaves != n) fail(std::to_string(n) + " objects but " + std::to_string(leaves) + " leaves reached");
+    if (stack_.size() < std::size_t(nodes_[0].height) + 2) fail("traversal stack smaller than the depth");
+}
+
+}  // namespace rcb
