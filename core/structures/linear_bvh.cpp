@@ -118,11 +118,22 @@ void LinearBvh::radix_sort() {
     std::uint64_t all_or = 0, all_and = ~0ull;
     for (std::size_t i = 0; i < n; ++i) all_or |= src_k[i], all_and &= src_k[i];
     const std::uint64_t varying = all_or ^ all_and;
+    // One chunk: the digit counts of every pass in a single read (they do not depend on the order).
+    std::vector<std::uint32_t>& all_counts = all_counts_;
+    if (chunks == 1) {
+        all_counts.assign(std::size_t(kPasses) * kDigits, 0u);
+        for (std::size_t i = 0; i < n; ++i)
+            for (int pass = 0; pass < kPasses; ++pass)
+                ++all_counts[std::size_t(pass) * kDigits + ((src_k[i] >> (pass * kDigitBits)) & (kDigits - 1))];
+    }
     for (int pass = 0; pass < kPasses; ++pass) {
         const int shift = pass * kDigitBits;
         if (((varying >> shift) & (kDigits - 1)) == 0) continue;
-        std::fill(histograms_.begin(), histograms_.end(), 0u);
-        parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+        if (chunks == 1)
+            std::copy_n(all_counts.begin() + std::ptrdiff_t(pass) * kDigits, kDigits, histograms_.begin());
+        else
+            std::fill(histograms_.begin(), histograms_.end(), 0u);
+        if (chunks > 1) parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
             for (std::size_t c = c0; c < c1; ++c) {
                 std::uint32_t* h = histograms_.data() + c * kDigits;
                 const std::size_t b = std::min(n, c * chunk_len), e = std::min(n, b + chunk_len);
@@ -214,6 +225,7 @@ void LinearBvh::rebuild() {
     leaf_base_ = std::uint32_t(n - 1);
     parallel(n, kGrain, [&](std::size_t b, std::size_t e) {
         for (std::size_t k = b; k < e; ++k) {
+            if (k + 16 < e) __builtin_prefetch(&boxes_[order_[k + 16]]), __builtin_prefetch(&uids_[order_[k + 16]]);
             const std::uint32_t slot = order_[k];
             nodes_[leaf_base_ + k] = Node{boxes_[slot], {uids_[slot], kNullNode}, kNullNode, 0};
         }
@@ -240,7 +252,7 @@ void LinearBvh::rebuild() {
                 while (delta_i(i + l_max * d) > delta_min) l_max *= 2;
                 std::int64_t l = 0;
                 for (std::int64_t t = l_max / 2; t >= 1; t /= 2)
-                    if (delta_i(i + (l + t) * d) > delta_min) l += t;
+                    l += delta_i(i + (l + t) * d) > delta_min ? t : 0;
                 const std::int64_t j = i + l * d;
                 const int delta_node = delta_i(j);
                 std::int64_t s = 0;
@@ -248,7 +260,7 @@ void LinearBvh::rebuild() {
                 // offset of the range can be reached.
                 for (int k = 1;; ++k) {
                     const std::int64_t t = (l + (std::int64_t(1) << k) - 1) >> k;
-                    if (delta_i(i + (s + t) * d) > delta_node) s += t;
+                    s += delta_i(i + (s + t) * d) > delta_node ? t : 0;
                     if (t == 1) break;
                 }
                 const std::int64_t gamma = i + s * d + std::min(d, 0);
@@ -270,20 +282,34 @@ void LinearBvh::rebuild() {
         parallel(n - 1, kGrain, [&](std::size_t b, std::size_t e) {
             for (std::size_t i = b; i < e; ++i) flags_[i].store(0, std::memory_order_relaxed);
         });
-        parallel(n, kGrain, [&](std::size_t b, std::size_t e) {
-            for (std::size_t k = b; k < e; ++k) {
+        auto merge_children = [&](std::uint32_t p) {
+            Node& node = nodes_[p];
+            const Node& a = nodes_[node.child[0]];
+            const Node& c = nodes_[node.child[1]];
+            node.box = merge(a.box, c.box);
+            node.height = 1 + std::max(a.height, c.height);
+            return node.parent;
+        };
+        if (arena_) {
+            parallel(n, kGrain, [&](std::size_t b, std::size_t e) {
+                for (std::size_t k = b; k < e; ++k) {
+                    std::uint32_t p = nodes_[leaf_base_ + k].parent;
+                    while (p != kNullNode && flags_[p].fetch_add(1, std::memory_order_acq_rel) != 0) p = merge_children(p);
+                }
+            });
+        } else {
+            // One thread: the same walk with plain loads and stores of the flags (a locked
+            // read-modify-write per node costs a third of this step and protects nothing here).
+            for (std::size_t k = 0; k < n; ++k) {
                 std::uint32_t p = nodes_[leaf_base_ + k].parent;
                 while (p != kNullNode) {
-                    if (flags_[p].fetch_add(1, std::memory_order_acq_rel) == 0) break;
-                    Node& node = nodes_[p];
-                    const Node& a = nodes_[node.child[0]];
-                    const Node& c = nodes_[node.child[1]];
-                    node.box = merge(a.box, c.box);
-                    node.height = 1 + std::max(a.height, c.height);
-                    p = node.parent;
+                    const std::uint32_t seen = flags_[p].load(std::memory_order_relaxed);
+                    flags_[p].store(seen + 1, std::memory_order_relaxed);
+                    if (seen == 0) break;
+                    p = merge_children(p);
                 }
             }
-        });
+        }
     }
     stack_.assign(std::size_t(nodes_[0].height) + 2, 0);
 }
@@ -300,7 +326,7 @@ double LinearBvh::sah_cost() const {
 std::size_t LinearBvh::memory_bytes() const {
     return nodes_.capacity() * sizeof(Node) + uids_.capacity() * sizeof(Uid) + boxes_.capacity() * sizeof(Aabb) +
            (codes_.capacity() + codes_tmp_.capacity()) * sizeof(std::uint64_t) +
-           (order_.capacity() + order_tmp_.capacity() + histograms_.capacity() + stack_.capacity()) *
+           (order_.capacity() + order_tmp_.capacity() + histograms_.capacity() + all_counts_.capacity() + stack_.capacity()) *
                sizeof(std::uint32_t) +
            flags_size_ * sizeof(std::atomic<std::uint32_t>) + slot_.bucket_count() * sizeof(void*) +
            slot_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) + sizeof(*this);

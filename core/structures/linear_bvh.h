@@ -101,7 +101,7 @@ private:
     std::uint32_t leaf_base_ = 0;
     std::vector<std::uint64_t> codes_, codes_tmp_;
     std::vector<std::uint32_t> order_, order_tmp_;
-    std::vector<std::uint32_t> histograms_;
+    std::vector<std::uint32_t> histograms_, all_counts_;
     std::unique_ptr<std::atomic<std::uint32_t>[]> flags_;
     std::size_t flags_size_ = 0;
     std::vector<std::uint32_t> stack_;
