@@ -8,6 +8,7 @@ namespace rcb {
 namespace {
 std::string format_number(double v) {
     std::ostringstream s;
+    s.precision(12);
     s << v;
     return s.str();
 }

@@ -11,5 +11,7 @@ void add_scene_commands(CLI::App& app);
 void add_simulate_command(CLI::App& app);
 void add_cast_command(CLI::App& app);
 void add_structures_command(CLI::App& app);
+void add_run_command(CLI::App& app);
+void add_query_commands(CLI::App& app);
 
 }  // namespace rcb

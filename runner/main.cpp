@@ -6,7 +6,8 @@
 
 int main(int argc, char** argv) {
     CLI::App app{"rcbench: acceleration structures for all-hits ray casting in dynamic physics scenes.\n"
-                 "Generate or import scenes, simulate structures against brute-force ground truth, cast your own rays.",
+                 "Generate or import scenes, simulate structures against brute-force ground truth, run experiment files\n"
+                 "into a SQLite database, compare runs, cast your own rays.",
                  "rcbench"};
     app.set_version_flag("--version", std::string("rcbench 0.1.0"));
     app.require_subcommand(1);
@@ -15,6 +16,8 @@ int main(int argc, char** argv) {
     rcb::add_simulate_command(app);
     rcb::add_cast_command(app);
     rcb::add_structures_command(app);
+    rcb::add_run_command(app);
+    rcb::add_query_commands(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

@@ -1,17 +1,10 @@
 #!/usr/bin/env bash
-# The README's first command: install what is missing, build (Release), and run the default job:
-# generate the thesis' six scenes (§6.1), simulate every registered structure on each, print the
-# thesis-style tables and keep everything under results/.
+# The README's first command: install what is missing, build (Release), and run the default job,
+# experiments/quick.json: the thesis' six scenes (§6.1), every structure at its defaults. Prints the
+# thesis-style table and stores everything in results/rcbench.db.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
-
-mkdir -p results/scenes
-scenes=()
-for preset in uni-s uni-m uni-l irreg-s irreg-m irreg-l; do
-  build/rcbench scene gen --preset "$preset" --seed 1 -o "results/scenes/$preset.rcbscene"
-  scenes+=(--scene "results/scenes/$preset.rcbscene")
-done
-build/rcbench simulate "${scenes[@]}" --structure all --json-out results/default-job.jsonl | tee results/default-job.txt
+build/rcbench run experiments/quick.json --db results/rcbench.db
 echo
-echo "Per-run results (one JSON object per line): results/default-job.jsonl"
+echo "Results: results/rcbench.db (query it: build/rcbench query results/rcbench.db \"SELECT * FROM cell_summary\")"

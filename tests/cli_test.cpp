@@ -113,10 +113,26 @@ TEST_F(Cli, BadInputIsOneLineAndExitTwo) {
     expect_bad_input(run("scene import " + path("boxes.csv") + " -o " + path("y")), "boxes.csv:2: duplicate uid 1");
 }
 
+TEST_F(Cli, RunQueryCompareRejectBadInputInOneLine) {
+    write("bad.json", R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf", "params": {"x": 1}}]})");
+    expect_bad_input(run("run " + path("bad.json") + " --db " + path("r.db")), "bad.json: structures[0].params.x: unknown parameter of bf");
+    EXPECT_FALSE(fs::exists(path("r.db")));  // nothing written for an invalid file
+    write("ok.json", R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");
+    expect_bad_input(run("run " + path("ok.json") + " --shard 0/3 --db " + path("r.db")), "--shard 0/3: expected K/N");
+    expect_bad_input(run("run " + path("missing.json")), "missing.json: cannot open");
+    ASSERT_EQ(run("run " + path("ok.json") + " --db " + path("r.db")).code, 0);
+    expect_bad_input(run("query " + path("r.db") + " \"DELETE FROM cell\""), "only read-only statements");
+    expect_bad_input(run("query " + path("r.db") + " \"SELECT nope FROM cell\""), "query: no such column: nope");
+    expect_bad_input(run("query " + path("none.db") + " \"SELECT 1\""), "none.db: no such results database");
+    expect_bad_input(run("compare " + path("r.db") + " --baseline 1 --candidate 7"), "no run matches '7'");
+    const Outcome csv = run("query --csv " + path("r.db") + " \"SELECT structure, count(*) AS cells FROM cell_summary GROUP BY 1\"");
+    EXPECT_EQ(csv.out, "structure,cells\nbf,1\n");
+}
+
 TEST_F(Cli, HelpTellsTheSubcommands) {
     const Outcome help = run("--help");
     EXPECT_EQ(help.code, 0);
-    for (const char* sub : {"scene", "simulate", "cast", "structures"}) EXPECT_NE(help.out.find(sub), std::string::npos) << sub;
+    for (const char* sub : {"scene", "simulate", "cast", "structures", "run", "query", "compare", "merge"}) EXPECT_NE(help.out.find(sub), std::string::npos) << sub;
     const Outcome structures = run("structures --json");
     EXPECT_EQ(structures.code, 0);
     EXPECT_EQ(nlohmann::json::parse(structures.out)[0]["name"], "bf");

@@ -1,0 +1,382 @@
+#include "runner/experiment.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "core/csv.h"
+#include "core/error.h"
+#include "core/recording_io.h"
+#include "core/registry.h"
+
+namespace rcb {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+std::string at(const std::string& path, const std::string& key) { return join_path(path, key); }
+std::string at(const std::string& path, std::size_t index) { return path + "[" + std::to_string(index) + "]"; }
+
+[[noreturn]] void fail(const std::string& path, const std::string& what) { throw InputError(path + ": " + what); }
+
+void expect_object(const json& j, const std::string& path) {
+    if (!j.is_object()) fail(path, "expected an object, got " + j.dump());
+}
+
+void check_keys(const json& j, const std::string& path, const std::set<std::string>& allowed) {
+    for (const auto& [key, value] : j.items()) {
+        if (allowed.count(key)) continue;
+        std::string known;
+        for (const std::string& k : allowed) known += (known.empty() ? "" : ", ") + k;
+        fail(at(path, key), "unknown key (known: " + known + ")");
+    }
+}
+
+std::uint64_t get_uint(const json& obj, const std::string& key, const std::string& path, std::uint64_t lo, std::uint64_t hi,
+                       std::uint64_t fallback) {
+    if (!obj.contains(key)) return fallback;
+    const json& v = obj.at(key);
+    if (!(v.is_number_unsigned() || v.is_number_integer()) || v.get<double>() < double(lo) || v.get<double>() > double(hi))
+        fail(at(path, key), "expected an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got " + v.dump());
+    return v.get<std::uint64_t>();
+}
+
+double get_number(const json& obj, const std::string& key, const std::string& path, double lo, double hi, double fallback) {
+    if (!obj.contains(key)) return fallback;
+    const json& v = obj.at(key);
+    if (!v.is_number() || !(v.get<double>() >= lo && v.get<double>() <= hi)) {
+        std::ostringstream range;
+        range << lo << ".." << hi;
+        fail(at(path, key), "expected a number in " + range.str() + ", got " + v.dump());
+    }
+    return v.get<double>();
+}
+
+std::string get_string(const json& obj, const std::string& key, const std::string& path, const std::string& fallback) {
+    if (!obj.contains(key)) return fallback;
+    if (!obj.at(key).is_string()) fail(at(path, key), "expected a string, got " + obj.at(key).dump());
+    return obj.at(key).get<std::string>();
+}
+
+bool get_bool(const json& obj, const std::string& key, const std::string& path, bool fallback) {
+    if (!obj.contains(key)) return fallback;
+    if (!obj.at(key).is_boolean()) fail(at(path, key), "expected true or false, got " + obj.at(key).dump());
+    return obj.at(key).get<bool>();
+}
+
+/// A list of unsigned integers given as one integer or an array of them.
+std::vector<std::uint64_t> get_uint_list(const json& obj, const std::string& key, const std::string& path, std::uint64_t lo,
+                                         std::uint64_t hi, std::vector<std::uint64_t> fallback) {
+    if (!obj.contains(key)) return fallback;
+    const json& v = obj.at(key);
+    if (!v.is_array()) return {get_uint(obj, key, path, lo, hi, 0)};
+    if (v.empty()) fail(at(path, key), "expected a non-empty list");
+    std::vector<std::uint64_t> out;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+        json wrapper = {{"v", v[i]}};
+        try {
+            out.push_back(get_uint(wrapper, "v", "", lo, hi, 0));
+        } catch (const InputError& e) {
+            fail(at(at(path, key), i), std::string(e.what()).substr(3));  // drop the wrapper's "v: "
+        }
+    }
+    return out;
+}
+
+/// The values one parameter takes in a grid: a scalar, a list, or a range
+/// {"from": a, "to": b, "step": s} (arithmetic) / {"from": a, "to": b, "times": f} (geometric).
+std::vector<json> expand_values(const ParamSpec& spec, const json& v, const std::string& path) {
+    std::vector<json> out;
+    if (v.is_array()) {
+        if (v.empty()) fail(path, "expected a non-empty list of values");
+        for (std::size_t i = 0; i < v.size(); ++i) {
+            check_param(spec, v[i], at(path, i));
+            out.push_back(v[i]);
+        }
+        return out;
+    }
+    if (v.is_object()) {
+        check_keys(v, path, {"from", "to", "step", "times"});
+        if (!v.contains("from") || !v.contains("to") || (v.contains("step") == v.contains("times")))
+            fail(path, "a range needs \"from\", \"to\" and one of \"step\" or \"times\"");
+        check_param(spec, v["from"], at(path, "from"));
+        check_param(spec, v["to"], at(path, "to"));
+        const double from = v["from"].get<double>(), to = v["to"].get<double>();
+        if (to < from) fail(path, "\"to\" is below \"from\"");
+        const bool integer = spec.kind == ParamKind::integer;
+        if (v.contains("step")) {
+            const json& s = v["step"];
+            if (!s.is_number() || !(s.get<double>() > 0) || (integer && !s.is_number_integer()))
+                fail(at(path, "step"), std::string("expected a positive ") + (integer ? "integer" : "number") + ", got " + s.dump());
+            const double step = s.get<double>();
+            for (std::size_t i = 0; from + double(i) * step <= to * (1 + 1e-12) + 1e-12; ++i) {
+                const double x = from + double(i) * step;
+                out.push_back(integer ? json(std::llround(x)) : json(x));
+                if (out.size() > 10000) fail(path, "the range has more than 10000 values");
+            }
+        } else {
+            const json& f = v["times"];
+            if (!f.is_number() || !(f.get<double>() > 1)) fail(at(path, "times"), "expected a number above 1, got " + f.dump());
+            if (!(from > 0)) fail(at(path, "from"), "a geometric range needs \"from\" above 0");
+            for (double x = from; x <= to * (1 + 1e-12); x *= f.get<double>()) {
+                json value = integer ? json(std::llround(x)) : json(x);
+                if (out.empty() || out.back() != value) out.push_back(value);
+                if (out.size() > 10000) fail(path, "the range has more than 10000 values");
+            }
+        }
+        for (std::size_t i = 0; i < out.size(); ++i) check_param(spec, out[i], at(path, i));
+        return out;
+    }
+    check_param(spec, v, path);
+    return {v};
+}
+
+/// Cross product of a parameter grid (keys in name order, so the expansion is stable).
+std::vector<json> expand_grid(const StructureInfo& info, const json& grid, const std::string& path) {
+    if (grid.is_null()) return {json::object()};
+    expect_object(grid, path);
+    std::vector<json> combos{json::object()};
+    for (const auto& [key, value] : grid.items()) {
+        auto spec = std::find_if(info.params.begin(), info.params.end(), [&](const ParamSpec& s) { return s.name == key; });
+        if (spec == info.params.end()) check_params(info.params, json{{key, value}}, path, info.name);  // throws: unknown
+        const std::vector<json> values = expand_values(*spec, value, at(path, key));
+        std::vector<json> next;
+        for (const json& c : combos)
+            for (const json& v : values) {
+                json n = c;
+                n[key] = v;
+                next.push_back(std::move(n));
+            }
+        combos = std::move(next);
+        if (combos.size() > 100000) fail(path, "the grid has more than 100000 combinations");
+    }
+    return combos;
+}
+
+struct Defaults {
+    std::uint32_t frames = 10;
+    std::uint32_t rays = 1000;
+    std::string ray_mix = "center";
+    std::vector<std::uint64_t> seeds{1};
+};
+
+void parse_scene(const json& s, const std::string& path, const Defaults& d, const std::string& base_dir,
+                 std::vector<SceneSpec>& out) {
+    expect_object(s, path);
+    check_keys(s, path, {"name", "preset", "kind", "objects", "recording", "import", "frames", "rays_per_frame", "ray_mix",
+                         "change_fraction", "insert_share", "remove_share", "move_scale", "seed", "seeds"});
+    int sources = int(s.contains("preset")) + int(s.contains("kind")) + int(s.contains("recording")) + int(s.contains("import"));
+    if (sources != 1) fail(path, "give exactly one of \"preset\", \"kind\", \"recording\" or \"import\"");
+
+    if (s.contains("recording")) {
+        for (const char* k : {"objects", "frames", "rays_per_frame", "ray_mix", "change_fraction", "insert_share",
+                              "remove_share", "move_scale", "seed", "seeds"})
+            if (s.contains(k)) fail(at(path, k), "a recording brings its own frames, rays and dynamics");
+        SceneSpec spec;
+        spec.source = SceneSpec::Source::recording;
+        const std::string file = get_string(s, "recording", path, "");
+        spec.path = fs::path(file).is_absolute() ? file : (fs::path(base_dir) / file).lexically_normal().string();
+        if (!fs::is_regular_file(spec.path)) fail(at(path, "recording"), "file not found: " + spec.path);
+        spec.name = get_string(s, "name", path, fs::path(file).stem().string());
+        spec.key = {{"recording", fs::path(file).filename().string()}, {"name", spec.name}};
+        out.push_back(std::move(spec));
+        return;
+    }
+
+    SceneSettings base;
+    std::string name;
+    SceneSpec::Source source = SceneSpec::Source::generated;
+    std::string file;
+    if (s.contains("preset")) {
+        try {
+            base = preset_settings(get_string(s, "preset", path, ""));
+        } catch (const InputError& e) {
+            fail(at(path, "preset"), e.what());
+        }
+        name = base.preset;
+    } else if (s.contains("kind")) {
+        base.kind = get_string(s, "kind", path, "");
+        if (base.kind != "uniform" && base.kind != "irregular")
+            fail(at(path, "kind"), "expected \"uniform\" or \"irregular\", got " + s["kind"].dump());
+        if (!s.contains("objects")) fail(path, "a scene given by \"kind\" needs \"objects\"");
+        name = base.kind;
+    } else {
+        source = SceneSpec::Source::import;
+        const std::string given = get_string(s, "import", path, "");
+        file = fs::path(given).is_absolute() ? given : (fs::path(base_dir) / given).lexically_normal().string();
+        if (!fs::is_regular_file(file)) fail(at(path, "import"), "file not found: " + file);
+        if (s.contains("objects")) fail(at(path, "objects"), "an imported scene has the file's objects");
+        name = fs::path(given).stem().string();
+    }
+    name = get_string(s, "name", path, name);
+    const std::vector<std::uint64_t> objects =
+        source == SceneSpec::Source::import ? std::vector<std::uint64_t>{0}
+                                            : get_uint_list(s, "objects", path, 1, 100'000'000, {base.objects});
+    std::vector<std::uint64_t> seeds = d.seeds;
+    if (s.contains("seed") && s.contains("seeds")) fail(path, "give \"seed\" or \"seeds\", not both");
+    if (s.contains("seed")) seeds = {get_uint(s, "seed", path, 0, UINT64_MAX, 1)};
+    if (s.contains("seeds")) seeds = get_uint_list(s, "seeds", path, 0, UINT64_MAX, d.seeds);
+
+    base.frames = static_cast<std::uint32_t>(get_uint(s, "frames", path, 1, 1'000'000, d.frames));
+    base.rays.per_frame = static_cast<std::uint32_t>(get_uint(s, "rays_per_frame", path, 0, 100'000'000, d.rays));
+    const std::string mix = get_string(s, "ray_mix", path, d.ray_mix);
+    try {
+        base.rays.mix = parse_ray_mix(mix);
+    } catch (const InputError& e) {
+        fail(at(path, "ray_mix"), e.what());
+    }
+    base.dynamics.change_fraction = get_number(s, "change_fraction", path, 0, 1, base.dynamics.change_fraction);
+    base.dynamics.insert_share = get_number(s, "insert_share", path, 0, 1, base.dynamics.insert_share);
+    base.dynamics.remove_share = get_number(s, "remove_share", path, 0, 1, base.dynamics.remove_share);
+    base.dynamics.move_scale = get_number(s, "move_scale", path, 0, 1000, base.dynamics.move_scale);
+    if (base.dynamics.insert_share + base.dynamics.remove_share > 1) fail(path, "insert_share + remove_share exceeds 1");
+
+    for (std::uint64_t count : objects)
+        for (std::uint64_t seed : seeds) {
+            SceneSpec spec;
+            spec.source = source;
+            spec.settings = base;
+            spec.settings.seed = seed;
+            spec.path = file;
+            if (source != SceneSpec::Source::import) spec.settings.objects = static_cast<std::uint32_t>(count);
+            spec.name = name;
+            if (objects.size() > 1) spec.name += "-" + std::to_string(count);
+            if (seeds.size() > 1) spec.name += "-s" + std::to_string(seed);
+            json dyn = {{"change_fraction", base.dynamics.change_fraction},
+                        {"insert_share", base.dynamics.insert_share},
+                        {"remove_share", base.dynamics.remove_share},
+                        {"move_scale", base.dynamics.move_scale}};
+            spec.key = {{"frames", base.frames}, {"rays_per_frame", base.rays.per_frame}, {"ray_mix", mix},
+                        {"dynamics", dyn},       {"seed", seed}};
+            if (source == SceneSpec::Source::import) spec.key["import"] = fs::path(file).filename().string();
+            else spec.key["kind"] = base.kind, spec.key["objects"] = count;
+            out.push_back(std::move(spec));
+        }
+}
+
+std::string read_file(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(path + ": cannot open");
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+}  // namespace
+
+std::string stable_hash(const std::string& bytes) {
+    std::uint64_t h = 0xcbf29ce484222325ULL;
+    for (unsigned char c : bytes) {
+        h ^= c;
+        h *= 0x100000001b3ULL;
+    }
+    char out[17];
+    std::snprintf(out, sizeof out, "%016llx", static_cast<unsigned long long>(h));
+    return out;
+}
+
+Experiment parse_experiment(const std::string& text, const std::string& name, const std::string& base_dir) {
+    json j;
+    try {
+        j = json::parse(text);
+    } catch (const json::parse_error& e) {
+        throw InputError(name + ": not valid JSON (" + std::string(e.what()) + ")");
+    }
+    try {
+        expect_object(j, "(top level)");
+        check_keys(j, "", {"name", "description", "frames", "warmup_frames", "repetitions", "rays_per_frame", "ray_mix", "seeds",
+                           "threads", "verify", "scenes", "structures"});
+        Experiment e;
+        e.content = text;
+        e.hash = stable_hash(text);
+        e.name = get_string(j, "name", "", fs::path(name).stem().string());
+        if (e.name.empty()) fail("name", "must not be empty");
+        e.description = get_string(j, "description", "", "");
+        e.repetitions = static_cast<std::uint32_t>(get_uint(j, "repetitions", "", 1, 1000, 1));
+        e.warmup_frames = static_cast<std::uint32_t>(get_uint(j, "warmup_frames", "", 0, 1000, 0));
+        e.threads = static_cast<std::uint32_t>(get_uint(j, "threads", "", 1, 1024, 1));
+        e.verify = get_bool(j, "verify", "", true);
+        Defaults d;
+        d.frames = static_cast<std::uint32_t>(get_uint(j, "frames", "", 1, 1'000'000, d.frames));
+        d.rays = static_cast<std::uint32_t>(get_uint(j, "rays_per_frame", "", 0, 100'000'000, d.rays));
+        d.ray_mix = get_string(j, "ray_mix", "", d.ray_mix);
+        d.seeds = get_uint_list(j, "seeds", "", 0, UINT64_MAX, d.seeds);
+
+        if (!j.contains("scenes") || !j["scenes"].is_array() || j["scenes"].empty())
+            fail("scenes", "expected a non-empty list of scenes");
+        for (std::size_t i = 0; i < j["scenes"].size(); ++i) parse_scene(j["scenes"][i], at("scenes", i), d, base_dir, e.scenes);
+        for (const SceneSpec& s : e.scenes)
+            if (s.source != SceneSpec::Source::recording && e.warmup_frames >= s.settings.frames)
+                fail("warmup_frames", "leaves no measured frame in scene " + s.name);
+
+        if (!j.contains("structures") || !j["structures"].is_array() || j["structures"].empty())
+            fail("structures", "expected a non-empty list of structures");
+        std::set<std::string> seen;
+        for (std::size_t i = 0; i < j["structures"].size(); ++i) {
+            const json& s = j["structures"][i];
+            const std::string path = at("structures", i);
+            expect_object(s, path);
+            check_keys(s, path, {"name", "params", "grids"});
+            if (!s.contains("name")) fail(path, "missing \"name\"");
+            const std::string structure = get_string(s, "name", path, "");
+            const StructureInfo* info = nullptr;
+            try {
+                info = &find_structure(structure);
+            } catch (const InputError& err) {
+                fail(at(path, "name"), err.what());
+            }
+            if (s.contains("params") && s.contains("grids")) fail(path, "give \"params\" or \"grids\", not both");
+            std::vector<std::pair<json, std::string>> grids;
+            if (s.contains("grids")) {
+                if (!s["grids"].is_array() || s["grids"].empty()) fail(at(path, "grids"), "expected a non-empty list of parameter grids");
+                for (std::size_t g = 0; g < s["grids"].size(); ++g) grids.emplace_back(s["grids"][g], at(at(path, "grids"), g));
+            } else {
+                grids.emplace_back(s.contains("params") ? s["params"] : json::object(), at(path, "params"));
+            }
+            for (const auto& [grid, gpath] : grids)
+                for (const json& params : expand_grid(*info, grid, gpath)) {
+                    ConfigSpec c{info->name, info->complete(params, gpath)};
+                    if (seen.insert(c.structure + c.params.dump()).second) e.configs.push_back(std::move(c));
+                }
+        }
+
+        for (std::size_t s = 0; s < e.scenes.size(); ++s)
+            for (std::uint32_t r = 0; r < e.repetitions; ++r)
+                for (std::size_t c = 0; c < e.configs.size(); ++c) {
+                    const json key = {{"scene", e.scenes[s].key},
+                                      {"structure", e.configs[c].structure},
+                                      {"params", e.configs[c].params},
+                                      {"repetition", r}};
+                    e.plan.push_back({s, c, r, stable_hash(key.dump())});
+                }
+        return e;
+    } catch (const InputError& err) {
+        throw InputError(name + ": " + err.what());
+    }
+}
+
+Experiment load_experiment(const std::string& path) {
+    if (fs::is_directory(path)) throw InputError(path + ": is a directory, not an experiment file");
+    return parse_experiment(read_file(path), path, fs::path(path).parent_path().string());
+}
+
+Recording load_scene(const SceneSpec& s) {
+    switch (s.source) {
+        case SceneSpec::Source::recording: return read_recording(s.path);
+        case SceneSpec::Source::import: {
+            std::vector<Object> objects = read_boxes_csv(s.path);
+            if (objects.empty()) throw InputError(s.path + ": no boxes to import");
+            const json meta = {{"generator", "rcbench import"}, {"source", fs::path(s.path).filename().string()}};
+            return add_dynamics(std::move(objects), s.settings.dynamics, s.settings.rays, s.settings.frames, s.settings.seed, meta);
+        }
+        case SceneSpec::Source::generated: return generate_scene(s.settings);
+    }
+    return {};
+}
+
+}  // namespace rcb

@@ -1,0 +1,67 @@
+#pragma once
+/// Experiment files: what to measure, declared in JSON (schema: experiments/README.md), validated
+/// before anything runs, and expanded into a plan of cells (scene × configuration × repetition).
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/generators.h"
+#include "core/scene.h"
+
+namespace rcb {
+
+/// One concrete scene of the plan: a preset or kind with its overrides and one seed, a recording
+/// file, or an imported CSV with dynamics.
+struct SceneSpec {
+    std::string name;           ///< for tables: the preset, the given name, or the file's stem
+    nlohmann::json key;         ///< canonical description: identifies the scene in cell keys
+    enum class Source { generated, recording, import } source = Source::generated;
+    SceneSettings settings;     ///< generated: everything; import: dynamics, rays, frames, seed
+    std::string path;           ///< recording or import: the file, resolved against the experiment's folder
+};
+
+/// One structure with one complete set of parameters.
+struct ConfigSpec {
+    std::string structure;
+    nlohmann::json params;  ///< complete: every parameter, defaults filled in
+};
+
+struct Cell {
+    std::size_t scene = 0;   ///< index into Experiment::scenes
+    std::size_t config = 0;  ///< index into Experiment::configs
+    std::uint32_t repetition = 0;
+    std::string key;         ///< stable hash of (scene key, structure, params, repetition)
+};
+
+struct Experiment {
+    std::string name;
+    std::string description;
+    std::string content;  ///< the file's text, stored with the run
+    std::string hash;     ///< of the content
+    std::uint32_t repetitions = 1;
+    std::uint32_t warmup_frames = 0;
+    std::uint32_t threads = 1;  ///< TBB parallelism for the run (verification, threaded structures)
+    bool verify = true;
+    std::vector<SceneSpec> scenes;
+    std::vector<ConfigSpec> configs;
+    /// Scene-major; within a scene the repetitions interleave across configurations
+    /// (rep 0 of every config, then rep 1, …), so drift over time does not bias a ratio.
+    std::vector<Cell> plan;
+};
+
+/// Reads and validates; errors name the file and the JSON path, e.g.
+/// "quick.json: structures[2].params.max_depth: expected an integer in 1..16, got \"x\"".
+Experiment load_experiment(const std::string& path);
+/// The same from text; relative file paths resolve against `base_dir`.
+Experiment parse_experiment(const std::string& text, const std::string& name, const std::string& base_dir);
+
+/// Generates, imports or reads the scene.
+Recording load_scene(const SceneSpec& scene);
+
+/// FNV-1a, 64 bits, as 16 hex digits: stable across platforms and runs.
+std::string stable_hash(const std::string& bytes);
+
+}  // namespace rcb

@@ -1,0 +1,99 @@
+#pragma once
+/// A thin RAII layer over SQLite's C API: a connection, prepared statements with typed binds and
+/// columns, and transactions that roll back unless committed. Errors throw with the SQL's message.
+
+#include <sqlite3.h>
+
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+namespace rcb {
+
+class SqlError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+class Statement {
+public:
+    Statement(sqlite3* db, const std::string& sql);
+    ~Statement();
+    Statement(Statement&& o) noexcept : db_(o.db_), stmt_(o.stmt_) { o.stmt_ = nullptr; }
+    Statement(const Statement&) = delete;
+    Statement& operator=(const Statement&) = delete;
+
+    Statement& bind(int index, std::int64_t v);
+    Statement& bind(int index, double v);
+    Statement& bind(int index, const std::string& v);
+    Statement& bind_null(int index);
+    Statement& bind(int index, const std::optional<double>& v) { return v ? bind(index, *v) : bind_null(index); }
+    /// Binds 1..n in order.
+    template <typename... T>
+    Statement& bind_all(const T&... values) {
+        int i = 0;
+        (bind(++i, values), ...);
+        return *this;
+    }
+
+    /// Steps once: true while a row is available.
+    bool step();
+    /// Steps to completion (for statements without rows).
+    void run();
+    void reset();
+
+    int columns() const { return sqlite3_column_count(stmt_); }
+    std::string column_name(int i) const { return sqlite3_column_name(stmt_, i); }
+    bool is_null(int i) const { return sqlite3_column_type(stmt_, i) == SQLITE_NULL; }
+    std::int64_t int64(int i) const { return sqlite3_column_int64(stmt_, i); }
+    double real(int i) const { return sqlite3_column_double(stmt_, i); }
+    std::string text(int i) const;
+    bool read_only() const { return sqlite3_stmt_readonly(stmt_) != 0; }
+
+private:
+    sqlite3* db_;
+    sqlite3_stmt* stmt_ = nullptr;
+};
+
+class Database {
+public:
+    /// Opens (creating it unless read-only) with WAL journaling and a busy timeout, so several
+    /// processes can share one file.
+    Database(const std::string& path, bool read_only);
+    ~Database();
+    Database(const Database&) = delete;
+    Database& operator=(const Database&) = delete;
+
+    void exec(const std::string& sql);
+    Statement prepare(const std::string& sql) { return Statement(db_, sql); }
+    std::int64_t last_insert_id() const { return sqlite3_last_insert_rowid(db_); }
+    const std::string& path() const { return path_; }
+
+private:
+    sqlite3* db_ = nullptr;
+    std::string path_;
+};
+
+/// BEGIN IMMEDIATE (takes the write lock up front, so concurrent writers queue instead of
+/// deadlocking); rolls back on destruction unless commit() was called.
+class Transaction {
+public:
+    explicit Transaction(Database& db) : db_(db) { db_.exec("BEGIN IMMEDIATE"); }
+    ~Transaction() {
+        if (!done_) try {
+                db_.exec("ROLLBACK");
+            } catch (...) {
+            }
+    }
+    void commit() {
+        db_.exec("COMMIT");
+        done_ = true;
+    }
+
+private:
+    Database& db_;
+    bool done_ = false;
+};
+
+}  // namespace rcb

@@ -1,0 +1,360 @@
+#include "runner/store.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <thread>
+
+#include "core/error.h"
+#include "core/recording_io.h"
+#include "runner/build_info.h"
+
+namespace rcb {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// Forward-only migrations: entry i brings a database from user_version i to i + 1. Never edit a
+/// released entry; append a new one.
+const std::vector<const char*>& migrations() {
+    static const std::vector<const char*> all = {
+        // 0 → 1: the initial schema.
+        R"sql(
+CREATE TABLE experiment (
+    id          INTEGER PRIMARY KEY,
+    name        TEXT NOT NULL UNIQUE,
+    description TEXT NOT NULL DEFAULT ''
+);
+CREATE TABLE run (
+    id                 INTEGER PRIMARY KEY,
+    uuid               TEXT NOT NULL UNIQUE,
+    experiment_id      INTEGER NOT NULL REFERENCES experiment(id),
+    experiment_hash    TEXT NOT NULL,
+    experiment_content TEXT NOT NULL,
+    started_at         TEXT NOT NULL,
+    finished_at        TEXT,
+    git_commit         TEXT NOT NULL,
+    compiler           TEXT NOT NULL,
+    flags              TEXT NOT NULL,
+    cpu_model          TEXT NOT NULL,
+    cores              INTEGER NOT NULL,
+    governor           TEXT NOT NULL,
+    hostname           TEXT NOT NULL,
+    threads            INTEGER NOT NULL,
+    shard              TEXT NOT NULL
+);
+CREATE TABLE scene (
+    id             INTEGER PRIMARY KEY,
+    hash           TEXT NOT NULL UNIQUE,
+    name           TEXT NOT NULL,
+    spec           TEXT NOT NULL,
+    meta           TEXT NOT NULL,
+    objects        INTEGER NOT NULL,
+    frames         INTEGER NOT NULL,
+    rays_per_frame REAL NOT NULL,
+    stats          TEXT NOT NULL
+);
+CREATE TABLE config (
+    id        INTEGER PRIMARY KEY,
+    structure TEXT NOT NULL,
+    params    TEXT NOT NULL,
+    UNIQUE (structure, params)
+);
+CREATE TABLE cell (
+    id                INTEGER PRIMARY KEY,
+    run_id            INTEGER NOT NULL REFERENCES run(id),
+    cell_key          TEXT NOT NULL,
+    scene_id          INTEGER NOT NULL REFERENCES scene(id),
+    config_id         INTEGER NOT NULL REFERENCES config(id),
+    repetition        INTEGER NOT NULL,
+    finished_at       TEXT NOT NULL,
+    objects           INTEGER NOT NULL,
+    build_ns          INTEGER NOT NULL,
+    memory_bytes      INTEGER NOT NULL,
+    verified          INTEGER NOT NULL,
+    mismatches        INTEGER NOT NULL,
+    frames            INTEGER NOT NULL,
+    update_ns_median  REAL NOT NULL,
+    update_ns_mad     REAL NOT NULL,
+    raycast_ns_median REAL NOT NULL,
+    raycast_ns_mad    REAL NOT NULL,
+    UNIQUE (run_id, cell_key)
+);
+CREATE TABLE frame (
+    cell_id      INTEGER NOT NULL REFERENCES cell(id) ON DELETE CASCADE,
+    frame        INTEGER NOT NULL,
+    warmup       INTEGER NOT NULL,
+    inserts      INTEGER NOT NULL,
+    removes      INTEGER NOT NULL,
+    moves        INTEGER NOT NULL,
+    rays         INTEGER NOT NULL,
+    update_ns    INTEGER NOT NULL,
+    raycast_ns   INTEGER NOT NULL,
+    hits         INTEGER NOT NULL,
+    missed       INTEGER NOT NULL,
+    extra        INTEGER NOT NULL,
+    duplicate    INTEGER NOT NULL,
+    n_t          INTEGER NOT NULL,
+    n_rb         INTEGER NOT NULL,
+    n_tp         INTEGER NOT NULL,
+    memory_bytes INTEGER NOT NULL,
+    sah_cost     REAL,
+    stats        TEXT NOT NULL,
+    PRIMARY KEY (cell_id, frame)
+);
+CREATE INDEX cell_by_config ON cell(config_id, scene_id);
+CREATE VIEW cell_summary AS
+    SELECT cell.id AS cell_id, run.id AS run_id, run.git_commit, experiment.name AS experiment, scene.name AS scene,
+           config.structure, config.params, cell.repetition, cell.objects, cell.build_ns, cell.memory_bytes,
+           cell.update_ns_median, cell.raycast_ns_median, cell.mismatches
+    FROM cell JOIN run ON run.id = cell.run_id JOIN experiment ON experiment.id = run.experiment_id
+              JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id;
+)sql",
+    };
+    return all;
+}
+
+int user_version(Database& db) {
+    Statement s = db.prepare("PRAGMA user_version");
+    s.step();
+    return int(s.int64(0));
+}
+
+void refuse_newer(int version, const std::string& path) {
+    if (version > latest_schema_version())
+        throw InputError(path + ": results database schema version " + std::to_string(version) +
+                         " is newer than this rcbench writes (" + std::to_string(latest_schema_version()) +
+                         "); use a newer rcbench");
+}
+
+std::string now_utc() {
+    const auto t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+    return buf;
+}
+
+std::string first_line_of(const std::string& path) {
+    std::ifstream in(path);
+    std::string line;
+    std::getline(in, line);
+    return line;
+}
+
+std::string read_cpu_model() {
+    std::ifstream in("/proc/cpuinfo");
+    std::string line;
+    while (std::getline(in, line))
+        if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+    return "unknown";
+}
+
+std::string random_uuid() {
+    std::random_device rd;
+    std::uniform_int_distribution<std::uint64_t> dist;
+    const std::uint64_t a = dist(rd), b = dist(rd);
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%016llx%016llx", (unsigned long long)a, (unsigned long long)b);
+    return buf;
+}
+
+nlohmann::json scene_stats(const Recording& r) {
+    const Aabb b = bounds_of(r.initial);
+    std::vector<float> edges;
+    for (const Object& o : r.initial) edges.push_back(o.box.longest_edge());
+    std::sort(edges.begin(), edges.end());
+    auto q = [&](double p) { return edges.empty() ? 0.0 : double(edges[std::size_t(p * double(edges.size() - 1))]); };
+    return {{"bounds", {{b.min.x, b.min.y, b.min.z}, {b.max.x, b.max.y, b.max.z}}},
+            {"longest_edge", {{"min", q(0)}, {"p10", q(0.1)}, {"median", q(0.5)}, {"p90", q(0.9)}, {"max", q(1)}}}};
+}
+
+}  // namespace
+
+int latest_schema_version() { return int(migrations().size()); }
+
+RunInfo RunInfo::current(std::uint32_t threads, const std::string& shard, const Experiment& e) {
+    RunInfo r;
+    r.uuid = random_uuid();
+    r.started_at = now_utc();
+    r.git_commit = kGitCommit;
+    r.compiler = kCompiler;
+    r.flags = kCompileFlags;
+    r.cpu_model = read_cpu_model();
+    r.cores = std::thread::hardware_concurrency();
+    r.governor = first_line_of("/sys/devices/system/cpu/cpu0/cpufreq/scaling_governor");
+    if (r.governor.empty()) r.governor = "unreadable";
+    char host[256] = {0};
+    gethostname(host, sizeof host - 1);
+    r.hostname = host;
+    r.threads = threads;
+    r.shard = shard;
+    r.experiment_hash = e.hash;
+    r.experiment_content = e.content;
+    return r;
+}
+
+std::string recording_hash(const Recording& r) { return stable_hash(encode_recording(r)); }
+
+namespace {
+Database open_for_writing(const std::string& path) {
+    const fs::path parent = fs::path(path).parent_path();
+    std::error_code ec;
+    if (!parent.empty()) fs::create_directories(parent, ec);
+    if (fs::is_directory(path)) throw InputError(path + ": is a directory, not a results database");
+    try {
+        return Database(path, false);
+    } catch (const SqlError& e) {
+        throw InputError(path + ": cannot open the results database (" + e.what() + ")");
+    }
+}
+}  // namespace
+
+ResultStore::ResultStore(const std::string& path) : ResultStore(path, latest_schema_version()) {}
+
+ResultStore::ResultStore(const std::string& path, int version) : db_(open_for_writing(path)) {
+    try {
+        migrate(version);
+    } catch (const SqlError& e) {
+        throw InputError(path + ": not a usable results database (" + e.what() + ")");
+    }
+}
+
+void ResultStore::migrate(int target) {
+    Transaction t(db_);
+    const int version = user_version(db_);
+    refuse_newer(version, db_.path());
+    for (int v = version; v < target; ++v) db_.exec(migrations()[std::size_t(v)]);
+    if (target > version) db_.exec("PRAGMA user_version = " + std::to_string(target));
+    t.commit();
+}
+
+std::unique_ptr<Database> open_read_only(const std::string& path) {
+    if (!fs::is_regular_file(path)) throw InputError(path + ": no such results database");
+    std::unique_ptr<Database> db;
+    try {
+        db = std::make_unique<Database>(path, true);
+        refuse_newer(user_version(*db), path);
+        if (user_version(*db) == 0) throw InputError(path + ": not an rcbench results database (no schema)");
+    } catch (const SqlError& e) {
+        throw InputError(path + ": cannot read the results database (" + e.what() + ")");
+    }
+    return db;
+}
+
+std::int64_t ResultStore::experiment_id(const Experiment& e) {
+    db_.prepare("INSERT INTO experiment(name, description) VALUES (?, ?) ON CONFLICT(name) DO UPDATE SET description = excluded.description")
+        .bind_all(e.name, e.description)
+        .run();
+    Statement s = db_.prepare("SELECT id FROM experiment WHERE name = ?");
+    s.bind(1, e.name);
+    s.step();
+    return s.int64(0);
+}
+
+std::optional<std::int64_t> ResultStore::unfinished_run(std::int64_t experiment_id, const std::string& hash,
+                                                        const std::string& shard) {
+    Statement s = db_.prepare(
+        "SELECT id FROM run WHERE experiment_id = ? AND experiment_hash = ? AND shard = ? AND finished_at IS NULL "
+        "ORDER BY id DESC LIMIT 1");
+    s.bind_all(experiment_id, hash, shard);
+    if (s.step()) return s.int64(0);
+    return std::nullopt;
+}
+
+std::int64_t ResultStore::begin_run(std::int64_t experiment_id, const RunInfo& r) {
+    db_.prepare(
+           "INSERT INTO run(uuid, experiment_id, experiment_hash, experiment_content, started_at, git_commit, compiler, "
+           "flags, cpu_model, cores, governor, hostname, threads, shard) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
+        .bind_all(r.uuid, experiment_id, r.experiment_hash, r.experiment_content, r.started_at, r.git_commit, r.compiler,
+                  r.flags, r.cpu_model, std::int64_t(r.cores), r.governor, r.hostname, std::int64_t(r.threads), r.shard)
+        .run();
+    return db_.last_insert_id();
+}
+
+bool ResultStore::run_exists(std::int64_t run_id) {
+    Statement s = db_.prepare("SELECT 1 FROM run WHERE id = ?");
+    s.bind(1, run_id);
+    return s.step();
+}
+
+std::set<std::string> ResultStore::finished_cells(std::int64_t run_id) {
+    std::set<std::string> keys;
+    Statement s = db_.prepare("SELECT cell_key FROM cell WHERE run_id = ?");
+    s.bind(1, run_id);
+    while (s.step()) keys.insert(s.text(0));
+    return keys;
+}
+
+bool ResultStore::cell_done(std::int64_t run_id, const std::string& key) {
+    Statement s = db_.prepare("SELECT 1 FROM cell WHERE run_id = ? AND cell_key = ?");
+    s.bind_all(run_id, key);
+    return s.step();
+}
+
+std::int64_t ResultStore::scene_id(const SceneSpec& spec, const Recording& r, const std::string& hash) {
+    std::size_t rays = 0;
+    for (const Frame& f : r.frames) rays += f.rays.size();
+    db_.prepare(
+           "INSERT INTO scene(hash, name, spec, meta, objects, frames, rays_per_frame, stats) VALUES (?,?,?,?,?,?,?,?) "
+           "ON CONFLICT(hash) DO NOTHING")
+        .bind_all(hash, spec.name, spec.key.dump(), r.meta, std::int64_t(r.initial.size()), std::int64_t(r.frames.size()),
+                  r.frames.empty() ? 0.0 : double(rays) / double(r.frames.size()), scene_stats(r).dump())
+        .run();
+    Statement s = db_.prepare("SELECT id FROM scene WHERE hash = ?");
+    s.bind(1, hash);
+    s.step();
+    return s.int64(0);
+}
+
+std::int64_t ResultStore::config_id(const std::string& structure, const nlohmann::json& params) {
+    db_.prepare("INSERT INTO config(structure, params) VALUES (?, ?) ON CONFLICT DO NOTHING").bind_all(structure, params.dump()).run();
+    Statement s = db_.prepare("SELECT id FROM config WHERE structure = ? AND params = ?");
+    s.bind_all(structure, params.dump());
+    s.step();
+    return s.int64(0);
+}
+
+bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell, const SceneSpec& spec, const Recording& r,
+                             const std::string& scene_hash, const SimulationResult& res) {
+    Transaction t(db_);
+    if (cell_done(run_id, cell.key)) return false;  // another runner was first; roll back nothing
+    const std::int64_t scene = scene_id(spec, r, scene_hash);
+    const std::int64_t config = config_id(res.structure, res.params);
+    const Spread u = res.update_ns(), c = res.raycast_ns();
+    db_.prepare(
+           "INSERT INTO cell(run_id, cell_key, scene_id, config_id, repetition, finished_at, objects, build_ns, memory_bytes, "
+           "verified, mismatches, frames, update_ns_median, update_ns_mad, raycast_ns_median, raycast_ns_mad) "
+           "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
+        .bind_all(run_id, cell.key, scene, config, std::int64_t(cell.repetition), now_utc(), std::int64_t(res.objects),
+                  std::int64_t(res.build_ns), std::int64_t(res.memory_bytes), std::int64_t(res.verified),
+                  std::int64_t(res.mismatches()), std::int64_t(res.frames.size()), u.median, u.mad, c.median, c.mad)
+        .run();
+    const std::int64_t cell_id = db_.last_insert_id();
+    Statement f = db_.prepare(
+        "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, "
+        "duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+    for (const FrameResult& fr : res.frames) {
+        std::optional<double> sah;
+        if (fr.stats.contains("sah_cost") && fr.stats["sah_cost"].is_number()) sah = fr.stats["sah_cost"].get<double>();
+        f.bind_all(cell_id, std::int64_t(fr.frame), std::int64_t(fr.warmup), std::int64_t(fr.inserts), std::int64_t(fr.removes),
+                   std::int64_t(fr.moves), std::int64_t(fr.rays), std::int64_t(fr.update_ns), std::int64_t(fr.raycast_ns),
+                   std::int64_t(fr.hits), std::int64_t(fr.missed), std::int64_t(fr.extra), std::int64_t(fr.duplicate),
+                   std::int64_t(fr.counters.n_t), std::int64_t(fr.counters.n_rb), std::int64_t(fr.counters.n_tp),
+                   std::int64_t(fr.memory_bytes), sah, fr.stats.dump());
+        f.run();
+    }
+    t.commit();
+    return true;
+}
+
+void ResultStore::finish_run(std::int64_t run_id) {
+    db_.prepare("UPDATE run SET finished_at = ? WHERE id = ?").bind_all(now_utc(), run_id).run();
+}
+
+}  // namespace rcb

@@ -1,0 +1,76 @@
+#pragma once
+/// The results database: the contract between rcbench's stages (schema: results/README.md).
+///
+/// Versioned with `PRAGMA user_version` and forward-only migrations: an older database is migrated
+/// when opened for writing; a newer one is refused. Each cell is stored in one transaction, so a
+/// killed runner loses at most the cell in flight.
+
+#include <cstdint>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "core/simulator.h"
+#include "runner/experiment.h"
+#include "runner/sqlite.h"
+
+namespace rcb {
+
+/// The schema version this rcbench writes.
+int latest_schema_version();
+
+/// Where and with what a run was made.
+struct RunInfo {
+    std::string uuid;  ///< random; identifies the run across merged databases
+    std::string started_at;
+    std::string git_commit, compiler, flags;
+    std::string cpu_model, governor, hostname;
+    std::uint32_t cores = 0;
+    std::uint32_t threads = 1;
+    std::string shard;  ///< "K/N", or empty for the whole plan
+    std::string experiment_hash;
+    std::string experiment_content;
+
+    /// This machine and binary, now.
+    static RunInfo current(std::uint32_t threads, const std::string& shard, const Experiment& e);
+};
+
+class ResultStore {
+public:
+    /// Opens for writing: creates the file (and its folder) if needed and migrates it.
+    explicit ResultStore(const std::string& path);
+    /// For tests of migrations: brings a database up to `version` only.
+    ResultStore(const std::string& path, int version);
+
+    Database& db() { return db_; }
+
+    std::int64_t experiment_id(const Experiment& e);
+    /// The newest unfinished run of the experiment with the same file content and shard, if any.
+    std::optional<std::int64_t> unfinished_run(std::int64_t experiment_id, const std::string& experiment_hash,
+                                               const std::string& shard);
+    std::int64_t begin_run(std::int64_t experiment_id, const RunInfo& info);
+    bool run_exists(std::int64_t run_id);
+    std::set<std::string> finished_cells(std::int64_t run_id);
+    bool cell_done(std::int64_t run_id, const std::string& cell_key);
+    /// Stores a finished cell with its frames in one transaction. Returns false (and stores nothing)
+    /// when another runner stored the same cell of the same run first.
+    bool store_cell(std::int64_t run_id, std::int64_t experiment_id, const Cell& cell, const SceneSpec& scene,
+                    const Recording& recording, const std::string& scene_hash, const SimulationResult& result);
+    void finish_run(std::int64_t run_id);
+
+private:
+    void migrate(int target);
+    std::int64_t scene_id(const SceneSpec& spec, const Recording& recording, const std::string& hash);
+    std::int64_t config_id(const std::string& structure, const nlohmann::json& params);
+
+    Database db_;
+};
+
+/// Opens an existing database read-only; refuses a newer schema; InputError if it does not exist.
+std::unique_ptr<Database> open_read_only(const std::string& path);
+
+/// Content hash of a recording (of its encoded bytes).
+std::string recording_hash(const Recording& r);
+
+}  // namespace rcb

@@ -1,0 +1,343 @@
+// The experiment runner: validation, plans, the SQLite store, resume after kill -9, concurrent
+// writers, merge, and compare on synthetic data with and without a real shift.
+#include <gtest/gtest.h>
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "core/error.h"
+#include "core/random.h"
+#include "runner/compare.h"
+#include "runner/experiment.h"
+#include "runner/store.h"
+
+extern char** environ;
+
+namespace rcb {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string error_of(const std::string& text) {
+    try {
+        parse_experiment(text, "exp.json", ".");
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+const char* kMinimal = R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})";
+
+TEST(Experiment, ValidationNamesTheJsonPath) {
+    EXPECT_EQ(error_of(kMinimal), "");
+    EXPECT_EQ(error_of("{"), error_of("{"));  // stable
+    EXPECT_EQ(error_of("{").find("exp.json: not valid JSON"), 0u);
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frame": 3})"),
+              "exp.json: frame: unknown key (known: description, frames, name, ray_mix, rays_per_frame, repetitions, scenes, "
+              "seeds, structures, threads, verify, warmup_frames)");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frames": "ten"})"),
+              "exp.json: frames: expected an integer in 1..1000000, got \"ten\"");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}, {"preset": "uni-q"}], "structures": [{"name": "bf"}]})"),
+              "exp.json: scenes[1].preset: unknown preset 'uni-q' (known: uni-s, uni-m, uni-l, irreg-s, irreg-m, irreg-l, irreg-xl)");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}, {"name": "kd"}]})").find(
+                  "exp.json: structures[1].name: unknown structure 'kd' (known: bf"),
+              0u);
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf", "params": {"depth": 3}}]})"),
+              "exp.json: structures[0].params.depth: unknown parameter of bf (it takes none)");
+    EXPECT_EQ(error_of(R"({"scenes": [{"recording": "missing.rcbscene"}], "structures": [{"name": "bf"}]})"),
+              "exp.json: scenes[0].recording: file not found: missing.rcbscene");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "kind": "uniform"}], "structures": [{"name": "bf"}]})"),
+              "exp.json: scenes[0]: give exactly one of \"preset\", \"kind\", \"recording\" or \"import\"");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "ray_mix": "up"}], "structures": [{"name": "bf"}]})").find(
+                  "exp.json: scenes[0].ray_mix: ray mix 'up': unknown mode 'up'"),
+              0u);
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "objects": [10, -1]}], "structures": [{"name": "bf"}]})"),
+              "exp.json: scenes[0].objects[1]: expected an integer in 1..100000000, got -1");
+    EXPECT_EQ(error_of(R"({"scenes": [], "structures": [{"name": "bf"}]})"), "exp.json: scenes: expected a non-empty list of scenes");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frames": 3, "warmup_frames": 3})"),
+              "exp.json: warmup_frames: leaves no measured frame in scene uni-s");
+}
+
+TEST(Experiment, PlanInterleavesRepetitionsAcrossConfigurationsWithinAScene) {
+    const Experiment e = parse_experiment(
+        R"({"repetitions": 2, "seeds": [1, 2], "scenes": [{"preset": "uni-s"}, {"kind": "irregular", "objects": [100, 200]}],
+            "structures": [{"name": "bf"}]})",
+        "e", ".");
+    ASSERT_EQ(e.scenes.size(), 6u);  // uni-s × 2 seeds, irregular × 2 sizes × 2 seeds
+    EXPECT_EQ(e.scenes[0].name, "uni-s-s1");
+    EXPECT_EQ(e.scenes[2].name, "irregular-100-s1");
+    EXPECT_EQ(e.plan.size(), 12u);
+    EXPECT_EQ(e.plan[0].scene, 0u);
+    EXPECT_EQ(e.plan[0].repetition, 0u);
+    EXPECT_EQ(e.plan[1].repetition, 1u);
+    std::set<std::string> keys;
+    for (const Cell& c : e.plan) keys.insert(c.key);
+    EXPECT_EQ(keys.size(), e.plan.size());  // every cell has its own key
+    // Keys depend on content, not on position: the same cell in another file has the same key.
+    const Experiment f = parse_experiment(R"({"repetitions": 2, "seeds": [1, 2], "scenes": [{"preset": "uni-s"}],
+                                              "structures": [{"name": "bf"}]})",
+                                          "f", ".");
+    EXPECT_EQ(f.plan[0].key, e.plan[0].key);
+}
+
+TEST(Experiment, ValueListsAndRangesExpandIntoTheCrossProduct) {
+    const Experiment e = parse_experiment(
+        R"({"scenes": [{"preset": "uni-s"}],
+            "structures": [{"name": "dbvh", "params": {"margin": {"from": 0, "to": 0.3, "step": 0.1},
+                                                       "bins": {"from": 4, "to": 16, "times": 2}, "mode": "rebuild"}},
+                           {"name": "dbvh", "grids": [{"margin": 0.2, "bins": 8, "mode": "rebuild"}, {"rotate": [true, false]}]}]})",
+        "e", ".");
+    // 4 margins × 3 bin counts, then the second entry: one duplicate of the first grid and two rotate values.
+    ASSERT_EQ(e.configs.size(), 12u + 2u);
+    std::set<std::pair<long, long>> grid;  // (margin × 10, bins) of the first entry
+    for (std::size_t i = 0; i < 12; ++i) {
+        EXPECT_EQ(e.configs[i].params["mode"], "rebuild");
+        EXPECT_EQ(e.configs[i].params["rotate"], true);  // defaults completed
+        grid.insert({std::lround(e.configs[i].params["margin"].get<double>() * 10), e.configs[i].params["bins"].get<long>()});
+    }
+    std::set<std::pair<long, long>> want;
+    for (long m : {0, 1, 2, 3})  // the end of a float range is kept despite rounding
+        for (long b : {4, 8, 16}) want.insert({m, b});
+    EXPECT_EQ(grid, want);
+    EXPECT_EQ(e.configs[12].params["rotate"], true);
+    EXPECT_EQ(e.configs[13].params["rotate"], false);
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "dbvh", "params": {"bins": {"from": 4, "to": 8, "step": 1.5}}}]})"),
+              "exp.json: structures[0].params.bins.step: expected a positive integer, got 1.5");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "dbvh", "params": {"bins": [4, 300]}}]})"),
+              "exp.json: structures[0].params.bins[1]: expected an integer in 2..256, got 300");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "dbvh", "params": {"mode": "x"}}]})"),
+              "exp.json: structures[0].params.mode: expected one of incremental, rebuild, got \"x\"");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf", "grids": []}]})"),
+              "exp.json: structures[0].grids: expected a non-empty list of parameter grids");
+}
+
+TEST(Experiment, EveryShippedExperimentFileIsValid) {
+    std::size_t files = 0;
+    for (const auto& entry : fs::directory_iterator(fs::path(RCBENCH_SOURCE_DIR) / "experiments")) {
+        if (entry.path().extension() != ".json") continue;
+        ++files;
+        EXPECT_NO_THROW({
+            const Experiment e = load_experiment(entry.path().string());
+            EXPECT_FALSE(e.plan.empty()) << entry.path();
+        }) << entry.path();
+    }
+    EXPECT_GE(files, 4u);  // quick, thesis, dense, scale
+}
+
+fs::path temp_dir(const std::string& name) {
+    const fs::path dir = fs::temp_directory_path() / ("rcb_runner_" + std::to_string(::getpid()) + "_" + name);
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    return dir;
+}
+
+/// A fabricated result whose frames take `base × factor` ns with multiplicative noise.
+SimulationResult synthetic_result(double base, double factor, std::uint64_t seed, int frames) {
+    SimulationResult r;
+    r.structure = "bf";
+    r.params = nlohmann::json::object();
+    r.objects = 100;
+    Random rng(seed);
+    for (int f = 0; f < frames; ++f) {
+        FrameResult fr;
+        fr.frame = std::uint32_t(f + 1);
+        fr.rays = 1000;
+        fr.raycast_ns = std::uint64_t(base * factor * (1 + 0.03 * rng.normal()));
+        fr.update_ns = std::uint64_t(1000 * (1 + 0.03 * rng.normal()));
+        fr.stats = nlohmann::json::object();
+        r.frames.push_back(fr);
+    }
+    return r;
+}
+
+TEST(Store, CompareTellsATenPercentSlowdownFromNoise) {
+    const fs::path dir = temp_dir("compare");
+    const std::string db_path = (dir / "r.db").string();
+    const Experiment e = parse_experiment(kMinimal, "synthetic", ".");
+    const Recording scene = load_scene(e.scenes[0]);
+    const std::string hash = recording_hash(scene);
+    {
+        ResultStore store(db_path);
+        const std::int64_t ex = store.experiment_id(e);
+        const double factors[] = {1.0, 1.1, 1.0};  // baseline, a real 10% slowdown, noise only
+        for (int run = 0; run < 3; ++run) {
+            const std::int64_t id = store.begin_run(ex, RunInfo::current(1, "", e));
+            for (std::uint32_t rep = 0; rep < 3; ++rep) {
+                Cell c = e.plan[0];
+                c.repetition = rep;
+                c.key += std::to_string(rep);
+                ASSERT_TRUE(store.store_cell(id, ex, c, e.scenes[0], scene, hash,
+                                             synthetic_result(1e6, factors[run], 100 * run + rep, 20)));
+            }
+        }
+    }
+    auto db = open_read_only(db_path);
+    const auto slow = compare_runs(*db, "1", "2", "raycast", 0.05);
+    ASSERT_EQ(slow.size(), 1u);
+    EXPECT_EQ(slow[0].verdict, "slower");
+    EXPECT_NEAR(slow[0].ratio, 1.1, 0.02);
+    EXPECT_LT(slow[0].p_value, 1e-6);
+    const auto same = compare_runs(*db, "1", "3", "raycast", 0.05);
+    EXPECT_EQ(same[0].verdict, "same");
+    EXPECT_NEAR(same[0].ratio, 1.0, 0.02);
+    EXPECT_THROW(compare_runs(*db, "1", "99", "raycast", 0.05), InputError);
+    fs::remove_all(dir);
+}
+
+TEST(Store, MannWhitneyMatchesTextbookValues) {
+    // Identical samples: no evidence of a difference.
+    EXPECT_NEAR(mann_whitney_p({1, 2, 3, 4, 5}, {1, 2, 3, 4, 5}), 1.0, 1e-9);
+    // Complete separation of 10 vs 10: U = 0, z = (50 - 0.5)/13.23, p ≈ 0.00018.
+    std::vector<double> a, b;
+    for (int i = 0; i < 10; ++i) a.push_back(i), b.push_back(100 + i);
+    EXPECT_NEAR(mann_whitney_p(a, b), 0.000183, 0.00002);
+}
+
+TEST(Store, RefusesANewerSchemaAndMigratesAnOlderOne) {
+    const fs::path dir = temp_dir("schema");
+    const std::string old_db = (dir / "old.db").string();
+    { ResultStore empty(old_db, 0); }  // a database at version 0: no tables yet
+    {
+        ResultStore store(old_db);  // migrated on open
+        Statement s = store.db().prepare("SELECT count(*) FROM sqlite_master WHERE name IN ('run', 'cell', 'frame')");
+        s.step();
+        EXPECT_EQ(s.int64(0), 3);
+    }
+    const std::string new_db = (dir / "new.db").string();
+    {
+        Database db(new_db, false);
+        db.exec("PRAGMA user_version = 99");
+    }
+    try {
+        ResultStore store(new_db);
+        FAIL();
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("schema version 99 is newer than this rcbench writes"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(open_read_only((dir / "missing.db").string()), InputError);
+    fs::remove_all(dir);
+}
+
+/// Runs the rcbench binary; returns its pid.
+pid_t spawn_rcbench(const std::vector<std::string>& args, const std::string& log) {
+    std::vector<std::string> all{RCBENCH_BINARY};
+    all.insert(all.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (std::string& a : all) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    posix_spawn_file_actions_addopen(&actions, 2, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    pid_t pid = 0;
+    EXPECT_EQ(posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
+    posix_spawn_file_actions_destroy(&actions);
+    return pid;
+}
+
+int wait_exit(pid_t pid) {
+    int status = 0;
+    waitpid(pid, &status, 0);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+std::int64_t count(const std::string& db_path, const std::string& sql) {
+    if (!fs::exists(db_path)) return 0;
+    try {
+        Database db(db_path, true);
+        Statement s = db.prepare(sql);
+        return s.step() ? s.int64(0) : 0;
+    } catch (const SqlError&) {
+        return 0;  // not created yet
+    }
+}
+
+void write_experiment(const fs::path& path, int repetitions) {
+    std::ofstream(path) << R"({"name": "resume", "frames": 4, "rays_per_frame": 300, "repetitions": )" << repetitions
+                        << R"(, "scenes": [{"kind": "irregular", "objects": 4000}, {"kind": "uniform", "objects": 3000}],
+                             "structures": [{"name": "bf"}]})";
+}
+
+TEST(Store, KilledRunResumesToTheSameRowsAsAnUninterruptedRun) {
+    const fs::path dir = temp_dir("resume");
+    const fs::path exp = dir / "resume.json";
+    write_experiment(exp, 8);  // 16 cells
+    const std::string killed = (dir / "killed.db").string(), whole = (dir / "whole.db").string();
+    const std::string log = (dir / "log.txt").string();
+
+    const pid_t pid = spawn_rcbench({"run", exp.string(), "--db", killed}, log);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    while (count(killed, "SELECT count(*) FROM cell") < 3 && std::chrono::steady_clock::now() < deadline)
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    ASSERT_EQ(kill(pid, SIGKILL), 0);
+    wait_exit(pid);
+    const std::int64_t before = count(killed, "SELECT count(*) FROM cell");
+    ASSERT_GE(before, 3);
+    ASSERT_LT(before, 16) << "the run finished before it could be killed; make the cells slower";
+
+    ASSERT_EQ(wait_exit(spawn_rcbench({"run", exp.string(), "--db", killed}, log)), 0);
+    ASSERT_EQ(wait_exit(spawn_rcbench({"run", exp.string(), "--db", whole}, log)), 0);
+    for (const std::string& db : {killed, whole}) {
+        EXPECT_EQ(count(db, "SELECT count(*) FROM run"), 1) << db;
+        EXPECT_EQ(count(db, "SELECT count(*) FROM run WHERE finished_at IS NOT NULL"), 1) << db;
+        EXPECT_EQ(count(db, "SELECT count(*) FROM cell"), 16) << db;
+        EXPECT_EQ(count(db, "SELECT count(DISTINCT cell_key) FROM cell"), 16) << db;
+        EXPECT_EQ(count(db, "SELECT count(*) FROM frame"), 16 * 4) << db;
+        EXPECT_EQ(count(db, "SELECT sum(hits) FROM frame"), count(whole, "SELECT sum(hits) FROM frame")) << db;
+        EXPECT_EQ(count(db, "SELECT sum(n_rb) FROM frame"), count(whole, "SELECT sum(n_rb) FROM frame")) << db;
+    }
+    fs::remove_all(dir);
+}
+
+TEST(Store, TwoRunnersOnOneDatabaseBothFinishWithNothingLostOrDuplicated) {
+    const fs::path dir = temp_dir("concurrent");
+    const fs::path exp = dir / "resume.json";
+    write_experiment(exp, 3);  // 6 cells
+    const std::string db = (dir / "shared.db").string(), log = (dir / "log.txt").string();
+    const pid_t a = spawn_rcbench({"run", exp.string(), "--db", db}, log);
+    const pid_t b = spawn_rcbench({"run", exp.string(), "--db", db}, log);
+    EXPECT_EQ(wait_exit(a), 0);
+    EXPECT_EQ(wait_exit(b), 0);
+    // Each runner made its own run or shared one; every run is complete and has each cell once.
+    const std::int64_t runs = count(db, "SELECT count(*) FROM run");
+    EXPECT_GE(runs, 1);
+    EXPECT_EQ(count(db, "SELECT count(*) FROM run WHERE finished_at IS NULL"), 0);
+    EXPECT_EQ(count(db, "SELECT count(*) FROM cell"), 6 * runs);
+    EXPECT_EQ(count(db, "SELECT count(*) FROM (SELECT DISTINCT run_id, cell_key FROM cell)"), 6 * runs);
+    EXPECT_EQ(count(db, "SELECT count(*) FROM frame"), 6 * runs * 4);
+    fs::remove_all(dir);
+}
+
+TEST(Store, ShardsMergeIntoTheWholePlanAndMergingTwiceAddsNothing) {
+    const fs::path dir = temp_dir("shards");
+    const fs::path exp = dir / "resume.json";
+    write_experiment(exp, 2);  // 4 cells
+    const std::string log = (dir / "log.txt").string();
+    for (int k = 1; k <= 3; ++k)
+        ASSERT_EQ(wait_exit(spawn_rcbench({"run", exp.string(), "--shard", std::to_string(k) + "/3", "--db",
+                                           (dir / ("s" + std::to_string(k) + ".db")).string()},
+                                          log)),
+                  0);
+    const std::string out = (dir / "all.db").string();
+    std::vector<std::string> merge{"merge", out};
+    for (int k = 1; k <= 3; ++k) merge.push_back((dir / ("s" + std::to_string(k) + ".db")).string());
+    ASSERT_EQ(wait_exit(spawn_rcbench(merge, log)), 0);
+    ASSERT_EQ(wait_exit(spawn_rcbench(merge, log)), 0);  // idempotent
+    EXPECT_EQ(count(out, "SELECT count(*) FROM run"), 3);
+    EXPECT_EQ(count(out, "SELECT count(*) FROM cell"), 4);
+    EXPECT_EQ(count(out, "SELECT count(DISTINCT cell_key) FROM cell"), 4);
+    EXPECT_EQ(count(out, "SELECT count(*) FROM frame"), 4 * 4);
+    fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rcb
