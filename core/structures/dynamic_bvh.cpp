@@ -318,79 +318,79 @@ void DynamicBvh::rotate_nodes(std::uint32_t ia) {
 // ---- full top-down binned-SAH build (rebuild mode) ----
 
 void DynamicBvh::rebuild() {
-    build_leaves_.clear();
-    build_leaves_.reserve(leaf_of_.size());
+    build_items_.clear();
+    build_items_.reserve(leaf_of_.size());
     for (std::uint32_t n = 0; n < nodes_.size(); ++n) {
         if (nodes_[n].height > 0) release(n);
-        else if (nodes_[n].height == 0) build_leaves_.push_back(n);
+        else if (nodes_[n].height == 0) build_items_.push_back({nodes_[n].box, nodes_[n].box.center(), n});
     }
-    std::vector<Aabb> scratch;
-    root_ = build_leaves_.empty() ? kNullNode
-                                  : build_range(build_leaves_.data(), std::uint32_t(build_leaves_.size()), scratch);
+    root_ = build_items_.empty() ? kNullNode : build_range(build_items_.data(), std::uint32_t(build_items_.size()));
     if (root_ != kNullNode) nodes_[root_].parent = kNullNode;
     dirty_ = false;
     frames_since_build_ = 0;
     cost_after_build_ = params_.rebuild_growth > 0 ? sah_cost() : 0.0;
 }
 
-/// Builds the subtree over leaves[0, count): binned SAH over the leaves' centroids (Wald 2007), one
-/// leaf per object; falls back to a median split when the centroids coincide or no split helps.
-std::uint32_t DynamicBvh::build_range(std::uint32_t* leaves, std::uint32_t count, std::vector<Aabb>& scratch) {
-    if (count == 1) return leaves[0];
+/// Builds the subtree over items[0, count): binned SAH over the centroids (Wald 2007), all three
+/// axes binned in one pass, one leaf per object; a median split when the centroids coincide.
+std::uint32_t DynamicBvh::build_range(BuildItem* items, std::uint32_t count) {
+    if (count == 1) return items[0].node;
     Aabb cbounds = Aabb::empty();
-    for (std::uint32_t i = 0; i < count; ++i) {
-        const Vec3 c = nodes_[leaves[i]].box.center();
-        cbounds = merge(cbounds, Aabb{c, c});
-    }
+    for (std::uint32_t i = 0; i < count; ++i)
+        cbounds.min = rcb::min(cbounds.min, items[i].centroid), cbounds.max = rcb::max(cbounds.max, items[i].centroid);
     const int bins = params_.bins;
     std::uint32_t mid = count / 2;
-    int best_axis = -1, best_split = 0;
     if (count > 2) {
-        struct Bin {
-            Aabb box = Aabb::empty();
-            std::uint32_t n = 0;
-        };
-        std::array<Bin, 256> bin;
+        // Per-axis bins in a member scratch array (a local array of 3 × 256 bins would be
+        // initialised at every node and dominate the build).
+        bins_.resize(3 * std::size_t(bins));
+        auto bin = [&](int axis) { return bins_.data() + std::size_t(axis) * std::size_t(bins); };
         std::array<float, 256> right_cost;
-        float best_cost = std::numeric_limits<float>::max();
+        Vec3 scale;
+        bool any = false;
         for (int axis = 0; axis < 3; ++axis) {
-            const float lo = cbounds.min[axis], ext = cbounds.max[axis] - lo;
-            if (!(ext > 0)) continue;
-            const float scale = float(bins) / ext;
-            for (int b = 0; b < bins; ++b) bin[b] = Bin{};
-            for (std::uint32_t i = 0; i < count; ++i) {
-                const Aabb& box = nodes_[leaves[i]].box;
-                const int b = std::min(bins - 1, int((box.center()[axis] - lo) * scale));
-                bin[b].box = merge(bin[b].box, box);
-                ++bin[b].n;
-            }
-            Aabb acc = Aabb::empty();
-            std::uint32_t n = 0;
-            for (int b = bins - 1; b > 0; --b) {
-                acc = merge(acc, bin[b].box), n += bin[b].n;
-                right_cost[b] = n ? area(acc) * float(n) : 0.0f;
-            }
-            acc = Aabb::empty(), n = 0;
-            for (int b = 0; b < bins - 1; ++b) {
-                acc = merge(acc, bin[b].box), n += bin[b].n;
-                if (n == 0 || n == count) continue;
-                const float cost = area(acc) * float(n) + right_cost[b + 1];
-                if (cost < best_cost) best_cost = cost, best_axis = axis, best_split = b + 1;
+            const float ext = cbounds.max[axis] - cbounds.min[axis];
+            scale[axis] = ext > 0 ? float(bins) / ext : 0.0f;
+            any = any || ext > 0;
+            for (int b = 0; b < bins; ++b) bin(axis)[b] = Bin{Aabb::empty(), 0};
+        }
+        int best_axis = -1, best_split = 0;
+        if (any) {
+            for (std::uint32_t i = 0; i < count; ++i)
+                for (int axis = 0; axis < 3; ++axis) {
+                    const int b = std::min(bins - 1, int((items[i].centroid[axis] - cbounds.min[axis]) * scale[axis]));
+                    bin(axis)[b].box = merge(bin(axis)[b].box, items[i].box);
+                    ++bin(axis)[b].n;
+                }
+            float best_cost = std::numeric_limits<float>::max();
+            for (int axis = 0; axis < 3; ++axis) {
+                if (scale[axis] == 0.0f) continue;
+                Aabb acc = Aabb::empty();
+                std::uint32_t n = 0;
+                for (int b = bins - 1; b > 0; --b) {
+                    acc = merge(acc, bin(axis)[b].box), n += bin(axis)[b].n;
+                    right_cost[b] = n ? area(acc) * float(n) : 0.0f;
+                }
+                acc = Aabb::empty(), n = 0;
+                for (int b = 0; b < bins - 1; ++b) {
+                    acc = merge(acc, bin(axis)[b].box), n += bin(axis)[b].n;
+                    if (n == 0 || n == count) continue;
+                    const float cost = area(acc) * float(n) + right_cost[b + 1];
+                    if (cost < best_cost) best_cost = cost, best_axis = axis, best_split = b + 1;
+                }
             }
         }
         if (best_axis >= 0) {
-            const float lo = cbounds.min[best_axis];
-            const float scale = float(bins) / (cbounds.max[best_axis] - lo);
-            std::uint32_t* split = std::partition(leaves, leaves + count, [&](std::uint32_t l) {
-                return std::min(bins - 1, int((nodes_[l].box.center()[best_axis] - lo) * scale)) < best_split;
+            const float lo = cbounds.min[best_axis], sc = scale[best_axis];
+            BuildItem* split = std::partition(items, items + count, [&](const BuildItem& it) {
+                return std::min(bins - 1, int((it.centroid[best_axis] - lo) * sc)) < best_split;
             });
-            mid = std::uint32_t(split - leaves);
-            if (mid == 0 || mid == count) mid = count / 2;  // cannot happen with exact binning; be safe
+            mid = std::uint32_t(split - items);
+            if (mid == 0 || mid == count) mid = count / 2;  // cannot happen with the same binning; be safe
         }
     }
-    (void)scratch;
-    const std::uint32_t left = build_range(leaves, mid, scratch);
-    const std::uint32_t right = build_range(leaves + mid, count - mid, scratch);
+    const std::uint32_t left = build_range(items, mid);
+    const std::uint32_t right = build_range(items + mid, count - mid);
     const std::uint32_t n = allocate();
     nodes_[n] = Node{merge(nodes_[left].box, nodes_[right].box), kNullNode, {left, right},
                      1 + std::max(nodes_[left].height, nodes_[right].height)};
@@ -412,7 +412,7 @@ double DynamicBvh::sah_cost() const {
 
 std::size_t DynamicBvh::memory_bytes() const {
     return nodes_.capacity() * sizeof(Node) + tight_.capacity() * sizeof(Aabb) +
-           stack_.capacity() * sizeof(std::uint32_t) + build_leaves_.capacity() * sizeof(std::uint32_t) +
+           stack_.capacity() * sizeof(std::uint32_t) + build_items_.capacity() * sizeof(BuildItem) + bins_.capacity() * sizeof(Bin) +
            leaf_of_.bucket_count() * sizeof(void*) +
            leaf_of_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) + sizeof(*this);
 }

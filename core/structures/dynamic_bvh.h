@@ -110,7 +110,14 @@ private:
     void refit_from(std::uint32_t n);
     void rotate_nodes(std::uint32_t a);
     void rebuild();
-    std::uint32_t build_range(std::uint32_t* leaves, std::uint32_t count, std::vector<Aabb>& scratch);
+    /// A leaf during a top-down build: its fat box and centroid copied out of the node array, so
+    /// that binning and partitioning read memory in order.
+    struct BuildItem {
+        Aabb box;
+        Vec3 centroid;
+        std::uint32_t node;
+    };
+    std::uint32_t build_range(BuildItem* items, std::uint32_t count);
     bool deferring() const { return dirty_; }
 
     Params params_;
@@ -126,7 +133,12 @@ private:
     bool dirty_ = false;              // leaves changed, tree to be rebuilt at commit
     std::uint32_t frames_since_build_ = 0;
     double cost_after_build_ = 0.0;
-    std::vector<std::uint32_t> build_leaves_;
+    std::vector<BuildItem> build_items_;
+    struct Bin {
+        Aabb box;
+        std::uint32_t n;
+    };
+    std::vector<Bin> bins_;
 };
 
 }  // namespace rcb
