@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "core/error.h"
+#include "core/generators.h"
 #include "core/random.h"
 #include "core/registry.h"
 #include "core/structures/brute_force.h"
@@ -65,6 +66,35 @@ TEST(LinearBvh, MatchesGroundTruthOnGeneratedScenes) {
             const Recording r = test::generated_scene(kind, 400, 12, 8, 0.1);
             test::expect_matches_ground_truth(r, "lbvh", {{"threads", threads}}, kind);
         }
+}
+
+/// The thesis presets (uni-s … irreg-l; irreg-xl is a benchmark, not a test), a few frames each
+/// with every ray mode and more changes than the presets' 1 %.
+TEST(Bvh, MatchesGroundTruthOnThePresets) {
+    for (const std::string& name : {"uni-s", "uni-m", "uni-l", "irreg-s", "irreg-m", "irreg-l"}) {
+        SceneSettings s = preset_settings(name);
+        s.frames = 3;
+        s.dynamics.change_fraction = 0.05;
+        s.rays.per_frame = 200;
+        s.rays.mix = parse_ray_mix("center:2,dense:1,los:1,ground:1,shots:1");
+        const Recording r = generate_scene(s);
+        for (const auto& [structure, params] : std::vector<std::pair<std::string, nlohmann::json>>{
+                 {"dbvh", nlohmann::json::object()},
+                 {"dbvh", {{"mode", "rebuild"}, {"margin", 0.0}}},
+                 {"dbvh", {{"mode", "rebuild"}, {"rebuild_every", 2}, {"rotate", false}}},
+                 {"lbvh", {{"threads", 1}}},
+                 {"lbvh", {{"threads", 2}}}}) {
+            const SimulationResult res = test::expect_matches_ground_truth(r, structure, params, name);
+            // The counters: every reported hit is one N_TP, every object test one N_RB, and a
+            // non-empty tree is entered once per ray at least.
+            for (const FrameResult& f : res.frames) {
+                EXPECT_EQ(f.counters.n_tp, f.hits) << structure << ' ' << name;
+                EXPECT_GE(f.counters.n_rb, f.counters.n_tp) << structure << ' ' << name;
+                EXPECT_GE(f.counters.n_t, f.rays) << structure << ' ' << name;
+                EXPECT_TRUE(f.stats.contains("sah_cost") && f.stats.contains("depth"));
+            }
+        }
+    }
 }
 
 /// 0, 1 and 2 objects, with inserts, moves and removes through those sizes.
