@@ -3,6 +3,8 @@
 #include "core/structures/brute_force.h"
 #include "core/structures/dynamic_bvh.h"
 #include "core/structures/linear_bvh.h"
+#include "core/structures/hash_grid.h"
+#include "core/structures/uniform_grid.h"
 
 namespace rcb {
 
@@ -11,6 +13,8 @@ const std::vector<StructureInfo>& structure_registry() {
         describe_structure<BruteForce>("bf", "brute force: every object's box tested (the baseline, thesis §4.1)"),
         describe_structure<DynamicBvh>("dbvh", "dynamic BVH: Catto/Box2D SAH insertion with branch and bound, fat boxes, rotations, optional full binned-SAH rebuilds (thesis §4.4)"),
         describe_structure<LinearBvh>("lbvh", "linear BVH: Karras 2012 Morton codes, radix sort, parallel radix tree, atomic bottom-up bounds, rebuilt every frame (thesis §4.5)"),
+        describe_structure<UniformGrid>("ug", "uniform grid: cells from eq. 4.1, 3D-DDA with mailboxes, incremental updates (thesis §4.2)"),
+        describe_structure<HashGrid>("hg", "hierarchical hash grid: Jevans-style recursive grids, only non-empty cells hashed (thesis §4.3)"),
     };
     return all;
 }

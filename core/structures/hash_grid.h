@@ -1,0 +1,224 @@
+#pragma once
+/// Hierarchical hash grid (thesis §4.3), after Jevans & Wyvill (1989, "Adaptive voxel subdivision
+/// for ray tracing"): a top grid of (number × amp)^(1/3) cells per dimension (eq. 4.2) whose
+/// crowded cells are recursively cut into `subdivision`³ children, down to `max_depth` levels
+/// below the top. Only non-empty cells exist; they are found through one hash table keyed by
+/// (depth, cell coordinates in that depth's global lattice). Traversal is thesis Algorithm 2: the
+/// 3D-DDA of Amanatides & Woo over the top grid, recursing into a subdivided cell with a DDA over
+/// its children limited to the part of the segment inside it (recursion depth ≤ max_depth: nothing
+/// is dropped).
+///
+/// Rules (all decisions derive from integer cell ranges, so insert, remove and validate agree):
+/// - An object's cell range at depth d is its range at the finest depth divided by
+///   subdivision^(max_depth − d): the levels nest exactly.
+/// - A leaf holds every object that reaches it. It splits when it holds more than `max_capacity`
+///   objects, is above `max_depth`, and some object does not cover all its children.
+/// - A subdivided cell keeps only the objects that cover all its children (a huge object is not
+///   copied into every descendant); the others go to the children they overlap.
+/// - Every cell counts the distinct objects stored in it or below it; a subdivided cell whose count
+///   falls to max_capacity / 2 or less collapses back into a leaf (hysteresis against split/collapse
+///   flapping). Empty cells are deleted.
+/// - Border cells extend to infinity (indices clamped), as in the uniform grid: inserts outside the
+///   initial bounds are exact.
+/// - Memory guard: a split is refused when it would raise the total of stored object entries above
+///   `max_entries_per_object` × max(objects, objects at build, 64). Without it, boxes sharing a face
+///   (or any surfaces that coincide) make every cell along the face split down to max_depth:
+///   subdivision^(2·max_depth) cells per top cell. A leaf whose split was refused stays over
+///   capacity (counted in stats as "over_capacity_leaves"); answers stay exact.
+/// - Memory guard: parameter ranges are bounded and the top resolution is clamped so that the
+///   finest lattice has at most 2^20 cells per axis (the key's width).
+
+#include <array>
+#include <cstdint>
+#include <tuple>
+#include <unordered_map>
+#include <vector>
+
+#include "core/params.h"
+#include "core/structure.h"
+#include "core/structures/uniform_grid.h"
+
+namespace rcb {
+
+/// Open-addressing hash table from 64-bit keys to 32-bit values: linear probing, backward-shift
+/// deletion (no tombstones; Knuth TAOCP vol. 3, algorithm 6.4R), load factor ≤ 1/2.
+class CellTable {
+public:
+    static constexpr std::uint64_t kEmpty = ~std::uint64_t(0);
+    static constexpr std::uint32_t kNone = ~std::uint32_t(0);
+
+    std::uint32_t find(std::uint64_t key) const {
+        if (keys_.empty()) return kNone;
+        for (std::size_t i = home(key);; i = (i + 1) & mask_) {
+            if (keys_[i] == key) return values_[i];
+            if (keys_[i] == kEmpty) return kNone;
+        }
+    }
+    void insert(std::uint64_t key, std::uint32_t value);
+    void erase(std::uint64_t key);
+    void clear();
+    std::size_t size() const { return size_; }
+    std::size_t memory_bytes() const { return keys_.capacity() * sizeof(std::uint64_t) + values_.capacity() * sizeof(std::uint32_t); }
+    template <class F>
+    void for_each(F&& f) const {
+        for (std::size_t i = 0; i < keys_.size(); ++i)
+            if (keys_[i] != kEmpty) f(keys_[i], values_[i]);
+    }
+
+private:
+    std::size_t home(std::uint64_t key) const { return std::size_t((key * 0x9E3779B97F4A7C15ull) >> shift_); }
+    void grow();
+
+    std::vector<std::uint64_t> keys_;
+    std::vector<std::uint32_t> values_;
+    std::size_t mask_ = 0;
+    int shift_ = 64;
+    std::size_t size_ = 0;
+};
+
+class HashGrid : public StructureBase<HashGrid> {
+public:
+    struct Params {
+        double amp = 1.0;
+        int max_depth = 2;
+        int max_capacity = 8;
+        int subdivision = 2;
+        int max_entries_per_object = 16;
+        static constexpr auto fields() {
+            return std::tuple{
+                Field{"amp", &Params::amp, 0.01, 16.0, "top-level cells = objects × amp (eq. 4.2)", true, true},
+                Field{"max_depth", &Params::max_depth, 0, 6, "levels of subdivision below the top grid"},
+                Field{"max_capacity", &Params::max_capacity, 1, 256,
+                      "objects a leaf holds before it splits (collapse at half)", true, true},
+                Field{"subdivision", &Params::subdivision, 2, 4, "children per axis when a cell splits"},
+                Field{"max_entries_per_object", &Params::max_entries_per_object, 2, 256,
+                      "memory guard: a split that would make the cells hold more than this many object entries per "
+                      "object (over max(objects, objects at build, 64)) is refused",
+                      false}};
+        }
+    };
+
+    /// Finest-lattice cells per axis (20 bits per coordinate in the hash key).
+    static constexpr int kMaxFineRes = 1 << 20;
+
+    HashGrid() : HashGrid(Params{}) {}
+    explicit HashGrid(const Params& p);
+
+    void build(std::span<const Object> objects) override;
+    void insert(const Object& object) override;
+    void remove(Uid uid) override;
+    void move(const Object& object) override;
+    std::size_t size() const override { return slot_.size(); }
+    std::size_t memory_bytes() const override;
+    nlohmann::json stats() const override;
+    void validate() const override;
+
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit);
+
+private:
+    struct Entry {
+        Aabb box;
+        Uid uid = 0;
+        std::uint32_t stamp = 0;  ///< id of the last query that tested this object
+    };
+    struct Cell {
+        std::vector<std::uint32_t> own;  ///< object slots stored here
+        std::uint64_t key = CellTable::kEmpty;
+        std::uint32_t count = 0;  ///< distinct objects stored here or below
+        bool subdivided = false;
+    };
+    using Index = std::array<int, 3>;
+
+    static std::uint64_t key_of(int depth, const Index& i) {
+        return (std::uint64_t(depth) << 60) | (std::uint64_t(i[0]) << 40) | (std::uint64_t(i[1]) << 20) |
+               std::uint64_t(i[2]);
+    }
+    /// The object's cell range at `depth`, from its finest range.
+    grid::CellRange range_at(const grid::CellRange& fine, int depth) const;
+    /// The children of cell `i` at `depth` (cells at depth + 1).
+    grid::CellRange children_of(const Index& i) const;
+    bool covers(const grid::CellRange& fine, int depth, const Index& i) const;
+    /// The object's range at depth + 1 clamped into the children of `i`.
+    grid::CellRange child_range(const grid::CellRange& fine, int depth, const Index& i) const;
+
+    std::uint32_t find_or_create(int depth, const Index& i);
+    void delete_cell(std::uint32_t cell);
+    void insert_into(int depth, const Index& i, std::uint32_t slot, const grid::CellRange& fine);
+    void remove_from(int depth, const Index& i, std::uint32_t slot, const grid::CellRange& fine);
+    void split(std::uint32_t cell, int depth, const Index& i);
+    void collapse(std::uint32_t cell, int depth, const Index& i);
+    void gather_and_delete_children(int depth, const Index& i, std::vector<std::uint32_t>& out);
+    std::uint32_t next_stamp();
+
+    template <class Ctx>
+    bool visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, double t_out);
+
+    Params params_;
+    std::vector<grid::Lattice> lat_;  // per depth
+    std::vector<int> pow_;            // subdivision^k
+    bool clamped_ = false;
+    CellTable table_;
+    std::vector<Cell> cells_;
+    std::vector<std::uint32_t> free_cells_;
+    std::vector<Entry> entries_;
+    std::vector<std::uint32_t> free_slots_;
+    std::unordered_map<Uid, std::uint32_t> slot_;
+    std::uint32_t stamp_ = 0;
+    std::size_t entries_total_ = 0;  ///< sum of the cells' `own` sizes
+    std::size_t build_objects_ = 0;
+};
+
+template <class Count, class Visit>
+struct HashGridQuery {
+    SegmentSlabs slabs;
+    Vec3d p0, d;
+    std::uint32_t stamp;
+    Count& count;
+    Visit& visit;
+};
+
+template <class Ctx>
+bool HashGrid::visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, double t_out) {
+    ctx.count.traversal();
+    const std::uint32_t id = table_.find(key_of(depth, c));
+    if (id == CellTable::kNone) return true;
+    const Cell& cell = cells_[id];
+    for (std::uint32_t slot : cell.own) {
+        Entry& e = entries_[slot];
+        if (e.stamp == ctx.stamp) continue;
+        e.stamp = ctx.stamp;
+        ctx.count.box_tests();
+        float tn, tf;
+        if (ctx.slabs.clip(e.box, tn, tf)) {
+            ctx.count.hits();
+            if (!ctx.visit(e.uid, tn)) return false;
+        }
+    }
+    if (!cell.subdivided) return true;
+    // Algorithm 2: the cell's box becomes the world of a DDA over its children, over the part of
+    // the segment inside the cell.
+    const int child = depth + 1;
+    const grid::CellRange r = children_of(c);
+    const grid::Lattice& lat = lat_[child];
+    Index start;
+    for (int a = 0; a < 3; ++a)
+        start[a] = std::clamp(lat.index(a, ctx.p0[a] + t_in * ctx.d[a]), r.lo[a], r.hi[a]);
+    return grid::walk(lat, ctx.p0, ctx.d, r, start, t_in, t_out,
+                      [&](const Index& ci, double ti, double to) { return visit_cell(ctx, child, ci, ti, to); });
+}
+
+template <class Count, class Visit>
+void HashGrid::traverse(const Segment& s, Count& count, Visit&& visit) {
+    HashGridQuery<Count, std::remove_reference_t<Visit>> ctx{SegmentSlabs(s), s.p0.as<double>(),
+                                                             s.p1.as<double>() - s.p0.as<double>(), next_stamp(),
+                                                             count, visit};
+    const grid::Lattice& top = lat_[0];
+    const grid::CellRange all{{0, 0, 0}, {top.res[0] - 1, top.res[1] - 1, top.res[2] - 1}};
+    Index start;
+    for (int a = 0; a < 3; ++a) start[a] = top.index(a, ctx.p0[a]);
+    grid::walk(top, ctx.p0, ctx.d, all, start, 0.0, 1.0,
+               [&](const Index& c, double ti, double to) { return visit_cell(ctx, 0, c, ti, to); });
+}
+
+}  // namespace rcb

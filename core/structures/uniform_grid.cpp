@@ -1,0 +1,200 @@
+#include "core/structures/uniform_grid.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+namespace rcb {
+
+namespace grid {
+
+std::array<int, 3> resolution(const Aabb& bounds, double size, int max_per_axis) {
+    std::array<int, 3> res{1, 1, 1};
+    for (int a = 0; a < 3; ++a) {
+        const double extent = double(bounds.max[a]) - double(bounds.min[a]);
+        const double cells = std::ceil(extent / size);
+        res[a] = cells >= 1 ? int(std::min(cells, double(max_per_axis))) : 1;
+    }
+    return res;
+}
+
+}  // namespace grid
+
+namespace {
+
+/// The world box of the initial objects; a unit box for an empty scene.
+Aabb world_of(std::span<const Object> objects) {
+    Aabb b = Aabb::empty();
+    for (const Object& o : objects) b = merge(b, o.box);
+    if (b.is_empty()) b = {{-1, -1, -1}, {1, 1, 1}};
+    return b;
+}
+
+}  // namespace
+
+void UniformGrid::build(std::span<const Object> objects) {
+    const Aabb world = world_of(objects);
+    const double longest = double(world.longest_edge());
+    // Eq. 4.1: cells_per_dimension = (number / density)^(1/3), size = longest_edge / cells_per_dimension.
+    const double per_dim = std::max(1.0, std::cbrt(double(objects.size()) / params_.density));
+    double size = longest > 0 ? longest / per_dim : 1.0;
+    clamped_ = false;
+    std::array<int, 3> res = grid::resolution(world, size, int(kMaxCells));
+    // Memory guard: enlarge the cells until the count fits the cap.
+    while (double(res[0]) * res[1] * res[2] > double(kMaxCells)) {
+        size *= 1.25;
+        res = grid::resolution(world, size, int(kMaxCells));
+        clamped_ = true;
+    }
+    lat_.origin = world.min.as<double>();
+    lat_.size = size;
+    lat_.inv_size = 1.0 / size;
+    lat_.res = res;
+
+    cells_.clear();
+    cells_.shrink_to_fit();
+    cells_.resize(std::size_t(res[0]) * res[1] * res[2]);
+    entries_.clear();
+    entries_.reserve(objects.size());
+    free_slots_.clear();
+    slot_.clear();
+    slot_.reserve(objects.size());
+    stamp_ = 0;
+    tested_.clear();
+    for (const Object& o : objects) insert(o);
+}
+
+void UniformGrid::add_to_cells(std::uint32_t slot, const grid::CellRange& r) {
+    std::array<int, 3> i;
+    for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
+        for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
+            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) cells_[cell_id(i)].push_back(slot);
+}
+
+void UniformGrid::remove_from_cells(std::uint32_t slot, const grid::CellRange& r) {
+    std::array<int, 3> i;
+    for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
+        for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
+            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) {
+                std::vector<std::uint32_t>& c = cells_[cell_id(i)];
+                auto it = std::find(c.begin(), c.end(), slot);
+                *it = c.back();
+                c.pop_back();
+            }
+}
+
+void UniformGrid::insert(const Object& o) {
+    std::uint32_t slot;
+    if (!free_slots_.empty()) {
+        slot = free_slots_.back();
+        free_slots_.pop_back();
+        entries_[slot] = Entry{o.box, o.uid, 0};
+    } else {
+        slot = std::uint32_t(entries_.size());
+        entries_.push_back(Entry{o.box, o.uid, 0});
+        if (params_.thesis_reset) tested_.push_back(0);
+    }
+    slot_.emplace(o.uid, slot);
+    add_to_cells(slot, lat_.range_of(o.box));
+}
+
+void UniformGrid::remove(Uid uid) {
+    auto it = slot_.find(uid);
+    const std::uint32_t slot = it->second;
+    slot_.erase(it);
+    remove_from_cells(slot, lat_.range_of(entries_[slot].box));
+    entries_[slot].uid = 0;
+    free_slots_.push_back(slot);
+}
+
+void UniformGrid::move(const Object& o) {
+    const std::uint32_t slot = slot_.at(o.uid);
+    Entry& e = entries_[slot];
+    const grid::CellRange before = lat_.range_of(e.box), after = lat_.range_of(o.box);
+    if (!(before == after)) {
+        remove_from_cells(slot, before);
+        add_to_cells(slot, after);
+    }
+    e.box = o.box;
+}
+
+std::uint32_t UniformGrid::next_stamp() {
+    if (++stamp_ == 0) {  // wrapped: forget every old stamp once per 2^32 queries
+        for (Entry& e : entries_) e.stamp = 0;
+        stamp_ = 1;
+    }
+    return stamp_;
+}
+
+std::size_t UniformGrid::memory_bytes() const {
+    std::size_t bytes = sizeof(*this);
+    bytes += cells_.capacity() * sizeof(std::vector<std::uint32_t>);
+    for (const auto& c : cells_) bytes += c.capacity() * sizeof(std::uint32_t);
+    bytes += entries_.capacity() * sizeof(Entry) + free_slots_.capacity() * sizeof(std::uint32_t);
+    bytes += slot_.bucket_count() * sizeof(void*) + slot_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t));
+    bytes += tested_.capacity();
+    return bytes;
+}
+
+nlohmann::json UniformGrid::stats() const {
+    std::size_t entries = 0, non_empty = 0, largest = 0;
+    for (const auto& c : cells_) {
+        entries += c.size();
+        non_empty += !c.empty();
+        largest = std::max(largest, c.size());
+    }
+    return {{"cells", cells_.size()},
+            {"res", {lat_.res[0], lat_.res[1], lat_.res[2]}},
+            {"cell_size", lat_.size},
+            {"non_empty_cells", non_empty},
+            {"entries", entries},
+            {"largest_cell", largest},
+            {"cell_cap_hit", clamped_}};
+}
+
+void UniformGrid::validate() const {
+    auto fail = [](const std::string& m) { throw std::logic_error("ug: " + m); };
+    if (cells_.size() != std::size_t(lat_.res[0]) * lat_.res[1] * lat_.res[2]) fail("cell array size differs from the resolution");
+    if (cells_.size() > kMaxCells) fail("more cells than the cap");
+    std::vector<std::uint8_t> live(entries_.size(), 0);
+    for (const auto& [uid, slot] : slot_) {
+        if (slot >= entries_.size() || entries_[slot].uid != uid) fail("uid index does not point at uid " + std::to_string(uid));
+        if (live[slot]) fail("two uids share slot " + std::to_string(slot));
+        live[slot] = 1;
+    }
+    if (slot_.size() + free_slots_.size() != entries_.size()) fail("slots are neither live nor free");
+    for (std::uint32_t f : free_slots_)
+        if (f >= entries_.size() || live[f]) fail("a free slot is live");
+    std::vector<std::size_t> seen(entries_.size(), 0);
+    std::vector<std::uint32_t> sorted;
+    std::array<int, 3> i;
+    for (i[2] = 0; i[2] < lat_.res[2]; ++i[2])
+        for (i[1] = 0; i[1] < lat_.res[1]; ++i[1])
+            for (i[0] = 0; i[0] < lat_.res[0]; ++i[0]) {
+                const auto& c = cells_[cell_id(i)];
+                sorted.assign(c.begin(), c.end());
+                std::sort(sorted.begin(), sorted.end());
+                if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) fail("an object appears twice in one cell");
+                for (std::uint32_t slot : c) {
+                    if (slot >= entries_.size() || !live[slot]) fail("stale entry (slot " + std::to_string(slot) + ") in a cell");
+                    const grid::CellRange r = lat_.range_of(entries_[slot].box);
+                    for (int a = 0; a < 3; ++a)
+                        if (i[a] < r.lo[a] || i[a] > r.hi[a])
+                            fail("uid " + std::to_string(entries_[slot].uid) + " stored in a cell it does not overlap");
+                    ++seen[slot];
+                }
+            }
+    for (std::size_t slot = 0; slot < entries_.size(); ++slot) {
+        if (!live[slot]) continue;
+        const Entry& e = entries_[slot];
+        if (!(e.box.min.x <= e.box.max.x && e.box.min.y <= e.box.max.y && e.box.min.z <= e.box.max.z)) fail("box with min > max");
+        const grid::CellRange r = lat_.range_of(e.box);
+        std::size_t expected = 1;
+        for (int a = 0; a < 3; ++a) expected *= std::size_t(r.hi[a] - r.lo[a] + 1);
+        if (seen[slot] != expected)
+            fail("uid " + std::to_string(e.uid) + " is in " + std::to_string(seen[slot]) + " cells, overlaps " + std::to_string(expected));
+    }
+    if (params_.thesis_reset && tested_.size() != entries_.size()) fail("reset flags and slots differ in size");
+}
+
+}  // namespace rcb

@@ -1,0 +1,201 @@
+#pragma once
+/// Uniform grid (thesis §4.2): the world box cut into equal cells, cell size from eq. 4.1
+/// (cells_per_dimension = (number / density)^(1/3), size = longest_edge / cells_per_dimension); an
+/// object is stored in every cell its box overlaps; a ray walks the cells it crosses with the 3D-DDA
+/// of Amanatides & Woo (1987, "A fast voxel traversal algorithm for ray tracing"), limited to the
+/// segment (thesis Algorithm 1).
+///
+/// Choices beyond the thesis:
+/// - Duplicate tests are avoided with per-query stamps (Amanatides & Woo's "mailboxes"): each object
+///   slot remembers the id of the last query that tested it, so nothing is reset per ray. The
+///   thesis' O(N) reset of a bool vector per ray is kept behind `thesis_reset` to measure the
+///   difference.
+/// - The border cells extend to infinity: an index is clamped into [0, res − 1] per axis, so an
+///   object inserted or moved outside the initial bounds lands in the border cells it would overlap
+///   if those were unbounded, and the DDA has no plane beyond the border (a segment outside the
+///   grid walks the border cells). Always exact; only slower if much of the scene leaves the bounds.
+/// - Memory guard: `density` has a bounded range and the total cell count is capped at
+///   `kMaxCells` (the cell size grows instead), so no setting allocates without bound.
+/// - Updates are incremental: a move that keeps the object's cell range only rewrites its box.
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <tuple>
+#include <unordered_map>
+#include <vector>
+
+#include "core/params.h"
+#include "core/structure.h"
+
+namespace rcb {
+
+namespace grid {
+
+/// An inclusive range of cell indices per axis.
+struct CellRange {
+    std::array<int, 3> lo{}, hi{};
+    friend bool operator==(const CellRange&, const CellRange&) = default;
+};
+
+/// A lattice of cells of edge `size` from `origin`, `res` cells per axis, border cells unbounded.
+struct Lattice {
+    Vec3d origin;
+    double size = 1;
+    double inv_size = 1;
+    std::array<int, 3> res{1, 1, 1};
+
+    /// The cell holding coordinate x on `axis` (clamped: border cells extend to infinity).
+    int index(int axis, double x) const {
+        const double f = std::floor((x - origin[axis]) * inv_size);
+        if (!(f >= 0)) return 0;  // also NaN-safe
+        if (f >= double(res[axis] - 1)) return res[axis] - 1;
+        return int(f);
+    }
+    CellRange range_of(const Aabb& b) const {
+        CellRange r;
+        for (int a = 0; a < 3; ++a) {
+            r.lo[a] = index(a, b.min[a]);
+            r.hi[a] = index(a, b.max[a]);
+        }
+        return r;
+    }
+    /// Position of the plane between cells k − 1 and k on `axis`.
+    double plane(int axis, int k) const { return origin[axis] + double(k) * size; }
+};
+
+/// The 3D-DDA of Amanatides & Woo over `lat`, restricted to the cells of `range` and the segment
+/// parameters [t0, t1], starting in cell `cur` (inside `range`). Calls
+/// `cell(idx, t_in, t_out) -> bool` for every cell the segment crosses, in order; returns false as
+/// soon as `cell` does. Plane crossings are computed afresh from the plane's index in double
+/// precision (no accumulated t increments), and there is no plane beyond the lattice's border
+/// (border cells are unbounded). Zero direction components never step.
+template <class Cell>
+bool walk(const Lattice& lat, const Vec3d& p0, const Vec3d& d, const CellRange& range, std::array<int, 3> cur,
+          double t0, double t1, Cell&& cell) {
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    int step[3];
+    double next[3];
+    auto crossing = [&](int a) -> double {
+        if (step[a] == 0) return inf;
+        const int k = step[a] > 0 ? cur[a] + 1 : cur[a];  // the plane we leave the cell through
+        if (k <= 0 || k >= lat.res[a]) return inf;        // unbounded border cell
+        return (lat.plane(a, k) - p0[a]) / d[a];
+    };
+    for (int a = 0; a < 3; ++a) {
+        step[a] = d[a] > 0 ? 1 : (d[a] < 0 ? -1 : 0);
+        next[a] = crossing(a);
+    }
+    double t_in = t0;
+    for (;;) {
+        const int a = next[0] <= next[1] ? (next[0] <= next[2] ? 0 : 2) : (next[1] <= next[2] ? 1 : 2);
+        const double t_cross = next[a];
+        if (!cell(cur, t_in, std::min(t_cross, t1))) return false;
+        if (!(t_cross <= t1)) return true;  // the segment ends in this cell
+        cur[a] += step[a];
+        if (cur[a] < range.lo[a] || cur[a] > range.hi[a]) return true;
+        t_in = std::max(t_in, t_cross);
+        next[a] = crossing(a);
+    }
+}
+
+/// Cells per axis for cells of edge `size` over `bounds` (at least 1).
+std::array<int, 3> resolution(const Aabb& bounds, double size, int max_per_axis);
+
+}  // namespace grid
+
+class UniformGrid : public StructureBase<UniformGrid> {
+public:
+    struct Params {
+        double density = 2.0;
+        bool thesis_reset = false;
+        static constexpr auto fields() {
+            return std::tuple{
+                Field{"density", &Params::density, 0.1, 64.0,
+                      "objects per cell in eq. 4.1 (cells = objects / density; capped at 4 Mi cells)", true, true},
+                Field{"thesis_reset", &Params::thesis_reset, 0.0, 1.0,
+                      "avoid duplicate tests with the thesis' bool vector reset per ray (O(N) per ray) instead of "
+                      "per-query stamps; for measuring the difference",
+                      false}};
+        }
+    };
+
+    /// Upper bound on the number of cells (the memory guard; the cell size grows to respect it).
+    static constexpr std::size_t kMaxCells = std::size_t(1) << 22;
+
+    UniformGrid() : UniformGrid(Params{}) {}
+    explicit UniformGrid(const Params& p) : params_(p) {}
+
+    void build(std::span<const Object> objects) override;
+    void insert(const Object& object) override;
+    void remove(Uid uid) override;
+    void move(const Object& object) override;
+    std::size_t size() const override { return slot_.size(); }
+    std::size_t memory_bytes() const override;
+    nlohmann::json stats() const override;
+    void validate() const override;
+
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit);
+
+private:
+    struct Entry {
+        Aabb box;
+        Uid uid = 0;
+        std::uint32_t stamp = 0;  ///< id of the last query that tested this object
+    };
+    static_assert(sizeof(Entry) == 32);
+
+    std::size_t cell_id(const std::array<int, 3>& i) const {
+        return (std::size_t(i[2]) * std::size_t(lat_.res[1]) + std::size_t(i[1])) * std::size_t(lat_.res[0]) +
+               std::size_t(i[0]);
+    }
+    void add_to_cells(std::uint32_t slot, const grid::CellRange& r);
+    void remove_from_cells(std::uint32_t slot, const grid::CellRange& r);
+    std::uint32_t next_stamp();
+
+    Params params_;
+    grid::Lattice lat_;
+    bool clamped_ = false;  ///< the cell cap enlarged the cells
+    std::vector<std::vector<std::uint32_t>> cells_;  // cell → object slots
+    std::vector<Entry> entries_;                     // slot → object
+    std::vector<std::uint32_t> free_slots_;
+    std::unordered_map<Uid, std::uint32_t> slot_;    // uid → slot
+    std::uint32_t stamp_ = 0;
+    std::vector<std::uint8_t> tested_;  // thesis_reset mode only
+};
+
+template <class Count, class Visit>
+void UniformGrid::traverse(const Segment& s, Count& count, Visit&& visit) {
+    const SegmentSlabs slabs(s);
+    const Vec3d p0 = s.p0.as<double>(), d = s.p1.as<double>() - p0;
+    const grid::CellRange all{{0, 0, 0}, {lat_.res[0] - 1, lat_.res[1] - 1, lat_.res[2] - 1}};
+    std::array<int, 3> start;
+    for (int a = 0; a < 3; ++a) start[a] = lat_.index(a, p0[a]);
+    const bool reset = params_.thesis_reset;
+    if (reset) std::fill(tested_.begin(), tested_.end(), std::uint8_t(0));
+    const std::uint32_t stamp = reset ? 0 : next_stamp();
+    grid::walk(lat_, p0, d, all, start, 0.0, 1.0, [&](const std::array<int, 3>& c, double, double) {
+        count.traversal();
+        for (std::uint32_t slot : cells_[cell_id(c)]) {
+            Entry& e = entries_[slot];
+            if (reset) {
+                if (tested_[slot]) continue;
+                tested_[slot] = 1;
+            } else {
+                if (e.stamp == stamp) continue;
+                e.stamp = stamp;
+            }
+            count.box_tests();
+            float tn, tf;
+            if (slabs.clip(e.box, tn, tf)) {
+                count.hits();
+                if (!visit(e.uid, tn)) return false;
+            }
+        }
+        return true;
+    });
+}
+
+}  // namespace rcb

@@ -1,0 +1,176 @@
+// Uniform grid (ug) and hierarchical hash grid (hg) against the double-precision ground truth, over
+// random parameter values, the hard scenes, generated scenes and a long churn run.
+#include <gtest/gtest.h>
+
+#include <chrono>
+
+#include "core/error.h"
+#include "core/random.h"
+#include "core/registry.h"
+#include "core/structures/hash_grid.h"
+#include "core/structures/uniform_grid.h"
+#include "tests/test_scenes.h"
+
+namespace rcb {
+namespace {
+
+nlohmann::json random_ug_params(Random& rng) {
+    return {{"density", rng.log_uniform(0.1, 64.0)}};
+}
+
+nlohmann::json random_hg_params(Random& rng) {
+    return {{"amp", rng.log_uniform(0.01, 16.0)},
+            {"max_depth", int(rng.below(7))},
+            {"max_capacity", int(1 + rng.below(rng.below(2) ? 4 : 64))},
+            {"subdivision", int(2 + rng.below(3))}};
+}
+
+TEST(UniformGrid, MatchesGroundTruthOnEveryHardSceneAtDefaults) {
+    for (const test::NamedScene& s : test::hard_scenes()) test::expect_matches_ground_truth(s.recording, "ug", {}, s.name);
+}
+
+TEST(UniformGrid, MatchesGroundTruthOnEveryHardSceneOverRandomParams) {
+    Random rng(301);
+    const auto scenes = test::hard_scenes();
+    for (int round = 0; round < 4; ++round)
+        for (const test::NamedScene& s : scenes) test::expect_matches_ground_truth(s.recording, "ug", random_ug_params(rng), s.name);
+    // The extremes of the range and the thesis' reset mode.
+    for (const test::NamedScene& s : scenes) {
+        test::expect_matches_ground_truth(s.recording, "ug", {{"density", 0.1}}, s.name);
+        test::expect_matches_ground_truth(s.recording, "ug", {{"density", 64.0}, {"thesis_reset", true}}, s.name);
+    }
+}
+
+TEST(UniformGrid, MatchesGroundTruthOnGeneratedScenes) {
+    Random rng(302);
+    for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+        test::expect_matches_ground_truth(test::generated_scene("uniform", 2000, 3, seed), "ug", random_ug_params(rng), "uniform");
+        test::expect_matches_ground_truth(test::generated_scene("irregular", 2000, 3, seed + 10, 0.2), "ug",
+                                          random_ug_params(rng), "irregular");
+    }
+}
+
+TEST(HashGrid, MatchesGroundTruthOnEveryHardSceneAtDefaults) {
+    for (const test::NamedScene& s : test::hard_scenes()) test::expect_matches_ground_truth(s.recording, "hg", {}, s.name);
+}
+
+TEST(HashGrid, MatchesGroundTruthOnEveryHardSceneOverRandomParams) {
+    Random rng(303);
+    const auto scenes = test::hard_scenes();
+    for (int round = 0; round < 6; ++round)
+        for (const test::NamedScene& s : scenes) test::expect_matches_ground_truth(s.recording, "hg", random_hg_params(rng), s.name);
+    // Deep and fine: every split path exercised, capacity 1 splits every shared cell.
+    for (const test::NamedScene& s : scenes)
+        test::expect_matches_ground_truth(
+            s.recording, "hg", {{"amp", 0.01}, {"max_depth", 6}, {"max_capacity", 1}, {"subdivision", 4}}, s.name);
+}
+
+TEST(HashGrid, MatchesGroundTruthOnGeneratedScenes) {
+    Random rng(304);
+    for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+        test::expect_matches_ground_truth(test::generated_scene("uniform", 2000, 3, seed), "hg", random_hg_params(rng), "uniform");
+        test::expect_matches_ground_truth(test::generated_scene("irregular", 2000, 3, seed + 10, 0.2), "hg",
+                                          random_hg_params(rng), "irregular");
+    }
+}
+
+/// ~1000 frames of heavy churn (30% of the objects change per frame) on a small scene, validated
+/// after every frame.
+TEST(Grids, LongChurnRunMatchesGroundTruth) {
+    const Recording r = test::generated_scene("irregular", 150, 1000, 77, 0.3);
+    test::expect_matches_ground_truth(r, "ug", {{"density", 1.0}}, "churn-1000");
+    test::expect_matches_ground_truth(r, "hg", {{"amp", 2.0}, {"max_depth", 3}, {"max_capacity", 2}, {"subdivision", 2}},
+                                      "churn-1000");
+}
+
+TEST(Grids, OutOfRangeParametersAreRefusedWithTheRange) {
+    const StructureInfo& ug = find_structure("ug");
+    const StructureInfo& hg = find_structure("hg");
+    auto message = [](auto&& f) {
+        try {
+            f();
+        } catch (const InputError& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    std::string m = message([&] { ug.make({{"density", 0.001}}, "params"); });
+    EXPECT_NE(m.find("density"), std::string::npos) << m;
+    EXPECT_NE(m.find("0.1..64"), std::string::npos) << m;
+    m = message([&] { hg.make({{"max_depth", 9}}, "params"); });
+    EXPECT_NE(m.find("max_depth"), std::string::npos) << m;
+    EXPECT_NE(m.find("0..6"), std::string::npos) << m;
+    m = message([&] { hg.make({{"subdivision", 8}}, "params"); });
+    EXPECT_NE(m.find("subdivision"), std::string::npos) << m;
+    m = message([&] { hg.make({{"amp", 100.0}}, "params"); });
+    EXPECT_NE(m.find("amp"), std::string::npos) << m;
+    m = message([&] { hg.make({{"no_such", 1}}, "params"); });
+    EXPECT_NE(m.find("no_such"), std::string::npos) << m;
+    // Built in code, bypassing the registry: the constructor refuses an unbounded lattice.
+    EXPECT_THROW(HashGrid(HashGrid::Params{1.0, 12, 8, 4}), InputError);
+}
+
+TEST(Grids, CellCountStaysBoundedAtTheRangeLimits) {
+    // Many objects at the smallest density: the cap bounds the cells; a huge object stays linear.
+    std::vector<Object> objs;
+    Random rng(5);
+    for (Uid i = 0; i < 20000; ++i) {
+        const Vec3 p{float(rng.uniform(0, 1e4)), float(rng.uniform(0, 1)), float(rng.uniform(0, 1))};
+        objs.push_back({i, {p, p + Vec3{0.1f, 0.1f, 0.1f}}});
+    }
+    UniformGrid ug(UniformGrid::Params{0.1, false});
+    ug.build(objs);
+    EXPECT_LE(ug.stats()["cells"].get<std::size_t>(), UniformGrid::kMaxCells);
+    ug.validate();
+    HashGrid hg(HashGrid::Params{16.0, 6, 1, 4});
+    hg.build(objs);
+    hg.validate();
+    EXPECT_LT(hg.memory_bytes() / objs.size(), 4096u);
+}
+
+TEST(Grids, ClosestAndAnyHitAgreeWithBruteForce) {
+    const Recording r = test::generated_scene("irregular", 1500, 2, 21, 0.1);
+    Random rng(22);
+    for (const char* name : {"ug", "hg"}) {
+        for (int trial = 0; trial < 4; ++trial) {
+            const nlohmann::json params = std::string(name) == "ug" ? random_ug_params(rng) : random_hg_params(rng);
+            auto grid = find_structure(name).make(params, "params");
+            auto bf = find_structure("bf").make({}, "params");
+            grid->build(r.initial);
+            bf->build(r.initial);
+            for (const Segment& s : r.frames[0].rays) {
+                const auto a = grid->cast_closest(s), b = bf->cast_closest(s);
+                ASSERT_EQ(a.has_value(), b.has_value()) << name << ' ' << params.dump();
+                if (a) {
+                    EXPECT_EQ(a->uid, b->uid) << name << ' ' << params.dump();
+                    EXPECT_EQ(a->t, b->t);
+                }
+                EXPECT_EQ(grid->cast_any(s), bf->cast_any(s)) << name << ' ' << params.dump();
+            }
+        }
+    }
+}
+
+TEST(Grids, MoveInsideTheSameCellsKeepsStructureAndCounters) {
+    std::vector<Object> objs;
+    for (Uid i = 0; i < 64; ++i) objs.push_back({i, {{float(i), 0, 0}, {float(i) + 0.5f, 0.5f, 0.5f}}});
+    for (const char* name : {"ug", "hg"}) {
+        auto g = find_structure(name).make({}, "params");
+        g->build(objs);
+        const auto before = g->stats();
+        g->move({5, {{5.1f, 0, 0}, {5.4f, 0.4f, 0.4f}}});
+        g->validate();
+        EXPECT_EQ(g->stats()["cells"], before["cells"]) << name;
+        // Far outside the initial bounds, then back.
+        g->move({5, {{-500, 300, 20}, {-499, 301, 21}}});
+        g->validate();
+        EXPECT_TRUE(g->cast_any({{-499.5f, 300.5f, 0}, {-499.5f, 300.5f, 100}})) << name;
+        g->remove(5);
+        g->validate();
+        EXPECT_FALSE(g->cast_any({{-499.5f, 300.5f, 0}, {-499.5f, 300.5f, 100}})) << name;
+        EXPECT_EQ(g->size(), 63u);
+    }
+}
+
+}  // namespace
+}  // namespace rcb
