@@ -2,6 +2,7 @@
 #include <iostream>
 
 #include "core/error.h"
+#include "analysis/commands.h"
 #include "runner/commands.h"
 
 int main(int argc, char** argv) {
@@ -18,6 +19,7 @@ int main(int argc, char** argv) {
     rcb::add_structures_command(app);
     rcb::add_run_command(app);
     rcb::add_query_commands(app);
+    rcb::add_fit_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

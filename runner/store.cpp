@@ -114,6 +114,35 @@ CREATE VIEW cell_summary AS
     FROM cell JOIN run ON run.id = cell.run_id JOIN experiment ON experiment.id = run.experiment_id
               JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id;
 )sql",
+        // 1 → 2: the analysis stage's cost-model fits (analysis/cost_model.h).
+        R"sql(
+CREATE TABLE fit (
+    id               INTEGER PRIMARY KEY,
+    run_id           INTEGER NOT NULL REFERENCES run(id),
+    created_at       TEXT NOT NULL,
+    structure        TEXT NOT NULL,
+    target           TEXT NOT NULL,
+    model            TEXT NOT NULL,
+    terms            TEXT NOT NULL,
+    observations     INTEGER NOT NULL,
+    configurations   INTEGER NOT NULL,
+    r2               REAL NOT NULL,
+    rmse_relative    REAL NOT NULL,
+    heldout_error    REAL NOT NULL,
+    condition_number REAL NOT NULL,
+    status           TEXT NOT NULL,
+    chosen           INTEGER NOT NULL
+);
+CREATE TABLE fit_coefficient (
+    fit_id     INTEGER NOT NULL REFERENCES fit(id) ON DELETE CASCADE,
+    name       TEXT NOT NULL,
+    value      REAL NOT NULL,
+    ci_low     REAL,
+    ci_high    REAL,
+    spans_zero INTEGER NOT NULL,
+    PRIMARY KEY (fit_id, name)
+);
+)sql",
     };
     return all;
 }

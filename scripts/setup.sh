@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-packages=(cmake make g++ git pkg-config libgtest-dev nlohmann-json3-dev libcli11-dev libtbb-dev zlib1g-dev libsqlite3-dev)
+packages=(cmake make g++ git pkg-config libgtest-dev nlohmann-json3-dev libcli11-dev libtbb-dev zlib1g-dev libsqlite3-dev libceres-dev libeigen3-dev)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -212,6 +212,26 @@ TEST(Store, RefusesANewerSchemaAndMigratesAnOlderOne) {
         s.step();
         EXPECT_EQ(s.int64(0), 3);
     }
+    // A version-1 database with data keeps it and gains the version-2 tables (the cost-model fits).
+    const std::string v1_db = (dir / "v1.db").string();
+    {
+        ResultStore v1(v1_db, 1);
+        v1.db().exec("INSERT INTO experiment(name) VALUES ('kept')");
+        Statement s = v1.db().prepare("SELECT count(*) FROM sqlite_master WHERE name = 'fit'");
+        s.step();
+        EXPECT_EQ(s.int64(0), 0);
+    }
+    {
+        ResultStore migrated(v1_db);
+        Statement s = migrated.db().prepare("SELECT (SELECT count(*) FROM experiment WHERE name = 'kept'), "
+                                            "(SELECT count(*) FROM sqlite_master WHERE name IN ('fit', 'fit_coefficient'))");
+        s.step();
+        EXPECT_EQ(s.int64(0), 1);
+        EXPECT_EQ(s.int64(1), 2);
+        Statement v = migrated.db().prepare("PRAGMA user_version");
+        v.step();
+        EXPECT_EQ(v.int64(0), latest_schema_version());
+    }
     const std::string new_db = (dir / "new.db").string();
     {
         Database db(new_db, false);

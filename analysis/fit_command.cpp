@@ -1,0 +1,99 @@
+// rcbench fit: the cost model of eq. 5.4 (and update costs) fitted to a run, stored back in the database.
+#include <cmath>
+#include <iostream>
+#include <memory>
+
+#include "analysis/commands.h"
+#include "analysis/cost_model.h"
+#include "runner/store.h"
+#include "runner/table.h"
+
+namespace rcb {
+namespace {
+
+std::string percent(double v) { return std::isfinite(v) ? fixed(100 * v, 1) + "%" : "-"; }
+
+/// "4.98 [4.71, 5.25]", or the value marked unsure when its interval spans zero or has none.
+std::string with_interval(const Coefficient& c, bool trusted) {
+    if (!trusted) return "(" + fixed(c.value, 3) + ")";
+    std::string text = fixed(c.value, 3);
+    if (std::isfinite(c.ci_low)) text += " [" + fixed(c.ci_low, 3) + ", " + fixed(c.ci_high, 3) + "]";
+    if (c.spans_zero) text += " ~0?";
+    return text;
+}
+
+void print_models(const std::vector<CandidateModel>& models, const char* what) {
+    TextTable t({std::string("  ") + what + " model", "terms", "held-out error", "R2", "condition", "status", "chosen"});
+    for (const CandidateModel& m : models) {
+        std::string terms;
+        for (const std::string& s : m.problem.terms) terms += (terms.empty() ? "" : " ") + s;
+        t.add({"  " + m.name, terms, percent(m.heldout_error), fixed(m.fit.r2, 3),
+               std::isfinite(m.fit.condition_number) ? fixed(m.fit.condition_number, 1) : "inf", m.fit.status(),
+               m.chosen ? "yes" : ""});
+    }
+    t.print(std::cout);
+}
+
+void print_coefficients(const CandidateModel& m, const char* unit) {
+    const bool trusted = m.fit.status() == "ok";
+    std::cout << "  chosen " << m.target << " model '" << m.name << "' (" << unit << ", 95% intervals"
+              << (trusted ? "" : "; NOT IDENTIFIABLE: " + m.fit.status() + ", values in parentheses are not estimates") << "):\n";
+    for (const Coefficient& c : m.fit.coefficients) std::cout << "    " << c.name << " = " << with_interval(c, trusted) << '\n';
+}
+
+}  // namespace
+
+void add_fit_command(CLI::App& app) {
+    struct Options {
+        std::string db, experiment;
+        std::int64_t run = 0;
+    };
+    auto o = std::make_shared<Options>();
+    CLI::App* cmd = app.add_subcommand(
+        "fit", "Fit the cost model C = C_RB*N_RB + C_T*N_T + C_PREP (thesis eq. 5.4) and update costs per structure to a run's "
+               "frames; choose the smallest adequate model by held-out error; store the coefficients in the database");
+    cmd->add_option("db", o->db, "Results database")->required();
+    cmd->add_option("--experiment", o->experiment, "Fit the newest run of this experiment (default: the newest run)");
+    cmd->add_option("--run", o->run, "Fit this run id");
+    cmd->callback([o] {
+        ResultStore store(o->db);  // migrates, so the fit tables exist
+        const std::int64_t run = resolve_run(store.db(), o->run, o->experiment);
+        const std::vector<FrameObservation> frames = load_observations(store.db(), run);
+        const std::vector<StructureModels> models = fit_cost_models(frames);
+        store_fits(store.db(), run, models);
+
+        std::cout << "run " << run << ": " << frames.size() << " frames. Ray-cast cost per ray in ns; held-out error is the mean "
+                  << "absolute relative error on configurations left out of the fit (5-fold). A model is chosen when its held-out "
+                  << "error is within max(0.5 points, 5%) of the best: the smallest such.\n";
+        for (const StructureModels& s : models) {
+            std::cout << '\n' << s.structure;
+            if (!s.unused_terms.empty()) {
+                std::cout << " (terms always 0 here, left out:";
+                for (const std::string& t : s.unused_terms) std::cout << ' ' << t;
+                std::cout << ')';
+            }
+            std::cout << '\n';
+            print_models(s.raycast, "ray-cast");
+            if (const CandidateModel* m = s.chosen("raycast")) print_coefficients(*m, "ns per unit per ray");
+            print_models(s.update, "update");
+            if (const CandidateModel* m = s.chosen("update")) print_coefficients(*m, "ns per operation / object / frame");
+        }
+
+        std::cout << "\nThesis Table 6.3 analog (ns per ray; the C terms from each structure's chosen model):\n";
+        TextTable t({"scene", "structure", "params", "C_total", "C_RBxN_RB", "C_TxN_T", "C_PREP", "N_TP", "N_FP", "N_T", "C_RB", "C_T"});
+        for (const CostBreakdown& b : cost_breakdown(frames, models))
+            t.add({b.scene, b.structure, b.params, fixed(b.c_total, 1), fixed(b.rb_term, 1), fixed(b.t_term, 1), fixed(b.prep, 1),
+                   fixed(b.n_tp, 1), fixed(b.n_fp, 1), fixed(b.n_t, 1), std::isfinite(b.c_rb) ? fixed(b.c_rb, 3) : "-",
+                   std::isfinite(b.c_t) ? fixed(b.c_t, 3) : "-"});
+        t.print(std::cout);
+
+        std::cout << "\nHeld-out relative error of the predicted ray-cast time (chosen model; target <= 10%):\n";
+        TextTable e({"structure", "model", "held-out error", "status"});
+        for (const StructureModels& s : models)
+            if (const CandidateModel* m = s.chosen("raycast"))
+                e.add({s.structure, m->name, percent(m->heldout_error), m->fit.status()});
+        e.print(std::cout);
+    });
+}
+
+}  // namespace rcb

@@ -1,0 +1,55 @@
+#pragma once
+/// Non-negative linear least squares with Ceres: y ≈ Σ_j β_j x_j, every β_j ≥ 0 (costs cannot be
+/// negative), residuals relative to y (per-ray costs span orders of magnitude across scenes, and a
+/// 10% error matters as much on a small scene as on a large one), a Huber loss against outlier
+/// frames, and 95% confidence intervals from Ceres' covariance scaled by the residual variance.
+///
+/// A fit reports when it cannot be trusted: a design whose columns are (nearly) collinear, too few
+/// distinct configurations to separate the terms, or a coefficient whose interval spans zero. Those
+/// are flagged, never printed as numbers that look sure.
+
+#include <string>
+#include <vector>
+
+namespace rcb {
+
+struct LinearProblem {
+    std::vector<std::string> terms;        ///< one name per column
+    std::vector<std::vector<double>> x;    ///< rows of the design matrix
+    std::vector<double> y;                 ///< observations, > 0
+    std::vector<int> group;                ///< the configuration each row came from (for k-fold)
+};
+
+struct Coefficient {
+    std::string name;
+    double value = 0;
+    double ci_low = 0, ci_high = 0;  ///< 95% interval
+    bool spans_zero = false;         ///< the interval includes 0: not distinguishable from no effect
+};
+
+struct LinearFit {
+    std::vector<Coefficient> coefficients;
+    std::size_t observations = 0;
+    std::size_t groups = 0;           ///< distinct configurations
+    double r2 = 0;                    ///< of the relative residuals' model, on the fitted data
+    double rmse_relative = 0;         ///< root mean square relative error on the fitted data
+    double condition_number = 0;      ///< of the column-scaled, weighted design
+    bool ill_conditioned = false;     ///< collinear terms: coefficients not identifiable
+    bool too_few_groups = false;      ///< fewer distinct configurations than terms + 1
+    bool converged = false;
+    std::string status() const;       ///< "ok", or what is wrong
+
+    double predict(const std::vector<double>& row) const;
+};
+
+/// Condition numbers above this are "ill-conditioned" (the terms cannot be told apart).
+inline constexpr double kIllConditioned = 1e3;
+
+LinearFit fit_linear(const LinearProblem& p, double huber_delta = 0.1);
+
+/// Held-out error by k-fold over configurations (groups, not frames of one configuration): the
+/// mean absolute relative error of predictions for groups left out of the fit. k is capped by the
+/// number of groups; groups are dealt to folds in a fixed order, so the result is deterministic.
+double cross_validated_error(const LinearProblem& p, int k = 5);
+
+}  // namespace rcb

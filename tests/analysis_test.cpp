@@ -1,0 +1,128 @@
+// The cost-model fit: known coefficients recovered within their intervals despite noise and
+// outliers, collinear designs flagged, and model selection picking the model that made the data.
+#include <gtest/gtest.h>
+
+#include "analysis/cost_model.h"
+#include "analysis/linear_fit.h"
+#include "core/random.h"
+
+namespace rcb {
+namespace {
+
+/// Frames of one structure on `configs` configurations: C = c_rb·N_RB + c_t·N_T + c_prep per ray,
+/// with multiplicative noise and, every 25th frame, an outlier (a frame 3× slower: a context switch).
+std::vector<FrameObservation> synthetic_frames(double c_rb, double c_t, double c_prep, int configs, std::uint64_t seed,
+                                               double noise = 0.03) {
+    Random rng(seed);
+    std::vector<FrameObservation> frames;
+    for (int c = 0; c < configs; ++c) {
+        const double n_rb = rng.log_uniform(5, 5000), n_t = rng.log_uniform(10, 3000);
+        const std::string category = c % 2 ? "uniform" : "irregular";
+        for (int f = 0; f < 12; ++f) {
+            FrameObservation o;
+            o.structure = "s";
+            o.scene = "scene" + std::to_string(c);
+            o.category = category;
+            o.config_group = c;
+            o.rays = 1000;
+            o.n_rb = n_rb * (1 + 0.05 * rng.normal());
+            o.n_t = n_t * (1 + 0.05 * rng.normal());
+            o.n_tp = 0.1 * o.n_rb;
+            const double per_ray = c_rb * o.n_rb + c_t * o.n_t + c_prep;
+            o.raycast_ns = o.rays * per_ray * (1 + noise * rng.normal()) * (f % 25 == 7 ? 3.0 : 1.0);
+            o.inserts = 10 + c, o.removes = 5 + (7 * c) % 11, o.moves = 80 + 3 * ((5 * c) % 7), o.objects = 10000;
+            o.update_ns = 200 * o.inserts + 300 * o.removes + 50 * o.moves + 1000 * (1 + noise * rng.normal());
+            o.memory_mb = 1 + c;
+            frames.push_back(o);
+        }
+    }
+    return frames;
+}
+
+TEST(LinearFit, RecoversKnownCoefficientsWithinTheirIntervalsDespiteOutliers) {
+    const std::vector<FrameObservation> frames = synthetic_frames(0.8, 5.0, 40.0, 12, 1);
+    const std::vector<StructureModels> models = fit_cost_models(frames);
+    ASSERT_EQ(models.size(), 1u);
+    const CandidateModel* m = models[0].chosen("raycast");
+    ASSERT_NE(m, nullptr);
+    EXPECT_EQ(m->name, "eq5.4");
+    ASSERT_EQ(m->fit.status(), "ok");
+    const double truth[] = {0.8, 5.0, 40.0};
+    for (std::size_t j = 0; j < 3; ++j) {
+        const Coefficient& c = m->fit.coefficients[j];
+        EXPECT_LE(c.ci_low, truth[j]) << c.name;
+        EXPECT_GE(c.ci_high, truth[j]) << c.name;
+        EXPECT_NEAR(c.value, truth[j], 0.1 * truth[j]) << c.name;
+        EXPECT_FALSE(c.spans_zero) << c.name;
+    }
+    // The held-out error counts the outlier frames too (1 in 12 is 3× slow): within the 10% target.
+    EXPECT_LT(m->heldout_error, 0.10);
+}
+
+TEST(LinearFit, FlagsACollinearDesign) {
+    // N_T is exactly twice N_RB in every frame: their costs cannot be told apart.
+    LinearProblem p;
+    p.terms = {"C_RB", "C_T"};
+    Random rng(2);
+    for (int i = 0; i < 60; ++i) {
+        const double n = rng.uniform(10, 1000);
+        p.x.push_back({n, 2 * n});
+        p.y.push_back(3 * n * (1 + 0.01 * rng.normal()));
+        p.group.push_back(i / 6);
+    }
+    const LinearFit fit = fit_linear(p);
+    EXPECT_TRUE(fit.ill_conditioned);
+    EXPECT_NE(fit.status(), "ok");
+    // A well-posed design of the same size is not flagged.
+    for (auto& row : p.x) row[1] = rng.uniform(10, 1000);
+    EXPECT_FALSE(fit_linear(p).ill_conditioned);
+}
+
+TEST(LinearFit, FlagsTooFewConfigurations) {
+    LinearProblem p;
+    p.terms = {"a", "b", "c"};
+    Random rng(3);
+    for (int i = 0; i < 30; ++i) {
+        p.x.push_back({rng.uniform(1, 2), rng.uniform(1, 2), 1});
+        p.y.push_back(5);
+        p.group.push_back(i % 3);  // 3 configurations for 3 terms
+    }
+    EXPECT_TRUE(fit_linear(p).too_few_groups);
+}
+
+TEST(ModelSelection, PicksTheModelThatMadeTheData) {
+    // Without a per-ray constant the smaller model is as good on held-out data, so it is chosen.
+    const auto no_prep = fit_cost_models(synthetic_frames(0.8, 5.0, 0.0, 12, 4));
+    EXPECT_EQ(no_prep[0].chosen("raycast")->name, "no-prep");
+    // With a large constant the full eq. 5.4 is needed.
+    const auto with_prep = fit_cost_models(synthetic_frames(0.8, 5.0, 2000.0, 12, 5));
+    EXPECT_EQ(with_prep[0].chosen("raycast")->name, "eq5.4");
+    // Costs that differ by scene category need the per-category model.
+    std::vector<FrameObservation> mixed = synthetic_frames(0.8, 5.0, 40.0, 12, 6);
+    for (FrameObservation& f : mixed)
+        if (f.category == "uniform") f.raycast_ns *= 3;  // uniform scenes cost 3× per unit here
+    EXPECT_EQ(fit_cost_models(mixed)[0].chosen("raycast")->name, "per-category");
+}
+
+TEST(ModelSelection, UpdateCostsAreRecoveredPerOperation) {
+    const auto models = fit_cost_models(synthetic_frames(0.8, 5.0, 40.0, 12, 7, 0.01));
+    const CandidateModel* m = models[0].chosen("update");
+    ASSERT_NE(m, nullptr);
+    EXPECT_EQ(m->name, "per-operation");
+    ASSERT_EQ(m->fit.status(), "ok");
+    EXPECT_NEAR(m->fit.coefficients[0].value, 200, 20);  // c_insert
+    EXPECT_NEAR(m->fit.coefficients[1].value, 300, 30);  // c_remove
+    EXPECT_NEAR(m->fit.coefficients[2].value, 50, 5);    // c_move
+    EXPECT_NEAR(m->fit.coefficients[3].value, 1000, 150);  // c_frame
+}
+
+TEST(ModelSelection, TermsThatAreAlwaysZeroAreLeftOut) {
+    std::vector<FrameObservation> frames = synthetic_frames(0.4, 0.0, 100.0, 10, 8);
+    for (FrameObservation& f : frames) f.n_t = 0;  // brute force has no traversal
+    const auto models = fit_cost_models(frames);
+    EXPECT_EQ(models[0].unused_terms, std::vector<std::string>{"C_T"});
+    EXPECT_EQ(models[0].chosen("raycast")->problem.terms, (std::vector<std::string>{"C_RB", "C_PREP"}));
+}
+
+}  // namespace
+}  // namespace rcb
