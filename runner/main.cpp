@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
     rcb::add_run_command(app);
     rcb::add_query_commands(app);
     rcb::add_fit_command(app);
+    rcb::add_report_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

@@ -1,10 +1,21 @@
 #!/usr/bin/env bash
-# Installs the Debian packages rcbench builds with (only those missing), then builds rcbench
-# (Release) into build/. With --deps-only it stops after the packages.
+# Installs the Debian packages rcbench builds and runs with (only those missing), then builds
+# rcbench (Release) into build/.
+#   --deps-only    stop after the packages
+#   --test-tools   also install what some tests use: Debian's chromium (the report rendering test)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-packages=(cmake make g++ git pkg-config libgtest-dev nlohmann-json3-dev libcli11-dev libtbb-dev zlib1g-dev libsqlite3-dev libceres-dev libeigen3-dev)
+packages=(cmake make g++ git pkg-config libgtest-dev nlohmann-json3-dev libcli11-dev libtbb-dev zlib1g-dev libsqlite3-dev libceres-dev libeigen3-dev gnuplot-nox)
+
+deps_only=0
+for arg in "$@"; do
+  case "$arg" in
+    --deps-only) deps_only=1 ;;
+    --test-tools) packages+=(chromium) ;;
+    *) echo "setup.sh: unknown option $arg (known: --deps-only, --test-tools)" >&2; exit 2 ;;
+  esac
+done
 
 missing=()
 for p in "${packages[@]}"; do
@@ -17,7 +28,7 @@ if ((${#missing[@]})); then
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
-if [ "${1:-}" = "--deps-only" ]; then exit 0; fi
+if [ "$deps_only" = 1 ]; then exit 0; fi
 
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
 cmake --build build -j"$(nproc)"

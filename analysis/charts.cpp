@@ -1,0 +1,99 @@
+#include "analysis/charts.h"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace rcb {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A gnuplot string literal (single quotes; a quote is doubled).
+std::string quoted(const std::string& s) {
+    std::string q = "'";
+    for (char c : s) {
+        if (c == '\'') q += "''";
+        else if (c == '\n') q += ' ';
+        else q += c;
+    }
+    return q + "'";
+}
+
+/// Labels go into data files as one quoted token.
+std::string data_label(const std::string& s) {
+    std::string q = "\"";
+    for (char c : s) q += (c == '"' || c == '\n') ? '\'' : c;
+    return q + "\"";
+}
+
+}  // namespace
+
+bool gnuplot_available() { return std::system("command -v gnuplot >/dev/null 2>&1") == 0; }
+
+std::string render_svg(const Chart& chart) {
+    if (!gnuplot_available())
+        throw std::runtime_error("gnuplot not found: install Debian's gnuplot-nox (scripts/setup.sh does) to draw the report's charts");
+    char pattern[] = "/tmp/rcbench-chart-XXXXXX";
+    const char* dir_c = mkdtemp(pattern);
+    if (!dir_c) throw std::runtime_error("cannot create a temporary folder for gnuplot");
+    const fs::path dir(dir_c);
+    std::ostringstream script;
+    script << "set terminal svg size 820,470 dynamic font 'sans,11' background rgb 'white'\n"
+           << "set output " << quoted((dir / "chart.svg").string()) << "\n"
+           << "set title " << quoted(chart.title) << " font 'sans,13'\n"
+           << "set xlabel " << quoted(chart.x_label) << "\nset ylabel " << quoted(chart.y_label) << "\n"
+           << "set grid lc rgb '#dddddd'\nset key outside right top box opaque\nset border lc rgb '#555555'\n";
+    if (chart.log_x) script << "set logscale x\n";
+    if (chart.log_y) script << "set logscale y\n";
+    script << chart.extra << "\n";
+    std::string plot;
+    int index = 0;
+    for (const Series& s : chart.series) {
+        if (s.x.empty()) continue;
+        const fs::path data = dir / ("series" + std::to_string(index) + ".dat");
+        std::ofstream out(data);
+        out.precision(10);
+        for (std::size_t i = 0; i < s.x.size(); ++i) {
+            if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) continue;
+            if ((chart.log_x && s.x[i] <= 0) || (chart.log_y && s.y[i] <= 0)) continue;  // not drawable on a log axis
+            out << s.x[i] << ' ' << s.y[i] << ' ' << data_label(i < s.labels.size() ? s.labels[i] : "") << '\n';
+        }
+        const int style = (s.style > 0 ? s.style - 1 : index) % 8 + 1;
+        plot += (plot.empty() ? "plot " : ", ") + quoted(data.string()) + " using 1:2 with " +
+                (s.lines ? "linespoints" : "points") + " pt " + std::to_string(style % 7 + 5) + " ps 1.2 lw 1.5 lc " +
+                std::to_string(style) + " title " + quoted(s.name);
+        if (!s.labels.empty())
+            plot += ", " + quoted(data.string()) + " using 1:2:3 with labels offset 0.8,0.6 font 'sans,8' tc rgb '#444444' notitle";
+        ++index;
+    }
+    if (plot.empty()) plot = "plot NaN notitle";
+    script << plot << "\n";
+    {
+        std::ofstream out(dir / "chart.gp");
+        out << script.str();
+    }
+    const std::string command = "gnuplot " + quoted((dir / "chart.gp").string()) + " 2>" + quoted((dir / "err.txt").string());
+    const int rc = std::system(command.c_str());
+    std::ifstream svg_in(dir / "chart.svg");
+    std::ostringstream svg;
+    svg << svg_in.rdbuf();
+    std::ifstream err_in(dir / "err.txt");
+    std::ostringstream err;
+    err << err_in.rdbuf();
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+    if (rc != 0 || svg.str().find("<svg") == std::string::npos)
+        throw std::runtime_error("gnuplot failed to draw '" + chart.title + "': " + err.str().substr(0, 300));
+    // Drop the XML prolog and doctype so the SVG can sit inline in HTML.
+    std::string text = svg.str();
+    const auto start = text.find("<svg");
+    return text.substr(start);
+}
+
+}  // namespace rcb

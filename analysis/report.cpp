@@ -1,0 +1,487 @@
+#include "analysis/report.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "analysis/charts.h"
+#include "analysis/cost_model.h"
+#include "core/error.h"
+#include "core/registry.h"
+#include "core/simulator.h"
+#include "runner/table.h"
+
+namespace rcb {
+namespace {
+
+std::string html_escape(const std::string& s) {
+    std::string out;
+    for (char c : s) {
+        switch (c) {
+            case '<': out += "&lt;"; break;
+            case '>': out += "&gt;"; break;
+            case '&': out += "&amp;"; break;
+            case '"': out += "&quot;"; break;
+            default: out += c;
+        }
+    }
+    return out;
+}
+
+/// Structure plus the parameters that differ from its defaults: "dbvh mode=rebuild".
+std::string config_label(const std::string& structure, const std::string& params_text) {
+    const nlohmann::json params = nlohmann::json::parse(params_text, nullptr, false);
+    std::string changed;
+    try {
+        const nlohmann::json defaults = find_structure(structure).defaults();
+        for (const auto& [k, v] : params.items())
+            if (!defaults.contains(k) || defaults[k] != v)
+                changed += (changed.empty() ? "" : ",") + k + "=" + (v.is_string() ? v.get<std::string>() : v.dump());
+    } catch (const InputError&) {
+        changed = params.dump();  // a structure this binary does not know: show everything
+    }
+    return changed.empty() ? structure : structure + " " + changed;
+}
+
+/// One (scene, configuration) of the run, medians over its repetitions.
+struct Entry {
+    std::string scene, category, structure, params, label;
+    double objects = 0;
+    double build_ms = 0, update_ms = 0, raycast_ms = 0, memory_per_object = 0;
+    double hits = 0, missed = 0, extra = 0, duplicate = 0;
+    std::vector<double> frame_raycast_ms, frame_sah;  ///< repetition 0's frames
+    double total_ms() const { return update_ms + raycast_ms; }
+    double accuracy() const {
+        const double reported_truth = hits - extra - duplicate + missed;
+        return reported_truth > 0 ? 100.0 * (1.0 - (missed + extra + duplicate) / reported_truth) : 100.0;
+    }
+};
+
+std::vector<Entry> load_entries(Database& db, std::int64_t run) {
+    struct Acc {
+        Entry e;
+        std::vector<double> build, update, raycast, memory;
+    };
+    std::map<std::pair<std::string, std::string>, Acc> acc;  // (scene, label)
+    std::vector<std::pair<std::string, std::string>> order;
+    Statement s = db.prepare(
+        "SELECT cell.id, scene.name, scene.spec, config.structure, config.params, cell.objects, cell.build_ns, cell.update_ns_median, "
+        "cell.raycast_ns_median, cell.memory_bytes, cell.repetition, "
+        "(SELECT sum(hits) FROM frame WHERE cell_id = cell.id AND warmup = 0), (SELECT sum(missed) FROM frame WHERE cell_id = cell.id), "
+        "(SELECT sum(extra) FROM frame WHERE cell_id = cell.id), (SELECT sum(duplicate) FROM frame WHERE cell_id = cell.id) "
+        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id WHERE cell.run_id = ? ORDER BY cell.id");
+    s.bind(1, run);
+    while (s.step()) {
+        const std::string label = config_label(s.text(3), s.text(4));
+        const auto key = std::make_pair(s.text(1), label);
+        auto [it, fresh] = acc.try_emplace(key);
+        if (fresh) order.push_back(key);
+        Acc& a = it->second;
+        Entry& e = a.e;
+        e.scene = s.text(1);
+        e.category = scene_category(s.text(2));
+        e.structure = s.text(3);
+        e.params = s.text(4);
+        e.label = label;
+        e.objects = s.real(5);
+        a.build.push_back(s.real(6) / 1e6);
+        a.update.push_back(s.real(7) / 1e6);
+        a.raycast.push_back(s.real(8) / 1e6);
+        a.memory.push_back(e.objects > 0 ? s.real(9) / e.objects : 0);
+        e.hits += s.real(11), e.missed += s.real(12), e.extra += s.real(13), e.duplicate += s.real(14);
+        if (s.int64(10) == 0) {
+            Statement f = db.prepare("SELECT raycast_ns, sah_cost FROM frame WHERE cell_id = ? ORDER BY frame");
+            f.bind(1, s.int64(0));
+            while (f.step()) {
+                e.frame_raycast_ms.push_back(f.real(0) / 1e6);
+                e.frame_sah.push_back(f.is_null(1) ? NAN : f.real(1));
+            }
+        }
+    }
+    std::vector<Entry> out;
+    for (const auto& key : order) {
+        Acc& a = acc[key];
+        a.e.build_ms = spread_of(a.build).median;
+        a.e.update_ms = spread_of(a.update).median;
+        a.e.raycast_ms = spread_of(a.raycast).median;
+        a.e.memory_per_object = spread_of(a.memory).median;
+        out.push_back(a.e);
+    }
+    if (out.empty()) throw InputError("run " + std::to_string(run) + " has no measured cells to report");
+    return out;
+}
+
+template <typename T>
+std::vector<std::string> unique_in_order(const std::vector<Entry>& entries, T field) {
+    std::vector<std::string> out;
+    for (const Entry& e : entries)
+        if (std::find(out.begin(), out.end(), field(e)) == out.end()) out.push_back(field(e));
+    return out;
+}
+
+class Html {
+public:
+    void heading(const std::string& text, int level = 2) {
+        out_ << "<h" << level << ">" << html_escape(text) << "</h" << level << ">\n";
+    }
+    void paragraph(const std::string& text) { out_ << "<p>" << html_escape(text) << "</p>\n"; }
+    void table(const std::vector<std::string>& header, const std::vector<std::vector<std::string>>& rows, const std::string& caption) {
+        out_ << "<table><caption>" << html_escape(caption) << "</caption><tr>";
+        for (const std::string& h : header) out_ << "<th>" << html_escape(h) << "</th>";
+        out_ << "</tr>\n";
+        for (const auto& row : rows) {
+            out_ << "<tr>";
+            for (std::size_t i = 0; i < row.size(); ++i) out_ << (i ? "<td class=n>" : "<td>") << html_escape(row[i]) << "</td>";
+            out_ << "</tr>\n";
+        }
+        out_ << "</table>\n";
+        ++tables_;
+    }
+    void chart(const Chart& c) {
+        out_ << "<figure class=chart>" << render_svg(c) << "<figcaption>" << html_escape(c.reading) << "</figcaption></figure>\n";
+        ++charts_;
+    }
+    std::string str() const { return out_.str(); }
+    std::size_t charts() const { return charts_; }
+    std::size_t tables() const { return tables_; }
+
+private:
+    std::ostringstream out_;
+    std::size_t charts_ = 0, tables_ = 0;
+};
+
+std::string ms(double v) { return fixed(v, v < 0.1 ? 4 : 3); }
+
+/// Least-squares slope of log(y) against log(x).
+double log_log_slope(const std::vector<double>& x, const std::vector<double>& y) {
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    int n = 0;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+        if (!(x[i] > 0 && y[i] > 0)) continue;
+        const double lx = std::log(x[i]), ly = std::log(y[i]);
+        sx += lx, sy += ly, sxx += lx * lx, sxy += lx * ly, ++n;
+    }
+    const double d = n * sxx - sx * sx;
+    return n >= 2 && d > 0 ? (n * sxy - sx * sy) / d : NAN;
+}
+
+}  // namespace
+
+ReportSummary write_report(Database& db, std::int64_t run, const std::string& path) {
+    const std::vector<Entry> entries = load_entries(db, run);
+    const std::vector<std::string> scenes = unique_in_order(entries, [](const Entry& e) { return e.scene; });
+    const std::vector<std::string> labels = unique_in_order(entries, [](const Entry& e) { return e.label; });
+    // A configuration keeps its colour and marker in every chart.
+    auto style_of = [&](const std::string& label) {
+        return int(std::find(labels.begin(), labels.end(), label) - labels.begin()) + 1;
+    };
+    auto find = [&](const std::string& scene, const std::string& label) -> const Entry* {
+        for (const Entry& e : entries)
+            if (e.scene == scene && e.label == label) return &e;
+        return nullptr;
+    };
+    std::string experiment, commit, cpu, started;
+    {
+        Statement s = db.prepare(
+            "SELECT experiment.name, run.git_commit, run.cpu_model, run.started_at, run.cores FROM run JOIN experiment ON "
+            "experiment.id = run.experiment_id WHERE run.id = ?");
+        s.bind(1, run);
+        if (!s.step()) throw InputError("no run " + std::to_string(run));
+        experiment = s.text(0), commit = s.text(1), cpu = s.text(2) + " (" + std::to_string(s.int64(4)) + " cores)", started = s.text(3);
+    }
+    // The largest scene by objects: where the per-frame series and Table 6.4 are shown.
+    std::string largest = scenes.front();
+    double most_objects = -1;
+    for (const Entry& e : entries)
+        if (e.objects > most_objects) most_objects = e.objects, largest = e.scene;
+
+    Html h;
+    h.paragraph("Experiment " + experiment + ", run " + std::to_string(run) + " started " + started + " from commit " + commit +
+                " on " + cpu + ". Times are medians over frames (and over repetitions); a frame casts its rays as one batch.");
+
+    // Thesis Tables 6.1 and 6.2.
+    h.heading("Build and execution (thesis Tables 6.1 and 6.2)");
+    {
+        std::vector<std::string> header{"configuration"};
+        header.insert(header.end(), scenes.begin(), scenes.end());
+        std::vector<std::vector<std::string>> build, cast, memory;
+        for (const std::string& l : labels) {
+            std::vector<std::string> b{l}, c{l}, m{l};
+            for (const std::string& sc : scenes) {
+                const Entry* e = find(sc, l);
+                b.push_back(e ? ms(e->build_ms) : "-");
+                c.push_back(e ? ms(e->raycast_ms) + " (" + ms(e->update_ms) + ")" : "-");
+                m.push_back(e ? fixed(e->memory_per_object, 0) : "-");
+            }
+            build.push_back(b), cast.push_back(c), memory.push_back(m);
+        }
+        h.table(header, build, "Build time (ms), Table 6.1");
+        h.table(header, cast, "Ray cast per frame (ms), with update per frame in parentheses, Table 6.2");
+        h.table(header, memory, "Memory after the build (bytes per object)");
+    }
+
+    // Update against ray cast (thesis Figures 6.1 and 6.2), one chart per scene category.
+    h.heading("Update against ray cast (thesis Figures 6.1 and 6.2)");
+    for (const std::string& category : unique_in_order(entries, [](const Entry& e) { return e.category; })) {
+        Chart c;
+        c.title = "Update and ray cast per frame, " + category + " scenes";
+        c.x_label = "update per frame (ms)";
+        c.y_label = "ray cast per frame (ms)";
+        c.log_x = c.log_y = true;
+        const Entry* best = nullptr;
+        std::string best_scene;
+        double most_objects = -1;
+        for (const Entry& e : entries)
+            if (e.category == category && e.objects > most_objects) most_objects = e.objects, best_scene = e.scene;
+        for (const std::string& l : labels) {
+            Series s{l, {}, {}, {}, false, style_of(l)};
+            for (const Entry& e : entries)
+                if (e.category == category && e.label == l) {
+                    s.x.push_back(std::max(e.update_ms, 1e-5));
+                    s.y.push_back(e.raycast_ms);
+                    s.labels.push_back(e.scene);
+                    if (e.scene == best_scene && (!best || e.total_ms() < best->total_ms())) best = &e;
+                }
+            c.series.push_back(s);
+        }
+        const Entry* bf = find(best_scene, "bf");
+        c.reading = best ? "Lower left is better. On " + best_scene + ", the lowest update + ray cast per frame is " + best->label +
+                               " at " + ms(best->total_ms()) + " ms" +
+                               (bf && best != bf ? ", " + fixed(bf->total_ms() / best->total_ms(), 1) + "x less than brute force" : "") + "."
+                         : "No data.";
+        h.chart(c);
+    }
+
+    // Speed against accuracy.
+    h.heading("Speed against accuracy");
+    {
+        Chart c;
+        c.title = "Time per frame against hit-set accuracy";
+        c.x_label = "update + ray cast per frame (ms)";
+        c.y_label = "hits agreeing with the ground truth (%)";
+        c.log_x = true;
+        std::size_t inexact = 0;
+        double lowest = 100;
+        for (const Entry& e : entries) lowest = std::min(lowest, e.accuracy());
+        c.extra = "set yrange [" + fixed(std::max(0.0, std::min(90.0, lowest - 5)), 1) + ":101]";
+        for (const std::string& l : labels) {
+            Series s{l, {}, {}, {}, false, style_of(l)};
+            for (const Entry& e : entries)
+                if (e.label == l) {
+                    s.x.push_back(e.total_ms());
+                    s.y.push_back(e.accuracy());
+                    if (e.missed + e.extra + e.duplicate > 0) ++inexact;
+                }
+            c.series.push_back(s);
+        }
+        c.reading = inexact == 0 ? "Every configuration reported exactly the ground truth's hit sets on every scene (100%), so speed is the only difference."
+                                 : std::to_string(inexact) + " (scene, configuration) pairs disagreed with the ground truth: see the mismatch table.";
+        h.chart(c);
+        std::vector<std::vector<std::string>> rows;
+        for (const Entry& e : entries)
+            rows.push_back({e.scene, e.label, fixed(e.hits, 0), fixed(e.missed, 0), fixed(e.extra, 0), fixed(e.duplicate, 0)});
+        h.table({"scene", "configuration", "hits", "missed", "extra", "duplicate"}, rows, "Hit sets against the ground truth (all frames)");
+    }
+
+    // Cost model: predicted against measured, Table 6.3, model selection.
+    h.heading("Cost model (thesis eq. 5.4, Table 6.3)");
+    const std::vector<FrameObservation> frames = load_observations(db, run);
+    const std::vector<StructureModels> models = fit_cost_models(frames);
+    {
+        Chart c;
+        c.title = "Predicted against measured ray-cast cost per ray";
+        c.x_label = "measured (ns per ray)";
+        c.y_label = "predicted by the chosen model (ns per ray)";
+        c.log_x = c.log_y = true;
+        c.extra = "set style line 99 lc rgb '#888888' dt 2\n";
+        double lo = INFINITY, hi = 0;
+        std::string errors;
+        for (const StructureModels& m : models) {
+            const CandidateModel* chosen = m.chosen("raycast");
+            if (!chosen) continue;
+            Series s{m.structure + " (" + chosen->name + ")", {}, {}, {}, false};
+            std::map<int, std::pair<std::vector<double>, std::vector<double>>> per_config;
+            for (std::size_t i = 0; i < chosen->problem.y.size(); ++i) {
+                per_config[chosen->problem.group[i]].first.push_back(chosen->problem.y[i]);
+                per_config[chosen->problem.group[i]].second.push_back(chosen->fit.predict(chosen->problem.x[i]));
+            }
+            for (auto& [g, v] : per_config) {
+                s.x.push_back(spread_of(v.first).median);
+                s.y.push_back(spread_of(v.second).median);
+                lo = std::min(lo, s.x.back()), hi = std::max(hi, s.x.back());
+            }
+            c.series.push_back(s);
+            errors += (errors.empty() ? "" : ", ") + m.structure + " " + fixed(100 * chosen->heldout_error, 1) + "%";
+        }
+        if (hi > 0) {
+            std::ostringstream ref;
+            ref << "set arrow from " << lo * 0.7 << "," << lo * 0.7 << " to " << hi * 1.4 << "," << hi * 1.4 << " nohead lc rgb '#444444'\n"
+                << "set arrow from " << lo * 0.7 << "," << lo * 0.7 * 1.1 << " to " << hi * 1.4 << "," << hi * 1.4 * 1.1 << " nohead dt 2 lc rgb '#999999'\n"
+                << "set arrow from " << lo * 0.7 << "," << lo * 0.7 * 0.9 << " to " << hi * 1.4 << "," << hi * 1.4 * 0.9 << " nohead dt 2 lc rgb '#999999'\n";
+            c.extra += ref.str();
+        }
+        c.reading = "One point per configuration (median over its frames); the solid line is a perfect prediction, the dashed band ±10%. "
+                    "Held-out error (configurations left out of the fit): " + errors + ".";
+        h.chart(c);
+
+        std::vector<std::vector<std::string>> rows;
+        for (const CostBreakdown& b : cost_breakdown(frames, models))
+            rows.push_back({b.scene, config_label(b.structure, b.params), fixed(b.c_total, 1), fixed(b.rb_term, 1), fixed(b.t_term, 1),
+                            fixed(b.prep, 1), fixed(b.n_tp, 1), fixed(b.n_fp, 1), fixed(b.n_t, 1),
+                            std::isfinite(b.c_rb) ? fixed(b.c_rb, 3) : "-", std::isfinite(b.c_t) ? fixed(b.c_t, 3) : "-"});
+        h.table({"scene", "configuration", "C_total", "C_RB×N_RB", "C_T×N_T", "C_PREP", "N_TP", "N_FP", "N_T", "C_RB", "C_T"}, rows,
+                "Thesis Table 6.3 analog: ns per ray; counts per ray; C terms from each structure's chosen model");
+        std::vector<std::vector<std::string>> sel;
+        for (const StructureModels& m : models)
+            for (const CandidateModel& cm : m.raycast) {
+                std::string coefficients;
+                for (const Coefficient& co : cm.fit.coefficients)
+                    coefficients += (coefficients.empty() ? "" : "; ") + co.name + " " + fixed(co.value, 3) +
+                                    (std::isfinite(co.ci_low) ? " [" + fixed(co.ci_low, 3) + ", " + fixed(co.ci_high, 3) + "]" : "") +
+                                    (co.spans_zero ? " ~0?" : "");
+                sel.push_back({m.structure, cm.name, fixed(100 * cm.heldout_error, 1) + "%", fixed(cm.fit.r2, 3), cm.fit.status(),
+                               cm.chosen ? "chosen" : "", cm.fit.status() == "ok" ? coefficients : "(not identifiable)"});
+            }
+        h.table({"structure", "model", "held-out error", "R²", "status", "", "coefficients (ns, 95% interval)"}, sel,
+                "Model selection: the smallest model within max(0.5 points, 5%) of the best held-out error is chosen");
+    }
+
+    // Table 6.4: DBVH incremental against full SAH, where the run has both.
+    {
+        std::vector<std::vector<std::string>> rows;
+        for (const CostBreakdown& b : cost_breakdown(frames, models))
+            if (b.structure == "dbvh")
+                rows.push_back({b.scene, config_label(b.structure, b.params), fixed(b.c_total, 1), fixed(b.n_tp, 1), fixed(b.n_fp, 1),
+                                fixed(b.n_t, 1)});
+        if (rows.size() > 1) {
+            h.heading("Tree quality of the dynamic BVH (thesis Table 6.4)");
+            h.table({"scene", "configuration", "C_total (ns/ray)", "N_TP", "N_FP", "N_T"}, rows, "DBVH incremental insertion against full binned-SAH rebuilds");
+        }
+    }
+
+    // Per-frame series on the largest scene.
+    h.heading("Over time, on " + largest);
+    {
+        Chart c;
+        c.title = "Ray cast per frame on " + largest;
+        c.x_label = "frame";
+        c.y_label = "ray cast per frame (ms)";
+        c.log_y = true;
+        double worst_drift = 0;
+        std::string worst;
+        for (const Entry& e : entries) {
+            if (e.scene != largest || e.frame_raycast_ms.empty()) continue;
+            Series s{e.label, {}, {}, {}, true, style_of(e.label)};
+            for (std::size_t f = 0; f < e.frame_raycast_ms.size(); ++f) s.x.push_back(double(f + 1)), s.y.push_back(e.frame_raycast_ms[f]);
+            c.series.push_back(s);
+            const std::size_t q = std::max<std::size_t>(1, e.frame_raycast_ms.size() / 4);
+            const double first = spread_of({e.frame_raycast_ms.begin(), e.frame_raycast_ms.begin() + std::ptrdiff_t(q)}).median;
+            const double last = spread_of({e.frame_raycast_ms.end() - std::ptrdiff_t(q), e.frame_raycast_ms.end()}).median;
+            if (first > 0 && std::abs(last / first - 1) > std::abs(worst_drift)) worst_drift = last / first - 1, worst = e.label;
+        }
+        c.reading = worst.empty() ? "No configuration changed by more than noise from the first to the last quarter of the frames."
+                                  : "Largest change from the first to the last quarter of the frames: " + worst + ", " +
+                                        fixed(100 * worst_drift, 1) + "% (noise included).";
+        h.chart(c);
+
+        Chart sah;
+        sah.title = "SAH cost of the tree per frame on " + largest + " (eq. 3.2)";
+        sah.x_label = "frame";
+        sah.y_label = "SAH cost (relative to the root's area)";
+        std::string growth;
+        for (const Entry& e : entries) {
+            if (e.scene != largest) continue;
+            Series s{e.label, {}, {}, {}, true, style_of(e.label)};
+            for (std::size_t f = 0; f < e.frame_sah.size(); ++f)
+                if (std::isfinite(e.frame_sah[f])) s.x.push_back(double(f + 1)), s.y.push_back(e.frame_sah[f]);
+            if (s.x.empty()) continue;
+            growth += (growth.empty() ? "" : ", ") + e.label + " " + fixed(100 * (s.y.back() / s.y.front() - 1), 1) + "%";
+            sah.series.push_back(s);
+        }
+        if (!sah.series.empty()) {
+            sah.reading = "Change of the SAH cost from the first to the last frame: " + growth +
+                          ". Incremental trees decay as objects move; rebuilt trees track the scene.";
+            h.chart(sah);
+        }
+    }
+
+    // Memory against time; build time against object count.
+    h.heading("Memory and build");
+    {
+        Chart c;
+        c.title = "Memory against time per frame";
+        c.x_label = "memory (bytes per object)";
+        c.y_label = "update + ray cast per frame (ms)";
+        c.log_x = c.log_y = true;
+        const Entry* most = nullptr;
+        for (const std::string& l : labels) {
+            Series s{l, {}, {}, {}, false, style_of(l)};
+            for (const Entry& e : entries)
+                if (e.label == l) {
+                    s.x.push_back(e.memory_per_object);
+                    s.y.push_back(e.total_ms());
+                    if (!most || e.memory_per_object > most->memory_per_object) most = &e;
+                }
+            c.series.push_back(s);
+        }
+        c.reading = most ? "Most memory per object: " + most->label + " on " + most->scene + ", " + fixed(most->memory_per_object, 0) +
+                               " bytes per object."
+                         : "No data.";
+        h.chart(c);
+
+        Chart b;
+        b.title = "Build time against object count";
+        b.x_label = "objects";
+        b.y_label = "build (ms)";
+        b.log_x = b.log_y = true;
+        std::string slopes;
+        for (const std::string& l : labels) {
+            Series s{l, {}, {}, {}, true, style_of(l)};
+            std::vector<std::pair<double, double>> points;
+            for (const Entry& e : entries)
+                if (e.label == l) points.emplace_back(e.objects, e.build_ms);
+            std::sort(points.begin(), points.end());
+            for (auto [x, y] : points) s.x.push_back(x), s.y.push_back(y);
+            const double slope = log_log_slope(s.x, s.y);
+            if (std::isfinite(slope)) {
+                s.name += " (slope " + fixed(slope, 2) + ")";
+                slopes += (slopes.empty() ? "" : ", ") + l + " " + fixed(slope, 2);
+            }
+            b.series.push_back(s);
+        }
+        b.reading = slopes.empty() ? "Too few object counts to fit slopes."
+                                   : "Slopes of log build time against log object count (1 = linear): " + slopes + ".";
+        h.chart(b);
+    }
+
+    std::ostringstream page;
+    page << "<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8><title>rcbench report: " << html_escape(experiment)
+         << "</title>\n<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}"
+            "table{border-collapse:collapse;margin:1em 0;font-size:13px}caption{text-align:left;font-weight:bold;padding:4px 0}"
+            "th,td{border:1px solid #ccc;padding:3px 7px}td.n{text-align:right;font-variant-numeric:tabular-nums}"
+            "th{background:#f2f2f2}figure.chart{margin:1.5em 0}figcaption{font-size:14px;color:#333;max-width:820px}"
+            "h2{border-bottom:1px solid #ddd;padding-bottom:4px;margin-top:2em}</style></head>\n<body>\n<h1>rcbench report: "
+         << html_escape(experiment) << "</h1>\n"
+         << h.str() << "</body></html>\n";
+    const std::filesystem::path target(path);
+    std::error_code ec;
+    if (!target.parent_path().empty()) std::filesystem::create_directories(target.parent_path(), ec);
+    const std::string tmp = path + ".tmp";
+    {
+        std::ofstream out(tmp, std::ios::trunc);
+        if (!out) throw InputError(path + ": cannot open for writing");
+        out << page.str();
+        if (!out) throw std::runtime_error(path + ": write failed");
+    }
+    std::filesystem::rename(tmp, target, ec);
+    if (ec) throw std::runtime_error(path + ": cannot move the report into place: " + ec.message());
+    return {run, h.charts(), h.tables()};
+}
+
+}  // namespace rcb

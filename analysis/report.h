@@ -1,0 +1,24 @@
+#pragma once
+/// The HTML report of a run: the thesis' tables (6.1 build, 6.2 ray cast and update, 6.3 cost
+/// breakdown, 6.4 DBVH incremental vs full SAH) and charts drawn by gnuplot (update against ray
+/// cast, speed against accuracy, predicted against measured, per-frame series, SAH cost over time,
+/// memory against time, build time against object count). One self-contained file: open it from
+/// disk, no network, no scripts.
+
+#include <cstdint>
+#include <string>
+
+#include "runner/sqlite.h"
+
+namespace rcb {
+
+struct ReportSummary {
+    std::int64_t run = 0;
+    std::size_t charts = 0;
+    std::size_t tables = 0;
+};
+
+/// Writes the report of `run` to `path` (atomically: a temporary file renamed into place).
+ReportSummary write_report(Database& db, std::int64_t run, const std::string& path);
+
+}  // namespace rcb

@@ -1,0 +1,120 @@
+// The HTML report: every chart drawn (gnuplot), every section present, and the page rendered by
+// headless Chromium with every chart in the DOM and a screenshot that is not blank.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "analysis/charts.h"
+#include "analysis/report.h"
+#include "core/registry.h"
+#include "runner/experiment.h"
+#include "runner/store.h"
+
+namespace rcb {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::size_t count_of(const std::string& text, const std::string& needle) {
+    std::size_t n = 0;
+    for (auto pos = text.find(needle); pos != std::string::npos; pos = text.find(needle, pos + 1)) ++n;
+    return n;
+}
+
+std::string read(const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+/// Runs a small experiment through the library into `db_path`; returns the run id.
+std::int64_t small_run(const std::string& db_path) {
+    const Experiment e = parse_experiment(
+        R"({"name": "report-test", "frames": 4, "rays_per_frame": 200,
+            "scenes": [{"kind": "uniform", "objects": 1500}, {"kind": "irregular", "objects": 3000, "ray_mix": "dense,center"},
+                       {"kind": "irregular", "objects": 6000}],
+            "structures": [{"name": "bf"}, {"name": "dbvh", "grids": [{"mode": "incremental"}, {"mode": "rebuild"}]}, {"name": "lbvh"}]})",
+        "report-test.json", ".");
+    ResultStore store(db_path);
+    const std::int64_t ex = store.experiment_id(e);
+    const std::int64_t run = store.begin_run(ex, RunInfo::current(1, "", e));
+    std::size_t loaded = SIZE_MAX;
+    Recording r;
+    std::string hash;
+    for (const Cell& c : e.plan) {
+        if (c.scene != loaded) r = load_scene(e.scenes[c.scene]), hash = recording_hash(r), loaded = c.scene;
+        const SimulationResult res = simulate(r, find_structure(e.configs[c.config].structure), e.configs[c.config].params);
+        store.store_cell(run, ex, c, e.scenes[c.scene], r, hash, res);
+    }
+    store.finish_run(run);
+    return run;
+}
+
+TEST(Report, DrawsEveryChartAndRendersInChromium) {
+    ASSERT_TRUE(gnuplot_available()) << "gnuplot is part of rcbench's dependencies (scripts/setup.sh installs gnuplot-nox)";
+    const fs::path dir = fs::temp_directory_path() / ("rcb_report_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const std::string db_path = (dir / "r.db").string();
+    const std::int64_t run = small_run(db_path);
+
+    Database db(db_path, true);
+    const fs::path html = dir / "report.html";
+    const ReportSummary s = write_report(db, run, html.string());
+    const std::string page = read(html);
+    // Two scene categories (two update/ray-cast charts), accuracy, predicted/measured, per-frame
+    // series, SAH cost (dbvh and lbvh report it), memory, build.
+    EXPECT_EQ(s.charts, 8u);
+    EXPECT_EQ(count_of(page, "<svg"), s.charts);
+    EXPECT_EQ(count_of(page, "<figcaption>"), s.charts);  // every chart has its sentence
+    EXPECT_EQ(count_of(page, "<img"), 0u);                // nothing that could be a broken image
+    for (const char* section : {"Table 6.1", "Table 6.2", "Table 6.3", "Table 6.4", "Speed against accuracy", "Build time against object count"})
+        EXPECT_NE(page.find(section), std::string::npos) << section;
+    EXPECT_EQ(page.find("http://www.w3.org/1999/xlink\" href=\"http"), std::string::npos);  // no remote resources
+
+    if (!fs::exists("/usr/bin/chromium")) GTEST_SKIP() << "Debian's chromium is not installed (.ci/run installs it)";
+    const std::string flags = "--headless --no-sandbox --disable-gpu --disable-quic --no-first-run --disable-background-networking "
+                              "--disable-component-update --disable-sync --user-data-dir=" + (dir / "profile").string();
+    const fs::path shot = dir / "shot.png", dom = dir / "dom.html";
+    const std::string url = "file://" + html.string();
+    ASSERT_EQ(std::system(("timeout 120 chromium " + flags + " --window-size=1200,4000 --screenshot=" + shot.string() + " " + url +
+                           " >/dev/null 2>&1").c_str()),
+              0);
+    ASSERT_EQ(std::system(("timeout 120 chromium " + flags + " --dump-dom " + url + " > " + dom.string() + " 2>/dev/null").c_str()), 0);
+    // The rendered DOM holds every chart as parsed SVG with its plotted content.
+    const std::string rendered = read(dom);
+    EXPECT_EQ(count_of(rendered, "<svg"), s.charts);
+    EXPECT_GE(count_of(rendered, "<path"), s.charts);
+    // A blank or failed page compresses to a few kilobytes; charts and tables do not.
+    const std::string png = read(shot);
+    ASSERT_GT(png.size(), 8u);
+    EXPECT_EQ(png.substr(1, 3), "PNG");
+    EXPECT_GT(png.size(), 60'000u);
+    fs::remove_all(dir);
+}
+
+TEST(Report, ChartsNeedGnuplotAndSayWhyWithout) {
+    // render_svg names the missing tool instead of writing an empty chart.
+    const char* path = std::getenv("PATH");
+    const std::string saved = path ? path : "";
+    setenv("PATH", "/nonexistent", 1);
+    Chart c;
+    c.title = "t";
+    try {
+        render_svg(c);
+        setenv("PATH", saved.c_str(), 1);
+        FAIL() << "rendered without gnuplot";
+    } catch (const std::runtime_error& e) {
+        setenv("PATH", saved.c_str(), 1);
+        EXPECT_NE(std::string(e.what()).find("gnuplot not found"), std::string::npos);
+    }
+}
+
+}  // namespace
+}  // namespace rcb
