@@ -81,7 +81,7 @@ public:
     struct Params {
         double amp = 1.0;
         int max_depth = 2;
-        int max_capacity = 8;
+        int max_capacity = 16;
         int subdivision = 2;
         int max_entries_per_object = 16;
         static constexpr auto fields() {

@@ -60,6 +60,7 @@ void UniformGrid::build(std::span<const Object> objects) {
     slot_.clear();
     slot_.reserve(objects.size());
     stamp_ = 0;
+    stamps_.clear();
     tested_.clear();
     for (const Object& o : objects) insert(o);
 }
@@ -68,7 +69,16 @@ void UniformGrid::add_to_cells(std::uint32_t slot, const grid::CellRange& r) {
     std::array<int, 3> i;
     for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
         for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
-            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) cells_[cell_id(i)].push_back(slot);
+            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) cells_[cell_id(i)].push_back({entries_[slot].box, slot});
+}
+
+void UniformGrid::rewrite_box(std::uint32_t slot, const grid::CellRange& r, const Aabb& box) {
+    std::array<int, 3> i;
+    for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
+        for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
+            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0])
+                for (CellEntry& e : cells_[cell_id(i)])
+                    if (e.slot == slot) e.box = box;
 }
 
 void UniformGrid::remove_from_cells(std::uint32_t slot, const grid::CellRange& r) {
@@ -76,8 +86,8 @@ void UniformGrid::remove_from_cells(std::uint32_t slot, const grid::CellRange& r
     for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
         for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
             for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) {
-                std::vector<std::uint32_t>& c = cells_[cell_id(i)];
-                auto it = std::find(c.begin(), c.end(), slot);
+                std::vector<CellEntry>& c = cells_[cell_id(i)];
+                auto it = std::find_if(c.begin(), c.end(), [&](const CellEntry& e) { return e.slot == slot; });
                 *it = c.back();
                 c.pop_back();
             }
@@ -88,10 +98,12 @@ void UniformGrid::insert(const Object& o) {
     if (!free_slots_.empty()) {
         slot = free_slots_.back();
         free_slots_.pop_back();
-        entries_[slot] = Entry{o.box, o.uid, 0};
+        entries_[slot] = Entry{o.box, o.uid};
+        stamps_[slot] = 0;
     } else {
         slot = std::uint32_t(entries_.size());
-        entries_.push_back(Entry{o.box, o.uid, 0});
+        entries_.push_back(Entry{o.box, o.uid});
+        stamps_.push_back(0);
         if (params_.thesis_reset) tested_.push_back(0);
     }
     slot_.emplace(o.uid, slot);
@@ -111,16 +123,18 @@ void UniformGrid::move(const Object& o) {
     const std::uint32_t slot = slot_.at(o.uid);
     Entry& e = entries_[slot];
     const grid::CellRange before = lat_.range_of(e.box), after = lat_.range_of(o.box);
+    e.box = o.box;
     if (!(before == after)) {
         remove_from_cells(slot, before);
         add_to_cells(slot, after);
+    } else {
+        rewrite_box(slot, after, o.box);
     }
-    e.box = o.box;
 }
 
 std::uint32_t UniformGrid::next_stamp() {
     if (++stamp_ == 0) {  // wrapped: forget every old stamp once per 2^32 queries
-        for (Entry& e : entries_) e.stamp = 0;
+        std::fill(stamps_.begin(), stamps_.end(), 0u);
         stamp_ = 1;
     }
     return stamp_;
@@ -128,8 +142,9 @@ std::uint32_t UniformGrid::next_stamp() {
 
 std::size_t UniformGrid::memory_bytes() const {
     std::size_t bytes = sizeof(*this);
-    bytes += cells_.capacity() * sizeof(std::vector<std::uint32_t>);
-    for (const auto& c : cells_) bytes += c.capacity() * sizeof(std::uint32_t);
+    bytes += cells_.capacity() * sizeof(std::vector<CellEntry>);
+    for (const auto& c : cells_) bytes += c.capacity() * sizeof(CellEntry);
+    bytes += stamps_.capacity() * sizeof(std::uint32_t);
     bytes += entries_.capacity() * sizeof(Entry) + free_slots_.capacity() * sizeof(std::uint32_t);
     bytes += slot_.bucket_count() * sizeof(void*) + slot_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t));
     bytes += tested_.capacity();
@@ -172,11 +187,14 @@ void UniformGrid::validate() const {
         for (i[1] = 0; i[1] < lat_.res[1]; ++i[1])
             for (i[0] = 0; i[0] < lat_.res[0]; ++i[0]) {
                 const auto& c = cells_[cell_id(i)];
-                sorted.assign(c.begin(), c.end());
+                sorted.clear();
+                for (const CellEntry& e : c) sorted.push_back(e.slot);
                 std::sort(sorted.begin(), sorted.end());
                 if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) fail("an object appears twice in one cell");
-                for (std::uint32_t slot : c) {
+                for (const CellEntry& ce : c) {
+                    const std::uint32_t slot = ce.slot;
                     if (slot >= entries_.size() || !live[slot]) fail("stale entry (slot " + std::to_string(slot) + ") in a cell");
+                    if (!(ce.box == entries_[slot].box)) fail("uid " + std::to_string(entries_[slot].uid) + " has a stale box copy in a cell");
                     const grid::CellRange r = lat_.range_of(entries_[slot].box);
                     for (int a = 0; a < 3; ++a)
                         if (i[a] < r.lo[a] || i[a] > r.hi[a])
@@ -194,6 +212,7 @@ void UniformGrid::validate() const {
         if (seen[slot] != expected)
             fail("uid " + std::to_string(e.uid) + " is in " + std::to_string(seen[slot]) + " cells, overlaps " + std::to_string(expected));
     }
+    if (stamps_.size() != entries_.size()) fail("stamps and slots differ in size");
     if (params_.thesis_reset && tested_.size() != entries_.size()) fail("reset flags and slots differ in size");
 }
 

@@ -76,15 +76,18 @@ bool walk(const Lattice& lat, const Vec3d& p0, const Vec3d& d, const CellRange& 
           double t0, double t1, Cell&& cell) {
     constexpr double inf = std::numeric_limits<double>::infinity();
     int step[3];
-    double next[3];
+    double next[3], inv[3];
+    // In double, 1/d is finite for every nonzero float-derived d, and (plane − p0)·inv is accurate to
+    // about 1e-16 relative: far inside the ground truth's tolerance.
     auto crossing = [&](int a) -> double {
         if (step[a] == 0) return inf;
         const int k = step[a] > 0 ? cur[a] + 1 : cur[a];  // the plane we leave the cell through
         if (k <= 0 || k >= lat.res[a]) return inf;        // unbounded border cell
-        return (lat.plane(a, k) - p0[a]) / d[a];
+        return (lat.plane(a, k) - p0[a]) * inv[a];
     };
     for (int a = 0; a < 3; ++a) {
         step[a] = d[a] > 0 ? 1 : (d[a] < 0 ? -1 : 0);
+        inv[a] = step[a] != 0 ? 1.0 / d[a] : 0.0;
         next[a] = crossing(a);
     }
     double t_in = t0;
@@ -143,26 +146,33 @@ private:
     struct Entry {
         Aabb box;
         Uid uid = 0;
-        std::uint32_t stamp = 0;  ///< id of the last query that tested this object
     };
-    static_assert(sizeof(Entry) == 32);
+    /// A copy of the box beside the slot, so that a cell's tests read contiguous memory (the cell
+    /// walk then touches one other array, the stamps, per object).
+    struct CellEntry {
+        Aabb box;
+        std::uint32_t slot = 0;
+    };
+    static_assert(sizeof(CellEntry) == 28);
 
     std::size_t cell_id(const std::array<int, 3>& i) const {
         return (std::size_t(i[2]) * std::size_t(lat_.res[1]) + std::size_t(i[1])) * std::size_t(lat_.res[0]) +
                std::size_t(i[0]);
     }
     void add_to_cells(std::uint32_t slot, const grid::CellRange& r);
+    void rewrite_box(std::uint32_t slot, const grid::CellRange& r, const Aabb& box);
     void remove_from_cells(std::uint32_t slot, const grid::CellRange& r);
     std::uint32_t next_stamp();
 
     Params params_;
     grid::Lattice lat_;
     bool clamped_ = false;  ///< the cell cap enlarged the cells
-    std::vector<std::vector<std::uint32_t>> cells_;  // cell → object slots
+    std::vector<std::vector<CellEntry>> cells_;      // cell → objects
     std::vector<Entry> entries_;                     // slot → object
     std::vector<std::uint32_t> free_slots_;
     std::unordered_map<Uid, std::uint32_t> slot_;    // uid → slot
     std::uint32_t stamp_ = 0;
+    std::vector<std::uint32_t> stamps_;  // slot → id of the last query that tested it
     std::vector<std::uint8_t> tested_;  // thesis_reset mode only
 };
 
@@ -178,20 +188,19 @@ void UniformGrid::traverse(const Segment& s, Count& count, Visit&& visit) {
     const std::uint32_t stamp = reset ? 0 : next_stamp();
     grid::walk(lat_, p0, d, all, start, 0.0, 1.0, [&](const std::array<int, 3>& c, double, double) {
         count.traversal();
-        for (std::uint32_t slot : cells_[cell_id(c)]) {
-            Entry& e = entries_[slot];
+        for (const CellEntry& e : cells_[cell_id(c)]) {
             if (reset) {
-                if (tested_[slot]) continue;
-                tested_[slot] = 1;
+                if (tested_[e.slot]) continue;
+                tested_[e.slot] = 1;
             } else {
-                if (e.stamp == stamp) continue;
-                e.stamp = stamp;
+                if (stamps_[e.slot] == stamp) continue;
+                stamps_[e.slot] = stamp;
             }
             count.box_tests();
             float tn, tf;
             if (slabs.clip(e.box, tn, tf)) {
                 count.hits();
-                if (!visit(e.uid, tn)) return false;
+                if (!visit(entries_[e.slot].uid, tn)) return false;
             }
         }
         return true;
