@@ -1,5 +1,8 @@
 #include "runner/sqlite.h"
 
+#include <chrono>
+#include <thread>
+
 namespace rcb {
 
 Statement::Statement(sqlite3* db, const std::string& sql) : db_(db) {
@@ -63,7 +66,23 @@ Database::Database(const std::string& path, bool read_only) : path_(path) {
     sqlite3_busy_timeout(db_, 60'000);
     sqlite3_extended_result_codes(db_, 1);
     if (!read_only) {
-        exec("PRAGMA journal_mode=WAL");
+        // WAL is a property of the file: switch once. The switch needs an exclusive lock and SQLite
+        // reports "locked" at once instead of waiting (e.g. while another process creates the same
+        // new file), so retry for as long as the busy timeout would have waited.
+        for (int attempt = 0;; ++attempt) {
+            try {
+                bool wal = false;
+                {
+                    Statement mode(db_, "PRAGMA journal_mode");  // finalised before the switch below
+                    wal = mode.step() && mode.text(0) == "wal";
+                }
+                if (!wal) exec("PRAGMA journal_mode=WAL");
+                break;
+            } catch (const SqlError&) {
+                if (attempt >= 6000) throw;
+                std::this_thread::sleep_for(std::chrono::milliseconds(10));
+            }
+        }
         exec("PRAGMA synchronous=NORMAL");
     }
     exec("PRAGMA foreign_keys=ON");
