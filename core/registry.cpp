@@ -1,5 +1,7 @@
 #include "core/registry.h"
 
+#include "core/peers/bullet_dbvt.h"
+#include "core/peers/embree_boxes.h"
 #include "core/structures/brute_force.h"
 #include "core/structures/dynamic_bvh.h"
 #include "core/structures/linear_bvh.h"
@@ -15,6 +17,8 @@ const std::vector<StructureInfo>& structure_registry() {
         describe_structure<LinearBvh>("lbvh", "linear BVH: Karras 2012 Morton codes, radix sort, parallel radix tree, atomic bottom-up bounds, rebuilt every frame (thesis §4.5)"),
         describe_structure<UniformGrid>("ug", "uniform grid: cells from eq. 4.1, 3D-DDA with mailboxes, incremental updates (thesis §4.2)"),
         describe_structure<HashGrid>("hg", "hierarchical hash grid: Jevans-style recursive grids, only non-empty cells hashed (thesis §4.3)"),
+        describe_structure<EmbreeBoxes>("embree", "peer: Intel Embree 3 user geometry of boxes, all hits recorded in the intersect callback, rebuilt (Morton or binned SAH) or refitted at commit"),
+        describe_structure<BulletDbvt>("bullet_dbvt", "peer: Bullet's btDbvt, incremental insert/update/remove, optimizeIncremental passes per frame, rayTestInternal with exact leaf tests"),
     };
     return all;
 }

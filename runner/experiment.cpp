@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "core/csv.h"
+#include "core/importers/scene_import.h"
 #include "core/error.h"
 #include "core/recording_io.h"
 #include "core/registry.h"
@@ -168,7 +169,7 @@ struct Defaults {
 void parse_scene(const json& s, const std::string& path, const Defaults& d, const std::string& base_dir,
                  std::vector<SceneSpec>& out) {
     expect_object(s, path);
-    check_keys(s, path, {"name", "preset", "kind", "objects", "recording", "import", "frames", "rays_per_frame", "ray_mix",
+    check_keys(s, path, {"name", "preset", "kind", "objects", "recording", "import", "import_options", "frames", "rays_per_frame", "ray_mix",
                          "change_fraction", "insert_share", "remove_share", "move_scale", "seed", "seeds"});
     int sources = int(s.contains("preset")) + int(s.contains("kind")) + int(s.contains("recording")) + int(s.contains("import"));
     if (sources != 1) fail(path, "give exactly one of \"preset\", \"kind\", \"recording\" or \"import\"");
@@ -192,6 +193,7 @@ void parse_scene(const json& s, const std::string& path, const Defaults& d, cons
     std::string name;
     SceneSpec::Source source = SceneSpec::Source::generated;
     std::string file;
+    json import_options;  // import: the completed ImportOptions
     if (s.contains("preset")) {
         try {
             base = preset_settings(get_string(s, "preset", path, ""));
@@ -212,7 +214,17 @@ void parse_scene(const json& s, const std::string& path, const Defaults& d, cons
         if (!fs::is_regular_file(file)) fail(at(path, "import"), "file not found: " + file);
         if (s.contains("objects")) fail(at(path, "objects"), "an imported scene has the file's objects");
         name = fs::path(given).stem().string();
+        // import_options_from_json's messages carry the JSON path already.
+        import_options = to_json(import_options_from_json(s.value("import_options", json()), at(path, "import_options")));
+        try {
+            importer_for(file);
+        } catch (const InputError& e) {
+            fail(at(path, "import"), e.what());
+        }
+        if (!import_options["map"].get<std::string>().empty()) name = import_options["map"].get<std::string>();
     }
+    if (s.contains("import_options") && source != SceneSpec::Source::import)
+        fail(at(path, "import_options"), "only an \"import\" scene takes import options");
     name = get_string(s, "name", path, name);
     const std::vector<std::uint64_t> objects =
         source == SceneSpec::Source::import ? std::vector<std::uint64_t>{0}
@@ -253,7 +265,10 @@ void parse_scene(const json& s, const std::string& path, const Defaults& d, cons
                         {"move_scale", base.dynamics.move_scale}};
             spec.key = {{"frames", base.frames}, {"rays_per_frame", base.rays.per_frame}, {"ray_mix", mix},
                         {"dynamics", dyn},       {"seed", seed}};
-            if (source == SceneSpec::Source::import) spec.key["import"] = fs::path(file).filename().string();
+            if (source == SceneSpec::Source::import) {
+                spec.key["import"] = fs::path(file).filename().string();
+                if (importer_for(file) != "csv") spec.key["import_options"] = spec.import_options = import_options;
+            }
             else spec.key["kind"] = base.kind, spec.key["objects"] = count;
             out.push_back(std::move(spec));
         }
@@ -369,6 +384,15 @@ Recording load_scene(const SceneSpec& s) {
     switch (s.source) {
         case SceneSpec::Source::recording: return read_recording(s.path);
         case SceneSpec::Source::import: {
+            if (importer_for(s.path) != "csv") {
+                json meta;
+                std::vector<Object> objects =
+                    import_objects(s.path, import_options_from_json(s.import_options, s.path), &meta);
+                if (objects.empty()) throw InputError(s.path + ": no objects to import");
+                meta["generator"] = "rcbench import";
+                return add_dynamics(std::move(objects), s.settings.dynamics, s.settings.rays, s.settings.frames,
+                                    s.settings.seed, meta);
+            }
             std::vector<Object> objects = read_boxes_csv(s.path);
             if (objects.empty()) throw InputError(s.path + ": no boxes to import");
             const json meta = {{"generator", "rcbench import"}, {"source", fs::path(s.path).filename().string()}};

@@ -21,6 +21,7 @@ struct SceneSpec {
     enum class Source { generated, recording, import } source = Source::generated;
     SceneSettings settings;     ///< generated: everything; import: dynamics, rays, frames, seed
     std::string path;           ///< recording or import: the file, resolved against the experiment's folder
+    nlohmann::json import_options;  ///< import of a map or model: {"bsp_mode", "map", "model_mode"}
 };
 
 /// One structure with one complete set of parameters.

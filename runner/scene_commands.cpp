@@ -8,6 +8,7 @@
 #include "core/csv.h"
 #include "core/error.h"
 #include "core/generators.h"
+#include "core/importers/scene_import.h"
 #include "core/recording_io.h"
 #include "runner/commands.h"
 #include "runner/table.h"
@@ -172,17 +173,37 @@ void add_scene_commands(CLI::App& app) {
     });
 
     // scene import
-    struct ImportOptions {
+    struct ImportCommandOptions {
         std::string input;
         std::string out;
         DynamicsOptions dyn;
+        ImportOptions file;  // .bsp/.pk3 and model modes
     };
-    auto imp = std::make_shared<ImportOptions>();
-    CLI::App* i = scene->add_subcommand("import", "Import a static scene (CSV: uid,minx,miny,minz,maxx,maxy,maxz) and give it dynamics and rays");
-    i->add_option("input", imp->input, "Boxes file (.csv)")->required();
+    auto imp = std::make_shared<ImportCommandOptions>();
+    CLI::App* i = scene->add_subcommand("import", "Import a static scene (CSV: uid,minx,miny,minz,maxx,maxy,maxz; Quake III/OpenArena .bsp/.pk3; any model assimp reads) and give it dynamics and rays");
+    i->add_option("input", imp->input, "Boxes file (.csv), map (.bsp, or .pk3 with maps/*.bsp) or model (.obj, .gltf, .glb, .fbx, ...)")->required();
     i->add_option("-o,--output", imp->out, "Recording file to write")->required();
+    i->add_option("--bsp-mode", imp->file.bsp_mode, "Maps: one object per solid brush (brushes) or per draw-surface triangle (triangles)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"brushes", "triangles"}));
+    i->add_option("--map", imp->file.map, "A .pk3 holding several maps: which one (NAME or maps/NAME.bsp)");
+    i->add_option("--model-mode", imp->file.model_mode, "Models: one object per mesh instance (instances) or per triangle (triangles)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"instances", "triangles"}));
     add_dynamics_options(*i, imp->dyn);
     i->callback([imp] {
+        if (importer_for(imp->input) != "csv") {
+            nlohmann::json meta;
+            std::vector<Object> objects = import_objects(imp->input, imp->file, &meta);
+            if (objects.empty()) throw InputError(imp->input + ": no objects to import");
+            meta["generator"] = "rcbench import";
+            const Recording r = add_dynamics(std::move(objects), imp->dyn.dynamics, ray_settings(imp->dyn), imp->dyn.frames,
+                                             imp->dyn.seed, meta);
+            ensure_parent_dir(imp->out);
+            write_recording(r, imp->out);
+            print_written(r, imp->out);
+            return;
+        }
         std::vector<Object> objects = read_boxes_csv(imp->input);
         if (objects.empty()) throw InputError(imp->input + ": no boxes to import");
         nlohmann::json meta = {{"generator", "rcbench import"},

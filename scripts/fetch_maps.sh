@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Fetches the real scenes of experiments/real.json on demand, into data/ (git-ignored; never commit
+# maps or models):
+#   data/maps/*.pk3    OpenArena 0.8.1 maps from Debian's openarena-081-maps package (GPL-2 data)
+#   data/models/...    assimp's own test models from Debian's assimp-testmodels package
+# Uses `apt-get download` (no root needed: only the .deb is fetched, nothing is installed) and
+# `dpkg-deb -x` to unpack. Run it again to re-fetch; it skips what is already there.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+mkdir -p data/maps data/models data/.debs
+
+fetch() {  # fetch PACKAGE UNPACK_DIR
+  local pkg="$1" dir="$2"
+  if [ -d "$dir" ] && [ -n "$(ls -A "$dir" 2>/dev/null)" ]; then return; fi
+  ( cd data/.debs && apt-get download "$pkg" )
+  mkdir -p "$dir"
+  dpkg-deb -x data/.debs/"$pkg"_*.deb "$dir"
+}
+
+fetch openarena-081-maps data/.debs/openarena-081-maps
+find data/.debs/openarena-081-maps -name '*.pk3' -exec cp -u {} data/maps/ \;
+echo "fetch_maps: $(ls data/maps/*.pk3 | wc -l) pk3 files in data/maps/"
+
+fetch assimp-testmodels data/.debs/assimp-testmodels
+models=$(find data/.debs/assimp-testmodels -type d -path '*/models' | head -n 1)
+if [ -n "$models" ]; then cp -ru "$models"/. data/models/; fi
+echo "fetch_maps: $(find data/models -type f | wc -l) model files in data/models/"

@@ -1,0 +1,237 @@
+// The peers (Embree, Bullet's btDbvt) in the same harness as our structures: differential tests
+// against ground truth on every hard scene and on generated scenes, the exact fallbacks, and
+// parameter validation.
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+#include "core/peers/bullet_dbvt.h"
+#include "core/peers/embree_boxes.h"
+#include "core/registry.h"
+#include "tests/test_scenes.h"
+
+namespace rcb {
+namespace {
+
+const std::vector<nlohmann::json>& embree_configs() {
+    static const std::vector<nlohmann::json> c = {
+        nlohmann::json::object(),
+        {{"quality", "low"}},
+        {{"refit", true}},
+        {{"quality", "low"}, {"threads", 2}},
+    };
+    return c;
+}
+
+const std::vector<nlohmann::json>& bullet_configs() {
+    static const std::vector<nlohmann::json> c = {nlohmann::json::object(), {{"optimize_passes", 0}}, {{"optimize_passes", 16}}};
+    return c;
+}
+
+std::vector<Object> grid_boxes() {
+    // 4 x 4 x 4 unit boxes with unit gaps: faces, edges and corners to touch.
+    std::vector<Object> objects;
+    Uid uid = 0;
+    for (int x = 0; x < 4; ++x)
+        for (int y = 0; y < 4; ++y)
+            for (int z = 0; z < 4; ++z)
+                objects.push_back({uid++, {{2.0f * x, 2.0f * y, 2.0f * z}, {2.0f * x + 1, 2.0f * y + 1, 2.0f * z + 1}}});
+    return objects;
+}
+
+std::vector<Uid> sorted_hits(Structure& s, const Segment& seg) {
+    HitLists out;
+    s.cast(std::span<const Segment>(&seg, 1), out);
+    std::vector<Uid> uids(out.uids.begin(), out.uids.end());
+    std::sort(uids.begin(), uids.end());
+    return uids;
+}
+
+std::vector<Uid> expected_hits(const std::vector<Object>& objects, const Segment& seg) {
+    std::vector<Uid> uids;
+    for (const Object& o : objects)
+        if (segment_hits_box(seg, o.box)) uids.push_back(o.uid);
+    return uids;
+}
+
+/// Rays that probe touching: along faces and edges, ending on faces, zero length at corners and
+/// inside, far outside the scene.
+std::vector<Segment> touching_rays() {
+    return {
+        {{1, -5, 0.5f}, {1, 20, 0.5f}},      // along the x = 1 faces (max x of column 0)
+        {{1, 1, -5}, {1, 1, 20}},            // along an edge line
+        {{-5, 0, 0}, {0, 0, 0}},             // ends exactly on a corner
+        {{0.5f, 0.5f, -5}, {0.5f, 0.5f, 0}}, // ends exactly on a face
+        {{1.5f, 0.5f, 0.5f}, {1.5f, 0.5f, 0.5f}},  // zero length in a gap
+        {{1, 1, 1}, {1, 1, 1}},              // zero length on a corner
+        {{0.5f, 0.5f, 0.5f}, {0.5f, 0.5f, 0.5f}},  // zero length inside
+        {{-1000, 0.5f, 0.5f}, {1000, 0.5f, 0.5f}},  // far beyond the scene: the exact fallback
+        {{7, 7, 7}, {-1, -1, -1}},            // the diagonal, through corners
+        {{3, -1, 3}, {3, 9, 3}},              // along the x = 3, z = 3 edge line
+    };
+}
+
+template <class Peer>
+void expect_exact_on_touching_rays(Peer& peer) {
+    const std::vector<Object> objects = grid_boxes();
+    peer.build(objects);
+    peer.commit();
+    peer.validate();
+    for (const Segment& seg : touching_rays())
+        EXPECT_EQ(sorted_hits(peer, seg), expected_hits(objects, seg))
+            << "segment (" << seg.p0.x << "," << seg.p0.y << "," << seg.p0.z << ") -> (" << seg.p1.x << "," << seg.p1.y
+            << "," << seg.p1.z << ")";
+}
+
+}  // namespace
+
+TEST(Embree, MatchesGroundTruthOnEveryHardScene) {
+    for (const nlohmann::json& params : embree_configs())
+        for (const test::NamedScene& s : test::hard_scenes()) test::expect_matches_ground_truth(s.recording, "embree", params, s.name);
+}
+
+TEST(Embree, MatchesGroundTruthOnGeneratedScenes) {
+    for (const nlohmann::json& params : embree_configs()) {
+        test::expect_matches_ground_truth(test::generated_scene("uniform", 3000, 4, 11), "embree", params, "uniform-3000");
+        test::expect_matches_ground_truth(test::generated_scene("irregular", 3000, 4, 12), "embree", params, "irregular-3000");
+    }
+}
+
+TEST(Embree, TouchingAndZeroLengthSegmentsAreExact) {
+    for (const nlohmann::json& params : embree_configs()) {
+        auto peer = find_structure("embree").make(params, "params");
+        expect_exact_on_touching_rays(static_cast<EmbreeBoxes&>(*peer));
+    }
+}
+
+TEST(Embree, ZeroLengthAndFarSegmentsTakeTheExactFallbackWithoutEmbree) {
+    EmbreeBoxes peer;
+    const std::vector<Object> objects = grid_boxes();
+    peer.build(objects);
+    peer.commit();
+    // The fallback scans every box: N_RB equals the object count; through Embree it is far less.
+    for (const Segment& seg : {Segment{{1, 1, 1}, {1, 1, 1}}, Segment{{-1e6f, 0.5f, 0.5f}, {1e6f, 0.5f, 0.5f}}}) {
+        HitLists out;
+        Counters c;
+        peer.cast_counted(std::span<const Segment>(&seg, 1), out, c);
+        EXPECT_EQ(c.n_rb, objects.size());
+        EXPECT_EQ(c.n_tp, expected_hits(objects, seg).size());
+    }
+    const Segment short_ray{{0.5f, 0.5f, -1}, {0.5f, 0.5f, 0.5f}};
+    HitLists out;
+    Counters c;
+    peer.cast_counted(std::span<const Segment>(&short_ray, 1), out, c);
+    EXPECT_LT(c.n_rb, objects.size());
+    EXPECT_EQ(c.n_tp, 1u);
+}
+
+TEST(Embree, ClosestAndAnyHitStopCorrectly) {
+    EmbreeBoxes peer;
+    peer.build(grid_boxes());
+    peer.commit();
+    const Segment seg{{-1, 0.5f, 0.5f}, {9, 0.5f, 0.5f}};  // crosses uids 0, 16, 32, 48 (x = 0, 2, 4, 6)
+    const auto closest = peer.cast_closest(seg);
+    ASSERT_TRUE(closest.has_value());
+    EXPECT_EQ(closest->uid, 0u);
+    EXPECT_FLOAT_EQ(closest->t, 0.1f);
+    EXPECT_TRUE(peer.cast_any(seg));
+    EXPECT_FALSE(peer.cast_any(Segment{{-1, -1, -1}, {-1, 9, -1}}));
+}
+
+TEST(Embree, UpdatesInsertRemoveAndMoveAcrossCommits) {
+    EmbreeBoxes peer(EmbreeBoxes::Params{"medium", true, 1});
+    std::vector<Object> objects = grid_boxes();
+    peer.build(objects);
+    peer.commit();
+    peer.move({5, {{100, 100, 100}, {101, 101, 101}}});  // far away: the scale grows at commit
+    peer.remove(7);
+    peer.insert({1000, {{0.25f, 0.25f, -3}, {0.75f, 0.75f, -2}}});
+    peer.commit();
+    peer.validate();
+    EXPECT_EQ(peer.size(), objects.size());
+    const Segment seg{{0.5f, 0.5f, -10}, {0.5f, 0.5f, 10}};
+    EXPECT_EQ(sorted_hits(peer, seg), (std::vector<Uid>{0, 1, 2, 3, 1000}));
+    EXPECT_EQ(sorted_hits(peer, Segment{{100.5f, 100.5f, 0}, {100.5f, 100.5f, 101}}), (std::vector<Uid>{5}));
+}
+
+TEST(Embree, RejectsBadParameters) {
+    const StructureInfo& e = find_structure("embree");
+    EXPECT_THROW(e.make({{"quality", "high"}}, "params"), InputError);
+    EXPECT_THROW(e.make({{"threads", 0}}, "params"), InputError);
+    EXPECT_THROW(e.make({{"refit", 2}}, "params"), InputError);
+    EXPECT_THROW(e.make({{"passes", 1}}, "params"), InputError);
+    EXPECT_NO_THROW(e.make({{"quality", "low"}, {"refit", true}, {"threads", 2}}, "params"));
+}
+
+TEST(Bullet, MatchesGroundTruthOnEveryHardScene) {
+    for (const nlohmann::json& params : bullet_configs())
+        for (const test::NamedScene& s : test::hard_scenes())
+            test::expect_matches_ground_truth(s.recording, "bullet_dbvt", params, s.name);
+}
+
+TEST(Bullet, MatchesGroundTruthOnGeneratedScenes) {
+    for (const nlohmann::json& params : bullet_configs()) {
+        test::expect_matches_ground_truth(test::generated_scene("uniform", 3000, 4, 11), "bullet_dbvt", params, "uniform-3000");
+        test::expect_matches_ground_truth(test::generated_scene("irregular", 3000, 4, 12), "bullet_dbvt", params, "irregular-3000");
+    }
+}
+
+TEST(Bullet, TouchingAndZeroLengthSegmentsAreExact) {
+    for (const nlohmann::json& params : bullet_configs()) {
+        auto peer = find_structure("bullet_dbvt").make(params, "params");
+        expect_exact_on_touching_rays(static_cast<BulletDbvt&>(*peer));
+    }
+}
+
+TEST(Bullet, ZeroLengthGoesThroughTheTreeAndFarSegmentsTakeTheFallback) {
+    BulletDbvt peer;
+    const std::vector<Object> objects = grid_boxes();
+    peer.build(objects);
+    peer.commit();
+    const Segment point{{1, 1, 1}, {1, 1, 1}};
+    HitLists out;
+    Counters c;
+    peer.cast_counted(std::span<const Segment>(&point, 1), out, c);
+    EXPECT_EQ(c.n_tp, 1u);
+    EXPECT_LT(c.n_rb, objects.size());  // through btDbvt, not a scan
+    const Segment far{{-1e6f, 0.5f, 0.5f}, {1e6f, 0.5f, 0.5f}};
+    Counters f;
+    peer.cast_counted(std::span<const Segment>(&far, 1), out, f);
+    EXPECT_EQ(f.n_rb, objects.size());
+    EXPECT_EQ(f.n_tp, 4u);
+}
+
+TEST(Bullet, GrowsItsScaleAndRepadsWhenABoxLeavesIt) {
+    BulletDbvt peer;
+    peer.build(grid_boxes());
+    peer.commit();
+    peer.insert({500, {{1000, 1000, 1000}, {1001, 1001, 1001}}});
+    peer.move({3, {{-5000, 0, 0}, {-4999, 1, 1}}});
+    peer.remove(9);
+    peer.commit();
+    peer.validate();
+    EXPECT_EQ(peer.stats()["repads"].get<int>(), 2);
+    EXPECT_EQ(sorted_hits(peer, Segment{{1000.5f, 1000.5f, 0}, {1000.5f, 1000.5f, 1001}}), (std::vector<Uid>{500}));
+    EXPECT_EQ(sorted_hits(peer, Segment{{-4999, 0.5f, 0.5f}, {-6000, 0.5f, 0.5f}}), (std::vector<Uid>{3}));
+}
+
+TEST(Bullet, ClosestAndAnyHit) {
+    BulletDbvt peer;
+    peer.build(grid_boxes());
+    peer.commit();
+    const Segment seg{{9, 0.5f, 0.5f}, {-1, 0.5f, 0.5f}};
+    const auto closest = peer.cast_closest(seg);
+    ASSERT_TRUE(closest.has_value());
+    EXPECT_EQ(closest->uid, 48u);
+    EXPECT_TRUE(peer.cast_any(seg));
+    EXPECT_FALSE(peer.cast_any(Segment{{-1, -1, -1}, {-1, 9, -1}}));
+}
+
+TEST(Bullet, RejectsBadParameters) {
+    const StructureInfo& b = find_structure("bullet_dbvt");
+    EXPECT_THROW(b.make({{"optimize_passes", -1}}, "params"), InputError);
+    EXPECT_THROW(b.make({{"optimize_passes", 1.5}}, "params"), InputError);
+    EXPECT_THROW(b.make({{"quality", "low"}}, "params"), InputError);
+    EXPECT_NO_THROW(b.make({{"optimize_passes", 4}}, "params"));
+}
+
+}  // namespace rcb
