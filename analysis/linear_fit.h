@@ -47,9 +47,12 @@ inline constexpr double kIllConditioned = 1e3;
 
 LinearFit fit_linear(const LinearProblem& p, double huber_delta = 0.1);
 
-/// Held-out error by k-fold over configurations (groups, not frames of one configuration): the
-/// mean absolute relative error of predictions for groups left out of the fit. k is capped by the
-/// number of groups; groups are dealt to folds in a fixed order, so the result is deterministic.
+/// Held-out error by k-fold over configurations (groups, not frames of one configuration): for
+/// each configuration left out of the fit, the relative error of its predicted median frame against
+/// its measured median frame; the mean over configurations. (Medians, because on a shared machine
+/// a few frames disturbed by other processes would otherwise stand in for the model's error.)
+/// k is capped by the number of groups; groups are dealt to folds in a fixed order, so the result
+/// is deterministic.
 double cross_validated_error(const LinearProblem& p, int k = 5);
 
 }  // namespace rcb

@@ -55,8 +55,9 @@ TEST(LinearFit, RecoversKnownCoefficientsWithinTheirIntervalsDespiteOutliers) {
         EXPECT_NEAR(c.value, truth[j], 0.1 * truth[j]) << c.name;
         EXPECT_FALSE(c.spans_zero) << c.name;
     }
-    // The held-out error counts the outlier frames too (1 in 12 is 3× slow): within the 10% target.
-    EXPECT_LT(m->heldout_error, 0.10);
+    // Held-out configurations are scored by their median frame, so the outlier frames (1 in 12 is
+    // 3× slow) do not stand in for model error: well within the 10% target.
+    EXPECT_LT(m->heldout_error, 0.03);
 }
 
 TEST(LinearFit, FlagsACollinearDesign) {
