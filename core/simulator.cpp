@@ -150,9 +150,13 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
         live.apply(frame);
         if (options.validate) validate_or_throw(*structure, info.name, fr.frame);
 
-        const Clock::time_point cast_start = Clock::now();
-        structure->cast(frame.rays, hits);
-        fr.raycast_ns = ns_since(cast_start);
+        if (options.timed_cast) {
+            const Clock::time_point cast_start = Clock::now();
+            structure->cast(frame.rays, hits);
+            fr.raycast_ns = ns_since(cast_start);
+        } else {
+            structure->cast_counted(frame.rays, hits, fr.counters);  // the counting pass is the only cast
+        }
         fr.hits = hits.uids.size();
 
         if (options.verify) {
@@ -163,7 +167,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
             for (const Discrepancy& d : v.examples)
                 if (result.examples.size() < 20) result.examples.emplace_back(fr.frame, d);
         }
-        if (options.count) {
+        if (options.count && options.timed_cast) {
             structure->cast_counted(frame.rays, counted, fr.counters);
             // The counting policy must not change what the traversal does.
             if (counted.uids != hits.uids || counted.offsets != hits.offsets)

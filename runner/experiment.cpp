@@ -15,8 +15,6 @@
 #include "core/registry.h"
 
 namespace rcb {
-namespace {
-
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
@@ -137,6 +135,8 @@ std::vector<json> expand_values(const ParamSpec& spec, const json& v, const std:
     return {v};
 }
 
+namespace {
+
 /// Cross product of a parameter grid (keys in name order, so the expansion is stable).
 std::vector<json> expand_grid(const StructureInfo& info, const json& grid, const std::string& path) {
     if (grid.is_null()) return {json::object()};
@@ -159,14 +159,7 @@ std::vector<json> expand_grid(const StructureInfo& info, const json& grid, const
     return combos;
 }
 
-struct Defaults {
-    std::uint32_t frames = 10;
-    std::uint32_t rays = 1000;
-    std::string ray_mix = "center";
-    std::vector<std::uint64_t> seeds{1};
-};
-
-void parse_scene(const json& s, const std::string& path, const Defaults& d, const std::string& base_dir,
+void parse_scene(const json& s, const std::string& path, const SceneDefaults& d, const std::string& base_dir,
                  std::vector<SceneSpec>& out) {
     expect_object(s, path);
     check_keys(s, path, {"name", "preset", "kind", "objects", "recording", "import", "import_options", "frames", "rays_per_frame", "ray_mix",
@@ -274,15 +267,22 @@ void parse_scene(const json& s, const std::string& path, const Defaults& d, cons
         }
 }
 
-std::string read_file(const std::string& path) {
+}  // namespace
+
+std::vector<SceneSpec> parse_scenes(const json& scenes, const std::string& path, const SceneDefaults& d, const std::string& base_dir) {
+    if (!scenes.is_array() || scenes.empty()) fail(path, "expected a non-empty list of scenes");
+    std::vector<SceneSpec> out;
+    for (std::size_t i = 0; i < scenes.size(); ++i) parse_scene(scenes[i], at(path, i), d, base_dir, out);
+    return out;
+}
+
+std::string read_text_file(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(path + ": cannot open");
     std::ostringstream s;
     s << in.rdbuf();
     return s.str();
 }
-
-}  // namespace
 
 std::string stable_hash(const std::string& bytes) {
     std::uint64_t h = 0xcbf29ce484222325ULL;
@@ -316,15 +316,14 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
         e.warmup_frames = static_cast<std::uint32_t>(get_uint(j, "warmup_frames", "", 0, 1000, 0));
         e.threads = static_cast<std::uint32_t>(get_uint(j, "threads", "", 1, 1024, 1));
         e.verify = get_bool(j, "verify", "", true);
-        Defaults d;
+        SceneDefaults d;
         d.frames = static_cast<std::uint32_t>(get_uint(j, "frames", "", 1, 1'000'000, d.frames));
         d.rays = static_cast<std::uint32_t>(get_uint(j, "rays_per_frame", "", 0, 100'000'000, d.rays));
         d.ray_mix = get_string(j, "ray_mix", "", d.ray_mix);
         d.seeds = get_uint_list(j, "seeds", "", 0, UINT64_MAX, d.seeds);
 
-        if (!j.contains("scenes") || !j["scenes"].is_array() || j["scenes"].empty())
-            fail("scenes", "expected a non-empty list of scenes");
-        for (std::size_t i = 0; i < j["scenes"].size(); ++i) parse_scene(j["scenes"][i], at("scenes", i), d, base_dir, e.scenes);
+        if (!j.contains("scenes")) fail("scenes", "expected a non-empty list of scenes");
+        e.scenes = parse_scenes(j["scenes"], "scenes", d, base_dir);
         for (const SceneSpec& s : e.scenes)
             if (s.source != SceneSpec::Source::recording && e.warmup_frames >= s.settings.frames)
                 fail("warmup_frames", "leaves no measured frame in scene " + s.name);
@@ -377,7 +376,7 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
 
 Experiment load_experiment(const std::string& path) {
     if (fs::is_directory(path)) throw InputError(path + ": is a directory, not an experiment file");
-    return parse_experiment(read_file(path), path, fs::path(path).parent_path().string());
+    return parse_experiment(read_text_file(path), path, fs::path(path).parent_path().string());
 }
 
 Recording load_scene(const SceneSpec& s) {

@@ -3,12 +3,14 @@
 /// before anything runs, and expanded into a plan of cells (scene × configuration × repetition).
 
 #include <cstdint>
+#include <set>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "core/generators.h"
+#include "core/params.h"
 #include "core/scene.h"
 
 namespace rcb {
@@ -64,5 +66,38 @@ Recording load_scene(const SceneSpec& scene);
 
 /// FNV-1a, 64 bits, as 16 hex digits: stable across platforms and runs.
 std::string stable_hash(const std::string& bytes);
+
+/// Defaults a scene entry inherits from the file's top level.
+struct SceneDefaults {
+    std::uint32_t frames = 10;
+    std::uint32_t rays = 1000;
+    std::string ray_mix = "center";
+    std::vector<std::uint64_t> seeds{1};
+};
+
+/// A list of scene entries (the "scenes" schema of experiments/README.md); errors name `path`.
+std::vector<SceneSpec> parse_scenes(const nlohmann::json& scenes, const std::string& path, const SceneDefaults& defaults,
+                                    const std::string& base_dir);
+
+/// The values one parameter takes in a grid: a value, a list, or a range {"from", "to", "step"}
+/// (arithmetic) / {"from", "to", "times"} (geometric); each checked against `spec`.
+std::vector<nlohmann::json> expand_values(const ParamSpec& spec, const nlohmann::json& value, const std::string& path);
+
+// Validation helpers for JSON files, shared by the experiment and tuning files. Every error is an
+// InputError "<path>: <what>".
+std::string at(const std::string& path, const std::string& key);
+std::string at(const std::string& path, std::size_t index);
+[[noreturn]] void fail(const std::string& path, const std::string& what);
+void expect_object(const nlohmann::json& j, const std::string& path);
+void check_keys(const nlohmann::json& j, const std::string& path, const std::set<std::string>& allowed);
+std::uint64_t get_uint(const nlohmann::json& obj, const std::string& key, const std::string& path, std::uint64_t lo,
+                       std::uint64_t hi, std::uint64_t fallback);
+double get_number(const nlohmann::json& obj, const std::string& key, const std::string& path, double lo, double hi, double fallback);
+std::string get_string(const nlohmann::json& obj, const std::string& key, const std::string& path, const std::string& fallback);
+bool get_bool(const nlohmann::json& obj, const std::string& key, const std::string& path, bool fallback);
+std::vector<std::uint64_t> get_uint_list(const nlohmann::json& obj, const std::string& key, const std::string& path,
+                                         std::uint64_t lo, std::uint64_t hi, std::vector<std::uint64_t> fallback);
+/// Reads a whole text file; InputError naming it when it cannot be opened.
+std::string read_text_file(const std::string& path);
 
 }  // namespace rcb

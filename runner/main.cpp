@@ -4,6 +4,7 @@
 #include "core/error.h"
 #include "analysis/commands.h"
 #include "runner/commands.h"
+#include "tuner/commands.h"
 
 int main(int argc, char** argv) {
     CLI::App app{"rcbench: acceleration structures for all-hits ray casting in dynamic physics scenes.\n"
@@ -21,6 +22,8 @@ int main(int argc, char** argv) {
     rcb::add_query_commands(app);
     rcb::add_fit_command(app);
     rcb::add_report_command(app);
+    rcb::add_tune_command(app);
+    rcb::add_advise_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

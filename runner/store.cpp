@@ -143,6 +143,40 @@ CREATE TABLE fit_coefficient (
     PRIMARY KEY (fit_id, name)
 );
 )sql",
+        // 2 → 3: the tuner's results (tuner/tuning.h).
+        R"sql(
+CREATE TABLE tuning (
+    id                  INTEGER PRIMARY KEY,
+    name                TEXT NOT NULL,
+    category            TEXT NOT NULL,
+    structure           TEXT NOT NULL,
+    mode                TEXT NOT NULL,
+    algorithm           TEXT NOT NULL,
+    created_at          TEXT NOT NULL,
+    git_commit          TEXT NOT NULL,
+    spec                TEXT NOT NULL,
+    evaluations         INTEGER NOT NULL,
+    measurements        INTEGER NOT NULL,
+    seconds             REAL NOT NULL,
+    stop_reason         TEXT NOT NULL,
+    on_bound            TEXT NOT NULL,
+    best_params         TEXT NOT NULL,
+    best_measured_ms    REAL NOT NULL,
+    best_measured_mad   REAL NOT NULL,
+    best_predicted_ms   REAL,
+    default_params      TEXT NOT NULL,
+    default_measured_ms REAL,
+    chosen              INTEGER NOT NULL
+);
+CREATE TABLE tuning_evaluation (
+    tuning_id INTEGER NOT NULL REFERENCES tuning(id) ON DELETE CASCADE,
+    i         INTEGER NOT NULL,
+    params    TEXT NOT NULL,
+    cost_ms   REAL NOT NULL,
+    kind      TEXT NOT NULL,
+    PRIMARY KEY (tuning_id, i)
+);
+)sql",
     };
     return all;
 }

@@ -1,0 +1,144 @@
+// The tuner: the NLopt search against exhaustive search on a known cost surface, seed stability,
+// enumeration of small spaces, edge reporting, the simplicity rule, tuning files, and a real tuning.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/error.h"
+#include "tuner/search.h"
+#include "tuner/tuning.h"
+
+namespace rcb {
+namespace {
+
+using json = nlohmann::json;
+
+/// A 6 × 5 × 4 × 2 = 240-point space shaped like grid tuning: a valley in (amp, depth), a weak
+/// capacity effect, a flat choice, and 1% deterministic noise (no smoothness to exploit).
+std::vector<SearchDimension> grid_like_space() {
+    return {{"amp", {0.125, 0.25, 0.5, 1.0, 2.0, 4.0}}, {"depth", {0, 1, 2, 3, 4}}, {"capacity", {4, 8, 16, 32}}, {"flag", {false, true}}};
+}
+
+double grid_like_cost(const json& p) {
+    const double amp = std::log2(p["amp"].get<double>()), depth = p["depth"].get<double>();
+    const double capacity = std::log2(p["capacity"].get<double>());
+    double cost = 1.0 + 0.15 * (amp - 0.7) * (amp - 0.7) + 0.2 * std::abs(depth - 2.2) + 0.05 * std::abs(capacity - 3.4) +
+                  0.1 * (amp - 0.7) * (depth - 2.2) / 4;
+    const std::size_t h = std::hash<std::string>{}(p.dump());
+    return cost * (1 + 0.01 * (double(h % 1000) / 1000.0 - 0.5));
+}
+
+TEST(TunerSearch, FindsWithinFivePercentOfTheExhaustiveOptimumWithAQuarterOfTheEvaluations) {
+    const auto dims = grid_like_space();
+    double optimum = INFINITY;
+    const auto all = enumerate_space(dims);
+    for (const json& p : all) optimum = std::min(optimum, grid_like_cost(p));
+    const std::size_t budget = all.size() / 4;  // 60 of 240
+    std::vector<double> found;
+    for (std::uint64_t seed = 1; seed <= 5; ++seed) {
+        std::size_t calls = 0;
+        const SearchResult r = search_levels(dims, [&](const json& p) { return ++calls, grid_like_cost(p); }, budget, seed);
+        EXPECT_LE(r.evaluations.size(), budget);
+        EXPECT_EQ(calls, r.evaluations.size());  // memoised: every call is a distinct configuration
+        const double best = r.evaluations[r.best].cost;
+        EXPECT_LE(best, optimum * 1.05) << "seed " << seed;
+        found.push_back(best);
+    }
+    // Across seeds the chosen configurations' costs differ by at most 5%.
+    EXPECT_LE(*std::max_element(found.begin(), found.end()), 1.05 * *std::min_element(found.begin(), found.end()));
+}
+
+TEST(TunerSearch, EnumeratesASpaceNoLargerThanTheBudgetAndReportsEdges) {
+    const std::vector<SearchDimension> dims{{"density", {0.5, 1.0, 2.0, 4.0}}};
+    const SearchResult r = search_levels(dims, [](const json& p) { return p["density"].get<double>(); }, 10, 1);
+    EXPECT_EQ(r.algorithm, "enumeration");
+    EXPECT_EQ(r.evaluations.size(), 4u);
+    EXPECT_EQ(r.evaluations[r.best].params["density"], 0.5);
+    EXPECT_EQ(r.on_bound, std::vector<std::string>{"density"});  // the best is the smallest level: widen the range
+}
+
+TEST(TunerSearch, IntegerLevelsAreOnlyEverEvaluatedAtTheirValues) {
+    const std::vector<SearchDimension> dims{{"depth", {0, 1, 2, 3, 4, 5, 6}}, {"capacity", {1, 2, 4, 8, 16, 32, 64, 128, 256}}};
+    const SearchResult r = search_levels(
+        dims,
+        [](const json& p) {
+            EXPECT_TRUE(p["depth"].is_number_integer());
+            EXPECT_TRUE(p["capacity"].is_number_integer());
+            return std::abs(p["depth"].get<int>() - 3) + std::abs(std::log2(p["capacity"].get<double>()) - 4.0);
+        },
+        20, 3);
+    EXPECT_EQ(r.evaluations[r.best].params["depth"], 3);
+    EXPECT_EQ(r.evaluations[r.best].params["capacity"], 16);
+    EXPECT_TRUE(r.on_bound.empty());
+}
+
+TEST(TunerRule, PrefersTheSimplestConfigurationWithinThreePercent) {
+    auto candidate = [](const char* structure, double ms, double memory) {
+        Candidate c;
+        c.structure = structure;
+        c.measured = MeasuredCost{ms, 0, 0, 0, memory};
+        return c;
+    };
+    const Candidate hg_fast = candidate("hg", 1.00, 2e6), ug_close = candidate("ug", 1.02, 3e6), ug_far = candidate("ug", 1.10, 1e6);
+    EXPECT_EQ(simplest_within({&hg_fast, &ug_close, &ug_far}, 0.03), 1u);  // UG within 3% beats a faster HG
+    EXPECT_EQ(simplest_within({&hg_fast, &ug_far}, 0.03), 0u);              // 10% slower is not "close"
+    const Candidate hg_small = candidate("hg", 1.01, 1e6);
+    EXPECT_EQ(simplest_within({&hg_fast, &hg_small}, 0.03), 1u);            // same structure: less memory
+}
+
+std::string tune_error(const std::string& text) {
+    try {
+        parse_tune_spec(text, "t.json", ".");
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+TEST(TuneSpec, ValidatesWithJsonPaths) {
+    const char* ok = R"({"structures": ["ug"], "categories": [{"name": "u", "scenes": [{"preset": "uni-s"}]}]})";
+    EXPECT_EQ(tune_error(ok), "");
+    EXPECT_EQ(tune_error(R"({"mode": "fast", "categories": []})"),
+              "t.json: mode: expected one of measured, predicted, predicted-then-verified, got \"fast\"");
+    EXPECT_EQ(tune_error(R"({"structures": ["bf"], "categories": [{"name": "u", "scenes": [{"preset": "uni-s"}]}]})"),
+              "t.json: structures: bf has no tunable parameter");
+    EXPECT_EQ(tune_error(R"({"structures": ["ug"], "space": {"ug": {"density": [0.5, 100]}}, "categories": [{"name": "u", "scenes": [{"preset": "uni-s"}]}]})"),
+              "t.json: space.ug.density[1]: expected a number in 0.1..64, got 100");
+    EXPECT_EQ(tune_error(R"({"structures": ["ug"], "categories": [{"name": "u", "scenes": [{"preset": "uni-q"}]}]})").find(
+                  "t.json: categories[0].scenes[0].preset: unknown preset 'uni-q'"),
+              0u);
+    EXPECT_EQ(tune_error(R"({"structures": ["ug"], "categories": [{"name": "u", "scenes": [{"preset": "uni-s"}]}, {"name": "u", "scenes": [{"preset": "uni-s"}]}]})"),
+              "t.json: categories[1].name: duplicate category name \"u\"");
+    const TuneSpec spec = parse_tune_spec(ok, "t.json", ".");
+    ASSERT_EQ(spec.space.at("ug").size(), 1u);  // density; thesis_reset is not tunable
+    EXPECT_EQ(spec.space.at("ug")[0].name, "density");
+    EXPECT_GE(spec.space.at("ug")[0].levels.size(), 8u);
+}
+
+TEST(Tune, PredictedThenVerifiedMeasuresItsCandidatesAndTheDefaults) {
+    const TuneSpec spec = parse_tune_spec(
+        R"({"structures": ["ug"], "budget": 5, "calibration": 4, "verify_top": 2, "frames": 3, "rays_per_frame": 200, "repetitions": 1,
+            "space": {"ug": {"density": {"from": 0.25, "to": 16, "times": 2}}},
+            "categories": [{"name": "small", "scenes": [{"kind": "irregular", "objects": 2000}]}]})",
+        "t.json", ".");
+    const CategoryTuning t = tune_category(spec, spec.categories[0]);
+    ASSERT_EQ(t.structures.size(), 1u);
+    const StructureTuning& st = t.structures[0];
+    EXPECT_LE(st.search.evaluations.size(), 5u);  // at most the budget of distinct predicted evaluations
+    EXPECT_GE(st.search.evaluations.size(), 3u);
+    EXPECT_TRUE(st.search.stop_reason == "budget" || st.search.stop_reason == "converged") << st.search.stop_reason;
+    EXPECT_FALSE(st.prediction_model.empty());
+    std::size_t defaults = 0, predicted = 0;
+    for (const Candidate& c : st.candidates) {
+        ASSERT_TRUE(c.measured.has_value());
+        EXPECT_GT(c.measured->ms, 0);
+        defaults += c.is_default;
+        predicted += c.predicted_ms.has_value();
+    }
+    EXPECT_EQ(defaults, 1u);
+    EXPECT_GE(predicted, 2u);  // the verified candidates carry both numbers
+    EXPECT_LE(t.chosen.measured->ms, 1.03 * t.fastest.measured->ms);
+}
+
+}  // namespace
+}  // namespace rcb

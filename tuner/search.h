@@ -1,0 +1,53 @@
+#pragma once
+/// Derivative-free search over a structure's parameters with NLopt.
+///
+/// The space is finite and ordered: each parameter has a list of levels (integers, log- or
+/// linearly-spaced reals, choices). NLopt works on the level index of each parameter as a
+/// continuous coordinate in [0, levels − 1]; the objective rounds every coordinate to its nearest
+/// level before evaluating, so every evaluated point is a real configuration (integers are never
+/// "continuous and rounded at the end"), and evaluations are memoised, so the budget counts distinct
+/// configurations.
+///
+/// Algorithm: NLopt's GN_DIRECT_L_RAND (Gablonsky & Kelley's locally-biased DIRECT with randomised
+/// tie-breaking) explores the whole box first: it needs no gradients, is not misled by the
+/// piecewise-constant objective that rounding makes, and suits the 1–4 dimensions of grid
+/// parameters; its randomness comes from the seed. Then LN_SBPLX (Rowan's Subplex, a Nelder–Mead
+/// variant robust to noise) polishes around the best point with what is left of the budget. A
+/// space no larger than the budget is simply enumerated.
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace rcb {
+
+struct SearchDimension {
+    std::string name;
+    std::vector<nlohmann::json> levels;  ///< ordered (simplest or smallest first)
+};
+
+struct Evaluation {
+    nlohmann::json params;  ///< the searched parameters at their levels
+    double cost = 0;
+};
+
+struct SearchResult {
+    std::vector<Evaluation> evaluations;  ///< distinct configurations, in the order evaluated
+    std::size_t best = 0;                 ///< index into evaluations
+    std::string algorithm;
+    std::string stop_reason;              ///< "budget", "converged", "enumerated", or NLopt's failure
+    std::vector<std::string> on_bound;    ///< parameters whose best level is the first or last of its list
+    std::size_t space_size = 0;           ///< configurations in the space
+};
+
+/// `objective(params)` returns the cost to minimise (NaN or ∞ counts as failed and is avoided).
+SearchResult search_levels(const std::vector<SearchDimension>& dims, const std::function<double(const nlohmann::json&)>& objective,
+                           std::size_t budget, std::uint64_t seed);
+
+/// Every configuration of the space (for exhaustive comparisons).
+std::vector<nlohmann::json> enumerate_space(const std::vector<SearchDimension>& dims);
+
+}  // namespace rcb

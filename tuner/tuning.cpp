@@ -1,0 +1,388 @@
+#include "tuner/tuning.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <cstring>
+#include <set>
+
+#include "analysis/cost_model.h"
+#include "core/error.h"
+#include "core/random.h"
+#include "core/registry.h"
+#include "core/simulator.h"
+
+namespace rcb {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+/// Scenes are generated or read once per process and reused by every evaluation.
+const Recording& recording_of(const SceneSpec& scene) {
+    static std::map<std::string, Recording> cache;
+    const std::string key = scene.key.dump() + "|" + scene.path;
+    auto it = cache.find(key);
+    if (it == cache.end()) it = cache.emplace(key, load_scene(scene)).first;
+    return it->second;
+}
+
+json complete(const std::string& structure, const json& searched) {
+    json p = find_structure(structure).defaults();
+    for (const auto& [k, v] : searched.items()) p[k] = v;
+    return p;
+}
+
+/// Frames of one measured run as cost-model observations.
+void add_observations(const SimulationResult& r, const std::string& scene, const std::string& category, int group,
+                      std::vector<FrameObservation>& out) {
+    for (const FrameResult& f : r.frames) {
+        if (f.warmup || f.rays == 0) continue;
+        FrameObservation o;
+        o.structure = r.structure;
+        o.params = r.params.dump();
+        o.scene = scene;
+        o.category = category;
+        o.config_group = group;
+        o.rays = f.rays;
+        o.raycast_ns = double(f.raycast_ns);
+        o.update_ns = double(f.update_ns);
+        o.n_t = double(f.counters.n_t) / f.rays;
+        o.n_rb = double(f.counters.n_rb) / f.rays;
+        o.n_tp = double(f.counters.n_tp) / f.rays;
+        o.inserts = f.inserts, o.removes = f.removes, o.moves = f.moves, o.objects = double(r.objects);
+        o.memory_mb = double(f.memory_bytes) / (1024.0 * 1024.0);
+        out.push_back(o);
+    }
+}
+
+std::vector<SimulationResult> run_simulations(const TuneCategory& category, const std::string& structure, const json& params,
+                                              const SimulationOptions& options, std::uint32_t repetitions) {
+    std::vector<SimulationResult> out;
+    for (std::uint32_t rep = 0; rep < repetitions; ++rep)
+        for (const SceneSpec& scene : category.scenes)
+            out.push_back(simulate(recording_of(scene), find_structure(structure), params, options));
+    return out;
+}
+
+MeasuredCost summarise(const std::vector<SimulationResult>& runs, std::size_t scenes) {
+    // Per scene: median and MAD of frame totals over frames × repetitions; then the mean over scenes.
+    MeasuredCost c;
+    for (std::size_t s = 0; s < scenes; ++s) {
+        std::vector<double> total, update, cast;
+        double memory = 0;
+        int n = 0;
+        for (std::size_t i = s; i < runs.size(); i += scenes) {
+            for (const FrameResult& f : runs[i].frames) {
+                if (f.warmup) continue;
+                total.push_back((double(f.update_ns) + double(f.raycast_ns)) / 1e6);
+                update.push_back(double(f.update_ns) / 1e6);
+                cast.push_back(double(f.raycast_ns) / 1e6);
+            }
+            memory += double(runs[i].memory_bytes), ++n;
+        }
+        const Spread t = spread_of(total);
+        c.ms += t.median / double(scenes);
+        c.mad += t.mad / double(scenes);
+        c.update_ms += spread_of(update).median / double(scenes);
+        c.raycast_ms += spread_of(cast).median / double(scenes);
+        c.memory_bytes += (n ? memory / n : 0) / double(scenes);
+    }
+    return c;
+}
+
+std::string category_of(const SceneSpec& s) {
+    if (s.source == SceneSpec::Source::import) return "import";
+    if (s.source == SceneSpec::Source::recording) return "recording";
+    return s.settings.kind;
+}
+
+std::vector<json> levels_for(const ParamSpec& p) {
+    std::vector<json> out;
+    switch (p.kind) {
+        case ParamKind::boolean: return {false, true};
+        case ParamKind::choice:
+            for (const std::string& c : p.choices) out.push_back(c);
+            return out;
+        case ParamKind::integer: {
+            const long lo = std::lround(p.lo), hi = std::lround(p.hi);
+            if (hi - lo + 1 <= 12) {
+                for (long v = lo; v <= hi; ++v) out.push_back(v);
+            } else {
+                for (long v = std::max(1L, lo); v <= hi; v *= 2) out.push_back(v);
+                if (lo < 1) out.insert(out.begin(), json(lo));
+            }
+            return out;
+        }
+        case ParamKind::real:
+            if (p.log_scale && p.lo > 0) {
+                for (double v = p.lo; v <= p.hi * (1 + 1e-9); v *= 2) out.push_back(v);
+            } else {
+                for (int i = 0; i < 8; ++i) out.push_back(p.lo + (p.hi - p.lo) * i / 7.0);
+            }
+            return out;
+    }
+    return out;
+}
+
+}  // namespace
+
+std::size_t simplest_within(const std::vector<const Candidate*>& all, double tolerance) {
+    double fastest = INFINITY;
+    for (const Candidate* c : all) fastest = std::min(fastest, c->measured->ms);
+    std::size_t best = SIZE_MAX;
+    auto simpler = [](const Candidate* a, const Candidate* b) {
+        const int sa = structure_simplicity(a->structure), sb = structure_simplicity(b->structure);
+        if (sa != sb) return sa < sb;
+        if (a->measured->memory_bytes != b->measured->memory_bytes) return a->measured->memory_bytes < b->measured->memory_bytes;
+        return a->measured->ms < b->measured->ms;
+    };
+    for (std::size_t i = 0; i < all.size(); ++i)
+        if (all[i]->measured->ms <= (1 + tolerance) * fastest && (best == SIZE_MAX || simpler(all[i], all[best]))) best = i;
+    return best;
+}
+
+int structure_simplicity(const std::string& structure) {
+    if (structure == "ug") return 0;
+    if (structure == "hg") return 1;
+    return 2;
+}
+
+std::vector<SearchDimension> default_space(const std::string& structure) {
+    std::vector<SearchDimension> dims;
+    for (const ParamSpec& p : find_structure(structure).params)
+        if (p.tunable) dims.push_back({p.name, levels_for(p)});
+    return dims;
+}
+
+TuneSpec parse_tune_spec(const std::string& text, const std::string& name, const std::string& base_dir) {
+    json j;
+    try {
+        j = json::parse(text);
+    } catch (const json::parse_error& e) {
+        throw InputError(name + ": not valid JSON (" + std::string(e.what()) + ")");
+    }
+    try {
+        expect_object(j, "(top level)");
+        check_keys(j, "", {"name", "description", "mode", "structures", "space", "budget", "calibration", "verify_top", "seed",
+                           "frames", "warmup_frames", "rays_per_frame", "ray_mix", "repetitions", "categories"});
+        TuneSpec t;
+        t.content = text;
+        t.name = get_string(j, "name", "", fs::path(name).stem().string());
+        t.description = get_string(j, "description", "", "");
+        t.mode = get_string(j, "mode", "", t.mode);
+        if (t.mode != "measured" && t.mode != "predicted" && t.mode != "predicted-then-verified")
+            fail("mode", "expected one of measured, predicted, predicted-then-verified, got \"" + t.mode + "\"");
+        t.budget = get_uint(j, "budget", "", 1, 100000, t.budget);
+        t.calibration = get_uint(j, "calibration", "", 3, 1000, t.calibration);
+        t.verify_top = get_uint(j, "verify_top", "", 1, 100, t.verify_top);
+        t.seed = get_uint(j, "seed", "", 0, UINT64_MAX, t.seed);
+        t.warmup_frames = std::uint32_t(get_uint(j, "warmup_frames", "", 0, 1000, t.warmup_frames));
+        t.repetitions = std::uint32_t(get_uint(j, "repetitions", "", 1, 1000, t.repetitions));
+        SceneDefaults d;
+        d.frames = std::uint32_t(get_uint(j, "frames", "", 1, 1'000'000, 6));
+        d.rays = std::uint32_t(get_uint(j, "rays_per_frame", "", 0, 100'000'000, d.rays));
+        d.ray_mix = get_string(j, "ray_mix", "", d.ray_mix);
+
+        if (j.contains("structures")) {
+            if (!j["structures"].is_array() || j["structures"].empty()) fail("structures", "expected a non-empty list of structure names");
+            for (std::size_t i = 0; i < j["structures"].size(); ++i) {
+                const json& s = j["structures"][i];
+                if (!s.is_string()) fail(at("structures", i), "expected a structure name, got " + s.dump());
+                try {
+                    t.structures.push_back(find_structure(s.get<std::string>()).name);
+                } catch (const InputError& e) {
+                    fail(at("structures", i), e.what());
+                }
+            }
+        } else {
+            for (const StructureInfo& info : structure_registry())
+                if (std::any_of(info.params.begin(), info.params.end(), [](const ParamSpec& p) { return p.tunable; }))
+                    t.structures.push_back(info.name);
+        }
+        for (const std::string& s : t.structures) {
+            t.space[s] = default_space(s);
+            if (t.space[s].empty()) fail("structures", s + " has no tunable parameter");
+        }
+        if (j.contains("space")) {
+            expect_object(j["space"], "space");
+            for (const auto& [structure, params] : j["space"].items()) {
+                const std::string path = at("space", structure);
+                if (std::find(t.structures.begin(), t.structures.end(), structure) == t.structures.end())
+                    fail(path, "not one of the structures tuned here");
+                expect_object(params, path);
+                const StructureInfo& info = find_structure(structure);
+                for (const auto& [param, value] : params.items()) {
+                    auto spec = std::find_if(info.params.begin(), info.params.end(), [&](const ParamSpec& p) { return p.name == param; });
+                    if (spec == info.params.end()) check_params(info.params, json{{param, value}}, path, structure);  // throws
+                    auto& dims = t.space[structure];
+                    auto dim = std::find_if(dims.begin(), dims.end(), [&](const SearchDimension& d) { return d.name == param; });
+                    std::vector<json> levels = expand_values(*spec, value, at(path, param));
+                    if (dim == dims.end()) dims.push_back({param, levels});  // a non-tunable parameter the user wants searched
+                    else dim->levels = levels;
+                }
+            }
+        }
+        if (!j.contains("categories") || !j["categories"].is_array() || j["categories"].empty())
+            fail("categories", "expected a non-empty list of scene categories");
+        std::set<std::string> names;
+        for (std::size_t i = 0; i < j["categories"].size(); ++i) {
+            const json& c = j["categories"][i];
+            const std::string path = at("categories", i);
+            expect_object(c, path);
+            check_keys(c, path, {"name", "scenes"});
+            TuneCategory cat;
+            cat.name = get_string(c, "name", path, "");
+            if (cat.name.empty()) fail(at(path, "name"), "a category needs a name");
+            if (!names.insert(cat.name).second) fail(at(path, "name"), "duplicate category name \"" + cat.name + "\"");
+            if (!c.contains("scenes")) fail(at(path, "scenes"), "expected a non-empty list of scenes");
+            cat.scenes = parse_scenes(c["scenes"], at(path, "scenes"), d, base_dir);
+            for (const SceneSpec& s : cat.scenes)
+                if (s.source != SceneSpec::Source::recording && t.warmup_frames >= s.settings.frames)
+                    fail("warmup_frames", "leaves no measured frame in category " + cat.name);
+            t.categories.push_back(std::move(cat));
+        }
+        return t;
+    } catch (const InputError& e) {
+        throw InputError(name + ": " + e.what());
+    }
+}
+
+TuneSpec load_tune_spec(const std::string& path) {
+    if (fs::is_directory(path)) throw InputError(path + ": is a directory, not a tuning file");
+    return parse_tune_spec(read_text_file(path), path, fs::path(path).parent_path().string());
+}
+
+MeasuredCost measure(const TuneCategory& category, const std::string& structure, const json& params, std::uint32_t warmup_frames,
+                     std::uint32_t repetitions) {
+    SimulationOptions o;
+    o.verify = false;  // correctness is the tests' job; tuning measures speed
+    o.count = false;
+    o.warmup_frames = warmup_frames;
+    return summarise(run_simulations(category, structure, params, o, repetitions), category.scenes.size());
+}
+
+CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category) {
+    CategoryTuning out;
+    out.category = category.name;
+    for (const std::string& structure : spec.structures) {
+        const Clock::time_point start = Clock::now();
+        StructureTuning st;
+        st.structure = structure;
+        st.mode = spec.mode;
+        const std::vector<SearchDimension>& dims = spec.space.at(structure);
+        std::map<std::string, std::size_t> measured_index;  // params dump → candidate
+        auto measure_candidate = [&](const json& searched, bool is_default) -> Candidate& {
+            const json params = complete(structure, searched);
+            auto it = measured_index.find(params.dump());
+            if (it == measured_index.end()) {
+                Candidate c{structure, params, std::nullopt, measure(category, structure, params, spec.warmup_frames, spec.repetitions), is_default};
+                ++st.measurements;
+                st.candidates.push_back(c);
+                it = measured_index.emplace(params.dump(), st.candidates.size() - 1).first;
+            }
+            st.candidates[it->second].is_default = st.candidates[it->second].is_default || is_default;
+            return st.candidates[it->second];
+        };
+        json defaults_searched = json::object();
+        for (const SearchDimension& d : dims) defaults_searched[d.name] = find_structure(structure).defaults()[d.name];
+        measure_candidate(defaults_searched, true);
+
+        if (spec.mode == "measured") {
+            st.search = search_levels(dims, [&](const json& p) { return measure_candidate(p, false).measured->ms; }, spec.budget, spec.seed);
+        } else {
+            // Calibrate eq. 5.4 on the defaults plus random points of the space, measured.
+            std::vector<FrameObservation> frames;
+            Random rng(mix_seed(spec.seed, 7));
+            std::vector<json> points{defaults_searched};
+            const std::vector<json> all = enumerate_space(dims);
+            for (std::size_t k = 0; points.size() < std::min(spec.calibration, all.size()) && k < 100 * spec.calibration; ++k) {
+                const json& p = all[rng.below(all.size())];
+                if (std::find(points.begin(), points.end(), p) == points.end()) points.push_back(p);
+            }
+            SimulationOptions calibrate;
+            calibrate.verify = false;
+            calibrate.warmup_frames = spec.warmup_frames;
+            int group = 0;
+            for (const json& p : points) {
+                const json params = complete(structure, p);
+                const auto runs = run_simulations(category, structure, params, calibrate, 1);
+                for (std::size_t s = 0; s < runs.size(); ++s)
+                    add_observations(runs[s], category.scenes[s].name, category_of(category.scenes[s]), group * 100 + int(s), frames);
+                ++group;
+                ++st.measurements;
+            }
+            const std::vector<StructureModels> models = fit_cost_models(frames);
+            const CandidateModel* model = models.empty() ? nullptr : models.front().chosen("raycast");
+            if (!model) throw std::runtime_error("tune: the calibration of " + structure + " on " + category.name + " gave no cost model");
+            st.prediction_model = model->name + " (held-out error " + std::to_string(int(std::lround(100 * model->heldout_error))) +
+                                  "%, " + model->fit.status() + ")";
+            auto coefficient = [&](const char* name) {
+                for (const Coefficient& c : model->fit.coefficients)
+                    if (c.name.rfind(name, 0) == 0 && (c.name.size() == std::strlen(name) || c.name[std::strlen(name)] == '['))
+                        return c.value;
+                return 0.0;
+            };
+            const double c_rb = coefficient("C_RB"), c_t = coefficient("C_T"), c_prep = coefficient("C_PREP"), c_mem = coefficient("C_MEM");
+            SimulationOptions replay;
+            replay.verify = false;
+            replay.timed_cast = false;
+            replay.warmup_frames = spec.warmup_frames;
+            auto predict = [&](const json& p) {
+                const auto runs = run_simulations(category, structure, complete(structure, p), replay, 1);
+                double total = 0;
+                for (const SimulationResult& r : runs) {
+                    std::vector<double> frame_ms;
+                    for (const FrameResult& f : r.frames) {
+                        if (f.warmup || f.rays == 0) continue;
+                        const double per_ray = c_rb * double(f.counters.n_rb) / f.rays + c_t * double(f.counters.n_t) / f.rays + c_prep +
+                                               c_mem * double(f.memory_bytes) / (1024.0 * 1024.0);
+                        frame_ms.push_back((double(f.update_ns) + f.rays * per_ray) / 1e6);
+                    }
+                    total += spread_of(frame_ms).median;
+                }
+                return total / double(runs.size());
+            };
+            st.search = search_levels(dims, predict, spec.budget, spec.seed);
+            // Verify: measure the best predicted candidates (the defaults are measured already).
+            std::vector<std::size_t> order(st.search.evaluations.size());
+            for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+            std::sort(order.begin(), order.end(),
+                      [&](std::size_t a, std::size_t b) { return st.search.evaluations[a].cost < st.search.evaluations[b].cost; });
+            const std::size_t verify = spec.mode == "predicted" ? 1 : spec.verify_top;
+            for (std::size_t i = 0; i < std::min(verify, order.size()); ++i) {
+                const Evaluation& e = st.search.evaluations[order[i]];
+                measure_candidate(e.params, false).predicted_ms = e.cost;
+            }
+            // The defaults' prediction, for the report.
+            for (Candidate& c : st.candidates)
+                if (c.is_default && !c.predicted_ms) c.predicted_ms = predict(defaults_searched);
+        }
+        st.best_candidate = std::size_t(std::min_element(st.candidates.begin(), st.candidates.end(), [](const Candidate& a, const Candidate& b) {
+                                            return a.measured->ms < b.measured->ms;
+                                        }) - st.candidates.begin());
+        st.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+        out.structures.push_back(std::move(st));
+    }
+
+    // Fastest measured overall, then the simplest within 3% of it.
+    std::vector<const Candidate*> all;
+    for (const StructureTuning& st : out.structures)
+        for (const Candidate& c : st.candidates) all.push_back(&c);
+    const Candidate* fastest = *std::min_element(all.begin(), all.end(), [](const Candidate* a, const Candidate* b) {
+        return a->measured->ms < b->measured->ms;
+    });
+    const Candidate* chosen = all[simplest_within(all, 0.03)];
+    out.fastest = *fastest;
+    out.chosen = *chosen;
+    if (chosen != fastest)
+        out.rule_note = "the simplicity rule chose " + out.chosen.structure + " " + out.chosen.params.dump() + " (" +
+                        std::to_string(out.chosen.measured->ms) + " ms) over the fastest, " + fastest->structure + " " +
+                        fastest->params.dump() + " (" + std::to_string(fastest->measured->ms) + " ms): within 3% and simpler";
+    return out;
+}
+
+}  // namespace rcb

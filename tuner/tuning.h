@@ -1,0 +1,107 @@
+#pragma once
+/// Tuning structures' parameters per scene category (the thesis' future work, §7.2): minimise the
+/// per-frame cost C_frame = C_update + N·C (eq. 5.5) over the parameters the registry marks
+/// tunable. Tuning files are documented in experiments/README.md ("Tuning files").
+///
+/// Modes:
+///   measured                 every evaluation runs the simulator (median over frames × repetitions)
+///   predicted                every evaluation is a cheap counting replay (no timed rays, no
+///                            verification); C = C_RB·N_RB + C_T·N_T + C_PREP with coefficients
+///                            fitted to a few measured calibration points of the same structure
+///                            and category; the update is the replay's own (timed) update
+///   predicted-then-verified  search on the prediction, then measure the best few candidates and
+///                            the defaults, and decide on the measurements (the default)
+///
+/// Among the measured candidates the simplest within 3% of the best is chosen: UG before HG before
+/// other structures, then less memory (fewer cells). The report says when that rule decided.
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "runner/experiment.h"
+#include "tuner/search.h"
+
+namespace rcb {
+
+struct TuneCategory {
+    std::string name;
+    std::vector<SceneSpec> scenes;
+};
+
+struct TuneSpec {
+    std::string name, description, content;
+    std::string mode = "predicted-then-verified";
+    std::vector<std::string> structures;  ///< default: every structure with a tunable parameter
+    std::map<std::string, std::vector<SearchDimension>> space;  ///< per structure
+    std::size_t budget = 30;        ///< distinct evaluations per search
+    std::size_t calibration = 6;    ///< measured points that calibrate the prediction
+    std::size_t verify_top = 3;     ///< candidates measured after a predicted search
+    std::uint64_t seed = 1;
+    std::uint32_t warmup_frames = 1;
+    std::uint32_t repetitions = 2;
+    std::vector<TuneCategory> categories;
+};
+
+/// Reads and validates (errors name the file and JSON path).
+TuneSpec load_tune_spec(const std::string& path);
+TuneSpec parse_tune_spec(const std::string& text, const std::string& name, const std::string& base_dir);
+
+/// The default search space of a structure: its tunable parameters' levels (integers: every value
+/// when there are at most 12, else powers of two; reals: ×2 steps on log-scaled parameters, 8
+/// linear steps otherwise; booleans and choices: every value).
+std::vector<SearchDimension> default_space(const std::string& structure);
+
+/// A cost with its spread over frames and repetitions (ms per frame).
+struct MeasuredCost {
+    double ms = 0, mad = 0;
+    double update_ms = 0, raycast_ms = 0;
+    double memory_bytes = 0;
+};
+
+struct Candidate {
+    std::string structure;
+    nlohmann::json params;  ///< complete
+    std::optional<double> predicted_ms;
+    std::optional<MeasuredCost> measured;
+    bool is_default = false;
+};
+
+struct StructureTuning {
+    std::string structure;
+    std::string mode;
+    SearchResult search;
+    std::vector<Candidate> candidates;   ///< measured ones (defaults included)
+    std::size_t best_candidate = 0;      ///< lowest measured cost
+    std::string prediction_model;        ///< the calibration's chosen model, for predicted modes
+    double seconds = 0;
+    std::size_t measurements = 0;        ///< simulator runs of the measured kind
+};
+
+struct CategoryTuning {
+    std::string category;
+    std::vector<StructureTuning> structures;
+    Candidate chosen;                 ///< after the simplicity rule
+    Candidate fastest;                ///< lowest measured cost over every structure
+    std::string rule_note;            ///< empty, or why the simplicity rule chose another
+};
+
+/// Measures one configuration on a category (median over scenes of the per-frame totals).
+MeasuredCost measure(const TuneCategory& category, const std::string& structure, const nlohmann::json& params,
+                     std::uint32_t warmup_frames, std::uint32_t repetitions);
+
+/// Tunes every structure of the spec on one category.
+CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category);
+
+/// Rank for the simplicity rule: lower is simpler.
+int structure_simplicity(const std::string& structure);
+
+/// The simplicity rule: among measured candidates within `tolerance` (0.03: 3%) of the fastest,
+/// the simplest (UG, then HG, then others; then less memory). Returns its index.
+std::size_t simplest_within(const std::vector<const Candidate*>& candidates, double tolerance);
+
+}  // namespace rcb
