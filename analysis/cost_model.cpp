@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/simulator.h"
+#include "runner/store.h"
 
 namespace rcb {
 namespace {
@@ -29,14 +30,6 @@ std::string scene_category(const std::string& spec_text) {
 
 namespace {
 
-std::string now_utc() {
-    const auto t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-    std::tm tm{};
-    gmtime_r(&t, &tm);
-    char buf[32];
-    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-    return buf;
-}
 
 /// A term: its name and how to read it from a frame.
 struct Term {
@@ -223,7 +216,7 @@ void store_fits(Database& db, std::int64_t run, const std::vector<StructureModel
                 db.prepare(
                       "INSERT INTO fit(run_id, created_at, structure, target, model, terms, observations, configurations, r2, "
                       "rmse_relative, heldout_error, condition_number, status, chosen) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
-                    .bind_all(run, now_utc(), s.structure, m.target, m.name, nlohmann::json(m.problem.terms).dump(),
+                    .bind_all(run, utc_now(), s.structure, m.target, m.name, nlohmann::json(m.problem.terms).dump(),
                               std::int64_t(m.fit.observations), std::int64_t(m.fit.groups), m.fit.r2, m.fit.rmse_relative,
                               std::isfinite(m.heldout_error) ? m.heldout_error : -1.0,
                               std::isfinite(m.fit.condition_number) ? m.fit.condition_number : 1e300, m.fit.status(),

@@ -194,7 +194,9 @@ void refuse_newer(int version, const std::string& path) {
                          "); use a newer rcbench");
 }
 
-std::string now_utc() {
+}  // namespace
+
+std::string utc_now() {
     const auto t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
     std::tm tm{};
     gmtime_r(&t, &tm);
@@ -202,6 +204,8 @@ std::string now_utc() {
     std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
     return buf;
 }
+
+namespace {
 
 std::string first_line_of(const std::string& path) {
     std::ifstream in(path);
@@ -244,7 +248,7 @@ int latest_schema_version() { return int(migrations().size()); }
 RunInfo RunInfo::current(std::uint32_t threads, const std::string& shard, const Experiment& e) {
     RunInfo r;
     r.uuid = random_uuid();
-    r.started_at = now_utc();
+    r.started_at = utc_now();
     r.git_commit = kGitCommit;
     r.compiler = kCompiler;
     r.flags = kCompileFlags;
@@ -394,7 +398,7 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
            "INSERT INTO cell(run_id, cell_key, scene_id, config_id, repetition, finished_at, objects, build_ns, memory_bytes, "
            "verified, mismatches, frames, update_ns_median, update_ns_mad, raycast_ns_median, raycast_ns_mad) "
            "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
-        .bind_all(run_id, cell.key, scene, config, std::int64_t(cell.repetition), now_utc(), std::int64_t(res.objects),
+        .bind_all(run_id, cell.key, scene, config, std::int64_t(cell.repetition), utc_now(), std::int64_t(res.objects),
                   std::int64_t(res.build_ns), std::int64_t(res.memory_bytes), std::int64_t(res.verified),
                   std::int64_t(res.mismatches()), std::int64_t(res.frames.size()), u.median, u.mad, c.median, c.mad)
         .run();
@@ -417,7 +421,7 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
 }
 
 void ResultStore::finish_run(std::int64_t run_id) {
-    db_.prepare("UPDATE run SET finished_at = ? WHERE id = ?").bind_all(now_utc(), run_id).run();
+    db_.prepare("UPDATE run SET finished_at = ? WHERE id = ?").bind_all(utc_now(), run_id).run();
 }
 
 }  // namespace rcb

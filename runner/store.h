@@ -70,6 +70,9 @@ private:
 /// Opens an existing database read-only; refuses a newer schema; InputError if it does not exist.
 std::unique_ptr<Database> open_read_only(const std::string& path);
 
+/// Now, as ISO 8601 UTC ("2026-11-22T03:25:57Z"): the timestamps every table stores.
+std::string utc_now();
+
 /// Content hash of a recording (of its encoded bytes).
 std::string recording_hash(const Recording& r);
 

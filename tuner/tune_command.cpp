@@ -63,11 +63,6 @@ std::string convergence_chart(const CategoryTuning& ct, const TuneSpec& spec) {
 void store_tuning(ResultStore& store, const TuneSpec& spec, const CategoryTuning& ct) {
     Database& db = store.db();
     Transaction t(db);
-    const auto now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-    char when[32];
-    std::tm tm{};
-    gmtime_r(&now, &tm);
-    std::strftime(when, sizeof when, "%Y-%m-%dT%H:%M:%SZ", &tm);
     db.prepare("DELETE FROM tuning WHERE name = ? AND category = ?").bind_all(spec.name, ct.category).run();
     for (const StructureTuning& st : ct.structures) {
         const Candidate& best = st.candidates[st.best_candidate];
@@ -79,7 +74,7 @@ void store_tuning(ResultStore& store, const TuneSpec& spec, const CategoryTuning
             "INSERT INTO tuning(name, category, structure, mode, algorithm, created_at, git_commit, spec, evaluations, measurements, "
             "seconds, stop_reason, on_bound, best_params, best_measured_ms, best_measured_mad, best_predicted_ms, default_params, "
             "default_measured_ms, chosen) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
-        ins.bind_all(spec.name, ct.category, st.structure, st.mode, st.search.algorithm, std::string(when), std::string(kGitCommit),
+        ins.bind_all(spec.name, ct.category, st.structure, st.mode, st.search.algorithm, utc_now(), std::string(kGitCommit),
                      spec.content, std::int64_t(st.search.evaluations.size()), std::int64_t(st.measurements), st.seconds,
                      st.search.stop_reason, bound.dump(), best.params.dump(), best.measured->ms, best.measured->mad);
         ins.bind(17, best.predicted_ms);

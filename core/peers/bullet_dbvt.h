@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "core/params.h"
+#include "core/box_scan.h"
 #include "core/structure.h"
 
 class btDbvt;
@@ -104,14 +105,7 @@ void BulletDbvt::traverse(const Segment& s, Count& count, Visit&& visit) {
     const SegmentSlabs slabs(s);
     Query q{&slabs, this, &visit, [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); }};
     if (!dbvt_query(s, q)) {
-        const std::size_t n = uids_.size();
-        count.box_tests(n);
-        for (std::size_t i = 0; i < n; ++i) {
-            float tn, tf;
-            if (!slabs.clip(boxes_[i], tn, tf)) continue;
-            count.hits();
-            if (!visit(uids_[i], tn)) return;
-        }
+        scan_boxes(slabs, std::span<const Aabb>(boxes_), std::span<const Uid>(uids_), count, visit);  // the exact fallback
         return;
     }
     count.box_tests(q.tests);
