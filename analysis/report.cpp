@@ -13,6 +13,7 @@
 #include "analysis/charts.h"
 #include "analysis/cost_model.h"
 #include "core/error.h"
+#include "core/generators.h"
 #include "core/registry.h"
 #include "core/simulator.h"
 #include "runner/table.h"
@@ -458,6 +459,72 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
         b.reading = slopes.empty() ? "Too few object counts to fit slopes."
                                    : "Slopes of log build time against log object count (1 = linear): " + slopes + ".";
         h.chart(b);
+    }
+
+    // Issue #9: failure-mode scenes (by their generator kind) against brute force and against a
+    // benign scene of the same size, for every configuration.
+    {
+        const std::vector<std::string> failure_kinds = failure_mode_kinds();
+        auto is_failure = [&](const Entry& e) {
+            return std::find(failure_kinds.begin(), failure_kinds.end(), e.category) != failure_kinds.end();
+        };
+        std::vector<std::string> failure_scenes;
+        for (const std::string& sc : scenes)
+            for (const Entry& e : entries)
+                if (e.scene == sc && is_failure(e)) {
+                    failure_scenes.push_back(sc);
+                    break;
+                }
+        if (!failure_scenes.empty()) {
+            h.heading("Where methods fail");
+            // The benign scene of a failure scene: generated irregular (else uniform) with as many objects.
+            auto benign_of = [&](const Entry& f, const std::string& label) -> const Entry* {
+                for (const char* kind : {"irregular", "uniform"})
+                    for (const Entry& e : entries)
+                        if (e.category == kind && e.label == label && e.objects == f.objects) return &e;
+                return nullptr;
+            };
+            auto bf_of = [&](const std::string& scene) -> const Entry* {
+                for (const Entry& e : entries)
+                    if (e.scene == scene && e.structure == "bf") return &e;
+                return nullptr;
+            };
+            auto ratio = [](double a, double b) { return b > 0 ? fixed(a / b, a / b < 10 ? 2 : 1) : std::string("-"); };
+            std::vector<std::string> header{"configuration"};
+            header.insert(header.end(), failure_scenes.begin(), failure_scenes.end());
+            std::vector<std::vector<std::string>> rows;
+            std::size_t wrong = 0;
+            for (const std::string& l : labels) {
+                std::vector<std::string> row{l};
+                bool any = false;
+                for (const std::string& sc : failure_scenes) {
+                    const Entry* e = find(sc, l);
+                    if (!e) {
+                        row.push_back("-");
+                        continue;
+                    }
+                    any = true;
+                    const double mismatches = e->missed + e->extra + e->duplicate;
+                    if (mismatches > 0) ++wrong;
+                    const Entry* bf = bf_of(sc);
+                    const Entry* benign = benign_of(*e, l);
+                    row.push_back((mismatches > 0 ? "WRONG (" + fixed(mismatches, 0) + ")" : std::string("ok")) + "; " +
+                                  (bf ? ratio(e->total_ms(), bf->total_ms()) : "-") + " bf; " +
+                                  (benign ? ratio(e->total_ms(), benign->total_ms()) : "-") + " benign");
+                }
+                if (any) rows.push_back(row);
+            }
+            h.paragraph("Scenes built to break an assumption (issue #9): stadium (one huge box around a tiny dense "
+                        "cluster), identical (stacks of equal boxes), same-centroid (stacks with one centroid), flat "
+                        "(zero-thickness boxes in one plane), slivers (long thin and zero-volume boxes), outlier (one "
+                        "box 10^6 scene sizes away). Each cell: ok or WRONG (mismatches against the ground truth); "
+                        "cost (update + ray cast per frame, medians) divided by brute force's on the same scene; and "
+                        "divided by the same configuration's cost on the benign scene of the same size (generated "
+                        "irregular, else uniform, with as many objects; '-' when the run has none). " +
+                        std::string(wrong == 0 ? "Every configuration was exact on every failure scene."
+                                               : std::to_string(wrong) + " configuration-scene pairs were not exact."));
+            h.table(header, rows, "Where methods fail: correctness, cost / brute force, cost / benign scene of the same size");
+        }
     }
 
     std::ostringstream page;

@@ -133,6 +133,83 @@ std::vector<Object> irregular_objects(const SceneSettings& s, Random& rng) {
     return objects;
 }
 
+// Failure-mode scenes (issue #9): each one breaks an assumption some structure makes. Sizes are in
+// the same units as "irregular" so that rays and dynamics behave alike.
+
+/// "stadium" (the "teapot in a stadium", Haines 1988): one huge box around a tiny dense cluster of
+/// n − 1 small boxes. A grid sized by the bounds puts the whole cluster in one cell.
+std::vector<Object> stadium_objects(const SceneSettings& s, Random& rng) {
+    std::vector<Object> objects;
+    objects.reserve(s.objects);
+    if (s.objects == 0) return objects;
+    objects.push_back({1, box_around({0, 0, 0}, {2000, 2000, 2000})});
+    for (Uid i = 2; i <= s.objects; ++i) {
+        const Vec3d c{rng.normal() * 0.5, rng.normal() * 0.5, rng.normal() * 0.5};
+        const double size = rng.log_uniform(0.005, 0.05);
+        objects.push_back({i, box_around(c, {size, size, size})});
+    }
+    return objects;
+}
+
+/// Stacks of up to 1000 objects at random places of a world that grows with n: every object of a
+/// stack is the same box ("identical") or has the same centroid with half-sizes from 0.005 to 50
+/// ("same-centroid": equal Morton codes, grid cells that no split can relieve).
+std::vector<Object> stacked_objects(const SceneSettings& s, Random& rng, bool same_size) {
+    const std::uint32_t n = s.objects;
+    const std::uint32_t stacks = std::max<std::uint32_t>(1, (n + 999) / 1000);
+    const double world = 100.0 * std::cbrt(double(stacks));
+    std::vector<Vec3d> centers(stacks);
+    // Integer centres and half-sizes in steps of 2^-10: c ± h is exact in float (at most 23
+    // significant bits below 2^13), so the centroids are identical in float too, not only in double.
+    for (Vec3d& c : centers) c = {std::round(rng.uniform(0, world)), std::round(rng.uniform(0, world)), std::round(rng.uniform(0, world))};
+    std::vector<Object> objects;
+    objects.reserve(n);
+    for (std::uint32_t i = 0; i < n; ++i) {
+        const Vec3d& c = centers[i % stacks];
+        const double h = same_size ? 0.5 : std::round(rng.log_uniform(0.005, 50.0) * 1024.0) / 1024.0;
+        objects.push_back({i + 1, box_around(c, {2 * h, 2 * h, 2 * h})});
+    }
+    return objects;
+}
+
+/// "flat": every box in the plane y = 0 with zero thickness (a floor of decals).
+std::vector<Object> flat_objects(const SceneSettings& s, Random& rng) {
+    const double world = 10.0 * std::sqrt(double(std::max<std::uint32_t>(s.objects, 1)));
+    std::vector<Object> objects;
+    objects.reserve(s.objects);
+    for (std::uint32_t i = 0; i < s.objects; ++i) {
+        const double x = rng.uniform(0, world), z = rng.uniform(0, world);
+        objects.push_back({i + 1, box_from({x, 0, z}, {x + rng.uniform(0.1, 3), 0, z + rng.uniform(0.1, 3)})});
+    }
+    return objects;
+}
+
+/// "slivers": long thin axis-aligned boxes (a tenth to half the world long, 10^-3 thick) and, for
+/// every fourth object, a zero-volume box (a point, a line or a plane patch).
+std::vector<Object> sliver_objects(const SceneSettings& s, Random& rng) {
+    const double world = 10.0 * std::cbrt(double(std::max<std::uint32_t>(s.objects, 1)));
+    std::vector<Object> objects;
+    objects.reserve(s.objects);
+    for (std::uint32_t i = 0; i < s.objects; ++i) {
+        const Vec3d p{rng.uniform(0, world), rng.uniform(0, world), rng.uniform(0, world)};
+        Vec3d extent{1e-3, 1e-3, 1e-3};
+        const int axis = int(rng.below(3));
+        if (i % 4 == 3) {
+            const int flat_axes = int(rng.below(4));  // 0: a point … 3: a plane patch
+            extent = {0, 0, 0};
+            for (int k = 1; k < flat_axes; ++k) extent[(axis + k) % 3] = rng.uniform(0.1, 2);
+        } else {
+            extent[axis] = world * rng.uniform(0.1, 0.5);
+        }
+        objects.push_back({i + 1, box_from(p, p + extent)});
+    }
+    return objects;
+}
+
+/// "outlier": an irregular scene of n − 1 objects and one unit box 10^6 world sizes away, so the
+/// bounds are stretched by 10^6 while the scene itself is unchanged.
+std::vector<Object> outlier_objects(const SceneSettings& s, Random& rng);
+
 /// Picks `k` distinct indices below `n` (k much smaller than n: rejection is cheap).
 std::vector<std::size_t> distinct_indices(std::size_t k, std::size_t n, Random& rng) {
     std::vector<std::size_t> out;
@@ -203,16 +280,36 @@ Segment segment_from(const Vec3d& p0, const Vec3d& p1) { return {p0.as<float>(),
 
 }  // namespace
 
-std::vector<std::string> ray_mode_names() { return {"center", "dense", "los", "ground", "shots"}; }
+std::vector<std::string> ray_mode_names() { return {"center", "dense", "los", "ground", "shots", "faces"}; }
+
+std::vector<std::string> scene_kinds() {
+    return {"uniform", "irregular", "stadium", "identical", "same-centroid", "flat", "slivers", "outlier"};
+}
+
+std::vector<std::string> failure_mode_kinds() {
+    return {"stadium", "identical", "same-centroid", "flat", "slivers", "outlier"};
+}
 
 std::vector<std::string> preset_names() {
-    return {"uni-s", "uni-m", "uni-l", "irreg-s", "irreg-m", "irreg-l", "irreg-xl"};
+    std::vector<std::string> names{"uni-s", "uni-m", "uni-l", "irreg-s", "irreg-m", "irreg-l", "irreg-xl"};
+    for (const std::string& k : failure_mode_kinds())
+        for (const char* size : {"-s", "-m"}) names.push_back(k + size);
+    return names;
 }
 
 SceneSettings preset_settings(std::string_view name) {
     SceneSettings s;
     s.preset = std::string(name);
     const std::string n(name);
+    // Failure-mode presets (issue #9): "<kind>-s" has 1 000 objects, "<kind>-m" 10 000.
+    for (const std::string& k : failure_mode_kinds()) {
+        if (n == k + "-s" || n == k + "-m") {
+            s.kind = k;
+            s.objects = n.back() == 's' ? 1000 : 10000;
+            return s;
+        }
+    }
+    s.kind.clear();  // "x-l" is not a preset (SceneSettings' default kind must not make it one)
     if (n.rfind("uni-", 0) == 0) s.kind = "uniform";
     else if (n.rfind("irreg-", 0) == 0) s.kind = "irregular";
     const std::string size = n.substr(n.find('-') + 1);
@@ -246,8 +343,11 @@ std::vector<RayMode> parse_ray_mix(const std::string& text) {
             if (w.empty() || *end != '\0' || !std::isfinite(m.weight) || m.weight < 0)
                 throw InputError("ray mix '" + text + "': weight '" + w + "' of " + m.mode + " is not a non-negative number");
         }
-        if (std::find(modes.begin(), modes.end(), m.mode) == modes.end())
-            throw InputError("ray mix '" + text + "': unknown mode '" + m.mode + "' (known: center, dense, los, ground, shots)");
+        if (std::find(modes.begin(), modes.end(), m.mode) == modes.end()) {
+            std::string known;
+            for (const std::string& k : modes) known += (known.empty() ? "" : ", ") + k;
+            throw InputError("ray mix '" + text + "': unknown mode '" + m.mode + "' (known: " + known + ")");
+        }
         mix.push_back(m);
         if (comma == std::string::npos) break;
         start = comma + 1;
@@ -262,8 +362,32 @@ std::vector<Object> generate_objects(const SceneSettings& s) {
     Random rng(mix_seed(s.seed, kObjectStream));
     if (s.kind == "uniform") return uniform_objects(s, rng);
     if (s.kind == "irregular") return irregular_objects(s, rng);
-    throw InputError("unknown scene kind '" + s.kind + "' (known: uniform, irregular)");
+    if (s.kind == "stadium") return stadium_objects(s, rng);
+    if (s.kind == "identical") return stacked_objects(s, rng, true);
+    if (s.kind == "same-centroid") return stacked_objects(s, rng, false);
+    if (s.kind == "flat") return flat_objects(s, rng);
+    if (s.kind == "slivers") return sliver_objects(s, rng);
+    if (s.kind == "outlier") return outlier_objects(s, rng);
+    std::string known;
+    for (const std::string& k : scene_kinds()) known += (known.empty() ? "" : ", ") + k;
+    throw InputError("unknown scene kind '" + s.kind + "' (known: " + known + ")");
 }
+
+namespace {
+
+std::vector<Object> outlier_objects(const SceneSettings& s, Random& rng) {
+    if (s.objects == 0) return {};
+    SceneSettings rest = s;
+    rest.objects = s.objects - 1;
+    std::vector<Object> objects = irregular_objects(rest, rng);
+    const Aabb b = objects.empty() ? Aabb{{0, 0, 0}, {1, 1, 1}} : bounds_of(objects);
+    const double far = 1e6 * std::max(1.0, double(b.longest_edge()));
+    const Vec3d at{double(b.max.x) + far, double(b.max.y), double(b.max.z) + far};
+    objects.push_back({s.objects, box_from(at, at + Vec3d{1, 1, 1})});
+    return objects;
+}
+
+}  // namespace
 
 std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySettings& settings, std::uint64_t seed,
                                    std::uint32_t frame) {
@@ -308,6 +432,26 @@ std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySet
                 const Vec3d top{0.5 * (o.min.x + o.max.x), o.max.y, 0.5 * (o.min.z + o.max.z)};
                 const double depth = o.extent().y + 0.02 * ext.y;
                 rays.push_back(segment_from(top, top - Vec3d{0, depth, 0}));
+            } else if (mode == "faces") {
+                // Axis-parallel through the whole bounds, lying in a box's face plane (half of them
+                // along an edge line too), or in a plane of a dyadic lattice over the bounds (the
+                // planes where grid and Morton cells meet when the lattice starts at the bounds).
+                const int axis = int(rng.below(3)), u = (axis + 1) % 3, w = (axis + 2) % 3;
+                Vec3d p;
+                if (rng.below(2) == 0) {
+                    const Aabbd o = random_object();
+                    p = o.center();
+                    p[u] = rng.below(2) ? o.min[u] : o.max[u];
+                    p[w] = rng.below(2) ? rng.uniform(o.min[w], o.max[w]) : (rng.below(2) ? o.min[w] : o.max[w]);
+                } else {
+                    const double cells = double(std::uint64_t(1) << (1 + rng.below(10)));
+                    for (int a : {u, w}) p[a] = bounds.min[a] + ext[a] * double(rng.below(std::uint64_t(cells) + 1)) / cells;
+                }
+                Vec3d q = p;
+                p[axis] = bounds.min[axis] - 0.01 * ext[axis];
+                q[axis] = bounds.max[axis] + 0.01 * ext[axis];
+                if (rng.below(2)) std::swap(p, q);
+                rays.push_back(segment_from(p, q));
             } else if (mode == "shots") {
                 const Aabbd o = random_object();
                 const double len = std::clamp(20.0 * std::max({o.extent().x, o.extent().y, o.extent().z}), 0.01 * diagonal,

@@ -76,7 +76,7 @@ void check_params(const std::vector<ParamSpec>& specs, const nlohmann::json& par
         throw InputError((path.empty() ? std::string("params") : path) + ": expected an object of parameters, got " +
                          params.dump());
     for (const auto& [key, value] : params.items()) {
-        auto spec = std::find_if(specs.begin(), specs.end(), [&](const ParamSpec& s) { return s.name == key; });
+        auto spec = std::find_if(specs.begin(), specs.end(), [&, &key = key](const ParamSpec& s) { return s.name == key; });
         if (spec == specs.end()) {
             std::string known;
             for (const ParamSpec& s : specs) known += (known.empty() ? "" : ", ") + s.name;

@@ -59,6 +59,10 @@ struct Field {
     const char* choices = "";
 };
 
+/// The same deduction spelled out: clang 14 (the fuzzing build) has no aggregate CTAD.
+template <class P, class T, class... Rest>
+Field(const char*, T P::*, Rest...) -> Field<P, T>;
+
 /// Joins a JSON path and a key for messages: ("structures[2].params", "max_depth").
 std::string join_path(std::string_view path, std::string_view key);
 

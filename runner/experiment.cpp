@@ -143,7 +143,7 @@ std::vector<json> expand_grid(const StructureInfo& info, const json& grid, const
     expect_object(grid, path);
     std::vector<json> combos{json::object()};
     for (const auto& [key, value] : grid.items()) {
-        auto spec = std::find_if(info.params.begin(), info.params.end(), [&](const ParamSpec& s) { return s.name == key; });
+        auto spec = std::find_if(info.params.begin(), info.params.end(), [&, &key = key](const ParamSpec& s) { return s.name == key; });
         if (spec == info.params.end()) check_params(info.params, json{{key, value}}, path, info.name);  // throws: unknown
         const std::vector<json> values = expand_values(*spec, value, at(path, key));
         std::vector<json> next;
@@ -299,7 +299,7 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
     json j;
     try {
         j = json::parse(text);
-    } catch (const json::parse_error& e) {
+    } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e999 (found by fuzzing)
         throw InputError(name + ": not valid JSON (" + std::string(e.what()) + ")");
     }
     try {

@@ -67,6 +67,9 @@ void DynamicBvh::build(std::span<const Object> objects) {
         // Incremental construction (thesis §4.4): the objects are inserted one by one.
         for (const Object& o : objects) insert_leaf(make_leaf(o));
     }
+    changes_since_check_ = 0;
+    guard_rebuilds_ = 0;
+    guard_baseline_ = !rebuild_mode_ && params_.sah_guard > 0 && root_ != kNullNode ? sah_cost() : 0.0;
 }
 
 void DynamicBvh::insert(const Object& o) {
@@ -75,6 +78,7 @@ void DynamicBvh::insert(const Object& o) {
         dirty_ = true;  // this frame ends in a rebuild: only the leaves change until commit
     const std::uint32_t leaf = make_leaf(o);
     if (!dirty_) insert_leaf(leaf);
+    ++changes_since_check_;
 }
 
 void DynamicBvh::remove(Uid uid) {
@@ -86,6 +90,7 @@ void DynamicBvh::remove(Uid uid) {
     leaf_of_.erase(it);
     if (!dirty_) remove_leaf(leaf);
     release(leaf);
+    ++changes_since_check_;
 }
 
 void DynamicBvh::move(const Object& o) {
@@ -100,10 +105,28 @@ void DynamicBvh::move(const Object& o) {
     if (!dirty_) remove_leaf(leaf);
     nodes_[leaf].box = fat_box(o.box);
     if (!dirty_) insert_leaf(leaf);
+    ++changes_since_check_;
+}
+
+void DynamicBvh::check_sah_guard() {
+    if (params_.sah_guard <= 0 || root_ == kNullNode) return;
+    if (changes_since_check_ < std::max<std::size_t>(64, leaf_of_.size() / 8)) return;
+    changes_since_check_ = 0;
+    const double cost = sah_cost();
+    if (guard_baseline_ <= 0) {  // built empty: the first tree with objects sets the baseline
+        guard_baseline_ = cost;
+    } else if (cost > params_.sah_guard * guard_baseline_) {
+        rebuild();
+        guard_baseline_ = sah_cost();
+        ++guard_rebuilds_;
+    }
 }
 
 void DynamicBvh::commit() {
-    if (!rebuild_mode_) return;
+    if (!rebuild_mode_) {
+        check_sah_guard();
+        return;
+    }
     ++frames_since_build_;
     if (dirty_) {
         rebuild();
@@ -418,7 +441,10 @@ std::size_t DynamicBvh::memory_bytes() const {
 }
 
 nlohmann::json DynamicBvh::stats() const {
-    return {{"sah_cost", sah_cost()}, {"depth", height()}, {"nodes", nodes_.size() - free_count_}};
+    return {{"sah_cost", sah_cost()},
+            {"depth", height()},
+            {"nodes", nodes_.size() - free_count_},
+            {"guard_rebuilds", guard_rebuilds_}};
 }
 
 void DynamicBvh::validate() const {

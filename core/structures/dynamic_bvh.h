@@ -15,6 +15,14 @@
 /// Between rebuilds, changes are applied incrementally; in a frame that ends in a rebuild they only
 /// update the leaves and the tree is rebuilt once at commit.
 ///
+/// SAH guard (issue #9, `sah_guard`, incremental mode): incremental insertion and removal never
+/// restructure the tree globally, so under churn its SAH cost can keep growing (objects that
+/// wander leave inner boxes that span the scene). At commit, once at least max(64, size / 8)
+/// changes have accumulated since the last check (O(1) amortised per change), the SAH cost is
+/// evaluated; above `sah_guard` × the cost right after the last (re)build, the tree is rebuilt
+/// with the binned-SAH builder and that cost becomes the new baseline. `sah_guard = 0` turns the
+/// guard off; stats report "guard_rebuilds".
+///
 /// Nodes live in one flat array addressed by index, with a free list; no per-node allocation.
 
 #include <cstdint>
@@ -44,6 +52,8 @@ public:
         double rebuild_growth = 0.0;
         /// rebuild mode: SAH bins per axis of the top-down build.
         int bins = 16;
+        /// incremental mode: rebuild when the SAH cost grew by this factor (0: off; see above).
+        double sah_guard = 2.0;
 
         static constexpr auto fields() {
             return std::tuple{
@@ -55,7 +65,11 @@ public:
                       "rebuild mode: full rebuild every k frames (0: never by count)", true, true},
                 Field{"rebuild_growth", &Params::rebuild_growth, 0.0, 100.0,
                       "rebuild mode: full rebuild when the SAH cost grew by this factor (0: never)"},
-                Field{"bins", &Params::bins, 2, 256, "rebuild mode: SAH bins per axis", true, true}};
+                Field{"bins", &Params::bins, 2, 256, "rebuild mode: SAH bins per axis", true, true},
+                Field{"sah_guard", &Params::sah_guard, 0.0, 100.0,
+                      "incremental mode: binned-SAH rebuild when the SAH cost grew by this factor since the last "
+                      "build, checked every max(64, size/8) changes (0: off)",
+                      false}};
         }
     };
 
@@ -139,6 +153,11 @@ private:
         std::uint32_t n;
     };
     std::vector<Bin> bins_;
+    // SAH guard (incremental mode).
+    std::size_t changes_since_check_ = 0;
+    double guard_baseline_ = 0.0;
+    std::uint32_t guard_rebuilds_ = 0;
+    void check_sah_guard();
 };
 
 }  // namespace rcb

@@ -116,9 +116,7 @@ grid::CellRange HashGrid::child_range(const grid::CellRange& fine, int depth, co
 }
 
 void HashGrid::build(std::span<const Object> objects) {
-    Aabb world = Aabb::empty();
-    for (const Object& o : objects) world = merge(world, o.box);
-    if (world.is_empty()) world = {{-1, -1, -1}, {1, 1, 1}};
+    const Aabb world = grid::lattice_bounds(objects, params_.outlier_guard, &trimmed_);
     const int f = params_.subdivision, depth = params_.max_depth;
     pow_.assign(depth + 1, 1);
     for (int k = 1; k <= depth; ++k) pow_[k] = pow_[k - 1] * f;
@@ -199,6 +197,19 @@ void HashGrid::insert_into(int depth, const Index& i, std::uint32_t slot, const 
             return;
         }
         const grid::CellRange r = child_range(fine, depth, i);
+        // The memory guard on the way down too: the splits were made for earlier objects, and an
+        // object arriving later (inserted or moved, or at build after the first splits) would
+        // otherwise be copied into every child it overlaps however crowded the cell is (identical
+        // boxes: every insert lands in the same subdivided cells). Over the budget, the cell
+        // collapses into a leaf holding each of its objects once, and the object joins it.
+        const std::size_t child_entries =
+            std::size_t(r.hi[0] - r.lo[0] + 1) * (r.hi[1] - r.lo[1] + 1) * (r.hi[2] - r.lo[2] + 1);
+        if (params_.entries_guard && entries_total_ + child_entries > entry_budget()) {
+            collapse(id, depth, i);
+            cells_[id].own.push_back(slot);
+            ++entries_total_;
+            return;
+        }
         Index j;
         for (j[2] = r.lo[2]; j[2] <= r.hi[2]; ++j[2])
             for (j[1] = r.lo[1]; j[1] <= r.hi[1]; ++j[1])
@@ -223,9 +234,7 @@ void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
         const grid::CellRange r = child_range(lat_[params_.max_depth].range_of(entries_[slot].box), depth, i);
         child_entries += std::size_t(r.hi[0] - r.lo[0] + 1) * (r.hi[1] - r.lo[1] + 1) * (r.hi[2] - r.lo[2] + 1);
     }
-    const std::size_t budget = std::size_t(params_.max_entries_per_object) *
-                               std::max({slot_.size(), build_objects_, std::size_t(64)});
-    if (moving.empty() || entries_total_ - moving.size() + child_entries > budget) {
+    if (moving.empty() || (params_.entries_guard && entries_total_ - moving.size() + child_entries > entry_budget())) {
         cells_[id].own = std::move(objects);
         return;
     }
@@ -402,7 +411,8 @@ nlohmann::json HashGrid::stats() const {
             {"over_capacity_leaves", over},
             {"top_res", {lat_[0].res[0], lat_[0].res[1], lat_[0].res[2]}},
             {"top_cell_size", lat_[0].size},
-            {"top_res_clamped", clamped_}};
+            {"top_res_clamped", clamped_},
+            {"outlier_trimmed", trimmed_}};
 }
 
 void HashGrid::validate() const {

@@ -24,10 +24,19 @@
 ///   `max_entries_per_object` × max(objects, objects at build, 64). Without it, boxes sharing a face
 ///   (or any surfaces that coincide) make every cell along the face split down to max_depth:
 ///   subdivision^(2·max_depth) cells per top cell. A leaf whose split was refused stays over
-///   capacity (counted in stats as "over_capacity_leaves"); answers stay exact.
+///   capacity (counted in stats as "over_capacity_leaves"); answers stay exact. The guard also
+///   applies on the way down: an object that would push the total over the budget by descending
+///   into a subdivided cell collapses that cell into a leaf instead (issue #9 found identical boxes
+///   inserted after the first splits reaching 14× the budget). `entries_guard`
+///   = false turns it off (to measure the blow-up, issue #9).
+/// - Outlier guard (issue #9, `outlier_guard`, on by default): the top grid covers the central
+///   99% of the objects per axis when the full bounds are more than 8× larger
+///   (grid::lattice_bounds); the rest land in the unbounded border cells. Without it one far
+///   outlier makes the top cells huge and max_depth levels cannot recover the resolution.
 /// - Memory guard: parameter ranges are bounded and the top resolution is clamped so that the
 ///   finest lattice has at most 2^20 cells per axis (the key's width).
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <tuple>
@@ -84,6 +93,8 @@ public:
         int max_capacity = 16;
         int subdivision = 2;
         int max_entries_per_object = 16;
+        bool entries_guard = true;
+        bool outlier_guard = true;
         static constexpr auto fields() {
             return std::tuple{
                 Field{"amp", &Params::amp, 0.01, 16.0, "top-level cells = objects × amp (eq. 4.2)", true, true},
@@ -94,6 +105,13 @@ public:
                 Field{"max_entries_per_object", &Params::max_entries_per_object, 2, 256,
                       "memory guard: a split that would make the cells hold more than this many object entries per "
                       "object (over max(objects, objects at build, 64)) is refused",
+                      false},
+                Field{"entries_guard", &Params::entries_guard, 0.0, 1.0,
+                      "apply the max_entries_per_object memory guard (off: splits are limited by max_depth only)",
+                      false},
+                Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
+                      "top grid over the central 99% of the objects per axis when the full bounds are over 8x larger "
+                      "(exact either way)",
                       false}};
         }
     };
@@ -147,6 +165,10 @@ private:
     void insert_into(int depth, const Index& i, std::uint32_t slot, const grid::CellRange& fine);
     void remove_from(int depth, const Index& i, std::uint32_t slot, const grid::CellRange& fine);
     void split(std::uint32_t cell, int depth, const Index& i);
+    /// The memory guard's limit on entries_total_.
+    std::size_t entry_budget() const {
+        return std::size_t(params_.max_entries_per_object) * std::max({slot_.size(), build_objects_, std::size_t(64)});
+    }
     void collapse(std::uint32_t cell, int depth, const Index& i);
     void gather_and_delete_children(int depth, const Index& i, std::vector<std::uint32_t>& out);
     std::uint32_t next_stamp();
@@ -158,6 +180,7 @@ private:
     std::vector<grid::Lattice> lat_;  // per depth
     std::vector<int> pow_;            // subdivision^k
     bool clamped_ = false;
+    bool trimmed_ = false;  ///< the outlier guard trimmed the top grid
     CellTable table_;
     std::vector<Cell> cells_;
     std::vector<std::uint32_t> free_cells_;

@@ -198,6 +198,7 @@ void LinearBvh::rebuild() {
     });
     Aabb cb = Aabb::empty();
     for (const Aabb& b : part) cb = merge(cb, b);
+    if (params_.outlier_guard) trim_outliers(cb);
     Vec3 scale;
     constexpr float kMax = float((1u << 21) - 1);
     for (int a = 0; a < 3; ++a) {
@@ -312,6 +313,26 @@ void LinearBvh::rebuild() {
         }
     }
     stack_.assign(std::size_t(nodes_[0].height) + 2, 0);
+}
+
+void LinearBvh::trim_outliers(Aabb& cb) const {
+    const std::size_t n = boxes_.size();
+    if (n < 200) return;
+    // A fixed stride over the slots: deterministic, and O(1) work per rebuild beyond the copy.
+    const std::size_t samples = std::min<std::size_t>(n, 4096), stride = n / samples;
+    const std::size_t k = samples / 200;  // 0.5% on each side
+    std::vector<float> v(samples);
+    for (int a = 0; a < 3; ++a) {
+        for (std::size_t i = 0; i < samples; ++i) v[i] = boxes_[i * stride].center()[a];
+        std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
+        const float lo = v[k];
+        std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(samples - 1 - k), v.end());
+        const float hi = std::max(v[samples - 1 - k], lo);
+        if (double(cb.max[a]) - double(cb.min[a]) > kOutlierStretch * (double(hi) - double(lo))) {
+            cb.min[a] = lo;
+            cb.max[a] = hi;
+        }
+    }
 }
 
 double LinearBvh::sah_cost() const {

@@ -13,6 +13,13 @@
 /// `threads` runs steps 1–4 in a tbb::task_arena of that many threads (1: plain loops, the thesis'
 /// single-core setup). Every step is deterministic, so the tree is identical for every thread count.
 ///
+/// Outlier guard (issue #9, `outlier_guard`, on by default): with one object 10^6 scene sizes away,
+/// the Morton grid normalised to all centroids puts the rest of the scene into one code, and the
+/// tree over equal codes splits by index, not by space. When the centroid bounds on an axis are
+/// more than 8× the extent of the central 99% of the centroids (a strided sample of at most 4096),
+/// the codes are normalised to that central part and the outliers clamp to its faces. Node boxes
+/// still come from the objects' boxes, so answers are exact either way.
+///
 /// Node layout (Karras): inner nodes 0 … N−2 (root 0), leaves N−1 … 2N−2 in sorted order; a leaf's
 /// box is the object's own box. There is no free list: the arrays are rebuilt, never patched.
 
@@ -34,8 +41,15 @@ public:
     struct Params {
         /// Threads of the build (1 or 2 on this machine; the tree does not depend on it).
         int threads = 1;
+        /// Morton codes over the central 99% of the centroids when the full centroid bounds are more
+        /// than 8× larger (see "Outlier guard" above).
+        bool outlier_guard = true;
         static constexpr auto fields() {
-            return std::tuple{Field{"threads", &Params::threads, 1, 64, "build threads (TBB task arena)", false}};
+            return std::tuple{Field{"threads", &Params::threads, 1, 64, "build threads (TBB task arena)", false},
+                              Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
+                                    "Morton codes over the central 99% of the centroids when the full centroid bounds "
+                                    "are over 8x larger (exact either way)",
+                                    false}};
         }
     };
 
@@ -87,6 +101,8 @@ private:
     template <class F>
     void parallel(std::size_t n, std::size_t grain, F&& f);
     void radix_sort();
+    void trim_outliers(Aabb& centroid_bounds) const;
+    static constexpr double kOutlierStretch = 8.0;
 
     Params params_;
     struct Arena;

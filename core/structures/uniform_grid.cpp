@@ -18,22 +18,32 @@ std::array<int, 3> resolution(const Aabb& bounds, double size, int max_per_axis)
     return res;
 }
 
-}  // namespace grid
-
-namespace {
-
-/// The world box of the initial objects; a unit box for an empty scene.
-Aabb world_of(std::span<const Object> objects) {
+Aabb lattice_bounds(std::span<const Object> objects, bool outlier_guard, bool* trimmed) {
+    if (trimmed) *trimmed = false;
     Aabb b = Aabb::empty();
     for (const Object& o : objects) b = merge(b, o.box);
-    if (b.is_empty()) b = {{-1, -1, -1}, {1, 1, 1}};
+    if (b.is_empty()) return {{-1, -1, -1}, {1, 1, 1}};
+    const std::size_t n = objects.size(), k = n / 200;  // 0.5% of the objects on each side
+    if (!outlier_guard || k == 0) return b;
+    std::vector<float> lo(n), hi(n);
+    for (int a = 0; a < 3; ++a) {
+        for (std::size_t i = 0; i < n; ++i) lo[i] = objects[i].box.min[a], hi[i] = objects[i].box.max[a];
+        std::nth_element(lo.begin(), lo.begin() + std::ptrdiff_t(k), lo.end());
+        std::nth_element(hi.begin(), hi.begin() + std::ptrdiff_t(n - 1 - k), hi.end());
+        const float tlo = lo[k], thi = std::max(hi[n - 1 - k], tlo);
+        if (double(b.max[a]) - double(b.min[a]) > kOutlierStretch * (double(thi) - double(tlo))) {
+            b.min[a] = tlo;
+            b.max[a] = thi;
+            if (trimmed) *trimmed = true;
+        }
+    }
     return b;
 }
 
-}  // namespace
+}  // namespace grid
 
 void UniformGrid::build(std::span<const Object> objects) {
-    const Aabb world = world_of(objects);
+    const Aabb world = grid::lattice_bounds(objects, params_.outlier_guard, &trimmed_);
     const double longest = double(world.longest_edge());
     // Eq. 4.1: cells_per_dimension = (number / density)^(1/3), size = longest_edge / cells_per_dimension.
     const double per_dim = std::max(1.0, std::cbrt(double(objects.size()) / params_.density));
@@ -164,7 +174,8 @@ nlohmann::json UniformGrid::stats() const {
             {"non_empty_cells", non_empty},
             {"entries", entries},
             {"largest_cell", largest},
-            {"cell_cap_hit", clamped_}};
+            {"cell_cap_hit", clamped_},
+            {"outlier_trimmed", trimmed_}};
 }
 
 void UniformGrid::validate() const {

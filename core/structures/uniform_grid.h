@@ -14,6 +14,10 @@
 ///   object inserted or moved outside the initial bounds lands in the border cells it would overlap
 ///   if those were unbounded, and the DDA has no plane beyond the border (a segment outside the
 ///   grid walks the border cells). Always exact; only slower if much of the scene leaves the bounds.
+/// - Outlier guard (issue #9, `outlier_guard`, on by default): the lattice covers the central 99%
+///   of the objects per axis when the full bounds are more than 8× larger (grid::lattice_bounds),
+///   so a far outlier or a huge box around the scene does not make every cell huge. Exact either
+///   way; without it a 10^6 outlier puts the whole scene into a few cells (issue #9 measures both).
 /// - Memory guard: `density` has a bounded range and the total cell count is capped at
 ///   `kMaxCells` (the cell size grows instead), so no setting allocates without bound.
 /// - Updates are incremental: a move that keeps the object's cell range only rewrites its box.
@@ -106,6 +110,19 @@ bool walk(const Lattice& lat, const Vec3d& p0, const Vec3d& d, const CellRange& 
 /// Cells per axis for cells of edge `size` over `bounds` (at least 1).
 std::array<int, 3> resolution(const Aabb& bounds, double size, int max_per_axis);
 
+/// How far the full bounds may exceed the bounds of the central objects on an axis before the
+/// outlier guard trims the lattice to the latter.
+inline constexpr double kOutlierStretch = 8.0;
+
+/// The box a lattice over `objects` covers (a unit box for no objects). Without the guard: the
+/// union of the boxes. With the outlier guard (issue #9): per axis, the box minima from their 0.5%
+/// quantile to the box maxima's 99.5% quantile, when the full extent is more than
+/// kOutlierStretch times that; one far object would otherwise make every cell huge and put the
+/// rest of the scene into a few cells (a far outlier, a "stadium" box around a small cluster).
+/// The objects outside land in the border cells, which extend to infinity: answers stay exact.
+/// Sets `*trimmed` when the guard trimmed an axis.
+Aabb lattice_bounds(std::span<const Object> objects, bool outlier_guard, bool* trimmed = nullptr);
+
 }  // namespace grid
 
 class UniformGrid : public StructureBase<UniformGrid> {
@@ -113,10 +130,15 @@ public:
     struct Params {
         double density = 2.0;
         bool thesis_reset = false;
+        bool outlier_guard = true;
         static constexpr auto fields() {
             return std::tuple{
                 Field{"density", &Params::density, 0.1, 64.0,
                       "objects per cell in eq. 4.1 (cells = objects / density; capped at 4 Mi cells)", true, true},
+                Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
+                      "cover only the central 99% of the objects per axis when the full bounds are over 8x larger "
+                      "(outliers go to the unbounded border cells; exact either way)",
+                      false},
                 Field{"thesis_reset", &Params::thesis_reset, 0.0, 1.0,
                       "avoid duplicate tests with the thesis' bool vector reset per ray (O(N) per ray) instead of "
                       "per-query stamps; for measuring the difference",
@@ -167,6 +189,7 @@ private:
     Params params_;
     grid::Lattice lat_;
     bool clamped_ = false;  ///< the cell cap enlarged the cells
+    bool trimmed_ = false;  ///< the outlier guard trimmed the lattice
     std::vector<std::vector<CellEntry>> cells_;      // cell → objects
     std::vector<Entry> entries_;                     // slot → object
     std::vector<std::uint32_t> free_slots_;
