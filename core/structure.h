@@ -22,6 +22,7 @@
 #include "core/counters.h"
 #include "core/geometry.h"
 #include "core/hit_lists.h"
+#include "core/params.h"
 #include "core/scene.h"
 
 namespace rcb {
