@@ -5,6 +5,11 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <unistd.h>
 #include <cstdint>
 #include <string>
 
@@ -241,6 +246,32 @@ TEST(Stability, LongChurnStaysExact) {
         const SimulationResult res = test::expect_matches_ground_truth(r, info.name, {}, "churn-10000");
         EXPECT_EQ(res.frames.size(), 10000u);
     }
+}
+
+/// The report's "Where methods fail" section, end to end through the CLI: failure scenes found by
+/// their kind, each configuration's correctness and its cost against brute force and the benign
+/// scene of the same size.
+TEST(Stability, ReportShowsWhereMethodsFail) {
+    namespace fs = std::filesystem;
+    const fs::path dir = fs::temp_directory_path() / ("rcb_stability_" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    std::ofstream(dir / "mini.json") << R"({"name": "mini", "frames": 3, "rays_per_frame": 200, "ray_mix": "center,faces",
+        "scenes": [{"preset": "outlier-s"}, {"preset": "stadium-s"}, {"kind": "irregular", "objects": 1000}],
+        "structures": [{"name": "bf"}, {"name": "ug", "params": {"outlier_guard": [true, false]}}]})";
+    const std::string bin = RCBENCH_BINARY, d = dir.string();
+    ASSERT_EQ(std::system((bin + " run " + d + "/mini.json --db " + d + "/mini.db >/dev/null 2>&1").c_str()), 0);
+    ASSERT_EQ(std::system((bin + " report " + d + "/mini.db -o " + d + "/mini.html >/dev/null 2>&1").c_str()), 0);
+    std::stringstream html;
+    html << std::ifstream(dir / "mini.html").rdbuf();
+    const std::string page = html.str();
+    const std::size_t at = page.find("<h2>Where methods fail</h2>");
+    ASSERT_NE(at, std::string::npos);
+    const std::string section = page.substr(at);
+    EXPECT_NE(section.find("<th>outlier-s</th><th>stadium-s</th></tr>"), std::string::npos);
+    EXPECT_NE(section.find("<td>ug outlier_guard=false</td><td class=n>ok; "), std::string::npos);
+    EXPECT_NE(section.find("<td>bf</td><td class=n>ok; 1.00 bf; "), std::string::npos);
+    EXPECT_NE(section.find("Every configuration was exact on every failure scene."), std::string::npos);
+    fs::remove_all(dir);
 }
 
 }  // namespace

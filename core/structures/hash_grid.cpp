@@ -234,7 +234,10 @@ void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
         const grid::CellRange r = child_range(lat_[params_.max_depth].range_of(entries_[slot].box), depth, i);
         child_entries += std::size_t(r.hi[0] - r.lo[0] + 1) * (r.hi[1] - r.lo[1] + 1) * (r.hi[2] - r.lo[2] + 1);
     }
-    if (moving.empty() || (params_.entries_guard && entries_total_ - moving.size() + child_entries > entry_budget())) {
+    // The split stops at 3/4 of the budget while a descending object collapses a cell only at the
+    // full budget (insert_into): the gap keeps a collapsed cell from splitting straight back.
+    if (moving.empty() ||
+        (params_.entries_guard && entries_total_ - moving.size() + child_entries > entry_budget() / 4 * 3)) {
         cells_[id].own = std::move(objects);
         return;
     }

@@ -21,13 +21,15 @@
 /// - Border cells extend to infinity (indices clamped), as in the uniform grid: inserts outside the
 ///   initial bounds are exact.
 /// - Memory guard: a split is refused when it would raise the total of stored object entries above
-///   `max_entries_per_object` × max(objects, objects at build, 64). Without it, boxes sharing a face
-///   (or any surfaces that coincide) make every cell along the face split down to max_depth:
+///   3/4 of `max_entries_per_object` × max(objects, objects at build, 64) (the budget). Without
+///   it, boxes sharing a face (or any surfaces that coincide) make every cell along the face split
+///   down to max_depth:
 ///   subdivision^(2·max_depth) cells per top cell. A leaf whose split was refused stays over
 ///   capacity (counted in stats as "over_capacity_leaves"); answers stay exact. The guard also
 ///   applies on the way down: an object that would push the total over the budget by descending
 ///   into a subdivided cell collapses that cell into a leaf instead (issue #9 found identical boxes
-///   inserted after the first splits reaching 14× the budget). `entries_guard`
+///   inserted after the first splits reaching 14× the budget); splits stopping at 3/4 of the
+///   budget keep a collapsed cell from splitting straight back. `entries_guard`
 ///   = false turns it off (to measure the blow-up, issue #9).
 /// - Outlier guard (issue #9, `outlier_guard`, on by default): the top grid covers the central
 ///   99% of the objects per axis when the full bounds are more than 8× larger
