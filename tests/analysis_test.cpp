@@ -60,6 +60,41 @@ TEST(LinearFit, RecoversKnownCoefficientsWithinTheirIntervalsDespiteOutliers) {
     EXPECT_LT(m->heldout_error, 0.03);
 }
 
+// Ceres' covariance takes a dense SVD, which for more than 16 terms (a per-category model over
+// many scene categories) runs Eigen's divide-and-conquer path. That once freed memory with the wrong
+// alignment (our Eigen code built with -march=native against Debian's baseline libceres) and
+// aborted `rcbench report` on the stability run; the fit must give intervals for every term.
+TEST(LinearFit, ManyTermsGiveIntervalsForEveryTerm) {
+    Random rng(7);
+    const std::size_t k = 24;
+    LinearProblem p;
+    std::vector<double> truth(k);
+    for (std::size_t j = 0; j < k; ++j) {
+        p.terms.push_back(std::string("t").append(std::to_string(j)));
+        truth[j] = 1.0 + double(j % 5);
+    }
+    for (int g = 0; g < 120; ++g) {
+        std::vector<double> row(k, 0.0);
+        for (std::size_t j = 0; j < k; ++j) row[j] = rng.log_uniform(1, 100);
+        double y = 0;
+        for (std::size_t j = 0; j < k; ++j) y += truth[j] * row[j];
+        for (int f = 0; f < 3; ++f) {
+            p.x.push_back(row);
+            p.y.push_back(y * (1 + 0.01 * rng.normal()));
+            p.group.push_back(g);
+        }
+    }
+    const LinearFit fit = fit_linear(p);
+    ASSERT_EQ(fit.coefficients.size(), k);
+    for (std::size_t j = 0; j < k; ++j) {
+        const Coefficient& c = fit.coefficients[j];
+        EXPECT_NEAR(c.value, truth[j], 0.1 * truth[j]) << c.name;
+        EXPECT_LE(c.ci_low, c.value) << c.name;
+        EXPECT_GE(c.ci_high, c.value) << c.name;
+        EXPECT_LT(c.ci_high - c.ci_low, truth[j]) << c.name;
+    }
+}
+
 TEST(LinearFit, FlagsACollinearDesign) {
     // N_T is exactly twice N_RB in every frame: their costs cannot be told apart.
     LinearProblem p;
