@@ -36,8 +36,7 @@ bool parse_number(std::string_view s, T& out) {
 /// first data line is a header when its first field is not a number.
 template <typename Row>
 void for_each_row(const std::string& text, const std::string& name, const std::vector<const char*>& columns, Row&& row) {
-    std::string expected;
-    for (const char* c : columns) expected += (expected.empty() ? "" : ",") + std::string(c);
+    const std::string expected = join(columns, ",");
     std::size_t line_no = 0, pos = 0;
     bool first_data = true;
     std::vector<std::string_view> fields;

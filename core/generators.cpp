@@ -319,9 +319,7 @@ SceneSettings preset_settings(std::string_view name) {
     else if (size == "xl" && s.kind == "irregular") s.objects = 1'000'000;
     else s.kind.clear();
     if (n.find('-') == std::string::npos || s.kind.empty()) {
-        std::string known;
-        for (const std::string& p : preset_names()) known += (known.empty() ? "" : ", ") + p;
-        throw InputError("unknown preset '" + n + "' (known: " + known + ")");
+        throw InputError("unknown preset '" + n + "' (known: " + join(preset_names()) + ")");
     }
     return s;
 }
@@ -344,9 +342,7 @@ std::vector<RayMode> parse_ray_mix(const std::string& text) {
                 throw InputError("ray mix '" + text + "': weight '" + w + "' of " + m.mode + " is not a non-negative number");
         }
         if (std::find(modes.begin(), modes.end(), m.mode) == modes.end()) {
-            std::string known;
-            for (const std::string& k : modes) known += (known.empty() ? "" : ", ") + k;
-            throw InputError("ray mix '" + text + "': unknown mode '" + m.mode + "' (known: " + known + ")");
+            throw InputError("ray mix '" + text + "': unknown mode '" + m.mode + "' (known: " + join(modes) + ")");
         }
         mix.push_back(m);
         if (comma == std::string::npos) break;
@@ -368,9 +364,7 @@ std::vector<Object> generate_objects(const SceneSettings& s) {
     if (s.kind == "flat") return flat_objects(s, rng);
     if (s.kind == "slivers") return sliver_objects(s, rng);
     if (s.kind == "outlier") return outlier_objects(s, rng);
-    std::string known;
-    for (const std::string& k : scene_kinds()) known += (known.empty() ? "" : ", ") + k;
-    throw InputError("unknown scene kind '" + s.kind + "' (known: " + known + ")");
+    throw InputError("unknown scene kind '" + s.kind + "' (known: " + join(scene_kinds()) + ")");
 }
 
 namespace {

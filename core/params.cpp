@@ -78,8 +78,7 @@ void check_params(const std::vector<ParamSpec>& specs, const nlohmann::json& par
     for (const auto& [key, value] : params.items()) {
         auto spec = std::find_if(specs.begin(), specs.end(), [&, &key = key](const ParamSpec& s) { return s.name == key; });
         if (spec == specs.end()) {
-            std::string known;
-            for (const ParamSpec& s : specs) known += (known.empty() ? "" : ", ") + s.name;
+            const std::string known = join(specs, ", ", &ParamSpec::name);
             throw InputError(join_path(path, key) + ": unknown parameter of " + std::string(owner) + " (" +
                              (known.empty() ? std::string("it takes none") : "known: " + known) + ")");
         }

@@ -26,9 +26,7 @@ const std::vector<StructureInfo>& structure_registry() {
 const StructureInfo& find_structure(std::string_view name) {
     for (const StructureInfo& info : structure_registry())
         if (info.name == name) return info;
-    std::string known;
-    for (const StructureInfo& info : structure_registry()) known += (known.empty() ? "" : ", ") + info.name;
-    throw InputError("unknown structure '" + std::string(name) + "' (known: " + known + ")");
+    throw InputError("unknown structure '" + std::string(name) + "' (known: " + join(structure_registry(), ", ", &StructureInfo::name) + ")");
 }
 
 nlohmann::json StructureInfo::defaults() const {

@@ -61,8 +61,7 @@ struct Samples {
 
 std::map<Key, Samples> frames_of(Database& db, const std::vector<std::int64_t>& runs) {
     std::map<Key, Samples> out;
-    std::string ids;
-    for (std::int64_t r : runs) ids += (ids.empty() ? "" : ",") + std::to_string(r);
+    const std::string ids = join(runs, ",", [](std::int64_t r) { return std::to_string(r); });
     Statement s = db.prepare(
         "SELECT scene.hash, scene.name, config.structure, config.params, frame.raycast_ns, frame.update_ns "
         "FROM frame JOIN cell ON cell.id = frame.cell_id JOIN scene ON scene.id = cell.scene_id "

@@ -30,9 +30,7 @@ void expect_object(const json& j, const std::string& path) {
 void check_keys(const json& j, const std::string& path, const std::set<std::string>& allowed) {
     for (const auto& [key, value] : j.items()) {
         if (allowed.count(key)) continue;
-        std::string known;
-        for (const std::string& k : allowed) known += (known.empty() ? "" : ", ") + k;
-        fail(at(path, key), "unknown key (known: " + known + ")");
+        fail(at(path, key), "unknown key (known: " + join(allowed) + ")");
     }
 }
 
@@ -196,8 +194,9 @@ void parse_scene(const json& s, const std::string& path, const SceneDefaults& d,
         name = base.preset;
     } else if (s.contains("kind")) {
         base.kind = get_string(s, "kind", path, "");
-        if (base.kind != "uniform" && base.kind != "irregular")
-            fail(at(path, "kind"), "expected \"uniform\" or \"irregular\", got " + s["kind"].dump());
+        const std::vector<std::string> kinds = scene_kinds();
+        if (std::find(kinds.begin(), kinds.end(), base.kind) == kinds.end())
+            fail(at(path, "kind"), "expected one of " + join(kinds) + ", got " + s["kind"].dump());
         if (!s.contains("objects")) fail(path, "a scene given by \"kind\" needs \"objects\"");
         name = base.kind;
     } else {
@@ -250,8 +249,8 @@ void parse_scene(const json& s, const std::string& path, const SceneDefaults& d,
             spec.path = file;
             if (source != SceneSpec::Source::import) spec.settings.objects = static_cast<std::uint32_t>(count);
             spec.name = name;
-            if (objects.size() > 1) spec.name += "-" + std::to_string(count);
-            if (seeds.size() > 1) spec.name += "-s" + std::to_string(seed);
+            if (objects.size() > 1) spec.name.append("-").append(std::to_string(count));
+            if (seeds.size() > 1) spec.name.append("-s").append(std::to_string(seed));
             json dyn = {{"change_fraction", base.dynamics.change_fraction},
                         {"insert_share", base.dynamics.insert_share},
                         {"remove_share", base.dynamics.remove_share},
@@ -284,6 +283,14 @@ std::string read_text_file(const std::string& path) {
     return s.str();
 }
 
+json parse_json_document(const std::string& text, const std::string& name) {
+    try {
+        return json::parse(text);
+    } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e999 (found by fuzzing)
+        throw InputError(name + ": not valid JSON (" + std::string(e.what()) + ")");
+    }
+}
+
 std::string stable_hash(const std::string& bytes) {
     std::uint64_t h = 0xcbf29ce484222325ULL;
     for (unsigned char c : bytes) {
@@ -296,12 +303,7 @@ std::string stable_hash(const std::string& bytes) {
 }
 
 Experiment parse_experiment(const std::string& text, const std::string& name, const std::string& base_dir) {
-    json j;
-    try {
-        j = json::parse(text);
-    } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e999 (found by fuzzing)
-        throw InputError(name + ": not valid JSON (" + std::string(e.what()) + ")");
-    }
+    const json j = parse_json_document(text, name);
     try {
         expect_object(j, "(top level)");
         check_keys(j, "", {"name", "description", "frames", "warmup_frames", "repetitions", "rays_per_frame", "ray_mix", "seeds",

@@ -99,5 +99,8 @@ std::vector<std::uint64_t> get_uint_list(const nlohmann::json& obj, const std::s
                                          std::uint64_t lo, std::uint64_t hi, std::vector<std::uint64_t> fallback);
 /// Reads a whole text file; InputError naming it when it cannot be opened.
 std::string read_text_file(const std::string& path);
+/// Parses a JSON document; InputError "<name>: not valid JSON (...)" for bad syntax and for numbers
+/// that do not fit a double (1e999).
+nlohmann::json parse_json_document(const std::string& text, const std::string& name);
 
 }  // namespace rcb

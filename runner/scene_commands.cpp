@@ -30,7 +30,7 @@ void add_dynamics_options(CLI::App& cmd, DynamicsOptions& o) {
     cmd.add_option("--seed", o.seed, "Seed of every random choice (recorded in the file)")->capture_default_str();
     cmd.add_option("--rays", o.rays, "Rays per frame")->capture_default_str()->check(CLI::Range(0u, 100'000'000u));
     cmd.add_option("--ray-mix", o.ray_mix,
-                   "Ray modes with weights: center, dense, los, ground, shots (e.g. center:0.7,los:0.3)")
+                   "Ray modes with weights, of " + join(ray_mode_names()) + " (e.g. center:0.7,los:0.3)")
         ->capture_default_str();
     cmd.add_option("--change-fraction", o.dynamics.change_fraction, "Objects changed per frame, as a fraction")
         ->capture_default_str()
@@ -148,9 +148,12 @@ void add_scene_commands(CLI::App& app) {
     };
     auto gen = std::make_shared<GenOptions>();
     CLI::App* g = scene->add_subcommand("gen", "Generate a scene recording from a preset or a kind");
-    g->add_option("--preset", gen->preset, "uni-s, uni-m, uni-l, irreg-s, irreg-m, irreg-l (99, 5104, 14021 objects), irreg-xl (1M)");
-    g->add_option("--kind", gen->kind, "uniform or irregular (instead of a preset, with --objects)")
-        ->check(CLI::IsMember({"uniform", "irregular"}));
+    g->add_option("--preset", gen->preset,
+                  "Thesis scenes uni-s/m/l and irreg-s/m/l (99, 5104, 14021 objects), irreg-xl (1M); failure modes "
+                  "<kind>-s/m (1000, 10000 objects)")
+        ->check(CLI::IsMember(preset_names()));
+    g->add_option("--kind", gen->kind, "Instead of a preset, with --objects")
+        ->check(CLI::IsMember(scene_kinds()));
     g->add_option("--objects", gen->objects, "Object count (overrides the preset's)")->check(CLI::Range(1u, 100'000'000u));
     g->add_option("-o,--output", gen->out, "Recording file to write")->required();
     add_dynamics_options(*g, gen->dyn);

@@ -42,8 +42,12 @@ TEST(GroundTruth, AgreesWithAnIndependentTestOnRandomAndAxisAlignedCases) {
         const Contact c = classify_contact(s, b);
         const bool exact = independent_hit(s, b);
         // With integer coordinates the exact answer is exact: a "hit" must be a hit and a "miss" a miss.
-        if (c == Contact::hit) EXPECT_TRUE(exact);
-        if (c == Contact::miss) EXPECT_FALSE(exact);
+        if (c == Contact::hit) {
+            EXPECT_TRUE(exact);
+        }
+        if (c == Contact::miss) {
+            EXPECT_FALSE(exact);
+        }
         // Touching includes every exact contact that is not robust; exact must never be "miss".
         ++checked;
     }

@@ -71,7 +71,7 @@ TEST(LinearBvh, MatchesGroundTruthOnGeneratedScenes) {
 /// The thesis presets (uni-s … irreg-l; irreg-xl is a benchmark, not a test), a few frames each
 /// with every ray mode and more changes than the presets' 1 %.
 TEST(Bvh, MatchesGroundTruthOnThePresets) {
-    for (const std::string& name : {"uni-s", "uni-m", "uni-l", "irreg-s", "irreg-m", "irreg-l"}) {
+    for (const char* name : {"uni-s", "uni-m", "uni-l", "irreg-s", "irreg-m", "irreg-l"}) {
         SceneSettings s = preset_settings(name);
         s.frames = 3;
         s.dynamics.change_fraction = 0.05;

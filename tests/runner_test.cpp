@@ -65,6 +65,11 @@ TEST(Experiment, ValidationNamesTheJsonPath) {
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "objects": [10, -1]}], "structures": [{"name": "bf"}]})"),
               "exp.json: scenes[0].objects[1]: expected an integer in 1..100000000, got -1");
     EXPECT_EQ(error_of(R"({"scenes": [], "structures": [{"name": "bf"}]})"), "exp.json: scenes: expected a non-empty list of scenes");
+    // Every generator kind is a scene kind, the failure modes included.
+    EXPECT_EQ(error_of(R"({"scenes": [{"kind": "same-centroid", "objects": 50}], "structures": [{"name": "bf"}]})"), "");
+    EXPECT_EQ(error_of(R"({"scenes": [{"kind": "cubes", "objects": 50}], "structures": [{"name": "bf"}]})"),
+              "exp.json: scenes[0].kind: expected one of uniform, irregular, stadium, identical, same-centroid, flat, "
+              "slivers, outlier, got \"cubes\"");
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frames": 3, "warmup_frames": 3})"),
               "exp.json: warmup_frames: leaves no measured frame in scene uni-s");
 }

@@ -109,6 +109,8 @@ TEST(TuneSpec, ValidatesWithJsonPaths) {
               0u);
     EXPECT_EQ(tune_error(R"({"structures": ["ug"], "categories": [{"name": "u", "scenes": [{"preset": "uni-s"}]}, {"name": "u", "scenes": [{"preset": "uni-s"}]}]})"),
               "t.json: categories[1].name: duplicate category name \"u\"");
+    // A number too large for a double is bad JSON, not a crash (as in experiment files).
+    EXPECT_EQ(tune_error(R"({"budget": 1e999})").find("t.json: not valid JSON"), 0u);
     const TuneSpec spec = parse_tune_spec(ok, "t.json", ".");
     ASSERT_EQ(spec.space.at("ug").size(), 1u);  // density; thesis_reset is not tunable
     EXPECT_EQ(spec.space.at("ug")[0].name, "density");

@@ -159,12 +159,7 @@ std::vector<SearchDimension> default_space(const std::string& structure) {
 }
 
 TuneSpec parse_tune_spec(const std::string& text, const std::string& name, const std::string& base_dir) {
-    json j;
-    try {
-        j = json::parse(text);
-    } catch (const json::parse_error& e) {
-        throw InputError(name + ": not valid JSON (" + std::string(e.what()) + ")");
-    }
+    const json j = parse_json_document(text, name);
     try {
         expect_object(j, "(top level)");
         check_keys(j, "", {"name", "description", "mode", "structures", "space", "budget", "calibration", "verify_top", "seed",

@@ -257,11 +257,7 @@ void DynamicBvh::refit_from(std::uint32_t n) {
 
 /// Box2D v3 b_RotateNodes: swap a child of A with a grandchild on the other side when that shrinks
 /// the area of the inner node that changes (the total SAH area, eq. 3.2, falls by the same amount).
-///         A
-///       /   \
-///      B     C
-///     / \   / \
-///    D   E F   G
+/// Names as in Box2D: A's children are B and C, B's children D and E, C's children F and G.
 void DynamicBvh::rotate_nodes(std::uint32_t ia) {
     Node& A = nodes_[ia];
     if (A.height < 2) return;
