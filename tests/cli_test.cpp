@@ -101,7 +101,8 @@ TEST_F(Cli, BadInputIsOneLineAndExitTwo) {
     expect_bad_input(run("simulate --scene " + scene + " --structure kdtree"), "unknown structure 'kdtree'");
     expect_bad_input(run("simulate --scene " + path("missing.rcbscene") + " --structure bf"), "missing.rcbscene: cannot open");
     expect_bad_input(run("simulate --scene " + scene + " --structure bf --param depth=3"), "--param.depth: unknown parameter of bf");
-    expect_bad_input(run("scene gen --preset uni-xxl -o " + path("x")), "unknown preset 'uni-xxl'");
+    expect_bad_input(run("scene gen --preset uni-xxl -o " + path("x")), "--preset: uni-xxl not in {uni-s,");
+    expect_bad_input(run("scene gen --kind cubes --objects 10 -o " + path("x")), "--kind: cubes not in {uniform,irregular,stadium,");
     expect_bad_input(run("scene gen --preset uni-s --ray-mix sideways -o " + path("x")), "unknown mode 'sideways'");
     expect_bad_input(run("scene gen --preset uni-s --frames abc -o " + path("x")), "--frames");
     expect_bad_input(run("simulate --structure bf"), "--scene is required");

@@ -46,10 +46,8 @@ BulletDbvt::~BulletDbvt() = default;
 
 void BulletDbvt::build(std::span<const Object> objects) {
     tree_->clear();
-    boxes_.clear();
-    uids_.clear();
+    objects_.clear();
     leaves_.clear();
-    slot_.clear();
     scale_ = 0;
     for (const Object& o : objects) scale_ = std::max(scale_, largest_coordinate(o.box));
     scale_ = std::max(scale_, std::numeric_limits<float>::min());
@@ -58,7 +56,7 @@ void BulletDbvt::build(std::span<const Object> objects) {
 
 void BulletDbvt::set_leaf(std::uint32_t slot) {
     const float pad = kPadRelative * scale_;
-    const Aabb& b = boxes_[slot];
+    const Aabb& b = objects_.box(slot);
     btDbvtVolume v = btDbvtVolume::FromMM(btVector3(b.min.x - pad, b.min.y - pad, b.min.z - pad),
                                           btVector3(b.max.x + pad, b.max.y + pad, b.max.z + pad));
     if (leaves_[slot]) {
@@ -74,40 +72,27 @@ void BulletDbvt::cover(const Aabb& box) {
     if (m <= scale_) return;
     scale_ = std::max(2 * m, std::numeric_limits<float>::min());
     ++repads_;
-    for (std::uint32_t i = 0; i < uids_.size(); ++i) set_leaf(i);
+    for (std::uint32_t i = 0; i < objects_.size(); ++i) set_leaf(i);
 }
 
 void BulletDbvt::insert(const Object& o) {
-    const auto slot = static_cast<std::uint32_t>(uids_.size());
-    slot_.emplace(o.uid, slot);
-    uids_.push_back(o.uid);
-    boxes_.push_back(o.box);
+    const std::uint32_t slot = objects_.insert(o);
     leaves_.push_back(nullptr);
     cover(o.box);
     set_leaf(slot);
 }
 
 void BulletDbvt::remove(Uid uid) {
-    auto it = slot_.find(uid);
-    const std::uint32_t slot = it->second;
-    slot_.erase(it);
-    tree_->remove(leaves_[slot]);
-    const auto last = static_cast<std::uint32_t>(uids_.size() - 1);
-    if (slot != last) {
-        uids_[slot] = uids_[last];
-        boxes_[slot] = boxes_[last];
+    tree_->remove(leaves_[*objects_.find(uid)]);
+    objects_.remove(uid, [&](std::uint32_t slot, std::uint32_t last) {
         leaves_[slot] = leaves_[last];
         leaves_[slot]->dataAsInt = static_cast<int>(slot);
-        slot_[uids_[slot]] = slot;
-    }
-    uids_.pop_back();
-    boxes_.pop_back();
+    });
     leaves_.pop_back();
 }
 
 void BulletDbvt::move(const Object& o) {
-    const std::uint32_t slot = slot_.at(o.uid);
-    boxes_[slot] = o.box;
+    const std::uint32_t slot = objects_.move(o);
     cover(o.box);
     set_leaf(slot);
 }
@@ -117,7 +102,7 @@ void BulletDbvt::commit() {
 }
 
 bool BulletDbvt::dbvt_query(const Segment& s, Query& q) {
-    if (uids_.empty()) return true;
+    if (objects_.empty()) return true;
     if (!is_finite(s.p0) || !is_finite(s.p1)) return false;
     const float far = kFarFactor * scale_;
     for (int a = 0; a < 3; ++a)
@@ -138,9 +123,7 @@ bool BulletDbvt::dbvt_query(const Segment& s, Query& q) {
 }
 
 std::size_t BulletDbvt::memory_bytes() const {
-    std::size_t bytes = boxes_.capacity() * sizeof(Aabb) + uids_.capacity() * sizeof(Uid) +
-                        leaves_.capacity() * sizeof(btDbvtNode*);
-    bytes += slot_.bucket_count() * sizeof(void*) + slot_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t));
+    std::size_t bytes = objects_.memory_bytes() + leaves_.capacity() * sizeof(btDbvtNode*);
     // btDbvt: 2n − 1 nodes plus the one cached free node, and the ray stack.
     const std::size_t nodes = tree_->m_leaves ? 2 * std::size_t(tree_->m_leaves) - 1 : 0;
     bytes += (nodes + (tree_->m_free ? 1 : 0)) * sizeof(btDbvtNode);
@@ -154,23 +137,21 @@ nlohmann::json BulletDbvt::stats() const {
 }
 
 void BulletDbvt::validate() const {
-    const std::size_t n = uids_.size();
-    if (boxes_.size() != n || leaves_.size() != n) throw std::logic_error("bullet_dbvt: slot arrays differ in size");
+    const std::size_t n = objects_.size();
+    objects_.validate("bullet_dbvt");
+    if (leaves_.size() != n) throw std::logic_error("bullet_dbvt: slot arrays differ in size");
     if (std::size_t(tree_->m_leaves) != n)
         throw std::logic_error("bullet_dbvt: tree has " + std::to_string(tree_->m_leaves) + " leaves for " + std::to_string(n) + " objects");
-    if (slot_.size() != n) throw std::logic_error("bullet_dbvt: uid index size differs");
     const float pad = kPadRelative * scale_;
     for (std::size_t i = 0; i < n; ++i) {
-        auto it = slot_.find(uids_[i]);
-        if (it == slot_.end() || it->second != i) throw std::logic_error("bullet_dbvt: uid index does not point at slot " + std::to_string(i));
         if (!leaves_[i] || !leaves_[i]->isleaf() || leaves_[i]->dataAsInt != int(i))
             throw std::logic_error("bullet_dbvt: leaf of slot " + std::to_string(i) + " does not point back");
-        const Aabb& b = boxes_[i];
+        const Aabb& b = objects_.box(i);
         const btVector3 lo = leaves_[i]->volume.Mins(), hi = leaves_[i]->volume.Maxs();
         // The leaf volume must enclose the box with the padding (the exactness argument needs it).
         if (lo.x() > b.min.x - pad * 0.5f || lo.y() > b.min.y - pad * 0.5f || lo.z() > b.min.z - pad * 0.5f ||
             hi.x() < b.max.x + pad * 0.5f || hi.y() < b.max.y + pad * 0.5f || hi.z() < b.max.z + pad * 0.5f)
-            throw std::logic_error("bullet_dbvt: leaf of uid " + std::to_string(uids_[i]) + " does not enclose its padded box");
+            throw std::logic_error("bullet_dbvt: leaf of uid " + std::to_string(objects_.uid(i)) + " does not enclose its padded box");
     }
     // Every internal node encloses its children and is their parent.
     std::vector<const btDbvtNode*> stack;

@@ -24,11 +24,11 @@
 #include <cstdint>
 #include <memory>
 #include <tuple>
-#include <unordered_map>
 #include <vector>
 
 #include "core/params.h"
 #include "core/box_scan.h"
+#include "core/slot_boxes.h"
 #include "core/structure.h"
 
 class btDbvt;
@@ -60,7 +60,7 @@ public:
     void remove(Uid uid) override;
     void move(const Object& object) override;
     void commit() override;
-    std::size_t size() const override { return uids_.size(); }
+    std::size_t size() const override { return objects_.size(); }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
     void validate() const override;
@@ -78,8 +78,8 @@ public:
         std::uint64_t hits = 0;
         bool stopped = false;
     };
-    const Aabb& box_at(std::uint32_t slot) const { return boxes_[slot]; }
-    Uid uid_at(std::uint32_t slot) const { return uids_[slot]; }
+    const Aabb& box_at(std::uint32_t slot) const { return objects_.box(slot); }
+    Uid uid_at(std::uint32_t slot) const { return objects_.uid(slot); }
 
 private:
     /// Runs btDbvt's ray test; false when the segment needs the exact fallback.
@@ -92,10 +92,8 @@ private:
     std::unique_ptr<btDbvt> tree_;
     struct Stack;
     std::unique_ptr<Stack> stack_;   // rayTestInternal's persistent stack
-    std::vector<Aabb> boxes_;        // slot-indexed
-    std::vector<Uid> uids_;
-    std::vector<btDbvtNode*> leaves_;
-    std::unordered_map<Uid, std::uint32_t> slot_;
+    SlotBoxes objects_;
+    std::vector<btDbvtNode*> leaves_;  // slot-indexed, as objects_
     float scale_ = 0;  // S in the comment above; 0 before the first box
     std::uint64_t repads_ = 0;
 };
@@ -105,7 +103,7 @@ void BulletDbvt::traverse(const Segment& s, Count& count, Visit&& visit) {
     const SegmentSlabs slabs(s);
     Query q{&slabs, this, &visit, [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); }};
     if (!dbvt_query(s, q)) {
-        scan_boxes(slabs, std::span<const Aabb>(boxes_), std::span<const Uid>(uids_), count, visit);  // the exact fallback
+        scan_boxes(slabs, std::span<const Aabb>(objects_.boxes()), std::span<const Uid>(objects_.uids()), count, visit);  // the exact fallback
         return;
     }
     count.box_tests(q.tests);

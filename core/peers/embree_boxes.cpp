@@ -99,55 +99,39 @@ EmbreeBoxes::EmbreeBoxes(const Params& params) : params_(params), device_(std::m
 EmbreeBoxes::~EmbreeBoxes() = default;
 
 void EmbreeBoxes::build(std::span<const Object> objects) {
-    boxes_.clear();
-    uids_.clear();
-    slot_.clear();
-    boxes_.reserve(objects.size());
-    uids_.reserve(objects.size());
-    slot_.reserve(objects.size());
+    objects_.clear();
+    objects_.reserve(objects.size());
     for (const Object& o : objects) insert(o);
     dirty_ = true;
     commit();
 }
 
 void EmbreeBoxes::insert(const Object& o) {
-    slot_.emplace(o.uid, static_cast<std::uint32_t>(uids_.size()));
-    uids_.push_back(o.uid);
-    boxes_.push_back(o.box);
+    objects_.insert(o);
     dirty_ = true;
 }
 
 void EmbreeBoxes::remove(Uid uid) {
-    auto it = slot_.find(uid);
-    const std::uint32_t slot = it->second;
-    slot_.erase(it);
-    const std::uint32_t last = static_cast<std::uint32_t>(uids_.size() - 1);
-    if (slot != last) {
-        uids_[slot] = uids_[last];
-        boxes_[slot] = boxes_[last];
-        slot_[uids_[slot]] = slot;
-    }
-    uids_.pop_back();
-    boxes_.pop_back();
+    objects_.remove(uid);
     dirty_ = true;
 }
 
 void EmbreeBoxes::move(const Object& o) {
-    boxes_[slot_.at(o.uid)] = o.box;
+    objects_.move(o);
     dirty_ = true;
 }
 
 void EmbreeBoxes::commit() {
     if (!dirty_) return;
     float m = 0;
-    for (const Aabb& b : boxes_)
+    for (const Aabb& b : objects_.boxes())
         m = std::max({m, std::abs(b.min.x), std::abs(b.min.y), std::abs(b.min.z), std::abs(b.max.x), std::abs(b.max.y),
                       std::abs(b.max.z)});
     m = std::max(m, std::numeric_limits<float>::min());
     pad_ = kPadRelative * m;
     far_ = kFarFactor * m;
     Device& d = *device_;
-    rtcSetGeometryUserPrimitiveCount(d.geometry, static_cast<unsigned>(uids_.size()));
+    rtcSetGeometryUserPrimitiveCount(d.geometry, static_cast<unsigned>(objects_.size()));
     rtcCommitGeometry(d.geometry);  // the bounds changed: Embree calls bounds_callback again
     d.arena->execute([&] { rtcCommitScene(d.scene); });
     if (!d.error.empty()) throw std::runtime_error("embree: " + d.error);
@@ -156,7 +140,7 @@ void EmbreeBoxes::commit() {
 }
 
 bool EmbreeBoxes::embree_query(const Segment& s, Query& q) {
-    if (uids_.empty()) return true;
+    if (objects_.empty()) return true;
     const Vec3 d = s.delta();
     if (d.x == 0 && d.y == 0 && d.z == 0) return false;
     if (!is_finite(s.p0) || !is_finite(s.p1)) return false;
@@ -181,8 +165,7 @@ bool EmbreeBoxes::embree_query(const Segment& s, Query& q) {
 }
 
 std::size_t EmbreeBoxes::memory_bytes() const {
-    std::size_t bytes = boxes_.capacity() * sizeof(Aabb) + uids_.capacity() * sizeof(Uid);
-    bytes += slot_.bucket_count() * sizeof(void*) + slot_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t));
+    const std::size_t bytes = objects_.memory_bytes();
     const std::int64_t embree = device_->bytes.load();
     return bytes + sizeof(*this) + std::size_t(std::max<std::int64_t>(0, embree));
 }
@@ -192,22 +175,17 @@ nlohmann::json EmbreeBoxes::stats() const {
 }
 
 void EmbreeBoxes::validate() const {
-    const std::size_t n = uids_.size();
-    if (boxes_.size() != n) throw std::logic_error("embree: box array and uid array differ in size");
-    if (slot_.size() != n) throw std::logic_error("embree: uid index has " + std::to_string(slot_.size()) + " entries for " + std::to_string(n) + " objects");
-    for (std::size_t i = 0; i < n; ++i) {
-        auto it = slot_.find(uids_[i]);
-        if (it == slot_.end() || it->second != i) throw std::logic_error("embree: uid index does not point at slot " + std::to_string(i));
-    }
+    const std::size_t n = objects_.size();
+    objects_.validate("embree");
     if (dirty_ || n == 0) return;
     // Embree's scene bounds must enclose every (padded) box we gave it.
     RTCBounds sb;
     rtcGetSceneBounds(device_->scene, &sb);
     for (std::size_t i = 0; i < n; ++i) {
-        const Aabb& b = boxes_[i];
+        const Aabb& b = objects_.box(i);
         if (b.min.x < sb.lower_x || b.min.y < sb.lower_y || b.min.z < sb.lower_z || b.max.x > sb.upper_x ||
             b.max.y > sb.upper_y || b.max.z > sb.upper_z)
-            throw std::logic_error("embree: scene bounds do not enclose uid " + std::to_string(uids_[i]));
+            throw std::logic_error("embree: scene bounds do not enclose uid " + std::to_string(objects_.uid(i)));
     }
 }
 

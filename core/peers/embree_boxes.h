@@ -40,11 +40,11 @@
 #include <memory>
 #include <string>
 #include <tuple>
-#include <unordered_map>
 #include <vector>
 
 #include "core/params.h"
 #include "core/box_scan.h"
+#include "core/slot_boxes.h"
 #include "core/structure.h"
 
 namespace rcb {
@@ -78,7 +78,7 @@ public:
     void remove(Uid uid) override;
     void move(const Object& object) override;
     void commit() override;
-    std::size_t size() const override { return uids_.size(); }
+    std::size_t size() const override { return objects_.size(); }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
     void validate() const override;
@@ -89,8 +89,8 @@ public:
     /// What the intersect callback needs; public for the C callbacks in the .cpp.
     struct Query;
     struct Device;  // RTCDevice, RTCScene, RTCGeometry and the task arena
-    const Aabb& box_at(std::uint32_t slot) const { return boxes_[slot]; }
-    Uid uid_at(std::uint32_t slot) const { return uids_[slot]; }
+    const Aabb& box_at(std::uint32_t slot) const { return objects_.box(slot); }
+    Uid uid_at(std::uint32_t slot) const { return objects_.uid(slot); }
     float pad() const { return pad_; }
 
 private:
@@ -99,9 +99,7 @@ private:
 
     Params params_;
     std::unique_ptr<Device> device_;
-    std::vector<Aabb> boxes_;   // slot-indexed (slot = Embree primitive id)
-    std::vector<Uid> uids_;     // slot → uid
-    std::unordered_map<Uid, std::uint32_t> slot_;
+    SlotBoxes objects_;         // slot = Embree primitive id
     float pad_ = 0;             // padding of the bounds given to Embree at the last commit
     float far_ = 0;             // kFarFactor · M at the last commit
     bool dirty_ = true;
@@ -122,7 +120,7 @@ void EmbreeBoxes::traverse(const Segment& s, Count& count, Visit&& visit) {
     const SegmentSlabs slabs(s);
     Query q{&slabs, this, &visit, [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); }};
     if (!embree_query(s, q)) {
-        scan_boxes(slabs, std::span<const Aabb>(boxes_), std::span<const Uid>(uids_), count, visit);  // the exact fallback
+        scan_boxes(slabs, std::span<const Aabb>(objects_.boxes()), std::span<const Uid>(objects_.uids()), count, visit);  // the exact fallback
         return;
     }
     count.box_tests(q.tests);

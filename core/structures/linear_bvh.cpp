@@ -55,44 +55,24 @@ void LinearBvh::parallel(std::size_t n, std::size_t grain, F&& f) {
 }
 
 void LinearBvh::build(std::span<const Object> objects) {
-    uids_.clear();
-    boxes_.clear();
-    slot_.clear();
-    uids_.reserve(objects.size());
-    boxes_.reserve(objects.size());
-    slot_.reserve(objects.size());
-    for (const Object& o : objects) {
-        slot_.emplace(o.uid, std::uint32_t(uids_.size()));
-        uids_.push_back(o.uid);
-        boxes_.push_back(o.box);
-    }
+    objects_.clear();
+    objects_.reserve(objects.size());
+    for (const Object& o : objects) objects_.insert(o);
     rebuild();
 }
 
 void LinearBvh::insert(const Object& o) {
-    slot_.emplace(o.uid, std::uint32_t(uids_.size()));
-    uids_.push_back(o.uid);
-    boxes_.push_back(o.box);
+    objects_.insert(o);
     dirty_ = true;
 }
 
 void LinearBvh::remove(Uid uid) {
-    auto it = slot_.find(uid);
-    const std::uint32_t slot = it->second;
-    slot_.erase(it);
-    const std::uint32_t last = std::uint32_t(uids_.size() - 1);
-    if (slot != last) {
-        uids_[slot] = uids_[last];
-        boxes_[slot] = boxes_[last];
-        slot_[uids_[slot]] = slot;
-    }
-    uids_.pop_back();
-    boxes_.pop_back();
+    objects_.remove(uid);
     dirty_ = true;
 }
 
 void LinearBvh::move(const Object& o) {
-    boxes_[slot_.at(o.uid)] = o.box;
+    objects_.move(o);
     dirty_ = true;
 }
 
@@ -170,7 +150,7 @@ void LinearBvh::radix_sort() {
 
 void LinearBvh::rebuild() {
     dirty_ = false;
-    const std::size_t n = uids_.size();
+    const std::size_t n = objects_.size();
     if (n == 0) {
         nodes_.clear();
         codes_.clear();
@@ -190,7 +170,7 @@ void LinearBvh::rebuild() {
             Aabb b = Aabb::empty();
             const std::size_t e = std::min(n, (c + 1) * chunk_len);
             for (std::size_t i = c * chunk_len; i < e; ++i) {
-                const Vec3 m = boxes_[i].center();
+                const Vec3 m = objects_.box(i).center();
                 b.min = rcb::min(b.min, m), b.max = rcb::max(b.max, m);
             }
             part[c] = b;
@@ -209,7 +189,7 @@ void LinearBvh::rebuild() {
     order_.resize(n);
     parallel(n, kGrain, [&](std::size_t b, std::size_t e) {
         for (std::size_t i = b; i < e; ++i) {
-            const Vec3 c = boxes_[i].center();
+            const Vec3 c = objects_.box(i).center();
             std::uint64_t q[3];
             for (int a = 0; a < 3; ++a) {
                 const float v = std::clamp((c[a] - cb.min[a]) * scale[a], 0.0f, kMax);
@@ -226,9 +206,9 @@ void LinearBvh::rebuild() {
     leaf_base_ = std::uint32_t(n - 1);
     parallel(n, kGrain, [&](std::size_t b, std::size_t e) {
         for (std::size_t k = b; k < e; ++k) {
-            if (k + 16 < e) __builtin_prefetch(&boxes_[order_[k + 16]]), __builtin_prefetch(&uids_[order_[k + 16]]);
+            if (k + 16 < e) __builtin_prefetch(&objects_.boxes()[order_[k + 16]]), __builtin_prefetch(&objects_.uids()[order_[k + 16]]);
             const std::uint32_t slot = order_[k];
-            nodes_[leaf_base_ + k] = Node{boxes_[slot], {uids_[slot], kNullNode}, kNullNode, 0};
+            nodes_[leaf_base_ + k] = Node{objects_.box(slot), {objects_.uid(slot), kNullNode}, kNullNode, 0};
         }
     });
     if (n > 1) {
@@ -316,14 +296,14 @@ void LinearBvh::rebuild() {
 }
 
 void LinearBvh::trim_outliers(Aabb& cb) const {
-    const std::size_t n = boxes_.size();
+    const std::size_t n = objects_.size();
     if (n < 200) return;
     // A fixed stride over the slots: deterministic, and O(1) work per rebuild beyond the copy.
     const std::size_t samples = std::min<std::size_t>(n, 4096), stride = n / samples;
     const std::size_t k = samples / 200;  // 0.5% on each side
     std::vector<float> v(samples);
     for (int a = 0; a < 3; ++a) {
-        for (std::size_t i = 0; i < samples; ++i) v[i] = boxes_[i * stride].center()[a];
+        for (std::size_t i = 0; i < samples; ++i) v[i] = objects_.box(i * stride).center()[a];
         std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
         const float lo = v[k];
         std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(samples - 1 - k), v.end());
@@ -345,12 +325,11 @@ double LinearBvh::sah_cost() const {
 }
 
 std::size_t LinearBvh::memory_bytes() const {
-    return nodes_.capacity() * sizeof(Node) + uids_.capacity() * sizeof(Uid) + boxes_.capacity() * sizeof(Aabb) +
+    return nodes_.capacity() * sizeof(Node) + objects_.memory_bytes() +
            (codes_.capacity() + codes_tmp_.capacity()) * sizeof(std::uint64_t) +
            (order_.capacity() + order_tmp_.capacity() + histograms_.capacity() + all_counts_.capacity() + stack_.capacity()) *
                sizeof(std::uint32_t) +
-           flags_size_ * sizeof(std::atomic<std::uint32_t>) + slot_.bucket_count() * sizeof(void*) +
-           slot_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) + sizeof(*this);
+           flags_size_ * sizeof(std::atomic<std::uint32_t>) + sizeof(*this);
 }
 
 nlohmann::json LinearBvh::stats() const {
@@ -360,8 +339,8 @@ nlohmann::json LinearBvh::stats() const {
 void LinearBvh::validate() const {
     auto fail = [](const std::string& what) { throw std::logic_error("lbvh: " + what); };
     if (dirty_) fail("tree not rebuilt after changes (commit missing)");
-    const std::size_t n = uids_.size();
-    if (slot_.size() != n || boxes_.size() != n) fail("object arrays differ in size");
+    const std::size_t n = objects_.size();
+    objects_.validate("lbvh");
     if (nodes_.size() != (n ? 2 * n - 1 : 0)) fail("node array has " + std::to_string(nodes_.size()) + " nodes for " + std::to_string(n) + " objects");
     for (std::size_t k = 1; k < codes_.size(); ++k)
         if (codes_[k - 1] > codes_[k]) fail("Morton codes not sorted at " + std::to_string(k));
@@ -380,10 +359,10 @@ void LinearBvh::validate() const {
         if (is_leaf(v)) {
             ++leaves;
             if (node.height != 0) fail("leaf with a height");
-            auto it = slot_.find(node.child[0]);
-            if (it == slot_.end()) fail("leaf " + std::to_string(v) + " holds unknown uid " + std::to_string(node.child[0]));
-            if (slot_seen[it->second]++) fail("uid " + std::to_string(node.child[0]) + " in two leaves");
-            if (!(boxes_[it->second] == node.box)) fail("leaf box of uid " + std::to_string(node.child[0]) + " is stale");
+            const std::uint32_t* slot = objects_.find(node.child[0]);
+            if (!slot) fail("leaf " + std::to_string(v) + " holds unknown uid " + std::to_string(node.child[0]));
+            if (slot_seen[*slot]++) fail("uid " + std::to_string(node.child[0]) + " in two leaves");
+            if (!(objects_.box(*slot) == node.box)) fail("leaf box of uid " + std::to_string(node.child[0]) + " is stale");
             continue;
         }
         int hmax = -1;

@@ -27,10 +27,10 @@
 #include <cstdint>
 #include <memory>
 #include <tuple>
-#include <unordered_map>
 #include <vector>
 
 #include "core/params.h"
+#include "core/slot_boxes.h"
 #include "core/structure.h"
 #include "core/structures/bvh_traversal.h"
 
@@ -71,7 +71,7 @@ public:
     void remove(Uid uid) override;
     void move(const Object& object) override;
     void commit() override;
-    std::size_t size() const override { return uids_.size(); }
+    std::size_t size() const override { return objects_.size(); }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
     void validate() const override;
@@ -108,9 +108,7 @@ private:
     struct Arena;
     std::unique_ptr<Arena> arena_;
     // The objects, dense (swap-remove).
-    std::vector<Uid> uids_;
-    std::vector<Aabb> boxes_;
-    std::unordered_map<Uid, std::uint32_t> slot_;
+    SlotBoxes objects_;
     bool dirty_ = false;
     // The tree and the build's scratch (kept between builds: no allocation once sized).
     std::vector<Node> nodes_;
