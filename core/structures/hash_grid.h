@@ -209,13 +209,15 @@ bool HashGrid::visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, doub
     const std::uint32_t id = table_.find(key_of(depth, c));
     if (id == CellTable::kNone) return true;
     const Cell& cell = cells_[id];
+    ctx.count.box_tests(cell.own.size());
     for (std::uint32_t slot : cell.own) {
         Entry& e = entries_[slot];
-        if (e.stamp == ctx.stamp) continue;
-        e.stamp = ctx.stamp;
-        ctx.count.box_tests();
         float tn, tf;
+        // An object in several cells is tested in each and reported once: checking the stamp only
+        // on a hit saves a hard-to-predict branch per object.
         if (ctx.slabs.clip(e.box, tn, tf)) {
+            if (e.stamp == ctx.stamp) continue;
+            e.stamp = ctx.stamp;
             ctx.count.hits();
             if (!ctx.visit(e.uid, tn)) return false;
         }

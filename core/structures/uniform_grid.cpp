@@ -79,7 +79,7 @@ void UniformGrid::add_to_cells(std::uint32_t slot, const grid::CellRange& r) {
     std::array<int, 3> i;
     for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
         for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
-            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) cells_[cell_id(i)].push_back({entries_[slot].box, slot});
+            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) cells_[cell_id(i)].push(entries_[slot].box, slot);
 }
 
 void UniformGrid::rewrite_box(std::uint32_t slot, const grid::CellRange& r, const Aabb& box) {
@@ -87,20 +87,14 @@ void UniformGrid::rewrite_box(std::uint32_t slot, const grid::CellRange& r, cons
     for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
         for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
             for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0])
-                for (CellEntry& e : cells_[cell_id(i)])
-                    if (e.slot == slot) e.box = box;
+                cells_[cell_id(i)].rewrite(slot, box);
 }
 
 void UniformGrid::remove_from_cells(std::uint32_t slot, const grid::CellRange& r) {
     std::array<int, 3> i;
     for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
         for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
-            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) {
-                std::vector<CellEntry>& c = cells_[cell_id(i)];
-                auto it = std::find_if(c.begin(), c.end(), [&](const CellEntry& e) { return e.slot == slot; });
-                *it = c.back();
-                c.pop_back();
-            }
+            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) cells_[cell_id(i)].erase(slot);
 }
 
 void UniformGrid::insert(const Object& o) {
@@ -152,8 +146,8 @@ std::uint32_t UniformGrid::next_stamp() {
 
 std::size_t UniformGrid::memory_bytes() const {
     std::size_t bytes = sizeof(*this);
-    bytes += cells_.capacity() * sizeof(std::vector<CellEntry>);
-    for (const auto& c : cells_) bytes += c.capacity() * sizeof(CellEntry);
+    bytes += cells_.capacity() * sizeof(BlockCell);
+    for (const auto& c : cells_) bytes += c.blocks.capacity() * sizeof(BoxBlock);
     bytes += stamps_.capacity() * sizeof(std::uint32_t);
     bytes += entries_.capacity() * sizeof(Entry) + free_slots_.capacity() * sizeof(std::uint32_t);
     bytes += slot_.bucket_count() * sizeof(void*) + slot_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t));
@@ -164,9 +158,9 @@ std::size_t UniformGrid::memory_bytes() const {
 nlohmann::json UniformGrid::stats() const {
     std::size_t entries = 0, non_empty = 0, largest = 0;
     for (const auto& c : cells_) {
-        entries += c.size();
-        non_empty += !c.empty();
-        largest = std::max(largest, c.size());
+        entries += c.size;
+        non_empty += c.size != 0;
+        largest = std::max(largest, std::size_t(c.size));
     }
     return {{"cells", cells_.size()},
             {"res", {lat_.res[0], lat_.res[1], lat_.res[2]}},
@@ -199,13 +193,16 @@ void UniformGrid::validate() const {
             for (i[0] = 0; i[0] < lat_.res[0]; ++i[0]) {
                 const auto& c = cells_[cell_id(i)];
                 sorted.clear();
-                for (const CellEntry& e : c) sorted.push_back(e.slot);
+                for (std::uint32_t k = 0; k < c.size; ++k) sorted.push_back(c.slot(k));
                 std::sort(sorted.begin(), sorted.end());
                 if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) fail("an object appears twice in one cell");
-                for (const CellEntry& ce : c) {
-                    const std::uint32_t slot = ce.slot;
+                if (c.blocks.size() != (c.size + BoxBlock::kLanes - 1) / BoxBlock::kLanes) fail("cell blocks do not match its size");
+                for (std::uint32_t k = c.size; k < c.blocks.size() * BoxBlock::kLanes; ++k)
+                    if (c.box(k).min.x <= c.box(k).max.x) fail("an unused lane holds a box that segments can hit");
+                for (std::uint32_t k = 0; k < c.size; ++k) {
+                    const std::uint32_t slot = c.slot(k);
                     if (slot >= entries_.size() || !live[slot]) fail("stale entry (slot " + std::to_string(slot) + ") in a cell");
-                    if (!(ce.box == entries_[slot].box)) fail("uid " + std::to_string(entries_[slot].uid) + " has a stale box copy in a cell");
+                    if (!(c.box(k) == entries_[slot].box)) fail("uid " + std::to_string(entries_[slot].uid) + " has a stale box copy in a cell");
                     const grid::CellRange r = lat_.range_of(entries_[slot].box);
                     for (int a = 0; a < 3; ++a)
                         if (i[a] < r.lo[a] || i[a] > r.hi[a])

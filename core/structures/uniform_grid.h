@@ -6,10 +6,13 @@
 /// segment (thesis Algorithm 1).
 ///
 /// Choices beyond the thesis:
-/// - Duplicate tests are avoided with per-query stamps (Amanatides & Woo's "mailboxes"): each object
-///   slot remembers the id of the last query that tested it, so nothing is reset per ray. The
-///   thesis' O(N) reset of a bool vector per ray is kept behind `thesis_reset` to measure the
-///   difference.
+/// - Each cell keeps copies of its objects' boxes in blocks of four (box_block.h), tested four at a
+///   time without a branch per object. An object in several cells is tested in each; duplicate
+///   *hits* are dropped with per-query stamps (Amanatides & Woo's "mailboxes", checked only on a
+///   hit): each object slot remembers the id of the last query that reported it, so nothing is
+///   reset per ray. The thesis' O(N) reset of a bool vector per ray is kept behind `thesis_reset`
+///   to measure the difference. On uni-l this layout casts 1.8x faster than one object at a time
+///   with the stamp checked before each test (0.77 against 1.36 ms per 1000 rays).
 /// - The border cells extend to infinity: an index is clamped into [0, res − 1] per axis, so an
 ///   object inserted or moved outside the initial bounds lands in the border cells it would overlap
 ///   if those were unbounded, and the DDA has no plane beyond the border (a segment outside the
@@ -32,6 +35,7 @@
 
 #include "core/params.h"
 #include "core/structure.h"
+#include "core/structures/box_block.h"
 
 namespace rcb {
 
@@ -96,7 +100,10 @@ bool walk(const Lattice& lat, const Vec3d& p0, const Vec3d& d, const CellRange& 
     }
     double t_in = t0;
     for (;;) {
-        const int a = next[0] <= next[1] ? (next[0] <= next[2] ? 0 : 2) : (next[1] <= next[2] ? 1 : 2);
+        // The axis of the nearest plane (ties to the lower axis), without branches: which axis
+        // comes next is as good as random along a ray, so a branch here would mispredict often.
+        int a = int(next[1] < next[0]);
+        a = next[2] < next[a] ? 2 : a;
         const double t_cross = next[a];
         if (!cell(cur, t_in, std::min(t_cross, t1))) return false;
         if (!(t_cross <= t1)) return true;  // the segment ends in this cell
@@ -169,13 +176,6 @@ private:
         Aabb box;
         Uid uid = 0;
     };
-    /// A copy of the box beside the slot, so that a cell's tests read contiguous memory (the cell
-    /// walk then touches one other array, the stamps, per object).
-    struct CellEntry {
-        Aabb box;
-        std::uint32_t slot = 0;
-    };
-    static_assert(sizeof(CellEntry) == 28);
 
     std::size_t cell_id(const std::array<int, 3>& i) const {
         return (std::size_t(i[2]) * std::size_t(lat_.res[1]) + std::size_t(i[1])) * std::size_t(lat_.res[0]) +
@@ -190,7 +190,7 @@ private:
     grid::Lattice lat_;
     bool clamped_ = false;  ///< the cell cap enlarged the cells
     bool trimmed_ = false;  ///< the outlier guard trimmed the lattice
-    std::vector<std::vector<CellEntry>> cells_;      // cell → objects
+    std::vector<BlockCell> cells_;                   // cell → objects (copies of their boxes)
     std::vector<Entry> entries_;                     // slot → object
     std::vector<std::uint32_t> free_slots_;
     std::unordered_map<Uid, std::uint32_t> slot_;    // uid → slot
@@ -211,19 +211,24 @@ void UniformGrid::traverse(const Segment& s, Count& count, Visit&& visit) {
     const std::uint32_t stamp = reset ? 0 : next_stamp();
     grid::walk(lat_, p0, d, all, start, 0.0, 1.0, [&](const std::array<int, 3>& c, double, double) {
         count.traversal();
-        for (const CellEntry& e : cells_[cell_id(c)]) {
-            if (reset) {
-                if (tested_[e.slot]) continue;
-                tested_[e.slot] = 1;
-            } else {
-                if (stamps_[e.slot] == stamp) continue;
-                stamps_[e.slot] = stamp;
-            }
-            count.box_tests();
-            float tn, tf;
-            if (slabs.clip(e.box, tn, tf)) {
+        const BlockCell& cell = cells_[cell_id(c)];
+        count.box_tests(cell.size);
+        for (const BoxBlock& b : cell.blocks) {
+            float tn[BoxBlock::kLanes];
+            for (unsigned hits = b.test(slabs, tn); hits; hits &= hits - 1) {
+                const int lane = __builtin_ctz(hits);
+                const std::uint32_t slot = b.slot[lane];
+                // An object in several cells is tested in each (cheaper than a branch per object
+                // to skip it) and reported once.
+                if (reset) {
+                    if (tested_[slot]) continue;
+                    tested_[slot] = 1;
+                } else {
+                    if (stamps_[slot] == stamp) continue;
+                    stamps_[slot] = stamp;
+                }
                 count.hits();
-                if (!visit(entries_[e.slot].uid, tn)) return false;
+                if (!visit(entries_[slot].uid, tn[lane])) return false;
             }
         }
         return true;

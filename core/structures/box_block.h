@@ -1,0 +1,113 @@
+#pragma once
+/// A grid cell's objects in blocks of four boxes, each axis' bounds side by side, so that one block
+/// is one 4-wide slab test (SSE on x86-64, a scalar loop elsewhere) and the cell's walk costs one
+/// branch per block plus one per hit, not one or two per object. Measured on uni-l (14 021 objects,
+/// 22 cells and 79 box tests per ray): a per-object loop mispredicted about 100 branches per ray.
+///
+/// Unused lanes hold the empty box (min +inf, max -inf), which no finite segment hits, so a block is
+/// always tested whole. The test is SegmentSlabs::clip exactly: the same float operations in the
+/// same order, and MAXPS/MINPS return their second operand when either is NaN, as
+/// max_ignoring_nan(lo, tn) does.
+
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "core/geometry.h"
+
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
+
+namespace rcb {
+
+struct alignas(16) BoxBlock {
+    static constexpr int kLanes = 4;
+    float min[3][kLanes];
+    float max[3][kLanes];
+    std::uint32_t slot[kLanes];
+
+    void set(int lane, const Aabb& b, std::uint32_t s) {
+        for (int a = 0; a < 3; ++a) min[a][lane] = b.min[a], max[a][lane] = b.max[a];
+        slot[lane] = s;
+    }
+    void clear(int lane) {
+        for (int a = 0; a < 3; ++a)
+            min[a][lane] = std::numeric_limits<float>::infinity(), max[a][lane] = -std::numeric_limits<float>::infinity();
+        slot[lane] = 0;
+    }
+    Aabb box(int lane) const {
+        return {{min[0][lane], min[1][lane], min[2][lane]}, {max[0][lane], max[1][lane], max[2][lane]}};
+    }
+
+    /// The slab test of the four lanes: bit k of the result is set when lane k is hit, and
+    /// t_near[k] is its entry parameter.
+    unsigned test(const SegmentSlabs& s, float t_near[kLanes]) const {
+#if defined(__SSE2__)
+        __m128 tn = _mm_setzero_ps(), tf = _mm_set1_ps(1.0f);
+        for (int a = 0; a < 3; ++a) {
+            const __m128 o = _mm_set1_ps(s.origin[a]), inv = _mm_set1_ps(s.inv[a]);
+            const __m128 n = _mm_load_ps(s.near_is_max[a] ? max[a] : min[a]);
+            const __m128 f = _mm_load_ps(s.near_is_max[a] ? min[a] : max[a]);
+            tn = _mm_max_ps(_mm_mul_ps(_mm_sub_ps(n, o), inv), tn);
+            tf = _mm_min_ps(_mm_mul_ps(_mm_sub_ps(f, o), inv), tf);
+        }
+        _mm_storeu_ps(t_near, tn);
+        return unsigned(_mm_movemask_ps(_mm_cmple_ps(tn, tf)));
+#else
+        unsigned mask = 0;
+        for (int k = 0; k < kLanes; ++k) {
+            float tf;
+            if (s.clip(box(k), t_near[k], tf)) mask |= 1u << k;
+        }
+        return mask;
+#endif
+    }
+};
+
+/// One grid cell: `size` objects in the first lanes of `blocks`.
+struct BlockCell {
+    std::vector<BoxBlock> blocks;
+    std::uint32_t size = 0;
+
+    void push(const Aabb& box, std::uint32_t slot) {
+        const int lane = int(size % BoxBlock::kLanes);
+        if (lane == 0) {
+            blocks.emplace_back();
+            for (int k = 0; k < BoxBlock::kLanes; ++k) blocks.back().clear(k);
+        }
+        blocks.back().set(lane, box, slot);
+        ++size;
+    }
+    /// Removes `slot` (present): the last lane moves into its place.
+    void erase(std::uint32_t slot) {
+        const std::uint32_t last = size - 1;
+        BoxBlock& lb = blocks[last / BoxBlock::kLanes];
+        const int ll = int(last % BoxBlock::kLanes);
+        for (std::uint32_t i = 0; i < size; ++i) {
+            BoxBlock& b = blocks[i / BoxBlock::kLanes];
+            const int l = int(i % BoxBlock::kLanes);
+            if (b.slot[l] != slot) continue;
+            b.set(l, lb.box(ll), lb.slot[ll]);
+            break;
+        }
+        lb.clear(ll);
+        if (ll == 0) blocks.pop_back();
+        --size;
+    }
+    /// Gives `slot` (present) the box `box`.
+    void rewrite(std::uint32_t slot, const Aabb& box) {
+        for (std::uint32_t i = 0; i < size; ++i) {
+            BoxBlock& b = blocks[i / BoxBlock::kLanes];
+            const int l = int(i % BoxBlock::kLanes);
+            if (b.slot[l] == slot) {
+                b.set(l, box, slot);
+                return;
+            }
+        }
+    }
+    std::uint32_t slot(std::uint32_t i) const { return blocks[i / BoxBlock::kLanes].slot[i % BoxBlock::kLanes]; }
+    Aabb box(std::uint32_t i) const { return blocks[i / BoxBlock::kLanes].box(int(i % BoxBlock::kLanes)); }
+};
+
+}  // namespace rcb
