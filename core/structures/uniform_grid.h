@@ -135,7 +135,10 @@ Aabb lattice_bounds(std::span<const Object> objects, bool outlier_guard, bool* t
 class UniformGrid : public StructureBase<UniformGrid> {
 public:
     struct Params {
-        double density = 2.0;
+        // 4: what `rcbench tune experiments/tune-grids.json` finds on irreg-m and irreg-l (within 3%
+        // of the best on both) and close to uni-l's best (16); the blocks of four make a cell of
+        // several objects cheap to test.
+        double density = 4.0;
         bool thesis_reset = false;
         bool outlier_guard = true;
         static constexpr auto fields() {
