@@ -420,7 +420,10 @@ std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySet
                 d = len > 0 ? d * (1.0 / len) : rng.direction();
                 rays.push_back(segment_from(center, center + d * reach));
             } else if (mode == "los") {
-                rays.push_back(segment_from(random_object().center(), random_object().center()));
+                // Two statements: the order of a call's arguments is unspecified (GCC and clang differ),
+                // and the same seed must give the same bytes with both.
+                const Vec3d from = random_object().center();
+                rays.push_back(segment_from(from, random_object().center()));
             } else if (mode == "ground") {
                 const Aabbd o = random_object();
                 const Vec3d top{0.5 * (o.min.x + o.max.x), o.max.y, 0.5 * (o.min.z + o.max.z)};

@@ -211,10 +211,10 @@ TuneSpec parse_tune_spec(const std::string& text, const std::string& name, const
                 expect_object(params, path);
                 const StructureInfo& info = find_structure(structure);
                 for (const auto& [param, value] : params.items()) {
-                    auto spec = std::find_if(info.params.begin(), info.params.end(), [&](const ParamSpec& p) { return p.name == param; });
+                    auto spec = std::find_if(info.params.begin(), info.params.end(), [&, &param = param](const ParamSpec& p) { return p.name == param; });
                     if (spec == info.params.end()) check_params(info.params, json{{param, value}}, path, structure);  // throws
                     auto& dims = t.space[structure];
-                    auto dim = std::find_if(dims.begin(), dims.end(), [&](const SearchDimension& d) { return d.name == param; });
+                    auto dim = std::find_if(dims.begin(), dims.end(), [&, &param = param](const SearchDimension& d) { return d.name == param; });
                     std::vector<json> levels = expand_values(*spec, value, at(path, param));
                     if (dim == dims.end()) dims.push_back({param, levels});  // a non-tunable parameter the user wants searched
                     else dim->levels = levels;
