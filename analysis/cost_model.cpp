@@ -14,9 +14,6 @@
 #include "runner/store.h"
 
 namespace rcb {
-namespace {
-
-}  // namespace
 
 std::string scene_category(const std::string& spec_text) {
     const nlohmann::json spec = nlohmann::json::parse(spec_text, nullptr, false);
@@ -29,7 +26,6 @@ std::string scene_category(const std::string& spec_text) {
 }
 
 namespace {
-
 
 /// A term: its name and how to read it from a frame.
 struct Term {

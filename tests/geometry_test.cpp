@@ -4,6 +4,7 @@
 
 #include "core/geometry.h"
 #include "core/random.h"
+#include "tests/test_scenes.h"
 
 namespace rcb {
 namespace {
@@ -52,21 +53,6 @@ TEST(Geometry, ClipReportsTheEntryAndExitParameters) {
     EXPECT_EQ(tn, 0.0f);
 }
 
-/// Exact reference by case analysis in double.
-bool exact_hit(const Segmentd& s, const Aabbd& b) {
-    double lo = 0, hi = 1;
-    for (int a = 0; a < 3; ++a) {
-        const double p = s.p0[a], d = s.p1[a] - s.p0[a];
-        if (d == 0) {
-            if (p < b.min[a] || p > b.max[a]) return false;
-            continue;
-        }
-        double t0 = (b.min[a] - p) / d, t1 = (b.max[a] - p) / d;
-        if (t0 > t1) std::swap(t0, t1);
-        lo = std::max(lo, t0), hi = std::min(hi, t1);
-    }
-    return lo <= hi;
-}
 
 TEST(Geometry, FloatTestIsExactWhenItsArithmeticIs) {
     // Lattice points and power-of-two (or zero) directions: every t is exact in float, so the
@@ -82,7 +68,7 @@ TEST(Geometry, FloatTestIsExactWhenItsArithmeticIs) {
         const Vec3 p0{q(), q(), q()};
         const Vec3 d{steps[rng.below(9)], steps[rng.below(9)], steps[rng.below(9)]};
         const Segment s{p0, p0 + d};
-        const bool want = exact_hit({p0.as<double>(), (p0 + d).as<double>()}, b.as<double>());
+        const bool want = test::reference_hit({p0.as<double>(), (p0 + d).as<double>()}, b.as<double>());
         ASSERT_EQ(segment_hits_box(s, b), want) << "segment (" << p0.x << "," << p0.y << "," << p0.z << ")+(" << d.x << ","
                                                 << d.y << "," << d.z << ") box min (" << b.min.x << "," << b.min.y << ","
                                                 << b.min.z << ") max (" << b.max.x << "," << b.max.y << "," << b.max.z << ")";

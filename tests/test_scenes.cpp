@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "core/generators.h"
 #include "core/random.h"
 #include "core/recording_io.h"
@@ -254,6 +256,21 @@ SimulationResult expect_matches_ground_truth(const Recording& r, const std::stri
                     ": " + kinds[d.kind];
     EXPECT_EQ(res.mismatches(), 0u) << structure << ' ' << params.dump() << " on scene " << scene_name << examples;
     return res;
+}
+
+bool reference_hit(const Segmentd& s, const Aabbd& b) {
+    double lo = 0, hi = 1;
+    for (int a = 0; a < 3; ++a) {
+        const double p = s.p0[a], d = s.p1[a] - s.p0[a];
+        if (d == 0) {
+            if (p < b.min[a] || p > b.max[a]) return false;
+            continue;
+        }
+        double t0 = (b.min[a] - p) / d, t1 = (b.max[a] - p) / d;
+        if (t0 > t1) std::swap(t0, t1);
+        lo = std::max(lo, t0), hi = std::min(hi, t1);
+    }
+    return lo <= hi;
 }
 
 }  // namespace rcb::test

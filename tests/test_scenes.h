@@ -31,6 +31,10 @@ std::vector<NamedScene> hard_scenes();
 Recording generated_scene(const std::string& kind, std::uint32_t objects, std::uint32_t frames, std::uint64_t seed,
                           double change_fraction = 0.05);
 
+/// Exact reference for the segment–box test: the set of t in [0, 1] with p0 + t·d inside the box,
+/// per axis, by case analysis in double (no reciprocals, no NaN handling).
+bool reference_hit(const Segmentd& s, const Aabbd& b);
+
 /// Replays `r` with verification, counting and validation after every frame; expects 0 mismatches.
 SimulationResult expect_matches_ground_truth(const Recording& r, const std::string& structure,
                                              const nlohmann::json& params = nlohmann::json::object(),

@@ -420,13 +420,7 @@ nlohmann::json HashGrid::stats() const {
 
 void HashGrid::validate() const {
     auto fail = [](const std::string& m) { throw std::logic_error("hg: " + m); };
-    std::vector<std::uint8_t> live(entries_.size(), 0);
-    for (const auto& [uid, slot] : slot_) {
-        if (slot >= entries_.size() || entries_[slot].uid != uid) fail("uid index does not point at uid " + std::to_string(uid));
-        if (live[slot]) fail("two uids share slot " + std::to_string(slot));
-        live[slot] = 1;
-    }
-    if (slot_.size() + free_slots_.size() != entries_.size()) fail("slots are neither live nor free");
+    const std::vector<std::uint8_t> live = grid::live_slots(entries_, slot_, free_slots_, fail);
     // Hash invariants: every key maps to a live cell carrying that key, and every live cell is keyed.
     std::size_t keyed = 0;
     table_.for_each([&](std::uint64_t key, std::uint32_t id) {

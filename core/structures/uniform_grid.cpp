@@ -176,15 +176,7 @@ void UniformGrid::validate() const {
     auto fail = [](const std::string& m) { throw std::logic_error("ug: " + m); };
     if (cells_.size() != std::size_t(lat_.res[0]) * lat_.res[1] * lat_.res[2]) fail("cell array size differs from the resolution");
     if (cells_.size() > kMaxCells) fail("more cells than the cap");
-    std::vector<std::uint8_t> live(entries_.size(), 0);
-    for (const auto& [uid, slot] : slot_) {
-        if (slot >= entries_.size() || entries_[slot].uid != uid) fail("uid index does not point at uid " + std::to_string(uid));
-        if (live[slot]) fail("two uids share slot " + std::to_string(slot));
-        live[slot] = 1;
-    }
-    if (slot_.size() + free_slots_.size() != entries_.size()) fail("slots are neither live nor free");
-    for (std::uint32_t f : free_slots_)
-        if (f >= entries_.size() || live[f]) fail("a free slot is live");
+    const std::vector<std::uint8_t> live = grid::live_slots(entries_, slot_, free_slots_, fail);
     std::vector<std::size_t> seen(entries_.size(), 0);
     std::vector<std::uint32_t> sorted;
     std::array<int, 3> i;

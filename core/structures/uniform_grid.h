@@ -29,6 +29,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <string>
 #include <tuple>
 #include <unordered_map>
 #include <vector>
@@ -112,6 +113,23 @@ bool walk(const Lattice& lat, const Vec3d& p0, const Vec3d& d, const CellRange& 
         t_in = std::max(t_in, t_cross);
         next[a] = crossing(a);
     }
+}
+
+/// The live slots of a grid's object table (entries with a `uid`, a uid → slot index, a free list);
+/// `fail(message)` unless the three agree.
+template <class Entry, class Fail>
+std::vector<std::uint8_t> live_slots(const std::vector<Entry>& entries, const std::unordered_map<Uid, std::uint32_t>& index,
+                                     const std::vector<std::uint32_t>& free_slots, Fail&& fail) {
+    std::vector<std::uint8_t> live(entries.size(), 0);
+    for (const auto& [uid, slot] : index) {
+        if (slot >= entries.size() || entries[slot].uid != uid) fail("uid index does not point at uid " + std::to_string(uid));
+        if (live[slot]) fail("two uids share slot " + std::to_string(slot));
+        live[slot] = 1;
+    }
+    if (index.size() + free_slots.size() != entries.size()) fail("slots are neither live nor free");
+    for (std::uint32_t f : free_slots)
+        if (f >= entries.size() || live[f]) fail("a free slot is live");
+    return live;
 }
 
 /// Cells per axis for cells of edge `size` over `bounds` (at least 1).
