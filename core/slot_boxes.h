@@ -1,8 +1,8 @@
 #pragma once
 /// Live objects in dense slots 0..n-1 with their boxes and a uid → slot index. A remove moves the
 /// last slot into the hole, so the slots stay dense and a structure keeps whatever else it has per
-/// object in plain arrays indexed by slot: brute force's coordinate arrays, the LBVH's build input,
-/// Embree's primitive ids, Bullet's leaves.
+/// object in plain arrays indexed by slot (Embree's primitive ids, Bullet's leaves) and the LBVH
+/// builds from the arrays directly.
 
 #include <cstdint>
 #include <stdexcept>
@@ -37,11 +37,10 @@ public:
         return slot;
     }
 
-    /// Removes `uid` (present). When its slot was not the last, the last slot's object takes it over
-    /// and `fill(slot, last)` copies the caller's own per-slot data from `last` to `slot`; then the
-    /// caller pops the last element of each of its arrays. Returns the freed slot.
-    template <class Fill>
-    std::uint32_t remove(Uid uid, Fill&& fill) {
+    /// Removes `uid` (present) and returns the slot it had. When that was not the last slot, the last
+    /// slot's object now lives there: a caller with per-slot arrays of its own moves their last
+    /// element into the returned slot and pops them, as this does.
+    std::uint32_t remove(Uid uid) {
         auto it = index_.find(uid);
         const std::uint32_t slot = it->second;
         index_.erase(it);
@@ -50,14 +49,10 @@ public:
             uids_[slot] = uids_[last];
             boxes_[slot] = boxes_[last];
             index_[uids_[slot]] = slot;
-            fill(slot, last);
         }
         uids_.pop_back();
         boxes_.pop_back();
         return slot;
-    }
-    std::uint32_t remove(Uid uid) {
-        return remove(uid, [](std::uint32_t, std::uint32_t) {});
     }
 
     /// Gives the live object `o.uid` the box `o.box`; returns its slot.

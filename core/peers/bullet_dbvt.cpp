@@ -83,11 +83,12 @@ void BulletDbvt::insert(const Object& o) {
 }
 
 void BulletDbvt::remove(Uid uid) {
-    tree_->remove(leaves_[*objects_.find(uid)]);
-    objects_.remove(uid, [&](std::uint32_t slot, std::uint32_t last) {
-        leaves_[slot] = leaves_[last];
+    const std::uint32_t slot = objects_.remove(uid);
+    tree_->remove(leaves_[slot]);
+    if (slot != leaves_.size() - 1) {  // the last slot's object moved into `slot`
+        leaves_[slot] = leaves_.back();
         leaves_[slot]->dataAsInt = static_cast<int>(slot);
-    });
+    }
     leaves_.pop_back();
 }
 

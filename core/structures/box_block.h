@@ -11,6 +11,7 @@
 
 #include <cstdint>
 #include <limits>
+#include <string>
 #include <vector>
 
 #include "core/geometry.h"
@@ -84,30 +85,33 @@ struct BlockCell {
         const std::uint32_t last = size - 1;
         BoxBlock& lb = blocks[last / BoxBlock::kLanes];
         const int ll = int(last % BoxBlock::kLanes);
-        for (std::uint32_t i = 0; i < size; ++i) {
-            BoxBlock& b = blocks[i / BoxBlock::kLanes];
-            const int l = int(i % BoxBlock::kLanes);
-            if (b.slot[l] != slot) continue;
-            b.set(l, lb.box(ll), lb.slot[ll]);
-            break;
-        }
+        set(index_of(slot), lb.box(ll), lb.slot[ll]);
         lb.clear(ll);
         if (ll == 0) blocks.pop_back();
         --size;
     }
     /// Gives `slot` (present) the box `box`.
-    void rewrite(std::uint32_t slot, const Aabb& box) {
-        for (std::uint32_t i = 0; i < size; ++i) {
-            BoxBlock& b = blocks[i / BoxBlock::kLanes];
-            const int l = int(i % BoxBlock::kLanes);
-            if (b.slot[l] == slot) {
-                b.set(l, box, slot);
-                return;
-            }
-        }
+    void rewrite(std::uint32_t slot, const Aabb& box) { set(index_of(slot), box, slot); }
+    /// What is wrong with the lanes' layout ("" when nothing): one block per four objects, and no
+    /// unused lane that a segment could hit.
+    std::string defect() const {
+        if (blocks.size() != (size + BoxBlock::kLanes - 1) / BoxBlock::kLanes) return "cell blocks do not match its size";
+        for (std::uint32_t i = size; i < blocks.size() * BoxBlock::kLanes; ++i)
+            if (box(i).min.x <= box(i).max.x) return "an unused lane holds a box that segments can hit";
+        return "";
     }
     std::uint32_t slot(std::uint32_t i) const { return blocks[i / BoxBlock::kLanes].slot[i % BoxBlock::kLanes]; }
     Aabb box(std::uint32_t i) const { return blocks[i / BoxBlock::kLanes].box(int(i % BoxBlock::kLanes)); }
+
+private:
+    std::uint32_t index_of(std::uint32_t slot) const {
+        std::uint32_t i = 0;
+        while (this->slot(i) != slot) ++i;
+        return i;
+    }
+    void set(std::uint32_t i, const Aabb& box, std::uint32_t slot) {
+        blocks[i / BoxBlock::kLanes].set(int(i % BoxBlock::kLanes), box, slot);
+    }
 };
 
 }  // namespace rcb

@@ -140,7 +140,7 @@ private:
     struct Entry {
         Aabb box;
         Uid uid = 0;
-        std::uint32_t stamp = 0;  ///< id of the last query that tested this object
+        std::uint32_t stamp = 0;  ///< id of the last query that reported this object
     };
     struct Cell {
         std::vector<std::uint32_t> own;  ///< object slots stored here

@@ -188,9 +188,7 @@ void UniformGrid::validate() const {
                 for (std::uint32_t k = 0; k < c.size; ++k) sorted.push_back(c.slot(k));
                 std::sort(sorted.begin(), sorted.end());
                 if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) fail("an object appears twice in one cell");
-                if (c.blocks.size() != (c.size + BoxBlock::kLanes - 1) / BoxBlock::kLanes) fail("cell blocks do not match its size");
-                for (std::uint32_t k = c.size; k < c.blocks.size() * BoxBlock::kLanes; ++k)
-                    if (c.box(k).min.x <= c.box(k).max.x) fail("an unused lane holds a box that segments can hit");
+                if (const std::string defect = c.defect(); !defect.empty()) fail(defect);
                 for (std::uint32_t k = 0; k < c.size; ++k) {
                     const std::uint32_t slot = c.slot(k);
                     if (slot >= entries_.size() || !live[slot]) fail("stale entry (slot " + std::to_string(slot) + ") in a cell");

@@ -216,7 +216,7 @@ private:
     std::vector<std::uint32_t> free_slots_;
     std::unordered_map<Uid, std::uint32_t> slot_;    // uid → slot
     std::uint32_t stamp_ = 0;
-    std::vector<std::uint32_t> stamps_;  // slot → id of the last query that tested it
+    std::vector<std::uint32_t> stamps_;  // slot → id of the last query that reported it
     std::vector<std::uint8_t> tested_;  // thesis_reset mode only
 };
 
