@@ -49,5 +49,17 @@ TEST(Csv, ReadsRaysAndRejectsBadOnes) {
     EXPECT_THROW(read_rays_csv("/nonexistent/rays.csv"), InputError);
 }
 
+TEST(QuotedExcerpt, QuotesEscapesAndCutsUserText) {
+    EXPECT_EQ(quoted_excerpt("abc"), "'abc'");
+    EXPECT_EQ(quoted_excerpt(""), "''");
+    // A BOM, a tab and a newline are shown, not sent to the terminal.
+    EXPECT_EQ(quoted_excerpt("\xEF\xBB\xBF" "a\tb\n"), "'\\xEF\\xBB\\xBFa\\x09b\\x0A'");
+    EXPECT_EQ(quoted_excerpt(std::string(80, 'x')), "'" + std::string(80, 'x') + "'");
+    EXPECT_EQ(quoted_excerpt(std::string(10'000'000, 'x')), "'" + std::string(80, 'x') + "'…");
+    EXPECT_EQ(quoted_excerpt("abcdef", 4), "'abcd'…");
+    // An escape that does not fit is left out whole.
+    EXPECT_EQ(quoted_excerpt("ab\x01", 4), "'ab'…");
+}
+
 }  // namespace
 }  // namespace rcb
