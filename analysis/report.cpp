@@ -14,6 +14,7 @@
 #include "analysis/cost_model.h"
 #include "core/error.h"
 #include "core/generators.h"
+#include "core/output_file.h"
 #include "core/registry.h"
 #include "core/simulator.h"
 #include "runner/table.h"
@@ -536,18 +537,7 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
             "h2{border-bottom:1px solid #ddd;padding-bottom:4px;margin-top:2em}</style></head>\n<body>\n<h1>rcbench report: "
          << html_escape(experiment) << "</h1>\n"
          << h.str() << "</body></html>\n";
-    const std::filesystem::path target(path);
-    std::error_code ec;
-    if (!target.parent_path().empty()) std::filesystem::create_directories(target.parent_path(), ec);
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream out(tmp, std::ios::trunc);
-        if (!out) throw InputError(path + ": cannot open for writing");
-        out << page.str();
-        if (!out) throw std::runtime_error(path + ": write failed");
-    }
-    std::filesystem::rename(tmp, target, ec);
-    if (ec) throw std::runtime_error(path + ": cannot move the report into place: " + ec.message());
+    write_file_atomically(path, page.str());
     return {run, h.charts(), h.tables()};
 }
 

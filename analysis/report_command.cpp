@@ -5,6 +5,7 @@
 #include "analysis/commands.h"
 #include "analysis/cost_model.h"
 #include "analysis/report.h"
+#include "core/output_file.h"
 #include "runner/store.h"
 
 namespace rcb {
@@ -21,6 +22,7 @@ void add_report_command(CLI::App& app) {
     cmd->add_option("--experiment", o->experiment, "Report the newest run of this experiment (default: the newest run)");
     cmd->add_option("--run", o->run, "Report this run id");
     cmd->callback([o] {
+        check_output_path(o->out, {o->db, o->db + "-wal", o->db + "-shm"}, "-o");
         auto db = open_read_only(o->db);
         const std::int64_t run = resolve_run(*db, o->run, o->experiment);
         const ReportSummary s = write_report(*db, run, o->out);

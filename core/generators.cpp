@@ -460,8 +460,23 @@ std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySet
     return rays;
 }
 
+void check_dynamics(const DynamicsSettings& d) {
+    auto in_range = [](const char* name, double v, double lo, double hi) {
+        if (!(v >= lo && v <= hi))  // NaN fails too
+            throw InputError(std::string(name) + ": expected a number in " + std::to_string(lo) + ".." + std::to_string(hi) +
+                             ", got " + std::to_string(v));
+    };
+    in_range("change_fraction", d.change_fraction, 0, 1);
+    in_range("insert_share", d.insert_share, 0, 1);
+    in_range("remove_share", d.remove_share, 0, 1);
+    in_range("move_scale", d.move_scale, 0, 1000);
+    if (d.insert_share + d.remove_share > 1) throw InputError("insert_share + remove_share exceeds 1");
+}
+
 Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dynamics, const RaySettings& rays,
                        std::uint32_t frames, std::uint64_t seed, nlohmann::json meta) {
+    check_dynamics(dynamics);
+    check_scene_size(double(initial.size()), frames, rays.per_frame, double(initial.size()) * dynamics.change_fraction, "scene");
     Recording r;
     meta["frames"] = frames;
     meta["seed"] = seed;
@@ -494,6 +509,8 @@ nlohmann::json to_json(const SceneSettings& s) {
 }
 
 Recording generate_scene(const SceneSettings& s) {
+    check_dynamics(s.dynamics);
+    check_scene_size(s.objects, s.frames, s.rays.per_frame, s.objects * s.dynamics.change_fraction, "scene");
     return add_dynamics(generate_objects(s), s.dynamics, s.rays, s.frames, s.seed, to_json(s));
 }
 

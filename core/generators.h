@@ -74,6 +74,8 @@ std::vector<Object> generate_objects(const SceneSettings& settings);
 
 /// A full recording: generated objects, then `settings.frames` frames of dynamics and rays.
 Recording generate_scene(const SceneSettings& settings);
+/// InputError naming the setting when a share or scale is outside its range or not a number.
+void check_dynamics(const DynamicsSettings& dynamics);
 
 /// Gives any static object set (an import) the same dynamics and rays. `meta` is stored as given,
 /// with the dynamics, ray settings, frames and seed added.

@@ -1,5 +1,7 @@
 #include "core/params.h"
 
+#include "core/json_input.h"
+
 #include <cmath>
 #include <sstream>
 
@@ -66,7 +68,7 @@ void check_param(const ParamSpec& spec, const nlohmann::json& v, const std::stri
                  std::find(spec.choices.begin(), spec.choices.end(), v.get<std::string>()) != spec.choices.end();
             break;
     }
-    if (!ok) throw InputError(path + ": expected " + spec.expectation() + ", got " + v.dump());
+    if (!ok) throw InputError(path + ": expected " + spec.expectation() + ", got " + json_excerpt(v));
 }
 
 void check_params(const std::vector<ParamSpec>& specs, const nlohmann::json& params, const std::string& path,
@@ -74,7 +76,7 @@ void check_params(const std::vector<ParamSpec>& specs, const nlohmann::json& par
     if (params.is_null()) return;  // no parameters given: all defaults
     if (!params.is_object())
         throw InputError((path.empty() ? std::string("params") : path) + ": expected an object of parameters, got " +
-                         params.dump());
+                         json_excerpt(params));
     for (const auto& [key, value] : params.items()) {
         auto spec = std::find_if(specs.begin(), specs.end(), [&, &key = key](const ParamSpec& s) { return s.name == key; });
         if (spec == specs.end()) {

@@ -66,6 +66,18 @@ private:
     std::unordered_map<Uid, std::uint32_t> index_;
 };
 
+/// Bounds on a scene, checked before anything is allocated, so a typo in a count is a clear error
+/// instead of minutes of work ending in std::bad_alloc. 2^26 objects are 64 times the largest
+/// scene of the experiments (10^6); 4 GiB of recording is a sixth of the machines rcbench targets.
+inline constexpr std::uint64_t kMaxSceneObjects = std::uint64_t(1) << 26;
+inline constexpr std::uint64_t kMaxRecordingBytes = std::uint64_t(4) << 30;
+
+/// Bytes a recording of these counts takes in memory (about its file size).
+double recording_bytes(double objects, double frames, double rays_per_frame, double changes_per_frame);
+/// InputError "<where>: ..." naming the limit when a scene of these counts exceeds one of the bounds
+/// above (NaN counts included).
+void check_scene_size(double objects, double frames, double rays_per_frame, double changes_per_frame, const std::string& where);
+
 /// Bounds of a set of objects (the empty box for none).
 Aabb bounds_of(const std::vector<Object>& objects);
 

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/error.h"
+
 namespace rcb {
 namespace {
 
@@ -111,8 +113,19 @@ nlohmann::json SimulationResult::to_json() const {
     return j;
 }
 
+void check_warmup(std::size_t warmup_frames, std::size_t frames) {
+    // Warm-up frames are left out of every median: with none left there is nothing to report
+    // (a summary of zero frames would read as 0 ns).
+    if (warmup_frames > 0 && warmup_frames >= frames)
+        throw InputError(std::to_string(warmup_frames) + " warm-up frames leave none of the scene's " + std::to_string(frames) +
+                         " frames to measure");
+}
+
 SimulationResult simulate(const Recording& recording, const StructureInfo& info, const nlohmann::json& params,
                           const SimulationOptions& options, const std::string& params_path, const FrameCallback& on_frame) {
+    const std::size_t frames = options.max_frames ? std::min<std::size_t>(options.max_frames, recording.frames.size())
+                                                  : recording.frames.size();
+    check_warmup(options.warmup_frames, frames);
     SimulationResult result;
     result.structure = info.name;
     result.params = info.complete(params, params_path);
@@ -129,8 +142,6 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
 
     LiveSet live(recording.initial);
     HitLists hits, counted;
-    const std::size_t frames = options.max_frames ? std::min<std::size_t>(options.max_frames, recording.frames.size())
-                                                  : recording.frames.size();
     for (std::size_t i = 0; i < frames; ++i) {
         const Frame& frame = recording.frames[i];
         FrameResult fr;

@@ -74,6 +74,9 @@ struct SimulationResult {
 /// Called after each frame (for progress reports); may be empty.
 using FrameCallback = std::function<void(const FrameResult&)>;
 
+/// InputError when `warmup_frames` leave none of `frames` to measure (simulate checks it too).
+void check_warmup(std::size_t warmup_frames, std::size_t frames);
+
 /// `params` is validated against the structure's registry entry (errors name `params_path`).
 SimulationResult simulate(const Recording& recording, const StructureInfo& structure, const nlohmann::json& params,
                           const SimulationOptions& options = {}, const std::string& params_path = "params",

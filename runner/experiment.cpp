@@ -11,6 +11,7 @@
 #include "core/csv.h"
 #include "core/importers/scene_import.h"
 #include "core/error.h"
+#include "core/json_input.h"
 #include "core/recording_io.h"
 #include "core/registry.h"
 
@@ -24,7 +25,7 @@ std::string at(const std::string& path, std::size_t index) { return path + "[" +
 [[noreturn]] void fail(const std::string& path, const std::string& what) { throw InputError(path + ": " + what); }
 
 void expect_object(const json& j, const std::string& path) {
-    if (!j.is_object()) fail(path, "expected an object, got " + j.dump());
+    if (!j.is_object()) fail(path, "expected an object, got " + json_excerpt(j));
 }
 
 void check_keys(const json& j, const std::string& path, const std::set<std::string>& allowed) {
@@ -39,7 +40,7 @@ std::uint64_t get_uint(const json& obj, const std::string& key, const std::strin
     if (!obj.contains(key)) return fallback;
     const json& v = obj.at(key);
     if (!(v.is_number_unsigned() || v.is_number_integer()) || v.get<double>() < double(lo) || v.get<double>() > double(hi))
-        fail(at(path, key), "expected an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got " + v.dump());
+        fail(at(path, key), "expected an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got " + json_excerpt(v));
     return v.get<std::uint64_t>();
 }
 
@@ -49,20 +50,20 @@ double get_number(const json& obj, const std::string& key, const std::string& pa
     if (!v.is_number() || !(v.get<double>() >= lo && v.get<double>() <= hi)) {
         std::ostringstream range;
         range << lo << ".." << hi;
-        fail(at(path, key), "expected a number in " + range.str() + ", got " + v.dump());
+        fail(at(path, key), "expected a number in " + range.str() + ", got " + json_excerpt(v));
     }
     return v.get<double>();
 }
 
 std::string get_string(const json& obj, const std::string& key, const std::string& path, const std::string& fallback) {
     if (!obj.contains(key)) return fallback;
-    if (!obj.at(key).is_string()) fail(at(path, key), "expected a string, got " + obj.at(key).dump());
+    if (!obj.at(key).is_string()) fail(at(path, key), "expected a string, got " + json_excerpt(obj.at(key)));
     return obj.at(key).get<std::string>();
 }
 
 bool get_bool(const json& obj, const std::string& key, const std::string& path, bool fallback) {
     if (!obj.contains(key)) return fallback;
-    if (!obj.at(key).is_boolean()) fail(at(path, key), "expected true or false, got " + obj.at(key).dump());
+    if (!obj.at(key).is_boolean()) fail(at(path, key), "expected true or false, got " + json_excerpt(obj.at(key)));
     return obj.at(key).get<bool>();
 }
 
@@ -99,6 +100,8 @@ std::vector<json> expand_values(const ParamSpec& spec, const json& v, const std:
     }
     if (v.is_object()) {
         check_keys(v, path, {"from", "to", "step", "times"});
+        if (spec.kind != ParamKind::integer && spec.kind != ParamKind::real)
+            fail(path, "a range needs a numeric parameter; give " + spec.name + " a value or a list of values");
         if (!v.contains("from") || !v.contains("to") || (v.contains("step") == v.contains("times")))
             fail(path, "a range needs \"from\", \"to\" and one of \"step\" or \"times\"");
         check_param(spec, v["from"], at(path, "from"));
@@ -109,21 +112,25 @@ std::vector<json> expand_values(const ParamSpec& spec, const json& v, const std:
         if (v.contains("step")) {
             const json& s = v["step"];
             if (!s.is_number() || !(s.get<double>() > 0) || (integer && !s.is_number_integer()))
-                fail(at(path, "step"), std::string("expected a positive ") + (integer ? "integer" : "number") + ", got " + s.dump());
+                fail(at(path, "step"), std::string("expected a positive ") + (integer ? "integer" : "number") + ", got " + json_excerpt(s));
             const double step = s.get<double>();
+            if (!((to - from) / step <= kMaxRangeValues))
+                fail(path, "the range takes more than " + std::to_string(kMaxRangeValues) + " steps");
             for (std::size_t i = 0; from + double(i) * step <= to * (1 + 1e-12) + 1e-12; ++i) {
                 const double x = from + double(i) * step;
                 out.push_back(integer ? json(std::llround(x)) : json(x));
-                if (out.size() > 10000) fail(path, "the range has more than 10000 values");
             }
         } else {
             const json& f = v["times"];
-            if (!f.is_number() || !(f.get<double>() > 1)) fail(at(path, "times"), "expected a number above 1, got " + f.dump());
+            if (!f.is_number() || !(f.get<double>() > 1)) fail(at(path, "times"), "expected a number above 1, got " + json_excerpt(f));
             if (!(from > 0)) fail(at(path, "from"), "a geometric range needs \"from\" above 0");
+            // Count the steps before taking them: with a factor barely above 1 an integer range
+            // repeats each rounded value for billions of steps (the duplicates are dropped below).
+            const double steps = std::log(to / from) / std::log(f.get<double>());
+            if (!(steps <= kMaxRangeValues)) fail(path, "the range takes more than " + std::to_string(kMaxRangeValues) + " steps");
             for (double x = from; x <= to * (1 + 1e-12); x *= f.get<double>()) {
                 json value = integer ? json(std::llround(x)) : json(x);
                 if (out.empty() || out.back() != value) out.push_back(value);
-                if (out.size() > 10000) fail(path, "the range has more than 10000 values");
             }
         }
         for (std::size_t i = 0; i < out.size(); ++i) check_param(spec, out[i], at(path, i));
@@ -144,6 +151,8 @@ std::vector<json> expand_grid(const StructureInfo& info, const json& grid, const
         auto spec = std::find_if(info.params.begin(), info.params.end(), [&, &key = key](const ParamSpec& s) { return s.name == key; });
         if (spec == info.params.end()) check_params(info.params, json{{key, value}}, path, info.name);  // throws: unknown
         const std::vector<json> values = expand_values(*spec, value, at(path, key));
+        if (combos.size() * values.size() > kMaxPlanCells)
+            fail(path, "the grid has more than " + std::to_string(kMaxPlanCells) + " combinations");
         std::vector<json> next;
         for (const json& c : combos)
             for (const json& v : values) {
@@ -152,7 +161,6 @@ std::vector<json> expand_grid(const StructureInfo& info, const json& grid, const
                 next.push_back(std::move(n));
             }
         combos = std::move(next);
-        if (combos.size() > 100000) fail(path, "the grid has more than 100000 combinations");
     }
     return combos;
 }
@@ -196,7 +204,7 @@ void parse_scene(const json& s, const std::string& path, const SceneDefaults& d,
         base.kind = get_string(s, "kind", path, "");
         const std::vector<std::string> kinds = scene_kinds();
         if (std::find(kinds.begin(), kinds.end(), base.kind) == kinds.end())
-            fail(at(path, "kind"), "expected one of " + join(kinds) + ", got " + s["kind"].dump());
+            fail(at(path, "kind"), "expected one of " + join(kinds) + ", got " + json_excerpt(s["kind"]));
         if (!s.contains("objects")) fail(path, "a scene given by \"kind\" needs \"objects\"");
         name = base.kind;
     } else {
@@ -283,14 +291,6 @@ std::string read_text_file(const std::string& path) {
     return s.str();
 }
 
-json parse_json_document(const std::string& text, const std::string& name) {
-    try {
-        return json::parse(text);
-    } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e999 (found by fuzzing)
-        throw InputError(name + ": not valid JSON (" + std::string(e.what()) + ")");
-    }
-}
-
 std::string stable_hash(const std::string& bytes) {
     std::uint64_t h = 0xcbf29ce484222325ULL;
     for (unsigned char c : bytes) {
@@ -358,9 +358,20 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
                 for (const json& params : expand_grid(*info, grid, gpath)) {
                     ConfigSpec c{info->name, info->complete(params, gpath)};
                     if (seen.insert(c.structure + c.params.dump()).second) e.configs.push_back(std::move(c));
+                    if (e.configs.size() > kMaxPlanCells)
+                        fail("structures", "more than " + std::to_string(kMaxPlanCells) + " configurations");
                 }
         }
 
+        // Refuse an oversized plan before allocating it (a typo such as 1000 repetitions of a
+        // 6400-value grid would otherwise take minutes and gigabytes to expand).
+        const double cells = double(e.scenes.size()) * double(e.configs.size()) * double(e.repetitions);
+        if (cells > double(kMaxPlanCells))
+            fail("(top level)", "the plan has " + std::to_string(std::uint64_t(cells)) + " cells (" + std::to_string(e.scenes.size()) +
+                                    " scenes x " + std::to_string(e.configs.size()) + " configurations x " +
+                                    std::to_string(e.repetitions) + " repetitions), more than the limit of " +
+                                    std::to_string(kMaxPlanCells) + "; split it into several experiment files");
+        e.plan.reserve(std::size_t(cells));
         for (std::size_t s = 0; s < e.scenes.size(); ++s)
             for (std::uint32_t r = 0; r < e.repetitions; ++r)
                 for (std::size_t c = 0; c < e.configs.size(); ++c) {

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/generators.h"
+#include "core/json_input.h"
 #include "core/params.h"
 #include "core/scene.h"
 
@@ -38,6 +39,10 @@ struct Cell {
     std::uint32_t repetition = 0;
     std::string key;         ///< stable hash of (scene key, structure, params, repetition)
 };
+
+/// Bounds on what an experiment file may ask for, checked before anything is allocated.
+inline constexpr std::size_t kMaxRangeValues = 10'000;  ///< values of one {"from", "to", ...} range
+inline constexpr std::size_t kMaxPlanCells = 100'000;   ///< cells of a plan, and combinations of a grid
 
 struct Experiment {
     std::string name;
@@ -99,8 +104,5 @@ std::vector<std::uint64_t> get_uint_list(const nlohmann::json& obj, const std::s
                                          std::uint64_t lo, std::uint64_t hi, std::vector<std::uint64_t> fallback);
 /// Reads a whole text file; InputError naming it when it cannot be opened.
 std::string read_text_file(const std::string& path);
-/// Parses a JSON document; InputError "<name>: not valid JSON (...)" for bad syntax and for numbers
-/// that do not fit a double (1e999).
-nlohmann::json parse_json_document(const std::string& text, const std::string& name);
 
 }  // namespace rcb

@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "core/error.h"
+#include "core/output_file.h"
 #include "runner/commands.h"
 #include "runner/compare.h"
 #include "runner/store.h"
@@ -56,46 +57,58 @@ void run_query(const std::string& path, const std::string& sql, bool csv) {
     t.print(std::cout);
 }
 
-/// Copies every run of `in` that `out` does not have yet (by run uuid), remapping ids.
-std::size_t merge_into(ResultStore& out, const std::string& in_path) {
-    auto in = open_read_only(in_path);
+struct MergeCount {
+    std::size_t runs = 0;   ///< runs new to `out`
+    std::size_t cells = 0;  ///< cells new to `out`, in new runs or in runs it had unfinished
+};
+
+/// Copies into `out` every run of `in` (matched by run uuid) and every cell of it that `out` does
+/// not have yet, remapping ids; a run `out` holds unfinished gains the cells finished since and its
+/// finish time. So merging a shard, resuming the shard and merging it again completes the run.
+MergeCount merge_into(ResultStore& out, Database& in) {
     Database& o = out.db();
     Transaction t(o);
-    std::size_t merged = 0;
-    std::map<std::int64_t, std::int64_t> scene_ids, config_ids;
+    MergeCount count;
     auto id_of = [&](const std::string& select, auto&&... keys) {
         Statement s = o.prepare(select);
         s.bind_all(keys...);
         s.step();
         return s.int64(0);
     };
-    Statement runs = in->prepare(
+    Statement runs = in.prepare(
         "SELECT run.id, run.uuid, experiment.name, experiment.description, experiment_hash, experiment_content, started_at, "
         "finished_at, git_commit, compiler, flags, cpu_model, cores, governor, hostname, threads, shard "
         "FROM run JOIN experiment ON experiment.id = run.experiment_id ORDER BY run.id");
     while (runs.step()) {
+        std::int64_t run = 0;
         {
-            Statement exists = o.prepare("SELECT 1 FROM run WHERE uuid = ?");
-            exists.bind(1, runs.text(1));
-            if (exists.step()) continue;
+            Statement existing = o.prepare("SELECT id FROM run WHERE uuid = ?");
+            existing.bind(1, runs.text(1));
+            if (existing.step()) run = existing.int64(0);
         }
-        o.prepare("INSERT INTO experiment(name, description) VALUES (?, ?) ON CONFLICT(name) DO NOTHING")
-            .bind_all(runs.text(2), runs.text(3))
-            .run();
-        const std::int64_t experiment = id_of("SELECT id FROM experiment WHERE name = ?", runs.text(2));
-        Statement insert_run = o.prepare(
-            "INSERT INTO run(uuid, experiment_id, experiment_hash, experiment_content, started_at, finished_at, git_commit, "
-            "compiler, flags, cpu_model, cores, governor, hostname, threads, shard) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
-        insert_run.bind_all(runs.text(1), experiment, runs.text(4), runs.text(5), runs.text(6));
-        if (runs.is_null(7)) insert_run.bind_null(6);
-        else insert_run.bind(6, runs.text(7));
-        insert_run.bind(7, runs.text(8)).bind(8, runs.text(9)).bind(9, runs.text(10)).bind(10, runs.text(11));
-        insert_run.bind(11, runs.int64(12)).bind(12, runs.text(13)).bind(13, runs.text(14)).bind(14, runs.int64(15));
-        insert_run.bind(15, runs.text(16));
-        insert_run.run();
-        const std::int64_t run = o.last_insert_id();
+        if (run) {
+            if (!runs.is_null(7))
+                o.prepare("UPDATE run SET finished_at = ? WHERE id = ? AND finished_at IS NULL").bind_all(runs.text(7), run).run();
+        } else {
+            o.prepare("INSERT INTO experiment(name, description) VALUES (?, ?) ON CONFLICT(name) DO NOTHING")
+                .bind_all(runs.text(2), runs.text(3))
+                .run();
+            const std::int64_t experiment = id_of("SELECT id FROM experiment WHERE name = ?", runs.text(2));
+            Statement insert_run = o.prepare(
+                "INSERT INTO run(uuid, experiment_id, experiment_hash, experiment_content, started_at, finished_at, git_commit, "
+                "compiler, flags, cpu_model, cores, governor, hostname, threads, shard) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+            insert_run.bind_all(runs.text(1), experiment, runs.text(4), runs.text(5), runs.text(6));
+            if (runs.is_null(7)) insert_run.bind_null(6);
+            else insert_run.bind(6, runs.text(7));
+            insert_run.bind(7, runs.text(8)).bind(8, runs.text(9)).bind(9, runs.text(10)).bind(10, runs.text(11));
+            insert_run.bind(11, runs.int64(12)).bind(12, runs.text(13)).bind(13, runs.text(14)).bind(14, runs.int64(15));
+            insert_run.bind(15, runs.text(16));
+            insert_run.run();
+            run = o.last_insert_id();
+            ++count.runs;
+        }
 
-        Statement cells = in->prepare(
+        Statement cells = in.prepare(
             "SELECT cell.id, cell_key, scene.id, scene.hash, scene.name, scene.spec, scene.meta, scene.objects, scene.frames, "
             "scene.rays_per_frame, scene.stats, config.id, config.structure, config.params, repetition, finished_at, "
             "cell.objects, build_ns, memory_bytes, verified, mismatches, cell.frames, update_ns_median, update_ns_mad, "
@@ -103,6 +116,11 @@ std::size_t merge_into(ResultStore& out, const std::string& in_path) {
             "JOIN config ON config.id = cell.config_id WHERE run_id = ?");
         cells.bind(1, runs.int64(0));
         while (cells.step()) {
+            {
+                Statement has = o.prepare("SELECT 1 FROM cell WHERE run_id = ? AND cell_key = ?");
+                has.bind_all(run, cells.text(1));
+                if (has.step()) continue;
+            }
             o.prepare("INSERT INTO scene(hash, name, spec, meta, objects, frames, rays_per_frame, stats) VALUES (?,?,?,?,?,?,?,?) "
                       "ON CONFLICT(hash) DO NOTHING")
                 .bind_all(cells.text(3), cells.text(4), cells.text(5), cells.text(6), cells.int64(7), cells.int64(8),
@@ -121,7 +139,7 @@ std::size_t merge_into(ResultStore& out, const std::string& in_path) {
                           cells.real(24), cells.real(25))
                 .run();
             const std::int64_t cell = o.last_insert_id();
-            Statement frames = in->prepare(
+            Statement frames = in.prepare(
                 "SELECT frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, duplicate, "
                 "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats FROM frame WHERE cell_id = ?");
             frames.bind(1, cells.int64(0));
@@ -136,11 +154,11 @@ std::size_t merge_into(ResultStore& out, const std::string& in_path) {
                 insert_frame.bind(19, frames.text(17));
                 insert_frame.run();
             }
+            ++count.cells;
         }
-        ++merged;
     }
     t.commit();
-    return merged;
+    return count;
 }
 
 }  // namespace
@@ -197,10 +215,16 @@ void add_query_commands(CLI::App& app) {
     merge->add_option("out", m->out, "Database to merge into (created if missing)")->required();
     merge->add_option("in", m->in, "Databases to merge from")->required();
     merge->callback([m] {
-        ResultStore out(m->out);
+        // Every input is opened (and so checked) before the output is created or touched.
+        std::vector<std::unique_ptr<Database>> inputs;
         for (const std::string& in : m->in) {
-            if (in == m->out) throw InputError(in + ": cannot merge a database into itself");
-            std::cout << in << ": " << merge_into(out, in) << " runs merged\n";
+            if (same_file(in, m->out)) throw InputError(in + ": cannot merge a database into itself");
+            inputs.push_back(open_read_only(in));
+        }
+        ResultStore out(m->out);
+        for (std::size_t i = 0; i < inputs.size(); ++i) {
+            const MergeCount n = merge_into(out, *inputs[i]);
+            std::cout << m->in[i] << ": " << n.runs << " new runs, " << n.cells << " new cells merged\n";
         }
     });
 }

@@ -1,9 +1,8 @@
 // rcbench run: expand an experiment into cells, simulate each, store each in SQLite; resumable.
 #include <unistd.h>
 
-#include <tbb/global_control.h>
-
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cstdio>
 #include <iostream>
@@ -14,6 +13,7 @@
 #include "core/registry.h"
 #include "runner/commands.h"
 #include "runner/experiment.h"
+#include "runner/run_experiment.h"
 #include "runner/store.h"
 #include "runner/table.h"
 
@@ -52,23 +52,19 @@ private:
     Clock::time_point start_;
 };
 
-/// "K/N" → (K, N) with 1 <= K <= N.
+/// "K/N" → (K, N) with 1 <= K <= N <= kMaxPlanCells, decimal digits only.
 std::pair<std::size_t, std::size_t> parse_shard(const std::string& text) {
     std::size_t k = 0, n = 0;
-    char slash = 0, extra = 0;
-    if (std::sscanf(text.c_str(), "%zu%c%zu%c", &k, &slash, &n, &extra) != 3 || slash != '/' || k < 1 || k > n)
-        throw InputError("--shard " + text + ": expected K/N with 1 <= K <= N, e.g. 2/8");
+    const char* end = text.data() + text.size();
+    auto [after_k, ek] = std::from_chars(text.data(), end, k);
+    bool ok = ek == std::errc() && after_k != end && *after_k == '/';
+    if (ok) {
+        auto [after_n, en] = std::from_chars(after_k + 1, end, n);
+        ok = en == std::errc() && after_n == end && k >= 1 && k <= n && n <= kMaxPlanCells;
+    }
+    if (!ok)
+        throw InputError("--shard " + text + ": expected K/N with 1 <= K <= N <= " + std::to_string(kMaxPlanCells) + ", e.g. 2/8");
     return {k, n};
-}
-
-/// Short label of a configuration: its structure and the parameters that differ from the defaults.
-std::string config_label(const ConfigSpec& c) {
-    const nlohmann::json defaults = find_structure(c.structure).defaults();
-    std::string label = c.structure;
-    std::string changed;
-    for (const auto& [k, v] : c.params.items())
-        if (!defaults.contains(k) || defaults[k] != v) changed += (changed.empty() ? "" : ",") + k + "=" + v.dump();
-    return changed.empty() ? label : label + " " + changed;
 }
 
 /// The thesis' layout from this run: configurations × scenes, median ray cast ms (update ms).
@@ -78,16 +74,11 @@ void print_summary(Database& db, std::int64_t run_id, const Experiment& e) {
         std::int64_t mismatches = 0;
     };
     std::map<std::pair<std::string, std::string>, Cellsum> by;  // (config label, scene) → values
-    Statement s = db.prepare(
-        "SELECT scene.name, config.structure, config.params, cell.raycast_ns_median, cell.update_ns_median, cell.mismatches "
-        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id WHERE cell.run_id = ?");
-    s.bind(1, run_id);
-    while (s.step()) {
-        const std::string label = config_label({s.text(1), nlohmann::json::parse(s.text(2))});
-        Cellsum& c = by[{label, s.text(0)}];
-        c.cast.push_back(s.real(3));
-        c.update.push_back(s.real(4));
-        c.mismatches += s.int64(5);
+    for (const CellSummary& row : cell_summaries(db, run_id)) {
+        Cellsum& c = by[{config_label({row.structure, row.params}), row.scene}];
+        c.cast.push_back(row.raycast_ns_median);
+        c.update.push_back(row.update_ns_median);
+        c.mismatches += row.mismatches;
     }
     std::vector<std::string> scenes, labels;
     for (const SceneSpec& sc : e.scenes)
@@ -140,9 +131,7 @@ void add_run_command(CLI::App& app) {
         const Experiment e = load_experiment(o->experiment);
         std::size_t shard_k = 1, shard_n = 1;
         if (!o->shard.empty()) std::tie(shard_k, shard_n) = parse_shard(o->shard);
-        std::vector<Cell> plan;
-        for (std::size_t i = 0; i < e.plan.size(); ++i)
-            if (i % shard_n == shard_k - 1) plan.push_back(e.plan[i]);
+        const std::vector<Cell> plan = shard_plan(e, shard_k, shard_n);
         if (o->dry_run) {
             std::cout << e.name << ": " << e.scenes.size() << " scenes x " << e.configs.size() << " configurations x "
                       << e.repetitions << " repetitions = " << e.plan.size() << " cells"
@@ -153,56 +142,22 @@ void add_run_command(CLI::App& app) {
             return;
         }
 
-        ResultStore store(o->db);
-        const std::int64_t experiment = store.experiment_id(e);
-        const std::string shard = o->shard.empty() ? "" : std::to_string(shard_k) + "/" + std::to_string(shard_n);
-        std::int64_t run = 0;
-        if (o->run_id) {
-            if (!store.run_exists(o->run_id)) throw InputError("--run " + std::to_string(o->run_id) + ": no such run in " + o->db);
-            run = o->run_id;
-        } else if (auto unfinished = o->new_run ? std::nullopt : store.unfinished_run(experiment, e.hash, shard)) {
-            run = *unfinished;
-        } else {
-            run = store.begin_run(experiment, RunInfo::current(e.threads, shard, e));
-        }
-        const std::set<std::string> done = store.finished_cells(run);
-        std::size_t todo = 0;
-        for (const Cell& c : plan) todo += done.count(c.key) == 0;
-        std::cerr << "run " << run << " of " << e.name << ": " << plan.size() << " cells, " << plan.size() - todo
-                  << " already done, " << todo << " to run -> " << o->db << '\n';
-
-        tbb::global_control threads(tbb::global_control::max_allowed_parallelism, e.threads);
-        SimulationOptions sim;
-        sim.verify = e.verify;
-        sim.warmup_frames = e.warmup_frames;
-        Progress progress(todo);
-        std::size_t ran = 0;
-        std::uint64_t mismatches = 0;
-        // Cells are scene-major, so each scene is loaded once.
-        std::size_t loaded = SIZE_MAX;
-        Recording recording;
-        std::string scene_hash;
-        for (const Cell& c : plan) {
-            if (done.count(c.key) || store.cell_done(run, c.key)) continue;
-            const SceneSpec& scene = e.scenes[c.scene];
-            const ConfigSpec& config = e.configs[c.config];
-            progress.cell(ran, scene.name + "  " + config_label(config) + "  rep " + std::to_string(c.repetition));
-            if (loaded != c.scene) {
-                recording = load_scene(scene);
-                scene_hash = recording_hash(recording);
-                loaded = c.scene;
-            }
-            const SimulationResult res = simulate(recording, find_structure(config.structure), config.params, sim);
-            mismatches += res.mismatches();
-            store.store_cell(run, experiment, c, scene, recording, scene_hash, res);
-            ++ran;
-        }
-        progress.finish();
-        const std::set<std::string> now_done = store.finished_cells(run);
-        if (std::all_of(plan.begin(), plan.end(), [&](const Cell& c) { return now_done.count(c.key) != 0; }))
-            store.finish_run(run);
-        print_summary(store.db(), run, e);
-        if (mismatches) throw std::runtime_error(std::to_string(mismatches) + " hits disagree with the ground truth (see the cell table)");
+        RunOptions run;
+        run.db = o->db;
+        run.shard_k = shard_k, run.shard_n = shard_n;
+        run.new_run = o->new_run;
+        run.run_id = o->run_id;
+        std::unique_ptr<Progress> progress;
+        const RunOutcome done = run_experiment(e, o->experiment, run, [&](std::size_t ran, std::size_t todo, const std::string& what) {
+            if (!progress) progress = std::make_unique<Progress>(todo);
+            progress->cell(ran, what);
+        });
+        if (progress) progress->finish();
+        std::cerr << "run " << done.run << " of " << e.name << ": " << done.planned << " cells, " << done.done_before
+                  << " done before, " << done.ran << " ran now -> " << o->db << '\n';
+        print_summary(*open_read_only(o->db), done.run, e);
+        if (done.mismatches)
+            throw std::runtime_error(std::to_string(done.mismatches) + " hits disagree with the ground truth (see the cell table)");
     });
 }
 

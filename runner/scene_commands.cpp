@@ -9,7 +9,10 @@
 #include "core/error.h"
 #include "core/generators.h"
 #include "core/importers/scene_import.h"
+#include "core/json_input.h"
+#include "core/output_file.h"
 #include "core/recording_io.h"
+#include "runner/cli_checks.h"
 #include "runner/commands.h"
 #include "runner/table.h"
 
@@ -26,24 +29,24 @@ struct DynamicsOptions {
 };
 
 void add_dynamics_options(CLI::App& cmd, DynamicsOptions& o) {
-    cmd.add_option("--frames", o.frames, "Frames after frame 0")->capture_default_str()->check(CLI::Range(0u, 1'000'000u));
-    cmd.add_option("--seed", o.seed, "Seed of every random choice (recorded in the file)")->capture_default_str();
-    cmd.add_option("--rays", o.rays, "Rays per frame")->capture_default_str()->check(CLI::Range(0u, 100'000'000u));
+    cmd.add_option("--frames", o.frames, "Frames after frame 0")->capture_default_str()->check(whole_number(0, 1'000'000));
+    cmd.add_option("--seed", o.seed, "Seed of every random choice (recorded in the file)")->capture_default_str()->check(whole_number());
+    cmd.add_option("--rays", o.rays, "Rays per frame")->capture_default_str()->check(whole_number(0, 100'000'000));
     cmd.add_option("--ray-mix", o.ray_mix,
                    "Ray modes with weights, of " + join(ray_mode_names()) + " (e.g. center:0.7,los:0.3)")
         ->capture_default_str();
     cmd.add_option("--change-fraction", o.dynamics.change_fraction, "Objects changed per frame, as a fraction")
         ->capture_default_str()
-        ->check(CLI::Range(0.0, 1.0));
+        ->check(finite_range(0.0, 1.0));
     cmd.add_option("--insert-share", o.dynamics.insert_share, "Share of the changes that are inserts")
         ->capture_default_str()
-        ->check(CLI::Range(0.0, 1.0));
+        ->check(finite_range(0.0, 1.0));
     cmd.add_option("--remove-share", o.dynamics.remove_share, "Share of the changes that are removes (the rest move)")
         ->capture_default_str()
-        ->check(CLI::Range(0.0, 1.0));
+        ->check(finite_range(0.0, 1.0));
     cmd.add_option("--move-scale", o.dynamics.move_scale, "A move shifts each axis by up to this x the object's longest edge")
         ->capture_default_str()
-        ->check(CLI::Range(0.0, 1000.0));
+        ->check(finite_range(0.0, 1000.0));
 }
 
 RaySettings ray_settings(const DynamicsOptions& o) {
@@ -53,14 +56,6 @@ RaySettings ray_settings(const DynamicsOptions& o) {
     r.per_frame = o.rays;
     r.mix = parse_ray_mix(o.ray_mix);
     return r;
-}
-
-void ensure_parent_dir(const std::string& path) {
-    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
-    if (parent.empty()) return;
-    std::error_code ec;
-    std::filesystem::create_directories(parent, ec);
-    if (ec) throw InputError(path + ": cannot create folder " + parent.string() + " (" + ec.message() + ")");
 }
 
 void print_written(const Recording& r, const std::string& path) {
@@ -97,7 +92,7 @@ void scene_info(const std::string& path, bool as_json) {
                            {"median", percentile(edges, 0.5)},
                            {"p90", percentile(edges, 0.9)},
                            {"max", edges.empty() ? 0 : edges.back()}};
-    nlohmann::json meta = nlohmann::json::parse(r.meta, nullptr, false);
+    const nlohmann::json meta = parse_json_document(r.meta, path + ": META");
     nlohmann::json j = {{"file", path},
                         {"objects", r.initial.size()},
                         {"frames", r.frames.size()},
@@ -109,9 +104,9 @@ void scene_info(const std::string& path, bool as_json) {
                         {"moves", moves},
                         {"bounds", {{"min", {bounds.min.x, bounds.min.y, bounds.min.z}}, {"max", {bounds.max.x, bounds.max.y, bounds.max.z}}}},
                         {"longest_edge", size},
-                        {"meta", meta.is_discarded() ? nlohmann::json(r.meta) : meta}};
+                        {"meta", meta}};
     if (as_json) {
-        std::cout << j.dump(2) << '\n';
+        std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
         return;
     }
     std::cout << path << '\n';
@@ -129,7 +124,7 @@ void scene_info(const std::string& path, bool as_json) {
     if (!edges.empty() && edges.front() > 0)
         t.add({"size span (max / min)", fixed(edges.back() / edges.front(), 1)});
     t.print(std::cout);
-    std::cout << "origin  " << r.meta << '\n';
+    std::cout << "origin  " << json_excerpt(meta, 400) << '\n';
 }
 
 }  // namespace
@@ -154,7 +149,7 @@ void add_scene_commands(CLI::App& app) {
         ->check(CLI::IsMember(preset_names()));
     g->add_option("--kind", gen->kind, "Instead of a preset, with --objects")
         ->check(CLI::IsMember(scene_kinds()));
-    g->add_option("--objects", gen->objects, "Object count (overrides the preset's)")->check(CLI::Range(1u, 100'000'000u));
+    g->add_option("--objects", gen->objects, "Object count (overrides the preset's)")->check(whole_number(1, kMaxSceneObjects));
     g->add_option("-o,--output", gen->out, "Recording file to write")->required();
     add_dynamics_options(*g, gen->dyn);
     g->callback([gen] {
@@ -169,8 +164,9 @@ void add_scene_commands(CLI::App& app) {
         s.frames = gen->dyn.frames;
         s.dynamics = gen->dyn.dynamics;
         s.rays = ray_settings(gen->dyn);
+        check_output_path(gen->out, {}, "-o");
+        check_scene_size(s.objects, s.frames, s.rays.per_frame, s.objects * s.dynamics.change_fraction, "--objects/--frames/--rays");
         const Recording r = generate_scene(s);
-        ensure_parent_dir(gen->out);
         write_recording(r, gen->out);
         print_written(r, gen->out);
     });
@@ -195,6 +191,7 @@ void add_scene_commands(CLI::App& app) {
         ->check(CLI::IsMember({"instances", "triangles"}));
     add_dynamics_options(*i, imp->dyn);
     i->callback([imp] {
+        check_output_path(imp->out, {imp->input}, "-o");
         if (importer_for(imp->input) != "csv") {
             nlohmann::json meta;
             std::vector<Object> objects = import_objects(imp->input, imp->file, &meta);
@@ -202,7 +199,6 @@ void add_scene_commands(CLI::App& app) {
             meta["generator"] = "rcbench import";
             const Recording r = add_dynamics(std::move(objects), imp->dyn.dynamics, ray_settings(imp->dyn), imp->dyn.frames,
                                              imp->dyn.seed, meta);
-            ensure_parent_dir(imp->out);
             write_recording(r, imp->out);
             print_written(r, imp->out);
             return;
@@ -214,7 +210,6 @@ void add_scene_commands(CLI::App& app) {
                                {"objects", objects.size()}};
         const Recording r = add_dynamics(std::move(objects), imp->dyn.dynamics, ray_settings(imp->dyn), imp->dyn.frames,
                                          imp->dyn.seed, meta);
-        ensure_parent_dir(imp->out);
         write_recording(r, imp->out);
         print_written(r, imp->out);
     });

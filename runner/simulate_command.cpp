@@ -6,8 +6,10 @@
 
 #include "core/recording_io.h"
 #include "core/simulator.h"
+#include "runner/cli_checks.h"
 #include "runner/commands.h"
 #include "core/error.h"
+#include "core/output_file.h"
 #include "runner/table.h"
 
 namespace rcb {
@@ -96,8 +98,8 @@ void add_simulate_command(CLI::App& app) {
     cmd->add_option("--scene", o->scenes, "Recording file (from rcbench scene gen/import); repeatable")->required();
     cmd->add_option("--structure", o->structures, "Structure name (rcbench structures lists them), or all; repeatable")->required();
     cmd->add_option("--param", o->params_text, "Structure parameter key=value (repeatable; with one --structure only)");
-    cmd->add_option("--frames", o->sim.max_frames, "Replay at most this many frames (0: all)")->capture_default_str();
-    cmd->add_option("--warmup", o->sim.warmup_frames, "Frames left out of the medians")->capture_default_str();
+    cmd->add_option("--frames", o->sim.max_frames, "Replay at most this many frames (0: all)")->capture_default_str()->check(whole_number(0, 1'000'000));
+    cmd->add_option("--warmup", o->sim.warmup_frames, "Frames left out of the medians")->capture_default_str()->check(whole_number(0, 1'000'000));
     cmd->add_flag("--no-verify", o->no_verify, "Skip the ground-truth comparison (faster on huge scenes)");
     cmd->add_flag("--no-count", o->no_count, "Skip the counting pass (N_T, N_RB, N_TP)");
     cmd->add_flag("--validate", o->sim.validate, "Check the structure's invariants after every frame");
@@ -123,30 +125,34 @@ void add_simulate_command(CLI::App& app) {
             }
         }
         o->structures = names;
-        std::ofstream json_out;
-        if (!o->json_out.empty()) {
-            json_out.open(o->json_out, std::ios::trunc);
-            if (!json_out) throw InputError(o->json_out + ": cannot open for writing");
-        }
+        if (!o->json_out.empty()) check_output_path(o->json_out, o->scenes, "--json-out");
+        std::string json_lines;  // written whole at the end: a failed run leaves the file as it was
         std::vector<std::vector<SimulationResult>> results;
         std::uint64_t mismatches = 0;
         for (const std::string& scene : o->scenes) {
             const Recording r = read_recording(scene);
             results.emplace_back();
             for (const std::string& name : o->structures) {
-                SimulationResult res = simulate(r, find_structure(name), params, o->sim, "--param");
+                SimulationResult res;
+                try {
+                    res = simulate(r, find_structure(name), params, o->sim, "--param");
+                } catch (const InputError& e) {
+                    throw InputError(scene + ": " + e.what());
+                }
                 mismatches += res.mismatches();
                 nlohmann::json j = res.to_json();
                 j["scene"] = scene;
-                if (json_out.is_open()) json_out << j.dump() << std::endl;
+                const std::string line = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+                if (!o->json_out.empty()) json_lines += line + '\n';
                 if (o->json) {
-                    std::cout << j.dump() << std::endl;
+                    std::cout << line << std::endl;
                 } else if (o->scenes.size() == 1 && o->structures.size() == 1) {
                     print_table(scene, res);
                 }
                 results.back().push_back(std::move(res));
             }
         }
+        if (!o->json_out.empty()) write_file_atomically(o->json_out, json_lines);
         if (!o->json && (o->scenes.size() > 1 || o->structures.size() > 1)) print_grid(o->scenes, results);
         if (mismatches > 0) throw std::runtime_error(std::to_string(mismatches) + " hits disagree with the ground truth");
     });

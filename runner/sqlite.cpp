@@ -3,11 +3,23 @@
 #include <chrono>
 #include <thread>
 
+#include "core/error.h"
+
 namespace rcb {
 
+void throw_sql_error(sqlite3* db, int rc) {
+    const char* file = db ? sqlite3_db_filename(db, "main") : nullptr;
+    const std::string where = file && *file ? std::string(file) + ": " : std::string();
+    const std::string message = db ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
+    const int primary = rc & 0xff;
+    if (primary == SQLITE_CORRUPT || primary == SQLITE_NOTADB)
+        throw InputError(where + "damaged or not an SQLite database (" + message + ")");
+    throw SqlError(where + message, rc);
+}
+
 Statement::Statement(sqlite3* db, const std::string& sql) : db_(db) {
-    if (sqlite3_prepare_v2(db, sql.c_str(), int(sql.size()), &stmt_, nullptr) != SQLITE_OK)
-        throw SqlError(std::string(sqlite3_errmsg(db)));
+    if (const int rc = sqlite3_prepare_v2(db, sql.c_str(), int(sql.size()), &stmt_, nullptr); rc != SQLITE_OK)
+        throw_sql_error(db, rc);
     if (!stmt_) throw SqlError("empty SQL statement");
 }
 
@@ -16,19 +28,19 @@ Statement::~Statement() {
 }
 
 Statement& Statement::bind(int i, std::int64_t v) {
-    if (sqlite3_bind_int64(stmt_, i, v) != SQLITE_OK) throw SqlError(sqlite3_errmsg(db_));
+    if (const int rc = sqlite3_bind_int64(stmt_, i, v); rc != SQLITE_OK) throw_sql_error(db_, rc);
     return *this;
 }
 Statement& Statement::bind(int i, double v) {
-    if (sqlite3_bind_double(stmt_, i, v) != SQLITE_OK) throw SqlError(sqlite3_errmsg(db_));
+    if (const int rc = sqlite3_bind_double(stmt_, i, v); rc != SQLITE_OK) throw_sql_error(db_, rc);
     return *this;
 }
 Statement& Statement::bind(int i, const std::string& v) {
-    if (sqlite3_bind_text(stmt_, i, v.data(), int(v.size()), SQLITE_TRANSIENT) != SQLITE_OK) throw SqlError(sqlite3_errmsg(db_));
+    if (const int rc = sqlite3_bind_text(stmt_, i, v.data(), int(v.size()), SQLITE_TRANSIENT); rc != SQLITE_OK) throw_sql_error(db_, rc);
     return *this;
 }
 Statement& Statement::bind_null(int i) {
-    if (sqlite3_bind_null(stmt_, i) != SQLITE_OK) throw SqlError(sqlite3_errmsg(db_));
+    if (const int rc = sqlite3_bind_null(stmt_, i); rc != SQLITE_OK) throw_sql_error(db_, rc);
     return *this;
 }
 
@@ -36,7 +48,7 @@ bool Statement::step() {
     const int rc = sqlite3_step(stmt_);
     if (rc == SQLITE_ROW) return true;
     if (rc == SQLITE_DONE) return false;
-    throw SqlError(sqlite3_errmsg(db_));
+    throw_sql_error(db_, rc);
 }
 
 void Statement::run() {
@@ -57,11 +69,11 @@ std::string Statement::text(int i) const {
 
 Database::Database(const std::string& path, bool read_only) : path_(path) {
     const int flags = read_only ? SQLITE_OPEN_READONLY : (SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
-    if (sqlite3_open_v2(path.c_str(), &db_, flags, nullptr) != SQLITE_OK) {
+    if (const int rc = sqlite3_open_v2(path.c_str(), &db_, flags, nullptr); rc != SQLITE_OK) {
         std::string message = db_ ? sqlite3_errmsg(db_) : "out of memory";
         sqlite3_close(db_);
         db_ = nullptr;
-        throw SqlError(message);
+        throw SqlError(path + ": " + message, rc);
     }
     sqlite3_busy_timeout(db_, 60'000);
     sqlite3_extended_result_codes(db_, 1);
@@ -78,8 +90,9 @@ Database::Database(const std::string& path, bool read_only) : path_(path) {
                 }
                 if (!wal) exec("PRAGMA journal_mode=WAL");
                 break;
-            } catch (const SqlError&) {
-                if (attempt >= 6000) throw;
+            } catch (const SqlError& e) {
+                // Only contention is worth waiting for; a file that is not a database fails at once.
+                if ((e.code() != SQLITE_BUSY && e.code() != SQLITE_LOCKED) || attempt >= 6000) throw;
                 std::this_thread::sleep_for(std::chrono::milliseconds(10));
             }
         }
@@ -94,10 +107,9 @@ Database::~Database() {
 
 void Database::exec(const std::string& sql) {
     char* error = nullptr;
-    if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &error) != SQLITE_OK) {
-        std::string message = error ? error : "unknown error";
+    if (const int rc = sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &error); rc != SQLITE_OK) {
         sqlite3_free(error);
-        throw SqlError(message);
+        throw_sql_error(db_, rc);
     }
 }
 

@@ -13,8 +13,17 @@ namespace rcb {
 
 class SqlError : public std::runtime_error {
 public:
-    using std::runtime_error::runtime_error;
+    explicit SqlError(const std::string& what, int code = SQLITE_ERROR) : std::runtime_error(what), code_(code) {}
+    /// SQLite's primary result code (SQLITE_BUSY, SQLITE_CORRUPT, ...).
+    int code() const { return code_ & 0xff; }
+
+private:
+    int code_;
 };
+
+/// Throws for SQLite's result `rc` on `db`: an InputError naming the file when the file is damaged
+/// or not a database (the user's input is wrong), else an SqlError naming the file.
+[[noreturn]] void throw_sql_error(sqlite3* db, int rc);
 
 class Statement {
 public:

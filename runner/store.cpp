@@ -344,6 +344,16 @@ std::int64_t ResultStore::begin_run(std::int64_t experiment_id, const RunInfo& r
     return db_.last_insert_id();
 }
 
+std::int64_t ResultStore::resume_or_begin_run(const Experiment& e, const RunInfo& info, bool new_run) {
+    Transaction t(db_);
+    const std::int64_t experiment = experiment_id(e);
+    std::optional<std::int64_t> run;
+    if (!new_run) run = unfinished_run(experiment, e.hash, info.shard);
+    if (!run) run = begin_run(experiment, info);
+    t.commit();
+    return *run;
+}
+
 bool ResultStore::run_exists(std::int64_t run_id) {
     Statement s = db_.prepare("SELECT 1 FROM run WHERE id = ?");
     s.bind(1, run_id);
@@ -418,6 +428,17 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
     }
     t.commit();
     return true;
+}
+
+std::vector<CellSummary> cell_summaries(Database& db, std::int64_t run_id) {
+    std::vector<CellSummary> out;
+    Statement s = db.prepare(
+        "SELECT scene.name, config.structure, config.params, cell.raycast_ns_median, cell.update_ns_median, cell.mismatches "
+        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id WHERE cell.run_id = ?");
+    s.bind(1, run_id);
+    while (s.step())
+        out.push_back({s.text(0), s.text(1), nlohmann::json::parse(s.text(2)), s.real(3), s.real(4), s.int64(5)});
+    return out;
 }
 
 void ResultStore::finish_run(std::int64_t run_id) {

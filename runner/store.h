@@ -50,6 +50,10 @@ public:
     std::optional<std::int64_t> unfinished_run(std::int64_t experiment_id, const std::string& experiment_hash,
                                                const std::string& shard);
     std::int64_t begin_run(std::int64_t experiment_id, const RunInfo& info);
+    /// The run a runner of `e` works on: the newest unfinished run of the same file content and
+    /// shard, or a new one (always new with `new_run`). One transaction, so runners started
+    /// together on one database agree on one run instead of each starting its own.
+    std::int64_t resume_or_begin_run(const Experiment& e, const RunInfo& info, bool new_run);
     bool run_exists(std::int64_t run_id);
     std::set<std::string> finished_cells(std::int64_t run_id);
     bool cell_done(std::int64_t run_id, const std::string& cell_key);
@@ -66,6 +70,16 @@ private:
 
     Database db_;
 };
+
+/// One stored cell, as the run summaries show it.
+struct CellSummary {
+    std::string scene, structure;
+    nlohmann::json params;
+    double raycast_ns_median = 0, update_ns_median = 0;
+    std::int64_t mismatches = 0;
+};
+/// The cells of a run.
+std::vector<CellSummary> cell_summaries(Database& db, std::int64_t run_id);
 
 /// Opens an existing database read-only; refuses a newer schema; InputError if it does not exist.
 std::unique_ptr<Database> open_read_only(const std::string& path);

@@ -1,23 +1,18 @@
 // The rcbench binary as a user runs it: exit codes, one-line errors, outputs.
 #include <gtest/gtest.h>
 
-#include <array>
-#include <cstdio>
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
-#include <sys/wait.h>
 
 #include <nlohmann/json.hpp>
+
+#include "tests/subprocess.h"
 
 namespace {
 
 namespace fs = std::filesystem;
-
-struct Outcome {
-    int code = -1;
-    std::string out;  // stdout
-    std::string err;  // stderr
-};
+using test::Outcome;
 
 class Cli : public ::testing::Test {
 protected:
@@ -28,20 +23,7 @@ protected:
     }
     void TearDown() override { fs::remove_all(dir_); }
 
-    Outcome run(const std::string& args) {
-        const std::string err_file = (dir_ / "stderr.txt").string();
-        const std::string cmd = std::string(RCBENCH_BINARY) + " " + args + " 2>" + err_file;
-        Outcome r;
-        FILE* pipe = popen(cmd.c_str(), "r");
-        std::array<char, 4096> buf;
-        std::size_t n;
-        while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
-        const int status = pclose(pipe);
-        r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-        std::ifstream e(err_file);
-        r.err.assign(std::istreambuf_iterator<char>(e), {});
-        return r;
-    }
+    Outcome run(const std::string& args) { return test::run_shell(std::string(RCBENCH_BINARY) + " " + args); }
     std::string path(const std::string& name) const { return (dir_ / name).string(); }
     void write(const std::string& name, const std::string& text) const { std::ofstream(path(name)) << text; }
 
@@ -123,7 +105,7 @@ TEST_F(Cli, RunQueryCompareRejectBadInputInOneLine) {
     expect_bad_input(run("run " + path("missing.json")), "missing.json: cannot open");
     ASSERT_EQ(run("run " + path("ok.json") + " --db " + path("r.db")).code, 0);
     expect_bad_input(run("query " + path("r.db") + " \"DELETE FROM cell\""), "only read-only statements");
-    expect_bad_input(run("query " + path("r.db") + " \"SELECT nope FROM cell\""), "query: no such column: nope");
+    expect_bad_input(run("query " + path("r.db") + " \"SELECT nope FROM cell\""), "r.db: no such column: nope");
     expect_bad_input(run("query " + path("none.db") + " \"SELECT 1\""), "none.db: no such results database");
     expect_bad_input(run("compare " + path("r.db") + " --baseline 1 --candidate 7"), "no run matches '7'");
     const Outcome csv = run("query --csv " + path("r.db") + " \"SELECT structure, count(*) AS cells FROM cell_summary GROUP BY 1\"");
@@ -137,6 +119,66 @@ TEST_F(Cli, HelpTellsTheSubcommands) {
     const Outcome structures = run("structures --json");
     EXPECT_EQ(structures.code, 0);
     EXPECT_EQ(nlohmann::json::parse(structures.out)[0]["name"], "bf");
+}
+
+/// The file's bytes, to check a failed command left it as it was.
+std::string bytes_of(const std::string& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+TEST_F(Cli, AnOutputPathThatIsAnInputOrADirectoryIsRefusedAndNothingIsTouched) {
+    write("ok.json", R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");
+    ASSERT_EQ(run("run " + path("ok.json") + " --db " + path("res.db")).code, 0);
+    const std::string db = bytes_of(path("res.db"));
+    expect_bad_input(run("report " + path("res.db") + " -o " + path("res.db")), "is also an input");
+    EXPECT_EQ(bytes_of(path("res.db")), db);
+    ASSERT_EQ(run("scene gen --preset uni-s --frames 2 -o " + path("s.rcbscene")).code, 0);
+    const std::string scene = bytes_of(path("s.rcbscene"));
+    expect_bad_input(run("simulate --scene " + path("s.rcbscene") + " --structure bf --json-out " + path("s.rcbscene")),
+                     "--json-out " + path("s.rcbscene") + ": is also an input");
+    expect_bad_input(run("scene import " + path("s.rcbscene") + " -o " + path("s.rcbscene")), "is also an input");
+    EXPECT_EQ(bytes_of(path("s.rcbscene")), scene);
+    fs::create_directories(path("adir"));
+    expect_bad_input(run("report " + path("res.db") + " -o " + path("adir")), "adir: is a directory");
+    EXPECT_FALSE(fs::exists(path("adir.tmp")));
+    expect_bad_input(run("tune " + std::string(RCBENCH_SOURCE_DIR) + "/experiments/tune-grids.json --db " + path("t.db") +
+                         " --out-dir /proc/self"),
+                     "--out-dir /proc/self/tuning-grids.md: cannot write in /proc/self");
+    const Outcome full = run("simulate --scene " + path("s.rcbscene") + " --structure bf --json-out /dev/full");
+    EXPECT_EQ(full.code, 1);
+    EXPECT_NE(full.err.find("/dev/full: write failed"), std::string::npos) << full.err;
+}
+
+TEST_F(Cli, NumbersOutsideTheirRangeAreRefusedByName) {
+    const std::string out = " -o " + path("x.rcbscene");
+    expect_bad_input(run("scene gen --preset uni-s --seed -1" + out), "--seed: expected a whole number");
+    expect_bad_input(run("scene gen --preset uni-s --seed 18446744073709551616" + out), "--seed: expected a whole number");
+    expect_bad_input(run("scene gen --preset uni-s --change-fraction nan" + out), "--change-fraction: expected a number in 0..1, got nan");
+    expect_bad_input(run("scene gen --preset uni-s --move-scale nan" + out), "--move-scale: expected a number in 0..1000, got nan");
+    expect_bad_input(run("scene gen --preset uni-s --objects 100000000" + out), "--objects: expected a whole number in 1..67108864");
+    expect_bad_input(run("scene gen --preset uni-s --rays 100000000" + out), "the scene would take 24 GB");
+    EXPECT_FALSE(fs::exists(path("x.rcbscene")));
+    write("ok.json", R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");
+    expect_bad_input(run("run " + path("ok.json") + " --shard 1/18446744073709551616 --db " + path("r.db")), "--shard 1/18446744073709551616");
+    ASSERT_EQ(run("scene gen --preset uni-s --frames 3" + out).code, 0);
+    // Warm-up that leaves no measured frame: an error, not a table of 0 ns medians.
+    expect_bad_input(run("simulate --scene " + path("x.rcbscene") + " --structure bf --warmup 3"),
+                     "x.rcbscene: 3 warm-up frames leave none of the scene's 3 frames to measure");
+    expect_bad_input(run("advise " + path("x.rcbscene") + " --warmup 5"), "warm-up frames leave none");
+}
+
+TEST_F(Cli, AFileThatIsNotADatabaseFailsAtOnceNamingIt) {
+    write("junk.db", std::string(100000, 'j'));
+    const std::string junk = bytes_of(path("junk.db"));
+    write("ok.json", R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");
+    for (const std::string& command : {"fit " + path("junk.db"), "run " + path("ok.json") + " --db " + path("junk.db"),
+                                       "query " + path("junk.db") + " \"SELECT 1\"", "report " + path("junk.db") + " -o " + path("r.html")}) {
+        const Outcome r = run(command);
+        expect_bad_input(r, "junk.db: damaged or not an SQLite database");
+        EXPECT_LT(r.seconds, 10) << command;  // the lock-retry loop used to retry this for 61 s
+    }
+    EXPECT_EQ(bytes_of(path("junk.db")), junk);
 }
 
 }  // namespace

@@ -74,6 +74,47 @@ TEST(Experiment, ValidationNamesTheJsonPath) {
               "exp.json: warmup_frames: leaves no measured frame in scene uni-s");
 }
 
+TEST(Experiment, OversizedOrMalformedRangesAndPlansAreRefusedBeforeAllocation) {
+    auto with_structure = [](const std::string& structure, const std::string& extra = "") {
+        return R"({"scenes": [{"preset": "uni-s"}], )" + extra + R"("structures": [)" + structure + "]}";
+    };
+    // A factor barely above 1: billions of steps to reach "to" (this hung).
+    EXPECT_EQ(error_of(with_structure(R"({"name": "hg", "grids": [{"max_capacity": {"from": 1, "to": 8, "times": 1.000000000000001}}]})")),
+              "exp.json: structures[0].grids[0].max_capacity: the range takes more than 10000 steps");
+    EXPECT_EQ(error_of(with_structure(R"({"name": "ug", "grids": [{"density": {"from": 0.1, "to": 64, "step": 1e-9}}]})")),
+              "exp.json: structures[0].grids[0].density: the range takes more than 10000 steps");
+    // A range over a boolean or a choice: a clear error with its path (was a bare library type error).
+    EXPECT_EQ(error_of(with_structure(R"({"name": "ug", "grids": [{"outlier_guard": {"from": true, "to": true, "step": 1}}]})")),
+              "exp.json: structures[0].grids[0].outlier_guard: a range needs a numeric parameter; give outlier_guard a value or a "
+              "list of values");
+    // 1000 repetitions of a 6301-value grid: refused at once instead of expanding 6.3 M cells.
+    EXPECT_EQ(error_of(with_structure(R"({"name": "ug", "grids": [{"density": {"from": 1, "to": 64, "step": 0.01}}]})",
+                                      R"("repetitions": 1000, )"))
+                  .rfind("exp.json: (top level): the plan has 6301000 cells", 0),
+              0u);
+    EXPECT_EQ(error_of(with_structure(R"({"name": "hg", "grids": [{"amp": {"from": 0.01, "to": 16, "step": 0.002},
+                                                                     "max_capacity": {"from": 1, "to": 256, "step": 1}}]})"))
+                  .rfind("exp.json: structures[0].grids[0]: the grid has more than 100000 combinations", 0),
+              0u);
+    // A 5 MB string where a number belongs: the message quotes an excerpt, not the value.
+    const std::string message = error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frames": ")" +
+                                         std::string(5'000'000, 'x') + "\"}");
+    EXPECT_EQ(message.rfind("exp.json: frames: expected an integer in 1..1000000, got \"xxx", 0), 0u) << message.substr(0, 200);
+    EXPECT_LT(message.size(), 200u);
+}
+
+TEST(TuneSpec, AHugeSearchSpaceIsRefusedBeforeItIsEnumerated) {
+    const std::string text = R"({"structures": ["hg"], "space": {"hg": {"amp": {"from": 0.01, "to": 16, "step": 0.002},
+        "max_capacity": {"from": 1, "to": 256, "step": 1}, "max_depth": [0, 1, 2, 3, 4, 5, 6]}},
+        "categories": [{"name": "c", "scenes": [{"preset": "uni-s"}]}]})";
+    try {
+        parse_tune_spec(text, "t.json", ".");
+        FAIL() << "accepted";
+    } catch (const InputError& e) {
+        EXPECT_EQ(std::string(e.what()).rfind("t.json: space.hg: the search space has", 0), 0u) << e.what();
+    }
+}
+
 TEST(Experiment, PlanInterleavesRepetitionsAcrossConfigurationsWithinAScene) {
     const Experiment e = parse_experiment(
         R"({"repetitions": 2, "seeds": [1, 2], "scenes": [{"preset": "uni-s"}, {"kind": "irregular", "objects": [100, 200]}],
@@ -348,13 +389,51 @@ TEST(Store, TwoRunnersOnOneDatabaseBothFinishWithNothingLostOrDuplicated) {
     const pid_t b = spawn_rcbench({"run", exp.string(), "--db", db}, log);
     EXPECT_EQ(wait_exit(a), 0);
     EXPECT_EQ(wait_exit(b), 0);
-    // Each runner made its own run or shared one; every run is complete and has each cell once.
+    // They share one run (choosing it is one transaction); it is complete and has each cell once.
     const std::int64_t runs = count(db, "SELECT count(*) FROM run");
-    EXPECT_GE(runs, 1);
+    EXPECT_EQ(runs, 1);
     EXPECT_EQ(count(db, "SELECT count(*) FROM run WHERE finished_at IS NULL"), 0);
     EXPECT_EQ(count(db, "SELECT count(*) FROM cell"), 6 * runs);
     EXPECT_EQ(count(db, "SELECT count(*) FROM (SELECT DISTINCT run_id, cell_key FROM cell)"), 6 * runs);
     EXPECT_EQ(count(db, "SELECT count(*) FROM frame"), 6 * runs * 4);
+    fs::remove_all(dir);
+}
+
+TEST(Store, FourRunnersStartedTogetherOnANewDatabaseMakeOneRun) {
+    const fs::path dir = temp_dir("four");
+    const fs::path exp = dir / "resume.json";
+    write_experiment(exp, 2);  // 4 cells
+    const std::string db = (dir / "new.db").string(), log = (dir / "log.txt").string();
+    std::vector<pid_t> runners;
+    for (int i = 0; i < 4; ++i) runners.push_back(spawn_rcbench({"run", exp.string(), "--db", db}, log));
+    for (pid_t p : runners) EXPECT_EQ(wait_exit(p), 0);
+    EXPECT_EQ(count(db, "SELECT count(*) FROM run"), 1);
+    EXPECT_EQ(count(db, "SELECT count(*) FROM cell"), 4);
+    EXPECT_EQ(count(db, "SELECT count(*) FROM run WHERE finished_at IS NULL"), 0);
+    fs::remove_all(dir);
+}
+
+TEST(Store, MergingAKilledShardThenItsResumedRunCompletesTheMergedRun) {
+    const fs::path dir = temp_dir("merge_resumed");
+    const fs::path exp = dir / "resume.json";
+    write_experiment(exp, 8);  // 16 cells
+    const std::string shard = (dir / "shard.db").string(), out = (dir / "all.db").string(), log = (dir / "log.txt").string();
+    const pid_t pid = spawn_rcbench({"run", exp.string(), "--shard", "1/1", "--db", shard}, log);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    while (count(shard, "SELECT count(*) FROM cell") < 3 && std::chrono::steady_clock::now() < deadline)
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    ASSERT_EQ(kill(pid, SIGKILL), 0);
+    wait_exit(pid);
+    ASSERT_LT(count(shard, "SELECT count(*) FROM cell"), 16) << "the run finished before it could be killed";
+    ASSERT_EQ(wait_exit(spawn_rcbench({"merge", out, shard}, log)), 0);
+    EXPECT_EQ(count(out, "SELECT count(*) FROM run WHERE finished_at IS NULL"), 1);
+    ASSERT_EQ(wait_exit(spawn_rcbench({"run", exp.string(), "--shard", "1/1", "--db", shard}, log)), 0);
+    ASSERT_EQ(wait_exit(spawn_rcbench({"merge", out, shard}, log)), 0);
+    EXPECT_EQ(count(out, "SELECT count(*) FROM run"), 1);
+    EXPECT_EQ(count(out, "SELECT count(*) FROM run WHERE finished_at IS NULL"), 0);
+    EXPECT_EQ(count(out, "SELECT count(*) FROM cell"), 16);
+    EXPECT_EQ(count(out, "SELECT count(DISTINCT cell_key) FROM cell"), 16);
+    EXPECT_EQ(count(out, "SELECT count(*) FROM frame"), 16 * 4);
     fs::remove_all(dir);
 }
 

@@ -6,7 +6,11 @@
 #include <memory>
 
 #include "core/error.h"
+#include "core/json_input.h"
 #include "core/registry.h"
+#include "core/simulator.h"
+#include "runner/cli_checks.h"
+#include "runner/experiment.h"
 #include "runner/table.h"
 #include "tuner/commands.h"
 #include "tuner/tuning.h"
@@ -25,20 +29,22 @@ void add_advise_command(CLI::App& app) {
     cmd->add_option("--tuning", o->tuning, "A tuner's results (results/tuning-<name>.json): use its parameters for --category");
     cmd->add_option("--category", o->category, "Which category of the tuning file this scene resembles");
     cmd->add_option("--repetitions", o->repetitions, "Measurements per structure")->capture_default_str()->check(CLI::Range(1u, 100u));
-    cmd->add_option("--warmup", o->warmup, "Frames left out of the medians")->capture_default_str();
+    cmd->add_option("--warmup", o->warmup, "Frames left out of the medians")->capture_default_str()->check(whole_number(0, 1'000'000));
     cmd->callback([o] {
         if (o->tuning.empty() != o->category.empty()) throw InputError("--tuning and --category go together");
         std::map<std::string, nlohmann::json> tuned;
         if (!o->tuning.empty()) {
-            std::ifstream in(o->tuning);
-            if (!in) throw InputError(o->tuning + ": cannot open");
-            const nlohmann::json t = nlohmann::json::parse(in, nullptr, false);
-            if (t.is_discarded() || !t.contains("categories")) throw InputError(o->tuning + ": not a tuning result (rcbench tune writes them)");
+            const nlohmann::json t = parse_json_document(read_text_file(o->tuning), o->tuning);
             bool found = false;
-            for (const auto& c : t["categories"]) {
-                if (c.value("category", "") != o->category) continue;
-                found = true;
-                for (const auto& s : c["structures"]) tuned[s["structure"]] = s["best"]["params"];
+            try {
+                for (const auto& c : t.at("categories")) {
+                    if (c.at("category").get<std::string>() != o->category) continue;
+                    found = true;
+                    for (const auto& s : c.at("structures"))
+                        tuned[s.at("structure").get<std::string>()] = s.at("best").at("params");
+                }
+            } catch (const nlohmann::json::exception&) {  // a missing key or a value of the wrong type
+                throw InputError(o->tuning + ": not a tuning result (rcbench tune writes them)");
             }
             if (!found) throw InputError(o->tuning + ": no category \"" + o->category + "\"");
         }
@@ -53,6 +59,11 @@ void add_advise_command(CLI::App& app) {
         if (csv) spec.settings.frames = 10;
         if (!std::filesystem::is_regular_file(o->scene)) throw InputError(o->scene + ": no such file");
         category.scenes.push_back(spec);
+        try {
+            check_warmup(o->warmup, recording_of(spec).frames.size());
+        } catch (const InputError& e) {
+            throw InputError(o->scene + ": " + e.what());
+        }
 
         struct Row {
             std::string structure, params;

@@ -9,8 +9,10 @@
 
 #include "analysis/charts.h"
 #include "core/error.h"
+#include "core/output_file.h"
 #include "core/registry.h"
 #include "runner/build_info.h"
+#include "runner/cli_checks.h"
 #include "runner/store.h"
 #include "runner/table.h"
 #include "tuner/commands.h"
@@ -107,13 +109,19 @@ void add_tune_command(CLI::App& app) {
     cmd->add_option("file", o->file, "Tuning file (JSON; see experiments/README.md)")->required();
     cmd->add_option("--db", o->db, "Results database for the tuning rows")->capture_default_str();
     cmd->add_option("--out-dir", o->out_dir, "Folder for tuning-<name>.md/.json/.svg")->capture_default_str();
-    cmd->add_option("--seed", o->seed, "Override the file's search seed");
+    cmd->add_option("--seed", o->seed, "Override the file's search seed")->check(whole_number());
     cmd->add_flag("--exhaustive", o->exhaustive, "Also measure every configuration of each search space and report the tuner's gap to the true optimum");
     cmd->callback([o] {
         TuneSpec spec = load_tune_spec(o->file);
         if (o->seed) spec.seed = *o->seed;
+        const fs::path md_path = fs::path(o->out_dir) / ("tuning-" + spec.name + ".md");
+        const fs::path json_path = fs::path(o->out_dir) / ("tuning-" + spec.name + ".json");
+        std::vector<std::string> inputs{o->file, o->db};
+        for (const TuneCategory& c : spec.categories)
+            for (const SceneSpec& s : c.scenes) inputs.push_back(s.path);
+        check_output_path(md_path.string(), inputs, "--out-dir");
+        check_output_path(json_path.string(), inputs, "--out-dir");
         ResultStore store(o->db);
-        fs::create_directories(o->out_dir);
         std::ostringstream md;
         json out = {{"name", spec.name}, {"mode", spec.mode}, {"budget", spec.budget}, {"seed", spec.seed}, {"git_commit", kGitCommit},
                     {"categories", json::array()}};
@@ -182,7 +190,7 @@ void add_tune_command(CLI::App& app) {
                 cj["exhaustive"] = ex;
             }
             const std::string svg_name = "tuning-" + spec.name + "-" + ct.category + ".svg";
-            std::ofstream(fs::path(o->out_dir) / svg_name) << convergence_chart(ct, spec);
+            write_file_atomically((fs::path(o->out_dir) / svg_name).string(), convergence_chart(ct, spec));
             md << "\n![convergence](" << svg_name << ")\n";
             out["categories"].push_back(cj);
             std::cout << ct.category << ": " << ct.chosen.structure << " " << searched_text(spec, ct.chosen) << "  "
@@ -192,10 +200,8 @@ void add_tune_command(CLI::App& app) {
                     if (c.is_default) std::cout << "  (" << c.structure << " defaults " << fixed(c.measured->ms, 4) << ")";
             std::cout << (ct.rule_note.empty() ? "" : "\n  " + ct.rule_note) << '\n';
         }
-        const fs::path md_path = fs::path(o->out_dir) / ("tuning-" + spec.name + ".md");
-        const fs::path json_path = fs::path(o->out_dir) / ("tuning-" + spec.name + ".json");
-        std::ofstream(md_path) << md.str();
-        std::ofstream(json_path) << out.dump(2) << '\n';
+        write_file_atomically(md_path.string(), md.str());
+        write_file_atomically(json_path.string(), out.dump(2) + '\n');
         std::cout << "wrote " << md_path.string() << " and " << json_path.string() << '\n';
     });
 }

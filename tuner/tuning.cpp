@@ -21,7 +21,8 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
-/// Scenes are generated or read once per process and reused by every evaluation.
+}  // namespace
+
 const Recording& recording_of(const SceneSpec& scene) {
     static std::map<std::string, Recording> cache;
     const std::string key = scene.key.dump() + "|" + scene.path;
@@ -29,6 +30,8 @@ const Recording& recording_of(const SceneSpec& scene) {
     if (it == cache.end()) it = cache.emplace(key, load_scene(scene)).first;
     return it->second;
 }
+
+namespace {
 
 json complete(const std::string& structure, const json& searched) {
     json p = find_structure(structure).defaults();
@@ -186,7 +189,7 @@ TuneSpec parse_tune_spec(const std::string& text, const std::string& name, const
             if (!j["structures"].is_array() || j["structures"].empty()) fail("structures", "expected a non-empty list of structure names");
             for (std::size_t i = 0; i < j["structures"].size(); ++i) {
                 const json& s = j["structures"][i];
-                if (!s.is_string()) fail(at("structures", i), "expected a structure name, got " + s.dump());
+                if (!s.is_string()) fail(at("structures", i), "expected a structure name, got " + json_excerpt(s));
                 try {
                     t.structures.push_back(find_structure(s.get<std::string>()).name);
                 } catch (const InputError& e) {
@@ -220,6 +223,16 @@ TuneSpec parse_tune_spec(const std::string& text, const std::string& name, const
                     else dim->levels = levels;
                 }
             }
+        }
+        // The exhaustive check and the predicted mode's calibration enumerate a space: refuse one
+        // too large to hold before anything is allocated.
+        for (const auto& [structure, dims] : t.space) {
+            double size = 1;
+            for (const SearchDimension& dim : dims) size *= double(std::max<std::size_t>(1, dim.levels.size()));
+            if (size > double(kMaxPlanCells))
+                fail(at("space", structure), "the search space has " + std::to_string(std::uint64_t(std::min(size, 1e19))) +
+                                                 " configurations, more than the limit of " + std::to_string(kMaxPlanCells) +
+                                                 "; give fewer levels");
         }
         if (!j.contains("categories") || !j["categories"].is_array() || j["categories"].empty())
             fail("categories", "expected a non-empty list of scene categories");

@@ -91,6 +91,9 @@ struct CategoryTuning {
 };
 
 /// Measures one configuration on a category (median over scenes of the per-frame totals).
+/// The scene, generated or read once per process and reused by every evaluation.
+const Recording& recording_of(const SceneSpec& scene);
+
 MeasuredCost measure(const TuneCategory& category, const std::string& structure, const nlohmann::json& params,
                      std::uint32_t warmup_frames, std::uint32_t repetitions);
 

@@ -1,0 +1,42 @@
+#pragma once
+/// Checks for numeric command-line options that CLI11's own conversions let through: NaN passes
+/// CLI::Range (every comparison with NaN is false), and an unsigned option takes "-1" or a number
+/// beyond 2^64 by wrapping or saturating. Both would reach the generators as silent nonsense.
+
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+namespace rcb {
+
+/// A finite number in [lo, hi].
+inline CLI::Validator finite_range(double lo, double hi) {
+    return CLI::Validator(
+        [lo, hi](std::string& text) -> std::string {
+            double v = 0;
+            const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+            if (ec != std::errc() || end != text.data() + text.size() || !std::isfinite(v) || v < lo || v > hi)
+                return "expected a number in " + CLI::detail::to_string(lo) + ".." + CLI::detail::to_string(hi) + ", got " + text;
+            return {};
+        },
+        "NUMBER in " + CLI::detail::to_string(lo) + ".." + CLI::detail::to_string(hi));
+}
+
+/// Decimal digits only (no sign, no hex), in [lo, hi].
+inline CLI::Validator whole_number(std::uint64_t lo = 0, std::uint64_t hi = std::numeric_limits<std::uint64_t>::max()) {
+    return CLI::Validator(
+        [lo, hi](std::string& text) -> std::string {
+            std::uint64_t v = 0;
+            const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+            if (text.empty() || ec != std::errc() || end != text.data() + text.size() || v < lo || v > hi)
+                return "expected a whole number in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got " + text;
+            return {};
+        },
+        "UINT");
+}
+
+}  // namespace rcb

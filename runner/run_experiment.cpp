@@ -1,0 +1,84 @@
+#include "runner/run_experiment.h"
+
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <set>
+
+#include "core/error.h"
+#include "core/registry.h"
+#include "runner/store.h"
+
+namespace rcb {
+
+std::vector<Cell> shard_plan(const Experiment& e, std::size_t shard_k, std::size_t shard_n) {
+    std::vector<Cell> plan;
+    for (std::size_t i = 0; i < e.plan.size(); ++i)
+        if (i % shard_n == shard_k - 1) plan.push_back(e.plan[i]);
+    return plan;
+}
+
+std::string config_label(const ConfigSpec& c) {
+    const nlohmann::json defaults = find_structure(c.structure).defaults();
+    std::string changed;
+    for (const auto& [k, v] : c.params.items())
+        if (!defaults.contains(k) || defaults[k] != v) changed += (changed.empty() ? "" : ",") + k + "=" + v.dump();
+    return changed.empty() ? c.structure : c.structure + " " + changed;
+}
+
+RunOutcome run_experiment(const Experiment& e, const std::string& source, const RunOptions& options,
+                          const RunProgress& progress) {
+    const std::vector<Cell> plan = shard_plan(e, options.shard_k, options.shard_n);
+    ResultStore store(options.db);
+    const std::string shard =
+        options.shard_n == 1 ? "" : std::to_string(options.shard_k) + "/" + std::to_string(options.shard_n);
+    RunOutcome out;
+    out.planned = plan.size();
+    if (options.run_id) {
+        if (!store.run_exists(options.run_id))
+            throw InputError("--run " + std::to_string(options.run_id) + ": no such run in " + options.db);
+        out.run = options.run_id;
+    } else {
+        out.run = store.resume_or_begin_run(e, RunInfo::current(e.threads, shard, e), options.new_run);
+    }
+    const std::int64_t experiment = store.experiment_id(e);
+    const std::set<std::string> done = store.finished_cells(out.run);
+    for (const Cell& c : plan) out.done_before += done.count(c.key) != 0;
+    const std::size_t todo = plan.size() - out.done_before;
+
+    tbb::global_control threads(tbb::global_control::max_allowed_parallelism, e.threads);
+    SimulationOptions sim;
+    sim.verify = e.verify;
+    sim.warmup_frames = e.warmup_frames;
+    // Cells are scene-major, so each scene is loaded once.
+    std::size_t loaded = SIZE_MAX;
+    Recording recording;
+    std::string scene_hash;
+    for (const Cell& c : plan) {
+        // Another runner on the same database may have stored the cell since we looked.
+        if (done.count(c.key) || store.cell_done(out.run, c.key)) continue;
+        const SceneSpec& scene = e.scenes[c.scene];
+        const ConfigSpec& config = e.configs[c.config];
+        if (progress) progress(out.ran, todo, scene.name + "  " + config_label(config) + "  rep " + std::to_string(c.repetition));
+        SimulationResult res;
+        try {
+            if (loaded != c.scene) {
+                recording = load_scene(scene);
+                scene_hash = recording_hash(recording);
+                loaded = c.scene;
+            }
+            res = simulate(recording, find_structure(config.structure), config.params, sim);
+        } catch (const InputError& err) {
+            throw InputError(source + ": scene " + scene.name + ": " + err.what());
+        }
+        out.mismatches += res.mismatches();
+        store.store_cell(out.run, experiment, c, scene, recording, scene_hash, res);
+        ++out.ran;
+    }
+    const std::set<std::string> now_done = store.finished_cells(out.run);
+    out.finished = std::all_of(plan.begin(), plan.end(), [&](const Cell& c) { return now_done.count(c.key) != 0; });
+    if (out.finished) store.finish_run(out.run);
+    return out;
+}
+
+}  // namespace rcb

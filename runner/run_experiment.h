@@ -1,0 +1,46 @@
+#pragma once
+/// The run loop: an experiment's plan (or one shard of it) simulated cell by cell into the results
+/// database, resuming an unfinished run. The command line and other programs call this one entry
+/// point; it prints nothing.
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "runner/experiment.h"
+
+namespace rcb {
+
+struct RunOptions {
+    std::string db = "results/rcbench.db";
+    std::size_t shard_k = 1, shard_n = 1;  ///< run every N-th cell from the K-th (1-based)
+    bool new_run = false;                  ///< start a new run even when an unfinished one could resume
+    std::int64_t run_id = 0;               ///< resume this run (0: the newest unfinished one, or a new one)
+};
+
+/// What a run did: its id, the cells of the (shard's) plan, how many were done before, how many
+/// now ran, hits that disagreed with the ground truth, and whether the whole plan is now stored.
+struct RunOutcome {
+    std::int64_t run = 0;
+    std::size_t planned = 0, done_before = 0, ran = 0;
+    std::uint64_t mismatches = 0;
+    bool finished = false;
+};
+
+/// Called before each cell runs: cells run so far, cells to run, and what runs now.
+using RunProgress = std::function<void(std::size_t ran, std::size_t todo, const std::string& what)>;
+
+/// The cells of shard K/N of the plan: every N-th from the K-th.
+std::vector<Cell> shard_plan(const Experiment& e, std::size_t shard_k, std::size_t shard_n);
+
+/// Short label of a configuration: its structure and the parameters that differ from the defaults.
+std::string config_label(const ConfigSpec& c);
+
+/// Runs the cells not yet stored; `source` names the experiment in errors. InputError for bad input
+/// (a scene that cannot be loaded, warm-up that leaves no frame), naming the scene.
+RunOutcome run_experiment(const Experiment& e, const std::string& source, const RunOptions& options,
+                          const RunProgress& progress = {});
+
+}  // namespace rcb
