@@ -9,9 +9,10 @@
 #include "core/structures/uniform_grid.h"
 
 namespace rcb {
+namespace {
 
-const std::vector<StructureInfo>& structure_registry() {
-    static const std::vector<StructureInfo> all = {
+std::deque<StructureInfo>& registry() {
+    static std::deque<StructureInfo> all = {
         describe_structure<BruteForce>("bf", "brute force: every object's box tested (the baseline, thesis §4.1)"),
         describe_structure<DynamicBvh>("dbvh", "dynamic BVH: Catto/Box2D SAH insertion with branch and bound, fat boxes, rotations, optional full binned-SAH rebuilds (thesis §4.4)"),
         describe_structure<LinearBvh>("lbvh", "linear BVH: Karras 2012 Morton codes, radix sort, parallel radix tree, atomic bottom-up bounds, rebuilt every frame (thesis §4.5)"),
@@ -21,6 +22,34 @@ const std::vector<StructureInfo>& structure_registry() {
         describe_structure<BulletDbvt>("bullet_dbvt", "peer: Bullet's btDbvt, incremental insert/update/remove, optimizeIncremental passes per frame, rayTestInternal with exact leaf tests"),
     };
     return all;
+}
+
+bool valid_name(const std::string& name) {
+    if (name.empty() || name.size() > 64) return false;
+    for (char c : name)
+        if (!((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-'))
+            return false;
+    return true;
+}
+
+}  // namespace
+
+const std::deque<StructureInfo>& structure_registry() { return registry(); }
+
+const StructureInfo& register_structure(StructureInfo info) {
+    const std::string where = "register_structure(" + quoted_excerpt(info.name) + ")";
+    if (!valid_name(info.name))
+        throw InputError(where + ": a structure name is 1 to 64 ASCII letters, digits, '_' or '-'");
+    if (info.name == "all")
+        throw InputError(where + ": 'all' is reserved (rcbench simulate --structure all runs every structure)");
+    for (const StructureInfo& known : registry())
+        if (known.name == info.name)
+            throw InputError(where + ": a structure named '" + info.name + "' is already registered (" +
+                             quoted_excerpt(known.summary, 60) + ")");
+    if (!info.make) throw InputError(where + ": the entry has no factory (make is empty)");
+    check_params(info.params, info.defaults(), where + ": default params", info.name);
+    registry().push_back(std::move(info));
+    return registry().back();
 }
 
 const StructureInfo& find_structure(std::string_view name) {

@@ -1,7 +1,9 @@
 #pragma once
 /// Structures by name (pbrt-style: one factory by name, unknown names and parameters reported).
-/// A new structure adds one line to registry.cpp and nothing else.
+/// A new structure of rcbench adds one line to registry.cpp and nothing else; a program linking
+/// rcbench as a library adds its own with register_structure (below), without editing rcbench.
 
+#include <deque>
 #include <functional>
 #include <memory>
 #include <string>
@@ -29,8 +31,9 @@ struct StructureInfo {
     nlohmann::json complete(const nlohmann::json& params, const std::string& path) const;
 };
 
-/// Every registered structure, in registration order.
-const std::vector<StructureInfo>& structure_registry();
+/// Every registered structure, in registration order: rcbench's own, then those added by
+/// register_structure. A deque, so that references (find_structure's) stay valid when one is added.
+const std::deque<StructureInfo>& structure_registry();
 /// Throws InputError "unknown structure 'x' (known: bf, ug, …)".
 const StructureInfo& find_structure(std::string_view name);
 
@@ -45,6 +48,25 @@ StructureInfo describe_structure(std::string name, std::string summary) {
         return std::make_unique<S>(params_from_json<typename S::Params>(params, path, name));
     };
     return info;
+}
+
+/// Adds a structure to the registry, after rcbench's own, so that find_structure, simulate, the
+/// differential tests (test::expect_matches_ground_truth) and everything that lists the registry
+/// know it by name. Returns the registered entry. Refused with an InputError naming the structure:
+/// a name that is not 1 to 64 ASCII letters, digits, '_' or '-' (names go into CSV, SQLite and
+/// command lines), "all" (the CLI's word for every structure), a name already registered, an
+/// empty `make`, or a parameter default outside its own range. Register at start-up, before any
+/// thread uses the registry: it is not locked.
+///
+///     struct SweepList : rcb::StructureBase<SweepList> { struct Params {…}; explicit SweepList(const Params&); … };
+///     rcb::register_structure<SweepList>("sweep", "objects sorted by min x, swept per ray");
+///     rcb::simulate(recording, rcb::find_structure("sweep"), {});
+const StructureInfo& register_structure(StructureInfo info);
+
+/// register_structure(describe_structure<S>(name, summary)).
+template <class S>
+const StructureInfo& register_structure(std::string name, std::string summary) {
+    return register_structure(describe_structure<S>(std::move(name), std::move(summary)));
 }
 
 }  // namespace rcb

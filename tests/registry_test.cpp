@@ -1,0 +1,183 @@
+// register_structure: a program's own structure joins the registry without editing registry.cpp,
+// runs through the simulator and the differential check, and bad registrations are refused.
+#include <gtest/gtest.h>
+
+#include <string>
+#include <tuple>
+#include <unordered_map>
+#include <vector>
+
+#include "core/error.h"
+#include "core/registry.h"
+#include "core/simulator.h"
+#include "core/structure.h"
+#include "tests/test_scenes.h"
+
+namespace rcb {
+namespace {
+
+/// The smallest honest structure: a list of objects scanned per ray (brute force without the
+/// vectorised layout), as a user outside rcbench would write it.
+class ListScan : public StructureBase<ListScan> {
+public:
+    struct Params {
+        static constexpr auto fields() { return std::tuple{}; }
+    };
+    explicit ListScan(const Params&) {}
+
+    void build(std::span<const Object> objects) override {
+        objects_.assign(objects.begin(), objects.end());
+        index_.clear();
+        for (std::size_t i = 0; i < objects_.size(); ++i) index_[objects_[i].uid] = i;
+    }
+    void insert(const Object& o) override {
+        index_[o.uid] = objects_.size();
+        objects_.push_back(o);
+    }
+    void remove(Uid uid) override {
+        const std::size_t i = index_.at(uid);
+        index_.erase(uid);
+        if (i + 1 != objects_.size()) {
+            objects_[i] = objects_.back();
+            index_[objects_[i].uid] = i;
+        }
+        objects_.pop_back();
+    }
+    void move(const Object& o) override { objects_[index_.at(o.uid)].box = o.box; }
+    std::size_t size() const override { return objects_.size(); }
+    std::size_t memory_bytes() const override { return objects_.capacity() * sizeof(Object) + index_.size() * 32; }
+    void validate() const override {
+        if (index_.size() != objects_.size()) throw std::logic_error("list_scan: index and list differ in size");
+        for (std::size_t i = 0; i < objects_.size(); ++i)
+            if (index_.at(objects_[i].uid) != i) throw std::logic_error("list_scan: index is stale");
+    }
+
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit) {
+        const SegmentSlabs slabs(s);
+        count.box_tests(objects_.size());
+        for (const Object& o : objects_) {
+            float t_near, t_far;
+            if (!slabs.clip(o.box, t_near, t_far)) continue;
+            count.hits();
+            if (!visit(o.uid, t_near)) return;
+        }
+    }
+
+private:
+    std::vector<Object> objects_;
+    std::unordered_map<Uid, std::size_t> index_;
+};
+
+/// Registered once per process (the registry is global). The address of bf's entry is taken just
+/// before, to check that registering moves no existing entry.
+struct Registered {
+    const StructureInfo* bf_before;
+    const StructureInfo* list_scan;
+};
+const Registered& registered() {
+    static const Registered r = [] {
+        const StructureInfo* bf = &find_structure("bf");
+        return Registered{bf,
+                          &register_structure<ListScan>("test_list_scan", "a list scanned per ray (registry_test)")};
+    }();
+    return r;
+}
+
+template <class F>
+std::string error_of(F&& f) {
+    try {
+        f();
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+TEST(RegisterStructure, JoinsTheRegistryAfterTheBuiltIns) {
+    const Registered& r = registered();
+    EXPECT_EQ(&find_structure("test_list_scan"), r.list_scan);
+    EXPECT_EQ(r.list_scan->name, "test_list_scan");
+    EXPECT_EQ(r.list_scan->summary, "a list scanned per ray (registry_test)");
+    EXPECT_EQ(structure_registry().front().name, "bf");
+    EXPECT_EQ(&find_structure("bf"), r.bf_before) << "registering moved an existing entry";
+    bool listed = false;
+    for (const StructureInfo& info : structure_registry()) listed |= &info == r.list_scan;
+    EXPECT_TRUE(listed);
+}
+
+TEST(RegisterStructure, RunsThroughTheSimulatorAndMatchesTheGroundTruth) {
+    registered();
+    const Recording r = test::generated_scene("irregular", 1200, 5, 31, 0.1);
+    SimulationOptions o;
+    o.validate = true;
+    const SimulationResult res = simulate(r, find_structure("test_list_scan"), nlohmann::json::object(), o);
+    EXPECT_TRUE(res.verified);
+    EXPECT_EQ(res.structure, "test_list_scan");
+    ASSERT_EQ(res.frames.size(), 5u);
+    EXPECT_EQ(res.mismatches(), 0u);
+    std::uint64_t hits = 0;
+    for (const FrameResult& f : res.frames) hits += f.hits;
+    EXPECT_GT(hits, 0u);
+    for (const test::NamedScene& s : test::hard_scenes())
+        test::expect_matches_ground_truth(s.recording, "test_list_scan", {}, s.name);
+}
+
+TEST(RegisterStructure, ParamsOfARegisteredStructureAreChecked) {
+    registered();
+    EXPECT_EQ(error_of([] {
+                  find_structure("test_list_scan").make({{"cells", 4}}, "--param");
+              }),
+              "--param.cells: unknown parameter of test_list_scan (it takes none)");
+}
+
+TEST(RegisterStructure, RefusesDuplicateAndBadNames) {
+    registered();
+    const std::size_t before = structure_registry().size();
+    EXPECT_EQ(
+        error_of([] {
+            register_structure<ListScan>("bf", "mine");
+        }).rfind("register_structure('bf'): a structure named 'bf' is already registered ('brute force: every", 0),
+        0u);
+    EXPECT_NE(error_of([] {
+                  register_structure<ListScan>("test_list_scan", "again");
+              }).find("register_structure('test_list_scan'): a structure named 'test_list_scan' is already registered"),
+              std::string::npos);
+    for (const std::string& name :
+         std::vector<std::string>{"", "has space", "a/b", "caf\xc3\xa9", std::string(65, 'x')})
+        EXPECT_NE(error_of([&] {
+                      register_structure<ListScan>(name, "x");
+                  }).find("a structure name is 1 to 64 ASCII letters, digits, '_' or '-'"),
+                  std::string::npos)
+            << name;
+    EXPECT_EQ(error_of([] { register_structure<ListScan>("all", "x"); }),
+              "register_structure('all'): 'all' is reserved (rcbench simulate --structure all runs every structure)");
+    EXPECT_EQ(structure_registry().size(), before);
+}
+
+TEST(RegisterStructure, RefusesAnEntryWithoutFactoryOrWithABadDefault) {
+    const std::size_t before = structure_registry().size();
+    StructureInfo no_factory;
+    no_factory.name = "test_no_factory";
+    EXPECT_EQ(error_of([&] { register_structure(no_factory); }),
+              "register_structure('test_no_factory'): the entry has no factory (make is empty)");
+
+    StructureInfo bad_default = describe_structure<ListScan>("test_bad_default", "x");
+    ParamSpec cells;
+    cells.name = "cells";
+    cells.kind = ParamKind::integer;
+    cells.lo = 1;
+    cells.hi = 8;
+    cells.default_value = 0;
+    bad_default.params.push_back(cells);
+    EXPECT_NE(error_of([&] {
+                  register_structure(bad_default);
+              }).find("register_structure('test_bad_default'): default params"),
+              std::string::npos)
+        << error_of([&] { register_structure(bad_default); });
+    EXPECT_EQ(structure_registry().size(), before);
+    EXPECT_THROW(find_structure("test_bad_default"), InputError);
+}
+
+}  // namespace
+}  // namespace rcb
