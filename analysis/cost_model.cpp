@@ -291,4 +291,15 @@ std::optional<RaycastCoefficients> stored_raycast_coefficients(Database& db, std
     return out;
 }
 
+RunFit fit_run(Database& db, std::int64_t run) {
+    RunFit out;
+    out.run = run;
+    const std::vector<FrameObservation> frames = load_observations(db, run);
+    out.frames = frames.size();
+    out.models = fit_cost_models(frames);
+    store_fits(db, run, out.models);
+    out.breakdown = cost_breakdown(frames, out.models);
+    return out;
+}
+
 }  // namespace rcb

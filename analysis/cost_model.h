@@ -71,6 +71,16 @@ struct CostBreakdown {
 std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& frames,
                                           const std::vector<StructureModels>& models);
 
+/// The fit stage's entry point: the run's frames fitted per structure (fit_cost_models), the fits
+/// stored in the database (store_fits), and the Table 6.3 analog.
+struct RunFit {
+    std::int64_t run = 0;
+    std::size_t frames = 0;
+    std::vector<StructureModels> models;
+    std::vector<CostBreakdown> breakdown;
+};
+RunFit fit_run(Database& db, std::int64_t run);
+
 /// The stored, chosen ray-cast coefficients of a structure for a run (for the tuner's predictions);
 /// from a per-category model, those of `category` ("uniform", "irregular", …).
 struct RaycastCoefficients {

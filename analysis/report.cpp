@@ -17,7 +17,7 @@
 #include "core/output_file.h"
 #include "core/registry.h"
 #include "core/simulator.h"
-#include "runner/table.h"
+#include "core/number_text.h"
 
 namespace rcb {
 namespace {

@@ -6,8 +6,8 @@
 #include "core/csv.h"
 #include "core/recording_io.h"
 #include "core/registry.h"
-#include "runner/commands.h"
-#include "runner/structure_options.h"
+#include "cli/commands.h"
+#include "cli/structure_options.h"
 
 namespace rcb {
 

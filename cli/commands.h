@@ -1,6 +1,7 @@
 #pragma once
-/// The `rcbench` subcommands. Each `add_*` registers a subcommand and its options on the CLI11
-/// app; the work runs in the subcommand's callback. Errors are exceptions: InputError for bad
+/// The `rcbench` subcommands, one file each in cli/. Each `add_*` registers a subcommand and its
+/// options on the CLI11 app; the work runs in the subcommand's callback, which calls the stages'
+/// plain entry points and prints. Errors are exceptions: InputError for bad
 /// input (exit 2), anything else a failure (exit 1); main() turns them into one line.
 
 #include <CLI/CLI.hpp>
@@ -13,5 +14,9 @@ void add_cast_command(CLI::App& app);
 void add_structures_command(CLI::App& app);
 void add_run_command(CLI::App& app);
 void add_query_commands(CLI::App& app);
+void add_fit_command(CLI::App& app);
+void add_report_command(CLI::App& app);
+void add_tune_command(CLI::App& app);
+void add_advise_command(CLI::App& app);
 
 }  // namespace rcb

@@ -3,10 +3,10 @@
 #include <iostream>
 #include <memory>
 
-#include "analysis/commands.h"
+#include "cli/commands.h"
 #include "analysis/cost_model.h"
 #include "runner/store.h"
-#include "runner/table.h"
+#include "cli/table.h"
 
 namespace rcb {
 namespace {
@@ -58,11 +58,10 @@ void add_fit_command(CLI::App& app) {
     cmd->callback([o] {
         ResultStore store(o->db);  // migrates, so the fit tables exist
         const std::int64_t run = resolve_run(store.db(), o->run, o->experiment);
-        const std::vector<FrameObservation> frames = load_observations(store.db(), run);
-        const std::vector<StructureModels> models = fit_cost_models(frames);
-        store_fits(store.db(), run, models);
+        const RunFit fit = fit_run(store.db(), run);
+        const std::vector<StructureModels>& models = fit.models;
 
-        std::cout << "run " << run << ": " << frames.size() << " frames. Ray-cast cost per ray in ns; held-out error is the mean "
+        std::cout << "run " << run << ": " << fit.frames << " frames. Ray-cast cost per ray in ns; held-out error is the mean "
                   << "absolute relative error on configurations left out of the fit (5-fold). A model is chosen when its held-out "
                   << "error is within max(0.5 points, 5%) of the best: the smallest such.\n";
         for (const StructureModels& s : models) {
@@ -81,7 +80,7 @@ void add_fit_command(CLI::App& app) {
 
         std::cout << "\nThesis Table 6.3 analog (ns per ray; the C terms from each structure's chosen model):\n";
         TextTable t({"scene", "structure", "params", "C_total", "C_RBxN_RB", "C_TxN_T", "C_PREP", "N_TP", "N_FP", "N_T", "C_RB", "C_T"});
-        for (const CostBreakdown& b : cost_breakdown(frames, models))
+        for (const CostBreakdown& b : fit.breakdown)
             t.add({b.scene, b.structure, b.params, fixed(b.c_total, 1), fixed(b.rb_term, 1), fixed(b.t_term, 1), fixed(b.prep, 1),
                    fixed(b.n_tp, 1), fixed(b.n_fp, 1), fixed(b.n_t, 1), std::isfinite(b.c_rb) ? fixed(b.c_rb, 3) : "-",
                    std::isfinite(b.c_t) ? fixed(b.c_t, 3) : "-"});

@@ -1,10 +1,8 @@
 // rcbench: find, tune and explain the best acceleration structure for ray casting in dynamic scenes.
 #include <iostream>
 
+#include "cli/commands.h"
 #include "core/error.h"
-#include "analysis/commands.h"
-#include "runner/commands.h"
-#include "tuner/commands.h"
 
 int main(int argc, char** argv) {
     CLI::App app{"rcbench: acceleration structures for all-hits ray casting in dynamic physics scenes.\n"

@@ -2,7 +2,7 @@
 #include <iostream>
 #include <memory>
 
-#include "analysis/commands.h"
+#include "cli/commands.h"
 #include "analysis/cost_model.h"
 #include "analysis/report.h"
 #include "core/output_file.h"

@@ -11,11 +11,11 @@
 
 #include "core/error.h"
 #include "core/registry.h"
-#include "runner/commands.h"
+#include "cli/commands.h"
 #include "runner/experiment.h"
 #include "runner/run_experiment.h"
 #include "runner/store.h"
-#include "runner/table.h"
+#include "cli/table.h"
 
 namespace rcb {
 namespace {

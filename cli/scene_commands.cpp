@@ -12,9 +12,9 @@
 #include "core/json_input.h"
 #include "core/output_file.h"
 #include "core/recording_io.h"
-#include "runner/cli_checks.h"
-#include "runner/commands.h"
-#include "runner/table.h"
+#include "cli/cli_checks.h"
+#include "cli/commands.h"
+#include "cli/table.h"
 
 namespace rcb {
 namespace {

@@ -6,11 +6,11 @@
 
 #include "core/recording_io.h"
 #include "core/simulator.h"
-#include "runner/cli_checks.h"
-#include "runner/commands.h"
+#include "cli/cli_checks.h"
+#include "cli/commands.h"
 #include "core/error.h"
 #include "core/output_file.h"
-#include "runner/table.h"
+#include "cli/table.h"
 
 namespace rcb {
 namespace {

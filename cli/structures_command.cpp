@@ -3,8 +3,8 @@
 #include <memory>
 
 #include "core/registry.h"
-#include "runner/commands.h"
-#include "runner/table.h"
+#include "cli/commands.h"
+#include "cli/table.h"
 
 namespace rcb {
 

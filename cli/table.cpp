@@ -1,9 +1,7 @@
-#include "runner/table.h"
+#include "cli/table.h"
 
 #include <algorithm>
-#include <cstdio>
 #include <iomanip>
-#include <sstream>
 
 namespace rcb {
 
@@ -21,19 +19,6 @@ void TextTable::print(std::ostream& out) const {
         }
         out << '\n';
     }
-}
-
-std::string fixed(double value, int digits) {
-    std::ostringstream s;
-    s << std::fixed << std::setprecision(digits) << value;
-    return s.str();
-}
-
-std::string bytes_text(double bytes) {
-    const char* units[] = {"B", "KB", "MB", "GB", "TB"};
-    int u = 0;
-    while (bytes >= 1024 && u < 4) bytes /= 1024, ++u;
-    return fixed(bytes, u == 0 ? 0 : 1) + " " + units[u];
 }
 
 }  // namespace rcb

@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "core/number_text.h"
+
 namespace rcb {
 
 class TextTable {
@@ -17,9 +19,5 @@ private:
     std::vector<std::vector<std::string>> rows_;
 };
 
-/// Fixed-point with `digits` decimals.
-std::string fixed(double value, int digits);
-/// "1.2 MB", "340 KB", "512 B".
-std::string bytes_text(double bytes);
 
 }  // namespace rcb

@@ -1,0 +1,22 @@
+#pragma once
+/// Combining results databases (shards of one experiment, runs from several machines) into one.
+
+#include <cstddef>
+
+#include "runner/sqlite.h"
+#include "runner/store.h"
+
+namespace rcb {
+
+struct MergeCount {
+    std::size_t runs = 0;   ///< runs new to the output
+    std::size_t cells = 0;  ///< cells new to the output, in new runs or in runs it had unfinished
+};
+
+/// Copies into `out` every run of `in` (matched by run uuid) and every cell of it that `out` does
+/// not have yet, remapping ids; a run `out` holds unfinished gains the cells finished since and its
+/// finish time. So merging a shard, resuming the shard and merging it again completes the run.
+/// One transaction: all of `in` or nothing.
+MergeCount merge_into(ResultStore& out, Database& in);
+
+}  // namespace rcb

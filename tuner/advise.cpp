@@ -1,0 +1,61 @@
+#include "tuner/advise.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <map>
+
+#include "core/error.h"
+#include "core/json_input.h"
+#include "core/registry.h"
+#include "core/simulator.h"
+#include "runner/experiment.h"
+
+namespace rcb {
+
+std::vector<AdviceRow> advise(const AdviseOptions& o) {
+    if (o.tuning.empty() != o.category.empty()) throw InputError("--tuning and --category go together");
+    std::map<std::string, nlohmann::json> tuned;
+    if (!o.tuning.empty()) {
+        const nlohmann::json t = parse_json_document(read_text_file(o.tuning), o.tuning);
+        bool found = false;
+        try {
+            for (const auto& c : t.at("categories")) {
+                if (c.at("category").get<std::string>() != o.category) continue;
+                found = true;
+                for (const auto& s : c.at("structures"))
+                    tuned[s.at("structure").get<std::string>()] = s.at("best").at("params");
+            }
+        } catch (const nlohmann::json::exception&) {  // a missing key or a value of the wrong type
+            throw InputError(o.tuning + ": not a tuning result (rcbench tune writes them)");
+        }
+        if (!found) throw InputError(o.tuning + ": no category \"" + o.category + "\"");
+    }
+    TuneCategory category;
+    category.name = std::filesystem::path(o.scene).stem().string();
+    SceneSpec spec;
+    spec.name = category.name;
+    spec.path = o.scene;
+    spec.key = {{"advise", o.scene}};
+    const bool csv = o.scene.size() >= 4 && o.scene.compare(o.scene.size() - 4, 4, ".csv") == 0;
+    spec.source = csv ? SceneSpec::Source::import : SceneSpec::Source::recording;
+    if (csv) spec.settings.frames = 10;
+    if (!std::filesystem::is_regular_file(o.scene)) throw InputError(o.scene + ": no such file");
+    category.scenes.push_back(spec);
+    try {
+        check_warmup(o.warmup, recording_of(spec).frames.size());
+    } catch (const InputError& e) {
+        throw InputError(o.scene + ": " + e.what());
+    }
+
+    std::vector<AdviceRow> rows;
+    for (const StructureInfo& info : structure_registry()) {
+        const bool is_tuned = tuned.count(info.name) != 0;
+        const nlohmann::json params = is_tuned ? info.complete(tuned[info.name], o.tuning) : info.defaults();
+        if (o.progress) o.progress(info.name);
+        rows.push_back({info.name, params.dump(), measure(category, info.name, params, o.warmup, o.repetitions), is_tuned});
+    }
+    std::sort(rows.begin(), rows.end(), [](const AdviceRow& a, const AdviceRow& b) { return a.cost.ms < b.cost.ms; });
+    return rows;
+}
+
+}  // namespace rcb

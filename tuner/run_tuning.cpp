@@ -1,0 +1,183 @@
+#include "tuner/run_tuning.h"
+
+#include <cmath>
+#include <filesystem>
+#include <sstream>
+
+#include "analysis/charts.h"
+#include "core/number_text.h"
+#include "core/output_file.h"
+#include "core/registry.h"
+#include "core/simulator.h"
+#include "runner/build_info.h"
+#include "runner/store.h"
+
+namespace rcb {
+
+std::string searched_parameters(const TuneSpec& spec, const Candidate& c) {
+    std::string out;
+    for (const SearchDimension& d : spec.space.at(c.structure))
+        out += (out.empty() ? "" : " ") + d.name + "=" + (c.params[d.name].is_string() ? c.params[d.name].get<std::string>() : c.params[d.name].dump());
+    return out;
+}
+
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+std::string cost_text(const MeasuredCost& c) { return fixed(c.ms, 4) + " ± " + fixed(c.mad, 4); }
+
+json candidate_json(const Candidate& c) {
+    json j = {{"structure", c.structure}, {"params", c.params}, {"default", c.is_default}};
+    if (c.predicted_ms) j["predicted_ms"] = *c.predicted_ms;
+    if (c.measured)
+        j["measured"] = {{"ms", c.measured->ms}, {"mad", c.measured->mad}, {"update_ms", c.measured->update_ms},
+                         {"raycast_ms", c.measured->raycast_ms}, {"memory_bytes", c.measured->memory_bytes}};
+    return j;
+}
+
+std::string convergence_chart(const CategoryTuning& ct, const TuneSpec& spec) {
+    Chart c;
+    c.title = "Search convergence on " + ct.category + " (" + spec.mode + ")";
+    c.x_label = "evaluation";
+    c.y_label = spec.mode == "measured" ? "best measured cost so far (ms per frame)" : "best predicted cost so far (ms per frame)";
+    for (const StructureTuning& st : ct.structures) {
+        Series s{st.structure, {}, {}, {}, true, structure_simplicity(st.structure) + 1};
+        double best = INFINITY;
+        for (std::size_t i = 0; i < st.search.evaluations.size(); ++i) {
+            best = std::min(best, st.search.evaluations[i].cost);
+            s.x.push_back(double(i + 1));
+            s.y.push_back(best);
+        }
+        c.series.push_back(s);
+    }
+    c.reading = "Best cost found after each distinct evaluation.";
+    return render_svg(c);
+}
+
+void store_tuning(ResultStore& store, const TuneSpec& spec, const CategoryTuning& ct) {
+    Database& db = store.db();
+    Transaction t(db);
+    db.prepare("DELETE FROM tuning WHERE name = ? AND category = ?").bind_all(spec.name, ct.category).run();
+    for (const StructureTuning& st : ct.structures) {
+        const Candidate& best = st.candidates[st.best_candidate];
+        const Candidate* def = nullptr;
+        for (const Candidate& c : st.candidates)
+            if (c.is_default) def = &c;
+        json bound = st.search.on_bound;
+        Statement ins = db.prepare(
+            "INSERT INTO tuning(name, category, structure, mode, algorithm, created_at, git_commit, spec, evaluations, measurements, "
+            "seconds, stop_reason, on_bound, best_params, best_measured_ms, best_measured_mad, best_predicted_ms, default_params, "
+            "default_measured_ms, chosen) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        ins.bind_all(spec.name, ct.category, st.structure, st.mode, st.search.algorithm, utc_now(), std::string(kGitCommit),
+                     spec.content, std::int64_t(st.search.evaluations.size()), std::int64_t(st.measurements), st.seconds,
+                     st.search.stop_reason, bound.dump(), best.params.dump(), best.measured->ms, best.measured->mad);
+        ins.bind(17, best.predicted_ms);
+        ins.bind(18, def ? def->params.dump() : std::string("{}"));
+        ins.bind(19, def ? std::optional<double>(def->measured->ms) : std::nullopt);
+        ins.bind(20, std::int64_t(ct.chosen.structure == st.structure && ct.chosen.params == best.params));
+        ins.run();
+        const std::int64_t id = db.last_insert_id();
+        for (std::size_t i = 0; i < st.search.evaluations.size(); ++i)
+            db.prepare("INSERT INTO tuning_evaluation(tuning_id, i, params, cost_ms, kind) VALUES (?,?,?,?,?)")
+                .bind_all(id, std::int64_t(i), st.search.evaluations[i].params.dump(), st.search.evaluations[i].cost,
+                          std::string(st.mode == "measured" ? "measured" : "predicted"))
+                .run();
+    }
+    t.commit();
+}
+
+}  // namespace
+
+TuneOutcome run_tuning(const TuneSpec& spec, const TuneOptions& o) {
+        const fs::path md_path = fs::path(o.out_dir) / ("tuning-" + spec.name + ".md");
+    const fs::path json_path = fs::path(o.out_dir) / ("tuning-" + spec.name + ".json");
+    std::vector<std::string> inputs{o.file, o.db};
+    for (const TuneCategory& c : spec.categories)
+        for (const SceneSpec& s : c.scenes) inputs.push_back(s.path);
+    check_output_path(md_path.string(), inputs, "--out-dir");
+    check_output_path(json_path.string(), inputs, "--out-dir");
+    ResultStore store(o.db);
+    TuneOutcome outcome;
+    std::ostringstream md;
+    json out = {{"name", spec.name}, {"mode", spec.mode}, {"budget", spec.budget}, {"seed", spec.seed}, {"git_commit", kGitCommit},
+                {"categories", json::array()}};
+    md << "# Tuning " << spec.name << "\n\n" << spec.description << "\n\nMode: " << spec.mode << "; budget " << spec.budget
+       << " distinct evaluations per structure and category; seed " << spec.seed << "; " << spec.repetitions
+       << " repetitions per measurement; commit " << kGitCommit
+       << ". Costs are per frame: update + the frame's rays (thesis eq. 5.5), median over frames and repetitions ± MAD, "
+          "averaged over the category's scenes. The thesis does not publish its grid settings, so they cannot be compared here.\n";
+    for (const TuneCategory& category : spec.categories) {
+        if (o.progress) o.progress(category.name);
+        const CategoryTuning ct = tune_category(spec, category);
+        store_tuning(store, spec, ct);
+        md << "\n## " << ct.category << "\n\nRecommended: **" << ct.chosen.structure << " " << searched_parameters(spec, ct.chosen) << "** at "
+           << cost_text(*ct.chosen.measured) << " ms per frame";
+        if (!ct.rule_note.empty()) md << " (" << ct.rule_note << ")";
+        md << ".\n\n| structure | configuration | predicted ms | measured ms | update ms | ray cast ms | memory B | note |\n|---|---|---|---|---|---|---|---|\n";
+        json cj = {{"category", ct.category}, {"chosen", candidate_json(ct.chosen)}, {"fastest", candidate_json(ct.fastest)},
+                   {"rule_note", ct.rule_note}, {"structures", json::array()}};
+        for (const StructureTuning& st : ct.structures) {
+            for (std::size_t i = 0; i < st.candidates.size(); ++i) {
+                const Candidate& c = st.candidates[i];
+                std::string note = c.is_default ? "defaults" : "";
+                if (i == st.best_candidate) note += std::string(note.empty() ? "" : ", ") + "best measured";
+                md << "| " << c.structure << " | " << searched_parameters(spec, c) << " | "
+                   << (c.predicted_ms ? fixed(*c.predicted_ms, 4) : "-") << " | " << cost_text(*c.measured) << " | "
+                   << fixed(c.measured->update_ms, 4) << " | " << fixed(c.measured->raycast_ms, 4) << " | "
+                   << fixed(c.measured->memory_bytes, 0) << " | " << note << " |\n";
+            }
+            json sj = {{"structure", st.structure}, {"algorithm", st.search.algorithm}, {"stop_reason", st.search.stop_reason},
+                       {"on_bound", st.search.on_bound}, {"evaluations", st.search.evaluations.size()},
+                       {"space_size", st.search.space_size}, {"measurements", st.measurements}, {"seconds", st.seconds},
+                       {"prediction_model", st.prediction_model}, {"best", candidate_json(st.candidates[st.best_candidate])},
+                       {"candidates", json::array()}};
+            for (const Candidate& c : st.candidates) sj["candidates"].push_back(candidate_json(c));
+            cj["structures"].push_back(sj);
+        }
+        md << "\n| structure | search | evaluations (space) | measurements | seconds | stopped | best at the edge of its range |\n|---|---|---|---|---|---|---|\n";
+        for (const StructureTuning& st : ct.structures) {
+            std::string edge;
+            for (const std::string& b : st.search.on_bound) edge += (edge.empty() ? "" : ", ") + b;
+            md << "| " << st.structure << " | " << st.search.algorithm
+               << (st.prediction_model.empty() ? "" : "; prediction: " + st.prediction_model) << " | " << st.search.evaluations.size()
+               << " (" << st.search.space_size << ") | " << st.measurements << " | " << fixed(st.seconds, 1) << " | "
+               << st.search.stop_reason << " | " << (edge.empty() ? "-" : edge + ": consider widening its range") << " |\n";
+        }
+        if (o.exhaustive) {
+            md << "\nExhaustive check (every configuration measured):\n\n| structure | configurations | best | tuner's best measured | gap | tuner's evaluations |\n|---|---|---|---|---|---|\n";
+            json ex = json::array();
+            for (const StructureTuning& st : ct.structures) {
+                double best = INFINITY;
+                json best_params;
+                const auto all = enumerate_space(spec.space.at(st.structure));
+                for (const json& p : all) {
+                    json full = find_structure(st.structure).defaults();
+                    for (const auto& [k, v] : p.items()) full[k] = v;
+                    const double ms = measure(category, st.structure, full, spec.warmup_frames, spec.repetitions).ms;
+                    if (ms < best) best = ms, best_params = p;
+                }
+                const double tuned = st.candidates[st.best_candidate].measured->ms;
+                md << "| " << st.structure << " | " << all.size() << " | " << fixed(best, 4) << " " << best_params.dump() << " | "
+                   << fixed(tuned, 4) << " | " << fixed(100 * (tuned / best - 1), 1) << "% | " << st.search.evaluations.size() << " ("
+                   << fixed(100.0 * double(st.search.evaluations.size()) / double(all.size()), 0) << "%) |\n";
+                ex.push_back({{"structure", st.structure}, {"configurations", all.size()}, {"best_ms", best}, {"best_params", best_params},
+                              {"tuned_ms", tuned}, {"evaluations", st.search.evaluations.size()}});
+            }
+            cj["exhaustive"] = ex;
+        }
+        const std::string svg_name = "tuning-" + spec.name + "-" + ct.category + ".svg";
+        write_file_atomically((fs::path(o.out_dir) / svg_name).string(), convergence_chart(ct, spec));
+        md << "\n![convergence](" << svg_name << ")\n";
+        out["categories"].push_back(cj);
+        outcome.categories.push_back(ct);
+    }
+    write_file_atomically(md_path.string(), md.str());
+    write_file_atomically(json_path.string(), out.dump(2) + '\n');
+    outcome.md_path = md_path.string();
+    outcome.json_path = json_path.string();
+    return outcome;
+}
+
+}  // namespace rcb
