@@ -57,7 +57,7 @@ inline constexpr double kSelectionFloor = 0.005;
 
 std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>& frames);
 
-/// Replaces the run's stored fits (schema: results/README.md, tables fit and fit_coefficient).
+/// Replaces the run's stored fits (schema: docs/database.md, tables fit and fit_coefficient).
 void store_fits(Database& db, std::int64_t run, const std::vector<StructureModels>& models);
 
 /// Thesis Table 6.3 analog: one row per (scene, configuration).

@@ -1,5 +1,5 @@
 #pragma once
-/// The results database: the contract between rcbench's stages (schema: results/README.md).
+/// The results database: the contract between rcbench's stages (schema: docs/database.md).
 ///
 /// Versioned with `PRAGMA user_version` and forward-only migrations: an older database is migrated
 /// when opened for writing; a newer one is refused. Each cell is stored in one transaction, so a

@@ -2,7 +2,8 @@
 # Installs the Debian packages rcbench builds and runs with (only those missing), then builds
 # rcbench (Release) into build/.
 #   --deps-only    stop after the packages
-#   --test-tools   also install what some tests use: Debian's chromium (the report rendering test)
+#   --test-tools   also install what CI's checks use: chromium (the report rendering test), clang with
+#                  its sanitizer and libFuzzer runtime (the sanitizer build), clang-format
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -12,7 +13,7 @@ deps_only=0
 for arg in "$@"; do
   case "$arg" in
     --deps-only) deps_only=1 ;;
-    --test-tools) packages+=(chromium) ;;
+    --test-tools) packages+=(chromium clang libclang-rt-14-dev clang-format) ;;
     *) echo "setup.sh: unknown option $arg (known: --deps-only, --test-tools)" >&2; exit 2 ;;
   esac
 done
