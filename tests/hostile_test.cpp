@@ -657,7 +657,12 @@ protected:
         o.cwd = work_.string();
         const test::Outcome r = test::run_process(argv, o);
         ASSERT_EQ(r.code, 0) << "setup: " << command_line(args) << '\n' << r.err;
-        for (const std::string& out : outputs) bases_[out] = read_bytes(work_ / out);
+        for (const std::string& out : outputs) {
+            // A database's write-ahead log, if one was left beside it, is folded in first: the
+            // base must be one self-contained file (closing the last writer checkpoints the log).
+            if (fs::exists(work_ / (out + "-wal"))) rcb::Database((work_ / out).string(), false);
+            bases_[out] = read_bytes(work_ / out);
+        }
     }
 
     void make_recording() {
@@ -692,7 +697,7 @@ protected:
         setup_run({"tune", "tune.json", "--db", "tune.db", "--out-dir", "tuned"}, {});
         base("tr.json", read_bytes(work_ / "tuned/tuning-hostile.json"));
         fs::remove_all(work_ / "tuned");
-        fs::remove(work_ / "tune.db");
+        for (const char* f : {"tune.db", "tune.db-wal", "tune.db-shm"}) fs::remove(work_ / f);
     }
 
     /// Removes a case's own input, unless a failing case keeps it for the report.
@@ -1140,10 +1145,10 @@ TEST_F(Hostile, DatabasesForQueryCompareMergeFitReport) {
         const std::string f = input("db", ".db", bytes);
         const std::string out = fresh("merged", ".db"), html = fresh("report", ".html");
         // Errors about the contents may name the run instead of the file.
-        const std::vector<std::string> places{f}, content_places{f, "run "};
+        const std::vector<std::string> places{f}, content_places{f, "run ", "runs "};
         check("query", {{"query", f, "SELECT * FROM cell_summary"}, {f, "query"}, {}, {f}, false, what});
         check("query", {{"query", "--csv", f, "SELECT * FROM frame"}, {f, "query"}, {}, {f}, false, what});
-        check("compare", {{"compare", f, "--baseline", "1", "--candidate", "2"}, {f, "run ", "--baseline", "--candidate"}, {}, {f}, false, what});
+        check("compare", {{"compare", f, "--baseline", "1", "--candidate", "2"}, {f, "run ", "runs ", "--baseline", "--candidate"}, {}, {f}, false, what});
         check("merge", {{"merge", out, f}, places, {out}, {f}, false, what});
         if (i < n_sql || i % 2 == 0)  // gnuplot makes a report the slowest command here
             check("report", {{"report", f, "-o", html}, content_places, {html}, {f}, false, what});
@@ -1197,16 +1202,16 @@ TEST_F(Hostile, ArgumentsOfSceneCommands) {
         {gen({"--move-scale", "nan", "-o", "g.rcbscene"}), {"--move-scale"}, {"g.rcbscene"}, {}, true, "move scale nan"},
         {gen({"--move-scale", "1e308", "-o", "g.rcbscene"}), {"--move-scale"}, {"g.rcbscene"}, {}, true, "move scale 1e308"},
         {gen({"--move-scale", "1000", "--change-fraction", "1", "-o", "g.rcbscene"}), {"--move-scale"}, {"g.rcbscene"}, {}, false, "move scale 1000"},
-        {gen({"--ray-mix", "center:nan", "-o", "g.rcbscene"}), {"--ray-mix", "center:nan"}, {"g.rcbscene"}, {}, true, "ray weight nan"},
-        {gen({"--ray-mix", "center:1e999", "-o", "g.rcbscene"}), {"--ray-mix", "center:1e999"}, {"g.rcbscene"}, {}, true, "ray weight 1e999"},
-        {gen({"--ray-mix", "center:-1", "-o", "g.rcbscene"}), {"--ray-mix", "center:-1"}, {"g.rcbscene"}, {}, true, "ray weight -1"},
-        {gen({"--ray-mix", "center:0", "-o", "g.rcbscene"}), {"--ray-mix", "center:0"}, {"g.rcbscene"}, {}, true, "all ray weights 0"},
-        {gen({"--ray-mix", "center:1e-320,los:1e-320", "-o", "g.rcbscene"}), {"--ray-mix"}, {"g.rcbscene"}, {}, false, "denormal ray weights"},
-        {gen({"--ray-mix", "", "-o", "g.rcbscene"}), {"--ray-mix"}, {"g.rcbscene"}, {}, true, "empty ray mix"},
-        {gen({"--ray-mix", ":", "-o", "g.rcbscene"}), {"--ray-mix"}, {"g.rcbscene"}, {}, true, "ray mix ':'"},
-        {gen({"--ray-mix", "center:", "-o", "g.rcbscene"}), {"--ray-mix", "center:"}, {"g.rcbscene"}, {}, true, "ray mix without weight"},
-        {gen({"--ray-mix", "center\nlos", "-o", "g.rcbscene"}), {"--ray-mix"}, {"g.rcbscene"}, {}, true, "ray mix with a newline"},
-        {gen({"--ray-mix", big, "-o", "g.rcbscene"}), {"--ray-mix"}, {"g.rcbscene"}, {}, true, "128 KB ray mix"},
+        {gen({"--ray-mix", "center:nan", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix", "center:nan"}, {"g.rcbscene"}, {}, true, "ray weight nan"},
+        {gen({"--ray-mix", "center:1e999", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix", "center:1e999"}, {"g.rcbscene"}, {}, true, "ray weight 1e999"},
+        {gen({"--ray-mix", "center:-1", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix", "center:-1"}, {"g.rcbscene"}, {}, true, "ray weight -1"},
+        {gen({"--ray-mix", "center:0", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix", "center:0"}, {"g.rcbscene"}, {}, true, "all ray weights 0"},
+        {gen({"--ray-mix", "center:1e-320,los:1e-320", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix"}, {"g.rcbscene"}, {}, false, "denormal ray weights"},
+        {gen({"--ray-mix", "", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix"}, {"g.rcbscene"}, {}, true, "empty ray mix"},
+        {gen({"--ray-mix", ":", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix"}, {"g.rcbscene"}, {}, true, "ray mix ':'"},
+        {gen({"--ray-mix", "center:", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix", "center:"}, {"g.rcbscene"}, {}, true, "ray mix without weight"},
+        {gen({"--ray-mix", "center\nlos", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix"}, {"g.rcbscene"}, {}, true, "ray mix with a newline"},
+        {gen({"--ray-mix", big, "-o", "g.rcbscene"}), {"--ray-mix", "ray mix"}, {"g.rcbscene"}, {}, true, "128 KB ray mix"},
         {{"scene", "gen", "--preset", "", "-o", "g.rcbscene"}, {"--preset"}, {"g.rcbscene"}, {}, true, "empty preset"},
         {{"scene", "gen", "--kind", "", "--objects", "5", "-o", "g.rcbscene"}, {"--kind"}, {"g.rcbscene"}, {}, true, "empty kind"},
         {gen({"-o", ""}), {"-o", "--output"}, {}, {}, true, "empty output"},
@@ -1233,10 +1238,10 @@ TEST_F(Hostile, ArgumentsOfSceneCommands) {
         {{"scene", "info", "adir"}, {"adir"}, {}, {}, true, "info on a folder"},
         {{"scene", "info", "/dev/zero"}, {"/dev/zero"}, {}, {}, true, "info on /dev/zero"},
         {{"scene", "info", "boxes.csv"}, {"boxes.csv"}, {}, {}, true, "info on a CSV"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--warmup", "3"}, {"--warmup"}, {}, {}, true, "warmup = frames"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--warmup", "2", "--frames", "2"}, {"--warmup"}, {}, {}, true,
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--warmup", "3"}, {"--warmup", "warm-up"}, {}, {}, true, "warmup = frames"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--warmup", "2", "--frames", "2"}, {"--warmup", "warm-up"}, {}, {}, true,
          "warmup = --frames"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--warmup", "18446744073709551616"}, {"--warmup"}, {}, {}, true, "warmup 2^64"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--warmup", "18446744073709551616"}, {"--warmup", "warm-up"}, {}, {}, true, "warmup 2^64"},
         {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--frames", "-1"}, {"--frames"}, {}, {}, true, "frames -1"},
         {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--frames", "18446744073709551616"}, {"--frames"}, {}, {}, true, "frames 2^64"},
         {{"simulate", "--scene", "base.rcbscene", "--structure", ""}, {"--structure", "structure"}, {}, {}, true, "empty structure"},
@@ -1275,9 +1280,9 @@ TEST_F(Hostile, ArgumentsOfSceneCommands) {
         {{"advise", "base.rcbscene", "--repetitions", "0"}, {"--repetitions"}, {}, {}, true, "0 repetitions"},
         {{"advise", "base.rcbscene", "--repetitions", "-1"}, {"--repetitions"}, {}, {}, true, "-1 repetitions"},
         {{"advise", "base.rcbscene", "--repetitions", "18446744073709551616"}, {"--repetitions"}, {}, {}, true, "2^64 repetitions"},
-        {{"advise", "base.rcbscene", "--warmup", "3"}, {"--warmup"}, {}, {}, true, "warmup = frames"},
-        {{"advise", "base.rcbscene", "--warmup", "18446744073709551616"}, {"--warmup"}, {}, {}, true, "warmup 2^64"},
-        {{"advise", "base.rcbscene", "--warmup", "-1"}, {"--warmup"}, {}, {}, true, "warmup -1"},
+        {{"advise", "base.rcbscene", "--warmup", "3"}, {"--warmup", "warm-up"}, {}, {}, true, "warmup = frames"},
+        {{"advise", "base.rcbscene", "--warmup", "18446744073709551616"}, {"--warmup", "warm-up"}, {}, {}, true, "warmup 2^64"},
+        {{"advise", "base.rcbscene", "--warmup", "-1"}, {"--warmup", "warm-up"}, {}, {}, true, "warmup -1"},
         {{"advise", "base.rcbscene", "--tuning", "base.rcbscene", "--category", "tiny"}, {"--tuning", "base.rcbscene"}, {}, {}, true,
          "a recording as tuning"},
         {{"advise", "base.rcbscene", "--tuning", "missing.json", "--category", "tiny"}, {"--tuning", "missing.json"}, {}, {}, true, "missing tuning"},
@@ -1285,7 +1290,7 @@ TEST_F(Hostile, ArgumentsOfSceneCommands) {
         {{"advise", "base.rcbscene", "--category", "tiny"}, {"--tuning", "--category"}, {}, {}, true, "category without tuning"},
         {{"advise", "/dev/zero"}, {"/dev/zero"}, {}, {}, true, "advise /dev/zero"},
         {{"advise", "adir"}, {"adir"}, {}, {}, true, "advise a folder"},
-        {{"advise", "boxes.csv", "--repetitions", "1", "--warmup", "10"}, {"--warmup"}, {}, {}, true, "advise CSV warmup = frames"},
+        {{"advise", "boxes.csv", "--repetitions", "1", "--warmup", "10"}, {"--warmup", "warm-up"}, {}, {}, true, "advise CSV warmup = frames"},
         // the command line itself
         {{}, {"subcommand", "rcbench"}, {}, {}, true, "no arguments"},
         {{"--bogus"}, {"--bogus"}, {}, {}, true, "unknown option"},
@@ -1352,9 +1357,9 @@ TEST_F(Hostile, ArgumentsOfResultCommands) {
         {{"query", "adir", "SELECT 1"}, {"adir"}, {}, {}, true, "query a folder"},
         {{"query", "", "SELECT 1"}, {"db", "''"}, {}, {}, true, "query an empty path"},
         // compare
-        {{"compare", "r.db", "--baseline", "'; DROP TABLE run; --", "--candidate", "2"}, {"--baseline"}, {}, {}, true, "SQL in a run id"},
+        {{"compare", "r.db", "--baseline", "'; DROP TABLE run; --", "--candidate", "2"}, {"--baseline", "'; DROP TABLE run; --"}, {}, {}, true, "SQL in a run id"},
         {{"compare", "r.db", "--baseline", "18446744073709551616", "--candidate", "2"}, {"--baseline"}, {}, {}, true, "baseline 2^64"},
-        {{"compare", "r.db", "--baseline", "-1", "--candidate", "2"}, {"--baseline"}, {}, {}, true, "baseline -1"},
+        {{"compare", "r.db", "--baseline", "-1", "--candidate", "2"}, {"--baseline", "'-1'"}, {}, {}, true, "baseline -1"},
         {{"compare", "r.db", "--baseline", "", "--candidate", "2"}, {"--baseline"}, {}, {}, true, "empty baseline"},
         {{"compare", "r.db", "--baseline", big, "--candidate", "2"}, {"--baseline"}, {}, {}, true, "128 KB baseline"},
         {{"compare", "r.db", "--baseline", "1", "--candidate", "2", "--alpha", "nan"}, {"--alpha"}, {}, {}, true, "alpha nan"},
