@@ -136,8 +136,9 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) 
         "SELECT config.structure, config.params, scene.name, scene.spec, cell.scene_id, cell.config_id, frame.rays, "
         "frame.raycast_ns, frame.update_ns, frame.n_t, frame.n_rb, frame.n_tp, frame.inserts, frame.removes, frame.moves, "
         "cell.objects, frame.memory_bytes FROM frame JOIN cell ON cell.id = frame.cell_id JOIN config ON config.id = cell.config_id "
-        "JOIN scene ON scene.id = cell.scene_id WHERE cell.run_id = ? AND frame.warmup = 0 ORDER BY cell.id, frame.frame");
-    s.bind(1, run);
+        "JOIN scene ON scene.id = cell.scene_id WHERE cell.run_id IN " + std::string(kRunGroupSql) +
+        " AND frame.warmup = 0 ORDER BY cell.id, frame.frame");
+    s.bind_all(run, run);
     while (s.step()) {
         FrameObservation f;
         f.structure = s.text(0);

@@ -71,6 +71,15 @@ private:
     Database db_;
 };
 
+/// The runs whose cells make up run R's plan, as SQL for `cell.run_id IN <this>` with R bound to
+/// both of its two parameters: R itself and, when R is shard K/N, the newest run of every other
+/// shard J/N of the same experiment file (a cluster run merged into one database).
+inline constexpr const char* kRunGroupSql =
+    "(SELECT ? UNION SELECT max(sib.id) FROM run AS me JOIN run AS sib ON sib.experiment_id = me.experiment_id "
+    "AND sib.experiment_hash = me.experiment_hash AND sib.shard != me.shard "
+    "AND substr(sib.shard, instr(sib.shard, '/')) = substr(me.shard, instr(me.shard, '/')) "
+    "WHERE me.id = ? AND me.shard != '' GROUP BY sib.shard)";
+
 /// One stored cell, as the run summaries show it.
 struct CellSummary {
     std::string scene, structure;

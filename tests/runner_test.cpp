@@ -15,6 +15,7 @@
 
 #include "core/error.h"
 #include "core/random.h"
+#include "analysis/cost_model.h"
 #include "runner/compare.h"
 #include "runner/experiment.h"
 #include "runner/store.h"
@@ -434,6 +435,20 @@ TEST(Store, MergingAKilledShardThenItsResumedRunCompletesTheMergedRun) {
     EXPECT_EQ(count(out, "SELECT count(*) FROM cell"), 16);
     EXPECT_EQ(count(out, "SELECT count(DISTINCT cell_key) FROM cell"), 16);
     EXPECT_EQ(count(out, "SELECT count(*) FROM frame"), 16 * 4);
+    fs::remove_all(dir);
+}
+
+TEST(Store, TheAnalysisOfAShardSeesEveryShardOfItsPlan) {
+    const fs::path dir = temp_dir("shard_group");
+    const fs::path exp = dir / "resume.json";
+    write_experiment(exp, 2);  // 4 cells of 4 frames
+    const std::string db = (dir / "all.db").string(), whole = (dir / "whole.db").string(), log = (dir / "log.txt").string();
+    for (const char* shard : {"1/2", "2/2"}) ASSERT_EQ(wait_exit(spawn_rcbench({"run", exp.string(), "--shard", shard, "--db", db}, log)), 0);
+    ASSERT_EQ(wait_exit(spawn_rcbench({"run", exp.string(), "--db", whole}, log)), 0);
+    Database shards(db, true), single(whole, true);
+    const std::int64_t newest = resolve_run(shards, 0, "");
+    EXPECT_EQ(load_observations(shards, newest).size(), 4u * 4u);
+    EXPECT_EQ(load_observations(shards, newest).size(), load_observations(single, resolve_run(single, 0, "")).size());
     fs::remove_all(dir);
 }
 
