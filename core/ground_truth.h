@@ -1,5 +1,5 @@
 #pragma once
-/// Ground truth: brute force in double precision, with the tolerance of DESIGN.md.
+/// Ground truth: brute force in double precision, with the tolerance of docs/architecture.md.
 ///
 /// For a box B and a segment S let m be the largest absolute coordinate of B and S, and
 /// ε = kRelativeTolerance · m. Rounding may move any coordinate, the box's and the segment's end
