@@ -1,12 +1,16 @@
 #include "analysis/report.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include <nlohmann/json.hpp>
 
@@ -18,6 +22,7 @@
 #include "core/registry.h"
 #include "core/simulator.h"
 #include "core/number_text.h"
+#include "runner/history.h"
 
 namespace rcb {
 namespace {
@@ -171,6 +176,99 @@ double log_log_slope(const std::vector<double>& x, const std::vector<double>& y)
     }
     const double d = n * sxx - sx * sx;
     return n >= 2 && d > 0 ? (n * sxy - sx * sy) / d : NAN;
+}
+
+/// The History section: per-run medians of the experiment's runs up to this one, on the largest
+/// scene, one line per configuration; the reading lists the steps of every scene and configuration
+/// (ray cast and update), found as runner/history.h describes. Nothing when this is the first run.
+void history_section(Html& h, Database& db, std::int64_t run, const std::string& experiment, const std::string& largest,
+                     const std::function<int(const std::string&)>& style_of) {
+    HistoryQuery q;
+    q.experiment = experiment;
+    q.up_to_run = run;
+    std::vector<HistorySeries> cast, update;
+    try {
+        cast = load_history(db, q);
+        q.metric = "update";
+        update = load_history(db, q);
+    } catch (const InputError&) {
+        return;  // no frame measured outside warm-up: no history to draw
+    }
+    // The runs in run order (each series lists its points in that order).
+    std::vector<std::tuple<std::string, std::int64_t, std::string>> runs;  // (started_at, id, commit)
+    for (const HistorySeries& s : cast)
+        for (const HistoryPoint& p : s.points) runs.emplace_back(p.started_at, p.run, p.commit);
+    std::sort(runs.begin(), runs.end());
+    runs.erase(std::unique(runs.begin(), runs.end(),
+                           [](const auto& a, const auto& b) { return std::get<1>(a) == std::get<1>(b); }),
+               runs.end());
+    if (runs.size() < 2) return;
+    auto position = [&](std::int64_t id) {
+        for (std::size_t i = 0; i < runs.size(); ++i)
+            if (std::get<1>(runs[i]) == id) return double(i + 1);
+        return std::nan("");
+    };
+    h.heading("History");
+    Chart c;
+    c.title = "Ray cast per frame over the runs of " + experiment + ", on " + largest;
+    c.x_label = "run (commit)";
+    c.y_label = "ray cast per frame (ms, median)";
+    c.log_y = true;
+    // Tics name the run and its commit (text from the database: only plain characters reach gnuplot).
+    std::string tics;
+    const std::size_t every = (runs.size() + 11) / 12;
+    for (std::size_t i = 0; i < runs.size(); i += every) {
+        std::string label = std::to_string(std::get<1>(runs[i])) + " " + short_commit(std::get<2>(runs[i]));
+        label.erase(std::remove_if(label.begin(), label.end(),
+                                   [](unsigned char ch) { return !(std::isalnum(ch) || std::strchr(" .-_+", ch)); }),
+                    label.end());
+        tics += (tics.empty() ? "" : ", ") + ("'" + label + "' " + std::to_string(i + 1));
+    }
+    c.extra = "set xtics (" + tics + ") rotate by -30 font 'sans,9'\nset xrange [0.5:" + std::to_string(runs.size()) +
+              ".5]\n";
+    for (const HistorySeries& s : cast) {
+        if (s.scene != largest) continue;
+        const std::string label = config_label(s.structure, s.params);
+        Series line{label, {}, {}, {}, true, style_of(label)};
+        for (const HistoryPoint& p : s.points)
+            line.x.push_back(position(p.run)), line.y.push_back(p.median_ns / 1e6), line.labels.emplace_back();
+        for (const Step& step : s.steps)  // the steps written at the run where the new level starts
+            line.labels[step.at] = (step.change >= 0 ? "+" : "") + fixed(100 * step.change, 0) + "%";
+        c.series.push_back(line);
+    }
+    std::vector<std::string> found;
+    std::size_t series = 0;
+    for (const auto* metric : {&cast, &update})
+        for (const HistorySeries& s : *metric) {
+            ++series;
+            for (const Step& step : s.steps) {
+                const HistoryPoint& p = s.points[step.at];
+                found.push_back(config_label(s.structure, s.params) + " on " + s.scene + ", " +
+                                (metric == &cast ? "ray cast " : "update ") + (step.change >= 0 ? "+" : "") +
+                                fixed(100 * step.change, 1) + "% at run " + std::to_string(p.run) + " (" +
+                                short_commit(p.commit) + ")");
+            }
+        }
+    const std::string method = " A step is a change of level between up to " + std::to_string(q.steps.window) +
+                               " runs before and after it beyond " + fixed(q.steps.k, 0) +
+                               " MADs of the frame times, with a Mann-Whitney U test p < " + fixed(q.steps.alpha, 2) +
+                               ".";
+    if (found.empty()) {
+        c.reading = "No step beyond the runs' noise in any of the " + std::to_string(series) +
+                    " series (scene × configuration, ray cast and update) over the " + std::to_string(runs.size()) +
+                    " runs up to this one." + method;
+    } else {
+        const std::size_t shown = std::min<std::size_t>(found.size(), 6);
+        c.reading = std::to_string(found.size()) + " step" + (found.size() > 1 ? "s" : "") +
+                    " beyond the runs' noise in " + std::to_string(series) + " series over the " +
+                    std::to_string(runs.size()) + " runs up to this one: " +
+                    join(std::vector<std::string>(found.begin(), found.begin() + std::ptrdiff_t(shown)), "; ") +
+                    (found.size() > shown
+                         ? "; and " + std::to_string(found.size() - shown) + " more (rcbench history lists them)"
+                         : "") +
+                    "." + method;
+    }
+    h.chart(c);
 }
 
 }  // namespace
@@ -527,6 +625,8 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
             h.table(header, rows, "Where methods fail: correctness, cost / brute force, cost / benign scene of the same size");
         }
     }
+
+    history_section(h, db, run, experiment, largest, style_of);
 
     std::ostringstream page;
     page << "<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8><title>rcbench report: " << html_escape(experiment)
