@@ -3,6 +3,8 @@
 #include <zlib.h>
 
 #include <bit>
+#include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -114,21 +116,26 @@ private:
     std::string context_;
 };
 
-/// A section tag fit for a one-line message: corrupt files can put any byte there.
-std::string printable(std::string tag) {
-    for (char& c : tag)
-        if (c < 0x20 || c > 0x7e) c = '?';
-    return tag;
-}
-
 std::string frame_context(const std::string& name, std::size_t frame) {
     return name + ": frame " + std::to_string(frame);
 }
 
 }  // namespace
 
+std::string coordinate_problem(double v, std::string_view text) {
+    if (!std::isfinite(v) && text.empty()) return "non-finite coordinate";
+    if (std::abs(v) <= kMaxCoordinate) return {};
+    char value[32], limit[32];
+    std::snprintf(value, sizeof value, "%g", v);
+    std::snprintf(limit, sizeof limit, "%g", kMaxCoordinate);
+    return "coordinate " + (text.empty() ? std::string(value) : quoted_excerpt(text)) + " beyond ±" + limit +
+           " (the largest magnitude every structure handles exactly)";
+}
+
 std::string box_problem(const Aabb& box) {
-    if (!is_finite(box.min) || !is_finite(box.max)) return "non-finite coordinate";
+    for (const Vec3& p : {box.min, box.max})
+        for (int a = 0; a < 3; ++a)
+            if (std::string problem = coordinate_problem(p[a]); !problem.empty()) return problem;
     static const char* axes = "xyz";
     for (int a = 0; a < 3; ++a)
         if (box.min[a] > box.max[a]) return std::string("min > max on axis ") + axes[a];
@@ -136,16 +143,18 @@ std::string box_problem(const Aabb& box) {
 }
 
 std::string segment_problem(const Segment& s) {
-    if (!is_finite(s.p0) || !is_finite(s.p1)) return "non-finite coordinate";
+    for (const Vec3& p : {s.p0, s.p1})
+        for (int a = 0; a < 3; ++a)
+            if (std::string problem = coordinate_problem(p[a]); !problem.empty()) return problem;
     return {};
 }
 
-namespace {
-
-void check_box(const Object& o, const std::string& context) {
+void check_object(const Object& o, const std::string& context) {
     std::string problem = box_problem(o.box);
     if (!problem.empty()) throw InputError(context + ": uid " + std::to_string(o.uid) + ": " + problem);
 }
+
+namespace {
 
 /// Validates one frame's changes against the live uid set and applies them to it.
 void validate_frame(const Frame& f, std::unordered_set<Uid>& live, const std::string& context) {
@@ -160,13 +169,13 @@ void validate_frame(const Frame& f, std::unordered_set<Uid>& live, const std::st
     }
     for (const Object& o : f.inserts) {
         once(o.uid);
-        check_box(o, context);
+        check_object(o, context);
         if (!live.insert(o.uid).second)
             throw InputError(context + ": insert of uid " + std::to_string(o.uid) + ", which is already live");
     }
     for (const Object& o : f.moves) {
         once(o.uid);
-        check_box(o, context);
+        check_object(o, context);
         if (live.count(o.uid) == 0) throw InputError(context + ": move of unknown uid " + std::to_string(o.uid));
     }
     for (std::size_t i = 0; i < f.rays.size(); ++i) {
@@ -180,7 +189,7 @@ std::unordered_set<Uid> validate_initial(const std::vector<Object>& objects, con
     live.reserve(objects.size());
     std::string context = frame_context(name, 0);
     for (const Object& o : objects) {
-        check_box(o, context);
+        check_object(o, context);
         if (!live.insert(o.uid).second) throw InputError(context + ": duplicate uid " + std::to_string(o.uid));
     }
     return live;
@@ -245,7 +254,7 @@ Recording decode_recording(const std::string& bytes, const std::string& name) {
         std::uint64_t length = sh.u64();
         std::uint32_t crc = sh.u32();
         // Errors name the frame for frame sections, else the section.
-        std::string where = tag == "FRAM" ? frame_context(name, frames_seen + 1) : name + ": section " + printable(tag);
+        std::string where = tag == "FRAM" ? frame_context(name, frames_seen + 1) : name + ": section " + quoted_excerpt(tag);
         if (length > sh.remaining())
             throw InputError(where + ": truncated (section of " + std::to_string(length) + " bytes, " +
                              std::to_string(sh.remaining()) + " left in the file)");
@@ -295,13 +304,14 @@ Recording decode_recording(const std::string& bytes, const std::string& name) {
             if (pos != bytes.size()) throw InputError(name + ": " + std::to_string(bytes.size() - pos) + " bytes after the END section");
             return r;
         } else {
-            throw InputError(name + ": unknown section tag \"" + printable(tag) + "\" at offset " +
+            throw InputError(name + ": unknown section tag " + quoted_excerpt(tag) + " at offset " +
                              std::to_string(pos - kSectionHeaderBytes - length) + " (corrupt file)");
         }
     }
 }
 
 void write_recording(const Recording& r, const std::string& path) {
+    validate_recording(r, path + " (not written)");
     std::string bytes = encode_recording(r);
     std::filesystem::path target(path);
     std::filesystem::path tmp = target;

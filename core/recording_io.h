@@ -23,10 +23,11 @@
 ///     END   once, last, empty payload: a file without it was cut short.
 ///
 /// The reader validates everything: magic, version, checksums, section order and sizes, finite
-/// coordinates, min <= max, unique uids, and that removes and moves name live uids and inserts
-/// new ones. Every error is an InputError naming the file, and the frame, uid or ray concerned.
+/// coordinates within ±kMaxCoordinate, min <= max, unique uids, and that removes and moves name
+/// live uids and inserts new ones. Every error is an InputError naming the file, and the frame, uid or ray concerned.
 
 #include <string>
+#include <string_view>
 
 #include "core/scene.h"
 
@@ -34,7 +35,9 @@ namespace rcb {
 
 inline constexpr std::uint32_t kRecordingVersion = 1;
 
-/// Writes atomically: to a temporary file beside `path`, renamed over it when complete.
+/// Validates first (validate_recording: a recording the reader would reject is never written; the
+/// InputError names `path`), then writes atomically: to a temporary file beside `path`, renamed
+/// over it when complete.
 void write_recording(const Recording& recording, const std::string& path);
 Recording read_recording(const std::string& path);
 
@@ -47,9 +50,29 @@ Recording decode_recording(const std::string& bytes, const std::string& name);
 /// `name`, the frame and the uid or ray.
 void validate_recording(const Recording& recording, const std::string& name);
 
-/// Empty when the box is valid (finite, min <= max on every axis), else what is wrong with it.
+/// The largest |coordinate| of a box or a segment's end point that rcbench accepts, wherever a
+/// scene or a ray enters (recordings read and written, CSV, BSP and model imports). Every structure
+/// and peer must represent such scenes exactly, and the tightest is Embree: it asserts on a ray
+/// whose |origin| or |direction| exceeds its FLT_LARGE (1.8e18) and silently drops a primitive
+/// whose bounds do, and the Embree peer sends rays reaching up to 16 x the largest box coordinate
+/// through it, with padded bounds. At 1e15, ray origins of 1.6e16 and directions of 3.2e16 stay
+/// more than fifty times below FLT_LARGE, squared extents (surface areas, ~1e31) stay far inside
+/// float's range, and every structure matches the ground truth on boxes and rays spread at that
+/// magnitude and on a box 1e15 long among unit boxes (peers_test). Floats there are 2^26 apart:
+/// such scenes are coarse, but exact.
+inline constexpr double kMaxCoordinate = 1e15;
+
+/// Empty when the coordinate is finite and within ±kMaxCoordinate, else what is wrong with it
+/// ("non-finite coordinate", "coordinate 1e+20 beyond ±1e+15 (...)"). `text`, when given, is the
+/// value as the user wrote it, shown (quoted) instead of the number: "1e400" overflows even double.
+std::string coordinate_problem(double value, std::string_view text = {});
+/// Empty when the box is valid (coordinate_problem finds nothing, min <= max on every axis), else
+/// what is wrong with it.
 std::string box_problem(const Aabb& box);
-/// Empty when the segment's coordinates are finite, else what is wrong with it.
+/// Empty when the segment's coordinates pass coordinate_problem, else what is wrong with it.
 std::string segment_problem(const Segment& segment);
+/// Throws InputError "<context>: uid N: <problem>" when box_problem finds a problem in o's box:
+/// the one check every importer makes on the objects it produces.
+void check_object(const Object& o, const std::string& context);
 
 }  // namespace rcb

@@ -3,7 +3,11 @@
 // parameter validation.
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include "core/error.h"
+#include "core/random.h"
+#include "core/recording_io.h"
 #include "core/peers/bullet_dbvt.h"
 #include "core/peers/embree_boxes.h"
 #include "core/registry.h"
@@ -82,7 +86,113 @@ void expect_exact_on_touching_rays(Peer& peer) {
             << "," << seg.p1.z << ")";
 }
 
+/// The recording with every coordinate mapped by f (boxes re-sorted per axis).
+Recording mapped(const Recording& r, const std::function<Vec3(Vec3)>& f) {
+    Recording out = r;
+    auto box = [&](Aabb& b) {
+        const Vec3 p = f(b.min), q = f(b.max);
+        b = {min(p, q), max(p, q)};
+    };
+    for (Object& o : out.initial) box(o.box);
+    for (Frame& fr : out.frames) {
+        for (Object& o : fr.inserts) box(o.box);
+        for (Object& o : fr.moves) box(o.box);
+        for (Segment& s : fr.rays) s = {f(s.p0), f(s.p1)};
+    }
+    return out;
+}
+
+float largest_coordinate(const Recording& r) {
+    float m = 0;
+    mapped(r, [&](Vec3 p) {
+        m = std::max({m, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
+        return p;
+    });
+    return m;
+}
+
+/// The hard scenes at magnitude `m`: scaled so their largest coordinate is m; shifted by ~m/2
+/// (unit boxes far from the origin, where floats are coarse); and with one box from 0 to m along
+/// x added to frame 0 among their own boxes, with rays from the scene out to it.
+std::vector<test::NamedScene> scenes_at_magnitude(float m) {
+    std::vector<test::NamedScene> out;
+    Random rng(99);
+    for (const test::NamedScene& s : test::hard_scenes()) {
+        const float scale = m / largest_coordinate(s.recording) * 0.999f;  // rounding must not cross m
+        out.push_back({s.name + "-scaled", mapped(s.recording, [&](Vec3 p) { return p * scale; })});
+        const Vec3 shift{m / 2, -m / 2, m / 2};
+        out.push_back({s.name + "-shifted", mapped(s.recording, [&](Vec3 p) { return p + shift; })});
+        Recording giant = s.recording;
+        const Aabb b = giant.initial.empty() ? Aabb{{0, 0, 0}, {1, 1, 1}} : bounds_of(giant.initial);
+        giant.initial.push_back({4'000'000'000u, {{0, b.min.y, b.min.z}, {m, b.max.y, b.max.z}}});
+        for (Frame& f : giant.frames)
+            for (int i = 0; i < 40; ++i) {
+                const Vec3 p{float(rng.uniform(b.min.x, b.max.x)), float(rng.uniform(b.min.y, b.max.y)), float(rng.uniform(b.min.z, b.max.z))};
+                Vec3 q{float(rng.uniform(-m, m)), float(rng.uniform(b.min.y - 1, b.max.y + 1)), float(rng.uniform(b.min.z - 1, b.max.z + 1))};
+                if (i % 3 == 0) q = {float(m * rng.uniform(0.5, 1.0)), float(rng.uniform(-m, m)), float(rng.uniform(-m, m))};
+                f.rays.push_back(i % 5 ? Segment{p, q} : Segment{q, p});
+            }
+        out.push_back({s.name + "-giant", std::move(giant)});
+    }
+    for (const test::NamedScene& s : out) {
+        validate_recording(s.recording, s.name);  // within the limit: a file could hold it
+        EXPECT_LE(largest_coordinate(s.recording), m) << s.name;
+    }
+    return out;
+}
+
+/// 200 unit boxes and one box `length` long, as in a CSV of `200,0,40,0,1e20,41,1`.
+std::vector<Object> boxes_with_a_giant(float length, float offset = 0) {
+    std::vector<Object> objects;
+    for (Uid i = 0; i < 200; ++i) {
+        const Vec3 p{offset + float(i % 10) * 2, float(i / 10 % 10) * 2, float(i / 100) * 2};
+        objects.push_back({i, {p, p + Vec3{1, 1, 1}}});
+    }
+    objects.push_back({200, {{offset, 40, 0}, {offset + length, 41, 1}}});
+    return objects;
+}
+
 }  // namespace
+
+TEST(Structures, EveryStructureIsExactAtTheCoordinateLimit) {
+    // kMaxCoordinate (recording_io.h) is where every structure and peer must still be exact.
+    const std::vector<test::NamedScene> scenes = scenes_at_magnitude(float(kMaxCoordinate));
+    std::vector<std::pair<std::string, nlohmann::json>> configs;
+    for (const StructureInfo& info : structure_registry()) configs.push_back({info.name, nlohmann::json::object()});
+    for (const nlohmann::json& params : embree_configs()) configs.push_back({"embree", params});
+    for (const auto& [name, params] : configs)
+        for (const test::NamedScene& s : scenes) test::expect_matches_ground_truth(s.recording, name, params, s.name);
+}
+
+TEST(Embree, ScenesBeyondItsRangeTakeTheExactFallbackInsteadOfAborting) {
+    // Files cannot hold these (kMaxCoordinate), but a scene built in memory can: a box 1e20 long
+    // made Embree abort on its ray.valid() assertion, and boxes near 1e30 were silently left out of
+    // its BVH (bounds beyond FLT_LARGE), so hits went missing.
+    for (const auto& [length, offset] : {std::pair{1e20f, 0.0f}, std::pair{1e19f, 0.0f}, std::pair{1e30f, 1e30f}, std::pair{1.0f, 6e35f},
+                                          std::pair{1e17f, 0.0f}, std::pair{1e15f, 0.0f}})
+        for (const nlohmann::json& params : embree_configs()) {
+            auto peer = find_structure("embree").make(params, "params");
+            const std::vector<Object> objects = boxes_with_a_giant(length, offset);
+            peer->build(objects);
+            peer->commit();
+            Random rng(5);
+            const Aabb b = bounds_of(objects);
+            std::vector<Segment> rays = {{{offset + 0.5f, 0.5f, -5}, {offset + 0.5f, 0.5f, 5}},
+                                         {{offset + 0.5f, 40.5f, 0.5f}, {b.max.x, 40.5f, 0.5f}},
+                                         {{b.max.x, 40.5f, 0.5f}, {offset - 1, 40.5f, 0.5f}}};
+            for (int i = 0; i < 200; ++i) {
+                const Vec3 p{float(rng.uniform(b.min.x, offset + 20)), float(rng.uniform(-1, 42)), float(rng.uniform(-1, 6))};
+                const Vec3 q{float(rng.uniform(b.min.x, b.max.x)), float(rng.uniform(-1, 42)), float(rng.uniform(-1, 6))};
+                rays.push_back({p, q});
+            }
+            for (const Segment& seg : rays)
+                EXPECT_EQ(sorted_hits(*peer, seg), expected_hits(objects, seg))
+                    << "length " << length << " offset " << offset << " " << params.dump() << " segment (" << seg.p0.x << ","
+                    << seg.p0.y << "," << seg.p0.z << ") -> (" << seg.p1.x << "," << seg.p1.y << "," << seg.p1.z << ")";
+            peer->validate();
+            EXPECT_EQ(peer->stats()["in_range"].get<bool>(), length < 1e18f && offset < 1e18f);
+        }
+}
 
 TEST(Embree, MatchesGroundTruthOnEveryHardScene) {
     for (const nlohmann::json& params : embree_configs())

@@ -120,6 +120,56 @@ TEST(Recording, RejectsNonFiniteCoordinatesAndInvertedBoxes) {
     EXPECT_EQ(error_of(ray), "scene.rcbscene: frame 2: ray 5: non-finite coordinate");
 }
 
+TEST(Recording, RejectsCoordinatesBeyondTheLimitNamingFrameAndUid) {
+    Recording r = small_recording();
+    const std::string limit = " beyond ±1e+15 (the largest magnitude every structure handles exactly)";
+    Recording big = r;
+    big.initial[7].box.max.x = 1e20f;  // a box 1e20 long: Embree asserted on the rays reaching it
+    EXPECT_EQ(error_of(big), "scene.rcbscene: frame 0: uid " + std::to_string(r.initial[7].uid) + ": coordinate 1e+20" + limit);
+    Recording far = r;
+    far.frames[2].moves.at(0).box = {{-3e38f, 0, 0}, {-3e38f, 1, 1}};
+    EXPECT_EQ(error_of(far), "scene.rcbscene: frame 3: uid " + std::to_string(r.frames[2].moves[0].uid) + ": coordinate -3e+38" + limit);
+    Recording ray = r;
+    ray.frames[0].rays[3].p0.z = 2e15f;
+    EXPECT_EQ(error_of(ray), "scene.rcbscene: frame 1: ray 3: coordinate 2e+15" + limit);
+    // At the limit is fine.
+    Recording edge = r;
+    edge.initial[7].box = {{-1e15f, -1e15f, -1e15f}, {1e15f, 1e15f, 1e15f}};
+    edge.frames[0].rays[3] = {{-1e15f, 0, 0}, {1e15f, 0, 0}};
+    EXPECT_EQ(error_of(edge), "");
+}
+
+TEST(Recording, TheWriterRefusesWhatTheReaderWouldReject) {
+    // A scene with coordinates near ±3e38 was written, and then refused by rcbench's own reader.
+    Recording r = small_recording();
+    r.initial[2].box = {{-3e38f, 0, 0}, {3e38f, 1, 1}};
+    const std::string path = (std::filesystem::temp_directory_path() / "rcb_refused.rcbscene").string();
+    std::filesystem::remove(path);
+    try {
+        write_recording(r, path);
+        FAIL() << "written";
+    } catch (const InputError& e) {
+        EXPECT_EQ(std::string(e.what()).rfind(path + " (not written): frame 0: uid " + std::to_string(r.initial[2].uid) +
+                                                  ": coordinate -3e+38 beyond ±1e+15", 0),
+                  0u)
+            << e.what();
+    }
+    EXPECT_FALSE(std::filesystem::exists(path));
+    EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+    Recording dup = small_recording();
+    dup.initial[1].uid = dup.initial[0].uid;
+    EXPECT_THROW(write_recording(dup, path), InputError);
+    EXPECT_FALSE(std::filesystem::exists(path));
+}
+
+TEST(Recording, UnknownSectionTagsAreQuotedAndEscaped) {
+    std::string bytes = encode_recording(small_recording());
+    const std::size_t objs = bytes.find("OBJS");
+    ASSERT_NE(objs, std::string::npos);
+    bytes.replace(objs, 4, "\x1b[2J");
+    EXPECT_NE(error_of(bytes).find(": unknown section tag '\\x1B[2J' at offset"), std::string::npos) << error_of(bytes);
+}
+
 TEST(Recording, ReadingAMissingFileOrAFolderIsAnInputError) {
     EXPECT_THROW(read_recording("/nonexistent/scene.rcbscene"), InputError);
     EXPECT_THROW(read_recording(std::filesystem::temp_directory_path().string()), InputError);

@@ -129,9 +129,10 @@ void EmbreeBoxes::commit() {
                       std::abs(b.max.z)});
     m = std::max(m, std::numeric_limits<float>::min());
     pad_ = kPadRelative * m;
-    far_ = kFarFactor * m;
+    in_range_ = m + pad_ <= kEmbreeRange;
+    far_ = in_range_ ? std::min(kFarFactor * m, kEmbreeRange / 2) : 0.0f;
     Device& d = *device_;
-    rtcSetGeometryUserPrimitiveCount(d.geometry, static_cast<unsigned>(objects_.size()));
+    rtcSetGeometryUserPrimitiveCount(d.geometry, in_range_ ? static_cast<unsigned>(objects_.size()) : 0u);
     rtcCommitGeometry(d.geometry);  // the bounds changed: Embree calls bounds_callback again
     d.arena->execute([&] { rtcCommitScene(d.scene); });
     if (!d.error.empty()) throw std::runtime_error("embree: " + d.error);
@@ -141,6 +142,7 @@ void EmbreeBoxes::commit() {
 
 bool EmbreeBoxes::embree_query(const Segment& s, Query& q) {
     if (objects_.empty()) return true;
+    if (!in_range_) return false;
     const Vec3 d = s.delta();
     if (d.x == 0 && d.y == 0 && d.z == 0) return false;
     if (!is_finite(s.p0) || !is_finite(s.p1)) return false;
@@ -171,13 +173,13 @@ std::size_t EmbreeBoxes::memory_bytes() const {
 }
 
 nlohmann::json EmbreeBoxes::stats() const {
-    return {{"commits", commits_}, {"pad", pad_}, {"embree_bytes", device_->bytes.load()}};
+    return {{"commits", commits_}, {"pad", pad_}, {"embree_bytes", device_->bytes.load()}, {"in_range", in_range_}};
 }
 
 void EmbreeBoxes::validate() const {
     const std::size_t n = objects_.size();
     objects_.validate("embree");
-    if (dirty_ || n == 0) return;
+    if (dirty_ || n == 0 || !in_range_) return;
     // Embree's scene bounds must enclose every (padded) box we gave it.
     RTCBounds sb;
     rtcGetSceneBounds(device_->scene, &sb);

@@ -24,6 +24,13 @@
 /// non-finite coordinate, and segments reaching beyond kFarFactor·M, where the padding would no
 /// longer be provably enough.
 ///
+/// Embree's own range: it asserts (aborts) on a ray whose |origin| or |direction| exceeds its
+/// FLT_LARGE (1.8e18) and silently leaves out of its BVH a primitive whose bounds do. Input files
+/// stay within kMaxCoordinate (recording_io.h), far below; as a second line of defence for scenes
+/// built in memory, the far limit is also capped at kEmbreeRange / 2 (so origin and direction
+/// stay within kEmbreeRange), and when the padded boxes reach beyond kEmbreeRange Embree is given
+/// no primitives and every segment takes the exact fallback.
+///
 /// Counters: N_RB = intersect-callback calls (leaf primitive tests) plus fallback tests, N_TP =
 /// hits. Embree does not expose its node visits, so N_T stays 0 for this peer.
 ///
@@ -66,6 +73,8 @@ public:
     /// Segments reaching beyond this × the largest box coordinate take the exact fallback.
     static constexpr float kFarFactor = 16.0f;
     static constexpr float kPadRelative = 1e-4f;
+    /// Below Embree's FLT_LARGE (1.844e18) with margin.
+    static constexpr float kEmbreeRange = 1e18f;
 
     EmbreeBoxes();
     explicit EmbreeBoxes(const Params& params);
@@ -101,7 +110,8 @@ private:
     std::unique_ptr<Device> device_;
     SlotBoxes objects_;         // slot = Embree primitive id
     float pad_ = 0;             // padding of the bounds given to Embree at the last commit
-    float far_ = 0;             // kFarFactor · M at the last commit
+    float far_ = 0;             // min(kFarFactor · M, kEmbreeRange / 2) at the last commit
+    bool in_range_ = true;      // the padded boxes are within kEmbreeRange: Embree holds them
     bool dirty_ = true;
     std::uint64_t commits_ = 0;
 };
