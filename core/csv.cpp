@@ -1,8 +1,11 @@
 #include "core/csv.h"
 
 #include <charconv>
+#include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <unordered_map>
 
@@ -32,12 +35,32 @@ bool parse_number(std::string_view s, T& out) {
     return ec == std::errc() && end == s.data() + s.size();
 }
 
+/// A coordinate's text as a float, and as a double for the range check: text beyond float's range
+/// ("1e39") is a number too, reported against the coordinate limit rather than as "not a number"
+/// (`overflow` set); text below float's smallest subnormal reads as zero.
+bool parse_coordinate(std::string_view s, float& out, double& wide, bool& overflow) {
+    auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
+    overflow = false;
+    if (end != s.data() + s.size()) return false;
+    if (ec == std::errc()) {
+        wide = out;
+        return true;
+    }
+    if (ec != std::errc::result_out_of_range) return false;
+    wide = std::strtod(std::string(s).c_str(), nullptr);  // ±HUGE_VAL beyond double's range
+    overflow = std::abs(wide) >= 1;
+    out = overflow ? std::numeric_limits<float>::infinity() : 0.0f;  // an overflow is refused by the caller
+    return true;
+}
+
 /// Calls `row(fields, line_number)` for each data line with exactly `columns.size()` fields. The
 /// first data line is a header when its first field is not a number.
 template <typename Row>
 void for_each_row(const std::string& text, const std::string& name, const std::vector<const char*>& columns, Row&& row) {
     const std::string expected = join(columns, ",");
     std::size_t line_no = 0, pos = 0;
+    // A UTF-8 byte-order mark (spreadsheet exports write one) is not part of the first field.
+    if (text.compare(0, 3, "\xEF\xBB\xBF") == 0) pos = 3;
     bool first_data = true;
     std::vector<std::string_view> fields;
     while (pos < text.size()) {
@@ -72,12 +95,20 @@ void for_each_row(const std::string& text, const std::string& name, const std::v
     }
 }
 
+/// Field i as a coordinate, checked against the coordinate limit (recording_io.h) here so the
+/// message names the field (`what`, "uid 7: " or "", goes before it); non-finite values are left
+/// to box_problem / segment_problem.
 float field_float(const std::vector<std::string_view>& fields, std::size_t i, const std::vector<const char*>& columns,
-                  const std::string& where) {
+                  const std::string& where, const std::string& what) {
     float v;
-    if (!parse_number(fields[i], v))
-        throw InputError(where + ": field " + std::to_string(i + 1) + " (" + columns[i] + "): '" + std::string(fields[i]) +
-                         "' is not a number");
+    double wide;
+    bool overflow;
+    auto field = [&] { return "field " + std::to_string(i + 1) + " (" + columns[i] + ")"; };
+    if (!parse_coordinate(fields[i], v, wide, overflow))
+        throw InputError(where + ": " + field() + ": " + quoted_excerpt(fields[i]) + " is not a number");
+    if (std::isfinite(wide) || overflow)
+        if (const std::string problem = coordinate_problem(wide, std::isfinite(wide) ? "" : fields[i]); !problem.empty())
+            throw InputError(where + ": " + what + field() + ": " + problem);
     return v;
 }
 
@@ -90,13 +121,13 @@ std::vector<Object> parse_boxes_csv(const std::string& text, const std::string& 
     for_each_row(text, name, columns, [&](const std::vector<std::string_view>& f, const std::string& where, std::size_t line) {
         Object o;
         if (!parse_number(f[0], o.uid))
-            throw InputError(where + ": field 1 (uid): '" + std::string(f[0]) + "' is not an integer in 0..4294967295");
+            throw InputError(where + ": field 1 (uid): " + quoted_excerpt(f[0]) + " is not an integer in 0..4294967295");
+        const std::string what = "uid " + std::to_string(o.uid) + ": ";
         for (int a = 0; a < 3; ++a) {
-            o.box.min[a] = field_float(f, 1 + a, columns, where);
-            o.box.max[a] = field_float(f, 4 + a, columns, where);
+            o.box.min[a] = field_float(f, 1 + a, columns, where, what);
+            o.box.max[a] = field_float(f, 4 + a, columns, where, what);
         }
-        const std::string problem = box_problem(o.box);
-        if (!problem.empty()) throw InputError(where + ": uid " + std::to_string(o.uid) + ": " + problem);
+        check_object(o, where);
         auto [it, fresh] = first_line.emplace(o.uid, line);
         if (!fresh)
             throw InputError(where + ": duplicate uid " + std::to_string(o.uid) + " (first on line " + std::to_string(it->second) + ")");
@@ -111,8 +142,8 @@ std::vector<Segment> parse_rays_csv(const std::string& text, const std::string& 
     for_each_row(text, name, columns, [&](const std::vector<std::string_view>& f, const std::string& where, std::size_t) {
         Segment s;
         for (int a = 0; a < 3; ++a) {
-            s.p0[a] = field_float(f, a, columns, where);
-            s.p1[a] = field_float(f, 3 + a, columns, where);
+            s.p0[a] = field_float(f, a, columns, where, "");
+            s.p1[a] = field_float(f, 3 + a, columns, where, "");
         }
         const std::string problem = segment_problem(s);
         if (!problem.empty()) throw InputError(where + ": " + problem);

@@ -1,7 +1,9 @@
 #pragma once
 /// CSV input: static scenes (`uid,minx,miny,minz,maxx,maxy,maxz`) and rays (`x0,y0,z0,x1,y1,z1`).
-/// A header line is optional; blank lines and lines starting with '#' are skipped. Errors name the
-/// file and line: "boxes.csv:12: field 4 (minz): 'abc' is not a number".
+/// A header line is optional; blank lines and lines starting with '#' are skipped, and so is a
+/// leading UTF-8 byte-order mark. Coordinates must lie within ±kMaxCoordinate (recording_io.h).
+/// Errors name the file and line, and quote at most an excerpt of the field (quoted_excerpt):
+/// "boxes.csv:12: field 4 (minz): 'abc' is not a number".
 
 #include <string>
 #include <vector>

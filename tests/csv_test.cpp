@@ -49,6 +49,47 @@ TEST(Csv, ReadsRaysAndRejectsBadOnes) {
     EXPECT_THROW(read_rays_csv("/nonexistent/rays.csv"), InputError);
 }
 
+TEST(Csv, AByteOrderMarkIsNotPartOfTheFirstRow) {
+    // Spreadsheets write a UTF-8 BOM; without a header, the first row used to be taken for one.
+    const auto plain = parse_boxes_csv("1,0,0,0,1,1,1\n2,0,0,0,2,2,2\n", "a");
+    EXPECT_EQ(parse_boxes_csv("\xEF\xBB\xBF" "1,0,0,0,1,1,1\n2,0,0,0,2,2,2\n", "bom.csv"), plain);
+    EXPECT_EQ(parse_boxes_csv("\xEF\xBB\xBFuid,minx,miny,minz,maxx,maxy,maxz\r\n1,0,0,0,1,1,1\r\n2,0,0,0,2,2,2\r\n", "b"), plain);
+    EXPECT_EQ(parse_rays_csv("\xEF\xBB\xBF" "0,0,0,1,2,3\n", "rays.csv").size(), 1u);
+}
+
+TEST(Csv, CoordinatesBeyondTheLimitAreRejectedNamingLineUidAndLimit) {
+    // One box 1e20 long among unit boxes aborted Embree; beyond float's range read as "not a number".
+    std::string text = "uid,minx,miny,minz,maxx,maxy,maxz\n";
+    for (int i = 0; i < 200; ++i) text += std::to_string(i) + ",0,0,0,1,1,1\n";
+    EXPECT_EQ(boxes_error(text + "200,0,40,0,1e20,41,1\n"),
+              "boxes.csv:202: uid 200: field 5 (maxx): coordinate 1e+20 beyond ±1e+15 (the largest magnitude every structure handles exactly)");
+    EXPECT_NE(boxes_error("7,-3e38,0,0,1,1,1\n").find("boxes.csv:1: uid 7: field 2 (minx): coordinate -3e+38 beyond ±1e+15"),
+              std::string::npos);
+    EXPECT_NE(boxes_error("7,0,0,0,1,1,1e39\n").find("boxes.csv:1: uid 7: field 7 (maxz): coordinate 1e+39 beyond ±1e+15"),
+              std::string::npos);
+    EXPECT_NE(boxes_error("7,0,0,0,1,1,1e400\n").find("field 7 (maxz): coordinate '1e400' beyond ±1e+15"), std::string::npos);
+    // At the limit, and below float's range, is fine.
+    const auto edge = parse_boxes_csv("7,-1e15,0,1e-50,1e15,1,1\n", "edge.csv");
+    ASSERT_EQ(edge.size(), 1u);
+    EXPECT_EQ(edge[0].box.min.x, -1e15f);
+    EXPECT_EQ(edge[0].box.min.z, 0.0f);
+    try {
+        parse_rays_csv("0,0,0,1,2,3\n0,0,0,1,2.5e15,3\n", "rays.csv");
+        FAIL();
+    } catch (const InputError& e) {
+        EXPECT_STREQ(e.what(), "rays.csv:2: field 5 (y1): coordinate 2.5e+15 beyond ±1e+15 (the largest magnitude every structure handles exactly)");
+    }
+}
+
+TEST(Csv, ErrorsQuoteAtMostAnExcerptOfTheField) {
+    const std::string huge(10'000'000, '7');
+    const std::string e = boxes_error("1,0,0,0,1,1,1\n2,0,x" + huge + ",0,1,1,1\n");
+    EXPECT_LT(e.size(), 200u);
+    EXPECT_EQ(e, "boxes.csv:2: field 3 (miny): 'x" + std::string(79, '7') + "'… is not a number");
+    EXPECT_EQ(boxes_error("1,0,0,0,1,1,1\n-4\x1b[2J,0,0,0,1,1,1\n"),
+              "boxes.csv:2: field 1 (uid): '-4\\x1B[2J' is not an integer in 0..4294967295");
+}
+
 TEST(QuotedExcerpt, QuotesEscapesAndCutsUserText) {
     EXPECT_EQ(quoted_excerpt("abc"), "'abc'");
     EXPECT_EQ(quoted_excerpt(""), "''");
