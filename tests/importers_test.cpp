@@ -3,6 +3,7 @@
 // CLI, and the real OpenArena maps when scripts/fetch_maps.sh has fetched them.
 #include <gtest/gtest.h>
 
+#include <pthread.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -16,8 +17,11 @@
 
 #include "core/error.h"
 #include "core/generators.h"
+#include "core/csv.h"
+#include "core/recording_io.h"
 #include "core/importers/bsp.h"
 #include "core/importers/model.h"
+#include "core/importers/nesting.h"
 #include "core/importers/scene_import.h"
 #include "runner/experiment.h"
 #include "tests/test_scenes.h"
@@ -188,6 +192,77 @@ std::string error_of(const std::function<void()>& f) {
 
 Aabb box(float x0, float y0, float z0, float x1, float y1, float z1) { return {{x0, y0, z0}, {x1, y1, z1}}; }
 
+/// A glTF 2.0 file: `nodes` (a JSON array), the scene's root list, and one triangle mesh
+/// (0,0,0) (1,0,0) (0,1,0) as mesh 0; `extras` goes into the top-level object.
+std::string gltf_text(const std::string& nodes, const std::string& roots = "[0]", const std::string& extras = "") {
+    return R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": )" + roots + R"(}], "nodes": )" + nodes +
+           R"(, "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}],
+      "bufferViews": [{"buffer": 0, "byteLength": 36}],
+      "buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}])" +
+           (extras.empty() ? "" : ", \"extras\": " + extras) + "}";
+}
+
+/// A chain of `depth` nodes, each the only child of the one before and translated by (1,0,0);
+/// the last holds the mesh, so its triangle lands at x = depth.
+std::string gltf_chain(std::size_t depth) {
+    std::string nodes = "[";
+    for (std::size_t i = 0; i + 1 < depth; ++i) nodes += R"({"translation": [1, 0, 0], "children": [)" + std::to_string(i + 1) + "]},";
+    return gltf_text(nodes + R"({"translation": [1, 0, 0], "mesh": 0}])");
+}
+
+/// A COLLADA document with one triangle geometry "g", the visual scene's body, and a node library.
+std::string collada_text(const std::string& scene, const std::string& library = "") {
+    return R"(<?xml version="1.0" encoding="utf-8"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+<library_geometries><geometry id="g"><mesh><source id="p"><float_array id="pa" count="9">0 0 0 1 0 0 0 1 0</float_array>
+<technique_common><accessor source="#pa" count="3" stride="3"><param name="X" type="float"/><param name="Y" type="float"/>
+<param name="Z" type="float"/></accessor></technique_common></source><vertices id="v"><input semantic="POSITION" source="#p"/>
+</vertices><triangles count="1"><input semantic="VERTEX" source="#v" offset="0"/><p>0 1 2</p></triangles></mesh></geometry>
+</library_geometries>)" + library +
+           R"(<library_visual_scenes><visual_scene id="s">)" + scene +
+           R"(</visual_scene></library_visual_scenes><scene><instance_visual_scene url="#s"/></scene></COLLADA>)";
+}
+
+/// `depth` nested <node> elements, the innermost holding the triangle, each translated by (1,0,0).
+std::string collada_chain(std::size_t depth) {
+    std::string open, close;
+    for (std::size_t i = 0; i < depth; ++i) {
+        open += "<node id=\"n" + std::to_string(i) + "\"><translate>1 0 0</translate>";
+        close += "</node>";
+    }
+    return collada_text(open + "<instance_geometry url=\"#g\"/>" + close);
+}
+
+/// Runs f on a thread with a small stack (as a caller deep in its own recursion would): the
+/// importer must not put assimp's recursion on its caller's stack.
+void on_small_stack(std::size_t bytes, const std::function<void()>& f) {
+    struct Job {
+        const std::function<void()>* f;
+        std::exception_ptr error;
+    } job{&f, nullptr};
+    pthread_attr_t attr;
+    ASSERT_EQ(pthread_attr_init(&attr), 0);
+    ASSERT_EQ(pthread_attr_setstacksize(&attr, bytes), 0);
+    pthread_t t;
+    ASSERT_EQ(pthread_create(
+                  &t, &attr,
+                  [](void* p) -> void* {
+                      auto* j = static_cast<Job*>(p);
+                      try {
+                          (*j->f)();
+                      } catch (...) {
+                          j->error = std::current_exception();
+                      }
+                      return nullptr;
+                  },
+                  &job),
+              0);
+    pthread_attr_destroy(&attr);
+    pthread_join(t, nullptr);
+    if (job.error) std::rethrow_exception(job.error);
+}
+
 }  // namespace
 
 TEST(BspImport, OneBoxPerSolidBrushFromItsAxialSides) {
@@ -332,6 +407,18 @@ TEST(SceneImport, DispatchesByExtensionAndValidatesOptions) {
     EXPECT_EQ(meta["brushes"]["skipped_non_solid"], 1);
 }
 
+TEST(SceneImport, OptionErrorsQuoteAnExcerptOfTheValue) {
+    const std::string big(5'000'000, 'x');
+    for (const nlohmann::json& j : {nlohmann::json{{"bsp_mode", big}}, nlohmann::json{{"model_mode", big}}, nlohmann::json{{big, "a"}},
+                                    nlohmann::json{{"map", std::vector<int>(1'000'000, 7)}}}) {
+        const std::string e = error_of([&] { import_options_from_json(j, "scenes[0].import_options"); });
+        EXPECT_LT(e.size(), 200u) << e.substr(0, 300);
+        EXPECT_EQ(e.rfind("scenes[0].import_options", 0), 0u) << e.substr(0, 300);
+    }
+    EXPECT_EQ(error_of([] { import_options_from_json({{"bsp_mode", "faces\n"}}, "o"); }),
+              "o.bsp_mode: expected \"brushes\" or \"triangles\", got 'faces\\x0A'");
+}
+
 TEST(SceneImport, CliImportsMapsAndModelsAndExitsTwoOnBadFiles) {
     const std::string bsp = write_file(scratch("cli.bsp"), tiny_map().bytes());
     const std::string out = scratch("cli.rcbscene").string();
@@ -376,6 +463,224 @@ TEST(SceneImport, ExperimentFilesImportMapsAndModelsWithOptions) {
     EXPECT_NE(bad(R"({"import": "tiny.bsp", "import_options": {"mode": "x"}})").find("scenes[0].import_options"), std::string::npos);
     EXPECT_NE(bad(R"({"import": "tiny.bsp", "import_options": {"bsp_mode": "faces"}})").find("bsp_mode"), std::string::npos);
     EXPECT_NE(bad(R"({"preset": "uni-s", "import_options": {}})").find("only an \"import\" scene takes import options"), std::string::npos);
+}
+
+TEST(BspImport, TriangleCountsAreEstimatedAndLimitedBeforeAllocating) {
+    // Surfaces may share vertices: here 3500 patches all name one 100x100 grid, 68.6 million
+    // triangles from an 0.8 MB file (such a map ran 13-37 s and ended in std::bad_alloc).
+    TinyBsp m;
+    m.shader("textures/base/solid", 0x1);
+    for (int y = 0; y < 100; ++y)
+        for (int x = 0; x < 100; ++x) m.vertex({float(x), float(y), 0});
+    for (int s = 0; s < 3500; ++s) m.surface(2, 0, 100 * 100, 0, 0, 100, 100);
+    const std::string e = error_of([&] { parse_bsp(m.bytes(), "bomb.bsp", "triangles"); });
+    EXPECT_EQ(e, "bomb.bsp: triangles mode would make 68607000 triangles, more than the limit of 67108864 objects per scene "
+                 "(kMaxSceneObjects, scene.h); try --bsp-mode brushes");
+    // Below the limit the same grid imports (one patch: 2 x 99 x 99 triangles).
+    TinyBsp one;
+    one.lump[10] = m.lump[10];
+    one.surface(2, 0, 100 * 100, 0, 0, 100, 100);
+    EXPECT_EQ(parse_bsp(one.bytes(), "one.bsp", "triangles").size(), 2u * 99 * 99);
+}
+
+TEST(BspImport, BrushesReferringToTheSameSidesOverAndOverAreRefused) {
+    // 7000 brushes each claiming the same 10000 sides: 7e7 side visits from a 170 KB file.
+    TinyBsp m;
+    m.shader("textures/base/solid", 0x1);
+    const std::int32_t p = m.plane(1, 0, 0, 1);
+    for (int k = 0; k < 10000; ++k) put_i32(m.lump[9], p), put_i32(m.lump[9], 0);
+    for (int b = 0; b < 7000; ++b) put_i32(m.lump[8], 0), put_i32(m.lump[8], 10000), put_i32(m.lump[8], 0);
+    EXPECT_EQ(error_of([&] { parse_bsp(m.bytes(), "sides.bsp", "brushes"); }),
+              "sides.bsp: lump 8 (brushes): the brushes refer to 70000000 brushsides in all (of 10000), more than the limit of "
+              "67108864 (kMaxSceneObjects, scene.h)");
+}
+
+TEST(BspImport, CoordinatesBeyondTheLimitNameTheBrushOrSurface) {
+    TinyBsp m;
+    m.shader("textures/base/solid", 0x1);
+    m.brush({0, 0, 0}, {1, 1, 1}, 0);
+    m.brush({0, 0, 0}, {1e20f, 1, 1}, 0);
+    EXPECT_EQ(error_of([&] { parse_bsp(m.bytes(), "far.bsp", "brushes"); }),
+              "far.bsp: brush 1: uid 1: coordinate 1e+20 beyond ±1e+15 (the largest magnitude every structure handles exactly)");
+    for (Vec3 p : {Vec3{0, 0, 0}, Vec3{1, 0, 0}, Vec3{0, -3e38f, 0}}) m.vertex(p);
+    for (std::int32_t i : {0, 1, 2}) put_i32(m.lump[11], i);
+    m.surface(1, 0, 3, 0, 3);
+    EXPECT_NE(error_of([&] { parse_bsp(m.bytes(), "far.bsp", "triangles"); }).find("far.bsp: surface 0: uid 0: coordinate -3e+38 beyond ±1e+15"),
+              std::string::npos);
+}
+
+TEST(BspImport, MapsLargerThanTheLimitAreRefusedBeforeReading) {
+    const fs::path big = scratch("huge.bsp");
+    { std::ofstream(big).put('I'); }
+    fs::resize_file(big, kMaxMapBytes + 1);  // sparse: no disk space, no time
+    EXPECT_EQ(error_of([&] { import_bsp(big.string(), {}); }),
+              big.string() + ": 536870913 bytes, more than the limit of 536870912 for a map (kMaxMapBytes, bsp.h)");
+    fs::remove(big);
+}
+
+TEST(ModelImport, DeepGltfNodeChainsAreRefusedBeforeAssimpRecurses) {
+    // 20000 nested nodes (0.6 MB) overflowed the 8 MB stack inside Importer::ReadFile (SIGSEGV).
+    const std::string deep = write_text(scratch("deep.gltf"), gltf_chain(20000));
+    const std::string e = error_of([&] { import_model(deep, "instances"); });
+    EXPECT_NE(e.find("deep.gltf: glTF node 1000 is nested deeper than 1000 (kMaxModelNesting, nesting.h) through \"children\""),
+              std::string::npos) << e;
+    // At the limit: imported, with the 1000 translations composed.
+    const std::string ok = write_text(scratch("ok.gltf"), gltf_chain(kMaxModelNesting));
+    const std::vector<Object> objects = import_model(ok, "instances");
+    ASSERT_EQ(objects.size(), 1u);
+    EXPECT_EQ(objects[0].box, box(1000, 0, 0, 1001, 1, 0));
+    // The same from a .glb (its JSON chunk is checked too).
+    const std::string json = gltf_chain(20000);
+    Bytes glb{'g', 'l', 'T', 'F'};
+    put_i32(glb, 2), put_i32(glb, std::int32_t(20 + json.size()));
+    put_i32(glb, std::int32_t(json.size())), put_i32(glb, 0x4E4F534A);
+    glb.insert(glb.end(), json.begin(), json.end());
+    EXPECT_NE(error_of([&] { import_model(write_file(scratch("deep.glb"), glb), "instances"); }).find("is nested deeper than 1000"),
+              std::string::npos);
+}
+
+TEST(ModelImport, GltfCyclesAndSharedNodesAreRefused) {
+    EXPECT_NE(error_of([&] { import_model(write_text(scratch("self.gltf"), gltf_text(R"([{"children": [0], "mesh": 0}])")), "instances"); })
+                  .find("self.gltf: glTF node 0 is its own child (a cycle)"),
+              std::string::npos);
+    EXPECT_NE(error_of([&] {
+                  import_model(write_text(scratch("loop.gltf"), gltf_text(R"([{"mesh": 0}, {"children": [2]}, {"children": [1]}])")), "instances");
+              }).find("loop.gltf: glTF node 1 is its own ancestor through \"children\" (a cycle)"),
+              std::string::npos);
+    // 40 levels of nodes listing the next one twice: assimp copies shared nodes, 2^40 of them
+    // (it ran past a minute and 20 GB).
+    std::string nodes = "[";
+    for (int i = 0; i < 40; ++i) nodes += "{\"children\": [" + std::to_string(i + 1) + ", " + std::to_string(i + 1) + "]},";
+    const std::string e = error_of([&] { import_model(write_text(scratch("shared.gltf"), gltf_text(nodes + R"({"mesh": 0}])")), "instances"); });
+    EXPECT_NE(e.find("shared.gltf: glTF node 1 is listed twice among the children of node 0 (glTF node hierarchies are strict trees)"),
+              std::string::npos) << e;
+    const std::string two = error_of([&] {
+        import_model(write_text(scratch("two.gltf"), gltf_text(R"([{"children": [2]}, {"children": [2]}, {"mesh": 0}])", "[0, 1]")), "instances");
+    });
+    EXPECT_NE(two.find("two.gltf: glTF node 2 is a child of both node 0 and node 1 (glTF node hierarchies are strict trees)"),
+              std::string::npos) << two;
+    // A deep subtree listed as a scene root over and over is copied as often.
+    std::string roots = "[";
+    for (int i = 0; i < 70000; ++i) roots += "0,";
+    std::string chain = "[";
+    for (int i = 0; i < 999; ++i) chain += "{\"children\": [" + std::to_string(i + 1) + "]},";
+    const std::string r = error_of([&] { import_model(write_text(scratch("roots.gltf"), gltf_text(chain + R"({"mesh": 0}])", roots + "0]")), "instances"); });
+    EXPECT_NE(r.find("roots.gltf: the glTF scenes list node subtrees of 70001000 nodes in all, more than the limit of 67108864"), std::string::npos) << r;
+}
+
+TEST(ModelImport, DeepJsonAndBracketsAreRefused) {
+    const std::string deep_json = std::string(100000, '[') + std::string(100000, ']');
+    const std::string e = error_of([&] { import_model(write_text(scratch("extras.gltf"), gltf_text("[{\"mesh\": 0}]", "[0]", deep_json)), "instances"); });
+    EXPECT_NE(e.find("extras.gltf: JSON arrays and objects nested deeper than 1000 (kMaxModelNesting, nesting.h) at byte "), std::string::npos) << e;
+    // Brackets inside strings do not count.
+    EXPECT_EQ(import_model(write_text(scratch("strings.gltf"), gltf_text("[{\"mesh\": 0, \"name\": \"" + std::string(5000, '[') + "\"}]")), "instances").size(), 1u);
+    // DirectX .x nests frames in braces; assimp's parser recursed into a SIGSEGV at 100000 levels.
+    std::string x = "xof 0303txt 0032\n";
+    for (int i = 0; i < 100000; ++i) x += "Frame f {\n";
+    for (int i = 0; i < 100000; ++i) x += "}\n";
+    const std::string xe = error_of([&] { import_model(write_text(scratch("deep.x"), x), "instances"); });
+    EXPECT_NE(xe.find("deep.x: brackets ({ } or [ ]) nested deeper than 1000 (kMaxModelNesting, nesting.h) at byte 10025, line 1002"),
+              std::string::npos) << xe;
+}
+
+TEST(ModelImport, DeepColladaAndInstanceCyclesAreRefused) {
+    // 8000 nested <node> elements: SIGSEGV inside ReadFile.
+    const std::string e = error_of([&] { import_model(write_text(scratch("deep.dae"), collada_chain(8000)), "instances"); });
+    EXPECT_NE(e.find("deep.dae: XML elements nested deeper than 1000 (kMaxModelNesting, nesting.h) at byte "), std::string::npos) << e;
+    const std::vector<Object> ok = import_model(write_text(scratch("ok.dae"), collada_chain(990)), "instances");
+    ASSERT_EQ(ok.size(), 1u);
+    EXPECT_EQ(ok[0].box, box(990, 0, 0, 991, 1, 0));
+    // <instance_node> a -> b -> a: assimp recursed without end (SIGSEGV).
+    const std::string cycle = collada_text(R"(<node id="r"><instance_node url="#a"/></node>)",
+                                           R"(<library_nodes><node id="a"><instance_node url="#b"/></node>)"
+                                           R"(<node id="b"><instance_node url="#a"/><instance_geometry url="#g"/></node></library_nodes>)");
+    const std::string c = error_of([&] { import_model(write_text(scratch("cycle.dae"), cycle), "instances"); });
+    EXPECT_NE(c.find("cycle.dae: COLLADA node 'a' at byte "), std::string::npos) << c;
+    EXPECT_NE(c.find("contains itself through <instance_node> (a cycle)"), std::string::npos) << c;
+    // 40 levels each instancing the next twice: 2^40 copies (past a minute and 20 GB).
+    std::string library = "<library_nodes>";
+    for (int i = 0; i < 40; ++i)
+        library += "<node id=\"n" + std::to_string(i) + "\"><instance_node url=\"#n" + std::to_string(i + 1) +
+                   "\"/><instance_node url=\"#n" + std::to_string(i + 1) + "\"/></node>";
+    library += R"(<node id="n40"><instance_geometry url="#g"/></node></library_nodes>)";
+    const std::string x = error_of([&] {
+        import_model(write_text(scratch("twice.dae"), collada_text(R"(<node id="r"><instance_node url="#n0"/></node>)", library)), "instances");
+    });
+    EXPECT_NE(x.find("twice.dae: the COLLADA node graph expands to more than 67108864 nodes through <instance_node>"), std::string::npos) << x;
+    // Instances deeper than the limit in all, though no element is.
+    std::string chain = "<library_nodes>";
+    for (int i = 0; i < 1200; ++i)
+        chain += "<node id=\"c" + std::to_string(i) + "\"><instance_node url=\"#c" + std::to_string(i + 1) + "\"/></node>";
+    chain += R"(<node id="c1200"><instance_geometry url="#g"/></node></library_nodes>)";
+    const std::string d = error_of([&] {
+        import_model(write_text(scratch("long.dae"), collada_text(R"(<node id="r"><instance_node url="#c0"/></node>)", chain)), "instances");
+    });
+    EXPECT_NE(d.find("expands to a hierarchy deeper than 1000"), std::string::npos) << d;
+}
+
+TEST(ModelImport, AssimpRunsOnItsOwnLargeStack) {
+    // 990 COLLADA levels are within the limit but take assimp about 1.2 MB of stack: a caller on
+    // a 512 KB stack (a thread, or deep in its own work) must still get the model.
+    const std::string dae = write_text(scratch("stack.dae"), collada_chain(990));
+    const std::string gltf = write_text(scratch("stack.gltf"), gltf_chain(kMaxModelNesting));
+    std::size_t n = 0;
+    on_small_stack(512 << 10, [&] { n = import_model(dae, "triangles").size() + import_model(gltf, "triangles").size(); });
+    EXPECT_EQ(n, 2u);
+}
+
+TEST(ModelImport, ObjectCountsAreLimitedBeforeAllocating) {
+    // One mesh of 70000 triangles (indices 0 1 2 over and over) under 1000 nodes: 7e7 triangles.
+    std::string indices;
+    for (int i = 0; i < 70000; ++i) indices += std::string("\0\0\1\0\2\0", 6);
+    std::string b64;
+    static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    const std::string positions("\0\0\0\0\0\0\0\0\0\0\0\0\0\0\x80\x3f\0\0\0\0\0\0\0\0\0\0\0\0\0\0\x80\x3f\0\0\0\0", 36);
+    const std::string buffer = positions + indices;
+    for (std::size_t i = 0; i < buffer.size(); i += 3) {
+        std::uint32_t v = std::uint32_t(std::uint8_t(buffer[i])) << 16;
+        if (i + 1 < buffer.size()) v |= std::uint32_t(std::uint8_t(buffer[i + 1])) << 8;
+        if (i + 2 < buffer.size()) v |= std::uint8_t(buffer[i + 2]);
+        b64 += t[(v >> 18) & 63], b64 += t[(v >> 12) & 63];
+        b64 += i + 1 < buffer.size() ? t[(v >> 6) & 63] : '=';
+        b64 += i + 2 < buffer.size() ? t[v & 63] : '=';
+    }
+    std::string nodes = R"([{"children": [)";
+    for (int i = 1; i <= 1000; ++i) nodes += std::to_string(i) + (i < 1000 ? "," : "]}");
+    for (int i = 1; i <= 1000; ++i) nodes += R"(, {"mesh": 0})";
+    const std::string gltf = R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": )" + nodes + R"(],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                    {"bufferView": 1, "componentType": 5123, "count": 210000, "type": "SCALAR"}],
+      "bufferViews": [{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 420000}],
+      "buffers": [{"byteLength": 420036, "uri": "data:application/octet-stream;base64,)" + b64 + R"("}]})";
+    const std::string path = write_text(scratch("many.gltf"), gltf);
+    EXPECT_EQ(error_of([&] { import_model(path, "triangles"); }),
+              path + ": triangles mode would make 70000000 objects, more than the limit of 67108864 per scene (kMaxSceneObjects, scene.h); "
+                     "try --model-mode instances");
+    EXPECT_EQ(import_model(path, "instances").size(), 1000u);
+}
+
+TEST(ModelImport, CoordinatesBeyondTheLimitNameTheNode) {
+    const std::string obj = write_text(scratch("far.obj"), "o far\nv 0 0 0\nv 1e20 0 0\nv 0 1 0\nf 1 2 3\n");
+    const std::string e = error_of([&] { import_model(obj, "instances"); });
+    EXPECT_NE(e.find("far.obj: node 'far': uid 0: coordinate 1e+20 beyond ±1e+15"), std::string::npos) << e;
+}
+
+TEST(SceneImport, CliRefusesACsvBoxBeyondTheCoordinateLimit) {
+    // `200,0,40,0,1e20,41,1` among 200 unit boxes: simulate --structure embree aborted on this.
+    std::string csv = "uid,minx,miny,minz,maxx,maxy,maxz\n";
+    for (int i = 0; i < 200; ++i) csv += std::to_string(i) + "," + std::to_string(2 * (i % 10)) + ",0,0," + std::to_string(2 * (i % 10) + 1) + ",1,1\n";
+    const std::string in = write_text(scratch("giant.csv"), csv + "200,0,40,0,1e20,41,1\n");
+    const std::string out = scratch("giant.rcbscene").string(), err = scratch("giant.err").string();
+    fs::remove(out);
+    const int rc = std::system((std::string(RCBENCH_BINARY) + " scene import " + in + " -o " + out + " 2> " + err).c_str());
+    EXPECT_EQ(WEXITSTATUS(rc), 2);
+    EXPECT_FALSE(fs::exists(out));
+    std::ifstream e(err);
+    std::string line, more;
+    std::getline(e, line);
+    EXPECT_FALSE(std::getline(e, more)) << more;
+    EXPECT_NE(line.find("giant.csv:202: uid 200: field 5 (maxx): coordinate 1e+20 beyond ±1e+15"), std::string::npos) << line;
 }
 
 /// The real OpenArena maps (scripts/fetch_maps.sh); skipped when they have not been fetched.

@@ -13,6 +13,7 @@
 #include <zip.h>
 
 #include "core/error.h"
+#include "core/recording_io.h"
 
 namespace rcb {
 namespace {
@@ -69,9 +70,8 @@ struct Reader {
             throw InputError(name + ": header: truncated (" + std::to_string(bytes.size()) + " bytes, a header needs " +
                              std::to_string(kHeaderBytes) + ")");
         if (std::memcmp(bytes.data(), "IBSP", 4) != 0) {
-            std::string magic;
-            for (int i = 0; i < 4; ++i) magic += std::isprint(bytes[i]) ? char(bytes[i]) : '?';
-            throw InputError(name + ": header: magic '" + magic + "', expected 'IBSP' (a Quake III / OpenArena map)");
+            const std::string_view magic(reinterpret_cast<const char*>(bytes.data()), 4);
+            throw InputError(name + ": header: magic " + quoted_excerpt(magic) + ", expected 'IBSP' (a Quake III / OpenArena map)");
         }
         const std::int32_t version = i32(4);
         if (version != kVersion)
@@ -103,8 +103,10 @@ std::vector<Object> parse_brushes(const Reader& r, BspSummary& sum) {
     const std::size_t brushes = r.records(kBrushes, kBrushBytes);
     const std::size_t sides = r.records(kBrushSides, kBrushSideBytes);
     sum.brushes = brushes;
-    std::vector<Object> out;
-    out.reserve(brushes);
+    // First pass: every brush's references, and the work they ask for. q3map2 gives each brush its
+    // own run of sides, so a real map refers to each side once; a small file whose brushes all
+    // claim the same long run would otherwise take brushes x sides steps.
+    std::uint64_t side_refs = 0;
     for (std::size_t b = 0; b < brushes; ++b) {
         const std::size_t at = r.at(kBrushes, kBrushBytes, b);
         const std::int32_t first = r.i32(at), count = r.i32(at + 4), shader = r.i32(at + 8);
@@ -115,6 +117,17 @@ std::vector<Object> parse_brushes(const Reader& r, BspSummary& sum) {
             r.fail_lump(kBrushes, "brush " + std::to_string(b) + " refers to brushsides " + std::to_string(first) + ".." +
                                       std::to_string(std::int64_t(first) + count - 1) + " beyond the " +
                                       std::to_string(sides) + " in lump 9 (brushsides)");
+        side_refs += std::uint64_t(count);
+    }
+    if (side_refs > kMaxSceneObjects)
+        r.fail_lump(kBrushes, "the brushes refer to " + std::to_string(side_refs) + " brushsides in all (of " +
+                                  std::to_string(sides) + "), more than the limit of " + std::to_string(kMaxSceneObjects) +
+                                  " (kMaxSceneObjects, scene.h)");
+    std::vector<Object> out;
+    out.reserve(brushes);
+    for (std::size_t b = 0; b < brushes; ++b) {
+        const std::size_t at = r.at(kBrushes, kBrushBytes, b);
+        const std::int32_t first = r.i32(at), count = r.i32(at + 4), shader = r.i32(at + 8);
         const std::int32_t contents = r.i32(r.at(kShaders, kShaderBytes, std::size_t(shader)) + 68);
         if (!(contents & (kContentsSolid | kContentsPlayerClip))) {
             ++sum.skipped_non_solid;
@@ -145,6 +158,7 @@ std::vector<Object> parse_brushes(const Reader& r, BspSummary& sum) {
             continue;
         }
         out.push_back(Object{Uid(out.size()), box});
+        if (!box_problem(box).empty()) check_object(out.back(), r.name + ": brush " + std::to_string(b));
         ++sum.solid_brushes;
     }
     return out;
@@ -164,23 +178,49 @@ std::vector<Object> parse_triangles(const Reader& r, BspSummary& sum) {
         if (!is_finite(p)) r.fail_lump(kDrawVerts, "vertex " + std::to_string(v) + " has a non-finite coordinate");
         return p;
     };
-    std::vector<Object> out;
-    auto triangle = [&](Vec3 a, Vec3 b, Vec3 c) {
-        out.push_back(Object{Uid(out.size()), Aabb{min(min(a, b), c), max(max(a, b), c)}});
+    // int shader, fog, type, firstVert, numVerts, firstIndex, numIndexes, lightmapNum, lightmapX,
+    // lightmapY, lightmapWidth, lightmapHeight; float lightmapOrigin[3], lightmapVecs[2][3],
+    // normal[3]; int patchWidth, patchHeight.
+    struct Header {
+        std::int32_t type, first_vert, num_verts, first_index, num_indexes, w, h;
     };
-    for (std::size_t s = 0; s < surfaces; ++s) {
-        // int shader, fog, type, firstVert, numVerts, firstIndex, numIndexes, lightmapNum,
-        // lightmapX, lightmapY, lightmapWidth, lightmapHeight; float lightmapOrigin[3],
-        // lightmapVecs[2][3], normal[3]; int patchWidth, patchHeight.
+    auto header = [&](std::size_t s) {
         const std::size_t at = r.at(kSurfaces, kSurfaceBytes, s);
-        const std::int32_t type = r.i32(at + 8), first_vert = r.i32(at + 12), num_verts = r.i32(at + 16);
-        const std::int32_t first_index = r.i32(at + 20), num_indexes = r.i32(at + 24);
-        if (type == kPlanar || type == kTriangleSoup) {
-            if (first_index < 0 || num_indexes < 0 || std::uint64_t(first_index) + std::uint64_t(num_indexes) > indexes)
+        return Header{r.i32(at + 8), r.i32(at + 12), r.i32(at + 16), r.i32(at + 20), r.i32(at + 24), r.i32(at + 96), r.i32(at + 100)};
+    };
+    // First pass: check every surface's counts and add up the triangles before allocating any.
+    // Surfaces may share vertices and indexes, so a small file can describe billions of triangles
+    // (every patch naming the same large grid); the count is exact, so the check is too.
+    std::uint64_t estimate = 0;
+    for (std::size_t s = 0; s < surfaces; ++s) {
+        const Header h = header(s);
+        if (h.type == kPlanar || h.type == kTriangleSoup) {
+            if (h.first_index < 0 || h.num_indexes < 0 || std::uint64_t(h.first_index) + std::uint64_t(h.num_indexes) > indexes)
                 r.fail_lump(kSurfaces, "surface " + std::to_string(s) + " refers to drawindexes beyond the " +
                                            std::to_string(indexes) + " in lump 11 (drawindexes)");
-            if (num_indexes % 3 != 0)
-                r.fail_lump(kSurfaces, "surface " + std::to_string(s) + " has " + std::to_string(num_indexes) + " indexes, not a multiple of 3");
+            if (h.num_indexes % 3 != 0)
+                r.fail_lump(kSurfaces, "surface " + std::to_string(s) + " has " + std::to_string(h.num_indexes) + " indexes, not a multiple of 3");
+            estimate += std::uint64_t(h.num_indexes / 3);
+        } else if (h.type == kPatch) {
+            if (h.w < 0 || h.h < 0 || std::int64_t(h.w) * h.h != h.num_verts)
+                r.fail_lump(kSurfaces, "patch surface " + std::to_string(s) + " is " + std::to_string(h.w) + "x" +
+                                           std::to_string(h.h) + " but has " + std::to_string(h.num_verts) + " vertices");
+            if (h.w > 0 && h.h > 0) estimate += 2 * std::uint64_t(h.w - 1) * std::uint64_t(h.h - 1);
+        }
+    }
+    if (estimate > kMaxSceneObjects)
+        throw InputError(r.name + ": triangles mode would make " + std::to_string(estimate) + " triangles, more than the limit of " +
+                         std::to_string(kMaxSceneObjects) + " objects per scene (kMaxSceneObjects, scene.h); try --bsp-mode brushes");
+    std::vector<Object> out;
+    out.reserve(estimate);
+    std::size_t s = 0;
+    auto triangle = [&](Vec3 a, Vec3 b, Vec3 c) {
+        out.push_back(Object{Uid(out.size()), Aabb{min(min(a, b), c), max(max(a, b), c)}});
+        if (!box_problem(out.back().box).empty()) check_object(out.back(), r.name + ": surface " + std::to_string(s));
+    };
+    for (; s < surfaces; ++s) {
+        const auto [type, first_vert, num_verts, first_index, num_indexes, w, h] = header(s);
+        if (type == kPlanar || type == kTriangleSoup) {
             for (std::int32_t k = 0; k < num_indexes; k += 3) {
                 Vec3 p[3];
                 for (int j = 0; j < 3; ++j)
@@ -188,10 +228,6 @@ std::vector<Object> parse_triangles(const Reader& r, BspSummary& sum) {
                 triangle(p[0], p[1], p[2]);
             }
         } else if (type == kPatch) {
-            const std::int32_t w = r.i32(at + 96), h = r.i32(at + 100);
-            if (w < 0 || h < 0 || std::int64_t(w) * h != num_verts)
-                r.fail_lump(kSurfaces, "patch surface " + std::to_string(s) + " is " + std::to_string(w) + "x" +
-                                           std::to_string(h) + " but has " + std::to_string(num_verts) + " vertices");
             for (std::int32_t y = 0; y + 1 < h; ++y)
                 for (std::int32_t x = 0; x + 1 < w; ++x) {
                     const std::int64_t v00 = std::int64_t(first_vert) + y * w + x;
@@ -203,6 +239,13 @@ std::vector<Object> parse_triangles(const Reader& r, BspSummary& sum) {
     }
     sum.triangles = out.size();
     return out;
+}
+
+/// A name from the file (a zip entry) as messages show it: as is when it is short printable ASCII,
+/// else quoted and escaped.
+std::string shown(const std::string& name) {
+    const bool plain = name.size() <= 80 && std::all_of(name.begin(), name.end(), [](char c) { return c >= 0x20 && c < 0x7f; });
+    return plain ? name : quoted_excerpt(name);
 }
 
 std::string lower(std::string s) {
@@ -232,10 +275,23 @@ struct Zip {
     Zip& operator=(const Zip&) = delete;
 };
 
+void check_map_size(std::uint64_t bytes, const std::string& name) {
+    if (bytes > kMaxMapBytes)
+        throw InputError(name + ": " + std::to_string(bytes) + " bytes, more than the limit of " + std::to_string(kMaxMapBytes) +
+                         " for a map (kMaxMapBytes, bsp.h)");
+}
+
 std::vector<std::uint8_t> read_file_bytes(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
+    std::ifstream in(path, std::ios::binary | std::ios::ate);
     if (!in) throw InputError(path + ": cannot open");
-    return std::vector<std::uint8_t>(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    const std::streamoff size = in.tellg();
+    if (size < 0) throw InputError(path + ": cannot read its size");
+    check_map_size(std::uint64_t(size), path);
+    std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size));
+    in.seekg(0);
+    if (!bytes.empty() && !in.read(reinterpret_cast<char*>(bytes.data()), size))
+        throw InputError(path + ": read failed");
+    return bytes;
 }
 
 }  // namespace
@@ -269,18 +325,20 @@ std::vector<std::string> pk3_maps(const std::string& path) {
 std::vector<std::uint8_t> read_zip_entry(const std::string& path, const std::string& entry) {
     Zip zip(path);
     const zip_int64_t index = zip_name_locate(zip.z, entry.c_str(), ZIP_FL_NOCASE);
-    if (index < 0) throw InputError(path + ": no entry " + entry);
+    const std::string where = path + ":" + shown(entry);
+    if (index < 0) throw InputError(path + ": no entry " + shown(entry));
     zip_stat_t st;
     if (zip_stat_index(zip.z, zip_uint64_t(index), 0, &st) != 0 || !(st.valid & ZIP_STAT_SIZE))
-        throw InputError(path + ": " + entry + ": cannot read its size: " + zip_strerror(zip.z));
+        throw InputError(where + ": cannot read its size: " + zip_strerror(zip.z));
+    check_map_size(st.size, where);
     zip_file_t* f = zip_fopen_index(zip.z, zip_uint64_t(index), 0);
-    if (!f) throw InputError(path + ": " + entry + ": cannot open: " + zip_strerror(zip.z));
+    if (!f) throw InputError(where + ": cannot open: " + zip_strerror(zip.z));
     std::vector<std::uint8_t> bytes(st.size);
     const zip_int64_t got = bytes.empty() ? 0 : zip_fread(f, bytes.data(), bytes.size());
     const std::string err = got < 0 ? zip_file_strerror(f) : "";
     zip_fclose(f);
     if (got < 0 || zip_uint64_t(got) != st.size)
-        throw InputError(path + ": " + entry + ": read " + std::to_string(got) + " of " + std::to_string(st.size) +
+        throw InputError(where + ": read " + std::to_string(got) + " of " + std::to_string(st.size) +
                          " bytes" + (err.empty() ? "" : ": " + err));
     return bytes;
 }
@@ -291,8 +349,11 @@ std::vector<Object> import_bsp(const std::string& path, const BspOptions& option
     BspSummary& sum = summary ? *summary : local;
     if (ext == ".pk3" || ext == ".zip") {
         const std::vector<std::string> maps = pk3_maps(path);
+        // The maps' names for messages; a pk3 may hold thousands (and any bytes in a name).
         std::string list;
-        for (const std::string& m : maps) list += (list.empty() ? "" : ", ") + std::filesystem::path(m).stem().string();
+        for (std::size_t i = 0; i < maps.size() && i < 20; ++i)
+            list += (i ? ", " : "") + shown(std::filesystem::path(maps[i]).stem().string());
+        if (maps.size() > 20) list += ", … (" + std::to_string(maps.size()) + " in all)";
         if (maps.empty()) throw InputError(path + ": no maps/*.bsp inside");
         std::string entry;
         if (options.map.empty()) {
@@ -301,11 +362,11 @@ std::vector<Object> import_bsp(const std::string& path, const BspOptions& option
         } else {
             for (const std::string& m : maps)
                 if (lower(m) == lower(options.map) || lower(m) == "maps/" + lower(options.map) + ".bsp") entry = m;
-            if (entry.empty()) throw InputError(path + ": no map '" + options.map + "' inside (maps: " + list + ")");
+            if (entry.empty()) throw InputError(path + ": no map " + quoted_excerpt(options.map) + " inside (maps: " + list + ")");
         }
         const std::vector<std::uint8_t> bytes = read_zip_entry(path, entry);
         sum.map = entry;
-        return parse_bsp(bytes, std::filesystem::path(path).filename().string() + ":" + entry, options.mode, &sum);
+        return parse_bsp(bytes, std::filesystem::path(path).filename().string() + ":" + shown(entry), options.mode, &sum);
     }
     if (!options.map.empty()) throw InputError(path + ": --map is for a .pk3; a .bsp is one map");
     const std::vector<std::uint8_t> bytes = read_file_bytes(path);

@@ -17,6 +17,10 @@
 ///    the convex hull of its control points, so together the triangles' boxes are close to, not
 ///    exactly, the surface's); billboards (type 4) are skipped.
 ///
+/// Before allocating objects, the importer counts them (triangles mode: exactly, from the surfaces'
+/// index counts and patch sizes) and refuses more than kMaxSceneObjects (scene.h); every object's
+/// box is checked against the coordinate limit (check_object, recording_io.h).
+///
 /// A `.pk3` is a zip: the map is read from `maps/NAME.bsp` inside it (libzip). Errors name the file
 /// and the lump: "q3dm1.bsp: lump 8 (brushes): length 13 is not a multiple of 12".
 
@@ -28,6 +32,11 @@
 #include "core/scene.h"
 
 namespace rcb {
+
+/// The largest map read (a .bsp file, or a map's uncompressed size inside a .pk3), checked before
+/// its bytes are allocated: OpenArena's and Quake III's largest maps are under 20 MB, so 512 MiB
+/// only stops a corrupt or hostile size (a zip entry claiming gigabytes).
+inline constexpr std::uint64_t kMaxMapBytes = std::uint64_t(512) << 20;
 
 struct BspOptions {
     std::string mode = "brushes";  ///< "brushes" or "triangles"

@@ -1,22 +1,108 @@
 #include "core/importers/model.h"
 
+#include <pthread.h>
+
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <cstring>
+#include <exception>
+#include <functional>
+#include <vector>
+
 #include "core/error.h"
+#include "core/importers/nesting.h"
+#include "core/recording_io.h"
 
 namespace rcb {
 namespace {
 
-struct Walk {
-    const aiScene* scene;
-    bool triangles;
-    std::vector<Object>& out;
-    ModelSummary& sum;
+/// The stack assimp runs on. Its parsers recurse per level of nesting (nesting.h bounds that for
+/// the formats that nest in text), and for the formats nothing scans (FBX and other binaries) this
+/// is the backstop: a thread stack is reserved address space, touched only as deep as the
+/// recursion goes, so 256 MiB costs nothing for ordinary files.
+constexpr std::size_t kImportStackBytes = std::size_t(256) << 20;
 
-    void node(const aiNode* n, const aiMatrix4x4& parent) {
+/// Runs `work` on a new thread with a `stack_bytes` stack and waits for it; an exception thrown by
+/// `work` is rethrown here. (std::thread cannot set a stack size.)
+void run_with_stack(std::size_t stack_bytes, const std::function<void()>& work) {
+    struct Job {
+        const std::function<void()>* work;
+        std::exception_ptr error;
+    } job{&work, nullptr};
+    pthread_attr_t attr;
+    if (pthread_attr_init(&attr) != 0) throw std::runtime_error("pthread_attr_init failed");
+    int rc = pthread_attr_setstacksize(&attr, stack_bytes);
+    pthread_t thread;
+    if (rc == 0)
+        rc = pthread_create(
+            &thread, &attr,
+            [](void* p) -> void* {
+                auto* j = static_cast<Job*>(p);
+                try {
+                    (*j->work)();
+                } catch (...) {
+                    j->error = std::current_exception();
+                }
+                return nullptr;
+            },
+            &job);
+    pthread_attr_destroy(&attr);
+    if (rc != 0) throw std::runtime_error(std::string("cannot start the model import thread: ") + std::strerror(rc));
+    pthread_join(thread, nullptr);
+    if (job.error) std::rethrow_exception(job.error);
+}
+
+/// Calls `visit(node, world transform)` for every node, parents before children and children in
+/// order (the order of a recursive walk), with an explicit stack: the depth of the hierarchy is
+/// the file's to choose.
+template <class Visit>
+void for_each_node(const aiNode* root, Visit&& visit) {
+    std::vector<std::pair<const aiNode*, aiMatrix4x4>> stack{{root, aiMatrix4x4()}};
+    while (!stack.empty()) {
+        const auto [n, parent] = stack.back();
+        stack.pop_back();
         const aiMatrix4x4 world = parent * n->mTransformation;
+        visit(n, world);
+        for (unsigned c = n->mNumChildren; c-- > 0;) stack.push_back({n->mChildren[c], world});
+    }
+}
+
+std::vector<Object> read_model(const std::string& path, bool triangles, ModelSummary& sum) {
+    Assimp::Importer importer;
+    // Triangulate so polygons become triangles; nothing else changes the geometry.
+    const aiScene* scene = importer.ReadFile(path, aiProcess_Triangulate);
+    if (!scene || !scene->mRootNode || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE))
+        throw InputError(path + ": assimp: " + quoted_excerpt(importer.GetErrorString(), 200));
+    sum.meshes = scene->mNumMeshes;
+
+    // Count the objects before allocating them (a mesh instanced by many nodes multiplies).
+    std::uint64_t estimate = 0;
+    for_each_node(scene->mRootNode, [&](const aiNode* n, const aiMatrix4x4&) {
+        for (unsigned i = 0; i < n->mNumMeshes; ++i)
+            estimate += triangles ? scene->mMeshes[n->mMeshes[i]]->mNumFaces : 1;
+    });
+    if (estimate > kMaxSceneObjects)
+        throw InputError(path + ": " + (triangles ? "triangles" : "instances") + " mode would make " + std::to_string(estimate) +
+                         " objects, more than the limit of " + std::to_string(kMaxSceneObjects) +
+                         " per scene (kMaxSceneObjects, scene.h)" + (triangles ? "; try --model-mode instances" : ""));
+
+    std::vector<Object> out;
+    out.reserve(estimate);
+    auto add = [](Aabb& box, const aiVector3D& p) {
+        const Vec3 v{float(p.x), float(p.y), float(p.z)};
+        box = {min(box.min, v), max(box.max, v)};
+    };
+    const aiNode* current = nullptr;
+    auto push = [&](const Aabb& box) {
+        if (!is_finite(box.min) || !is_finite(box.max)) return;  // a degenerate or broken vertex
+        out.push_back(Object{Uid(out.size()), box});
+        if (!box_problem(box).empty())
+            check_object(out.back(), path + ": node " + quoted_excerpt(current->mName.C_Str()));
+    };
+    for_each_node(scene->mRootNode, [&](const aiNode* n, const aiMatrix4x4& world) {
+        current = n;
         for (unsigned i = 0; i < n->mNumMeshes; ++i) {
             const aiMesh* mesh = scene->mMeshes[n->mMeshes[i]];
             ++sum.instances;
@@ -36,17 +122,9 @@ struct Walk {
                 push(box);
             }
         }
-        for (unsigned c = 0; c < n->mNumChildren; ++c) node(n->mChildren[c], world);
-    }
-    static void add(Aabb& box, const aiVector3D& p) {
-        const Vec3 v{float(p.x), float(p.y), float(p.z)};
-        box = {min(box.min, v), max(box.max, v)};
-    }
-    void push(const Aabb& box) {
-        if (!is_finite(box.min) || !is_finite(box.max)) return;  // a degenerate or broken vertex
-        out.push_back(Object{Uid(out.size()), box});
-    }
-};
+    });
+    return out;  // the importer frees assimp's scene here, on this thread's stack too
+}
 
 }  // namespace
 
@@ -57,17 +135,12 @@ bool is_model_extension(const std::string& ext) {
 
 std::vector<Object> import_model(const std::string& path, const std::string& mode, ModelSummary* summary) {
     if (mode != "instances" && mode != "triangles")
-        throw InputError(path + ": model mode '" + mode + "': expected instances or triangles");
-    Assimp::Importer importer;
-    // Triangulate so polygons become triangles; nothing else changes the geometry.
-    const aiScene* scene = importer.ReadFile(path, aiProcess_Triangulate);
-    if (!scene || !scene->mRootNode || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE))
-        throw InputError(path + ": assimp: " + std::string(importer.GetErrorString()));
+        throw InputError(path + ": model mode " + quoted_excerpt(mode) + ": expected instances or triangles");
+    check_model_nesting(path);
     ModelSummary local;
     ModelSummary& sum = summary ? *summary : local;
-    sum.meshes = scene->mNumMeshes;
     std::vector<Object> out;
-    Walk{scene, mode == "triangles", out, sum}.node(scene->mRootNode, aiMatrix4x4());
+    run_with_stack(kImportStackBytes, [&] { out = read_model(path, mode == "triangles", sum); });
     return out;
 }
 

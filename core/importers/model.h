@@ -7,7 +7,14 @@
 ///    transform (a mesh referenced by two nodes gives two objects).
 ///  - `triangles`: one object per triangle of every mesh instance, in world space. Point and line
 ///    primitives are skipped (they bound no surface).
-/// Errors name the file and assimp's message: "ship.glb: assimp: …".
+/// Errors name the file and assimp's message: "ship.glb: assimp: '…'".
+///
+/// Before assimp reads the file, check_model_nesting (nesting.h) refuses nesting deeper than
+/// kMaxModelNesting and node graphs with cycles or exponential sharing; assimp then runs on a
+/// thread with a 256 MiB stack (its parsers recurse). rcbench's own walk of the node hierarchy uses
+/// an explicit stack. Objects are counted before they are allocated, and more than
+/// kMaxSceneObjects (scene.h) is refused; every box is checked against the coordinate limit
+/// (check_object, recording_io.h).
 
 #include <string>
 #include <vector>

@@ -16,7 +16,7 @@ std::string importer_for(const std::string& path) {
     if (ext == ".csv") return "csv";
     if (ext == ".bsp" || ext == ".pk3") return "bsp";
     if (is_model_extension(ext)) return "model";
-    throw InputError(path + ": cannot import '" + ext + "' files (known: .csv, .bsp, .pk3 and the model formats assimp reads: .obj, .gltf, .glb, .fbx, .dae, .ply, …)");
+    throw InputError(path + ": cannot import " + quoted_excerpt(ext) + " files (known: .csv, .bsp, .pk3 and the model formats assimp reads: .obj, .gltf, .glb, .fbx, .dae, .ply, …)");
 }
 
 std::vector<Object> import_objects(const std::string& path, const ImportOptions& options, nlohmann::json* meta) {
@@ -53,16 +53,16 @@ ImportOptions import_options_from_json(const nlohmann::json& j, const std::strin
     if (!j.is_object()) throw InputError(path + ": expected an object with bsp_mode, map, model_mode");
     for (const auto& [k, v] : j.items()) {
         if (k != "bsp_mode" && k != "map" && k != "model_mode")
-            throw InputError(path + ": unknown key \"" + k + "\" (known: bsp_mode, map, model_mode)");
-        if (!v.is_string()) throw InputError(path + "." + k + ": expected a string, got " + v.dump());
+            throw InputError(path + ": unknown key " + quoted_excerpt(k) + " (known: bsp_mode, map, model_mode)");
+        if (!v.is_string()) throw InputError(path + "." + k + ": expected a string, got " + quoted_excerpt(v.dump()));
     }
     o.bsp_mode = j.value("bsp_mode", o.bsp_mode);
     o.map = j.value("map", o.map);
     o.model_mode = j.value("model_mode", o.model_mode);
     if (o.bsp_mode != "brushes" && o.bsp_mode != "triangles")
-        throw InputError(path + ".bsp_mode: expected \"brushes\" or \"triangles\", got \"" + o.bsp_mode + "\"");
+        throw InputError(path + ".bsp_mode: expected \"brushes\" or \"triangles\", got " + quoted_excerpt(o.bsp_mode));
     if (o.model_mode != "instances" && o.model_mode != "triangles")
-        throw InputError(path + ".model_mode: expected \"instances\" or \"triangles\", got \"" + o.model_mode + "\"");
+        throw InputError(path + ".model_mode: expected \"instances\" or \"triangles\", got " + quoted_excerpt(o.model_mode));
     return o;
 }
 
