@@ -21,6 +21,7 @@
 #include "core/output_file.h"
 #include "core/registry.h"
 #include "core/simulator.h"
+#include "runner/store.h"
 #include "core/number_text.h"
 #include "runner/history.h"
 
@@ -82,8 +83,9 @@ std::vector<Entry> load_entries(Database& db, std::int64_t run) {
         "cell.raycast_ns_median, cell.memory_bytes, cell.repetition, "
         "(SELECT sum(hits) FROM frame WHERE cell_id = cell.id AND warmup = 0), (SELECT sum(missed) FROM frame WHERE cell_id = cell.id), "
         "(SELECT sum(extra) FROM frame WHERE cell_id = cell.id), (SELECT sum(duplicate) FROM frame WHERE cell_id = cell.id) "
-        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id WHERE cell.run_id = ? ORDER BY cell.id");
-    s.bind(1, run);
+        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id WHERE cell.run_id IN " +
+        std::string(kRunGroupSql) + " ORDER BY cell.id");
+    s.bind_all(run, run);
     while (s.step()) {
         const std::string label = config_label(s.text(3), s.text(4));
         const auto key = std::make_pair(s.text(1), label);
@@ -560,7 +562,7 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
         h.chart(b);
     }
 
-    // Issue #9: failure-mode scenes (by their generator kind) against brute force and against a
+    // Failure-mode scenes (by their generator kind) against brute force and against a
     // benign scene of the same size, for every configuration.
     {
         const std::vector<std::string> failure_kinds = failure_mode_kinds();
@@ -613,7 +615,7 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
                 }
                 if (any) rows.push_back(row);
             }
-            h.paragraph("Scenes built to break an assumption (issue #9): stadium (one huge box around a tiny dense "
+            h.paragraph("Scenes built to break an assumption: stadium (one huge box around a tiny dense "
                         "cluster), identical (stacks of equal boxes), same-centroid (stacks with one centroid), flat "
                         "(zero-thickness boxes in one plane), slivers (long thin and zero-volume boxes), outlier (one "
                         "box 10^6 scene sizes away). Each cell: ok or WRONG (mismatches against the ground truth); "

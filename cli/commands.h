@@ -14,6 +14,7 @@ void add_cast_command(CLI::App& app);
 void add_structures_command(CLI::App& app);
 void add_run_command(CLI::App& app);
 void add_query_commands(CLI::App& app);
+void add_history_command(CLI::App& app);
 void add_fit_command(CLI::App& app);
 void add_report_command(CLI::App& app);
 void add_tune_command(CLI::App& app);

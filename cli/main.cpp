@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
     rcb::add_structures_command(app);
     rcb::add_run_command(app);
     rcb::add_query_commands(app);
+    rcb::add_history_command(app);
     rcb::add_fit_command(app);
     rcb::add_report_command(app);
     rcb::add_tune_command(app);

@@ -142,5 +142,17 @@ TEST(Tune, PredictedThenVerifiedMeasuresItsCandidatesAndTheDefaults) {
     EXPECT_LE(t.chosen.measured->ms, 1.03 * t.fastest.measured->ms);
 }
 
+TEST(Tune, TheDefaultsSpelledAsAnIntegerAreMeasuredOnce) {
+    // ug's default density is 4.0; the space lists it as 4, the JSON integer.
+    const TuneSpec spec = parse_tune_spec(
+        R"({"structures": ["ug"], "budget": 8, "frames": 2, "rays_per_frame": 50, "repetitions": 1,
+            "space": {"ug": {"density": [2, 4]}},
+            "categories": [{"name": "small", "scenes": [{"kind": "uniform", "objects": 500}]}]})",
+        "t.json", ".");
+    const CategoryTuning t = tune_category(spec, spec.categories[0]);
+    ASSERT_EQ(t.structures.size(), 1u);
+    EXPECT_EQ(t.structures[0].candidates.size(), 2u);  // density 2 and density 4 (the defaults), not a third
+}
+
 }  // namespace
 }  // namespace rcb

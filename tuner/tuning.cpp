@@ -34,8 +34,13 @@ const Recording& recording_of(const SceneSpec& scene) {
 namespace {
 
 json complete(const std::string& structure, const json& searched) {
-    json p = find_structure(structure).defaults();
+    const StructureInfo& info = find_structure(structure);
+    json p = info.defaults();
     for (const auto& [k, v] : searched.items()) p[k] = v;
+    // One spelling per configuration: a real parameter given as 4 is the default 4.0, not a second
+    // candidate measured again.
+    for (const ParamSpec& spec : info.params)
+        if (spec.kind == ParamKind::real && p[spec.name].is_number()) p[spec.name] = p[spec.name].get<double>();
     return p;
 }
 
