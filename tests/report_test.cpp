@@ -14,6 +14,7 @@
 #include "core/registry.h"
 #include "runner/experiment.h"
 #include "runner/store.h"
+#include "tests/real_data.h"
 
 namespace rcb {
 namespace {
@@ -78,7 +79,7 @@ TEST(Report, DrawsEveryChartAndRendersInChromium) {
         EXPECT_NE(page.find(section), std::string::npos) << section;
     EXPECT_EQ(page.find("http://www.w3.org/1999/xlink\" href=\"http"), std::string::npos);  // no remote resources
 
-    if (!fs::exists("/usr/bin/chromium")) GTEST_SKIP() << "Debian's chromium is not installed (.ci/run installs it)";
+    RCB_REQUIRE_REAL_DATA(fs::exists("/usr/bin/chromium"), "Debian's chromium is not installed (scripts/setup.sh --test-tools installs it)");
     const std::string flags = "--headless --no-sandbox --disable-gpu --disable-quic --no-first-run --disable-background-networking "
                               "--disable-component-update --disable-sync --user-data-dir=" + (dir / "profile").string();
     const fs::path shot = dir / "shot.png", dom = dir / "dom.html";
