@@ -133,7 +133,7 @@ std::vector<Object> irregular_objects(const SceneSettings& s, Random& rng) {
     return objects;
 }
 
-// Failure-mode scenes (issue #9): each one breaks an assumption some structure makes. Sizes are in
+// Failure-mode scenes: each one breaks an assumption some structure makes. Sizes are in
 // the same units as "irregular" so that rays and dynamics behave alike.
 
 /// "stadium" (the "teapot in a stadium", Haines 1988): one huge box around a tiny dense cluster of
@@ -168,6 +168,20 @@ std::vector<Object> stacked_objects(const SceneSettings& s, Random& rng, bool sa
         const Vec3d& c = centers[i % stacks];
         const double h = same_size ? 0.5 : std::round(rng.log_uniform(0.005, 50.0) * 1024.0) / 1024.0;
         objects.push_back({i + 1, box_around(c, {2 * h, 2 * h, 2 * h})});
+    }
+    return objects;
+}
+
+/// "nested": all n objects share one centroid (one stack of every object, where "same-centroid"
+/// caps a stack at 1000), cubes with half-sizes from 0.005 to 50 nested around the origin: every
+/// cell, Morton code and subtree near the centre holds thousands of objects, and a ray starting at
+/// the centre is inside all of them. Half-sizes in steps of 2^-10 keep the centroid exact in float.
+std::vector<Object> nested_objects(const SceneSettings& s, Random& rng) {
+    std::vector<Object> objects;
+    objects.reserve(s.objects);
+    for (std::uint32_t i = 0; i < s.objects; ++i) {
+        const double h = std::round(rng.log_uniform(0.005, 50.0) * 1024.0) / 1024.0;
+        objects.push_back({i + 1, box_around({0, 0, 0}, {2 * h, 2 * h, 2 * h})});
     }
     return objects;
 }
@@ -280,14 +294,14 @@ Segment segment_from(const Vec3d& p0, const Vec3d& p1) { return {p0.as<float>(),
 
 }  // namespace
 
-std::vector<std::string> ray_mode_names() { return {"center", "dense", "los", "ground", "shots", "faces"}; }
+std::vector<std::string> ray_mode_names() { return {"center", "dense", "los", "ground", "shots", "faces", "inside"}; }
 
 std::vector<std::string> scene_kinds() {
-    return {"uniform", "irregular", "stadium", "identical", "same-centroid", "flat", "slivers", "outlier"};
+    return {"uniform", "irregular", "stadium", "identical", "same-centroid", "flat", "slivers", "outlier", "nested"};
 }
 
 std::vector<std::string> failure_mode_kinds() {
-    return {"stadium", "identical", "same-centroid", "flat", "slivers", "outlier"};
+    return {"stadium", "identical", "same-centroid", "flat", "slivers", "outlier", "nested"};
 }
 
 std::vector<std::string> preset_names() {
@@ -301,7 +315,7 @@ SceneSettings preset_settings(std::string_view name) {
     SceneSettings s;
     s.preset = std::string(name);
     const std::string n(name);
-    // Failure-mode presets (issue #9): "<kind>-s" has 1 000 objects, "<kind>-m" 10 000.
+    // Failure-mode presets: "<kind>-s" has 1 000 objects, "<kind>-m" 10 000.
     for (const std::string& k : failure_mode_kinds()) {
         if (n == k + "-s" || n == k + "-m") {
             s.kind = k;
@@ -364,6 +378,7 @@ std::vector<Object> generate_objects(const SceneSettings& s) {
     if (s.kind == "flat") return flat_objects(s, rng);
     if (s.kind == "slivers") return sliver_objects(s, rng);
     if (s.kind == "outlier") return outlier_objects(s, rng);
+    if (s.kind == "nested") return nested_objects(s, rng);
     throw InputError("unknown scene kind '" + s.kind + "' (known: " + join(scene_kinds()) + ")");
 }
 
@@ -449,6 +464,14 @@ std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySet
                 q[axis] = bounds.max[axis] + 0.01 * ext[axis];
                 if (rng.below(2)) std::swap(p, q);
                 rays.push_back(segment_from(p, q));
+            } else if (mode == "inside") {
+                // From a uniform point inside a random object's box, in a uniform direction, long
+                // enough to leave the scene: rays that start among a crowd (inside every box of a
+                // nested stack) and cross the rest of the scene.
+                const Aabbd o = random_object();
+                Vec3d p;
+                for (int a = 0; a < 3; ++a) p[a] = rng.uniform(o.min[a], o.max[a]);
+                rays.push_back(segment_from(p, p + rng.direction() * 2.0 * reach));
             } else if (mode == "shots") {
                 const Aabbd o = random_object();
                 const double len = std::clamp(20.0 * std::max({o.extent().x, o.extent().y, o.extent().z}), 0.01 * diagonal,

@@ -27,8 +27,10 @@ struct DynamicsSettings {
 /// leave the scene), `dense` (§6.4: from the centre towards the densest region), and game uses
 /// (§3.2): `los` (line of sight between two objects' centres), `ground` (short downward rays from
 /// object tops), `shots` (short segments from objects in random directions), and `faces`
-/// (issue #9: axis-parallel segments across the bounds lying in box face planes, along box edges,
-/// and in the planes of dyadic lattices over the bounds, where cells meet).
+/// (for stability tests: axis-parallel segments across the bounds lying in box face planes, along box edges,
+/// and in the planes of dyadic lattices over the bounds, where cells meet), and `inside` (from a
+/// random point inside a random object's box in a uniform direction, long enough to leave the
+/// scene: rays that start among a crowd).
 struct RayMode {
     std::string mode;
     double weight = 1;
@@ -51,18 +53,19 @@ struct SceneSettings {
 
 /// The thesis' scenes (§6.1) by name: uni-s, uni-m, uni-l, irreg-s, irreg-m, irreg-l (99, 5 104
 /// and 14 021 objects), plus irreg-xl (1 000 000 objects).
-/// Failure-mode presets (issue #9) "<kind>-s" (1 000 objects) and "<kind>-m" (10 000) for every
+/// Failure-mode presets "<kind>-s" (1 000 objects) and "<kind>-m" (10 000) for every
 /// kind of failure_mode_kinds().
 SceneSettings preset_settings(std::string_view name);
 std::vector<std::string> preset_names();
 
 /// Every kind generate_objects knows: "uniform" and "irregular" (thesis §6.1) and the failure modes.
 std::vector<std::string> scene_kinds();
-/// Scenes built to break a structure's assumptions (issue #9): "stadium" (one huge box around a
+/// Scenes built to break a structure's assumptions: "stadium" (one huge box around a
 /// tiny dense cluster), "identical" (stacks of identical boxes), "same-centroid" (stacks with one
 /// centroid and sizes over four orders of magnitude), "flat" (zero-thickness boxes in one plane),
 /// "slivers" (long thin and zero-volume boxes), "outlier" (irregular plus one box 10^6 world sizes
-/// away).
+/// away), "nested" (every object shares one centroid: cubes nested around the origin, sizes over
+/// four orders of magnitude).
 std::vector<std::string> failure_mode_kinds();
 
 /// "center", "center:0.7,los:0.3": modes with weights. Throws InputError on unknown modes.

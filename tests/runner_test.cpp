@@ -70,7 +70,7 @@ TEST(Experiment, ValidationNamesTheJsonPath) {
     EXPECT_EQ(error_of(R"({"scenes": [{"kind": "same-centroid", "objects": 50}], "structures": [{"name": "bf"}]})"), "");
     EXPECT_EQ(error_of(R"({"scenes": [{"kind": "cubes", "objects": 50}], "structures": [{"name": "bf"}]})"),
               "exp.json: scenes[0].kind: expected one of uniform, irregular, stadium, identical, same-centroid, flat, "
-              "slivers, outlier, got \"cubes\"");
+              "slivers, outlier, nested, got \"cubes\"");
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frames": 3, "warmup_frames": 3})"),
               "exp.json: warmup_frames: leaves no measured frame in scene uni-s");
 }
