@@ -2,6 +2,7 @@
 // random parameter values, the hard scenes, generated scenes and a long churn run.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 
 #include "core/error.h"
@@ -14,15 +15,22 @@
 namespace rcb {
 namespace {
 
+/// The large-object guard's limit: off, the tightest, or in between.
+int random_max_span(Random& rng) {
+    const int k = int(rng.below(4));
+    return k == 0 ? 0 : (k == 1 ? 1 : int(2 + rng.below(12)));
+}
+
 nlohmann::json random_ug_params(Random& rng) {
-    return {{"density", rng.log_uniform(0.1, 64.0)}};
+    return {{"density", rng.log_uniform(0.1, 64.0)}, {"max_span", random_max_span(rng)}};
 }
 
 nlohmann::json random_hg_params(Random& rng) {
     return {{"amp", rng.log_uniform(0.01, 16.0)},
             {"max_depth", int(rng.below(7))},
             {"max_capacity", int(1 + rng.below(rng.below(2) ? 4 : 64))},
-            {"subdivision", int(2 + rng.below(3))}};
+            {"subdivision", int(2 + rng.below(3))},
+            {"max_span", random_max_span(rng)}};
 }
 
 TEST(UniformGrid, MatchesGroundTruthOnEveryHardSceneAtDefaults) {
@@ -169,6 +177,64 @@ TEST(Grids, MoveInsideTheSameCellsKeepsStructureAndCounters) {
         g->validate();
         EXPECT_FALSE(g->cast_any({{-499.5f, 300.5f, 0}, {-499.5f, 300.5f, 100}})) << name;
         EXPECT_EQ(g->size(), 63u);
+    }
+}
+
+/// The large-object guard: an object joins the list when its cell range grows past max_span (x + y +
+/// z cells − 2) and leaves it when it shrinks back, by move, insert and remove; the grid stays
+/// valid and its answers equal brute force's throughout.
+TEST(Grids, LargeObjectsMoveBetweenTheListAndTheCells) {
+    std::vector<Object> objs;
+    for (Uid i = 0; i < 1000; ++i) {
+        const float x = float(i % 10), y = float((i / 10) % 10), z = float(i / 100);
+        objs.push_back({i, {{x, y, z}, {x + 0.5f, y + 0.5f, z + 0.5f}}});
+    }
+    const Aabb huge{{-1, -1, -1}, {11, 11, 11}}, small{{2.1f, 2.1f, 2.1f}, {2.2f, 2.2f, 2.2f}};
+    Random rng(23);
+    std::vector<Segment> rays;
+    for (int k = 0; k < 200; ++k) {
+        auto point = [&] {
+            return Vec3{float(rng.uniform(-2, 12)), float(rng.uniform(-2, 12)), float(rng.uniform(-2, 12))};
+        };
+        rays.push_back({point(), point()});
+    }
+    for (const char* name : {"ug", "hg"}) {
+        auto g = find_structure(name).make({}, "params");
+        auto bf = find_structure("bf").make({}, "params");
+        g->build(objs);
+        bf->build(objs);
+        const std::uint64_t at_build = g->stats()["large_objects"].get<std::uint64_t>();
+        EXPECT_EQ(at_build, 0u) << name;
+        auto check = [&](std::uint64_t large, const char* step) {
+            g->commit(), bf->commit();
+            g->validate();
+            EXPECT_EQ(g->stats()["large_objects"].get<std::uint64_t>(), large) << name << ' ' << step;
+            HitLists a, b;
+            g->cast(rays, a), bf->cast(rays, b);
+            for (std::size_t r = 0; r < rays.size(); ++r) {
+                std::vector<Uid> x(a.uids.begin() + a.offsets[r], a.uids.begin() + a.offsets[r + 1]);
+                std::vector<Uid> y(b.uids.begin() + b.offsets[r], b.uids.begin() + b.offsets[r + 1]);
+                std::sort(x.begin(), x.end()), std::sort(y.begin(), y.end());
+                ASSERT_EQ(x, y) << name << ' ' << step << " ray " << r;
+            }
+        };
+        for (Structure* s : {g.get(), bf.get()}) s->move({5, huge});
+        check(1, "grown");
+        for (Structure* s : {g.get(), bf.get()})
+            s->move({5, {huge.min + Vec3{0.5f, 0, 0}, huge.max + Vec3{0.5f, 0, 0}}});
+        check(1, "moved while large");
+        for (Structure* s : {g.get(), bf.get()}) s->insert({5000, huge}), s->insert({5001, huge});
+        check(3, "large inserts");
+        for (Structure* s : {g.get(), bf.get()}) s->move({5, small}), s->remove(5000);
+        check(1, "shrunk and removed");
+        for (Structure* s : {g.get(), bf.get()}) s->remove(5001);
+        check(0, "none left");
+        // Off: the same huge box is stored in its cells.
+        auto off = find_structure(name).make({{"max_span", 0}}, "params");
+        off->build(objs);
+        off->insert({5000, huge});
+        off->validate();
+        EXPECT_EQ(off->stats()["large_objects"].get<std::uint64_t>(), 0u) << name;
     }
 }
 

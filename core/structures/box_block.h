@@ -81,17 +81,22 @@ struct BlockCell {
         ++size;
     }
     /// Removes `slot` (present): the last lane moves into its place.
-    void erase(std::uint32_t slot) {
+    void erase(std::uint32_t slot) { erase_at(index_of(slot)); }
+    /// Removes the object at index `i` (< size): the last lane moves into its place.
+    void erase_at(std::uint32_t i) {
         const std::uint32_t last = size - 1;
         BoxBlock& lb = blocks[last / BoxBlock::kLanes];
         const int ll = int(last % BoxBlock::kLanes);
-        set(index_of(slot), lb.box(ll), lb.slot[ll]);
+        set(i, lb.box(ll), lb.slot[ll]);
         lb.clear(ll);
         if (ll == 0) blocks.pop_back();
         --size;
     }
     /// Gives `slot` (present) the box `box`.
     void rewrite(std::uint32_t slot, const Aabb& box) { set(index_of(slot), box, slot); }
+    void set(std::uint32_t i, const Aabb& box, std::uint32_t slot) {
+        blocks[i / BoxBlock::kLanes].set(int(i % BoxBlock::kLanes), box, slot);
+    }
     /// What is wrong with the lanes' layout ("" when nothing): one block per four objects, and no
     /// unused lane that a segment could hit.
     std::string defect() const {
@@ -109,9 +114,52 @@ private:
         while (this->slot(i) != slot) ++i;
         return i;
     }
-    void set(std::uint32_t i, const Aabb& box, std::uint32_t slot) {
-        blocks[i / BoxBlock::kLanes].set(int(i % BoxBlock::kLanes), box, slot);
+};
+
+/// A BlockCell with a slot → index table, so that erase and rewrite are O(1) however many objects
+/// it holds: the grids' list of large objects (uniform_grid.h), which every ray tests once.
+class BlockList {
+public:
+    bool contains(std::uint32_t slot) const { return slot < index_.size() && index_[slot] != kAbsent; }
+    void insert(const Aabb& box, std::uint32_t slot) {
+        if (index_.size() <= slot) index_.resize(std::size_t(slot) + 1, kAbsent);
+        index_[slot] = cell_.size;
+        cell_.push(box, slot);
     }
+    /// Removes `slot` (present); the last object takes its index.
+    void erase(std::uint32_t slot) {
+        const std::uint32_t i = index_[slot], moved = cell_.slot(cell_.size - 1);
+        cell_.erase_at(i);
+        index_[moved] = i;
+        index_[slot] = kAbsent;
+    }
+    void rewrite(std::uint32_t slot, const Aabb& box) { cell_.set(index_[slot], box, slot); }
+    void clear() {
+        cell_ = BlockCell{};
+        index_.clear();
+    }
+    const BlockCell& cell() const { return cell_; }
+    std::uint32_t size() const { return cell_.size; }
+    std::size_t memory_bytes() const {
+        return cell_.blocks.capacity() * sizeof(BoxBlock) + index_.capacity() * sizeof(std::uint32_t);
+    }
+    /// What is wrong with the list ("" when nothing): the cell's layout, and an index that does not
+    /// point at its slot.
+    std::string defect() const {
+        if (std::string d = cell_.defect(); !d.empty()) return d;
+        std::uint32_t indexed = 0;
+        for (std::size_t s = 0; s < index_.size(); ++s) {
+            if (index_[s] == kAbsent) continue;
+            ++indexed;
+            if (index_[s] >= cell_.size || cell_.slot(index_[s]) != s) return "large-object index is stale";
+        }
+        return indexed == cell_.size ? "" : "large-object list and its index differ in size";
+    }
+
+private:
+    static constexpr std::uint32_t kAbsent = ~std::uint32_t(0);
+    BlockCell cell_;
+    std::vector<std::uint32_t> index_;
 };
 
 }  // namespace rcb

@@ -153,6 +153,8 @@ void HashGrid::build(std::span<const Object> objects) {
     stamp_ = 0;
     entries_total_ = 0;
     build_objects_ = objects.size();
+    large_.clear();
+    refused_splits_ = guard_collapses_ = 0;
     for (const Object& o : objects) insert(o);
 }
 
@@ -170,6 +172,7 @@ std::uint32_t HashGrid::find_or_create(int depth, const Index& i) {
     Cell& c = cells_[id];
     c.key = key;
     c.count = 0;
+    c.retry_at = 0;
     c.subdivided = false;
     c.own.clear();
     table_.insert(key, id);
@@ -206,8 +209,10 @@ void HashGrid::insert_into(int depth, const Index& i, std::uint32_t slot, const 
             std::size_t(r.hi[0] - r.lo[0] + 1) * (r.hi[1] - r.lo[1] + 1) * (r.hi[2] - r.lo[2] + 1);
         if (params_.entries_guard && entries_total_ + child_entries > entry_budget()) {
             collapse(id, depth, i);
+            ++guard_collapses_;
             cells_[id].own.push_back(slot);
             ++entries_total_;
+            cells_[id].retry_at = std::uint32_t(2 * cells_[id].own.size());
             return;
         }
         Index j;
@@ -218,7 +223,9 @@ void HashGrid::insert_into(int depth, const Index& i, std::uint32_t slot, const 
     }
     cells_[id].own.push_back(slot);
     ++entries_total_;
-    if (depth < params_.max_depth && cells_[id].own.size() > std::size_t(params_.max_capacity)) split(id, depth, i);
+    if (depth < params_.max_depth && cells_[id].own.size() > std::size_t(params_.max_capacity) &&
+        cells_[id].own.size() >= cells_[id].retry_at)
+        split(id, depth, i);
 }
 
 void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
@@ -236,8 +243,12 @@ void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
     }
     // The split stops at 3/4 of the budget while a descending object collapses a cell only at the
     // full budget (insert_into): the gap keeps a collapsed cell from splitting straight back.
-    if (moving.empty() ||
-        (params_.entries_guard && entries_total_ - moving.size() + child_entries > entry_budget() / 4 * 3)) {
+    const bool over_budget =
+        params_.entries_guard && entries_total_ - moving.size() + child_entries > entry_budget() / 4 * 3;
+    if (moving.empty() || over_budget) {
+        // Refused: try again once the leaf has doubled (amortised O(1) per insert, see the header).
+        refused_splits_ += over_budget && !moving.empty();
+        cells_[id].retry_at = std::uint32_t(2 * objects.size());
         cells_[id].own = std::move(objects);
         return;
     }
@@ -261,7 +272,8 @@ void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
     }
     if (depth + 1 >= params_.max_depth) return;
     for (std::uint32_t c : children) {
-        if (cells_[c].own.size() <= std::size_t(params_.max_capacity)) continue;
+        if (cells_[c].own.size() <= std::size_t(params_.max_capacity) || cells_[c].own.size() < cells_[c].retry_at)
+            continue;
         const std::uint64_t key = cells_[c].key;
         const int f = params_.subdivision;
         (void)f;
@@ -294,6 +306,7 @@ void HashGrid::collapse(std::uint32_t id, int depth, const Index& i) {
     entries_total_ -= gathered - all.size();
     cells_[id].own = std::move(all);
     cells_[id].subdivided = false;
+    cells_[id].retry_at = 0;
 }
 
 void HashGrid::remove_from(int depth, const Index& i, std::uint32_t slot, const grid::CellRange& fine) {
@@ -325,6 +338,8 @@ void HashGrid::remove_from(int depth, const Index& i, std::uint32_t slot, const 
         return;
     }
     erase_own();
+    // A refused leaf that shrank tries again once it has doubled from its new size.
+    cells_[id].retry_at = std::min<std::uint32_t>(cells_[id].retry_at, std::uint32_t(2 * cells_[id].own.size()));
     if (cells_[id].count == 0) delete_cell(id);
 }
 
@@ -341,6 +356,10 @@ void HashGrid::insert(const Object& o) {
     slot_.emplace(o.uid, slot);
     const grid::CellRange fine = lat_[params_.max_depth].range_of(o.box);
     const grid::CellRange r = range_at(fine, 0);
+    if (is_large(r)) {
+        large_.insert(o.box, slot);
+        return;
+    }
     Index i;
     for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
         for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
@@ -351,12 +370,16 @@ void HashGrid::remove(Uid uid) {
     auto it = slot_.find(uid);
     const std::uint32_t slot = it->second;
     slot_.erase(it);
-    const grid::CellRange fine = lat_[params_.max_depth].range_of(entries_[slot].box);
-    const grid::CellRange r = range_at(fine, 0);
-    Index i;
-    for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
-        for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
-            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) remove_from(0, i, slot, fine);
+    if (large_.contains(slot)) {
+        large_.erase(slot);
+    } else {
+        const grid::CellRange fine = lat_[params_.max_depth].range_of(entries_[slot].box);
+        const grid::CellRange r = range_at(fine, 0);
+        Index i;
+        for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
+            for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
+                for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) remove_from(0, i, slot, fine);
+    }
     entries_[slot].uid = 0;
     free_slots_.push_back(slot);
 }
@@ -366,6 +389,7 @@ void HashGrid::move(const Object& o) {
     const grid::Lattice& fine_lat = lat_[params_.max_depth];
     if (fine_lat.range_of(entries_[slot].box) == fine_lat.range_of(o.box)) {
         entries_[slot].box = o.box;  // same cells at every depth: only the box changes
+        if (large_.contains(slot)) large_.rewrite(slot, o.box);
         return;
     }
     remove(o.uid);
@@ -387,7 +411,7 @@ std::size_t HashGrid::memory_bytes() const {
     bytes += free_cells_.capacity() * sizeof(std::uint32_t);
     bytes += entries_.capacity() * sizeof(Entry) + free_slots_.capacity() * sizeof(std::uint32_t);
     bytes += slot_.bucket_count() * sizeof(void*) + slot_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t));
-    bytes += lat_.capacity() * sizeof(grid::Lattice) + pow_.capacity() * sizeof(int);
+    bytes += lat_.capacity() * sizeof(grid::Lattice) + pow_.capacity() * sizeof(int) + large_.memory_bytes();
     return bytes;
 }
 
@@ -415,7 +439,10 @@ nlohmann::json HashGrid::stats() const {
             {"top_res", {lat_[0].res[0], lat_[0].res[1], lat_[0].res[2]}},
             {"top_cell_size", lat_[0].size},
             {"top_res_clamped", clamped_},
-            {"outlier_trimmed", trimmed_}};
+            {"outlier_trimmed", trimmed_},
+            {"refused_splits", refused_splits_},
+            {"guard_collapses", guard_collapses_},
+            {"large_objects", large_.size()}};
 }
 
 void HashGrid::validate() const {
@@ -433,9 +460,22 @@ void HashGrid::validate() const {
     std::vector<std::vector<std::uint32_t>> expected(cells_.size());
     std::vector<std::uint32_t> expected_count(cells_.size(), 0);
     const int max_depth = params_.max_depth;
+    if (const std::string defect = large_.defect(); !defect.empty()) fail(defect);
+    for (std::uint32_t k = 0; k < large_.size(); ++k) {
+        const std::uint32_t slot = large_.cell().slot(k);
+        if (slot >= entries_.size() || !live[slot])
+            fail("stale entry (slot " + std::to_string(slot) + ") in the large-object list");
+        if (!(large_.cell().box(k) == entries_[slot].box))
+            fail("uid " + std::to_string(entries_[slot].uid) + " has a stale box in the large-object list");
+    }
     for (std::size_t slot = 0; slot < entries_.size(); ++slot) {
         if (!live[slot]) continue;
         const grid::CellRange fine = lat_[max_depth].range_of(entries_[slot].box);
+        const bool large = is_large(range_at(fine, 0));
+        if (large != large_.contains(std::uint32_t(slot)))
+            fail("uid " + std::to_string(entries_[slot].uid) +
+                 (large ? " is large but not in the large-object list" : " is in the large-object list but not large"));
+        if (large) continue;
         auto place = [&](auto&& self, int depth, const Index& i) -> void {
             const std::uint32_t id = table_.find(key_of(depth, i));
             if (id == CellTable::kNone)

@@ -27,11 +27,21 @@
 ///   subdivision^(2·max_depth) cells per top cell. A leaf whose split was refused stays over
 ///   capacity (counted in stats as "over_capacity_leaves"); answers stay exact. The guard also
 ///   applies on the way down: an object that would push the total over the budget by descending
-///   into a subdivided cell collapses that cell into a leaf instead (issue #9 found identical boxes
-///   inserted after the first splits reaching 14× the budget); splits stopping at 3/4 of the
+///   into a subdivided cell collapses that cell into a leaf instead (without it, identical
+///   boxes inserted after the first splits reached 14× the budget); splits stopping at 3/4 of the
 ///   budget keep a collapsed cell from splitting straight back. `entries_guard`
-///   = false turns it off (to measure the blow-up, issue #9).
-/// - Outlier guard (issue #9, `outlier_guard`, on by default): the top grid covers the central
+///   = false turns it off (to measure the blow-up). A leaf whose split was refused (by
+///   the budget, or because every object covers it) tries again only once it has doubled: without
+///   that, every insert into a crowded leaf re-examined all its objects, quadratic in the crowd
+///   (cubes nested around one centre, generator kind "nested"). Stats report "refused_splits" and
+///   "guard_collapses" (the guard's refusals and collapses since the build).
+/// - Large-object guard (`max_span`, on by default, as in the uniform grid, uniform_grid.h): an
+///   object whose top-grid cell range a segment could cross in more than `max_span` cells is kept
+///   once, in a list that every ray tests first. The entries budget refuses splits, never an object's
+///   top cells, so an object as large as the scene would otherwise sit in every top cell (the top
+///   grid has about as many cells as objects: thousands of entries per object, and as many tests
+///   per ray as cells it crosses). Stats report "large_objects".
+/// - Outlier guard (`outlier_guard`, on by default): the top grid covers the central
 ///   99% of the objects per axis when the full bounds are more than 8× larger
 ///   (grid::lattice_bounds); the rest land in the unbounded border cells. Without it one far
 ///   outlier makes the top cells huge and max_depth levels cannot recover the resolution.
@@ -97,6 +107,7 @@ public:
         int max_entries_per_object = 16;
         bool entries_guard = true;
         bool outlier_guard = true;
+        int max_span = grid::kDefaultMaxSpan;
         static constexpr auto fields() {
             return std::tuple{
                 Field{"amp", &Params::amp, 0.01, 16.0, "top-level cells = objects × amp (eq. 4.2)", true, true},
@@ -114,6 +125,10 @@ public:
                 Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
                       "top grid over the central 99% of the objects per axis when the full bounds are over 8x larger "
                       "(exact either way)",
+                      false},
+                Field{"max_span", &Params::max_span, 0, 1024,
+                      "large-object guard: an object a segment could meet in more than this many top cells (x + y + "
+                      "z cells - 2) is kept in one list that every ray tests once (0: off)",
                       false}};
         }
     };
@@ -146,6 +161,7 @@ private:
         std::vector<std::uint32_t> own;  ///< object slots stored here
         std::uint64_t key = CellTable::kEmpty;
         std::uint32_t count = 0;  ///< distinct objects stored here or below
+        std::uint32_t retry_at = 0;  ///< a leaf tries to split only with at least this many objects
         bool subdivided = false;
     };
     using Index = std::array<int, 3>;
@@ -192,6 +208,14 @@ private:
     std::uint32_t stamp_ = 0;
     std::size_t entries_total_ = 0;  ///< sum of the cells' `own` sizes
     std::size_t build_objects_ = 0;
+    BlockList large_;  ///< the large-object guard's objects (in no cell)
+    // Guard reports since the build (stats).
+    std::size_t refused_splits_ = 0;
+    std::size_t guard_collapses_ = 0;
+    /// The large-object guard's test, on the object's top-grid range.
+    bool is_large(const grid::CellRange& top) const {
+        return params_.max_span > 0 && grid::span(top) > params_.max_span;
+    }
 };
 
 template <class Count, class Visit>
@@ -240,6 +264,16 @@ void HashGrid::traverse(const Segment& s, Count& count, Visit&& visit) {
     HashGridQuery<Count, std::remove_reference_t<Visit>> ctx{SegmentSlabs(s), s.p0.as<double>(),
                                                              s.p1.as<double>() - s.p0.as<double>(), next_stamp(),
                                                              count, visit};
+    // Large objects first: each is in this list only, so it is tested once and needs no stamp.
+    count.box_tests(large_.size());
+    for (const BoxBlock& b : large_.cell().blocks) {
+        float tn[BoxBlock::kLanes];
+        for (unsigned hits = b.test(ctx.slabs, tn); hits; hits &= hits - 1) {
+            const int lane = __builtin_ctz(hits);
+            count.hits();
+            if (!visit(entries_[b.slot[lane]].uid, tn[lane])) return;
+        }
+    }
     const grid::Lattice& top = lat_[0];
     const grid::CellRange all{{0, 0, 0}, {top.res[0] - 1, top.res[1] - 1, top.res[2] - 1}};
     Index start;

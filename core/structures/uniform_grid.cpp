@@ -69,6 +69,7 @@ void UniformGrid::build(std::span<const Object> objects) {
     free_slots_.clear();
     slot_.clear();
     slot_.reserve(objects.size());
+    large_.clear();
     stamp_ = 0;
     stamps_.clear();
     tested_.clear();
@@ -111,14 +112,21 @@ void UniformGrid::insert(const Object& o) {
         if (params_.thesis_reset) tested_.push_back(0);
     }
     slot_.emplace(o.uid, slot);
-    add_to_cells(slot, lat_.range_of(o.box));
+    const grid::CellRange r = lat_.range_of(o.box);
+    if (is_large(r))
+        large_.insert(o.box, slot);
+    else
+        add_to_cells(slot, r);
 }
 
 void UniformGrid::remove(Uid uid) {
     auto it = slot_.find(uid);
     const std::uint32_t slot = it->second;
     slot_.erase(it);
-    remove_from_cells(slot, lat_.range_of(entries_[slot].box));
+    if (large_.contains(slot))
+        large_.erase(slot);
+    else
+        remove_from_cells(slot, lat_.range_of(entries_[slot].box));
     entries_[slot].uid = 0;
     free_slots_.push_back(slot);
 }
@@ -128,7 +136,21 @@ void UniformGrid::move(const Object& o) {
     Entry& e = entries_[slot];
     const grid::CellRange before = lat_.range_of(e.box), after = lat_.range_of(o.box);
     e.box = o.box;
-    if (!(before == after)) {
+    const bool was_large = large_.contains(slot), now_large = is_large(after);
+    if (was_large || now_large) {
+        if (was_large && now_large) {
+            large_.rewrite(slot, o.box);
+            return;
+        }
+        if (was_large)
+            large_.erase(slot);
+        else
+            remove_from_cells(slot, before);
+        if (now_large)
+            large_.insert(o.box, slot);
+        else
+            add_to_cells(slot, after);
+    } else if (!(before == after)) {
         remove_from_cells(slot, before);
         add_to_cells(slot, after);
     } else {
@@ -151,7 +173,7 @@ std::size_t UniformGrid::memory_bytes() const {
     bytes += stamps_.capacity() * sizeof(std::uint32_t);
     bytes += entries_.capacity() * sizeof(Entry) + free_slots_.capacity() * sizeof(std::uint32_t);
     bytes += slot_.bucket_count() * sizeof(void*) + slot_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t));
-    bytes += tested_.capacity();
+    bytes += tested_.capacity() + large_.memory_bytes();
     return bytes;
 }
 
@@ -169,7 +191,8 @@ nlohmann::json UniformGrid::stats() const {
             {"entries", entries},
             {"largest_cell", largest},
             {"cell_cap_hit", clamped_},
-            {"outlier_trimmed", trimmed_}};
+            {"outlier_trimmed", trimmed_},
+            {"large_objects", large_.size()}};
 }
 
 void UniformGrid::validate() const {
@@ -200,13 +223,25 @@ void UniformGrid::validate() const {
                     ++seen[slot];
                 }
             }
+    if (const std::string defect = large_.defect(); !defect.empty()) fail(defect);
+    for (std::uint32_t k = 0; k < large_.size(); ++k) {
+        const std::uint32_t slot = large_.cell().slot(k);
+        if (slot >= entries_.size() || !live[slot])
+            fail("stale entry (slot " + std::to_string(slot) + ") in the large-object list");
+        if (!(large_.cell().box(k) == entries_[slot].box))
+            fail("uid " + std::to_string(entries_[slot].uid) + " has a stale box in the large-object list");
+    }
     for (std::size_t slot = 0; slot < entries_.size(); ++slot) {
         if (!live[slot]) continue;
         const Entry& e = entries_[slot];
         if (!(e.box.min.x <= e.box.max.x && e.box.min.y <= e.box.max.y && e.box.min.z <= e.box.max.z)) fail("box with min > max");
         const grid::CellRange r = lat_.range_of(e.box);
-        std::size_t expected = 1;
-        for (int a = 0; a < 3; ++a) expected *= std::size_t(r.hi[a] - r.lo[a] + 1);
+        if (is_large(r) != large_.contains(std::uint32_t(slot)))
+            fail("uid " + std::to_string(e.uid) +
+                 (is_large(r) ? " is large but not in the large-object list"
+                              : " is in the large-object list but not large"));
+        std::size_t expected = is_large(r) ? 0 : 1;
+        for (int a = 0; a < 3 && expected; ++a) expected *= std::size_t(r.hi[a] - r.lo[a] + 1);
         if (seen[slot] != expected)
             fail("uid " + std::to_string(e.uid) + " is in " + std::to_string(seen[slot]) + " cells, overlaps " + std::to_string(expected));
     }

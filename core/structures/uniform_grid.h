@@ -17,10 +17,18 @@
 ///   object inserted or moved outside the initial bounds lands in the border cells it would overlap
 ///   if those were unbounded, and the DDA has no plane beyond the border (a segment outside the
 ///   grid walks the border cells). Always exact; only slower if much of the scene leaves the bounds.
-/// - Outlier guard (issue #9, `outlier_guard`, on by default): the lattice covers the central 99%
+/// - Outlier guard (`outlier_guard`, on by default): the lattice covers the central 99%
 ///   of the objects per axis when the full bounds are more than 8× larger (grid::lattice_bounds),
 ///   so a far outlier or a huge box around the scene does not make every cell huge. Exact either
-///   way; without it a 10^6 outlier puts the whole scene into a few cells (issue #9 measures both).
+///   way; without it a 10^6 outlier puts the whole scene into a few cells (experiments/stability.json measures both).
+/// - Large-object guard (`max_span`, on by default): an object whose cell range a segment could
+///   cross in more than `max_span` cells (x + y + z cells − 2: what a line crosses at most in a
+///   block of cells) is kept once, in a list of large objects that every ray tests first, instead
+///   of in each of its cells. Without it an object as large as the scene sits in every cell, is
+///   tested in every cell a ray crosses and costs thousands of cell writes per move (cubes nested
+///   around one centre, generator kind "nested"). With it a ray tests an object at most
+///   max(max_span, 1) times and an object costs at most O(max_span³) entries, so a ray's work is at
+///   most max_span × brute force's plus the cells it walks. Stats report "large_objects".
 /// - Memory guard: `density` has a bounded range and the total cell count is capped at
 ///   `kMaxCells` (the cell size grows instead), so no setting allocates without bound.
 /// - Updates are incremental: a move that keeps the object's cell range only rewrites its box.
@@ -140,13 +148,19 @@ std::array<int, 3> resolution(const Aabb& bounds, double size, int max_per_axis)
 inline constexpr double kOutlierStretch = 8.0;
 
 /// The box a lattice over `objects` covers (a unit box for no objects). Without the guard: the
-/// union of the boxes. With the outlier guard (issue #9): per axis, the box minima from their 0.5%
+/// union of the boxes. With the outlier guard: per axis, the box minima from their 0.5%
 /// quantile to the box maxima's 99.5% quantile, when the full extent is more than
 /// kOutlierStretch times that; one far object would otherwise make every cell huge and put the
 /// rest of the scene into a few cells (a far outlier, a "stadium" box around a small cluster).
 /// The objects outside land in the border cells, which extend to infinity: answers stay exact.
 /// Sets `*trimmed` when the guard trimmed an axis.
 Aabb lattice_bounds(std::span<const Object> objects, bool outlier_guard, bool* trimmed = nullptr);
+
+/// Cells a segment can cross at most in the cell range `r` (a line crosses one more cell per plane).
+inline int span(const CellRange& r) { return (r.hi[0] - r.lo[0]) + (r.hi[1] - r.lo[1]) + (r.hi[2] - r.lo[2]) + 1; }
+
+/// The grids' default for the large-object guard (UniformGrid::Params::max_span, HashGrid's too).
+inline constexpr int kDefaultMaxSpan = 6;
 
 }  // namespace grid
 
@@ -159,10 +173,15 @@ public:
         double density = 4.0;
         bool thesis_reset = false;
         bool outlier_guard = true;
+        int max_span = grid::kDefaultMaxSpan;
         static constexpr auto fields() {
             return std::tuple{
                 Field{"density", &Params::density, 0.1, 64.0,
                       "objects per cell in eq. 4.1 (cells = objects / density; capped at 4 Mi cells)", true, true},
+                Field{"max_span", &Params::max_span, 0, 1024,
+                      "large-object guard: an object a segment could meet in more than this many cells (x + y + z "
+                      "cells - 2) is kept in one list that every ray tests once (0: off)",
+                      false},
                 Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
                       "cover only the central 99% of the objects per axis when the full bounds are over 8x larger "
                       "(outliers go to the unbounded border cells; exact either way)",
@@ -205,6 +224,8 @@ private:
     void add_to_cells(std::uint32_t slot, const grid::CellRange& r);
     void rewrite_box(std::uint32_t slot, const grid::CellRange& r, const Aabb& box);
     void remove_from_cells(std::uint32_t slot, const grid::CellRange& r);
+    /// The large-object guard's test (see the top of this file).
+    bool is_large(const grid::CellRange& r) const { return params_.max_span > 0 && grid::span(r) > params_.max_span; }
     std::uint32_t next_stamp();
 
     Params params_;
@@ -212,6 +233,7 @@ private:
     bool clamped_ = false;  ///< the cell cap enlarged the cells
     bool trimmed_ = false;  ///< the outlier guard trimmed the lattice
     std::vector<BlockCell> cells_;                   // cell → objects (copies of their boxes)
+    BlockList large_;                                // the large-object guard's objects (in no cell)
     std::vector<Entry> entries_;                     // slot → object
     std::vector<std::uint32_t> free_slots_;
     std::unordered_map<Uid, std::uint32_t> slot_;    // uid → slot
@@ -230,6 +252,16 @@ void UniformGrid::traverse(const Segment& s, Count& count, Visit&& visit) {
     const bool reset = params_.thesis_reset;
     if (reset) std::fill(tested_.begin(), tested_.end(), std::uint8_t(0));
     const std::uint32_t stamp = reset ? 0 : next_stamp();
+    // Large objects first: each is in this list only, so it is tested once and needs no stamp.
+    count.box_tests(large_.size());
+    for (const BoxBlock& b : large_.cell().blocks) {
+        float tn[BoxBlock::kLanes];
+        for (unsigned hits = b.test(slabs, tn); hits; hits &= hits - 1) {
+            const int lane = __builtin_ctz(hits);
+            count.hits();
+            if (!visit(entries_[b.slot[lane]].uid, tn[lane])) return;
+        }
+    }
     grid::walk(lat_, p0, d, all, start, 0.0, 1.0, [&](const std::array<int, 3>& c, double, double) {
         count.traversal();
         const BlockCell& cell = cells_[cell_id(c)];
