@@ -14,10 +14,19 @@
 /// of the tree, so the hit set stays exact); that test is the N_RB object test. Every node popped
 /// from the stack is one traversal step N_T.
 ///
+/// Crowds (optional): a tree that also provides
+///     bool has_crowds() const;                  // whether any node is a crowd
+///     bool is_crowd(std::uint32_t node) const;
+///     template <class Count, class Visit>
+///     CrowdScan scan_crowd(std::uint32_t node, const SegmentSlabs&, Count&, Visit&);
+/// may answer an inner node whose box the segment meets without descending into it (the LBVH scans
+/// its leaves in order when the segment meets every box below: linear_bvh.h).
+///
 /// The stack: popping one node and pushing its two children keeps at most height + 1 entries on it
 /// (height: edges from the root to the deepest leaf), so the caller passes a buffer of at least
 /// height + 2 entries, sized when the tree changes, never per ray; nothing is ever dropped.
 
+#include <concepts>
 #include <cstdint>
 #include <vector>
 
@@ -28,11 +37,23 @@ namespace rcb {
 
 inline constexpr std::uint32_t kNullNode = 0xffffffffu;
 
+/// What a tree's scan_crowd did: nothing (descend as usual), answered the node, or answered it and
+/// the visitor asked to stop.
+enum class CrowdScan { descend, done, stop };
+
+template <class Tree>
+concept HasCrowds = requires(const Tree& t, std::uint32_t n) {
+    { t.has_crowds() } -> std::same_as<bool>;
+    { t.is_crowd(n) } -> std::same_as<bool>;
+};
+
 template <class Tree, class Count, class Visit>
 void traverse_bvh(const Tree& tree, std::uint32_t root, std::uint32_t* stack, const Segment& s, Count& count,
                   Visit&& visit) {
     if (root == kNullNode) return;
     const SegmentSlabs slabs(s);
+    bool crowds = false;  // asked once per ray: a tree without crowds pays nothing per node
+    if constexpr (HasCrowds<Tree>) crowds = tree.has_crowds();
     std::uint32_t top = 0;
     stack[top++] = root;
     while (top != 0) {
@@ -46,6 +67,13 @@ void traverse_bvh(const Tree& tree, std::uint32_t root, std::uint32_t* stack, co
             if (!visit(tree.leaf_uid(node), t_near)) return;
         } else {
             if (!slabs.clip(tree.node_box(node), t_near, t_far)) continue;
+            if constexpr (HasCrowds<Tree>) {
+                if (crowds && tree.is_crowd(node)) {
+                    const CrowdScan r = tree.scan_crowd(node, slabs, count, visit);
+                    if (r == CrowdScan::stop) return;
+                    if (r == CrowdScan::done) continue;
+                }
+            }
             // Child 0 on top: visited first.
             stack[top++] = tree.child(node, 1);
             stack[top++] = tree.child(node, 0);

@@ -57,6 +57,7 @@ void DynamicBvh::build(std::span<const Object> objects) {
     root_ = free_ = kNullNode;
     free_count_ = 0;
     dirty_ = false;
+    height_rebuilds_ = 0;
     nodes_.reserve(2 * objects.size());
     tight_.reserve(2 * objects.size());
     leaf_of_.reserve(objects.size());
@@ -64,12 +65,24 @@ void DynamicBvh::build(std::span<const Object> objects) {
         for (const Object& o : objects) make_leaf(o);
         rebuild();
     } else {
-        // Incremental construction (thesis §4.4): the objects are inserted one by one.
-        for (const Object& o : objects) insert_leaf(make_leaf(o));
+        // Incremental construction (thesis §4.4): the objects are inserted one by one, unless the
+        // tree outgrows the height guard's limit; then the rest only become leaves and one binned
+        // build makes the tree.
+        std::size_t i = 0;
+        for (; i < objects.size(); ++i) {
+            insert_leaf(make_leaf(objects[i]));
+            if (params_.height_guard && nodes_[root_].height > height_limit(i + 1)) break;
+        }
+        if (i < objects.size()) {
+            for (++i; i < objects.size(); ++i) make_leaf(objects[i]);
+            rebuild();
+            ++height_rebuilds_;
+        }
     }
     changes_since_check_ = 0;
     guard_rebuilds_ = 0;
     guard_baseline_ = !rebuild_mode_ && params_.sah_guard > 0 && root_ != kNullNode ? sah_cost() : 0.0;
+    find_crowds();
 }
 
 void DynamicBvh::insert(const Object& o) {
@@ -79,6 +92,7 @@ void DynamicBvh::insert(const Object& o) {
     const std::uint32_t leaf = make_leaf(o);
     if (!dirty_) insert_leaf(leaf);
     ++changes_since_check_;
+    touch();
 }
 
 void DynamicBvh::remove(Uid uid) {
@@ -91,6 +105,7 @@ void DynamicBvh::remove(Uid uid) {
     if (!dirty_) remove_leaf(leaf);
     release(leaf);
     ++changes_since_check_;
+    touch();
 }
 
 void DynamicBvh::move(const Object& o) {
@@ -99,6 +114,7 @@ void DynamicBvh::move(const Object& o) {
         dirty_ = true;
     const std::uint32_t leaf = leaf_of_.at(o.uid);
     tight_[leaf] = o.box;
+    touch();  // the packed copy of the box is stale even when the tree is not
     // Inside the fat box: the tree still encloses the object, nothing else to do (Box2D's enlarged
     // AABB; the traversal tests the object's own box).
     if (nodes_[leaf].box.contains(o.box)) return;
@@ -125,13 +141,101 @@ void DynamicBvh::check_sah_guard() {
 void DynamicBvh::commit() {
     if (!rebuild_mode_) {
         check_sah_guard();
+        if (params_.height_guard && root_ != kNullNode && nodes_[root_].height > height_limit(leaf_of_.size())) {
+            rebuild();
+            if (params_.sah_guard > 0) guard_baseline_ = sah_cost();
+            ++height_rebuilds_;
+        }
+    } else {
+        ++frames_since_build_;
+        if (dirty_) {
+            rebuild();
+        } else if (params_.rebuild_growth > 0 && root_ != kNullNode &&
+                   sah_cost() > params_.rebuild_growth * cost_after_build_) {
+            rebuild();
+        }
+    }
+    // Crowds: found again after every change while there are some, else looked for every
+    // max(64, size / 8) changes (amortised O(1) per change, as the SAH guard).
+    if (crowds_dirty_ || (params_.crowd_guard && crowds_.empty() &&
+                          changes_since_crowd_check_ >= std::max<std::size_t>(64, leaf_of_.size() / 8)))
+        find_crowds();
+}
+
+void DynamicBvh::find_crowds() {
+    crowds_dirty_ = false;
+    changes_since_crowd_check_ = 0;
+    crowds_.clear();
+    std::vector<std::uint32_t> found;
+    if (params_.crowd_guard && root_ != kNullNode) {
+        // Post-order with child 0 first, leaves numbered in that order (every subtree is then a
+        // run). A frame holds what its finished children gave: the first leaf, and the common box
+        // while the boxes so far share a point. No per-node arrays: a scene without crowds pays
+        // one walk, O(height) memory.
+        struct Frame {
+            std::uint32_t node, first;
+            Aabb common;
+            bool shared, second;  // `second`: child 0 is done, child 1 is under way
+        };
+        std::vector<Frame> stack{{root_, 0, {}, true, false}};
+        std::uint32_t leaves = 0;
+        // What the last finished subtree gives its parent.
+        std::uint32_t done_first = 0;
+        Aabb done_common;
+        bool done_shared = false;
+        while (!stack.empty()) {
+            Frame& f = stack.back();
+            const Node& node = nodes_[f.node];
+            if (node.height == 0) {
+                done_first = leaves++;
+                done_common = tight_[f.node];
+                done_shared = true;
+                stack.pop_back();
+            } else if (f.first == kNullNode) {  // child 0 finished
+                f.first = done_first;
+                f.common = done_common;
+                f.shared = done_shared;
+                f.second = true;
+                stack.push_back({node.child[1], 0, {}, true, false});
+                continue;
+            } else if (!f.second) {  // entering the node
+                f.first = kNullNode;
+                stack.push_back({node.child[0], 0, {}, true, false});
+                continue;
+            } else {  // child 1 finished
+                Aabb c{rcb::max(f.common.min, done_common.min), rcb::min(f.common.max, done_common.max)};
+                const bool shared =
+                    f.shared && done_shared && c.min.x <= c.max.x && c.min.y <= c.max.y && c.min.z <= c.max.z;
+                if (shared && leaves - f.first >= kCrowdLeaves) {
+                    found.push_back(f.node);
+                    crowds_.push_back({c, f.first, leaves - 1});
+                }
+                done_first = f.first;
+                done_common = c;
+                done_shared = shared;
+                stack.pop_back();
+            }
+        }
+    }
+    if (found.empty()) {
+        std::vector<std::uint32_t>().swap(crowd_of_);
+        std::vector<Crowd>().swap(crowds_);
+        std::vector<PackedLeaf>().swap(packed_);
         return;
     }
-    ++frames_since_build_;
-    if (dirty_) {
-        rebuild();
-    } else if (params_.rebuild_growth > 0 && root_ != kNullNode && sah_cost() > params_.rebuild_growth * cost_after_build_) {
-        rebuild();
+    crowd_of_.assign(nodes_.size(), kNullNode);
+    for (std::uint32_t k = 0; k < found.size(); ++k) crowd_of_[found[k]] = k;
+    // The leaves in the same order (pre-order with child 0 first visits them as post-order does).
+    packed_.clear();
+    packed_.reserve(leaf_of_.size());
+    std::vector<std::uint32_t> stack{root_};
+    while (!stack.empty()) {
+        const std::uint32_t n = stack.back();
+        stack.pop_back();
+        if (nodes_[n].height == 0)
+            packed_.push_back({tight_[n], nodes_[n].child[0]});
+        else
+            stack.push_back(nodes_[n].child[1]), stack.push_back(nodes_[n].child[0]);
     }
 }
 
@@ -142,7 +246,9 @@ void DynamicBvh::commit() {
 /// area, Σ SA(P ∪ L) − SA(P). Below an inner child C the cost is at least the inherited cost plus
 /// SA(C ∪ L) + min(SA(L) − SA(C), 0); the search stops when neither child's lower bound can beat the
 /// best cost found, and otherwise descends into the child with the smaller bound.
-std::uint32_t DynamicBvh::find_best_sibling(const Aabb& box_d) const {
+// The insertion paths are flattened: they call merge() and half_area() a dozen times each, and
+// GCC's unit-growth limit otherwise leaves some of those calls out of line as the file grows.
+[[gnu::flatten]] std::uint32_t DynamicBvh::find_best_sibling(const Aabb& box_d) const {
     const float area_d = area(box_d);
     std::uint32_t index = root_;
     const Aabb& root_box = nodes_[index].box;
@@ -258,7 +364,7 @@ void DynamicBvh::refit_from(std::uint32_t n) {
 /// Box2D v3 b_RotateNodes: swap a child of A with a grandchild on the other side when that shrinks
 /// the area of the inner node that changes (the total SAH area, eq. 3.2, falls by the same amount).
 /// Names as in Box2D: A's children are B and C, B's children D and E, C's children F and G.
-void DynamicBvh::rotate_nodes(std::uint32_t ia) {
+[[gnu::flatten]] void DynamicBvh::rotate_nodes(std::uint32_t ia) {
     Node& A = nodes_[ia];
     if (A.height < 2) return;
     const std::uint32_t ib = A.child[0], ic = A.child[1];
@@ -344,6 +450,7 @@ void DynamicBvh::rebuild() {
         else if (nodes_[n].height == 0) build_items_.push_back({nodes_[n].box, nodes_[n].box.center(), n});
     }
     root_ = build_items_.empty() ? kNullNode : build_range(build_items_.data(), std::uint32_t(build_items_.size()));
+    if (!crowds_.empty()) crowds_dirty_ = true;  // new node ids
     if (root_ != kNullNode) nodes_[root_].parent = kNullNode;
     dirty_ = false;
     frames_since_build_ = 0;
@@ -406,6 +513,15 @@ std::uint32_t DynamicBvh::build_range(BuildItem* items, std::uint32_t count) {
             });
             mid = std::uint32_t(split - items);
             if (mid == 0 || mid == count) mid = count / 2;  // cannot happen with the same binning; be safe
+        } else {
+            // Every centroid in one bin (one point: boxes nested around one centre): split by size
+            // at the median, smallest half first, ties by node, so each subtree holds boxes of
+            // similar size (a subtree of large boxes then shares a large common box, see crowds)
+            // instead of an arbitrary half of all sizes.
+            std::nth_element(items, items + mid, items + count, [](const BuildItem& a, const BuildItem& b) {
+                const float sa = a.box.half_area(), sb = b.box.half_area();
+                return sa < sb || (sa == sb && a.node < b.node);
+            });
         }
     }
     const std::uint32_t left = build_range(items, mid);
@@ -431,16 +547,20 @@ double DynamicBvh::sah_cost() const {
 
 std::size_t DynamicBvh::memory_bytes() const {
     return nodes_.capacity() * sizeof(Node) + tight_.capacity() * sizeof(Aabb) +
-           stack_.capacity() * sizeof(std::uint32_t) + build_items_.capacity() * sizeof(BuildItem) + bins_.capacity() * sizeof(Bin) +
-           leaf_of_.bucket_count() * sizeof(void*) +
-           leaf_of_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) + sizeof(*this);
+           stack_.capacity() * sizeof(std::uint32_t) + build_items_.capacity() * sizeof(BuildItem) +
+           bins_.capacity() * sizeof(Bin) + leaf_of_.bucket_count() * sizeof(void*) +
+           leaf_of_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) +
+           crowd_of_.capacity() * sizeof(std::uint32_t) + crowds_.capacity() * sizeof(Crowd) +
+           packed_.capacity() * sizeof(PackedLeaf) + sizeof(*this);
 }
 
 nlohmann::json DynamicBvh::stats() const {
     return {{"sah_cost", sah_cost()},
             {"depth", height()},
             {"nodes", nodes_.size() - free_count_},
-            {"guard_rebuilds", guard_rebuilds_}};
+            {"guard_rebuilds", guard_rebuilds_},
+            {"height_rebuilds", height_rebuilds_},
+            {"crowds", crowds_.size()}};
 }
 
 void DynamicBvh::validate() const {
@@ -490,6 +610,14 @@ void DynamicBvh::validate() const {
     }
     if (leaves != leaf_of_.size()) fail(std::to_string(leaf_of_.size()) + " live uids but " + std::to_string(leaves) + " leaves in the tree");
     if (reached + free_seen != total) fail("nodes neither in the tree nor free: " + std::to_string(total - reached - free_seen));
+    // Crowds: as found afresh now (none is also right between two checks, while the tree has none).
+    if (!crowds_dirty_ && !crowds_.empty()) {
+        DynamicBvh fresh = *this;
+        fresh.find_crowds();
+        if (fresh.crowds_ != crowds_ || fresh.crowd_of_ != crowd_of_ || fresh.packed_ != packed_)
+            fail("crowds or their packed leaves are stale");
+    }
+    if (!params_.crowd_guard && !crowds_.empty()) fail("crowds with the crowd guard off");
 }
 
 }  // namespace rcb

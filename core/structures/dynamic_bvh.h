@@ -15,7 +15,7 @@
 /// Between rebuilds, changes are applied incrementally; in a frame that ends in a rebuild they only
 /// update the leaves and the tree is rebuilt once at commit.
 ///
-/// SAH guard (issue #9, `sah_guard`, incremental mode): incremental insertion and removal never
+/// SAH guard (`sah_guard`, incremental mode): incremental insertion and removal never
 /// restructure the tree globally, so under churn its SAH cost can keep growing (objects that
 /// wander leave inner boxes that span the scene). At commit, once at least max(64, size / 8)
 /// changes have accumulated since the last check (O(1) amortised per change), the SAH cost is
@@ -23,8 +23,28 @@
 /// with the binned-SAH builder and that cost becomes the new baseline. `sah_guard = 0` turns the
 /// guard off; stats report "guard_rebuilds".
 ///
+/// Height guard (`height_guard`, incremental mode, on by default): insertion by SAH can chain boxes
+/// nested around one centre (each new box best sits beside the whole tree or beside one leaf), so
+/// the tree grows as deep as it has leaves and every insert, remove and ray walks O(n) nodes
+/// (building 10 000 nested cubes took O(n²)). When the height exceeds height_limit(size) =
+/// 4·bit_width(size) + 8, at a commit or during the build, the tree is rebuilt with the binned-SAH
+/// builder, which splits boxes sharing one centroid by size. Stats report "height_rebuilds".
+///
+/// Crowd guard (`crowd_guard`, on by default): a tree with one object per leaf visits 2n − 1 nodes
+/// for a segment that meets all n objects of a subtree, which is what a segment starting among
+/// objects that share a point does (n cubes nested around one centre). An inner node over at least
+/// kCrowdLeaves leaves whose own boxes all share a point (their intersection, the "common box", is
+/// not empty) is a crowd. While the tree has crowds, every commit that follows a change numbers the
+/// leaves in depth-first order (every subtree is then a run of consecutive leaves), packs the
+/// leaves' boxes and uids in that order, and notes each crowd's run and common box; a segment that
+/// meets a crowd's box and its common box meets every box below, so the run is tested in order
+/// instead of descending (as the LBVH does, linear_bvh.h). Without crowds this costs one O(n) pass
+/// every max(64, size / 8) changes, next to the SAH guard's. The leaves are tested either way:
+/// answers do not depend on the guard. Stats report "crowds".
+///
 /// Nodes live in one flat array addressed by index, with a free list; no per-node allocation.
 
+#include <bit>
 #include <cstdint>
 #include <string>
 #include <tuple>
@@ -54,6 +74,10 @@ public:
         int bins = 16;
         /// incremental mode: rebuild when the SAH cost grew by this factor (0: off; see above).
         double sah_guard = 2.0;
+        /// Scan the leaves of a crowd whose common box the segment meets (see above).
+        bool crowd_guard = true;
+        /// incremental mode: binned-SAH rebuild when the height exceeds height_limit(size).
+        bool height_guard = true;
 
         static constexpr auto fields() {
             return std::tuple{
@@ -69,9 +93,20 @@ public:
                 Field{"sah_guard", &Params::sah_guard, 0.0, 100.0,
                       "incremental mode: binned-SAH rebuild when the SAH cost grew by this factor since the last "
                       "build, checked every max(64, size/8) changes (0: off)",
-                      false}};
+                      false},
+                Field{"crowd_guard", &Params::crowd_guard, 0.0, 1.0,
+                      "a segment meeting the common box of a subtree of at least 16 boxes that share a point tests "
+                      "its leaves in order instead of descending (exact either way)",
+                      false},
+                Field{"height_guard", &Params::height_guard, 0.0, 1.0,
+                      "incremental mode: binned-SAH rebuild when the height exceeds 4 bit_width(size) + 8", false}};
         }
     };
+
+    /// Leaves below an inner node for it to be a crowd.
+    static constexpr std::uint32_t kCrowdLeaves = 16;
+    /// The height guard's limit for a tree of `size` leaves.
+    static int height_limit(std::size_t size) { return 4 * int(std::bit_width(size)) + 8; }
 
     DynamicBvh();
     explicit DynamicBvh(const Params& p);
@@ -89,6 +124,7 @@ public:
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit) {
         if (dirty_) rebuild();
+        if (crowds_dirty_) find_crowds();
         const std::uint32_t need = root_ == kNullNode ? 1u : std::uint32_t(nodes_[root_].height) + 2u;
         if (stack_.size() < need) stack_.resize(need);
         traverse_bvh(*this, root_, stack_.data(), s, count, visit);
@@ -104,6 +140,23 @@ public:
     std::uint32_t child(std::uint32_t n, int k) const { return nodes_[n].child[k]; }
     const Aabb& object_box(std::uint32_t n) const { return tight_[n]; }
     Uid leaf_uid(std::uint32_t n) const { return nodes_[n].child[0]; }
+    bool has_crowds() const { return !crowds_.empty(); }
+    bool is_crowd(std::uint32_t n) const { return crowd_of_[n] != kNullNode; }
+    template <class Count, class Visit>
+    CrowdScan scan_crowd(std::uint32_t n, const SegmentSlabs& slabs, Count& count, Visit& visit) const {
+        const Crowd& c = crowds_[crowd_of_[n]];
+        float t_near, t_far;
+        if (!slabs.clip(c.common, t_near, t_far)) return CrowdScan::descend;
+        // Every box below holds the common box; each is still tested, for its entry parameter and
+        // so that the answer never rests on this shortcut.
+        count.box_tests(c.last - c.first + 1);
+        for (std::uint32_t k = c.first; k <= c.last; ++k) {
+            if (!slabs.clip(packed_[k].box, t_near, t_far)) continue;
+            count.hits();
+            if (!visit(packed_[k].uid, t_near)) return CrowdScan::stop;
+        }
+        return CrowdScan::done;
+    }
 
 private:
     struct Node {
@@ -157,7 +210,32 @@ private:
     std::size_t changes_since_check_ = 0;
     double guard_baseline_ = 0.0;
     std::uint32_t guard_rebuilds_ = 0;
+    std::uint32_t height_rebuilds_ = 0;
     void check_sah_guard();
+    // Crowd guard (see above): per node its crowd (kNullNode: none), the crowds, the leaves packed
+    // in depth-first order; empty while the tree has no crowds.
+    struct Crowd {
+        Aabb common;
+        std::uint32_t first, last;  // the run of packed leaves below
+        friend bool operator==(const Crowd&, const Crowd&) = default;
+    };
+    struct PackedLeaf {
+        Aabb box;
+        Uid uid;
+        friend bool operator==(const PackedLeaf&, const PackedLeaf&) = default;
+    };
+    std::vector<std::uint32_t> crowd_of_;
+    std::vector<Crowd> crowds_;
+    std::vector<PackedLeaf> packed_;
+    bool crowds_dirty_ = false;  // the tree has crowds and changed since they were found
+    std::size_t changes_since_crowd_check_ = 0;
+    /// Finds the crowds (and packs the leaves) afresh; frees everything when there are none.
+    void find_crowds();
+    /// The tree changed: crowds are found again before the next query, if there were any.
+    void touch() {
+        ++changes_since_crowd_check_;
+        if (!crowds_.empty()) crowds_dirty_ = true;
+    }
 };
 
 }  // namespace rcb

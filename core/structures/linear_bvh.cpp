@@ -1,6 +1,7 @@
 #include "core/structures/linear_bvh.h"
 
 #include <algorithm>
+#include <bit>
 #include <stdexcept>
 #include <string>
 
@@ -151,10 +152,13 @@ void LinearBvh::radix_sort() {
 void LinearBvh::rebuild() {
     dirty_ = false;
     const std::size_t n = objects_.size();
+    crowds_ = tied_codes_ = 0;
     if (n == 0) {
         nodes_.clear();
         codes_.clear();
         order_.clear();
+        common_.clear();
+        ranges_.clear();
         leaf_base_ = 0;
         stack_.assign(1, 0);
         return;
@@ -199,8 +203,9 @@ void LinearBvh::rebuild() {
             order_[i] = std::uint32_t(i);
         }
     });
-    // 2. Sort.
+    // 2. Sort; equal codes by size (see "Equal codes" in the header).
     radix_sort();
+    order_equal_codes();
     // Leaves in sorted order.
     nodes_.resize(2 * n - 1);
     leaf_base_ = std::uint32_t(n - 1);
@@ -208,10 +213,13 @@ void LinearBvh::rebuild() {
         for (std::size_t k = b; k < e; ++k) {
             if (k + 16 < e) __builtin_prefetch(&objects_.boxes()[order_[k + 16]]), __builtin_prefetch(&objects_.uids()[order_[k + 16]]);
             const std::uint32_t slot = order_[k];
-            nodes_[leaf_base_ + k] = Node{objects_.box(slot), {objects_.uid(slot), kNullNode}, kNullNode, 0};
+            nodes_[leaf_base_ + k] = Node{objects_.box(slot), {objects_.uid(slot), kNullNode}, kNullNode, 0, kShared};
         }
     });
+    crowds_ = 0;
     if (n > 1) {
+        common_.resize(n - 1);
+        ranges_.resize(n - 1);
         // 3. Karras Algorithm 3: every inner node i finds its range [i, j] and split γ on its own.
         const std::uint64_t* codes = codes_.data();
         const std::int64_t count = std::int64_t(n);
@@ -235,6 +243,7 @@ void LinearBvh::rebuild() {
                 for (std::int64_t t = l_max / 2; t >= 1; t /= 2)
                     l += delta_i(i + (l + t) * d) > delta_min ? t : 0;
                 const std::int64_t j = i + l * d;
+                ranges_[ui] = {std::uint32_t(std::min(i, j)), std::uint32_t(std::max(i, j))};
                 const int delta_node = delta_i(j);
                 std::int64_t s = 0;
                 // Ceil-halving search (Karras' Figure 4: t = ⌈l / 2^k⌉), so that a split at any
@@ -263,12 +272,30 @@ void LinearBvh::rebuild() {
         parallel(n - 1, kGrain, [&](std::size_t b, std::size_t e) {
             for (std::size_t i = b; i < e; ++i) flags_[i].store(0, std::memory_order_relaxed);
         });
+        // The common box of a node: the intersection of the boxes below, kept only while it is not
+        // empty (kShared); once empty it stays empty further up, so most nodes of a scene without
+        // crowds never compute one.
+        std::atomic<std::size_t> crowds{0};
         auto merge_children = [&](std::uint32_t p) {
             Node& node = nodes_[p];
             const Node& a = nodes_[node.child[0]];
             const Node& c = nodes_[node.child[1]];
             node.box = merge(a.box, c.box);
-            node.height = 1 + std::max(a.height, c.height);
+            node.height = std::uint16_t(1 + std::max(a.height, c.height));
+            node.flags = 0;
+            if (params_.crowd_guard && (a.flags & c.flags & kShared)) {
+                const Aabb& ca = is_leaf(node.child[0]) ? a.box : common_[node.child[0]];
+                const Aabb& cc = is_leaf(node.child[1]) ? c.box : common_[node.child[1]];
+                const Aabb common{rcb::max(ca.min, cc.min), rcb::min(ca.max, cc.max)};
+                if (common.min.x <= common.max.x && common.min.y <= common.max.y && common.min.z <= common.max.z) {
+                    common_[p] = common;
+                    node.flags = kShared;
+                    if (ranges_[p][1] - ranges_[p][0] + 1 >= kCrowdLeaves) {
+                        node.flags |= kCrowd;
+                        crowds.fetch_add(1, std::memory_order_relaxed);
+                    }
+                }
+            }
             return node.parent;
         };
         if (arena_) {
@@ -291,12 +318,36 @@ void LinearBvh::rebuild() {
                 }
             }
         }
+        crowds_ = crowds.load();
+    } else {
+        common_.clear();
+        ranges_.clear();
     }
     stack_.assign(std::size_t(nodes_[0].height) + 2, 0);
 }
 
-void LinearBvh::trim_outliers(Aabb& cb) const {
+void LinearBvh::order_equal_codes() {
+    const std::size_t n = codes_.size();
+    tied_codes_ = 0;
+    for (std::size_t b = 0, e; b < n; b = e) {
+        for (e = b + 1; e < n && codes_[e] == codes_[b];) ++e;
+        if (e - b < 2) continue;
+        tied_codes_ += e - b;
+        // Keys: the half area's bits (monotone for non-negative floats) above the slot; the slot
+        // breaks ties, so the order does not depend on the sort.
+        std::uint64_t* keys = codes_tmp_.data();
+        for (std::size_t k = b; k < e; ++k) {
+            const std::uint32_t slot = order_[k];
+            keys[k - b] = std::uint64_t(std::bit_cast<std::uint32_t>(objects_.box(slot).half_area())) << 32 | slot;
+        }
+        std::sort(keys, keys + (e - b));
+        for (std::size_t k = b; k < e; ++k) order_[k] = std::uint32_t(keys[k - b]);
+    }
+}
+
+void LinearBvh::trim_outliers(Aabb& cb) {
     const std::size_t n = objects_.size();
+    trimmed_ = false;
     if (n < 200) return;
     // A fixed stride over the slots: deterministic, and O(1) work per rebuild beyond the copy.
     const std::size_t samples = std::min<std::size_t>(n, 4096), stride = n / samples;
@@ -311,6 +362,7 @@ void LinearBvh::trim_outliers(Aabb& cb) const {
         if (double(cb.max[a]) - double(cb.min[a]) > kOutlierStretch * (double(hi) - double(lo))) {
             cb.min[a] = lo;
             cb.max[a] = hi;
+            trimmed_ = true;
         }
     }
 }
@@ -327,13 +379,20 @@ double LinearBvh::sah_cost() const {
 std::size_t LinearBvh::memory_bytes() const {
     return nodes_.capacity() * sizeof(Node) + objects_.memory_bytes() +
            (codes_.capacity() + codes_tmp_.capacity()) * sizeof(std::uint64_t) +
-           (order_.capacity() + order_tmp_.capacity() + histograms_.capacity() + all_counts_.capacity() + stack_.capacity()) *
+           (order_.capacity() + order_tmp_.capacity() + histograms_.capacity() + all_counts_.capacity() +
+            stack_.capacity()) *
                sizeof(std::uint32_t) +
-           flags_size_ * sizeof(std::atomic<std::uint32_t>) + sizeof(*this);
+           flags_size_ * sizeof(std::atomic<std::uint32_t>) + common_.capacity() * sizeof(Aabb) +
+           ranges_.capacity() * sizeof(ranges_[0]) + sizeof(*this);
 }
 
 nlohmann::json LinearBvh::stats() const {
-    return {{"sah_cost", sah_cost()}, {"depth", height()}, {"nodes", nodes_.size()}};
+    return {{"sah_cost", sah_cost()},
+            {"depth", height()},
+            {"nodes", nodes_.size()},
+            {"crowds", crowds_},
+            {"tied_codes", tied_codes_},
+            {"outlier_trimmed", trimmed_}};
 }
 
 void LinearBvh::validate() const {
@@ -371,12 +430,48 @@ void LinearBvh::validate() const {
             if (c >= nodes_.size()) fail("child out of range");
             if (nodes_[c].parent != v) fail("child " + std::to_string(c) + " does not point back to " + std::to_string(v));
             if (!node.box.contains(nodes_[c].box)) fail("node " + std::to_string(v) + " does not enclose child " + std::to_string(c));
-            hmax = std::max(hmax, nodes_[c].height);
+            hmax = std::max(hmax, int(nodes_[c].height));
             stack.push_back(c);
         }
         if (node.height != 1 + hmax) fail("node " + std::to_string(v) + " has a wrong height");
     }
     if (leaves != n) fail(std::to_string(n) + " objects but " + std::to_string(leaves) + " leaves reached");
+    // Crowds: every inner node's leaf range and common box as the subtree gives them, and the flag
+    // set exactly where the rule says.
+    std::size_t crowds = 0;
+    auto check = [&](auto&& self, std::uint32_t v, std::uint32_t& first, std::uint32_t& last, Aabb& common) -> void {
+        if (is_leaf(v)) {
+            first = last = v - leaf_base_;
+            common = nodes_[v].box;
+            if (nodes_[v].flags != kShared) fail("leaf " + std::to_string(v) + " has wrong flags");
+            return;
+        }
+        std::uint32_t f0, l0, f1, l1;
+        Aabb c0, c1;
+        self(self, nodes_[v].child[0], f0, l0, c0);
+        self(self, nodes_[v].child[1], f1, l1, c1);
+        if (l0 + 1 != f1) fail("node " + std::to_string(v) + ": its children's leaves are not consecutive");
+        first = f0, last = l1;
+        common = {rcb::max(c0.min, c1.min), rcb::min(c0.max, c1.max)};
+        if (ranges_[v][0] != first || ranges_[v][1] != last)
+            fail("node " + std::to_string(v) + " has a wrong leaf range");
+        const bool shared =
+            common.min.x <= common.max.x && common.min.y <= common.max.y && common.min.z <= common.max.z;
+        const bool crowd = params_.crowd_guard && last - first + 1 >= kCrowdLeaves && shared;
+        if (bool(nodes_[v].flags & kCrowd) != crowd)
+            fail("node " + std::to_string(v) +
+                 (crowd ? " is a crowd but not marked" : " is marked as a crowd but is none"));
+        if (bool(nodes_[v].flags & kShared) != (params_.crowd_guard && shared))
+            fail("node " + std::to_string(v) + " has a wrong shared flag");
+        if ((nodes_[v].flags & kShared) && !(common_[v] == common))
+            fail("node " + std::to_string(v) + " has a stale common box");
+        crowds += crowd;
+    };
+    std::uint32_t first, last;
+    Aabb common;
+    check(check, 0, first, last, common);
+    if (first != 0 || last != n - 1) fail("the root does not span every leaf");
+    if (crowds != crowds_) fail("crowd count " + std::to_string(crowds_) + ", tree has " + std::to_string(crowds));
     if (stack_.size() < std::size_t(nodes_[0].height) + 2) fail("traversal stack smaller than the depth");
 }
 

@@ -13,16 +13,34 @@
 /// `threads` runs steps 1–4 in a tbb::task_arena of that many threads (1: plain loops, the thesis'
 /// single-core setup). Every step is deterministic, so the tree is identical for every thread count.
 ///
-/// Outlier guard (issue #9, `outlier_guard`, on by default): with one object 10^6 scene sizes away,
+/// Outlier guard (`outlier_guard`, on by default): with one object 10^6 scene sizes away,
 /// the Morton grid normalised to all centroids puts the rest of the scene into one code, and the
 /// tree over equal codes splits by index, not by space. When the centroid bounds on an axis are
 /// more than 8× the extent of the central 99% of the centroids (a strided sample of at most 4096),
 /// the codes are normalised to that central part and the outliers clamp to its faces. Node boxes
 /// still come from the objects' boxes, so answers are exact either way.
 ///
+/// Equal codes (crowd guard, part 1): objects whose centroids share a code (one centroid, or the
+/// outliers clamped to a face) are ordered by size, smallest first, then by slot, so that the
+/// subtrees over a run of equal codes split by size (the size bits of Vinkler, Bittner & Havran
+/// 2017, "Extended Morton codes for high performance bounding volume hierarchy construction",
+/// used only to break ties; the codes themselves are unchanged). By slot alone, every node over
+/// the run of n boxes nested around one centroid spans nearly the largest of them.
+///
+/// Crowds (crowd guard, part 2, `crowd_guard`, on by default): a binary tree with one object per
+/// leaf visits 2n − 1 nodes for a segment that meets all n objects of a subtree, which is what a
+/// segment starting among objects that share a point does. An inner node over at least
+/// kCrowdLeaves leaves whose boxes all share a point (their intersection, the "common box", is not
+/// empty) is a crowd; a segment that meets a crowd's box and its common box meets every box below,
+/// so the crowd's leaves (consecutive in the leaf array) are tested in order, with no inner node,
+/// instead of descending. A segment that misses the common box descends as usual. The leaves are
+/// tested either way: answers do not depend on the guard. Stats report "crowds" (how many nodes
+/// are crowds), "tied_codes" (objects in runs of equal codes) and "outlier_trimmed".
+///
 /// Node layout (Karras): inner nodes 0 … N−2 (root 0), leaves N−1 … 2N−2 in sorted order; a leaf's
 /// box is the object's own box. There is no free list: the arrays are rebuilt, never patched.
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -44,20 +62,32 @@ public:
         /// Morton codes over the central 99% of the centroids when the full centroid bounds are more
         /// than 8× larger (see "Outlier guard" above).
         bool outlier_guard = true;
+        /// Scan the leaves of a crowd whose common box the segment meets (see "Crowds" above).
+        bool crowd_guard = true;
         static constexpr auto fields() {
             return std::tuple{Field{"threads", &Params::threads, 1, 64, "build threads (TBB task arena)", false},
                               Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
                                     "Morton codes over the central 99% of the centroids when the full centroid bounds "
                                     "are over 8x larger (exact either way)",
+                                    false},
+                              Field{"crowd_guard", &Params::crowd_guard, 0.0, 1.0,
+                                    "a segment meeting the common box of a subtree of at least 16 boxes that share a "
+                                    "point tests its leaves in order instead of descending (exact either way)",
                                     false}};
         }
     };
+    /// Leaves below an inner node for it to be a crowd.
+    static constexpr std::uint32_t kCrowdLeaves = 16;
+    /// Node flags: the node is a crowd; the boxes below share a point (then common_ holds their
+    /// intersection for an inner node; a leaf always has this flag).
+    static constexpr std::uint16_t kCrowd = 1, kShared = 2;
 
     struct Node {
         Aabb box;                // 24 B
         std::uint32_t child[2];  // 8 B: a leaf keeps its uid in child[0]
         std::uint32_t parent;    // 4 B: kNullNode at the root
-        std::int32_t height;     // 4 B: 0 for leaves
+        std::uint16_t height;    // 2 B: 0 for leaves (at most 97: codes and indices have 96 bits)
+        std::uint16_t flags;     // 2 B: kCrowd, kShared (see above)
         friend bool operator==(const Node&, const Node&) = default;
     };
     static_assert(sizeof(Node) == 40);
@@ -94,6 +124,23 @@ public:
     std::uint32_t child(std::uint32_t n, int k) const { return nodes_[n].child[k]; }
     const Aabb& object_box(std::uint32_t n) const { return nodes_[n].box; }
     Uid leaf_uid(std::uint32_t n) const { return nodes_[n].child[0]; }
+    bool has_crowds() const { return crowds_ != 0; }
+    bool is_crowd(std::uint32_t n) const { return nodes_[n].flags & kCrowd; }
+    template <class Count, class Visit>
+    CrowdScan scan_crowd(std::uint32_t n, const SegmentSlabs& slabs, Count& count, Visit& visit) const {
+        float t_near, t_far;
+        if (!slabs.clip(common_[n], t_near, t_far)) return CrowdScan::descend;
+        // Every box below holds the common box, so the segment meets all of them; each is still
+        // tested, for its entry parameter and so that the answer never rests on this shortcut.
+        const std::uint32_t first = leaf_base_ + ranges_[n][0], last = leaf_base_ + ranges_[n][1];
+        count.box_tests(last - first + 1);
+        for (std::uint32_t leaf = first; leaf <= last; ++leaf) {
+            if (!slabs.clip(nodes_[leaf].box, t_near, t_far)) continue;
+            count.hits();
+            if (!visit(nodes_[leaf].child[0], t_near)) return CrowdScan::stop;
+        }
+        return CrowdScan::done;
+    }
 
 private:
     std::uint32_t root() const { return nodes_.empty() ? kNullNode : 0u; }
@@ -101,7 +148,8 @@ private:
     template <class F>
     void parallel(std::size_t n, std::size_t grain, F&& f);
     void radix_sort();
-    void trim_outliers(Aabb& centroid_bounds) const;
+    void trim_outliers(Aabb& centroid_bounds);
+    void order_equal_codes();
     static constexpr double kOutlierStretch = 8.0;
 
     Params params_;
@@ -119,6 +167,13 @@ private:
     std::unique_ptr<std::atomic<std::uint32_t>[]> flags_;
     std::size_t flags_size_ = 0;
     std::vector<std::uint32_t> stack_;
+    // Crowds, per inner node: the intersection of the boxes below, and the first and last leaf.
+    std::vector<Aabb> common_;
+    std::vector<std::array<std::uint32_t, 2>> ranges_;
+    // Guard reports (stats): nodes that are crowds, objects in runs of equal codes, outliers trimmed.
+    std::size_t crowds_ = 0;
+    std::size_t tied_codes_ = 0;
+    bool trimmed_ = false;
 };
 
 }  // namespace rcb
