@@ -177,6 +177,37 @@ std::vector<NamedScene> hard_scenes() {
         }
         scenes.push_back({"same-centroid", with_rays(objs, jiggle(objs, 4, 4), 4)});
     }
+    // A crowd: 400 cubes nested around one centre (sizes over four orders of magnitude), rays
+    // starting at the centre (inside every box) and in between; boxes grow past the grids' large-
+    // object limit and shrink back; a crowd loses its common point and regains it.
+    {
+        std::vector<Object> objs;
+        for (Uid i = 0; i < 400; ++i) {
+            const float h = float(0.005 * std::pow(10000.0, double((i * 37) % 400) / 399.0));
+            objs.push_back({i, box(-h, -h, -h, h, h, h)});
+        }
+        std::vector<Frame> frames(4);
+        // uid 5 grows from small to huge, then shrinks back; uid 7 leaves the common point, then returns.
+        frames[0].moves = {{5, box(-60, -60, -60, 60, 60, 60)}, {9, box(-0.2f, -0.1f, -0.1f, 0.0f, 0.1f, 0.1f)}};
+        frames[0].inserts = {{1000, box(-3, -3, -3, 3, 3, 3)}, {1001, box(-3, -3, -3, 3, 3, 3)}};
+        frames[1].moves = {{5, box(-0.01f, -0.01f, -0.01f, 0.01f, 0.01f, 0.01f)}, {7, box(30, 30, 30, 31, 31, 31)}};
+        frames[1].removes = {1000, 11};
+        frames[2].moves = {{7, box(-1, -1, -1, 1, 1, 1)}};
+        frames[2].inserts = {{1002, box(-100, -100, -100, 100, 100, 100)}};
+        frames[3].removes = {1002, 1001};
+        frames[3].moves = {{9, box(-0.1f, -0.1f, -0.1f, 0.1f, 0.1f, 0.1f)}};
+        Recording r = with_rays(objs, frames, 14);
+        Random dirs(15);
+        for (Frame& f : r.frames)
+            for (int k = 0; k < 24; ++k) {
+                const Vec3 d =
+                    Vec3{float(dirs.uniform(-1, 1)), float(dirs.uniform(-1, 1)), float(dirs.uniform(-1, 1))} * 80.0f;
+                const Vec3 from =
+                    k % 3 == 0 ? Vec3{0, 0, 0} : Vec3{float(dirs.uniform(-2, 2)), float(dirs.uniform(-2, 2)), 0};
+                f.rays.push_back({from, from + d});
+            }
+        scenes.push_back({"nested-crowd", std::move(r)});
+    }
     // Flat: every box in the plane y = 0, zero thickness.
     {
         std::vector<Object> objs;

@@ -22,7 +22,8 @@ struct NamedScene {
 
 /// Small generated presets (uniform, irregular) plus hand-made hard cases: an empty scene, one
 /// object, identical boxes, identical centroids with different sizes, flat and zero-volume boxes,
-/// one huge object around a dense cluster, axis-parallel rays along box faces, rays starting
+/// one huge object around a dense cluster, a crowd of boxes nested around one centre with rays
+/// starting inside all of them, axis-parallel rays along box faces, rays starting
 /// inside, on and outside the bounds, zero-length rays, inserts far outside the initial bounds,
 /// and churn (many inserts, removes, moves). Each has several frames.
 std::vector<NamedScene> hard_scenes();
