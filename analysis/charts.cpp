@@ -14,23 +14,31 @@ namespace {
 
 namespace fs = std::filesystem;
 
+/// Text from the database (scene names, parameters) as gnuplot may print it: control bytes as
+/// spaces, at most 120 characters (a 5 MB scene name made gnuplot run for minutes).
+std::string printable(const std::string& s) {
+    std::string out;
+    for (char c : s.substr(0, 120)) out += (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) ? ' ' : c;
+    return s.size() > 120 ? out + "..." : out;
+}
+
 /// A gnuplot string literal (single quotes; a quote is doubled).
 std::string quoted(const std::string& s) {
     std::string q = "'";
-    for (char c : s) {
-        if (c == '\'') q += "''";
-        else if (c == '\n') q += ' ';
-        else q += c;
-    }
+    for (char c : printable(s)) q += c == '\'' ? std::string("''") : std::string(1, c);
     return q + "'";
 }
 
 /// Labels go into data files as one quoted token.
 std::string data_label(const std::string& s) {
     std::string q = "\"";
-    for (char c : s) q += (c == '"' || c == '\n') ? '\'' : c;
+    for (char c : printable(s)) q += c == '"' ? '\'' : c;
     return q + "\"";
 }
+
+/// A coordinate gnuplot can place: finite, and far from double's limits (gnuplot's own range
+/// arithmetic overflows on values like 1e308 from a damaged database).
+bool drawable(double v) { return std::isfinite(v) && std::abs(v) < 1e100; }
 
 }  // namespace
 
@@ -59,11 +67,14 @@ std::string render_svg(const Chart& chart) {
         const fs::path data = dir / ("series" + std::to_string(index) + ".dat");
         std::ofstream out(data);
         out.precision(10);
+        std::size_t points = 0;
         for (std::size_t i = 0; i < s.x.size(); ++i) {
-            if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) continue;
+            if (!drawable(s.x[i]) || !drawable(s.y[i])) continue;
             if ((chart.log_x && s.x[i] <= 0) || (chart.log_y && s.y[i] <= 0)) continue;  // not drawable on a log axis
             out << s.x[i] << ' ' << s.y[i] << ' ' << data_label(i < s.labels.size() ? s.labels[i] : "") << '\n';
+            ++points;
         }
+        if (points == 0) continue;  // gnuplot fails on a plot whose every file is empty
         const int style = (s.style > 0 ? s.style - 1 : index) % 8 + 1;
         plot += (plot.empty() ? "plot " : ", ") + quoted(data.string()) + " using 1:2 with " +
                 (s.lines ? "linespoints" : "points") + " pt " + std::to_string(style % 7 + 5) + " ps 1.2 lw 1.5 lc " +
@@ -72,7 +83,10 @@ std::string render_svg(const Chart& chart) {
             plot += ", " + quoted(data.string()) + " using 1:2:3 with labels offset 0.8,0.6 font 'sans,8' tc rgb '#444444' notitle";
         ++index;
     }
-    if (plot.empty()) plot = "plot NaN notitle";
+    if (plot.empty()) {  // nothing drawable (a damaged database): an empty frame, not a gnuplot error
+        script << "unset logscale\nset xrange [0:1]\nset yrange [0:1]\n";
+        plot = "plot NaN notitle";
+    }
     script << plot << "\n";
     {
         std::ofstream out(dir / "chart.gp");

@@ -115,7 +115,7 @@ std::int64_t resolve_run(Database& db, std::int64_t run, const std::string& expe
     if (run) {
         Statement s = db.prepare("SELECT id FROM run WHERE id = ?");
         s.bind(1, run);
-        if (!s.step()) throw InputError("--run " + std::to_string(run) + ": no such run");
+        if (!s.step()) throw InputError("--run " + std::to_string(run) + ": no such run in " + db.path());
         return run;
     }
     Statement s = db.prepare(experiment.empty()
@@ -124,8 +124,8 @@ std::int64_t resolve_run(Database& db, std::int64_t run, const std::string& expe
                                    "AND EXISTS (SELECT 1 FROM cell WHERE cell.run_id = run.id) ORDER BY run.id DESC LIMIT 1");
     if (!experiment.empty()) s.bind(1, experiment);
     if (!s.step())
-        throw InputError(experiment.empty() ? std::string("the database has no measured run")
-                                            : "--experiment " + experiment + ": no measured run of that experiment");
+        throw InputError(experiment.empty() ? db.path() + ": the database has no measured run"
+                                            : "--experiment " + experiment + ": no measured run of that experiment in " + db.path());
     return s.int64(0);
 }
 

@@ -13,8 +13,8 @@ void add_advise_command(CLI::App& app) {
     auto o = std::make_shared<AdviseOptions>();
     CLI::App* cmd = app.add_subcommand("advise", "Measure every registered structure on a scene (recording or boxes CSV) at its tuned or "
                                                  "default parameters, and recommend the one to ship");
-    cmd->add_option("scene", o->scene, "Recording (.rcbscene) or boxes CSV (given 10 frames of 1% dynamics and 1000 centre rays)")->required();
-    cmd->add_option("--tuning", o->tuning, "A tuner's results (results/tuning-<name>.json): use its parameters for --category");
+    cmd->add_option("scene", o->scene, "Recording (.rcbscene) or boxes CSV (given 10 frames of 1% dynamics and 1000 centre rays)")->required()->check(input_file());
+    cmd->add_option("--tuning", o->tuning, "A tuner's results (results/tuning-<name>.json): use its parameters for --category")->check(input_file());
     cmd->add_option("--category", o->category, "Which category of the tuning file this scene resembles");
     cmd->add_option("--repetitions", o->repetitions, "Measurements per structure")->capture_default_str()->check(CLI::Range(1u, 100u));
     cmd->add_option("--warmup", o->warmup, "Frames left out of the medians")->capture_default_str()->check(whole_number(0, 1'000'000));

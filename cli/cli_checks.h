@@ -6,6 +6,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
 #include <limits>
 #include <string>
 
@@ -37,6 +38,27 @@ inline CLI::Validator whole_number(std::uint64_t lo = 0, std::uint64_t hi = std:
             return {};
         },
         "UINT");
+}
+
+/// An existing regular file to read: not empty, not a folder, and not a device or pipe such as
+/// /dev/zero, whose reading would never end.
+inline CLI::Validator input_file() {
+    return CLI::Validator(
+        [](std::string& path) -> std::string {
+            if (path.empty()) return "expected a file name, got an empty one";
+            std::error_code ec;
+            const std::filesystem::file_status st = std::filesystem::status(path, ec);
+            if (!std::filesystem::exists(st)) return "no such file: " + path;
+            if (std::filesystem::is_directory(st)) return path + " is a folder, not a file";
+            if (!std::filesystem::is_regular_file(st)) return path + " is not a regular file";
+            return {};
+        },
+        "FILE");
+}
+
+/// A non-empty text (names, folders).
+inline CLI::Validator non_empty() {
+    return CLI::Validator([](std::string& text) -> std::string { return text.empty() ? "must not be empty" : ""; }, "");
 }
 
 }  // namespace rcb

@@ -3,6 +3,7 @@
 #include <iostream>
 #include <memory>
 
+#include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "analysis/cost_model.h"
 #include "runner/store.h"
@@ -52,10 +53,11 @@ void add_fit_command(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand(
         "fit", "Fit the cost model C = C_RB*N_RB + C_T*N_T + C_PREP (thesis eq. 5.4) and update costs per structure to a run's "
                "frames; choose the smallest adequate model by held-out error; store the coefficients in the database");
-    cmd->add_option("db", o->db, "Results database")->required();
+    cmd->add_option("db", o->db, "Results database")->required()->check(input_file());
     cmd->add_option("--experiment", o->experiment, "Fit the newest run of this experiment (default: the newest run)");
     cmd->add_option("--run", o->run, "Fit this run id");
     cmd->callback([o] {
+        open_read_only(o->db);     // an existing results database, checked (fit does not create one)
         ResultStore store(o->db);  // migrates, so the fit tables exist
         const std::int64_t run = resolve_run(store.db(), o->run, o->experiment);
         const RunFit fit = fit_run(store.db(), run);

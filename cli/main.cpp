@@ -1,8 +1,27 @@
 // rcbench: find, tune and explain the best acceleration structure for ray casting in dynamic scenes.
 #include <iostream>
+#include <string>
+#include <string_view>
 
 #include "cli/commands.h"
 #include "core/error.h"
+
+namespace {
+
+/// An error as one line: a message may quote user text holding newlines or other control bytes.
+std::string one_line(std::string_view message) {
+    std::string out;
+    for (unsigned char c : message) {
+        if (c == '\n') out += "\\n";
+        else if (c == '\r') out += "\\r";
+        else if (c == '\t') out += "\\t";
+        else if (c < 0x20 || c == 0x7f) out += "?";
+        else out += char(c);
+    }
+    return out;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
     CLI::App app{"rcbench: acceleration structures for all-hits ray casting in dynamic physics scenes.\n"
@@ -31,14 +50,21 @@ int main(int argc, char** argv) {
         return app.exit(e);
     } catch (const CLI::CallForVersion& e) {
         return app.exit(e);
+    } catch (const CLI::RequiredError& e) {
+        // "A subcommand is required" when the first word is not one: name that word.
+        if (argc > 1 && app.get_subcommands().empty())
+            std::cerr << "rcbench: " << one_line(argv[1]) << ": not a subcommand (see rcbench --help)\n";
+        else
+            std::cerr << "rcbench: " << one_line(e.what()) << " (see rcbench --help)\n";
+        return 2;
     } catch (const CLI::ParseError& e) {
-        std::cerr << "rcbench: " << e.what() << " (see rcbench --help)\n";
+        std::cerr << "rcbench: " << one_line(e.what()) << " (see rcbench --help)\n";
         return 2;
     } catch (const rcb::InputError& e) {
-        std::cerr << "rcbench: " << e.what() << '\n';
+        std::cerr << "rcbench: " << one_line(e.what()) << '\n';
         return 2;
     } catch (const std::exception& e) {
-        std::cerr << "rcbench: error: " << e.what() << '\n';
+        std::cerr << "rcbench: error: " << one_line(e.what()) << '\n';
         return 1;
     }
     return 0;

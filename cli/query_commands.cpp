@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "core/output_file.h"
+#include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "runner/compare.h"
 #include "runner/merge.h"
@@ -50,7 +51,7 @@ void add_query_commands(CLI::App& app) {
     };
     auto q = std::make_shared<QueryOptions>();
     CLI::App* query = app.add_subcommand("query", "Run a read-only SQL statement on a results database (schema: docs/database.md)");
-    query->add_option("db", q->db, "Results database")->required();
+    query->add_option("db", q->db, "Results database")->required()->check(input_file());
     query->add_option("sql", q->sql, "SQL, e.g. \"SELECT scene, structure, raycast_ns_median FROM cell_summary\"")->required();
     query->add_flag("--csv", q->csv, "Print CSV instead of a table");
     query->callback([q] { run_query(q->db, q->sql, q->csv); });
@@ -64,13 +65,13 @@ void add_query_commands(CLI::App& app) {
     auto c = std::make_shared<CompareOptions>();
     CLI::App* compare = app.add_subcommand(
         "compare", "Compare two runs per scene and configuration: ratio of median frame times, Mann-Whitney U p-value, verdict");
-    compare->add_option("db", c->db, "Results database")->required();
+    compare->add_option("db", c->db, "Results database")->required()->check(input_file());
     compare->add_option("--baseline", c->baseline, "Run id or git commit prefix")->required();
     compare->add_option("--candidate", c->candidate, "Run id or git commit prefix")->required();
     compare->add_option("--metric", c->metric, "raycast, update or both")->capture_default_str()->check(CLI::IsMember({"raycast", "update", "both"}));
-    compare->add_option("--alpha", c->alpha, "Significance level of the U test")->capture_default_str()->check(CLI::Range(1e-9, 0.5));
+    compare->add_option("--alpha", c->alpha, "Significance level of the U test")->capture_default_str()->check(finite_range(1e-9, 0.5));
     compare->add_option("--fail-on-regression", c->fail_pct, "Exit 1 when a significant slowdown exceeds this many percent")
-        ->check(CLI::Range(0.0, 1e6));
+        ->check(finite_range(0.0, 1e6));
     compare->callback([c] {
         auto db = open_read_only(c->db);
         const std::vector<Comparison> rows = compare_runs(*db, c->baseline, c->candidate, c->metric, c->alpha);
@@ -93,7 +94,7 @@ void add_query_commands(CLI::App& app) {
     auto m = std::make_shared<MergeOptions>();
     CLI::App* merge = app.add_subcommand("merge", "Combine results databases (e.g. shards) into one; runs already present are skipped");
     merge->add_option("out", m->out, "Database to merge into (created if missing)")->required();
-    merge->add_option("in", m->in, "Databases to merge from")->required();
+    merge->add_option("in", m->in, "Databases to merge from")->required()->check(input_file());
     merge->callback([m] {
         // Every input is opened (and so checked) before the output is created or touched.
         std::vector<std::unique_ptr<Database>> inputs;

@@ -2,6 +2,7 @@
 #include <iostream>
 #include <memory>
 
+#include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "analysis/cost_model.h"
 #include "analysis/report.h"
@@ -17,7 +18,7 @@ void add_report_command(CLI::App& app) {
     };
     auto o = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand("report", "Write a run's thesis-style tables and charts (gnuplot) as one self-contained HTML file");
-    cmd->add_option("db", o->db, "Results database")->required();
+    cmd->add_option("db", o->db, "Results database")->required()->check(input_file());
     cmd->add_option("-o,--output", o->out, "HTML file to write")->capture_default_str();
     cmd->add_option("--experiment", o->experiment, "Report the newest run of this experiment (default: the newest run)");
     cmd->add_option("--run", o->run, "Report this run id");

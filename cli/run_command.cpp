@@ -10,7 +10,9 @@
 #include <memory>
 
 #include "core/error.h"
+#include "core/output_file.h"
 #include "core/registry.h"
+#include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "runner/experiment.h"
 #include "runner/run_experiment.h"
@@ -121,7 +123,7 @@ void add_run_command(CLI::App& app) {
     auto o = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand("run", "Run an experiment file (structures x scenes x parameters x repetitions) into a "
                                               "SQLite database; running it again resumes an unfinished run");
-    cmd->add_option("experiment", o->experiment, "Experiment file (JSON; see experiments/README.md)")->required();
+    cmd->add_option("experiment", o->experiment, "Experiment file (JSON; see experiments/README.md)")->required()->check(input_file());
     cmd->add_option("--db", o->db, "Results database (created if missing)")->capture_default_str();
     cmd->add_option("--shard", o->shard, "Run only every N-th cell, starting at the K-th: K/N (merge shards with rcbench merge)");
     cmd->add_flag("--new-run", o->new_run, "Start a new run even if an unfinished one could be resumed");
@@ -129,6 +131,11 @@ void add_run_command(CLI::App& app) {
     cmd->add_flag("--dry-run", o->dry_run, "Print the plan and stop");
     cmd->callback([o] {
         const Experiment e = load_experiment(o->experiment);
+        if (!o->dry_run) {
+            std::vector<std::string> inputs{o->experiment};
+            for (const SceneSpec& scene : e.scenes) inputs.push_back(scene.path);
+            check_output_path(o->db, inputs, "--db");
+        }
         std::size_t shard_k = 1, shard_n = 1;
         if (!o->shard.empty()) std::tie(shard_k, shard_n) = parse_shard(o->shard);
         const std::vector<Cell> plan = shard_plan(e, shard_k, shard_n);

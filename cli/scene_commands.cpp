@@ -180,7 +180,7 @@ void add_scene_commands(CLI::App& app) {
     };
     auto imp = std::make_shared<ImportCommandOptions>();
     CLI::App* i = scene->add_subcommand("import", "Import a static scene (CSV: uid,minx,miny,minz,maxx,maxy,maxz; Quake III/OpenArena .bsp/.pk3; any model assimp reads) and give it dynamics and rays");
-    i->add_option("input", imp->input, "Boxes file (.csv), map (.bsp, or .pk3 with maps/*.bsp) or model (.obj, .gltf, .glb, .fbx, ...)")->required();
+    i->add_option("input", imp->input, "Boxes file (.csv), map (.bsp, or .pk3 with maps/*.bsp) or model (.obj, .gltf, .glb, .fbx, ...)")->required()->check(input_file());
     i->add_option("-o,--output", imp->out, "Recording file to write")->required();
     i->add_option("--bsp-mode", imp->file.bsp_mode, "Maps: one object per solid brush (brushes) or per draw-surface triangle (triangles)")
         ->capture_default_str()
@@ -221,7 +221,7 @@ void add_scene_commands(CLI::App& app) {
     };
     auto info = std::make_shared<InfoOptions>();
     CLI::App* n = scene->add_subcommand("info", "Describe a recording: objects, frames, rays, bounds, size distribution");
-    n->add_option("file", info->file, "Recording file")->required();
+    n->add_option("file", info->file, "Recording file")->required()->check(input_file());
     n->add_flag("--json", info->json, "Print one JSON object");
     n->callback([info] { scene_info(info->file, info->json); });
 }

@@ -95,7 +95,7 @@ void add_simulate_command(CLI::App& app) {
         "simulate",
         "Replay recordings against structures: build, update and ray-cast times per frame, verified against brute-force "
         "ground truth. One scene and one structure: a per-frame table; several: the thesis' Tables 6.1/6.2 (structures x scenes)");
-    cmd->add_option("--scene", o->scenes, "Recording file (from rcbench scene gen/import); repeatable")->required();
+    cmd->add_option("--scene", o->scenes, "Recording file (from rcbench scene gen/import); repeatable")->required()->check(input_file());
     cmd->add_option("--structure", o->structures, "Structure name (rcbench structures lists them), or all; repeatable")->required();
     cmd->add_option("--param", o->params_text, "Structure parameter key=value (repeatable; with one --structure only)");
     cmd->add_option("--frames", o->sim.max_frames, "Replay at most this many frames (0: all)")->capture_default_str()->check(whole_number(0, 1'000'000));

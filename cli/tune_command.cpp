@@ -20,9 +20,9 @@ void add_tune_command(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand(
         "tune", "Search structures' tunable parameters per scene category with NLopt, minimising update + rays x cost per frame "
                 "(thesis eq. 5.5); writes results/tuning-<name>.md/.json and database rows");
-    cmd->add_option("file", o->file, "Tuning file (JSON; see experiments/README.md)")->required();
-    cmd->add_option("--db", o->db, "Results database for the tuning rows")->capture_default_str();
-    cmd->add_option("--out-dir", o->out_dir, "Folder for tuning-<name>.md/.json/.svg")->capture_default_str();
+    cmd->add_option("file", o->file, "Tuning file (JSON; see experiments/README.md)")->required()->check(input_file());
+    cmd->add_option("--db", o->db, "Results database for the tuning rows")->capture_default_str()->check(non_empty());
+    cmd->add_option("--out-dir", o->out_dir, "Folder for tuning-<name>.md/.json/.svg")->capture_default_str()->check(non_empty());
     cmd->add_option("--seed", o->seed, "Override the file's search seed")->check(whole_number());
     cmd->add_flag("--exhaustive", o->exhaustive, "Also measure every configuration of each search space and report the tuner's gap to the true optimum");
     cmd->callback([o] {

@@ -1,6 +1,8 @@
 #include "runner/compare.h"
 
 #include <algorithm>
+#include <charconv>
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -41,9 +43,17 @@ double mann_whitney_p(const std::vector<double>& a, const std::vector<double>& b
 
 std::vector<std::int64_t> select_runs(Database& db, const std::string& selector) {
     std::vector<std::int64_t> runs;
-    const bool numeric = !selector.empty() && std::all_of(selector.begin(), selector.end(), ::isdigit);
+    // A run id (decimal digits that fit), or a commit prefix: `git describe` output, at most 64
+    // characters of letters, digits, '-', '.' and '_' (so no LIKE wildcards either).
+    std::int64_t id = 0;
+    const auto [end, ec] = std::from_chars(selector.data(), selector.data() + selector.size(), id);
+    const bool numeric = !selector.empty() && ec == std::errc() && end == selector.data() + selector.size() && id >= 0;
+    const bool commit = !selector.empty() && selector.size() <= 64 &&
+                        std::all_of(selector.begin(), selector.end(), [](unsigned char c) { return std::isalnum(c) || c == '-' || c == '.' || c == '_'; });
+    if (!numeric && !commit)
+        throw InputError(quoted_excerpt(selector) + ": not a run id or a git commit prefix");
     Statement s = db.prepare(numeric ? "SELECT id FROM run WHERE id = ?" : "SELECT id FROM run WHERE git_commit LIKE ? || '%' ORDER BY id");
-    if (numeric) s.bind(1, std::int64_t(std::stoll(selector)));
+    if (numeric) s.bind(1, id);
     else s.bind(1, selector);
     while (s.step()) runs.push_back(s.int64(0));
     if (runs.empty()) throw InputError("no run matches '" + selector + "' (give a run id or a git commit prefix)");
@@ -79,8 +89,15 @@ std::map<Key, Samples> frames_of(Database& db, const std::vector<std::int64_t>& 
 
 std::vector<Comparison> compare_runs(Database& db, const std::string& baseline, const std::string& candidate,
                                      const std::string& metric, double alpha) {
-    const auto base = frames_of(db, select_runs(db, baseline));
-    const auto cand = frames_of(db, select_runs(db, candidate));
+    const auto named = [&](const char* option, const std::string& selector) {
+        try {
+            return select_runs(db, selector);
+        } catch (const InputError& e) {
+            throw InputError(std::string(option) + " " + e.what());
+        }
+    };
+    const auto base = frames_of(db, named("--baseline", baseline));
+    const auto cand = frames_of(db, named("--candidate", candidate));
     std::vector<Comparison> out;
     for (const auto& [key, b] : base) {
         auto it = cand.find(key);

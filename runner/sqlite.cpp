@@ -14,6 +14,8 @@ void throw_sql_error(sqlite3* db, int rc) {
     const int primary = rc & 0xff;
     if (primary == SQLITE_CORRUPT || primary == SQLITE_NOTADB)
         throw InputError(where + "damaged or not an SQLite database (" + message + ")");
+    if (primary == SQLITE_READONLY || primary == SQLITE_CANTOPEN || primary == SQLITE_PERM)
+        throw InputError(where + "cannot write the database here (" + message + ")");
     throw SqlError(where + message, rc);
 }
 
@@ -67,14 +69,36 @@ std::string Statement::text(int i) const {
     return t ? std::string(reinterpret_cast<const char*>(t), std::size_t(sqlite3_column_bytes(stmt_, i))) : std::string();
 }
 
-Database::Database(const std::string& path, bool read_only) : path_(path) {
-    const int flags = read_only ? SQLITE_OPEN_READONLY : (SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
-    if (const int rc = sqlite3_open_v2(path.c_str(), &db_, flags, nullptr); rc != SQLITE_OK) {
-        std::string message = db_ ? sqlite3_errmsg(db_) : "out of memory";
-        sqlite3_close(db_);
-        db_ = nullptr;
-        throw SqlError(path + ": " + message, rc);
+namespace {
+
+int open_connection(const std::string& path, int flags, sqlite3** db) {
+    const int rc = sqlite3_open_v2(path.c_str(), db, flags, nullptr);
+    if (rc != SQLITE_OK) {
+        sqlite3_close(*db);
+        *db = nullptr;
     }
+    return rc;
+}
+
+}  // namespace
+
+Database::Database(const std::string& path, bool read_only) : path_(path) {
+    // A reader opens the file for writing where it may (never creating it), so that closing the
+    // last connection removes WAL's -wal and -shm files instead of leaving them beside a database
+    // it only read; read-only where the file or folder is not writable.
+    int rc = open_connection(path, read_only ? SQLITE_OPEN_READWRITE : (SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE), &db_);
+    if (rc != SQLITE_OK && read_only) rc = open_connection(path, SQLITE_OPEN_READONLY, &db_);
+    if (rc != SQLITE_OK) throw SqlError(path + ": " + sqlite3_errstr(rc), rc);
+    try {
+        configure(read_only);
+    } catch (...) {
+        sqlite3_close(db_);  // the destructor does not run for a constructor that throws
+        db_ = nullptr;
+        throw;
+    }
+}
+
+void Database::configure(bool read_only) {
     sqlite3_busy_timeout(db_, 60'000);
     sqlite3_extended_result_codes(db_, 1);
     if (!read_only) {

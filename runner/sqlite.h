@@ -80,6 +80,8 @@ public:
     const std::string& path() const { return path_; }
 
 private:
+    void configure(bool read_only);
+
     sqlite3* db_ = nullptr;
     std::string path_;
 };

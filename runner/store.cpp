@@ -6,6 +6,7 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 #include <thread>
 
@@ -188,10 +189,33 @@ int user_version(Database& db) {
 }
 
 void refuse_newer(int version, const std::string& path) {
+    if (version < 0) throw InputError(path + ": not an rcbench results database (schema version " + std::to_string(version) + ")");
     if (version > latest_schema_version())
         throw InputError(path + ": results database schema version " + std::to_string(version) +
                          " is newer than this rcbench writes (" + std::to_string(latest_schema_version()) +
                          "); use a newer rcbench");
+}
+
+/// The tables, views and indexes as SQLite stores them (name → CREATE statement).
+std::map<std::string, std::string> schema_of(Database& db) {
+    std::map<std::string, std::string> out;
+    Statement s = db.prepare("SELECT name, sql FROM sqlite_master WHERE name NOT LIKE 'sqlite_%' AND sql IS NOT NULL");
+    while (s.step()) out[s.text(0)] = s.text(1);
+    return out;
+}
+
+/// InputError unless the file's schema is exactly what the migrations make at its version: a
+/// database with a table dropped or altered is damaged, and would fail later with a bare
+/// "no such table" in the middle of a command.
+void check_schema(Database& db, int version) {
+    Database reference(":memory:", false);
+    for (int v = 0; v < version; ++v) reference.exec(migrations()[std::size_t(v)]);
+    const auto want = schema_of(reference), have = schema_of(db);
+    for (const auto& [name, sql] : want) {
+        auto it = have.find(name);
+        if (it == have.end()) throw InputError(db.path() + ": damaged results database (" + name + " is missing)");
+        if (it->second != sql) throw InputError(db.path() + ": damaged results database (" + name + " differs from schema version " + std::to_string(version) + ")");
+    }
 }
 
 }  // namespace
@@ -296,6 +320,7 @@ void ResultStore::migrate(int target) {
     Transaction t(db_);
     const int version = user_version(db_);
     refuse_newer(version, db_.path());
+    if (version > 0) check_schema(db_, version);
     for (int v = version; v < target; ++v) db_.exec(migrations()[std::size_t(v)]);
     if (target > version) db_.exec("PRAGMA user_version = " + std::to_string(target));
     t.commit();
@@ -306,8 +331,10 @@ std::unique_ptr<Database> open_read_only(const std::string& path) {
     std::unique_ptr<Database> db;
     try {
         db = std::make_unique<Database>(path, true);
-        refuse_newer(user_version(*db), path);
-        if (user_version(*db) == 0) throw InputError(path + ": not an rcbench results database (no schema)");
+        const int version = user_version(*db);
+        refuse_newer(version, path);
+        if (version == 0) throw InputError(path + ": not an rcbench results database (no schema)");
+        check_schema(*db, version);
     } catch (const SqlError& e) {
         throw InputError(path + ": cannot read the results database (" + e.what() + ")");
     }

@@ -231,7 +231,7 @@ Mutant mutate_json(const json& doc, rcb::Random& r) {
     } else if (op < 64) {
         const std::string s = pick(r, kHostileStrings);
         d[p] = s;
-        what = where + " = " + json(s).dump();
+        what = where + " = " + json(s).dump(-1, ' ', false, json::error_handler_t::replace);
         if (!s.empty() && s.find_first_of("\n\r") == std::string::npos) places.push_back(s);
     } else if (op < 74) {
         raw = raw_monster(r, what);
@@ -292,7 +292,7 @@ Mutant mutate_csv(const std::string& text, rcb::Random& r) {
             std::string l;
             for (std::size_t i = 0; i < fields.size(); ++i) l += (i ? "," : "") + fields[i];
             lines[li] = l;
-            return {join(), "line " + std::to_string(li + 1) + " field " + std::to_string(fi + 1) + " = " + json(fields[fi]).dump(), {}};
+            return {join(), "line " + std::to_string(li + 1) + " field " + std::to_string(fi + 1) + " = " + json(fields[fi]).dump(-1, ' ', false, json::error_handler_t::replace), {}};
         }
         case 4: lines.insert(lines.begin() + std::ptrdiff_t(li), lines[li]); return {join(), "line " + std::to_string(li + 1) + " duplicated", {}};
         case 5: lines.erase(lines.begin() + std::ptrdiff_t(li)); return {join(), "line " + std::to_string(li + 1) + " removed", {}};
@@ -326,7 +326,7 @@ Mutant mutate_obj(const std::string& text, rcb::Random& r) {
         const std::string st = pick(r, statements);
         const std::size_t nl = s.find('\n', r.below(s.size()));
         s.insert(nl == std::string::npos ? s.size() : nl + 1, st + "\n");
-        return {s, "statement " + json(st.substr(0, 60)).dump() + " inserted", {}};
+        return {s, "statement " + json(st.substr(0, 60)).dump(-1, ' ', false, json::error_handler_t::replace) + " inserted", {}};
     }
     // a number token replaced
     std::vector<std::size_t> starts;
@@ -815,7 +815,7 @@ protected:
             for (const std::string& p : c.places) named = named || r.err.find(p) != std::string::npos;
             if (!named) {
                 std::string list;
-                for (const std::string& p : c.places) list += (list.empty() ? "" : " or ") + json(p.substr(0, 60)).dump();
+                for (const std::string& p : c.places) list += (list.empty() ? "" : " or ") + json(p.substr(0, 60)).dump(-1, ' ', false, json::error_handler_t::replace);
                 problems.push_back("error does not name " + list);
             }
         }

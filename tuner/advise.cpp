@@ -47,12 +47,18 @@ std::vector<AdviceRow> advise(const AdviseOptions& o) {
         throw InputError(o.scene + ": " + e.what());
     }
 
+    // Every structure's parameters are checked before the first measurement, so a bad tuning file
+    // fails at once, not after minutes of measuring.
     std::vector<AdviceRow> rows;
+    std::vector<nlohmann::json> params;
     for (const StructureInfo& info : structure_registry()) {
         const bool is_tuned = tuned.count(info.name) != 0;
-        const nlohmann::json params = is_tuned ? info.complete(tuned[info.name], o.tuning) : info.defaults();
-        if (o.progress) o.progress(info.name);
-        rows.push_back({info.name, params.dump(), measure(category, info.name, params, o.warmup, o.repetitions), is_tuned});
+        params.push_back(is_tuned ? info.complete(tuned[info.name], o.tuning) : info.defaults());
+        rows.push_back({info.name, params.back().dump(), {}, is_tuned});
+    }
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        if (o.progress) o.progress(rows[i].structure);
+        rows[i].cost = measure(category, rows[i].structure, params[i], o.warmup, o.repetitions);
     }
     std::sort(rows.begin(), rows.end(), [](const AdviceRow& a, const AdviceRow& b) { return a.cost.ms < b.cost.ms; });
     return rows;

@@ -96,6 +96,7 @@ TuneOutcome run_tuning(const TuneSpec& spec, const TuneOptions& o) {
     std::vector<std::string> inputs{o.file, o.db};
     for (const TuneCategory& c : spec.categories)
         for (const SceneSpec& s : c.scenes) inputs.push_back(s.path);
+    check_output_path(o.db, {o.file}, "--db");
     check_output_path(md_path.string(), inputs, "--out-dir");
     check_output_path(json_path.string(), inputs, "--out-dir");
     ResultStore store(o.db);
