@@ -36,20 +36,22 @@ bool parse_number(std::string_view s, T& out) {
 }
 
 /// A coordinate's text as a float, and as a double for the range check: text beyond float's range
-/// ("1e39") is a number too, reported against the coordinate limit rather than as "not a number"
-/// (`overflow` set); text below float's smallest subnormal reads as zero.
-bool parse_coordinate(std::string_view s, float& out, double& wide, bool& overflow) {
+/// ("1e39", "1e-50") is a number too, reported against the coordinate limits rather than as "not a
+/// number" (`out_of_range` set; messages show the text as written, which may be beyond double's
+/// range too).
+bool parse_coordinate(std::string_view s, float& out, double& wide, bool& out_of_range) {
     auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
-    overflow = false;
+    out_of_range = false;
     if (end != s.data() + s.size()) return false;
     if (ec == std::errc()) {
         wide = out;
         return true;
     }
     if (ec != std::errc::result_out_of_range) return false;
-    wide = std::strtod(std::string(s).c_str(), nullptr);  // ±HUGE_VAL beyond double's range
-    overflow = std::abs(wide) >= 1;
-    out = overflow ? std::numeric_limits<float>::infinity() : 0.0f;  // an overflow is refused by the caller
+    out_of_range = true;
+    wide = std::strtod(std::string(s).c_str(), nullptr);  // ±HUGE_VAL or 0 beyond double's range
+    if (wide == 0) wide = std::copysign(std::numeric_limits<double>::denorm_min(), s.front() == '-' ? -1.0 : 1.0);
+    out = 0;  // never used: the value is beyond the coordinate limits either way
     return true;
 }
 
@@ -102,12 +104,12 @@ float field_float(const std::vector<std::string_view>& fields, std::size_t i, co
                   const std::string& where, const std::string& what) {
     float v;
     double wide;
-    bool overflow;
+    bool out_of_range;
     auto field = [&] { return "field " + std::to_string(i + 1) + " (" + columns[i] + ")"; };
-    if (!parse_coordinate(fields[i], v, wide, overflow))
+    if (!parse_coordinate(fields[i], v, wide, out_of_range))
         throw InputError(where + ": " + field() + ": " + quoted_excerpt(fields[i]) + " is not a number");
-    if (std::isfinite(wide) || overflow)
-        if (const std::string problem = coordinate_problem(wide, std::isfinite(wide) ? "" : fields[i]); !problem.empty())
+    if (std::isfinite(wide) || out_of_range)
+        if (const std::string problem = coordinate_problem(wide, fields[i]); !problem.empty())
             throw InputError(where + ": " + what + field() + ": " + problem);
     return v;
 }

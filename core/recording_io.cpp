@@ -124,12 +124,15 @@ std::string frame_context(const std::string& name, std::size_t frame) {
 
 std::string coordinate_problem(double v, std::string_view text) {
     if (!std::isfinite(v) && text.empty()) return "non-finite coordinate";
-    if (std::abs(v) <= kMaxCoordinate) return {};
+    const double a = std::abs(v);
+    // The limits as floats hold: 1e-20 written in a file reads as the float just below 1e-20.
+    if (a <= kMaxCoordinate && (a >= double(float(kMinCoordinate)) || a == 0)) return {};
     char value[32], limit[32];
     std::snprintf(value, sizeof value, "%g", v);
-    std::snprintf(limit, sizeof limit, "%g", kMaxCoordinate);
-    return "coordinate " + (text.empty() ? std::string(value) : quoted_excerpt(text)) + " beyond ±" + limit +
-           " (the largest magnitude every structure handles exactly)";
+    std::snprintf(limit, sizeof limit, "%g", a > kMaxCoordinate ? kMaxCoordinate : kMinCoordinate);
+    const std::string shown = text.empty() ? std::string(value) : quoted_excerpt(text);
+    if (a > kMaxCoordinate) return "coordinate " + shown + " beyond ±" + limit + " (the largest magnitude every structure handles exactly)";
+    return "coordinate " + shown + " below " + limit + " in magnitude (write 0: float arithmetic is not exact that small)";
 }
 
 std::string box_problem(const Aabb& box) {

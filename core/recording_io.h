@@ -61,10 +61,18 @@ void validate_recording(const Recording& recording, const std::string& name);
 /// magnitude and on a box 1e15 long among unit boxes (peers_test). Floats there are 2^26 apart:
 /// such scenes are coarse, but exact.
 inline constexpr double kMaxCoordinate = 1e15;
+/// The smallest |coordinate| accepted other than zero. Float arithmetic stops being exact far
+/// above float's smallest normal (1.2e-38): the slab test's reciprocal 1/d overflows for a
+/// direction component below 2.9e-39 (brute force itself disagreed with the ground truth on
+/// coordinates of 1e-42), and products of extents underflow (the dynamic BVH's binning crashed on
+/// a scene 1e-29 across). At 1e-20 nonzero coordinates are far from all of these, and rounding
+/// noise of real scenes (1e-16 and up) still passes; smaller values are to be written as 0.
+inline constexpr double kMinCoordinate = 1e-20;
 
-/// Empty when the coordinate is finite and within ±kMaxCoordinate, else what is wrong with it
-/// ("non-finite coordinate", "coordinate 1e+20 beyond ±1e+15 (...)"). `text`, when given, is the
-/// value as the user wrote it, shown (quoted) instead of the number: "1e400" overflows even double.
+/// Empty when the coordinate is finite and zero or within [kMinCoordinate, kMaxCoordinate] in
+/// magnitude, else what is wrong with it ("non-finite coordinate", "coordinate 1e+20 beyond ±1e+15
+/// (...)", "coordinate 3e-25 below 1e-20 ..."). `text`, when given, is the value as the user wrote
+/// it, shown (quoted) instead of the number: "1e400" overflows even double.
 std::string coordinate_problem(double value, std::string_view text = {});
 /// Empty when the box is valid (coordinate_problem finds nothing, min <= max on every axis), else
 /// what is wrong with it.

@@ -62,22 +62,27 @@ TEST(Csv, CoordinatesBeyondTheLimitAreRejectedNamingLineUidAndLimit) {
     std::string text = "uid,minx,miny,minz,maxx,maxy,maxz\n";
     for (int i = 0; i < 200; ++i) text += std::to_string(i) + ",0,0,0,1,1,1\n";
     EXPECT_EQ(boxes_error(text + "200,0,40,0,1e20,41,1\n"),
-              "boxes.csv:202: uid 200: field 5 (maxx): coordinate 1e+20 beyond ±1e+15 (the largest magnitude every structure handles exactly)");
-    EXPECT_NE(boxes_error("7,-3e38,0,0,1,1,1\n").find("boxes.csv:1: uid 7: field 2 (minx): coordinate -3e+38 beyond ±1e+15"),
+              "boxes.csv:202: uid 200: field 5 (maxx): coordinate '1e20' beyond ±1e+15 (the largest magnitude every structure handles exactly)");
+    EXPECT_NE(boxes_error("7,-3e38,0,0,1,1,1\n").find("boxes.csv:1: uid 7: field 2 (minx): coordinate '-3e38' beyond ±1e+15"),
               std::string::npos);
-    EXPECT_NE(boxes_error("7,0,0,0,1,1,1e39\n").find("boxes.csv:1: uid 7: field 7 (maxz): coordinate 1e+39 beyond ±1e+15"),
+    EXPECT_NE(boxes_error("7,0,0,0,1,1,1e39\n").find("boxes.csv:1: uid 7: field 7 (maxz): coordinate '1e39' beyond ±1e+15"),
               std::string::npos);
     EXPECT_NE(boxes_error("7,0,0,0,1,1,1e400\n").find("field 7 (maxz): coordinate '1e400' beyond ±1e+15"), std::string::npos);
-    // At the limit, and below float's range, is fine.
-    const auto edge = parse_boxes_csv("7,-1e15,0,1e-50,1e15,1,1\n", "edge.csv");
+    // Nonzero coordinates smaller than 1e-20, down to beyond double's range, are refused too.
+    EXPECT_EQ(boxes_error("7,0,0,3e-25,1,1,1\n"),
+              "boxes.csv:1: uid 7: field 4 (minz): coordinate '3e-25' below 1e-20 in magnitude (write 0: float arithmetic is not exact that small)");
+    EXPECT_NE(boxes_error("7,0,0,-1e-40,1,1,1\n").find("field 4 (minz): coordinate '-1e-40' below 1e-20"), std::string::npos);
+    EXPECT_NE(boxes_error("7,0,0,1e-400,1,1,1\n").find("field 4 (minz): coordinate '1e-400' below 1e-20"), std::string::npos);
+    // At the limits, and zero, are fine.
+    const auto edge = parse_boxes_csv("7,-1e15,-0,1e-20,1e15,0,1\n", "edge.csv");
     ASSERT_EQ(edge.size(), 1u);
     EXPECT_EQ(edge[0].box.min.x, -1e15f);
-    EXPECT_EQ(edge[0].box.min.z, 0.0f);
+    EXPECT_EQ(edge[0].box.min.z, 1e-20f);
     try {
         parse_rays_csv("0,0,0,1,2,3\n0,0,0,1,2.5e15,3\n", "rays.csv");
         FAIL();
     } catch (const InputError& e) {
-        EXPECT_STREQ(e.what(), "rays.csv:2: field 5 (y1): coordinate 2.5e+15 beyond ±1e+15 (the largest magnitude every structure handles exactly)");
+        EXPECT_STREQ(e.what(), "rays.csv:2: field 5 (y1): coordinate '2.5e15' beyond ±1e+15 (the largest magnitude every structure handles exactly)");
     }
 }
 

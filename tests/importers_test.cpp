@@ -680,7 +680,7 @@ TEST(SceneImport, CliRefusesACsvBoxBeyondTheCoordinateLimit) {
     std::string line, more;
     std::getline(e, line);
     EXPECT_FALSE(std::getline(e, more)) << more;
-    EXPECT_NE(line.find("giant.csv:202: uid 200: field 5 (maxx): coordinate 1e+20 beyond ±1e+15"), std::string::npos) << line;
+    EXPECT_NE(line.find("giant.csv:202: uid 200: field 5 (maxx): coordinate '1e20' beyond ±1e+15"), std::string::npos) << line;
 }
 
 /// The real OpenArena maps (scripts/fetch_maps.sh); skipped when they have not been fetched.

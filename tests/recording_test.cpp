@@ -132,9 +132,17 @@ TEST(Recording, RejectsCoordinatesBeyondTheLimitNamingFrameAndUid) {
     Recording ray = r;
     ray.frames[0].rays[3].p0.z = 2e15f;
     EXPECT_EQ(error_of(ray), "scene.rcbscene: frame 1: ray 3: coordinate 2e+15" + limit);
-    // At the limit is fine.
+    Recording tiny = r;
+    tiny.initial[7].box.min.y = 3e-25f;  // nonzero but below kMinCoordinate
+    EXPECT_EQ(error_of(tiny), "scene.rcbscene: frame 0: uid " + std::to_string(r.initial[7].uid) +
+                                  ": coordinate 3e-25 below 1e-20 in magnitude (write 0: float arithmetic is not exact that small)");
+    Recording denormal = r;
+    denormal.frames[1].rays[0].p1.y = -1e-42f;  // brute force itself disagreed with the ground truth here
+    EXPECT_NE(error_of(denormal).find("scene.rcbscene: frame 2: ray 0: coordinate -1.00053e-42 below 1e-20"), std::string::npos)
+        << error_of(denormal);
+    // At the limits is fine.
     Recording edge = r;
-    edge.initial[7].box = {{-1e15f, -1e15f, -1e15f}, {1e15f, 1e15f, 1e15f}};
+    edge.initial[7].box = {{-1e15f, -1e15f, -1e-20f}, {1e15f, 1e15f, 1e15f}};
     edge.frames[0].rays[3] = {{-1e15f, 0, 0}, {1e15f, 0, 0}};
     EXPECT_EQ(error_of(edge), "");
 }

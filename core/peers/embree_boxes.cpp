@@ -129,7 +129,7 @@ void EmbreeBoxes::commit() {
                       std::abs(b.max.z)});
     m = std::max(m, std::numeric_limits<float>::min());
     pad_ = kPadRelative * m;
-    in_range_ = m + pad_ <= kEmbreeRange;
+    in_range_ = m >= kEmbreeMinScale && m + pad_ <= kEmbreeRange;
     far_ = in_range_ ? std::min(kFarFactor * m, kEmbreeRange / 2) : 0.0f;
     Device& d = *device_;
     rtcSetGeometryUserPrimitiveCount(d.geometry, in_range_ ? static_cast<unsigned>(objects_.size()) : 0u);

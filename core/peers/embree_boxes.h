@@ -29,7 +29,10 @@
 /// stay within kMaxCoordinate (recording_io.h), far below; as a second line of defence for scenes
 /// built in memory, the far limit is also capped at kEmbreeRange / 2 (so origin and direction
 /// stay within kEmbreeRange), and when the padded boxes reach beyond kEmbreeRange Embree is given
-/// no primitives and every segment takes the exact fallback.
+/// no primitives and every segment takes the exact fallback. At the other end Embree works with
+/// absolute constants (its rcp_safe turns direction components below 1e-18 into 1e-18), which the
+/// padding no longer dominates in scenes a few 1e-12 across (hits were missed there): when every
+/// box lies within kEmbreeMinScale of the origin, the exact fallback answers too.
 ///
 /// Counters: N_RB = intersect-callback calls (leaf primitive tests) plus fallback tests, N_TP =
 /// hits. Embree does not expose its node visits, so N_T stays 0 for this peer.
@@ -75,6 +78,8 @@ public:
     static constexpr float kPadRelative = 1e-4f;
     /// Below Embree's FLT_LARGE (1.844e18) with margin.
     static constexpr float kEmbreeRange = 1e18f;
+    /// Four orders of magnitude above the scale where Embree first missed a hit (1e-12).
+    static constexpr float kEmbreeMinScale = 1e-8f;
 
     EmbreeBoxes();
     explicit EmbreeBoxes(const Params& params);
@@ -111,7 +116,7 @@ private:
     SlotBoxes objects_;         // slot = Embree primitive id
     float pad_ = 0;             // padding of the bounds given to Embree at the last commit
     float far_ = 0;             // min(kFarFactor · M, kEmbreeRange / 2) at the last commit
-    bool in_range_ = true;      // the padded boxes are within kEmbreeRange: Embree holds them
+    bool in_range_ = true;      // kEmbreeMinScale <= M and the padded boxes within kEmbreeRange: Embree holds them
     bool dirty_ = true;
     std::uint64_t commits_ = 0;
 };
