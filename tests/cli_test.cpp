@@ -81,7 +81,7 @@ TEST_F(Cli, BadInputIsOneLineAndExitTwo) {
     const std::string scene = path("s.rcbscene");
     ASSERT_EQ(run("scene gen --preset uni-s --frames 1 -o " + scene).code, 0);
     expect_bad_input(run("simulate --scene " + scene + " --structure kdtree"), "unknown structure 'kdtree'");
-    expect_bad_input(run("simulate --scene " + path("missing.rcbscene") + " --structure bf"), "missing.rcbscene: cannot open");
+    expect_bad_input(run("simulate --scene " + path("missing.rcbscene") + " --structure bf"), "--scene: no such file: " + path("missing.rcbscene"));
     expect_bad_input(run("simulate --scene " + scene + " --structure bf --param depth=3"), "--param.depth: unknown parameter of bf");
     expect_bad_input(run("scene gen --preset uni-xxl -o " + path("x")), "--preset: uni-xxl not in {uni-s,");
     expect_bad_input(run("scene gen --kind cubes --objects 10 -o " + path("x")), "--kind: cubes not in {uniform,irregular,stadium,");
@@ -102,11 +102,11 @@ TEST_F(Cli, RunQueryCompareRejectBadInputInOneLine) {
     EXPECT_FALSE(fs::exists(path("r.db")));  // nothing written for an invalid file
     write("ok.json", R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");
     expect_bad_input(run("run " + path("ok.json") + " --shard 0/3 --db " + path("r.db")), "--shard 0/3: expected K/N");
-    expect_bad_input(run("run " + path("missing.json")), "missing.json: cannot open");
+    expect_bad_input(run("run " + path("missing.json")), "experiment: no such file: " + path("missing.json"));
     ASSERT_EQ(run("run " + path("ok.json") + " --db " + path("r.db")).code, 0);
     expect_bad_input(run("query " + path("r.db") + " \"DELETE FROM cell\""), "only read-only statements");
     expect_bad_input(run("query " + path("r.db") + " \"SELECT nope FROM cell\""), "r.db: no such column: nope");
-    expect_bad_input(run("query " + path("none.db") + " \"SELECT 1\""), "none.db: no such results database");
+    expect_bad_input(run("query " + path("none.db") + " \"SELECT 1\""), "db: no such file: " + path("none.db"));
     expect_bad_input(run("compare " + path("r.db") + " --baseline 1 --candidate 7"), "no run matches '7'");
     const Outcome csv = run("query --csv " + path("r.db") + " \"SELECT structure, count(*) AS cells FROM cell_summary GROUP BY 1\"");
     EXPECT_EQ(csv.out, "structure,cells\nbf,1\n");
