@@ -59,6 +59,7 @@ void LinearBvh::build(std::span<const Object> objects) {
     objects_.clear();
     objects_.reserve(objects.size());
     for (const Object& o : objects) objects_.insert(o);
+    rebuilds_since_crowd_check_ = kCrowdCheckEvery;  // look for crowds in the first tree
     rebuild();
 }
 
@@ -152,6 +153,9 @@ void LinearBvh::radix_sort() {
 void LinearBvh::rebuild() {
     dirty_ = false;
     const std::size_t n = objects_.size();
+    // Crowds are looked for while the last tree had some, else every kCrowdCheckEvery rebuilds.
+    crowds_checked_ = params_.crowd_guard && (crowds_ > 0 || ++rebuilds_since_crowd_check_ >= kCrowdCheckEvery);
+    if (crowds_checked_) rebuilds_since_crowd_check_ = 0;
     crowds_ = tied_codes_ = 0;
     if (n == 0) {
         nodes_.clear();
@@ -216,7 +220,6 @@ void LinearBvh::rebuild() {
             nodes_[leaf_base_ + k] = Node{objects_.box(slot), {objects_.uid(slot), kNullNode}, kNullNode, 0, kShared};
         }
     });
-    crowds_ = 0;
     if (n > 1) {
         common_.resize(n - 1);
         ranges_.resize(n - 1);
@@ -283,7 +286,7 @@ void LinearBvh::rebuild() {
             node.box = merge(a.box, c.box);
             node.height = std::uint16_t(1 + std::max(a.height, c.height));
             node.flags = 0;
-            if (params_.crowd_guard && (a.flags & c.flags & kShared)) {
+            if (crowds_checked_ && (a.flags & c.flags & kShared)) {
                 const Aabb& ca = is_leaf(node.child[0]) ? a.box : common_[node.child[0]];
                 const Aabb& cc = is_leaf(node.child[1]) ? c.box : common_[node.child[1]];
                 const Aabb common{rcb::max(ca.min, cc.min), rcb::min(ca.max, cc.max)};
@@ -457,11 +460,11 @@ void LinearBvh::validate() const {
             fail("node " + std::to_string(v) + " has a wrong leaf range");
         const bool shared =
             common.min.x <= common.max.x && common.min.y <= common.max.y && common.min.z <= common.max.z;
-        const bool crowd = params_.crowd_guard && last - first + 1 >= kCrowdLeaves && shared;
+        const bool crowd = crowds_checked_ && last - first + 1 >= kCrowdLeaves && shared;
         if (bool(nodes_[v].flags & kCrowd) != crowd)
             fail("node " + std::to_string(v) +
                  (crowd ? " is a crowd but not marked" : " is marked as a crowd but is none"));
-        if (bool(nodes_[v].flags & kShared) != (params_.crowd_guard && shared))
+        if (bool(nodes_[v].flags & kShared) != (crowds_checked_ && shared))
             fail("node " + std::to_string(v) + " has a wrong shared flag");
         if ((nodes_[v].flags & kShared) && !(common_[v] == common))
             fail("node " + std::to_string(v) + " has a stale common box");
