@@ -1106,9 +1106,13 @@ TEST_F(Hostile, DatabasesForQueryCompareMergeFitReport) {
             write_bytes(tmp, good);
             try {
                 rcb::Database db(tmp.string(), false);
+                db.exec("PRAGMA foreign_keys = OFF");  // a damaged database need not keep its references
                 db.exec(sql[k]);
             } catch (const std::exception& e) {
-                ADD_FAILURE() << "could not apply " << sql[k].substr(0, 80) << ": " << e.what();  // the schema changed: update the list
+                // SQLite itself refuses some damage (NOT NULL, UNIQUE): such a file cannot exist.
+                const std::string why = e.what();
+                if (why.find("constraint failed") == std::string::npos)
+                    ADD_FAILURE() << "could not apply " << sql[k].substr(0, 80) << ": " << why;  // the schema changed: update the list
                 continue;
             }
             bytes = read_bytes(tmp);

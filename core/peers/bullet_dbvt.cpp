@@ -104,7 +104,7 @@ void BulletDbvt::commit() {
 
 bool BulletDbvt::dbvt_query(const Segment& s, Query& q) {
     if (objects_.empty()) return true;
-    if (!is_finite(s.p0) || !is_finite(s.p1)) return false;
+    if (scale_ < kMinScale || !is_finite(s.p0) || !is_finite(s.p1)) return false;
     const float far = kFarFactor * scale_;
     for (int a = 0; a < 3; ++a)
         if (std::abs(s.p0[a]) > far || std::abs(s.p1[a]) > far) return false;

@@ -48,6 +48,9 @@ public:
 
     static constexpr float kFarFactor = 16.0f;
     static constexpr float kPadRelative = 1e-4f;
+    /// Below this scale (every box within 1e-8 of the origin) btDbvt's fixed constants outweigh the
+    /// padding and it misses hits; the exact scan answers instead, as for Embree.
+    static constexpr float kMinScale = 1e-8f;
 
     BulletDbvt();
     explicit BulletDbvt(const Params& params);
