@@ -24,9 +24,8 @@
 /// guard off; stats report "guard_rebuilds".
 ///
 /// Height guard (`height_guard`, incremental mode, on by default): insertion by SAH can chain boxes
-/// nested around one centre (each new box best sits beside the whole tree or beside one leaf), so
-/// the tree grows as deep as it has leaves and every insert, remove and ray walks O(n) nodes
-/// (building 10 000 nested cubes took O(n²)). When the height exceeds height_limit(size) =
+/// nested around one centre into a tree as deep as it has leaves, so that every insert, remove and
+/// ray walks O(n) nodes and the build takes O(n²). When the height exceeds height_limit(size) =
 /// 4·bit_width(size) + 8, at a commit or during the build, the tree is rebuilt with the binned-SAH
 /// builder, which splits boxes sharing one centroid by size. Stats report "height_rebuilds".
 ///
