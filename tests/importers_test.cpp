@@ -25,6 +25,7 @@
 #include "core/importers/scene_import.h"
 #include "runner/experiment.h"
 #include "tests/test_scenes.h"
+#include "tests/real_data.h"
 
 namespace rcb {
 namespace {
@@ -686,7 +687,7 @@ TEST(SceneImport, CliRefusesACsvBoxBeyondTheCoordinateLimit) {
 /// The real OpenArena maps (scripts/fetch_maps.sh); skipped when they have not been fetched.
 TEST(BspImport, RealOpenArenaMapsMatchGroundTruthInEveryStructure) {
     const fs::path pk3 = fs::path(RCBENCH_SOURCE_DIR) / "data/maps/pak1-maps.pk3";
-    if (!fs::exists(pk3)) GTEST_SKIP() << "no " << pk3 << " (run scripts/fetch_maps.sh to fetch the OpenArena maps)";
+    RCB_REQUIRE_REAL_DATA(fs::exists(pk3), "no " << pk3 << " (run scripts/fetch_maps.sh to fetch the OpenArena maps)");
     for (const char* map : {"oa_dm1", "aggressor"})
         for (const char* mode : {"brushes", "triangles"}) {
             BspSummary s;
@@ -705,7 +706,7 @@ TEST(BspImport, RealOpenArenaMapsMatchGroundTruthInEveryStructure) {
 
 TEST(ModelImport, RealAssimpTestModelImports) {
     const fs::path glb = fs::path(RCBENCH_SOURCE_DIR) / "data/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb";
-    if (!fs::exists(glb)) GTEST_SKIP() << "no " << glb << " (run scripts/fetch_maps.sh to fetch assimp's test models)";
+    RCB_REQUIRE_REAL_DATA(fs::exists(glb), "no " << glb << " (run scripts/fetch_maps.sh to fetch assimp's test models)");
     ModelSummary s;
     const std::vector<Object> instances = import_model(glb.string(), "instances", &s);
     EXPECT_EQ(instances.size(), s.instances);
