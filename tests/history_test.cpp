@@ -18,6 +18,7 @@
 #include "core/error.h"
 #include "core/registry.h"
 #include "runner/history.h"
+#include "runner/run_experiment.h"
 #include "runner/store.h"
 #include "subprocess.h"
 
@@ -391,19 +392,10 @@ std::int64_t small_run(const std::string& db_path) {
             "scenes": [{"kind": "uniform", "objects": 800}, {"kind": "irregular", "objects": 1500}],
             "structures": [{"name": "bf"}, {"name": "dbvh"}, {"name": "lbvh"}]})",
         "history-report.json", ".");
-    ResultStore store(db_path);
-    const std::int64_t ex = store.experiment_id(e);
-    const std::int64_t run = store.begin_run(ex, RunInfo::current(1, "", e));
-    std::size_t loaded = SIZE_MAX;
-    Recording r;
-    std::string hash;
-    for (const Cell& c : e.plan) {
-        if (c.scene != loaded) r = load_scene(e.scenes[c.scene]), hash = recording_hash(r), loaded = c.scene;
-        store.store_cell(run, ex, c, e.scenes[c.scene], r, hash,
-                         simulate(r, find_structure(e.configs[c.config].structure), e.configs[c.config].params));
-    }
-    store.finish_run(run);
-    return run;
+    RunOptions options;
+    options.db = db_path;
+    options.new_run = true;
+    return run_experiment(e, "history-report.json", options).run;
 }
 
 std::string read(const std::string& path) {

@@ -13,6 +13,7 @@
 #include "analysis/report.h"
 #include "core/registry.h"
 #include "runner/experiment.h"
+#include "runner/run_experiment.h"
 #include "runner/store.h"
 #include "tests/real_data.h"
 
@@ -42,19 +43,10 @@ std::int64_t small_run(const std::string& db_path) {
                        {"kind": "irregular", "objects": 6000}],
             "structures": [{"name": "bf"}, {"name": "dbvh", "grids": [{"mode": "incremental"}, {"mode": "rebuild"}]}, {"name": "lbvh"}]})",
         "report-test.json", ".");
-    ResultStore store(db_path);
-    const std::int64_t ex = store.experiment_id(e);
-    const std::int64_t run = store.begin_run(ex, RunInfo::current(1, "", e));
-    std::size_t loaded = SIZE_MAX;
-    Recording r;
-    std::string hash;
-    for (const Cell& c : e.plan) {
-        if (c.scene != loaded) r = load_scene(e.scenes[c.scene]), hash = recording_hash(r), loaded = c.scene;
-        const SimulationResult res = simulate(r, find_structure(e.configs[c.config].structure), e.configs[c.config].params);
-        store.store_cell(run, ex, c, e.scenes[c.scene], r, hash, res);
-    }
-    store.finish_run(run);
-    return run;
+    RunOptions options;
+    options.db = db_path;
+    options.new_run = true;
+    return run_experiment(e, "report-test.json", options).run;
 }
 
 TEST(Report, DrawsEveryChartAndRendersInChromium) {

@@ -223,14 +223,7 @@ void UniformGrid::validate() const {
                     ++seen[slot];
                 }
             }
-    if (const std::string defect = large_.defect(); !defect.empty()) fail(defect);
-    for (std::uint32_t k = 0; k < large_.size(); ++k) {
-        const std::uint32_t slot = large_.cell().slot(k);
-        if (slot >= entries_.size() || !live[slot])
-            fail("stale entry (slot " + std::to_string(slot) + ") in the large-object list");
-        if (!(large_.cell().box(k) == entries_[slot].box))
-            fail("uid " + std::to_string(entries_[slot].uid) + " has a stale box in the large-object list");
-    }
+    grid::check_large_objects(large_, entries_, live, fail);
     for (std::size_t slot = 0; slot < entries_.size(); ++slot) {
         if (!live[slot]) continue;
         const Entry& e = entries_[slot];

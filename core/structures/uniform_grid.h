@@ -140,6 +140,19 @@ std::vector<std::uint8_t> live_slots(const std::vector<Entry>& entries, const st
     return live;
 }
 
+/// The large-object list holds only live slots, each with its current box; `fail(message)` otherwise.
+template <class Entry, class Fail>
+void check_large_objects(const BlockList& large, const std::vector<Entry>& entries, const std::vector<std::uint8_t>& live,
+                         Fail&& fail) {
+    if (const std::string defect = large.defect(); !defect.empty()) fail(defect);
+    for (std::uint32_t k = 0; k < large.size(); ++k) {
+        const std::uint32_t slot = large.cell().slot(k);
+        if (slot >= entries.size() || !live[slot]) fail("stale entry (slot " + std::to_string(slot) + ") in the large-object list");
+        if (!(large.cell().box(k) == entries[slot].box))
+            fail("uid " + std::to_string(entries[slot].uid) + " has a stale box in the large-object list");
+    }
+}
+
 /// Cells per axis for cells of edge `size` over `bounds` (at least 1).
 std::array<int, 3> resolution(const Aabb& bounds, double size, int max_per_axis);
 
