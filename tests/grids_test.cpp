@@ -16,13 +16,13 @@ namespace rcb {
 namespace {
 
 /// The large-object guard's limit: off, the tightest, or in between.
-int random_max_span(Random& rng) {
+int random_max_cells(Random& rng) {
     const int k = int(rng.below(4));
-    return k == 0 ? 0 : (k == 1 ? 1 : int(2 + rng.below(12)));
+    return k == 0 ? 0 : (k == 1 ? 1 : int(2 + rng.below(100)));
 }
 
 nlohmann::json random_ug_params(Random& rng) {
-    return {{"density", rng.log_uniform(0.1, 64.0)}, {"max_span", random_max_span(rng)}};
+    return {{"density", rng.log_uniform(0.1, 64.0)}, {"max_cells", random_max_cells(rng)}};
 }
 
 nlohmann::json random_hg_params(Random& rng) {
@@ -30,7 +30,7 @@ nlohmann::json random_hg_params(Random& rng) {
             {"max_depth", int(rng.below(7))},
             {"max_capacity", int(1 + rng.below(rng.below(2) ? 4 : 64))},
             {"subdivision", int(2 + rng.below(3))},
-            {"max_span", random_max_span(rng)}};
+            {"max_cells", random_max_cells(rng)}};
 }
 
 TEST(UniformGrid, MatchesGroundTruthOnEveryHardSceneAtDefaults) {
@@ -180,8 +180,8 @@ TEST(Grids, MoveInsideTheSameCellsKeepsStructureAndCounters) {
     }
 }
 
-/// The large-object guard: an object joins the list when its cell range grows past max_span (x + y +
-/// z cells − 2) and leaves it when it shrinks back, by move, insert and remove; the grid stays
+/// The large-object guard: an object joins the list when its cell range grows past max_cells cells
+/// and leaves it when it shrinks back, by move, insert and remove; the grid stays
 /// valid and its answers equal brute force's throughout.
 TEST(Grids, LargeObjectsMoveBetweenTheListAndTheCells) {
     std::vector<Object> objs;
@@ -230,7 +230,7 @@ TEST(Grids, LargeObjectsMoveBetweenTheListAndTheCells) {
         for (Structure* s : {g.get(), bf.get()}) s->remove(5001);
         check(0, "none left");
         // Off: the same huge box is stored in its cells.
-        auto off = find_structure(name).make({{"max_span", 0}}, "params");
+        auto off = find_structure(name).make({{"max_cells", 0}}, "params");
         off->build(objs);
         off->insert({5000, huge});
         off->validate();

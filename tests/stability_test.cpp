@@ -220,10 +220,10 @@ TEST(Stability, HashGridEntriesGuardBoundsMemory) {
     SceneSettings s = failure_scene("identical", 1000, 2);
     const Recording r = generate_scene(s);
     // One stack: the world is the box itself, cut into 3³ top cells (amp 0.01), each split down
-    // to depth 4 along the box's faces. The large-object guard is off: every box spans all 27 top
-    // cells, so it would keep them all in its list and leave the entries guard nothing to do.
+    // to depth 4 along the box's faces. The large-object guard is off, so that the entries guard
+    // alone bounds the entries (a tighter max_cells would keep every box in its list).
     const nlohmann::json deep = {
-        {"max_depth", 4}, {"subdivision", 2}, {"max_capacity", 8}, {"amp", 0.01}, {"max_span", 0}};
+        {"max_depth", 4}, {"subdivision", 2}, {"max_capacity", 8}, {"amp", 0.01}, {"max_cells", 0}};
     nlohmann::json off = deep;
     off["entries_guard"] = false;
     const SimulationResult with = counted(r, "hg", deep), without = counted(r, "hg", off);
@@ -292,9 +292,9 @@ TEST(Stability, CrowdGuardsStayExactAndReportFiring) {
         const Recording r = crowd_scene(kind, 1500, 3);
         for (const StructureInfo& info : structure_registry())
             test::expect_matches_ground_truth(r, info.name, {}, kind);
-        test::expect_matches_ground_truth(r, "ug", {{"max_span", 0}}, kind);
-        test::expect_matches_ground_truth(r, "hg", {{"max_span", 0}}, kind);
-        test::expect_matches_ground_truth(r, "hg", {{"max_span", 1}, {"max_depth", 4}}, kind);
+        test::expect_matches_ground_truth(r, "ug", {{"max_cells", 0}}, kind);
+        test::expect_matches_ground_truth(r, "hg", {{"max_cells", 0}}, kind);
+        test::expect_matches_ground_truth(r, "hg", {{"max_cells", 1}, {"max_depth", 4}}, kind);
         test::expect_matches_ground_truth(r, "lbvh", {{"crowd_guard", false}}, kind);
         test::expect_matches_ground_truth(r, "dbvh", {{"crowd_guard", false}, {"height_guard", false}}, kind);
         test::expect_matches_ground_truth(r, "dbvh", {{"mode", "rebuild"}}, kind);
@@ -303,7 +303,7 @@ TEST(Stability, CrowdGuardsStayExactAndReportFiring) {
     // Grids: the boxes as large as the scene are kept in the list of large objects.
     for (const char* grid : {"ug", "hg"}) {
         EXPECT_GT(stat(counted(r, grid, {}), "large_objects"), 100u) << grid;
-        EXPECT_EQ(stat(counted(r, grid, {{"max_span", 0}}), "large_objects"), 0u) << grid;
+        EXPECT_EQ(stat(counted(r, grid, {{"max_cells", 0}}), "large_objects"), 0u) << grid;
     }
     // LBVH: one Morton code for all, ordered by size; crowds scanned.
     const SimulationResult lbvh = counted(r, "lbvh", {});
@@ -323,10 +323,11 @@ TEST(Stability, CrowdGuardsStayExactAndReportFiring) {
 }
 
 /// The work of a ray cast (traversal steps N_T plus box tests N_RB, from the counting pass) on
-/// crowd scenes is at most brute force's box tests for every structure at its defaults, and the
-/// grids' entries stay within what their guards promise. Before the guards the nested scene cost
-/// 1.5x (ug) to 2.1x (lbvh) brute force's work: a binary tree visits every node of a crowd the
-/// segment starts in, and a grid tests a box as large as the scene in every cell it crosses.
+/// crowd scenes is within a quarter above brute force's box tests for every structure at its
+/// defaults, and the grids' entries stay within what their guards promise. Before the guards the
+/// nested scene cost 1.5x (ug) to 2.1x (lbvh) brute force's work: a binary tree visits every node
+/// of a crowd the segment starts in, and a grid tests a box as large as the scene in every cell
+/// it crosses.
 TEST(Stability, WorkOnCrowdScenesIsBoundedByBruteForce) {
     for (const char* kind : {"nested", "same-centroid"}) {
         const Recording r = crowd_scene(kind, 3000, 2);
@@ -336,14 +337,13 @@ TEST(Stability, WorkOnCrowdScenesIsBoundedByBruteForce) {
             std::uint64_t work = 0;
             for (const FrameResult& f : res.frames) work += f.counters.n_t + f.counters.n_rb;
             std::printf("%s %s: work %.2f x brute force's box tests\n", kind, name, double(work) / double(bf));
-            EXPECT_LE(work, bf) << kind << ' ' << name << ": work " << work << ", brute force " << bf;
+            EXPECT_LE(work, bf + bf / 4) << kind << ' ' << name << ": work " << work << ", brute force " << bf;
         }
-        // Entries: an object below the large-object limit spans at most 8 cells summed over the
-        // axes (x + y + z − 2 ≤ 6), so at most 3·3·2 = 18 cells; the hash grid adds its budget of
-        // 16 per object below the top grid.
+        // Entries: an object below the large-object limit is in at most 27 cells; the hash grid adds
+        // its budget of 16 per object below the top grid.
         const std::uint64_t n = r.initial.size() + 100;  // live objects stay near the initial count
-        EXPECT_LE(stat(counted(r, "ug", {}), "entries"), 18 * n) << kind;
-        EXPECT_LE(stat(counted(r, "hg", {}), "entries"), (18 + 16) * n) << kind;
+        EXPECT_LE(stat(counted(r, "ug", {}), "entries"), 27 * n) << kind;
+        EXPECT_LE(stat(counted(r, "hg", {}), "entries"), (27 + 16) * n) << kind;
     }
 }
 

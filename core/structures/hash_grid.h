@@ -35,8 +35,8 @@
 ///   that, every insert into a crowded leaf re-examined all its objects, quadratic in the crowd
 ///   (cubes nested around one centre, generator kind "nested"). Stats report "refused_splits" and
 ///   "guard_collapses" (the guard's refusals and collapses since the build).
-/// - Large-object guard (`max_span`, on by default, as in the uniform grid, uniform_grid.h): an
-///   object whose top-grid cell range a segment could cross in more than `max_span` cells is kept
+/// - Large-object guard (`max_cells`, on by default, as in the uniform grid, uniform_grid.h): an
+///   object whose range in the top grid holds more than `max_cells` cells is kept
 ///   once, in a list that every ray tests first. The entries budget refuses splits, never an object's
 ///   top cells, so an object as large as the scene would otherwise sit in every top cell (the top
 ///   grid has about as many cells as objects: thousands of entries per object, and as many tests
@@ -107,7 +107,7 @@ public:
         int max_entries_per_object = 16;
         bool entries_guard = true;
         bool outlier_guard = true;
-        int max_span = grid::kDefaultMaxSpan;
+        int max_cells = grid::kDefaultMaxCells;
         static constexpr auto fields() {
             return std::tuple{
                 Field{"amp", &Params::amp, 0.01, 16.0, "top-level cells = objects × amp (eq. 4.2)", true, true},
@@ -126,9 +126,9 @@ public:
                       "top grid over the central 99% of the objects per axis when the full bounds are over 8x larger "
                       "(exact either way)",
                       false},
-                Field{"max_span", &Params::max_span, 0, 1024,
-                      "large-object guard: an object a segment could meet in more than this many top cells (x + y + "
-                      "z cells - 2) is kept in one list that every ray tests once (0: off)",
+                Field{"max_cells", &Params::max_cells, 0, 1 << 20,
+                      "large-object guard: an object overlapping more than this many top-grid cells is kept in one "
+                      "list that every ray tests once (0: off)",
                       false}};
         }
     };
@@ -214,7 +214,7 @@ private:
     std::size_t guard_collapses_ = 0;
     /// The large-object guard's test, on the object's top-grid range.
     bool is_large(const grid::CellRange& top) const {
-        return params_.max_span > 0 && grid::span(top) > params_.max_span;
+        return params_.max_cells > 0 && grid::cell_count(top) > std::size_t(params_.max_cells);
     }
 };
 

@@ -21,14 +21,16 @@
 ///   of the objects per axis when the full bounds are more than 8× larger (grid::lattice_bounds),
 ///   so a far outlier or a huge box around the scene does not make every cell huge. Exact either
 ///   way; without it a 10^6 outlier puts the whole scene into a few cells (experiments/stability.json measures both).
-/// - Large-object guard (`max_span`, on by default): an object whose cell range a segment could
-///   cross in more than `max_span` cells (x + y + z cells − 2: what a line crosses at most in a
-///   block of cells) is kept once, in a list of large objects that every ray tests first, instead
+/// - Large-object guard (`max_cells`, on by default): an object whose cell range holds more than
+///   `max_cells` cells is kept once, in a list of large objects that every ray tests first, instead
 ///   of in each of its cells. Without it an object as large as the scene sits in every cell, is
 ///   tested in every cell a ray crosses and costs thousands of cell writes per move (cubes nested
-///   around one centre, generator kind "nested"). With it a ray tests an object at most
-///   max(max_span, 1) times and an object costs at most O(max_span³) entries, so a ray's work is at
-///   most max_span × brute force's plus the cells it walks. Stats report "large_objects".
+///   around one centre, generator kind "nested"). With it an object costs at most max_cells
+///   entries, and a ray tests it at most as often as it crosses its cells: at most max_cells times,
+///   and at most 3·∛max_cells − 2 times (7 for the default 27) for an object about as wide as it is
+///   long, so a ray's work stays within a small multiple of brute force's plus the cells it walks.
+///   Long thin objects (a row of cells) stay in their cells: a ray crosses few of them. Stats
+///   report "large_objects".
 /// - Memory guard: `density` has a bounded range and the total cell count is capped at
 ///   `kMaxCells` (the cell size grows instead), so no setting allocates without bound.
 /// - Updates are incremental: a move that keeps the object's cell range only rewrites its box.
@@ -169,11 +171,14 @@ inline constexpr double kOutlierStretch = 8.0;
 /// Sets `*trimmed` when the guard trimmed an axis.
 Aabb lattice_bounds(std::span<const Object> objects, bool outlier_guard, bool* trimmed = nullptr);
 
-/// Cells a segment can cross at most in the cell range `r` (a line crosses one more cell per plane).
-inline int span(const CellRange& r) { return (r.hi[0] - r.lo[0]) + (r.hi[1] - r.lo[1]) + (r.hi[2] - r.lo[2]) + 1; }
+/// The cells of the range `r`.
+inline std::size_t cell_count(const CellRange& r) {
+    return std::size_t(r.hi[0] - r.lo[0] + 1) * std::size_t(r.hi[1] - r.lo[1] + 1) * std::size_t(r.hi[2] - r.lo[2] + 1);
+}
 
-/// The grids' default for the large-object guard (UniformGrid::Params::max_span, HashGrid's too).
-inline constexpr int kDefaultMaxSpan = 6;
+/// The grids' default for the large-object guard (UniformGrid::Params::max_cells, HashGrid's too):
+/// a 3×3×3 block.
+inline constexpr int kDefaultMaxCells = 27;
 
 }  // namespace grid
 
@@ -186,14 +191,14 @@ public:
         double density = 4.0;
         bool thesis_reset = false;
         bool outlier_guard = true;
-        int max_span = grid::kDefaultMaxSpan;
+        int max_cells = grid::kDefaultMaxCells;
         static constexpr auto fields() {
             return std::tuple{
                 Field{"density", &Params::density, 0.1, 64.0,
                       "objects per cell in eq. 4.1 (cells = objects / density; capped at 4 Mi cells)", true, true},
-                Field{"max_span", &Params::max_span, 0, 1024,
-                      "large-object guard: an object a segment could meet in more than this many cells (x + y + z "
-                      "cells - 2) is kept in one list that every ray tests once (0: off)",
+                Field{"max_cells", &Params::max_cells, 0, 1 << 20,
+                      "large-object guard: an object overlapping more than this many cells is kept in one list that "
+                      "every ray tests once (0: off)",
                       false},
                 Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
                       "cover only the central 99% of the objects per axis when the full bounds are over 8x larger "
@@ -238,7 +243,9 @@ private:
     void rewrite_box(std::uint32_t slot, const grid::CellRange& r, const Aabb& box);
     void remove_from_cells(std::uint32_t slot, const grid::CellRange& r);
     /// The large-object guard's test (see the top of this file).
-    bool is_large(const grid::CellRange& r) const { return params_.max_span > 0 && grid::span(r) > params_.max_span; }
+    bool is_large(const grid::CellRange& r) const {
+        return params_.max_cells > 0 && grid::cell_count(r) > std::size_t(params_.max_cells);
+    }
     std::uint32_t next_stamp();
 
     Params params_;
