@@ -36,11 +36,11 @@
 ///   (cubes nested around one centre, generator kind "nested"). Stats report "refused_splits" and
 ///   "guard_collapses" (the guard's refusals and collapses since the build).
 /// - Large-object guard (`max_cells`, on by default, as in the uniform grid, uniform_grid.h): an
-///   object whose range in the top grid holds more than `max_cells` cells is kept
-///   once, in a list that every ray tests first. The entries budget refuses splits, never an object's
-///   top cells, so an object as large as the scene would otherwise sit in every top cell (the top
-///   grid has about as many cells as objects: thousands of entries per object, and as many tests
-///   per ray as cells it crosses). Stats report "large_objects".
+///   object whose range in the top grid holds more than `max_cells` cells is kept once, in a list
+///   that every ray tests first. The entries budget refuses splits, never an object's top cells, so
+///   an object as large as the scene would otherwise sit in every top cell (the top grid has about
+///   as many cells as objects: thousands of entries per object, and as many tests per ray as cells
+///   it crosses). Stats report "large_objects".
 /// - Outlier guard (`outlier_guard`, on by default): the top grid covers the central
 ///   99% of the objects per axis when the full bounds are more than 8× larger
 ///   (grid::lattice_bounds); the rest land in the unbounded border cells. Without it one far

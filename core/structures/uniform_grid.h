@@ -20,17 +20,18 @@
 /// - Outlier guard (`outlier_guard`, on by default): the lattice covers the central 99%
 ///   of the objects per axis when the full bounds are more than 8× larger (grid::lattice_bounds),
 ///   so a far outlier or a huge box around the scene does not make every cell huge. Exact either
-///   way; without it a 10^6 outlier puts the whole scene into a few cells (experiments/stability.json measures both).
+///   way; without it a 10^6 outlier puts the whole scene into a few cells
+///   (experiments/stability.json measures both).
 /// - Large-object guard (`max_cells`, on by default): an object whose cell range holds more than
 ///   `max_cells` cells is kept once, in a list of large objects that every ray tests first, instead
 ///   of in each of its cells. Without it an object as large as the scene sits in every cell, is
 ///   tested in every cell a ray crosses and costs thousands of cell writes per move (cubes nested
 ///   around one centre, generator kind "nested"). With it an object costs at most max_cells
-///   entries, and a ray tests it at most as often as it crosses its cells: at most max_cells times,
-///   and at most 3·∛max_cells − 2 times (7 for the default 27) for an object about as wide as it is
-///   long, so a ray's work stays within a small multiple of brute force's plus the cells it walks.
-///   Long thin objects (a row of cells) stay in their cells: a ray crosses few of them. Stats
-///   report "large_objects".
+///   entries, and a ray tests it once per cell of it that the ray crosses: at most 3·∛max_cells − 2
+///   times (7 for the default 27) for an object about as wide as it is long, at most max_cells
+///   times for a row of cells the ray runs along. So long thin objects stay in their cells, where
+///   most rays miss them, and an object as large as the scene goes to the list. Stats report
+///   "large_objects".
 /// - Memory guard: `density` has a bounded range and the total cell count is capped at
 ///   `kMaxCells` (the cell size grows instead), so no setting allocates without bound.
 /// - Updates are incremental: a move that keeps the object's cell range only rewrites its box.
