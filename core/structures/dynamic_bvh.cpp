@@ -82,7 +82,7 @@ void DynamicBvh::build(std::span<const Object> objects) {
     changes_since_check_ = 0;
     guard_rebuilds_ = 0;
     guard_baseline_ = !rebuild_mode_ && params_.sah_guard > 0 && root_ != kNullNode ? sah_cost() : 0.0;
-    find_crowds();
+    look_for_crowds();
 }
 
 void DynamicBvh::insert(const Object& o) {
@@ -157,66 +157,86 @@ void DynamicBvh::commit() {
     }
     // Crowds: found again after every change while there are some, else looked for every
     // max(64, size / 8) changes (amortised O(1) per change, as the SAH guard).
-    if (crowds_dirty_ || (params_.crowd_guard && crowds_.empty() &&
-                          changes_since_crowd_check_ >= std::max<std::size_t>(64, leaf_of_.size() / 8)))
+    if (crowds_dirty_)
         find_crowds();
+    else if (params_.crowd_guard && crowds_.empty() &&
+             changes_since_crowd_check_ >= std::max<std::size_t>(64, leaf_of_.size() / 8))
+        look_for_crowds();
+}
+
+bool DynamicBvh::walk_crowds(bool tight, std::vector<std::uint32_t>& found) {
+    found.clear();
+    crowds_.clear();
+    if (!params_.crowd_guard || root_ == kNullNode) return false;
+    // Post-order with child 0 first, leaves numbered in that order (every subtree is then a run).
+    // A frame holds what its finished children gave: the first leaf, and the common box while the
+    // boxes so far share a point. No per-node arrays: a scene without crowds pays one walk, O(height)
+    // memory. With `tight` false the leaves' fat boxes stand in for their own boxes (already in the
+    // node: no second array to read); they hold them, so no crowd of fat boxes means no crowd.
+    struct Frame {
+        std::uint32_t node, first;
+        Aabb common;
+        bool shared, second;  // `second`: child 0 is done, child 1 is under way
+    };
+    std::vector<Frame> stack{{root_, 0, {}, true, false}};
+    std::uint32_t leaves = 0;
+    // What the last finished subtree gives its parent.
+    std::uint32_t done_first = 0;
+    Aabb done_common;
+    bool done_shared = false;
+    while (!stack.empty()) {
+        Frame& f = stack.back();
+        const Node& node = nodes_[f.node];
+        if (node.height == 0) {
+            done_first = leaves++;
+            done_common = tight ? tight_[f.node] : node.box;
+            done_shared = true;
+            stack.pop_back();
+        } else if (f.first == kNullNode) {  // child 0 finished
+            f.first = done_first;
+            f.common = done_common;
+            f.shared = done_shared;
+            f.second = true;
+            stack.push_back({node.child[1], 0, {}, true, false});
+        } else if (!f.second) {  // entering the node
+            f.first = kNullNode;
+            stack.push_back({node.child[0], 0, {}, true, false});
+        } else {  // child 1 finished
+            done_shared = f.shared && done_shared;
+            if (done_shared) {
+                done_common = {rcb::max(f.common.min, done_common.min), rcb::min(f.common.max, done_common.max)};
+                const Aabb& c = done_common;
+                done_shared = c.min.x <= c.max.x && c.min.y <= c.max.y && c.min.z <= c.max.z;
+                if (done_shared && leaves - f.first >= kCrowdLeaves) {
+                    found.push_back(f.node);
+                    if (tight) crowds_.push_back({c, f.first, leaves - 1});
+                }
+            }
+            done_first = f.first;
+            stack.pop_back();
+        }
+    }
+    return !found.empty();
+}
+
+void DynamicBvh::look_for_crowds() {
+    std::vector<std::uint32_t> found;
+    if (walk_crowds(false, found)) {
+        find_crowds();
+        return;
+    }
+    crowds_dirty_ = false;
+    changes_since_crowd_check_ = 0;
+    std::vector<std::uint32_t>().swap(crowd_of_);
+    std::vector<Crowd>().swap(crowds_);
+    std::vector<PackedLeaf>().swap(packed_);
 }
 
 void DynamicBvh::find_crowds() {
     crowds_dirty_ = false;
     changes_since_crowd_check_ = 0;
-    crowds_.clear();
     std::vector<std::uint32_t> found;
-    if (params_.crowd_guard && root_ != kNullNode) {
-        // Post-order with child 0 first, leaves numbered in that order (every subtree is then a
-        // run). A frame holds what its finished children gave: the first leaf, and the common box
-        // while the boxes so far share a point. No per-node arrays: a scene without crowds pays
-        // one walk, O(height) memory.
-        struct Frame {
-            std::uint32_t node, first;
-            Aabb common;
-            bool shared, second;  // `second`: child 0 is done, child 1 is under way
-        };
-        std::vector<Frame> stack{{root_, 0, {}, true, false}};
-        std::uint32_t leaves = 0;
-        // What the last finished subtree gives its parent.
-        std::uint32_t done_first = 0;
-        Aabb done_common;
-        bool done_shared = false;
-        while (!stack.empty()) {
-            Frame& f = stack.back();
-            const Node& node = nodes_[f.node];
-            if (node.height == 0) {
-                done_first = leaves++;
-                done_common = tight_[f.node];
-                done_shared = true;
-                stack.pop_back();
-            } else if (f.first == kNullNode) {  // child 0 finished
-                f.first = done_first;
-                f.common = done_common;
-                f.shared = done_shared;
-                f.second = true;
-                stack.push_back({node.child[1], 0, {}, true, false});
-                continue;
-            } else if (!f.second) {  // entering the node
-                f.first = kNullNode;
-                stack.push_back({node.child[0], 0, {}, true, false});
-                continue;
-            } else {  // child 1 finished
-                Aabb c{rcb::max(f.common.min, done_common.min), rcb::min(f.common.max, done_common.max)};
-                const bool shared =
-                    f.shared && done_shared && c.min.x <= c.max.x && c.min.y <= c.max.y && c.min.z <= c.max.z;
-                if (shared && leaves - f.first >= kCrowdLeaves) {
-                    found.push_back(f.node);
-                    crowds_.push_back({c, f.first, leaves - 1});
-                }
-                done_first = f.first;
-                done_common = c;
-                done_shared = shared;
-                stack.pop_back();
-            }
-        }
-    }
+    walk_crowds(true, found);
     if (found.empty()) {
         std::vector<std::uint32_t>().swap(crowd_of_);
         std::vector<Crowd>().swap(crowds_);

@@ -230,6 +230,11 @@ private:
     std::size_t changes_since_crowd_check_ = 0;
     /// Finds the crowds (and packs the leaves) afresh; frees everything when there are none.
     void find_crowds();
+    /// find_crowds() if a cheaper walk over the fat boxes finds candidates, else frees everything.
+    void look_for_crowds();
+    /// The walk of both: the crowd nodes into `found` (and, with `tight`, their runs and common
+    /// boxes into crowds_); whether there are any.
+    bool walk_crowds(bool tight, std::vector<std::uint32_t>& found);
     /// The tree changed: crowds are found again before the next query, if there were any.
     void touch() {
         ++changes_since_crowd_check_;

@@ -144,6 +144,8 @@ void HashGrid::build(std::span<const Object> objects) {
     table_.clear();
     cells_.clear();
     cells_.shrink_to_fit();
+    retry_at_.clear();
+    retry_at_.shrink_to_fit();
     free_cells_.clear();
     entries_.clear();
     entries_.reserve(objects.size());
@@ -168,11 +170,12 @@ std::uint32_t HashGrid::find_or_create(int depth, const Index& i) {
     } else {
         id = std::uint32_t(cells_.size());
         cells_.emplace_back();
+        retry_at_.push_back(0);
     }
     Cell& c = cells_[id];
     c.key = key;
     c.count = 0;
-    c.retry_at = 0;
+    retry_at_[id] = 0;
     c.subdivided = false;
     c.own.clear();
     table_.insert(key, id);
@@ -212,7 +215,7 @@ void HashGrid::insert_into(int depth, const Index& i, std::uint32_t slot, const 
             ++guard_collapses_;
             cells_[id].own.push_back(slot);
             ++entries_total_;
-            cells_[id].retry_at = std::uint32_t(2 * cells_[id].own.size());
+            retry_at_[id] = std::uint32_t(2 * cells_[id].own.size());
             return;
         }
         Index j;
@@ -224,7 +227,7 @@ void HashGrid::insert_into(int depth, const Index& i, std::uint32_t slot, const 
     cells_[id].own.push_back(slot);
     ++entries_total_;
     if (depth < params_.max_depth && cells_[id].own.size() > std::size_t(params_.max_capacity) &&
-        cells_[id].own.size() >= cells_[id].retry_at)
+        cells_[id].own.size() >= retry_at_[id])
         split(id, depth, i);
 }
 
@@ -248,7 +251,7 @@ void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
     if (moving.empty() || over_budget) {
         // Refused: try again once the leaf has doubled (amortised O(1) per insert, see the header).
         refused_splits_ += over_budget && !moving.empty();
-        cells_[id].retry_at = std::uint32_t(2 * objects.size());
+        retry_at_[id] = std::uint32_t(2 * objects.size());
         cells_[id].own = std::move(objects);
         return;
     }
@@ -272,7 +275,7 @@ void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
     }
     if (depth + 1 >= params_.max_depth) return;
     for (std::uint32_t c : children) {
-        if (cells_[c].own.size() <= std::size_t(params_.max_capacity) || cells_[c].own.size() < cells_[c].retry_at)
+        if (cells_[c].own.size() <= std::size_t(params_.max_capacity) || cells_[c].own.size() < retry_at_[c])
             continue;
         const std::uint64_t key = cells_[c].key;
         const int f = params_.subdivision;
@@ -306,7 +309,7 @@ void HashGrid::collapse(std::uint32_t id, int depth, const Index& i) {
     entries_total_ -= gathered - all.size();
     cells_[id].own = std::move(all);
     cells_[id].subdivided = false;
-    cells_[id].retry_at = 0;
+    retry_at_[id] = 0;
 }
 
 void HashGrid::remove_from(int depth, const Index& i, std::uint32_t slot, const grid::CellRange& fine) {
@@ -339,7 +342,7 @@ void HashGrid::remove_from(int depth, const Index& i, std::uint32_t slot, const 
     }
     erase_own();
     // A refused leaf that shrank tries again once it has doubled from its new size.
-    cells_[id].retry_at = std::min<std::uint32_t>(cells_[id].retry_at, std::uint32_t(2 * cells_[id].own.size()));
+    retry_at_[id] = std::min<std::uint32_t>(retry_at_[id], std::uint32_t(2 * cells_[id].own.size()));
     if (cells_[id].count == 0) delete_cell(id);
 }
 
@@ -406,7 +409,7 @@ std::uint32_t HashGrid::next_stamp() {
 
 std::size_t HashGrid::memory_bytes() const {
     std::size_t bytes = sizeof(*this) + table_.memory_bytes();
-    bytes += cells_.capacity() * sizeof(Cell);
+    bytes += cells_.capacity() * sizeof(Cell) + retry_at_.capacity() * sizeof(std::uint32_t);
     for (const Cell& c : cells_) bytes += c.own.capacity() * sizeof(std::uint32_t);
     bytes += free_cells_.capacity() * sizeof(std::uint32_t);
     bytes += entries_.capacity() * sizeof(Entry) + free_slots_.capacity() * sizeof(std::uint32_t);

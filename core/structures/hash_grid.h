@@ -161,9 +161,9 @@ private:
         std::vector<std::uint32_t> own;  ///< object slots stored here
         std::uint64_t key = CellTable::kEmpty;
         std::uint32_t count = 0;  ///< distinct objects stored here or below
-        std::uint32_t retry_at = 0;  ///< a leaf tries to split only with at least this many objects
         bool subdivided = false;
     };
+    static_assert(sizeof(Cell) <= 40, "a cell stays within 40 bytes (the ray reads it)");
     using Index = std::array<int, 3>;
 
     static std::uint64_t key_of(int depth, const Index& i) {
@@ -208,6 +208,9 @@ private:
     std::uint32_t stamp_ = 0;
     std::size_t entries_total_ = 0;  ///< sum of the cells' `own` sizes
     std::size_t build_objects_ = 0;
+    /// Per cell: a leaf tries to split only with at least this many objects (see the memory guard);
+    /// beside cells_, not in it, so the cells a ray reads stay 40 bytes.
+    std::vector<std::uint32_t> retry_at_;
     BlockList large_;  ///< the large-object guard's objects (in no cell)
     // Guard reports since the build (stats).
     std::size_t refused_splits_ = 0;
