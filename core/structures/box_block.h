@@ -80,6 +80,11 @@ struct BlockCell {
         blocks.back().set(lane, box, slot);
         ++size;
     }
+    /// Empties the cell, keeping its capacity.
+    void clear() {
+        blocks.clear();
+        size = 0;
+    }
     /// Removes `slot` (present): the last lane moves into its place.
     void erase(std::uint32_t slot) { erase_at(index_of(slot)); }
     /// Removes the object at index `i` (< size): the last lane moves into its place.

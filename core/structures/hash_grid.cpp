@@ -184,13 +184,26 @@ std::uint32_t HashGrid::find_or_create(int depth, const Index& i) {
 
 void HashGrid::delete_cell(std::uint32_t id) {
     Cell& c = cells_[id];
-    entries_total_ -= c.own.size();
+    entries_total_ -= c.own.size;
     table_.erase(c.key);
     c.key = CellTable::kEmpty;
     c.count = 0;
     c.subdivided = false;
-    std::vector<std::uint32_t>().swap(c.own);
+    c.own = BlockCell{};
     free_cells_.push_back(id);
+}
+
+std::vector<std::uint32_t> HashGrid::take_own(std::uint32_t id) {
+    BlockCell& own = cells_[id].own;
+    std::vector<std::uint32_t> slots(own.size);
+    for (std::uint32_t k = 0; k < own.size; ++k) slots[k] = own.slot(k);
+    own.clear();
+    return slots;
+}
+
+void HashGrid::set_own(std::uint32_t id, const std::vector<std::uint32_t>& slots) {
+    cells_[id].own.clear();
+    for (std::uint32_t slot : slots) own_push(id, slot);
 }
 
 void HashGrid::insert_into(int depth, const Index& i, std::uint32_t slot, const grid::CellRange& fine) {
@@ -198,7 +211,7 @@ void HashGrid::insert_into(int depth, const Index& i, std::uint32_t slot, const 
     ++cells_[id].count;
     if (cells_[id].subdivided) {
         if (covers(fine, depth, i)) {
-            cells_[id].own.push_back(slot);
+            own_push(id, slot);
             ++entries_total_;
             return;
         }
@@ -213,9 +226,9 @@ void HashGrid::insert_into(int depth, const Index& i, std::uint32_t slot, const 
         if (params_.entries_guard && entries_total_ + child_entries > entry_budget()) {
             collapse(id, depth, i);
             ++guard_collapses_;
-            cells_[id].own.push_back(slot);
+            own_push(id, slot);
             ++entries_total_;
-            retry_at_[id] = std::uint32_t(2 * cells_[id].own.size());
+            retry_at_[id] = 2 * cells_[id].own.size;
             return;
         }
         Index j;
@@ -224,16 +237,15 @@ void HashGrid::insert_into(int depth, const Index& i, std::uint32_t slot, const 
                 for (j[0] = r.lo[0]; j[0] <= r.hi[0]; ++j[0]) insert_into(depth + 1, j, slot, fine);
         return;
     }
-    cells_[id].own.push_back(slot);
+    own_push(id, slot);
     ++entries_total_;
-    if (depth < params_.max_depth && cells_[id].own.size() > std::size_t(params_.max_capacity) &&
-        cells_[id].own.size() >= retry_at_[id])
+    if (depth < params_.max_depth && cells_[id].own.size > std::uint32_t(params_.max_capacity) &&
+        cells_[id].own.size >= retry_at_[id])
         split(id, depth, i);
 }
 
 void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
-    std::vector<std::uint32_t> objects = std::move(cells_[id].own);
-    cells_[id].own.clear();
+    std::vector<std::uint32_t> objects = take_own(id);
     std::vector<std::uint32_t> staying, moving;
     for (std::uint32_t slot : objects)
         (covers(lat_[params_.max_depth].range_of(entries_[slot].box), depth, i) ? staying : moving).push_back(slot);
@@ -252,11 +264,11 @@ void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
         // Refused: try again once the leaf has doubled (amortised O(1) per insert, see the header).
         refused_splits_ += over_budget && !moving.empty();
         retry_at_[id] = std::uint32_t(2 * objects.size());
-        cells_[id].own = std::move(objects);
+        set_own(id, objects);
         return;
     }
     entries_total_ -= moving.size();
-    cells_[id].own = std::move(staying);
+    set_own(id, staying);
     cells_[id].subdivided = true;
     std::vector<std::uint32_t> children;
     for (std::uint32_t slot : moving) {
@@ -269,13 +281,13 @@ void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
                     const std::uint32_t c = find_or_create(depth + 1, j);
                     if (cells_[c].count == 0) children.push_back(c);
                     ++cells_[c].count;
-                    cells_[c].own.push_back(slot);
+                    own_push(c, slot);
                     ++entries_total_;
                 }
     }
     if (depth + 1 >= params_.max_depth) return;
     for (std::uint32_t c : children) {
-        if (cells_[c].own.size() <= std::size_t(params_.max_capacity) || cells_[c].own.size() < retry_at_[c])
+        if (cells_[c].own.size <= std::uint32_t(params_.max_capacity) || cells_[c].own.size < retry_at_[c])
             continue;
         const std::uint64_t key = cells_[c].key;
         const int f = params_.subdivision;
@@ -293,7 +305,8 @@ void HashGrid::gather_and_delete_children(int depth, const Index& i, std::vector
             for (j[0] = r.lo[0]; j[0] <= r.hi[0]; ++j[0]) {
                 const std::uint32_t c = table_.find(key_of(depth + 1, j));
                 if (c == CellTable::kNone) continue;
-                out.insert(out.end(), cells_[c].own.begin(), cells_[c].own.end());
+                const BlockCell& own = cells_[c].own;
+                for (std::uint32_t k = 0; k < own.size; ++k) out.push_back(own.slot(k));
                 cells_[c].own.clear();  // moved to `out`, still counted in entries_total_
                 if (cells_[c].subdivided) gather_and_delete_children(depth + 1, j, out);
                 delete_cell(c);
@@ -301,13 +314,13 @@ void HashGrid::gather_and_delete_children(int depth, const Index& i, std::vector
 }
 
 void HashGrid::collapse(std::uint32_t id, int depth, const Index& i) {
-    std::vector<std::uint32_t> all = std::move(cells_[id].own);
+    std::vector<std::uint32_t> all = take_own(id);
     gather_and_delete_children(depth, i, all);
     const std::size_t gathered = all.size();
     std::sort(all.begin(), all.end());
     all.erase(std::unique(all.begin(), all.end()), all.end());
     entries_total_ -= gathered - all.size();
-    cells_[id].own = std::move(all);
+    set_own(id, all);
     cells_[id].subdivided = false;
     retry_at_[id] = 0;
 }
@@ -316,10 +329,7 @@ void HashGrid::remove_from(int depth, const Index& i, std::uint32_t slot, const 
     const std::uint32_t id = table_.find(key_of(depth, i));
     --cells_[id].count;
     auto erase_own = [&] {
-        std::vector<std::uint32_t>& own = cells_[id].own;
-        auto it = std::find(own.begin(), own.end(), slot);
-        *it = own.back();
-        own.pop_back();
+        cells_[id].own.erase(slot);
         --entries_total_;
     };
     if (cells_[id].subdivided) {
@@ -333,7 +343,9 @@ void HashGrid::remove_from(int depth, const Index& i, std::uint32_t slot, const 
                     for (j[0] = r.lo[0]; j[0] <= r.hi[0]; ++j[0]) remove_from(depth + 1, j, slot, fine);
         }
         if (cells_[id].count == 0) {
-            gather_and_delete_children(depth, i, cells_[id].own);  // none left; defensive
+            std::vector<std::uint32_t> rest;  // none left; defensive
+            gather_and_delete_children(depth, i, rest);
+            entries_total_ -= rest.size();
             delete_cell(id);
         } else if (cells_[id].count <= std::uint32_t(params_.max_capacity / 2)) {
             collapse(id, depth, i);
@@ -342,8 +354,21 @@ void HashGrid::remove_from(int depth, const Index& i, std::uint32_t slot, const 
     }
     erase_own();
     // A refused leaf that shrank tries again once it has doubled from its new size.
-    retry_at_[id] = std::min<std::uint32_t>(retry_at_[id], std::uint32_t(2 * cells_[id].own.size()));
+    retry_at_[id] = std::min(retry_at_[id], 2 * cells_[id].own.size);
     if (cells_[id].count == 0) delete_cell(id);
+}
+
+void HashGrid::rewrite_in(int depth, const Index& i, std::uint32_t slot, const grid::CellRange& fine, const Aabb& box) {
+    const std::uint32_t id = table_.find(key_of(depth, i));
+    if (!cells_[id].subdivided || covers(fine, depth, i)) {
+        cells_[id].own.rewrite(slot, box);
+        return;
+    }
+    const grid::CellRange r = child_range(fine, depth, i);
+    Index j;
+    for (j[2] = r.lo[2]; j[2] <= r.hi[2]; ++j[2])
+        for (j[1] = r.lo[1]; j[1] <= r.hi[1]; ++j[1])
+            for (j[0] = r.lo[0]; j[0] <= r.hi[0]; ++j[0]) rewrite_in(depth + 1, j, slot, fine, box);
 }
 
 void HashGrid::insert(const Object& o) {
@@ -391,8 +416,17 @@ void HashGrid::move(const Object& o) {
     const std::uint32_t slot = slot_.at(o.uid);
     const grid::Lattice& fine_lat = lat_[params_.max_depth];
     if (fine_lat.range_of(entries_[slot].box) == fine_lat.range_of(o.box)) {
-        entries_[slot].box = o.box;  // same cells at every depth: only the box changes
-        if (large_.contains(slot)) large_.rewrite(slot, o.box);
+        // Same cells at every depth: only the box and its copies change.
+        entries_[slot].box = o.box;
+        if (large_.contains(slot)) {
+            large_.rewrite(slot, o.box);
+        } else {
+            const grid::CellRange fine = fine_lat.range_of(o.box), r = range_at(fine, 0);
+            Index i;
+            for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
+                for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
+                    for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) rewrite_in(0, i, slot, fine, o.box);
+        }
         return;
     }
     remove(o.uid);
@@ -410,7 +444,7 @@ std::uint32_t HashGrid::next_stamp() {
 std::size_t HashGrid::memory_bytes() const {
     std::size_t bytes = sizeof(*this) + table_.memory_bytes();
     bytes += cells_.capacity() * sizeof(Cell) + retry_at_.capacity() * sizeof(std::uint32_t);
-    for (const Cell& c : cells_) bytes += c.own.capacity() * sizeof(std::uint32_t);
+    for (const Cell& c : cells_) bytes += c.own.blocks.capacity() * sizeof(BoxBlock);
     bytes += free_cells_.capacity() * sizeof(std::uint32_t);
     bytes += entries_.capacity() * sizeof(Entry) + free_slots_.capacity() * sizeof(std::uint32_t);
     bytes += slot_.bucket_count() * sizeof(void*) + slot_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t));
@@ -426,11 +460,11 @@ nlohmann::json HashGrid::stats() const {
         const int depth = int(key >> 60);
         ++per_depth[depth];
         deepest = std::max(deepest, depth);
-        entries += cells_[id].own.size();
-        largest = std::max(largest, cells_[id].own.size());
+        entries += cells_[id].own.size;
+        largest = std::max(largest, std::size_t(cells_[id].own.size));
         subdivided += cells_[id].subdivided;
         over += !cells_[id].subdivided && depth < params_.max_depth &&
-                cells_[id].own.size() > std::size_t(params_.max_capacity);
+                cells_[id].own.size > std::uint32_t(params_.max_capacity);
     });
     return {{"cells", table_.size()},
             {"cells_per_depth", per_depth},
@@ -512,7 +546,13 @@ void HashGrid::validate() const {
         if (c.count == 0) fail(where + " is empty but stored");
         if (c.count != expected_count[id])
             fail(where + " counts " + std::to_string(c.count) + " objects, " + std::to_string(expected_count[id]) + " reach it");
-        have.assign(c.own.begin(), c.own.end());
+        if (const std::string defect = c.own.defect(); !defect.empty()) fail(where + ": " + defect);
+        have.clear();
+        for (std::uint32_t k = 0; k < c.own.size; ++k) {
+            have.push_back(c.own.slot(k));
+            if (c.own.slot(k) < entries_.size() && !(c.own.box(k) == entries_[c.own.slot(k)].box))
+                fail(where + " holds a stale box copy of uid " + std::to_string(entries_[c.own.slot(k)].uid));
+        }
         std::sort(have.begin(), have.end());
         std::vector<std::uint32_t> want = expected[id];
         std::sort(want.begin(), want.end());
@@ -521,7 +561,7 @@ void HashGrid::validate() const {
             if (depth >= max_depth) fail(where + " is subdivided at max_depth");
             if (c.count <= std::uint32_t(params_.max_capacity / 2)) fail(where + " is subdivided but should have collapsed");
         }
-        total += c.own.size();
+        total += c.own.size;
     });
     if (total != entries_total_) fail("entry total is " + std::to_string(entries_total_) + ", cells hold " + std::to_string(total));
 }

@@ -6,7 +6,10 @@
 /// (depth, cell coordinates in that depth's global lattice). Traversal is thesis Algorithm 2: the
 /// 3D-DDA of Amanatides & Woo over the top grid, recursing into a subdivided cell with a DDA over
 /// its children limited to the part of the segment inside it (recursion depth ≤ max_depth: nothing
-/// is dropped).
+/// is dropped). As in the uniform grid, a cell keeps copies of its objects' boxes in blocks of four
+/// tested with one slab test each (box_block.h), and a move that keeps an object's cells rewrites
+/// its copies: a crowded cell is tested at nearly brute force's speed per box instead of one
+/// object-table lookup and scalar test per box (a ray starting among thousands of nested cubes).
 ///
 /// Rules (all decisions derive from integer cell ranges, so insert, remove and validate agree):
 /// - An object's cell range at depth d is its range at the finest depth divided by
@@ -158,12 +161,12 @@ private:
         std::uint32_t stamp = 0;  ///< id of the last query that reported this object
     };
     struct Cell {
-        std::vector<std::uint32_t> own;  ///< object slots stored here
+        BlockCell own;  ///< objects stored here, with copies of their boxes (box_block.h)
         std::uint64_t key = CellTable::kEmpty;
         std::uint32_t count = 0;  ///< distinct objects stored here or below
         bool subdivided = false;
     };
-    static_assert(sizeof(Cell) <= 40, "a cell stays within 40 bytes (the ray reads it)");
+    static_assert(sizeof(Cell) <= 48, "a cell stays within 48 bytes (the ray reads it)");
     using Index = std::array<int, 3>;
 
     static std::uint64_t key_of(int depth, const Index& i) {
@@ -182,6 +185,12 @@ private:
     void delete_cell(std::uint32_t cell);
     void insert_into(int depth, const Index& i, std::uint32_t slot, const grid::CellRange& fine);
     void remove_from(int depth, const Index& i, std::uint32_t slot, const grid::CellRange& fine);
+    /// Gives `slot`'s box copy in every cell that holds it (below cell `i` at `depth`) the box `box`.
+    void rewrite_in(int depth, const Index& i, std::uint32_t slot, const grid::CellRange& fine, const Aabb& box);
+    /// The objects of a cell: add one, take them all out (the cell is left empty), put a list in.
+    void own_push(std::uint32_t cell, std::uint32_t slot) { cells_[cell].own.push(entries_[slot].box, slot); }
+    std::vector<std::uint32_t> take_own(std::uint32_t cell);
+    void set_own(std::uint32_t cell, const std::vector<std::uint32_t>& slots);
     void split(std::uint32_t cell, int depth, const Index& i);
     /// The memory guard's limit on entries_total_.
     std::size_t entry_budget() const {
@@ -236,17 +245,19 @@ bool HashGrid::visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, doub
     const std::uint32_t id = table_.find(key_of(depth, c));
     if (id == CellTable::kNone) return true;
     const Cell& cell = cells_[id];
-    ctx.count.box_tests(cell.own.size());
-    for (std::uint32_t slot : cell.own) {
-        Entry& e = entries_[slot];
-        float tn, tf;
-        // An object in several cells is tested in each and reported once: checking the stamp only
-        // on a hit saves a hard-to-predict branch per object.
-        if (ctx.slabs.clip(e.box, tn, tf)) {
+    ctx.count.box_tests(cell.own.size);
+    // Four boxes per slab test (box_block.h), as in the uniform grid. An object in several cells is
+    // tested in each and reported once: checking the stamp only on a hit saves a hard-to-predict
+    // branch per object.
+    for (const BoxBlock& b : cell.own.blocks) {
+        float tn[BoxBlock::kLanes];
+        for (unsigned hits = b.test(ctx.slabs, tn); hits; hits &= hits - 1) {
+            const int lane = __builtin_ctz(hits);
+            Entry& e = entries_[b.slot[lane]];
             if (e.stamp == ctx.stamp) continue;
             e.stamp = ctx.stamp;
             ctx.count.hits();
-            if (!ctx.visit(e.uid, tn)) return false;
+            if (!ctx.visit(e.uid, tn[lane])) return false;
         }
     }
     if (!cell.subdivided) return true;
