@@ -46,7 +46,8 @@ bool gnuplot_available() { return std::system("command -v gnuplot >/dev/null 2>&
 
 std::string render_svg(const Chart& chart) {
     if (!gnuplot_available())
-        throw std::runtime_error("gnuplot not found: install Debian's gnuplot-nox (scripts/setup.sh does) to draw the report's charts");
+        throw std::runtime_error(
+            "gnuplot not found: install Debian's gnuplot-nox (scripts/setup.sh does) to draw the report's charts");
     char pattern[] = "/tmp/rcbench-chart-XXXXXX";
     const char* dir_c = mkdtemp(pattern);
     if (!dir_c) throw std::runtime_error("cannot create a temporary folder for gnuplot");
@@ -80,7 +81,8 @@ std::string render_svg(const Chart& chart) {
                 (s.lines ? "linespoints" : "points") + " pt " + std::to_string(style % 7 + 5) + " ps 1.2 lw 1.5 lc " +
                 std::to_string(style) + " title " + quoted(s.name);
         if (!s.labels.empty())
-            plot += ", " + quoted(data.string()) + " using 1:2:3 with labels offset 0.8,0.6 font 'sans,8' tc rgb '#444444' notitle";
+            plot += ", " + quoted(data.string()) +
+                    " using 1:2:3 with labels offset 0.8,0.6 font 'sans,8' tc rgb '#444444' notitle";
         ++index;
     }
     if (plot.empty()) {  // nothing drawable (a damaged database): an empty frame, not a gnuplot error
@@ -92,7 +94,8 @@ std::string render_svg(const Chart& chart) {
         std::ofstream out(dir / "chart.gp");
         out << script.str();
     }
-    const std::string command = "gnuplot " + quoted((dir / "chart.gp").string()) + " 2>" + quoted((dir / "err.txt").string());
+    const std::string command =
+        "gnuplot " + quoted((dir / "chart.gp").string()) + " 2>" + quoted((dir / "err.txt").string());
     const int rc = std::system(command.c_str());
     std::ifstream svg_in(dir / "chart.svg");
     std::ostringstream svg;

@@ -22,7 +22,7 @@ struct Chart {
     std::string x_label, y_label;  ///< with units, e.g. "update per frame (ms)"
     bool log_x = false, log_y = false;
     std::vector<Series> series;
-    std::string extra;  ///< extra gnuplot commands (e.g. a y = x reference line)
+    std::string extra;    ///< extra gnuplot commands (e.g. a y = x reference line)
     std::string reading;  ///< one sentence saying what the chart shows
 };
 

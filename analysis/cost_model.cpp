@@ -69,9 +69,12 @@ std::vector<Term> present(const std::vector<const FrameObservation*>& frames, co
                           std::vector<std::string>& unused) {
     std::vector<Term> out;
     for (const Term& t : terms) {
-        const bool any = std::any_of(frames.begin(), frames.end(), [&](const FrameObservation* f) { return t.value(*f) != 0; });
-        if (any) out.push_back(t);
-        else if (std::find(unused.begin(), unused.end(), t.name) == unused.end()) unused.push_back(t.name);
+        const bool any =
+            std::any_of(frames.begin(), frames.end(), [&](const FrameObservation* f) { return t.value(*f) != 0; });
+        if (any)
+            out.push_back(t);
+        else if (std::find(unused.begin(), unused.end(), t.name) == unused.end())
+            unused.push_back(t.name);
     }
     return out;
 }
@@ -118,14 +121,17 @@ std::int64_t resolve_run(Database& db, std::int64_t run, const std::string& expe
         if (!s.step()) throw InputError("--run " + std::to_string(run) + ": no such run in " + db.path());
         return run;
     }
-    Statement s = db.prepare(experiment.empty()
-                                 ? "SELECT run.id FROM run WHERE EXISTS (SELECT 1 FROM cell WHERE cell.run_id = run.id) ORDER BY run.id DESC LIMIT 1"
-                                 : "SELECT run.id FROM run JOIN experiment ON experiment.id = run.experiment_id WHERE experiment.name = ? "
-                                   "AND EXISTS (SELECT 1 FROM cell WHERE cell.run_id = run.id) ORDER BY run.id DESC LIMIT 1");
+    Statement s = db.prepare(
+        experiment.empty()
+            ? "SELECT run.id FROM run WHERE EXISTS (SELECT 1 FROM cell WHERE cell.run_id = run.id) ORDER BY run.id "
+              "DESC LIMIT 1"
+            : "SELECT run.id FROM run JOIN experiment ON experiment.id = run.experiment_id WHERE experiment.name = ? "
+              "AND EXISTS (SELECT 1 FROM cell WHERE cell.run_id = run.id) ORDER BY run.id DESC LIMIT 1");
     if (!experiment.empty()) s.bind(1, experiment);
     if (!s.step())
-        throw InputError(experiment.empty() ? db.path() + ": the database has no measured run"
-                                            : "--experiment " + experiment + ": no measured run of that experiment in " + db.path());
+        throw InputError(experiment.empty()
+                             ? db.path() + ": the database has no measured run"
+                             : "--experiment " + experiment + ": no measured run of that experiment in " + db.path());
     return s.int64(0);
 }
 
@@ -134,10 +140,12 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) 
     std::map<std::tuple<std::int64_t, std::int64_t>, int> groups;
     Statement s = db.prepare(
         "SELECT config.structure, config.params, scene.name, scene.spec, cell.scene_id, cell.config_id, frame.rays, "
-        "frame.raycast_ns, frame.update_ns, frame.n_t, frame.n_rb, frame.n_tp, frame.inserts, frame.removes, frame.moves, "
-        "cell.objects, frame.memory_bytes FROM frame JOIN cell ON cell.id = frame.cell_id JOIN config ON config.id = cell.config_id "
-        "JOIN scene ON scene.id = cell.scene_id WHERE cell.run_id IN " + std::string(kRunGroupSql) +
-        " AND frame.warmup = 0 ORDER BY cell.id, frame.frame");
+        "frame.raycast_ns, frame.update_ns, frame.n_t, frame.n_rb, frame.n_tp, frame.inserts, frame.removes, "
+        "frame.moves, "
+        "cell.objects, frame.memory_bytes FROM frame JOIN cell ON cell.id = frame.cell_id JOIN config ON config.id = "
+        "cell.config_id "
+        "JOIN scene ON scene.id = cell.scene_id WHERE cell.run_id IN " +
+        std::string(kRunGroupSql) + " AND frame.warmup = 0 ORDER BY cell.id, frame.frame");
     s.bind_all(run, run);
     while (s.step()) {
         FrameObservation f;
@@ -186,7 +194,8 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
         with_memory.push_back(kMemory);
         m.raycast.push_back(candidate("with-memory", "raycast", build_problem(with_rays, with_memory, "raycast")));
         if (categories.size() > 1)
-            m.raycast.push_back(candidate("per-category", "raycast", build_problem(with_rays, full, "raycast", categories)));
+            m.raycast.push_back(
+                candidate("per-category", "raycast", build_problem(with_rays, full, "raycast", categories)));
         select(m.raycast);
 
         // Update: per-operation costs, then a per-object (rebuild) cost.
@@ -211,18 +220,21 @@ void store_fits(Database& db, std::int64_t run, const std::vector<StructureModel
         for (const auto* list : {&s.raycast, &s.update})
             for (const CandidateModel& m : *list) {
                 db.prepare(
-                      "INSERT INTO fit(run_id, created_at, structure, target, model, terms, observations, configurations, r2, "
-                      "rmse_relative, heldout_error, condition_number, status, chosen) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
+                      "INSERT INTO fit(run_id, created_at, structure, target, model, terms, observations, "
+                      "configurations, r2, "
+                      "rmse_relative, heldout_error, condition_number, status, chosen) VALUES "
+                      "(?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
                     .bind_all(run, utc_now(), s.structure, m.target, m.name, nlohmann::json(m.problem.terms).dump(),
-                              std::int64_t(m.fit.observations), std::int64_t(m.fit.groups), m.fit.r2, m.fit.rmse_relative,
-                              std::isfinite(m.heldout_error) ? m.heldout_error : -1.0,
+                              std::int64_t(m.fit.observations), std::int64_t(m.fit.groups), m.fit.r2,
+                              m.fit.rmse_relative, std::isfinite(m.heldout_error) ? m.heldout_error : -1.0,
                               std::isfinite(m.fit.condition_number) ? m.fit.condition_number : 1e300, m.fit.status(),
                               std::int64_t(m.chosen))
                     .run();
                 const std::int64_t fit = db.last_insert_id();
                 for (const Coefficient& c : m.fit.coefficients) {
                     Statement ins = db.prepare(
-                        "INSERT INTO fit_coefficient(fit_id, name, value, ci_low, ci_high, spans_zero) VALUES (?,?,?,?,?,?)");
+                        "INSERT INTO fit_coefficient(fit_id, name, value, ci_low, ci_high, spans_zero) VALUES "
+                        "(?,?,?,?,?,?)");
                     ins.bind_all(fit, c.name, c.value);
                     ins.bind(4, std::isfinite(c.ci_low) ? std::optional<double>(c.ci_low) : std::nullopt);
                     ins.bind(5, std::isfinite(c.ci_high) ? std::optional<double>(c.ci_high) : std::nullopt);
@@ -233,7 +245,8 @@ void store_fits(Database& db, std::int64_t run, const std::vector<StructureModel
     t.commit();
 }
 
-std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& frames, const std::vector<StructureModels>& models) {
+std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& frames,
+                                          const std::vector<StructureModels>& models) {
     std::map<std::tuple<std::string, std::string, std::string>, std::vector<const FrameObservation*>> rows;
     for (const FrameObservation& f : frames)
         if (f.rays > 0) rows[{f.scene, f.structure, f.params}].push_back(&f);
@@ -270,10 +283,12 @@ std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& f
     return out;
 }
 
-std::optional<RaycastCoefficients> stored_raycast_coefficients(Database& db, std::int64_t run, const std::string& structure,
+std::optional<RaycastCoefficients> stored_raycast_coefficients(Database& db, std::int64_t run,
+                                                               const std::string& structure,
                                                                const std::string& category) {
     Statement s = db.prepare(
-        "SELECT fit.model, fit_coefficient.name, fit_coefficient.value FROM fit JOIN fit_coefficient ON fit_coefficient.fit_id = fit.id "
+        "SELECT fit.model, fit_coefficient.name, fit_coefficient.value FROM fit JOIN fit_coefficient ON "
+        "fit_coefficient.fit_id = fit.id "
         "WHERE fit.run_id = ? AND fit.structure = ? AND fit.target = 'raycast' AND fit.chosen = 1");
     s.bind_all(run, structure);
     std::optional<RaycastCoefficients> out;
@@ -285,9 +300,12 @@ std::optional<RaycastCoefficients> stored_raycast_coefficients(Database& db, std
             if (name.substr(bracket) != "[" + category + "]") continue;
             name = name.substr(0, bracket);
         }
-        if (name == "C_RB") out->c_rb = s.real(2);
-        else if (name == "C_T") out->c_t = s.real(2);
-        else if (name == "C_PREP") out->c_prep = s.real(2);
+        if (name == "C_RB")
+            out->c_rb = s.real(2);
+        else if (name == "C_T")
+            out->c_t = s.real(2);
+        else if (name == "C_PREP")
+            out->c_prep = s.real(2);
     }
     return out;
 }

@@ -26,7 +26,7 @@ struct FrameObservation {
     std::string structure, params, scene, category;  ///< category: "uniform", "irregular", …
     int config_group = 0;                            ///< distinct (scene, structure, params)
     double rays = 0, raycast_ns = 0, update_ns = 0;
-    double n_t = 0, n_rb = 0, n_tp = 0;              ///< per ray
+    double n_t = 0, n_rb = 0, n_tp = 0;  ///< per ray
     double inserts = 0, removes = 0, moves = 0, objects = 0;
     double memory_mb = 0;
 };
@@ -36,8 +36,8 @@ std::int64_t resolve_run(Database& db, std::int64_t run, const std::string& expe
 std::vector<FrameObservation> load_observations(Database& db, std::int64_t run);
 
 struct CandidateModel {
-    std::string name;       ///< e.g. "eq5.4", "no-prep", "per-category", "with-memory"
-    std::string target;     ///< "raycast" or "update"
+    std::string name;    ///< e.g. "eq5.4", "no-prep", "per-category", "with-memory"
+    std::string target;  ///< "raycast" or "update"
     LinearProblem problem;
     LinearFit fit;
     double heldout_error = 0;  ///< mean absolute relative error on held-out configurations
@@ -63,7 +63,7 @@ void store_fits(Database& db, std::int64_t run, const std::vector<StructureModel
 /// Thesis Table 6.3 analog: one row per (scene, configuration).
 struct CostBreakdown {
     std::string scene, structure, params;
-    double c_total = 0;  ///< measured ns per ray (median over frames)
+    double c_total = 0;                        ///< measured ns per ray (median over frames)
     double rb_term = 0, t_term = 0, prep = 0;  ///< C_RB·N_RB, C_T·N_T, C_PREP from the chosen model
     double n_tp = 0, n_fp = 0, n_t = 0;
     double c_rb = NAN, c_t = NAN;
@@ -87,7 +87,8 @@ struct RaycastCoefficients {
     double c_rb = 0, c_t = 0, c_prep = 0;
     std::string model;
 };
-std::optional<RaycastCoefficients> stored_raycast_coefficients(Database& db, std::int64_t run, const std::string& structure,
+std::optional<RaycastCoefficients> stored_raycast_coefficients(Database& db, std::int64_t run,
+                                                               const std::string& structure,
                                                                const std::string& category);
 
 /// "uniform", "irregular", "import", "recording": the category of a scene from its stored spec.

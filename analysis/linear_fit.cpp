@@ -100,12 +100,14 @@ LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
         for (std::size_t i = 0; i < n; ++i)
             for (std::size_t j = 0; j < k; ++j) a(Eigen::Index(i), Eigen::Index(j)) = xs[i][j] / p.y[i];
         const Eigen::VectorXd start = a.completeOrthogonalDecomposition().solve(b);
-        for (std::size_t j = 0; j < k; ++j) beta[j] = std::isfinite(start(Eigen::Index(j))) ? std::max(0.0, start(Eigen::Index(j))) : 0.0;
+        for (std::size_t j = 0; j < k; ++j)
+            beta[j] = std::isfinite(start(Eigen::Index(j))) ? std::max(0.0, start(Eigen::Index(j))) : 0.0;
     }
 
     ceres::Problem problem;
     for (std::size_t i = 0; i < n; ++i)
-        problem.AddResidualBlock(new RelativeLinearResidual(xs[i], p.y[i]), new ceres::HuberLoss(huber_delta), beta.data());
+        problem.AddResidualBlock(new RelativeLinearResidual(xs[i], p.y[i]), new ceres::HuberLoss(huber_delta),
+                                 beta.data());
     for (std::size_t j = 0; j < k; ++j) problem.SetParameterLowerBound(beta.data(), int(j), 0.0);
     ceres::Solver::Options options;
     options.linear_solver_type = ceres::DENSE_QR;
@@ -155,7 +157,8 @@ LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
         std::vector<double> solved = beta;
         beta = gamma;
         std::vector<std::pair<const double*, const double*>> blocks{{beta.data(), beta.data()}};
-        if (cov.Compute(blocks, &problem)) have_covariance = cov.GetCovarianceBlock(beta.data(), beta.data(), covariance.data());
+        if (cov.Compute(blocks, &problem))
+            have_covariance = cov.GetCovarianceBlock(beta.data(), beta.data(), covariance.data());
         beta = solved;
         for (std::size_t i = 0; i < k; ++i)
             for (std::size_t j = 0; j < k; ++j) covariance[i * k + j] /= scale[i] * scale[j];

@@ -14,10 +14,10 @@
 namespace rcb {
 
 struct LinearProblem {
-    std::vector<std::string> terms;        ///< one name per column
-    std::vector<std::vector<double>> x;    ///< rows of the design matrix
-    std::vector<double> y;                 ///< observations, > 0
-    std::vector<int> group;                ///< the configuration each row came from (for k-fold)
+    std::vector<std::string> terms;      ///< one name per column
+    std::vector<std::vector<double>> x;  ///< rows of the design matrix
+    std::vector<double> y;               ///< observations, > 0
+    std::vector<int> group;              ///< the configuration each row came from (for k-fold)
 };
 
 struct Coefficient {
@@ -30,14 +30,14 @@ struct Coefficient {
 struct LinearFit {
     std::vector<Coefficient> coefficients;
     std::size_t observations = 0;
-    std::size_t groups = 0;           ///< distinct configurations
-    double r2 = 0;                    ///< of the relative residuals' model, on the fitted data
-    double rmse_relative = 0;         ///< root mean square relative error on the fitted data
-    double condition_number = 0;      ///< of the column-scaled, weighted design
-    bool ill_conditioned = false;     ///< collinear terms: coefficients not identifiable
-    bool too_few_groups = false;      ///< fewer distinct configurations than terms + 1
+    std::size_t groups = 0;        ///< distinct configurations
+    double r2 = 0;                 ///< of the relative residuals' model, on the fitted data
+    double rmse_relative = 0;      ///< root mean square relative error on the fitted data
+    double condition_number = 0;   ///< of the column-scaled, weighted design
+    bool ill_conditioned = false;  ///< collinear terms: coefficients not identifiable
+    bool too_few_groups = false;   ///< fewer distinct configurations than terms + 1
     bool converged = false;
-    std::string status() const;       ///< "ok", or what is wrong
+    std::string status() const;  ///< "ok", or what is wrong
 
     double predict(const std::vector<double>& row) const;
 };

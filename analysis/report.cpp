@@ -32,11 +32,20 @@ std::string html_escape(const std::string& s) {
     std::string out;
     for (char c : s) {
         switch (c) {
-            case '<': out += "&lt;"; break;
-            case '>': out += "&gt;"; break;
-            case '&': out += "&amp;"; break;
-            case '"': out += "&quot;"; break;
-            default: out += c;
+            case '<':
+                out += "&lt;";
+                break;
+            case '>':
+                out += "&gt;";
+                break;
+            case '&':
+                out += "&amp;";
+                break;
+            case '"':
+                out += "&quot;";
+                break;
+            default:
+                out += c;
         }
     }
     return out;
@@ -79,11 +88,15 @@ std::vector<Entry> load_entries(Database& db, std::int64_t run) {
     std::map<std::pair<std::string, std::string>, Acc> acc;  // (scene, label)
     std::vector<std::pair<std::string, std::string>> order;
     Statement s = db.prepare(
-        "SELECT cell.id, scene.name, scene.spec, config.structure, config.params, cell.objects, cell.build_ns, cell.update_ns_median, "
+        "SELECT cell.id, scene.name, scene.spec, config.structure, config.params, cell.objects, cell.build_ns, "
+        "cell.update_ns_median, "
         "cell.raycast_ns_median, cell.memory_bytes, cell.repetition, "
-        "(SELECT sum(hits) FROM frame WHERE cell_id = cell.id AND warmup = 0), (SELECT sum(missed) FROM frame WHERE cell_id = cell.id), "
-        "(SELECT sum(extra) FROM frame WHERE cell_id = cell.id), (SELECT sum(duplicate) FROM frame WHERE cell_id = cell.id) "
-        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id WHERE cell.run_id IN " +
+        "(SELECT sum(hits) FROM frame WHERE cell_id = cell.id AND warmup = 0), (SELECT sum(missed) FROM frame WHERE "
+        "cell_id = cell.id), "
+        "(SELECT sum(extra) FROM frame WHERE cell_id = cell.id), (SELECT sum(duplicate) FROM frame WHERE cell_id = "
+        "cell.id) "
+        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id WHERE cell.run_id "
+        "IN " +
         std::string(kRunGroupSql) + " ORDER BY cell.id");
     s.bind_all(run, run);
     while (s.step()) {
@@ -140,20 +153,23 @@ public:
         out_ << "<h" << level << ">" << html_escape(text) << "</h" << level << ">\n";
     }
     void paragraph(const std::string& text) { out_ << "<p>" << html_escape(text) << "</p>\n"; }
-    void table(const std::vector<std::string>& header, const std::vector<std::vector<std::string>>& rows, const std::string& caption) {
+    void table(const std::vector<std::string>& header, const std::vector<std::vector<std::string>>& rows,
+               const std::string& caption) {
         out_ << "<table><caption>" << html_escape(caption) << "</caption><tr>";
         for (const std::string& h : header) out_ << "<th>" << html_escape(h) << "</th>";
         out_ << "</tr>\n";
         for (const auto& row : rows) {
             out_ << "<tr>";
-            for (std::size_t i = 0; i < row.size(); ++i) out_ << (i ? "<td class=n>" : "<td>") << html_escape(row[i]) << "</td>";
+            for (std::size_t i = 0; i < row.size(); ++i)
+                out_ << (i ? "<td class=n>" : "<td>") << html_escape(row[i]) << "</td>";
             out_ << "</tr>\n";
         }
         out_ << "</table>\n";
         ++tables_;
     }
     void chart(const Chart& c) {
-        out_ << "<figure class=chart>" << render_svg(c) << "<figcaption>" << html_escape(c.reading) << "</figcaption></figure>\n";
+        out_ << "<figure class=chart>" << render_svg(c) << "<figcaption>" << html_escape(c.reading)
+             << "</figcaption></figure>\n";
         ++charts_;
     }
     std::string str() const { return out_.str(); }
@@ -291,11 +307,13 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
     std::string experiment, commit, cpu, started;
     {
         Statement s = db.prepare(
-            "SELECT experiment.name, run.git_commit, run.cpu_model, run.started_at, run.cores FROM run JOIN experiment ON "
+            "SELECT experiment.name, run.git_commit, run.cpu_model, run.started_at, run.cores FROM run JOIN experiment "
+            "ON "
             "experiment.id = run.experiment_id WHERE run.id = ?");
         s.bind(1, run);
         if (!s.step()) throw InputError("no run " + std::to_string(run));
-        experiment = s.text(0), commit = s.text(1), cpu = s.text(2) + " (" + std::to_string(s.int64(4)) + " cores)", started = s.text(3);
+        experiment = s.text(0), commit = s.text(1), cpu = s.text(2) + " (" + std::to_string(s.int64(4)) + " cores)",
+        started = s.text(3);
     }
     // The largest scene by objects: where the per-frame series and Table 6.4 are shown.
     std::string largest = scenes.front();
@@ -304,8 +322,9 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
         if (e.objects > most_objects) most_objects = e.objects, largest = e.scene;
 
     Html h;
-    h.paragraph("Experiment " + experiment + ", run " + std::to_string(run) + " started " + started + " from commit " + commit +
-                " on " + cpu + ". Times are medians over frames (and over repetitions); a frame casts its rays as one batch.");
+    h.paragraph("Experiment " + experiment + ", run " + std::to_string(run) + " started " + started + " from commit " +
+                commit + " on " + cpu +
+                ". Times are medians over frames (and over repetitions); a frame casts its rays as one batch.");
 
     // Thesis Tables 6.1 and 6.2.
     h.heading("Build and execution (thesis Tables 6.1 and 6.2)");
@@ -353,9 +372,12 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
             c.series.push_back(s);
         }
         const Entry* bf = find(best_scene, "bf");
-        c.reading = best ? "Lower left is better. On " + best_scene + ", the lowest update + ray cast per frame is " + best->label +
-                               " at " + ms(best->total_ms()) + " ms" +
-                               (bf && best != bf ? ", " + fixed(bf->total_ms() / best->total_ms(), 1) + "x less than brute force" : "") + "."
+        c.reading = best ? "Lower left is better. On " + best_scene + ", the lowest update + ray cast per frame is " +
+                               best->label + " at " + ms(best->total_ms()) + " ms" +
+                               (bf && best != bf
+                                    ? ", " + fixed(bf->total_ms() / best->total_ms(), 1) + "x less than brute force"
+                                    : "") +
+                               "."
                          : "No data.";
         h.chart(c);
     }
@@ -382,13 +404,18 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
                 }
             c.series.push_back(s);
         }
-        c.reading = inexact == 0 ? "Every configuration reported exactly the ground truth's hit sets on every scene (100%), so speed is the only difference."
-                                 : std::to_string(inexact) + " (scene, configuration) pairs disagreed with the ground truth: see the mismatch table.";
+        c.reading = inexact == 0
+                        ? "Every configuration reported exactly the ground truth's hit sets on every scene (100%), so "
+                          "speed is the only difference."
+                        : std::to_string(inexact) +
+                              " (scene, configuration) pairs disagreed with the ground truth: see the mismatch table.";
         h.chart(c);
         std::vector<std::vector<std::string>> rows;
         for (const Entry& e : entries)
-            rows.push_back({e.scene, e.label, fixed(e.hits, 0), fixed(e.missed, 0), fixed(e.extra, 0), fixed(e.duplicate, 0)});
-        h.table({"scene", "configuration", "hits", "missed", "extra", "duplicate"}, rows, "Hit sets against the ground truth (all frames)");
+            rows.push_back(
+                {e.scene, e.label, fixed(e.hits, 0), fixed(e.missed, 0), fixed(e.extra, 0), fixed(e.duplicate, 0)});
+        h.table({"scene", "configuration", "hits", "missed", "extra", "duplicate"}, rows,
+                "Hit sets against the ground truth (all frames)");
     }
 
     // Cost model: predicted against measured, Table 6.3, model selection.
@@ -423,32 +450,44 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
         }
         if (hi > 0) {
             std::ostringstream ref;
-            ref << "set arrow from " << lo * 0.7 << "," << lo * 0.7 << " to " << hi * 1.4 << "," << hi * 1.4 << " nohead lc rgb '#444444'\n"
-                << "set arrow from " << lo * 0.7 << "," << lo * 0.7 * 1.1 << " to " << hi * 1.4 << "," << hi * 1.4 * 1.1 << " nohead dt 2 lc rgb '#999999'\n"
-                << "set arrow from " << lo * 0.7 << "," << lo * 0.7 * 0.9 << " to " << hi * 1.4 << "," << hi * 1.4 * 0.9 << " nohead dt 2 lc rgb '#999999'\n";
+            ref << "set arrow from " << lo * 0.7 << "," << lo * 0.7 << " to " << hi * 1.4 << "," << hi * 1.4
+                << " nohead lc rgb '#444444'\n"
+                << "set arrow from " << lo * 0.7 << "," << lo * 0.7 * 1.1 << " to " << hi * 1.4 << "," << hi * 1.4 * 1.1
+                << " nohead dt 2 lc rgb '#999999'\n"
+                << "set arrow from " << lo * 0.7 << "," << lo * 0.7 * 0.9 << " to " << hi * 1.4 << "," << hi * 1.4 * 0.9
+                << " nohead dt 2 lc rgb '#999999'\n";
             c.extra += ref.str();
         }
-        c.reading = "One point per configuration (median over its frames); the solid line is a perfect prediction, the dashed band ±10%. "
-                    "Held-out error (configurations left out of the fit): " + errors + ".";
+        c.reading =
+            "One point per configuration (median over its frames); the solid line is a perfect prediction, the dashed "
+            "band ±10%. "
+            "Held-out error (configurations left out of the fit): " +
+            errors + ".";
         h.chart(c);
 
         std::vector<std::vector<std::string>> rows;
         for (const CostBreakdown& b : cost_breakdown(frames, models))
-            rows.push_back({b.scene, config_label(b.structure, b.params), fixed(b.c_total, 1), fixed(b.rb_term, 1), fixed(b.t_term, 1),
-                            fixed(b.prep, 1), fixed(b.n_tp, 1), fixed(b.n_fp, 1), fixed(b.n_t, 1),
-                            std::isfinite(b.c_rb) ? fixed(b.c_rb, 3) : "-", std::isfinite(b.c_t) ? fixed(b.c_t, 3) : "-"});
-        h.table({"scene", "configuration", "C_total", "C_RB×N_RB", "C_T×N_T", "C_PREP", "N_TP", "N_FP", "N_T", "C_RB", "C_T"}, rows,
+            rows.push_back({b.scene, config_label(b.structure, b.params), fixed(b.c_total, 1), fixed(b.rb_term, 1),
+                            fixed(b.t_term, 1), fixed(b.prep, 1), fixed(b.n_tp, 1), fixed(b.n_fp, 1), fixed(b.n_t, 1),
+                            std::isfinite(b.c_rb) ? fixed(b.c_rb, 3) : "-",
+                            std::isfinite(b.c_t) ? fixed(b.c_t, 3) : "-"});
+        h.table({"scene", "configuration", "C_total", "C_RB×N_RB", "C_T×N_T", "C_PREP", "N_TP", "N_FP", "N_T", "C_RB",
+                 "C_T"},
+                rows,
                 "Thesis Table 6.3 analog: ns per ray; counts per ray; C terms from each structure's chosen model");
         std::vector<std::vector<std::string>> sel;
         for (const StructureModels& m : models)
             for (const CandidateModel& cm : m.raycast) {
                 std::string coefficients;
                 for (const Coefficient& co : cm.fit.coefficients)
-                    coefficients += (coefficients.empty() ? "" : "; ") + co.name + " " + fixed(co.value, 3) +
-                                    (std::isfinite(co.ci_low) ? " [" + fixed(co.ci_low, 3) + ", " + fixed(co.ci_high, 3) + "]" : "") +
-                                    (co.spans_zero ? " ~0?" : "");
-                sel.push_back({m.structure, cm.name, fixed(100 * cm.heldout_error, 1) + "%", fixed(cm.fit.r2, 3), cm.fit.status(),
-                               cm.chosen ? "chosen" : "", cm.fit.status() == "ok" ? coefficients : "(not identifiable)"});
+                    coefficients +=
+                        (coefficients.empty() ? "" : "; ") + co.name + " " + fixed(co.value, 3) +
+                        (std::isfinite(co.ci_low) ? " [" + fixed(co.ci_low, 3) + ", " + fixed(co.ci_high, 3) + "]"
+                                                  : "") +
+                        (co.spans_zero ? " ~0?" : "");
+                sel.push_back({m.structure, cm.name, fixed(100 * cm.heldout_error, 1) + "%", fixed(cm.fit.r2, 3),
+                               cm.fit.status(), cm.chosen ? "chosen" : "",
+                               cm.fit.status() == "ok" ? coefficients : "(not identifiable)"});
             }
         h.table({"structure", "model", "held-out error", "R²", "status", "", "coefficients (ns, 95% interval)"}, sel,
                 "Model selection: the smallest model within max(0.5 points, 5%) of the best held-out error is chosen");
@@ -459,11 +498,12 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
         std::vector<std::vector<std::string>> rows;
         for (const CostBreakdown& b : cost_breakdown(frames, models))
             if (b.structure == "dbvh")
-                rows.push_back({b.scene, config_label(b.structure, b.params), fixed(b.c_total, 1), fixed(b.n_tp, 1), fixed(b.n_fp, 1),
-                                fixed(b.n_t, 1)});
+                rows.push_back({b.scene, config_label(b.structure, b.params), fixed(b.c_total, 1), fixed(b.n_tp, 1),
+                                fixed(b.n_fp, 1), fixed(b.n_t, 1)});
         if (rows.size() > 1) {
             h.heading("Tree quality of the dynamic BVH (thesis Table 6.4)");
-            h.table({"scene", "configuration", "C_total (ns/ray)", "N_TP", "N_FP", "N_T"}, rows, "DBVH incremental insertion against full binned-SAH rebuilds");
+            h.table({"scene", "configuration", "C_total (ns/ray)", "N_TP", "N_FP", "N_T"}, rows,
+                    "DBVH incremental insertion against full binned-SAH rebuilds");
         }
     }
 
@@ -480,16 +520,22 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
         for (const Entry& e : entries) {
             if (e.scene != largest || e.frame_raycast_ms.empty()) continue;
             Series s{e.label, {}, {}, {}, true, style_of(e.label)};
-            for (std::size_t f = 0; f < e.frame_raycast_ms.size(); ++f) s.x.push_back(double(f + 1)), s.y.push_back(e.frame_raycast_ms[f]);
+            for (std::size_t f = 0; f < e.frame_raycast_ms.size(); ++f)
+                s.x.push_back(double(f + 1)), s.y.push_back(e.frame_raycast_ms[f]);
             c.series.push_back(s);
             const std::size_t q = std::max<std::size_t>(1, e.frame_raycast_ms.size() / 4);
-            const double first = spread_of({e.frame_raycast_ms.begin(), e.frame_raycast_ms.begin() + std::ptrdiff_t(q)}).median;
-            const double last = spread_of({e.frame_raycast_ms.end() - std::ptrdiff_t(q), e.frame_raycast_ms.end()}).median;
-            if (first > 0 && std::abs(last / first - 1) > std::abs(worst_drift)) worst_drift = last / first - 1, worst = e.label;
+            const double first =
+                spread_of({e.frame_raycast_ms.begin(), e.frame_raycast_ms.begin() + std::ptrdiff_t(q)}).median;
+            const double last =
+                spread_of({e.frame_raycast_ms.end() - std::ptrdiff_t(q), e.frame_raycast_ms.end()}).median;
+            if (first > 0 && std::abs(last / first - 1) > std::abs(worst_drift))
+                worst_drift = last / first - 1, worst = e.label;
         }
-        c.reading = worst.empty() ? "No configuration changed by more than noise from the first to the last quarter of the frames."
-                                  : "Largest change from the first to the last quarter of the frames: " + worst + ", " +
-                                        fixed(100 * worst_drift, 1) + "% (noise included).";
+        c.reading =
+            worst.empty()
+                ? "No configuration changed by more than noise from the first to the last quarter of the frames."
+                : "Largest change from the first to the last quarter of the frames: " + worst + ", " +
+                      fixed(100 * worst_drift, 1) + "% (noise included).";
         h.chart(c);
 
         Chart sah;
@@ -503,7 +549,8 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
             for (std::size_t f = 0; f < e.frame_sah.size(); ++f)
                 if (std::isfinite(e.frame_sah[f])) s.x.push_back(double(f + 1)), s.y.push_back(e.frame_sah[f]);
             if (s.x.empty()) continue;
-            growth += (growth.empty() ? "" : ", ") + e.label + " " + fixed(100 * (s.y.back() / s.y.front() - 1), 1) + "%";
+            growth +=
+                (growth.empty() ? "" : ", ") + e.label + " " + fixed(100 * (s.y.back() / s.y.front() - 1), 1) + "%";
             sah.series.push_back(s);
         }
         if (!sah.series.empty()) {
@@ -532,8 +579,8 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
                 }
             c.series.push_back(s);
         }
-        c.reading = most ? "Most memory per object: " + most->label + " on " + most->scene + ", " + fixed(most->memory_per_object, 0) +
-                               " bytes per object."
+        c.reading = most ? "Most memory per object: " + most->label + " on " + most->scene + ", " +
+                               fixed(most->memory_per_object, 0) + " bytes per object."
                          : "No data.";
         h.chart(c);
 
@@ -615,28 +662,33 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
                 }
                 if (any) rows.push_back(row);
             }
-            h.paragraph("Scenes built to break an assumption: stadium (one huge box around a tiny dense "
-                        "cluster), identical (stacks of equal boxes), same-centroid (stacks with one centroid), flat "
-                        "(zero-thickness boxes in one plane), slivers (long thin and zero-volume boxes), outlier (one "
-                        "box 10^6 scene sizes away). Each cell: ok or WRONG (mismatches against the ground truth); "
-                        "cost (update + ray cast per frame, medians) divided by brute force's on the same scene; and "
-                        "divided by the same configuration's cost on the benign scene of the same size (generated "
-                        "irregular, else uniform, with as many objects; '-' when the run has none). " +
-                        std::string(wrong == 0 ? "Every configuration was exact on every failure scene."
-                                               : std::to_string(wrong) + " configuration-scene pairs were not exact."));
-            h.table(header, rows, "Where methods fail: correctness, cost / brute force, cost / benign scene of the same size");
+            h.paragraph(
+                "Scenes built to break an assumption: stadium (one huge box around a tiny dense "
+                "cluster), identical (stacks of equal boxes), same-centroid (stacks with one centroid), flat "
+                "(zero-thickness boxes in one plane), slivers (long thin and zero-volume boxes), outlier (one "
+                "box 10^6 scene sizes away). Each cell: ok or WRONG (mismatches against the ground truth); "
+                "cost (update + ray cast per frame, medians) divided by brute force's on the same scene; and "
+                "divided by the same configuration's cost on the benign scene of the same size (generated "
+                "irregular, else uniform, with as many objects; '-' when the run has none). " +
+                std::string(wrong == 0 ? "Every configuration was exact on every failure scene."
+                                       : std::to_string(wrong) + " configuration-scene pairs were not exact."));
+            h.table(header, rows,
+                    "Where methods fail: correctness, cost / brute force, cost / benign scene of the same size");
         }
     }
 
     history_section(h, db, run, experiment, largest, style_of);
 
     std::ostringstream page;
-    page << "<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8><title>rcbench report: " << html_escape(experiment)
+    page << "<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8><title>rcbench report: "
+         << html_escape(experiment)
          << "</title>\n<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}"
-            "table{border-collapse:collapse;margin:1em 0;font-size:13px}caption{text-align:left;font-weight:bold;padding:4px 0}"
+            "table{border-collapse:collapse;margin:1em "
+            "0;font-size:13px}caption{text-align:left;font-weight:bold;padding:4px 0}"
             "th,td{border:1px solid #ccc;padding:3px 7px}td.n{text-align:right;font-variant-numeric:tabular-nums}"
             "th{background:#f2f2f2}figure.chart{margin:1.5em 0}figcaption{font-size:14px;color:#333;max-width:820px}"
-            "h2{border-bottom:1px solid #ddd;padding-bottom:4px;margin-top:2em}</style></head>\n<body>\n<h1>rcbench report: "
+            "h2{border-bottom:1px solid #ddd;padding-bottom:4px;margin-top:2em}</style></head>\n<body>\n<h1>rcbench "
+            "report: "
          << html_escape(experiment) << "</h1>\n"
          << h.str() << "</body></html>\n";
     write_file_atomically(path, page.str());

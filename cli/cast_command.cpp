@@ -19,10 +19,15 @@ void add_cast_command(CLI::App& app) {
         StructureOptions structure;
     };
     auto o = std::make_shared<Options>();
-    CLI::App* cmd = app.add_subcommand("cast", "Cast the segments of a CSV file (x0,y0,z0,x1,y1,z1) against a scene's frame 0; "
-                                               "prints one JSON line per ray: {\"ray\": i, \"hits\": [uid, ...]}");
-    cmd->add_option("--scene", o->scene, "Recording file, or a boxes CSV (uid,minx,miny,minz,maxx,maxy,maxz)")->required()->check(input_file());
-    cmd->add_option("--rays", o->rays, "Rays CSV; ray i is the i-th data line, from 0")->required()->check(input_file());
+    CLI::App* cmd = app.add_subcommand("cast",
+                                       "Cast the segments of a CSV file (x0,y0,z0,x1,y1,z1) against a scene's frame 0; "
+                                       "prints one JSON line per ray: {\"ray\": i, \"hits\": [uid, ...]}");
+    cmd->add_option("--scene", o->scene, "Recording file, or a boxes CSV (uid,minx,miny,minz,maxx,maxy,maxz)")
+        ->required()
+        ->check(input_file());
+    cmd->add_option("--rays", o->rays, "Rays CSV; ray i is the i-th data line, from 0")
+        ->required()
+        ->check(input_file());
     add_structure_options(*cmd, o->structure);
     cmd->callback([o] {
         const StructureInfo& info = find_structure(o->structure.name);

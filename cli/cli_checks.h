@@ -21,7 +21,8 @@ inline CLI::Validator finite_range(double lo, double hi) {
             double v = 0;
             const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
             if (ec != std::errc() || end != text.data() + text.size() || !std::isfinite(v) || v < lo || v > hi)
-                return "expected a number in " + CLI::detail::to_string(lo) + ".." + CLI::detail::to_string(hi) + ", got " + text;
+                return "expected a number in " + CLI::detail::to_string(lo) + ".." + CLI::detail::to_string(hi) +
+                       ", got " + text;
             return {};
         },
         "NUMBER in " + CLI::detail::to_string(lo) + ".." + CLI::detail::to_string(hi));

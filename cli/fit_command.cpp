@@ -24,7 +24,8 @@ std::string with_interval(const Coefficient& c, bool trusted) {
 }
 
 void print_models(const std::vector<CandidateModel>& models, const char* what) {
-    TextTable t({std::string("  ") + what + " model", "terms", "held-out error", "R2", "condition", "status", "chosen"});
+    TextTable t(
+        {std::string("  ") + what + " model", "terms", "held-out error", "R2", "condition", "status", "chosen"});
     for (const CandidateModel& m : models) {
         std::string terms;
         for (const std::string& s : m.problem.terms) terms += (terms.empty() ? "" : " ") + s;
@@ -38,8 +39,10 @@ void print_models(const std::vector<CandidateModel>& models, const char* what) {
 void print_coefficients(const CandidateModel& m, const char* unit) {
     const bool trusted = m.fit.status() == "ok";
     std::cout << "  chosen " << m.target << " model '" << m.name << "' (" << unit << ", 95% intervals"
-              << (trusted ? "" : "; NOT IDENTIFIABLE: " + m.fit.status() + ", values in parentheses are not estimates") << "):\n";
-    for (const Coefficient& c : m.fit.coefficients) std::cout << "    " << c.name << " = " << with_interval(c, trusted) << '\n';
+              << (trusted ? "" : "; NOT IDENTIFIABLE: " + m.fit.status() + ", values in parentheses are not estimates")
+              << "):\n";
+    for (const Coefficient& c : m.fit.coefficients)
+        std::cout << "    " << c.name << " = " << with_interval(c, trusted) << '\n';
 }
 
 }  // namespace
@@ -51,8 +54,10 @@ void add_fit_command(CLI::App& app) {
     };
     auto o = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand(
-        "fit", "Fit the cost model C = C_RB*N_RB + C_T*N_T + C_PREP (thesis eq. 5.4) and update costs per structure to a run's "
-               "frames; choose the smallest adequate model by held-out error; store the coefficients in the database");
+        "fit",
+        "Fit the cost model C = C_RB*N_RB + C_T*N_T + C_PREP (thesis eq. 5.4) and update costs per structure to a "
+        "run's "
+        "frames; choose the smallest adequate model by held-out error; store the coefficients in the database");
     cmd->add_option("db", o->db, "Results database")->required()->check(input_file());
     cmd->add_option("--experiment", o->experiment, "Fit the newest run of this experiment (default: the newest run)");
     cmd->add_option("--run", o->run, "Fit this run id");
@@ -63,8 +68,10 @@ void add_fit_command(CLI::App& app) {
         const RunFit fit = fit_run(store.db(), run);
         const std::vector<StructureModels>& models = fit.models;
 
-        std::cout << "run " << run << ": " << fit.frames << " frames. Ray-cast cost per ray in ns; held-out error is the mean "
-                  << "absolute relative error on configurations left out of the fit (5-fold). A model is chosen when its held-out "
+        std::cout << "run " << run << ": " << fit.frames
+                  << " frames. Ray-cast cost per ray in ns; held-out error is the mean "
+                  << "absolute relative error on configurations left out of the fit (5-fold). A model is chosen when "
+                     "its held-out "
                   << "error is within max(0.5 points, 5%) of the best: the smallest such.\n";
         for (const StructureModels& s : models) {
             std::cout << '\n' << s.structure;
@@ -77,15 +84,17 @@ void add_fit_command(CLI::App& app) {
             print_models(s.raycast, "ray-cast");
             if (const CandidateModel* m = s.chosen("raycast")) print_coefficients(*m, "ns per unit per ray");
             print_models(s.update, "update");
-            if (const CandidateModel* m = s.chosen("update")) print_coefficients(*m, "ns per operation / object / frame");
+            if (const CandidateModel* m = s.chosen("update"))
+                print_coefficients(*m, "ns per operation / object / frame");
         }
 
         std::cout << "\nThesis Table 6.3 analog (ns per ray; the C terms from each structure's chosen model):\n";
-        TextTable t({"scene", "structure", "params", "C_total", "C_RBxN_RB", "C_TxN_T", "C_PREP", "N_TP", "N_FP", "N_T", "C_RB", "C_T"});
+        TextTable t({"scene", "structure", "params", "C_total", "C_RBxN_RB", "C_TxN_T", "C_PREP", "N_TP", "N_FP", "N_T",
+                     "C_RB", "C_T"});
         for (const CostBreakdown& b : fit.breakdown)
-            t.add({b.scene, b.structure, b.params, fixed(b.c_total, 1), fixed(b.rb_term, 1), fixed(b.t_term, 1), fixed(b.prep, 1),
-                   fixed(b.n_tp, 1), fixed(b.n_fp, 1), fixed(b.n_t, 1), std::isfinite(b.c_rb) ? fixed(b.c_rb, 3) : "-",
-                   std::isfinite(b.c_t) ? fixed(b.c_t, 3) : "-"});
+            t.add({b.scene, b.structure, b.params, fixed(b.c_total, 1), fixed(b.rb_term, 1), fixed(b.t_term, 1),
+                   fixed(b.prep, 1), fixed(b.n_tp, 1), fixed(b.n_fp, 1), fixed(b.n_t, 1),
+                   std::isfinite(b.c_rb) ? fixed(b.c_rb, 3) : "-", std::isfinite(b.c_t) ? fixed(b.c_t, 3) : "-"});
         t.print(std::cout);
 
         std::cout << "\nHeld-out relative error of the predicted ray-cast time (chosen model; target <= 10%):\n";

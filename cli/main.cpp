@@ -12,11 +12,16 @@ namespace {
 std::string one_line(std::string_view message) {
     std::string out;
     for (unsigned char c : message) {
-        if (c == '\n') out += "\\n";
-        else if (c == '\r') out += "\\r";
-        else if (c == '\t') out += "\\t";
-        else if (c < 0x20 || c == 0x7f) out += "?";
-        else out += char(c);
+        if (c == '\n')
+            out += "\\n";
+        else if (c == '\r')
+            out += "\\r";
+        else if (c == '\t')
+            out += "\\t";
+        else if (c < 0x20 || c == 0x7f)
+            out += "?";
+        else
+            out += char(c);
     }
     return out;
 }
@@ -24,10 +29,11 @@ std::string one_line(std::string_view message) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    CLI::App app{"rcbench: acceleration structures for all-hits ray casting in dynamic physics scenes.\n"
-                 "Generate or import scenes, simulate structures against brute-force ground truth, run experiment files\n"
-                 "into a SQLite database, compare runs, cast your own rays.",
-                 "rcbench"};
+    CLI::App app{
+        "rcbench: acceleration structures for all-hits ray casting in dynamic physics scenes.\n"
+        "Generate or import scenes, simulate structures against brute-force ground truth, run experiment files\n"
+        "into a SQLite database, compare runs, cast your own rays.",
+        "rcbench"};
     app.set_version_flag("--version", std::string("rcbench 0.1.0"));
     app.require_subcommand(1);
     app.fallthrough();

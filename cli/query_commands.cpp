@@ -50,9 +50,11 @@ void add_query_commands(CLI::App& app) {
         bool csv = false;
     };
     auto q = std::make_shared<QueryOptions>();
-    CLI::App* query = app.add_subcommand("query", "Run a read-only SQL statement on a results database (schema: docs/database.md)");
+    CLI::App* query =
+        app.add_subcommand("query", "Run a read-only SQL statement on a results database (schema: docs/database.md)");
     query->add_option("db", q->db, "Results database")->required()->check(input_file());
-    query->add_option("sql", q->sql, "SQL, e.g. \"SELECT scene, structure, raycast_ns_median FROM cell_summary\"")->required();
+    query->add_option("sql", q->sql, "SQL, e.g. \"SELECT scene, structure, raycast_ns_median FROM cell_summary\"")
+        ->required();
     query->add_flag("--csv", q->csv, "Print CSV instead of a table");
     query->callback([q] { run_query(q->db, q->sql, q->csv); });
 
@@ -64,13 +66,20 @@ void add_query_commands(CLI::App& app) {
     };
     auto c = std::make_shared<CompareOptions>();
     CLI::App* compare = app.add_subcommand(
-        "compare", "Compare two runs per scene and configuration: ratio of median frame times, Mann-Whitney U p-value, verdict");
+        "compare",
+        "Compare two runs per scene and configuration: ratio of median frame times, Mann-Whitney U p-value, verdict");
     compare->add_option("db", c->db, "Results database")->required()->check(input_file());
     compare->add_option("--baseline", c->baseline, "Run id or git commit prefix")->required();
     compare->add_option("--candidate", c->candidate, "Run id or git commit prefix")->required();
-    compare->add_option("--metric", c->metric, "raycast, update or both")->capture_default_str()->check(CLI::IsMember({"raycast", "update", "both"}));
-    compare->add_option("--alpha", c->alpha, "Significance level of the U test")->capture_default_str()->check(finite_range(1e-9, 0.5));
-    compare->add_option("--fail-on-regression", c->fail_pct, "Exit 1 when a significant slowdown exceeds this many percent")
+    compare->add_option("--metric", c->metric, "raycast, update or both")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"raycast", "update", "both"}));
+    compare->add_option("--alpha", c->alpha, "Significance level of the U test")
+        ->capture_default_str()
+        ->check(finite_range(1e-9, 0.5));
+    compare
+        ->add_option("--fail-on-regression", c->fail_pct,
+                     "Exit 1 when a significant slowdown exceeds this many percent")
         ->check(finite_range(0.0, 1e6));
     compare->callback([c] {
         auto db = open_read_only(c->db);
@@ -78,13 +87,15 @@ void add_query_commands(CLI::App& app) {
         TextTable t({"scene", "structure", "params", "metric", "baseline ms", "candidate ms", "ratio", "p", "verdict"});
         std::size_t regressions = 0;
         for (const Comparison& r : rows) {
-            t.add({r.scene, r.structure, r.params, r.metric, fixed(r.baseline_median / 1e6, 4), fixed(r.candidate_median / 1e6, 4),
-                   fixed(r.ratio, 3), std::isnan(r.p_value) ? "-" : fixed(r.p_value, 4), r.verdict});
+            t.add({r.scene, r.structure, r.params, r.metric, fixed(r.baseline_median / 1e6, 4),
+                   fixed(r.candidate_median / 1e6, 4), fixed(r.ratio, 3),
+                   std::isnan(r.p_value) ? "-" : fixed(r.p_value, 4), r.verdict});
             if (c->fail_pct >= 0 && r.verdict == "slower" && (r.ratio - 1) * 100 > c->fail_pct) ++regressions;
         }
         t.print(std::cout);
         if (regressions)
-            throw std::runtime_error(std::to_string(regressions) + " significant slowdowns above " + fixed(c->fail_pct, 1) + "%");
+            throw std::runtime_error(std::to_string(regressions) + " significant slowdowns above " +
+                                     fixed(c->fail_pct, 1) + "%");
     });
 
     struct MergeOptions {
@@ -92,7 +103,8 @@ void add_query_commands(CLI::App& app) {
         std::vector<std::string> in;
     };
     auto m = std::make_shared<MergeOptions>();
-    CLI::App* merge = app.add_subcommand("merge", "Combine results databases (e.g. shards) into one; runs already present are skipped");
+    CLI::App* merge = app.add_subcommand(
+        "merge", "Combine results databases (e.g. shards) into one; runs already present are skipped");
     merge->add_option("out", m->out, "Database to merge into (created if missing)")->required();
     merge->add_option("in", m->in, "Databases to merge from")->required()->check(input_file());
     merge->callback([m] {

@@ -27,8 +27,10 @@ using Clock = std::chrono::steady_clock;
 std::string duration_text(double seconds) {
     const int s = int(seconds + 0.5);
     char buf[32];
-    if (s >= 3600) std::snprintf(buf, sizeof buf, "%dh%02dm", s / 3600, (s / 60) % 60);
-    else std::snprintf(buf, sizeof buf, "%dm%02ds", s / 60, s % 60);
+    if (s >= 3600)
+        std::snprintf(buf, sizeof buf, "%dh%02dm", s / 3600, (s / 60) % 60);
+    else
+        std::snprintf(buf, sizeof buf, "%dm%02ds", s / 60, s % 60);
     return buf;
 }
 
@@ -39,10 +41,12 @@ public:
     void cell(std::size_t done, const std::string& what) {
         const double elapsed = std::chrono::duration<double>(Clock::now() - start_).count();
         const double eta = done ? elapsed / double(done) * double(total_ - done) : 0.0;
-        std::string line = "cell " + std::to_string(done + 1) + "/" + std::to_string(total_) + "  " + what + "  elapsed " +
-                           duration_text(elapsed) + (done ? "  eta " + duration_text(eta) : "");
-        if (tty_) std::cerr << "\r\033[K" << line << std::flush;
-        else std::cerr << line << '\n';
+        std::string line = "cell " + std::to_string(done + 1) + "/" + std::to_string(total_) + "  " + what +
+                           "  elapsed " + duration_text(elapsed) + (done ? "  eta " + duration_text(eta) : "");
+        if (tty_)
+            std::cerr << "\r\033[K" << line << std::flush;
+        else
+            std::cerr << line << '\n';
     }
     void finish() {
         if (tty_) std::cerr << "\r\033[K";
@@ -65,7 +69,8 @@ std::pair<std::size_t, std::size_t> parse_shard(const std::string& text) {
         ok = en == std::errc() && after_n == end && k >= 1 && k <= n && n <= kMaxPlanCells;
     }
     if (!ok)
-        throw InputError("--shard " + text + ": expected K/N with 1 <= K <= N <= " + std::to_string(kMaxPlanCells) + ", e.g. 2/8");
+        throw InputError("--shard " + text + ": expected K/N with 1 <= K <= N <= " + std::to_string(kMaxPlanCells) +
+                         ", e.g. 2/8");
     return {k, n};
 }
 
@@ -121,11 +126,15 @@ void add_run_command(CLI::App& app) {
         bool dry_run = false;
     };
     auto o = std::make_shared<Options>();
-    CLI::App* cmd = app.add_subcommand("run", "Run an experiment file (structures x scenes x parameters x repetitions) into a "
-                                              "SQLite database; running it again resumes an unfinished run");
-    cmd->add_option("experiment", o->experiment, "Experiment file (JSON; see experiments/README.md)")->required()->check(input_file());
+    CLI::App* cmd = app.add_subcommand("run",
+                                       "Run an experiment file (structures x scenes x parameters x repetitions) into a "
+                                       "SQLite database; running it again resumes an unfinished run");
+    cmd->add_option("experiment", o->experiment, "Experiment file (JSON; see experiments/README.md)")
+        ->required()
+        ->check(input_file());
     cmd->add_option("--db", o->db, "Results database (created if missing)")->capture_default_str();
-    cmd->add_option("--shard", o->shard, "Run only every N-th cell, starting at the K-th: K/N (merge shards with rcbench merge)");
+    cmd->add_option("--shard", o->shard,
+                    "Run only every N-th cell, starting at the K-th: K/N (merge shards with rcbench merge)");
     cmd->add_flag("--new-run", o->new_run, "Start a new run even if an unfinished one could be resumed");
     cmd->add_option("--run", o->run_id, "Resume this run id");
     cmd->add_flag("--dry-run", o->dry_run, "Print the plan and stop");
@@ -144,8 +153,8 @@ void add_run_command(CLI::App& app) {
                       << e.repetitions << " repetitions = " << e.plan.size() << " cells"
                       << (o->shard.empty() ? "" : ", " + std::to_string(plan.size()) + " in shard " + o->shard) << '\n';
             for (const Cell& c : plan)
-                std::cout << "  " << c.key << "  " << e.scenes[c.scene].name << "  " << config_label(e.configs[c.config])
-                          << "  rep " << c.repetition << '\n';
+                std::cout << "  " << c.key << "  " << e.scenes[c.scene].name << "  "
+                          << config_label(e.configs[c.config]) << "  rep " << c.repetition << '\n';
             return;
         }
 
@@ -155,16 +164,18 @@ void add_run_command(CLI::App& app) {
         run.new_run = o->new_run;
         run.run_id = o->run_id;
         std::unique_ptr<Progress> progress;
-        const RunOutcome done = run_experiment(e, o->experiment, run, [&](std::size_t ran, std::size_t todo, const std::string& what) {
-            if (!progress) progress = std::make_unique<Progress>(todo);
-            progress->cell(ran, what);
-        });
+        const RunOutcome done =
+            run_experiment(e, o->experiment, run, [&](std::size_t ran, std::size_t todo, const std::string& what) {
+                if (!progress) progress = std::make_unique<Progress>(todo);
+                progress->cell(ran, what);
+            });
         if (progress) progress->finish();
         std::cerr << "run " << done.run << " of " << e.name << ": " << done.planned << " cells, " << done.done_before
                   << " done before, " << done.ran << " ran now -> " << o->db << '\n';
         print_summary(*open_read_only(o->db), done.run, e);
         if (done.mismatches)
-            throw std::runtime_error(std::to_string(done.mismatches) + " hits disagree with the ground truth (see the cell table)");
+            throw std::runtime_error(std::to_string(done.mismatches) +
+                                     " hits disagree with the ground truth (see the cell table)");
     });
 }
 

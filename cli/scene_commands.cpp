@@ -29,8 +29,12 @@ struct DynamicsOptions {
 };
 
 void add_dynamics_options(CLI::App& cmd, DynamicsOptions& o) {
-    cmd.add_option("--frames", o.frames, "Frames after frame 0")->capture_default_str()->check(whole_number(0, 1'000'000));
-    cmd.add_option("--seed", o.seed, "Seed of every random choice (recorded in the file)")->capture_default_str()->check(whole_number());
+    cmd.add_option("--frames", o.frames, "Frames after frame 0")
+        ->capture_default_str()
+        ->check(whole_number(0, 1'000'000));
+    cmd.add_option("--seed", o.seed, "Seed of every random choice (recorded in the file)")
+        ->capture_default_str()
+        ->check(whole_number());
     cmd.add_option("--rays", o.rays, "Rays per frame")->capture_default_str()->check(whole_number(0, 100'000'000));
     cmd.add_option("--ray-mix", o.ray_mix,
                    "Ray modes with weights, of " + join(ray_mode_names()) + " (e.g. center:0.7,los:0.3)")
@@ -44,7 +48,8 @@ void add_dynamics_options(CLI::App& cmd, DynamicsOptions& o) {
     cmd.add_option("--remove-share", o.dynamics.remove_share, "Share of the changes that are removes (the rest move)")
         ->capture_default_str()
         ->check(finite_range(0.0, 1.0));
-    cmd.add_option("--move-scale", o.dynamics.move_scale, "A move shifts each axis by up to this x the object's longest edge")
+    cmd.add_option("--move-scale", o.dynamics.move_scale,
+                   "A move shifts each axis by up to this x the object's longest edge")
         ->capture_default_str()
         ->check(finite_range(0.0, 1000.0));
 }
@@ -93,18 +98,20 @@ void scene_info(const std::string& path, bool as_json) {
                            {"p90", percentile(edges, 0.9)},
                            {"max", edges.empty() ? 0 : edges.back()}};
     const nlohmann::json meta = parse_json_document(r.meta, path + ": META");
-    nlohmann::json j = {{"file", path},
-                        {"objects", r.initial.size()},
-                        {"frames", r.frames.size()},
-                        {"rays", rays},
-                        {"rays_per_frame", rays / frames},
-                        {"changes_per_frame", changes / frames},
-                        {"inserts", inserts},
-                        {"removes", removes},
-                        {"moves", moves},
-                        {"bounds", {{"min", {bounds.min.x, bounds.min.y, bounds.min.z}}, {"max", {bounds.max.x, bounds.max.y, bounds.max.z}}}},
-                        {"longest_edge", size},
-                        {"meta", meta}};
+    nlohmann::json j = {
+        {"file", path},
+        {"objects", r.initial.size()},
+        {"frames", r.frames.size()},
+        {"rays", rays},
+        {"rays_per_frame", rays / frames},
+        {"changes_per_frame", changes / frames},
+        {"inserts", inserts},
+        {"removes", removes},
+        {"moves", moves},
+        {"bounds",
+         {{"min", {bounds.min.x, bounds.min.y, bounds.min.z}}, {"max", {bounds.max.x, bounds.max.y, bounds.max.z}}}},
+        {"longest_edge", size},
+        {"meta", meta}};
     if (as_json) {
         std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
         return;
@@ -118,11 +125,10 @@ void scene_info(const std::string& path, bool as_json) {
                                     std::to_string(removes) + ", moves " + std::to_string(moves) + " in all)"});
     t.add({"bounds min", fixed(bounds.min.x, 3) + ", " + fixed(bounds.min.y, 3) + ", " + fixed(bounds.min.z, 3)});
     t.add({"bounds max", fixed(bounds.max.x, 3) + ", " + fixed(bounds.max.y, 3) + ", " + fixed(bounds.max.z, 3)});
-    t.add({"longest edge min / p10 / median / p90 / max",
-           fixed(size["min"], 3) + " / " + fixed(size["p10"], 3) + " / " + fixed(size["median"], 3) + " / " +
-               fixed(size["p90"], 3) + " / " + fixed(size["max"], 3)});
-    if (!edges.empty() && edges.front() > 0)
-        t.add({"size span (max / min)", fixed(edges.back() / edges.front(), 1)});
+    t.add({"longest edge min / p10 / median / p90 / max", fixed(size["min"], 3) + " / " + fixed(size["p10"], 3) +
+                                                              " / " + fixed(size["median"], 3) + " / " +
+                                                              fixed(size["p90"], 3) + " / " + fixed(size["max"], 3)});
+    if (!edges.empty() && edges.front() > 0) t.add({"size span (max / min)", fixed(edges.back() / edges.front(), 1)});
     t.print(std::cout);
     std::cout << "origin  " << json_excerpt(meta, 400) << '\n';
 }
@@ -147,25 +153,31 @@ void add_scene_commands(CLI::App& app) {
                   "Thesis scenes uni-s/m/l and irreg-s/m/l (99, 5104, 14021 objects), irreg-xl (1M); failure modes "
                   "<kind>-s/m (1000, 10000 objects)")
         ->check(CLI::IsMember(preset_names()));
-    g->add_option("--kind", gen->kind, "Instead of a preset, with --objects")
-        ->check(CLI::IsMember(scene_kinds()));
-    g->add_option("--objects", gen->objects, "Object count (overrides the preset's)")->check(whole_number(1, kMaxSceneObjects));
+    g->add_option("--kind", gen->kind, "Instead of a preset, with --objects")->check(CLI::IsMember(scene_kinds()));
+    g->add_option("--objects", gen->objects, "Object count (overrides the preset's)")
+        ->check(whole_number(1, kMaxSceneObjects));
     g->add_option("-o,--output", gen->out, "Recording file to write")->required();
     add_dynamics_options(*g, gen->dyn);
     g->callback([gen] {
         SceneSettings s;
-        if (!gen->preset.empty()) s = preset_settings(gen->preset);
-        else if (!gen->kind.empty()) s.kind = gen->kind;
-        else throw InputError("scene gen: give --preset or --kind");
+        if (!gen->preset.empty())
+            s = preset_settings(gen->preset);
+        else if (!gen->kind.empty())
+            s.kind = gen->kind;
+        else
+            throw InputError("scene gen: give --preset or --kind");
         if (!gen->kind.empty()) s.kind = gen->kind;
-        if (gen->objects) s.objects = gen->objects;
-        else if (gen->preset.empty()) throw InputError("scene gen: --kind needs --objects");
+        if (gen->objects)
+            s.objects = gen->objects;
+        else if (gen->preset.empty())
+            throw InputError("scene gen: --kind needs --objects");
         s.seed = gen->dyn.seed;
         s.frames = gen->dyn.frames;
         s.dynamics = gen->dyn.dynamics;
         s.rays = ray_settings(gen->dyn);
         check_output_path(gen->out, {}, "-o");
-        check_scene_size(s.objects, s.frames, s.rays.per_frame, s.objects * s.dynamics.change_fraction, "--objects/--frames/--rays");
+        check_scene_size(s.objects, s.frames, s.rays.per_frame, s.objects * s.dynamics.change_fraction,
+                         "--objects/--frames/--rays");
         const Recording r = generate_scene(s);
         write_recording(r, gen->out);
         print_written(r, gen->out);
@@ -179,14 +191,22 @@ void add_scene_commands(CLI::App& app) {
         ImportOptions file;  // .bsp/.pk3 and model modes
     };
     auto imp = std::make_shared<ImportCommandOptions>();
-    CLI::App* i = scene->add_subcommand("import", "Import a static scene (CSV: uid,minx,miny,minz,maxx,maxy,maxz; Quake III/OpenArena .bsp/.pk3; any model assimp reads) and give it dynamics and rays");
-    i->add_option("input", imp->input, "Boxes file (.csv), map (.bsp, or .pk3 with maps/*.bsp) or model (.obj, .gltf, .glb, .fbx, ...)")->required()->check(input_file());
+    CLI::App* i =
+        scene->add_subcommand("import",
+                              "Import a static scene (CSV: uid,minx,miny,minz,maxx,maxy,maxz; Quake III/OpenArena "
+                              ".bsp/.pk3; any model assimp reads) and give it dynamics and rays");
+    i->add_option("input", imp->input,
+                  "Boxes file (.csv), map (.bsp, or .pk3 with maps/*.bsp) or model (.obj, .gltf, .glb, .fbx, ...)")
+        ->required()
+        ->check(input_file());
     i->add_option("-o,--output", imp->out, "Recording file to write")->required();
-    i->add_option("--bsp-mode", imp->file.bsp_mode, "Maps: one object per solid brush (brushes) or per draw-surface triangle (triangles)")
+    i->add_option("--bsp-mode", imp->file.bsp_mode,
+                  "Maps: one object per solid brush (brushes) or per draw-surface triangle (triangles)")
         ->capture_default_str()
         ->check(CLI::IsMember({"brushes", "triangles"}));
     i->add_option("--map", imp->file.map, "A .pk3 holding several maps: which one (NAME or maps/NAME.bsp)");
-    i->add_option("--model-mode", imp->file.model_mode, "Models: one object per mesh instance (instances) or per triangle (triangles)")
+    i->add_option("--model-mode", imp->file.model_mode,
+                  "Models: one object per mesh instance (instances) or per triangle (triangles)")
         ->capture_default_str()
         ->check(CLI::IsMember({"instances", "triangles"}));
     add_dynamics_options(*i, imp->dyn);
@@ -197,8 +217,8 @@ void add_scene_commands(CLI::App& app) {
             std::vector<Object> objects = import_objects(imp->input, imp->file, &meta);
             if (objects.empty()) throw InputError(imp->input + ": no objects to import");
             meta["generator"] = "rcbench import";
-            const Recording r = add_dynamics(std::move(objects), imp->dyn.dynamics, ray_settings(imp->dyn), imp->dyn.frames,
-                                             imp->dyn.seed, meta);
+            const Recording r = add_dynamics(std::move(objects), imp->dyn.dynamics, ray_settings(imp->dyn),
+                                             imp->dyn.frames, imp->dyn.seed, meta);
             write_recording(r, imp->out);
             print_written(r, imp->out);
             return;
@@ -220,7 +240,8 @@ void add_scene_commands(CLI::App& app) {
         bool json = false;
     };
     auto info = std::make_shared<InfoOptions>();
-    CLI::App* n = scene->add_subcommand("info", "Describe a recording: objects, frames, rays, bounds, size distribution");
+    CLI::App* n =
+        scene->add_subcommand("info", "Describe a recording: objects, frames, rays, bounds, size distribution");
     n->add_option("file", info->file, "Recording file")->required()->check(input_file());
     n->add_flag("--json", info->json, "Print one JSON object");
     n->callback([info] { scene_info(info->file, info->json); });

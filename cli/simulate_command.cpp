@@ -18,15 +18,19 @@ namespace {
 void print_table(const std::string& scene, const SimulationResult& res) {
     std::cout << "scene      " << scene << " (" << res.objects << " objects, " << res.frames.size() << " frames)\n"
               << "structure  " << res.structure << ' ' << res.params.dump() << '\n'
-              << "build      " << fixed(res.build_ns / 1e6, 3) << " ms   memory " << bytes_text(double(res.memory_bytes))
-              << " (" << fixed(res.objects ? double(res.memory_bytes) / double(res.objects) : 0.0, 1) << " B/object)\n\n";
-    TextTable t({"frame", "changes", "rays", "update ms", "raycast ms", "hits", "mismatch", "N_T/ray", "N_RB/ray", "N_TP/ray"});
-    auto per_ray = [](std::uint64_t v, std::uint32_t rays) { return rays ? fixed(double(v) / rays, 1) : std::string("-"); };
+              << "build      " << fixed(res.build_ns / 1e6, 3) << " ms   memory "
+              << bytes_text(double(res.memory_bytes)) << " ("
+              << fixed(res.objects ? double(res.memory_bytes) / double(res.objects) : 0.0, 1) << " B/object)\n\n";
+    TextTable t(
+        {"frame", "changes", "rays", "update ms", "raycast ms", "hits", "mismatch", "N_T/ray", "N_RB/ray", "N_TP/ray"});
+    auto per_ray = [](std::uint64_t v, std::uint32_t rays) {
+        return rays ? fixed(double(v) / rays, 1) : std::string("-");
+    };
     for (const FrameResult& f : res.frames) {
         t.add({std::to_string(f.frame) + (f.warmup ? "w" : ""), std::to_string(f.inserts + f.removes + f.moves),
-               std::to_string(f.rays), fixed(f.update_ns / 1e6, 4), fixed(f.raycast_ns / 1e6, 3), std::to_string(f.hits),
-               res.verified ? std::to_string(f.mismatches()) : "-", per_ray(f.counters.n_t, f.rays),
-               per_ray(f.counters.n_rb, f.rays), per_ray(f.counters.n_tp, f.rays)});
+               std::to_string(f.rays), fixed(f.update_ns / 1e6, 4), fixed(f.raycast_ns / 1e6, 3),
+               std::to_string(f.hits), res.verified ? std::to_string(f.mismatches()) : "-",
+               per_ray(f.counters.n_t, f.rays), per_ray(f.counters.n_rb, f.rays), per_ray(f.counters.n_tp, f.rays)});
     }
     const Spread u = res.update_ns(), c = res.raycast_ns();
     t.add({"median", "", "", fixed(u.median / 1e6, 4), fixed(c.median / 1e6, 3), "", "", "", "", ""});
@@ -91,15 +95,23 @@ void add_simulate_command(CLI::App& app) {
         std::string json_out;
     };
     auto o = std::make_shared<Options>();
-    CLI::App* cmd = app.add_subcommand(
-        "simulate",
-        "Replay recordings against structures: build, update and ray-cast times per frame, verified against brute-force "
-        "ground truth. One scene and one structure: a per-frame table; several: the thesis' Tables 6.1/6.2 (structures x scenes)");
-    cmd->add_option("--scene", o->scenes, "Recording file (from rcbench scene gen/import); repeatable")->required()->check(input_file());
-    cmd->add_option("--structure", o->structures, "Structure name (rcbench structures lists them), or all; repeatable")->required();
+    CLI::App* cmd = app.add_subcommand("simulate",
+                                       "Replay recordings against structures: build, update and ray-cast times per "
+                                       "frame, verified against brute-force "
+                                       "ground truth. One scene and one structure: a per-frame table; several: the "
+                                       "thesis' Tables 6.1/6.2 (structures x scenes)");
+    cmd->add_option("--scene", o->scenes, "Recording file (from rcbench scene gen/import); repeatable")
+        ->required()
+        ->check(input_file());
+    cmd->add_option("--structure", o->structures, "Structure name (rcbench structures lists them), or all; repeatable")
+        ->required();
     cmd->add_option("--param", o->params_text, "Structure parameter key=value (repeatable; with one --structure only)");
-    cmd->add_option("--frames", o->sim.max_frames, "Replay at most this many frames (0: all)")->capture_default_str()->check(whole_number(0, 1'000'000));
-    cmd->add_option("--warmup", o->sim.warmup_frames, "Frames left out of the medians")->capture_default_str()->check(whole_number(0, 1'000'000));
+    cmd->add_option("--frames", o->sim.max_frames, "Replay at most this many frames (0: all)")
+        ->capture_default_str()
+        ->check(whole_number(0, 1'000'000));
+    cmd->add_option("--warmup", o->sim.warmup_frames, "Frames left out of the medians")
+        ->capture_default_str()
+        ->check(whole_number(0, 1'000'000));
     cmd->add_flag("--no-verify", o->no_verify, "Skip the ground-truth comparison (faster on huge scenes)");
     cmd->add_flag("--no-count", o->no_count, "Skip the counting pass (N_T, N_RB, N_TP)");
     cmd->add_flag("--validate", o->sim.validate, "Check the structure's invariants after every frame");
@@ -107,7 +119,8 @@ void add_simulate_command(CLI::App& app) {
     cmd->add_option("--json-out", o->json_out, "Also write one JSON object per run (one line each) to this file");
     cmd->callback([o] {
         if (!o->params_text.empty() && o->structures.size() != 1)
-            throw InputError("--param needs exactly one --structure (got " + std::to_string(o->structures.size()) + ")");
+            throw InputError("--param needs exactly one --structure (got " + std::to_string(o->structures.size()) +
+                             ")");
         o->sim.verify = !o->no_verify;
         o->sim.count = !o->no_count;
         nlohmann::json params = nlohmann::json::object();
@@ -154,7 +167,8 @@ void add_simulate_command(CLI::App& app) {
         }
         if (!o->json_out.empty()) write_file_atomically(o->json_out, json_lines);
         if (!o->json && (o->scenes.size() > 1 || o->structures.size() > 1)) print_grid(o->scenes, results);
-        if (mismatches > 0) throw std::runtime_error(std::to_string(mismatches) + " hits disagree with the ground truth");
+        if (mismatches > 0)
+            throw std::runtime_error(std::to_string(mismatches) + " hits disagree with the ground truth");
     });
 }
 

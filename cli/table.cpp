@@ -14,8 +14,10 @@ void TextTable::print(std::ostream& out) const {
     for (const auto& row : rows_) {
         for (std::size_t c = 0; c < row.size(); ++c) {
             if (c) out << "  ";
-            if (c == 0) out << std::left << std::setw(int(width[c])) << row[c];
-            else out << std::right << std::setw(int(width[c])) << row[c];
+            if (c == 0)
+                out << std::left << std::setw(int(width[c])) << row[c];
+            else
+                out << std::right << std::setw(int(width[c])) << row[c];
         }
         out << '\n';
     }

@@ -19,5 +19,4 @@ private:
     std::vector<std::vector<std::string>> rows_;
 };
 
-
 }  // namespace rcb

@@ -17,14 +17,19 @@ void add_tune_command(CLI::App& app) {
         std::optional<std::uint64_t> seed;
     };
     auto o = std::make_shared<Options>();
-    CLI::App* cmd = app.add_subcommand(
-        "tune", "Search structures' tunable parameters per scene category with NLopt, minimising update + rays x cost per frame "
-                "(thesis eq. 5.5); writes results/tuning-<name>.md/.json and database rows");
+    CLI::App* cmd = app.add_subcommand("tune",
+                                       "Search structures' tunable parameters per scene category with NLopt, "
+                                       "minimising update + rays x cost per frame "
+                                       "(thesis eq. 5.5); writes results/tuning-<name>.md/.json and database rows");
     cmd->add_option("file", o->file, "Tuning file (JSON; see experiments/README.md)")->required()->check(input_file());
     cmd->add_option("--db", o->db, "Results database for the tuning rows")->capture_default_str()->check(non_empty());
-    cmd->add_option("--out-dir", o->out_dir, "Folder for tuning-<name>.md/.json/.svg")->capture_default_str()->check(non_empty());
+    cmd->add_option("--out-dir", o->out_dir, "Folder for tuning-<name>.md/.json/.svg")
+        ->capture_default_str()
+        ->check(non_empty());
     cmd->add_option("--seed", o->seed, "Override the file's search seed")->check(whole_number());
-    cmd->add_flag("--exhaustive", o->exhaustive, "Also measure every configuration of each search space and report the tuner's gap to the true optimum");
+    cmd->add_flag(
+        "--exhaustive", o->exhaustive,
+        "Also measure every configuration of each search space and report the tuner's gap to the true optimum");
     cmd->callback([o] {
         TuneSpec spec = load_tune_spec(o->file);
         if (o->seed) spec.seed = *o->seed;
@@ -33,11 +38,13 @@ void add_tune_command(CLI::App& app) {
         options.progress = [](const std::string& category) { std::cerr << "tuning " << category << " ...\n"; };
         const TuneOutcome out = run_tuning(spec, options);
         for (const CategoryTuning& ct : out.categories) {
-            std::cout << ct.category << ": " << ct.chosen.structure << " " << searched_parameters(spec, ct.chosen) << "  "
-                      << fixed(ct.chosen.measured->ms, 4) << " ± " << fixed(ct.chosen.measured->mad, 4) << " ms per frame";
+            std::cout << ct.category << ": " << ct.chosen.structure << " " << searched_parameters(spec, ct.chosen)
+                      << "  " << fixed(ct.chosen.measured->ms, 4) << " ± " << fixed(ct.chosen.measured->mad, 4)
+                      << " ms per frame";
             for (const StructureTuning& st : ct.structures)
                 for (const Candidate& c : st.candidates)
-                    if (c.is_default) std::cout << "  (" << c.structure << " defaults " << fixed(c.measured->ms, 4) << ")";
+                    if (c.is_default)
+                        std::cout << "  (" << c.structure << " defaults " << fixed(c.measured->ms, 4) << ")";
             std::cout << (ct.rule_note.empty() ? "" : "\n  " + ct.rule_note) << '\n';
         }
         std::cout << "wrote " << out.md_path << " and " << out.json_path << '\n';

@@ -12,7 +12,8 @@ namespace rcb {
 
 /// Returns false when `visit` asked to stop.
 template <class Count, class Visit>
-bool scan_boxes(const SegmentSlabs& slabs, std::span<const Aabb> boxes, std::span<const Uid> uids, Count& count, Visit&& visit) {
+bool scan_boxes(const SegmentSlabs& slabs, std::span<const Aabb> boxes, std::span<const Uid> uids, Count& count,
+                Visit&& visit) {
     count.box_tests(boxes.size());
     for (std::size_t i = 0; i < boxes.size(); ++i) {
         float tn, tf;

@@ -58,7 +58,8 @@ bool parse_coordinate(std::string_view s, float& out, double& wide, bool& out_of
 /// Calls `row(fields, line_number)` for each data line with exactly `columns.size()` fields. The
 /// first data line is a header when its first field is not a number.
 template <typename Row>
-void for_each_row(const std::string& text, const std::string& name, const std::vector<const char*>& columns, Row&& row) {
+void for_each_row(const std::string& text, const std::string& name, const std::vector<const char*>& columns,
+                  Row&& row) {
     const std::string expected = join(columns, ",");
     std::size_t line_no = 0, pos = 0;
     // A UTF-8 byte-order mark (spreadsheet exports write one) is not part of the first field.
@@ -76,7 +77,8 @@ void for_each_row(const std::string& text, const std::string& name, const std::v
         std::size_t start = 0;
         for (;;) {
             std::size_t comma = line.find(',', start);
-            fields.push_back(trim(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start)));
+            fields.push_back(
+                trim(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start)));
             if (comma == std::string_view::npos) break;
             start = comma + 1;
         }
@@ -91,8 +93,8 @@ void for_each_row(const std::string& text, const std::string& name, const std::v
         }
         first_data = false;
         if (fields.size() != columns.size())
-            throw InputError(where + ": expected " + std::to_string(columns.size()) + " fields (" + expected + "), got " +
-                             std::to_string(fields.size()));
+            throw InputError(where + ": expected " + std::to_string(columns.size()) + " fields (" + expected +
+                             "), got " + std::to_string(fields.size()));
         row(fields, where, line_no);
     }
 }
@@ -120,37 +122,41 @@ std::vector<Object> parse_boxes_csv(const std::string& text, const std::string& 
     static const std::vector<const char*> columns = {"uid", "minx", "miny", "minz", "maxx", "maxy", "maxz"};
     std::vector<Object> objects;
     std::unordered_map<Uid, std::size_t> first_line;
-    for_each_row(text, name, columns, [&](const std::vector<std::string_view>& f, const std::string& where, std::size_t line) {
-        Object o;
-        if (!parse_number(f[0], o.uid))
-            throw InputError(where + ": field 1 (uid): " + quoted_excerpt(f[0]) + " is not an integer in 0..4294967295");
-        const std::string what = "uid " + std::to_string(o.uid) + ": ";
-        for (int a = 0; a < 3; ++a) {
-            o.box.min[a] = field_float(f, 1 + a, columns, where, what);
-            o.box.max[a] = field_float(f, 4 + a, columns, where, what);
-        }
-        check_object(o, where);
-        auto [it, fresh] = first_line.emplace(o.uid, line);
-        if (!fresh)
-            throw InputError(where + ": duplicate uid " + std::to_string(o.uid) + " (first on line " + std::to_string(it->second) + ")");
-        objects.push_back(o);
-    });
+    for_each_row(text, name, columns,
+                 [&](const std::vector<std::string_view>& f, const std::string& where, std::size_t line) {
+                     Object o;
+                     if (!parse_number(f[0], o.uid))
+                         throw InputError(where + ": field 1 (uid): " + quoted_excerpt(f[0]) +
+                                          " is not an integer in 0..4294967295");
+                     const std::string what = "uid " + std::to_string(o.uid) + ": ";
+                     for (int a = 0; a < 3; ++a) {
+                         o.box.min[a] = field_float(f, 1 + a, columns, where, what);
+                         o.box.max[a] = field_float(f, 4 + a, columns, where, what);
+                     }
+                     check_object(o, where);
+                     auto [it, fresh] = first_line.emplace(o.uid, line);
+                     if (!fresh)
+                         throw InputError(where + ": duplicate uid " + std::to_string(o.uid) + " (first on line " +
+                                          std::to_string(it->second) + ")");
+                     objects.push_back(o);
+                 });
     return objects;
 }
 
 std::vector<Segment> parse_rays_csv(const std::string& text, const std::string& name) {
     static const std::vector<const char*> columns = {"x0", "y0", "z0", "x1", "y1", "z1"};
     std::vector<Segment> rays;
-    for_each_row(text, name, columns, [&](const std::vector<std::string_view>& f, const std::string& where, std::size_t) {
-        Segment s;
-        for (int a = 0; a < 3; ++a) {
-            s.p0[a] = field_float(f, a, columns, where, "");
-            s.p1[a] = field_float(f, 3 + a, columns, where, "");
-        }
-        const std::string problem = segment_problem(s);
-        if (!problem.empty()) throw InputError(where + ": " + problem);
-        rays.push_back(s);
-    });
+    for_each_row(text, name, columns,
+                 [&](const std::vector<std::string_view>& f, const std::string& where, std::size_t) {
+                     Segment s;
+                     for (int a = 0; a < 3; ++a) {
+                         s.p0[a] = field_float(f, a, columns, where, "");
+                         s.p1[a] = field_float(f, 3 + a, columns, where, "");
+                     }
+                     const std::string problem = segment_problem(s);
+                     if (!problem.empty()) throw InputError(where + ": " + problem);
+                     rays.push_back(s);
+                 });
     return rays;
 }
 

@@ -73,7 +73,8 @@ std::vector<Object> irregular_objects(const SceneSettings& s, Random& rng) {
     }
     std::vector<Aabb> buildings;
     while (objects.size() < large) {
-        const Vec3d extent{world * rng.uniform(0.03, 0.12), height * rng.uniform(0.1, 0.6), world * rng.uniform(0.03, 0.12)};
+        const Vec3d extent{world * rng.uniform(0.03, 0.12), height * rng.uniform(0.1, 0.6),
+                           world * rng.uniform(0.03, 0.12)};
         const Vec3d min{rng.uniform(0, world - extent.x), 0.0, rng.uniform(0, world - extent.z)};
         buildings.push_back(box_from(min, min + extent));
         add(buildings.back());
@@ -96,7 +97,8 @@ std::vector<Object> irregular_objects(const SceneSettings& s, Random& rng) {
         if (!buildings.empty() && rng.uniform() < 0.6) {  // inside a building: small objects in large ones
             const Aabb& b = buildings[rng.below(buildings.size())];
             const Aabbd bd = b.as<double>();
-            k.center = {rng.uniform(bd.min.x, bd.max.x), rng.uniform(bd.min.y, bd.max.y), rng.uniform(bd.min.z, bd.max.z)};
+            k.center = {rng.uniform(bd.min.x, bd.max.x), rng.uniform(bd.min.y, bd.max.y),
+                        rng.uniform(bd.min.z, bd.max.z)};
             k.radius = 0.25 * std::min(bd.extent().x, bd.extent().z);
         } else {
             k.center = {rng.uniform(0, world), rng.uniform(0, 0.1 * height), rng.uniform(0, world)};
@@ -120,7 +122,8 @@ std::vector<Object> irregular_objects(const SceneSettings& s, Random& rng) {
                          k.center.z + k.radius * rng.normal()};
             center.y = std::max(center.y, 0.0);
             const double size = rng.log_uniform(0.05, 3.0);
-            add(box_around(center, {size * rng.uniform(0.5, 1.5), size * rng.uniform(0.5, 1.5), size * rng.uniform(0.5, 1.5)}));
+            add(box_around(center,
+                           {size * rng.uniform(0.5, 1.5), size * rng.uniform(0.5, 1.5), size * rng.uniform(0.5, 1.5)}));
         }
     }
     // Medium props (trees, vehicles, rocks) scattered over the whole ground.
@@ -161,7 +164,8 @@ std::vector<Object> stacked_objects(const SceneSettings& s, Random& rng, bool sa
     std::vector<Vec3d> centers(stacks);
     // Integer centres and half-sizes in steps of 2^-10: c ± h is exact in float (at most 23
     // significant bits below 2^13), so the centroids are identical in float too, not only in double.
-    for (Vec3d& c : centers) c = {std::round(rng.uniform(0, world)), std::round(rng.uniform(0, world)), std::round(rng.uniform(0, world))};
+    for (Vec3d& c : centers)
+        c = {std::round(rng.uniform(0, world)), std::round(rng.uniform(0, world)), std::round(rng.uniform(0, world))};
     std::vector<Object> objects;
     objects.reserve(n);
     for (std::uint32_t i = 0; i < n; ++i) {
@@ -324,14 +328,21 @@ SceneSettings preset_settings(std::string_view name) {
         }
     }
     s.kind.clear();  // "x-l" is not a preset (SceneSettings' default kind must not make it one)
-    if (n.rfind("uni-", 0) == 0) s.kind = "uniform";
-    else if (n.rfind("irreg-", 0) == 0) s.kind = "irregular";
+    if (n.rfind("uni-", 0) == 0)
+        s.kind = "uniform";
+    else if (n.rfind("irreg-", 0) == 0)
+        s.kind = "irregular";
     const std::string size = n.substr(n.find('-') + 1);
-    if (size == "s") s.objects = 99;
-    else if (size == "m") s.objects = 5104;
-    else if (size == "l") s.objects = 14021;
-    else if (size == "xl" && s.kind == "irregular") s.objects = 1'000'000;
-    else s.kind.clear();
+    if (size == "s")
+        s.objects = 99;
+    else if (size == "m")
+        s.objects = 5104;
+    else if (size == "l")
+        s.objects = 14021;
+    else if (size == "xl" && s.kind == "irregular")
+        s.objects = 1'000'000;
+    else
+        s.kind.clear();
     if (n.find('-') == std::string::npos || s.kind.empty()) {
         throw InputError("unknown preset '" + n + "' (known: " + join(preset_names()) + ")");
     }
@@ -353,7 +364,8 @@ std::vector<RayMode> parse_ray_mix(const std::string& text) {
             char* end = nullptr;
             m.weight = std::strtod(w.c_str(), &end);
             if (w.empty() || *end != '\0' || !std::isfinite(m.weight) || m.weight < 0)
-                throw InputError("ray mix '" + text + "': weight '" + w + "' of " + m.mode + " is not a non-negative number");
+                throw InputError("ray mix '" + text + "': weight '" + w + "' of " + m.mode +
+                                 " is not a non-negative number");
         }
         if (std::find(modes.begin(), modes.end(), m.mode) == modes.end()) {
             throw InputError("ray mix '" + text + "': unknown mode '" + m.mode + "' (known: " + join(modes) + ")");
@@ -457,7 +469,8 @@ std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySet
                     p[w] = rng.below(2) ? rng.uniform(o.min[w], o.max[w]) : (rng.below(2) ? o.min[w] : o.max[w]);
                 } else {
                     const double cells = double(std::uint64_t(1) << (1 + rng.below(10)));
-                    for (int a : {u, w}) p[a] = bounds.min[a] + ext[a] * double(rng.below(std::uint64_t(cells) + 1)) / cells;
+                    for (int a : {u, w})
+                        p[a] = bounds.min[a] + ext[a] * double(rng.below(std::uint64_t(cells) + 1)) / cells;
                 }
                 Vec3d q = p;
                 p[axis] = bounds.min[axis] - 0.01 * ext[axis];
@@ -474,8 +487,8 @@ std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySet
                 rays.push_back(segment_from(p, p + rng.direction() * 2.0 * reach));
             } else if (mode == "shots") {
                 const Aabbd o = random_object();
-                const double len = std::clamp(20.0 * std::max({o.extent().x, o.extent().y, o.extent().z}), 0.01 * diagonal,
-                                              0.2 * diagonal);
+                const double len = std::clamp(20.0 * std::max({o.extent().x, o.extent().y, o.extent().z}),
+                                              0.01 * diagonal, 0.2 * diagonal);
                 rays.push_back(segment_from(o.center(), o.center() + rng.direction() * len));
             }
         }
@@ -486,8 +499,8 @@ std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySet
 void check_dynamics(const DynamicsSettings& d) {
     auto in_range = [](const char* name, double v, double lo, double hi) {
         if (!(v >= lo && v <= hi))  // NaN fails too
-            throw InputError(std::string(name) + ": expected a number in " + std::to_string(lo) + ".." + std::to_string(hi) +
-                             ", got " + std::to_string(v));
+            throw InputError(std::string(name) + ": expected a number in " + std::to_string(lo) + ".." +
+                             std::to_string(hi) + ", got " + std::to_string(v));
     };
     in_range("change_fraction", d.change_fraction, 0, 1);
     in_range("insert_share", d.insert_share, 0, 1);
@@ -499,7 +512,8 @@ void check_dynamics(const DynamicsSettings& d) {
 Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dynamics, const RaySettings& rays,
                        std::uint32_t frames, std::uint64_t seed, nlohmann::json meta) {
     check_dynamics(dynamics);
-    check_scene_size(double(initial.size()), frames, rays.per_frame, double(initial.size()) * dynamics.change_fraction, "scene");
+    check_scene_size(double(initial.size()), frames, rays.per_frame, double(initial.size()) * dynamics.change_fraction,
+                     "scene");
     Recording r;
     meta["frames"] = frames;
     meta["seed"] = seed;

@@ -25,7 +25,9 @@ struct Vec3T {
     friend constexpr bool operator==(Vec3T a, Vec3T b) = default;
 
     template <typename U>
-    constexpr Vec3T<U> as() const { return {U(x), U(y), U(z)}; }
+    constexpr Vec3T<U> as() const {
+        return {U(x), U(y), U(z)};
+    }
 };
 
 using Vec3 = Vec3T<float>;
@@ -59,12 +61,12 @@ struct AabbT {
         return e.x * e.y + e.y * e.z + e.z * e.x;
     }
     constexpr bool contains(const AabbT& b) const {
-        return min.x <= b.min.x && min.y <= b.min.y && min.z <= b.min.z && b.max.x <= max.x &&
-               b.max.y <= max.y && b.max.z <= max.z;
+        return min.x <= b.min.x && min.y <= b.min.y && min.z <= b.min.z && b.max.x <= max.x && b.max.y <= max.y &&
+               b.max.z <= max.z;
     }
     constexpr bool overlaps(const AabbT& b) const {
-        return min.x <= b.max.x && b.min.x <= max.x && min.y <= b.max.y && b.min.y <= max.y &&
-               min.z <= b.max.z && b.min.z <= max.z;
+        return min.x <= b.max.x && b.min.x <= max.x && min.y <= b.max.y && b.min.y <= max.y && min.z <= b.max.z &&
+               b.min.z <= max.z;
     }
     friend constexpr AabbT merge(const AabbT& a, const AabbT& b) {
         return {rcb::min(a.min, b.min), rcb::max(a.max, b.max)};
@@ -72,7 +74,9 @@ struct AabbT {
     friend constexpr bool operator==(const AabbT&, const AabbT&) = default;
 
     template <typename U>
-    constexpr AabbT<U> as() const { return {min.template as<U>(), max.template as<U>()}; }
+    constexpr AabbT<U> as() const {
+        return {min.template as<U>(), max.template as<U>()};
+    }
 };
 
 using Aabb = AabbT<float>;
@@ -93,9 +97,13 @@ using Segmentd = SegmentT<double>;
 /// slab bound only arises as 0·∞ for a segment parallel to the slab with its start exactly on a
 /// face, and such a slab constrains nothing (see SegmentSlabs).
 template <typename T>
-constexpr T max_ignoring_nan(T a, T b) { return a > b ? a : b; }
+constexpr T max_ignoring_nan(T a, T b) {
+    return a > b ? a : b;
+}
 template <typename T>
-constexpr T min_ignoring_nan(T a, T b) { return a < b ? a : b; }
+constexpr T min_ignoring_nan(T a, T b) {
+    return a < b ? a : b;
+}
 
 /// A segment prepared for many slab tests (Kay & Kajiya's slabs, with the sign-indexed bounds of
 /// Williams et al. 2005, "An efficient and robust ray–box intersection algorithm").
@@ -108,7 +116,7 @@ constexpr T min_ignoring_nan(T a, T b) { return a < b ? a : b; }
 template <typename T>
 struct SegmentSlabsT {
     Vec3T<T> origin;
-    Vec3T<T> inv;      // 1 / (p1 − p0) per axis, ±∞ for a zero component
+    Vec3T<T> inv;        // 1 / (p1 − p0) per axis, ±∞ for a zero component
     int near_is_max[3];  // 1 when the direction's sign bit is set: the near face is the box's max
 
     constexpr explicit SegmentSlabsT(const SegmentT<T>& s) : origin(s.p0) {

@@ -26,9 +26,7 @@ Aabbd shrunk(const Aabbd& b, double eps) {
     return s;
 }
 
-Aabbd grown(const Aabbd& b, double eps) {
-    return {b.min - Vec3d{eps, eps, eps}, b.max + Vec3d{eps, eps, eps}};
-}
+Aabbd grown(const Aabbd& b, double eps) { return {b.min - Vec3d{eps, eps, eps}, b.max + Vec3d{eps, eps, eps}}; }
 
 /// ε in segment parameter units: moving an end point by ε (L∞) changes t by ε / max|d_a|.
 double t_tolerance(const SegmentSlabsd& slabs, double eps) {
@@ -106,8 +104,10 @@ void GroundTruth::classify(const Segment& segment, std::vector<Uid>& must, std::
             const double eps = kRelativeTolerance * std::max(seg_mag, magnitude_[i]);
             const Aabbd box{{min_[0][i], min_[1][i], min_[2][i]}, {max_[0][i], max_[1][i], max_[2][i]}};
             const Contact c = classify_prepared(slabs, box, eps);
-            if (c == Contact::hit) must.push_back(uids_[i]);
-            else if (c == Contact::touch) touch.push_back(uids_[i]);
+            if (c == Contact::hit)
+                must.push_back(uids_[i]);
+            else if (c == Contact::touch)
+                touch.push_back(uids_[i]);
         }
     }
     std::sort(must.begin(), must.end());
@@ -117,37 +117,54 @@ void GroundTruth::classify(const Segment& segment, std::vector<Uid>& must, std::
 Verification GroundTruth::verify(std::span<const Segment> rays, const HitLists& hits, std::size_t max_examples) const {
     Verification total;
     std::mutex merge;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 8), [&](const tbb::blocked_range<std::size_t>& range) {
-        Verification local;
-        std::vector<Uid> must, touch, reported;
-        auto note = [&](std::size_t ray, Uid uid, Discrepancy::Kind kind) {
-            if (local.examples.size() < max_examples)
-                local.examples.push_back({static_cast<std::uint32_t>(ray), uid, kind});
-        };
-        for (std::size_t r = range.begin(); r != range.end(); ++r) {
-            classify(rays[r], must, touch);
-            auto got = hits.of(r);
-            reported.assign(got.begin(), got.end());
-            std::sort(reported.begin(), reported.end());
-            // Duplicates first (adjacent after sorting), then a merge walk over the sorted sets.
-            for (std::size_t i = 1; i < reported.size(); ++i)
-                if (reported[i] == reported[i - 1]) { ++local.duplicate; note(r, reported[i], Discrepancy::duplicate); }
-            auto last = std::unique(reported.begin(), reported.end());
-            reported.erase(last, reported.end());
-            std::size_t m = 0;
-            for (Uid uid : reported) {
-                while (m < must.size() && must[m] < uid) { ++local.missed; note(r, must[m], Discrepancy::missed); ++m; }
-                if (m < must.size() && must[m] == uid) { ++m; continue; }
-                if (!std::binary_search(touch.begin(), touch.end(), uid)) { ++local.extra; note(r, uid, Discrepancy::extra); }
-            }
-            for (; m < must.size(); ++m) { ++local.missed; note(r, must[m], Discrepancy::missed); }
-        }
-        std::lock_guard<std::mutex> lock(merge);
-        total.missed += local.missed;
-        total.extra += local.extra;
-        total.duplicate += local.duplicate;
-        total.examples.insert(total.examples.end(), local.examples.begin(), local.examples.end());
-    });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 8),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          Verification local;
+                          std::vector<Uid> must, touch, reported;
+                          auto note = [&](std::size_t ray, Uid uid, Discrepancy::Kind kind) {
+                              if (local.examples.size() < max_examples)
+                                  local.examples.push_back({static_cast<std::uint32_t>(ray), uid, kind});
+                          };
+                          for (std::size_t r = range.begin(); r != range.end(); ++r) {
+                              classify(rays[r], must, touch);
+                              auto got = hits.of(r);
+                              reported.assign(got.begin(), got.end());
+                              std::sort(reported.begin(), reported.end());
+                              // Duplicates first (adjacent after sorting), then a merge walk over the sorted sets.
+                              for (std::size_t i = 1; i < reported.size(); ++i)
+                                  if (reported[i] == reported[i - 1]) {
+                                      ++local.duplicate;
+                                      note(r, reported[i], Discrepancy::duplicate);
+                                  }
+                              auto last = std::unique(reported.begin(), reported.end());
+                              reported.erase(last, reported.end());
+                              std::size_t m = 0;
+                              for (Uid uid : reported) {
+                                  while (m < must.size() && must[m] < uid) {
+                                      ++local.missed;
+                                      note(r, must[m], Discrepancy::missed);
+                                      ++m;
+                                  }
+                                  if (m < must.size() && must[m] == uid) {
+                                      ++m;
+                                      continue;
+                                  }
+                                  if (!std::binary_search(touch.begin(), touch.end(), uid)) {
+                                      ++local.extra;
+                                      note(r, uid, Discrepancy::extra);
+                                  }
+                              }
+                              for (; m < must.size(); ++m) {
+                                  ++local.missed;
+                                  note(r, must[m], Discrepancy::missed);
+                              }
+                          }
+                          std::lock_guard<std::mutex> lock(merge);
+                          total.missed += local.missed;
+                          total.extra += local.extra;
+                          total.duplicate += local.duplicate;
+                          total.examples.insert(total.examples.end(), local.examples.begin(), local.examples.end());
+                      });
     // Every chunk kept its first examples; keep the first of all, so the examples do not depend
     // on how the rays were split among threads.
     std::sort(total.examples.begin(), total.examples.end(), [](const Discrepancy& a, const Discrepancy& b) {

@@ -36,9 +36,9 @@ struct Discrepancy {
 };
 
 struct Verification {
-    std::uint64_t missed = 0;     ///< must-hit objects the structure did not report
-    std::uint64_t extra = 0;      ///< reported objects that the segment clearly misses (or not live)
-    std::uint64_t duplicate = 0;  ///< objects reported more than once for one ray
+    std::uint64_t missed = 0;           ///< must-hit objects the structure did not report
+    std::uint64_t extra = 0;            ///< reported objects that the segment clearly misses (or not live)
+    std::uint64_t duplicate = 0;        ///< objects reported more than once for one ray
     std::vector<Discrepancy> examples;  ///< the first few, for messages
 
     std::uint64_t mismatches() const { return missed + extra + duplicate; }

@@ -10,7 +10,8 @@ nlohmann::json parse_json_document(const std::string& text, const std::string& n
     // The parser callback sees each value's depth as it is opened, before anything nested deeper
     // is built, so a 50 000-level document is refused at level 65.
     auto limit_depth = [&](int depth, json::parse_event_t event, json&) {
-        if ((event == json::parse_event_t::object_start || event == json::parse_event_t::array_start) && depth >= kMaxJsonDepth)
+        if ((event == json::parse_event_t::object_start || event == json::parse_event_t::array_start) &&
+            depth >= kMaxJsonDepth)
             throw InputError(name + ": JSON nests deeper than " + std::to_string(kMaxJsonDepth) + " levels");
         return true;
     };
@@ -27,7 +28,8 @@ std::string json_excerpt(const nlohmann::json& value, std::size_t max_chars) {
     std::string text;
     if (value.is_string() && value.get_ref<const std::string&>().size() > max_chars) {
         // Cut before dumping: a 5 MB string need not be escaped whole to show its start.
-        text = json(value.get_ref<const std::string&>().substr(0, max_chars)).dump(-1, ' ', false, json::error_handler_t::replace);
+        text = json(value.get_ref<const std::string&>().substr(0, max_chars))
+                   .dump(-1, ' ', false, json::error_handler_t::replace);
     } else {
         text = value.dump(-1, ' ', false, json::error_handler_t::replace);
     }

@@ -27,7 +27,8 @@ fs::path write_target(const std::string& path) {
 bool same_file(const std::string& a, const std::string& b) {
     std::error_code ec;
     if (fs::exists(a, ec) && fs::exists(b, ec)) return fs::equivalent(a, b, ec) && !ec;
-    const fs::path pa = fs::weakly_canonical(fs::absolute(a, ec), ec), pb = fs::weakly_canonical(fs::absolute(b, ec), ec);
+    const fs::path pa = fs::weakly_canonical(fs::absolute(a, ec), ec),
+                   pb = fs::weakly_canonical(fs::absolute(b, ec), ec);
     return pa == pb;
 }
 

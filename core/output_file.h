@@ -19,8 +19,8 @@ bool same_file(const std::string& a, const std::string& b);
 void check_output_path(const std::string& path, const std::vector<std::string>& inputs, const std::string& option);
 
 /// Writes `bytes` to `path` atomically (temporary file in the same folder, flushed to disk, then
-/// renamed over `path`), creating missing folders; the temporary file is removed on any failure. InputError when the folder
-/// cannot be written (a bad output path), std::runtime_error when writing fails (disk full, I/O).
+/// renamed over `path`), creating missing folders; the temporary file is removed on any failure. InputError when the
+/// folder cannot be written (a bad output path), std::runtime_error when writing fails (disk full, I/O).
 void write_file_atomically(const std::string& path, std::string_view bytes);
 
 }  // namespace rcb

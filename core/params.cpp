@@ -39,9 +39,12 @@ nlohmann::json ParamSpec::to_json() const {
 
 std::string ParamSpec::expectation() const {
     switch (kind) {
-        case ParamKind::integer: return "an integer in " + format_number(lo) + ".." + format_number(hi);
-        case ParamKind::real: return "a number in " + format_number(lo) + ".." + format_number(hi);
-        case ParamKind::boolean: return "true or false";
+        case ParamKind::integer:
+            return "an integer in " + format_number(lo) + ".." + format_number(hi);
+        case ParamKind::real:
+            return "a number in " + format_number(lo) + ".." + format_number(hi);
+        case ParamKind::boolean:
+            return "true or false";
         case ParamKind::choice: {
             std::string s = "one of ";
             for (std::size_t i = 0; i < choices.size(); ++i) s += (i ? ", " : "") + choices[i];
@@ -62,7 +65,9 @@ void check_param(const ParamSpec& spec, const nlohmann::json& v, const std::stri
             ok = v.is_number() && std::isfinite(v.get<double>()) && v.get<double>() >= spec.lo &&
                  v.get<double>() <= spec.hi;
             break;
-        case ParamKind::boolean: ok = v.is_boolean(); break;
+        case ParamKind::boolean:
+            ok = v.is_boolean();
+            break;
         case ParamKind::choice:
             ok = v.is_string() &&
                  std::find(spec.choices.begin(), spec.choices.end(), v.get<std::string>()) != spec.choices.end();
@@ -78,7 +83,8 @@ void check_params(const std::vector<ParamSpec>& specs, const nlohmann::json& par
         throw InputError((path.empty() ? std::string("params") : path) + ": expected an object of parameters, got " +
                          json_excerpt(params));
     for (const auto& [key, value] : params.items()) {
-        auto spec = std::find_if(specs.begin(), specs.end(), [&, &key = key](const ParamSpec& s) { return s.name == key; });
+        auto spec =
+            std::find_if(specs.begin(), specs.end(), [&, &key = key](const ParamSpec& s) { return s.name == key; });
         if (spec == specs.end()) {
             const std::string known = join(specs, ", ", &ParamSpec::name);
             throw InputError(join_path(path, key) + ": unknown parameter of " + std::string(owner) + " (" +
@@ -105,8 +111,7 @@ std::vector<std::string> detail::split_choices(const char* choices) {
 
 std::pair<std::string, nlohmann::json> parse_key_value(const std::string& argument) {
     auto eq = argument.find('=');
-    if (eq == std::string::npos || eq == 0)
-        throw InputError("--param " + argument + ": expected key=value");
+    if (eq == std::string::npos || eq == 0) throw InputError("--param " + argument + ": expected key=value");
     std::string key = argument.substr(0, eq);
     std::string text = argument.substr(eq + 1);
     nlohmann::json value = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);

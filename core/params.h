@@ -33,12 +33,12 @@ enum class ParamKind { integer, real, boolean, choice };
 struct ParamSpec {
     std::string name;
     ParamKind kind = ParamKind::real;
-    double lo = 0, hi = 0;                 ///< inclusive range (integer and real)
-    std::vector<std::string> choices;      ///< allowed values (choice)
+    double lo = 0, hi = 0;             ///< inclusive range (integer and real)
+    std::vector<std::string> choices;  ///< allowed values (choice)
     nlohmann::json default_value;
     std::string doc;
-    bool tunable = false;                  ///< the tuner may search it
-    bool log_scale = false;                ///< search it on a log scale (spans orders of magnitude)
+    bool tunable = false;    ///< the tuner may search it
+    bool log_scale = false;  ///< search it on a log scale (spans orders of magnitude)
 
     nlohmann::json to_json() const;
     /// "an integer in 1..16", "a number in 0.01..64", "true or false", "one of low, medium".
@@ -77,10 +77,14 @@ void check_params(const std::vector<ParamSpec>& specs, const nlohmann::json& par
 namespace detail {
 template <class T>
 constexpr ParamKind kind_of() {
-    if constexpr (std::is_same_v<T, bool>) return ParamKind::boolean;
-    else if constexpr (std::is_integral_v<T>) return ParamKind::integer;
-    else if constexpr (std::is_floating_point_v<T>) return ParamKind::real;
-    else return ParamKind::choice;
+    if constexpr (std::is_same_v<T, bool>)
+        return ParamKind::boolean;
+    else if constexpr (std::is_integral_v<T>)
+        return ParamKind::integer;
+    else if constexpr (std::is_floating_point_v<T>)
+        return ParamKind::real;
+    else
+        return ParamKind::choice;
 }
 std::vector<std::string> split_choices(const char* choices);
 }  // namespace detail
@@ -91,10 +95,10 @@ std::vector<ParamSpec> param_specs() {
     const P defaults{};
     std::apply(
         [&](auto... field) {
-            (specs.push_back(ParamSpec{
-                 field.name, detail::kind_of<std::remove_cvref_t<decltype(defaults.*(field.member))>>(), field.lo,
-                 field.hi, detail::split_choices(field.choices), nlohmann::json(defaults.*(field.member)),
-                 field.doc, field.tunable, field.log_scale}),
+            (specs.push_back(
+                 ParamSpec{field.name, detail::kind_of<std::remove_cvref_t<decltype(defaults.*(field.member))>>(),
+                           field.lo, field.hi, detail::split_choices(field.choices),
+                           nlohmann::json(defaults.*(field.member)), field.doc, field.tunable, field.log_scale}),
              ...);
         },
         P::fields());
@@ -116,10 +120,10 @@ P params_from_json(const nlohmann::json& j, const std::string& path, std::string
     if (j.is_null()) return p;
     std::apply(
         [&](auto... field) {
-            ((j.contains(field.name) ? void(p.*(field.member) = j.at(field.name)
-                                                                      .template get<std::remove_cvref_t<
-                                                                          decltype(p.*(field.member))>>())
-                                     : void()),
+            ((j.contains(field.name)
+                  ? void(p.*(field.member) =
+                             j.at(field.name).template get<std::remove_cvref_t<decltype(p.*(field.member))>>())
+                  : void()),
              ...);
         },
         P::fields());

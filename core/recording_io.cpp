@@ -131,8 +131,10 @@ std::string coordinate_problem(double v, std::string_view text) {
     std::snprintf(value, sizeof value, "%g", v);
     std::snprintf(limit, sizeof limit, "%g", a > kMaxCoordinate ? kMaxCoordinate : kMinCoordinate);
     const std::string shown = text.empty() ? std::string(value) : quoted_excerpt(text);
-    if (a > kMaxCoordinate) return "coordinate " + shown + " beyond ±" + limit + " (the largest magnitude every structure handles exactly)";
-    return "coordinate " + shown + " below " + limit + " in magnitude (write 0: float arithmetic is not exact that small)";
+    if (a > kMaxCoordinate)
+        return "coordinate " + shown + " beyond ±" + limit + " (the largest magnitude every structure handles exactly)";
+    return "coordinate " + shown + " below " + limit +
+           " in magnitude (write 0: float arithmetic is not exact that small)";
 }
 
 std::string box_problem(const Aabb& box) {
@@ -242,8 +244,8 @@ Recording decode_recording(const std::string& bytes, const std::string& name) {
     std::uint32_t bom = header.u32();
     if (bom != kByteOrderMark) throw InputError(name + ": unknown byte-order mark (corrupt header)");
     if (version != kRecordingVersion)
-        throw InputError(name + ": format version " + std::to_string(version) + " is not supported (this rcbench reads version " +
-                         std::to_string(kRecordingVersion) + ")");
+        throw InputError(name + ": format version " + std::to_string(version) +
+                         " is not supported (this rcbench reads version " + std::to_string(kRecordingVersion) + ")");
 
     Recording r;
     std::unordered_set<Uid> live;
@@ -257,7 +259,8 @@ Recording decode_recording(const std::string& bytes, const std::string& name) {
         std::uint64_t length = sh.u64();
         std::uint32_t crc = sh.u32();
         // Errors name the frame for frame sections, else the section.
-        std::string where = tag == "FRAM" ? frame_context(name, frames_seen + 1) : name + ": section " + quoted_excerpt(tag);
+        std::string where =
+            tag == "FRAM" ? frame_context(name, frames_seen + 1) : name + ": section " + quoted_excerpt(tag);
         if (length > sh.remaining())
             throw InputError(where + ": truncated (section of " + std::to_string(length) + " bytes, " +
                              std::to_string(sh.remaining()) + " left in the file)");
@@ -283,12 +286,12 @@ Recording decode_recording(const std::string& bytes, const std::string& name) {
             if (expect != Expect::frames) throw InputError(where + ": frame section before the objects");
             std::uint32_t number = p.u32();
             if (number != frames_seen + 1)
-                throw InputError(where + ": section carries frame number " + std::to_string(number) + " (out of order)");
+                throw InputError(where + ": section carries frame number " + std::to_string(number) +
+                                 " (out of order)");
             std::uint32_t n_rem = p.u32(), n_ins = p.u32(), n_mov = p.u32(), n_ray = p.u32();
             std::uint64_t expected = std::uint64_t(n_rem) * 4 + (std::uint64_t(n_ins) + n_mov) * kObjectBytes +
                                      std::uint64_t(n_ray) * kRayBytes;
-            if (length != kFrameHeaderBytes + expected)
-                throw InputError(where + ": size does not match its counts");
+            if (length != kFrameHeaderBytes + expected) throw InputError(where + ": size does not match its counts");
             Frame f;
             f.removes.resize(n_rem);
             for (Uid& uid : f.removes) uid = p.u32();
@@ -304,7 +307,8 @@ Recording decode_recording(const std::string& bytes, const std::string& name) {
         } else if (tag == "END ") {
             if (expect != Expect::frames) throw InputError(where + ": END before the objects");
             if (length != 0) throw InputError(where + ": END section is not empty");
-            if (pos != bytes.size()) throw InputError(name + ": " + std::to_string(bytes.size() - pos) + " bytes after the END section");
+            if (pos != bytes.size())
+                throw InputError(name + ": " + std::to_string(bytes.size() - pos) + " bytes after the END section");
             return r;
         } else {
             throw InputError(name + ": unknown section tag " + quoted_excerpt(tag) + " at offset " +

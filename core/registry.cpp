@@ -14,12 +14,22 @@ namespace {
 std::deque<StructureInfo>& registry() {
     static std::deque<StructureInfo> all = {
         describe_structure<BruteForce>("bf", "brute force: every object's box tested (the baseline, thesis §4.1)"),
-        describe_structure<DynamicBvh>("dbvh", "dynamic BVH: Catto/Box2D SAH insertion with branch and bound, fat boxes, rotations, optional full binned-SAH rebuilds (thesis §4.4)"),
-        describe_structure<LinearBvh>("lbvh", "linear BVH: Karras 2012 Morton codes, radix sort, parallel radix tree, atomic bottom-up bounds, rebuilt every frame (thesis §4.5)"),
-        describe_structure<UniformGrid>("ug", "uniform grid: cells from eq. 4.1, 3D-DDA with mailboxes, incremental updates (thesis §4.2)"),
-        describe_structure<HashGrid>("hg", "hierarchical hash grid: Jevans-style recursive grids, only non-empty cells hashed (thesis §4.3)"),
-        describe_structure<EmbreeBoxes>("embree", "peer: Intel Embree 3 user geometry of boxes, all hits recorded in the intersect callback, rebuilt (Morton or binned SAH) or refitted at commit"),
-        describe_structure<BulletDbvt>("bullet_dbvt", "peer: Bullet's btDbvt, incremental insert/update/remove, optimizeIncremental passes per frame, rayTestInternal with exact leaf tests"),
+        describe_structure<DynamicBvh>("dbvh",
+                                       "dynamic BVH: Catto/Box2D SAH insertion with branch and bound, fat boxes, "
+                                       "rotations, optional full binned-SAH rebuilds (thesis §4.4)"),
+        describe_structure<LinearBvh>("lbvh",
+                                      "linear BVH: Karras 2012 Morton codes, radix sort, parallel radix tree, atomic "
+                                      "bottom-up bounds, rebuilt every frame (thesis §4.5)"),
+        describe_structure<UniformGrid>(
+            "ug", "uniform grid: cells from eq. 4.1, 3D-DDA with mailboxes, incremental updates (thesis §4.2)"),
+        describe_structure<HashGrid>(
+            "hg", "hierarchical hash grid: Jevans-style recursive grids, only non-empty cells hashed (thesis §4.3)"),
+        describe_structure<EmbreeBoxes>("embree",
+                                        "peer: Intel Embree 3 user geometry of boxes, all hits recorded in the "
+                                        "intersect callback, rebuilt (Morton or binned SAH) or refitted at commit"),
+        describe_structure<BulletDbvt>("bullet_dbvt",
+                                       "peer: Bullet's btDbvt, incremental insert/update/remove, optimizeIncremental "
+                                       "passes per frame, rayTestInternal with exact leaf tests"),
     };
     return all;
 }
@@ -55,7 +65,8 @@ const StructureInfo& register_structure(StructureInfo info) {
 const StructureInfo& find_structure(std::string_view name) {
     for (const StructureInfo& info : structure_registry())
         if (info.name == name) return info;
-    throw InputError("unknown structure '" + std::string(name) + "' (known: " + join(structure_registry(), ", ", &StructureInfo::name) + ")");
+    throw InputError("unknown structure '" + std::string(name) +
+                     "' (known: " + join(structure_registry(), ", ", &StructureInfo::name) + ")");
 }
 
 nlohmann::json StructureInfo::defaults() const {

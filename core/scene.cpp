@@ -12,15 +12,18 @@ double recording_bytes(double objects, double frames, double rays_per_frame, dou
     return objects * object_bytes + frames * (changes_per_frame * object_bytes + rays_per_frame * ray_bytes);
 }
 
-void check_scene_size(double objects, double frames, double rays_per_frame, double changes_per_frame, const std::string& where) {
+void check_scene_size(double objects, double frames, double rays_per_frame, double changes_per_frame,
+                      const std::string& where) {
     if (!(objects <= double(kMaxSceneObjects)))
-        throw InputError(where + ": " + std::to_string(std::uint64_t(std::min(objects, 1e19))) + " objects, more than the limit of " +
-                         std::to_string(kMaxSceneObjects) + " per scene");
+        throw InputError(where + ": " + std::to_string(std::uint64_t(std::min(objects, 1e19))) +
+                         " objects, more than the limit of " + std::to_string(kMaxSceneObjects) + " per scene");
     const double bytes = recording_bytes(objects, frames, rays_per_frame, changes_per_frame);
     if (!(bytes <= double(kMaxRecordingBytes))) {
         char text[160];
-        std::snprintf(text, sizeof text, "the scene would take %.3g GB (%.0f objects, %.0f frames of %.0f rays), more than the limit of %.3g GB",
-                      bytes / 1e9, objects, frames, rays_per_frame, double(kMaxRecordingBytes) / 1e9);
+        std::snprintf(
+            text, sizeof text,
+            "the scene would take %.3g GB (%.0f objects, %.0f frames of %.0f rays), more than the limit of %.3g GB",
+            bytes / 1e9, objects, frames, rays_per_frame, double(kMaxRecordingBytes) / 1e9);
         throw InputError(where + ": " + text + "; use fewer frames, rays or objects");
     }
 }

@@ -76,7 +76,8 @@ inline constexpr std::uint64_t kMaxRecordingBytes = std::uint64_t(4) << 30;
 double recording_bytes(double objects, double frames, double rays_per_frame, double changes_per_frame);
 /// InputError "<where>: ..." naming the limit when a scene of these counts exceeds one of the bounds
 /// above (NaN counts included).
-void check_scene_size(double objects, double frames, double rays_per_frame, double changes_per_frame, const std::string& where);
+void check_scene_size(double objects, double frames, double rays_per_frame, double changes_per_frame,
+                      const std::string& where);
 
 /// Bounds of a set of objects (the empty box for none).
 Aabb bounds_of(const std::vector<Object>& objects);

@@ -13,7 +13,8 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 std::uint64_t ns_since(Clock::time_point start) {
-    return static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count());
+    return static_cast<std::uint64_t>(
+        std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count());
 }
 
 void validate_or_throw(const Structure& s, const std::string& name, std::uint32_t frame) {
@@ -61,13 +62,9 @@ Spread SimulationResult::raycast_ns() const {
 }
 
 nlohmann::json SimulationResult::to_json() const {
-    nlohmann::json j = {{"structure", structure},
-                        {"params", params},
-                        {"objects", objects},
-                        {"build_ns", build_ns},
-                        {"memory_bytes", memory_bytes},
-                        {"verified", verified},
-                        {"mismatches", mismatches()}};
+    nlohmann::json j = {
+        {"structure", structure},       {"params", params},     {"objects", objects},        {"build_ns", build_ns},
+        {"memory_bytes", memory_bytes}, {"verified", verified}, {"mismatches", mismatches()}};
     const Spread u = update_ns(), r = raycast_ns();
     j["update_ns_median"] = u.median;
     j["update_ns_mad"] = u.mad;
@@ -117,12 +114,13 @@ void check_warmup(std::size_t warmup_frames, std::size_t frames) {
     // Warm-up frames are left out of every median: with none left there is nothing to report
     // (a summary of zero frames would read as 0 ns).
     if (warmup_frames > 0 && warmup_frames >= frames)
-        throw InputError(std::to_string(warmup_frames) + " warm-up frames leave none of the scene's " + std::to_string(frames) +
-                         " frames to measure");
+        throw InputError(std::to_string(warmup_frames) + " warm-up frames leave none of the scene's " +
+                         std::to_string(frames) + " frames to measure");
 }
 
 SimulationResult simulate(const Recording& recording, const StructureInfo& info, const nlohmann::json& params,
-                          const SimulationOptions& options, const std::string& params_path, const FrameCallback& on_frame) {
+                          const SimulationOptions& options, const std::string& params_path,
+                          const FrameCallback& on_frame) {
     const std::size_t frames = options.max_frames ? std::min<std::size_t>(options.max_frames, recording.frames.size())
                                                   : recording.frames.size();
     check_warmup(options.warmup_frames, frames);
@@ -182,7 +180,8 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
             structure->cast_counted(frame.rays, counted, fr.counters);
             // The counting policy must not change what the traversal does.
             if (counted.uids != hits.uids || counted.offsets != hits.offsets)
-                throw std::logic_error(info.name + ": the counting pass reported other hits than the timed pass in frame " +
+                throw std::logic_error(info.name +
+                                       ": the counting pass reported other hits than the timed pass in frame " +
                                        std::to_string(fr.frame));
         }
         fr.memory_bytes = structure->memory_bytes();

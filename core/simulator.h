@@ -24,11 +24,12 @@
 namespace rcb {
 
 struct SimulationOptions {
-    bool verify = true;            ///< compare every ray with the ground truth
-    bool count = true;             ///< run the counting pass
-    bool timed_cast = true;        ///< time the ray batch; false: only the counting pass casts (the tuner's cheap prediction runs)
-    bool validate = false;         ///< call Structure::validate() after the build and every commit
-    std::uint32_t max_frames = 0;  ///< replay at most this many frames (0: all)
+    bool verify = true;  ///< compare every ray with the ground truth
+    bool count = true;   ///< run the counting pass
+    bool timed_cast =
+        true;  ///< time the ray batch; false: only the counting pass casts (the tuner's cheap prediction runs)
+    bool validate = false;            ///< call Structure::validate() after the build and every commit
+    std::uint32_t max_frames = 0;     ///< replay at most this many frames (0: all)
     std::uint32_t warmup_frames = 0;  ///< the first frames run but are left out of the summaries
 };
 

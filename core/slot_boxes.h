@@ -76,8 +76,8 @@ public:
 
     /// The arrays' capacity and the hash index (buckets and one node per entry).
     std::size_t memory_bytes() const {
-        return uids_.capacity() * sizeof(Uid) + boxes_.capacity() * sizeof(Aabb) + index_.bucket_count() * sizeof(void*) +
-               index_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t));
+        return uids_.capacity() * sizeof(Uid) + boxes_.capacity() * sizeof(Aabb) +
+               index_.bucket_count() * sizeof(void*) + index_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t));
     }
 
     /// Throws std::logic_error "<who>: ..." unless the arrays agree in size, every slot's uid maps back

@@ -49,12 +49,16 @@ std::vector<std::int64_t> select_runs(Database& db, const std::string& selector)
     const auto [end, ec] = std::from_chars(selector.data(), selector.data() + selector.size(), id);
     const bool numeric = !selector.empty() && ec == std::errc() && end == selector.data() + selector.size() && id >= 0;
     const bool commit = !selector.empty() && selector.size() <= 64 &&
-                        std::all_of(selector.begin(), selector.end(), [](unsigned char c) { return std::isalnum(c) || c == '-' || c == '.' || c == '_'; });
-    if (!numeric && !commit)
-        throw InputError(quoted_excerpt(selector) + ": not a run id or a git commit prefix");
-    Statement s = db.prepare(numeric ? "SELECT id FROM run WHERE id = ?" : "SELECT id FROM run WHERE git_commit LIKE ? || '%' ORDER BY id");
-    if (numeric) s.bind(1, id);
-    else s.bind(1, selector);
+                        std::all_of(selector.begin(), selector.end(), [](unsigned char c) {
+                            return std::isalnum(c) || c == '-' || c == '.' || c == '_';
+                        });
+    if (!numeric && !commit) throw InputError(quoted_excerpt(selector) + ": not a run id or a git commit prefix");
+    Statement s = db.prepare(numeric ? "SELECT id FROM run WHERE id = ?"
+                                     : "SELECT id FROM run WHERE git_commit LIKE ? || '%' ORDER BY id");
+    if (numeric)
+        s.bind(1, id);
+    else
+        s.bind(1, selector);
     while (s.step()) runs.push_back(s.int64(0));
     if (runs.empty()) throw InputError("no run matches '" + selector + "' (give a run id or a git commit prefix)");
     return runs;
@@ -75,7 +79,8 @@ std::map<Key, Samples> frames_of(Database& db, const std::vector<std::int64_t>& 
     Statement s = db.prepare(
         "SELECT scene.hash, scene.name, config.structure, config.params, frame.raycast_ns, frame.update_ns "
         "FROM frame JOIN cell ON cell.id = frame.cell_id JOIN scene ON scene.id = cell.scene_id "
-        "JOIN config ON config.id = cell.config_id WHERE frame.warmup = 0 AND cell.run_id IN (" + ids + ")");
+        "JOIN config ON config.id = cell.config_id WHERE frame.warmup = 0 AND cell.run_id IN (" +
+        ids + ")");
     while (s.step()) {
         Samples& x = out[{s.text(0), s.text(2), s.text(3)}];
         x.scene_name = s.text(1);
@@ -115,15 +120,20 @@ std::vector<Comparison> compare_runs(Database& db, const std::string& baseline, 
             c.candidate_n = y.size();
             c.baseline_median = spread_of(x).median;
             c.candidate_median = spread_of(y).median;
-            c.ratio = c.baseline_median > 0 ? c.candidate_median / c.baseline_median : std::numeric_limits<double>::quiet_NaN();
+            c.ratio = c.baseline_median > 0 ? c.candidate_median / c.baseline_median
+                                            : std::numeric_limits<double>::quiet_NaN();
             c.p_value = mann_whitney_p(x, y);
-            if (x.size() < 5 || y.size() < 5) c.verdict = "too few frames";
-            else if (c.p_value < alpha) c.verdict = c.ratio > 1 ? "slower" : "faster";
-            else c.verdict = "same";
+            if (x.size() < 5 || y.size() < 5)
+                c.verdict = "too few frames";
+            else if (c.p_value < alpha)
+                c.verdict = c.ratio > 1 ? "slower" : "faster";
+            else
+                c.verdict = "same";
             out.push_back(c);
         }
     }
-    if (out.empty()) throw InputError("the runs '" + baseline + "' and '" + candidate + "' share no scene and configuration");
+    if (out.empty())
+        throw InputError("the runs '" + baseline + "' and '" + candidate + "' share no scene and configuration");
     return out;
 }
 

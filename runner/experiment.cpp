@@ -35,16 +35,19 @@ void check_keys(const json& j, const std::string& path, const std::set<std::stri
     }
 }
 
-std::uint64_t get_uint(const json& obj, const std::string& key, const std::string& path, std::uint64_t lo, std::uint64_t hi,
-                       std::uint64_t fallback) {
+std::uint64_t get_uint(const json& obj, const std::string& key, const std::string& path, std::uint64_t lo,
+                       std::uint64_t hi, std::uint64_t fallback) {
     if (!obj.contains(key)) return fallback;
     const json& v = obj.at(key);
-    if (!(v.is_number_unsigned() || v.is_number_integer()) || v.get<double>() < double(lo) || v.get<double>() > double(hi))
-        fail(at(path, key), "expected an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got " + json_excerpt(v));
+    if (!(v.is_number_unsigned() || v.is_number_integer()) || v.get<double>() < double(lo) ||
+        v.get<double>() > double(hi))
+        fail(at(path, key),
+             "expected an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + ", got " + json_excerpt(v));
     return v.get<std::uint64_t>();
 }
 
-double get_number(const json& obj, const std::string& key, const std::string& path, double lo, double hi, double fallback) {
+double get_number(const json& obj, const std::string& key, const std::string& path, double lo, double hi,
+                  double fallback) {
     if (!obj.contains(key)) return fallback;
     const json& v = obj.at(key);
     if (!v.is_number() || !(v.get<double>() >= lo && v.get<double>() <= hi)) {
@@ -68,8 +71,8 @@ bool get_bool(const json& obj, const std::string& key, const std::string& path, 
 }
 
 /// A list of unsigned integers given as one integer or an array of them.
-std::vector<std::uint64_t> get_uint_list(const json& obj, const std::string& key, const std::string& path, std::uint64_t lo,
-                                         std::uint64_t hi, std::vector<std::uint64_t> fallback) {
+std::vector<std::uint64_t> get_uint_list(const json& obj, const std::string& key, const std::string& path,
+                                         std::uint64_t lo, std::uint64_t hi, std::vector<std::uint64_t> fallback) {
     if (!obj.contains(key)) return fallback;
     const json& v = obj.at(key);
     if (!v.is_array()) return {get_uint(obj, key, path, lo, hi, 0)};
@@ -112,7 +115,8 @@ std::vector<json> expand_values(const ParamSpec& spec, const json& v, const std:
         if (v.contains("step")) {
             const json& s = v["step"];
             if (!s.is_number() || !(s.get<double>() > 0) || (integer && !s.is_number_integer()))
-                fail(at(path, "step"), std::string("expected a positive ") + (integer ? "integer" : "number") + ", got " + json_excerpt(s));
+                fail(at(path, "step"), std::string("expected a positive ") + (integer ? "integer" : "number") +
+                                           ", got " + json_excerpt(s));
             const double step = s.get<double>();
             if (!((to - from) / step <= kMaxRangeValues))
                 fail(path, "the range takes more than " + std::to_string(kMaxRangeValues) + " steps");
@@ -122,12 +126,14 @@ std::vector<json> expand_values(const ParamSpec& spec, const json& v, const std:
             }
         } else {
             const json& f = v["times"];
-            if (!f.is_number() || !(f.get<double>() > 1)) fail(at(path, "times"), "expected a number above 1, got " + json_excerpt(f));
+            if (!f.is_number() || !(f.get<double>() > 1))
+                fail(at(path, "times"), "expected a number above 1, got " + json_excerpt(f));
             if (!(from > 0)) fail(at(path, "from"), "a geometric range needs \"from\" above 0");
             // Count the steps before taking them: with a factor barely above 1 an integer range
             // repeats each rounded value for billions of steps (the duplicates are dropped below).
             const double steps = std::log(to / from) / std::log(f.get<double>());
-            if (!(steps <= kMaxRangeValues)) fail(path, "the range takes more than " + std::to_string(kMaxRangeValues) + " steps");
+            if (!(steps <= kMaxRangeValues))
+                fail(path, "the range takes more than " + std::to_string(kMaxRangeValues) + " steps");
             for (double x = from; x <= to * (1 + 1e-12); x *= f.get<double>()) {
                 json value = integer ? json(std::llround(x)) : json(x);
                 if (out.empty() || out.back() != value) out.push_back(value);
@@ -148,8 +154,10 @@ std::vector<json> expand_grid(const StructureInfo& info, const json& grid, const
     expect_object(grid, path);
     std::vector<json> combos{json::object()};
     for (const auto& [key, value] : grid.items()) {
-        auto spec = std::find_if(info.params.begin(), info.params.end(), [&, &key = key](const ParamSpec& s) { return s.name == key; });
-        if (spec == info.params.end()) check_params(info.params, json{{key, value}}, path, info.name);  // throws: unknown
+        auto spec = std::find_if(info.params.begin(), info.params.end(),
+                                 [&, &key = key](const ParamSpec& s) { return s.name == key; });
+        if (spec == info.params.end())
+            check_params(info.params, json{{key, value}}, path, info.name);  // throws: unknown
         const std::vector<json> values = expand_values(*spec, value, at(path, key));
         if (combos.size() * values.size() > kMaxPlanCells)
             fail(path, "the grid has more than " + std::to_string(kMaxPlanCells) + " combinations");
@@ -168,9 +176,12 @@ std::vector<json> expand_grid(const StructureInfo& info, const json& grid, const
 void parse_scene(const json& s, const std::string& path, const SceneDefaults& d, const std::string& base_dir,
                  std::vector<SceneSpec>& out) {
     expect_object(s, path);
-    check_keys(s, path, {"name", "preset", "kind", "objects", "recording", "import", "import_options", "frames", "rays_per_frame", "ray_mix",
-                         "change_fraction", "insert_share", "remove_share", "move_scale", "seed", "seeds"});
-    int sources = int(s.contains("preset")) + int(s.contains("kind")) + int(s.contains("recording")) + int(s.contains("import"));
+    check_keys(
+        s, path,
+        {"name", "preset", "kind", "objects", "recording", "import", "import_options", "frames", "rays_per_frame",
+         "ray_mix", "change_fraction", "insert_share", "remove_share", "move_scale", "seed", "seeds"});
+    int sources =
+        int(s.contains("preset")) + int(s.contains("kind")) + int(s.contains("recording")) + int(s.contains("import"));
     if (sources != 1) fail(path, "give exactly one of \"preset\", \"kind\", \"recording\" or \"import\"");
 
     if (s.contains("recording")) {
@@ -215,7 +226,8 @@ void parse_scene(const json& s, const std::string& path, const SceneDefaults& d,
         if (s.contains("objects")) fail(at(path, "objects"), "an imported scene has the file's objects");
         name = fs::path(given).stem().string();
         // import_options_from_json's messages carry the JSON path already.
-        import_options = to_json(import_options_from_json(s.value("import_options", json()), at(path, "import_options")));
+        import_options =
+            to_json(import_options_from_json(s.value("import_options", json()), at(path, "import_options")));
         try {
             importer_for(file);
         } catch (const InputError& e) {
@@ -226,9 +238,9 @@ void parse_scene(const json& s, const std::string& path, const SceneDefaults& d,
     if (s.contains("import_options") && source != SceneSpec::Source::import)
         fail(at(path, "import_options"), "only an \"import\" scene takes import options");
     name = get_string(s, "name", path, name);
-    const std::vector<std::uint64_t> objects =
-        source == SceneSpec::Source::import ? std::vector<std::uint64_t>{0}
-                                            : get_uint_list(s, "objects", path, 1, 100'000'000, {base.objects});
+    const std::vector<std::uint64_t> objects = source == SceneSpec::Source::import
+                                                   ? std::vector<std::uint64_t>{0}
+                                                   : get_uint_list(s, "objects", path, 1, 100'000'000, {base.objects});
     std::vector<std::uint64_t> seeds = d.seeds;
     if (s.contains("seed") && s.contains("seeds")) fail(path, "give \"seed\" or \"seeds\", not both");
     if (s.contains("seed")) seeds = {get_uint(s, "seed", path, 0, UINT64_MAX, 1)};
@@ -246,7 +258,8 @@ void parse_scene(const json& s, const std::string& path, const SceneDefaults& d,
     base.dynamics.insert_share = get_number(s, "insert_share", path, 0, 1, base.dynamics.insert_share);
     base.dynamics.remove_share = get_number(s, "remove_share", path, 0, 1, base.dynamics.remove_share);
     base.dynamics.move_scale = get_number(s, "move_scale", path, 0, 1000, base.dynamics.move_scale);
-    if (base.dynamics.insert_share + base.dynamics.remove_share > 1) fail(path, "insert_share + remove_share exceeds 1");
+    if (base.dynamics.insert_share + base.dynamics.remove_share > 1)
+        fail(path, "insert_share + remove_share exceeds 1");
 
     for (std::uint64_t count : objects)
         for (std::uint64_t seed : seeds) {
@@ -263,20 +276,24 @@ void parse_scene(const json& s, const std::string& path, const SceneDefaults& d,
                         {"insert_share", base.dynamics.insert_share},
                         {"remove_share", base.dynamics.remove_share},
                         {"move_scale", base.dynamics.move_scale}};
-            spec.key = {{"frames", base.frames}, {"rays_per_frame", base.rays.per_frame}, {"ray_mix", mix},
-                        {"dynamics", dyn},       {"seed", seed}};
+            spec.key = {{"frames", base.frames},
+                        {"rays_per_frame", base.rays.per_frame},
+                        {"ray_mix", mix},
+                        {"dynamics", dyn},
+                        {"seed", seed}};
             if (source == SceneSpec::Source::import) {
                 spec.key["import"] = fs::path(file).filename().string();
                 if (importer_for(file) != "csv") spec.key["import_options"] = spec.import_options = import_options;
-            }
-            else spec.key["kind"] = base.kind, spec.key["objects"] = count;
+            } else
+                spec.key["kind"] = base.kind, spec.key["objects"] = count;
             out.push_back(std::move(spec));
         }
 }
 
 }  // namespace
 
-std::vector<SceneSpec> parse_scenes(const json& scenes, const std::string& path, const SceneDefaults& d, const std::string& base_dir) {
+std::vector<SceneSpec> parse_scenes(const json& scenes, const std::string& path, const SceneDefaults& d,
+                                    const std::string& base_dir) {
     if (!scenes.is_array() || scenes.empty()) fail(path, "expected a non-empty list of scenes");
     std::vector<SceneSpec> out;
     for (std::size_t i = 0; i < scenes.size(); ++i) parse_scene(scenes[i], at(path, i), d, base_dir, out);
@@ -306,8 +323,9 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
     const json j = parse_json_document(text, name);
     try {
         expect_object(j, "(top level)");
-        check_keys(j, "", {"name", "description", "frames", "warmup_frames", "repetitions", "rays_per_frame", "ray_mix", "seeds",
-                           "threads", "verify", "scenes", "structures"});
+        check_keys(j, "",
+                   {"name", "description", "frames", "warmup_frames", "repetitions", "rays_per_frame", "ray_mix",
+                    "seeds", "threads", "verify", "scenes", "structures"});
         Experiment e;
         e.content = text;
         e.hash = stable_hash(text);
@@ -349,8 +367,10 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
             if (s.contains("params") && s.contains("grids")) fail(path, "give \"params\" or \"grids\", not both");
             std::vector<std::pair<json, std::string>> grids;
             if (s.contains("grids")) {
-                if (!s["grids"].is_array() || s["grids"].empty()) fail(at(path, "grids"), "expected a non-empty list of parameter grids");
-                for (std::size_t g = 0; g < s["grids"].size(); ++g) grids.emplace_back(s["grids"][g], at(at(path, "grids"), g));
+                if (!s["grids"].is_array() || s["grids"].empty())
+                    fail(at(path, "grids"), "expected a non-empty list of parameter grids");
+                for (std::size_t g = 0; g < s["grids"].size(); ++g)
+                    grids.emplace_back(s["grids"][g], at(at(path, "grids"), g));
             } else {
                 grids.emplace_back(s.contains("params") ? s["params"] : json::object(), at(path, "params"));
             }
@@ -367,10 +387,11 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
         // 6400-value grid would otherwise take minutes and gigabytes to expand).
         const double cells = double(e.scenes.size()) * double(e.configs.size()) * double(e.repetitions);
         if (cells > double(kMaxPlanCells))
-            fail("(top level)", "the plan has " + std::to_string(std::uint64_t(cells)) + " cells (" + std::to_string(e.scenes.size()) +
-                                    " scenes x " + std::to_string(e.configs.size()) + " configurations x " +
-                                    std::to_string(e.repetitions) + " repetitions), more than the limit of " +
-                                    std::to_string(kMaxPlanCells) + "; split it into several experiment files");
+            fail("(top level)", "the plan has " + std::to_string(std::uint64_t(cells)) + " cells (" +
+                                    std::to_string(e.scenes.size()) + " scenes x " + std::to_string(e.configs.size()) +
+                                    " configurations x " + std::to_string(e.repetitions) +
+                                    " repetitions), more than the limit of " + std::to_string(kMaxPlanCells) +
+                                    "; split it into several experiment files");
         e.plan.reserve(std::size_t(cells));
         for (std::size_t s = 0; s < e.scenes.size(); ++s)
             for (std::uint32_t r = 0; r < e.repetitions; ++r)
@@ -394,7 +415,8 @@ Experiment load_experiment(const std::string& path) {
 
 Recording load_scene(const SceneSpec& s) {
     switch (s.source) {
-        case SceneSpec::Source::recording: return read_recording(s.path);
+        case SceneSpec::Source::recording:
+            return read_recording(s.path);
         case SceneSpec::Source::import: {
             if (importer_for(s.path) != "csv") {
                 json meta;
@@ -408,9 +430,11 @@ Recording load_scene(const SceneSpec& s) {
             std::vector<Object> objects = read_boxes_csv(s.path);
             if (objects.empty()) throw InputError(s.path + ": no boxes to import");
             const json meta = {{"generator", "rcbench import"}, {"source", fs::path(s.path).filename().string()}};
-            return add_dynamics(std::move(objects), s.settings.dynamics, s.settings.rays, s.settings.frames, s.settings.seed, meta);
+            return add_dynamics(std::move(objects), s.settings.dynamics, s.settings.rays, s.settings.frames,
+                                s.settings.seed, meta);
         }
-        case SceneSpec::Source::generated: return generate_scene(s.settings);
+        case SceneSpec::Source::generated:
+            return generate_scene(s.settings);
     }
     return {};
 }

@@ -19,11 +19,11 @@ namespace rcb {
 /// One concrete scene of the plan: a preset or kind with its overrides and one seed, a recording
 /// file, or an imported CSV with dynamics.
 struct SceneSpec {
-    std::string name;           ///< for tables: the preset, the given name, or the file's stem
-    nlohmann::json key;         ///< canonical description: identifies the scene in cell keys
+    std::string name;    ///< for tables: the preset, the given name, or the file's stem
+    nlohmann::json key;  ///< canonical description: identifies the scene in cell keys
     enum class Source { generated, recording, import } source = Source::generated;
-    SceneSettings settings;     ///< generated: everything; import: dynamics, rays, frames, seed
-    std::string path;           ///< recording or import: the file, resolved against the experiment's folder
+    SceneSettings settings;         ///< generated: everything; import: dynamics, rays, frames, seed
+    std::string path;               ///< recording or import: the file, resolved against the experiment's folder
     nlohmann::json import_options;  ///< import of a map or model: {"bsp_mode", "map", "model_mode"}
 };
 
@@ -37,7 +37,7 @@ struct Cell {
     std::size_t scene = 0;   ///< index into Experiment::scenes
     std::size_t config = 0;  ///< index into Experiment::configs
     std::uint32_t repetition = 0;
-    std::string key;         ///< stable hash of (scene key, structure, params, repetition)
+    std::string key;  ///< stable hash of (scene key, structure, params, repetition)
 };
 
 /// Bounds on what an experiment file may ask for, checked before anything is allocated.
@@ -81,8 +81,8 @@ struct SceneDefaults {
 };
 
 /// A list of scene entries (the "scenes" schema of experiments/README.md); errors name `path`.
-std::vector<SceneSpec> parse_scenes(const nlohmann::json& scenes, const std::string& path, const SceneDefaults& defaults,
-                                    const std::string& base_dir);
+std::vector<SceneSpec> parse_scenes(const nlohmann::json& scenes, const std::string& path,
+                                    const SceneDefaults& defaults, const std::string& base_dir);
 
 /// The values one parameter takes in a grid: a value, a list, or a range {"from", "to", "step"}
 /// (arithmetic) / {"from", "to", "times"} (geometric); each checked against `spec`.
@@ -97,8 +97,10 @@ void expect_object(const nlohmann::json& j, const std::string& path);
 void check_keys(const nlohmann::json& j, const std::string& path, const std::set<std::string>& allowed);
 std::uint64_t get_uint(const nlohmann::json& obj, const std::string& key, const std::string& path, std::uint64_t lo,
                        std::uint64_t hi, std::uint64_t fallback);
-double get_number(const nlohmann::json& obj, const std::string& key, const std::string& path, double lo, double hi, double fallback);
-std::string get_string(const nlohmann::json& obj, const std::string& key, const std::string& path, const std::string& fallback);
+double get_number(const nlohmann::json& obj, const std::string& key, const std::string& path, double lo, double hi,
+                  double fallback);
+std::string get_string(const nlohmann::json& obj, const std::string& key, const std::string& path,
+                       const std::string& fallback);
 bool get_bool(const nlohmann::json& obj, const std::string& key, const std::string& path, bool fallback);
 std::vector<std::uint64_t> get_uint_list(const nlohmann::json& obj, const std::string& key, const std::string& path,
                                          std::uint64_t lo, std::uint64_t hi, std::vector<std::uint64_t> fallback);

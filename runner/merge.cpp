@@ -16,7 +16,8 @@ MergeCount merge_into(ResultStore& out, Database& in) {
         return s.int64(0);
     };
     Statement runs = in.prepare(
-        "SELECT run.id, run.uuid, experiment.name, experiment.description, experiment_hash, experiment_content, started_at, "
+        "SELECT run.id, run.uuid, experiment.name, experiment.description, experiment_hash, experiment_content, "
+        "started_at, "
         "finished_at, git_commit, compiler, flags, cpu_model, cores, governor, hostname, threads, shard "
         "FROM run JOIN experiment ON experiment.id = run.experiment_id ORDER BY run.id");
     while (runs.step()) {
@@ -28,20 +29,29 @@ MergeCount merge_into(ResultStore& out, Database& in) {
         }
         if (run) {
             if (!runs.is_null(7))
-                o.prepare("UPDATE run SET finished_at = ? WHERE id = ? AND finished_at IS NULL").bind_all(runs.text(7), run).run();
+                o.prepare("UPDATE run SET finished_at = ? WHERE id = ? AND finished_at IS NULL")
+                    .bind_all(runs.text(7), run)
+                    .run();
         } else {
             o.prepare("INSERT INTO experiment(name, description) VALUES (?, ?) ON CONFLICT(name) DO NOTHING")
                 .bind_all(runs.text(2), runs.text(3))
                 .run();
             const std::int64_t experiment = id_of("SELECT id FROM experiment WHERE name = ?", runs.text(2));
             Statement insert_run = o.prepare(
-                "INSERT INTO run(uuid, experiment_id, experiment_hash, experiment_content, started_at, finished_at, git_commit, "
-                "compiler, flags, cpu_model, cores, governor, hostname, threads, shard) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+                "INSERT INTO run(uuid, experiment_id, experiment_hash, experiment_content, started_at, finished_at, "
+                "git_commit, "
+                "compiler, flags, cpu_model, cores, governor, hostname, threads, shard) VALUES "
+                "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
             insert_run.bind_all(runs.text(1), experiment, runs.text(4), runs.text(5), runs.text(6));
-            if (runs.is_null(7)) insert_run.bind_null(6);
-            else insert_run.bind(6, runs.text(7));
+            if (runs.is_null(7))
+                insert_run.bind_null(6);
+            else
+                insert_run.bind(6, runs.text(7));
             insert_run.bind(7, runs.text(8)).bind(8, runs.text(9)).bind(9, runs.text(10)).bind(10, runs.text(11));
-            insert_run.bind(11, runs.int64(12)).bind(12, runs.text(13)).bind(13, runs.text(14)).bind(14, runs.int64(15));
+            insert_run.bind(11, runs.int64(12))
+                .bind(12, runs.text(13))
+                .bind(13, runs.text(14))
+                .bind(14, runs.int64(15));
             insert_run.bind(15, runs.text(16));
             insert_run.run();
             run = o.last_insert_id();
@@ -49,7 +59,8 @@ MergeCount merge_into(ResultStore& out, Database& in) {
         }
 
         Statement cells = in.prepare(
-            "SELECT cell.id, cell_key, scene.id, scene.hash, scene.name, scene.spec, scene.meta, scene.objects, scene.frames, "
+            "SELECT cell.id, cell_key, scene.id, scene.hash, scene.name, scene.spec, scene.meta, scene.objects, "
+            "scene.frames, "
             "scene.rays_per_frame, scene.stats, config.id, config.structure, config.params, repetition, finished_at, "
             "cell.objects, build_ns, memory_bytes, verified, mismatches, cell.frames, update_ns_median, update_ns_mad, "
             "raycast_ns_median, raycast_ns_mad FROM cell JOIN scene ON scene.id = cell.scene_id "
@@ -61,8 +72,10 @@ MergeCount merge_into(ResultStore& out, Database& in) {
                 has.bind_all(run, cells.text(1));
                 if (has.step()) continue;
             }
-            o.prepare("INSERT INTO scene(hash, name, spec, meta, objects, frames, rays_per_frame, stats) VALUES (?,?,?,?,?,?,?,?) "
-                      "ON CONFLICT(hash) DO NOTHING")
+            o.prepare(
+                 "INSERT INTO scene(hash, name, spec, meta, objects, frames, rays_per_frame, stats) VALUES "
+                 "(?,?,?,?,?,?,?,?) "
+                 "ON CONFLICT(hash) DO NOTHING")
                 .bind_all(cells.text(3), cells.text(4), cells.text(5), cells.text(6), cells.int64(7), cells.int64(8),
                           cells.real(9), cells.text(10))
                 .run();
@@ -70,27 +83,34 @@ MergeCount merge_into(ResultStore& out, Database& in) {
             o.prepare("INSERT INTO config(structure, params) VALUES (?, ?) ON CONFLICT DO NOTHING")
                 .bind_all(cells.text(12), cells.text(13))
                 .run();
-            const std::int64_t config = id_of("SELECT id FROM config WHERE structure = ? AND params = ?", cells.text(12), cells.text(13));
-            o.prepare("INSERT INTO cell(run_id, cell_key, scene_id, config_id, repetition, finished_at, objects, build_ns, "
-                      "memory_bytes, verified, mismatches, frames, update_ns_median, update_ns_mad, raycast_ns_median, "
-                      "raycast_ns_mad) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
-                .bind_all(run, cells.text(1), scene, config, cells.int64(14), cells.text(15), cells.int64(16), cells.int64(17),
-                          cells.int64(18), cells.int64(19), cells.int64(20), cells.int64(21), cells.real(22), cells.real(23),
-                          cells.real(24), cells.real(25))
+            const std::int64_t config =
+                id_of("SELECT id FROM config WHERE structure = ? AND params = ?", cells.text(12), cells.text(13));
+            o.prepare(
+                 "INSERT INTO cell(run_id, cell_key, scene_id, config_id, repetition, finished_at, objects, build_ns, "
+                 "memory_bytes, verified, mismatches, frames, update_ns_median, update_ns_mad, raycast_ns_median, "
+                 "raycast_ns_mad) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
+                .bind_all(run, cells.text(1), scene, config, cells.int64(14), cells.text(15), cells.int64(16),
+                          cells.int64(17), cells.int64(18), cells.int64(19), cells.int64(20), cells.int64(21),
+                          cells.real(22), cells.real(23), cells.real(24), cells.real(25))
                 .run();
             const std::int64_t cell = o.last_insert_id();
             Statement frames = in.prepare(
-                "SELECT frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, duplicate, "
+                "SELECT frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, "
+                "duplicate, "
                 "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats FROM frame WHERE cell_id = ?");
             frames.bind(1, cells.int64(0));
             Statement insert_frame = o.prepare(
-                "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, "
-                "extra, duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+                "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, "
+                "missed, "
+                "extra, duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats) VALUES "
+                "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
             while (frames.step()) {
                 insert_frame.bind(1, cell);
                 for (int c = 0; c < 16; ++c) insert_frame.bind(c + 2, frames.int64(c));
-                if (frames.is_null(16)) insert_frame.bind_null(18);
-                else insert_frame.bind(18, frames.real(16));
+                if (frames.is_null(16))
+                    insert_frame.bind_null(18);
+                else
+                    insert_frame.bind(18, frames.real(16));
                 insert_frame.bind(19, frames.text(17));
                 insert_frame.run();
             }

@@ -59,7 +59,8 @@ RunOutcome run_experiment(const Experiment& e, const std::string& source, const 
         if (done.count(c.key) || store.cell_done(out.run, c.key)) continue;
         const SceneSpec& scene = e.scenes[c.scene];
         const ConfigSpec& config = e.configs[c.config];
-        if (progress) progress(out.ran, todo, scene.name + "  " + config_label(config) + "  rep " + std::to_string(c.repetition));
+        if (progress)
+            progress(out.ran, todo, scene.name + "  " + config_label(config) + "  rep " + std::to_string(c.repetition));
         SimulationResult res;
         try {
             if (loaded != c.scene) {

@@ -38,7 +38,8 @@ Statement& Statement::bind(int i, double v) {
     return *this;
 }
 Statement& Statement::bind(int i, const std::string& v) {
-    if (const int rc = sqlite3_bind_text(stmt_, i, v.data(), int(v.size()), SQLITE_TRANSIENT); rc != SQLITE_OK) throw_sql_error(db_, rc);
+    if (const int rc = sqlite3_bind_text(stmt_, i, v.data(), int(v.size()), SQLITE_TRANSIENT); rc != SQLITE_OK)
+        throw_sql_error(db_, rc);
     return *this;
 }
 Statement& Statement::bind_null(int i) {
@@ -66,7 +67,8 @@ void Statement::reset() {
 
 std::string Statement::text(int i) const {
     const unsigned char* t = sqlite3_column_text(stmt_, i);
-    return t ? std::string(reinterpret_cast<const char*>(t), std::size_t(sqlite3_column_bytes(stmt_, i))) : std::string();
+    return t ? std::string(reinterpret_cast<const char*>(t), std::size_t(sqlite3_column_bytes(stmt_, i)))
+             : std::string();
 }
 
 namespace {
@@ -86,7 +88,8 @@ Database::Database(const std::string& path, bool read_only) : path_(path) {
     // A reader opens the file for writing where it may (never creating it), so that closing the
     // last connection removes WAL's -wal and -shm files instead of leaving them beside a database
     // it only read; read-only where the file or folder is not writable.
-    int rc = open_connection(path, read_only ? SQLITE_OPEN_READWRITE : (SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE), &db_);
+    int rc =
+        open_connection(path, read_only ? SQLITE_OPEN_READWRITE : (SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE), &db_);
     if (rc != SQLITE_OK && read_only) rc = open_connection(path, SQLITE_OPEN_READONLY, &db_);
     if (rc != SQLITE_OK) throw SqlError(path + ": " + sqlite3_errstr(rc), rc);
     try {

@@ -189,7 +189,8 @@ int user_version(Database& db) {
 }
 
 void refuse_newer(int version, const std::string& path) {
-    if (version < 0) throw InputError(path + ": not an rcbench results database (schema version " + std::to_string(version) + ")");
+    if (version < 0)
+        throw InputError(path + ": not an rcbench results database (schema version " + std::to_string(version) + ")");
     if (version > latest_schema_version())
         throw InputError(path + ": results database schema version " + std::to_string(version) +
                          " is newer than this rcbench writes (" + std::to_string(latest_schema_version()) +
@@ -214,7 +215,9 @@ void check_schema(Database& db, int version) {
     for (const auto& [name, sql] : want) {
         auto it = have.find(name);
         if (it == have.end()) throw InputError(db.path() + ": damaged results database (" + name + " is missing)");
-        if (it->second != sql) throw InputError(db.path() + ": damaged results database (" + name + " differs from schema version " + std::to_string(version) + ")");
+        if (it->second != sql)
+            throw InputError(db.path() + ": damaged results database (" + name + " differs from schema version " +
+                             std::to_string(version) + ")");
     }
 }
 
@@ -342,7 +345,9 @@ std::unique_ptr<Database> open_read_only(const std::string& path) {
 }
 
 std::int64_t ResultStore::experiment_id(const Experiment& e) {
-    db_.prepare("INSERT INTO experiment(name, description) VALUES (?, ?) ON CONFLICT(name) DO UPDATE SET description = excluded.description")
+    db_.prepare(
+           "INSERT INTO experiment(name, description) VALUES (?, ?) ON CONFLICT(name) DO UPDATE SET description = "
+           "excluded.description")
         .bind_all(e.name, e.description)
         .run();
     Statement s = db_.prepare("SELECT id FROM experiment WHERE name = ?");
@@ -363,10 +368,12 @@ std::optional<std::int64_t> ResultStore::unfinished_run(std::int64_t experiment_
 
 std::int64_t ResultStore::begin_run(std::int64_t experiment_id, const RunInfo& r) {
     db_.prepare(
-           "INSERT INTO run(uuid, experiment_id, experiment_hash, experiment_content, started_at, git_commit, compiler, "
+           "INSERT INTO run(uuid, experiment_id, experiment_hash, experiment_content, started_at, git_commit, "
+           "compiler, "
            "flags, cpu_model, cores, governor, hostname, threads, shard) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
-        .bind_all(r.uuid, experiment_id, r.experiment_hash, r.experiment_content, r.started_at, r.git_commit, r.compiler,
-                  r.flags, r.cpu_model, std::int64_t(r.cores), r.governor, r.hostname, std::int64_t(r.threads), r.shard)
+        .bind_all(r.uuid, experiment_id, r.experiment_hash, r.experiment_content, r.started_at, r.git_commit,
+                  r.compiler, r.flags, r.cpu_model, std::int64_t(r.cores), r.governor, r.hostname,
+                  std::int64_t(r.threads), r.shard)
         .run();
     return db_.last_insert_id();
 }
@@ -407,8 +414,9 @@ std::int64_t ResultStore::scene_id(const SceneSpec& spec, const Recording& r, co
     db_.prepare(
            "INSERT INTO scene(hash, name, spec, meta, objects, frames, rays_per_frame, stats) VALUES (?,?,?,?,?,?,?,?) "
            "ON CONFLICT(hash) DO NOTHING")
-        .bind_all(hash, spec.name, spec.key.dump(), r.meta, std::int64_t(r.initial.size()), std::int64_t(r.frames.size()),
-                  r.frames.empty() ? 0.0 : double(rays) / double(r.frames.size()), scene_stats(r).dump())
+        .bind_all(hash, spec.name, spec.key.dump(), r.meta, std::int64_t(r.initial.size()),
+                  std::int64_t(r.frames.size()), r.frames.empty() ? 0.0 : double(rays) / double(r.frames.size()),
+                  scene_stats(r).dump())
         .run();
     Statement s = db_.prepare("SELECT id FROM scene WHERE hash = ?");
     s.bind(1, hash);
@@ -417,22 +425,25 @@ std::int64_t ResultStore::scene_id(const SceneSpec& spec, const Recording& r, co
 }
 
 std::int64_t ResultStore::config_id(const std::string& structure, const nlohmann::json& params) {
-    db_.prepare("INSERT INTO config(structure, params) VALUES (?, ?) ON CONFLICT DO NOTHING").bind_all(structure, params.dump()).run();
+    db_.prepare("INSERT INTO config(structure, params) VALUES (?, ?) ON CONFLICT DO NOTHING")
+        .bind_all(structure, params.dump())
+        .run();
     Statement s = db_.prepare("SELECT id FROM config WHERE structure = ? AND params = ?");
     s.bind_all(structure, params.dump());
     s.step();
     return s.int64(0);
 }
 
-bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell, const SceneSpec& spec, const Recording& r,
-                             const std::string& scene_hash, const SimulationResult& res) {
+bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell, const SceneSpec& spec,
+                             const Recording& r, const std::string& scene_hash, const SimulationResult& res) {
     Transaction t(db_);
     if (cell_done(run_id, cell.key)) return false;  // another runner was first; roll back nothing
     const std::int64_t scene = scene_id(spec, r, scene_hash);
     const std::int64_t config = config_id(res.structure, res.params);
     const Spread u = res.update_ns(), c = res.raycast_ns();
     db_.prepare(
-           "INSERT INTO cell(run_id, cell_key, scene_id, config_id, repetition, finished_at, objects, build_ns, memory_bytes, "
+           "INSERT INTO cell(run_id, cell_key, scene_id, config_id, repetition, finished_at, objects, build_ns, "
+           "memory_bytes, "
            "verified, mismatches, frames, update_ns_median, update_ns_mad, raycast_ns_median, raycast_ns_mad) "
            "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
         .bind_all(run_id, cell.key, scene, config, std::int64_t(cell.repetition), utc_now(), std::int64_t(res.objects),
@@ -441,16 +452,17 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
         .run();
     const std::int64_t cell_id = db_.last_insert_id();
     Statement f = db_.prepare(
-        "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, "
+        "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, "
+        "extra, "
         "duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     for (const FrameResult& fr : res.frames) {
         std::optional<double> sah;
         if (fr.stats.contains("sah_cost") && fr.stats["sah_cost"].is_number()) sah = fr.stats["sah_cost"].get<double>();
-        f.bind_all(cell_id, std::int64_t(fr.frame), std::int64_t(fr.warmup), std::int64_t(fr.inserts), std::int64_t(fr.removes),
-                   std::int64_t(fr.moves), std::int64_t(fr.rays), std::int64_t(fr.update_ns), std::int64_t(fr.raycast_ns),
-                   std::int64_t(fr.hits), std::int64_t(fr.missed), std::int64_t(fr.extra), std::int64_t(fr.duplicate),
-                   std::int64_t(fr.counters.n_t), std::int64_t(fr.counters.n_rb), std::int64_t(fr.counters.n_tp),
-                   std::int64_t(fr.memory_bytes), sah, fr.stats.dump());
+        f.bind_all(cell_id, std::int64_t(fr.frame), std::int64_t(fr.warmup), std::int64_t(fr.inserts),
+                   std::int64_t(fr.removes), std::int64_t(fr.moves), std::int64_t(fr.rays), std::int64_t(fr.update_ns),
+                   std::int64_t(fr.raycast_ns), std::int64_t(fr.hits), std::int64_t(fr.missed), std::int64_t(fr.extra),
+                   std::int64_t(fr.duplicate), std::int64_t(fr.counters.n_t), std::int64_t(fr.counters.n_rb),
+                   std::int64_t(fr.counters.n_tp), std::int64_t(fr.memory_bytes), sah, fr.stats.dump());
         f.run();
     }
     t.commit();
@@ -460,8 +472,10 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
 std::vector<CellSummary> cell_summaries(Database& db, std::int64_t run_id) {
     std::vector<CellSummary> out;
     Statement s = db.prepare(
-        "SELECT scene.name, config.structure, config.params, cell.raycast_ns_median, cell.update_ns_median, cell.mismatches "
-        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id WHERE cell.run_id = ?");
+        "SELECT scene.name, config.structure, config.params, cell.raycast_ns_median, cell.update_ns_median, "
+        "cell.mismatches "
+        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id WHERE cell.run_id "
+        "= ?");
     s.bind(1, run_id);
     while (s.step())
         out.push_back({s.text(0), s.text(1), nlohmann::json::parse(s.text(2)), s.real(3), s.real(4), s.int64(5)});

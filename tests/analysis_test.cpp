@@ -146,9 +146,9 @@ TEST(ModelSelection, UpdateCostsAreRecoveredPerOperation) {
     ASSERT_NE(m, nullptr);
     EXPECT_EQ(m->name, "per-operation");
     ASSERT_EQ(m->fit.status(), "ok");
-    EXPECT_NEAR(m->fit.coefficients[0].value, 200, 20);  // c_insert
-    EXPECT_NEAR(m->fit.coefficients[1].value, 300, 30);  // c_remove
-    EXPECT_NEAR(m->fit.coefficients[2].value, 50, 5);    // c_move
+    EXPECT_NEAR(m->fit.coefficients[0].value, 200, 20);    // c_insert
+    EXPECT_NEAR(m->fit.coefficients[1].value, 300, 30);    // c_remove
+    EXPECT_NEAR(m->fit.coefficients[2].value, 50, 5);      // c_move
     EXPECT_NEAR(m->fit.coefficients[3].value, 1000, 150);  // c_frame
 }
 

@@ -11,7 +11,6 @@
 namespace rcb {
 namespace {
 
-
 TEST(GroundTruth, AgreesWithAnIndependentTestOnRandomAndAxisAlignedCases) {
     Random rng(42);
     int checked = 0;
@@ -39,10 +38,10 @@ TEST(GroundTruth, AgreesWithAnIndependentTestOnRandomAndAxisAlignedCases) {
 
 TEST(GroundTruth, ClassifiesTouchesAsEitherWayAndCrossingsAsHits) {
     const Aabbd unit{{0, 0, 0}, {1, 1, 1}};
-    EXPECT_EQ(classify_contact({{-1, 0.5, 0.5}, {2, 0.5, 0.5}}, unit), Contact::hit);    // through the middle
-    EXPECT_EQ(classify_contact({{-1, 1, 0.5}, {2, 1, 0.5}}, unit), Contact::touch);      // along the top face
-    EXPECT_EQ(classify_contact({{-1, 1.5, 0.5}, {2, 1.5, 0.5}}, unit), Contact::miss);   // clearly above
-    EXPECT_EQ(classify_contact({{0.5, 0.5, 0.5}, {0.5, 0.5, 0.5}}, unit), Contact::hit); // a point inside
+    EXPECT_EQ(classify_contact({{-1, 0.5, 0.5}, {2, 0.5, 0.5}}, unit), Contact::hit);     // through the middle
+    EXPECT_EQ(classify_contact({{-1, 1, 0.5}, {2, 1, 0.5}}, unit), Contact::touch);       // along the top face
+    EXPECT_EQ(classify_contact({{-1, 1.5, 0.5}, {2, 1.5, 0.5}}, unit), Contact::miss);    // clearly above
+    EXPECT_EQ(classify_contact({{0.5, 0.5, 0.5}, {0.5, 0.5, 0.5}}, unit), Contact::hit);  // a point inside
     // A flat box crossed squarely must be hit, though it has no interior.
     const Aabbd flat{{0, 0, 0}, {1, 0, 1}};
     EXPECT_EQ(classify_contact({{0.5, -1, 0.5}, {0.5, 1, 0.5}}, flat), Contact::hit);
@@ -63,12 +62,14 @@ TEST(GroundTruth, VerifyCountsMissedExtraAndDuplicateHits) {
 }
 
 TEST(BruteForce, MatchesGroundTruthOnEveryHardScene) {
-    for (const test::NamedScene& s : test::hard_scenes()) test::expect_matches_ground_truth(s.recording, "bf", {}, s.name);
+    for (const test::NamedScene& s : test::hard_scenes())
+        test::expect_matches_ground_truth(s.recording, "bf", {}, s.name);
 }
 
 TEST(BruteForce, ClosestAndAnyHitComeFromTheSameLoop) {
     BruteForce bf;
-    const std::vector<Object> objects{{1, {{4, -1, -1}, {5, 1, 1}}}, {2, {{2, -1, -1}, {3, 1, 1}}}, {3, {{7, 5, 5}, {8, 6, 6}}}};
+    const std::vector<Object> objects{
+        {1, {{4, -1, -1}, {5, 1, 1}}}, {2, {{2, -1, -1}, {3, 1, 1}}}, {3, {{7, 5, 5}, {8, 6, 6}}}};
     bf.build(objects);
     const Segment s{{0, 0, 0}, {10, 0, 0}};
     const auto closest = bf.cast_closest(s);

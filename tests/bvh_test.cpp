@@ -44,12 +44,14 @@ TEST(DynamicBvh, MatchesGroundTruthOnEveryHardSceneWithRandomParams) {
     const auto scenes = test::hard_scenes();
     std::uint64_t seed = 1;
     for (const test::NamedScene& s : scenes)
-        for (const nlohmann::json& p : dbvh_param_sets(seed++)) test::expect_matches_ground_truth(s.recording, "dbvh", p, s.name);
+        for (const nlohmann::json& p : dbvh_param_sets(seed++))
+            test::expect_matches_ground_truth(s.recording, "dbvh", p, s.name);
 }
 
 TEST(LinearBvh, MatchesGroundTruthOnEveryHardScene) {
     for (const test::NamedScene& s : test::hard_scenes())
-        for (int threads : {1, 2}) test::expect_matches_ground_truth(s.recording, "lbvh", {{"threads", threads}}, s.name);
+        for (int threads : {1, 2})
+            test::expect_matches_ground_truth(s.recording, "lbvh", {{"threads", threads}}, s.name);
 }
 
 TEST(DynamicBvh, MatchesGroundTruthOnGeneratedScenes) {
@@ -100,15 +102,16 @@ TEST(Bvh, MatchesGroundTruthOnThePresets) {
 /// 0, 1 and 2 objects, with inserts, moves and removes through those sizes.
 TEST(Bvh, ZeroOneAndTwoObjects) {
     const Aabb a{{0, 0, 0}, {1, 1, 1}}, b{{3, 0, 0}, {4, 1, 1}};
-    const std::vector<Segment> rays{{{-1, 0.5f, 0.5f}, {5, 0.5f, 0.5f}}, {{0.5f, 0.5f, 0.5f}, {0.5f, 0.5f, 0.5f}},
-                                    {{1, 1, 1}, {3, 1, 1}},             {{-1, -1, -1}, {-2, -2, -2}},
-                                    {{3.5f, 2, 0.5f}, {3.5f, -2, 0.5f}}, {{4, 1, 1}, {10, 1, 1}}};
+    const std::vector<Segment> rays{
+        {{-1, 0.5f, 0.5f}, {5, 0.5f, 0.5f}}, {{0.5f, 0.5f, 0.5f}, {0.5f, 0.5f, 0.5f}}, {{1, 1, 1}, {3, 1, 1}},
+        {{-1, -1, -1}, {-2, -2, -2}},        {{3.5f, 2, 0.5f}, {3.5f, -2, 0.5f}},      {{4, 1, 1}, {10, 1, 1}}};
     for (std::size_t initial = 0; initial <= 2; ++initial) {
         Recording r;
         std::vector<Object> all{{10, a}, {20, b}};
         r.initial.assign(all.begin(), all.begin() + std::ptrdiff_t(initial));
         Frame f1;  // move what there is
-        for (const Object& o : r.initial) f1.moves.push_back({o.uid, {o.box.min + Vec3{0.25f, 0, 0}, o.box.max + Vec3{0.25f, 0, 0}}});
+        for (const Object& o : r.initial)
+            f1.moves.push_back({o.uid, {o.box.min + Vec3{0.25f, 0, 0}, o.box.max + Vec3{0.25f, 0, 0}}});
         f1.rays = rays;
         Frame f2;  // remove everything
         for (const Object& o : r.initial) f2.removes.push_back(o.uid);
@@ -120,7 +123,8 @@ TEST(Bvh, ZeroOneAndTwoObjects) {
         f4.removes = {30};
         f4.rays = rays;
         r.frames = {f1, f2, f3, f4};
-        for (const nlohmann::json& p : dbvh_param_sets(initial)) test::expect_matches_ground_truth(r, "dbvh", p, "tiny");
+        for (const nlohmann::json& p : dbvh_param_sets(initial))
+            test::expect_matches_ground_truth(r, "dbvh", p, "tiny");
         for (int threads : {1, 2}) test::expect_matches_ground_truth(r, "lbvh", {{"threads", threads}}, "tiny");
     }
 }
@@ -179,8 +183,10 @@ TEST(DynamicBvh, ChurnOf10000FramesStaysCorrectAndItsSahCostBounded) {
             bf.commit();
             ASSERT_NO_THROW(tree.validate()) << "frame " << frame;
             for (int k = 0; k < 3; ++k) {
-                const Segment ray{{float(rng.uniform(-5, kWorld + 5)), float(rng.uniform(-5, kWorld + 5)), float(rng.uniform(-5, kWorld + 5))},
-                                  {float(rng.uniform(-5, kWorld + 5)), float(rng.uniform(-5, kWorld + 5)), float(rng.uniform(-5, kWorld + 5))}};
+                const Segment ray{{float(rng.uniform(-5, kWorld + 5)), float(rng.uniform(-5, kWorld + 5)),
+                                   float(rng.uniform(-5, kWorld + 5))},
+                                  {float(rng.uniform(-5, kWorld + 5)), float(rng.uniform(-5, kWorld + 5)),
+                                   float(rng.uniform(-5, kWorld + 5))}};
                 ASSERT_EQ(sorted_hits(tree, ray), sorted_hits(bf, ray)) << "frame " << frame << " ray " << k;
             }
             if (frame % 500 == 499 || frame == kFrames - 1) {

@@ -81,26 +81,32 @@ TEST_F(Cli, BadInputIsOneLineAndExitTwo) {
     const std::string scene = path("s.rcbscene");
     ASSERT_EQ(run("scene gen --preset uni-s --frames 1 -o " + scene).code, 0);
     expect_bad_input(run("simulate --scene " + scene + " --structure kdtree"), "unknown structure 'kdtree'");
-    expect_bad_input(run("simulate --scene " + path("missing.rcbscene") + " --structure bf"), "--scene: no such file: " + path("missing.rcbscene"));
-    expect_bad_input(run("simulate --scene " + scene + " --structure bf --param depth=3"), "--param.depth: unknown parameter of bf");
+    expect_bad_input(run("simulate --scene " + path("missing.rcbscene") + " --structure bf"),
+                     "--scene: no such file: " + path("missing.rcbscene"));
+    expect_bad_input(run("simulate --scene " + scene + " --structure bf --param depth=3"),
+                     "--param.depth: unknown parameter of bf");
     expect_bad_input(run("scene gen --preset uni-xxl -o " + path("x")), "--preset: uni-xxl not in {uni-s,");
-    expect_bad_input(run("scene gen --kind cubes --objects 10 -o " + path("x")), "--kind: cubes not in {uniform,irregular,stadium,");
+    expect_bad_input(run("scene gen --kind cubes --objects 10 -o " + path("x")),
+                     "--kind: cubes not in {uniform,irregular,stadium,");
     expect_bad_input(run("scene gen --preset uni-s --ray-mix sideways -o " + path("x")), "unknown mode 'sideways'");
     expect_bad_input(run("scene gen --preset uni-s --frames abc -o " + path("x")), "--frames");
     expect_bad_input(run("simulate --structure bf"), "--scene is required");
     write("corrupt.rcbscene", "RCBSCENE garbage");
     expect_bad_input(run("scene info " + path("corrupt.rcbscene")), "corrupt.rcbscene");
     write("rays.csv", "0,0,0,1,1,nan\n");
-    expect_bad_input(run("cast --scene " + scene + " --rays " + path("rays.csv") + " --structure bf"), "rays.csv:1: non-finite coordinate");
+    expect_bad_input(run("cast --scene " + scene + " --rays " + path("rays.csv") + " --structure bf"),
+                     "rays.csv:1: non-finite coordinate");
     write("boxes.csv", "1,0,0,0,1,1,1\n1,0,0,0,1,1,1\n");
     expect_bad_input(run("scene import " + path("boxes.csv") + " -o " + path("y")), "boxes.csv:2: duplicate uid 1");
 }
 
 TEST_F(Cli, RunQueryCompareRejectBadInputInOneLine) {
     write("bad.json", R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf", "params": {"x": 1}}]})");
-    expect_bad_input(run("run " + path("bad.json") + " --db " + path("r.db")), "bad.json: structures[0].params.x: unknown parameter of bf");
+    expect_bad_input(run("run " + path("bad.json") + " --db " + path("r.db")),
+                     "bad.json: structures[0].params.x: unknown parameter of bf");
     EXPECT_FALSE(fs::exists(path("r.db")));  // nothing written for an invalid file
-    write("ok.json", R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");
+    write("ok.json",
+          R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");
     expect_bad_input(run("run " + path("ok.json") + " --shard 0/3 --db " + path("r.db")), "--shard 0/3: expected K/N");
     expect_bad_input(run("run " + path("missing.json")), "experiment: no such file: " + path("missing.json"));
     ASSERT_EQ(run("run " + path("ok.json") + " --db " + path("r.db")).code, 0);
@@ -108,14 +114,16 @@ TEST_F(Cli, RunQueryCompareRejectBadInputInOneLine) {
     expect_bad_input(run("query " + path("r.db") + " \"SELECT nope FROM cell\""), "r.db: no such column: nope");
     expect_bad_input(run("query " + path("none.db") + " \"SELECT 1\""), "db: no such file: " + path("none.db"));
     expect_bad_input(run("compare " + path("r.db") + " --baseline 1 --candidate 7"), "no run matches '7'");
-    const Outcome csv = run("query --csv " + path("r.db") + " \"SELECT structure, count(*) AS cells FROM cell_summary GROUP BY 1\"");
+    const Outcome csv =
+        run("query --csv " + path("r.db") + " \"SELECT structure, count(*) AS cells FROM cell_summary GROUP BY 1\"");
     EXPECT_EQ(csv.out, "structure,cells\nbf,1\n");
 }
 
 TEST_F(Cli, HelpTellsTheSubcommands) {
     const Outcome help = run("--help");
     EXPECT_EQ(help.code, 0);
-    for (const char* sub : {"scene", "simulate", "cast", "structures", "run", "query", "compare", "merge"}) EXPECT_NE(help.out.find(sub), std::string::npos) << sub;
+    for (const char* sub : {"scene", "simulate", "cast", "structures", "run", "query", "compare", "merge"})
+        EXPECT_NE(help.out.find(sub), std::string::npos) << sub;
     const Outcome structures = run("structures --json");
     EXPECT_EQ(structures.code, 0);
     EXPECT_EQ(nlohmann::json::parse(structures.out)[0]["name"], "bf");
@@ -128,7 +136,8 @@ std::string bytes_of(const std::string& p) {
 }
 
 TEST_F(Cli, AnOutputPathThatIsAnInputOrADirectoryIsRefusedAndNothingIsTouched) {
-    write("ok.json", R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");
+    write("ok.json",
+          R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");
     ASSERT_EQ(run("run " + path("ok.json") + " --db " + path("res.db")).code, 0);
     const std::string db = bytes_of(path("res.db"));
     expect_bad_input(run("report " + path("res.db") + " -o " + path("res.db")), "is also an input");
@@ -142,8 +151,8 @@ TEST_F(Cli, AnOutputPathThatIsAnInputOrADirectoryIsRefusedAndNothingIsTouched) {
     fs::create_directories(path("adir"));
     expect_bad_input(run("report " + path("res.db") + " -o " + path("adir")), "adir: is a directory");
     EXPECT_FALSE(fs::exists(path("adir.tmp")));
-    expect_bad_input(run("tune " + std::string(RCBENCH_SOURCE_DIR) + "/experiments/tune-grids.json --db " + path("t.db") +
-                         " --out-dir /proc/self"),
+    expect_bad_input(run("tune " + std::string(RCBENCH_SOURCE_DIR) + "/experiments/tune-grids.json --db " +
+                         path("t.db") + " --out-dir /proc/self"),
                      "--out-dir /proc/self/tuning-grids.md: cannot write in /proc/self");
     const Outcome full = run("simulate --scene " + path("s.rcbscene") + " --structure bf --json-out /dev/full");
     EXPECT_EQ(full.code, 1);
@@ -153,14 +162,20 @@ TEST_F(Cli, AnOutputPathThatIsAnInputOrADirectoryIsRefusedAndNothingIsTouched) {
 TEST_F(Cli, NumbersOutsideTheirRangeAreRefusedByName) {
     const std::string out = " -o " + path("x.rcbscene");
     expect_bad_input(run("scene gen --preset uni-s --seed -1" + out), "--seed: expected a whole number");
-    expect_bad_input(run("scene gen --preset uni-s --seed 18446744073709551616" + out), "--seed: expected a whole number");
-    expect_bad_input(run("scene gen --preset uni-s --change-fraction nan" + out), "--change-fraction: expected a number in 0..1, got nan");
-    expect_bad_input(run("scene gen --preset uni-s --move-scale nan" + out), "--move-scale: expected a number in 0..1000, got nan");
-    expect_bad_input(run("scene gen --preset uni-s --objects 100000000" + out), "--objects: expected a whole number in 1..67108864");
+    expect_bad_input(run("scene gen --preset uni-s --seed 18446744073709551616" + out),
+                     "--seed: expected a whole number");
+    expect_bad_input(run("scene gen --preset uni-s --change-fraction nan" + out),
+                     "--change-fraction: expected a number in 0..1, got nan");
+    expect_bad_input(run("scene gen --preset uni-s --move-scale nan" + out),
+                     "--move-scale: expected a number in 0..1000, got nan");
+    expect_bad_input(run("scene gen --preset uni-s --objects 100000000" + out),
+                     "--objects: expected a whole number in 1..67108864");
     expect_bad_input(run("scene gen --preset uni-s --rays 100000000" + out), "the scene would take 24 GB");
     EXPECT_FALSE(fs::exists(path("x.rcbscene")));
-    write("ok.json", R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");
-    expect_bad_input(run("run " + path("ok.json") + " --shard 1/18446744073709551616 --db " + path("r.db")), "--shard 1/18446744073709551616");
+    write("ok.json",
+          R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");
+    expect_bad_input(run("run " + path("ok.json") + " --shard 1/18446744073709551616 --db " + path("r.db")),
+                     "--shard 1/18446744073709551616");
     ASSERT_EQ(run("scene gen --preset uni-s --frames 3" + out).code, 0);
     // Warm-up that leaves no measured frame: an error, not a table of 0 ns medians.
     expect_bad_input(run("simulate --scene " + path("x.rcbscene") + " --structure bf --warmup 3"),
@@ -171,9 +186,11 @@ TEST_F(Cli, NumbersOutsideTheirRangeAreRefusedByName) {
 TEST_F(Cli, AFileThatIsNotADatabaseFailsAtOnceNamingIt) {
     write("junk.db", std::string(100000, 'j'));
     const std::string junk = bytes_of(path("junk.db"));
-    write("ok.json", R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");
-    for (const std::string& command : {"fit " + path("junk.db"), "run " + path("ok.json") + " --db " + path("junk.db"),
-                                       "query " + path("junk.db") + " \"SELECT 1\"", "report " + path("junk.db") + " -o " + path("r.html")}) {
+    write("ok.json",
+          R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");
+    for (const std::string& command :
+         {"fit " + path("junk.db"), "run " + path("ok.json") + " --db " + path("junk.db"),
+          "query " + path("junk.db") + " \"SELECT 1\"", "report " + path("junk.db") + " -o " + path("r.html")}) {
         const Outcome r = run(command);
         expect_bad_input(r, "junk.db: damaged or not an SQLite database");
         EXPECT_LT(r.seconds, 10) << command;  // the lock-retry loop used to retry this for 61 s

@@ -75,7 +75,8 @@ TEST(Generators, PresetsHaveTheThesisCounts) {
 
 TEST(Generators, UniformObjectsAreSimilarSizedAndDoNotOverlap) {
     std::vector<Object> objects = generate_objects(preset_settings("uni-l"));
-    std::sort(objects.begin(), objects.end(), [](const Object& a, const Object& b) { return a.box.min.x < b.box.min.x; });
+    std::sort(objects.begin(), objects.end(),
+              [](const Object& a, const Object& b) { return a.box.min.x < b.box.min.x; });
     float smallest = INFINITY, largest = 0;
     for (std::size_t i = 0; i < objects.size(); ++i) {
         smallest = std::min(smallest, objects[i].box.longest_edge());
@@ -92,9 +93,9 @@ TEST(Generators, IrregularScenesAreSkewedClusteredAndNested) {
     std::vector<float> edges;
     for (const Object& o : objects) edges.push_back(o.box.longest_edge());
     std::sort(edges.begin(), edges.end());
-    EXPECT_GE(edges.back() / edges.front(), 1000.0f);                  // three orders of magnitude
-    EXPECT_LT(edges[edges.size() / 2], edges.back() / 100);            // most objects small
-    EXPECT_GT(densest_share(objects), 0.3);                            // crowded into clusters
+    EXPECT_GE(edges.back() / edges.front(), 1000.0f);        // three orders of magnitude
+    EXPECT_LT(edges[edges.size() / 2], edges.back() / 100);  // most objects small
+    EXPECT_GT(densest_share(objects), 0.3);                  // crowded into clusters
     // A few very large objects cover big parts of the scene, and small ones sit inside them.
     const Aabb bounds = bounds_of(objects);
     std::vector<Aabb> large;
@@ -134,7 +135,8 @@ TEST(Generators, RayModesDoWhatTheySay) {
     const std::vector<Object> objects = generate_objects(preset_settings("irreg-s"));
     const Aabb b = bounds_of(objects);
     const Vec3 c = b.center();
-    const float half_diagonal = 0.5f * std::sqrt(b.extent().x * b.extent().x + b.extent().y * b.extent().y + b.extent().z * b.extent().z);
+    const float half_diagonal =
+        0.5f * std::sqrt(b.extent().x * b.extent().x + b.extent().y * b.extent().y + b.extent().z * b.extent().z);
     RaySettings center;
     center.per_frame = 200;
     for (const Segment& s : generate_rays(objects, center, 1, 1)) {

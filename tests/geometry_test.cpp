@@ -12,13 +12,13 @@ namespace {
 const Aabb unit{{0, 0, 0}, {1, 1, 1}};
 
 TEST(Geometry, TouchingAFaceAnEdgeOrACornerCounts) {
-    EXPECT_TRUE(segment_hits_box<float>({{-1, 1, 0.5f}, {2, 1, 0.5f}}, unit));   // along the top face
-    EXPECT_TRUE(segment_hits_box<float>({{-1, 1, 1}, {2, 1, 1}}, unit));         // along an edge
-    EXPECT_TRUE(segment_hits_box<float>({{2, 0, 0}, {1, 1, 1}}, unit));          // ends on a corner
-    EXPECT_TRUE(segment_hits_box<float>({{1, 1, 1}, {2, 2, 2}}, unit));          // starts on a corner
-    EXPECT_TRUE(segment_hits_box<float>({{-1, -1, -1}, {0, 0, 0}}, unit));       // ends on the min corner
+    EXPECT_TRUE(segment_hits_box<float>({{-1, 1, 0.5f}, {2, 1, 0.5f}}, unit));  // along the top face
+    EXPECT_TRUE(segment_hits_box<float>({{-1, 1, 1}, {2, 1, 1}}, unit));        // along an edge
+    EXPECT_TRUE(segment_hits_box<float>({{2, 0, 0}, {1, 1, 1}}, unit));         // ends on a corner
+    EXPECT_TRUE(segment_hits_box<float>({{1, 1, 1}, {2, 2, 2}}, unit));         // starts on a corner
+    EXPECT_TRUE(segment_hits_box<float>({{-1, -1, -1}, {0, 0, 0}}, unit));      // ends on the min corner
     EXPECT_FALSE(segment_hits_box<float>({{-1, 1.001f, 0.5f}, {2, 1.001f, 0.5f}}, unit));
-    EXPECT_FALSE(segment_hits_box<float>({{2, 2, 2}, {3, 3, 3}}, unit));         // the line would, the segment not
+    EXPECT_FALSE(segment_hits_box<float>({{2, 2, 2}, {3, 3, 3}}, unit));  // the line would, the segment not
 }
 
 TEST(Geometry, AxisParallelSegmentsOnFacePlanesAreExact) {
@@ -27,8 +27,8 @@ TEST(Geometry, AxisParallelSegmentsOnFacePlanesAreExact) {
         EXPECT_TRUE(segment_hits_box<float>({{-1, y, 0.5f}, {2, y, 0.5f}}, unit)) << y;
         EXPECT_TRUE(segment_hits_box<float>({{2, y, 0.5f}, {-1, y, 0.5f}}, unit)) << y;  // reversed
     }
-    EXPECT_TRUE(segment_hits_box<float>({{0, 0, -5}, {0, 0, 5}}, unit));     // along an edge line, through
-    EXPECT_FALSE(segment_hits_box<float>({{0, 0, 2}, {0, 0, 5}}, unit));      // along the edge line, past it
+    EXPECT_TRUE(segment_hits_box<float>({{0, 0, -5}, {0, 0, 5}}, unit));  // along an edge line, through
+    EXPECT_FALSE(segment_hits_box<float>({{0, 0, 2}, {0, 0, 5}}, unit));  // along the edge line, past it
     // -0.0 direction components (from -0 minus +0) behave like +0.
     EXPECT_TRUE(segment_hits_box<float>({{0.0f, 0.5f, 0.5f}, {-0.0f, 0.5f, 0.5f}}, unit));
     EXPECT_TRUE(segment_hits_box<float>({{-0.0f, -1, 0.5f}, {0.0f, 2, 0.5f}}, unit));
@@ -53,7 +53,6 @@ TEST(Geometry, ClipReportsTheEntryAndExitParameters) {
     EXPECT_EQ(tn, 0.0f);
 }
 
-
 TEST(Geometry, FloatTestIsExactWhenItsArithmeticIs) {
     // Lattice points and power-of-two (or zero) directions: every t is exact in float, so the
     // float test must agree with the exact one on every touching and axis-parallel case.
@@ -69,9 +68,10 @@ TEST(Geometry, FloatTestIsExactWhenItsArithmeticIs) {
         const Vec3 d{steps[rng.below(9)], steps[rng.below(9)], steps[rng.below(9)]};
         const Segment s{p0, p0 + d};
         const bool want = test::reference_hit({p0.as<double>(), (p0 + d).as<double>()}, b.as<double>());
-        ASSERT_EQ(segment_hits_box(s, b), want) << "segment (" << p0.x << "," << p0.y << "," << p0.z << ")+(" << d.x << ","
-                                                << d.y << "," << d.z << ") box min (" << b.min.x << "," << b.min.y << ","
-                                                << b.min.z << ") max (" << b.max.x << "," << b.max.y << "," << b.max.z << ")";
+        ASSERT_EQ(segment_hits_box(s, b), want)
+            << "segment (" << p0.x << "," << p0.y << "," << p0.z << ")+(" << d.x << "," << d.y << "," << d.z
+            << ") box min (" << b.min.x << "," << b.min.y << "," << b.min.z << ") max (" << b.max.x << "," << b.max.y
+            << "," << b.max.z << ")";
         touching += want;
     }
     EXPECT_GT(touching, 1000);  // the sample really exercised hits

@@ -34,14 +34,16 @@ nlohmann::json random_hg_params(Random& rng) {
 }
 
 TEST(UniformGrid, MatchesGroundTruthOnEveryHardSceneAtDefaults) {
-    for (const test::NamedScene& s : test::hard_scenes()) test::expect_matches_ground_truth(s.recording, "ug", {}, s.name);
+    for (const test::NamedScene& s : test::hard_scenes())
+        test::expect_matches_ground_truth(s.recording, "ug", {}, s.name);
 }
 
 TEST(UniformGrid, MatchesGroundTruthOnEveryHardSceneOverRandomParams) {
     Random rng(301);
     const auto scenes = test::hard_scenes();
     for (int round = 0; round < 4; ++round)
-        for (const test::NamedScene& s : scenes) test::expect_matches_ground_truth(s.recording, "ug", random_ug_params(rng), s.name);
+        for (const test::NamedScene& s : scenes)
+            test::expect_matches_ground_truth(s.recording, "ug", random_ug_params(rng), s.name);
     // The extremes of the range and the thesis' reset mode.
     for (const test::NamedScene& s : scenes) {
         test::expect_matches_ground_truth(s.recording, "ug", {{"density", 0.1}}, s.name);
@@ -52,21 +54,24 @@ TEST(UniformGrid, MatchesGroundTruthOnEveryHardSceneOverRandomParams) {
 TEST(UniformGrid, MatchesGroundTruthOnGeneratedScenes) {
     Random rng(302);
     for (std::uint64_t seed = 1; seed <= 3; ++seed) {
-        test::expect_matches_ground_truth(test::generated_scene("uniform", 2000, 3, seed), "ug", random_ug_params(rng), "uniform");
+        test::expect_matches_ground_truth(test::generated_scene("uniform", 2000, 3, seed), "ug", random_ug_params(rng),
+                                          "uniform");
         test::expect_matches_ground_truth(test::generated_scene("irregular", 2000, 3, seed + 10, 0.2), "ug",
                                           random_ug_params(rng), "irregular");
     }
 }
 
 TEST(HashGrid, MatchesGroundTruthOnEveryHardSceneAtDefaults) {
-    for (const test::NamedScene& s : test::hard_scenes()) test::expect_matches_ground_truth(s.recording, "hg", {}, s.name);
+    for (const test::NamedScene& s : test::hard_scenes())
+        test::expect_matches_ground_truth(s.recording, "hg", {}, s.name);
 }
 
 TEST(HashGrid, MatchesGroundTruthOnEveryHardSceneOverRandomParams) {
     Random rng(303);
     const auto scenes = test::hard_scenes();
     for (int round = 0; round < 6; ++round)
-        for (const test::NamedScene& s : scenes) test::expect_matches_ground_truth(s.recording, "hg", random_hg_params(rng), s.name);
+        for (const test::NamedScene& s : scenes)
+            test::expect_matches_ground_truth(s.recording, "hg", random_hg_params(rng), s.name);
     // Deep and fine: every split path exercised, capacity 1 splits every shared cell.
     for (const test::NamedScene& s : scenes)
         test::expect_matches_ground_truth(
@@ -76,7 +81,8 @@ TEST(HashGrid, MatchesGroundTruthOnEveryHardSceneOverRandomParams) {
 TEST(HashGrid, MatchesGroundTruthOnGeneratedScenes) {
     Random rng(304);
     for (std::uint64_t seed = 1; seed <= 3; ++seed) {
-        test::expect_matches_ground_truth(test::generated_scene("uniform", 2000, 3, seed), "hg", random_hg_params(rng), "uniform");
+        test::expect_matches_ground_truth(test::generated_scene("uniform", 2000, 3, seed), "hg", random_hg_params(rng),
+                                          "uniform");
         test::expect_matches_ground_truth(test::generated_scene("irregular", 2000, 3, seed + 10, 0.2), "hg",
                                           random_hg_params(rng), "irregular");
     }
@@ -87,8 +93,8 @@ TEST(HashGrid, MatchesGroundTruthOnGeneratedScenes) {
 TEST(Grids, LongChurnRunMatchesGroundTruth) {
     const Recording r = test::generated_scene("irregular", 150, 1000, 77, 0.3);
     test::expect_matches_ground_truth(r, "ug", {{"density", 1.0}}, "churn-1000");
-    test::expect_matches_ground_truth(r, "hg", {{"amp", 2.0}, {"max_depth", 3}, {"max_capacity", 2}, {"subdivision", 2}},
-                                      "churn-1000");
+    test::expect_matches_ground_truth(
+        r, "hg", {{"amp", 2.0}, {"max_depth", 3}, {"max_capacity", 2}, {"subdivision", 2}}, "churn-1000");
 }
 
 TEST(Grids, OutOfRangeParametersAreRefusedWithTheRange) {

@@ -125,7 +125,8 @@ std::vector<std::int64_t> six_runs(SyntheticDb& db, std::uint64_t seed,
                 const double base = (scene == "large" ? 3e6 : 4e5) * (structure == "bf" ? 5 : 1);
                 // Drawn in sequence (update, then ray cast): as two arguments of one call, GCC and
                 // clang would draw them in opposite orders and the data would depend on the compiler.
-                const std::vector<double> update = noisy_frames(rng, 2e4 * (update_factor ? update_factor(r, structure) : 1.0), 40);
+                const std::vector<double> update =
+                    noisy_frames(rng, 2e4 * (update_factor ? update_factor(r, structure) : 1.0), 40);
                 const std::vector<double> raycast = noisy_frames(rng, base * factor(r, structure), 40);
                 db.cell(scene, structure, raycast, update);
             }

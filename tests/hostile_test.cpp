@@ -92,27 +92,109 @@ std::string pick(rcb::Random& r, const std::vector<std::string>& list) { return 
 
 /// Numbers at and beyond the edges of what the fields hold (float and double range, integer
 /// widths, negative zero, denormals) and number-like tokens that are not JSON numbers.
-const std::vector<std::string> kExtremeNumbers = {
-    "1e999", "-1e999", "1e308", "-1e308", "1.7976931348623157e308", "-0", "-0.0", "0", "nan", "NaN", "-nan", "inf", "-inf",
-    "Infinity", "-Infinity", "1e20", "-1e20", "3e38", "3.4028235e38", "3.5e38", "-3.5e38", "1e-320", "5e-324", "1e-46",
-    "18446744073709551616", "18446744073709551615", "9223372036854775808", "9223372036854775807", "-9223372036854775809",
-    "-1", "4294967296", "4294967295", "2147483648", "-2147483649", "0.5", "1.5", "0x10", "1e", "--1", ".5", "+1", "01"};
+const std::vector<std::string> kExtremeNumbers = {"1e999",
+                                                  "-1e999",
+                                                  "1e308",
+                                                  "-1e308",
+                                                  "1.7976931348623157e308",
+                                                  "-0",
+                                                  "-0.0",
+                                                  "0",
+                                                  "nan",
+                                                  "NaN",
+                                                  "-nan",
+                                                  "inf",
+                                                  "-inf",
+                                                  "Infinity",
+                                                  "-Infinity",
+                                                  "1e20",
+                                                  "-1e20",
+                                                  "3e38",
+                                                  "3.4028235e38",
+                                                  "3.5e38",
+                                                  "-3.5e38",
+                                                  "1e-320",
+                                                  "5e-324",
+                                                  "1e-46",
+                                                  "18446744073709551616",
+                                                  "18446744073709551615",
+                                                  "9223372036854775808",
+                                                  "9223372036854775807",
+                                                  "-9223372036854775809",
+                                                  "-1",
+                                                  "4294967296",
+                                                  "4294967295",
+                                                  "2147483648",
+                                                  "-2147483649",
+                                                  "0.5",
+                                                  "1.5",
+                                                  "0x10",
+                                                  "1e",
+                                                  "--1",
+                                                  ".5",
+                                                  "+1",
+                                                  "01"};
 
 /// Values of the wrong type, and ranges that are malformed, empty, endless or absurdly long.
-const std::vector<std::string> kWrongTypes = {
-    "true", "false", "null", R"("")", R"("x")", R"("1")", "[]", "{}", "[1]", "[[]]", "[null]", R"({"": 1})",
-    R"({"from": true})", R"({"from": 1})", R"({"from": 1, "to": true, "step": 1})", R"({"from": 1, "to": 0, "step": 1})",
-    R"({"from": 0, "to": 1e9, "step": 1e-9})", R"({"from": 1, "to": 1e308, "times": 1.0000001})",
-    R"({"from": 1, "to": 8, "times": 1})", R"({"from": 1, "to": 8, "times": 0.5})", R"({"from": 1, "to": 8, "times": -2})",
-    R"({"from": -1e308, "to": 1e308, "step": 1e-308})", R"({"from": 1, "to": 2, "step": 0})",
-    R"({"from": 1, "to": 2, "step": 1, "times": 2})", R"({"from": 2, "to": 8, "step": -1})", R"({"from": 0, "to": 8, "times": 2})"};
+const std::vector<std::string> kWrongTypes = {"true",
+                                              "false",
+                                              "null",
+                                              R"("")",
+                                              R"("x")",
+                                              R"("1")",
+                                              "[]",
+                                              "{}",
+                                              "[1]",
+                                              "[[]]",
+                                              "[null]",
+                                              R"({"": 1})",
+                                              R"({"from": true})",
+                                              R"({"from": 1})",
+                                              R"({"from": 1, "to": true, "step": 1})",
+                                              R"({"from": 1, "to": 0, "step": 1})",
+                                              R"({"from": 0, "to": 1e9, "step": 1e-9})",
+                                              R"({"from": 1, "to": 1e308, "times": 1.0000001})",
+                                              R"({"from": 1, "to": 8, "times": 1})",
+                                              R"({"from": 1, "to": 8, "times": 0.5})",
+                                              R"({"from": 1, "to": 8, "times": -2})",
+                                              R"({"from": -1e308, "to": 1e308, "step": 1e-308})",
+                                              R"({"from": 1, "to": 2, "step": 0})",
+                                              R"({"from": 1, "to": 2, "step": 1, "times": 2})",
+                                              R"({"from": 2, "to": 8, "step": -1})",
+                                              R"({"from": 0, "to": 8, "times": 2})"};
 
 /// Strings a path, name or mode field should survive: special files, escapes from the folder,
 /// line breaks and control characters (which would split a one-line error), format directives.
-const std::vector<std::string> kHostileStrings = {
-    "", " ", ".", "..", "/", "/dev/zero", "/dev/stdin", "/proc/self/mem", "/proc/self", "../../../../../../etc/passwd",
-    "../escape", "a/b/c", "a\nb", "a\rb", "\x1b[31mred", "tab\there", "%s%s%n", "x\x01y", "quote\"d", "back\\slash",
-    "uni-s ", "UNI-S", "\xc3\xa9t\xc3\xa9", "center:nan", "center:-1", "center:1e999", "center:0", ":", ",", "center:1,center:1"};
+const std::vector<std::string> kHostileStrings = {"",
+                                                  " ",
+                                                  ".",
+                                                  "..",
+                                                  "/",
+                                                  "/dev/zero",
+                                                  "/dev/stdin",
+                                                  "/proc/self/mem",
+                                                  "/proc/self",
+                                                  "../../../../../../etc/passwd",
+                                                  "../escape",
+                                                  "a/b/c",
+                                                  "a\nb",
+                                                  "a\rb",
+                                                  "\x1b[31mred",
+                                                  "tab\there",
+                                                  "%s%s%n",
+                                                  "x\x01y",
+                                                  "quote\"d",
+                                                  "back\\slash",
+                                                  "uni-s ",
+                                                  "UNI-S",
+                                                  "\xc3\xa9t\xc3\xa9",
+                                                  "center:nan",
+                                                  "center:-1",
+                                                  "center:1e999",
+                                                  "center:0",
+                                                  ":",
+                                                  ",",
+                                                  "center:1,center:1"};
 
 std::string nested(std::size_t depth, bool objects, bool closed) {
     std::string s;
@@ -127,15 +209,34 @@ std::string nested(std::size_t depth, bool objects, bool closed) {
 /// 50 000 levels of nesting, 5 MB strings and numbers, invalid UTF-8: raw JSON text.
 std::string raw_monster(rcb::Random& r, std::string& what) {
     switch (r.below(9)) {
-        case 0: what = "50000 nested arrays"; return nested(50000, false, true);
-        case 1: what = "50000 unclosed ["; return nested(50000, false, false);
-        case 2: what = "50000 nested objects"; return nested(50000, true, true);
-        case 3: what = "5 MB string"; return "\"" + std::string(5'000'000, 'a') + "\"";
-        case 4: what = "5 MB of digits"; return std::string(5'000'000, '9');
-        case 5: what = "0. and 5 MB of zeros"; return "0." + std::string(5'000'000, '0') + "1";
-        case 6: what = "invalid UTF-8 string"; return "\"ab\xff\xfe\xc0\xaf\xed\xa0\x80" "cd\"";
-        case 7: what = "string with NUL escape"; return R"("a\u0000b")";
-        default: what = "unterminated string"; return "\"abc";
+        case 0:
+            what = "50000 nested arrays";
+            return nested(50000, false, true);
+        case 1:
+            what = "50000 unclosed [";
+            return nested(50000, false, false);
+        case 2:
+            what = "50000 nested objects";
+            return nested(50000, true, true);
+        case 3:
+            what = "5 MB string";
+            return "\"" + std::string(5'000'000, 'a') + "\"";
+        case 4:
+            what = "5 MB of digits";
+            return std::string(5'000'000, '9');
+        case 5:
+            what = "0. and 5 MB of zeros";
+            return "0." + std::string(5'000'000, '0') + "1";
+        case 6:
+            what = "invalid UTF-8 string";
+            return "\"ab\xff\xfe\xc0\xaf\xed\xa0\x80"
+                   "cd\"";
+        case 7:
+            what = "string with NUL escape";
+            return R"("a\u0000b")";
+        default:
+            what = "unterminated string";
+            return "\"abc";
     }
 }
 
@@ -155,7 +256,8 @@ Mutant mutate_bytes(const std::string& in, rcb::Random& r) {
             return {s, what, {}};
         }
         case 1: {
-            static const char interesting[] = {'\0', '\xff', '\x7f', '\x80', ' ', '9', '-', '.', 'e', '"', '[', '{', ',', '\n'};
+            static const char interesting[] = {'\0', '\xff', '\x7f', '\x80', ' ', '9', '-',
+                                               '.',  'e',    '"',    '[',    '{', ',', '\n'};
             const std::size_t p = at();
             s[p] = interesting[r.below(sizeof interesting)];
             return {s, "byte " + std::to_string(p) + " set to " + std::to_string(int((unsigned char)s[p])), {}};
@@ -172,15 +274,18 @@ Mutant mutate_bytes(const std::string& in, rcb::Random& r) {
         case 4: {
             const std::size_t p = at(), n = std::min<std::size_t>(1 + r.below(64), s.size() - p), q = at(1);
             s.insert(q, s.substr(p, n));
-            return {s, "copied " + std::to_string(n) + " bytes from " + std::to_string(p) + " to " + std::to_string(q), {}};
+            return {
+                s, "copied " + std::to_string(n) + " bytes from " + std::to_string(p) + " to " + std::to_string(q), {}};
         }
         case 5: {
-            static const std::vector<std::string> bad = {"\xff\xfe", "\xc0\xaf", "\xed\xa0\x80", "\x80", "\xf8\x88\x80\x80\x80"};
+            static const std::vector<std::string> bad = {"\xff\xfe", "\xc0\xaf", "\xed\xa0\x80", "\x80",
+                                                         "\xf8\x88\x80\x80\x80"};
             const std::size_t p = at(1);
             s.insert(p, pick(r, bad));
             return {s, "invalid UTF-8 at " + std::to_string(p), {}};
         }
-        case 6: return {"\xef\xbb\xbf" + s, "UTF-8 byte-order mark", {}};
+        case 6:
+            return {"\xef\xbb\xbf" + s, "UTF-8 byte-order mark", {}};
         case 7: {
             const std::size_t p = at(1);
             s.insert(p, 1, '\0');
@@ -191,7 +296,8 @@ Mutant mutate_bytes(const std::string& in, rcb::Random& r) {
             for (char& c : tail) c = char(r.below(256));
             return {s + tail, "appended " + std::to_string(tail.size()) + " random bytes", {}};
         }
-        case 9: return {"", "empty file", {}};
+        case 9:
+            return {"", "empty file", {}};
         default: {
             const std::size_t p = at(1);
             s.insert(p, std::string(5'000'000, 'A'));
@@ -238,8 +344,10 @@ Mutant mutate_json(const json& doc, rcb::Random& r) {
         what = where + " = " + what;
     } else if (op < 84 && !p.empty()) {
         const json::json_pointer parent = p.parent_pointer();
-        if (d[parent].is_object()) d[parent].erase(p.back());
-        else d[parent].erase(std::stoul(p.back()));
+        if (d[parent].is_object())
+            d[parent].erase(p.back());
+        else
+            d[parent].erase(std::stoul(p.back()));
         what = where + " removed";
     } else if (op < 92 && !p.empty() && d[p.parent_pointer()].is_object()) {
         const std::string alt = r.below(2) ? pick(r, kExtremeNumbers) : pick(r, kWrongTypes);
@@ -283,33 +391,60 @@ Mutant mutate_csv(const std::string& text, rcb::Random& r) {
         case 3: {
             std::vector<std::string> fields;
             std::size_t at = 0;
-            for (std::size_t c; (c = lines[li].find(',', at)) != std::string::npos; at = c + 1) fields.push_back(lines[li].substr(at, c - at));
+            for (std::size_t c; (c = lines[li].find(',', at)) != std::string::npos; at = c + 1)
+                fields.push_back(lines[li].substr(at, c - at));
             fields.push_back(lines[li].substr(at));
             const std::size_t fi = r.below(fields.size());
-            static const std::vector<std::string> extra = {"", " ", " 1", "1 ", "\"1\"", "1,2", "1e", "0x1p3", "1e3", "-",
-                                                           "\t", "1\r", "\xff", "\xef\xbb\xbf" "1"};
+            static const std::vector<std::string> extra = {"",
+                                                           " ",
+                                                           " 1",
+                                                           "1 ",
+                                                           "\"1\"",
+                                                           "1,2",
+                                                           "1e",
+                                                           "0x1p3",
+                                                           "1e3",
+                                                           "-",
+                                                           "\t",
+                                                           "1\r",
+                                                           "\xff",
+                                                           "\xef\xbb\xbf"
+                                                           "1"};
             fields[fi] = r.below(3) ? pick(r, kExtremeNumbers) : pick(r, extra);
             std::string l;
             for (std::size_t i = 0; i < fields.size(); ++i) l += (i ? "," : "") + fields[i];
             lines[li] = l;
-            return {join(), "line " + std::to_string(li + 1) + " field " + std::to_string(fi + 1) + " = " + json(fields[fi]).dump(-1, ' ', false, json::error_handler_t::replace), {}};
+            return {join(),
+                    "line " + std::to_string(li + 1) + " field " + std::to_string(fi + 1) + " = " +
+                        json(fields[fi]).dump(-1, ' ', false, json::error_handler_t::replace),
+                    {}};
         }
-        case 4: lines.insert(lines.begin() + std::ptrdiff_t(li), lines[li]); return {join(), "line " + std::to_string(li + 1) + " duplicated", {}};
-        case 5: lines.erase(lines.begin() + std::ptrdiff_t(li)); return {join(), "line " + std::to_string(li + 1) + " removed", {}};
-        case 6: lines[li] += ",1"; return {join(), "line " + std::to_string(li + 1) + " has an extra column", {}};
+        case 4:
+            lines.insert(lines.begin() + std::ptrdiff_t(li), lines[li]);
+            return {join(), "line " + std::to_string(li + 1) + " duplicated", {}};
+        case 5:
+            lines.erase(lines.begin() + std::ptrdiff_t(li));
+            return {join(), "line " + std::to_string(li + 1) + " removed", {}};
+        case 6:
+            lines[li] += ",1";
+            return {join(), "line " + std::to_string(li + 1) + " has an extra column", {}};
         case 7: {
             const std::size_t c = lines[li].rfind(',');
             if (c != std::string::npos) lines[li].erase(c);
             return {join(), "line " + std::to_string(li + 1) + " lacks its last column", {}};
         }
-        case 8: return {join("\r\n"), "CRLF line ends", {}};
+        case 8:
+            return {join("\r\n"), "CRLF line ends", {}};
         case 9: {
             static const std::vector<std::string> junk = {"", "   ", "# comment", ",,,,,,", "\r", std::string(1, '\0')};
             lines.insert(lines.begin() + std::ptrdiff_t(li), pick(r, junk));
             return {join(), "junk line before line " + std::to_string(li + 1), {}};
         }
-        case 10: lines[li] += std::string(5'000'000, '1'); return {join(), "5 MB line " + std::to_string(li + 1), {}};
-        default: return mutate_bytes(text, r);
+        case 10:
+            lines[li] += std::string(5'000'000, '1');
+            return {join(), "5 MB line " + std::to_string(li + 1), {}};
+        default:
+            return mutate_bytes(text, r);
     }
 }
 
@@ -317,16 +452,40 @@ Mutant mutate_csv(const std::string& text, rcb::Random& r) {
 Mutant mutate_obj(const std::string& text, rcb::Random& r) {
     if (r.below(4) == 0) return mutate_bytes(text, r);
     static const std::vector<std::string> statements = {
-        "mtllib /dev/zero", "mtllib ../../../../../../etc/passwd", "mtllib missing.mtl", "usemtl " + std::string(100000, 'm'),
-        "f 1 2 99999999", "f 0 0 0", "f -99 -98 -97", "f 1", "f 1 2", "f 1/99999/1 2 3", "v 1e39 0 0", "v nan nan nan",
-        "v inf -inf 0", "v 3e38 3e38 3e38\nv -3e38 -3e38 -3e38\nv 3e38 -3e38 0\nf -1 -2 -3", "vt 1e999 0", "vn nan 0 0",
-        "l 1 2", "p 1", "o " + std::string(5'000'000, 'o'), "g", "s off", "v", "f", "curv 0 1 1 2", "#" + std::string(5'000'000, '#')};
+        "mtllib /dev/zero",
+        "mtllib ../../../../../../etc/passwd",
+        "mtllib missing.mtl",
+        "usemtl " + std::string(100000, 'm'),
+        "f 1 2 99999999",
+        "f 0 0 0",
+        "f -99 -98 -97",
+        "f 1",
+        "f 1 2",
+        "f 1/99999/1 2 3",
+        "v 1e39 0 0",
+        "v nan nan nan",
+        "v inf -inf 0",
+        "v 3e38 3e38 3e38\nv -3e38 -3e38 -3e38\nv 3e38 -3e38 0\nf -1 -2 -3",
+        "vt 1e999 0",
+        "vn nan 0 0",
+        "l 1 2",
+        "p 1",
+        "o " + std::string(5'000'000, 'o'),
+        "g",
+        "s off",
+        "v",
+        "f",
+        "curv 0 1 1 2",
+        "#" + std::string(5'000'000, '#')};
     std::string s = text;
     if (r.below(2)) {
         const std::string st = pick(r, statements);
         const std::size_t nl = s.find('\n', r.below(s.size()));
         s.insert(nl == std::string::npos ? s.size() : nl + 1, st + "\n");
-        return {s, "statement " + json(st.substr(0, 60)).dump(-1, ' ', false, json::error_handler_t::replace) + " inserted", {}};
+        return {
+            s,
+            "statement " + json(st.substr(0, 60)).dump(-1, ' ', false, json::error_handler_t::replace) + " inserted",
+            {}};
     }
     // a number token replaced
     std::vector<std::size_t> starts;
@@ -343,9 +502,19 @@ Mutant mutate_obj(const std::string& text, rcb::Random& r) {
 /// ints and floats): a word set to an extreme integer or float, or byte-level damage.
 Mutant mutate_words(const std::string& in, rcb::Random& r) {
     if (r.below(3) == 0 || in.size() < 8) return mutate_bytes(in, r);
-    static const std::uint32_t words[] = {0xffffffffu, 0x7fffffffu, 0x80000000u, 0u, 1u, 0x7f800000u /* inf */, 0x7fc00000u /* nan */,
-                                          0xff800000u, 0x7f7fffffu /* FLT_MAX */, 0x00000001u /* denormal */, 0x80000000u /* -0 */,
-                                          0x10000000u, 0xfffffff0u};
+    static const std::uint32_t words[] = {0xffffffffu,
+                                          0x7fffffffu,
+                                          0x80000000u,
+                                          0u,
+                                          1u,
+                                          0x7f800000u /* inf */,
+                                          0x7fc00000u /* nan */,
+                                          0xff800000u,
+                                          0x7f7fffffu /* FLT_MAX */,
+                                          0x00000001u /* denormal */,
+                                          0x80000000u /* -0 */,
+                                          0x10000000u,
+                                          0xfffffff0u};
     std::string s = in;
     const int n = 1 + int(r.below(3));
     std::string what = "words";
@@ -391,7 +560,8 @@ void put_u64(std::string& b, std::size_t at, std::uint64_t v) {
 void fix_checksums(std::string& b) {
     for (const Section& s : sections(b)) {
         if (s.length > b.size() - s.at - 16) return;
-        put_u32(b, s.at + 12, std::uint32_t(crc32(0, reinterpret_cast<const Bytef*>(b.data() + s.at + 16), uInt(s.length))));
+        put_u32(b, s.at + 12,
+                std::uint32_t(crc32(0, reinterpret_cast<const Bytef*>(b.data() + s.at + 16), uInt(s.length))));
     }
 }
 
@@ -406,7 +576,9 @@ Mutant mutate_framing(const std::string& in, rcb::Random& r) {
             put_u32(b, 8, v);
             return {b, "version " + std::to_string(v), {}};
         }
-        case 1: put_u32(b, 12, 0x04030201u); return {b, "byte-order mark swapped", {}};
+        case 1:
+            put_u32(b, 12, 0x04030201u);
+            return {b, "byte-order mark swapped", {}};
         case 2: {
             static const std::uint64_t lengths[] = {~0ULL, 1ULL << 63, 1ULL << 32, 0};
             const std::uint64_t len = lengths[r.below(std::size(lengths))];
@@ -426,7 +598,10 @@ Mutant mutate_framing(const std::string& in, rcb::Random& r) {
             const std::uint32_t v = counts[r.below(std::size(counts))];
             put_u32(b, s.at + 16 + 4 * field, v);
             fix_checksums(b);
-            return {b, s.tag + " section at " + std::to_string(s.at) + " field " + std::to_string(field) + " = " + std::to_string(v), {}};
+            return {b,
+                    s.tag + " section at " + std::to_string(s.at) + " field " + std::to_string(field) + " = " +
+                        std::to_string(v),
+                    {}};
         }
         case 5: {  // a section repeated
             b.insert(s.at, b.substr(s.at, 16 + std::size_t(s.length)));
@@ -444,7 +619,8 @@ Mutant mutate_framing(const std::string& in, rcb::Random& r) {
             b.replace(s.at, first.size(), second);
             return {b, s.tag + " and " + t.tag + " sections swapped", {}};
         }
-        case 8: return {b + "trailing", "bytes after END", {}};
+        case 8:
+            return {b + "trailing", "bytes after END", {}};
         default: {
             Mutant m = mutate_bytes(in, r);
             fix_checksums(m.bytes);
@@ -459,9 +635,18 @@ Mutant mutate_framing(const std::string& in, rcb::Random& r) {
 /// valid scenes (huge but finite coordinates) that every structure must still cast exactly.
 Mutant mutate_content(const rcb::Recording& base, rcb::Random& r) {
     rcb::Recording rec = base;
-    static const float values[] = {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(),
-                                   -std::numeric_limits<float>::infinity(), -0.0f, 3.4028235e38f, -3.4028235e38f, 1e-45f,
-                                   1e30f, -1e30f, 0.0f, 1.17549435e-38f, 16777217.0f};
+    static const float values[] = {std::numeric_limits<float>::quiet_NaN(),
+                                   std::numeric_limits<float>::infinity(),
+                                   -std::numeric_limits<float>::infinity(),
+                                   -0.0f,
+                                   3.4028235e38f,
+                                   -3.4028235e38f,
+                                   1e-45f,
+                                   1e30f,
+                                   -1e30f,
+                                   0.0f,
+                                   1.17549435e-38f,
+                                   16777217.0f};
     const float v = values[r.below(std::size(values))];
     const int axis = int(r.below(3));
     auto some_frame = [&]() -> rcb::Frame& { return rec.frames[r.below(rec.frames.size())]; };
@@ -488,10 +673,13 @@ Mutant mutate_content(const rcb::Recording& base, rcb::Random& r) {
                 for (rcb::Object& o : f.moves) o.box = {o.box.min * k, o.box.max * k};
                 for (rcb::Segment& s : f.rays) s = {s.p0 * k, s.p1 * k};
             }
-            return {rcb::encode_recording(rec), std::string("every coordinate scaled by ") + (k > 1 ? "1e36" : "1e-36"), {}};
+            return {rcb::encode_recording(rec),
+                    std::string("every coordinate scaled by ") + (k > 1 ? "1e36" : "1e-36"),
+                    {}};
         }
         case 3: {  // a box spanning the whole float range and a ray across it
-            rec.initial[0].box = {{-3.4028235e38f, -3.4028235e38f, -3.4028235e38f}, {3.4028235e38f, 3.4028235e38f, 3.4028235e38f}};
+            rec.initial[0].box = {{-3.4028235e38f, -3.4028235e38f, -3.4028235e38f},
+                                  {3.4028235e38f, 3.4028235e38f, 3.4028235e38f}};
             if (!rec.frames.empty() && !rec.frames[0].rays.empty())
                 rec.frames[0].rays[0] = {{-3.4028235e38f, 0, 0}, {3.4028235e38f, 1, 1}};
             return {rcb::encode_recording(rec), "a box and a ray spanning the float range", {}};
@@ -502,9 +690,15 @@ Mutant mutate_content(const rcb::Recording& base, rcb::Random& r) {
             o.box.max[axis] -= 1;
             return {rcb::encode_recording(rec), "uid " + std::to_string(o.uid) + " box inverted", {}};
         }
-        case 5: rec.initial.push_back(rec.initial[r.below(rec.initial.size())]); return {rcb::encode_recording(rec), "duplicate uid in frame 0", {}};
-        case 6: some_frame().removes.push_back(0xfffffff0u); return {rcb::encode_recording(rec), "remove of an unknown uid", {}};
-        case 7: some_frame().inserts.push_back(rec.initial[0]); return {rcb::encode_recording(rec), "insert of a live uid", {}};
+        case 5:
+            rec.initial.push_back(rec.initial[r.below(rec.initial.size())]);
+            return {rcb::encode_recording(rec), "duplicate uid in frame 0", {}};
+        case 6:
+            some_frame().removes.push_back(0xfffffff0u);
+            return {rcb::encode_recording(rec), "remove of an unknown uid", {}};
+        case 7:
+            some_frame().inserts.push_back(rec.initial[0]);
+            return {rcb::encode_recording(rec), "insert of a live uid", {}};
         case 8: {
             rcb::Frame& f = some_frame();
             f.removes.push_back(rec.initial[0].uid);
@@ -551,7 +745,8 @@ const char* kBoxesCsv =
     "uid,minx,miny,minz,maxx,maxy,maxz\n"
     "10,0,0,0,1,1,1\n11,2,0,0,3,1,1\n12,0,5,0,1,6,1\n13,-4,-4,-4,-3.5,-3,-2\n14,0.5,0.5,0.5,0.5,0.5,0.5\n"
     "15,-10,0,0,10,0.25,0.25\n16,4,4,4,9,9,9\n17,1,1,1,2,2,2\n";
-const char* kRaysCsv = "x0,y0,z0,x1,y1,z1\n-1,0.5,0.5,4,0.5,0.5\n0.5,-1,0.5,0.5,7,0.5\n9,9,9,9,9,9\n-20,0.1,0.1,20,0.1,0.1\n";
+const char* kRaysCsv =
+    "x0,y0,z0,x1,y1,z1\n-1,0.5,0.5,4,0.5,0.5\n0.5,-1,0.5,0.5,7,0.5\n9,9,9,9,9,9\n-20,0.1,0.1,20,0.1,0.1\n";
 const char* kObj =
     "# two objects\no a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\n"
     "o b\nv 2 2 2\nv 3 2 2\nv 2 3 2\nv 2.5 2.5 3\nf 5 6 7\nf 5 6 8\n";
@@ -565,12 +760,21 @@ json gltf() {
         {"asset", {{"version", "2.0"}}},
         {"scene", 0},
         {"scenes", {{{"nodes", {0, 1}}}}},
-        {"nodes", {{{"mesh", 0}, {"translation", {0, 0, 0}}}, {{"mesh", 0}, {"translation", {3, 0, 0}}, {"scale", {1, 2, 1}}}}},
+        {"nodes",
+         {{{"mesh", 0}, {"translation", {0, 0, 0}}}, {{"mesh", 0}, {"translation", {3, 0, 0}}, {"scale", {1, 2, 1}}}}},
         {"meshes", {{{"primitives", {{{"attributes", {{"POSITION", 0}}}, {"indices", 1}, {"mode", 4}}}}}}},
         {"buffers", {{{"byteLength", buf.size()}, {"uri", "data:application/octet-stream;base64," + base64(buf)}}}},
-        {"bufferViews", {{{"buffer", 0}, {"byteOffset", 0}, {"byteLength", 48}}, {{"buffer", 0}, {"byteOffset", 48}, {"byteLength", 12}}}},
+        {"bufferViews",
+         {{{"buffer", 0}, {"byteOffset", 0}, {"byteLength", 48}},
+          {{"buffer", 0}, {"byteOffset", 48}, {"byteLength", 12}}}},
         {"accessors",
-         {{{"bufferView", 0}, {"byteOffset", 0}, {"componentType", 5126}, {"count", 4}, {"type", "VEC3"}, {"min", {0, 0, 0}}, {"max", {1, 1, 1}}},
+         {{{"bufferView", 0},
+           {"byteOffset", 0},
+           {"componentType", 5126},
+           {"count", 4},
+           {"type", "VEC3"},
+           {"min", {0, 0, 0}},
+           {"max", {1, 1, 1}}},
           {{"bufferView", 1}, {"byteOffset", 0}, {"componentType", 5123}, {"count", 6}, {"type", "SCALAR"}}}}};
 }
 
@@ -637,8 +841,10 @@ protected:
 
     void TearDown() override {
         report();
-        if (std::getenv("RCB_HOSTILE_KEEP")) std::cout << "work folders kept in " << root_ << '\n';
-        else fs::remove_all(root_);
+        if (std::getenv("RCB_HOSTILE_KEEP"))
+            std::cout << "work folders kept in " << root_ << '\n';
+        else
+            fs::remove_all(root_);
     }
 
     // --- valid inputs, made on demand in the work folder ---
@@ -667,8 +873,8 @@ protected:
 
     void make_recording() {
         setup_run({"scene", "gen", "--preset", "uni-s", "--frames", "3", "--rays", "16", "--ray-mix",
-                   "center:0.4,los:0.2,ground:0.1,shots:0.1,faces:0.1,dense:0.1", "--change-fraction", "0.1", "--seed", "7", "-o",
-                   "base.rcbscene"},
+                   "center:0.4,los:0.2,ground:0.1,shots:0.1,faces:0.1,dense:0.1", "--change-fraction", "0.1", "--seed",
+                   "7", "-o", "base.rcbscene"},
                   {"base.rcbscene"});
     }
     void make_csvs() {
@@ -706,7 +912,9 @@ protected:
     }
 
     /// A fresh name for a case's own file.
-    std::string fresh(const std::string& stem, const std::string& ext) { return stem + "-" + std::to_string(++serial_) + ext; }
+    std::string fresh(const std::string& stem, const std::string& ext) {
+        return stem + "-" + std::to_string(++serial_) + ext;
+    }
     std::string input(const std::string& stem, const std::string& ext, const std::string& bytes) {
         const std::string name = fresh(stem, ext);
         write_bytes(work_ / name, bytes);
@@ -748,23 +956,27 @@ protected:
     /// The argument as bash takes it, on one line: control characters as $'\n' escapes, long
     /// runs of one character as a command substitution.
     static std::string shown(const std::string& arg) {
-        if (arg.size() <= 200 && std::none_of(arg.begin(), arg.end(), [](char c) { return (unsigned char)c < 0x20 || c == 0x7f; }))
+        if (arg.size() <= 200 &&
+            std::none_of(arg.begin(), arg.end(), [](char c) { return (unsigned char)c < 0x20 || c == 0x7f; }))
             return test::shell_quote(arg);
         if (arg.size() <= 200) {
             std::string q = "$'";
             for (char c : arg) {
                 const unsigned char u = (unsigned char)c;
-                if (c == '\\' || c == '\'') q += std::string("\\") + c;
+                if (c == '\\' || c == '\'')
+                    q += std::string("\\") + c;
                 else if (u < 0x20 || u == 0x7f) {
                     char hex[8];
                     std::snprintf(hex, sizeof hex, "\\x%02x", u);
                     q += hex;
-                } else q += c;
+                } else
+                    q += c;
             }
             return q + "'";
         }
         if (arg.find_first_not_of(arg[0]) == std::string::npos)
-            return "\"$(head -c " + std::to_string(arg.size()) + " /dev/zero | tr '\\0' " + test::shell_quote(std::string(1, arg[0])) + ")\"";
+            return "\"$(head -c " + std::to_string(arg.size()) + " /dev/zero | tr '\\0' " +
+                   test::shell_quote(std::string(1, arg[0])) + ")\"";
         return test::shell_quote(arg.substr(0, 60)) + "...(" + std::to_string(arg.size()) + " bytes)";
     }
     std::string command_line(const std::vector<std::string>& args) const {
@@ -802,20 +1014,27 @@ protected:
         ++tally[r.code == 0 ? 0 : r.code == 2 ? 1 : 2];
 
         std::vector<std::string> problems;
-        if (r.timed_out) problems.push_back("stalls (killed after " + std::to_string(int(time_limit())) + " s)");
-        else if (r.signal) problems.push_back("dies by signal " + std::to_string(r.signal) + " (" + strsignal(r.signal) + ")");
-        else if (r.code == 1) problems.push_back("exits 1");
-        else if (r.code != 0 && r.code != 2) problems.push_back("exits " + std::to_string(r.code));
+        if (r.timed_out)
+            problems.push_back("stalls (killed after " + std::to_string(int(time_limit())) + " s)");
+        else if (r.signal)
+            problems.push_back("dies by signal " + std::to_string(r.signal) + " (" + strsignal(r.signal) + ")");
+        else if (r.code == 1)
+            problems.push_back("exits 1");
+        else if (r.code != 0 && r.code != 2)
+            problems.push_back("exits " + std::to_string(r.code));
         if (!r.timed_out && r.code == 0 && c.bad) problems.push_back("accepts bad input (exit 0)");
         if (r.code == 2) {
             const bool one_line = !r.err.empty() && r.err.back() == '\n' &&
-                                  std::count(r.err.begin(), r.err.end(), '\n') == 1 && r.err.find('\r') == std::string::npos;
+                                  std::count(r.err.begin(), r.err.end(), '\n') == 1 &&
+                                  r.err.find('\r') == std::string::npos;
             if (!one_line) problems.push_back("error is not one line");
             bool named = c.places.empty();
             for (const std::string& p : c.places) named = named || r.err.find(p) != std::string::npos;
             if (!named) {
                 std::string list;
-                for (const std::string& p : c.places) list += (list.empty() ? "" : " or ") + json(p.substr(0, 60)).dump(-1, ' ', false, json::error_handler_t::replace);
+                for (const std::string& p : c.places)
+                    list += (list.empty() ? "" : " or ") +
+                            json(p.substr(0, 60)).dump(-1, ' ', false, json::error_handler_t::replace);
                 problems.push_back("error does not name " + list);
             }
         }
@@ -827,7 +1046,8 @@ protected:
             if (it == after.end()) {
                 problems.push_back("removes " + path);
                 damaged = true;
-            } else if (!e.dir && (it->second.size != e.size || it->second.mtime != e.mtime || it->second.hash != e.hash)) {
+            } else if (!e.dir &&
+                       (it->second.size != e.size || it->second.mtime != e.mtime || it->second.hash != e.hash)) {
                 problems.push_back("changes " + path);
                 damaged = true;
             }
@@ -849,24 +1069,29 @@ protected:
 
         if (problems.empty()) return;
         for (const std::string& f : c.inputs) kept_.insert(f);
-        std::string outcome = r.timed_out ? "killed" : r.signal ? "signal " + std::to_string(r.signal) : "exit " + std::to_string(r.code);
+        std::string outcome = r.timed_out ? "killed"
+                              : r.signal  ? "signal " + std::to_string(r.signal)
+                                          : "exit " + std::to_string(r.code);
         // One line per case in the report: line breaks as '|', other control characters as '?'.
         auto flat = [](std::string t) {
             for (char& ch : t)
-                if (ch == '\n') ch = '|';
-                else if ((unsigned char)ch < 0x20 || ch == 0x7f) ch = '?';
+                if (ch == '\n')
+                    ch = '|';
+                else if ((unsigned char)ch < 0x20 || ch == 0x7f)
+                    ch = '?';
             return t;
         };
         const std::string err = flat(r.err.substr(0, 300)), what = flat(c.what);
-        std::string detail = command_line(c.args) + "\n      [" + what + "] " + outcome + ", " + std::to_string(r.seconds).substr(0, 5) +
-                             " s, stderr: " + err;
+        std::string detail = command_line(c.args) + "\n      [" + what + "] " + outcome + ", " +
+                             std::to_string(r.seconds).substr(0, 5) + " s, stderr: " + err;
         // One kind per problem ("changes x" and "changes y" are one kind: "changes").
         std::set<std::string> kinds;
         for (const std::string& p : problems) {
-            const std::string kind = p.rfind("changes ", 0) == 0 || p.rfind("removes ", 0) == 0 ? "changes or removes a file it was not asked to write"
-                                     : p.rfind("leaves stray", 0) == 0                        ? "leaves a stray file"
-                                     : p.rfind("error does not name", 0) == 0                 ? "error does not name the place"
-                                                                                               : p;
+            const std::string kind = p.rfind("changes ", 0) == 0 || p.rfind("removes ", 0) == 0
+                                         ? "changes or removes a file it was not asked to write"
+                                     : p.rfind("leaves stray", 0) == 0        ? "leaves a stray file"
+                                     : p.rfind("error does not name", 0) == 0 ? "error does not name the place"
+                                                                              : p;
             kinds.insert(kind);
         }
         std::string all;
@@ -880,12 +1105,14 @@ protected:
         for (const auto& [group, t] : outcomes_)
             std::cout << group << ": " << t[0] << " accepted, " << t[1] << " rejected, " << t[2] << " other\n";
         for (const auto& [kind, list] : failures_) {
-            std::string text = kind + ": " + std::to_string(list.size()) + " of " + std::to_string(cases_) + " cases, e.g.\n";
+            std::string text =
+                kind + ": " + std::to_string(list.size()) + " of " + std::to_string(cases_) + " cases, e.g.\n";
             for (std::size_t i = 0; i < list.size() && i < 4; ++i) text += "    " + list[i] + "\n";
             ADD_FAILURE() << text;
         }
         if (!failures_.empty() && !std::getenv("RCB_HOSTILE_KEEP"))
-            std::cout << "(RCB_HOSTILE_KEEP=1 keeps the failing inputs and the whole list in " << root_ << "/failures.txt)\n";
+            std::cout << "(RCB_HOSTILE_KEEP=1 keeps the failing inputs and the whole list in " << root_
+                      << "/failures.txt)\n";
     }
 
     fs::path root_, work_;
@@ -914,14 +1141,26 @@ TEST_F(Hostile, RecordingsForSceneInfoSimulateCastAdvise) {
     rcb::Random r(rcb::mix_seed(1, 1));
     const int n = mutants(150);
     for (int i = 0; i < n; ++i) {
-        const Mutant m = i % 3 == 0 ? mutate_content(rec, r) : i % 3 == 1 ? mutate_framing(good, r) : mutate_bytes(good, r);
+        const Mutant m = i % 3 == 0   ? mutate_content(rec, r)
+                         : i % 3 == 1 ? mutate_framing(good, r)
+                                      : mutate_bytes(good, r);
         const std::string f = input("rec", ".rcbscene", m.bytes);
         std::vector<std::string> places = m.places;
         places.push_back(f);
         const std::string json_out = fresh("sim", ".json");
         check("scene info", {{"scene", "info", "--json", f}, places, {}, {f}, false, m.what});
-        check("simulate", {{"simulate", "--scene", f, "--structure", "all", "--validate", "--json-out", json_out}, places, {json_out}, {f}, false, m.what});
-        check("cast", {{"cast", "--scene", f, "--rays", "rays.csv", "--structure", structure(i)}, places, {}, {f}, false, m.what});
+        check("simulate", {{"simulate", "--scene", f, "--structure", "all", "--validate", "--json-out", json_out},
+                           places,
+                           {json_out},
+                           {f},
+                           false,
+                           m.what});
+        check("cast", {{"cast", "--scene", f, "--rays", "rays.csv", "--structure", structure(i)},
+                       places,
+                       {},
+                       {f},
+                       false,
+                       m.what});
         if (i % 8 == 0)
             check("advise", {{"advise", f, "--repetitions", "1", "--warmup", "0"}, places, {}, {f}, false, m.what});
         check("scene info", {{"scene", "info", f}, places, {}, {f}, false, m.what});
@@ -942,12 +1181,29 @@ TEST_F(Hostile, CsvForImportCastAdvise) {
         places.push_back(f);
         if (boxes) {
             const std::string out = fresh("imported", ".rcbscene");
-            check("scene import csv", {{"scene", "import", f, "--frames", "2", "--rays", "8", "-o", out}, places, {out}, {f}, false, m.what});
-            check("cast", {{"cast", "--scene", f, "--rays", "rays.csv", "--structure", structure(i)}, places, {}, {f}, false, m.what});
+            check(
+                "scene import csv",
+                {{"scene", "import", f, "--frames", "2", "--rays", "8", "-o", out}, places, {out}, {f}, false, m.what});
+            check("cast", {{"cast", "--scene", f, "--rays", "rays.csv", "--structure", structure(i)},
+                           places,
+                           {},
+                           {f},
+                           false,
+                           m.what});
             if (i % 10 == 0) check("advise", {{"advise", f, "--repetitions", "1"}, places, {}, {f}, false, m.what});
         } else {
-            check("cast", {{"cast", "--scene", "base.rcbscene", "--rays", f, "--structure", structure(i)}, places, {}, {f}, false, m.what});
-            check("cast", {{"cast", "--scene", "boxes.csv", "--rays", f, "--structure", structure(i + 3)}, places, {}, {f}, false, m.what});
+            check("cast", {{"cast", "--scene", "base.rcbscene", "--rays", f, "--structure", structure(i)},
+                           places,
+                           {},
+                           {f},
+                           false,
+                           m.what});
+            check("cast", {{"cast", "--scene", "boxes.csv", "--rays", f, "--structure", structure(i + 3)},
+                           places,
+                           {},
+                           {f},
+                           false,
+                           m.what});
         }
         done(f);
     }
@@ -966,7 +1222,7 @@ TEST_F(Hostile, ModelsAndMapsForSceneImport) {
             std::string ext, option;
             std::vector<std::string> modes;
         };
-        const Kind kind = i % 4 == 0 ? Kind{".obj", "--model-mode", {"instances", "triangles"}}
+        const Kind kind = i % 4 == 0   ? Kind{".obj", "--model-mode", {"instances", "triangles"}}
                           : i % 4 == 1 ? Kind{".gltf", "--model-mode", {"instances", "triangles"}}
                           : i % 4 == 2 ? Kind{".bsp", "--bsp-mode", {"brushes", "triangles"}}
                                        : Kind{i % 8 == 3 ? ".pk3" : ".bsp", "--bsp-mode", {"brushes", "triangles"}};
@@ -979,8 +1235,13 @@ TEST_F(Hostile, ModelsAndMapsForSceneImport) {
         places.push_back(f);
         for (const std::string& mode : kind.modes) {
             const std::string out = fresh("imported", ".rcbscene");
-            check("scene import " + kind.ext.substr(1), {{"scene", "import", f, kind.option, mode, "--frames", "1", "--rays", "8", "-o", out},
-                                                         places, {out}, {f}, false, m.what});
+            check("scene import " + kind.ext.substr(1),
+                  {{"scene", "import", f, kind.option, mode, "--frames", "1", "--rays", "8", "-o", out},
+                   places,
+                   {out},
+                   {f},
+                   false,
+                   m.what});
         }
         done(f);
     }
@@ -1034,8 +1295,13 @@ TEST_F(Hostile, TuningResultsForAdvise) {
         const std::string f = input("tuning", ".json", m.bytes);
         std::vector<std::string> places = m.places;
         places.push_back(f);
-        check("advise --tuning", {{"advise", "base.rcbscene", "--tuning", f, "--category", "tiny", "--repetitions", "1"}, places, {}, {f}, false,
-                                  m.what});
+        check("advise --tuning",
+              {{"advise", "base.rcbscene", "--tuning", f, "--category", "tiny", "--repetitions", "1"},
+               places,
+               {},
+               {f},
+               false,
+               m.what});
         done(f);
     }
 }
@@ -1112,12 +1378,14 @@ TEST_F(Hostile, DatabasesForQueryCompareMergeFitReport) {
                 // SQLite itself refuses some damage (NOT NULL, UNIQUE): such a file cannot exist.
                 const std::string why = e.what();
                 if (why.find("constraint failed") == std::string::npos)
-                    ADD_FAILURE() << "could not apply " << sql[k].substr(0, 80) << ": " << why;  // the schema changed: update the list
+                    ADD_FAILURE() << "could not apply " << sql[k].substr(0, 80) << ": "
+                                  << why;  // the schema changed: update the list
                 continue;
             }
             bytes = read_bytes(tmp);
             fs::remove(tmp);
-            what = sql[k].size() > 120 ? sql[k].substr(0, 100) + "...(" + std::to_string(sql[k].size()) + " bytes)" : sql[k];
+            what = sql[k].size() > 120 ? sql[k].substr(0, 100) + "...(" + std::to_string(sql[k].size()) + " bytes)"
+                                       : sql[k];
         } else {
             Mutant m;
             switch (r.below(4)) {
@@ -1137,11 +1405,13 @@ TEST_F(Hostile, DatabasesForQueryCompareMergeFitReport) {
                 case 2: {  // a page zeroed
                     m.bytes = good;
                     const std::size_t page = r.below(good.size() / 4096);
-                    std::fill(m.bytes.begin() + std::ptrdiff_t(page * 4096), m.bytes.begin() + std::ptrdiff_t(page * 4096 + 4096), '\0');
+                    std::fill(m.bytes.begin() + std::ptrdiff_t(page * 4096),
+                              m.bytes.begin() + std::ptrdiff_t(page * 4096 + 4096), '\0');
                     m.what = "page " + std::to_string(page) + " zeroed";
                     break;
                 }
-                default: m = mutate_bytes(good, r);
+                default:
+                    m = mutate_bytes(good, r);
             }
             bytes = m.bytes;
             what = m.what;
@@ -1152,7 +1422,12 @@ TEST_F(Hostile, DatabasesForQueryCompareMergeFitReport) {
         const std::vector<std::string> places{f}, content_places{f, "run ", "runs "};
         check("query", {{"query", f, "SELECT * FROM cell_summary"}, {f, "query"}, {}, {f}, false, what});
         check("query", {{"query", "--csv", f, "SELECT * FROM frame"}, {f, "query"}, {}, {f}, false, what});
-        check("compare", {{"compare", f, "--baseline", "1", "--candidate", "2"}, {f, "run ", "runs ", "--baseline", "--candidate"}, {}, {f}, false, what});
+        check("compare", {{"compare", f, "--baseline", "1", "--candidate", "2"},
+                          {f, "run ", "runs ", "--baseline", "--candidate"},
+                          {},
+                          {f},
+                          false,
+                          what});
         check("merge", {{"merge", out, f}, places, {out}, {f}, false, what});
         if (i < n_sql || i % 2 == 0)  // gnuplot makes a report the slowest command here
             check("report", {{"report", f, "-o", html}, content_places, {html}, {f}, false, what});
@@ -1179,131 +1454,502 @@ TEST_F(Hostile, ArgumentsOfSceneCommands) {
     };
     std::vector<Case> cases = {
         {gen({"--seed", "-1", "-o", "g.rcbscene"}), {"--seed"}, {"g.rcbscene"}, {}, false, "negative seed"},
-        {gen({"--seed", "18446744073709551616", "-o", "g.rcbscene"}), {"--seed"}, {"g.rcbscene"}, {}, true, "seed 2^64"},
-        {gen({"--seed", "18446744073709551615", "-o", "g.rcbscene"}), {"--seed"}, {"g.rcbscene"}, {}, false, "seed 2^64-1"},
+        {gen({"--seed", "18446744073709551616", "-o", "g.rcbscene"}),
+         {"--seed"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "seed 2^64"},
+        {gen({"--seed", "18446744073709551615", "-o", "g.rcbscene"}),
+         {"--seed"},
+         {"g.rcbscene"},
+         {},
+         false,
+         "seed 2^64-1"},
         {gen({"--seed", "1e3", "-o", "g.rcbscene"}), {"--seed"}, {"g.rcbscene"}, {}, false, "seed 1e3"},
         {gen({"--seed", "", "-o", "g.rcbscene"}), {"--seed"}, {"g.rcbscene"}, {}, true, "empty seed"},
         {gen({"--seed", big, "-o", "g.rcbscene"}), {"--seed"}, {"g.rcbscene"}, {}, true, "128 KB seed"},
-        {{"scene", "gen", "--preset", "uni-s", "--frames", "-1", "-o", "g.rcbscene"}, {"--frames"}, {"g.rcbscene"}, {}, true, "frames -1"},
-        {{"scene", "gen", "--preset", "uni-s", "--frames", "4294967296", "-o", "g.rcbscene"}, {"--frames"}, {"g.rcbscene"}, {}, true, "frames 2^32"},
-        {{"scene", "gen", "--preset", "uni-s", "--rays", "100000000", "-o", "g.rcbscene"}, {"--rays", "rays"}, {"g.rcbscene"}, {}, true,
+        {{"scene", "gen", "--preset", "uni-s", "--frames", "-1", "-o", "g.rcbscene"},
+         {"--frames"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "frames -1"},
+        {{"scene", "gen", "--preset", "uni-s", "--frames", "4294967296", "-o", "g.rcbscene"},
+         {"--frames"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "frames 2^32"},
+        {{"scene", "gen", "--preset", "uni-s", "--rays", "100000000", "-o", "g.rcbscene"},
+         {"--rays", "rays"},
+         {"g.rcbscene"},
+         {},
+         true,
          "10 frames of 10^8 rays"},
-        {{"scene", "gen", "--preset", "uni-s", "--rays", "-1", "-o", "g.rcbscene"}, {"--rays"}, {"g.rcbscene"}, {}, true, "rays -1"},
-        {{"scene", "gen", "--preset", "uni-s", "--rays", "4294967296", "-o", "g.rcbscene"}, {"--rays"}, {"g.rcbscene"}, {}, true, "rays 2^32"},
-        {{"scene", "gen", "--kind", "irregular", "--objects", "100000000", "-o", "g.rcbscene"}, {"--objects", "objects"}, {"g.rcbscene"}, {}, true,
+        {{"scene", "gen", "--preset", "uni-s", "--rays", "-1", "-o", "g.rcbscene"},
+         {"--rays"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "rays -1"},
+        {{"scene", "gen", "--preset", "uni-s", "--rays", "4294967296", "-o", "g.rcbscene"},
+         {"--rays"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "rays 2^32"},
+        {{"scene", "gen", "--kind", "irregular", "--objects", "100000000", "-o", "g.rcbscene"},
+         {"--objects", "objects"},
+         {"g.rcbscene"},
+         {},
+         true,
          "10^8 objects"},
-        {{"scene", "gen", "--kind", "uniform", "--objects", "0", "-o", "g.rcbscene"}, {"--objects"}, {"g.rcbscene"}, {}, true, "0 objects"},
-        {{"scene", "gen", "--kind", "uniform", "--objects", "-5", "-o", "g.rcbscene"}, {"--objects"}, {"g.rcbscene"}, {}, true, "-5 objects"},
-        {gen({"--change-fraction", "nan", "-o", "g.rcbscene"}), {"--change-fraction"}, {"g.rcbscene"}, {}, true, "change fraction nan"},
-        {gen({"--change-fraction", "inf", "-o", "g.rcbscene"}), {"--change-fraction"}, {"g.rcbscene"}, {}, true, "change fraction inf"},
-        {gen({"--change-fraction", "-0", "-o", "g.rcbscene"}), {"--change-fraction"}, {"g.rcbscene"}, {}, false, "change fraction -0"},
-        {gen({"--change-fraction", "1e-320", "-o", "g.rcbscene"}), {"--change-fraction"}, {"g.rcbscene"}, {}, false, "change fraction denormal"},
-        {gen({"--change-fraction", "1.0000001", "-o", "g.rcbscene"}), {"--change-fraction"}, {"g.rcbscene"}, {}, true, "change fraction > 1"},
-        {gen({"--insert-share", "nan", "-o", "g.rcbscene"}), {"--insert-share"}, {"g.rcbscene"}, {}, true, "insert share nan"},
-        {gen({"--remove-share", "nan", "-o", "g.rcbscene"}), {"--remove-share"}, {"g.rcbscene"}, {}, true, "remove share nan"},
-        {gen({"--insert-share", "0.6", "--remove-share", "0.6", "-o", "g.rcbscene"}), {"--insert-share", "--remove-share"}, {"g.rcbscene"}, {}, true,
+        {{"scene", "gen", "--kind", "uniform", "--objects", "0", "-o", "g.rcbscene"},
+         {"--objects"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "0 objects"},
+        {{"scene", "gen", "--kind", "uniform", "--objects", "-5", "-o", "g.rcbscene"},
+         {"--objects"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "-5 objects"},
+        {gen({"--change-fraction", "nan", "-o", "g.rcbscene"}),
+         {"--change-fraction"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "change fraction nan"},
+        {gen({"--change-fraction", "inf", "-o", "g.rcbscene"}),
+         {"--change-fraction"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "change fraction inf"},
+        {gen({"--change-fraction", "-0", "-o", "g.rcbscene"}),
+         {"--change-fraction"},
+         {"g.rcbscene"},
+         {},
+         false,
+         "change fraction -0"},
+        {gen({"--change-fraction", "1e-320", "-o", "g.rcbscene"}),
+         {"--change-fraction"},
+         {"g.rcbscene"},
+         {},
+         false,
+         "change fraction denormal"},
+        {gen({"--change-fraction", "1.0000001", "-o", "g.rcbscene"}),
+         {"--change-fraction"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "change fraction > 1"},
+        {gen({"--insert-share", "nan", "-o", "g.rcbscene"}),
+         {"--insert-share"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "insert share nan"},
+        {gen({"--remove-share", "nan", "-o", "g.rcbscene"}),
+         {"--remove-share"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "remove share nan"},
+        {gen({"--insert-share", "0.6", "--remove-share", "0.6", "-o", "g.rcbscene"}),
+         {"--insert-share", "--remove-share"},
+         {"g.rcbscene"},
+         {},
+         true,
          "shares over 1"},
-        {gen({"--move-scale", "nan", "-o", "g.rcbscene"}), {"--move-scale"}, {"g.rcbscene"}, {}, true, "move scale nan"},
-        {gen({"--move-scale", "1e308", "-o", "g.rcbscene"}), {"--move-scale"}, {"g.rcbscene"}, {}, true, "move scale 1e308"},
-        {gen({"--move-scale", "1000", "--change-fraction", "1", "-o", "g.rcbscene"}), {"--move-scale"}, {"g.rcbscene"}, {}, false, "move scale 1000"},
-        {gen({"--ray-mix", "center:nan", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix", "center:nan"}, {"g.rcbscene"}, {}, true, "ray weight nan"},
-        {gen({"--ray-mix", "center:1e999", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix", "center:1e999"}, {"g.rcbscene"}, {}, true, "ray weight 1e999"},
-        {gen({"--ray-mix", "center:-1", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix", "center:-1"}, {"g.rcbscene"}, {}, true, "ray weight -1"},
-        {gen({"--ray-mix", "center:0", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix", "center:0"}, {"g.rcbscene"}, {}, true, "all ray weights 0"},
-        {gen({"--ray-mix", "center:1e-320,los:1e-320", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix"}, {"g.rcbscene"}, {}, false, "denormal ray weights"},
-        {gen({"--ray-mix", "", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix"}, {"g.rcbscene"}, {}, true, "empty ray mix"},
-        {gen({"--ray-mix", ":", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix"}, {"g.rcbscene"}, {}, true, "ray mix ':'"},
-        {gen({"--ray-mix", "center:", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix", "center:"}, {"g.rcbscene"}, {}, true, "ray mix without weight"},
-        {gen({"--ray-mix", "center\nlos", "-o", "g.rcbscene"}), {"--ray-mix", "ray mix"}, {"g.rcbscene"}, {}, true, "ray mix with a newline"},
-        {gen({"--ray-mix", big, "-o", "g.rcbscene"}), {"--ray-mix", "ray mix"}, {"g.rcbscene"}, {}, true, "128 KB ray mix"},
+        {gen({"--move-scale", "nan", "-o", "g.rcbscene"}),
+         {"--move-scale"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "move scale nan"},
+        {gen({"--move-scale", "1e308", "-o", "g.rcbscene"}),
+         {"--move-scale"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "move scale 1e308"},
+        {gen({"--move-scale", "1000", "--change-fraction", "1", "-o", "g.rcbscene"}),
+         {"--move-scale"},
+         {"g.rcbscene"},
+         {},
+         false,
+         "move scale 1000"},
+        {gen({"--ray-mix", "center:nan", "-o", "g.rcbscene"}),
+         {"--ray-mix", "ray mix", "center:nan"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "ray weight nan"},
+        {gen({"--ray-mix", "center:1e999", "-o", "g.rcbscene"}),
+         {"--ray-mix", "ray mix", "center:1e999"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "ray weight 1e999"},
+        {gen({"--ray-mix", "center:-1", "-o", "g.rcbscene"}),
+         {"--ray-mix", "ray mix", "center:-1"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "ray weight -1"},
+        {gen({"--ray-mix", "center:0", "-o", "g.rcbscene"}),
+         {"--ray-mix", "ray mix", "center:0"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "all ray weights 0"},
+        {gen({"--ray-mix", "center:1e-320,los:1e-320", "-o", "g.rcbscene"}),
+         {"--ray-mix", "ray mix"},
+         {"g.rcbscene"},
+         {},
+         false,
+         "denormal ray weights"},
+        {gen({"--ray-mix", "", "-o", "g.rcbscene"}),
+         {"--ray-mix", "ray mix"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "empty ray mix"},
+        {gen({"--ray-mix", ":", "-o", "g.rcbscene"}),
+         {"--ray-mix", "ray mix"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "ray mix ':'"},
+        {gen({"--ray-mix", "center:", "-o", "g.rcbscene"}),
+         {"--ray-mix", "ray mix", "center:"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "ray mix without weight"},
+        {gen({"--ray-mix", "center\nlos", "-o", "g.rcbscene"}),
+         {"--ray-mix", "ray mix"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "ray mix with a newline"},
+        {gen({"--ray-mix", big, "-o", "g.rcbscene"}),
+         {"--ray-mix", "ray mix"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "128 KB ray mix"},
         {{"scene", "gen", "--preset", "", "-o", "g.rcbscene"}, {"--preset"}, {"g.rcbscene"}, {}, true, "empty preset"},
-        {{"scene", "gen", "--kind", "", "--objects", "5", "-o", "g.rcbscene"}, {"--kind"}, {"g.rcbscene"}, {}, true, "empty kind"},
+        {{"scene", "gen", "--kind", "", "--objects", "5", "-o", "g.rcbscene"},
+         {"--kind"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "empty kind"},
         {gen({"-o", ""}), {"-o", "--output"}, {}, {}, true, "empty output"},
         {gen({"-o", "adir"}), {"-o", "--output", "adir"}, {}, {}, true, "output is a folder"},
-        {gen({"-o", "/proc/self/x.rcbscene"}), {"-o", "--output", "/proc/self/x.rcbscene"}, {}, {}, true, "output in /proc/self"},
+        {gen({"-o", "/proc/self/x.rcbscene"}),
+         {"-o", "--output", "/proc/self/x.rcbscene"},
+         {},
+         {},
+         true,
+         "output in /proc/self"},
         {gen({"-o", long_name}), {"-o", "--output", long_name.substr(0, 50)}, {}, {}, true, "5000-byte output name"},
         {gen({"-o", "base.rcbscene/x"}), {"-o", "--output", "base.rcbscene"}, {}, {}, true, "output under a file"},
         // import
-        {{"scene", "import", "boxes.csv", "-o", "boxes.csv"}, {"-o", "--output", "boxes.csv"}, {}, {}, true, "import output = input"},
-        {{"scene", "import", "tiny.bsp", "-o", "tiny.bsp"}, {"-o", "--output", "tiny.bsp"}, {}, {}, true, "import output = input (bsp)"},
-        {{"scene", "import", "./boxes.csv", "-o", "boxes.csv"}, {"-o", "--output", "boxes.csv"}, {}, {}, true, "import output = input, other spelling"},
-        {{"scene", "import", "boxes.csv", "-o", "adir"}, {"-o", "--output", "adir"}, {}, {}, true, "import output is a folder"},
-        {{"scene", "import", "boxes.csv", "--frames", "100", "--rays", "100000000", "-o", "i.rcbscene"}, {"--rays", "rays"}, {"i.rcbscene"}, {}, true,
+        {{"scene", "import", "boxes.csv", "-o", "boxes.csv"},
+         {"-o", "--output", "boxes.csv"},
+         {},
+         {},
+         true,
+         "import output = input"},
+        {{"scene", "import", "tiny.bsp", "-o", "tiny.bsp"},
+         {"-o", "--output", "tiny.bsp"},
+         {},
+         {},
+         true,
+         "import output = input (bsp)"},
+        {{"scene", "import", "./boxes.csv", "-o", "boxes.csv"},
+         {"-o", "--output", "boxes.csv"},
+         {},
+         {},
+         true,
+         "import output = input, other spelling"},
+        {{"scene", "import", "boxes.csv", "-o", "adir"},
+         {"-o", "--output", "adir"},
+         {},
+         {},
+         true,
+         "import output is a folder"},
+        {{"scene", "import", "boxes.csv", "--frames", "100", "--rays", "100000000", "-o", "i.rcbscene"},
+         {"--rays", "rays"},
+         {"i.rcbscene"},
+         {},
+         true,
          "import 100 frames of 10^8 rays"},
-        {{"scene", "import", "boxes.csv", "--change-fraction", "nan", "-o", "i.rcbscene"}, {"--change-fraction"}, {"i.rcbscene"}, {}, true,
+        {{"scene", "import", "boxes.csv", "--change-fraction", "nan", "-o", "i.rcbscene"},
+         {"--change-fraction"},
+         {"i.rcbscene"},
+         {},
+         true,
          "import change fraction nan"},
-        {{"scene", "import", "base.rcbscene", "-o", "i.rcbscene"}, {"base.rcbscene"}, {"i.rcbscene"}, {}, true, "import a recording"},
-        {{"scene", "import", "/dev/zero", "-o", "i.rcbscene"}, {"/dev/zero"}, {"i.rcbscene"}, {}, true, "import /dev/zero"},
+        {{"scene", "import", "base.rcbscene", "-o", "i.rcbscene"},
+         {"base.rcbscene"},
+         {"i.rcbscene"},
+         {},
+         true,
+         "import a recording"},
+        {{"scene", "import", "/dev/zero", "-o", "i.rcbscene"},
+         {"/dev/zero"},
+         {"i.rcbscene"},
+         {},
+         true,
+         "import /dev/zero"},
         {{"scene", "import", "adir", "-o", "i.rcbscene"}, {"adir"}, {"i.rcbscene"}, {}, true, "import a folder"},
-        {{"scene", "import", "", "-o", "i.rcbscene"}, {"input", "''"}, {"i.rcbscene"}, {}, true, "import an empty path"},
-        {{"scene", "import", "tiny.bsp", "--map", "../../../etc/passwd", "-o", "i.rcbscene"}, {"--map", "tiny.bsp"}, {"i.rcbscene"}, {}, false,
+        {{"scene", "import", "", "-o", "i.rcbscene"},
+         {"input", "''"},
+         {"i.rcbscene"},
+         {},
+         true,
+         "import an empty path"},
+        {{"scene", "import", "tiny.bsp", "--map", "../../../etc/passwd", "-o", "i.rcbscene"},
+         {"--map", "tiny.bsp"},
+         {"i.rcbscene"},
+         {},
+         false,
          "--map on a .bsp"},
         // info, simulate, cast
         {{"scene", "info", "adir"}, {"adir"}, {}, {}, true, "info on a folder"},
         {{"scene", "info", "/dev/zero"}, {"/dev/zero"}, {}, {}, true, "info on /dev/zero"},
         {{"scene", "info", "boxes.csv"}, {"boxes.csv"}, {}, {}, true, "info on a CSV"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--warmup", "3"}, {"--warmup", "warm-up"}, {}, {}, true, "warmup = frames"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--warmup", "2", "--frames", "2"}, {"--warmup", "warm-up"}, {}, {}, true,
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--warmup", "3"},
+         {"--warmup", "warm-up"},
+         {},
+         {},
+         true,
+         "warmup = frames"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--warmup", "2", "--frames", "2"},
+         {"--warmup", "warm-up"},
+         {},
+         {},
+         true,
          "warmup = --frames"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--warmup", "18446744073709551616"}, {"--warmup", "warm-up"}, {}, {}, true, "warmup 2^64"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--frames", "-1"}, {"--frames"}, {}, {}, true, "frames -1"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--frames", "18446744073709551616"}, {"--frames"}, {}, {}, true, "frames 2^64"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", ""}, {"--structure", "structure"}, {}, {}, true, "empty structure"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "all", "--param", "density=2"}, {"--param"}, {}, {}, true, "param with all"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "ug", "--param", "density=nan"}, {"--param", "density"}, {}, {}, true, "density nan"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "ug", "--param", "density=1e999"}, {"--param", "density"}, {}, {}, true, "density 1e999"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "ug", "--param", "density=1e-320"}, {"--param", "density"}, {}, {}, true,
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--warmup", "18446744073709551616"},
+         {"--warmup", "warm-up"},
+         {},
+         {},
+         true,
+         "warmup 2^64"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--frames", "-1"},
+         {"--frames"},
+         {},
+         {},
+         true,
+         "frames -1"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--frames", "18446744073709551616"},
+         {"--frames"},
+         {},
+         {},
+         true,
+         "frames 2^64"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", ""},
+         {"--structure", "structure"},
+         {},
+         {},
+         true,
+         "empty structure"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "all", "--param", "density=2"},
+         {"--param"},
+         {},
+         {},
+         true,
+         "param with all"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "ug", "--param", "density=nan"},
+         {"--param", "density"},
+         {},
+         {},
+         true,
+         "density nan"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "ug", "--param", "density=1e999"},
+         {"--param", "density"},
+         {},
+         {},
+         true,
+         "density 1e999"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "ug", "--param", "density=1e-320"},
+         {"--param", "density"},
+         {},
+         {},
+         true,
          "density denormal"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "hg", "--param", "max_depth=18446744073709551616"}, {"--param", "max_depth"}, {}, {}, true,
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "hg", "--param", "max_depth=18446744073709551616"},
+         {"--param", "max_depth"},
+         {},
+         {},
+         true,
          "max_depth 2^64"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "hg", "--param", "max_capacity=-1"}, {"--param", "max_capacity"}, {}, {}, true,
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "hg", "--param", "max_capacity=-1"},
+         {"--param", "max_capacity"},
+         {},
+         {},
+         true,
          "max_capacity -1"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "hg", "--param", "max_capacity=4294967296"}, {"--param", "max_capacity"}, {}, {},
-         true, "max_capacity 2^32"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "ug", "--param", "density"}, {"--param", "density"}, {}, {}, true, "param without ="},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "ug", "--param", "=1"}, {"--param"}, {}, {}, true, "param without name"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "ug", "--param", "density="}, {"--param", "density"}, {}, {}, true, "param without value"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "dbvh", "--param", "mode=" + big}, {"--param", "mode"}, {}, {}, true, "128 KB mode"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--json-out", "base.rcbscene"}, {"--json-out", "base.rcbscene"}, {}, {}, true,
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "hg", "--param", "max_capacity=4294967296"},
+         {"--param", "max_capacity"},
+         {},
+         {},
+         true,
+         "max_capacity 2^32"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "ug", "--param", "density"},
+         {"--param", "density"},
+         {},
+         {},
+         true,
+         "param without ="},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "ug", "--param", "=1"},
+         {"--param"},
+         {},
+         {},
+         true,
+         "param without name"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "ug", "--param", "density="},
+         {"--param", "density"},
+         {},
+         {},
+         true,
+         "param without value"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "dbvh", "--param", "mode=" + big},
+         {"--param", "mode"},
+         {},
+         {},
+         true,
+         "128 KB mode"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--json-out", "base.rcbscene"},
+         {"--json-out", "base.rcbscene"},
+         {},
+         {},
+         true,
          "--json-out = the scene"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--json-out", "./base.rcbscene"}, {"--json-out", "base.rcbscene"}, {}, {}, true,
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--json-out", "./base.rcbscene"},
+         {"--json-out", "base.rcbscene"},
+         {},
+         {},
+         true,
          "--json-out = the scene, other spelling"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--json-out", "adir"}, {"--json-out", "adir"}, {}, {}, true,
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--json-out", "adir"},
+         {"--json-out", "adir"},
+         {},
+         {},
+         true,
          "--json-out is a folder"},
-        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--json-out", "/proc/self/x.json"}, {"--json-out", "/proc/self/x.json"}, {}, {},
-         true, "--json-out in /proc/self"},
+        {{"simulate", "--scene", "base.rcbscene", "--structure", "bf", "--json-out", "/proc/self/x.json"},
+         {"--json-out", "/proc/self/x.json"},
+         {},
+         {},
+         true,
+         "--json-out in /proc/self"},
         {{"simulate", "--scene", "adir", "--structure", "bf"}, {"adir"}, {}, {}, true, "scene is a folder"},
         {{"simulate", "--scene", "/dev/zero", "--structure", "bf"}, {"/dev/zero"}, {}, {}, true, "scene /dev/zero"},
         {{"simulate", "--scene", "", "--structure", "bf"}, {"--scene", "''"}, {}, {}, true, "empty scene path"},
-        {{"cast", "--scene", "boxes.csv", "--rays", "boxes.csv", "--structure", "bf"}, {"boxes.csv"}, {}, {}, true, "boxes as rays"},
-        {{"cast", "--scene", "boxes.csv", "--rays", "/dev/zero", "--structure", "bf"}, {"/dev/zero"}, {}, {}, true, "rays /dev/zero"},
-        {{"cast", "--scene", "boxes.csv", "--rays", "adir", "--structure", "bf"}, {"adir"}, {}, {}, true, "rays is a folder"},
-        {{"cast", "--scene", "rays.csv", "--rays", "rays.csv", "--structure", "bf"}, {"rays.csv"}, {}, {}, true, "rays as boxes"},
-        {{"cast", "--scene", "tiny.bsp", "--rays", "rays.csv", "--structure", "bf"}, {"tiny.bsp"}, {}, {}, false, "cast on a map"},
+        {{"cast", "--scene", "boxes.csv", "--rays", "boxes.csv", "--structure", "bf"},
+         {"boxes.csv"},
+         {},
+         {},
+         true,
+         "boxes as rays"},
+        {{"cast", "--scene", "boxes.csv", "--rays", "/dev/zero", "--structure", "bf"},
+         {"/dev/zero"},
+         {},
+         {},
+         true,
+         "rays /dev/zero"},
+        {{"cast", "--scene", "boxes.csv", "--rays", "adir", "--structure", "bf"},
+         {"adir"},
+         {},
+         {},
+         true,
+         "rays is a folder"},
+        {{"cast", "--scene", "rays.csv", "--rays", "rays.csv", "--structure", "bf"},
+         {"rays.csv"},
+         {},
+         {},
+         true,
+         "rays as boxes"},
+        {{"cast", "--scene", "tiny.bsp", "--rays", "rays.csv", "--structure", "bf"},
+         {"tiny.bsp"},
+         {},
+         {},
+         false,
+         "cast on a map"},
         // advise
         {{"advise", "base.rcbscene", "--repetitions", "0"}, {"--repetitions"}, {}, {}, true, "0 repetitions"},
         {{"advise", "base.rcbscene", "--repetitions", "-1"}, {"--repetitions"}, {}, {}, true, "-1 repetitions"},
-        {{"advise", "base.rcbscene", "--repetitions", "18446744073709551616"}, {"--repetitions"}, {}, {}, true, "2^64 repetitions"},
+        {{"advise", "base.rcbscene", "--repetitions", "18446744073709551616"},
+         {"--repetitions"},
+         {},
+         {},
+         true,
+         "2^64 repetitions"},
         {{"advise", "base.rcbscene", "--warmup", "3"}, {"--warmup", "warm-up"}, {}, {}, true, "warmup = frames"},
-        {{"advise", "base.rcbscene", "--warmup", "18446744073709551616"}, {"--warmup", "warm-up"}, {}, {}, true, "warmup 2^64"},
+        {{"advise", "base.rcbscene", "--warmup", "18446744073709551616"},
+         {"--warmup", "warm-up"},
+         {},
+         {},
+         true,
+         "warmup 2^64"},
         {{"advise", "base.rcbscene", "--warmup", "-1"}, {"--warmup", "warm-up"}, {}, {}, true, "warmup -1"},
-        {{"advise", "base.rcbscene", "--tuning", "base.rcbscene", "--category", "tiny"}, {"--tuning", "base.rcbscene"}, {}, {}, true,
+        {{"advise", "base.rcbscene", "--tuning", "base.rcbscene", "--category", "tiny"},
+         {"--tuning", "base.rcbscene"},
+         {},
+         {},
+         true,
          "a recording as tuning"},
-        {{"advise", "base.rcbscene", "--tuning", "missing.json", "--category", "tiny"}, {"--tuning", "missing.json"}, {}, {}, true, "missing tuning"},
-        {{"advise", "base.rcbscene", "--tuning", "/dev/zero", "--category", "tiny"}, {"--tuning", "/dev/zero"}, {}, {}, true, "tuning /dev/zero"},
-        {{"advise", "base.rcbscene", "--category", "tiny"}, {"--tuning", "--category"}, {}, {}, true, "category without tuning"},
+        {{"advise", "base.rcbscene", "--tuning", "missing.json", "--category", "tiny"},
+         {"--tuning", "missing.json"},
+         {},
+         {},
+         true,
+         "missing tuning"},
+        {{"advise", "base.rcbscene", "--tuning", "/dev/zero", "--category", "tiny"},
+         {"--tuning", "/dev/zero"},
+         {},
+         {},
+         true,
+         "tuning /dev/zero"},
+        {{"advise", "base.rcbscene", "--category", "tiny"},
+         {"--tuning", "--category"},
+         {},
+         {},
+         true,
+         "category without tuning"},
         {{"advise", "/dev/zero"}, {"/dev/zero"}, {}, {}, true, "advise /dev/zero"},
         {{"advise", "adir"}, {"adir"}, {}, {}, true, "advise a folder"},
-        {{"advise", "boxes.csv", "--repetitions", "1", "--warmup", "10"}, {"--warmup", "warm-up"}, {}, {}, true, "advise CSV warmup = frames"},
+        {{"advise", "boxes.csv", "--repetitions", "1", "--warmup", "10"},
+         {"--warmup", "warm-up"},
+         {},
+         {},
+         true,
+         "advise CSV warmup = frames"},
         // the command line itself
         {{}, {"subcommand", "rcbench"}, {}, {}, true, "no arguments"},
         {{"--bogus"}, {"--bogus"}, {}, {}, true, "unknown option"},
         {{"scene"}, {"subcommand", "scene"}, {}, {}, true, "scene without a subcommand"},
-        {{"scene", "gen", "--preset", "uni-s", "-o", "g.rcbscene", "--frames"}, {"--frames"}, {"g.rcbscene"}, {}, true, "option without value"},
+        {{"scene", "gen", "--preset", "uni-s", "-o", "g.rcbscene", "--frames"},
+         {"--frames"},
+         {"g.rcbscene"},
+         {},
+         true,
+         "option without value"},
         {{"simulate", big}, {"simulate", "--scene", "--structure"}, {}, {}, true, "128 KB argument"},
     };
     for (const Case& c : cases) {
-        const std::string command = c.args.empty() ? "(none)" : c.args[0] == "scene" && c.args.size() > 1 ? "scene " + c.args[1] : c.args[0];
+        const std::string command = c.args.empty()                              ? "(none)"
+                                    : c.args[0] == "scene" && c.args.size() > 1 ? "scene " + c.args[1]
+                                                                                : c.args[0];
         check("arguments: " + command.substr(0, 20), c);
     }
 }
@@ -1315,7 +1961,9 @@ TEST_F(Hostile, ArgumentsOfResultCommands) {
     fs::create_directories(work_ / "adir");
     // Linux passes at most 128 KiB in one argument (MAX_ARG_STRLEN); files get 5 MB instead.
     const std::string big(131000, 'x');
-    auto dry = [](const std::string& shard) { return std::vector<std::string>{"run", "exp.json", "--dry-run", "--db", "d.db", "--shard", shard}; };
+    auto dry = [](const std::string& shard) {
+        return std::vector<std::string>{"run", "exp.json", "--dry-run", "--db", "d.db", "--shard", shard};
+    };
     std::vector<Case> cases = {
         {dry("1/18446744073709551616"), {"--shard"}, {}, {}, true, "shard of 2^64"},
         {dry("18446744073709551616/3"), {"--shard"}, {}, {}, true, "shard 2^64 of 3"},
@@ -1331,12 +1979,27 @@ TEST_F(Hostile, ArgumentsOfResultCommands) {
         {dry(" 1/3"), {"--shard"}, {}, {}, false, "shard with a space"},
         {dry(big), {"--shard"}, {}, {}, true, "128 KB shard"},
         {{"run", "exp.json", "--db", "n.db", "--run", "-1"}, {"--run"}, {"n.db"}, {}, true, "run -1"},
-        {{"run", "exp.json", "--db", "n.db", "--run", "18446744073709551616"}, {"--run"}, {"n.db"}, {}, true, "run 2^64"},
+        {{"run", "exp.json", "--db", "n.db", "--run", "18446744073709551616"},
+         {"--run"},
+         {"n.db"},
+         {},
+         true,
+         "run 2^64"},
         {{"run", "exp.json", "--db", "r.db", "--run", "999"}, {"--run", "999"}, {}, {}, true, "run 999"},
         {{"run", "exp.json", "--db", "adir"}, {"--db", "adir"}, {}, {}, true, "db is a folder"},
         {{"run", "exp.json", "--db", "exp.json"}, {"--db", "exp.json"}, {}, {}, true, "db = the experiment"},
-        {{"run", "exp.json", "--db", "./exp.json"}, {"--db", "exp.json"}, {}, {}, true, "db = the experiment, other spelling"},
-        {{"run", "exp.json", "--db", "base.rcbscene"}, {"--db", "base.rcbscene"}, {}, {}, true, "db = a recording the experiment reads"},
+        {{"run", "exp.json", "--db", "./exp.json"},
+         {"--db", "exp.json"},
+         {},
+         {},
+         true,
+         "db = the experiment, other spelling"},
+        {{"run", "exp.json", "--db", "base.rcbscene"},
+         {"--db", "base.rcbscene"},
+         {},
+         {},
+         true,
+         "db = a recording the experiment reads"},
         {{"run", "exp.json", "--db", "/proc/self/x.db"}, {"--db", "/proc/self/x.db"}, {}, {}, true, "db in /proc/self"},
         {{"run", "exp.json", "--db", ""}, {"--db"}, {}, {}, true, "empty db"},
         {{"run", "/dev/zero", "--db", "n.db"}, {"/dev/zero"}, {"n.db"}, {}, true, "experiment /dev/zero"},
@@ -1353,26 +2016,80 @@ TEST_F(Hostile, ArgumentsOfResultCommands) {
         {{"query", "r.db", "PRAGMA user_version = 5"}, {"query"}, {}, {}, true, "user_version"},
         {{"query", "r.db", "SELECT load_extension('/nonexistent')"}, {"query"}, {}, {}, true, "load_extension"},
         {{"query", "r.db", "SELECT randomblob(2000000000)"}, {"query"}, {}, {}, true, "2 GB blob"},
-        {{"query", "r.db", "SELECT 1e999, -0.0, 0.0/0, char(0), char(10), x'ff00'"}, {"query"}, {}, {}, false, "odd values"},
-        {{"query", "--csv", "r.db", "SELECT char(10) || '\"' || char(13), 9223372036854775807 + 1"}, {"query"}, {}, {}, false, "odd CSV values"},
+        {{"query", "r.db", "SELECT 1e999, -0.0, 0.0/0, char(0), char(10), x'ff00'"},
+         {"query"},
+         {},
+         {},
+         false,
+         "odd values"},
+        {{"query", "--csv", "r.db", "SELECT char(10) || '\"' || char(13), 9223372036854775807 + 1"},
+         {"query"},
+         {},
+         {},
+         false,
+         "odd CSV values"},
         {{"query", "base.rcbscene", "SELECT 1"}, {"base.rcbscene"}, {}, {}, true, "query a recording"},
         {{"query", "exp.json", "SELECT 1"}, {"exp.json"}, {}, {}, true, "query a JSON file"},
         {{"query", "/dev/zero", "SELECT 1"}, {"/dev/zero"}, {}, {}, true, "query /dev/zero"},
         {{"query", "adir", "SELECT 1"}, {"adir"}, {}, {}, true, "query a folder"},
         {{"query", "", "SELECT 1"}, {"db", "''"}, {}, {}, true, "query an empty path"},
         // compare
-        {{"compare", "r.db", "--baseline", "'; DROP TABLE run; --", "--candidate", "2"}, {"--baseline", "'; DROP TABLE run; --"}, {}, {}, true, "SQL in a run id"},
-        {{"compare", "r.db", "--baseline", "18446744073709551616", "--candidate", "2"}, {"--baseline"}, {}, {}, true, "baseline 2^64"},
-        {{"compare", "r.db", "--baseline", "-1", "--candidate", "2"}, {"--baseline", "'-1'"}, {}, {}, true, "baseline -1"},
+        {{"compare", "r.db", "--baseline", "'; DROP TABLE run; --", "--candidate", "2"},
+         {"--baseline", "'; DROP TABLE run; --"},
+         {},
+         {},
+         true,
+         "SQL in a run id"},
+        {{"compare", "r.db", "--baseline", "18446744073709551616", "--candidate", "2"},
+         {"--baseline"},
+         {},
+         {},
+         true,
+         "baseline 2^64"},
+        {{"compare", "r.db", "--baseline", "-1", "--candidate", "2"},
+         {"--baseline", "'-1'"},
+         {},
+         {},
+         true,
+         "baseline -1"},
         {{"compare", "r.db", "--baseline", "", "--candidate", "2"}, {"--baseline"}, {}, {}, true, "empty baseline"},
         {{"compare", "r.db", "--baseline", big, "--candidate", "2"}, {"--baseline"}, {}, {}, true, "128 KB baseline"},
-        {{"compare", "r.db", "--baseline", "1", "--candidate", "2", "--alpha", "nan"}, {"--alpha"}, {}, {}, true, "alpha nan"},
-        {{"compare", "r.db", "--baseline", "1", "--candidate", "2", "--alpha", "0"}, {"--alpha"}, {}, {}, true, "alpha 0"},
-        {{"compare", "r.db", "--baseline", "1", "--candidate", "2", "--fail-on-regression", "nan"}, {"--fail-on-regression"}, {}, {}, true,
+        {{"compare", "r.db", "--baseline", "1", "--candidate", "2", "--alpha", "nan"},
+         {"--alpha"},
+         {},
+         {},
+         true,
+         "alpha nan"},
+        {{"compare", "r.db", "--baseline", "1", "--candidate", "2", "--alpha", "0"},
+         {"--alpha"},
+         {},
+         {},
+         true,
+         "alpha 0"},
+        {{"compare", "r.db", "--baseline", "1", "--candidate", "2", "--fail-on-regression", "nan"},
+         {"--fail-on-regression"},
+         {},
+         {},
+         true,
          "fail-on-regression nan"},
-        {{"compare", "r.db", "--baseline", "1", "--candidate", "2", "--metric", ""}, {"--metric"}, {}, {}, true, "empty metric"},
-        {{"compare", "base.rcbscene", "--baseline", "1", "--candidate", "2"}, {"base.rcbscene"}, {}, {}, true, "compare a recording"},
-        {{"compare", "missing.db", "--baseline", "1", "--candidate", "2"}, {"missing.db"}, {}, {}, true, "compare a missing database"},
+        {{"compare", "r.db", "--baseline", "1", "--candidate", "2", "--metric", ""},
+         {"--metric"},
+         {},
+         {},
+         true,
+         "empty metric"},
+        {{"compare", "base.rcbscene", "--baseline", "1", "--candidate", "2"},
+         {"base.rcbscene"},
+         {},
+         {},
+         true,
+         "compare a recording"},
+        {{"compare", "missing.db", "--baseline", "1", "--candidate", "2"},
+         {"missing.db"},
+         {},
+         {},
+         true,
+         "compare a missing database"},
         // merge
         {{"merge", "r.db", "r.db"}, {"r.db"}, {}, {}, true, "merge into itself"},
         {{"merge", "./r.db", "r.db"}, {"r.db"}, {}, {}, true, "merge into itself, other spelling"},
@@ -1397,28 +2114,107 @@ TEST_F(Hostile, ArgumentsOfResultCommands) {
         {{"fit", "adir"}, {"adir"}, {}, {}, true, "fit a folder"},
         // report
         {{"report", "r.db", "-o", "r.db"}, {"-o", "--output", "r.db"}, {}, {}, true, "report over its database"},
-        {{"report", "r.db", "-o", "./r.db"}, {"-o", "--output", "r.db"}, {}, {}, true, "report over its database, other spelling"},
+        {{"report", "r.db", "-o", "./r.db"},
+         {"-o", "--output", "r.db"},
+         {},
+         {},
+         true,
+         "report over its database, other spelling"},
         {{"report", "r.db", "-o", "adir"}, {"-o", "--output", "adir"}, {}, {}, true, "report into a folder"},
-        {{"report", "r.db", "-o", "/proc/self/x.html"}, {"-o", "--output", "/proc/self/x.html"}, {}, {}, true, "report into /proc/self"},
+        {{"report", "r.db", "-o", "/proc/self/x.html"},
+         {"-o", "--output", "/proc/self/x.html"},
+         {},
+         {},
+         true,
+         "report into /proc/self"},
         {{"report", "r.db", "-o", ""}, {"-o", "--output"}, {}, {}, true, "report to an empty path"},
-        {{"report", "r.db", "-o", "rep.html", "--run", "18446744073709551616"}, {"--run"}, {"rep.html"}, {}, true, "report run 2^64"},
+        {{"report", "r.db", "-o", "rep.html", "--run", "18446744073709551616"},
+         {"--run"},
+         {"rep.html"},
+         {},
+         true,
+         "report run 2^64"},
         {{"report", "r.db", "-o", "rep.html", "--run", "-1"}, {"--run"}, {"rep.html"}, {}, true, "report run -1"},
-        {{"report", "missing.db", "-o", "rep.html"}, {"missing.db"}, {"rep.html"}, {}, true, "report a missing database"},
-        {{"report", "base.rcbscene", "-o", "rep.html"}, {"base.rcbscene"}, {"rep.html"}, {}, true, "report a recording"},
+        {{"report", "missing.db", "-o", "rep.html"},
+         {"missing.db"},
+         {"rep.html"},
+         {},
+         true,
+         "report a missing database"},
+        {{"report", "base.rcbscene", "-o", "rep.html"},
+         {"base.rcbscene"},
+         {"rep.html"},
+         {},
+         true,
+         "report a recording"},
         // tune
-        {{"tune", "tune.json", "--db", "t.db", "--out-dir", "out", "--seed", "18446744073709551616"}, {"--seed"}, {"t.db", "out/"}, {}, true,
+        {{"tune", "tune.json", "--db", "t.db", "--out-dir", "out", "--seed", "18446744073709551616"},
+         {"--seed"},
+         {"t.db", "out/"},
+         {},
+         true,
          "tune seed 2^64"},
-        {{"tune", "tune.json", "--db", "t.db", "--out-dir", "out", "--seed", "-1"}, {"--seed"}, {"t.db", "out/"}, {}, false, "tune seed -1"},
-        {{"tune", "tune.json", "--db", "t.db", "--out-dir", "/proc/self"}, {"--out-dir", "/proc/self"}, {"t.db"}, {}, true, "out-dir /proc/self"},
-        {{"tune", "tune.json", "--db", "t.db", "--out-dir", "tune.json"}, {"--out-dir", "tune.json"}, {"t.db"}, {}, true, "out-dir is a file"},
+        {{"tune", "tune.json", "--db", "t.db", "--out-dir", "out", "--seed", "-1"},
+         {"--seed"},
+         {"t.db", "out/"},
+         {},
+         false,
+         "tune seed -1"},
+        {{"tune", "tune.json", "--db", "t.db", "--out-dir", "/proc/self"},
+         {"--out-dir", "/proc/self"},
+         {"t.db"},
+         {},
+         true,
+         "out-dir /proc/self"},
+        {{"tune", "tune.json", "--db", "t.db", "--out-dir", "tune.json"},
+         {"--out-dir", "tune.json"},
+         {"t.db"},
+         {},
+         true,
+         "out-dir is a file"},
         {{"tune", "tune.json", "--db", "t.db", "--out-dir", ""}, {"--out-dir"}, {"t.db"}, {}, true, "empty out-dir"},
-        {{"tune", "tune.json", "--db", "tune.json", "--out-dir", "out"}, {"--db", "tune.json"}, {"out/"}, {}, true, "db = the tuning file"},
-        {{"tune", "tune.json", "--db", "base.rcbscene", "--out-dir", "out"}, {"--db", "base.rcbscene"}, {"out/"}, {}, true, "db = a recording it reads"},
-        {{"tune", "tune.json", "--db", "adir", "--out-dir", "out"}, {"--db", "adir"}, {"out/"}, {}, true, "db is a folder"},
-        {{"tune", "exp.json", "--db", "t.db", "--out-dir", "out"}, {"exp.json"}, {"t.db", "out/"}, {}, true, "an experiment as tuning file"},
-        {{"tune", "r.db", "--db", "t.db", "--out-dir", "out"}, {"r.db"}, {"t.db", "out/"}, {}, true, "a database as tuning file"},
-        {{"tune", "/dev/zero", "--db", "t.db", "--out-dir", "out"}, {"/dev/zero"}, {"t.db", "out/"}, {}, true, "tune /dev/zero"},
-        {{"tune", "missing.json", "--db", "t.db", "--out-dir", "out"}, {"missing.json"}, {"t.db", "out/"}, {}, true, "tune a missing file"},
+        {{"tune", "tune.json", "--db", "tune.json", "--out-dir", "out"},
+         {"--db", "tune.json"},
+         {"out/"},
+         {},
+         true,
+         "db = the tuning file"},
+        {{"tune", "tune.json", "--db", "base.rcbscene", "--out-dir", "out"},
+         {"--db", "base.rcbscene"},
+         {"out/"},
+         {},
+         true,
+         "db = a recording it reads"},
+        {{"tune", "tune.json", "--db", "adir", "--out-dir", "out"},
+         {"--db", "adir"},
+         {"out/"},
+         {},
+         true,
+         "db is a folder"},
+        {{"tune", "exp.json", "--db", "t.db", "--out-dir", "out"},
+         {"exp.json"},
+         {"t.db", "out/"},
+         {},
+         true,
+         "an experiment as tuning file"},
+        {{"tune", "r.db", "--db", "t.db", "--out-dir", "out"},
+         {"r.db"},
+         {"t.db", "out/"},
+         {},
+         true,
+         "a database as tuning file"},
+        {{"tune", "/dev/zero", "--db", "t.db", "--out-dir", "out"},
+         {"/dev/zero"},
+         {"t.db", "out/"},
+         {},
+         true,
+         "tune /dev/zero"},
+        {{"tune", "missing.json", "--db", "t.db", "--out-dir", "out"},
+         {"missing.json"},
+         {"t.db", "out/"},
+         {},
+         true,
+         "tune a missing file"},
     };
     for (const Case& c : cases) check("arguments: " + c.args[0], c);
 }

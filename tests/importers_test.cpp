@@ -86,12 +86,13 @@ struct TinyBsp {
         Bytes& b = lump[10];
         put_f32(b, p.x), put_f32(b, p.y), put_f32(b, p.z);
         for (int i = 0; i < 7; ++i) put_f32(b, 0);  // st, lightmap, normal
-        put_i32(b, -1);                              // color
+        put_i32(b, -1);                             // color
     }
     void surface(std::int32_t type, std::int32_t first_vert, std::int32_t num_verts, std::int32_t first_index,
                  std::int32_t num_indexes, std::int32_t pw = 0, std::int32_t ph = 0) {
         Bytes& b = lump[13];
-        for (std::int32_t v : {0, -1, type, first_vert, num_verts, first_index, num_indexes, 0, 0, 0, 0, 0}) put_i32(b, v);
+        for (std::int32_t v : {0, -1, type, first_vert, num_verts, first_index, num_indexes, 0, 0, 0, 0, 0})
+            put_i32(b, v);
         for (int i = 0; i < 12; ++i) put_f32(b, 0);  // lightmap origin, vecs, normal
         put_i32(b, pw), put_i32(b, ph);
     }
@@ -137,7 +138,9 @@ std::string write_file(const fs::path& path, const Bytes& bytes) {
     out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
     return path.string();
 }
-std::string write_text(const fs::path& path, const std::string& text) { return write_file(path, Bytes(text.begin(), text.end())); }
+std::string write_text(const fs::path& path, const std::string& text) {
+    return write_file(path, Bytes(text.begin(), text.end()));
+}
 
 fs::path scratch(const std::string& name) {
     const fs::path dir = fs::temp_directory_path() / ("rcb_importers_" + std::to_string(::getpid()));
@@ -208,7 +211,8 @@ std::string gltf_text(const std::string& nodes, const std::string& roots = "[0]"
 /// the last holds the mesh, so its triangle lands at x = depth.
 std::string gltf_chain(std::size_t depth) {
     std::string nodes = "[";
-    for (std::size_t i = 0; i + 1 < depth; ++i) nodes += R"({"translation": [1, 0, 0], "children": [)" + std::to_string(i + 1) + "]},";
+    for (std::size_t i = 0; i + 1 < depth; ++i)
+        nodes += R"({"translation": [1, 0, 0], "children": [)" + std::to_string(i + 1) + "]},";
     return gltf_text(nodes + R"({"translation": [1, 0, 0], "mesh": 0}])");
 }
 
@@ -220,8 +224,8 @@ std::string collada_text(const std::string& scene, const std::string& library = 
 <technique_common><accessor source="#pa" count="3" stride="3"><param name="X" type="float"/><param name="Y" type="float"/>
 <param name="Z" type="float"/></accessor></technique_common></source><vertices id="v"><input semantic="POSITION" source="#p"/>
 </vertices><triangles count="1"><input semantic="VERTEX" source="#v" offset="0"/><p>0 1 2</p></triangles></mesh></geometry>
-</library_geometries>)" + library +
-           R"(<library_visual_scenes><visual_scene id="s">)" + scene +
+</library_geometries>)" +
+           library + R"(<library_visual_scenes><visual_scene id="s">)" + scene +
            R"(</visual_scene></library_visual_scenes><scene><instance_visual_scene url="#s"/></scene></COLLADA>)";
 }
 
@@ -302,8 +306,9 @@ TEST(BspImport, ErrorsNameTheFileAndTheLump) {
 
     EXPECT_NE(error_of([&] { parse_bsp(Bytes(20, 0), "short.bsp", "brushes"); }).find("short.bsp: header: truncated"),
               std::string::npos);
-    EXPECT_NE(error_of([&] { parse_bsp(Bytes(200, 'x'), "junk.bsp", "brushes"); }).find("junk.bsp: header: magic 'xxxx'"),
-              std::string::npos);
+    EXPECT_NE(
+        error_of([&] { parse_bsp(Bytes(200, 'x'), "junk.bsp", "brushes"); }).find("junk.bsp: header: magic 'xxxx'"),
+        std::string::npos);
 
     TinyBsp odd = tiny_map();
     odd.lump[8].push_back(0);
@@ -314,7 +319,9 @@ TEST(BspImport, ErrorsNameTheFileAndTheLump) {
     std::int32_t big = 1000;
     std::memcpy(bad.lump[8].data() + 4, &big, 4);  // brush 0 claims 1000 sides
     const std::string sides = error_of([&] { parse_bsp(bad.bytes(), "bad.bsp", "brushes"); });
-    EXPECT_NE(sides.find("bad.bsp: lump 8 (brushes): brush 0 refers to brushsides 0..999 beyond the"), std::string::npos) << sides;
+    EXPECT_NE(sides.find("bad.bsp: lump 8 (brushes): brush 0 refers to brushsides 0..999 beyond the"),
+              std::string::npos)
+        << sides;
 
     TinyBsp badv = tiny_map();
     std::int32_t far_vertex = 500;
@@ -330,22 +337,29 @@ TEST(BspImport, ReadsMapsFromAPk3) {
     const Bytes map = tiny_map().bytes();
     TinyBsp other = tiny_map();
     other.brush({10, 10, 10}, {11, 11, 11}, 0);
-    const std::string one = write_file(scratch("one.pk3"), stored_zip({{"readme.txt", Bytes{'h', 'i'}}, {"maps/tiny.bsp", map}}));
-    const std::string two = write_file(scratch("two.pk3"), stored_zip({{"maps/a.bsp", map}, {"maps/b.bsp", other.bytes()}}));
+    const std::string one =
+        write_file(scratch("one.pk3"), stored_zip({{"readme.txt", Bytes{'h', 'i'}}, {"maps/tiny.bsp", map}}));
+    const std::string two =
+        write_file(scratch("two.pk3"), stored_zip({{"maps/a.bsp", map}, {"maps/b.bsp", other.bytes()}}));
     EXPECT_EQ(pk3_maps(two), (std::vector<std::string>{"maps/a.bsp", "maps/b.bsp"}));
     EXPECT_EQ(import_bsp(one, {}).size(), 2u);
     EXPECT_EQ(import_bsp(two, {"brushes", "b"}).size(), 3u);
     EXPECT_EQ(import_bsp(two, {"brushes", "maps/a.bsp"}).size(), 2u);
     EXPECT_EQ(import_bsp(two, {"triangles", "a"}).size(), 10u);
-    EXPECT_NE(error_of([&] { import_bsp(two, {}); }).find("holds 2 maps, choose one with --map (a, b)"), std::string::npos);
-    EXPECT_NE(error_of([&] { import_bsp(two, {"brushes", "c"}); }).find("no map 'c' inside (maps: a, b)"), std::string::npos);
+    EXPECT_NE(error_of([&] { import_bsp(two, {}); }).find("holds 2 maps, choose one with --map (a, b)"),
+              std::string::npos);
+    EXPECT_NE(error_of([&] {
+                  import_bsp(two, {"brushes", "c"});
+              }).find("no map 'c' inside (maps: a, b)"),
+              std::string::npos);
     const std::string junk = write_text(scratch("junk.pk3"), "not a zip at all");
     EXPECT_NE(error_of([&] { import_bsp(junk, {}); }).find("junk.pk3: not a readable zip"), std::string::npos);
     // A broken map inside a pk3 names the pk3, the entry and the lump.
     TinyBsp odd = tiny_map();
     odd.lump[2].push_back(0);
     const std::string bad = write_file(scratch("bad.pk3"), stored_zip({{"maps/odd.bsp", odd.bytes()}}));
-    EXPECT_EQ(error_of([&] { import_bsp(bad, {}); }), "bad.pk3:maps/odd.bsp: lump 2 (planes): length 417 is not a multiple of 16");
+    EXPECT_EQ(error_of([&] { import_bsp(bad, {}); }),
+              "bad.pk3:maps/odd.bsp: lump 2 (planes): length 417 is not a multiple of 16");
 }
 
 TEST(ModelImport, ObjInstancesAndTriangles) {
@@ -355,7 +369,8 @@ TEST(ModelImport, ObjInstancesAndTriangles) {
     ModelSummary s;
     std::vector<Object> instances = import_model(obj, "instances", &s);
     ASSERT_EQ(instances.size(), 2u);
-    std::sort(instances.begin(), instances.end(), [](const Object& a, const Object& b) { return a.box.min.x < b.box.min.x; });
+    std::sort(instances.begin(), instances.end(),
+              [](const Object& a, const Object& b) { return a.box.min.x < b.box.min.x; });
     EXPECT_EQ(instances[0].box, box(0, 0, 0, 1, 1, 0));
     EXPECT_EQ(instances[1].box, box(2, 2, 2, 3, 3, 4));
     const std::vector<Object> triangles = import_model(obj, "triangles", &s);
@@ -378,7 +393,8 @@ TEST(ModelImport, GltfNodeTransformsPlaceEachInstanceInWorldSpace) {
     const std::string path = write_text(scratch("two.gltf"), gltf);
     std::vector<Object> objects = import_model(path, "instances");
     ASSERT_EQ(objects.size(), 2u);
-    std::sort(objects.begin(), objects.end(), [](const Object& a, const Object& b) { return a.box.min.x < b.box.min.x; });
+    std::sort(objects.begin(), objects.end(),
+              [](const Object& a, const Object& b) { return a.box.min.x < b.box.min.x; });
     EXPECT_EQ(objects[0].box, box(0, 0, 5, 2, 2, 5));
     EXPECT_EQ(objects[1].box, box(10, 0, 0, 11, 1, 0));
     EXPECT_EQ(import_model(path, "triangles").size(), 2u);
@@ -388,7 +404,8 @@ TEST(ModelImport, ErrorsNameTheFile) {
     const std::string junk = write_text(scratch("junk.glb"), "glTF but not really");
     const std::string e = error_of([&] { import_model(junk, "instances"); });
     EXPECT_NE(e.find("junk.glb: assimp: "), std::string::npos) << e;
-    EXPECT_NE(error_of([&] { import_model(junk, "points"); }).find("expected instances or triangles"), std::string::npos);
+    EXPECT_NE(error_of([&] { import_model(junk, "points"); }).find("expected instances or triangles"),
+              std::string::npos);
 }
 
 TEST(SceneImport, DispatchesByExtensionAndValidatesOptions) {
@@ -397,7 +414,8 @@ TEST(SceneImport, DispatchesByExtensionAndValidatesOptions) {
     EXPECT_EQ(importer_for("x.pk3"), "bsp");
     EXPECT_EQ(importer_for("ship.glb"), "model");
     EXPECT_EQ(importer_for("ship.obj"), "model");
-    EXPECT_NE(error_of([] { importer_for("notes.txt2"); }).find("notes.txt2: cannot import '.txt2' files"), std::string::npos);
+    EXPECT_NE(error_of([] { importer_for("notes.txt2"); }).find("notes.txt2: cannot import '.txt2' files"),
+              std::string::npos);
     EXPECT_THROW(import_options_from_json({{"mode", "brushes"}}, "scenes[0].import_options"), InputError);
     EXPECT_THROW(import_options_from_json({{"bsp_mode", "faces"}}, "scenes[0].import_options"), InputError);
     EXPECT_EQ(import_options_from_json({{"bsp_mode", "triangles"}, {"map", "oa_dm1"}}, "x").map, "oa_dm1");
@@ -410,13 +428,16 @@ TEST(SceneImport, DispatchesByExtensionAndValidatesOptions) {
 
 TEST(SceneImport, OptionErrorsQuoteAnExcerptOfTheValue) {
     const std::string big(5'000'000, 'x');
-    for (const nlohmann::json& j : {nlohmann::json{{"bsp_mode", big}}, nlohmann::json{{"model_mode", big}}, nlohmann::json{{big, "a"}},
-                                    nlohmann::json{{"map", std::vector<int>(1'000'000, 7)}}}) {
+    for (const nlohmann::json& j :
+         {nlohmann::json{{"bsp_mode", big}}, nlohmann::json{{"model_mode", big}}, nlohmann::json{{big, "a"}},
+          nlohmann::json{{"map", std::vector<int>(1'000'000, 7)}}}) {
         const std::string e = error_of([&] { import_options_from_json(j, "scenes[0].import_options"); });
         EXPECT_LT(e.size(), 200u) << e.substr(0, 300);
         EXPECT_EQ(e.rfind("scenes[0].import_options", 0), 0u) << e.substr(0, 300);
     }
-    EXPECT_EQ(error_of([] { import_options_from_json({{"bsp_mode", "faces\n"}}, "o"); }),
+    EXPECT_EQ(error_of([] {
+                  import_options_from_json({{"bsp_mode", "faces\n"}}, "o");
+              }),
               "o.bsp_mode: expected \"brushes\" or \"triangles\", got 'faces\\x0A'");
 }
 
@@ -424,10 +445,16 @@ TEST(SceneImport, CliImportsMapsAndModelsAndExitsTwoOnBadFiles) {
     const std::string bsp = write_file(scratch("cli.bsp"), tiny_map().bytes());
     const std::string out = scratch("cli.rcbscene").string();
     const std::string bin = RCBENCH_BINARY;
-    EXPECT_EQ(std::system((bin + " scene import " + bsp + " -o " + out + " --frames 2 --rays 10 --bsp-mode triangles > /dev/null").c_str()), 0);
+    EXPECT_EQ(std::system((bin + " scene import " + bsp + " -o " + out +
+                           " --frames 2 --rays 10 --bsp-mode triangles > /dev/null")
+                              .c_str()),
+              0);
     EXPECT_TRUE(fs::exists(out));
     const std::string obj = write_text(scratch("cli.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-    EXPECT_EQ(std::system((bin + " scene import " + obj + " -o " + out + " --frames 1 --model-mode triangles > /dev/null").c_str()), 0);
+    EXPECT_EQ(
+        std::system(
+            (bin + " scene import " + obj + " -o " + out + " --frames 1 --model-mode triangles > /dev/null").c_str()),
+        0);
     TinyBsp m = tiny_map();
     m.version = 38;
     const std::string old = write_file(scratch("old.bsp"), m.bytes());
@@ -458,12 +485,16 @@ TEST(SceneImport, ExperimentFilesImportMapsAndModelsWithOptions) {
     EXPECT_EQ(model.frames.size(), 2u);
     auto bad = [&](const std::string& scene) {
         return error_of([&] {
-            parse_experiment(R"({"name": "t", "scenes": [)" + scene + R"(], "structures": [{"name": "bf"}]})", "t.json", base);
+            parse_experiment(R"({"name": "t", "scenes": [)" + scene + R"(], "structures": [{"name": "bf"}]})", "t.json",
+                             base);
         });
     };
-    EXPECT_NE(bad(R"({"import": "tiny.bsp", "import_options": {"mode": "x"}})").find("scenes[0].import_options"), std::string::npos);
-    EXPECT_NE(bad(R"({"import": "tiny.bsp", "import_options": {"bsp_mode": "faces"}})").find("bsp_mode"), std::string::npos);
-    EXPECT_NE(bad(R"({"preset": "uni-s", "import_options": {}})").find("only an \"import\" scene takes import options"), std::string::npos);
+    EXPECT_NE(bad(R"({"import": "tiny.bsp", "import_options": {"mode": "x"}})").find("scenes[0].import_options"),
+              std::string::npos);
+    EXPECT_NE(bad(R"({"import": "tiny.bsp", "import_options": {"bsp_mode": "faces"}})").find("bsp_mode"),
+              std::string::npos);
+    EXPECT_NE(bad(R"({"preset": "uni-s", "import_options": {}})").find("only an \"import\" scene takes import options"),
+              std::string::npos);
 }
 
 TEST(BspImport, TriangleCountsAreEstimatedAndLimitedBeforeAllocating) {
@@ -475,8 +506,10 @@ TEST(BspImport, TriangleCountsAreEstimatedAndLimitedBeforeAllocating) {
         for (int x = 0; x < 100; ++x) m.vertex({float(x), float(y), 0});
     for (int s = 0; s < 3500; ++s) m.surface(2, 0, 100 * 100, 0, 0, 100, 100);
     const std::string e = error_of([&] { parse_bsp(m.bytes(), "bomb.bsp", "triangles"); });
-    EXPECT_EQ(e, "bomb.bsp: triangles mode would make 68607000 triangles, more than the limit of 67108864 objects per scene "
-                 "(kMaxSceneObjects, scene.h); try --bsp-mode brushes");
+    EXPECT_EQ(
+        e,
+        "bomb.bsp: triangles mode would make 68607000 triangles, more than the limit of 67108864 objects per scene "
+        "(kMaxSceneObjects, scene.h); try --bsp-mode brushes");
     // Below the limit the same grid imports (one patch: 2 x 99 x 99 triangles).
     TinyBsp one;
     one.lump[10] = m.lump[10];
@@ -492,7 +525,8 @@ TEST(BspImport, BrushesReferringToTheSameSidesOverAndOverAreRefused) {
     for (int k = 0; k < 10000; ++k) put_i32(m.lump[9], p), put_i32(m.lump[9], 0);
     for (int b = 0; b < 7000; ++b) put_i32(m.lump[8], 0), put_i32(m.lump[8], 10000), put_i32(m.lump[8], 0);
     EXPECT_EQ(error_of([&] { parse_bsp(m.bytes(), "sides.bsp", "brushes"); }),
-              "sides.bsp: lump 8 (brushes): the brushes refer to 70000000 brushsides in all (of 10000), more than the limit of "
+              "sides.bsp: lump 8 (brushes): the brushes refer to 70000000 brushsides in all (of 10000), more than the "
+              "limit of "
               "67108864 (kMaxSceneObjects, scene.h)");
 }
 
@@ -502,11 +536,14 @@ TEST(BspImport, CoordinatesBeyondTheLimitNameTheBrushOrSurface) {
     m.brush({0, 0, 0}, {1, 1, 1}, 0);
     m.brush({0, 0, 0}, {1e20f, 1, 1}, 0);
     EXPECT_EQ(error_of([&] { parse_bsp(m.bytes(), "far.bsp", "brushes"); }),
-              "far.bsp: brush 1: uid 1: coordinate 1e+20 beyond ±1e+15 (the largest magnitude every structure handles exactly)");
+              "far.bsp: brush 1: uid 1: coordinate 1e+20 beyond ±1e+15 (the largest magnitude every structure handles "
+              "exactly)");
     for (Vec3 p : {Vec3{0, 0, 0}, Vec3{1, 0, 0}, Vec3{0, -3e38f, 0}}) m.vertex(p);
     for (std::int32_t i : {0, 1, 2}) put_i32(m.lump[11], i);
     m.surface(1, 0, 3, 0, 3);
-    EXPECT_NE(error_of([&] { parse_bsp(m.bytes(), "far.bsp", "triangles"); }).find("far.bsp: surface 0: uid 0: coordinate -3e+38 beyond ±1e+15"),
+    EXPECT_NE(error_of([&] {
+                  parse_bsp(m.bytes(), "far.bsp", "triangles");
+              }).find("far.bsp: surface 0: uid 0: coordinate -3e+38 beyond ±1e+15"),
               std::string::npos);
 }
 
@@ -523,8 +560,11 @@ TEST(ModelImport, DeepGltfNodeChainsAreRefusedBeforeAssimpRecurses) {
     // 20000 nested nodes (0.6 MB) overflowed the 8 MB stack inside Importer::ReadFile (SIGSEGV).
     const std::string deep = write_text(scratch("deep.gltf"), gltf_chain(20000));
     const std::string e = error_of([&] { import_model(deep, "instances"); });
-    EXPECT_NE(e.find("deep.gltf: glTF node 1000 is nested deeper than 1000 (kMaxModelNesting, nesting.h) through \"children\""),
-              std::string::npos) << e;
+    EXPECT_NE(
+        e.find(
+            "deep.gltf: glTF node 1000 is nested deeper than 1000 (kMaxModelNesting, nesting.h) through \"children\""),
+        std::string::npos)
+        << e;
     // At the limit: imported, with the 1000 translations composed.
     const std::string ok = write_text(scratch("ok.gltf"), gltf_chain(kMaxModelNesting));
     const std::vector<Object> objects = import_model(ok, "instances");
@@ -536,65 +576,101 @@ TEST(ModelImport, DeepGltfNodeChainsAreRefusedBeforeAssimpRecurses) {
     put_i32(glb, 2), put_i32(glb, std::int32_t(20 + json.size()));
     put_i32(glb, std::int32_t(json.size())), put_i32(glb, 0x4E4F534A);
     glb.insert(glb.end(), json.begin(), json.end());
-    EXPECT_NE(error_of([&] { import_model(write_file(scratch("deep.glb"), glb), "instances"); }).find("is nested deeper than 1000"),
+    EXPECT_NE(error_of([&] {
+                  import_model(write_file(scratch("deep.glb"), glb), "instances");
+              }).find("is nested deeper than 1000"),
               std::string::npos);
 }
 
 TEST(ModelImport, GltfCyclesAndSharedNodesAreRefused) {
-    EXPECT_NE(error_of([&] { import_model(write_text(scratch("self.gltf"), gltf_text(R"([{"children": [0], "mesh": 0}])")), "instances"); })
-                  .find("self.gltf: glTF node 0 is its own child (a cycle)"),
+    EXPECT_NE(error_of([&] {
+                  import_model(write_text(scratch("self.gltf"), gltf_text(R"([{"children": [0], "mesh": 0}])")),
+                               "instances");
+              }).find("self.gltf: glTF node 0 is its own child (a cycle)"),
               std::string::npos);
     EXPECT_NE(error_of([&] {
-                  import_model(write_text(scratch("loop.gltf"), gltf_text(R"([{"mesh": 0}, {"children": [2]}, {"children": [1]}])")), "instances");
+                  import_model(write_text(scratch("loop.gltf"),
+                                          gltf_text(R"([{"mesh": 0}, {"children": [2]}, {"children": [1]}])")),
+                               "instances");
               }).find("loop.gltf: glTF node 1 is its own ancestor through \"children\" (a cycle)"),
               std::string::npos);
     // 40 levels of nodes listing the next one twice: assimp copies shared nodes, 2^40 of them
     // (it ran past a minute and 20 GB).
     std::string nodes = "[";
-    for (int i = 0; i < 40; ++i) nodes += "{\"children\": [" + std::to_string(i + 1) + ", " + std::to_string(i + 1) + "]},";
-    const std::string e = error_of([&] { import_model(write_text(scratch("shared.gltf"), gltf_text(nodes + R"({"mesh": 0}])")), "instances"); });
-    EXPECT_NE(e.find("shared.gltf: glTF node 1 is listed twice among the children of node 0 (glTF node hierarchies are strict trees)"),
-              std::string::npos) << e;
+    for (int i = 0; i < 40; ++i)
+        nodes += "{\"children\": [" + std::to_string(i + 1) + ", " + std::to_string(i + 1) + "]},";
+    const std::string e = error_of(
+        [&] { import_model(write_text(scratch("shared.gltf"), gltf_text(nodes + R"({"mesh": 0}])")), "instances"); });
+    EXPECT_NE(e.find("shared.gltf: glTF node 1 is listed twice among the children of node 0 (glTF node hierarchies are "
+                     "strict trees)"),
+              std::string::npos)
+        << e;
     const std::string two = error_of([&] {
-        import_model(write_text(scratch("two.gltf"), gltf_text(R"([{"children": [2]}, {"children": [2]}, {"mesh": 0}])", "[0, 1]")), "instances");
+        import_model(write_text(scratch("two.gltf"),
+                                gltf_text(R"([{"children": [2]}, {"children": [2]}, {"mesh": 0}])", "[0, 1]")),
+                     "instances");
     });
-    EXPECT_NE(two.find("two.gltf: glTF node 2 is a child of both node 0 and node 1 (glTF node hierarchies are strict trees)"),
-              std::string::npos) << two;
+    EXPECT_NE(
+        two.find("two.gltf: glTF node 2 is a child of both node 0 and node 1 (glTF node hierarchies are strict trees)"),
+        std::string::npos)
+        << two;
     // A deep subtree listed as a scene root over and over is copied as often.
     std::string roots = "[";
     for (int i = 0; i < 70000; ++i) roots += "0,";
     std::string chain = "[";
     for (int i = 0; i < 999; ++i) chain += "{\"children\": [" + std::to_string(i + 1) + "]},";
-    const std::string r = error_of([&] { import_model(write_text(scratch("roots.gltf"), gltf_text(chain + R"({"mesh": 0}])", roots + "0]")), "instances"); });
-    EXPECT_NE(r.find("roots.gltf: the glTF scenes list node subtrees of 70001000 nodes in all, more than the limit of 67108864"), std::string::npos) << r;
+    const std::string r = error_of([&] {
+        import_model(write_text(scratch("roots.gltf"), gltf_text(chain + R"({"mesh": 0}])", roots + "0]")),
+                     "instances");
+    });
+    EXPECT_NE(
+        r.find(
+            "roots.gltf: the glTF scenes list node subtrees of 70001000 nodes in all, more than the limit of 67108864"),
+        std::string::npos)
+        << r;
 }
 
 TEST(ModelImport, DeepJsonAndBracketsAreRefused) {
     const std::string deep_json = std::string(100000, '[') + std::string(100000, ']');
-    const std::string e = error_of([&] { import_model(write_text(scratch("extras.gltf"), gltf_text("[{\"mesh\": 0}]", "[0]", deep_json)), "instances"); });
-    EXPECT_NE(e.find("extras.gltf: JSON arrays and objects nested deeper than 1000 (kMaxModelNesting, nesting.h) at byte "), std::string::npos) << e;
+    const std::string e = error_of([&] {
+        import_model(write_text(scratch("extras.gltf"), gltf_text("[{\"mesh\": 0}]", "[0]", deep_json)), "instances");
+    });
+    EXPECT_NE(
+        e.find("extras.gltf: JSON arrays and objects nested deeper than 1000 (kMaxModelNesting, nesting.h) at byte "),
+        std::string::npos)
+        << e;
     // Brackets inside strings do not count.
-    EXPECT_EQ(import_model(write_text(scratch("strings.gltf"), gltf_text("[{\"mesh\": 0, \"name\": \"" + std::string(5000, '[') + "\"}]")), "instances").size(), 1u);
+    EXPECT_EQ(import_model(write_text(scratch("strings.gltf"),
+                                      gltf_text("[{\"mesh\": 0, \"name\": \"" + std::string(5000, '[') + "\"}]")),
+                           "instances")
+                  .size(),
+              1u);
     // DirectX .x nests frames in braces; assimp's parser recursed into a SIGSEGV at 100000 levels.
     std::string x = "xof 0303txt 0032\n";
     for (int i = 0; i < 100000; ++i) x += "Frame f {\n";
     for (int i = 0; i < 100000; ++i) x += "}\n";
     const std::string xe = error_of([&] { import_model(write_text(scratch("deep.x"), x), "instances"); });
-    EXPECT_NE(xe.find("deep.x: brackets ({ } or [ ]) nested deeper than 1000 (kMaxModelNesting, nesting.h) at byte 10025, line 1002"),
-              std::string::npos) << xe;
+    EXPECT_NE(xe.find("deep.x: brackets ({ } or [ ]) nested deeper than 1000 (kMaxModelNesting, nesting.h) at byte "
+                      "10025, line 1002"),
+              std::string::npos)
+        << xe;
 }
 
 TEST(ModelImport, DeepColladaAndInstanceCyclesAreRefused) {
     // 8000 nested <node> elements: SIGSEGV inside ReadFile.
-    const std::string e = error_of([&] { import_model(write_text(scratch("deep.dae"), collada_chain(8000)), "instances"); });
-    EXPECT_NE(e.find("deep.dae: XML elements nested deeper than 1000 (kMaxModelNesting, nesting.h) at byte "), std::string::npos) << e;
+    const std::string e =
+        error_of([&] { import_model(write_text(scratch("deep.dae"), collada_chain(8000)), "instances"); });
+    EXPECT_NE(e.find("deep.dae: XML elements nested deeper than 1000 (kMaxModelNesting, nesting.h) at byte "),
+              std::string::npos)
+        << e;
     const std::vector<Object> ok = import_model(write_text(scratch("ok.dae"), collada_chain(990)), "instances");
     ASSERT_EQ(ok.size(), 1u);
     EXPECT_EQ(ok[0].box, box(990, 0, 0, 991, 1, 0));
     // <instance_node> a -> b -> a: assimp recursed without end (SIGSEGV).
-    const std::string cycle = collada_text(R"(<node id="r"><instance_node url="#a"/></node>)",
-                                           R"(<library_nodes><node id="a"><instance_node url="#b"/></node>)"
-                                           R"(<node id="b"><instance_node url="#a"/><instance_geometry url="#g"/></node></library_nodes>)");
+    const std::string cycle =
+        collada_text(R"(<node id="r"><instance_node url="#a"/></node>)",
+                     R"(<library_nodes><node id="a"><instance_node url="#b"/></node>)"
+                     R"(<node id="b"><instance_node url="#a"/><instance_geometry url="#g"/></node></library_nodes>)");
     const std::string c = error_of([&] { import_model(write_text(scratch("cycle.dae"), cycle), "instances"); });
     EXPECT_NE(c.find("cycle.dae: COLLADA node 'a' at byte "), std::string::npos) << c;
     EXPECT_NE(c.find("contains itself through <instance_node> (a cycle)"), std::string::npos) << c;
@@ -605,16 +681,23 @@ TEST(ModelImport, DeepColladaAndInstanceCyclesAreRefused) {
                    "\"/><instance_node url=\"#n" + std::to_string(i + 1) + "\"/></node>";
     library += R"(<node id="n40"><instance_geometry url="#g"/></node></library_nodes>)";
     const std::string x = error_of([&] {
-        import_model(write_text(scratch("twice.dae"), collada_text(R"(<node id="r"><instance_node url="#n0"/></node>)", library)), "instances");
+        import_model(write_text(scratch("twice.dae"),
+                                collada_text(R"(<node id="r"><instance_node url="#n0"/></node>)", library)),
+                     "instances");
     });
-    EXPECT_NE(x.find("twice.dae: the COLLADA node graph expands to more than 67108864 nodes through <instance_node>"), std::string::npos) << x;
+    EXPECT_NE(x.find("twice.dae: the COLLADA node graph expands to more than 67108864 nodes through <instance_node>"),
+              std::string::npos)
+        << x;
     // Instances deeper than the limit in all, though no element is.
     std::string chain = "<library_nodes>";
     for (int i = 0; i < 1200; ++i)
-        chain += "<node id=\"c" + std::to_string(i) + "\"><instance_node url=\"#c" + std::to_string(i + 1) + "\"/></node>";
+        chain +=
+            "<node id=\"c" + std::to_string(i) + "\"><instance_node url=\"#c" + std::to_string(i + 1) + "\"/></node>";
     chain += R"(<node id="c1200"><instance_geometry url="#g"/></node></library_nodes>)";
     const std::string d = error_of([&] {
-        import_model(write_text(scratch("long.dae"), collada_text(R"(<node id="r"><instance_node url="#c0"/></node>)", chain)), "instances");
+        import_model(
+            write_text(scratch("long.dae"), collada_text(R"(<node id="r"><instance_node url="#c0"/></node>)", chain)),
+            "instances");
     });
     EXPECT_NE(d.find("expands to a hierarchy deeper than 1000"), std::string::npos) << d;
 }
@@ -625,7 +708,8 @@ TEST(ModelImport, AssimpRunsOnItsOwnLargeStack) {
     const std::string dae = write_text(scratch("stack.dae"), collada_chain(990));
     const std::string gltf = write_text(scratch("stack.gltf"), gltf_chain(kMaxModelNesting));
     std::size_t n = 0;
-    on_small_stack(512 << 10, [&] { n = import_model(dae, "triangles").size() + import_model(gltf, "triangles").size(); });
+    on_small_stack(512 << 10,
+                   [&] { n = import_model(dae, "triangles").size() + import_model(gltf, "triangles").size(); });
     EXPECT_EQ(n, 2u);
 }
 
@@ -648,16 +732,20 @@ TEST(ModelImport, ObjectCountsAreLimitedBeforeAllocating) {
     std::string nodes = R"([{"children": [)";
     for (int i = 1; i <= 1000; ++i) nodes += std::to_string(i) + (i < 1000 ? "," : "]}");
     for (int i = 1; i <= 1000; ++i) nodes += R"(, {"mesh": 0})";
-    const std::string gltf = R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": )" + nodes + R"(],
+    const std::string gltf = R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": )" +
+                             nodes + R"(],
       "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
       "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
                     {"bufferView": 1, "componentType": 5123, "count": 210000, "type": "SCALAR"}],
       "bufferViews": [{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 420000}],
-      "buffers": [{"byteLength": 420036, "uri": "data:application/octet-stream;base64,)" + b64 + R"("}]})";
+      "buffers": [{"byteLength": 420036, "uri": "data:application/octet-stream;base64,)" +
+                             b64 + R"("}]})";
     const std::string path = write_text(scratch("many.gltf"), gltf);
     EXPECT_EQ(error_of([&] { import_model(path, "triangles"); }),
-              path + ": triangles mode would make 70000000 objects, more than the limit of 67108864 per scene (kMaxSceneObjects, scene.h); "
-                     "try --model-mode instances");
+              path +
+                  ": triangles mode would make 70000000 objects, more than the limit of 67108864 per scene "
+                  "(kMaxSceneObjects, scene.h); "
+                  "try --model-mode instances");
     EXPECT_EQ(import_model(path, "instances").size(), 1000u);
 }
 
@@ -670,18 +758,22 @@ TEST(ModelImport, CoordinatesBeyondTheLimitNameTheNode) {
 TEST(SceneImport, CliRefusesACsvBoxBeyondTheCoordinateLimit) {
     // `200,0,40,0,1e20,41,1` among 200 unit boxes: simulate --structure embree aborted on this.
     std::string csv = "uid,minx,miny,minz,maxx,maxy,maxz\n";
-    for (int i = 0; i < 200; ++i) csv += std::to_string(i) + "," + std::to_string(2 * (i % 10)) + ",0,0," + std::to_string(2 * (i % 10) + 1) + ",1,1\n";
+    for (int i = 0; i < 200; ++i)
+        csv += std::to_string(i) + "," + std::to_string(2 * (i % 10)) + ",0,0," + std::to_string(2 * (i % 10) + 1) +
+               ",1,1\n";
     const std::string in = write_text(scratch("giant.csv"), csv + "200,0,40,0,1e20,41,1\n");
     const std::string out = scratch("giant.rcbscene").string(), err = scratch("giant.err").string();
     fs::remove(out);
-    const int rc = std::system((std::string(RCBENCH_BINARY) + " scene import " + in + " -o " + out + " 2> " + err).c_str());
+    const int rc =
+        std::system((std::string(RCBENCH_BINARY) + " scene import " + in + " -o " + out + " 2> " + err).c_str());
     EXPECT_EQ(WEXITSTATUS(rc), 2);
     EXPECT_FALSE(fs::exists(out));
     std::ifstream e(err);
     std::string line, more;
     std::getline(e, line);
     EXPECT_FALSE(std::getline(e, more)) << more;
-    EXPECT_NE(line.find("giant.csv:202: uid 200: field 5 (maxx): coordinate '1e20' beyond ±1e+15"), std::string::npos) << line;
+    EXPECT_NE(line.find("giant.csv:202: uid 200: field 5 (maxx): coordinate '1e20' beyond ±1e+15"), std::string::npos)
+        << line;
 }
 
 /// The real OpenArena maps (scripts/fetch_maps.sh); skipped when they have not been fetched.
@@ -693,11 +785,13 @@ TEST(BspImport, RealOpenArenaMapsMatchGroundTruthInEveryStructure) {
             BspSummary s;
             std::vector<Object> objects = import_bsp(pk3.string(), {mode, map}, &s);
             ASSERT_GT(objects.size(), 100u) << map << " " << mode;
-            for (const Object& o : objects) ASSERT_TRUE(is_finite(o.box.min) && is_finite(o.box.max) && !o.box.is_empty());
+            for (const Object& o : objects)
+                ASSERT_TRUE(is_finite(o.box.min) && is_finite(o.box.max) && !o.box.is_empty());
             RaySettings rays;
             rays.per_frame = 300;
             rays.mix = parse_ray_mix("center:0.5,los:0.25,ground:0.25");
-            const Recording r = add_dynamics(std::move(objects), DynamicsSettings{}, rays, 3, 7, nlohmann::json::object());
+            const Recording r =
+                add_dynamics(std::move(objects), DynamicsSettings{}, rays, 3, 7, nlohmann::json::object());
             const std::string name = std::string(map) + "-" + mode;
             for (const char* structure : {"bf", "hg", "lbvh", "embree", "bullet_dbvt"})
                 test::expect_matches_ground_truth(r, structure, nlohmann::json::object(), name);
@@ -705,8 +799,10 @@ TEST(BspImport, RealOpenArenaMapsMatchGroundTruthInEveryStructure) {
 }
 
 TEST(ModelImport, RealAssimpTestModelImports) {
-    const fs::path glb = fs::path(RCBENCH_SOURCE_DIR) / "data/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb";
-    RCB_REQUIRE_REAL_DATA(fs::exists(glb), "no " << glb << " (run scripts/fetch_maps.sh to fetch assimp's test models)");
+    const fs::path glb =
+        fs::path(RCBENCH_SOURCE_DIR) / "data/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb";
+    RCB_REQUIRE_REAL_DATA(fs::exists(glb),
+                          "no " << glb << " (run scripts/fetch_maps.sh to fetch assimp's test models)");
     ModelSummary s;
     const std::vector<Object> instances = import_model(glb.string(), "instances", &s);
     EXPECT_EQ(instances.size(), s.instances);
@@ -716,7 +812,8 @@ TEST(ModelImport, RealAssimpTestModelImports) {
     RaySettings rays;
     rays.per_frame = 300;
     const Recording r = add_dynamics(instances, DynamicsSettings{}, rays, 2, 3, nlohmann::json::object());
-    for (const char* structure : {"hg", "embree", "bullet_dbvt"}) test::expect_matches_ground_truth(r, structure, {}, "2CylinderEngine");
+    for (const char* structure : {"hg", "embree", "bullet_dbvt"})
+        test::expect_matches_ground_truth(r, structure, {}, "2CylinderEngine");
 }
 
 }  // namespace rcb

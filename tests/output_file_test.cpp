@@ -30,7 +30,9 @@ protected:
         s << in.rdbuf();
         return s.str();
     }
-    std::size_t entries() const { return std::size_t(std::distance(fs::directory_iterator(dir_), fs::directory_iterator())); }
+    std::size_t entries() const {
+        return std::size_t(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()));
+    }
     fs::path dir_;
 };
 

@@ -34,18 +34,22 @@ TEST(Params, DefaultsOverriddenByJsonAndBack) {
     EXPECT_EQ(p.max_depth, 7);
     EXPECT_EQ(p.density, 2.0);
     EXPECT_EQ(p.quality, "medium");
-    EXPECT_EQ(params_to_json(p), (nlohmann::json{{"density", 2.0}, {"max_depth", 7}, {"rotate", true}, {"quality", "medium"}}));
+    EXPECT_EQ(params_to_json(p),
+              (nlohmann::json{{"density", 2.0}, {"max_depth", 7}, {"rotate", true}, {"quality", "medium"}}));
 }
 
 TEST(Params, ValidationMessagesNameThePathAndTheExpectation) {
-    EXPECT_EQ(error_of({{"max_depth", "x"}}), "structures[2].params.max_depth: expected an integer in 1..16, got \"x\"");
+    EXPECT_EQ(error_of({{"max_depth", "x"}}),
+              "structures[2].params.max_depth: expected an integer in 1..16, got \"x\"");
     EXPECT_EQ(error_of({{"max_depth", 17}}), "structures[2].params.max_depth: expected an integer in 1..16, got 17");
     EXPECT_EQ(error_of({{"max_depth", 2.5}}), "structures[2].params.max_depth: expected an integer in 1..16, got 2.5");
     EXPECT_EQ(error_of({{"density", 0}}), "structures[2].params.density: expected a number in 0.01..64, got 0");
     EXPECT_EQ(error_of({{"rotate", 1}}), "structures[2].params.rotate: expected true or false, got 1");
-    EXPECT_EQ(error_of({{"quality", "high"}}), "structures[2].params.quality: expected one of low, medium, got \"high\"");
-    EXPECT_EQ(error_of({{"max_deph", 3}}),
-              "structures[2].params.max_deph: unknown parameter of example (known: density, max_depth, rotate, quality)");
+    EXPECT_EQ(error_of({{"quality", "high"}}),
+              "structures[2].params.quality: expected one of low, medium, got \"high\"");
+    EXPECT_EQ(
+        error_of({{"max_deph", 3}}),
+        "structures[2].params.max_deph: unknown parameter of example (known: density, max_depth, rotate, quality)");
     EXPECT_EQ(error_of(nlohmann::json::array()), "structures[2].params: expected an object of parameters, got []");
 }
 

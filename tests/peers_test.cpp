@@ -28,7 +28,8 @@ const std::vector<nlohmann::json>& embree_configs() {
 }
 
 const std::vector<nlohmann::json>& bullet_configs() {
-    static const std::vector<nlohmann::json> c = {nlohmann::json::object(), {{"optimize_passes", 0}}, {{"optimize_passes", 16}}};
+    static const std::vector<nlohmann::json> c = {
+        nlohmann::json::object(), {{"optimize_passes", 0}}, {{"optimize_passes", 16}}};
     return c;
 }
 
@@ -39,7 +40,8 @@ std::vector<Object> grid_boxes() {
     for (int x = 0; x < 4; ++x)
         for (int y = 0; y < 4; ++y)
             for (int z = 0; z < 4; ++z)
-                objects.push_back({uid++, {{2.0f * x, 2.0f * y, 2.0f * z}, {2.0f * x + 1, 2.0f * y + 1, 2.0f * z + 1}}});
+                objects.push_back(
+                    {uid++, {{2.0f * x, 2.0f * y, 2.0f * z}, {2.0f * x + 1, 2.0f * y + 1, 2.0f * z + 1}}});
     return objects;
 }
 
@@ -62,16 +64,16 @@ std::vector<Uid> expected_hits(const std::vector<Object>& objects, const Segment
 /// inside, far outside the scene.
 std::vector<Segment> touching_rays() {
     return {
-        {{1, -5, 0.5f}, {1, 20, 0.5f}},      // along the x = 1 faces (max x of column 0)
-        {{1, 1, -5}, {1, 1, 20}},            // along an edge line
-        {{-5, 0, 0}, {0, 0, 0}},             // ends exactly on a corner
-        {{0.5f, 0.5f, -5}, {0.5f, 0.5f, 0}}, // ends exactly on a face
-        {{1.5f, 0.5f, 0.5f}, {1.5f, 0.5f, 0.5f}},  // zero length in a gap
-        {{1, 1, 1}, {1, 1, 1}},              // zero length on a corner
-        {{0.5f, 0.5f, 0.5f}, {0.5f, 0.5f, 0.5f}},  // zero length inside
+        {{1, -5, 0.5f}, {1, 20, 0.5f}},             // along the x = 1 faces (max x of column 0)
+        {{1, 1, -5}, {1, 1, 20}},                   // along an edge line
+        {{-5, 0, 0}, {0, 0, 0}},                    // ends exactly on a corner
+        {{0.5f, 0.5f, -5}, {0.5f, 0.5f, 0}},        // ends exactly on a face
+        {{1.5f, 0.5f, 0.5f}, {1.5f, 0.5f, 0.5f}},   // zero length in a gap
+        {{1, 1, 1}, {1, 1, 1}},                     // zero length on a corner
+        {{0.5f, 0.5f, 0.5f}, {0.5f, 0.5f, 0.5f}},   // zero length inside
         {{-1000, 0.5f, 0.5f}, {1000, 0.5f, 0.5f}},  // far beyond the scene: the exact fallback
-        {{7, 7, 7}, {-1, -1, -1}},            // the diagonal, through corners
-        {{3, -1, 3}, {3, 9, 3}},              // along the x = 3, z = 3 edge line
+        {{7, 7, 7}, {-1, -1, -1}},                  // the diagonal, through corners
+        {{3, -1, 3}, {3, 9, 3}},                    // along the x = 3, z = 3 edge line
     };
 }
 
@@ -128,9 +130,12 @@ std::vector<test::NamedScene> scenes_at_magnitude(float m) {
         giant.initial.push_back({4'000'000'000u, {{0, b.min.y, b.min.z}, {m, b.max.y, b.max.z}}});
         for (Frame& f : giant.frames)
             for (int i = 0; i < 40; ++i) {
-                const Vec3 p{float(rng.uniform(b.min.x, b.max.x)), float(rng.uniform(b.min.y, b.max.y)), float(rng.uniform(b.min.z, b.max.z))};
-                Vec3 q{float(rng.uniform(-m, m)), float(rng.uniform(b.min.y - 1, b.max.y + 1)), float(rng.uniform(b.min.z - 1, b.max.z + 1))};
-                if (i % 3 == 0) q = {float(m * rng.uniform(0.5, 1.0)), float(rng.uniform(-m, m)), float(rng.uniform(-m, m))};
+                const Vec3 p{float(rng.uniform(b.min.x, b.max.x)), float(rng.uniform(b.min.y, b.max.y)),
+                             float(rng.uniform(b.min.z, b.max.z))};
+                Vec3 q{float(rng.uniform(-m, m)), float(rng.uniform(b.min.y - 1, b.max.y + 1)),
+                       float(rng.uniform(b.min.z - 1, b.max.z + 1))};
+                if (i % 3 == 0)
+                    q = {float(m * rng.uniform(0.5, 1.0)), float(rng.uniform(-m, m)), float(rng.uniform(-m, m))};
                 f.rays.push_back(i % 5 ? Segment{p, q} : Segment{q, p});
             }
         out.push_back({s.name + "-giant", std::move(giant)});
@@ -204,7 +209,8 @@ TEST(Embree, TinyScenesTakeTheExactFallback) {
             const float scale = m / largest_coordinate(s.recording);
             const Recording r = mapped(s.recording, [&](Vec3 p) { return p * scale; });
             for (const nlohmann::json& params : embree_configs()) {
-                const SimulationResult res = test::expect_matches_ground_truth(r, "embree", params, s.name + " at " + std::to_string(m));
+                const SimulationResult res =
+                    test::expect_matches_ground_truth(r, "embree", params, s.name + " at " + std::to_string(m));
                 if (!res.frames.empty()) EXPECT_FALSE(res.frames.back().stats["in_range"].get<bool>());
             }
         }
@@ -214,8 +220,8 @@ TEST(Embree, ScenesBeyondItsRangeTakeTheExactFallbackInsteadOfAborting) {
     // Files cannot hold these (kMaxCoordinate), but a scene built in memory can: a box 1e20 long
     // made Embree abort on its ray.valid() assertion, and boxes near 1e30 were silently left out of
     // its BVH (bounds beyond FLT_LARGE), so hits went missing.
-    for (const auto& [length, offset] : {std::pair{1e20f, 0.0f}, std::pair{1e19f, 0.0f}, std::pair{1e30f, 1e30f}, std::pair{1.0f, 6e35f},
-                                          std::pair{1e17f, 0.0f}, std::pair{1e15f, 0.0f}})
+    for (const auto& [length, offset] : {std::pair{1e20f, 0.0f}, std::pair{1e19f, 0.0f}, std::pair{1e30f, 1e30f},
+                                         std::pair{1.0f, 6e35f}, std::pair{1e17f, 0.0f}, std::pair{1e15f, 0.0f}})
         for (const nlohmann::json& params : embree_configs()) {
             auto peer = find_structure("embree").make(params, "params");
             const std::vector<Object> objects = boxes_with_a_giant(length, offset);
@@ -227,14 +233,17 @@ TEST(Embree, ScenesBeyondItsRangeTakeTheExactFallbackInsteadOfAborting) {
                                          {{offset + 0.5f, 40.5f, 0.5f}, {b.max.x, 40.5f, 0.5f}},
                                          {{b.max.x, 40.5f, 0.5f}, {offset - 1, 40.5f, 0.5f}}};
             for (int i = 0; i < 200; ++i) {
-                const Vec3 p{float(rng.uniform(b.min.x, offset + 20)), float(rng.uniform(-1, 42)), float(rng.uniform(-1, 6))};
-                const Vec3 q{float(rng.uniform(b.min.x, b.max.x)), float(rng.uniform(-1, 42)), float(rng.uniform(-1, 6))};
+                const Vec3 p{float(rng.uniform(b.min.x, offset + 20)), float(rng.uniform(-1, 42)),
+                             float(rng.uniform(-1, 6))};
+                const Vec3 q{float(rng.uniform(b.min.x, b.max.x)), float(rng.uniform(-1, 42)),
+                             float(rng.uniform(-1, 6))};
                 rays.push_back({p, q});
             }
             for (const Segment& seg : rays)
                 EXPECT_EQ(sorted_hits(*peer, seg), expected_hits(objects, seg))
-                    << "length " << length << " offset " << offset << " " << params.dump() << " segment (" << seg.p0.x << ","
-                    << seg.p0.y << "," << seg.p0.z << ") -> (" << seg.p1.x << "," << seg.p1.y << "," << seg.p1.z << ")";
+                    << "length " << length << " offset " << offset << " " << params.dump() << " segment (" << seg.p0.x
+                    << "," << seg.p0.y << "," << seg.p0.z << ") -> (" << seg.p1.x << "," << seg.p1.y << "," << seg.p1.z
+                    << ")";
             peer->validate();
             EXPECT_EQ(peer->stats()["in_range"].get<bool>(), length < 1e18f && offset < 1e18f);
         }
@@ -242,13 +251,16 @@ TEST(Embree, ScenesBeyondItsRangeTakeTheExactFallbackInsteadOfAborting) {
 
 TEST(Embree, MatchesGroundTruthOnEveryHardScene) {
     for (const nlohmann::json& params : embree_configs())
-        for (const test::NamedScene& s : test::hard_scenes()) test::expect_matches_ground_truth(s.recording, "embree", params, s.name);
+        for (const test::NamedScene& s : test::hard_scenes())
+            test::expect_matches_ground_truth(s.recording, "embree", params, s.name);
 }
 
 TEST(Embree, MatchesGroundTruthOnGeneratedScenes) {
     for (const nlohmann::json& params : embree_configs()) {
-        test::expect_matches_ground_truth(test::generated_scene("uniform", 3000, 4, 11), "embree", params, "uniform-3000");
-        test::expect_matches_ground_truth(test::generated_scene("irregular", 3000, 4, 12), "embree", params, "irregular-3000");
+        test::expect_matches_ground_truth(test::generated_scene("uniform", 3000, 4, 11), "embree", params,
+                                          "uniform-3000");
+        test::expect_matches_ground_truth(test::generated_scene("irregular", 3000, 4, 12), "embree", params,
+                                          "irregular-3000");
     }
 }
 
@@ -326,8 +338,10 @@ TEST(Bullet, MatchesGroundTruthOnEveryHardScene) {
 
 TEST(Bullet, MatchesGroundTruthOnGeneratedScenes) {
     for (const nlohmann::json& params : bullet_configs()) {
-        test::expect_matches_ground_truth(test::generated_scene("uniform", 3000, 4, 11), "bullet_dbvt", params, "uniform-3000");
-        test::expect_matches_ground_truth(test::generated_scene("irregular", 3000, 4, 12), "bullet_dbvt", params, "irregular-3000");
+        test::expect_matches_ground_truth(test::generated_scene("uniform", 3000, 4, 11), "bullet_dbvt", params,
+                                          "uniform-3000");
+        test::expect_matches_ground_truth(test::generated_scene("irregular", 3000, 4, 12), "bullet_dbvt", params,
+                                          "irregular-3000");
     }
 }
 

@@ -8,10 +8,10 @@
 
 #include <cstdlib>
 
-#define RCB_REQUIRE_REAL_DATA(present, what)                                                            \
-    do {                                                                                                \
-        if (!(present)) {                                                                               \
+#define RCB_REQUIRE_REAL_DATA(present, what)                                                               \
+    do {                                                                                                   \
+        if (!(present)) {                                                                                  \
             if (std::getenv("RCB_REQUIRE_REAL_DATA")) FAIL() << what << " (RCB_REQUIRE_REAL_DATA is set)"; \
-            GTEST_SKIP() << what;                                                                       \
-        }                                                                                               \
+            GTEST_SKIP() << what;                                                                          \
+        }                                                                                                  \
     } while (false)

@@ -105,15 +105,18 @@ TEST(Recording, RejectsNonFiniteCoordinatesAndInvertedBoxes) {
     Recording r = small_recording();
     Recording nan = r;
     nan.initial[7].box.min.y = std::nanf("");
-    EXPECT_EQ(error_of(nan), "scene.rcbscene: frame 0: uid " + std::to_string(r.initial[7].uid) + ": non-finite coordinate");
+    EXPECT_EQ(error_of(nan),
+              "scene.rcbscene: frame 0: uid " + std::to_string(r.initial[7].uid) + ": non-finite coordinate");
 
     Recording inf = r;
     inf.frames[3].moves.at(0).box.max.z = INFINITY;
-    EXPECT_EQ(error_of(inf), "scene.rcbscene: frame 4: uid " + std::to_string(r.frames[3].moves[0].uid) + ": non-finite coordinate");
+    EXPECT_EQ(error_of(inf),
+              "scene.rcbscene: frame 4: uid " + std::to_string(r.frames[3].moves[0].uid) + ": non-finite coordinate");
 
     Recording inverted = r;
     std::swap(inverted.initial[2].box.min.x, inverted.initial[2].box.max.x);
-    EXPECT_EQ(error_of(inverted), "scene.rcbscene: frame 0: uid " + std::to_string(r.initial[2].uid) + ": min > max on axis x");
+    EXPECT_EQ(error_of(inverted),
+              "scene.rcbscene: frame 0: uid " + std::to_string(r.initial[2].uid) + ": min > max on axis x");
 
     Recording ray = r;
     ray.frames[1].rays[5].p1.x = std::nanf("");
@@ -125,20 +128,24 @@ TEST(Recording, RejectsCoordinatesBeyondTheLimitNamingFrameAndUid) {
     const std::string limit = " beyond ±1e+15 (the largest magnitude every structure handles exactly)";
     Recording big = r;
     big.initial[7].box.max.x = 1e20f;  // a box 1e20 long: Embree asserted on the rays reaching it
-    EXPECT_EQ(error_of(big), "scene.rcbscene: frame 0: uid " + std::to_string(r.initial[7].uid) + ": coordinate 1e+20" + limit);
+    EXPECT_EQ(error_of(big),
+              "scene.rcbscene: frame 0: uid " + std::to_string(r.initial[7].uid) + ": coordinate 1e+20" + limit);
     Recording far = r;
     far.frames[2].moves.at(0).box = {{-3e38f, 0, 0}, {-3e38f, 1, 1}};
-    EXPECT_EQ(error_of(far), "scene.rcbscene: frame 3: uid " + std::to_string(r.frames[2].moves[0].uid) + ": coordinate -3e+38" + limit);
+    EXPECT_EQ(error_of(far), "scene.rcbscene: frame 3: uid " + std::to_string(r.frames[2].moves[0].uid) +
+                                 ": coordinate -3e+38" + limit);
     Recording ray = r;
     ray.frames[0].rays[3].p0.z = 2e15f;
     EXPECT_EQ(error_of(ray), "scene.rcbscene: frame 1: ray 3: coordinate 2e+15" + limit);
     Recording tiny = r;
     tiny.initial[7].box.min.y = 3e-25f;  // nonzero but below kMinCoordinate
-    EXPECT_EQ(error_of(tiny), "scene.rcbscene: frame 0: uid " + std::to_string(r.initial[7].uid) +
-                                  ": coordinate 3e-25 below 1e-20 in magnitude (write 0: float arithmetic is not exact that small)");
+    EXPECT_EQ(error_of(tiny),
+              "scene.rcbscene: frame 0: uid " + std::to_string(r.initial[7].uid) +
+                  ": coordinate 3e-25 below 1e-20 in magnitude (write 0: float arithmetic is not exact that small)");
     Recording denormal = r;
     denormal.frames[1].rays[0].p1.y = -1e-42f;  // brute force itself disagreed with the ground truth here
-    EXPECT_NE(error_of(denormal).find("scene.rcbscene: frame 2: ray 0: coordinate -1.00053e-42 below 1e-20"), std::string::npos)
+    EXPECT_NE(error_of(denormal).find("scene.rcbscene: frame 2: ray 0: coordinate -1.00053e-42 below 1e-20"),
+              std::string::npos)
         << error_of(denormal);
     // At the limits is fine.
     Recording edge = r;
@@ -157,9 +164,11 @@ TEST(Recording, TheWriterRefusesWhatTheReaderWouldReject) {
         write_recording(r, path);
         FAIL() << "written";
     } catch (const InputError& e) {
-        EXPECT_EQ(std::string(e.what()).rfind(path + " (not written): frame 0: uid " + std::to_string(r.initial[2].uid) +
-                                                  ": coordinate -3e+38 beyond ±1e+15", 0),
-                  0u)
+        EXPECT_EQ(
+            std::string(e.what()).rfind(path + " (not written): frame 0: uid " + std::to_string(r.initial[2].uid) +
+                                            ": coordinate -3e+38 beyond ±1e+15",
+                                        0),
+            0u)
             << e.what();
     }
     EXPECT_FALSE(std::filesystem::exists(path));

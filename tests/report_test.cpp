@@ -50,7 +50,8 @@ std::int64_t small_run(const std::string& db_path) {
 }
 
 TEST(Report, DrawsEveryChartAndRendersInChromium) {
-    ASSERT_TRUE(gnuplot_available()) << "gnuplot is part of rcbench's dependencies (scripts/setup.sh installs gnuplot-nox)";
+    ASSERT_TRUE(gnuplot_available())
+        << "gnuplot is part of rcbench's dependencies (scripts/setup.sh installs gnuplot-nox)";
     const fs::path dir = fs::temp_directory_path() / ("rcb_report_" + std::to_string(::getpid()));
     fs::remove_all(dir);
     fs::create_directories(dir);
@@ -67,19 +68,27 @@ TEST(Report, DrawsEveryChartAndRendersInChromium) {
     EXPECT_EQ(count_of(page, "<svg"), s.charts);
     EXPECT_EQ(count_of(page, "<figcaption>"), s.charts);  // every chart has its sentence
     EXPECT_EQ(count_of(page, "<img"), 0u);                // nothing that could be a broken image
-    for (const char* section : {"Table 6.1", "Table 6.2", "Table 6.3", "Table 6.4", "Speed against accuracy", "Build time against object count"})
+    for (const char* section : {"Table 6.1", "Table 6.2", "Table 6.3", "Table 6.4", "Speed against accuracy",
+                                "Build time against object count"})
         EXPECT_NE(page.find(section), std::string::npos) << section;
     EXPECT_EQ(page.find("http://www.w3.org/1999/xlink\" href=\"http"), std::string::npos);  // no remote resources
 
-    RCB_REQUIRE_REAL_DATA(fs::exists("/usr/bin/chromium"), "Debian's chromium is not installed (scripts/setup.sh --test-tools installs it)");
-    const std::string flags = "--headless --no-sandbox --disable-gpu --disable-quic --no-first-run --disable-background-networking "
-                              "--disable-component-update --disable-sync --user-data-dir=" + (dir / "profile").string();
+    RCB_REQUIRE_REAL_DATA(fs::exists("/usr/bin/chromium"),
+                          "Debian's chromium is not installed (scripts/setup.sh --test-tools installs it)");
+    const std::string flags =
+        "--headless --no-sandbox --disable-gpu --disable-quic --no-first-run --disable-background-networking "
+        "--disable-component-update --disable-sync --user-data-dir=" +
+        (dir / "profile").string();
     const fs::path shot = dir / "shot.png", dom = dir / "dom.html";
     const std::string url = "file://" + html.string();
-    ASSERT_EQ(std::system(("timeout 120 chromium " + flags + " --window-size=1200,4000 --screenshot=" + shot.string() + " " + url +
-                           " >/dev/null 2>&1").c_str()),
+    ASSERT_EQ(std::system(("timeout 120 chromium " + flags + " --window-size=1200,4000 --screenshot=" + shot.string() +
+                           " " + url + " >/dev/null 2>&1")
+                              .c_str()),
               0);
-    ASSERT_EQ(std::system(("timeout 120 chromium " + flags + " --dump-dom " + url + " > " + dom.string() + " 2>/dev/null").c_str()), 0);
+    ASSERT_EQ(
+        std::system(
+            ("timeout 120 chromium " + flags + " --dump-dom " + url + " > " + dom.string() + " 2>/dev/null").c_str()),
+        0);
     // The rendered DOM holds every chart as parsed SVG with its plotted content.
     const std::string rendered = read(dom);
     EXPECT_EQ(count_of(rendered, "<svg"), s.charts);

@@ -43,16 +43,18 @@ TEST(Experiment, ValidationNamesTheJsonPath) {
     EXPECT_EQ(error_of(kMinimal), "");
     EXPECT_EQ(error_of("{"), error_of("{"));  // stable
     EXPECT_EQ(error_of("{").find("exp.json: not valid JSON"), 0u);
-    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frame": 3})"),
-              "exp.json: frame: unknown key (known: description, frames, name, ray_mix, rays_per_frame, repetitions, scenes, "
-              "seeds, structures, threads, verify, warmup_frames)");
+    EXPECT_EQ(
+        error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frame": 3})"),
+        "exp.json: frame: unknown key (known: description, frames, name, ray_mix, rays_per_frame, repetitions, scenes, "
+        "seeds, structures, threads, verify, warmup_frames)");
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frames": "ten"})"),
               "exp.json: frames: expected an integer in 1..1000000, got \"ten\"");
-    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}, {"preset": "uni-q"}], "structures": [{"name": "bf"}]})").find(
-                  "exp.json: scenes[1].preset: unknown preset 'uni-q' (known: uni-s, uni-m, uni-l, irreg-s, irreg-m, irreg-l, irreg-xl"),
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}, {"preset": "uni-q"}], "structures": [{"name": "bf"}]})")
+                  .find("exp.json: scenes[1].preset: unknown preset 'uni-q' (known: uni-s, uni-m, uni-l, irreg-s, "
+                        "irreg-m, irreg-l, irreg-xl"),
               0u);
-    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}, {"name": "kd"}]})").find(
-                  "exp.json: structures[1].name: unknown structure 'kd' (known: bf"),
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}, {"name": "kd"}]})")
+                  .find("exp.json: structures[1].name: unknown structure 'kd' (known: bf"),
               0u);
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf", "params": {"depth": 3}}]})"),
               "exp.json: structures[0].params.depth: unknown parameter of bf (it takes none)");
@@ -60,19 +62,23 @@ TEST(Experiment, ValidationNamesTheJsonPath) {
               "exp.json: scenes[0].recording: file not found: missing.rcbscene");
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "kind": "uniform"}], "structures": [{"name": "bf"}]})"),
               "exp.json: scenes[0]: give exactly one of \"preset\", \"kind\", \"recording\" or \"import\"");
-    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "ray_mix": "up"}], "structures": [{"name": "bf"}]})").find(
-                  "exp.json: scenes[0].ray_mix: ray mix 'up': unknown mode 'up'"),
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "ray_mix": "up"}], "structures": [{"name": "bf"}]})")
+                  .find("exp.json: scenes[0].ray_mix: ray mix 'up': unknown mode 'up'"),
               0u);
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "objects": [10, -1]}], "structures": [{"name": "bf"}]})"),
               "exp.json: scenes[0].objects[1]: expected an integer in 1..100000000, got -1");
-    EXPECT_EQ(error_of(R"({"scenes": [], "structures": [{"name": "bf"}]})"), "exp.json: scenes: expected a non-empty list of scenes");
+    EXPECT_EQ(error_of(R"({"scenes": [], "structures": [{"name": "bf"}]})"),
+              "exp.json: scenes: expected a non-empty list of scenes");
     // Every generator kind is a scene kind, the failure modes included.
-    EXPECT_EQ(error_of(R"({"scenes": [{"kind": "same-centroid", "objects": 50}], "structures": [{"name": "bf"}]})"), "");
+    EXPECT_EQ(error_of(R"({"scenes": [{"kind": "same-centroid", "objects": 50}], "structures": [{"name": "bf"}]})"),
+              "");
     EXPECT_EQ(error_of(R"({"scenes": [{"kind": "cubes", "objects": 50}], "structures": [{"name": "bf"}]})"),
               "exp.json: scenes[0].kind: expected one of uniform, irregular, stadium, identical, same-centroid, flat, "
               "slivers, outlier, nested, got \"cubes\"");
-    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frames": 3, "warmup_frames": 3})"),
-              "exp.json: warmup_frames: leaves no measured frame in scene uni-s");
+    EXPECT_EQ(
+        error_of(
+            R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frames": 3, "warmup_frames": 3})"),
+        "exp.json: warmup_frames: leaves no measured frame in scene uni-s");
 }
 
 TEST(Experiment, OversizedOrMalformedRangesAndPlansAreRefusedBeforeAllocation) {
@@ -80,13 +86,17 @@ TEST(Experiment, OversizedOrMalformedRangesAndPlansAreRefusedBeforeAllocation) {
         return R"({"scenes": [{"preset": "uni-s"}], )" + extra + R"("structures": [)" + structure + "]}";
     };
     // A factor barely above 1: billions of steps to reach "to" (this hung).
-    EXPECT_EQ(error_of(with_structure(R"({"name": "hg", "grids": [{"max_capacity": {"from": 1, "to": 8, "times": 1.000000000000001}}]})")),
+    EXPECT_EQ(error_of(with_structure(
+                  R"({"name": "hg", "grids": [{"max_capacity": {"from": 1, "to": 8, "times": 1.000000000000001}}]})")),
               "exp.json: structures[0].grids[0].max_capacity: the range takes more than 10000 steps");
-    EXPECT_EQ(error_of(with_structure(R"({"name": "ug", "grids": [{"density": {"from": 0.1, "to": 64, "step": 1e-9}}]})")),
-              "exp.json: structures[0].grids[0].density: the range takes more than 10000 steps");
+    EXPECT_EQ(
+        error_of(with_structure(R"({"name": "ug", "grids": [{"density": {"from": 0.1, "to": 64, "step": 1e-9}}]})")),
+        "exp.json: structures[0].grids[0].density: the range takes more than 10000 steps");
     // A range over a boolean or a choice: a clear error with its path (was a bare library type error).
-    EXPECT_EQ(error_of(with_structure(R"({"name": "ug", "grids": [{"outlier_guard": {"from": true, "to": true, "step": 1}}]})")),
-              "exp.json: structures[0].grids[0].outlier_guard: a range needs a numeric parameter; give outlier_guard a value or a "
+    EXPECT_EQ(error_of(with_structure(
+                  R"({"name": "ug", "grids": [{"outlier_guard": {"from": true, "to": true, "step": 1}}]})")),
+              "exp.json: structures[0].grids[0].outlier_guard: a range needs a numeric parameter; give outlier_guard a "
+              "value or a "
               "list of values");
     // 1000 repetitions of a 6301-value grid: refused at once instead of expanding 6.3 M cells.
     EXPECT_EQ(error_of(with_structure(R"({"name": "ug", "grids": [{"density": {"from": 1, "to": 64, "step": 0.01}}]})",
@@ -98,9 +108,11 @@ TEST(Experiment, OversizedOrMalformedRangesAndPlansAreRefusedBeforeAllocation) {
                   .rfind("exp.json: structures[0].grids[0]: the grid has more than 100000 combinations", 0),
               0u);
     // A 5 MB string where a number belongs: the message quotes an excerpt, not the value.
-    const std::string message = error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frames": ")" +
-                                         std::string(5'000'000, 'x') + "\"}");
-    EXPECT_EQ(message.rfind("exp.json: frames: expected an integer in 1..1000000, got \"xxx", 0), 0u) << message.substr(0, 200);
+    const std::string message =
+        error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frames": ")" +
+                 std::string(5'000'000, 'x') + "\"}");
+    EXPECT_EQ(message.rfind("exp.json: frames: expected an integer in 1..1000000, got \"xxx", 0), 0u)
+        << message.substr(0, 200);
     EXPECT_LT(message.size(), 200u);
 }
 
@@ -151,7 +163,8 @@ TEST(Experiment, ValueListsAndRangesExpandIntoTheCrossProduct) {
     for (std::size_t i = 0; i < 12; ++i) {
         EXPECT_EQ(e.configs[i].params["mode"], "rebuild");
         EXPECT_EQ(e.configs[i].params["rotate"], true);  // defaults completed
-        grid.insert({std::lround(e.configs[i].params["margin"].get<double>() * 10), e.configs[i].params["bins"].get<long>()});
+        grid.insert(
+            {std::lround(e.configs[i].params["margin"].get<double>() * 10), e.configs[i].params["bins"].get<long>()});
     }
     std::set<std::pair<long, long>> want;
     for (long m : {0, 1, 2, 3})  // the end of a float range is kept despite rounding
@@ -159,12 +172,17 @@ TEST(Experiment, ValueListsAndRangesExpandIntoTheCrossProduct) {
     EXPECT_EQ(grid, want);
     EXPECT_EQ(e.configs[12].params["rotate"], true);
     EXPECT_EQ(e.configs[13].params["rotate"], false);
-    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "dbvh", "params": {"bins": {"from": 4, "to": 8, "step": 1.5}}}]})"),
-              "exp.json: structures[0].params.bins.step: expected a positive integer, got 1.5");
-    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "dbvh", "params": {"bins": [4, 300]}}]})"),
-              "exp.json: structures[0].params.bins[1]: expected an integer in 2..256, got 300");
-    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "dbvh", "params": {"mode": "x"}}]})"),
-              "exp.json: structures[0].params.mode: expected one of incremental, rebuild, got \"x\"");
+    EXPECT_EQ(
+        error_of(
+            R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "dbvh", "params": {"bins": {"from": 4, "to": 8, "step": 1.5}}}]})"),
+        "exp.json: structures[0].params.bins.step: expected a positive integer, got 1.5");
+    EXPECT_EQ(
+        error_of(
+            R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "dbvh", "params": {"bins": [4, 300]}}]})"),
+        "exp.json: structures[0].params.bins[1]: expected an integer in 2..256, got 300");
+    EXPECT_EQ(
+        error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "dbvh", "params": {"mode": "x"}}]})"),
+        "exp.json: structures[0].params.mode: expected one of incremental, rebuild, got \"x\"");
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf", "grids": []}]})"),
               "exp.json: structures[0].grids: expected a non-empty list of parameter grids");
 }
@@ -286,8 +304,9 @@ TEST(Store, RefusesANewerSchemaAndMigratesAnOlderOne) {
     }
     {
         ResultStore migrated(v1_db);
-        Statement s = migrated.db().prepare("SELECT (SELECT count(*) FROM experiment WHERE name = 'kept'), "
-                                            "(SELECT count(*) FROM sqlite_master WHERE name IN ('fit', 'fit_coefficient'))");
+        Statement s = migrated.db().prepare(
+            "SELECT (SELECT count(*) FROM experiment WHERE name = 'kept'), "
+            "(SELECT count(*) FROM sqlite_master WHERE name IN ('fit', 'fit_coefficient'))");
         s.step();
         EXPECT_EQ(s.int64(0), 1);
         EXPECT_EQ(s.int64(1), 2);
@@ -304,7 +323,8 @@ TEST(Store, RefusesANewerSchemaAndMigratesAnOlderOne) {
         ResultStore store(new_db);
         FAIL();
     } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find("schema version 99 is newer than this rcbench writes"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("schema version 99 is newer than this rcbench writes"), std::string::npos)
+            << e.what();
     }
     EXPECT_THROW(open_read_only((dir / "missing.db").string()), InputError);
     fs::remove_all(dir);
@@ -345,8 +365,9 @@ std::int64_t count(const std::string& db_path, const std::string& sql) {
 }
 
 void write_experiment(const fs::path& path, int repetitions) {
-    std::ofstream(path) << R"({"name": "resume", "frames": 4, "rays_per_frame": 300, "repetitions": )" << repetitions
-                        << R"(, "scenes": [{"kind": "irregular", "objects": 4000}, {"kind": "uniform", "objects": 3000}],
+    std::ofstream(path)
+        << R"({"name": "resume", "frames": 4, "rays_per_frame": 300, "repetitions": )" << repetitions
+        << R"(, "scenes": [{"kind": "irregular", "objects": 4000}, {"kind": "uniform", "objects": 3000}],
                              "structures": [{"name": "bf"}]})";
 }
 
@@ -418,7 +439,8 @@ TEST(Store, MergingAKilledShardThenItsResumedRunCompletesTheMergedRun) {
     const fs::path dir = temp_dir("merge_resumed");
     const fs::path exp = dir / "resume.json";
     write_experiment(exp, 8);  // 16 cells
-    const std::string shard = (dir / "shard.db").string(), out = (dir / "all.db").string(), log = (dir / "log.txt").string();
+    const std::string shard = (dir / "shard.db").string(), out = (dir / "all.db").string(),
+                      log = (dir / "log.txt").string();
     const pid_t pid = spawn_rcbench({"run", exp.string(), "--shard", "1/1", "--db", shard}, log);
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
     while (count(shard, "SELECT count(*) FROM cell") < 3 && std::chrono::steady_clock::now() < deadline)
@@ -442,8 +464,10 @@ TEST(Store, TheAnalysisOfAShardSeesEveryShardOfItsPlan) {
     const fs::path dir = temp_dir("shard_group");
     const fs::path exp = dir / "resume.json";
     write_experiment(exp, 2);  // 4 cells of 4 frames
-    const std::string db = (dir / "all.db").string(), whole = (dir / "whole.db").string(), log = (dir / "log.txt").string();
-    for (const char* shard : {"1/2", "2/2"}) ASSERT_EQ(wait_exit(spawn_rcbench({"run", exp.string(), "--shard", shard, "--db", db}, log)), 0);
+    const std::string db = (dir / "all.db").string(), whole = (dir / "whole.db").string(),
+                      log = (dir / "log.txt").string();
+    for (const char* shard : {"1/2", "2/2"})
+        ASSERT_EQ(wait_exit(spawn_rcbench({"run", exp.string(), "--shard", shard, "--db", db}, log)), 0);
     ASSERT_EQ(wait_exit(spawn_rcbench({"run", exp.string(), "--db", whole}, log)), 0);
     Database shards(db, true), single(whole, true);
     const std::int64_t newest = resolve_run(shards, 0, "");

@@ -49,12 +49,12 @@ TEST(Simulator, ReportsEveryFramePhaseAndCounter) {
     for (const FrameResult& f : res.frames) {
         EXPECT_EQ(f.rays, 100u);
         EXPECT_GT(f.raycast_ns, 0u);
-        EXPECT_EQ(f.counters.n_tp, f.hits);           // the counting pass sees the same hits
-        EXPECT_GE(f.counters.n_rb, 100u * 1900);       // BF tests every live object per ray
+        EXPECT_EQ(f.counters.n_tp, f.hits);       // the counting pass sees the same hits
+        EXPECT_GE(f.counters.n_rb, 100u * 1900);  // BF tests every live object per ray
     }
     const nlohmann::json j = res.to_json();
-    for (const char* key : {"structure", "params", "build_ns", "memory_bytes", "mismatches", "update_ns", "raycast_ns", "hits",
-                            "n_t", "n_rb", "n_tp"})
+    for (const char* key : {"structure", "params", "build_ns", "memory_bytes", "mismatches", "update_ns", "raycast_ns",
+                            "hits", "n_t", "n_rb", "n_tp"})
         EXPECT_TRUE(j.contains(key)) << key;
     EXPECT_EQ(j["update_ns"].size(), 6u);
 }

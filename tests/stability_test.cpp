@@ -31,7 +31,8 @@ namespace {
 constexpr std::uint64_t GOLDEN_UNI_S = 0x7f53b5b315db6a4eull;
 constexpr std::uint64_t GOLDEN_IRREG_M = 0x9ea4eec6a0684108ull;
 
-SceneSettings failure_scene(const std::string& kind, std::uint32_t objects, std::uint32_t frames, std::uint64_t seed = 1) {
+SceneSettings failure_scene(const std::string& kind, std::uint32_t objects, std::uint32_t frames,
+                            std::uint64_t seed = 1) {
     SceneSettings s = preset_settings(kind + "-s");
     s.objects = objects;
     s.frames = frames;
@@ -86,7 +87,8 @@ TEST(Stability, FailureModePresetsExistAndAreDeterministic) {
 /// (hashes from the generator before the failure modes, commit 630a7f7; a change here changes every stored
 /// result's scene).
 TEST(Stability, ThesisPresetsAreByteIdentical) {
-    for (const auto& [preset, hash] : {std::pair<const char*, std::uint64_t>{"uni-s", GOLDEN_UNI_S}, {"irreg-m", GOLDEN_IRREG_M}}) {
+    for (const auto& [preset, hash] :
+         {std::pair<const char*, std::uint64_t>{"uni-s", GOLDEN_UNI_S}, {"irreg-m", GOLDEN_IRREG_M}}) {
         SceneSettings s = preset_settings(preset);
         s.frames = 3;
         s.rays.mix = parse_ray_mix("center,dense,los,ground,shots");
@@ -170,7 +172,8 @@ TEST(Stability, InsideRaysStartAmongTheObjects) {
 TEST(Stability, EveryStructureIsExactOnEveryFailureMode) {
     for (const std::string& kind : failure_mode_kinds()) {
         const Recording r = generate_scene(failure_scene(kind, 700, 4, 3));
-        for (const StructureInfo& info : structure_registry()) test::expect_matches_ground_truth(r, info.name, {}, kind);
+        for (const StructureInfo& info : structure_registry())
+            test::expect_matches_ground_truth(r, info.name, {}, kind);
         test::expect_matches_ground_truth(r, "ug", {{"outlier_guard", false}}, kind);
         test::expect_matches_ground_truth(r, "hg", {{"outlier_guard", false}, {"entries_guard", false}}, kind);
         test::expect_matches_ground_truth(r, "lbvh", {{"outlier_guard", false}}, kind);
@@ -183,7 +186,8 @@ TEST(Stability, EveryStructureIsExactOnEveryFailureMode) {
 TEST(Stability, GuardsOffStayExactOnTheHardScenes) {
     for (const test::NamedScene& s : test::hard_scenes()) {
         test::expect_matches_ground_truth(s.recording, "ug", {{"outlier_guard", false}}, s.name);
-        test::expect_matches_ground_truth(s.recording, "hg", {{"outlier_guard", false}, {"entries_guard", false}}, s.name);
+        test::expect_matches_ground_truth(s.recording, "hg", {{"outlier_guard", false}, {"entries_guard", false}},
+                                          s.name);
         test::expect_matches_ground_truth(s.recording, "lbvh", {{"outlier_guard", false}}, s.name);
         test::expect_matches_ground_truth(s.recording, "dbvh", {{"sah_guard", 0}}, s.name);
         test::expect_matches_ground_truth(s.recording, "dbvh", {{"sah_guard", 1.01}}, s.name);
@@ -267,7 +271,8 @@ TEST(Stability, DynamicBvhSahGuard) {
     const SimulationResult eager = counted(r, "dbvh", {{"sah_guard", 1.0}});
     EXPECT_EQ(off.frames.back().stats["guard_rebuilds"].get<int>(), 0);
     EXPECT_GE(on.frames.back().stats["guard_rebuilds"].get<int>(), 1);
-    EXPECT_GT(eager.frames.back().stats["guard_rebuilds"].get<int>(), on.frames.back().stats["guard_rebuilds"].get<int>());
+    EXPECT_GT(eager.frames.back().stats["guard_rebuilds"].get<int>(),
+              on.frames.back().stats["guard_rebuilds"].get<int>());
     EXPECT_LT(mean_cost(eager), mean_cost(off));
 }
 
@@ -374,7 +379,8 @@ TEST(Stability, ReportShowsWhereMethodsFail) {
     namespace fs = std::filesystem;
     const fs::path dir = fs::temp_directory_path() / ("rcb_stability_" + std::to_string(::getpid()));
     fs::create_directories(dir);
-    std::ofstream(dir / "mini.json") << R"({"name": "mini", "frames": 3, "rays_per_frame": 200, "ray_mix": "center,faces",
+    std::ofstream(dir / "mini.json")
+        << R"({"name": "mini", "frames": 3, "rays_per_frame": 200, "ray_mix": "center,faces",
         "scenes": [{"preset": "outlier-s"}, {"preset": "stadium-s"}, {"kind": "irregular", "objects": 1000}],
         "structures": [{"name": "bf"}, {"name": "ug", "params": {"outlier_guard": [true, false]}}]})";
     const std::string bin = RCBENCH_BINARY, d = dir.string();

@@ -32,10 +32,10 @@ struct Outcome {
 };
 
 struct RunOptions {
-    std::string cwd;                     // working directory; empty: the caller's
-    double timeout_seconds = 0;          // 0: wait for ever
-    std::uint64_t address_space = 0;     // RLIMIT_AS in bytes; 0: unlimited (sanitizers need it so)
-    std::vector<std::string> env;        // "NAME=value" added to (or replacing in) the environment
+    std::string cwd;                  // working directory; empty: the caller's
+    double timeout_seconds = 0;       // 0: wait for ever
+    std::uint64_t address_space = 0;  // RLIMIT_AS in bytes; 0: unlimited (sanitizers need it so)
+    std::vector<std::string> env;     // "NAME=value" added to (or replacing in) the environment
 };
 
 /// The argument as the shell would need it written.
@@ -104,7 +104,8 @@ inline Outcome run_process(const std::vector<std::string>& argv, const RunOption
     while (open_fds > 0) {
         int wait_ms = -1;
         if (o.timeout_seconds > 0) {
-            const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+            const auto left =
+                std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
             if (left.count() <= 0) {
                 r.timed_out = true;
                 ::kill(-pid, SIGKILL);
@@ -133,8 +134,10 @@ inline Outcome run_process(const std::vector<std::string>& argv, const RunOption
     }
     if (r.timed_out) ::kill(-pid, SIGKILL);  // helpers it started, if any survived
     r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (WIFEXITED(status)) r.code = WEXITSTATUS(status);
-    else if (WIFSIGNALED(status)) r.signal = WTERMSIG(status);
+    if (WIFEXITED(status))
+        r.code = WEXITSTATUS(status);
+    else if (WIFSIGNALED(status))
+        r.signal = WTERMSIG(status);
     return r;
 }
 

@@ -161,7 +161,8 @@ std::vector<NamedScene> hard_scenes() {
         scenes.push_back({"empty-then-some", with_rays({}, frames, 1)});
     }
     // One object.
-    scenes.push_back({"single", with_rays({{7, box(-1, -1, -1, 1, 1, 1)}}, jiggle({{7, box(-1, -1, -1, 1, 1, 1)}}, 3, 2), 2)});
+    scenes.push_back(
+        {"single", with_rays({{7, box(-1, -1, -1, 1, 1, 1)}}, jiggle({{7, box(-1, -1, -1, 1, 1, 1)}}, 3, 2), 2)});
     // Identical boxes.
     {
         std::vector<Object> objs;
@@ -243,13 +244,14 @@ std::vector<NamedScene> hard_scenes() {
         Uid uid = 0;
         for (int x = 0; x < 8; ++x)
             for (int y = 0; y < 8; ++y)
-                for (int z = 0; z < 8; ++z) objs.push_back({uid++, box(float(x), float(y), float(z), x + 1.f, y + 1.f, z + 1.f)});
+                for (int z = 0; z < 8; ++z)
+                    objs.push_back({uid++, box(float(x), float(y), float(z), x + 1.f, y + 1.f, z + 1.f)});
         Recording r = with_rays(objs, jiggle(objs, 3, 8), 8);
         for (Frame& f : r.frames)
             for (int k = 0; k <= 8; ++k) {
-                f.rays.push_back({{float(k), -1, float(k)}, {float(k), 9, float(k)}});    // along an edge line
-                f.rays.push_back({{-1, float(k), 0.5f}, {9, float(k), 0.5f}});            // along a face plane
-                f.rays.push_back({{float(k), float(k), float(k)}, {8, 8, 8}});           // diagonal through corners
+                f.rays.push_back({{float(k), -1, float(k)}, {float(k), 9, float(k)}});  // along an edge line
+                f.rays.push_back({{-1, float(k), 0.5f}, {9, float(k), 0.5f}});          // along a face plane
+                f.rays.push_back({{float(k), float(k), float(k)}, {8, 8, 8}});          // diagonal through corners
             }
         scenes.push_back({"lattice-faces", std::move(r)});
     }
@@ -273,8 +275,8 @@ std::vector<NamedScene> hard_scenes() {
     return scenes;
 }
 
-SimulationResult expect_matches_ground_truth(const Recording& r, const std::string& structure, const nlohmann::json& params,
-                                             const std::string& scene_name) {
+SimulationResult expect_matches_ground_truth(const Recording& r, const std::string& structure,
+                                             const nlohmann::json& params, const std::string& scene_name) {
     SimulationOptions o;
     o.verify = true;
     o.count = true;
@@ -283,8 +285,8 @@ SimulationResult expect_matches_ground_truth(const Recording& r, const std::stri
     std::string examples;
     static const char* kinds[] = {"missed", "extra", "duplicate"};
     for (const auto& [frame, d] : res.examples)
-        examples += "\n  frame " + std::to_string(frame) + " ray " + std::to_string(d.ray) + " uid " + std::to_string(d.uid) +
-                    ": " + kinds[d.kind];
+        examples += "\n  frame " + std::to_string(frame) + " ray " + std::to_string(d.ray) + " uid " +
+                    std::to_string(d.uid) + ": " + kinds[d.kind];
     EXPECT_EQ(res.mismatches(), 0u) << structure << ' ' << params.dump() << " on scene " << scene_name << examples;
     return res;
 }

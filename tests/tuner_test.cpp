@@ -16,14 +16,17 @@ using json = nlohmann::json;
 /// A 6 × 5 × 4 × 2 = 240-point space shaped like grid tuning: a valley in (amp, depth), a weak
 /// capacity effect, a flat choice, and 1% deterministic noise (no smoothness to exploit).
 std::vector<SearchDimension> grid_like_space() {
-    return {{"amp", {0.125, 0.25, 0.5, 1.0, 2.0, 4.0}}, {"depth", {0, 1, 2, 3, 4}}, {"capacity", {4, 8, 16, 32}}, {"flag", {false, true}}};
+    return {{"amp", {0.125, 0.25, 0.5, 1.0, 2.0, 4.0}},
+            {"depth", {0, 1, 2, 3, 4}},
+            {"capacity", {4, 8, 16, 32}},
+            {"flag", {false, true}}};
 }
 
 double grid_like_cost(const json& p) {
     const double amp = std::log2(p["amp"].get<double>()), depth = p["depth"].get<double>();
     const double capacity = std::log2(p["capacity"].get<double>());
-    double cost = 1.0 + 0.15 * (amp - 0.7) * (amp - 0.7) + 0.2 * std::abs(depth - 2.2) + 0.05 * std::abs(capacity - 3.4) +
-                  0.1 * (amp - 0.7) * (depth - 2.2) / 4;
+    double cost = 1.0 + 0.15 * (amp - 0.7) * (amp - 0.7) + 0.2 * std::abs(depth - 2.2) +
+                  0.05 * std::abs(capacity - 3.4) + 0.1 * (amp - 0.7) * (depth - 2.2) / 4;
     const std::size_t h = std::hash<std::string>{}(p.dump());
     return cost * (1 + 0.01 * (double(h % 1000) / 1000.0 - 0.5));
 }
@@ -37,7 +40,8 @@ TEST(TunerSearch, FindsWithinFivePercentOfTheExhaustiveOptimumWithAQuarterOfTheE
     std::vector<double> found;
     for (std::uint64_t seed = 1; seed <= 5; ++seed) {
         std::size_t calls = 0;
-        const SearchResult r = search_levels(dims, [&](const json& p) { return ++calls, grid_like_cost(p); }, budget, seed);
+        const SearchResult r = search_levels(
+            dims, [&](const json& p) { return ++calls, grid_like_cost(p); }, budget, seed);
         EXPECT_LE(r.evaluations.size(), budget);
         EXPECT_EQ(calls, r.evaluations.size());  // memoised: every call is a distinct configuration
         const double best = r.evaluations[r.best].cost;
@@ -50,7 +54,8 @@ TEST(TunerSearch, FindsWithinFivePercentOfTheExhaustiveOptimumWithAQuarterOfTheE
 
 TEST(TunerSearch, EnumeratesASpaceNoLargerThanTheBudgetAndReportsEdges) {
     const std::vector<SearchDimension> dims{{"density", {0.5, 1.0, 2.0, 4.0}}};
-    const SearchResult r = search_levels(dims, [](const json& p) { return p["density"].get<double>(); }, 10, 1);
+    const SearchResult r = search_levels(
+        dims, [](const json& p) { return p["density"].get<double>(); }, 10, 1);
     EXPECT_EQ(r.algorithm, "enumeration");
     EXPECT_EQ(r.evaluations.size(), 4u);
     EXPECT_EQ(r.evaluations[r.best].params["density"], 0.5);
@@ -58,7 +63,8 @@ TEST(TunerSearch, EnumeratesASpaceNoLargerThanTheBudgetAndReportsEdges) {
 }
 
 TEST(TunerSearch, IntegerLevelsAreOnlyEverEvaluatedAtTheirValues) {
-    const std::vector<SearchDimension> dims{{"depth", {0, 1, 2, 3, 4, 5, 6}}, {"capacity", {1, 2, 4, 8, 16, 32, 64, 128, 256}}};
+    const std::vector<SearchDimension> dims{{"depth", {0, 1, 2, 3, 4, 5, 6}},
+                                            {"capacity", {1, 2, 4, 8, 16, 32, 64, 128, 256}}};
     const SearchResult r = search_levels(
         dims,
         [](const json& p) {
@@ -79,11 +85,12 @@ TEST(TunerRule, PrefersTheSimplestConfigurationWithinThreePercent) {
         c.measured = MeasuredCost{ms, 0, 0, 0, memory};
         return c;
     };
-    const Candidate hg_fast = candidate("hg", 1.00, 2e6), ug_close = candidate("ug", 1.02, 3e6), ug_far = candidate("ug", 1.10, 1e6);
+    const Candidate hg_fast = candidate("hg", 1.00, 2e6), ug_close = candidate("ug", 1.02, 3e6),
+                    ug_far = candidate("ug", 1.10, 1e6);
     EXPECT_EQ(simplest_within({&hg_fast, &ug_close, &ug_far}, 0.03), 1u);  // UG within 3% beats a faster HG
-    EXPECT_EQ(simplest_within({&hg_fast, &ug_far}, 0.03), 0u);              // 10% slower is not "close"
+    EXPECT_EQ(simplest_within({&hg_fast, &ug_far}, 0.03), 0u);             // 10% slower is not "close"
     const Candidate hg_small = candidate("hg", 1.01, 1e6);
-    EXPECT_EQ(simplest_within({&hg_fast, &hg_small}, 0.03), 1u);            // same structure: less memory
+    EXPECT_EQ(simplest_within({&hg_fast, &hg_small}, 0.03), 1u);  // same structure: less memory
 }
 
 std::string tune_error(const std::string& text) {
@@ -102,13 +109,17 @@ TEST(TuneSpec, ValidatesWithJsonPaths) {
               "t.json: mode: expected one of measured, predicted, predicted-then-verified, got \"fast\"");
     EXPECT_EQ(tune_error(R"({"structures": ["bf"], "categories": [{"name": "u", "scenes": [{"preset": "uni-s"}]}]})"),
               "t.json: structures: bf has no tunable parameter");
-    EXPECT_EQ(tune_error(R"({"structures": ["ug"], "space": {"ug": {"density": [0.5, 100]}}, "categories": [{"name": "u", "scenes": [{"preset": "uni-s"}]}]})"),
-              "t.json: space.ug.density[1]: expected a number in 0.1..64, got 100");
-    EXPECT_EQ(tune_error(R"({"structures": ["ug"], "categories": [{"name": "u", "scenes": [{"preset": "uni-q"}]}]})").find(
-                  "t.json: categories[0].scenes[0].preset: unknown preset 'uni-q'"),
+    EXPECT_EQ(
+        tune_error(
+            R"({"structures": ["ug"], "space": {"ug": {"density": [0.5, 100]}}, "categories": [{"name": "u", "scenes": [{"preset": "uni-s"}]}]})"),
+        "t.json: space.ug.density[1]: expected a number in 0.1..64, got 100");
+    EXPECT_EQ(tune_error(R"({"structures": ["ug"], "categories": [{"name": "u", "scenes": [{"preset": "uni-q"}]}]})")
+                  .find("t.json: categories[0].scenes[0].preset: unknown preset 'uni-q'"),
               0u);
-    EXPECT_EQ(tune_error(R"({"structures": ["ug"], "categories": [{"name": "u", "scenes": [{"preset": "uni-s"}]}, {"name": "u", "scenes": [{"preset": "uni-s"}]}]})"),
-              "t.json: categories[1].name: duplicate category name \"u\"");
+    EXPECT_EQ(
+        tune_error(
+            R"({"structures": ["ug"], "categories": [{"name": "u", "scenes": [{"preset": "uni-s"}]}, {"name": "u", "scenes": [{"preset": "uni-s"}]}]})"),
+        "t.json: categories[1].name: duplicate category name \"u\"");
     // A number too large for a double is bad JSON, not a crash (as in experiment files).
     EXPECT_EQ(tune_error(R"({"budget": 1e999})").find("t.json: not valid JSON"), 0u);
     const TuneSpec spec = parse_tune_spec(ok, "t.json", ".");

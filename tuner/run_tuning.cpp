@@ -17,7 +17,8 @@ namespace rcb {
 std::string searched_parameters(const TuneSpec& spec, const Candidate& c) {
     std::string out;
     for (const SearchDimension& d : spec.space.at(c.structure))
-        out += (out.empty() ? "" : " ") + d.name + "=" + (c.params[d.name].is_string() ? c.params[d.name].get<std::string>() : c.params[d.name].dump());
+        out += (out.empty() ? "" : " ") + d.name + "=" +
+               (c.params[d.name].is_string() ? c.params[d.name].get<std::string>() : c.params[d.name].dump());
     return out;
 }
 
@@ -32,8 +33,11 @@ json candidate_json(const Candidate& c) {
     json j = {{"structure", c.structure}, {"params", c.params}, {"default", c.is_default}};
     if (c.predicted_ms) j["predicted_ms"] = *c.predicted_ms;
     if (c.measured)
-        j["measured"] = {{"ms", c.measured->ms}, {"mad", c.measured->mad}, {"update_ms", c.measured->update_ms},
-                         {"raycast_ms", c.measured->raycast_ms}, {"memory_bytes", c.measured->memory_bytes}};
+        j["measured"] = {{"ms", c.measured->ms},
+                         {"mad", c.measured->mad},
+                         {"update_ms", c.measured->update_ms},
+                         {"raycast_ms", c.measured->raycast_ms},
+                         {"memory_bytes", c.measured->memory_bytes}};
     return j;
 }
 
@@ -41,7 +45,8 @@ std::string convergence_chart(const CategoryTuning& ct, const TuneSpec& spec) {
     Chart c;
     c.title = "Search convergence on " + ct.category + " (" + spec.mode + ")";
     c.x_label = "evaluation";
-    c.y_label = spec.mode == "measured" ? "best measured cost so far (ms per frame)" : "best predicted cost so far (ms per frame)";
+    c.y_label = spec.mode == "measured" ? "best measured cost so far (ms per frame)"
+                                        : "best predicted cost so far (ms per frame)";
     for (const StructureTuning& st : ct.structures) {
         Series s{st.structure, {}, {}, {}, true, structure_simplicity(st.structure) + 1};
         double best = INFINITY;
@@ -67,12 +72,15 @@ void store_tuning(ResultStore& store, const TuneSpec& spec, const CategoryTuning
             if (c.is_default) def = &c;
         json bound = st.search.on_bound;
         Statement ins = db.prepare(
-            "INSERT INTO tuning(name, category, structure, mode, algorithm, created_at, git_commit, spec, evaluations, measurements, "
-            "seconds, stop_reason, on_bound, best_params, best_measured_ms, best_measured_mad, best_predicted_ms, default_params, "
+            "INSERT INTO tuning(name, category, structure, mode, algorithm, created_at, git_commit, spec, evaluations, "
+            "measurements, "
+            "seconds, stop_reason, on_bound, best_params, best_measured_ms, best_measured_mad, best_predicted_ms, "
+            "default_params, "
             "default_measured_ms, chosen) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
-        ins.bind_all(spec.name, ct.category, st.structure, st.mode, st.search.algorithm, utc_now(), std::string(kGitCommit),
-                     spec.content, std::int64_t(st.search.evaluations.size()), std::int64_t(st.measurements), st.seconds,
-                     st.search.stop_reason, bound.dump(), best.params.dump(), best.measured->ms, best.measured->mad);
+        ins.bind_all(spec.name, ct.category, st.structure, st.mode, st.search.algorithm, utc_now(),
+                     std::string(kGitCommit), spec.content, std::int64_t(st.search.evaluations.size()),
+                     std::int64_t(st.measurements), st.seconds, st.search.stop_reason, bound.dump(), best.params.dump(),
+                     best.measured->ms, best.measured->mad);
         ins.bind(17, best.predicted_ms);
         ins.bind(18, def ? def->params.dump() : std::string("{}"));
         ins.bind(19, def ? std::optional<double>(def->measured->ms) : std::nullopt);
@@ -91,7 +99,7 @@ void store_tuning(ResultStore& store, const TuneSpec& spec, const CategoryTuning
 }  // namespace
 
 TuneOutcome run_tuning(const TuneSpec& spec, const TuneOptions& o) {
-        const fs::path md_path = fs::path(o.out_dir) / ("tuning-" + spec.name + ".md");
+    const fs::path md_path = fs::path(o.out_dir) / ("tuning-" + spec.name + ".md");
     const fs::path json_path = fs::path(o.out_dir) / ("tuning-" + spec.name + ".json");
     std::vector<std::string> inputs{o.file, o.db};
     for (const TuneCategory& c : spec.categories)
@@ -102,23 +110,30 @@ TuneOutcome run_tuning(const TuneSpec& spec, const TuneOptions& o) {
     ResultStore store(o.db);
     TuneOutcome outcome;
     std::ostringstream md;
-    json out = {{"name", spec.name}, {"mode", spec.mode}, {"budget", spec.budget}, {"seed", spec.seed}, {"git_commit", kGitCommit},
-                {"categories", json::array()}};
-    md << "# Tuning " << spec.name << "\n\n" << spec.description << "\n\nMode: " << spec.mode << "; budget " << spec.budget
+    json out = {{"name", spec.name}, {"mode", spec.mode},        {"budget", spec.budget},
+                {"seed", spec.seed}, {"git_commit", kGitCommit}, {"categories", json::array()}};
+    md << "# Tuning " << spec.name << "\n\n"
+       << spec.description << "\n\nMode: " << spec.mode << "; budget " << spec.budget
        << " distinct evaluations per structure and category; seed " << spec.seed << "; " << spec.repetitions
        << " repetitions per measurement; commit " << kGitCommit
-       << ". Costs are per frame: update + the frame's rays (thesis eq. 5.5), median over frames and repetitions ± MAD, "
-          "averaged over the category's scenes. The thesis does not publish its grid settings, so they cannot be compared here.\n";
+       << ". Costs are per frame: update + the frame's rays (thesis eq. 5.5), median over frames and repetitions ± "
+          "MAD, "
+          "averaged over the category's scenes. The thesis does not publish its grid settings, so they cannot be "
+          "compared here.\n";
     for (const TuneCategory& category : spec.categories) {
         if (o.progress) o.progress(category.name);
         const CategoryTuning ct = tune_category(spec, category);
         store_tuning(store, spec, ct);
-        md << "\n## " << ct.category << "\n\nRecommended: **" << ct.chosen.structure << " " << searched_parameters(spec, ct.chosen) << "** at "
-           << cost_text(*ct.chosen.measured) << " ms per frame";
+        md << "\n## " << ct.category << "\n\nRecommended: **" << ct.chosen.structure << " "
+           << searched_parameters(spec, ct.chosen) << "** at " << cost_text(*ct.chosen.measured) << " ms per frame";
         if (!ct.rule_note.empty()) md << " (" << ct.rule_note << ")";
-        md << ".\n\n| structure | configuration | predicted ms | measured ms | update ms | ray cast ms | memory B | note |\n|---|---|---|---|---|---|---|---|\n";
-        json cj = {{"category", ct.category}, {"chosen", candidate_json(ct.chosen)}, {"fastest", candidate_json(ct.fastest)},
-                   {"rule_note", ct.rule_note}, {"structures", json::array()}};
+        md << ".\n\n| structure | configuration | predicted ms | measured ms | update ms | ray cast ms | memory B | "
+              "note |\n|---|---|---|---|---|---|---|---|\n";
+        json cj = {{"category", ct.category},
+                   {"chosen", candidate_json(ct.chosen)},
+                   {"fastest", candidate_json(ct.fastest)},
+                   {"rule_note", ct.rule_note},
+                   {"structures", json::array()}};
         for (const StructureTuning& st : ct.structures) {
             for (std::size_t i = 0; i < st.candidates.size(); ++i) {
                 const Candidate& c = st.candidates[i];
@@ -129,25 +144,34 @@ TuneOutcome run_tuning(const TuneSpec& spec, const TuneOptions& o) {
                    << fixed(c.measured->update_ms, 4) << " | " << fixed(c.measured->raycast_ms, 4) << " | "
                    << fixed(c.measured->memory_bytes, 0) << " | " << note << " |\n";
             }
-            json sj = {{"structure", st.structure}, {"algorithm", st.search.algorithm}, {"stop_reason", st.search.stop_reason},
-                       {"on_bound", st.search.on_bound}, {"evaluations", st.search.evaluations.size()},
-                       {"space_size", st.search.space_size}, {"measurements", st.measurements}, {"seconds", st.seconds},
-                       {"prediction_model", st.prediction_model}, {"best", candidate_json(st.candidates[st.best_candidate])},
+            json sj = {{"structure", st.structure},
+                       {"algorithm", st.search.algorithm},
+                       {"stop_reason", st.search.stop_reason},
+                       {"on_bound", st.search.on_bound},
+                       {"evaluations", st.search.evaluations.size()},
+                       {"space_size", st.search.space_size},
+                       {"measurements", st.measurements},
+                       {"seconds", st.seconds},
+                       {"prediction_model", st.prediction_model},
+                       {"best", candidate_json(st.candidates[st.best_candidate])},
                        {"candidates", json::array()}};
             for (const Candidate& c : st.candidates) sj["candidates"].push_back(candidate_json(c));
             cj["structures"].push_back(sj);
         }
-        md << "\n| structure | search | evaluations (space) | measurements | seconds | stopped | best at the edge of its range |\n|---|---|---|---|---|---|---|\n";
+        md << "\n| structure | search | evaluations (space) | measurements | seconds | stopped | best at the edge of "
+              "its range |\n|---|---|---|---|---|---|---|\n";
         for (const StructureTuning& st : ct.structures) {
             std::string edge;
             for (const std::string& b : st.search.on_bound) edge += (edge.empty() ? "" : ", ") + b;
             md << "| " << st.structure << " | " << st.search.algorithm
-               << (st.prediction_model.empty() ? "" : "; prediction: " + st.prediction_model) << " | " << st.search.evaluations.size()
-               << " (" << st.search.space_size << ") | " << st.measurements << " | " << fixed(st.seconds, 1) << " | "
-               << st.search.stop_reason << " | " << (edge.empty() ? "-" : edge + ": consider widening its range") << " |\n";
+               << (st.prediction_model.empty() ? "" : "; prediction: " + st.prediction_model) << " | "
+               << st.search.evaluations.size() << " (" << st.search.space_size << ") | " << st.measurements << " | "
+               << fixed(st.seconds, 1) << " | " << st.search.stop_reason << " | "
+               << (edge.empty() ? "-" : edge + ": consider widening its range") << " |\n";
         }
         if (o.exhaustive) {
-            md << "\nExhaustive check (every configuration measured):\n\n| structure | configurations | best | tuner's best measured | gap | tuner's evaluations |\n|---|---|---|---|---|---|\n";
+            md << "\nExhaustive check (every configuration measured):\n\n| structure | configurations | best | tuner's "
+                  "best measured | gap | tuner's evaluations |\n|---|---|---|---|---|---|\n";
             json ex = json::array();
             for (const StructureTuning& st : ct.structures) {
                 double best = INFINITY;
@@ -160,11 +184,16 @@ TuneOutcome run_tuning(const TuneSpec& spec, const TuneOptions& o) {
                     if (ms < best) best = ms, best_params = p;
                 }
                 const double tuned = st.candidates[st.best_candidate].measured->ms;
-                md << "| " << st.structure << " | " << all.size() << " | " << fixed(best, 4) << " " << best_params.dump() << " | "
-                   << fixed(tuned, 4) << " | " << fixed(100 * (tuned / best - 1), 1) << "% | " << st.search.evaluations.size() << " ("
+                md << "| " << st.structure << " | " << all.size() << " | " << fixed(best, 4) << " "
+                   << best_params.dump() << " | " << fixed(tuned, 4) << " | " << fixed(100 * (tuned / best - 1), 1)
+                   << "% | " << st.search.evaluations.size() << " ("
                    << fixed(100.0 * double(st.search.evaluations.size()) / double(all.size()), 0) << "%) |\n";
-                ex.push_back({{"structure", st.structure}, {"configurations", all.size()}, {"best_ms", best}, {"best_params", best_params},
-                              {"tuned_ms", tuned}, {"evaluations", st.search.evaluations.size()}});
+                ex.push_back({{"structure", st.structure},
+                              {"configurations", all.size()},
+                              {"best_ms", best},
+                              {"best_params", best_params},
+                              {"tuned_ms", tuned},
+                              {"evaluations", st.search.evaluations.size()}});
             }
             cj["exhaustive"] = ex;
         }

@@ -11,10 +11,10 @@
 namespace rcb {
 
 struct TuneOptions {
-    std::string file;                  ///< the tuning file (an input: never overwritten)
+    std::string file;  ///< the tuning file (an input: never overwritten)
     std::string db = "results/rcbench.db";
     std::string out_dir = "results";
-    bool exhaustive = false;           ///< also measure every configuration and report the tuner's gap
+    bool exhaustive = false;  ///< also measure every configuration and report the tuner's gap
     std::function<void(const std::string& category)> progress;  ///< called as each category starts
 };
 

@@ -70,8 +70,9 @@ std::vector<nlohmann::json> enumerate_space(const std::vector<SearchDimension>& 
     return out;
 }
 
-SearchResult search_levels(const std::vector<SearchDimension>& dims, const std::function<double(const nlohmann::json&)>& objective,
-                           std::size_t budget, std::uint64_t seed) {
+SearchResult search_levels(const std::vector<SearchDimension>& dims,
+                           const std::function<double(const nlohmann::json&)>& objective, std::size_t budget,
+                           std::uint64_t seed) {
     SearchResult result;
     result.space_size = 1;
     for (const SearchDimension& d : dims) result.space_size *= std::max<std::size_t>(1, d.levels.size());
@@ -141,9 +142,10 @@ SearchResult search_levels(const std::vector<SearchDimension>& dims, const std::
         }
     }
     if (result.evaluations.empty()) return result;
-    result.best = std::size_t(std::min_element(result.evaluations.begin(), result.evaluations.end(),
-                                               [](const Evaluation& a, const Evaluation& c) { return a.cost < c.cost; }) -
-                              result.evaluations.begin());
+    result.best =
+        std::size_t(std::min_element(result.evaluations.begin(), result.evaluations.end(),
+                                     [](const Evaluation& a, const Evaluation& c) { return a.cost < c.cost; }) -
+                    result.evaluations.begin());
     for (const SearchDimension& d : dims) {
         if (d.levels.size() < 2) continue;
         const nlohmann::json& v = result.evaluations[result.best].params[d.name];

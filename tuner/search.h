@@ -38,14 +38,15 @@ struct SearchResult {
     std::vector<Evaluation> evaluations;  ///< distinct configurations, in the order evaluated
     std::size_t best = 0;                 ///< index into evaluations
     std::string algorithm;
-    std::string stop_reason;              ///< "budget", "converged", "enumerated", or NLopt's failure
-    std::vector<std::string> on_bound;    ///< parameters whose best level is the first or last of its list
-    std::size_t space_size = 0;           ///< configurations in the space
+    std::string stop_reason;            ///< "budget", "converged", "enumerated", or NLopt's failure
+    std::vector<std::string> on_bound;  ///< parameters whose best level is the first or last of its list
+    std::size_t space_size = 0;         ///< configurations in the space
 };
 
 /// `objective(params)` returns the cost to minimise (NaN or ∞ counts as failed and is avoided).
-SearchResult search_levels(const std::vector<SearchDimension>& dims, const std::function<double(const nlohmann::json&)>& objective,
-                           std::size_t budget, std::uint64_t seed);
+SearchResult search_levels(const std::vector<SearchDimension>& dims,
+                           const std::function<double(const nlohmann::json&)>& objective, std::size_t budget,
+                           std::uint64_t seed);
 
 /// Every configuration of the space (for exhaustive comparisons).
 std::vector<nlohmann::json> enumerate_space(const std::vector<SearchDimension>& dims);

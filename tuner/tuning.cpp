@@ -67,8 +67,9 @@ void add_observations(const SimulationResult& r, const std::string& scene, const
     }
 }
 
-std::vector<SimulationResult> run_simulations(const TuneCategory& category, const std::string& structure, const json& params,
-                                              const SimulationOptions& options, std::uint32_t repetitions) {
+std::vector<SimulationResult> run_simulations(const TuneCategory& category, const std::string& structure,
+                                              const json& params, const SimulationOptions& options,
+                                              std::uint32_t repetitions) {
     std::vector<SimulationResult> out;
     for (std::uint32_t rep = 0; rep < repetitions; ++rep)
         for (const SceneSpec& scene : category.scenes)
@@ -111,7 +112,8 @@ std::string category_of(const SceneSpec& s) {
 std::vector<json> levels_for(const ParamSpec& p) {
     std::vector<json> out;
     switch (p.kind) {
-        case ParamKind::boolean: return {false, true};
+        case ParamKind::boolean:
+            return {false, true};
         case ParamKind::choice:
             for (const std::string& c : p.choices) out.push_back(c);
             return out;
@@ -145,11 +147,13 @@ std::size_t simplest_within(const std::vector<const Candidate*>& all, double tol
     auto simpler = [](const Candidate* a, const Candidate* b) {
         const int sa = structure_simplicity(a->structure), sb = structure_simplicity(b->structure);
         if (sa != sb) return sa < sb;
-        if (a->measured->memory_bytes != b->measured->memory_bytes) return a->measured->memory_bytes < b->measured->memory_bytes;
+        if (a->measured->memory_bytes != b->measured->memory_bytes)
+            return a->measured->memory_bytes < b->measured->memory_bytes;
         return a->measured->ms < b->measured->ms;
     };
     for (std::size_t i = 0; i < all.size(); ++i)
-        if (all[i]->measured->ms <= (1 + tolerance) * fastest && (best == SIZE_MAX || simpler(all[i], all[best]))) best = i;
+        if (all[i]->measured->ms <= (1 + tolerance) * fastest && (best == SIZE_MAX || simpler(all[i], all[best])))
+            best = i;
     return best;
 }
 
@@ -170,8 +174,9 @@ TuneSpec parse_tune_spec(const std::string& text, const std::string& name, const
     const json j = parse_json_document(text, name);
     try {
         expect_object(j, "(top level)");
-        check_keys(j, "", {"name", "description", "mode", "structures", "space", "budget", "calibration", "verify_top", "seed",
-                           "frames", "warmup_frames", "rays_per_frame", "ray_mix", "repetitions", "categories"});
+        check_keys(j, "",
+                   {"name", "description", "mode", "structures", "space", "budget", "calibration", "verify_top", "seed",
+                    "frames", "warmup_frames", "rays_per_frame", "ray_mix", "repetitions", "categories"});
         TuneSpec t;
         t.content = text;
         t.name = get_string(j, "name", "", fs::path(name).stem().string());
@@ -191,7 +196,8 @@ TuneSpec parse_tune_spec(const std::string& text, const std::string& name, const
         d.ray_mix = get_string(j, "ray_mix", "", d.ray_mix);
 
         if (j.contains("structures")) {
-            if (!j["structures"].is_array() || j["structures"].empty()) fail("structures", "expected a non-empty list of structure names");
+            if (!j["structures"].is_array() || j["structures"].empty())
+                fail("structures", "expected a non-empty list of structure names");
             for (std::size_t i = 0; i < j["structures"].size(); ++i) {
                 const json& s = j["structures"][i];
                 if (!s.is_string()) fail(at("structures", i), "expected a structure name, got " + json_excerpt(s));
@@ -219,13 +225,18 @@ TuneSpec parse_tune_spec(const std::string& text, const std::string& name, const
                 expect_object(params, path);
                 const StructureInfo& info = find_structure(structure);
                 for (const auto& [param, value] : params.items()) {
-                    auto spec = std::find_if(info.params.begin(), info.params.end(), [&, &param = param](const ParamSpec& p) { return p.name == param; });
-                    if (spec == info.params.end()) check_params(info.params, json{{param, value}}, path, structure);  // throws
+                    auto spec = std::find_if(info.params.begin(), info.params.end(),
+                                             [&, &param = param](const ParamSpec& p) { return p.name == param; });
+                    if (spec == info.params.end())
+                        check_params(info.params, json{{param, value}}, path, structure);  // throws
                     auto& dims = t.space[structure];
-                    auto dim = std::find_if(dims.begin(), dims.end(), [&, &param = param](const SearchDimension& d) { return d.name == param; });
+                    auto dim = std::find_if(dims.begin(), dims.end(),
+                                            [&, &param = param](const SearchDimension& d) { return d.name == param; });
                     std::vector<json> levels = expand_values(*spec, value, at(path, param));
-                    if (dim == dims.end()) dims.push_back({param, levels});  // a non-tunable parameter the user wants searched
-                    else dim->levels = levels;
+                    if (dim == dims.end())
+                        dims.push_back({param, levels});  // a non-tunable parameter the user wants searched
+                    else
+                        dim->levels = levels;
                 }
             }
         }
@@ -235,9 +246,10 @@ TuneSpec parse_tune_spec(const std::string& text, const std::string& name, const
             double size = 1;
             for (const SearchDimension& dim : dims) size *= double(std::max<std::size_t>(1, dim.levels.size()));
             if (size > double(kMaxPlanCells))
-                fail(at("space", structure), "the search space has " + std::to_string(std::uint64_t(std::min(size, 1e19))) +
-                                                 " configurations, more than the limit of " + std::to_string(kMaxPlanCells) +
-                                                 "; give fewer levels");
+                fail(at("space", structure), "the search space has " +
+                                                 std::to_string(std::uint64_t(std::min(size, 1e19))) +
+                                                 " configurations, more than the limit of " +
+                                                 std::to_string(kMaxPlanCells) + "; give fewer levels");
         }
         if (!j.contains("categories") || !j["categories"].is_array() || j["categories"].empty())
             fail("categories", "expected a non-empty list of scene categories");
@@ -269,8 +281,8 @@ TuneSpec load_tune_spec(const std::string& path) {
     return parse_tune_spec(read_text_file(path), path, fs::path(path).parent_path().string());
 }
 
-MeasuredCost measure(const TuneCategory& category, const std::string& structure, const json& params, std::uint32_t warmup_frames,
-                     std::uint32_t repetitions) {
+MeasuredCost measure(const TuneCategory& category, const std::string& structure, const json& params,
+                     std::uint32_t warmup_frames, std::uint32_t repetitions) {
     SimulationOptions o;
     o.verify = false;  // correctness is the tests' job; tuning measures speed
     o.count = false;
@@ -292,7 +304,8 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
             const json params = complete(structure, searched);
             auto it = measured_index.find(params.dump());
             if (it == measured_index.end()) {
-                Candidate c{structure, params, std::nullopt, measure(category, structure, params, spec.warmup_frames, spec.repetitions), is_default};
+                Candidate c{structure, params, std::nullopt,
+                            measure(category, structure, params, spec.warmup_frames, spec.repetitions), is_default};
                 ++st.measurements;
                 st.candidates.push_back(c);
                 it = measured_index.emplace(params.dump(), st.candidates.size() - 1).first;
@@ -305,14 +318,16 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
         measure_candidate(defaults_searched, true);
 
         if (spec.mode == "measured") {
-            st.search = search_levels(dims, [&](const json& p) { return measure_candidate(p, false).measured->ms; }, spec.budget, spec.seed);
+            st.search = search_levels(
+                dims, [&](const json& p) { return measure_candidate(p, false).measured->ms; }, spec.budget, spec.seed);
         } else {
             // Calibrate eq. 5.4 on the defaults plus random points of the space, measured.
             std::vector<FrameObservation> frames;
             Random rng(mix_seed(spec.seed, 7));
             std::vector<json> points{defaults_searched};
             const std::vector<json> all = enumerate_space(dims);
-            for (std::size_t k = 0; points.size() < std::min(spec.calibration, all.size()) && k < 100 * spec.calibration; ++k) {
+            for (std::size_t k = 0;
+                 points.size() < std::min(spec.calibration, all.size()) && k < 100 * spec.calibration; ++k) {
                 const json& p = all[rng.below(all.size())];
                 if (std::find(points.begin(), points.end(), p) == points.end()) points.push_back(p);
             }
@@ -324,22 +339,28 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
                 const json params = complete(structure, p);
                 const auto runs = run_simulations(category, structure, params, calibrate, 1);
                 for (std::size_t s = 0; s < runs.size(); ++s)
-                    add_observations(runs[s], category.scenes[s].name, category_of(category.scenes[s]), group * 100 + int(s), frames);
+                    add_observations(runs[s], category.scenes[s].name, category_of(category.scenes[s]),
+                                     group * 100 + int(s), frames);
                 ++group;
                 ++st.measurements;
             }
             const std::vector<StructureModels> models = fit_cost_models(frames);
             const CandidateModel* model = models.empty() ? nullptr : models.front().chosen("raycast");
-            if (!model) throw std::runtime_error("tune: the calibration of " + structure + " on " + category.name + " gave no cost model");
-            st.prediction_model = model->name + " (held-out error " + std::to_string(int(std::lround(100 * model->heldout_error))) +
-                                  "%, " + model->fit.status() + ")";
+            if (!model)
+                throw std::runtime_error("tune: the calibration of " + structure + " on " + category.name +
+                                         " gave no cost model");
+            st.prediction_model = model->name + " (held-out error " +
+                                  std::to_string(int(std::lround(100 * model->heldout_error))) + "%, " +
+                                  model->fit.status() + ")";
             auto coefficient = [&](const char* name) {
                 for (const Coefficient& c : model->fit.coefficients)
-                    if (c.name.rfind(name, 0) == 0 && (c.name.size() == std::strlen(name) || c.name[std::strlen(name)] == '['))
+                    if (c.name.rfind(name, 0) == 0 &&
+                        (c.name.size() == std::strlen(name) || c.name[std::strlen(name)] == '['))
                         return c.value;
                 return 0.0;
             };
-            const double c_rb = coefficient("C_RB"), c_t = coefficient("C_T"), c_prep = coefficient("C_PREP"), c_mem = coefficient("C_MEM");
+            const double c_rb = coefficient("C_RB"), c_t = coefficient("C_T"), c_prep = coefficient("C_PREP"),
+                         c_mem = coefficient("C_MEM");
             SimulationOptions replay;
             replay.verify = false;
             replay.timed_cast = false;
@@ -351,7 +372,8 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
                     std::vector<double> frame_ms;
                     for (const FrameResult& f : r.frames) {
                         if (f.warmup || f.rays == 0) continue;
-                        const double per_ray = c_rb * double(f.counters.n_rb) / f.rays + c_t * double(f.counters.n_t) / f.rays + c_prep +
+                        const double per_ray = c_rb * double(f.counters.n_rb) / f.rays +
+                                               c_t * double(f.counters.n_t) / f.rays + c_prep +
                                                c_mem * double(f.memory_bytes) / (1024.0 * 1024.0);
                         frame_ms.push_back((double(f.update_ns) + f.rays * per_ray) / 1e6);
                     }
@@ -363,8 +385,9 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
             // Verify: measure the best predicted candidates (the defaults are measured already).
             std::vector<std::size_t> order(st.search.evaluations.size());
             for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-            std::sort(order.begin(), order.end(),
-                      [&](std::size_t a, std::size_t b) { return st.search.evaluations[a].cost < st.search.evaluations[b].cost; });
+            std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+                return st.search.evaluations[a].cost < st.search.evaluations[b].cost;
+            });
             const std::size_t verify = spec.mode == "predicted" ? 1 : spec.verify_top;
             for (std::size_t i = 0; i < std::min(verify, order.size()); ++i) {
                 const Evaluation& e = st.search.evaluations[order[i]];
@@ -374,9 +397,10 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
             for (Candidate& c : st.candidates)
                 if (c.is_default && !c.predicted_ms) c.predicted_ms = predict(defaults_searched);
         }
-        st.best_candidate = std::size_t(std::min_element(st.candidates.begin(), st.candidates.end(), [](const Candidate& a, const Candidate& b) {
-                                            return a.measured->ms < b.measured->ms;
-                                        }) - st.candidates.begin());
+        st.best_candidate = std::size_t(
+            std::min_element(st.candidates.begin(), st.candidates.end(),
+                             [](const Candidate& a, const Candidate& b) { return a.measured->ms < b.measured->ms; }) -
+            st.candidates.begin());
         st.seconds = std::chrono::duration<double>(Clock::now() - start).count();
         out.structures.push_back(std::move(st));
     }
@@ -394,7 +418,8 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
     if (chosen != fastest)
         out.rule_note = "the simplicity rule chose " + out.chosen.structure + " " + out.chosen.params.dump() + " (" +
                         std::to_string(out.chosen.measured->ms) + " ms) over the fastest, " + fastest->structure + " " +
-                        fastest->params.dump() + " (" + std::to_string(fastest->measured->ms) + " ms): within 3% and simpler";
+                        fastest->params.dump() + " (" + std::to_string(fastest->measured->ms) +
+                        " ms): within 3% and simpler";
     return out;
 }
 

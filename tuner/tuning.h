@@ -36,11 +36,11 @@ struct TuneCategory {
 struct TuneSpec {
     std::string name, description, content;
     std::string mode = "predicted-then-verified";
-    std::vector<std::string> structures;  ///< default: every structure with a tunable parameter
+    std::vector<std::string> structures;                        ///< default: every structure with a tunable parameter
     std::map<std::string, std::vector<SearchDimension>> space;  ///< per structure
-    std::size_t budget = 30;        ///< distinct evaluations per search
-    std::size_t calibration = 6;    ///< measured points that calibrate the prediction
-    std::size_t verify_top = 3;     ///< candidates measured after a predicted search
+    std::size_t budget = 30;                                    ///< distinct evaluations per search
+    std::size_t calibration = 6;                                ///< measured points that calibrate the prediction
+    std::size_t verify_top = 3;                                 ///< candidates measured after a predicted search
     std::uint64_t seed = 1;
     std::uint32_t warmup_frames = 1;
     std::uint32_t repetitions = 2;
@@ -75,19 +75,19 @@ struct StructureTuning {
     std::string structure;
     std::string mode;
     SearchResult search;
-    std::vector<Candidate> candidates;   ///< measured ones (defaults included)
-    std::size_t best_candidate = 0;      ///< lowest measured cost
-    std::string prediction_model;        ///< the calibration's chosen model, for predicted modes
+    std::vector<Candidate> candidates;  ///< measured ones (defaults included)
+    std::size_t best_candidate = 0;     ///< lowest measured cost
+    std::string prediction_model;       ///< the calibration's chosen model, for predicted modes
     double seconds = 0;
-    std::size_t measurements = 0;        ///< simulator runs of the measured kind
+    std::size_t measurements = 0;  ///< simulator runs of the measured kind
 };
 
 struct CategoryTuning {
     std::string category;
     std::vector<StructureTuning> structures;
-    Candidate chosen;                 ///< after the simplicity rule
-    Candidate fastest;                ///< lowest measured cost over every structure
-    std::string rule_note;            ///< empty, or why the simplicity rule chose another
+    Candidate chosen;       ///< after the simplicity rule
+    Candidate fastest;      ///< lowest measured cost over every structure
+    std::string rule_note;  ///< empty, or why the simplicity rule chose another
 };
 
 /// Measures one configuration on a category (median over scenes of the per-frame totals).

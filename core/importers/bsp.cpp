@@ -23,20 +23,39 @@ constexpr int kLumps = 17;
 constexpr std::size_t kHeaderBytes = 8 + kLumps * 8;
 
 // Lump indices and names as in id's qfiles.h.
-enum Lump { kEntities, kShaders, kPlanes, kNodes, kLeafs, kLeafSurfaces, kLeafBrushes, kModels, kBrushes, kBrushSides,
-            kDrawVerts, kDrawIndexes, kFogs, kSurfaces, kLightmaps, kLightGrid, kVisibility };
+enum Lump {
+    kEntities,
+    kShaders,
+    kPlanes,
+    kNodes,
+    kLeafs,
+    kLeafSurfaces,
+    kLeafBrushes,
+    kModels,
+    kBrushes,
+    kBrushSides,
+    kDrawVerts,
+    kDrawIndexes,
+    kFogs,
+    kSurfaces,
+    kLightmaps,
+    kLightGrid,
+    kVisibility
+};
 constexpr std::array<const char*, kLumps> kLumpNames = {
-    "entities", "shaders", "planes", "nodes", "leafs", "leafsurfaces", "leafbrushes", "models", "brushes",
-    "brushsides", "drawverts", "drawindexes", "fogs", "surfaces", "lightmaps", "lightgrid", "visibility"};
+    "entities",    "shaders",  "planes",    "nodes",      "leafs",     "leafsurfaces",
+    "leafbrushes", "models",   "brushes",   "brushsides", "drawverts", "drawindexes",
+    "fogs",        "surfaces", "lightmaps", "lightgrid",  "visibility"};
 
 // Record sizes (bytes) of the lumps we read.
-constexpr std::size_t kShaderBytes = 72;     // char name[64]; int surfaceFlags; int contentFlags
-constexpr std::size_t kPlaneBytes = 16;      // float normal[3]; float dist
-constexpr std::size_t kBrushBytes = 12;      // int firstSide; int numSides; int shaderNum
-constexpr std::size_t kBrushSideBytes = 8;   // int planeNum; int shaderNum
-constexpr std::size_t kDrawVertBytes = 44;   // float xyz[3]; float st[2]; float lightmap[2]; float normal[3]; byte color[4]
-constexpr std::size_t kIndexBytes = 4;       // int
-constexpr std::size_t kSurfaceBytes = 104;   // see parse_triangles
+constexpr std::size_t kShaderBytes = 72;    // char name[64]; int surfaceFlags; int contentFlags
+constexpr std::size_t kPlaneBytes = 16;     // float normal[3]; float dist
+constexpr std::size_t kBrushBytes = 12;     // int firstSide; int numSides; int shaderNum
+constexpr std::size_t kBrushSideBytes = 8;  // int planeNum; int shaderNum
+constexpr std::size_t kDrawVertBytes =
+    44;                                 // float xyz[3]; float st[2]; float lightmap[2]; float normal[3]; byte color[4]
+constexpr std::size_t kIndexBytes = 4;  // int
+constexpr std::size_t kSurfaceBytes = 104;  // see parse_triangles
 
 // Contents flags (q3 surfaceflags.h) that make a brush part of the collision world.
 constexpr std::int32_t kContentsSolid = 0x1;
@@ -71,14 +90,17 @@ struct Reader {
                              std::to_string(kHeaderBytes) + ")");
         if (std::memcmp(bytes.data(), "IBSP", 4) != 0) {
             const std::string_view magic(reinterpret_cast<const char*>(bytes.data()), 4);
-            throw InputError(name + ": header: magic " + quoted_excerpt(magic) + ", expected 'IBSP' (a Quake III / OpenArena map)");
+            throw InputError(name + ": header: magic " + quoted_excerpt(magic) +
+                             ", expected 'IBSP' (a Quake III / OpenArena map)");
         }
         const std::int32_t version = i32(4);
         if (version != kVersion)
-            throw InputError(name + ": header: version " + std::to_string(version) + ", expected 46 (Quake III / OpenArena IBSP)");
+            throw InputError(name + ": header: version " + std::to_string(version) +
+                             ", expected 46 (Quake III / OpenArena IBSP)");
         for (int l = 0; l < kLumps; ++l) {
             const std::int32_t off = i32(8 + 8 * l), len = i32(12 + 8 * l);
-            if (off < 0 || len < 0) fail_lump(l, "negative offset or length (" + std::to_string(off) + ", " + std::to_string(len) + ")");
+            if (off < 0 || len < 0)
+                fail_lump(l, "negative offset or length (" + std::to_string(off) + ", " + std::to_string(len) + ")");
             offset[l] = std::uint32_t(off), length[l] = std::uint32_t(len);
         }
     }
@@ -89,7 +111,8 @@ struct Reader {
             fail_lump(l, "offset " + std::to_string(offset[l]) + " + length " + std::to_string(length[l]) +
                              " runs past the end of the file (" + std::to_string(bytes.size()) + " bytes): truncated");
         if (length[l] % record_bytes != 0)
-            fail_lump(l, "length " + std::to_string(length[l]) + " is not a multiple of " + std::to_string(record_bytes));
+            fail_lump(l,
+                      "length " + std::to_string(length[l]) + " is not a multiple of " + std::to_string(record_bytes));
         return length[l] / record_bytes;
     }
     std::size_t at(int l, std::size_t record_bytes, std::size_t i) const { return offset[l] + i * record_bytes; }
@@ -111,18 +134,18 @@ std::vector<Object> parse_brushes(const Reader& r, BspSummary& sum) {
         const std::size_t at = r.at(kBrushes, kBrushBytes, b);
         const std::int32_t first = r.i32(at), count = r.i32(at + 4), shader = r.i32(at + 8);
         if (shader < 0 || std::size_t(shader) >= shaders)
-            r.fail_lump(kBrushes, "brush " + std::to_string(b) + " refers to shader " + std::to_string(shader) + " of " +
-                                      std::to_string(shaders) + " in lump 1 (shaders)");
+            r.fail_lump(kBrushes, "brush " + std::to_string(b) + " refers to shader " + std::to_string(shader) +
+                                      " of " + std::to_string(shaders) + " in lump 1 (shaders)");
         if (first < 0 || count < 0 || std::uint64_t(first) + std::uint64_t(count) > sides)
-            r.fail_lump(kBrushes, "brush " + std::to_string(b) + " refers to brushsides " + std::to_string(first) + ".." +
-                                      std::to_string(std::int64_t(first) + count - 1) + " beyond the " +
+            r.fail_lump(kBrushes, "brush " + std::to_string(b) + " refers to brushsides " + std::to_string(first) +
+                                      ".." + std::to_string(std::int64_t(first) + count - 1) + " beyond the " +
                                       std::to_string(sides) + " in lump 9 (brushsides)");
         side_refs += std::uint64_t(count);
     }
     if (side_refs > kMaxSceneObjects)
         r.fail_lump(kBrushes, "the brushes refer to " + std::to_string(side_refs) + " brushsides in all (of " +
-                                  std::to_string(sides) + "), more than the limit of " + std::to_string(kMaxSceneObjects) +
-                                  " (kMaxSceneObjects, scene.h)");
+                                  std::to_string(sides) + "), more than the limit of " +
+                                  std::to_string(kMaxSceneObjects) + " (kMaxSceneObjects, scene.h)");
     std::vector<Object> out;
     out.reserve(brushes);
     for (std::size_t b = 0; b < brushes; ++b) {
@@ -139,8 +162,9 @@ std::vector<Object> parse_brushes(const Reader& r, BspSummary& sum) {
         for (std::int32_t k = 0; k < count; ++k) {
             const std::int32_t plane = r.i32(r.at(kBrushSides, kBrushSideBytes, std::size_t(first + k)));
             if (plane < 0 || std::size_t(plane) >= planes)
-                r.fail_lump(kBrushSides, "brushside " + std::to_string(first + k) + " refers to plane " + std::to_string(plane) +
-                                             " of " + std::to_string(planes) + " in lump 2 (planes)");
+                r.fail_lump(kBrushSides, "brushside " + std::to_string(first + k) + " refers to plane " +
+                                             std::to_string(plane) + " of " + std::to_string(planes) +
+                                             " in lump 2 (planes)");
             const std::size_t p = r.at(kPlanes, kPlaneBytes, std::size_t(plane));
             const float n[3] = {r.f32(p), r.f32(p + 4), r.f32(p + 8)};
             const float dist = r.f32(p + 12);
@@ -148,9 +172,12 @@ std::vector<Object> parse_brushes(const Reader& r, BspSummary& sum) {
                 r.fail_lump(kPlanes, "plane " + std::to_string(plane) + " has a non-finite value");
             for (int a = 0; a < 3; ++a) {
                 const int o1 = (a + 1) % 3, o2 = (a + 2) % 3;
-                if (std::abs(n[o1]) > 1e-6f || std::abs(n[o2]) > 1e-6f || std::abs(std::abs(n[a]) - 1.0f) > 1e-6f) continue;
-                if (n[a] > 0) box.max[a] = std::min(box.max[a], dist);
-                else box.min[a] = std::max(box.min[a], -dist);
+                if (std::abs(n[o1]) > 1e-6f || std::abs(n[o2]) > 1e-6f || std::abs(std::abs(n[a]) - 1.0f) > 1e-6f)
+                    continue;
+                if (n[a] > 0)
+                    box.max[a] = std::min(box.max[a], dist);
+                else
+                    box.min[a] = std::max(box.min[a], -dist);
             }
         }
         if (!is_finite(box.min) || !is_finite(box.max) || box.is_empty()) {
@@ -186,7 +213,8 @@ std::vector<Object> parse_triangles(const Reader& r, BspSummary& sum) {
     };
     auto header = [&](std::size_t s) {
         const std::size_t at = r.at(kSurfaces, kSurfaceBytes, s);
-        return Header{r.i32(at + 8), r.i32(at + 12), r.i32(at + 16), r.i32(at + 20), r.i32(at + 24), r.i32(at + 96), r.i32(at + 100)};
+        return Header{r.i32(at + 8),  r.i32(at + 12), r.i32(at + 16), r.i32(at + 20),
+                      r.i32(at + 24), r.i32(at + 96), r.i32(at + 100)};
     };
     // First pass: check every surface's counts and add up the triangles before allocating any.
     // Surfaces may share vertices and indexes, so a small file can describe billions of triangles
@@ -195,22 +223,26 @@ std::vector<Object> parse_triangles(const Reader& r, BspSummary& sum) {
     for (std::size_t s = 0; s < surfaces; ++s) {
         const Header h = header(s);
         if (h.type == kPlanar || h.type == kTriangleSoup) {
-            if (h.first_index < 0 || h.num_indexes < 0 || std::uint64_t(h.first_index) + std::uint64_t(h.num_indexes) > indexes)
+            if (h.first_index < 0 || h.num_indexes < 0 ||
+                std::uint64_t(h.first_index) + std::uint64_t(h.num_indexes) > indexes)
                 r.fail_lump(kSurfaces, "surface " + std::to_string(s) + " refers to drawindexes beyond the " +
                                            std::to_string(indexes) + " in lump 11 (drawindexes)");
             if (h.num_indexes % 3 != 0)
-                r.fail_lump(kSurfaces, "surface " + std::to_string(s) + " has " + std::to_string(h.num_indexes) + " indexes, not a multiple of 3");
+                r.fail_lump(kSurfaces, "surface " + std::to_string(s) + " has " + std::to_string(h.num_indexes) +
+                                           " indexes, not a multiple of 3");
             estimate += std::uint64_t(h.num_indexes / 3);
         } else if (h.type == kPatch) {
             if (h.w < 0 || h.h < 0 || std::int64_t(h.w) * h.h != h.num_verts)
                 r.fail_lump(kSurfaces, "patch surface " + std::to_string(s) + " is " + std::to_string(h.w) + "x" +
-                                           std::to_string(h.h) + " but has " + std::to_string(h.num_verts) + " vertices");
+                                           std::to_string(h.h) + " but has " + std::to_string(h.num_verts) +
+                                           " vertices");
             if (h.w > 0 && h.h > 0) estimate += 2 * std::uint64_t(h.w - 1) * std::uint64_t(h.h - 1);
         }
     }
     if (estimate > kMaxSceneObjects)
-        throw InputError(r.name + ": triangles mode would make " + std::to_string(estimate) + " triangles, more than the limit of " +
-                         std::to_string(kMaxSceneObjects) + " objects per scene (kMaxSceneObjects, scene.h); try --bsp-mode brushes");
+        throw InputError(r.name + ": triangles mode would make " + std::to_string(estimate) +
+                         " triangles, more than the limit of " + std::to_string(kMaxSceneObjects) +
+                         " objects per scene (kMaxSceneObjects, scene.h); try --bsp-mode brushes");
     std::vector<Object> out;
     out.reserve(estimate);
     std::size_t s = 0;
@@ -224,14 +256,16 @@ std::vector<Object> parse_triangles(const Reader& r, BspSummary& sum) {
             for (std::int32_t k = 0; k < num_indexes; k += 3) {
                 Vec3 p[3];
                 for (int j = 0; j < 3; ++j)
-                    p[j] = vertex(s, std::int64_t(first_vert) + r.i32(r.at(kDrawIndexes, kIndexBytes, std::size_t(first_index + k + j))));
+                    p[j] = vertex(s, std::int64_t(first_vert) +
+                                         r.i32(r.at(kDrawIndexes, kIndexBytes, std::size_t(first_index + k + j))));
                 triangle(p[0], p[1], p[2]);
             }
         } else if (type == kPatch) {
             for (std::int32_t y = 0; y + 1 < h; ++y)
                 for (std::int32_t x = 0; x + 1 < w; ++x) {
                     const std::int64_t v00 = std::int64_t(first_vert) + y * w + x;
-                    const Vec3 a = vertex(s, v00), b = vertex(s, v00 + 1), c = vertex(s, v00 + w), d = vertex(s, v00 + w + 1);
+                    const Vec3 a = vertex(s, v00), b = vertex(s, v00 + 1), c = vertex(s, v00 + w),
+                               d = vertex(s, v00 + w + 1);
                     triangle(a, b, d);
                     triangle(a, d, c);
                 }
@@ -244,7 +278,8 @@ std::vector<Object> parse_triangles(const Reader& r, BspSummary& sum) {
 /// A name from the file (a zip entry) as messages show it: as is when it is short printable ASCII,
 /// else quoted and escaped.
 std::string shown(const std::string& name) {
-    const bool plain = name.size() <= 80 && std::all_of(name.begin(), name.end(), [](char c) { return c >= 0x20 && c < 0x7f; });
+    const bool plain =
+        name.size() <= 80 && std::all_of(name.begin(), name.end(), [](char c) { return c >= 0x20 && c < 0x7f; });
     return plain ? name : quoted_excerpt(name);
 }
 
@@ -277,8 +312,8 @@ struct Zip {
 
 void check_map_size(std::uint64_t bytes, const std::string& name) {
     if (bytes > kMaxMapBytes)
-        throw InputError(name + ": " + std::to_string(bytes) + " bytes, more than the limit of " + std::to_string(kMaxMapBytes) +
-                         " for a map (kMaxMapBytes, bsp.h)");
+        throw InputError(name + ": " + std::to_string(bytes) + " bytes, more than the limit of " +
+                         std::to_string(kMaxMapBytes) + " for a map (kMaxMapBytes, bsp.h)");
 }
 
 std::vector<std::uint8_t> read_file_bytes(const std::string& path) {
@@ -315,7 +350,8 @@ std::vector<std::string> pk3_maps(const std::string& path) {
         const char* entry = zip_get_name(zip.z, zip_uint64_t(i), 0);
         if (!entry) continue;
         const std::string l = lower(entry);
-        if (l.rfind("maps/", 0) == 0 && l.size() > 9 && l.substr(l.size() - 4) == ".bsp" && l.find('/', 5) == std::string::npos)
+        if (l.rfind("maps/", 0) == 0 && l.size() > 9 && l.substr(l.size() - 4) == ".bsp" &&
+            l.find('/', 5) == std::string::npos)
             maps.push_back(entry);
     }
     std::sort(maps.begin(), maps.end());
@@ -338,8 +374,8 @@ std::vector<std::uint8_t> read_zip_entry(const std::string& path, const std::str
     const std::string err = got < 0 ? zip_file_strerror(f) : "";
     zip_fclose(f);
     if (got < 0 || zip_uint64_t(got) != st.size)
-        throw InputError(where + ": read " + std::to_string(got) + " of " + std::to_string(st.size) +
-                         " bytes" + (err.empty() ? "" : ": " + err));
+        throw InputError(where + ": read " + std::to_string(got) + " of " + std::to_string(st.size) + " bytes" +
+                         (err.empty() ? "" : ": " + err));
     return bytes;
 }
 
@@ -357,16 +393,20 @@ std::vector<Object> import_bsp(const std::string& path, const BspOptions& option
         if (maps.empty()) throw InputError(path + ": no maps/*.bsp inside");
         std::string entry;
         if (options.map.empty()) {
-            if (maps.size() != 1) throw InputError(path + ": holds " + std::to_string(maps.size()) + " maps, choose one with --map (" + list + ")");
+            if (maps.size() != 1)
+                throw InputError(path + ": holds " + std::to_string(maps.size()) + " maps, choose one with --map (" +
+                                 list + ")");
             entry = maps.front();
         } else {
             for (const std::string& m : maps)
                 if (lower(m) == lower(options.map) || lower(m) == "maps/" + lower(options.map) + ".bsp") entry = m;
-            if (entry.empty()) throw InputError(path + ": no map " + quoted_excerpt(options.map) + " inside (maps: " + list + ")");
+            if (entry.empty())
+                throw InputError(path + ": no map " + quoted_excerpt(options.map) + " inside (maps: " + list + ")");
         }
         const std::vector<std::uint8_t> bytes = read_zip_entry(path, entry);
         sum.map = entry;
-        return parse_bsp(bytes, std::filesystem::path(path).filename().string() + ":" + shown(entry), options.mode, &sum);
+        return parse_bsp(bytes, std::filesystem::path(path).filename().string() + ":" + shown(entry), options.mode,
+                         &sum);
     }
     if (!options.map.empty()) throw InputError(path + ": --map is for a .pk3; a .bsp is one map");
     const std::vector<std::uint8_t> bytes = read_file_bytes(path);

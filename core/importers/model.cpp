@@ -84,9 +84,10 @@ std::vector<Object> read_model(const std::string& path, bool triangles, ModelSum
             estimate += triangles ? scene->mMeshes[n->mMeshes[i]]->mNumFaces : 1;
     });
     if (estimate > kMaxSceneObjects)
-        throw InputError(path + ": " + (triangles ? "triangles" : "instances") + " mode would make " + std::to_string(estimate) +
-                         " objects, more than the limit of " + std::to_string(kMaxSceneObjects) +
-                         " per scene (kMaxSceneObjects, scene.h)" + (triangles ? "; try --model-mode instances" : ""));
+        throw InputError(path + ": " + (triangles ? "triangles" : "instances") + " mode would make " +
+                         std::to_string(estimate) + " objects, more than the limit of " +
+                         std::to_string(kMaxSceneObjects) + " per scene (kMaxSceneObjects, scene.h)" +
+                         (triangles ? "; try --model-mode instances" : ""));
 
     std::vector<Object> out;
     out.reserve(estimate);

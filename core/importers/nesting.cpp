@@ -43,8 +43,10 @@ void check_brackets(std::string_view t, const std::string& name, const char* wha
     for (std::size_t i = 0; i < t.size(); ++i) {
         const char c = t[i];
         if (in_string) {
-            if (c == '\\') ++i;
-            else if (c == '"') in_string = false;
+            if (c == '\\')
+                ++i;
+            else if (c == '"')
+                in_string = false;
         } else if (c == '"') {
             in_string = true;
         } else if (c == '{' || c == '[') {
@@ -94,9 +96,18 @@ void walk_xml(std::string_view t, const std::string& name, Open&& open, Close&& 
     };
     while ((i = t.find('<', i)) != std::string_view::npos) {
         const std::string_view rest = t.substr(i);
-        if (rest.substr(0, 4) == "<!--") { i = skip_past(i + 4, "-->"); continue; }
-        if (rest.substr(0, 9) == "<![CDATA[") { i = skip_past(i + 9, "]]>"); continue; }
-        if (rest.substr(0, 2) == "<?") { i = skip_past(i + 2, "?>"); continue; }
+        if (rest.substr(0, 4) == "<!--") {
+            i = skip_past(i + 4, "-->");
+            continue;
+        }
+        if (rest.substr(0, 9) == "<![CDATA[") {
+            i = skip_past(i + 9, "]]>");
+            continue;
+        }
+        if (rest.substr(0, 2) == "<?") {
+            i = skip_past(i + 2, "?>");
+            continue;
+        }
         if (rest.substr(0, 2) == "<!") {  // <!DOCTYPE ...>, possibly with an internal subset [ ... ]
             const std::size_t gt = t.find('>', i), bracket = t.find('[', i);
             i = bracket < gt ? skip_past(skip_past(bracket, "]"), ">") : skip_past(i, ">");
@@ -134,7 +145,8 @@ void walk_xml(std::string_view t, const std::string& name, Open&& open, Close&& 
 }
 
 void check_xml(std::string_view t, const std::string& name) {
-    walk_xml(t, name, [](const Tag&, bool) {}, [] {});
+    walk_xml(
+        t, name, [](const Tag&, bool) {}, [] {});
 }
 
 /// COLLADA: the graph of <node> elements, their child nodes, and the nodes their <instance_node
@@ -145,7 +157,7 @@ void check_collada(std::string_view t, const std::string& name) {
     struct Node {
         std::string_view id, name;
         std::size_t offset;
-        std::vector<std::size_t> children;      // nested <node> elements
+        std::vector<std::size_t> children;        // nested <node> elements
         std::vector<std::string_view> instances;  // <instance_node> urls, without '#'
     };
     std::vector<Node> nodes;
@@ -164,10 +176,13 @@ void check_collada(std::string_view t, const std::string& name) {
                 }
             const bool scene = tag.name == "visual_scene";
             if (tag.name == "node") {
-                nodes.push_back({attribute(tag.attributes, "id"), attribute(tag.attributes, "name"), tag.offset, {}, {}});
+                nodes.push_back(
+                    {attribute(tag.attributes, "id"), attribute(tag.attributes, "name"), tag.offset, {}, {}});
                 const std::size_t index = nodes.size() - 1;
-                if (parent >= 0) nodes[std::size_t(parent)].children.push_back(index);
-                else if (in_visual_scene > 0) roots.push_back(index);
+                if (parent >= 0)
+                    nodes[std::size_t(parent)].children.push_back(index);
+                else if (in_visual_scene > 0)
+                    roots.push_back(index);
                 if (!self_closing) open_nodes.push_back(std::ptrdiff_t(index)), open_scene.push_back(false);
                 return;
             }
@@ -201,8 +216,10 @@ void check_collada(std::string_view t, const std::string& name) {
     auto edges = [&](std::size_t n) {
         std::vector<std::size_t> out = nodes[n].children;
         for (std::string_view url : nodes[n].instances)
-            if (auto it = by_id.find(url); it != by_id.end()) out.push_back(it->second);
-            else if (auto named = by_name.find(url); named != by_name.end()) out.push_back(named->second);
+            if (auto it = by_id.find(url); it != by_id.end())
+                out.push_back(it->second);
+            else if (auto named = by_name.find(url); named != by_name.end())
+                out.push_back(named->second);
         return out;
     };
     const std::uint64_t cap = kMaxSceneObjects + 1;  // sizes saturate here
@@ -221,7 +238,8 @@ void check_collada(std::string_view t, const std::string& name) {
             if (f.at < f.next.size()) {
                 const std::size_t c = f.next[f.at++];
                 if (colour[c] == 1)
-                    throw InputError(name + ": COLLADA node " + quoted_excerpt(nodes[c].id) + " at " + position(t, nodes[c].offset) +
+                    throw InputError(name + ": COLLADA node " + quoted_excerpt(nodes[c].id) + " at " +
+                                     position(t, nodes[c].offset) +
                                      " contains itself through <instance_node> (a cycle)");
                 if (colour[c] == 0) {
                     colour[c] = 1;
@@ -237,8 +255,8 @@ void check_collada(std::string_view t, const std::string& name) {
             colour[n] = 2;
             stack.pop_back();
             if (depth[n] > kMaxModelNesting)
-                throw InputError(name + ": COLLADA node " + quoted_excerpt(nodes[n].id) + " at " + position(t, nodes[n].offset) +
-                                 " expands to a hierarchy deeper than " + limit_text());
+                throw InputError(name + ": COLLADA node " + quoted_excerpt(nodes[n].id) + " at " +
+                                 position(t, nodes[n].offset) + " expands to a hierarchy deeper than " + limit_text());
         }
     }
     std::uint64_t total = 0;
@@ -275,7 +293,8 @@ void check_gltf_json(std::string_view text, const std::string& name) {
         return;
     }
     auto child_index = [&](const nlohmann::json& c) -> std::ptrdiff_t {
-        if (c.is_number_unsigned() && c.get<std::uint64_t>() < node.size()) return std::ptrdiff_t(c.get<std::uint64_t>());
+        if (c.is_number_unsigned() && c.get<std::uint64_t>() < node.size())
+            return std::ptrdiff_t(c.get<std::uint64_t>());
         if (c.is_string())
             if (auto it = by_id.find(c.get<std::string>()); it != by_id.end()) return std::ptrdiff_t(it->second);
         return -1;  // a dangling reference: assimp reports it
@@ -289,8 +308,9 @@ void check_gltf_json(std::string_view text, const std::string& name) {
             if (k < 0) continue;
             if (std::size_t(k) == n) throw InputError(name + ": glTF node " + label[n] + " is its own child (a cycle)");
             if (parent[std::size_t(k)] == std::ptrdiff_t(n))
-                throw InputError(name + ": glTF node " + label[std::size_t(k)] + " is listed twice among the children of node " +
-                                 label[n] + " (glTF node hierarchies are strict trees)");
+                throw InputError(name + ": glTF node " + label[std::size_t(k)] +
+                                 " is listed twice among the children of node " + label[n] +
+                                 " (glTF node hierarchies are strict trees)");
             if (parent[std::size_t(k)] >= 0)
                 throw InputError(name + ": glTF node " + label[std::size_t(k)] + " is a child of both node " +
                                  label[std::size_t(parent[std::size_t(k)])] + " and node " + label[n] +
@@ -321,7 +341,9 @@ void check_gltf_json(std::string_view text, const std::string& name) {
     }
     if (order.size() < node.size()) {
         for (std::size_t n = 0; n < node.size(); ++n)
-            if (depth[n] == 0) throw InputError(name + ": glTF node " + label[n] + " is its own ancestor through \"children\" (a cycle)");
+            if (depth[n] == 0)
+                throw InputError(name + ": glTF node " + label[n] +
+                                 " is its own ancestor through \"children\" (a cycle)");
     }
     // assimp copies a node's subtree for every time a scene lists it as a root: the sum over the
     // scenes' root lists of subtree sizes is the size of the tree it builds.
@@ -341,8 +363,9 @@ void check_gltf_json(std::string_view text, const std::string& name) {
             for (const auto& [key, scene] : doc["scenes"].items()) add_roots(scene);
     }
     if (total > kMaxSceneObjects)
-        throw InputError(name + ": the glTF scenes list node subtrees of " + std::to_string(total) + " nodes in all, more than the limit of " +
-                         std::to_string(kMaxSceneObjects) + " objects per scene (kMaxSceneObjects, scene.h)");
+        throw InputError(name + ": the glTF scenes list node subtrees of " + std::to_string(total) +
+                         " nodes in all, more than the limit of " + std::to_string(kMaxSceneObjects) +
+                         " objects per scene (kMaxSceneObjects, scene.h)");
 }
 
 /// The JSON of a binary glTF: glTF 2.0's first chunk (type "JSON"), or glTF 1.0's content.
@@ -355,9 +378,12 @@ void check_glb(std::string_view b, const std::string& name) {
     if (b.size() < 20 || b.substr(0, 4) != "glTF") return;  // not a binary glTF: assimp reports it
     const std::uint32_t version = u32(4);
     std::size_t at = 0, length = 0;
-    if (version == 2 && u32(16) == 0x4E4F534Au) at = 20, length = u32(12);
-    else if (version == 1 && u32(16) == 0) at = 20, length = u32(12);
-    else return;
+    if (version == 2 && u32(16) == 0x4E4F534Au)
+        at = 20, length = u32(12);
+    else if (version == 1 && u32(16) == 0)
+        at = 20, length = u32(12);
+    else
+        return;
     if (length > b.size() - at) length = b.size() - at;
     check_gltf_json(b.substr(at, length), name);
 }
@@ -373,7 +399,7 @@ public:
     explicit MappedFile(const std::string& path) {
         const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
         if (fd < 0) return;  // assimp reports a file it cannot open
-        struct stat st{};
+        struct stat st {};
         if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
             void* p = ::mmap(nullptr, std::size_t(st.st_size), PROT_READ, MAP_PRIVATE, fd, 0);
             if (p != MAP_FAILED) data_ = static_cast<const char*>(p), size_ = std::size_t(st.st_size);

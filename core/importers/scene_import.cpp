@@ -16,7 +16,9 @@ std::string importer_for(const std::string& path) {
     if (ext == ".csv") return "csv";
     if (ext == ".bsp" || ext == ".pk3") return "bsp";
     if (is_model_extension(ext)) return "model";
-    throw InputError(path + ": cannot import " + quoted_excerpt(ext) + " files (known: .csv, .bsp, .pk3 and the model formats assimp reads: .obj, .gltf, .glb, .fbx, .dae, .ply, …)");
+    throw InputError(
+        path + ": cannot import " + quoted_excerpt(ext) +
+        " files (known: .csv, .bsp, .pk3 and the model formats assimp reads: .obj, .gltf, .glb, .fbx, .dae, .ply, …)");
 }
 
 std::vector<Object> import_objects(const std::string& path, const ImportOptions& options, nlohmann::json* meta) {
@@ -31,7 +33,9 @@ std::vector<Object> import_objects(const std::string& path, const ImportOptions&
         m["mode"] = options.bsp_mode;
         m["map"] = s.map;
         if (options.bsp_mode == "brushes")
-            m["brushes"] = {{"all", s.brushes}, {"solid", s.solid_brushes}, {"skipped_non_solid", s.skipped_non_solid},
+            m["brushes"] = {{"all", s.brushes},
+                            {"solid", s.solid_brushes},
+                            {"skipped_non_solid", s.skipped_non_solid},
                             {"skipped_not_closed", s.skipped_not_closed}};
         else
             m["surfaces"] = s.surfaces;
@@ -62,7 +66,8 @@ ImportOptions import_options_from_json(const nlohmann::json& j, const std::strin
     if (o.bsp_mode != "brushes" && o.bsp_mode != "triangles")
         throw InputError(path + ".bsp_mode: expected \"brushes\" or \"triangles\", got " + quoted_excerpt(o.bsp_mode));
     if (o.model_mode != "instances" && o.model_mode != "triangles")
-        throw InputError(path + ".model_mode: expected \"instances\" or \"triangles\", got " + quoted_excerpt(o.model_mode));
+        throw InputError(path + ".model_mode: expected \"instances\" or \"triangles\", got " +
+                         quoted_excerpt(o.model_mode));
     return o;
 }
 

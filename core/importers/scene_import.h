@@ -13,8 +13,8 @@
 namespace rcb {
 
 struct ImportOptions {
-    std::string bsp_mode = "brushes";     ///< .bsp/.pk3: "brushes" or "triangles"
-    std::string map;                      ///< .pk3 with several maps: which one
+    std::string bsp_mode = "brushes";      ///< .bsp/.pk3: "brushes" or "triangles"
+    std::string map;                       ///< .pk3 with several maps: which one
     std::string model_mode = "instances";  ///< models: "instances" or "triangles"
 };
 
@@ -23,7 +23,8 @@ std::string importer_for(const std::string& path);
 
 /// The file's objects (uids 0..n−1 for BSP and models, the file's for CSV). `meta` (if given)
 /// receives what was imported and how: importer, mode, map, counts kept and skipped.
-std::vector<Object> import_objects(const std::string& path, const ImportOptions& options, nlohmann::json* meta = nullptr);
+std::vector<Object> import_objects(const std::string& path, const ImportOptions& options,
+                                   nlohmann::json* meta = nullptr);
 
 /// Options from a JSON object {"bsp_mode", "map", "model_mode"} (unknown keys refused; `path`
 /// prefixes messages).

@@ -142,7 +142,8 @@ void BulletDbvt::validate() const {
     objects_.validate("bullet_dbvt");
     if (leaves_.size() != n) throw std::logic_error("bullet_dbvt: slot arrays differ in size");
     if (std::size_t(tree_->m_leaves) != n)
-        throw std::logic_error("bullet_dbvt: tree has " + std::to_string(tree_->m_leaves) + " leaves for " + std::to_string(n) + " objects");
+        throw std::logic_error("bullet_dbvt: tree has " + std::to_string(tree_->m_leaves) + " leaves for " +
+                               std::to_string(n) + " objects");
     const float pad = kPadRelative * scale_;
     for (std::size_t i = 0; i < n; ++i) {
         if (!leaves_[i] || !leaves_[i]->isleaf() || leaves_[i]->dataAsInt != int(i))
@@ -152,7 +153,8 @@ void BulletDbvt::validate() const {
         // The leaf volume must enclose the box with the padding (the exactness argument needs it).
         if (lo.x() > b.min.x - pad * 0.5f || lo.y() > b.min.y - pad * 0.5f || lo.z() > b.min.z - pad * 0.5f ||
             hi.x() < b.max.x + pad * 0.5f || hi.y() < b.max.y + pad * 0.5f || hi.z() < b.max.z + pad * 0.5f)
-            throw std::logic_error("bullet_dbvt: leaf of uid " + std::to_string(objects_.uid(i)) + " does not enclose its padded box");
+            throw std::logic_error("bullet_dbvt: leaf of uid " + std::to_string(objects_.uid(i)) +
+                                   " does not enclose its padded box");
     }
     // Every internal node encloses its children and is their parent.
     std::vector<const btDbvtNode*> stack;
@@ -163,7 +165,8 @@ void BulletDbvt::validate() const {
         if (node->isleaf()) continue;
         for (const btDbvtNode* child : node->childs) {
             if (child->parent != node) throw std::logic_error("bullet_dbvt: child's parent link is wrong");
-            if (!node->volume.Contain(child->volume)) throw std::logic_error("bullet_dbvt: node does not enclose its child");
+            if (!node->volume.Contain(child->volume))
+                throw std::logic_error("bullet_dbvt: node does not enclose its child");
             stack.push_back(child);
         }
     }

@@ -94,19 +94,21 @@ private:
     Params params_;
     std::unique_ptr<btDbvt> tree_;
     struct Stack;
-    std::unique_ptr<Stack> stack_;   // rayTestInternal's persistent stack
+    std::unique_ptr<Stack> stack_;  // rayTestInternal's persistent stack
     SlotBoxes objects_;
     std::vector<btDbvtNode*> leaves_;  // slot-indexed, as objects_
-    float scale_ = 0;  // S in the comment above; 0 before the first box
+    float scale_ = 0;                  // S in the comment above; 0 before the first box
     std::uint64_t repads_ = 0;
 };
 
 template <class Count, class Visit>
 void BulletDbvt::traverse(const Segment& s, Count& count, Visit&& visit) {
     const SegmentSlabs slabs(s);
-    Query q{&slabs, this, &visit, [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); }};
+    Query q{&slabs, this, &visit,
+            [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); }};
     if (!dbvt_query(s, q)) {
-        scan_boxes(slabs, std::span<const Aabb>(objects_.boxes()), std::span<const Uid>(objects_.uids()), count, visit);  // the exact fallback
+        scan_boxes(slabs, std::span<const Aabb>(objects_.boxes()), std::span<const Uid>(objects_.uids()), count,
+                   visit);  // the exact fallback
         return;
     }
     count.box_tests(q.tests);

@@ -76,7 +76,9 @@ EmbreeBoxes::EmbreeBoxes() : EmbreeBoxes(Params{}) {}
 EmbreeBoxes::EmbreeBoxes(const Params& params) : params_(params), device_(std::make_unique<Device>()) {
     Device& d = *device_;
     d.device = rtcNewDevice(nullptr);
-    if (!d.device) throw std::runtime_error("embree: rtcNewDevice failed (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+    if (!d.device)
+        throw std::runtime_error("embree: rtcNewDevice failed (error " +
+                                 std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
     rtcSetDeviceErrorFunction(d.device, error_callback, &d);
     rtcSetDeviceMemoryMonitorFunction(d.device, memory_callback, &d);
     d.scene = rtcNewScene(d.device);
@@ -88,8 +90,8 @@ EmbreeBoxes::EmbreeBoxes(const Params& params) : params_(params), device_(std::m
     rtcSetGeometryUserData(d.geometry, this);
     rtcSetGeometryBoundsFunction(d.geometry, bounds_callback, nullptr);
     rtcSetGeometryIntersectFunction(d.geometry, intersect_callback);
-    rtcSetGeometryBuildQuality(d.geometry, params_.refit ? RTC_BUILD_QUALITY_REFIT
-                                                         : (low ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM));
+    rtcSetGeometryBuildQuality(
+        d.geometry, params_.refit ? RTC_BUILD_QUALITY_REFIT : (low ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM));
     rtcCommitGeometry(d.geometry);
     rtcAttachGeometry(d.scene, d.geometry);
     d.arena = std::make_unique<tbb::task_arena>(params_.threads);

@@ -67,8 +67,11 @@ public:
         int threads = 1;
         static constexpr auto fields() {
             return std::tuple{
-                Field{"quality", &Params::quality, 0, 0, "Embree build quality: low (Morton, two-level) or medium (binned SAH)", true, false, "low,medium"},
-                Field{"refit", &Params::refit, 0, 1, "refit the BVH at commit (RTC_BUILD_QUALITY_REFIT) instead of rebuilding", true},
+                Field{"quality", &Params::quality, 0, 0,
+                      "Embree build quality: low (Morton, two-level) or medium (binned SAH)", true, false,
+                      "low,medium"},
+                Field{"refit", &Params::refit, 0, 1,
+                      "refit the BVH at commit (RTC_BUILD_QUALITY_REFIT) instead of rebuilding", true},
                 Field{"threads", &Params::threads, 1, 64, "commit (build) threads, a TBB task arena", false}};
         }
     };
@@ -113,10 +116,10 @@ private:
 
     Params params_;
     std::unique_ptr<Device> device_;
-    SlotBoxes objects_;         // slot = Embree primitive id
-    float pad_ = 0;             // padding of the bounds given to Embree at the last commit
-    float far_ = 0;             // min(kFarFactor · M, kEmbreeRange / 2) at the last commit
-    bool in_range_ = true;      // kEmbreeMinScale <= M and the padded boxes within kEmbreeRange: Embree holds them
+    SlotBoxes objects_;     // slot = Embree primitive id
+    float pad_ = 0;         // padding of the bounds given to Embree at the last commit
+    float far_ = 0;         // min(kFarFactor · M, kEmbreeRange / 2) at the last commit
+    bool in_range_ = true;  // kEmbreeMinScale <= M and the padded boxes within kEmbreeRange: Embree holds them
     bool dirty_ = true;
     std::uint64_t commits_ = 0;
 };
@@ -133,9 +136,11 @@ struct EmbreeBoxes::Query {
 template <class Count, class Visit>
 void EmbreeBoxes::traverse(const Segment& s, Count& count, Visit&& visit) {
     const SegmentSlabs slabs(s);
-    Query q{&slabs, this, &visit, [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); }};
+    Query q{&slabs, this, &visit,
+            [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); }};
     if (!embree_query(s, q)) {
-        scan_boxes(slabs, std::span<const Aabb>(objects_.boxes()), std::span<const Uid>(objects_.uids()), count, visit);  // the exact fallback
+        scan_boxes(slabs, std::span<const Aabb>(objects_.boxes()), std::span<const Uid>(objects_.uids()), count,
+                   visit);  // the exact fallback
         return;
     }
     count.box_tests(q.tests);

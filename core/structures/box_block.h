@@ -34,7 +34,8 @@ struct alignas(16) BoxBlock {
     }
     void clear(int lane) {
         for (int a = 0; a < 3; ++a)
-            min[a][lane] = std::numeric_limits<float>::infinity(), max[a][lane] = -std::numeric_limits<float>::infinity();
+            min[a][lane] = std::numeric_limits<float>::infinity(),
+            max[a][lane] = -std::numeric_limits<float>::infinity();
         slot[lane] = 0;
     }
     Aabb box(int lane) const {
@@ -105,7 +106,8 @@ struct BlockCell {
     /// What is wrong with the lanes' layout ("" when nothing): one block per four objects, and no
     /// unused lane that a segment could hit.
     std::string defect() const {
-        if (blocks.size() != (size + BoxBlock::kLanes - 1) / BoxBlock::kLanes) return "cell blocks do not match its size";
+        if (blocks.size() != (size + BoxBlock::kLanes - 1) / BoxBlock::kLanes)
+            return "cell blocks do not match its size";
         for (std::uint32_t i = size; i < blocks.size() * BoxBlock::kLanes; ++i)
             if (box(i).min.x <= box(i).max.x) return "an unused lane holds a box that segments can hit";
         return "";

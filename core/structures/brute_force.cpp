@@ -105,13 +105,18 @@ std::size_t BruteForce::memory_bytes() const {
 void BruteForce::validate() const {
     const std::size_t n = uids_.size();
     for (int a = 0; a < 3; ++a)
-        if (min_[a].size() != n || max_[a].size() != n) throw std::logic_error("bf: box arrays and uid array differ in size");
-    if (slot_.size() != n) throw std::logic_error("bf: uid index has " + std::to_string(slot_.size()) + " entries for " + std::to_string(n) + " objects");
+        if (min_[a].size() != n || max_[a].size() != n)
+            throw std::logic_error("bf: box arrays and uid array differ in size");
+    if (slot_.size() != n)
+        throw std::logic_error("bf: uid index has " + std::to_string(slot_.size()) + " entries for " +
+                               std::to_string(n) + " objects");
     for (std::size_t i = 0; i < n; ++i) {
         auto it = slot_.find(uids_[i]);
-        if (it == slot_.end() || it->second != i) throw std::logic_error("bf: uid index does not point at slot " + std::to_string(i));
+        if (it == slot_.end() || it->second != i)
+            throw std::logic_error("bf: uid index does not point at slot " + std::to_string(i));
         for (int a = 0; a < 3; ++a)
-            if (!(min_[a][i] <= max_[a][i])) throw std::logic_error("bf: uid " + std::to_string(uids_[i]) + " has min > max");
+            if (!(min_[a][i] <= max_[a][i]))
+                throw std::logic_error("bf: uid " + std::to_string(uids_[i]) + " has min > max");
     }
 }
 

@@ -40,8 +40,8 @@ private:
     void test_block(const SegmentSlabs& slabs, std::size_t begin, std::size_t end);
 
     std::array<std::vector<float>, 3> min_, max_;  // per axis, slot-indexed
-    std::vector<Uid> uids_;                          // slot → uid
-    std::unordered_map<Uid, std::uint32_t> slot_;    // uid → slot
+    std::vector<Uid> uids_;                        // slot → uid
+    std::unordered_map<Uid, std::uint32_t> slot_;  // uid → slot
     // Per-block scratch of the query.
     std::array<std::uint8_t, kBlock> hit_{};
     std::array<float, kBlock> t_near_{};

@@ -344,10 +344,12 @@ void DynamicBvh::insert_leaf(std::uint32_t leaf) {
     const std::uint32_t sibling = find_best_sibling(leaf_box);
     const std::uint32_t old_parent = nodes_[sibling].parent;
     const std::uint32_t new_parent = allocate();
-    nodes_[new_parent] = Node{merge(leaf_box, nodes_[sibling].box), old_parent, {sibling, leaf},
-                              nodes_[sibling].height + 1};
-    if (old_parent == kNullNode) root_ = new_parent;
-    else nodes_[old_parent].child[nodes_[old_parent].child[0] == sibling ? 0 : 1] = new_parent;
+    nodes_[new_parent] =
+        Node{merge(leaf_box, nodes_[sibling].box), old_parent, {sibling, leaf}, nodes_[sibling].height + 1};
+    if (old_parent == kNullNode)
+        root_ = new_parent;
+    else
+        nodes_[old_parent].child[nodes_[old_parent].child[0] == sibling ? 0 : 1] = new_parent;
     nodes_[sibling].parent = new_parent;
     nodes_[leaf].parent = new_parent;
     refit_from(new_parent);
@@ -362,8 +364,10 @@ void DynamicBvh::remove_leaf(std::uint32_t leaf) {
     const std::uint32_t grand = nodes_[parent].parent;
     const std::uint32_t sibling = nodes_[parent].child[nodes_[parent].child[0] == leaf ? 1 : 0];
     nodes_[sibling].parent = grand;
-    if (grand == kNullNode) root_ = sibling;
-    else nodes_[grand].child[nodes_[grand].child[0] == parent ? 0 : 1] = sibling;
+    if (grand == kNullNode)
+        root_ = sibling;
+    else
+        nodes_[grand].child[nodes_[grand].child[0] == parent ? 0 : 1] = sibling;
     release(parent);
     nodes_[leaf].parent = kNullNode;
     refit_from(grand);
@@ -466,8 +470,10 @@ void DynamicBvh::rebuild() {
     build_items_.clear();
     build_items_.reserve(leaf_of_.size());
     for (std::uint32_t n = 0; n < nodes_.size(); ++n) {
-        if (nodes_[n].height > 0) release(n);
-        else if (nodes_[n].height == 0) build_items_.push_back({nodes_[n].box, nodes_[n].box.center(), n});
+        if (nodes_[n].height > 0)
+            release(n);
+        else if (nodes_[n].height == 0)
+            build_items_.push_back({nodes_[n].box, nodes_[n].box.center(), n});
     }
     root_ = build_items_.empty() ? kNullNode : build_range(build_items_.data(), std::uint32_t(build_items_.size()));
     if (!crowds_.empty()) crowds_dirty_ = true;  // new node ids
@@ -547,7 +553,9 @@ std::uint32_t DynamicBvh::build_range(BuildItem* items, std::uint32_t count) {
     const std::uint32_t left = build_range(items, mid);
     const std::uint32_t right = build_range(items + mid, count - mid);
     const std::uint32_t n = allocate();
-    nodes_[n] = Node{merge(nodes_[left].box, nodes_[right].box), kNullNode, {left, right},
+    nodes_[n] = Node{merge(nodes_[left].box, nodes_[right].box),
+                     kNullNode,
+                     {left, right},
                      1 + std::max(nodes_[left].height, nodes_[right].height)};
     nodes_[left].parent = n;
     nodes_[right].parent = n;
@@ -594,7 +602,8 @@ void DynamicBvh::validate() const {
         if (nodes_[n].height != -1) fail("node " + std::to_string(n) + " on the free list is in use");
         if (++free_seen > total) fail("free list has a cycle");
     }
-    if (free_seen != free_count_) fail("free list holds " + std::to_string(free_seen) + " nodes, count says " + std::to_string(free_count_));
+    if (free_seen != free_count_)
+        fail("free list holds " + std::to_string(free_seen) + " nodes, count says " + std::to_string(free_count_));
     std::uint32_t marked_free = 0;
     for (const Node& node : nodes_) marked_free += node.height == -1;
     if (marked_free != free_seen) fail("free nodes not on the free list");
@@ -612,24 +621,31 @@ void DynamicBvh::validate() const {
             if (node.height == 0) {
                 ++leaves;
                 auto it = leaf_of_.find(node.child[0]);
-                if (it == leaf_of_.end() || it->second != n) fail("leaf " + std::to_string(n) + " (uid " + std::to_string(node.child[0]) + ") not in the uid index");
-                if (!node.box.contains(tight_[n])) fail("fat box of uid " + std::to_string(node.child[0]) + " does not enclose its box");
+                if (it == leaf_of_.end() || it->second != n)
+                    fail("leaf " + std::to_string(n) + " (uid " + std::to_string(node.child[0]) +
+                         ") not in the uid index");
+                if (!node.box.contains(tight_[n]))
+                    fail("fat box of uid " + std::to_string(node.child[0]) + " does not enclose its box");
                 continue;
             }
             int hmax = -1;
             for (int k = 0; k < 2; ++k) {
                 const std::uint32_t c = node.child[k];
                 if (c >= total) fail("child out of range");
-                if (nodes_[c].parent != n) fail("child " + std::to_string(c) + " does not point back to parent " + std::to_string(n));
-                if (!node.box.contains(nodes_[c].box)) fail("node " + std::to_string(n) + " does not enclose child " + std::to_string(c));
+                if (nodes_[c].parent != n)
+                    fail("child " + std::to_string(c) + " does not point back to parent " + std::to_string(n));
+                if (!node.box.contains(nodes_[c].box))
+                    fail("node " + std::to_string(n) + " does not enclose child " + std::to_string(c));
                 hmax = std::max(hmax, nodes_[c].height);
                 stack.push_back(c);
             }
             if (node.height != 1 + hmax) fail("node " + std::to_string(n) + " has a wrong height");
         }
     }
-    if (leaves != leaf_of_.size()) fail(std::to_string(leaf_of_.size()) + " live uids but " + std::to_string(leaves) + " leaves in the tree");
-    if (reached + free_seen != total) fail("nodes neither in the tree nor free: " + std::to_string(total - reached - free_seen));
+    if (leaves != leaf_of_.size())
+        fail(std::to_string(leaf_of_.size()) + " live uids but " + std::to_string(leaves) + " leaves in the tree");
+    if (reached + free_seen != total)
+        fail("nodes neither in the tree nor free: " + std::to_string(total - reached - free_seen));
     // Crowds: as found afresh now (none is also right between two checks, while the tree has none).
     if (!crowds_dirty_ && !crowds_.empty()) {
         DynamicBvh fresh = *this;

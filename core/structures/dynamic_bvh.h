@@ -82,8 +82,8 @@ public:
             return std::tuple{
                 Field{"margin", &Params::margin, 0.0, 4.0, "fat-box margin, × the object's longest edge per side"},
                 Field{"rotate", &Params::rotate, 0, 1, "tree rotations on the refit path (Box2D v3)"},
-                Field{"mode", &Params::mode, 0, 0, "incremental insertion, or full binned-SAH rebuilds", true,
-                      false, "incremental,rebuild"},
+                Field{"mode", &Params::mode, 0, 0, "incremental insertion, or full binned-SAH rebuilds", true, false,
+                      "incremental,rebuild"},
                 Field{"rebuild_every", &Params::rebuild_every, 0, 1000000,
                       "rebuild mode: full rebuild every k frames (0: never by count)", true, true},
                 Field{"rebuild_growth", &Params::rebuild_growth, 0.0, 100.0,
@@ -159,10 +159,10 @@ public:
 
 private:
     struct Node {
-        Aabb box;                 // 24 B: the fat box for a leaf, the union of the children otherwise
-        std::uint32_t parent;     // 4 B: kNullNode at the root
-        std::uint32_t child[2];   // 8 B: a leaf keeps its uid in child[0]; a free node its successor
-        std::int32_t height;      // 4 B: 0 leaf, -1 free, else 1 + max(children)
+        Aabb box;                // 24 B: the fat box for a leaf, the union of the children otherwise
+        std::uint32_t parent;    // 4 B: kNullNode at the root
+        std::uint32_t child[2];  // 8 B: a leaf keeps its uid in child[0]; a free node its successor
+        std::int32_t height;     // 4 B: 0 leaf, -1 free, else 1 + max(children)
     };
     static_assert(sizeof(Node) == 40);
 
@@ -196,7 +196,7 @@ private:
     std::unordered_map<Uid, std::uint32_t> leaf_of_;
     std::vector<std::uint32_t> stack_;
     // Rebuild mode.
-    bool dirty_ = false;              // leaves changed, tree to be rebuilt at commit
+    bool dirty_ = false;  // leaves changed, tree to be rebuilt at commit
     std::uint32_t frames_since_build_ = 0;
     double cost_after_build_ = 0.0;
     std::vector<BuildItem> build_items_;

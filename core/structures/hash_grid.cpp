@@ -287,8 +287,7 @@ void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
     }
     if (depth + 1 >= params_.max_depth) return;
     for (std::uint32_t c : children) {
-        if (cells_[c].own.size <= std::uint32_t(params_.max_capacity) || cells_[c].own.size < retry_at_[c])
-            continue;
+        if (cells_[c].own.size <= std::uint32_t(params_.max_capacity) || cells_[c].own.size < retry_at_[c]) continue;
         const std::uint64_t key = cells_[c].key;
         const int f = params_.subdivision;
         (void)f;
@@ -509,7 +508,8 @@ void HashGrid::validate() const {
         auto place = [&](auto&& self, int depth, const Index& i) -> void {
             const std::uint32_t id = table_.find(key_of(depth, i));
             if (id == CellTable::kNone)
-                fail("uid " + std::to_string(entries_[slot].uid) + " overlaps a missing cell at depth " + std::to_string(depth));
+                fail("uid " + std::to_string(entries_[slot].uid) + " overlaps a missing cell at depth " +
+                     std::to_string(depth));
             ++expected_count[id];
             if (!cells_[id].subdivided || covers(fine, depth, i)) {
                 expected[id].push_back(std::uint32_t(slot));
@@ -545,7 +545,8 @@ void HashGrid::validate() const {
         }
         if (c.count == 0) fail(where + " is empty but stored");
         if (c.count != expected_count[id])
-            fail(where + " counts " + std::to_string(c.count) + " objects, " + std::to_string(expected_count[id]) + " reach it");
+            fail(where + " counts " + std::to_string(c.count) + " objects, " + std::to_string(expected_count[id]) +
+                 " reach it");
         if (const std::string defect = c.own.defect(); !defect.empty()) fail(where + ": " + defect);
         have.clear();
         for (std::uint32_t k = 0; k < c.own.size; ++k) {
@@ -556,14 +557,18 @@ void HashGrid::validate() const {
         std::sort(have.begin(), have.end());
         std::vector<std::uint32_t> want = expected[id];
         std::sort(want.begin(), want.end());
-        if (have != want) fail(where + " holds " + std::to_string(have.size()) + " objects, expected " + std::to_string(want.size()) + " (stale or missing entries)");
+        if (have != want)
+            fail(where + " holds " + std::to_string(have.size()) + " objects, expected " + std::to_string(want.size()) +
+                 " (stale or missing entries)");
         if (c.subdivided) {
             if (depth >= max_depth) fail(where + " is subdivided at max_depth");
-            if (c.count <= std::uint32_t(params_.max_capacity / 2)) fail(where + " is subdivided but should have collapsed");
+            if (c.count <= std::uint32_t(params_.max_capacity / 2))
+                fail(where + " is subdivided but should have collapsed");
         }
         total += c.own.size;
     });
-    if (total != entries_total_) fail("entry total is " + std::to_string(entries_total_) + ", cells hold " + std::to_string(total));
+    if (total != entries_total_)
+        fail("entry total is " + std::to_string(entries_total_) + ", cells hold " + std::to_string(total));
 }
 
 }  // namespace rcb

@@ -82,7 +82,9 @@ public:
     void erase(std::uint64_t key);
     void clear();
     std::size_t size() const { return size_; }
-    std::size_t memory_bytes() const { return keys_.capacity() * sizeof(std::uint64_t) + values_.capacity() * sizeof(std::uint32_t); }
+    std::size_t memory_bytes() const {
+        return keys_.capacity() * sizeof(std::uint64_t) + values_.capacity() * sizeof(std::uint32_t);
+    }
     template <class F>
     void for_each(F&& f) const {
         for (std::size_t i = 0; i < keys_.size(); ++i)
@@ -267,17 +269,15 @@ bool HashGrid::visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, doub
     const grid::CellRange r = children_of(c);
     const grid::Lattice& lat = lat_[child];
     Index start;
-    for (int a = 0; a < 3; ++a)
-        start[a] = std::clamp(lat.index(a, ctx.p0[a] + t_in * ctx.d[a]), r.lo[a], r.hi[a]);
+    for (int a = 0; a < 3; ++a) start[a] = std::clamp(lat.index(a, ctx.p0[a] + t_in * ctx.d[a]), r.lo[a], r.hi[a]);
     return grid::walk(lat, ctx.p0, ctx.d, r, start, t_in, t_out,
                       [&](const Index& ci, double ti, double to) { return visit_cell(ctx, child, ci, ti, to); });
 }
 
 template <class Count, class Visit>
 void HashGrid::traverse(const Segment& s, Count& count, Visit&& visit) {
-    HashGridQuery<Count, std::remove_reference_t<Visit>> ctx{SegmentSlabs(s), s.p0.as<double>(),
-                                                             s.p1.as<double>() - s.p0.as<double>(), next_stamp(),
-                                                             count, visit};
+    HashGridQuery<Count, std::remove_reference_t<Visit>> ctx{
+        SegmentSlabs(s), s.p0.as<double>(), s.p1.as<double>() - s.p0.as<double>(), next_stamp(), count, visit};
     // Large objects first: each is in this list only, so it is tested once and needs no stamp.
     count.box_tests(large_.size());
     for (const BoxBlock& b : large_.cell().blocks) {

@@ -115,13 +115,14 @@ void LinearBvh::radix_sort() {
             std::copy_n(all_counts.begin() + std::ptrdiff_t(pass) * kDigits, kDigits, histograms_.begin());
         else
             std::fill(histograms_.begin(), histograms_.end(), 0u);
-        if (chunks > 1) parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
-            for (std::size_t c = c0; c < c1; ++c) {
-                std::uint32_t* h = histograms_.data() + c * kDigits;
-                const std::size_t b = std::min(n, c * chunk_len), e = std::min(n, b + chunk_len);
-                for (std::size_t i = b; i < e; ++i) ++h[(src_k[i] >> shift) & (kDigits - 1)];
-            }
-        });
+        if (chunks > 1)
+            parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+                for (std::size_t c = c0; c < c1; ++c) {
+                    std::uint32_t* h = histograms_.data() + c * kDigits;
+                    const std::size_t b = std::min(n, c * chunk_len), e = std::min(n, b + chunk_len);
+                    for (std::size_t i = b; i < e; ++i) ++h[(src_k[i] >> shift) & (kDigits - 1)];
+                }
+            });
         std::uint32_t sum = 0;
         for (std::uint32_t d = 0; d < kDigits; ++d)
             for (std::size_t c = 0; c < chunks; ++c) {
@@ -215,7 +216,9 @@ void LinearBvh::rebuild() {
     leaf_base_ = std::uint32_t(n - 1);
     parallel(n, kGrain, [&](std::size_t b, std::size_t e) {
         for (std::size_t k = b; k < e; ++k) {
-            if (k + 16 < e) __builtin_prefetch(&objects_.boxes()[order_[k + 16]]), __builtin_prefetch(&objects_.uids()[order_[k + 16]]);
+            if (k + 16 < e)
+                __builtin_prefetch(&objects_.boxes()[order_[k + 16]]),
+                    __builtin_prefetch(&objects_.uids()[order_[k + 16]]);
             const std::uint32_t slot = order_[k];
             nodes_[leaf_base_ + k] = Node{objects_.box(slot), {objects_.uid(slot), kNullNode}, kNullNode, 0, kShared};
         }
@@ -243,8 +246,7 @@ void LinearBvh::rebuild() {
                 std::int64_t l_max = 2;
                 while (delta_i(i + l_max * d) > delta_min) l_max *= 2;
                 std::int64_t l = 0;
-                for (std::int64_t t = l_max / 2; t >= 1; t /= 2)
-                    l += delta_i(i + (l + t) * d) > delta_min ? t : 0;
+                for (std::int64_t t = l_max / 2; t >= 1; t /= 2) l += delta_i(i + (l + t) * d) > delta_min ? t : 0;
                 const std::int64_t j = i + l * d;
                 ranges_[ui] = {std::uint32_t(std::min(i, j)), std::uint32_t(std::max(i, j))};
                 const int delta_node = delta_i(j);
@@ -305,7 +307,8 @@ void LinearBvh::rebuild() {
             parallel(n, kGrain, [&](std::size_t b, std::size_t e) {
                 for (std::size_t k = b; k < e; ++k) {
                     std::uint32_t p = nodes_[leaf_base_ + k].parent;
-                    while (p != kNullNode && flags_[p].fetch_add(1, std::memory_order_acq_rel) != 0) p = merge_children(p);
+                    while (p != kNullNode && flags_[p].fetch_add(1, std::memory_order_acq_rel) != 0)
+                        p = merge_children(p);
                 }
             });
         } else {
@@ -390,12 +393,8 @@ std::size_t LinearBvh::memory_bytes() const {
 }
 
 nlohmann::json LinearBvh::stats() const {
-    return {{"sah_cost", sah_cost()},
-            {"depth", height()},
-            {"nodes", nodes_.size()},
-            {"crowds", crowds_},
-            {"tied_codes", tied_codes_},
-            {"outlier_trimmed", trimmed_}};
+    return {{"sah_cost", sah_cost()}, {"depth", height()},         {"nodes", nodes_.size()},
+            {"crowds", crowds_},      {"tied_codes", tied_codes_}, {"outlier_trimmed", trimmed_}};
 }
 
 void LinearBvh::validate() const {
@@ -403,7 +402,8 @@ void LinearBvh::validate() const {
     if (dirty_) fail("tree not rebuilt after changes (commit missing)");
     const std::size_t n = objects_.size();
     objects_.validate("lbvh");
-    if (nodes_.size() != (n ? 2 * n - 1 : 0)) fail("node array has " + std::to_string(nodes_.size()) + " nodes for " + std::to_string(n) + " objects");
+    if (nodes_.size() != (n ? 2 * n - 1 : 0))
+        fail("node array has " + std::to_string(nodes_.size()) + " nodes for " + std::to_string(n) + " objects");
     for (std::size_t k = 1; k < codes_.size(); ++k)
         if (codes_[k - 1] > codes_[k]) fail("Morton codes not sorted at " + std::to_string(k));
     if (n == 0) return;
@@ -424,15 +424,18 @@ void LinearBvh::validate() const {
             const std::uint32_t* slot = objects_.find(node.child[0]);
             if (!slot) fail("leaf " + std::to_string(v) + " holds unknown uid " + std::to_string(node.child[0]));
             if (slot_seen[*slot]++) fail("uid " + std::to_string(node.child[0]) + " in two leaves");
-            if (!(objects_.box(*slot) == node.box)) fail("leaf box of uid " + std::to_string(node.child[0]) + " is stale");
+            if (!(objects_.box(*slot) == node.box))
+                fail("leaf box of uid " + std::to_string(node.child[0]) + " is stale");
             continue;
         }
         int hmax = -1;
         for (int k = 0; k < 2; ++k) {
             const std::uint32_t c = node.child[k];
             if (c >= nodes_.size()) fail("child out of range");
-            if (nodes_[c].parent != v) fail("child " + std::to_string(c) + " does not point back to " + std::to_string(v));
-            if (!node.box.contains(nodes_[c].box)) fail("node " + std::to_string(v) + " does not enclose child " + std::to_string(c));
+            if (nodes_[c].parent != v)
+                fail("child " + std::to_string(c) + " does not point back to " + std::to_string(v));
+            if (!node.box.contains(nodes_[c].box))
+                fail("node " + std::to_string(v) + " does not enclose child " + std::to_string(c));
             hmax = std::max(hmax, int(nodes_[c].height));
             stack.push_back(c);
         }

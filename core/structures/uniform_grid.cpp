@@ -87,8 +87,7 @@ void UniformGrid::rewrite_box(std::uint32_t slot, const grid::CellRange& r, cons
     std::array<int, 3> i;
     for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
         for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
-            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0])
-                cells_[cell_id(i)].rewrite(slot, box);
+            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) cells_[cell_id(i)].rewrite(slot, box);
 }
 
 void UniformGrid::remove_from_cells(std::uint32_t slot, const grid::CellRange& r) {
@@ -197,7 +196,8 @@ nlohmann::json UniformGrid::stats() const {
 
 void UniformGrid::validate() const {
     auto fail = [](const std::string& m) { throw std::logic_error("ug: " + m); };
-    if (cells_.size() != std::size_t(lat_.res[0]) * lat_.res[1] * lat_.res[2]) fail("cell array size differs from the resolution");
+    if (cells_.size() != std::size_t(lat_.res[0]) * lat_.res[1] * lat_.res[2])
+        fail("cell array size differs from the resolution");
     if (cells_.size() > kMaxCells) fail("more cells than the cap");
     const std::vector<std::uint8_t> live = grid::live_slots(entries_, slot_, free_slots_, fail);
     std::vector<std::size_t> seen(entries_.size(), 0);
@@ -210,12 +210,15 @@ void UniformGrid::validate() const {
                 sorted.clear();
                 for (std::uint32_t k = 0; k < c.size; ++k) sorted.push_back(c.slot(k));
                 std::sort(sorted.begin(), sorted.end());
-                if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) fail("an object appears twice in one cell");
+                if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end())
+                    fail("an object appears twice in one cell");
                 if (const std::string defect = c.defect(); !defect.empty()) fail(defect);
                 for (std::uint32_t k = 0; k < c.size; ++k) {
                     const std::uint32_t slot = c.slot(k);
-                    if (slot >= entries_.size() || !live[slot]) fail("stale entry (slot " + std::to_string(slot) + ") in a cell");
-                    if (!(c.box(k) == entries_[slot].box)) fail("uid " + std::to_string(entries_[slot].uid) + " has a stale box copy in a cell");
+                    if (slot >= entries_.size() || !live[slot])
+                        fail("stale entry (slot " + std::to_string(slot) + ") in a cell");
+                    if (!(c.box(k) == entries_[slot].box))
+                        fail("uid " + std::to_string(entries_[slot].uid) + " has a stale box copy in a cell");
                     const grid::CellRange r = lat_.range_of(entries_[slot].box);
                     for (int a = 0; a < 3; ++a)
                         if (i[a] < r.lo[a] || i[a] > r.hi[a])
@@ -227,7 +230,8 @@ void UniformGrid::validate() const {
     for (std::size_t slot = 0; slot < entries_.size(); ++slot) {
         if (!live[slot]) continue;
         const Entry& e = entries_[slot];
-        if (!(e.box.min.x <= e.box.max.x && e.box.min.y <= e.box.max.y && e.box.min.z <= e.box.max.z)) fail("box with min > max");
+        if (!(e.box.min.x <= e.box.max.x && e.box.min.y <= e.box.max.y && e.box.min.z <= e.box.max.z))
+            fail("box with min > max");
         const grid::CellRange r = lat_.range_of(e.box);
         if (is_large(r) != large_.contains(std::uint32_t(slot)))
             fail("uid " + std::to_string(e.uid) +
@@ -236,7 +240,8 @@ void UniformGrid::validate() const {
         std::size_t expected = is_large(r) ? 0 : 1;
         for (int a = 0; a < 3 && expected; ++a) expected *= std::size_t(r.hi[a] - r.lo[a] + 1);
         if (seen[slot] != expected)
-            fail("uid " + std::to_string(e.uid) + " is in " + std::to_string(seen[slot]) + " cells, overlaps " + std::to_string(expected));
+            fail("uid " + std::to_string(e.uid) + " is in " + std::to_string(seen[slot]) + " cells, overlaps " +
+                 std::to_string(expected));
     }
     if (stamps_.size() != entries_.size()) fail("stamps and slots differ in size");
     if (params_.thesis_reset && tested_.size() != entries_.size()) fail("reset flags and slots differ in size");

@@ -129,11 +129,13 @@ bool walk(const Lattice& lat, const Vec3d& p0, const Vec3d& d, const CellRange& 
 /// The live slots of a grid's object table (entries with a `uid`, a uid → slot index, a free list);
 /// `fail(message)` unless the three agree.
 template <class Entry, class Fail>
-std::vector<std::uint8_t> live_slots(const std::vector<Entry>& entries, const std::unordered_map<Uid, std::uint32_t>& index,
+std::vector<std::uint8_t> live_slots(const std::vector<Entry>& entries,
+                                     const std::unordered_map<Uid, std::uint32_t>& index,
                                      const std::vector<std::uint32_t>& free_slots, Fail&& fail) {
     std::vector<std::uint8_t> live(entries.size(), 0);
     for (const auto& [uid, slot] : index) {
-        if (slot >= entries.size() || entries[slot].uid != uid) fail("uid index does not point at uid " + std::to_string(uid));
+        if (slot >= entries.size() || entries[slot].uid != uid)
+            fail("uid index does not point at uid " + std::to_string(uid));
         if (live[slot]) fail("two uids share slot " + std::to_string(slot));
         live[slot] = 1;
     }
@@ -145,12 +147,13 @@ std::vector<std::uint8_t> live_slots(const std::vector<Entry>& entries, const st
 
 /// The large-object list holds only live slots, each with its current box; `fail(message)` otherwise.
 template <class Entry, class Fail>
-void check_large_objects(const BlockList& large, const std::vector<Entry>& entries, const std::vector<std::uint8_t>& live,
-                         Fail&& fail) {
+void check_large_objects(const BlockList& large, const std::vector<Entry>& entries,
+                         const std::vector<std::uint8_t>& live, Fail&& fail) {
     if (const std::string defect = large.defect(); !defect.empty()) fail(defect);
     for (std::uint32_t k = 0; k < large.size(); ++k) {
         const std::uint32_t slot = large.cell().slot(k);
-        if (slot >= entries.size() || !live[slot]) fail("stale entry (slot " + std::to_string(slot) + ") in the large-object list");
+        if (slot >= entries.size() || !live[slot])
+            fail("stale entry (slot " + std::to_string(slot) + ") in the large-object list");
         if (!(large.cell().box(k) == entries[slot].box))
             fail("uid " + std::to_string(entries[slot].uid) + " has a stale box in the large-object list");
     }
@@ -251,16 +254,16 @@ private:
 
     Params params_;
     grid::Lattice lat_;
-    bool clamped_ = false;  ///< the cell cap enlarged the cells
-    bool trimmed_ = false;  ///< the outlier guard trimmed the lattice
-    std::vector<BlockCell> cells_;                   // cell → objects (copies of their boxes)
-    BlockList large_;                                // the large-object guard's objects (in no cell)
-    std::vector<Entry> entries_;                     // slot → object
+    bool clamped_ = false;          ///< the cell cap enlarged the cells
+    bool trimmed_ = false;          ///< the outlier guard trimmed the lattice
+    std::vector<BlockCell> cells_;  // cell → objects (copies of their boxes)
+    BlockList large_;               // the large-object guard's objects (in no cell)
+    std::vector<Entry> entries_;    // slot → object
     std::vector<std::uint32_t> free_slots_;
-    std::unordered_map<Uid, std::uint32_t> slot_;    // uid → slot
+    std::unordered_map<Uid, std::uint32_t> slot_;  // uid → slot
     std::uint32_t stamp_ = 0;
     std::vector<std::uint32_t> stamps_;  // slot → id of the last query that reported it
-    std::vector<std::uint8_t> tested_;  // thesis_reset mode only
+    std::vector<std::uint8_t> tested_;   // thesis_reset mode only
 };
 
 template <class Count, class Visit>

@@ -27,8 +27,8 @@ using rcb::Vec3;
 float coordinate(FuzzedDataProvider& in) {
     const std::uint8_t kind = in.ConsumeIntegral<std::uint8_t>();
     const float v = float(in.ConsumeIntegral<std::int8_t>()) * 0.25f;
-    if (kind < 240) return v;           // the lattice: coincident faces
-    if (kind < 250) return v * 1e6f;    // far away (outliers)
+    if (kind < 240) return v;                                       // the lattice: coincident faces
+    if (kind < 250) return v * 1e6f;                                // far away (outliers)
     return v + float(in.ConsumeIntegral<std::uint16_t>()) * 1e-5f;  // just off the lattice
 }
 
@@ -83,8 +83,10 @@ rcb::Recording scene(FuzzedDataProvider& in) {
             const rcb::Uid uid = live.objects()[in.ConsumeIntegralInRange<std::size_t>(0, live.size() - 1)].uid;
             if (!untouched(uid)) continue;
             touched.push_back(uid);
-            if (what == 1) frame.removes.push_back(uid);
-            else frame.moves.push_back({uid, box(in)});
+            if (what == 1)
+                frame.removes.push_back(uid);
+            else
+                frame.moves.push_back({uid, box(in)});
         }
         const int rays = in.ConsumeIntegralInRange(1, 16);
         for (int k = 0; k < rays; ++k) frame.rays.push_back(ray(in));

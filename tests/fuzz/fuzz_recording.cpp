@@ -23,8 +23,8 @@ void fix_checksums(std::string& bytes) {
         for (int i = 7; i >= 0; --i) len = (len << 8) | static_cast<unsigned char>(bytes[at + 4 + i]);
         const std::size_t payload = at + 16;
         if (len > bytes.size() - payload) return;
-        const std::uint32_t crc = std::uint32_t(
-            crc32(0, reinterpret_cast<const Bytef*>(bytes.data() + payload), static_cast<uInt>(len)));
+        const std::uint32_t crc =
+            std::uint32_t(crc32(0, reinterpret_cast<const Bytef*>(bytes.data() + payload), static_cast<uInt>(len)));
         for (int i = 0; i < 4; ++i) bytes[at + 12 + i] = char((crc >> (8 * i)) & 0xff);
         at = payload + std::size_t(len);
     }
