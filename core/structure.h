@@ -16,6 +16,9 @@
 #include <cstddef>
 #include <optional>
 #include <span>
+#include <stdexcept>
+#include <string>
+#include <string_view>
 
 #include <nlohmann/json.hpp>
 
@@ -63,9 +66,15 @@ public:
     /// Structure-specific measures (e.g. "sah_cost", "depth", "cells"), recorded per frame.
     virtual nlohmann::json stats() const { return nlohmann::json::object(); }
     /// Checks the invariants (every object stored where it must be, bounds enclose children, …);
-    /// throws std::logic_error naming the first violation. Tests call it after every update.
+    /// the first violation goes to broken_invariant (below). Tests call it after every update.
     virtual void validate() const = 0;
 };
+
+/// validate()'s one way to fail: std::logic_error "<structure>: <what is broken>" (a bug in the
+/// structure, never bad input).
+[[noreturn]] inline void broken_invariant(std::string_view structure, const std::string& what) {
+    throw std::logic_error(std::string(structure) + ": " + what);
+}
 
 /// Implements the queries of `Structure` from `Derived::traverse` (see the top of this file).
 template <class Derived>

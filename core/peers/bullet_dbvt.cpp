@@ -140,21 +140,21 @@ nlohmann::json BulletDbvt::stats() const {
 void BulletDbvt::validate() const {
     const std::size_t n = objects_.size();
     objects_.validate("bullet_dbvt");
-    if (leaves_.size() != n) throw std::logic_error("bullet_dbvt: slot arrays differ in size");
+    if (leaves_.size() != n) broken_invariant("bullet_dbvt", "slot arrays differ in size");
     if (std::size_t(tree_->m_leaves) != n)
-        throw std::logic_error("bullet_dbvt: tree has " + std::to_string(tree_->m_leaves) + " leaves for " +
-                               std::to_string(n) + " objects");
+        broken_invariant("bullet_dbvt", "tree has " + std::to_string(tree_->m_leaves) + " leaves for " +
+                                            std::to_string(n) + " objects");
     const float pad = kPadRelative * scale_;
     for (std::size_t i = 0; i < n; ++i) {
         if (!leaves_[i] || !leaves_[i]->isleaf() || leaves_[i]->dataAsInt != int(i))
-            throw std::logic_error("bullet_dbvt: leaf of slot " + std::to_string(i) + " does not point back");
+            broken_invariant("bullet_dbvt", "leaf of slot " + std::to_string(i) + " does not point back");
         const Aabb& b = objects_.box(i);
         const btVector3 lo = leaves_[i]->volume.Mins(), hi = leaves_[i]->volume.Maxs();
         // The leaf volume must enclose the box with the padding (the exactness argument needs it).
         if (lo.x() > b.min.x - pad * 0.5f || lo.y() > b.min.y - pad * 0.5f || lo.z() > b.min.z - pad * 0.5f ||
             hi.x() < b.max.x + pad * 0.5f || hi.y() < b.max.y + pad * 0.5f || hi.z() < b.max.z + pad * 0.5f)
-            throw std::logic_error("bullet_dbvt: leaf of uid " + std::to_string(objects_.uid(i)) +
-                                   " does not enclose its padded box");
+            broken_invariant("bullet_dbvt",
+                             "leaf of uid " + std::to_string(objects_.uid(i)) + " does not enclose its padded box");
     }
     // Every internal node encloses its children and is their parent.
     std::vector<const btDbvtNode*> stack;
@@ -164,9 +164,9 @@ void BulletDbvt::validate() const {
         stack.pop_back();
         if (node->isleaf()) continue;
         for (const btDbvtNode* child : node->childs) {
-            if (child->parent != node) throw std::logic_error("bullet_dbvt: child's parent link is wrong");
+            if (child->parent != node) broken_invariant("bullet_dbvt", "child's parent link is wrong");
             if (!node->volume.Contain(child->volume))
-                throw std::logic_error("bullet_dbvt: node does not enclose its child");
+                broken_invariant("bullet_dbvt", "node does not enclose its child");
             stack.push_back(child);
         }
     }

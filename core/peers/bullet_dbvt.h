@@ -1,25 +1,10 @@
 #pragma once
-/// Peer: Bullet's dynamic AABB tree btDbvt (Debian libbullet-dev, single precision), used the way
-/// btDbvtBroadphase uses it: a leaf per object inserted, updated (btDbvt::update: remove and
-/// reinsert) and removed as the frame's changes arrive, `optimize_passes` passes of
-/// btDbvt::optimizeIncremental at each commit, and rays through btDbvt::rayTestInternal (the
-/// persistent-stack ray test btDbvtBroadphase uses for world ray casts) with a collector.
-///
-/// Exactness: btDbvt's ray test (btRayAabb2) is a float test with strict comparisons
-/// (tmin < λmax and tmax > λmin), so a segment that only touches a box, or runs along a face, can be
-/// missed, and nearly-touching boxes can be reported. Both are reconciled: the leaf volumes given
-/// to Bullet are the boxes padded outward by `pad` = 1e-4 · S (S: a scale at least the largest
-/// |coordinate| of any box, grown ×2 and all leaves re-padded when a box exceeds it), so every box
-/// the segment touches is strictly crossed in Bullet's float arithmetic, and each candidate leaf
-/// Bullet delivers is decided by rcb's SegmentSlabs test on the unpadded box (counted as N_RB). The
-/// hits, their t and the touching rule are exactly those of every rcb structure. Segments with a
-/// coordinate beyond kFarFactor · S or non-finite take an exact fallback, a scan of the dense box
-/// array (where the padding would no longer provably exceed the rounding). Zero-length segments go
-/// through Bullet: its ray test turns a zero direction into BT_LARGE_FLOAT, which with the padding is
-/// an exact point-in-padded-box test, and the exact test decides.
-///
-/// Counters: N_RB = candidate leaves (plus fallback tests), N_TP = hits; btDbvt's node visits are
-/// inside its inline loop and not observable, so N_T stays 0 for this peer.
+/// Peer: Bullet's dynamic AABB tree btDbvt used as btDbvtBroadphase uses it: a leaf per object,
+/// updates as remove and reinsert, `optimize_passes` of optimizeIncremental per commit, rays through
+/// rayTestInternal. btDbvt's float ray test can miss touching boxes, so its leaves are padded boxes
+/// and each candidate is decided by rcb's own slab test on the unpadded box: hits equal every rcb
+/// structure's. Far or non-finite segments go to an exact scan. Counters: N_RB = candidate leaves
+/// plus scan tests; N_T is not observable (0). docs/structures.md has the exactness argument.
 
 #include <cstdint>
 #include <memory>
@@ -27,8 +12,8 @@
 #include <vector>
 
 #include "core/params.h"
-#include "core/box_scan.h"
-#include "core/slot_boxes.h"
+#include "core/structures/common/box_scan.h"
+#include "core/structures/common/slot_boxes.h"
 #include "core/structure.h"
 
 class btDbvt;
@@ -107,7 +92,7 @@ void BulletDbvt::traverse(const Segment& s, Count& count, Visit&& visit) {
     Query q{&slabs, this, &visit,
             [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); }};
     if (!dbvt_query(s, q)) {
-        scan_boxes(slabs, std::span<const Aabb>(objects_.boxes()), std::span<const Uid>(objects_.uids()), count,
+        scan_boxes(slabs, std::span<const Aabb>(objects_.layout().all()), std::span<const Uid>(objects_.uids()), count,
                    visit);  // the exact fallback
         return;
     }

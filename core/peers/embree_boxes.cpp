@@ -126,7 +126,7 @@ void EmbreeBoxes::move(const Object& o) {
 void EmbreeBoxes::commit() {
     if (!dirty_) return;
     float m = 0;
-    for (const Aabb& b : objects_.boxes())
+    for (const Aabb& b : objects_.layout().all())
         m = std::max({m, std::abs(b.min.x), std::abs(b.min.y), std::abs(b.min.z), std::abs(b.max.x), std::abs(b.max.y),
                       std::abs(b.max.z)});
     m = std::max(m, std::numeric_limits<float>::min());
@@ -189,7 +189,7 @@ void EmbreeBoxes::validate() const {
         const Aabb& b = objects_.box(i);
         if (b.min.x < sb.lower_x || b.min.y < sb.lower_y || b.min.z < sb.lower_z || b.max.x > sb.upper_x ||
             b.max.y > sb.upper_y || b.max.z > sb.upper_z)
-            throw std::logic_error("embree: scene bounds do not enclose uid " + std::to_string(objects_.uid(i)));
+            broken_invariant("embree", "scene bounds do not enclose uid " + std::to_string(objects_.uid(i)));
     }
 }
 

@@ -1,60 +1,16 @@
 #include "core/structures/brute_force.h"
 
-#include <stdexcept>
-#include <string>
-
 namespace rcb {
 
 void BruteForce::build(std::span<const Object> objects) {
-    for (int a = 0; a < 3; ++a) {
-        min_[a].clear();
-        max_[a].clear();
-        min_[a].reserve(objects.size());
-        max_[a].reserve(objects.size());
-    }
-    uids_.clear();
-    uids_.reserve(objects.size());
-    slot_.clear();
-    slot_.reserve(objects.size());
-    for (const Object& o : objects) insert(o);
+    objects_.clear();
+    objects_.reserve(objects.size());
+    for (const Object& o : objects) objects_.insert(o);
 }
 
-void BruteForce::insert(const Object& o) {
-    slot_.emplace(o.uid, static_cast<std::uint32_t>(uids_.size()));
-    uids_.push_back(o.uid);
-    for (int a = 0; a < 3; ++a) {
-        min_[a].push_back(o.box.min[a]);
-        max_[a].push_back(o.box.max[a]);
-    }
-}
-
-void BruteForce::remove(Uid uid) {
-    auto it = slot_.find(uid);
-    const std::uint32_t slot = it->second;
-    slot_.erase(it);
-    const std::uint32_t last = static_cast<std::uint32_t>(uids_.size() - 1);
-    if (slot != last) {
-        uids_[slot] = uids_[last];
-        slot_[uids_[slot]] = slot;
-        for (int a = 0; a < 3; ++a) {
-            min_[a][slot] = min_[a][last];
-            max_[a][slot] = max_[a][last];
-        }
-    }
-    uids_.pop_back();
-    for (int a = 0; a < 3; ++a) {
-        min_[a].pop_back();
-        max_[a].pop_back();
-    }
-}
-
-void BruteForce::move(const Object& o) {
-    const std::uint32_t slot = slot_.at(o.uid);
-    for (int a = 0; a < 3; ++a) {
-        min_[a][slot] = o.box.min[a];
-        max_[a][slot] = o.box.max[a];
-    }
-}
+void BruteForce::insert(const Object& o) { objects_.insert(o); }
+void BruteForce::remove(Uid uid) { objects_.remove(uid); }
+void BruteForce::move(const Object& o) { objects_.move(o); }
 
 namespace {
 
@@ -87,37 +43,17 @@ void BruteForce::test_block(const SegmentSlabs& slabs, std::size_t begin, std::s
     const float* near[3];
     const float* far[3];
     for (int a = 0; a < 3; ++a) {
-        near[a] = (slabs.near_is_max[a] ? max_[a].data() : min_[a].data()) + begin;
-        far[a] = (slabs.near_is_max[a] ? min_[a].data() : max_[a].data()) + begin;
+        const float* lo = objects_.layout().min(a);
+        const float* hi = objects_.layout().max(a);
+        near[a] = (slabs.near_is_max[a] ? hi : lo) + begin;
+        far[a] = (slabs.near_is_max[a] ? lo : hi) + begin;
     }
     slab_test_boxes(near[0], near[1], near[2], far[0], far[1], far[2], slabs.origin.x, slabs.origin.y, slabs.origin.z,
                     slabs.inv.x, slabs.inv.y, slabs.inv.z, end - begin, hit_.data(), t_near_.data());
 }
 
-std::size_t BruteForce::memory_bytes() const {
-    std::size_t bytes = uids_.capacity() * sizeof(Uid);
-    for (int a = 0; a < 3; ++a) bytes += (min_[a].capacity() + max_[a].capacity()) * sizeof(float);
-    // unordered_map: one bucket pointer per bucket, one heap node (next, key, value) per entry.
-    bytes += slot_.bucket_count() * sizeof(void*) + slot_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t));
-    return bytes + sizeof(*this);
-}
+std::size_t BruteForce::memory_bytes() const { return objects_.memory_bytes() + sizeof(*this); }
 
-void BruteForce::validate() const {
-    const std::size_t n = uids_.size();
-    for (int a = 0; a < 3; ++a)
-        if (min_[a].size() != n || max_[a].size() != n)
-            throw std::logic_error("bf: box arrays and uid array differ in size");
-    if (slot_.size() != n)
-        throw std::logic_error("bf: uid index has " + std::to_string(slot_.size()) + " entries for " +
-                               std::to_string(n) + " objects");
-    for (std::size_t i = 0; i < n; ++i) {
-        auto it = slot_.find(uids_[i]);
-        if (it == slot_.end() || it->second != i)
-            throw std::logic_error("bf: uid index does not point at slot " + std::to_string(i));
-        for (int a = 0; a < 3; ++a)
-            if (!(min_[a][i] <= max_[a][i]))
-                throw std::logic_error("bf: uid " + std::to_string(uids_[i]) + " has min > max");
-    }
-}
+void BruteForce::validate() const { objects_.validate("bf"); }
 
 }  // namespace rcb

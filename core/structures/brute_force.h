@@ -6,10 +6,9 @@
 
 #include <array>
 #include <tuple>
-#include <unordered_map>
-#include <vector>
 
 #include "core/structure.h"
+#include "core/structures/common/slot_boxes.h"
 
 namespace rcb {
 
@@ -25,7 +24,7 @@ public:
     void insert(const Object& object) override;
     void remove(Uid uid) override;
     void move(const Object& object) override;
-    std::size_t size() const override { return uids_.size(); }
+    std::size_t size() const override { return objects_.size(); }
     std::size_t memory_bytes() const override;
     void validate() const override;
 
@@ -39,9 +38,7 @@ private:
     /// Tests boxes [begin, end) and writes 1 (hit) or 0 per box into `hit`, their entry t into `t_near`.
     void test_block(const SegmentSlabs& slabs, std::size_t begin, std::size_t end);
 
-    std::array<std::vector<float>, 3> min_, max_;  // per axis, slot-indexed
-    std::vector<Uid> uids_;                        // slot → uid
-    std::unordered_map<Uid, std::uint32_t> slot_;  // uid → slot
+    SoaSlotBoxes objects_;
     // Per-block scratch of the query.
     std::array<std::uint8_t, kBlock> hit_{};
     std::array<float, kBlock> t_near_{};
@@ -50,7 +47,7 @@ private:
 template <class Count, class Visit>
 void BruteForce::traverse(const Segment& s, Count& count, Visit&& visit) {
     const SegmentSlabs slabs(s);
-    const std::size_t n = uids_.size();
+    const std::size_t n = objects_.size();
     count.box_tests(n);
     for (std::size_t begin = 0; begin < n; begin += kBlock) {
         const std::size_t end = std::min(n, begin + kBlock);
@@ -58,7 +55,7 @@ void BruteForce::traverse(const Segment& s, Count& count, Visit&& visit) {
         for (std::size_t i = 0; i < end - begin; ++i) {
             if (!hit_[i]) continue;
             count.hits();
-            if (!visit(uids_[begin + i], t_near_[i])) return;
+            if (!visit(objects_.uid(std::uint32_t(begin + i)), t_near_[i])) return;
         }
     }
 }

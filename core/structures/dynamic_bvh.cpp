@@ -592,7 +592,7 @@ nlohmann::json DynamicBvh::stats() const {
 }
 
 void DynamicBvh::validate() const {
-    auto fail = [](const std::string& what) { throw std::logic_error("dbvh: " + what); };
+    auto fail = [](const std::string& what) { broken_invariant("dbvh", what); };
     if (dirty_) fail("tree not rebuilt after changes (commit missing)");
     const std::uint32_t total = std::uint32_t(nodes_.size());
     // Free list: every entry a free node, no cycles.

@@ -1,47 +1,10 @@
 #pragma once
-/// Dynamic BVH (thesis §4.4), after Catto's incremental tree as in Box2D v3 (src/dynamic_tree.c):
-/// insertion finds the best sibling by the SAH cost with branch and bound, creates a new parent and
-/// refits the ancestors (optionally rotating nodes on the way up, b_RotateNodes); removal replaces
-/// the parent by the sibling; a move that stays inside the leaf's enlarged ("fat") box changes
-/// nothing in the tree, otherwise it is a remove plus an insert.
-///
-/// The hit set stays exact with fat boxes: traversal tests the object's own box at the leaf (one
-/// N_RB test), never the fat box (bvh_traversal.h).
-///
-/// `mode = rebuild` replaces incremental construction by a full top-down binned-SAH build (the
-/// thesis' Table 6.4 "full SAH" variant; binning after Wald 2007, "On fast construction of
-/// SAH-based bounding volume hierarchies"), repeated at commit every `rebuild_every` frames or when
-/// the tree's SAH cost has grown by `rebuild_growth` over the cost right after the last build.
-/// Between rebuilds, changes are applied incrementally; in a frame that ends in a rebuild they only
-/// update the leaves and the tree is rebuilt once at commit.
-///
-/// SAH guard (`sah_guard`, incremental mode): incremental insertion and removal never
-/// restructure the tree globally, so under churn its SAH cost can keep growing (objects that
-/// wander leave inner boxes that span the scene). At commit, once at least max(64, size / 8)
-/// changes have accumulated since the last check (O(1) amortised per change), the SAH cost is
-/// evaluated; above `sah_guard` × the cost right after the last (re)build, the tree is rebuilt
-/// with the binned-SAH builder and that cost becomes the new baseline. `sah_guard = 0` turns the
-/// guard off; stats report "guard_rebuilds".
-///
-/// Height guard (`height_guard`, incremental mode, on by default): insertion by SAH can chain boxes
-/// nested around one centre into a tree as deep as it has leaves, so that every insert, remove and
-/// ray walks O(n) nodes and the build takes O(n²). When the height exceeds height_limit(size) =
-/// 4·bit_width(size) + 8, at a commit or during the build, the tree is rebuilt with the binned-SAH
-/// builder, which splits boxes sharing one centroid by size. Stats report "height_rebuilds".
-///
-/// Crowd guard (`crowd_guard`, on by default): a tree with one object per leaf visits 2n − 1 nodes
-/// for a segment that meets all n objects of a subtree, which is what a segment starting among
-/// objects that share a point does (n cubes nested around one centre). An inner node over at least
-/// kCrowdLeaves leaves whose own boxes all share a point (their intersection, the "common box", is
-/// not empty) is a crowd. While the tree has crowds, every commit that follows a change numbers the
-/// leaves in depth-first order (every subtree is then a run of consecutive leaves), packs the
-/// leaves' boxes and uids in that order, and notes each crowd's run and common box; a segment that
-/// meets a crowd's box and its common box meets every box below, so the run is tested in order
-/// instead of descending (as the LBVH does, linear_bvh.h). Without crowds this costs one O(n) pass
-/// every max(64, size / 8) changes, next to the SAH guard's. The leaves are tested either way:
-/// answers do not depend on the guard. Stats report "crowds".
-///
-/// Nodes live in one flat array addressed by index, with a free list; no per-node allocation.
+/// Dynamic BVH (thesis §4.4), after Catto's incremental tree as in Box2D v3: insertion picks the
+/// sibling by SAH with branch and bound and refits (optionally rotating) the ancestors; a move
+/// inside the leaf's fat box changes nothing in the tree. Rays test the object's own box at the
+/// leaf, never the fat box, so hits stay exact (common/bvh_traversal.h). `mode = rebuild` is the
+/// thesis' Table 6.4 "full SAH" variant (binned SAH, Wald 2007). SAH, height and crowd guards keep
+/// the tree's cost bounded under churn and nested objects. docs/structures.md has the details.
 
 #include <bit>
 #include <cstdint>
@@ -52,7 +15,7 @@
 
 #include "core/params.h"
 #include "core/structure.h"
-#include "core/structures/bvh_traversal.h"
+#include "core/structures/common/bvh_traversal.h"
 
 namespace rcb {
 

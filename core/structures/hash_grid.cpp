@@ -221,8 +221,7 @@ void HashGrid::insert_into(int depth, const Index& i, std::uint32_t slot, const 
         // otherwise be copied into every child it overlaps however crowded the cell is (identical
         // boxes: every insert lands in the same subdivided cells). Over the budget, the cell
         // collapses into a leaf holding each of its objects once, and the object joins it.
-        const std::size_t child_entries =
-            std::size_t(r.hi[0] - r.lo[0] + 1) * (r.hi[1] - r.lo[1] + 1) * (r.hi[2] - r.lo[2] + 1);
+        const std::size_t child_entries = grid::cell_count(r);
         if (params_.entries_guard && entries_total_ + child_entries > entry_budget()) {
             collapse(id, depth, i);
             ++guard_collapses_;
@@ -231,10 +230,7 @@ void HashGrid::insert_into(int depth, const Index& i, std::uint32_t slot, const 
             retry_at_[id] = 2 * cells_[id].own.size;
             return;
         }
-        Index j;
-        for (j[2] = r.lo[2]; j[2] <= r.hi[2]; ++j[2])
-            for (j[1] = r.lo[1]; j[1] <= r.hi[1]; ++j[1])
-                for (j[0] = r.lo[0]; j[0] <= r.hi[0]; ++j[0]) insert_into(depth + 1, j, slot, fine);
+        grid::for_each_cell(r, [&](const Index& j) { insert_into(depth + 1, j, slot, fine); });
         return;
     }
     own_push(id, slot);
@@ -254,7 +250,7 @@ void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
     std::size_t child_entries = 0;
     for (std::uint32_t slot : moving) {
         const grid::CellRange r = child_range(lat_[params_.max_depth].range_of(entries_[slot].box), depth, i);
-        child_entries += std::size_t(r.hi[0] - r.lo[0] + 1) * (r.hi[1] - r.lo[1] + 1) * (r.hi[2] - r.lo[2] + 1);
+        child_entries += grid::cell_count(r);
     }
     // The split stops at 3/4 of the budget while a descending object collapses a cell only at the
     // full budget (insert_into): the gap keeps a collapsed cell from splitting straight back.
@@ -274,23 +270,18 @@ void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
     for (std::uint32_t slot : moving) {
         const grid::CellRange fine = lat_[params_.max_depth].range_of(entries_[slot].box);
         const grid::CellRange r = child_range(fine, depth, i);
-        Index j;
-        for (j[2] = r.lo[2]; j[2] <= r.hi[2]; ++j[2])
-            for (j[1] = r.lo[1]; j[1] <= r.hi[1]; ++j[1])
-                for (j[0] = r.lo[0]; j[0] <= r.hi[0]; ++j[0]) {
-                    const std::uint32_t c = find_or_create(depth + 1, j);
-                    if (cells_[c].count == 0) children.push_back(c);
-                    ++cells_[c].count;
-                    own_push(c, slot);
-                    ++entries_total_;
-                }
+        grid::for_each_cell(r, [&](const Index& j) {
+            const std::uint32_t c = find_or_create(depth + 1, j);
+            if (cells_[c].count == 0) children.push_back(c);
+            ++cells_[c].count;
+            own_push(c, slot);
+            ++entries_total_;
+        });
     }
     if (depth + 1 >= params_.max_depth) return;
     for (std::uint32_t c : children) {
         if (cells_[c].own.size <= std::uint32_t(params_.max_capacity) || cells_[c].own.size < retry_at_[c]) continue;
         const std::uint64_t key = cells_[c].key;
-        const int f = params_.subdivision;
-        (void)f;
         Index j{int((key >> 40) & 0xFFFFF), int((key >> 20) & 0xFFFFF), int(key & 0xFFFFF)};
         split(c, depth + 1, j);
     }
@@ -298,18 +289,15 @@ void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
 
 void HashGrid::gather_and_delete_children(int depth, const Index& i, std::vector<std::uint32_t>& out) {
     const grid::CellRange r = children_of(i);
-    Index j;
-    for (j[2] = r.lo[2]; j[2] <= r.hi[2]; ++j[2])
-        for (j[1] = r.lo[1]; j[1] <= r.hi[1]; ++j[1])
-            for (j[0] = r.lo[0]; j[0] <= r.hi[0]; ++j[0]) {
-                const std::uint32_t c = table_.find(key_of(depth + 1, j));
-                if (c == CellTable::kNone) continue;
-                const BlockCell& own = cells_[c].own;
-                for (std::uint32_t k = 0; k < own.size; ++k) out.push_back(own.slot(k));
-                cells_[c].own.clear();  // moved to `out`, still counted in entries_total_
-                if (cells_[c].subdivided) gather_and_delete_children(depth + 1, j, out);
-                delete_cell(c);
-            }
+    grid::for_each_cell(r, [&](const Index& j) {
+        const std::uint32_t c = table_.find(key_of(depth + 1, j));
+        if (c == CellTable::kNone) return;
+        const BlockCell& own = cells_[c].own;
+        for (std::uint32_t k = 0; k < own.size; ++k) out.push_back(own.slot(k));
+        cells_[c].own.clear();  // moved to `out`, still counted in entries_total_
+        if (cells_[c].subdivided) gather_and_delete_children(depth + 1, j, out);
+        delete_cell(c);
+    });
 }
 
 void HashGrid::collapse(std::uint32_t id, int depth, const Index& i) {
@@ -336,10 +324,7 @@ void HashGrid::remove_from(int depth, const Index& i, std::uint32_t slot, const 
             erase_own();
         } else {
             const grid::CellRange r = child_range(fine, depth, i);
-            Index j;
-            for (j[2] = r.lo[2]; j[2] <= r.hi[2]; ++j[2])
-                for (j[1] = r.lo[1]; j[1] <= r.hi[1]; ++j[1])
-                    for (j[0] = r.lo[0]; j[0] <= r.hi[0]; ++j[0]) remove_from(depth + 1, j, slot, fine);
+            grid::for_each_cell(r, [&](const Index& j) { remove_from(depth + 1, j, slot, fine); });
         }
         if (cells_[id].count == 0) {
             std::vector<std::uint32_t> rest;  // none left; defensive
@@ -364,10 +349,7 @@ void HashGrid::rewrite_in(int depth, const Index& i, std::uint32_t slot, const g
         return;
     }
     const grid::CellRange r = child_range(fine, depth, i);
-    Index j;
-    for (j[2] = r.lo[2]; j[2] <= r.hi[2]; ++j[2])
-        for (j[1] = r.lo[1]; j[1] <= r.hi[1]; ++j[1])
-            for (j[0] = r.lo[0]; j[0] <= r.hi[0]; ++j[0]) rewrite_in(depth + 1, j, slot, fine, box);
+    grid::for_each_cell(r, [&](const Index& j) { rewrite_in(depth + 1, j, slot, fine, box); });
 }
 
 void HashGrid::insert(const Object& o) {
@@ -387,10 +369,7 @@ void HashGrid::insert(const Object& o) {
         large_.insert(o.box, slot);
         return;
     }
-    Index i;
-    for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
-        for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
-            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) insert_into(0, i, slot, fine);
+    grid::for_each_cell(r, [&](const Index& i) { insert_into(0, i, slot, fine); });
 }
 
 void HashGrid::remove(Uid uid) {
@@ -402,10 +381,7 @@ void HashGrid::remove(Uid uid) {
     } else {
         const grid::CellRange fine = lat_[params_.max_depth].range_of(entries_[slot].box);
         const grid::CellRange r = range_at(fine, 0);
-        Index i;
-        for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
-            for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
-                for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) remove_from(0, i, slot, fine);
+        grid::for_each_cell(r, [&](const Index& i) { remove_from(0, i, slot, fine); });
     }
     entries_[slot].uid = 0;
     free_slots_.push_back(slot);
@@ -421,10 +397,7 @@ void HashGrid::move(const Object& o) {
             large_.rewrite(slot, o.box);
         } else {
             const grid::CellRange fine = fine_lat.range_of(o.box), r = range_at(fine, 0);
-            Index i;
-            for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
-                for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
-                    for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) rewrite_in(0, i, slot, fine, o.box);
+            grid::for_each_cell(r, [&](const Index& i) { rewrite_in(0, i, slot, fine, o.box); });
         }
         return;
     }
@@ -482,8 +455,8 @@ nlohmann::json HashGrid::stats() const {
 }
 
 void HashGrid::validate() const {
-    auto fail = [](const std::string& m) { throw std::logic_error("hg: " + m); };
-    const std::vector<std::uint8_t> live = grid::live_slots(entries_, slot_, free_slots_, fail);
+    auto fail = [](const std::string& what) { broken_invariant("hg", what); };
+    const std::vector<std::uint8_t> live = grid::live_slots(entries_, slot_, free_slots_, "hg");
     // Hash invariants: every key maps to a live cell carrying that key, and every live cell is keyed.
     std::size_t keyed = 0;
     table_.for_each([&](std::uint64_t key, std::uint32_t id) {
@@ -496,7 +469,7 @@ void HashGrid::validate() const {
     std::vector<std::vector<std::uint32_t>> expected(cells_.size());
     std::vector<std::uint32_t> expected_count(cells_.size(), 0);
     const int max_depth = params_.max_depth;
-    grid::check_large_objects(large_, entries_, live, fail);
+    grid::check_large_objects(large_, entries_, live, "hg");
     for (std::size_t slot = 0; slot < entries_.size(); ++slot) {
         if (!live[slot]) continue;
         const grid::CellRange fine = lat_[max_depth].range_of(entries_[slot].box);
@@ -516,16 +489,10 @@ void HashGrid::validate() const {
                 return;
             }
             const grid::CellRange r = child_range(fine, depth, i);
-            Index j;
-            for (j[2] = r.lo[2]; j[2] <= r.hi[2]; ++j[2])
-                for (j[1] = r.lo[1]; j[1] <= r.hi[1]; ++j[1])
-                    for (j[0] = r.lo[0]; j[0] <= r.hi[0]; ++j[0]) self(self, depth + 1, j);
+            grid::for_each_cell(r, [&](const Index& j) { self(self, depth + 1, j); });
         };
         const grid::CellRange r = range_at(fine, 0);
-        Index i;
-        for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
-            for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
-                for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) place(place, 0, i);
+        grid::for_each_cell(r, [&](const Index& i) { place(place, 0, i); });
     }
     std::vector<std::uint32_t> have;
     std::size_t total = 0;

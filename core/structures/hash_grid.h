@@ -1,55 +1,11 @@
 #pragma once
-/// Hierarchical hash grid (thesis §4.3), after Jevans & Wyvill (1989, "Adaptive voxel subdivision
-/// for ray tracing"): a top grid of (number × amp)^(1/3) cells per dimension (eq. 4.2) whose
-/// crowded cells are recursively cut into `subdivision`³ children, down to `max_depth` levels
-/// below the top. Only non-empty cells exist; they are found through one hash table keyed by
-/// (depth, cell coordinates in that depth's global lattice). Traversal is thesis Algorithm 2: the
-/// 3D-DDA of Amanatides & Woo over the top grid, recursing into a subdivided cell with a DDA over
-/// its children limited to the part of the segment inside it (recursion depth ≤ max_depth: nothing
-/// is dropped). As in the uniform grid, a cell keeps copies of its objects' boxes in blocks of four
-/// tested with one slab test each (box_block.h), and a move that keeps an object's cells rewrites
-/// its copies: a crowded cell is tested at nearly brute force's speed per box instead of one
-/// object-table lookup and scalar test per box (a ray starting among thousands of nested cubes).
-///
-/// Rules (all decisions derive from integer cell ranges, so insert, remove and validate agree):
-/// - An object's cell range at depth d is its range at the finest depth divided by
-///   subdivision^(max_depth − d): the levels nest exactly.
-/// - A leaf holds every object that reaches it. It splits when it holds more than `max_capacity`
-///   objects, is above `max_depth`, and some object does not cover all its children.
-/// - A subdivided cell keeps only the objects that cover all its children (a huge object is not
-///   copied into every descendant); the others go to the children they overlap.
-/// - Every cell counts the distinct objects stored in it or below it; a subdivided cell whose count
-///   falls to max_capacity / 2 or less collapses back into a leaf (hysteresis against split/collapse
-///   flapping). Empty cells are deleted.
-/// - Border cells extend to infinity (indices clamped), as in the uniform grid: inserts outside the
-///   initial bounds are exact.
-/// - Memory guard: a split is refused when it would raise the total of stored object entries above
-///   3/4 of `max_entries_per_object` × max(objects, objects at build, 64) (the budget). Without
-///   it, boxes sharing a face (or any surfaces that coincide) make every cell along the face split
-///   down to max_depth:
-///   subdivision^(2·max_depth) cells per top cell. A leaf whose split was refused stays over
-///   capacity (counted in stats as "over_capacity_leaves"); answers stay exact. The guard also
-///   applies on the way down: an object that would push the total over the budget by descending
-///   into a subdivided cell collapses that cell into a leaf instead (without it, identical
-///   boxes inserted after the first splits reached 14× the budget); splits stopping at 3/4 of the
-///   budget keep a collapsed cell from splitting straight back. `entries_guard`
-///   = false turns it off (to measure the blow-up). A leaf whose split was refused (by
-///   the budget, or because every object covers it) tries again only once it has doubled: without
-///   that, every insert into a crowded leaf re-examined all its objects, quadratic in the crowd
-///   (cubes nested around one centre, generator kind "nested"). Stats report "refused_splits" and
-///   "guard_collapses" (the guard's refusals and collapses since the build).
-/// - Large-object guard (`max_cells`, on by default, as in the uniform grid, uniform_grid.h): an
-///   object whose range in the top grid holds more than `max_cells` cells is kept once, in a list
-///   that every ray tests first. The entries budget refuses splits, never an object's top cells, so
-///   an object as large as the scene would otherwise sit in every top cell (the top grid has about
-///   as many cells as objects: thousands of entries per object, and as many tests per ray as cells
-///   it crosses). Stats report "large_objects".
-/// - Outlier guard (`outlier_guard`, on by default): the top grid covers the central
-///   99% of the objects per axis when the full bounds are more than 8× larger
-///   (grid::lattice_bounds); the rest land in the unbounded border cells. Without it one far
-///   outlier makes the top cells huge and max_depth levels cannot recover the resolution.
-/// - Memory guard: parameter ranges are bounded and the top resolution is clamped so that the
-///   finest lattice has at most 2^20 cells per axis (the key's width).
+/// Hierarchical hash grid (thesis §4.3, after Jevans & Wyvill 1989): a top grid sized by eq. 4.2
+/// whose crowded cells split into `subdivision`³ children down to `max_depth`, only non-empty cells
+/// stored, found through one hash table keyed by (depth, cell). Rays run thesis Algorithm 2: the
+/// 3D-DDA over the top grid, recursing into subdivided cells (common/grid.h). Cells keep copies of
+/// their objects' boxes in blocks of four, as in the uniform grid. Split and collapse rules derive
+/// from integer cell ranges so insert, remove and validate agree; memory, large-object and outlier
+/// guards keep it bounded on hostile scenes. docs/structures.md has the rules and the reasons.
 
 #include <algorithm>
 #include <array>
@@ -60,7 +16,7 @@
 
 #include "core/params.h"
 #include "core/structure.h"
-#include "core/structures/uniform_grid.h"
+#include "core/structures/common/grid.h"
 
 namespace rcb {
 

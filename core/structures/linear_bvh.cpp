@@ -9,6 +9,8 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include "core/structures/common/outlier_trim.h"
+
 namespace rcb {
 
 struct LinearBvh::Arena {
@@ -217,7 +219,7 @@ void LinearBvh::rebuild() {
     parallel(n, kGrain, [&](std::size_t b, std::size_t e) {
         for (std::size_t k = b; k < e; ++k) {
             if (k + 16 < e)
-                __builtin_prefetch(&objects_.boxes()[order_[k + 16]]),
+                __builtin_prefetch(&objects_.layout().all()[order_[k + 16]]),
                     __builtin_prefetch(&objects_.uids()[order_[k + 16]]);
             const std::uint32_t slot = order_[k];
             nodes_[leaf_base_ + k] = Node{objects_.box(slot), {objects_.uid(slot), kNullNode}, kNullNode, 0, kShared};
@@ -352,25 +354,11 @@ void LinearBvh::order_equal_codes() {
 }
 
 void LinearBvh::trim_outliers(Aabb& cb) {
-    const std::size_t n = objects_.size();
-    trimmed_ = false;
-    if (n < 200) return;
     // A fixed stride over the slots: deterministic, and O(1) work per rebuild beyond the copy.
-    const std::size_t samples = std::min<std::size_t>(n, 4096), stride = n / samples;
-    const std::size_t k = samples / 200;  // 0.5% on each side
-    std::vector<float> v(samples);
-    for (int a = 0; a < 3; ++a) {
-        for (std::size_t i = 0; i < samples; ++i) v[i] = objects_.box(i * stride).center()[a];
-        std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
-        const float lo = v[k];
-        std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(samples - 1 - k), v.end());
-        const float hi = std::max(v[samples - 1 - k], lo);
-        if (double(cb.max[a]) - double(cb.min[a]) > kOutlierStretch * (double(hi) - double(lo))) {
-            cb.min[a] = lo;
-            cb.max[a] = hi;
-            trimmed_ = true;
-        }
-    }
+    const std::size_t n = objects_.size(), samples = std::min<std::size_t>(n, 4096);
+    const std::size_t stride = samples ? n / samples : 1;
+    auto centre = [&](std::size_t i, int a) { return objects_.box(i * stride).center()[a]; };
+    trimmed_ = rcb::trim_outliers(cb, samples, centre, centre);
 }
 
 double LinearBvh::sah_cost() const {
@@ -398,7 +386,7 @@ nlohmann::json LinearBvh::stats() const {
 }
 
 void LinearBvh::validate() const {
-    auto fail = [](const std::string& what) { throw std::logic_error("lbvh: " + what); };
+    auto fail = [](const std::string& what) { broken_invariant("lbvh", what); };
     if (dirty_) fail("tree not rebuilt after changes (commit missing)");
     const std::size_t n = objects_.size();
     objects_.validate("lbvh");

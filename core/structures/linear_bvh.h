@@ -1,46 +1,10 @@
 #pragma once
-/// Linear BVH (thesis §4.5), after Karras 2012, "Maximizing parallelism in the construction of
-/// BVHs, octrees, and k-d trees" (HPG 2012), rebuilt from scratch at every commit:
-///  1. Morton codes of the object centroids, normalised to the bounds of the centroids: 63-bit
-///     codes, 21 bits per axis (thesis §4.5.1).
-///  2. A stable LSD radix sort of (code, slot) pairs, 11-bit digits, passes whose digit is the same
-///     for every key skipped; equal codes stay in slot order.
-///  3. The binary radix tree of Karras' Algorithm 3 (thesis Algorithm 3), one independent task per
-///     inner node; equal codes are told apart by their sorted index (Karras §4: δ(i, j) falls back
-///     to 64 + clz(i xor j)), so duplicates still give a valid tree.
-///  4. Bounds bottom up with one atomic flag per inner node (thesis Algorithm 4): the second thread
-///     to reach a node merges its children's boxes and goes on.
-/// `threads` runs steps 1–4 in a tbb::task_arena of that many threads (1: plain loops, the thesis'
-/// single-core setup). Every step is deterministic, so the tree is identical for every thread count.
-///
-/// Outlier guard (`outlier_guard`, on by default): with one object 10^6 scene sizes away,
-/// the Morton grid normalised to all centroids puts the rest of the scene into one code, and the
-/// tree over equal codes splits by index, not by space. When the centroid bounds on an axis are
-/// more than 8× the extent of the central 99% of the centroids (a strided sample of at most 4096),
-/// the codes are normalised to that central part and the outliers clamp to its faces. Node boxes
-/// still come from the objects' boxes, so answers are exact either way.
-///
-/// Equal codes (crowd guard, part 1): objects whose centroids share a code (one centroid, or the
-/// outliers clamped to a face) are ordered by size, smallest first, then by slot, so that the
-/// subtrees over a run of equal codes split by size (the size bits of Vinkler, Bittner & Havran
-/// 2017, "Extended Morton codes for high performance bounding volume hierarchy construction",
-/// used only to break ties; the codes themselves are unchanged). By slot alone, every node over
-/// the run of n boxes nested around one centroid spans nearly the largest of them.
-///
-/// Crowds (crowd guard, part 2, `crowd_guard`, on by default): a binary tree with one object per
-/// leaf visits 2n − 1 nodes for a segment that meets all n objects of a subtree, which is what a
-/// segment starting among objects that share a point does. An inner node over at least
-/// kCrowdLeaves leaves whose boxes all share a point (their intersection, the "common box", is not
-/// empty) is a crowd; a segment that meets a crowd's box and its common box meets every box below,
-/// so the crowd's leaves (consecutive in the leaf array) are tested in order, with no inner node,
-/// instead of descending. A segment that misses the common box descends as usual. The leaves are
-/// tested either way: answers do not depend on the guard. Crowds are looked for in every rebuild
-/// while the last tree had some, else in every kCrowdCheckEvery-th (the build's included): a scene
-/// without crowds pays an eighth of the common boxes' cost. Stats report "crowds" (how many nodes
-/// are crowds), "tied_codes" (objects in runs of equal codes) and "outlier_trimmed".
-///
-/// Node layout (Karras): inner nodes 0 … N−2 (root 0), leaves N−1 … 2N−2 in sorted order; a leaf's
-/// box is the object's own box. There is no free list: the arrays are rebuilt, never patched.
+/// Linear BVH (thesis §4.5, after Karras 2012), rebuilt at every commit: Morton codes of the
+/// centroids (21 bits per axis), a stable LSD radix sort, Karras' radix tree (thesis Algorithm 3)
+/// and bottom-up bounds with atomic flags (thesis Algorithm 4); `threads` runs the steps in a TBB
+/// arena and every step is deterministic, so the tree does not depend on the thread count. An
+/// outlier trim (common/outlier_trim.h), size-ordered ties of equal codes and crowd scans keep it
+/// fast on hostile scenes; answers are exact either way. docs/structures.md has the details.
 
 #include <array>
 #include <atomic>
@@ -50,9 +14,9 @@
 #include <vector>
 
 #include "core/params.h"
-#include "core/slot_boxes.h"
+#include "core/structures/common/slot_boxes.h"
 #include "core/structure.h"
-#include "core/structures/bvh_traversal.h"
+#include "core/structures/common/bvh_traversal.h"
 
 namespace rcb {
 
@@ -154,7 +118,6 @@ private:
     void radix_sort();
     void trim_outliers(Aabb& centroid_bounds);
     void order_equal_codes();
-    static constexpr double kOutlierStretch = 8.0;
 
     Params params_;
     struct Arena;

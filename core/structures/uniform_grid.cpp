@@ -6,42 +6,6 @@
 
 namespace rcb {
 
-namespace grid {
-
-std::array<int, 3> resolution(const Aabb& bounds, double size, int max_per_axis) {
-    std::array<int, 3> res{1, 1, 1};
-    for (int a = 0; a < 3; ++a) {
-        const double extent = double(bounds.max[a]) - double(bounds.min[a]);
-        const double cells = std::ceil(extent / size);
-        res[a] = cells >= 1 ? int(std::min(cells, double(max_per_axis))) : 1;
-    }
-    return res;
-}
-
-Aabb lattice_bounds(std::span<const Object> objects, bool outlier_guard, bool* trimmed) {
-    if (trimmed) *trimmed = false;
-    Aabb b = Aabb::empty();
-    for (const Object& o : objects) b = merge(b, o.box);
-    if (b.is_empty()) return {{-1, -1, -1}, {1, 1, 1}};
-    const std::size_t n = objects.size(), k = n / 200;  // 0.5% of the objects on each side
-    if (!outlier_guard || k == 0) return b;
-    std::vector<float> lo(n), hi(n);
-    for (int a = 0; a < 3; ++a) {
-        for (std::size_t i = 0; i < n; ++i) lo[i] = objects[i].box.min[a], hi[i] = objects[i].box.max[a];
-        std::nth_element(lo.begin(), lo.begin() + std::ptrdiff_t(k), lo.end());
-        std::nth_element(hi.begin(), hi.begin() + std::ptrdiff_t(n - 1 - k), hi.end());
-        const float tlo = lo[k], thi = std::max(hi[n - 1 - k], tlo);
-        if (double(b.max[a]) - double(b.min[a]) > kOutlierStretch * (double(thi) - double(tlo))) {
-            b.min[a] = tlo;
-            b.max[a] = thi;
-            if (trimmed) *trimmed = true;
-        }
-    }
-    return b;
-}
-
-}  // namespace grid
-
 void UniformGrid::build(std::span<const Object> objects) {
     const Aabb world = grid::lattice_bounds(objects, params_.outlier_guard, &trimmed_);
     const double longest = double(world.longest_edge());
@@ -77,24 +41,15 @@ void UniformGrid::build(std::span<const Object> objects) {
 }
 
 void UniformGrid::add_to_cells(std::uint32_t slot, const grid::CellRange& r) {
-    std::array<int, 3> i;
-    for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
-        for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
-            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) cells_[cell_id(i)].push(entries_[slot].box, slot);
+    grid::for_each_cell(r, [&](const grid::Index& i) { cells_[cell_id(i)].push(entries_[slot].box, slot); });
 }
 
 void UniformGrid::rewrite_box(std::uint32_t slot, const grid::CellRange& r, const Aabb& box) {
-    std::array<int, 3> i;
-    for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
-        for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
-            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) cells_[cell_id(i)].rewrite(slot, box);
+    grid::for_each_cell(r, [&](const grid::Index& i) { cells_[cell_id(i)].rewrite(slot, box); });
 }
 
 void UniformGrid::remove_from_cells(std::uint32_t slot, const grid::CellRange& r) {
-    std::array<int, 3> i;
-    for (i[2] = r.lo[2]; i[2] <= r.hi[2]; ++i[2])
-        for (i[1] = r.lo[1]; i[1] <= r.hi[1]; ++i[1])
-            for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) cells_[cell_id(i)].erase(slot);
+    grid::for_each_cell(r, [&](const grid::Index& i) { cells_[cell_id(i)].erase(slot); });
 }
 
 void UniformGrid::insert(const Object& o) {
@@ -195,38 +150,35 @@ nlohmann::json UniformGrid::stats() const {
 }
 
 void UniformGrid::validate() const {
-    auto fail = [](const std::string& m) { throw std::logic_error("ug: " + m); };
+    auto fail = [](const std::string& what) { broken_invariant("ug", what); };
     if (cells_.size() != std::size_t(lat_.res[0]) * lat_.res[1] * lat_.res[2])
         fail("cell array size differs from the resolution");
     if (cells_.size() > kMaxCells) fail("more cells than the cap");
-    const std::vector<std::uint8_t> live = grid::live_slots(entries_, slot_, free_slots_, fail);
+    const std::vector<std::uint8_t> live = grid::live_slots(entries_, slot_, free_slots_, "ug");
     std::vector<std::size_t> seen(entries_.size(), 0);
     std::vector<std::uint32_t> sorted;
-    std::array<int, 3> i;
-    for (i[2] = 0; i[2] < lat_.res[2]; ++i[2])
-        for (i[1] = 0; i[1] < lat_.res[1]; ++i[1])
-            for (i[0] = 0; i[0] < lat_.res[0]; ++i[0]) {
-                const auto& c = cells_[cell_id(i)];
-                sorted.clear();
-                for (std::uint32_t k = 0; k < c.size; ++k) sorted.push_back(c.slot(k));
-                std::sort(sorted.begin(), sorted.end());
-                if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end())
-                    fail("an object appears twice in one cell");
-                if (const std::string defect = c.defect(); !defect.empty()) fail(defect);
-                for (std::uint32_t k = 0; k < c.size; ++k) {
-                    const std::uint32_t slot = c.slot(k);
-                    if (slot >= entries_.size() || !live[slot])
-                        fail("stale entry (slot " + std::to_string(slot) + ") in a cell");
-                    if (!(c.box(k) == entries_[slot].box))
-                        fail("uid " + std::to_string(entries_[slot].uid) + " has a stale box copy in a cell");
-                    const grid::CellRange r = lat_.range_of(entries_[slot].box);
-                    for (int a = 0; a < 3; ++a)
-                        if (i[a] < r.lo[a] || i[a] > r.hi[a])
-                            fail("uid " + std::to_string(entries_[slot].uid) + " stored in a cell it does not overlap");
-                    ++seen[slot];
-                }
-            }
-    grid::check_large_objects(large_, entries_, live, fail);
+    grid::for_each_cell(lat_.cells(), [&](const grid::Index& i) {
+        const auto& c = cells_[cell_id(i)];
+        sorted.clear();
+        for (std::uint32_t k = 0; k < c.size; ++k) sorted.push_back(c.slot(k));
+        std::sort(sorted.begin(), sorted.end());
+        if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end())
+            fail("an object appears twice in one cell");
+        if (const std::string defect = c.defect(); !defect.empty()) fail(defect);
+        for (std::uint32_t k = 0; k < c.size; ++k) {
+            const std::uint32_t slot = c.slot(k);
+            if (slot >= entries_.size() || !live[slot])
+                fail("stale entry (slot " + std::to_string(slot) + ") in a cell");
+            if (!(c.box(k) == entries_[slot].box))
+                fail("uid " + std::to_string(entries_[slot].uid) + " has a stale box copy in a cell");
+            const grid::CellRange r = lat_.range_of(entries_[slot].box);
+            for (int a = 0; a < 3; ++a)
+                if (i[a] < r.lo[a] || i[a] > r.hi[a])
+                    fail("uid " + std::to_string(entries_[slot].uid) + " stored in a cell it does not overlap");
+            ++seen[slot];
+        }
+    });
+    grid::check_large_objects(large_, entries_, live, "ug");
     for (std::size_t slot = 0; slot < entries_.size(); ++slot) {
         if (!live[slot]) continue;
         const Entry& e = entries_[slot];
@@ -237,8 +189,7 @@ void UniformGrid::validate() const {
             fail("uid " + std::to_string(e.uid) +
                  (is_large(r) ? " is large but not in the large-object list"
                               : " is in the large-object list but not large"));
-        std::size_t expected = is_large(r) ? 0 : 1;
-        for (int a = 0; a < 3 && expected; ++a) expected *= std::size_t(r.hi[a] - r.lo[a] + 1);
+        const std::size_t expected = is_large(r) ? 0 : grid::cell_count(r);
         if (seen[slot] != expected)
             fail("uid " + std::to_string(e.uid) + " is in " + std::to_string(seen[slot]) + " cells, overlaps " +
                  std::to_string(expected));

@@ -1,0 +1,101 @@
+// What several structures share (core/structures/common/): the loop over a range of cells, the
+// outlier trim, the slot tables in both layouts, and validate()'s one way to fail.
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "core/structure.h"
+#include "core/structures/common/grid.h"
+#include "core/structures/common/outlier_trim.h"
+#include "core/structures/common/slot_boxes.h"
+
+namespace rcb {
+namespace {
+
+Aabb box_at(float x, float half = 0.5f) { return {{x - half, -half, -half}, {x + half, half, half}}; }
+
+TEST(ForEachCell, VisitsEveryCellOfTheRangeOnceXFastest) {
+    const grid::CellRange r{{1, -2, 3}, {3, -1, 3}};
+    std::vector<grid::Index> seen;
+    grid::for_each_cell(r, [&](const grid::Index& i) { seen.push_back(i); });
+    ASSERT_EQ(seen.size(), grid::cell_count(r));
+    EXPECT_EQ(seen.size(), 6u);
+    EXPECT_EQ(seen.front(), (grid::Index{1, -2, 3}));
+    EXPECT_EQ(seen[1], (grid::Index{2, -2, 3}));  // x first: the order of a grid's cell array
+    EXPECT_EQ(seen.back(), (grid::Index{3, -1, 3}));
+}
+
+TEST(ForEachCell, CoversTheWholeLattice) {
+    grid::Lattice lat;
+    lat.res = {4, 2, 3};
+    std::size_t n = 0;
+    grid::for_each_cell(lat.cells(), [&](const grid::Index&) { ++n; });
+    EXPECT_EQ(n, 24u);
+}
+
+TEST(OutlierTrim, OneFarObjectShrinksTheBoundsOnItsAxisOnly) {
+    std::vector<float> x(1000);
+    for (std::size_t i = 0; i < x.size(); ++i) x[i] = float(i % 100);
+    x[17] = 1e6f;  // one object far away on x
+    Aabb bounds{{0, 0, 0}, {1e6f, 99, 99}};
+    auto low = [&](std::size_t i, int a) { return a == 0 ? x[i] : float(i % 100); };
+    const bool trimmed = trim_outliers(bounds, x.size(), low, low);
+    EXPECT_TRUE(trimmed);
+    EXPECT_LT(bounds.max.x, 100.0f);  // the outlier no longer stretches x
+    EXPECT_EQ(bounds.max.y, 99.0f);   // y and z were never stretched
+}
+
+TEST(OutlierTrim, FewerThan200SamplesOrAnEvenSpreadAreLeftAlone) {
+    Aabb bounds{{0, 0, 0}, {1e6f, 1, 1}};
+    auto far = [](std::size_t i, int) { return i == 0 ? 1e6f : 0.0f; };
+    EXPECT_FALSE(trim_outliers(bounds, 199, far, far));
+    EXPECT_EQ(bounds.max.x, 1e6f);
+    Aabb even{{0, 0, 0}, {999, 999, 999}};
+    auto spread = [](std::size_t i, int) { return float(i); };
+    EXPECT_FALSE(trim_outliers(even, 1000, spread, spread));
+    EXPECT_EQ(even.max.x, 999.0f);
+}
+
+template <class Table>
+void check_swap_remove() {
+    Table t;
+    for (Uid u = 1; u <= 4; ++u) t.insert(Object{u, box_at(float(u))});
+    const std::uint32_t hole = t.remove(2);  // the last slot (uid 4) moves into the hole
+    EXPECT_EQ(hole, 1u);
+    ASSERT_EQ(t.size(), 3u);
+    EXPECT_EQ(t.uid(1), 4u);
+    EXPECT_EQ(t.box(1), box_at(4));
+    EXPECT_EQ(*t.find(4), 1u);
+    EXPECT_EQ(t.find(2), nullptr);
+    t.move(Object{4, box_at(9)});
+    EXPECT_EQ(t.box(1), box_at(9));
+    EXPECT_NO_THROW(t.validate("t"));
+}
+
+TEST(SlotTables, BothLayoutsKeepTheSlotsDenseOnRemove) {
+    check_swap_remove<SlotBoxes>();
+    check_swap_remove<SoaSlotBoxes>();
+}
+
+TEST(SlotTables, SoaLayoutStoresMinimaAndMaximaPerAxis) {
+    SoaSlotBoxes t;
+    t.insert(Object{7, {{1, 2, 3}, {4, 5, 6}}});
+    EXPECT_EQ(t.layout().min(1)[0], 2.0f);
+    EXPECT_EQ(t.layout().max(2)[0], 6.0f);
+}
+
+TEST(SlotTables, ValidateNamesTheStructureAndTheBrokenInvariant) {
+    SoaSlotBoxes t;
+    t.insert(Object{7, {{1, 0, 0}, {0, 1, 1}}});  // min > max on x
+    try {
+        t.validate("bf");
+        FAIL() << "validate accepted a box with min > max";
+    } catch (const std::logic_error& e) {
+        EXPECT_EQ(std::string(e.what()), "bf: uid 7 has min > max");
+    }
+}
+
+}  // namespace
+}  // namespace rcb
