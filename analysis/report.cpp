@@ -16,6 +16,7 @@
 
 #include "analysis/charts.h"
 #include "analysis/cost_model.h"
+#include "analysis/findings.h"
 #include "core/error.h"
 #include "core/generators.h"
 #include "core/output_file.h"
@@ -542,20 +543,25 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
         sah.title = "SAH cost of the tree per frame on " + largest + " (eq. 3.2)";
         sah.x_label = "frame";
         sah.y_label = "SAH cost (relative to the root's area)";
-        std::string growth;
+        std::string growth, grew, fell;
         for (const Entry& e : entries) {
             if (e.scene != largest) continue;
             Series s{e.label, {}, {}, {}, true, style_of(e.label)};
             for (std::size_t f = 0; f < e.frame_sah.size(); ++f)
                 if (std::isfinite(e.frame_sah[f])) s.x.push_back(double(f + 1)), s.y.push_back(e.frame_sah[f]);
             if (s.x.empty()) continue;
-            growth +=
-                (growth.empty() ? "" : ", ") + e.label + " " + fixed(100 * (s.y.back() / s.y.front() - 1), 1) + "%";
+            const double change = s.y.front() > 0 ? s.y.back() / s.y.front() - 1 : 0;
+            growth += (growth.empty() ? "" : ", ") + e.label + " " + fixed(100 * change, 1) + "%";
+            // Beyond 2% the tree's quality moved; within it, the tree kept its quality.
+            if (change > 0.02) grew += (grew.empty() ? "" : ", ") + e.label;
+            if (change < -0.02) fell += (fell.empty() ? "" : ", ") + e.label;
             sah.series.push_back(s);
         }
         if (!sah.series.empty()) {
-            sah.reading = "Change of the SAH cost from the first to the last frame: " + growth +
-                          ". Incremental trees decay as objects move; rebuilt trees track the scene.";
+            sah.reading = "Change of the SAH cost from the first to the last frame: " + growth + ". " +
+                          (grew.empty() ? std::string("No tree's cost grew by more than 2%")
+                                        : "The cost grew by more than 2% for " + grew) +
+                          (fell.empty() ? std::string(".") : "; it fell by more than 2% for " + fell + ".");
             h.chart(sah);
         }
     }
@@ -674,6 +680,19 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
                                        : std::to_string(wrong) + " configuration-scene pairs were not exact."));
             h.table(header, rows,
                     "Where methods fail: correctness, cost / brute force, cost / benign scene of the same size");
+        }
+    }
+
+    // The thesis' conclusions against this run (analysis/findings.h; `rcbench findings` writes the same).
+    {
+        const std::vector<Finding> findings = evaluate_findings(db, run);
+        h.heading("Findings: the thesis' conclusions against this run");
+        for (const Finding& f : findings) {
+            h.paragraph(f.claim + " (thesis " + f.source + "): " + verdict_name(f.verdict) + ". " + f.summary);
+            if (f.evidence.empty()) continue;
+            std::vector<std::vector<std::string>> rows;
+            for (const std::string& e : f.evidence) rows.push_back({e});
+            h.table({"evidence"}, rows, f.claim);
         }
     }
 

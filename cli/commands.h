@@ -17,6 +17,7 @@ void add_query_commands(CLI::App& app);
 void add_history_command(CLI::App& app);
 void add_fit_command(CLI::App& app);
 void add_report_command(CLI::App& app);
+void add_findings_command(CLI::App& app);
 void add_tune_command(CLI::App& app);
 void add_advise_command(CLI::App& app);
 

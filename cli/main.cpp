@@ -46,6 +46,7 @@ int main(int argc, char** argv) {
     rcb::add_history_command(app);
     rcb::add_fit_command(app);
     rcb::add_report_command(app);
+    rcb::add_findings_command(app);
     rcb::add_tune_command(app);
     rcb::add_advise_command(app);
     try {

@@ -1,0 +1,426 @@
+#include "analysis/findings.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <optional>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "analysis/cost_model.h"
+#include "core/number_text.h"
+#include "runner/store.h"
+
+namespace rcb {
+
+namespace {
+
+/// The thesis' scenes below this size showed "little or no speed-up" (§6.3); claims about which
+/// structure wins are read on the larger ones.
+constexpr double kLargeScene = 1000;
+/// Within this of the fastest counts as "as good as the best" (a partly-confirmed verdict).
+constexpr double kNearBest = 0.10;
+
+const std::vector<std::string> kOwn{"bf", "ug", "hg", "dbvh", "lbvh"};
+
+/// One configuration on one scene, medians over repetitions.
+struct Config {
+    std::string scene, category, structure;
+    nlohmann::json params;
+    double objects = 0;
+    double update_ms = 0, ray_ms = 0, bytes_per_object = 0;
+    double n_t = 0, n_rb = 0, n_tp = 0;  ///< per ray, over frames that are not warm-up
+    double frame_ms() const { return update_ms + ray_ms; }
+};
+
+double median(std::vector<double> v) {
+    if (v.empty()) return NAN;
+    std::sort(v.begin(), v.end());
+    const std::size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+std::vector<Config> load_configs(Database& db, std::int64_t run) {
+    Statement s = db.prepare(
+        "SELECT scene.name, scene.spec, cell.objects, config.structure, config.params, cell.update_ns_median, "
+        "cell.raycast_ns_median, cell.memory_bytes, "
+        "(SELECT 1.0 * sum(n_t) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0), "
+        "(SELECT 1.0 * sum(n_rb) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0), "
+        "(SELECT 1.0 * sum(n_tp) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0) "
+        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id "
+        "WHERE cell.run_id IN " +
+        std::string(kRunGroupSql) + " ORDER BY cell.id");
+    s.bind_all(run, run);
+    struct Acc {
+        Config c;
+        std::vector<double> update, ray, bytes, n_t, n_rb, n_tp;
+    };
+    std::map<std::tuple<std::string, std::string, std::string>, Acc> acc;
+    std::vector<std::tuple<std::string, std::string, std::string>> order;
+    while (s.step()) {
+        const std::string structure = s.text(3);
+        if (std::find(kOwn.begin(), kOwn.end(), structure) == kOwn.end()) continue;
+        const auto key = std::make_tuple(s.text(0), structure, s.text(4));
+        auto [it, fresh] = acc.try_emplace(key);
+        if (fresh) order.push_back(key);
+        Acc& a = it->second;
+        a.c.scene = s.text(0);
+        a.c.category = scene_category(s.text(1));
+        a.c.objects = double(s.int64(2));
+        a.c.structure = structure;
+        a.c.params = nlohmann::json::parse(s.text(4), nullptr, false);
+        a.update.push_back(s.real(5) * 1e-6);
+        a.ray.push_back(s.real(6) * 1e-6);
+        a.bytes.push_back(a.c.objects > 0 ? double(s.int64(7)) / a.c.objects : NAN);
+        a.n_t.push_back(s.real(8));
+        a.n_rb.push_back(s.real(9));
+        a.n_tp.push_back(s.real(10));
+    }
+    std::vector<Config> out;
+    for (const auto& key : order) {
+        Acc& a = acc.at(key);
+        a.c.update_ms = median(a.update), a.c.ray_ms = median(a.ray), a.c.bytes_per_object = median(a.bytes);
+        a.c.n_t = median(a.n_t), a.c.n_rb = median(a.n_rb), a.c.n_tp = median(a.n_tp);
+        out.push_back(a.c);
+    }
+    return out;
+}
+
+/// Per scene: each own structure at its fastest configuration (update + ray cast per frame).
+struct Scene {
+    std::string name, category;
+    double objects = 0;
+    std::map<std::string, Config> best;  ///< by structure
+    /// Structures other than bf, fastest first.
+    std::vector<const Config*> ranking() const {
+        std::vector<const Config*> r;
+        for (const auto& [name, c] : best)
+            if (name != "bf") r.push_back(&c);
+        std::sort(r.begin(), r.end(), [](const Config* a, const Config* b) { return a->frame_ms() < b->frame_ms(); });
+        return r;
+    }
+};
+
+std::vector<Scene> scenes_of(const std::vector<Config>& configs) {
+    std::vector<Scene> out;
+    for (const Config& c : configs) {
+        auto it = std::find_if(out.begin(), out.end(), [&](const Scene& s) { return s.name == c.scene; });
+        if (it == out.end()) {
+            out.push_back(Scene{c.scene, c.category, c.objects, {}});
+            it = out.end() - 1;
+        }
+        auto [b, fresh] = it->best.try_emplace(c.structure, c);
+        if (!fresh && c.frame_ms() < b->second.frame_ms()) b->second = c;
+    }
+    return out;
+}
+
+std::string ms(double v) { return fixed(v, v < 0.1 ? 4 : 3) + " ms"; }
+std::string ratio(double v) { return fixed(v, v < 10 ? 2 : 1) + "x"; }
+std::string pct(double v) { return fixed(100 * v, 0) + "%"; }
+std::string counters(const Config& c) {
+    return "N_T " + fixed(c.n_t, 1) + ", N_RB " + fixed(c.n_rb, 1) + ", N_TP " + fixed(c.n_tp, 1) + " per ray";
+}
+
+/// "ug 0.95 ms (update 0.10 + rays 0.85; N_T …), hg 1.20 ms (1.26x), …" for one scene's ranking.
+std::string ranking_line(const Scene& s) {
+    const std::vector<const Config*> r = s.ranking();
+    std::string line = s.name + " (" + fixed(s.objects, 0) + " objects): ";
+    for (std::size_t i = 0; i < r.size(); ++i) {
+        const Config& c = *r[i];
+        line += (i ? "; " : "") + c.structure + " " + ms(c.frame_ms()) + (i ? " (" + ratio(c.frame_ms() / r[0]->frame_ms()) + ")" : "") +
+                " [update " + ms(c.update_ms) + ", rays " + ms(c.ray_ms) + "; " + counters(c) + "]";
+    }
+    return line;
+}
+
+/// "The winner on every scene" claims: `who` fastest per frame on the large scenes of `category`.
+Finding best_on(const std::vector<Scene>& scenes, const std::string& category, const std::string& who,
+                std::string claim, std::string source) {
+    Finding f{std::move(claim), std::move(source), Finding::Verdict::untested, "", {}};
+    int tested = 0, first = 0, near = 0;
+    std::vector<std::string> winners;
+    for (const Scene& s : scenes) {
+        if (s.category != category || s.objects < kLargeScene || !s.best.count(who)) continue;
+        const std::vector<const Config*> r = s.ranking();
+        if (r.size() < 2) continue;
+        ++tested;
+        const double gap = s.best.at(who).frame_ms() / r[0]->frame_ms() - 1;
+        first += r[0]->structure == who;
+        near += gap <= kNearBest;
+        if (r[0]->structure != who) winners.push_back(s.name + ": " + r[0]->structure + ", " + who + " +" + pct(gap));
+        f.evidence.push_back(ranking_line(s));
+    }
+    if (tested == 0) {
+        f.summary = "The run has no " + category + " scene of " + fixed(kLargeScene, 0) + " objects or more with " +
+                    who + " and another structure.";
+        return f;
+    }
+    f.verdict = first == tested ? Finding::Verdict::confirmed
+                : near == tested || first > 0 ? Finding::Verdict::partly
+                                              : Finding::Verdict::refuted;
+    f.summary = who + " is the fastest per frame on " + std::to_string(first) + " of " + std::to_string(tested) + " " +
+                category + " scenes" +
+                (winners.empty() ? "." : "; elsewhere: " + [&] {
+                    std::string w;
+                    for (const std::string& x : winners) w += (w.empty() ? "" : "; ") + x;
+                    return w;
+                }() + ".");
+    return f;
+}
+
+Finding lbvh_trade(const std::vector<Scene>& scenes) {
+    Finding f{"LBVH casts fast but its rebuild every frame makes its updates the slowest, which lowers its overall "
+              "standing.",
+              "§6.3, Table 6.2; §7.1", Finding::Verdict::untested, "", {}};
+    int tested = 0, fast_rays = 0, slow_updates = 0;
+    for (const Scene& s : scenes) {
+        if (s.objects < kLargeScene || !s.best.count("lbvh")) continue;
+        std::vector<const Config*> others;
+        for (const char* o : {"ug", "hg", "dbvh"})
+            if (s.best.count(o)) others.push_back(&s.best.at(o));
+        if (others.empty()) continue;
+        ++tested;
+        const Config& l = s.best.at("lbvh");
+        int faster_rays = 0;
+        double max_update = 0;
+        for (const Config* o : others) faster_rays += l.ray_ms <= o->ray_ms, max_update = std::max(max_update, o->update_ms);
+        const bool fast = 2 * faster_rays >= int(others.size());
+        const bool slow = l.update_ms > max_update;
+        fast_rays += fast, slow_updates += slow;
+        std::string line = s.name + ": lbvh rays " + ms(l.ray_ms) + ", update " + ms(l.update_ms) + " (" + counters(l) + ")";
+        for (const Config* o : others)
+            line += "; " + o->structure + " rays " + ms(o->ray_ms) + ", update " + ms(o->update_ms);
+        f.evidence.push_back(line);
+    }
+    if (tested == 0) {
+        f.summary = "The run has no scene of " + fixed(kLargeScene, 0) + " objects or more with lbvh and another tree or grid.";
+        return f;
+    }
+    f.verdict = fast_rays == tested && slow_updates == tested ? Finding::Verdict::confirmed
+                : fast_rays + slow_updates > 0                 ? Finding::Verdict::partly
+                                                               : Finding::Verdict::refuted;
+    f.summary = "LBVH casts at least as fast as half of ug, hg and dbvh on " + std::to_string(fast_rays) + " of " +
+                std::to_string(tested) + " scenes, and has the slowest update on " + std::to_string(slow_updates) +
+                " of them.";
+    return f;
+}
+
+Finding full_sah(const std::vector<Config>& configs) {
+    Finding f{"A DBVH rebuilt with a full SAH builder visits fewer nodes and casts about 40% faster than the "
+              "incrementally built one.",
+              "§6.4.2, Table 6.4", Finding::Verdict::untested, "", {}};
+    std::vector<double> gains;
+    std::map<std::string, std::pair<const Config*, const Config*>> by_scene;  // (incremental, rebuild)
+    for (const Config& c : configs) {
+        if (c.structure != "dbvh" || !c.params.is_object()) continue;
+        const std::string mode = c.params.value("mode", "incremental");
+        auto& [inc, reb] = by_scene[c.scene];
+        const Config*& slot = mode == "rebuild" ? reb : inc;
+        if (!slot || c.ray_ms < slot->ray_ms) slot = &c;
+    }
+    for (const auto& [scene, pair] : by_scene) {
+        const auto [inc, reb] = pair;
+        if (!inc || !reb || !(inc->ray_ms > 0)) continue;
+        const double gain = 1 - reb->ray_ms / inc->ray_ms;
+        gains.push_back(gain);
+        f.evidence.push_back(scene + ": rays " + ms(inc->ray_ms) + " incremental, " + ms(reb->ray_ms) +
+                             " full SAH (" + (gain >= 0 ? "-" : "+") + pct(std::abs(gain)) + "); N_T " +
+                             fixed(inc->n_t, 1) + " against " + fixed(reb->n_t, 1) + " per ray");
+    }
+    if (gains.empty()) {
+        f.summary = "The run has no scene with both dbvh mode incremental and mode rebuild.";
+        return f;
+    }
+    const double g = median(gains);
+    f.verdict = g >= 0.25 && g <= 0.55 ? Finding::Verdict::confirmed
+                : g > 0.10             ? Finding::Verdict::partly
+                                       : Finding::Verdict::refuted;
+    f.summary = "The full-SAH DBVH casts " + pct(std::abs(g)) + (g >= 0 ? " faster" : " slower") +
+                " than the incremental one (median over " + std::to_string(gains.size()) + " scenes; the thesis: about 40%).";
+    return f;
+}
+
+Finding hg_memory(const std::vector<Scene>& scenes) {
+    Finding f{"The hierarchical hash grid needs far more memory than the other structures (about 150 MB against 3 MB "
+              "for the BVHs on irreg-l).",
+              "§6.2, Table 6.1", Finding::Verdict::untested, "", {}};
+    int tested = 0, largest = 0;
+    double min_factor = INFINITY;
+    for (const Scene& s : scenes) {
+        if (s.objects < kLargeScene || !s.best.count("hg")) continue;
+        double others = 0;
+        std::string line = s.name + ", bytes per object: hg " + fixed(s.best.at("hg").bytes_per_object, 0);
+        for (const char* o : {"ug", "dbvh", "lbvh"})
+            if (s.best.count(o)) {
+                others = std::max(others, s.best.at(o).bytes_per_object);
+                line += ", " + std::string(o) + " " + fixed(s.best.at(o).bytes_per_object, 0);
+            }
+        if (!(others > 0)) continue;
+        ++tested;
+        const double factor = s.best.at("hg").bytes_per_object / others;
+        largest += factor > 1;
+        min_factor = std::min(min_factor, factor);
+        f.evidence.push_back(line);
+    }
+    if (tested == 0) {
+        f.summary = "The run has no scene of " + fixed(kLargeScene, 0) + " objects or more with hg and another structure.";
+        return f;
+    }
+    f.verdict = largest == tested && min_factor >= 2 ? Finding::Verdict::confirmed
+                : largest > 0                        ? Finding::Verdict::partly
+                                                     : Finding::Verdict::refuted;
+    f.summary = "hg holds the most memory per object on " + std::to_string(largest) + " of " + std::to_string(tested) +
+                " scenes, " + ratio(min_factor) + " the next structure's or more (the thesis: about 50x).";
+    return f;
+}
+
+Finding traversal_cost(Database& db, std::int64_t run) {
+    Finding f{"A grid's traversal step is cheaper than a BVH's (a BVH step tests boxes), so grids win where both visit "
+              "as many cells as nodes.",
+              "§6.4, Table 6.3", Finding::Verdict::untested, "", {}};
+    std::map<std::string, double> c_t;
+    for (const char* s : {"ug", "hg", "dbvh", "lbvh"}) {
+        // The chosen ray-cast model of the run's fit; per-category models give one value per category,
+        // the first (irregular before uniform) is used.
+        for (const char* cat : {"irregular", "uniform", "import", "recording"}) {
+            const auto co = stored_raycast_coefficients(db, run, s, cat);
+            if (co && co->c_t > 0) {
+                c_t[s] = co->c_t;
+                break;
+            }
+        }
+    }
+    const bool grids = c_t.count("ug") || c_t.count("hg"), trees = c_t.count("dbvh") || c_t.count("lbvh");
+    if (!grids || !trees) {
+        f.summary = "No stored fit with a positive C_T for a grid and a BVH: run `rcbench fit` on this database.";
+        return f;
+    }
+    double grid_max = 0, tree_min = INFINITY;
+    std::string line = "C_T per step (chosen fit):";
+    for (const auto& [s, v] : c_t) {
+        line += " " + s + " " + fixed(v, 2) + " ns;";
+        if (s == "ug" || s == "hg")
+            grid_max = std::max(grid_max, v);
+        else
+            tree_min = std::min(tree_min, v);
+    }
+    f.evidence.push_back(line);
+    f.verdict = grid_max < tree_min ? Finding::Verdict::confirmed : Finding::Verdict::refuted;
+    f.summary = grid_max < tree_min ? "Every grid's C_T is below every BVH's (" + fixed(grid_max, 2) + " against " +
+                                          fixed(tree_min, 2) + " ns and more)."
+                                    : "A grid's C_T (" + fixed(grid_max, 2) + " ns) is not below every BVH's (" +
+                                          fixed(tree_min, 2) + " ns).";
+    return f;
+}
+
+Finding small_scenes(const std::vector<Scene>& scenes) {
+    Finding f{"On small scenes the structures give little or no speed-up over brute force; as scenes grow it becomes "
+              "pronounced.",
+              "§6.3", Finding::Verdict::untested, "", {}};
+    std::vector<std::pair<double, double>> speedups;  // (objects, bf / best)
+    for (const Scene& s : scenes) {
+        const std::vector<const Config*> r = s.ranking();
+        if (!s.best.count("bf") || r.empty()) continue;
+        const double up = s.best.at("bf").frame_ms() / r[0]->frame_ms();
+        speedups.emplace_back(s.objects, up);
+        f.evidence.push_back(s.name + " (" + fixed(s.objects, 0) + " objects): best " + r[0]->structure + " " +
+                             ratio(up) + " faster than bf per frame");
+    }
+    if (speedups.size() < 2) {
+        f.summary = "Needs bf and another structure on at least two scenes.";
+        return f;
+    }
+    std::sort(speedups.begin(), speedups.end());
+    const double small = speedups.front().second, large = speedups.back().second;
+    f.verdict = small < 2 && large > small ? Finding::Verdict::confirmed
+                : large > small            ? Finding::Verdict::partly
+                                           : Finding::Verdict::refuted;
+    f.summary = "The best structure is " + ratio(small) + " faster than bf on the smallest scene (" +
+                fixed(speedups.front().first, 0) + " objects) and " + ratio(large) + " on the largest (" +
+                fixed(speedups.back().first, 0) + ").";
+    return f;
+}
+
+Finding most_promising(const std::vector<Scene>& scenes) {
+    Finding f{"Weighing query against update speed, HG and DBVH are the most promising choices, especially as the "
+              "irregular part of a scene grows.",
+              "chapter 8", Finding::Verdict::untested, "", {}};
+    int tested = 0, both = 0, one = 0;
+    for (const Scene& s : scenes) {
+        if (s.category != "irregular" || s.objects < kLargeScene) continue;
+        const std::vector<const Config*> r = s.ranking();
+        if (r.size() < 3) continue;
+        ++tested;
+        const bool a = r[0]->structure == "hg" || r[0]->structure == "dbvh";
+        const bool b = r[1]->structure == "hg" || r[1]->structure == "dbvh";
+        both += a && b, one += a || b;
+        f.evidence.push_back(s.name + ": fastest " + r[0]->structure + ", then " + r[1]->structure + " (" +
+                             ratio(r[1]->frame_ms() / r[0]->frame_ms()) + ")");
+    }
+    if (tested == 0) {
+        f.summary = "The run has no irregular scene of " + fixed(kLargeScene, 0) + " objects or more with three structures.";
+        return f;
+    }
+    f.verdict = both == tested ? Finding::Verdict::confirmed
+                : one > 0      ? Finding::Verdict::partly
+                               : Finding::Verdict::refuted;
+    f.summary = "hg and dbvh are the two fastest per frame on " + std::to_string(both) + " of " +
+                std::to_string(tested) + " large irregular scenes, and one of them is among the two on " +
+                std::to_string(one) + ".";
+    return f;
+}
+
+}  // namespace
+
+const char* verdict_name(Finding::Verdict v) {
+    switch (v) {
+        case Finding::Verdict::confirmed: return "confirmed";
+        case Finding::Verdict::partly: return "partly confirmed";
+        case Finding::Verdict::refuted: return "refuted";
+        case Finding::Verdict::untested: return "not tested by this run";
+    }
+    return "";
+}
+
+std::vector<Finding> evaluate_findings(Database& db, std::int64_t run) {
+    const std::vector<Config> configs = load_configs(db, run);
+    const std::vector<Scene> scenes = scenes_of(configs);
+    return {best_on(scenes, "uniform", "ug", "The uniform grid does very well on uniform scenes.", "§6.3, Table 6.2"),
+            best_on(scenes, "irregular", "hg", "The hierarchical hash grid performs best on the larger irregular scenes.",
+                    "§6.3, Table 6.2"),
+            lbvh_trade(scenes),
+            full_sah(configs),
+            hg_memory(scenes),
+            traversal_cost(db, run),
+            small_scenes(scenes),
+            most_promising(scenes)};
+}
+
+std::string findings_markdown(Database& db, std::int64_t run, const std::vector<Finding>& findings) {
+    std::ostringstream md;
+    Statement s = db.prepare(
+        "SELECT experiment.name, run.uuid, run.started_at, run.git_commit, run.cpu_model, run.compiler FROM run "
+        "JOIN experiment ON experiment.id = run.experiment_id WHERE run.id = ?");
+    s.bind_all(run);
+    md << "# Findings: the thesis' conclusions against rcbench's measurements\n\n";
+    if (s.step())
+        md << "Computed by `rcbench findings` from run " << run << " of experiment `" << s.text(0) << "` (uuid "
+           << s.text(1) << ", started " << s.text(2) << ", commit " << s.text(3) << ", " << s.text(4) << ", "
+           << s.text(5) << "). Thesis: Guo & Liao (2023), see [reference.md](reference.md).\n\n";
+    md << "Each claim is checked on rcbench's own structures (bf, ug, hg, dbvh, lbvh), each at its fastest "
+          "configuration per scene; per frame = update + ray cast (thesis eq. 5.5), medians over repetitions. "
+          "Claims about winners are read on scenes of "
+       << fixed(kLargeScene, 0) << " objects or more; within " << pct(kNearBest)
+       << " of the fastest counts as partly confirmed.\n\n";
+    for (const Finding& f : findings) {
+        md << "## " << f.claim << "\n\n"
+           << "Thesis " << f.source << ". **" << verdict_name(f.verdict) << "**: " << f.summary << "\n\n";
+        for (const std::string& e : f.evidence) md << "- " << e << "\n";
+        if (!f.evidence.empty()) md << "\n";
+    }
+    return md.str();
+}
+
+}  // namespace rcb
