@@ -1,5 +1,7 @@
 #include "core/structures/brute_force.h"
 
+#include <algorithm>
+
 namespace rcb {
 
 void BruteForce::build(std::span<const Object> objects) {
@@ -19,8 +21,7 @@ namespace {
 /// a member). The operand order of each min/max keeps the NaN-dropping semantics of geometry.h.
 void slab_test_boxes(const float* __restrict nx, const float* __restrict ny, const float* __restrict nz,
                      const float* __restrict fx, const float* __restrict fy, const float* __restrict fz, float ox,
-                     float oy, float oz, float ix, float iy, float iz, std::size_t n, std::uint8_t* __restrict hit,
-                     float* __restrict t_near) {
+                     float oy, float oz, float ix, float iy, float iz, std::size_t n, std::uint8_t* __restrict hit) {
     for (std::size_t i = 0; i < n; ++i) {
         float tn = 0.0f, tf = 1.0f;
         float lo = (nx[i] - ox) * ix, hi = (fx[i] - ox) * ix;
@@ -33,7 +34,6 @@ void slab_test_boxes(const float* __restrict nx, const float* __restrict ny, con
         tn = lo > tn ? lo : tn;
         tf = hi < tf ? hi : tf;
         hit[i] = tn <= tf;
-        t_near[i] = tn;
     }
 }
 
@@ -49,7 +49,9 @@ void BruteForce::test_block(const SegmentSlabs& slabs, std::size_t begin, std::s
         far[a] = (slabs.near_is_max[a] ? lo : hi) + begin;
     }
     slab_test_boxes(near[0], near[1], near[2], far[0], far[1], far[2], slabs.origin.x, slabs.origin.y, slabs.origin.z,
-                    slabs.inv.x, slabs.inv.y, slabs.inv.z, end - begin, hit_.data(), t_near_.data());
+                    slabs.inv.x, slabs.inv.y, slabs.inv.z, end - begin, hit_.data());
+    const std::size_t n = end - begin, padded = (n + 7) / 8 * 8;
+    std::fill(hit_.begin() + std::ptrdiff_t(n), hit_.begin() + std::ptrdiff_t(padded), std::uint8_t(0));
 }
 
 std::size_t BruteForce::memory_bytes() const { return objects_.memory_bytes() + sizeof(*this); }

@@ -5,6 +5,8 @@
 /// branch-free inner loop over blocks of objects that the compiler vectorises.
 
 #include <array>
+#include <cstdint>
+#include <cstring>
 #include <tuple>
 
 #include "core/structure.h"
@@ -35,13 +37,13 @@ private:
     /// Objects tested per block: the flags of one block stay in L1.
     static constexpr std::size_t kBlock = 1024;
 
-    /// Tests boxes [begin, end) and writes 1 (hit) or 0 per box into `hit`, their entry t into `t_near`.
+    /// Tests boxes [begin, end) and writes 1 (hit) or 0 per box into `hit_`, zeros up to a multiple
+    /// of eight after them.
     void test_block(const SegmentSlabs& slabs, std::size_t begin, std::size_t end);
 
     SoaSlotBoxes objects_;
-    // Per-block scratch of the query.
-    std::array<std::uint8_t, kBlock> hit_{};
-    std::array<float, kBlock> t_near_{};
+    // Per-block scratch of the query: hit flags, read back eight at a time.
+    alignas(8) std::array<std::uint8_t, kBlock> hit_{};
 };
 
 template <class Count, class Visit>
@@ -52,10 +54,18 @@ void BruteForce::traverse(const Segment& s, Count& count, Visit&& visit) {
     for (std::size_t begin = 0; begin < n; begin += kBlock) {
         const std::size_t end = std::min(n, begin + kBlock);
         test_block(slabs, begin, end);
-        for (std::size_t i = 0; i < end - begin; ++i) {
-            if (!hit_[i]) continue;
-            count.hits();
-            if (!visit(objects_.uid(std::uint32_t(begin + i)), t_near_[i])) return;
+        // Hits are rare: eight flags per load, and a hit's entry t recomputed by the same slab test
+        // (the same operations, so the same t) instead of storing t for every box.
+        for (std::size_t i = 0; i < end - begin; i += 8) {
+            std::uint64_t word;
+            std::memcpy(&word, hit_.data() + i, sizeof word);
+            for (; word; word &= word - 1) {
+                const auto slot = std::uint32_t(begin + i + std::size_t(__builtin_ctzll(word) >> 3));
+                float t_near, t_far;
+                slabs.clip(objects_.box(slot), t_near, t_far);
+                count.hits();
+                if (!visit(objects_.uid(slot), t_near)) return;
+            }
         }
     }
 }
