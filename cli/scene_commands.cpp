@@ -150,8 +150,9 @@ void add_scene_commands(CLI::App& app) {
     auto gen = std::make_shared<GenOptions>();
     CLI::App* g = scene->add_subcommand("gen", "Generate a scene recording from a preset or a kind");
     g->add_option("--preset", gen->preset,
-                  "Thesis scenes uni-s/m/l and irreg-s/m/l (99, 5104, 14021 objects), irreg-xl (1M); failure modes "
-                  "<kind>-s/m (1000, 10000 objects)")
+                  "Thesis scenes uni-s/m/l and irreg-s/m/l (99, 5104, 14021 objects), irreg-xl (1M); peer-comparison "
+                  "scenes jittered-m/l and clusters-m/l (5104, 14021), clusters-xl (1M); failure modes <kind>-s/m "
+                  "(1000, 10000 objects)")
         ->check(CLI::IsMember(preset_names()));
     g->add_option("--kind", gen->kind, "Instead of a preset, with --objects")->check(CLI::IsMember(scene_kinds()));
     g->add_option("--objects", gen->objects, "Object count (overrides the preset's)")

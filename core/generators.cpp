@@ -136,6 +136,97 @@ std::vector<Object> irregular_objects(const SceneSettings& s, Random& rng) {
     return objects;
 }
 
+/// "jittered": the peer-comparison uniform scene: one box per cell of a k×k×k lattice of 10-unit
+/// cells (k = ⌈∛n⌉, cells chosen at random), each axis of the box 4 to 8 units, placed anywhere
+/// inside its cell. Like "uniform", no two boxes overlap; the boxes are larger and fill their cells
+/// to the faces, so a ray meets more of them.
+std::vector<Object> jittered_objects(const SceneSettings& s, Random& rng) {
+    const std::uint32_t n = s.objects;
+    std::uint64_t k = 1;
+    while (k * k * k < n) ++k;
+    constexpr double cell = 10.0;
+    std::vector<std::uint32_t> cells(k * k * k);
+    std::iota(cells.begin(), cells.end(), 0u);
+    std::vector<Object> objects(n);
+    for (std::uint32_t i = 0; i < n; ++i) {
+        std::swap(cells[i], cells[i + rng.below(cells.size() - i)]);
+        const std::uint64_t c = cells[i];
+        const Vec3d origin{double(c % k) * cell, double((c / k) % k) * cell, double(c / (k * k)) * cell};
+        Vec3d extent, min;
+        for (int a = 0; a < 3; ++a) {
+            extent[a] = cell * rng.uniform(0.4, 0.8);
+            min[a] = origin[a] + rng.uniform(0.0, cell - extent[a]);
+        }
+        objects[i] = {i + 1, box_from(min, min + extent)};
+    }
+    return objects;
+}
+
+/// "clusters": the peer-comparison irregular scene, harder than "irregular": 0.15% huge objects
+/// (half floor slabs 110 to 300 units wide and 5 to 17 thick, half blocks 30 to 180 units per
+/// axis) anywhere in the world; 5% of the objects inside them; 10% medium boxes spread uniformly;
+/// the rest in n / 1500 gaussian clusters (σ 15 to 45 units, weights over a decade). Small sizes
+/// are log-normal (median about 2.8 units on the longest edge). The world's edge is
+/// 400·(n / 14021)^(1/3) while every size stays absolute, so the density, and the hits per unit of
+/// ray length, are the same at every object count.
+std::vector<Object> cluster_objects(const SceneSettings& s, Random& rng) {
+    const std::uint32_t n = s.objects;
+    const double world = 400.0 * std::cbrt(double(n) / 14021.0);
+    std::vector<Object> objects;
+    objects.reserve(n);
+    Uid next = 1;
+    auto add = [&](const Vec3d& center, const Vec3d& extent) {
+        if (objects.size() < n) objects.push_back({next++, box_around(center, extent)});
+    };
+    auto in_world = [&] { return Vec3d{rng.uniform(0, world), rng.uniform(0, world), rng.uniform(0, world)}; };
+    auto small = [&](double median, double sigma) {
+        const double size = median * std::exp(sigma * rng.normal());
+        return Vec3d{size * rng.uniform(0.4, 1.0), size * rng.uniform(0.4, 1.0), size * rng.uniform(0.4, 1.0)};
+    };
+    const auto huge = std::min<std::uint32_t>(n, std::max<std::uint32_t>(1, std::lround(n * 0.0015)));
+    std::vector<Aabbd> huge_boxes;
+    for (std::uint32_t i = 0; i < huge; ++i) {
+        const Vec3d extent = rng.uniform() < 0.5
+                                 ? Vec3d{rng.uniform(110, 300), rng.uniform(5, 17), rng.uniform(110, 300)}
+                                 : Vec3d{rng.uniform(30, 180), rng.uniform(30, 180), rng.uniform(30, 180)};
+        add(in_world(), extent);
+        huge_boxes.push_back(objects.back().box.as<double>());
+    }
+    const std::uint32_t inside = std::min<std::uint32_t>(n - huge, std::lround(n * 0.05));
+    for (std::uint32_t i = 0; i < inside; ++i) {
+        const Aabbd& h = huge_boxes[rng.below(huge_boxes.size())];
+        const Vec3d center{rng.uniform(h.min.x, h.max.x), rng.uniform(h.min.y, h.max.y), rng.uniform(h.min.z, h.max.z)};
+        add(center, small(3.2, 0.75));
+    }
+    const std::uint32_t medium = std::min<std::uint32_t>(n - huge - inside, std::lround(n * 0.10));
+    for (std::uint32_t i = 0; i < medium; ++i) add(in_world(), small(8.5, 0.8));
+    struct Cluster {
+        Vec3d center;
+        double sigma;
+    };
+    const std::uint32_t cluster_count = std::max<std::uint32_t>(1, n / 1500);
+    std::vector<Cluster> clusters(cluster_count);
+    std::vector<double> weight(cluster_count);
+    double total = 0;
+    for (std::uint32_t c = 0; c < cluster_count; ++c) {
+        clusters[c] = {{rng.uniform(0.1, 0.9) * world, rng.uniform(0.1, 0.9) * world, rng.uniform(0.1, 0.9) * world},
+                       rng.uniform(15, 45)};
+        total += weight[c] = rng.log_uniform(0.1, 1.0);
+    }
+    // Cumulative weights: each object picks its cluster by one uniform draw.
+    for (std::uint32_t c = 1; c < cluster_count; ++c) weight[c] += weight[c - 1];
+    while (objects.size() < n) {
+        const double pick = rng.uniform(0, total);
+        const auto c = std::min<std::size_t>(std::lower_bound(weight.begin(), weight.end(), pick) - weight.begin(),
+                                             cluster_count - 1);
+        const Cluster& k = clusters[c];
+        add({k.center.x + k.sigma * rng.normal(), k.center.y + k.sigma * rng.normal(),
+             k.center.z + k.sigma * rng.normal()},
+            small(3.2, 0.75));
+    }
+    return objects;
+}
+
 // Failure-mode scenes: each one breaks an assumption some structure makes. Sizes are in
 // the same units as "irregular" so that rays and dynamics behave alike.
 
@@ -301,7 +392,8 @@ Segment segment_from(const Vec3d& p0, const Vec3d& p1) { return {p0.as<float>(),
 std::vector<std::string> ray_mode_names() { return {"center", "dense", "los", "ground", "shots", "faces", "inside"}; }
 
 std::vector<std::string> scene_kinds() {
-    return {"uniform", "irregular", "stadium", "identical", "same-centroid", "flat", "slivers", "outlier", "nested"};
+    return {"uniform",       "irregular", "jittered", "clusters", "stadium", "identical",
+            "same-centroid", "flat",      "slivers",  "outlier",  "nested"};
 }
 
 std::vector<std::string> failure_mode_kinds() {
@@ -309,7 +401,8 @@ std::vector<std::string> failure_mode_kinds() {
 }
 
 std::vector<std::string> preset_names() {
-    std::vector<std::string> names{"uni-s", "uni-m", "uni-l", "irreg-s", "irreg-m", "irreg-l", "irreg-xl"};
+    std::vector<std::string> names{"uni-s",    "uni-m",      "uni-l",      "irreg-s",    "irreg-m",    "irreg-l",
+                                   "irreg-xl", "jittered-m", "jittered-l", "clusters-m", "clusters-l", "clusters-xl"};
     for (const std::string& k : failure_mode_kinds())
         for (const char* size : {"-s", "-m"}) names.push_back(k + size);
     return names;
@@ -332,6 +425,10 @@ SceneSettings preset_settings(std::string_view name) {
         s.kind = "uniform";
     else if (n.rfind("irreg-", 0) == 0)
         s.kind = "irregular";
+    else if (n.rfind("jittered-", 0) == 0 && n != "jittered-s")
+        s.kind = "jittered";
+    else if (n.rfind("clusters-", 0) == 0 && n != "clusters-s")
+        s.kind = "clusters";
     const std::string size = n.substr(n.find('-') + 1);
     if (size == "s")
         s.objects = 99;
@@ -339,7 +436,7 @@ SceneSettings preset_settings(std::string_view name) {
         s.objects = 5104;
     else if (size == "l")
         s.objects = 14021;
-    else if (size == "xl" && s.kind == "irregular")
+    else if (size == "xl" && (s.kind == "irregular" || s.kind == "clusters"))
         s.objects = 1'000'000;
     else
         s.kind.clear();
@@ -384,6 +481,8 @@ std::vector<Object> generate_objects(const SceneSettings& s) {
     Random rng(mix_seed(s.seed, kObjectStream));
     if (s.kind == "uniform") return uniform_objects(s, rng);
     if (s.kind == "irregular") return irregular_objects(s, rng);
+    if (s.kind == "jittered") return jittered_objects(s, rng);
+    if (s.kind == "clusters") return cluster_objects(s, rng);
     if (s.kind == "stadium") return stadium_objects(s, rng);
     if (s.kind == "identical") return stacked_objects(s, rng, true);
     if (s.kind == "same-centroid") return stacked_objects(s, rng, false);

@@ -52,13 +52,17 @@ struct SceneSettings {
 };
 
 /// The thesis' scenes (§6.1) by name: uni-s, uni-m, uni-l, irreg-s, irreg-m, irreg-l (99, 5 104
-/// and 14 021 objects), plus irreg-xl (1 000 000 objects).
+/// and 14 021 objects), plus irreg-xl (1 000 000 objects). The peer-comparison scenes, harder than
+/// the thesis': jittered-m, jittered-l, clusters-m, clusters-l (5 104 and 14 021 objects) and
+/// clusters-xl (1 000 000).
 /// Failure-mode presets "<kind>-s" (1 000 objects) and "<kind>-m" (10 000) for every
 /// kind of failure_mode_kinds().
 SceneSettings preset_settings(std::string_view name);
 std::vector<std::string> preset_names();
 
-/// Every kind generate_objects knows: "uniform" and "irregular" (thesis §6.1) and the failure modes.
+/// Every kind generate_objects knows: "uniform" and "irregular" (thesis §6.1), "jittered" and
+/// "clusters" (the peer-comparison scenes, generators.cpp says how they are drawn) and the failure
+/// modes.
 std::vector<std::string> scene_kinds();
 /// Scenes built to break a structure's assumptions: "stadium" (one huge box around a
 /// tiny dense cluster), "identical" (stacks of identical boxes), "same-centroid" (stacks with one

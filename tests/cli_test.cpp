@@ -87,7 +87,7 @@ TEST_F(Cli, BadInputIsOneLineAndExitTwo) {
                      "--param.depth: unknown parameter of bf");
     expect_bad_input(run("scene gen --preset uni-xxl -o " + path("x")), "--preset: uni-xxl not in {uni-s,");
     expect_bad_input(run("scene gen --kind cubes --objects 10 -o " + path("x")),
-                     "--kind: cubes not in {uniform,irregular,stadium,");
+                     "--kind: cubes not in {uniform,irregular,jittered,clusters,stadium,");
     expect_bad_input(run("scene gen --preset uni-s --ray-mix sideways -o " + path("x")), "unknown mode 'sideways'");
     expect_bad_input(run("scene gen --preset uni-s --frames abc -o " + path("x")), "--frames");
     expect_bad_input(run("simulate --structure bf"), "--scene is required");

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 
@@ -39,7 +40,7 @@ double densest_share(const std::vector<Object>& objects) {
 }
 
 TEST(Generators, SameSeedSameBytesOtherSeedOtherScene) {
-    for (const char* preset : {"uni-m", "irreg-m"}) {
+    for (const char* preset : {"uni-m", "irreg-m", "jittered-m", "clusters-m"}) {
         SceneSettings s = preset_settings(preset);
         s.frames = 3;
         s.rays.mix = parse_ray_mix("center,dense,los,ground,shots");
@@ -69,7 +70,13 @@ TEST(Generators, PresetsHaveTheThesisCounts) {
     EXPECT_EQ(preset_settings("irreg-xl").objects, 1000000u);
     EXPECT_EQ(generate_objects(preset_settings("irreg-l")).size(), 14021u);
     EXPECT_EQ(generate_objects(preset_settings("uni-s")).size(), 99u);
+    EXPECT_EQ(preset_settings("jittered-l").objects, 14021u);
+    EXPECT_EQ(preset_settings("clusters-m").objects, 5104u);
+    EXPECT_EQ(preset_settings("clusters-xl").objects, 1000000u);
+    EXPECT_EQ(generate_objects(preset_settings("clusters-l")).size(), 14021u);
     EXPECT_THROW(preset_settings("uni-xl"), InputError);
+    EXPECT_THROW(preset_settings("jittered-xl"), InputError);
+    EXPECT_THROW(preset_settings("clusters-s"), InputError);
     EXPECT_THROW(preset_settings("huge"), InputError);
 }
 
@@ -86,6 +93,56 @@ TEST(Generators, UniformObjectsAreSimilarSizedAndDoNotOverlap) {
     }
     EXPECT_LT(largest / smallest, 2.0f);
     EXPECT_LT(densest_share(objects), 0.05);
+}
+
+TEST(Generators, JitteredBoxesFillTheirOwnCellsWithoutOverlap) {
+    std::vector<Object> objects = generate_objects(preset_settings("jittered-l"));
+    std::sort(objects.begin(), objects.end(),
+              [](const Object& a, const Object& b) { return a.box.min.x < b.box.min.x; });
+    for (std::size_t i = 0; i < objects.size(); ++i) {
+        const Aabb& b = objects[i].box;
+        for (int a = 0; a < 3; ++a) {
+            EXPECT_GE(b.max[a] - b.min[a], 3.999f);  // 4 to 8 units per axis, in a 10-unit cell
+            EXPECT_LE(b.max[a] - b.min[a], 8.001f);
+            EXPECT_EQ(std::floor(b.min[a] / 10), std::floor(std::nextafter(b.max[a], 0.0f) / 10));  // one cell
+        }
+        for (std::size_t j = i + 1; j < objects.size() && objects[j].box.min.x < objects[i].box.max.x; ++j)
+            ASSERT_FALSE(interiors_overlap(objects[i].box, objects[j].box)) << objects[i].uid << " " << objects[j].uid;
+    }
+}
+
+/// The longest edges' 10th, 50th and 90th percentiles.
+std::array<float, 3> edge_percentiles(const std::vector<Object>& objects) {
+    std::vector<float> e;
+    for (const Object& o : objects) e.push_back(o.box.longest_edge());
+    std::sort(e.begin(), e.end());
+    return {e[e.size() / 10], e[e.size() / 2], e[e.size() * 9 / 10]};
+}
+
+TEST(Generators, ClustersMatchThePeerSceneDescription) {
+    // The peer-comparison irregular scene: longest edges 1.05 / 2.85 / 8.9 at the 10th / 50th / 90th
+    // percentile, 21 huge objects, 5% of the objects inside them; the sizes stay absolute at 10^5.
+    for (std::uint32_t n : {14021u, 100000u}) {
+        SceneSettings s = preset_settings("clusters-l");
+        s.objects = n;
+        const std::vector<Object> objects = generate_objects(s);
+        const std::array<float, 3> p = edge_percentiles(objects);
+        EXPECT_NEAR(p[0], 1.05, 0.2 * 1.05) << n;
+        EXPECT_NEAR(p[1], 2.85, 0.2 * 2.85) << n;
+        EXPECT_NEAR(p[2], 8.9, 0.2 * 8.9) << n;
+        std::vector<Aabb> huge;
+        for (const Object& o : objects)
+            if (o.box.longest_edge() >= 30 && o.uid <= std::lround(n * 0.0015)) huge.push_back(o.box);
+        EXPECT_EQ(huge.size(), std::size_t(std::lround(n * 0.0015))) << n;
+        std::size_t inside = 0;
+        for (const Object& o : objects)
+            for (const Aabb& h : huge)
+                if (o.box.longest_edge() < 30 && h.contains(Aabb{o.box.center(), o.box.center()})) {
+                    ++inside;
+                    break;
+                }
+        EXPECT_GE(inside, objects.size() / 20) << n;  // 5% placed inside, plus cluster objects that fall in
+    }
 }
 
 TEST(Generators, IrregularScenesAreSkewedClusteredAndNested) {

@@ -73,7 +73,8 @@ TEST(Experiment, ValidationNamesTheJsonPath) {
     EXPECT_EQ(error_of(R"({"scenes": [{"kind": "same-centroid", "objects": 50}], "structures": [{"name": "bf"}]})"),
               "");
     EXPECT_EQ(error_of(R"({"scenes": [{"kind": "cubes", "objects": 50}], "structures": [{"name": "bf"}]})"),
-              "exp.json: scenes[0].kind: expected one of uniform, irregular, stadium, identical, same-centroid, flat, "
+              "exp.json: scenes[0].kind: expected one of uniform, irregular, jittered, clusters, stadium, identical, "
+              "same-centroid, flat, "
               "slivers, outlier, nested, got \"cubes\"");
     EXPECT_EQ(
         error_of(
