@@ -129,8 +129,9 @@ std::string ranking_line(const Scene& s) {
     std::string line = s.name + " (" + fixed(s.objects, 0) + " objects): ";
     for (std::size_t i = 0; i < r.size(); ++i) {
         const Config& c = *r[i];
-        line += (i ? "; " : "") + c.structure + " " + ms(c.frame_ms()) + (i ? " (" + ratio(c.frame_ms() / r[0]->frame_ms()) + ")" : "") +
-                " [update " + ms(c.update_ms) + ", rays " + ms(c.ray_ms) + "; " + counters(c) + "]";
+        line += (i ? "; " : "") + c.structure + " " + ms(c.frame_ms()) +
+                (i ? " (" + ratio(c.frame_ms() / r[0]->frame_ms()) + ")" : "") + " [update " + ms(c.update_ms) +
+                ", rays " + ms(c.ray_ms) + "; " + counters(c) + "]";
     }
     return line;
 }
@@ -157,12 +158,11 @@ Finding best_on(const std::vector<Scene>& scenes, const std::string& category, c
                     who + " and another structure.";
         return f;
     }
-    f.verdict = first == tested ? Finding::Verdict::confirmed
+    f.verdict = first == tested               ? Finding::Verdict::confirmed
                 : near == tested || first > 0 ? Finding::Verdict::partly
                                               : Finding::Verdict::refuted;
     f.summary = who + " is the fastest per frame on " + std::to_string(first) + " of " + std::to_string(tested) + " " +
-                category + " scenes" +
-                (winners.empty() ? "." : "; elsewhere: " + [&] {
+                category + " scenes" + (winners.empty() ? "." : "; elsewhere: " + [&] {
                     std::string w;
                     for (const std::string& x : winners) w += (w.empty() ? "" : "; ") + x;
                     return w;
@@ -171,9 +171,13 @@ Finding best_on(const std::vector<Scene>& scenes, const std::string& category, c
 }
 
 Finding lbvh_trade(const std::vector<Scene>& scenes) {
-    Finding f{"LBVH casts fast but its rebuild every frame makes its updates the slowest, which lowers its overall "
-              "standing.",
-              "§6.3, Table 6.2; §7.1", Finding::Verdict::untested, "", {}};
+    Finding f{
+        "LBVH casts fast but its rebuild every frame makes its updates the slowest, which lowers its overall "
+        "standing.",
+        "§6.3, Table 6.2; §7.1",
+        Finding::Verdict::untested,
+        "",
+        {}};
     int tested = 0, fast_rays = 0, slow_updates = 0;
     for (const Scene& s : scenes) {
         if (s.objects < kLargeScene || !s.best.count("lbvh")) continue;
@@ -185,22 +189,25 @@ Finding lbvh_trade(const std::vector<Scene>& scenes) {
         const Config& l = s.best.at("lbvh");
         int faster_rays = 0;
         double max_update = 0;
-        for (const Config* o : others) faster_rays += l.ray_ms <= o->ray_ms, max_update = std::max(max_update, o->update_ms);
+        for (const Config* o : others)
+            faster_rays += l.ray_ms <= o->ray_ms, max_update = std::max(max_update, o->update_ms);
         const bool fast = 2 * faster_rays >= int(others.size());
         const bool slow = l.update_ms > max_update;
         fast_rays += fast, slow_updates += slow;
-        std::string line = s.name + ": lbvh rays " + ms(l.ray_ms) + ", update " + ms(l.update_ms) + " (" + counters(l) + ")";
+        std::string line =
+            s.name + ": lbvh rays " + ms(l.ray_ms) + ", update " + ms(l.update_ms) + " (" + counters(l) + ")";
         for (const Config* o : others)
             line += "; " + o->structure + " rays " + ms(o->ray_ms) + ", update " + ms(o->update_ms);
         f.evidence.push_back(line);
     }
     if (tested == 0) {
-        f.summary = "The run has no scene of " + fixed(kLargeScene, 0) + " objects or more with lbvh and another tree or grid.";
+        f.summary =
+            "The run has no scene of " + fixed(kLargeScene, 0) + " objects or more with lbvh and another tree or grid.";
         return f;
     }
     f.verdict = fast_rays == tested && slow_updates == tested ? Finding::Verdict::confirmed
-                : fast_rays + slow_updates > 0                 ? Finding::Verdict::partly
-                                                               : Finding::Verdict::refuted;
+                : fast_rays + slow_updates > 0                ? Finding::Verdict::partly
+                                                              : Finding::Verdict::refuted;
     f.summary = "LBVH casts at least as fast as half of ug, hg and dbvh on " + std::to_string(fast_rays) + " of " +
                 std::to_string(tested) + " scenes, and has the slowest update on " + std::to_string(slow_updates) +
                 " of them.";
@@ -208,9 +215,13 @@ Finding lbvh_trade(const std::vector<Scene>& scenes) {
 }
 
 Finding full_sah(const std::vector<Config>& configs) {
-    Finding f{"A DBVH rebuilt with a full SAH builder visits fewer nodes and casts about 40% faster than the "
-              "incrementally built one.",
-              "§6.4.2, Table 6.4", Finding::Verdict::untested, "", {}};
+    Finding f{
+        "A DBVH rebuilt with a full SAH builder visits fewer nodes and casts about 40% faster than the "
+        "incrementally built one.",
+        "§6.4.2, Table 6.4",
+        Finding::Verdict::untested,
+        "",
+        {}};
     std::vector<double> gains;
     std::map<std::string, std::pair<const Config*, const Config*>> by_scene;  // (incremental, rebuild)
     for (const Config& c : configs) {
@@ -225,9 +236,9 @@ Finding full_sah(const std::vector<Config>& configs) {
         if (!inc || !reb || !(inc->ray_ms > 0)) continue;
         const double gain = 1 - reb->ray_ms / inc->ray_ms;
         gains.push_back(gain);
-        f.evidence.push_back(scene + ": rays " + ms(inc->ray_ms) + " incremental, " + ms(reb->ray_ms) +
-                             " full SAH (" + (gain >= 0 ? "-" : "+") + pct(std::abs(gain)) + "); N_T " +
-                             fixed(inc->n_t, 1) + " against " + fixed(reb->n_t, 1) + " per ray");
+        f.evidence.push_back(scene + ": rays " + ms(inc->ray_ms) + " incremental, " + ms(reb->ray_ms) + " full SAH (" +
+                             (gain >= 0 ? "-" : "+") + pct(std::abs(gain)) + "); N_T " + fixed(inc->n_t, 1) +
+                             " against " + fixed(reb->n_t, 1) + " per ray");
     }
     if (gains.empty()) {
         f.summary = "The run has no scene with both dbvh mode incremental and mode rebuild.";
@@ -238,14 +249,19 @@ Finding full_sah(const std::vector<Config>& configs) {
                 : g > 0.10             ? Finding::Verdict::partly
                                        : Finding::Verdict::refuted;
     f.summary = "The full-SAH DBVH casts " + pct(std::abs(g)) + (g >= 0 ? " faster" : " slower") +
-                " than the incremental one (median over " + std::to_string(gains.size()) + " scenes; the thesis: about 40%).";
+                " than the incremental one (median over " + std::to_string(gains.size()) +
+                " scenes; the thesis: about 40%).";
     return f;
 }
 
 Finding hg_memory(const std::vector<Scene>& scenes) {
-    Finding f{"The hierarchical hash grid needs far more memory than the other structures (about 150 MB against 3 MB "
-              "for the BVHs on irreg-l).",
-              "§6.2, Table 6.1", Finding::Verdict::untested, "", {}};
+    Finding f{
+        "The hierarchical hash grid needs far more memory than the other structures (about 150 MB against 3 MB "
+        "for the BVHs on irreg-l).",
+        "§6.2, Table 6.1",
+        Finding::Verdict::untested,
+        "",
+        {}};
     int tested = 0, largest = 0;
     double min_factor = INFINITY, max_factor = 0;
     for (const Scene& s : scenes) {
@@ -265,7 +281,8 @@ Finding hg_memory(const std::vector<Scene>& scenes) {
         f.evidence.push_back(line);
     }
     if (tested == 0) {
-        f.summary = "The run has no scene of " + fixed(kLargeScene, 0) + " objects or more with hg and another structure.";
+        f.summary =
+            "The run has no scene of " + fixed(kLargeScene, 0) + " objects or more with hg and another structure.";
         return f;
     }
     f.verdict = largest == tested && min_factor >= 2 ? Finding::Verdict::confirmed
@@ -278,9 +295,13 @@ Finding hg_memory(const std::vector<Scene>& scenes) {
 }
 
 Finding traversal_cost(Database& db, std::int64_t run) {
-    Finding f{"A grid's traversal step is cheaper than a BVH's (a BVH step tests boxes), so grids win where both visit "
-              "as many cells as nodes.",
-              "§6.4, Table 6.3", Finding::Verdict::untested, "", {}};
+    Finding f{
+        "A grid's traversal step is cheaper than a BVH's (a BVH step tests boxes), so grids win where both visit "
+        "as many cells as nodes.",
+        "§6.4, Table 6.3",
+        Finding::Verdict::untested,
+        "",
+        {}};
     std::map<std::string, double> c_t;
     for (const char* s : {"ug", "hg", "dbvh", "lbvh"}) {
         // The chosen ray-cast model of the run's fit; per-category models give one value per category,
@@ -317,9 +338,13 @@ Finding traversal_cost(Database& db, std::int64_t run) {
 }
 
 Finding small_scenes(const std::vector<Scene>& scenes) {
-    Finding f{"On small scenes the structures give little or no speed-up over brute force; as scenes grow it becomes "
-              "pronounced.",
-              "§6.3", Finding::Verdict::untested, "", {}};
+    Finding f{
+        "On small scenes the structures give little or no speed-up over brute force; as scenes grow it becomes "
+        "pronounced.",
+        "§6.3",
+        Finding::Verdict::untested,
+        "",
+        {}};
     std::vector<std::pair<double, double>> speedups;  // (objects, bf / best)
     for (const Scene& s : scenes) {
         const std::vector<const Config*> r = s.ranking();
@@ -345,9 +370,13 @@ Finding small_scenes(const std::vector<Scene>& scenes) {
 }
 
 Finding most_promising(const std::vector<Scene>& scenes) {
-    Finding f{"Weighing query against update speed, HG and DBVH are the most promising choices, especially as the "
-              "irregular part of a scene grows.",
-              "chapter 8", Finding::Verdict::untested, "", {}};
+    Finding f{
+        "Weighing query against update speed, HG and DBVH are the most promising choices, especially as the "
+        "irregular part of a scene grows.",
+        "chapter 8",
+        Finding::Verdict::untested,
+        "",
+        {}};
     int tested = 0, both = 0, one = 0;
     for (const Scene& s : scenes) {
         if (s.category != "irregular" || s.objects < kLargeScene) continue;
@@ -361,7 +390,8 @@ Finding most_promising(const std::vector<Scene>& scenes) {
                              ratio(r[1]->frame_ms() / r[0]->frame_ms()) + ")");
     }
     if (tested == 0) {
-        f.summary = "The run has no irregular scene of " + fixed(kLargeScene, 0) + " objects or more with three structures.";
+        f.summary =
+            "The run has no irregular scene of " + fixed(kLargeScene, 0) + " objects or more with three structures.";
         return f;
     }
     f.verdict = both == tested ? Finding::Verdict::confirmed
@@ -377,10 +407,14 @@ Finding most_promising(const std::vector<Scene>& scenes) {
 
 const char* verdict_name(Finding::Verdict v) {
     switch (v) {
-        case Finding::Verdict::confirmed: return "confirmed";
-        case Finding::Verdict::partly: return "partly confirmed";
-        case Finding::Verdict::refuted: return "refuted";
-        case Finding::Verdict::untested: return "not tested by this run";
+        case Finding::Verdict::confirmed:
+            return "confirmed";
+        case Finding::Verdict::partly:
+            return "partly confirmed";
+        case Finding::Verdict::refuted:
+            return "refuted";
+        case Finding::Verdict::untested:
+            return "not tested by this run";
     }
     return "";
 }
@@ -389,8 +423,8 @@ std::vector<Finding> evaluate_findings(Database& db, std::int64_t run) {
     const std::vector<Config> configs = load_configs(db, run);
     const std::vector<Scene> scenes = scenes_of(configs);
     return {best_on(scenes, "uniform", "ug", "The uniform grid does very well on uniform scenes.", "§6.3, Table 6.2"),
-            best_on(scenes, "irregular", "hg", "The hierarchical hash grid performs best on the larger irregular scenes.",
-                    "§6.3, Table 6.2"),
+            best_on(scenes, "irregular", "hg",
+                    "The hierarchical hash grid performs best on the larger irregular scenes.", "§6.3, Table 6.2"),
             lbvh_trade(scenes),
             full_sah(configs),
             hg_memory(scenes),

@@ -14,10 +14,10 @@ namespace rcb {
 
 struct Finding {
     enum class Verdict { confirmed, partly, refuted, untested };
-    std::string claim;    ///< the thesis' conclusion, in a sentence
-    std::string source;   ///< where the thesis says it, e.g. "§6.3, Table 6.2"
+    std::string claim;   ///< the thesis' conclusion, in a sentence
+    std::string source;  ///< where the thesis says it, e.g. "§6.3, Table 6.2"
     Verdict verdict = Verdict::untested;
-    std::string summary;  ///< one sentence: the verdict and the deciding figures
+    std::string summary;                ///< one sentence: the verdict and the deciding figures
     std::vector<std::string> evidence;  ///< one line per scene or structure, with counters
 };
 
