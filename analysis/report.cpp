@@ -16,6 +16,7 @@
 
 #include "analysis/charts.h"
 #include "analysis/cost_model.h"
+#include "analysis/noise.h"
 #include "core/error.h"
 #include "core/generators.h"
 #include "core/output_file.h"
@@ -422,6 +423,7 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
     h.heading("Cost model (thesis eq. 5.4, Table 6.3)");
     const std::vector<FrameObservation> frames = load_observations(db, run);
     const std::vector<StructureModels> models = fit_cost_models(frames);
+    const NoiseFloor noise = noise_floor(db, run);
     {
         Chart c;
         c.title = "Predicted against measured ray-cast cost per ray";
@@ -446,7 +448,9 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
                 lo = std::min(lo, s.x.back()), hi = std::max(hi, s.x.back());
             }
             c.series.push_back(s);
-            errors += (errors.empty() ? "" : ", ") + m.structure + " " + fixed(100 * chosen->heldout_error, 1) + "%";
+            const StructureNoise* n = noise.find(m.structure);
+            errors += (errors.empty() ? "" : ", ") + m.structure + " " + fixed(100 * chosen->heldout_error, 1) + "%" +
+                      (n && std::isfinite(n->raycast) ? " (repeats " + noise_text(n->raycast) + ")" : "");
         }
         if (hi > 0) {
             std::ostringstream ref;
@@ -461,9 +465,40 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
         c.reading =
             "One point per configuration (median over its frames); the solid line is a perfect prediction, the dashed "
             "band ±10%. "
-            "Held-out error (configurations left out of the fit): " +
+            "Held-out error (configurations left out of the fit), with the scatter of repeated measurements of the "
+            "same cell in parentheses: " +
             errors + ".";
         h.chart(c);
+
+        // The noise floor beside the model's error: what the machine cannot repeat, no model can predict.
+        std::vector<std::vector<std::string>> floor;
+        for (const StructureModels& m : models) {
+            const CandidateModel* chosen = m.chosen("raycast");
+            const StructureNoise* n = noise.find(m.structure);
+            floor.push_back({m.structure, chosen ? fixed(100 * chosen->heldout_error, 1) + "%" : "-",
+                             n ? noise_text(n->raycast) : "-", n ? noise_text(n->update) : "-",
+                             n ? std::to_string(n->cells) + " (" + std::to_string(n->repetitions) + ")" : "0",
+                             n ? std::to_string(n->slow) : "0"});
+        }
+        h.table({"structure", "held-out error (ray cast)", "repeatability (ray cast)", "repeatability (update)",
+                 "repeated cells (repetitions)", "slow repetitions"},
+                floor,
+                "Noise floor: median absolute relative deviation of a repeated cell's time per frame from the median "
+                "of its repetitions (needs repetitions >= 2); error above it is the model's");
+        std::string state = std::to_string(noise.with_state) + " of " + std::to_string(noise.cells) +
+                            " cells have the machine's state recorded";
+        if (noise.with_state)
+            state += " (median 1-minute load " + fixed(noise.load_median, 2) + ", median calibration loop " +
+                     fixed(noise.calibration_median_ns / 1e6, 3) + " ms); " + std::to_string(noise.slow) +
+                     " were measured while the calibration loop ran more than 10% above its run's median";
+        h.paragraph(state + ".");
+        std::vector<std::vector<std::string>> slow;
+        for (const SlowCell& sc : slow_cells(db, run))
+            slow.push_back({sc.scene, config_label(sc.structure, sc.params), std::to_string(sc.repetition),
+                            fixed(sc.load_1m, 2), "+" + fixed(100 * (sc.calibration_ratio - 1), 0) + "%"});
+        if (!slow.empty())
+            h.table({"scene", "configuration", "repetition", "load (1 min)", "calibration loop vs median"}, slow,
+                    "Cells measured on a slow machine (cell_state.slow)");
 
         std::vector<std::vector<std::string>> rows;
         for (const CostBreakdown& b : cost_breakdown(frames, models))
