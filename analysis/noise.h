@@ -20,7 +20,7 @@ namespace rcb {
 /// One repetition of one cell.
 struct RepeatSample {
     std::string structure;
-    std::string cell;  ///< identifies scene × configuration
+    std::string cell;                      ///< identifies scene × configuration
     double raycast_ns = 0, update_ns = 0;  ///< per frame (the cell's median over frames)
     bool slow = false;                     ///< measured while the calibration loop ran slow
 };

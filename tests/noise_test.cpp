@@ -151,7 +151,8 @@ TEST(NoiseFloor, ADatabaseFromBeforeTheMachineStateMigratesAndItsCellsHaveNoStat
         ResultStore old(db_path, before);
         old.db().exec(
             "INSERT INTO experiment(name) VALUES ('e');"
-            "INSERT INTO run(uuid, experiment_id, experiment_hash, experiment_content, started_at, git_commit, compiler, "
+            "INSERT INTO run(uuid, experiment_id, experiment_hash, experiment_content, started_at, git_commit, "
+            "compiler, "
             "flags, cpu_model, cores, governor, hostname, threads, shard) "
             "VALUES ('u', 1, 'h', '{}', 't', 'g', 'c', 'f', 'cpu', 1, 'gov', 'host', 1, '');"
             "INSERT INTO scene(hash, name, spec, meta, objects, frames, rays_per_frame, stats) "
