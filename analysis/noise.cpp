@@ -26,10 +26,12 @@ std::vector<StructureNoise> repeatability(const std::vector<RepeatSample>& sampl
             std::vector<double> c, u;
             for (const RepeatSample* r : reps) c.push_back(r->raycast_ns), u.push_back(r->update_ns);
             const double mc = spread_of(c).median, mu = spread_of(u).median;
-            for (const RepeatSample* r : reps) {
-                if (mc > 0) cast.push_back(std::abs(r->raycast_ns - mc) / mc);
-                if (mu > 0) update.push_back(std::abs(r->update_ns - mu) / mu);
-            }
+            // Only finite deviations count: a damaged database can hold anything.
+            auto add = [](std::vector<double>& to, double t, double m) {
+                const double d = std::abs(t - m) / m;
+                if (m > 0 && std::isfinite(d)) to.push_back(d);
+            };
+            for (const RepeatSample* r : reps) add(cast, r->raycast_ns, mc), add(update, r->update_ns, mu);
         }
         if (!cast.empty()) n.raycast = spread_of(cast).median;
         if (!update.empty()) n.update = spread_of(update).median;
@@ -72,8 +74,8 @@ NoiseFloor noise_floor(Database& db, std::int64_t run) {
             r.slow = s.int64(5) != 0;
             out.slow += r.slow;
             ++out.with_state;
-            if (s.real(6) >= 0) load.push_back(s.real(6));
-            calibration.push_back(s.real(7));
+            if (s.real(6) >= 0 && std::isfinite(s.real(6))) load.push_back(s.real(6));
+            if (std::isfinite(s.real(7))) calibration.push_back(s.real(7));
         }
         samples.push_back(std::move(r));
     }

@@ -74,11 +74,10 @@ std::vector<nlohmann::json> enumerate_space(const std::vector<SearchDimension>& 
 
 namespace {
 
-/// Coordinate pattern search on the level lattice from `idx` (thesis §7.2 asks for a tuner; this
-/// is the classical compass search of Hooke & Jeeves restricted to neighbouring levels): the
-/// dimensions in a seeded order, each tried one level up and down; a move that improves keeps
-/// going in its direction while it improves. Stops at a point no neighbour improves, or when the
-/// budget runs out (nlopt::forced_stop propagates).
+/// Coordinate (compass) search on the level lattice from `idx`, the exploratory move of Hooke &
+/// Jeeves restricted to neighbouring levels: the dimensions in a seeded order, each tried one level
+/// up and down; a move that improves keeps going in its direction while it improves. Stops at a point no neighbour
+/// improves, or when the budget runs out (nlopt::forced_stop propagates).
 void pattern_search(Budgeted& b, std::vector<int> idx, Random& rng) {
     const std::size_t n = b.dims->size();
     double best = b(idx);
