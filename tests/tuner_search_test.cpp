@@ -2,8 +2,13 @@
 // for five seeds, counts its start point, is deterministic per seed; and Spearman's rank correlation.
 #include <gtest/gtest.h>
 
-#include <cmath>
+#include <unistd.h>
 
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "tuner/run_tuning.h"
 #include "tuner/search.h"
 #include "tuner/tuning.h"
 
@@ -32,7 +37,8 @@ double validate_like_cost(const json& p) {
 
 /// 6 × 5 × 4 × 2 = 240 points, the valley off-centre in every dimension.
 std::vector<SearchDimension> wide_space() {
-    return {{"a", {0.125, 0.25, 0.5, 1.0, 2.0, 4.0}}, {"b", {0, 1, 2, 3, 4}}, {"c", {4, 8, 16, 32}}, {"d", {false, true}}};
+    return {
+        {"a", {0.125, 0.25, 0.5, 1.0, 2.0, 4.0}}, {"b", {0, 1, 2, 3, 4}}, {"c", {4, 8, 16, 32}}, {"d", {false, true}}};
 }
 
 double wide_cost(const json& p) {
@@ -90,6 +96,48 @@ TEST(Spearman, RanksWithTiesAndTheDegenerateCases) {
     EXPECT_NEAR(spearman({1, 2, 2, 3}, {1, 2, 3, 4}), 4.5 / std::sqrt(4.5 * 5.0), 1e-12);
     EXPECT_TRUE(std::isnan(spearman({1, 1, 1}, {1, 2, 3})));
     EXPECT_TRUE(std::isnan(spearman({1}, {1})));
+}
+
+TEST(TunerExhaustiveCheck, ReplaysFiveSeedsOnTheMeasuredSurfaceAndRanksThePrediction) {
+    namespace fs = std::filesystem;
+    const fs::path dir = fs::temp_directory_path() / ("rcb_tuner_exhaustive_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const TuneSpec spec = parse_tune_spec(
+        R"({"name": "ex", "mode": "measured", "structures": ["ug"], "budget": 3, "calibration": 4, "seed": 7,
+            "frames": 3, "rays_per_frame": 200, "repetitions": 1,
+            "space": {"ug": {"density": {"from": 0.25, "to": 16, "times": 2}}},
+            "categories": [{"name": "small", "scenes": [{"kind": "irregular", "objects": 1500}]}]})",
+        "ex.json", ".");
+    TuneOptions o;
+    o.file = (dir / "ex.json").string();
+    o.db = (dir / "t.db").string();
+    o.out_dir = dir.string();
+    o.exhaustive = true;
+    const TuneOutcome out = run_tuning(spec, o);
+    const json j = json::parse(std::ifstream(out.json_path));
+    const json& ex = j["categories"][0]["exhaustive"][0];
+    ASSERT_EQ(ex["surface"].size(), 7u);  // densities 0.25 … 16
+    double optimum = INFINITY;
+    for (const json& e : ex["surface"]) {
+        EXPECT_GT(e["ms"].get<double>(), 0);
+        EXPECT_GT(e["predicted_ms"].get<double>(), 0);
+        optimum = std::min(optimum, e["ms"].get<double>());
+    }
+    EXPECT_DOUBLE_EQ(ex["best_ms"].get<double>(), optimum);
+    const json& seeds = ex["search_on_measured_surface"];
+    ASSERT_EQ(seeds.size(), 5u);
+    for (std::size_t i = 0; i < seeds.size(); ++i) {
+        EXPECT_EQ(seeds[i]["seed"], 7 + i);  // the file's seed and the four after it
+        EXPECT_LE(seeds[i]["evaluations"].get<std::size_t>(), 3u);
+        EXPECT_GE(seeds[i]["gap"].get<double>(), 0.0);
+        EXPECT_NEAR(seeds[i]["gap"].get<double>(), seeds[i]["best_ms"].get<double>() / optimum - 1, 1e-12);
+    }
+    const double rho = ex["prediction_spearman"].get<double>();
+    EXPECT_GE(rho, -1.0);
+    EXPECT_LE(rho, 1.0);
+    EXPECT_FALSE(ex["prediction_model"].get<std::string>().empty());  // calibrated although the mode is measured
+    fs::remove_all(dir);
 }
 
 }  // namespace
