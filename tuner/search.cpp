@@ -76,9 +76,13 @@ namespace {
 
 /// Coordinate (compass) search on the level lattice from `idx`, the exploratory move of Hooke &
 /// Jeeves restricted to neighbouring levels: the dimensions in a seeded order, each tried one level
-/// up and down; a move that improves keeps going in its direction while it improves. Stops at a point no neighbour
-/// improves, or when the budget runs out (nlopt::forced_stop propagates).
-void pattern_search(Budgeted& b, std::vector<int> idx, Random& rng) {
+/// up or down, first in the direction that last improved it (`last_dir`, shared by the restarts of
+/// one search), and a move taken at once. One step per dimension and sweep, so a dimension is
+/// revisited after its neighbours moved: grid parameters interact (a coarser top grid wants a
+/// different depth), and a line walked to its end in one dimension leaves the budget in a side
+/// valley. Stops at a point no neighbour improves, or when the budget runs out
+/// (nlopt::forced_stop propagates).
+void pattern_search(Budgeted& b, std::vector<int> idx, Random& rng, std::vector<int>& last_dir) {
     const std::size_t n = b.dims->size();
     double best = b(idx);
     for (bool improved = true; improved;) {
@@ -88,16 +92,16 @@ void pattern_search(Budgeted& b, std::vector<int> idx, Random& rng) {
         for (std::size_t d = n; d > 1; --d) std::swap(order[d - 1], order[rng.below(d)]);  // Fisher–Yates
         for (std::size_t d : order) {
             const int last = int((*b.dims)[d].levels.size()) - 1;
-            const int first_dir = rng.below(2) ? 1 : -1;
+            const int random_dir = rng.below(2) ? 1 : -1;
+            const int first_dir = last_dir[d] != 0 ? last_dir[d] : random_dir;
             for (int dir : {first_dir, -first_dir}) {
                 std::vector<int> next = idx;
-                bool moved = false;
-                for (next[d] += dir; next[d] >= 0 && next[d] <= last; next[d] += dir) {
-                    const double c = b(next);
-                    if (!(c < best)) break;
-                    best = c, idx = next, moved = improved = true;
-                }
-                if (moved) break;
+                next[d] += dir;
+                if (next[d] < 0 || next[d] > last) continue;
+                const double c = b(next);
+                if (!(c < best)) continue;
+                best = c, idx = next, improved = true, last_dir[d] = dir;
+                break;
             }
         }
     }
@@ -133,6 +137,7 @@ SearchResult search_levels(const std::vector<SearchDimension>& dims,
         std::vector<double> lo(n, 0.0), hi(n);
         for (unsigned d = 0; d < n; ++d) hi[d] = double(dims[d].levels.size() - 1);
         const std::size_t full_budget = b.budget;
+        std::vector<int> last_dir(n, 0);
         auto best_index = [&] {
             auto best = std::min_element(result.evaluations.begin(), result.evaluations.end(),
                                          [](const Evaluation& a, const Evaluation& c) { return a.cost < c.cost; });
@@ -141,7 +146,7 @@ SearchResult search_levels(const std::vector<SearchDimension>& dims,
         try {
             // Local first, from the start point (the defaults, usually a good configuration): on
             // the smooth valleys of grid parameters this reaches the optimum in a few steps.
-            pattern_search(b, index_of(start), rng);
+            pattern_search(b, index_of(start), rng, last_dir);
             // Then, while budget is left, a global look (DIRECT, with half of what is left beyond
             // the points already seen, which it revisits for free) and a local polish from the
             // best point so far; until DIRECT finds nothing new.
@@ -166,7 +171,7 @@ SearchResult search_levels(const std::vector<SearchDimension>& dims,
                 }
                 b.budget = full_budget;
                 b.exhausted = false;
-                pattern_search(b, best_index(), rng);
+                pattern_search(b, best_index(), rng, last_dir);
                 if (b.memo.size() == before) break;  // nothing new anywhere: converged
             }
             if (result.stop_reason.empty()) result.stop_reason = b.memo.size() >= full_budget ? "budget" : "converged";
