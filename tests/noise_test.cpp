@@ -9,6 +9,7 @@
 #include <fstream>
 
 #include "analysis/noise.h"
+#include "analysis/report.h"
 #include "runner/compare.h"
 #include "runner/experiment.h"
 #include "runner/merge.h"
@@ -131,6 +132,17 @@ TEST(NoiseFloor, EveryCellStoresItsStateAndCellsTenPercentSlowAreFlagged) {
         slow_in_compare += c.baseline_slow;
     EXPECT_EQ(slow_in_compare, 1u);
 
+    // The report marks the flagged cell in Table 6.2 and prints the noise floor beside the model.
+    {
+        const std::string html_path = (dir / "r.html").string();
+        write_report(db, out.run, html_path);
+        std::ifstream in(html_path);
+        const std::string html((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        EXPECT_NE(html.find("a repetition was measured on a slow machine"), std::string::npos);
+        EXPECT_NE(html.find(") *</td>"), std::string::npos);
+        EXPECT_NE(html.find("repeatability (ray cast)"), std::string::npos);
+        EXPECT_NE(html.find("1 were measured while the calibration loop ran more than 10%"), std::string::npos);
+    }
     // A merge carries the state and the flags.
     const std::string merged = (dir / "merged.db").string();
     {
