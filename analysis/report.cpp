@@ -17,6 +17,7 @@
 #include "analysis/charts.h"
 #include "analysis/cost_model.h"
 #include "analysis/findings.h"
+#include "analysis/noise.h"
 #include "core/error.h"
 #include "core/generators.h"
 #include "core/output_file.h"
@@ -330,6 +331,8 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
     // Thesis Tables 6.1 and 6.2.
     h.heading("Build and execution (thesis Tables 6.1 and 6.2)");
     {
+        std::set<std::pair<std::string, std::string>> slow;  // (scene, configuration) with a slow repetition
+        for (const SlowCell& sc : slow_cells(db, run)) slow.insert({sc.scene, config_label(sc.structure, sc.params)});
         std::vector<std::string> header{"configuration"};
         header.insert(header.end(), scenes.begin(), scenes.end());
         std::vector<std::vector<std::string>> build, cast, memory;
@@ -338,13 +341,16 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
             for (const std::string& sc : scenes) {
                 const Entry* e = find(sc, l);
                 b.push_back(e ? ms(e->build_ms) : "-");
-                c.push_back(e ? ms(e->raycast_ms) + " (" + ms(e->update_ms) + ")" : "-");
+                c.push_back(e ? ms(e->raycast_ms) + " (" + ms(e->update_ms) + ")" + (slow.count({sc, l}) ? " *" : "")
+                              : "-");
                 m.push_back(e ? fixed(e->memory_per_object, 0) : "-");
             }
             build.push_back(b), cast.push_back(c), memory.push_back(m);
         }
         h.table(header, build, "Build time (ms), Table 6.1");
-        h.table(header, cast, "Ray cast per frame (ms), with update per frame in parentheses, Table 6.2");
+        h.table(header, cast,
+                std::string("Ray cast per frame (ms), with update per frame in parentheses, Table 6.2") +
+                    (slow.empty() ? "" : "; * a repetition was measured on a slow machine (cell_state.slow)"));
         h.table(header, memory, "Memory after the build (bytes per object)");
     }
 
@@ -423,6 +429,7 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
     h.heading("Cost model (thesis eq. 5.4, Table 6.3)");
     const std::vector<FrameObservation> frames = load_observations(db, run);
     const std::vector<StructureModels> models = fit_cost_models(frames);
+    const NoiseFloor noise = noise_floor(db, run);
     {
         Chart c;
         c.title = "Predicted against measured ray-cast cost per ray";
@@ -447,7 +454,9 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
                 lo = std::min(lo, s.x.back()), hi = std::max(hi, s.x.back());
             }
             c.series.push_back(s);
-            errors += (errors.empty() ? "" : ", ") + m.structure + " " + fixed(100 * chosen->heldout_error, 1) + "%";
+            const StructureNoise* n = noise.find(m.structure);
+            errors += (errors.empty() ? "" : ", ") + m.structure + " " + fixed(100 * chosen->heldout_error, 1) + "%" +
+                      (n && std::isfinite(n->raycast) ? " (repeats " + noise_text(n->raycast) + ")" : "");
         }
         if (hi > 0) {
             std::ostringstream ref;
@@ -462,9 +471,41 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
         c.reading =
             "One point per configuration (median over its frames); the solid line is a perfect prediction, the dashed "
             "band ±10%. "
-            "Held-out error (configurations left out of the fit): " +
+            "Held-out error (configurations left out of the fit), with the scatter of repeated measurements of the "
+            "same cell in parentheses: " +
             errors + ".";
         h.chart(c);
+
+        // The noise floor beside the model's error: what the machine cannot repeat, no model can predict.
+        std::vector<std::vector<std::string>> floor;
+        for (const StructureModels& m : models) {
+            const CandidateModel* chosen = m.chosen("raycast");
+            const StructureNoise* n = noise.find(m.structure);
+            floor.push_back({m.structure, chosen ? fixed(100 * chosen->heldout_error, 1) + "%" : "-",
+                             n ? noise_text(n->raycast) : "-", n ? noise_text(n->update) : "-",
+                             n ? std::to_string(n->cells) + " (" + std::to_string(n->repetitions) + ")" : "0",
+                             n ? std::to_string(n->slow) : "0"});
+        }
+        h.table({"structure", "held-out error (ray cast)", "repeatability (ray cast)", "repeatability (update)",
+                 "repeated cells (repetitions)", "slow repetitions"},
+                floor,
+                "Noise floor: median absolute relative deviation of a repeated cell's time per frame from the median "
+                "of its repetitions (needs repetitions >= 2); error above it is the model's");
+        std::string state = std::to_string(noise.with_state) + " of " + std::to_string(noise.cells) +
+                            " cells have the machine's state recorded";
+        if (noise.with_state)
+            state += " (median 1-minute load " + fixed(noise.load_median, 2) + ", median calibration loop " +
+                     fixed(noise.calibration_median_ns / 1e6, 3) + " ms); " + std::to_string(noise.slow) +
+                     " were measured while the calibration loop ran more than 10% above its run's median";
+        h.paragraph(state + ".");
+        // The slow cells are marked "*" in Table 6.2 (a list here would repeat every scene's name).
+        if (noise.slow) {
+            double worst = 0;
+            for (const SlowCell& sc : slow_cells(db, run)) worst = std::max(worst, sc.calibration_ratio);
+            h.paragraph(
+                "Cells measured on a slow machine are marked * in Table 6.2; the slowest calibration loop ran " +
+                fixed(100 * (worst - 1), 0) + "% above its run's median.");
+        }
 
         std::vector<std::vector<std::string>> rows;
         for (const CostBreakdown& b : cost_breakdown(frames, models))

@@ -6,6 +6,7 @@
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "analysis/cost_model.h"
+#include "analysis/noise.h"
 #include "runner/store.h"
 #include "cli/table.h"
 
@@ -97,12 +98,22 @@ void add_fit_command(CLI::App& app) {
                    std::isfinite(b.c_rb) ? fixed(b.c_rb, 3) : "-", std::isfinite(b.c_t) ? fixed(b.c_t, 3) : "-"});
         t.print(std::cout);
 
-        std::cout << "\nHeld-out relative error of the predicted ray-cast time (chosen model; target <= 10%):\n";
-        TextTable e({"structure", "model", "held-out error", "status"});
+        std::cout << "\nHeld-out relative error of the predicted ray-cast time (chosen model; target <= 10%), beside "
+                     "the noise floor: the median absolute relative deviation of a repeated cell's ray-cast time per "
+                     "frame from the median of its repetitions (\"-\": no cell was repeated):\n";
+        const NoiseFloor noise = noise_floor(store.db(), run);
+        TextTable e({"structure", "model", "held-out error", "noise floor", "slow cells", "status"});
         for (const StructureModels& s : models)
-            if (const CandidateModel* m = s.chosen("raycast"))
-                e.add({s.structure, m->name, percent(m->heldout_error), m->fit.status()});
+            if (const CandidateModel* m = s.chosen("raycast")) {
+                const StructureNoise* n = noise.find(s.structure);
+                e.add({s.structure, m->name, percent(m->heldout_error), n ? noise_text(n->raycast) : "-",
+                       n ? std::to_string(n->slow) : "0", m->fit.status()});
+            }
         e.print(std::cout);
+        if (noise.slow)
+            std::cout << noise.slow << " of " << noise.cells
+                      << " cells were measured while the calibration loop ran more than 10% above its run's median "
+                         "(cell_state.slow)\n";
     });
 }
 

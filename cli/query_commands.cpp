@@ -84,12 +84,16 @@ void add_query_commands(CLI::App& app) {
     compare->callback([c] {
         auto db = open_read_only(c->db);
         const std::vector<Comparison> rows = compare_runs(*db, c->baseline, c->candidate, c->metric, c->alpha);
-        TextTable t({"scene", "structure", "params", "metric", "baseline ms", "candidate ms", "ratio", "p", "verdict"});
+        TextTable t({"scene", "structure", "params", "metric", "baseline ms", "candidate ms", "ratio", "p", "verdict",
+                     "slow cells"});
         std::size_t regressions = 0;
         for (const Comparison& r : rows) {
             t.add({r.scene, r.structure, r.params, r.metric, fixed(r.baseline_median / 1e6, 4),
                    fixed(r.candidate_median / 1e6, 4), fixed(r.ratio, 3),
-                   std::isnan(r.p_value) ? "-" : fixed(r.p_value, 4), r.verdict});
+                   std::isnan(r.p_value) ? "-" : fixed(r.p_value, 4), r.verdict,
+                   r.baseline_slow + r.candidate_slow == 0
+                       ? ""
+                       : std::to_string(r.baseline_slow) + "/" + std::to_string(r.candidate_slow)});
             if (c->fail_pct >= 0 && r.verdict == "slower" && (r.ratio - 1) * 100 > c->fail_pct) ++regressions;
         }
         t.print(std::cout);

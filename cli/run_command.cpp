@@ -79,6 +79,7 @@ void print_summary(Database& db, std::int64_t run_id, const Experiment& e) {
     struct Cellsum {
         std::vector<double> cast, update;
         std::int64_t mismatches = 0;
+        std::size_t slow = 0;
     };
     std::map<std::pair<std::string, std::string>, Cellsum> by;  // (config label, scene) → values
     for (const CellSummary& row : cell_summaries(db, run_id)) {
@@ -86,6 +87,7 @@ void print_summary(Database& db, std::int64_t run_id, const Experiment& e) {
         c.cast.push_back(row.raycast_ns_median);
         c.update.push_back(row.update_ns_median);
         c.mismatches += row.mismatches;
+        c.slow += row.slow;
     }
     std::vector<std::string> scenes, labels;
     for (const SceneSpec& sc : e.scenes)
@@ -95,6 +97,7 @@ void print_summary(Database& db, std::int64_t run_id, const Experiment& e) {
     header.insert(header.end(), scenes.begin(), scenes.end());
     TextTable t(header);
     std::int64_t mismatches = 0;
+    std::size_t slow = 0;
     for (const std::string& label : labels) {
         std::vector<std::string> row{label};
         for (const std::string& scene : scenes) {
@@ -104,13 +107,19 @@ void print_summary(Database& db, std::int64_t run_id, const Experiment& e) {
                 continue;
             }
             const Spread c = spread_of(it->second.cast), u = spread_of(it->second.update);
-            row.push_back(fixed(c.median / 1e6, 3) + " (" + fixed(u.median / 1e6, 4) + ")");
+            row.push_back(fixed(c.median / 1e6, 3) + " (" + fixed(u.median / 1e6, 4) + ")" +
+                          (it->second.slow ? " *" : ""));
             mismatches += it->second.mismatches;
+            slow += it->second.slow;
         }
         t.add(row);
     }
     std::cout << "run " << run_id << " of experiment " << e.name << " (medians over frames and repetitions)\n";
     t.print(std::cout);
+    if (slow)
+        std::cout << "* " << slow
+                  << " cells measured while the machine was slow (calibration loop more than 10% above the run's "
+                     "median; cell_state.slow)\n";
     if (mismatches) std::cout << "MISMATCHES against the ground truth: " << mismatches << '\n';
 }
 

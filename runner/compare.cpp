@@ -71,6 +71,7 @@ using Key = std::tuple<std::string, std::string, std::string>;  // scene hash, s
 struct Samples {
     std::string scene_name;
     std::vector<double> raycast, update;
+    std::size_t slow_cells = 0;
 };
 
 std::map<Key, Samples> frames_of(Database& db, const std::vector<std::int64_t>& runs) {
@@ -86,6 +87,18 @@ std::map<Key, Samples> frames_of(Database& db, const std::vector<std::int64_t>& 
         x.scene_name = s.text(1);
         x.raycast.push_back(s.real(4));
         x.update.push_back(s.real(5));
+    }
+    // Databases older than the machine-state migration have no flags.
+    Statement has = db.prepare("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'cell_state'");
+    if (!has.step()) return out;
+    Statement slow = db.prepare(
+        "SELECT scene.hash, config.structure, config.params, count(*) FROM cell "
+        "JOIN cell_state ON cell_state.cell_id = cell.id JOIN scene ON scene.id = cell.scene_id "
+        "JOIN config ON config.id = cell.config_id WHERE cell_state.slow = 1 AND cell.run_id IN (" +
+        ids + ") GROUP BY scene.hash, config.structure, config.params");
+    while (slow.step()) {
+        auto it = out.find({slow.text(0), slow.text(1), slow.text(2)});
+        if (it != out.end()) it->second.slow_cells = std::size_t(slow.int64(3));
     }
     return out;
 }
@@ -123,6 +136,8 @@ std::vector<Comparison> compare_runs(Database& db, const std::string& baseline, 
             c.ratio = c.baseline_median > 0 ? c.candidate_median / c.baseline_median
                                             : std::numeric_limits<double>::quiet_NaN();
             c.p_value = mann_whitney_p(x, y);
+            c.baseline_slow = b.slow_cells;
+            c.candidate_slow = it->second.slow_cells;
             if (x.size() < 5 || y.size() < 5)
                 c.verdict = "too few frames";
             else if (c.p_value < alpha)

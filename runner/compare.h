@@ -21,6 +21,9 @@ struct Comparison {
     double ratio = 0;  ///< candidate / baseline median: above 1 is slower
     double p_value = 0;
     std::string verdict;  ///< "faster", "slower", "same", or "too few frames"
+    /// Cells (repetitions) of each side measured while the machine was slow (cell_state.slow):
+    /// a verdict resting on them may be the machine's, not the code's.
+    std::size_t baseline_slow = 0, candidate_slow = 0;
 };
 
 /// Runs are selected by id ("12") or by git commit prefix ("3fa9c1"); a commit selects every run

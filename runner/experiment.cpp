@@ -393,8 +393,8 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
                                     " repetitions), more than the limit of " + std::to_string(kMaxPlanCells) +
                                     "; split it into several experiment files");
         e.plan.reserve(std::size_t(cells));
-        for (std::size_t s = 0; s < e.scenes.size(); ++s)
-            for (std::uint32_t r = 0; r < e.repetitions; ++r)
+        for (std::uint32_t r = 0; r < e.repetitions; ++r)
+            for (std::size_t s = 0; s < e.scenes.size(); ++s)
                 for (std::size_t c = 0; c < e.configs.size(); ++c) {
                     const json key = {{"scene", e.scenes[s].key},
                                       {"structure", e.configs[c].structure},

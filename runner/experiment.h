@@ -55,8 +55,10 @@ struct Experiment {
     bool verify = true;
     std::vector<SceneSpec> scenes;
     std::vector<ConfigSpec> configs;
-    /// Scene-major; within a scene the repetitions interleave across configurations
-    /// (rep 0 of every config, then rep 1, …), so drift over time does not bias a ratio.
+    /// Repetition-major: repetition r of every cell (scene × configuration, scene by scene) runs
+    /// before repetition r + 1 of any, so the repetitions of one cell are spread over the whole
+    /// run and their spread measures the machine's drift (the noise floor), which then biases no
+    /// ratio. Each scene is loaded once per repetition.
     std::vector<Cell> plan;
 };
 

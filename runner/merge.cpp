@@ -15,6 +15,12 @@ MergeCount merge_into(ResultStore& out, Database& in) {
         s.step();
         return s.int64(0);
     };
+    // An input older than the machine-state migration has no cell_state to copy.
+    bool has_state = false;
+    {
+        Statement s = in.prepare("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'cell_state'");
+        has_state = s.step();
+    }
     Statement runs = in.prepare(
         "SELECT run.id, run.uuid, experiment.name, experiment.description, experiment_hash, experiment_content, "
         "started_at, "
@@ -113,6 +119,14 @@ MergeCount merge_into(ResultStore& out, Database& in) {
                     insert_frame.bind(18, frames.real(16));
                 insert_frame.bind(19, frames.text(17));
                 insert_frame.run();
+            }
+            if (has_state) {
+                Statement state = in.prepare("SELECT load_1m, calibration_ns, slow FROM cell_state WHERE cell_id = ?");
+                state.bind(1, cells.int64(0));
+                if (state.step())
+                    o.prepare("INSERT INTO cell_state(cell_id, load_1m, calibration_ns, slow) VALUES (?,?,?,?)")
+                        .bind_all(cell, state.real(0), state.real(1), state.int64(2))
+                        .run();
             }
             ++count.cells;
         }

@@ -3,6 +3,9 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
 #include <set>
 
 #include "core/error.h"
@@ -24,6 +27,26 @@ std::string config_label(const ConfigSpec& c) {
     for (const auto& [k, v] : c.params.items())
         if (!defaults.contains(k) || defaults[k] != v) changed += (changed.empty() ? "" : ",") + k + "=" + v.dump();
     return changed.empty() ? c.structure : c.structure + " " + changed;
+}
+
+MachineState sample_machine_state() {
+    MachineState m;
+    m.load_1m = -1;
+    if (std::ifstream in("/proc/loadavg"); in) in >> m.load_1m;
+    if (!std::isfinite(m.load_1m)) m.load_1m = -1;
+    std::vector<double> passes;
+    for (int pass = 0; pass < 3; ++pass) {
+        const auto start = std::chrono::steady_clock::now();
+        std::uint64_t x = 0x9e3779b97f4a7c15ULL + std::uint64_t(pass);
+        for (int i = 0; i < 750'000; ++i) x = x * 6364136223846793005ULL + 1442695040888963407ULL;
+        // The result is used, so the chain cannot be folded away.
+        volatile std::uint64_t sink = x;
+        (void)sink;
+        passes.push_back(double(
+            std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start).count()));
+    }
+    m.calibration_ns = spread_of(passes).median;
+    return m;
 }
 
 RunOutcome run_experiment(const Experiment& e, const std::string& source, const RunOptions& options,
@@ -50,7 +73,7 @@ RunOutcome run_experiment(const Experiment& e, const std::string& source, const 
     SimulationOptions sim;
     sim.verify = e.verify;
     sim.warmup_frames = e.warmup_frames;
-    // Cells are scene-major, so each scene is loaded once.
+    // Cells are repetition-major; consecutive cells of a scene share one load.
     std::size_t loaded = SIZE_MAX;
     Recording recording;
     std::string scene_hash;
@@ -62,20 +85,23 @@ RunOutcome run_experiment(const Experiment& e, const std::string& source, const 
         if (progress)
             progress(out.ran, todo, scene.name + "  " + config_label(config) + "  rep " + std::to_string(c.repetition));
         SimulationResult res;
+        MachineState state;
         try {
             if (loaded != c.scene) {
                 recording = load_scene(scene);
                 scene_hash = recording_hash(recording);
                 loaded = c.scene;
             }
+            state = sample_machine_state();
             res = simulate(recording, find_structure(config.structure), config.params, sim);
         } catch (const InputError& err) {
             throw InputError(source + ": scene " + scene.name + ": " + err.what());
         }
         out.mismatches += res.mismatches();
-        store.store_cell(out.run, experiment, c, scene, recording, scene_hash, res);
+        store.store_cell(out.run, experiment, c, scene, recording, scene_hash, res, state);
         ++out.ran;
     }
+    out.slow = store.flag_slow_cells(out.run);
     const std::set<std::string> now_done = store.finished_cells(out.run);
     out.finished = std::all_of(plan.begin(), plan.end(), [&](const Cell& c) { return now_done.count(c.key) != 0; });
     if (out.finished) store.finish_run(out.run);

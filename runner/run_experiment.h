@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "runner/experiment.h"
+#include "runner/store.h"
 
 namespace rcb {
 
@@ -26,8 +27,16 @@ struct RunOutcome {
     std::int64_t run = 0;
     std::size_t planned = 0, done_before = 0, ran = 0;
     std::uint64_t mismatches = 0;
+    std::size_t slow = 0;  ///< cells of the run flagged as measured on a slow machine (store.h)
     bool finished = false;
 };
+
+/// The machine's state now: the 1-minute load average (/proc/loadavg; -1 when unreadable) and
+/// the median time of three passes of a fixed integer loop (about 1 ms each on a 3 GHz core). The
+/// loop is a dependent multiply-add chain, so it measures the core's speed (frequency, a
+/// co-scheduled process) and not memory; timed before each cell to separate the machine's noise
+/// from the cost model's error.
+MachineState sample_machine_state();
 
 /// Called before each cell runs: cells run so far, cells to run, and what runs now.
 using RunProgress = std::function<void(std::size_t ran, std::size_t todo, const std::string& what)>;

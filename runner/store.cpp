@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <ctime>
 #include <filesystem>
@@ -177,6 +178,27 @@ CREATE TABLE tuning_evaluation (
     kind      TEXT NOT NULL,
     PRIMARY KEY (tuning_id, i)
 );
+)sql",
+        // 3 → 4: the machine's state with each cell (the noise floor): the 1-minute load average and
+        // a fixed calibration loop timed just before the cell ran, and whether that loop ran more
+        // than 10% slower than the run's median (the cell was measured on a busy machine). The
+        // cell_summary view gains the three columns (LEFT JOIN: cells of older runs show NULL).
+        R"sql(
+CREATE TABLE cell_state (
+    cell_id        INTEGER PRIMARY KEY REFERENCES cell(id) ON DELETE CASCADE,
+    load_1m        REAL NOT NULL,
+    calibration_ns REAL NOT NULL,
+    slow           INTEGER NOT NULL DEFAULT 0
+);
+DROP VIEW cell_summary;
+CREATE VIEW cell_summary AS
+    SELECT cell.id AS cell_id, run.id AS run_id, run.git_commit, experiment.name AS experiment, scene.name AS scene,
+           config.structure, config.params, cell.repetition, cell.objects, cell.build_ns, cell.memory_bytes,
+           cell.update_ns_median, cell.raycast_ns_median, cell.mismatches,
+           cell_state.load_1m, cell_state.calibration_ns, cell_state.slow
+    FROM cell JOIN run ON run.id = cell.run_id JOIN experiment ON experiment.id = run.experiment_id
+              JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id
+              LEFT JOIN cell_state ON cell_state.cell_id = cell.id;
 )sql",
     };
     return all;
@@ -435,7 +457,8 @@ std::int64_t ResultStore::config_id(const std::string& structure, const nlohmann
 }
 
 bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell, const SceneSpec& spec,
-                             const Recording& r, const std::string& scene_hash, const SimulationResult& res) {
+                             const Recording& r, const std::string& scene_hash, const SimulationResult& res,
+                             const std::optional<MachineState>& state) {
     Transaction t(db_);
     if (cell_done(run_id, cell.key)) return false;  // another runner was first; roll back nothing
     const std::int64_t scene = scene_id(spec, r, scene_hash);
@@ -451,6 +474,10 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
                   std::int64_t(res.mismatches()), std::int64_t(res.frames.size()), u.median, u.mad, c.median, c.mad)
         .run();
     const std::int64_t cell_id = db_.last_insert_id();
+    if (state)
+        db_.prepare("INSERT INTO cell_state(cell_id, load_1m, calibration_ns, slow) VALUES (?,?,?,0)")
+            .bind_all(cell_id, state->load_1m, state->calibration_ns)
+            .run();
     Statement f = db_.prepare(
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, "
         "extra, "
@@ -473,13 +500,34 @@ std::vector<CellSummary> cell_summaries(Database& db, std::int64_t run_id) {
     std::vector<CellSummary> out;
     Statement s = db.prepare(
         "SELECT scene.name, config.structure, config.params, cell.raycast_ns_median, cell.update_ns_median, "
-        "cell.mismatches "
-        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id WHERE cell.run_id "
-        "= ?");
+        "cell.mismatches, coalesce(cell_state.slow, 0) "
+        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id "
+        "LEFT JOIN cell_state ON cell_state.cell_id = cell.id WHERE cell.run_id = ?");
     s.bind(1, run_id);
     while (s.step())
-        out.push_back({s.text(0), s.text(1), nlohmann::json::parse(s.text(2)), s.real(3), s.real(4), s.int64(5)});
+        out.push_back({s.text(0), s.text(1), nlohmann::json::parse(s.text(2)), s.real(3), s.real(4), s.int64(5),
+                       s.int64(6) != 0});
     return out;
+}
+
+std::size_t ResultStore::flag_slow_cells(std::int64_t run_id) {
+    Transaction t(db_);
+    std::vector<double> times;
+    {
+        Statement s = db_.prepare(
+            "SELECT cell_state.calibration_ns FROM cell_state JOIN cell ON cell.id = cell_state.cell_id "
+            "WHERE cell.run_id = ?");
+        s.bind(1, run_id);
+        while (s.step()) times.push_back(s.real(0));
+    }
+    if (times.empty()) return 0;
+    const double limit = (1 + kSlowCalibration) * spread_of(times).median;
+    db_.prepare(
+           "UPDATE cell_state SET slow = (calibration_ns > ?) WHERE cell_id IN (SELECT id FROM cell WHERE run_id = ?)")
+        .bind_all(limit, run_id)
+        .run();
+    t.commit();
+    return std::size_t(std::count_if(times.begin(), times.end(), [&](double x) { return x > limit; }));
 }
 
 void ResultStore::finish_run(std::int64_t run_id) {

@@ -36,6 +36,17 @@ struct RunInfo {
     static RunInfo current(std::uint32_t threads, const std::string& shard, const Experiment& e);
 };
 
+/// The machine's state when a cell started (the noise floor): the 1-minute load average from
+/// /proc/loadavg and the time of a fixed calibration loop (runner/run_experiment.h).
+struct MachineState {
+    double load_1m = 0;
+    double calibration_ns = 0;
+};
+
+/// A cell whose calibration loop ran more than this fraction slower than its run's median was
+/// measured on a busy (or throttled) machine: it is flagged `slow`.
+inline constexpr double kSlowCalibration = 0.10;
+
 class ResultStore {
 public:
     /// Opens for writing: creates the file (and its folder) if needed and migrates it.
@@ -60,8 +71,13 @@ public:
     /// Stores a finished cell with its frames in one transaction. Returns false (and stores nothing)
     /// when another runner stored the same cell of the same run first.
     bool store_cell(std::int64_t run_id, std::int64_t experiment_id, const Cell& cell, const SceneSpec& scene,
-                    const Recording& recording, const std::string& scene_hash, const SimulationResult& result);
+                    const Recording& recording, const std::string& scene_hash, const SimulationResult& result,
+                    const std::optional<MachineState>& state = std::nullopt);
     void finish_run(std::int64_t run_id);
+    /// Sets cell_state.slow for every cell of the run from the run's median calibration time
+    /// (kSlowCalibration); returns how many are flagged. Called after each runner pass, so the
+    /// flags follow the median as a resumed run grows.
+    std::size_t flag_slow_cells(std::int64_t run_id);
 
 private:
     void migrate(int target);
@@ -86,6 +102,7 @@ struct CellSummary {
     nlohmann::json params;
     double raycast_ns_median = 0, update_ns_median = 0;
     std::int64_t mismatches = 0;
+    bool slow = false;  ///< measured while the calibration loop ran slow (cell_state.slow)
 };
 /// The cells of a run.
 std::vector<CellSummary> cell_summaries(Database& db, std::int64_t run_id);

@@ -129,7 +129,7 @@ TEST(TuneSpec, AHugeSearchSpaceIsRefusedBeforeItIsEnumerated) {
     }
 }
 
-TEST(Experiment, PlanInterleavesRepetitionsAcrossConfigurationsWithinAScene) {
+TEST(Experiment, PlanRunsRepetitionROfEveryCellBeforeRepetitionROnePlusOne) {
     const Experiment e = parse_experiment(
         R"({"repetitions": 2, "seeds": [1, 2], "scenes": [{"preset": "uni-s"}, {"kind": "irregular", "objects": [100, 200]}],
             "structures": [{"name": "bf"}]})",
@@ -140,7 +140,10 @@ TEST(Experiment, PlanInterleavesRepetitionsAcrossConfigurationsWithinAScene) {
     EXPECT_EQ(e.plan.size(), 12u);
     EXPECT_EQ(e.plan[0].scene, 0u);
     EXPECT_EQ(e.plan[0].repetition, 0u);
-    EXPECT_EQ(e.plan[1].repetition, 1u);
+    EXPECT_EQ(e.plan[1].scene, 1u);  // the next scene's repetition 0, not this scene's repetition 1
+    EXPECT_EQ(e.plan[1].repetition, 0u);
+    EXPECT_EQ(e.plan[6].scene, 0u);
+    EXPECT_EQ(e.plan[6].repetition, 1u);
     std::set<std::string> keys;
     for (const Cell& c : e.plan) keys.insert(c.key);
     EXPECT_EQ(keys.size(), e.plan.size());  // every cell has its own key

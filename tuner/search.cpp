@@ -7,6 +7,8 @@
 #include <limits>
 #include <map>
 
+#include "core/random.h"
+
 namespace rcb {
 namespace {
 
@@ -70,75 +72,111 @@ std::vector<nlohmann::json> enumerate_space(const std::vector<SearchDimension>& 
     return out;
 }
 
+namespace {
+
+/// Coordinate (compass) search on the level lattice from `idx`, the exploratory move of Hooke &
+/// Jeeves restricted to neighbouring levels: the dimensions in a seeded order, each tried one level
+/// up or down, first in the direction that last improved it (`last_dir`, shared by the restarts of
+/// one search), and a move taken at once. One step per dimension and sweep, so a dimension is
+/// revisited after its neighbours moved: grid parameters interact (a coarser top grid wants a
+/// different depth), and a line walked to its end in one dimension leaves the budget in a side
+/// valley. Stops at a point no neighbour improves, or when the budget runs out
+/// (nlopt::forced_stop propagates).
+void pattern_search(Budgeted& b, std::vector<int> idx, Random& rng, std::vector<int>& last_dir) {
+    const std::size_t n = b.dims->size();
+    double best = b(idx);
+    for (bool improved = true; improved;) {
+        improved = false;
+        std::vector<std::size_t> order(n);
+        for (std::size_t d = 0; d < n; ++d) order[d] = d;
+        for (std::size_t d = n; d > 1; --d) std::swap(order[d - 1], order[rng.below(d)]);  // Fisher–Yates
+        for (std::size_t d : order) {
+            const int last = int((*b.dims)[d].levels.size()) - 1;
+            const int random_dir = rng.below(2) ? 1 : -1;
+            const int first_dir = last_dir[d] != 0 ? last_dir[d] : random_dir;
+            for (int dir : {first_dir, -first_dir}) {
+                std::vector<int> next = idx;
+                next[d] += dir;
+                if (next[d] < 0 || next[d] > last) continue;
+                const double c = b(next);
+                if (!(c < best)) continue;
+                best = c, idx = next, improved = true, last_dir[d] = dir;
+                break;
+            }
+        }
+    }
+}
+
+}  // namespace
+
 SearchResult search_levels(const std::vector<SearchDimension>& dims,
                            const std::function<double(const nlohmann::json&)>& objective, std::size_t budget,
-                           std::uint64_t seed) {
+                           std::uint64_t seed, const nlohmann::json& start) {
     SearchResult result;
     result.space_size = 1;
     for (const SearchDimension& d : dims) result.space_size *= std::max<std::size_t>(1, d.levels.size());
     Budgeted b{&dims, &objective, std::max<std::size_t>(1, budget), {}, &result};
+    auto index_of = [&](const nlohmann::json& p) {
+        std::vector<int> idx;
+        for (const SearchDimension& d : dims) {
+            auto it = p.is_object() && p.contains(d.name) ? std::find(d.levels.begin(), d.levels.end(), p[d.name])
+                                                          : d.levels.end();
+            idx.push_back(it == d.levels.end() ? int(d.levels.size() - 1) / 2 : int(it - d.levels.begin()));
+        }
+        return idx;
+    };
 
     if (result.space_size <= b.budget) {
         result.algorithm = "enumeration";
-        for (const nlohmann::json& p : enumerate_space(dims)) {
-            std::vector<int> idx;
-            for (const SearchDimension& d : dims)
-                idx.push_back(int(std::find(d.levels.begin(), d.levels.end(), p[d.name]) - d.levels.begin()));
-            b(idx);
-        }
+        for (const nlohmann::json& p : enumerate_space(dims)) b(index_of(p));
         result.stop_reason = "enumerated";
     } else {
-        result.algorithm = "NLopt GN_DIRECT_L_RAND, then LN_SBPLX";
+        result.algorithm = "level pattern search, restarted from NLopt GN_DIRECT_L_RAND's best";
+        Random rng(mix_seed(seed, 11));
         const unsigned n = unsigned(dims.size());
         std::vector<double> lo(n, 0.0), hi(n);
         for (unsigned d = 0; d < n; ++d) hi[d] = double(dims[d].levels.size() - 1);
-        nlopt::srand(seed);
-        // Global phase with 70% of the budget.
-        const std::size_t global_budget = std::max<std::size_t>(1, b.budget * 7 / 10);
         const std::size_t full_budget = b.budget;
-        b.budget = global_budget;
-        std::vector<double> x(n);
-        for (unsigned d = 0; d < n; ++d) x[d] = hi[d] / 2;
-        try {
-            nlopt::opt global(nlopt::GN_DIRECT_L_RAND, n);
-            global.set_lower_bounds(lo);
-            global.set_upper_bounds(hi);
-            global.set_min_objective(nlopt_objective, &b);
-            global.set_maxeval(int(50 * full_budget));  // calls, memo hits included
-            double f = 0;
-            const nlopt::result r = global.optimize(x, f);
-            result.stop_reason = r == nlopt::MAXEVAL_REACHED ? "budget" : "converged";
-        } catch (const nlopt::forced_stop&) {
-            result.stop_reason = "budget";
-        } catch (const std::exception& e) {
-            result.stop_reason = std::string("NLopt failed in the global phase: ") + e.what();
-        }
-        // Local polish from the best point found so far, with the rest of the budget.
-        b.budget = full_budget;
-        b.exhausted = false;
-        if (!result.evaluations.empty() && b.memo.size() < full_budget) {
+        std::vector<int> last_dir(n, 0);
+        auto best_index = [&] {
             auto best = std::min_element(result.evaluations.begin(), result.evaluations.end(),
                                          [](const Evaluation& a, const Evaluation& c) { return a.cost < c.cost; });
-            for (unsigned d = 0; d < n; ++d) {
-                const auto& levels = dims[d].levels;
-                x[d] = double(std::find(levels.begin(), levels.end(), best->params[dims[d].name]) - levels.begin());
+            return index_of(best->params);
+        };
+        try {
+            // Local first, from the start point (the defaults, usually a good configuration): on
+            // the smooth valleys of grid parameters this reaches the optimum in a few steps.
+            pattern_search(b, index_of(start), rng, last_dir);
+            // Then, while budget is left, a global look (DIRECT, with half of what is left beyond
+            // the points already seen, which it revisits for free) and a local polish from the
+            // best point so far; until DIRECT finds nothing new.
+            while (b.memo.size() < full_budget) {
+                const std::size_t before = b.memo.size();
+                b.budget = before + std::max<std::size_t>(1, (full_budget - before) / 2);
+                nlopt::srand(seed);
+                std::vector<double> x(n);
+                for (unsigned d = 0; d < n; ++d) x[d] = hi[d] / 2;
+                try {
+                    nlopt::opt global(nlopt::GN_DIRECT_L_RAND, n);
+                    global.set_lower_bounds(lo);
+                    global.set_upper_bounds(hi);
+                    global.set_min_objective(nlopt_objective, &b);
+                    global.set_maxeval(int(50 * full_budget));  // calls, memo hits included
+                    double f = 0;
+                    global.optimize(x, f);
+                } catch (const nlopt::forced_stop&) {
+                } catch (const std::exception& e) {
+                    result.stop_reason = std::string("NLopt failed in the global phase: ") + e.what();
+                    break;
+                }
+                b.budget = full_budget;
+                b.exhausted = false;
+                pattern_search(b, best_index(), rng, last_dir);
+                if (b.memo.size() == before) break;  // nothing new anywhere: converged
             }
-            try {
-                nlopt::opt local(nlopt::LN_SBPLX, n);
-                local.set_lower_bounds(lo);
-                local.set_upper_bounds(hi);
-                local.set_min_objective(nlopt_objective, &b);
-                local.set_initial_step(std::vector<double>(n, 1.0));
-                local.set_xtol_abs(0.49);  // below half a level the point cannot change
-                local.set_maxeval(int(50 * full_budget));
-                double f = 0;
-                local.optimize(x, f);
-                result.stop_reason = b.exhausted ? "budget" : "converged";
-            } catch (const nlopt::forced_stop&) {
-                result.stop_reason = "budget";
-            } catch (const std::exception& e) {
-                result.stop_reason = std::string("NLopt failed in the local phase: ") + e.what();
-            }
+            if (result.stop_reason.empty()) result.stop_reason = b.memo.size() >= full_budget ? "budget" : "converged";
+        } catch (const nlopt::forced_stop&) {
+            result.stop_reason = "budget";
         }
     }
     if (result.evaluations.empty()) return result;

@@ -8,12 +8,15 @@
 /// "continuous and rounded at the end"), and evaluations are memoised, so the budget counts distinct
 /// configurations.
 ///
-/// Algorithm: NLopt's GN_DIRECT_L_RAND (Gablonsky & Kelley's locally-biased DIRECT with randomised
-/// tie-breaking) explores the whole box first: it needs no gradients, is not misled by the
-/// piecewise-constant objective that rounding makes, and suits the 1–4 dimensions of grid
-/// parameters; its randomness comes from the seed. Then LN_SBPLX (Rowan's Subplex, a Nelder–Mead
-/// variant robust to noise) polishes around the best point with what is left of the budget. A
-/// space no larger than the budget is simply enumerated.
+/// Algorithm: a budget far below the space (a tenth of it, say) buys a few dozen measurements, so
+/// the search goes local first: a coordinate pattern search on the level lattice (neighbouring
+/// levels, one dimension at a time in a seeded order) from the start point, the defaults, which
+/// the structures' authors chose to be good. Grid parameters give smooth valleys (thesis §6.2:
+/// cost falls, then rises, with cell size and depth), so this reaches the valley floor in a few
+/// steps. With budget left, NLopt's GN_DIRECT_L_RAND (Gablonsky & Kelley's locally-biased DIRECT
+/// with randomised tie-breaking, seeded) looks at the whole box with half of what remains, and
+/// the pattern search restarts from the best point found; until the budget is spent or neither
+/// finds a new point. A space no larger than the budget is simply enumerated.
 
 #include <cstdint>
 #include <functional>
@@ -44,9 +47,11 @@ struct SearchResult {
 };
 
 /// `objective(params)` returns the cost to minimise (NaN or ∞ counts as failed and is avoided).
+/// `start` (searched parameters at their levels; a missing or unknown level: the middle one) is
+/// evaluated first and counts against the budget.
 SearchResult search_levels(const std::vector<SearchDimension>& dims,
                            const std::function<double(const nlohmann::json&)>& objective, std::size_t budget,
-                           std::uint64_t seed);
+                           std::uint64_t seed, const nlohmann::json& start = nlohmann::json());
 
 /// Every configuration of the space (for exhaustive comparisons).
 std::vector<nlohmann::json> enumerate_space(const std::vector<SearchDimension>& dims);

@@ -290,6 +290,96 @@ MeasuredCost measure(const TuneCategory& category, const std::string& structure,
     return summarise(run_simulations(category, structure, params, o, repetitions), category.scenes.size());
 }
 
+Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category, const std::string& structure) {
+    Predictor out;
+    const std::vector<SearchDimension>& dims = spec.space.at(structure);
+    json defaults_searched = json::object();
+    for (const SearchDimension& d : dims) defaults_searched[d.name] = find_structure(structure).defaults()[d.name];
+    // Calibrate eq. 5.4 on the defaults plus seeded random points of the space, measured.
+    std::vector<FrameObservation> frames;
+    Random rng(mix_seed(spec.seed, 7));
+    std::vector<json> points{defaults_searched};
+    const std::vector<json> all = enumerate_space(dims);
+    for (std::size_t k = 0; points.size() < std::min(spec.calibration, all.size()) && k < 100 * spec.calibration; ++k) {
+        const json& p = all[rng.below(all.size())];
+        if (std::find(points.begin(), points.end(), p) == points.end()) points.push_back(p);
+    }
+    SimulationOptions calibrate;
+    calibrate.verify = false;
+    calibrate.warmup_frames = spec.warmup_frames;
+    int group = 0;
+    for (const json& p : points) {
+        const json params = complete(structure, p);
+        const auto runs = run_simulations(category, structure, params, calibrate, 1);
+        for (std::size_t s = 0; s < runs.size(); ++s)
+            add_observations(runs[s], category.scenes[s].name, category_of(category.scenes[s]), group * 100 + int(s),
+                             frames);
+        ++group;
+        ++out.measurements;
+    }
+    const std::vector<StructureModels> models = fit_cost_models(frames);
+    const CandidateModel* model = models.empty() ? nullptr : models.front().chosen("raycast");
+    if (!model)
+        throw std::runtime_error("tune: the calibration of " + structure + " on " + category.name +
+                                 " gave no cost model");
+    out.model = model->name + " (held-out error " + std::to_string(int(std::lround(100 * model->heldout_error))) +
+                "%, " + model->fit.status() + ")";
+    auto coefficient = [&](const char* name) {
+        for (const Coefficient& c : model->fit.coefficients)
+            if (c.name.rfind(name, 0) == 0 && (c.name.size() == std::strlen(name) || c.name[std::strlen(name)] == '['))
+                return c.value;
+        return 0.0;
+    };
+    const double c_rb = coefficient("C_RB"), c_t = coefficient("C_T"), c_prep = coefficient("C_PREP"),
+                 c_mem = coefficient("C_MEM");
+    SimulationOptions replay;
+    replay.verify = false;
+    replay.timed_cast = false;
+    replay.warmup_frames = spec.warmup_frames;
+    out.predict = [c_rb, c_t, c_prep, c_mem, replay, structure, cat = &category](const json& p) {
+        const auto runs = run_simulations(*cat, structure, complete(structure, p), replay, 1);
+        double total = 0;
+        for (const SimulationResult& r : runs) {
+            std::vector<double> frame_ms;
+            for (const FrameResult& f : r.frames) {
+                if (f.warmup || f.rays == 0) continue;
+                const double per_ray = c_rb * double(f.counters.n_rb) / f.rays + c_t * double(f.counters.n_t) / f.rays +
+                                       c_prep + c_mem * double(f.memory_bytes) / (1024.0 * 1024.0);
+                frame_ms.push_back((double(f.update_ns) + f.rays * per_ray) / 1e6);
+            }
+            total += spread_of(frame_ms).median;
+        }
+        return total / double(runs.size());
+    };
+    return out;
+}
+
+double spearman(const std::vector<double>& a, const std::vector<double>& b) {
+    if (a.size() != b.size() || a.size() < 2) return NAN;
+    auto ranks = [](const std::vector<double>& v) {
+        std::vector<std::size_t> order(v.size());
+        for (std::size_t i = 0; i < v.size(); ++i) order[i] = i;
+        std::sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return v[x] < v[y]; });
+        std::vector<double> r(v.size());
+        for (std::size_t i = 0; i < order.size();) {
+            std::size_t j = i;
+            while (j + 1 < order.size() && v[order[j + 1]] == v[order[i]]) ++j;
+            for (std::size_t k = i; k <= j; ++k) r[order[k]] = (double(i) + double(j)) / 2 + 1;  // ties: mean rank
+            i = j + 1;
+        }
+        return r;
+    };
+    const std::vector<double> ra = ranks(a), rb = ranks(b);
+    const double n = double(a.size()), mean = (n + 1) / 2;
+    double sab = 0, saa = 0, sbb = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        sab += (ra[i] - mean) * (rb[i] - mean);
+        saa += (ra[i] - mean) * (ra[i] - mean);
+        sbb += (rb[i] - mean) * (rb[i] - mean);
+    }
+    return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : NAN;
+}
+
 CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category) {
     CategoryTuning out;
     out.category = category.name;
@@ -318,70 +408,18 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
         measure_candidate(defaults_searched, true);
 
         if (spec.mode == "measured") {
+            // The defaults start the search and are measured already: every measurement is one of
+            // the budget's evaluations.
             st.search = search_levels(
-                dims, [&](const json& p) { return measure_candidate(p, false).measured->ms; }, spec.budget, spec.seed);
+                dims, [&](const json& p) { return measure_candidate(p, false).measured->ms; }, spec.budget, spec.seed,
+                defaults_searched);
         } else {
-            // Calibrate eq. 5.4 on the defaults plus random points of the space, measured.
-            std::vector<FrameObservation> frames;
-            Random rng(mix_seed(spec.seed, 7));
-            std::vector<json> points{defaults_searched};
-            const std::vector<json> all = enumerate_space(dims);
-            for (std::size_t k = 0;
-                 points.size() < std::min(spec.calibration, all.size()) && k < 100 * spec.calibration; ++k) {
-                const json& p = all[rng.below(all.size())];
-                if (std::find(points.begin(), points.end(), p) == points.end()) points.push_back(p);
-            }
-            SimulationOptions calibrate;
-            calibrate.verify = false;
-            calibrate.warmup_frames = spec.warmup_frames;
-            int group = 0;
-            for (const json& p : points) {
-                const json params = complete(structure, p);
-                const auto runs = run_simulations(category, structure, params, calibrate, 1);
-                for (std::size_t s = 0; s < runs.size(); ++s)
-                    add_observations(runs[s], category.scenes[s].name, category_of(category.scenes[s]),
-                                     group * 100 + int(s), frames);
-                ++group;
-                ++st.measurements;
-            }
-            const std::vector<StructureModels> models = fit_cost_models(frames);
-            const CandidateModel* model = models.empty() ? nullptr : models.front().chosen("raycast");
-            if (!model)
-                throw std::runtime_error("tune: the calibration of " + structure + " on " + category.name +
-                                         " gave no cost model");
-            st.prediction_model = model->name + " (held-out error " +
-                                  std::to_string(int(std::lround(100 * model->heldout_error))) + "%, " +
-                                  model->fit.status() + ")";
-            auto coefficient = [&](const char* name) {
-                for (const Coefficient& c : model->fit.coefficients)
-                    if (c.name.rfind(name, 0) == 0 &&
-                        (c.name.size() == std::strlen(name) || c.name[std::strlen(name)] == '['))
-                        return c.value;
-                return 0.0;
-            };
-            const double c_rb = coefficient("C_RB"), c_t = coefficient("C_T"), c_prep = coefficient("C_PREP"),
-                         c_mem = coefficient("C_MEM");
-            SimulationOptions replay;
-            replay.verify = false;
-            replay.timed_cast = false;
-            replay.warmup_frames = spec.warmup_frames;
-            auto predict = [&](const json& p) {
-                const auto runs = run_simulations(category, structure, complete(structure, p), replay, 1);
-                double total = 0;
-                for (const SimulationResult& r : runs) {
-                    std::vector<double> frame_ms;
-                    for (const FrameResult& f : r.frames) {
-                        if (f.warmup || f.rays == 0) continue;
-                        const double per_ray = c_rb * double(f.counters.n_rb) / f.rays +
-                                               c_t * double(f.counters.n_t) / f.rays + c_prep +
-                                               c_mem * double(f.memory_bytes) / (1024.0 * 1024.0);
-                        frame_ms.push_back((double(f.update_ns) + f.rays * per_ray) / 1e6);
-                    }
-                    total += spread_of(frame_ms).median;
-                }
-                return total / double(runs.size());
-            };
-            st.search = search_levels(dims, predict, spec.budget, spec.seed);
+            Predictor predictor = calibrate_predictor(spec, category, structure);
+            st.measurements += predictor.measurements;
+            st.prediction_model = predictor.model;
+            st.predict = predictor.predict;
+            const auto& predict = predictor.predict;
+            st.search = search_levels(dims, predict, spec.budget, spec.seed, defaults_searched);
             // Verify: measure the best predicted candidates (the defaults are measured already).
             std::vector<std::size_t> order(st.search.evaluations.size());
             for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;

@@ -16,6 +16,7 @@
 /// other structures, then less memory (fewer cells). The report says when that rule decided.
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -75,9 +76,10 @@ struct StructureTuning {
     std::string structure;
     std::string mode;
     SearchResult search;
-    std::vector<Candidate> candidates;  ///< measured ones (defaults included)
-    std::size_t best_candidate = 0;     ///< lowest measured cost
-    std::string prediction_model;       ///< the calibration's chosen model, for predicted modes
+    std::vector<Candidate> candidates;                     ///< measured ones (defaults included)
+    std::size_t best_candidate = 0;                        ///< lowest measured cost
+    std::string prediction_model;                          ///< the calibration's chosen model, for predicted modes
+    std::function<double(const nlohmann::json&)> predict;  ///< predicted modes: the model's cost of searched params
     double seconds = 0;
     std::size_t measurements = 0;  ///< simulator runs of the measured kind
 };
@@ -90,12 +92,30 @@ struct CategoryTuning {
     std::string rule_note;  ///< empty, or why the simplicity rule chose another
 };
 
-/// Measures one configuration on a category (median over scenes of the per-frame totals).
 /// The scene, generated or read once per process and reused by every evaluation.
 const Recording& recording_of(const SceneSpec& scene);
 
+/// Measures one configuration on a category: per scene the median per-frame total (update + ray
+/// cast, eq. 5.5) over frames × repetitions, then the mean over the category's scenes. The mean,
+/// not the median, because the cost to minimise is the time spent on the category: a setting that
+/// is slow on one scene of three costs that time, and a median over scenes would ignore it.
 MeasuredCost measure(const TuneCategory& category, const std::string& structure, const nlohmann::json& params,
                      std::uint32_t warmup_frames, std::uint32_t repetitions);
+
+/// The predicted mode's cost: eq. 5.4 fitted to `spec.calibration` measured points (the defaults
+/// and seeded random points of the space), applied to the counters of an untimed replay, plus the
+/// replay's update time; ms per frame, mean over the category's scenes. `predict` refers to
+/// `category`, which must outlive it.
+struct Predictor {
+    std::function<double(const nlohmann::json&)> predict;  ///< searched parameters → ms per frame
+    std::string model;                                     ///< the chosen model and its held-out error
+    std::size_t measurements = 0;                          ///< measured calibration points
+};
+Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category, const std::string& structure);
+
+/// Spearman's rank correlation (ties get their mean rank); NaN for fewer than two pairs or a
+/// constant side.
+double spearman(const std::vector<double>& a, const std::vector<double>& b);
 
 /// Tunes every structure of the spec on one category.
 CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category);

@@ -1,0 +1,122 @@
+#include "analysis/noise.h"
+
+#include <cmath>
+#include <map>
+
+#include "core/number_text.h"
+#include "core/simulator.h"
+#include "runner/store.h"
+
+namespace rcb {
+
+std::vector<StructureNoise> repeatability(const std::vector<RepeatSample>& samples) {
+    // structure → cell → repetitions
+    std::map<std::string, std::map<std::string, std::vector<const RepeatSample*>>> by;
+    for (const RepeatSample& s : samples) by[s.structure][s.cell].push_back(&s);
+    std::vector<StructureNoise> out;
+    for (const auto& [structure, cells] : by) {
+        StructureNoise n;
+        n.structure = structure;
+        std::vector<double> cast, update;
+        for (const auto& [cell, reps] : cells) {
+            for (const RepeatSample* r : reps) n.slow += r->slow;
+            if (reps.size() < 2) continue;
+            ++n.cells;
+            n.repetitions += reps.size();
+            std::vector<double> c, u;
+            for (const RepeatSample* r : reps) c.push_back(r->raycast_ns), u.push_back(r->update_ns);
+            const double mc = spread_of(c).median, mu = spread_of(u).median;
+            // Only finite deviations count: a damaged database can hold anything.
+            auto add = [](std::vector<double>& to, double t, double m) {
+                const double d = std::abs(t - m) / m;
+                if (m > 0 && std::isfinite(d)) to.push_back(d);
+            };
+            for (const RepeatSample* r : reps) add(cast, r->raycast_ns, mc), add(update, r->update_ns, mu);
+        }
+        if (!cast.empty()) n.raycast = spread_of(cast).median;
+        if (!update.empty()) n.update = spread_of(update).median;
+        out.push_back(n);
+    }
+    return out;
+}
+
+const StructureNoise* NoiseFloor::find(const std::string& structure) const {
+    for (const StructureNoise& s : structures)
+        if (s.structure == structure) return &s;
+    return nullptr;
+}
+
+NoiseFloor noise_floor(Database& db, std::int64_t run) {
+    bool has_state = false;
+    {
+        Statement s = db.prepare("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'cell_state'");
+        has_state = s.step();
+    }
+    Statement s = db.prepare(
+        std::string("SELECT config.structure, cell.scene_id, cell.config_id, cell.raycast_ns_median, "
+                    "cell.update_ns_median, ") +
+        (has_state ? "cell_state.slow, cell_state.load_1m, cell_state.calibration_ns " : "NULL, NULL, NULL ") +
+        "FROM cell JOIN config ON config.id = cell.config_id " +
+        (has_state ? "LEFT JOIN cell_state ON cell_state.cell_id = cell.id " : "") + "WHERE cell.run_id IN " +
+        kRunGroupSql);
+    s.bind_all(run, run);
+    NoiseFloor out;
+    std::vector<RepeatSample> samples;
+    std::vector<double> load, calibration;
+    while (s.step()) {
+        RepeatSample r;
+        r.structure = s.text(0);
+        r.cell = std::to_string(s.int64(1)) + ":" + std::to_string(s.int64(2));
+        r.raycast_ns = s.real(3);
+        r.update_ns = s.real(4);
+        ++out.cells;
+        if (!s.is_null(5)) {
+            r.slow = s.int64(5) != 0;
+            out.slow += r.slow;
+            ++out.with_state;
+            if (s.real(6) >= 0 && std::isfinite(s.real(6))) load.push_back(s.real(6));
+            if (std::isfinite(s.real(7))) calibration.push_back(s.real(7));
+        }
+        samples.push_back(std::move(r));
+    }
+    out.structures = repeatability(samples);
+    if (!load.empty()) out.load_median = spread_of(load).median;
+    if (!calibration.empty()) out.calibration_median_ns = spread_of(calibration).median;
+    return out;
+}
+
+std::vector<SlowCell> slow_cells(Database& db, std::int64_t run) {
+    std::vector<SlowCell> out;
+    {
+        Statement has = db.prepare("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'cell_state'");
+        if (!has.step()) return out;
+    }
+    // The ratio is against the median of the cell's own run (each shard has its own machine).
+    std::map<std::int64_t, double> medians;
+    {
+        Statement s = db.prepare(
+            "SELECT cell.run_id, cell_state.calibration_ns FROM cell JOIN cell_state ON cell_state.cell_id = cell.id "
+            "WHERE cell.run_id IN " +
+            std::string(kRunGroupSql));
+        s.bind_all(run, run);
+        std::map<std::int64_t, std::vector<double>> times;
+        while (s.step()) times[s.int64(0)].push_back(s.real(1));
+        for (auto& [r, t] : times) medians[r] = spread_of(t).median;
+    }
+    Statement s = db.prepare(
+        "SELECT scene.name, config.structure, config.params, cell.repetition, cell_state.load_1m, "
+        "cell_state.calibration_ns, cell.run_id FROM cell JOIN cell_state ON cell_state.cell_id = cell.id "
+        "JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id "
+        "WHERE cell_state.slow = 1 AND cell.run_id IN " +
+        std::string(kRunGroupSql) + " ORDER BY cell.id");
+    s.bind_all(run, run);
+    while (s.step()) {
+        const double median = medians[s.int64(6)];
+        out.push_back({s.text(0), s.text(1), s.text(2), s.int64(3), s.real(4), median > 0 ? s.real(5) / median : NAN});
+    }
+    return out;
+}
+
+std::string noise_text(double deviation) { return std::isfinite(deviation) ? fixed(100 * deviation, 1) + "%" : "-"; }
+
+}  // namespace rcb

@@ -1,0 +1,67 @@
+#pragma once
+/// The noise floor of a run: how well the machine repeats the same measurement, to set beside the
+/// cost model's held-out error (thesis §5.1 fits eq. 5.4 to measured times; an error no larger
+/// than the machine's own scatter cannot be blamed on the model).
+///
+/// Repeatability of a structure: for every cell (scene × configuration) measured in two or more
+/// repetitions, each repetition's time per frame (the cell's median over its frames) is compared
+/// with the median of the cell's repetitions; the median of |t − median| / median over all those
+/// repetitions is the structure's median absolute relative deviation.
+
+#include <cmath>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "runner/sqlite.h"
+
+namespace rcb {
+
+/// One repetition of one cell.
+struct RepeatSample {
+    std::string structure;
+    std::string cell;                      ///< identifies scene × configuration
+    double raycast_ns = 0, update_ns = 0;  ///< per frame (the cell's median over frames)
+    bool slow = false;                     ///< measured while the calibration loop ran slow
+};
+
+struct StructureNoise {
+    std::string structure;
+    std::size_t cells = 0;        ///< cells with at least two repetitions
+    std::size_t repetitions = 0;  ///< repetitions of those cells
+    double raycast = NAN;         ///< median absolute relative deviation of ray-cast time per frame
+    double update = NAN;          ///< the same of update time per frame (NaN when no update time)
+    std::size_t slow = 0;         ///< repetitions (of any cell) flagged slow
+};
+
+/// Per structure, in name order; a structure with no repeated cell has NaN deviations.
+std::vector<StructureNoise> repeatability(const std::vector<RepeatSample>& samples);
+
+struct NoiseFloor {
+    std::vector<StructureNoise> structures;
+    std::size_t cells = 0, slow = 0;     ///< stored cells, and those flagged slow
+    std::size_t with_state = 0;          ///< cells with a recorded machine state
+    double load_median = NAN;            ///< median 1-minute load average over the cells
+    double calibration_median_ns = NAN;  ///< median calibration-loop time
+    /// The structure's entry, or nullptr.
+    const StructureNoise* find(const std::string& structure) const;
+};
+
+/// The noise floor of run `run` (with its sibling shards, as the fit sees them). A database from
+/// before the machine state was recorded gives repeatability only.
+NoiseFloor noise_floor(Database& db, std::int64_t run);
+
+/// A cell measured while the machine was slow.
+struct SlowCell {
+    std::string scene, structure, params;
+    std::int64_t repetition = 0;
+    double load_1m = 0;
+    double calibration_ratio = 0;  ///< its calibration time over the run's median
+};
+/// The run's (and its sibling shards') cells flagged slow, in the order measured.
+std::vector<SlowCell> slow_cells(Database& db, std::int64_t run);
+
+/// "2.3%", or "-" when there is no repeated cell.
+std::string noise_text(double deviation);
+
+}  // namespace rcb

@@ -1,0 +1,144 @@
+// The tuner's search at a tenth of the space: it reaches the exact optimum of known cost surfaces
+// for five seeds, counts its start point, is deterministic per seed; and Spearman's rank correlation.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "tuner/run_tuning.h"
+#include "tuner/search.h"
+#include "tuner/tuning.h"
+
+namespace rcb {
+namespace {
+
+using json = nlohmann::json;
+
+/// Shaped like experiments/tune-validate.json's HG space (4 × 4 × 3 × 2 = 96): a valley in
+/// (amp, depth) with a mild interaction, capacity with a shallow optimum inside its range, and
+/// a choice that matters a little. The defaults (the start) are two levels from the optimum.
+std::vector<SearchDimension> validate_like_space() {
+    return {{"amp", {0.25, 0.5, 1.0, 2.0}},
+            {"max_depth", {0, 1, 2, 3}},
+            {"max_capacity", {8, 16, 32}},
+            {"subdivision", {2, 3}}};
+}
+
+double validate_like_cost(const json& p) {
+    const double amp = std::log2(p["amp"].get<double>()), depth = p["max_depth"].get<double>();
+    const double capacity = std::log2(p["max_capacity"].get<double>());
+    const double sub = p["subdivision"].get<double>();
+    return 1.0 + 0.12 * (amp + 0.9) * (amp + 0.9) + 0.08 * (depth - 1.8) * (depth - 1.8) +
+           0.03 * (amp + 0.9) * (depth - 1.8) + 0.02 * std::abs(capacity - 4.2) + 0.01 * (sub == 2 ? 1 : 0);
+}
+
+/// 6 × 5 × 4 × 2 = 240 points, the valley off-centre in every dimension.
+std::vector<SearchDimension> wide_space() {
+    return {
+        {"a", {0.125, 0.25, 0.5, 1.0, 2.0, 4.0}}, {"b", {0, 1, 2, 3, 4}}, {"c", {4, 8, 16, 32}}, {"d", {false, true}}};
+}
+
+double wide_cost(const json& p) {
+    const double a = std::log2(p["a"].get<double>()), b = p["b"].get<double>(), c = std::log2(p["c"].get<double>());
+    return 2.0 + 0.1 * (a - 1.3) * (a - 1.3) + 0.15 * (b - 0.6) * (b - 0.6) + 0.05 * std::abs(c - 2.1) +
+           0.02 * (a - 1.3) * (b - 0.6) + (p["d"].get<bool>() ? 0.0 : 0.03);
+}
+
+void expect_optimum_within_a_tenth(const std::vector<SearchDimension>& dims,
+                                   const std::function<double(const json&)>& cost, const json& start) {
+    const std::vector<json> all = enumerate_space(dims);
+    double optimum = INFINITY;
+    for (const json& p : all) optimum = std::min(optimum, cost(p));
+    const std::size_t budget = all.size() / 10;
+    for (std::uint64_t seed = 1; seed <= 5; ++seed) {
+        std::size_t calls = 0;
+        const SearchResult r = search_levels(
+            dims, [&](const json& p) { return ++calls, cost(p); }, budget, seed, start);
+        EXPECT_LE(r.evaluations.size(), budget) << "seed " << seed;
+        EXPECT_EQ(calls, r.evaluations.size()) << "seed " << seed;  // memoised
+        ASSERT_FALSE(r.evaluations.empty());
+        EXPECT_EQ(r.evaluations.front().params, start) << "seed " << seed;  // the start is evaluated first
+        EXPECT_DOUBLE_EQ(r.evaluations[r.best].cost, optimum) << "seed " << seed;
+        // The same seed gives the same evaluations.
+        const SearchResult again = search_levels(dims, cost, budget, seed, start);
+        ASSERT_EQ(again.evaluations.size(), r.evaluations.size());
+        for (std::size_t i = 0; i < r.evaluations.size(); ++i)
+            EXPECT_EQ(again.evaluations[i].params, r.evaluations[i].params) << "seed " << seed << " evaluation " << i;
+    }
+}
+
+TEST(TunerSearchBudget, FindsTheOptimumOfAValidateLikeSpaceWithATenthOfItsPointsForFiveSeeds) {
+    expect_optimum_within_a_tenth(validate_like_space(), validate_like_cost,
+                                  {{"amp", 1.0}, {"max_depth", 3}, {"max_capacity", 16}, {"subdivision", 2}});
+}
+
+TEST(TunerSearchBudget, FindsTheOptimumOfAWiderSpaceWithATenthOfItsPointsForFiveSeeds) {
+    expect_optimum_within_a_tenth(wide_space(), wide_cost, {{"a", 0.5}, {"b", 2}, {"c", 8}, {"d", false}});
+}
+
+TEST(TunerSearchBudget, WithoutAStartTheMiddleLevelsStart) {
+    const SearchResult r = search_levels(validate_like_space(), validate_like_cost, 9, 1);
+    ASSERT_FALSE(r.evaluations.empty());
+    EXPECT_EQ(r.evaluations.front().params,
+              (json{{"amp", 0.5}, {"max_depth", 1}, {"max_capacity", 16}, {"subdivision", 2}}));
+}
+
+TEST(Spearman, RanksWithTiesAndTheDegenerateCases) {
+    EXPECT_DOUBLE_EQ(spearman({1, 2, 3, 4}, {10, 20, 30, 40}), 1.0);
+    EXPECT_DOUBLE_EQ(spearman({1, 2, 3, 4}, {4, 3, 2, 1}), -1.0);
+    EXPECT_DOUBLE_EQ(spearman({1, 2, 3, 4, 5}, {1, 4, 9, 16, 25}), 1.0);  // monotone, not linear
+    // Textbook: ranks (1,2,3,4,5) against (2,1,4,3,5): 1 − 6·Σd²/(n(n²−1)) = 1 − 6·4/120 = 0.8.
+    EXPECT_NEAR(spearman({1, 2, 3, 4, 5}, {2, 1, 4, 3, 5}), 0.8, 1e-12);
+    // Ties take their mean rank: (1, 2.5, 2.5, 4) against (1, 2, 3, 4).
+    EXPECT_NEAR(spearman({1, 2, 2, 3}, {1, 2, 3, 4}), 4.5 / std::sqrt(4.5 * 5.0), 1e-12);
+    EXPECT_TRUE(std::isnan(spearman({1, 1, 1}, {1, 2, 3})));
+    EXPECT_TRUE(std::isnan(spearman({1}, {1})));
+}
+
+TEST(TunerExhaustiveCheck, ReplaysFiveSeedsOnTheMeasuredSurfaceAndRanksThePrediction) {
+    namespace fs = std::filesystem;
+    const fs::path dir = fs::temp_directory_path() / ("rcb_tuner_exhaustive_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const TuneSpec spec = parse_tune_spec(
+        R"({"name": "ex", "mode": "measured", "structures": ["ug"], "budget": 3, "calibration": 4, "seed": 7,
+            "frames": 3, "rays_per_frame": 200, "repetitions": 1,
+            "space": {"ug": {"density": {"from": 0.25, "to": 16, "times": 2}}},
+            "categories": [{"name": "small", "scenes": [{"kind": "irregular", "objects": 1500}]}]})",
+        "ex.json", ".");
+    TuneOptions o;
+    o.file = (dir / "ex.json").string();
+    o.db = (dir / "t.db").string();
+    o.out_dir = dir.string();
+    o.exhaustive = true;
+    const TuneOutcome out = run_tuning(spec, o);
+    const json j = json::parse(std::ifstream(out.json_path));
+    const json& ex = j["categories"][0]["exhaustive"][0];
+    ASSERT_EQ(ex["surface"].size(), 7u);  // densities 0.25 … 16
+    double optimum = INFINITY;
+    for (const json& e : ex["surface"]) {
+        EXPECT_GT(e["ms"].get<double>(), 0);
+        EXPECT_GT(e["predicted_ms"].get<double>(), 0);
+        optimum = std::min(optimum, e["ms"].get<double>());
+    }
+    EXPECT_DOUBLE_EQ(ex["best_ms"].get<double>(), optimum);
+    const json& seeds = ex["search_on_measured_surface"];
+    ASSERT_EQ(seeds.size(), 5u);
+    for (std::size_t i = 0; i < seeds.size(); ++i) {
+        EXPECT_EQ(seeds[i]["seed"], 7 + i);  // the file's seed and the four after it
+        EXPECT_LE(seeds[i]["evaluations"].get<std::size_t>(), 3u);
+        EXPECT_GE(seeds[i]["gap"].get<double>(), 0.0);
+        EXPECT_NEAR(seeds[i]["gap"].get<double>(), seeds[i]["best_ms"].get<double>() / optimum - 1, 1e-12);
+    }
+    const double rho = ex["prediction_spearman"].get<double>();
+    EXPECT_GE(rho, -1.0);
+    EXPECT_LE(rho, 1.0);
+    EXPECT_FALSE(ex["prediction_model"].get<std::string>().empty());  // calibrated although the mode is measured
+    fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rcb
