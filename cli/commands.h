@@ -19,5 +19,6 @@ void add_fit_command(CLI::App& app);
 void add_report_command(CLI::App& app);
 void add_tune_command(CLI::App& app);
 void add_advise_command(CLI::App& app);
+void add_categories_command(CLI::App& app);
 
 }  // namespace rcb
