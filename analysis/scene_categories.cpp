@@ -24,9 +24,9 @@ FeatureValues FeatureScaling::standardize(const FeatureValues& x) const {
 
 namespace {
 
-constexpr double kNoStructure = 0.25;    // mean silhouette below this: one category
-constexpr double kDistinctive = 0.5;     // |z| of a centroid that names a category
-constexpr std::size_t kRestarts = 10;    // k-means++ starts per k
+constexpr double kNoStructure = 0.25;  // mean silhouette below this: one category
+constexpr double kDistinctive = 0.5;   // |z| of a centroid that names a category
+constexpr std::size_t kRestarts = 10;  // k-means++ starts per k
 constexpr std::size_t kMaxIterations = 100;
 
 /// The smallest difference of each feature that means another kind of scene rather than another
@@ -202,8 +202,11 @@ std::string derived_name(const DerivedCategory& c, std::size_t words) {
     std::stable_sort(order.begin(), order.end(),
                      [&](std::size_t a, std::size_t b) { return std::abs(c.z[a]) > std::abs(c.z[b]); });
     std::string name = c.nearest_fixed.empty() ? "scenes" : c.nearest_fixed;
-    for (std::size_t i = 0; i < words && std::abs(c.z[order[i]]) >= kDistinctive; ++i)
-        name += std::string("-") + (c.z[order[i]] < 0 ? feature_words()[order[i]].first : feature_words()[order[i]].second);
+    // With several categories the most distinctive feature always names one (a category in the
+    // middle of the others has small z-scores but still differs); further ones only when |z| ≥ 0.5.
+    for (std::size_t i = 0; i < words && (i == 0 || std::abs(c.z[order[i]]) >= kDistinctive); ++i)
+        name +=
+            std::string("-") + (c.z[order[i]] < 0 ? feature_words()[order[i]].first : feature_words()[order[i]].second);
     return name;
 }
 
@@ -271,10 +274,11 @@ SceneClustering cluster_scenes(const std::vector<SceneFeatures>& scenes, const s
         for (std::size_t i : members[c]) out.assignment[i] = c;
     // Names: two distinctive features, three if two categories would share a name, then a number.
     std::map<std::string, std::size_t> used;
+    const std::size_t words = out.categories.size() > 1 ? 2 : 0;
     for (DerivedCategory& c : out.categories) {
-        c.name = derived_name(c, 2);
+        c.name = derived_name(c, words);
         for (const DerivedCategory& other : out.categories)
-            if (&other != &c && derived_name(other, 2) == c.name) c.name = derived_name(c, 3);
+            if (&other != &c && derived_name(other, words) == c.name) c.name = derived_name(c, words + 1);
         if (used[c.name]++) c.name += "-" + std::to_string(used[c.name]);
     }
     return out;
@@ -345,15 +349,16 @@ CategoryMatch nearest_category(const SceneClustering& c, const SceneFeatures& sc
     if (c.categories.empty()) throw InputError("no categories to match a scene to");
     const FeatureValues z = c.scaling.standardize(scene.values);
     std::vector<std::pair<double, std::size_t>> d;
-    for (std::size_t i = 0; i < c.categories.size(); ++i)
-        d.push_back({std::sqrt(distance2(z, c.categories[i].z)), i});
+    for (std::size_t i = 0; i < c.categories.size(); ++i) d.push_back({std::sqrt(distance2(z, c.categories[i].z)), i});
     std::stable_sort(d.begin(), d.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
     CategoryMatch m;
     m.category = d[0].second;
     m.distance = d[0].first;
     if (d.size() > 1) m.runner_up = d[1].second, m.runner_up_distance = d[1].first;
     const DerivedCategory& cat = c.categories[m.category];
-    auto deviation = [&](std::size_t f) { return FeatureDeviation{f, scene.values[f], cat.centroid[f], z[f], cat.z[f]}; };
+    auto deviation = [&](std::size_t f) {
+        return FeatureDeviation{f, scene.values[f], cat.centroid[f], z[f], cat.z[f]};
+    };
     std::vector<std::size_t> order;
     for (std::size_t f = 0; f < kSceneFeatureCount; ++f)
         if (c.scaling.sd[f] > 0) order.push_back(f);
@@ -371,8 +376,8 @@ std::string explain_match(const SceneClustering& c, const CategoryMatch& m) {
         return std::string(scene_feature_names()[d.feature]) + " " + fixed(d.scene, 3) + " vs " + fixed(d.centroid, 3) +
                " (" + (d.z_centroid >= 0 ? "+" : "") + fixed(d.z_centroid, 1) + " sd)";
     };
-    std::string out = "category " + c.categories[m.category].name + ": nearest centroid, " + fixed(m.distance, 2) +
-                      " sd away";
+    std::string out =
+        "category " + c.categories[m.category].name + ": nearest centroid, " + fixed(m.distance, 2) + " sd away";
     if (m.runner_up)
         out += " (next: " + c.categories[*m.runner_up].name + " at " + fixed(m.runner_up_distance, 2) + " sd)";
     if (!m.defining.empty()) {

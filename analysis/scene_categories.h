@@ -5,9 +5,11 @@
 /// one generator is not magnified), grouped by k-means with seeded k-means++ starts. k is the one
 /// with the highest mean silhouette over k = 2 … min(8, scenes − 1) among those whose centroids
 /// all differ pairwise by at least two noticeable differences in some feature; k = 1 when none
-/// reaches a silhouette of 0.25 (Kaufman & Rousseeuw's "no substantial structure"). Each category is named after the fixed category most of its scenes carry
-/// ("uniform", "irregular", "import", "recording") plus the one or two features that set its
-/// centroid apart (|z| ≥ 0.5), e.g. "uniform-small-boxes-many-objects".
+/// reaches a silhouette of 0.25 (Kaufman & Rousseeuw's "no substantial structure"). Each category is named after the
+/// fixed category most of its scenes carry
+/// ("uniform", "irregular", "import", "recording") plus the feature with the largest |z| of its
+/// centroid and a second one if its |z| ≥ 0.5, e.g. "uniform-small-boxes-many-objects" (no
+/// feature when k = 1).
 ///
 /// An unseen scene maps to the category whose centroid is nearest in the same standardised space;
 /// the match says which features decided it.
@@ -33,9 +35,9 @@ struct FeatureScaling {
 
 struct DerivedCategory {
     std::string name;
-    std::string nearest_fixed;          ///< the fixed category most of its scenes carry ("" if none known)
-    std::vector<std::size_t> members;   ///< indices of the clustered scenes
-    FeatureValues centroid{}, z{};      ///< mean features of the members, raw and standardised
+    std::string nearest_fixed;         ///< the fixed category most of its scenes carry ("" if none known)
+    std::vector<std::size_t> members;  ///< indices of the clustered scenes
+    FeatureValues centroid{}, z{};     ///< mean features of the members, raw and standardised
 };
 
 struct SceneClustering {
@@ -69,8 +71,8 @@ struct FeatureDeviation {
 
 struct CategoryMatch {
     std::size_t category = 0;
-    double distance = 0;                      ///< Euclidean, standardised units
-    std::optional<std::size_t> runner_up;     ///< the next nearest category
+    double distance = 0;                   ///< Euclidean, standardised units
+    std::optional<std::size_t> runner_up;  ///< the next nearest category
     double runner_up_distance = NAN;
     std::vector<FeatureDeviation> defining;  ///< the category's most distinctive features (largest |z| of its centroid)
     std::optional<FeatureDeviation> largest_gap;  ///< where the scene differs most from the centroid

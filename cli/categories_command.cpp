@@ -60,7 +60,8 @@ void add_categories_command(CLI::App& app) {
         }
         std::cout << '\n';
         f.print(std::cout);
-        std::cout << "\nstored in " << o->db << " (tables scene_clustering, derived_category, derived_category_scene)\n";
+        std::cout << "\nstored in " << o->db
+                  << " (tables scene_clustering, derived_category, derived_category_scene)\n";
     });
 }
 

@@ -10,8 +10,8 @@ namespace rcb {
 
 const std::array<std::string_view, kSceneFeatureCount>& scene_feature_names() {
     static const std::array<std::string_view, kSceneFeatureCount> names = {
-        "log10_objects",   "size_p50",           "size_spread",         "flatness",   "occupancy",
-        "log10_count_cv",  "log10_hits_per_ray", "log10_cells_per_ray", "ray_length", "change_rate"};
+        "log10_objects",  "size_p50",           "size_spread",         "flatness",   "occupancy",
+        "log10_count_cv", "log10_hits_per_ray", "log10_cells_per_ray", "ray_length", "change_rate"};
     return names;
 }
 
@@ -81,7 +81,8 @@ struct Lattice {
         if (!(t0 <= t1)) return 0;
         const Vec3d a = s.at(t0), b = s.at(t1);
         double n = 1;
-        for (int axis = 0; axis < 3; ++axis) n += double(std::llabs(coordinate(b[axis], axis) - coordinate(a[axis], axis)));
+        for (int axis = 0; axis < 3; ++axis)
+            n += double(std::llabs(coordinate(b[axis], axis) - coordinate(a[axis], axis)));
         return n;
     }
 };

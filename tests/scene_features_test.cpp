@@ -34,7 +34,7 @@ std::size_t feature(std::string_view name) {
     return 0;
 }
 
-class TempDir : public ::testing::Test {
+class SceneCategoryFiles : public ::testing::Test {
 protected:
     void SetUp() override {
         dir_ = fs::temp_directory_path() / ("rcb_features_" + std::to_string(::getpid()) + "_" +
@@ -116,7 +116,7 @@ TEST(DerivedCategories, OneCategoryWhenTheScenesDoNotDiffer) {
     EXPECT_THROW(cluster_scenes({}, {}, 1), InputError);
 }
 
-TEST_F(TempDir, AdviseWithoutACategoryPicksTheCategoryOfTheScenesItResembles) {
+TEST_F(SceneCategoryFiles, AdviseWithoutACategoryPicksTheCategoryOfTheScenesItResembles) {
     TuneSpec spec = parse_tune_spec(
         R"({"name": "two", "structures": ["ug"], "mode": "measured", "budget": 2, "frames": 2,
             "rays_per_frame": 100, "repetitions": 1, "warmup_frames": 0,
@@ -153,14 +153,13 @@ TEST_F(TempDir, AdviseWithoutACategoryPicksTheCategoryOfTheScenesItResembles) {
     EXPECT_TRUE(tuned_ug);  // the chosen category's parameters were used
 
     const nlohmann::json t = nlohmann::json::parse(std::ifstream(out.json_path));
-    EXPECT_EQ(choose_category(out.json_path, t, read_recording(path("unseen-irregular.rcbscene"))).category,
-              irregular);
+    EXPECT_EQ(choose_category(out.json_path, t, read_recording(path("unseen-irregular.rcbscene"))).category, irregular);
     // --category still decides when given.
     a.category = irregular;
     EXPECT_FALSE(advise(a).chosen.has_value());
 }
 
-TEST_F(TempDir, RunsStoreFeaturesAndDeriveCategoriesOrSayWhyNot) {
+TEST_F(SceneCategoryFiles, RunsStoreFeaturesAndDeriveCategoriesOrSayWhyNot) {
     const std::string bin = RCBENCH_BINARY, db = path("r.db"), exp = path("e.json");
     std::ofstream(exp) << R"({"name": "feat", "frames": 2, "rays_per_frame": 50, "repetitions": 1, "seeds": [1],
         "scenes": [{"kind": "uniform", "objects": 800}, {"kind": "uniform", "objects": 900},
@@ -174,6 +173,15 @@ TEST_F(TempDir, RunsStoreFeaturesAndDeriveCategoriesOrSayWhyNot) {
         ASSERT_TRUE(s.step());
         EXPECT_EQ(s.int64(0), 4);
         EXPECT_EQ(s.int64(1), 4 * std::int64_t(kSceneFeatureCount));
+    }
+    // merge copies the scenes' features with the scenes.
+    const test::Outcome merged = test::run_shell(bin + " merge " + path("m.db") + " " + db);
+    ASSERT_EQ(merged.code, 0) << merged.err;
+    {
+        auto d = open_read_only(path("m.db"));
+        Statement s = d->prepare("SELECT count(*) FROM scene_feature");
+        ASSERT_TRUE(s.step());
+        EXPECT_EQ(s.int64(0), 4 * std::int64_t(kSceneFeatureCount));
     }
     const test::Outcome cats = test::run_shell(bin + " categories " + db);
     ASSERT_EQ(cats.code, 0) << cats.err;
@@ -194,9 +202,13 @@ TEST_F(TempDir, RunsStoreFeaturesAndDeriveCategoriesOrSayWhyNot) {
     EXPECT_EQ(old.code, 2) << old.err;
     EXPECT_NE(old.err.find("has no stored features"), std::string::npos) << old.err;
     EXPECT_EQ(std::count(old.err.begin(), old.err.end(), '\n'), 1) << old.err;
+    // A new run of the same scenes stores their features again.
+    ASSERT_EQ(test::run_shell(bin + " run " + exp + " --db " + db + " --new-run").code, 0);
+    const test::Outcome again = test::run_shell(bin + " categories " + db);
+    EXPECT_EQ(again.code, 0) << again.err;
 }
 
-TEST_F(TempDir, BadInputsToFeaturesAndAdviceAreOneLineErrors) {
+TEST_F(SceneCategoryFiles, BadInputsToFeaturesAndAdviceAreOneLineErrors) {
     const std::string bin = RCBENCH_BINARY;
     auto expect_bad = [](const test::Outcome& r, const std::string& needle) {
         EXPECT_EQ(r.code, 2) << r.err;
