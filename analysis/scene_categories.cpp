@@ -372,22 +372,24 @@ CategoryMatch nearest_category(const SceneClustering& c, const SceneFeatures& sc
 }
 
 std::string explain_match(const SceneClustering& c, const CategoryMatch& m) {
-    auto dev = [](const FeatureDeviation& d) {
-        return std::string(scene_feature_names()[d.feature]) + " " + fixed(d.scene, 3) + " vs " + fixed(d.centroid, 3) +
-               " (" + (d.z_centroid >= 0 ? "+" : "") + fixed(d.z_centroid, 1) + " sd)";
+    auto z_text = [](double z) { return std::string(z >= 0 ? "+" : "") + fixed(z, 1); };
+    auto dev = [&](const FeatureDeviation& d) {
+        return std::string(scene_feature_names()[d.feature]) + " " + fixed(d.scene, 3) + " (z " + z_text(d.z_scene) +
+               ") vs " + fixed(d.centroid, 3) + " (z " + z_text(d.z_centroid) + ")";
     };
     std::string out =
         "category " + c.categories[m.category].name + ": nearest centroid, " + fixed(m.distance, 2) + " sd away";
     if (m.runner_up)
         out += " (next: " + c.categories[*m.runner_up].name + " at " + fixed(m.runner_up_distance, 2) + " sd)";
     if (!m.defining.empty()) {
-        out += ". Its distinctive features, this scene vs the centroid (centroid's z): ";
+        out +=
+            ". The features that set the category apart, this scene vs its centroid (z: standardised over the "
+            "clustered scenes): ";
         for (std::size_t i = 0; i < m.defining.size(); ++i) out += (i ? "; " : "") + dev(m.defining[i]);
     }
     if (m.largest_gap)
-        out += ". Largest difference: " + std::string(scene_feature_names()[m.largest_gap->feature]) + " " +
-               fixed(m.largest_gap->scene, 3) + " vs " + fixed(m.largest_gap->centroid, 3) + " (" +
-               fixed(std::abs(m.largest_gap->z_scene - m.largest_gap->z_centroid), 1) + " sd)";
+        out += ". Largest difference: " + dev(*m.largest_gap) + ", " +
+               fixed(std::abs(m.largest_gap->z_scene - m.largest_gap->z_centroid), 1) + " sd";
     return out + ".";
 }
 

@@ -39,8 +39,9 @@ void add_categories_command(CLI::App& app) {
         store_run_categories(store.db(), rc);
         const SceneClustering& c = rc.clustering;
         std::cout << "run " << run << ": " << rc.scene_ids.size() << " scenes, " << c.categories.size()
-                  << " categories (" << c.rule << "). Centroid features in standardised units (sd from the mean of "
-                  << "the run's scenes):\n\n";
+                  << " categories (" << c.rule << "). Centroids: feature values with their z-scores in parentheses "
+                  << "(standard deviations from the mean of the run's scenes; sd floored at the feature's noticeable "
+                  << "difference):\n\n";
         TextTable t({"category", "scenes", "nearest fixed", "members"});
         for (const DerivedCategory& d : c.categories) {
             std::string members;
