@@ -5,7 +5,7 @@
 /// Every feature is dimensionless (sizes relative to the scene, counts on a log scale), so a map
 /// and a generated scene of another world size compare. Pure and deterministic: the same
 /// recording gives the same values, bit for bit (one thread, fixed order, no randomness). Linear
-/// in the objects plus a ground-truth pass of at most kFeatureRays rays: seconds for 10^6 objects.
+/// in the objects plus a ground-truth pass of at most kFeatureRays rays over the objects.
 
 #include <array>
 #include <string>
