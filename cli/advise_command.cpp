@@ -20,9 +20,12 @@ void add_advise_command(CLI::App& app) {
         ->required()
         ->check(input_file());
     cmd->add_option("--tuning", o->tuning,
-                    "A tuner's results (results/tuning-<name>.json): use its parameters for --category")
+                    "A tuner's results (results/tuning-<name>.json): use its parameters for --category, or without "
+                    "--category for the category whose centroid is nearest this scene's features")
         ->check(input_file());
-    cmd->add_option("--category", o->category, "Which category of the tuning file this scene resembles");
+    cmd->add_option("--category", o->category,
+                    "Which category of the tuning file this scene resembles (default: chosen from the scene's "
+                    "features)");
     cmd->add_option("--repetitions", o->repetitions, "Measurements per structure")
         ->capture_default_str()
         ->check(CLI::Range(1u, 100u));
@@ -32,7 +35,9 @@ void add_advise_command(CLI::App& app) {
     cmd->callback([o] {
         AdviseOptions options = *o;
         options.progress = [](const std::string& structure) { std::cerr << "measuring " << structure << " ...\n"; };
-        const std::vector<AdviceRow> rows = advise(options);
+        const Advice advice = advise(options);
+        const std::vector<AdviceRow>& rows = advice.rows;
+        if (advice.chosen) std::cout << "Scene " << options.scene << " -> " << advice.chosen->explanation << "\n\n";
         TextTable t({"structure", "parameters", "update ms", "ray cast ms", "per frame ms", "memory", ""});
         for (const AdviceRow& r : rows)
             t.add({r.structure, r.params, fixed(r.cost.update_ms, 4), fixed(r.cost.raycast_ms, 4),

@@ -20,5 +20,6 @@ void add_report_command(CLI::App& app);
 void add_findings_command(CLI::App& app);
 void add_tune_command(CLI::App& app);
 void add_advise_command(CLI::App& app);
+void add_categories_command(CLI::App& app);
 
 }  // namespace rcb

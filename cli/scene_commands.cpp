@@ -12,6 +12,7 @@
 #include "core/json_input.h"
 #include "core/output_file.h"
 #include "core/recording_io.h"
+#include "core/scene_features.h"
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "cli/table.h"
@@ -246,6 +247,23 @@ void add_scene_commands(CLI::App& app) {
     n->add_option("file", info->file, "Recording file")->required()->check(input_file());
     n->add_flag("--json", info->json, "Print one JSON object");
     n->callback([info] { scene_info(info->file, info->json); });
+
+    auto feat = std::make_shared<InfoOptions>();
+    CLI::App* fe = scene->add_subcommand(
+        "features",
+        "Print a recording's scene features (object count, size distribution, clustering, per-ray statistics of "
+        "frame 0, change rate): what derived categories are made of");
+    fe->add_option("file", feat->file, "Recording file")->required()->check(input_file());
+    fe->add_flag("--json", feat->json, "Print one JSON object");
+    fe->callback([feat] {
+        const SceneFeatures f = compute_scene_features(read_recording(feat->file));
+        if (feat->json) {
+            std::cout << f.to_json().dump() << '\n';
+            return;
+        }
+        for (std::size_t i = 0; i < kSceneFeatureCount; ++i)
+            std::cout << scene_feature_names()[i] << ' ' << nlohmann::json(f.values[i]).dump() << '\n';
+    });
 }
 
 }  // namespace rcb

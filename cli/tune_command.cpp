@@ -13,7 +13,7 @@ namespace rcb {
 void add_tune_command(CLI::App& app) {
     struct Options {
         std::string file, db = "results/rcbench.db", out_dir = "results";
-        bool exhaustive = false;
+        bool exhaustive = false, derive = false;
         std::optional<std::uint64_t> seed;
     };
     auto o = std::make_shared<Options>();
@@ -30,13 +30,24 @@ void add_tune_command(CLI::App& app) {
     cmd->add_flag(
         "--exhaustive", o->exhaustive,
         "Also measure every configuration of each search space and report the tuner's gap to the true optimum");
+    cmd->add_flag("--derive-categories", o->derive,
+                  "Pool the file's scenes and tune per category derived from their features (k-means on "
+                  "standardised scene features, k by silhouette; see docs/database.md) instead of per category "
+                  "the file names");
     cmd->callback([o] {
         TuneSpec spec = load_tune_spec(o->file);
         if (o->seed) spec.seed = *o->seed;
         TuneOptions options;
         options.file = o->file, options.db = o->db, options.out_dir = o->out_dir, options.exhaustive = o->exhaustive;
+        options.derive_categories = o->derive;
         options.progress = [](const std::string& category) { std::cerr << "tuning " << category << " ...\n"; };
         const TuneOutcome out = run_tuning(spec, options);
+        if (o->derive) {
+            std::cout << "derived categories (" << out.scene_categories.rule << "):\n";
+            for (std::size_t i = 0; i < out.scene_categories.categories.size(); ++i)
+                std::cout << "  " << out.scene_categories.categories[i].name << ": "
+                          << out.scene_categories.categories[i].members.size() << " scene(s)\n";
+        }
         for (const CategoryTuning& ct : out.categories) {
             std::cout << ct.category << ": " << ct.chosen.structure << " " << searched_parameters(spec, ct.chosen)
                       << "  " << fixed(ct.chosen.measured->ms, 4) << " ± " << fixed(ct.chosen.measured->mad, 4)

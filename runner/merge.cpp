@@ -21,6 +21,8 @@ MergeCount merge_into(ResultStore& out, Database& in) {
         Statement s = in.prepare("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'cell_state'");
         has_state = s.step();
     }
+    // Scene features travel with their scenes (an input older than the scene_feature table has none).
+    const bool in_has_features = in.prepare("SELECT 1 FROM sqlite_master WHERE name = 'scene_feature'").step();
     Statement runs = in.prepare(
         "SELECT run.id, run.uuid, experiment.name, experiment.description, experiment_hash, experiment_content, "
         "started_at, "
@@ -86,6 +88,8 @@ MergeCount merge_into(ResultStore& out, Database& in) {
                           cells.real(9), cells.text(10))
                 .run();
             const std::int64_t scene = id_of("SELECT id FROM scene WHERE hash = ?", cells.text(3));
+            if (in_has_features && !stored_scene_features(o, scene))
+                if (const auto f = stored_scene_features(in, cells.int64(2))) store_scene_features(o, scene, *f);
             o.prepare("INSERT INTO config(structure, params) VALUES (?, ?) ON CONFLICT DO NOTHING")
                 .bind_all(cells.text(12), cells.text(13))
                 .run();

@@ -200,6 +200,38 @@ CREATE VIEW cell_summary AS
               JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id
               LEFT JOIN cell_state ON cell_state.cell_id = cell.id;
 )sql",
+        // 4 → 5: scene features (core/scene_features.h) and the categories derived from them by
+        // clustering a run's scenes (analysis/scene_categories.h; thesis §7.2).
+        R"sql(
+CREATE TABLE scene_feature (
+    scene_id INTEGER NOT NULL REFERENCES scene(id) ON DELETE CASCADE,
+    name     TEXT NOT NULL,
+    value    REAL NOT NULL,
+    PRIMARY KEY (scene_id, name)
+);
+CREATE TABLE scene_clustering (
+    run_id     INTEGER PRIMARY KEY REFERENCES run(id),
+    created_at TEXT NOT NULL,
+    seed       INTEGER NOT NULL,
+    k          INTEGER NOT NULL,
+    silhouette REAL,
+    clustering TEXT NOT NULL
+);
+CREATE TABLE derived_category (
+    run_id   INTEGER NOT NULL REFERENCES run(id),
+    category INTEGER NOT NULL,
+    name     TEXT NOT NULL,
+    scenes   INTEGER NOT NULL,
+    centroid TEXT NOT NULL,
+    PRIMARY KEY (run_id, category)
+);
+CREATE TABLE derived_category_scene (
+    run_id   INTEGER NOT NULL REFERENCES run(id),
+    scene_id INTEGER NOT NULL REFERENCES scene(id),
+    category INTEGER NOT NULL,
+    PRIMARY KEY (run_id, scene_id)
+);
+)sql",
     };
     return all;
 }
@@ -316,6 +348,22 @@ RunInfo RunInfo::current(std::uint32_t threads, const std::string& shard, const 
 }
 
 std::string recording_hash(const Recording& r) { return stable_hash(encode_recording(r)); }
+
+void store_scene_features(Database& db, std::int64_t scene_id, const SceneFeatures& features) {
+    Statement ins = db.prepare("INSERT OR REPLACE INTO scene_feature(scene_id, name, value) VALUES (?,?,?)");
+    for (std::size_t i = 0; i < kSceneFeatureCount; ++i)
+        ins.bind_all(scene_id, std::string(scene_feature_names()[i]), features.values[i]).run();
+}
+
+std::optional<SceneFeatures> stored_scene_features(Database& db, std::int64_t scene_id) {
+    Statement s = db.prepare("SELECT name, value FROM scene_feature WHERE scene_id = ?");
+    s.bind(1, scene_id);
+    nlohmann::json j = nlohmann::json::object();
+    while (s.step()) j[s.text(0)] = s.real(1);
+    for (std::string_view name : scene_feature_names())
+        if (!j.contains(std::string(name))) return std::nullopt;
+    return SceneFeatures::from_json(j, "scene " + std::to_string(scene_id));
+}
 
 namespace {
 Database open_for_writing(const std::string& path) {
@@ -443,7 +491,12 @@ std::int64_t ResultStore::scene_id(const SceneSpec& spec, const Recording& r, co
     Statement s = db_.prepare("SELECT id FROM scene WHERE hash = ?");
     s.bind(1, hash);
     s.step();
-    return s.int64(0);
+    const std::int64_t id = s.int64(0);
+    // Features once per scene (a scene stored by an older rcbench gets them when a run uses it again).
+    Statement has = db_.prepare("SELECT 1 FROM scene_feature WHERE scene_id = ?");
+    has.bind(1, id);
+    if (!has.step()) store_scene_features(db_, id, compute_scene_features(r));
+    return id;
 }
 
 std::int64_t ResultStore::config_id(const std::string& structure, const nlohmann::json& params) {

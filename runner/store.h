@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "core/scene_features.h"
 #include "core/simulator.h"
 #include "runner/experiment.h"
 #include "runner/sqlite.h"
@@ -115,5 +116,10 @@ std::string utc_now();
 
 /// Content hash of a recording (of its encoded bytes).
 std::string recording_hash(const Recording& r);
+
+/// A scene's features (table scene_feature): stored when the runner first stores a cell of the
+/// scene; absent for scenes stored by an rcbench older than the table.
+void store_scene_features(Database& db, std::int64_t scene_id, const SceneFeatures& features);
+std::optional<SceneFeatures> stored_scene_features(Database& db, std::int64_t scene_id);
 
 }  // namespace rcb

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "analysis/charts.h"
+#include "analysis/cost_model.h"
 #include "core/number_text.h"
 #include "core/output_file.h"
 #include "core/registry.h"
@@ -99,7 +100,41 @@ void store_tuning(ResultStore& store, const TuneSpec& spec, const CategoryTuning
 
 }  // namespace
 
-TuneOutcome run_tuning(const TuneSpec& spec, const TuneOptions& o) {
+SceneClustering categorize_tuning_scenes(TuneSpec& spec, bool derive) {
+    std::vector<SceneSpec> scenes;
+    std::vector<SceneFeatures> features;
+    std::vector<std::string> names;
+    std::vector<std::vector<std::size_t>> members;
+    std::map<std::string, std::size_t> index;  // scene key → its place among the distinct scenes
+    for (const TuneCategory& c : spec.categories) {
+        names.push_back(c.name);
+        members.emplace_back();
+        for (const SceneSpec& s : c.scenes) {
+            const std::string key = s.key.dump();
+            if (!index.count(key)) {
+                index[key] = scenes.size();
+                scenes.push_back(s);
+                features.push_back(compute_scene_features(recording_of(s)));
+            }
+            members.back().push_back(index[key]);
+        }
+    }
+    if (!derive) return group_scenes(features, names, members);
+    std::vector<std::string> fixed_categories;
+    for (const SceneSpec& s : scenes) fixed_categories.push_back(scene_category(s.key.dump()));
+    const SceneClustering clustering = cluster_scenes(features, fixed_categories, spec.seed);
+    spec.categories.clear();
+    for (const DerivedCategory& d : clustering.categories) {
+        TuneCategory c;
+        c.name = d.name;
+        for (std::size_t i : d.members) c.scenes.push_back(scenes[i]);
+        spec.categories.push_back(c);
+    }
+    return clustering;
+}
+
+TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
+    TuneSpec spec = file_spec;
     const fs::path md_path = fs::path(o.out_dir) / ("tuning-" + spec.name + ".md");
     const fs::path json_path = fs::path(o.out_dir) / ("tuning-" + spec.name + ".json");
     std::vector<std::string> inputs{o.file, o.db};
@@ -110,9 +145,13 @@ TuneOutcome run_tuning(const TuneSpec& spec, const TuneOptions& o) {
     check_output_path(json_path.string(), inputs, "--out-dir");
     ResultStore store(o.db);
     TuneOutcome outcome;
+    outcome.scene_categories = categorize_tuning_scenes(spec, o.derive_categories);
     std::ostringstream md;
     json out = {{"name", spec.name}, {"mode", spec.mode},        {"budget", spec.budget},
                 {"seed", spec.seed}, {"git_commit", kGitCommit}, {"categories", json::array()}};
+    // What `advise` needs to map an unseen scene to one of these categories.
+    out["scene_categories"] = outcome.scene_categories.to_json();
+    out["scene_categories"]["derived"] = o.derive_categories;
     md << "# Tuning " << spec.name << "\n\n"
        << spec.description << "\n\nMode: " << spec.mode << "; budget " << spec.budget
        << " distinct evaluations per structure and category; seed " << spec.seed << "; " << spec.repetitions
@@ -121,6 +160,16 @@ TuneOutcome run_tuning(const TuneSpec& spec, const TuneOptions& o) {
           "MAD, "
           "averaged over the category's scenes. The thesis does not publish its grid settings, so they cannot be "
           "compared here.\n";
+    if (o.derive_categories) {
+        md << "\nCategories derived from the scenes' features (" << outcome.scene_categories.rule << "):\n\n"
+           << "| category | scenes | nearest fixed category |\n|---|---|---|\n";
+        for (std::size_t i = 0; i < spec.categories.size(); ++i) {
+            std::string list;
+            for (const SceneSpec& s : spec.categories[i].scenes) list += (list.empty() ? "" : ", ") + s.name;
+            md << "| " << spec.categories[i].name << " | " << list << " | "
+               << outcome.scene_categories.categories[i].nearest_fixed << " |\n";
+        }
+    }
     for (const TuneCategory& category : spec.categories) {
         if (o.progress) o.progress(category.name);
         const CategoryTuning ct = tune_category(spec, category);
