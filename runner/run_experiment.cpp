@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "core/registry.h"
+#include "runner/calibration.h"
 #include "runner/store.h"
 
 namespace rcb {
@@ -42,6 +43,13 @@ RunOutcome run_experiment(const Experiment& e, const std::string& source, const 
         out.run = store.resume_or_begin_run(e, RunInfo::current(e.threads, shard, e), options.new_run);
     }
     const std::int64_t experiment = store.experiment_id(e);
+    // The run's machine: cache sizes and each structure's calibration (at its first configuration),
+    // measured once per run before its first cell.
+    std::vector<std::pair<std::string, nlohmann::json>> structures;
+    for (const ConfigSpec& c : e.configs)
+        if (std::none_of(structures.begin(), structures.end(), [&](const auto& s) { return s.first == c.structure; }))
+            structures.emplace_back(c.structure, c.params);
+    record_machine(store.db(), out.run, structures);
     const std::set<std::string> done = store.finished_cells(out.run);
     for (const Cell& c : plan) out.done_before += done.count(c.key) != 0;
     const std::size_t todo = plan.size() - out.done_before;
