@@ -66,20 +66,26 @@ const Term kObjects{"c_object", [](const FrameObservation& f) { return f.objects
 const Term kFrame{"c_frame", [](const FrameObservation&) { return 1.0; }};
 
 /// A column of a model: a term, restricted to one scene category when `category` is set.
+/// With `by_params`, `category` holds a configuration's parameters instead (one cost per
+/// configuration: a rebuilding and an incremental mode of one structure update differently).
 struct Column {
     Term term;
     std::string category;
-    std::string name() const { return category.empty() ? term.name : term.name + "[" + category + "]"; }
+    bool by_params = false;
+    std::string name() const {
+        return category.empty() ? term.name : by_params ? term.name + " " + category : term.name + "[" + category + "]";
+    }
     double value(const FrameObservation& f) const {
-        return category.empty() || category == f.category ? term.value(f) : 0.0;
+        return category.empty() || category == (by_params ? f.params : f.category) ? term.value(f) : 0.0;
     }
 };
 
-std::vector<Column> columns_of(const std::vector<Term>& terms, const std::vector<std::string>& categories = {}) {
+std::vector<Column> columns_of(const std::vector<Term>& terms, const std::vector<std::string>& categories = {},
+                               bool by_params = false) {
     std::vector<Column> out;
     const std::vector<std::string> cats = categories.empty() ? std::vector<std::string>{""} : categories;
     for (const std::string& c : cats)
-        for (const Term& t : terms) out.push_back({t, c});
+        for (const Term& t : terms) out.push_back({t, c, by_params});
     return out;
 }
 
@@ -391,6 +397,11 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
         std::vector<Built> update;
         update.push_back(candidate("per-operation", "update", fs, columns_of(ops_frame), {}, {}));
         update.push_back(candidate("with-rebuild", "update", fs, columns_of(rebuild), {}, {}));
+        std::set<std::string> param_set;
+        for (const FrameObservation* f : fs) param_set.insert(f->params);
+        if (param_set.size() > 1)  // each configuration its own update costs (e.g. incremental vs rebuild)
+            update.push_back(candidate("per-configuration", "update", fs,
+                                       columns_of(rebuild, {param_set.begin(), param_set.end()}, true), {}, {}));
         for (Built& b : update) m.update.push_back(b.model);
         select(m.update);
 

@@ -170,6 +170,8 @@ LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
     fit.converged = summary.termination_type == ceres::CONVERGENCE;
     std::vector<double> gamma = beta;
     for (std::size_t j = 0; j < k; ++j) beta[j] = gamma[j] / scale[j];
+    for (std::size_t j = 0; j < k; ++j)  // absurd inputs (a count of 1e300): no estimate, and said so
+        if (!std::isfinite(beta[j])) beta[j] = 0, gamma[j] = 0, fit.converged = false;
 
     // Quality on the fitted data, in relative terms.
     double ss_res = 0, ss_tot = 0;
@@ -191,6 +193,11 @@ LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
     }
     fit.r2 = ss_tot > 0 ? 1 - ss_abs / ss_tot : 0;
     fit.rmse_relative = std::sqrt(ss_res / double(n));
+    if (!std::isfinite(fit.r2) || !std::isfinite(fit.rmse_relative)) {
+        fit.converged = false;
+        if (std::isnan(fit.r2)) fit.r2 = 0;
+        if (std::isnan(fit.rmse_relative)) fit.rmse_relative = INFINITY;
+    }
     fit.condition_number = condition_number_of(p);
     fit.ill_conditioned = !(fit.condition_number < kIllConditioned);
     fit.too_few_groups = fit.groups < k + 1;

@@ -107,14 +107,16 @@ std::vector<MicroScene> micro_scenes() {
         // Along the gaps between lattice rows: the whole width, no box met.
         MicroScene gaps{"gaps-" + std::to_string(n), lattice(n), {}};
         for (int r = 0; r < kRays; ++r) {
-            const float y = 10.f * float(1 + r % (n - 1)) + draw(-1, 1), z = 10.f * float(1 + (r / 7) % (n - 1)) + draw(-1, 1);
+            const float y = 10.f * float(1 + r % (n - 1)) + draw(-1, 1),
+                        z = 10.f * float(1 + (r / 7) % (n - 1)) + draw(-1, 1);
             gaps.rays.push_back({{-5, y, z}, {w + 5, y, z}});
         }
         out.push_back(std::move(gaps));
         // Along the rows: every ray meets the n boxes of its row.
         MicroScene rows{"rows-" + std::to_string(n), lattice(n), {}};
         for (int r = 0; r < kRays; ++r) {
-            const float y = 10.f * float(r % n) + 5 + draw(-0.5f, 0.5f), z = 10.f * float((r / 7) % n) + 5 + draw(-0.5f, 0.5f);
+            const float y = 10.f * float(r % n) + 5 + draw(-0.5f, 0.5f),
+                        z = 10.f * float((r / 7) % n) + 5 + draw(-0.5f, 0.5f);
             rows.rays.push_back({{-5, y, z}, {w + 5, y, z}});
         }
         out.push_back(std::move(rows));
@@ -178,7 +180,8 @@ void record_machine(Database& db, std::int64_t run,
                     const std::vector<std::pair<std::string, nlohmann::json>>& structures,
                     const std::string& cache_dir) {
     auto recorded = [&] {
-        Statement s = db.prepare("SELECT 1 FROM run_cache WHERE run_id = ? UNION ALL SELECT 1 FROM calibration WHERE run_id = ?");
+        Statement s =
+            db.prepare("SELECT 1 FROM run_cache WHERE run_id = ? UNION ALL SELECT 1 FROM calibration WHERE run_id = ?");
         s.bind_all(run, run);
         return s.step();
     };
@@ -218,8 +221,7 @@ std::vector<CalibrationPoint> load_calibration(Database& db, std::int64_t run, c
         "SELECT scene, rays, n_rb, n_t, ns_per_ray, mad FROM calibration WHERE run_id = ? AND structure = ? ORDER BY "
         "rowid");
     s.bind_all(run, structure);
-    while (s.step())
-        out.push_back({s.text(0), std::uint32_t(s.int64(1)), s.real(2), s.real(3), s.real(4), s.real(5)});
+    while (s.step()) out.push_back({s.text(0), std::uint32_t(s.int64(1)), s.real(2), s.real(3), s.real(4), s.real(5)});
     return out;
 }
 

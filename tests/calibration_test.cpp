@@ -85,8 +85,8 @@ TEST(Calibration, MicroScenesVaryTheCountersIndependently) {
         if (std::string(name) == "bf") continue;  // brute force tests every box whatever the ray
         // Rays beside the world: a tree tests nothing (the grid keeps a few objects outside its cells).
         EXPECT_LT(at("outside-10").n_rb, std::string(name) == "ug" ? 10 : 1) << name;
-        EXPECT_LT(at("shell").n_rb, 1) << name;       // rays inside the hollow shell meet no box …
-        EXPECT_GE(at("shell").n_t, 4) << name;        // … but step through the structure
+        EXPECT_LT(at("shell").n_rb, 1) << name;  // rays inside the hollow shell meet no box …
+        EXPECT_GE(at("shell").n_t, 4) << name;   // … but step through the structure
     }
 }
 
