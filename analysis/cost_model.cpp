@@ -256,12 +256,22 @@ StructureCalibration fit_calibration(const std::string& structure, const std::ve
 }
 
 std::vector<SceneSplit> scene_splits(const std::vector<const FrameObservation*>& frames) {
+    // Each frame's scene as an index, compared once per frame (frames of a cell come together, and
+    // names may be long).
     std::vector<SceneSplit> out;
     std::map<std::string, std::size_t> index;
-    for (const FrameObservation* f : frames)
-        if (index.emplace(f->scene, out.size()).second) out.push_back({f->scene, {}, {}});
-    for (SceneSplit& s : out)
-        for (std::size_t i = 0; i < frames.size(); ++i) (frames[i]->scene == s.scene ? s.test : s.train).push_back(i);
+    std::vector<std::size_t> scene_of(frames.size());
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+        if (i > 0 && frames[i]->scene == frames[i - 1]->scene) {
+            scene_of[i] = scene_of[i - 1];
+            continue;
+        }
+        const auto [it, added] = index.emplace(frames[i]->scene, out.size());
+        if (added) out.push_back({frames[i]->scene, {}, {}});
+        scene_of[i] = it->second;
+    }
+    for (std::size_t s = 0; s < out.size(); ++s)
+        for (std::size_t i = 0; i < frames.size(); ++i) (scene_of[i] == s ? out[s].test : out[s].train).push_back(i);
     return out;
 }
 

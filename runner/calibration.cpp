@@ -187,22 +187,33 @@ void record_machine(Database& db, std::int64_t run,
     };
     if (recorded()) return;  // a resumed run keeps the machine state it began with
     const std::vector<CacheLevel> caches = read_cache_sizes(cache_dir);
-    std::vector<std::pair<std::string, std::vector<CalibrationPoint>>> measured;
-    for (const auto& [name, params] : structures)
-        measured.emplace_back(name, calibrate_structure(find_structure(name), params));
+    struct Measured {
+        std::string name;
+        nlohmann::json params;
+        std::vector<CalibrationPoint> points;
+    };
+    std::vector<Measured> measured;
+    for (const auto& [name, params] : structures) {
+        // A structure that cannot be built on the micro-scenes (a user's structure with its own
+        // limits) is left uncalibrated: its fit has no priors and says so; the run goes on.
+        try {
+            measured.push_back({name, params, calibrate_structure(find_structure(name), params)});
+        } catch (const std::exception&) {
+        }
+    }
     Transaction t(db);
     if (recorded()) return;  // another runner of the same run stored it meanwhile
     for (const CacheLevel& c : caches)
         db.prepare("INSERT INTO run_cache(run_id, level, type, size_bytes) VALUES (?,?,?,?)")
             .bind_all(run, std::int64_t(c.level), c.type, std::int64_t(c.bytes))
             .run();
-    for (std::size_t i = 0; i < measured.size(); ++i)
-        for (const CalibrationPoint& p : measured[i].second)
+    for (const Measured& m : measured)
+        for (const CalibrationPoint& p : m.points)
             db.prepare(
                   "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad) VALUES "
                   "(?,?,?,?,?,?,?,?,?)")
-                .bind_all(run, measured[i].first, structures[i].second.dump(), p.scene, std::int64_t(p.rays), p.n_rb,
-                          p.n_t, p.ns_per_ray, p.mad)
+                .bind_all(run, m.name, m.params.dump(), p.scene, std::int64_t(p.rays), p.n_rb, p.n_t, p.ns_per_ray,
+                          p.mad)
                 .run();
     t.commit();
 }

@@ -43,18 +43,18 @@ RunOutcome run_experiment(const Experiment& e, const std::string& source, const 
         out.run = store.resume_or_begin_run(e, RunInfo::current(e.threads, shard, e), options.new_run);
     }
     const std::int64_t experiment = store.experiment_id(e);
-    // The run's machine: cache sizes and each structure's calibration (at its first configuration),
-    // measured once per run before its first cell.
-    std::vector<std::pair<std::string, nlohmann::json>> structures;
-    for (const ConfigSpec& c : e.configs)
-        if (std::none_of(structures.begin(), structures.end(), [&](const auto& s) { return s.first == c.structure; }))
-            structures.emplace_back(c.structure, c.params);
-    record_machine(store.db(), out.run, structures);
     const std::set<std::string> done = store.finished_cells(out.run);
     for (const Cell& c : plan) out.done_before += done.count(c.key) != 0;
     const std::size_t todo = plan.size() - out.done_before;
 
     tbb::global_control threads(tbb::global_control::max_allowed_parallelism, e.threads);
+    // The run's machine: cache sizes and each structure's calibration (at its first configuration,
+    // with the run's threads), measured once per run before its first cell.
+    std::vector<std::pair<std::string, nlohmann::json>> structures;
+    for (const ConfigSpec& c : e.configs)
+        if (std::none_of(structures.begin(), structures.end(), [&](const auto& s) { return s.first == c.structure; }))
+            structures.emplace_back(c.structure, c.params);
+    record_machine(store.db(), out.run, structures);
     SimulationOptions sim;
     sim.verify = e.verify;
     sim.warmup_frames = e.warmup_frames;
