@@ -6,6 +6,9 @@
 #include <filesystem>
 #include <fstream>
 
+#include <cmath>
+
+#include "analysis/cost_model.h"
 #include "core/error.h"
 #include "core/registry.h"
 #include "runner/calibration.h"
@@ -112,6 +115,38 @@ TEST(Calibration, StoredOncePerRun) {
     // Recording again (a resumed run) keeps what the run began with.
     record_machine(store.db(), first.run, {{"bf", find_structure("bf").defaults()}});
     EXPECT_EQ(count("calibration"), 16);
+    fs::remove_all(dir);
+}
+
+TEST(Calibration, TheRunsFitUsesItAndStoresLeaveOneSceneOut) {
+    const fs::path dir = temp_dir("fit");
+    const Experiment e = parse_experiment(
+        R"({"frames": 3, "rays_per_frame": 100, "scenes": [{"preset": "uni-s"}, {"preset": "irreg-s"}, {"kind": "uniform", "objects": 300}], "structures": [{"name": "dbvh"}]})",
+        "exp.json", ".");
+    RunOptions o;
+    o.db = (dir / "r.db").string();
+    const RunOutcome outcome = run_experiment(e, "exp.json", o);
+    ResultStore store(o.db);
+    const RunFit fit = fit_run(store.db(), outcome.run);
+    ASSERT_EQ(fit.models.size(), 1u);
+    const StructureModels& m = fit.models[0];
+    ASSERT_NE(m.calibration, nullptr);
+    EXPECT_EQ(m.calibration->points.size(), 8u);
+    EXPECT_EQ(m.loso.size(), 3u);  // every scene predicted from the two others
+    const CandidateModel* chosen = m.chosen("raycast");
+    ASSERT_NE(chosen, nullptr);
+    for (const Coefficient& c : chosen->fit.coefficients) {
+        EXPECT_GT(c.value, 0) << c.name;  // no chosen coefficient at 0
+        if (std::isfinite(c.prior)) {     // and a calibrated one within 3× of its calibration
+            EXPECT_LE(c.value, kPriorRange * c.prior * (1 + 1e-9)) << c.name;
+            EXPECT_GE(c.value, c.prior / kPriorRange * (1 - 1e-9)) << c.name;
+        }
+    }
+    Statement s = store.db().prepare(
+        "SELECT loso_error FROM fit WHERE run_id = ? AND target = 'raycast' AND chosen = 1 AND loso_error IS NOT NULL");
+    s.bind(1, outcome.run);
+    ASSERT_TRUE(s.step());
+    EXPECT_NEAR(s.real(0), m.loso_error, 1e-12);
     fs::remove_all(dir);
 }
 
