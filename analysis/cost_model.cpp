@@ -14,6 +14,7 @@
 #include "core/error.h"
 #include "core/number_text.h"
 #include "core/simulator.h"
+#include "runner/run_experiment.h"
 #include "runner/store.h"
 
 namespace rcb {
@@ -72,20 +73,38 @@ struct Column {
     Term term;
     std::string category;
     bool by_params = false;
+    std::string label;  ///< with `by_params`: the parameters that differ from the defaults
     std::string name() const {
-        return category.empty() ? term.name : by_params ? term.name + " " + category : term.name + "[" + category + "]";
+        return category.empty() ? term.name
+               : by_params      ? term.name + " {" + label + "}"
+                                : term.name + "[" + category + "]";
     }
     double value(const FrameObservation& f) const {
         return category.empty() || category == (by_params ? f.params : f.category) ? term.value(f) : 0.0;
     }
 };
 
+/// "margin=0,mode="rebuild"" for a registered structure's parameters, "defaults" when none differ;
+/// the parameters' JSON for a structure the registry does not know.
+std::string params_label(const std::string& structure, const std::string& params) {
+    try {
+        const nlohmann::json j = nlohmann::json::parse(params);
+        std::string label = config_label(ConfigSpec{structure, j});
+        label = label.size() > structure.size() ? label.substr(structure.size() + 1) : "defaults";
+        return label;
+    } catch (const std::exception&) {
+        return params;
+    }
+}
+
 std::vector<Column> columns_of(const std::vector<Term>& terms, const std::vector<std::string>& categories = {},
-                               bool by_params = false) {
+                               bool by_params = false, const std::string& structure = "") {
     std::vector<Column> out;
     const std::vector<std::string> cats = categories.empty() ? std::vector<std::string>{""} : categories;
-    for (const std::string& c : cats)
-        for (const Term& t : terms) out.push_back({t, c, by_params});
+    for (const std::string& c : cats) {
+        const std::string label = by_params ? params_label(structure, c) : "";
+        for (const Term& t : terms) out.push_back({t, c, by_params, label});
+    }
     return out;
 }
 
@@ -411,7 +430,8 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
         for (const FrameObservation* f : fs) param_set.insert(f->params);
         if (param_set.size() > 1)  // each configuration its own update costs (e.g. incremental vs rebuild)
             update.push_back(candidate("per-configuration", "update", fs,
-                                       columns_of(rebuild, {param_set.begin(), param_set.end()}, true), {}, {}));
+                                       columns_of(rebuild, {param_set.begin(), param_set.end()}, true, structure), {},
+                                       {}));
         for (Built& b : update) m.update.push_back(b.model);
         select(m.update);
 
