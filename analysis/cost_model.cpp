@@ -1,16 +1,20 @@
 #include "analysis/cost_model.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <ctime>
+#include <functional>
 #include <map>
 #include <set>
 
 #include <nlohmann/json.hpp>
 
 #include "core/error.h"
+#include "core/number_text.h"
 #include "core/simulator.h"
+#include "runner/run_experiment.h"
 #include "runner/store.h"
 
 namespace rcb {
@@ -30,51 +34,123 @@ namespace {
 /// A term: its name and how to read it from a frame.
 struct Term {
     std::string name;
-    double (*value)(const FrameObservation&);
+    std::function<double(const FrameObservation&)> value;
 };
 
 const Term kNrb{"C_RB", [](const FrameObservation& f) { return f.n_rb; }};
 const Term kNt{"C_T", [](const FrameObservation& f) { return f.n_t; }};
 const Term kPrep{"C_PREP", [](const FrameObservation&) { return 1.0; }};
 const Term kMemory{"C_MEM", [](const FrameObservation& f) { return f.memory_mb; }};
+
+/// The memory hierarchy: one column per cache tier the run's working sets reach beyond the
+/// smallest one, (w_RB·N_RB + w_T·N_T) where the working set has left the cache of level `tier`
+/// (and every smaller one). The weights are the calibration's in-cache costs (from small scenes),
+/// so the coefficient is the extra fraction of the in-cache cost that a test and a step pay there;
+/// without a calibration value a weight is 1 (the coefficient is then in ns per unit).
+std::vector<Term> hierarchy_terms(const std::vector<const FrameObservation*>& frames, double w_rb, double w_t) {
+    std::set<int> tiers;
+    for (const FrameObservation* f : frames) tiers.insert(f->memory_tier);
+    std::vector<Term> out;
+    if (tiers.size() < 2) return out;  // one tier only: the base costs already are its costs
+    for (auto it = std::next(tiers.begin()); it != tiers.end(); ++it) {
+        const int tier = *it;
+        out.push_back({"slow>L" + std::to_string(tier), [=](const FrameObservation& f) {
+                           return f.memory_tier >= tier ? w_rb * f.n_rb + w_t * f.n_t : 0.0;
+                       }});
+    }
+    return out;
+}
 const Term kInsert{"c_insert", [](const FrameObservation& f) { return f.inserts; }};
 const Term kRemove{"c_remove", [](const FrameObservation& f) { return f.removes; }};
 const Term kMove{"c_move", [](const FrameObservation& f) { return f.moves; }};
 const Term kObjects{"c_object", [](const FrameObservation& f) { return f.objects; }};
 const Term kFrame{"c_frame", [](const FrameObservation&) { return 1.0; }};
 
-/// Builds the problem for `terms`; with `categories`, every term is split per category (the
-/// column is the term where the frame's category matches, else 0).
-LinearProblem build_problem(const std::vector<const FrameObservation*>& frames, const std::vector<Term>& terms,
-                            const std::string& target, const std::vector<std::string>& categories = {}) {
-    LinearProblem p;
+/// A column of a model: a term, restricted to one scene category when `category` is set.
+/// With `by_params`, `category` holds a configuration's parameters instead (one cost per
+/// configuration: a rebuilding and an incremental mode of one structure update differently).
+struct Column {
+    Term term;
+    std::string category;
+    bool by_params = false;
+    std::string label;  ///< with `by_params`: the parameters that differ from the defaults
+    std::string name() const {
+        return category.empty() ? term.name
+               : by_params      ? term.name + " {" + label + "}"
+                                : term.name + "[" + category + "]";
+    }
+    double value(const FrameObservation& f) const {
+        return category.empty() || category == (by_params ? f.params : f.category) ? term.value(f) : 0.0;
+    }
+};
+
+/// "margin=0,mode="rebuild"" for a registered structure's parameters, "defaults" when none differ;
+/// the parameters' JSON for a structure the registry does not know.
+std::string params_label(const std::string& structure, const std::string& params) {
+    try {
+        const nlohmann::json j = nlohmann::json::parse(params);
+        std::string label = config_label(ConfigSpec{structure, j});
+        label = label.size() > structure.size() ? label.substr(structure.size() + 1) : "defaults";
+        return label;
+    } catch (const std::exception&) {
+        return params;
+    }
+}
+
+std::vector<Column> columns_of(const std::vector<Term>& terms, const std::vector<std::string>& categories = {},
+                               bool by_params = false, const std::string& structure = "") {
+    std::vector<Column> out;
     const std::vector<std::string> cats = categories.empty() ? std::vector<std::string>{""} : categories;
-    for (const std::string& c : cats)
-        for (const Term& t : terms) p.terms.push_back(c.empty() ? t.name : t.name + "[" + c + "]");
-    for (const FrameObservation* f : frames) {
-        const double y = target == "raycast" ? f->raycast_ns / f->rays : f->update_ns;
+    for (const std::string& c : cats) {
+        const std::string label = by_params ? params_label(structure, c) : "";
+        for (const Term& t : terms) out.push_back({t, c, by_params, label});
+    }
+    return out;
+}
+
+double target_of(const FrameObservation& f, const std::string& target) {
+    return target == "raycast" ? (f.rays > 0 ? f.raycast_ns / f.rays : 0.0) : f.update_ns;
+}
+
+std::vector<double> row_of(const FrameObservation& f, const std::vector<Column>& columns) {
+    std::vector<double> row;
+    for (const Column& c : columns) row.push_back(c.value(f));
+    return row;
+}
+
+/// The problem of `columns` over `frames`; `rows` receives the index of each row's frame. Priors
+/// (calibration values by term name) apply to every category's copy of a term.
+LinearProblem build_problem(const std::vector<const FrameObservation*>& frames, const std::vector<Column>& columns,
+                            const std::string& target, const std::map<std::string, double>& priors,
+                            std::vector<std::size_t>* rows = nullptr) {
+    LinearProblem p;
+    for (const Column& c : columns) {
+        p.terms.push_back(c.name());
+        const auto it = priors.find(c.term.name);
+        p.prior.push_back(it == priors.end() ? NAN : it->second);
+    }
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+        const double y = target_of(*frames[i], target);
         if (!(y > 0)) continue;  // a zero time (timer resolution) carries no relative information
-        std::vector<double> row;
-        for (const std::string& c : cats)
-            for (const Term& t : terms) row.push_back(c.empty() || c == f->category ? t.value(*f) : 0.0);
-        p.x.push_back(std::move(row));
+        p.x.push_back(row_of(*frames[i], columns));
         p.y.push_back(y);
-        p.group.push_back(f->config_group);
+        p.group.push_back(frames[i]->config_group);
+        if (rows) rows->push_back(i);
     }
     return p;
 }
 
 /// Drops terms that are 0 in every frame (they cannot be fitted and the structure does not have them).
 std::vector<Term> present(const std::vector<const FrameObservation*>& frames, const std::vector<Term>& terms,
-                          std::vector<std::string>& unused) {
+                          std::vector<std::string>* unused = nullptr) {
     std::vector<Term> out;
     for (const Term& t : terms) {
         const bool any =
             std::any_of(frames.begin(), frames.end(), [&](const FrameObservation* f) { return t.value(*f) != 0; });
         if (any)
             out.push_back(t);
-        else if (std::find(unused.begin(), unused.end(), t.name) == unused.end())
-            unused.push_back(t.name);
+        else if (unused && std::find(unused->begin(), unused->end(), t.name) == unused->end())
+            unused->push_back(t.name);
     }
     return out;
 }
@@ -96,17 +172,127 @@ void select(std::vector<CandidateModel>& models) {
         }
 }
 
-CandidateModel candidate(const std::string& name, const std::string& target, LinearProblem problem) {
-    CandidateModel m;
-    m.name = name;
-    m.target = target;
-    m.problem = std::move(problem);
-    m.fit = fit_linear(m.problem);
-    m.heldout_error = cross_validated_error(m.problem);
-    return m;
+/// A candidate with the columns it ended with (after dropping terms the data put at 0).
+struct Built {
+    CandidateModel model;
+    std::vector<Column> columns;
+};
+
+/// Fits `columns`; a column without a calibration prior whose coefficient comes out 0 (or, in an
+/// identifiable fit, indistinguishable from 0) is dropped and the fit repeated, so that no chosen
+/// coefficient sits at 0. Columns with a prior are bounded to its range and never dropped.
+Built candidate(const std::string& name, const std::string& target, const std::vector<const FrameObservation*>& frames,
+                std::vector<Column> columns, const std::map<std::string, double>& priors,
+                const std::map<std::string, std::string>& no_prior_why) {
+    Built b;
+    b.model.name = name;
+    b.model.target = target;
+    for (;;) {
+        b.model.problem = build_problem(frames, columns, target, priors);
+        b.model.fit = fit_linear(b.model.problem);
+        std::size_t drop = columns.size();
+        for (std::size_t j = 0; j < columns.size() && columns.size() > 1; ++j) {
+            if (b.model.problem.has_prior(j)) continue;
+            const Coefficient& c = b.model.fit.coefficients[j];
+            const bool zero = !(c.value > 0);
+            const bool unsure = b.model.fit.status() == "ok" && c.spans_zero && target == "raycast";
+            if (zero || unsure) {
+                drop = j;
+                if (zero) break;  // a zero first: it cannot be anything else
+            }
+        }
+        if (drop == columns.size()) break;
+        const Coefficient& c = b.model.fit.coefficients[drop];
+        std::string why = c.name + ": ";
+        const auto it = no_prior_why.find(columns[drop].term.name);
+        if (it != no_prior_why.end()) why += "no calibration value (" + it->second + "); ";
+        why += c.value > 0 ? "the run's frames cannot tell it from 0 (95% interval [" + fixed(c.ci_low, 3) + ", " +
+                                 fixed(c.ci_high, 3) + "])"
+                           : "the run's frames put it at 0";
+        b.model.dropped.push_back(why);
+        columns.erase(columns.begin() + std::ptrdiff_t(drop));
+    }
+    b.model.heldout_error = cross_validated_error(b.model.problem);
+    b.columns = std::move(columns);
+    return b;
 }
 
+double median_of(std::vector<double> v) { return spread_of(std::move(v)).median; }
+
 }  // namespace
+
+int memory_tier_of(double bytes, const std::vector<CacheLevel>& caches) {
+    int tier = 0;
+    for (const CacheLevel& c : caches)
+        if (double(c.bytes) < bytes) ++tier;
+    return std::min(tier, 3);
+}
+
+const CalibratedTerm* StructureCalibration::term(const std::string& name) const {
+    for (const CalibratedTerm& t : terms)
+        if (t.name == name) return &t;
+    return nullptr;
+}
+
+StructureCalibration fit_calibration(const std::string& structure, const std::vector<CalibrationPoint>& points) {
+    StructureCalibration out;
+    out.structure = structure;
+    out.points = points;
+    if (points.empty()) return out;
+    const std::pair<const char*, double CalibrationPoint::*> counters[] = {{"C_RB", &CalibrationPoint::n_rb},
+                                                                           {"C_T", &CalibrationPoint::n_t}};
+    LinearProblem p;
+    for (const auto& [name, member] : counters)
+        if (std::any_of(points.begin(), points.end(), [&](const CalibrationPoint& q) { return q.*member > 0; }))
+            p.terms.push_back(name);
+    p.terms.push_back("C_PREP");
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        if (!(points[i].ns_per_ray > 0)) continue;
+        std::vector<double> row;
+        for (const std::string& t : p.terms)
+            row.push_back(t == "C_RB" ? points[i].n_rb : t == "C_T" ? points[i].n_t : 1.0);
+        p.x.push_back(row);
+        p.y.push_back(points[i].ns_per_ray);
+        p.group.push_back(int(i));
+    }
+    const LinearFit fit = fit_linear(p, 1.0);
+    out.condition_number = fit.condition_number;
+    for (const Coefficient& c : fit.coefficients) {
+        CalibratedTerm t{c.name, c.value, c.ci_low, c.ci_high, false, ""};
+        if (fit.status() != "ok")
+            t.why = "the micro-scenes' fit is " + fit.status();
+        else if (!(c.value > 0))
+            t.why = "the micro-scenes put it at 0";
+        else if (c.spans_zero)
+            t.why = "its interval on the micro-scenes spans 0";
+        else if (0.5 * (c.ci_high - c.ci_low) > 0.5 * c.value)
+            t.why = "its interval on the micro-scenes is wider than ±50%";
+        else
+            t.pinned = true;
+        out.terms.push_back(t);
+    }
+    return out;
+}
+
+std::vector<SceneSplit> scene_splits(const std::vector<const FrameObservation*>& frames) {
+    // Each frame's scene as an index, compared once per frame (frames of a cell come together, and
+    // names may be long).
+    std::vector<SceneSplit> out;
+    std::map<std::string, std::size_t> index;
+    std::vector<std::size_t> scene_of(frames.size());
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+        if (i > 0 && frames[i]->scene == frames[i - 1]->scene) {
+            scene_of[i] = scene_of[i - 1];
+            continue;
+        }
+        const auto [it, added] = index.emplace(frames[i]->scene, out.size());
+        if (added) out.push_back({frames[i]->scene, {}, {}});
+        scene_of[i] = it->second;
+    }
+    for (std::size_t s = 0; s < out.size(); ++s)
+        for (std::size_t i = 0; i < frames.size(); ++i) (scene_of[i] == s ? out[s].test : out[s].train).push_back(i);
+    return out;
+}
 
 const CandidateModel* StructureModels::chosen(const std::string& target) const {
     for (const CandidateModel& m : target == "raycast" ? raycast : update)
@@ -167,16 +353,32 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) 
         out.push_back(f);
     }
     if (out.empty()) throw InputError("run " + std::to_string(run) + " has no measured frames to fit");
+    const std::vector<CacheLevel> caches = load_cache_sizes(db, run);
+    for (FrameObservation& f : out) f.memory_tier = memory_tier_of(f.memory_mb * 1024.0 * 1024.0, caches);
     return out;
 }
 
-std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>& frames) {
+std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>& frames, const ModelInputs& inputs) {
     std::map<std::string, std::vector<const FrameObservation*>> by_structure;
     for (const FrameObservation& f : frames) by_structure[f.structure].push_back(&f);
     std::vector<StructureModels> out;
     for (const auto& [structure, fs] : by_structure) {
         StructureModels m;
         m.structure = structure;
+        for (const StructureCalibration& c : inputs.calibrations)
+            if (c.structure == structure) m.calibration = &c;
+        // Priors: the pinned calibration values; the others say why they are missing.
+        std::map<std::string, double> priors;
+        std::map<std::string, std::string> no_prior_why;
+        for (const char* name : {"C_RB", "C_T", "C_PREP"}) {
+            const CalibratedTerm* t = m.calibration ? m.calibration->term(name) : nullptr;
+            if (t && t->pinned)
+                priors[name] = t->value;
+            else
+                no_prior_why[name] = t               ? t->why
+                                     : m.calibration ? "the micro-scenes never exercise it"
+                                                     : "the run has no calibration";
+        }
         std::vector<const FrameObservation*> with_rays;
         for (const FrameObservation* f : fs)
             if (f->rays > 0) with_rays.push_back(f);
@@ -185,32 +387,118 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
         const std::vector<std::string> categories(category_set.begin(), category_set.end());
 
         // Ray cast: from the smallest model to the largest.
-        const std::vector<Term> core = present(with_rays, {kNrb, kNt}, m.unused_terms);
+        const std::vector<Term> core = present(with_rays, {kNrb, kNt}, &m.unused_terms);
         std::vector<Term> full = core;
         full.push_back(kPrep);
-        m.raycast.push_back(candidate("no-prep", "raycast", build_problem(with_rays, core, "raycast")));
-        m.raycast.push_back(candidate("eq5.4", "raycast", build_problem(with_rays, full, "raycast")));
+        std::vector<Built> raycast;
+        raycast.push_back(candidate("no-prep", "raycast", with_rays, columns_of(core), priors, no_prior_why));
+        raycast.push_back(candidate("eq5.4", "raycast", with_rays, columns_of(full), priors, no_prior_why));
         std::vector<Term> with_memory = full;
         with_memory.push_back(kMemory);
-        m.raycast.push_back(candidate("with-memory", "raycast", build_problem(with_rays, with_memory, "raycast")));
+        raycast.push_back(
+            candidate("with-memory", "raycast", with_rays, columns_of(with_memory), priors, no_prior_why));
+        // Per-test and per-step costs beyond each cache level the working set leaves.
+        const auto has = [&](const char* name) {
+            return std::any_of(core.begin(), core.end(), [&](const Term& t) { return t.name == name; });
+        };
+        const double w_rb = !has("C_RB") ? 0.0 : priors.count("C_RB") ? priors.at("C_RB") : 1.0;
+        const double w_t = !has("C_T") ? 0.0 : priors.count("C_T") ? priors.at("C_T") : 1.0;
+        const std::vector<Term> beyond = hierarchy_terms(with_rays, w_rb, w_t);
+        if (!beyond.empty()) {
+            std::vector<Term> hierarchy = full;
+            hierarchy.insert(hierarchy.end(), beyond.begin(), beyond.end());
+            raycast.push_back(
+                candidate("memory-hierarchy", "raycast", with_rays, columns_of(hierarchy), priors, no_prior_why));
+        }
         if (categories.size() > 1)
-            m.raycast.push_back(
-                candidate("per-category", "raycast", build_problem(with_rays, full, "raycast", categories)));
+            raycast.push_back(
+                candidate("per-category", "raycast", with_rays, columns_of(full, categories), priors, no_prior_why));
+        for (Built& b : raycast) m.raycast.push_back(b.model);
         select(m.raycast);
 
         // Update: per-operation costs, then a per-object (rebuild) cost.
         std::vector<std::string> unused_update;
-        const std::vector<Term> ops = present(fs, {kInsert, kRemove, kMove}, unused_update);
+        const std::vector<Term> ops = present(fs, {kInsert, kRemove, kMove}, &unused_update);
         std::vector<Term> ops_frame = ops;
         ops_frame.push_back(kFrame);
         std::vector<Term> rebuild = ops_frame;
         rebuild.push_back(kObjects);
-        m.update.push_back(candidate("per-operation", "update", build_problem(fs, ops_frame, "update")));
-        m.update.push_back(candidate("with-rebuild", "update", build_problem(fs, rebuild, "update")));
+        std::vector<Built> update;
+        update.push_back(candidate("per-operation", "update", fs, columns_of(ops_frame), {}, {}));
+        update.push_back(candidate("with-rebuild", "update", fs, columns_of(rebuild), {}, {}));
+        std::set<std::string> param_set;
+        for (const FrameObservation* f : fs) param_set.insert(f->params);
+        if (param_set.size() > 1)  // each configuration its own update costs (e.g. incremental vs rebuild)
+            update.push_back(candidate("per-configuration", "update", fs,
+                                       columns_of(rebuild, {param_set.begin(), param_set.end()}, true, structure), {},
+                                       {}));
+        for (Built& b : update) m.update.push_back(b.model);
         select(m.update);
+
+        // Leave one scene out: the chosen models' columns fitted on every other scene, the scene's
+        // frames predicted from their counters.
+        const Built* rc = nullptr;
+        const Built* up = nullptr;
+        for (std::size_t i = 0; i < m.raycast.size(); ++i)
+            if (m.raycast[i].chosen) rc = &raycast[i];
+        for (std::size_t i = 0; i < m.update.size(); ++i)
+            if (m.update[i].chosen) up = &update[i];
+        if (rc && up) {
+            double frame_sum = 0, raycast_sum = 0;
+            int frame_n = 0, raycast_n = 0;
+            for (const SceneSplit& split : scene_splits(fs)) {
+                SceneError e{split.scene, NAN, NAN};
+                std::vector<const FrameObservation*> train;
+                for (std::size_t i : split.train) train.push_back(fs[i]);
+                const LinearProblem rp = build_problem(train, rc->columns, "raycast", priors);
+                const LinearProblem upp = build_problem(train, up->columns, "update", {});
+                if (!rp.y.empty() && !upp.y.empty()) {
+                    const LinearFit rf = fit_linear(rp), uf = fit_linear(upp);
+                    std::map<int, std::array<std::vector<double>, 4>> by_config;  // measured/predicted frame, ray
+                    for (std::size_t i : split.test) {
+                        const FrameObservation& f = *fs[i];
+                        const double per_ray = f.rays > 0 ? rf.predict(row_of(f, rc->columns)) : 0.0;
+                        auto& v = by_config[f.config_group];
+                        v[0].push_back(f.frame_ns());
+                        v[1].push_back(uf.predict(row_of(f, up->columns)) + f.rays * per_ray);
+                        if (f.rays > 0 && f.raycast_ns > 0) {
+                            v[2].push_back(f.raycast_ns / f.rays);
+                            v[3].push_back(per_ray);
+                        }
+                    }
+                    double fe = 0, re = 0;
+                    int fn = 0, rn = 0;
+                    for (const auto& [g, v] : by_config) {
+                        const double measured = median_of(v[0]);
+                        if (measured > 0) fe += std::abs(median_of(v[1]) - measured) / measured, ++fn;
+                        if (!v[2].empty()) {
+                            const double ray = median_of(v[2]);
+                            re += std::abs(median_of(v[3]) - ray) / ray, ++rn;
+                        }
+                    }
+                    if (fn) e.frame_error = fe / fn, frame_sum += e.frame_error, ++frame_n;
+                    if (rn) e.raycast_error = re / rn, raycast_sum += e.raycast_error, ++raycast_n;
+                }
+                m.loso.push_back(e);
+            }
+            if (frame_n) m.loso_error = frame_sum / frame_n;
+            if (raycast_n) m.loso_raycast_error = raycast_sum / raycast_n;
+        }
         out.push_back(std::move(m));
     }
     return out;
+}
+
+ModelInputs load_model_inputs(Database& db, std::int64_t run) {
+    ModelInputs in;
+    in.caches = load_cache_sizes(db, run);
+    Statement s = db.prepare("SELECT DISTINCT structure FROM calibration WHERE run_id = ? ORDER BY structure");
+    s.bind(1, run);
+    std::vector<std::string> structures;
+    while (s.step()) structures.push_back(s.text(0));
+    for (const std::string& name : structures)
+        in.calibrations.push_back(fit_calibration(name, load_calibration(db, run, name)));
+    return in;
 }
 
 void store_fits(Database& db, std::int64_t run, const std::vector<StructureModels>& models) {
@@ -231,6 +519,16 @@ void store_fits(Database& db, std::int64_t run, const std::vector<StructureModel
                               std::int64_t(m.chosen))
                     .run();
                 const std::int64_t fit = db.last_insert_id();
+                // Leave-one-scene-out belongs to the chosen ray-cast model (it predicts the whole frame
+                // with the chosen update model); notes: the terms dropped and why.
+                std::string notes;
+                for (const std::string& d : m.dropped) notes += (notes.empty() ? "" : "; ") + d;
+                const bool loso = m.chosen && m.target == "raycast" && std::isfinite(s.loso_error);
+                db.prepare("UPDATE fit SET loso_error = ?, notes = ? WHERE id = ?")
+                    .bind(1, loso ? std::optional<double>(s.loso_error) : std::nullopt)
+                    .bind(2, notes)
+                    .bind(3, fit)
+                    .run();
                 for (const Coefficient& c : m.fit.coefficients) {
                     Statement ins = db.prepare(
                         "INSERT INTO fit_coefficient(fit_id, name, value, ci_low, ci_high, spans_zero) VALUES "
@@ -315,7 +613,8 @@ RunFit fit_run(Database& db, std::int64_t run) {
     out.run = run;
     const std::vector<FrameObservation> frames = load_observations(db, run);
     out.frames = frames.size();
-    out.models = fit_cost_models(frames);
+    out.inputs = std::make_shared<const ModelInputs>(load_model_inputs(db, run));
+    out.models = fit_cost_models(frames, *out.inputs);
     store_fits(db, run, out.models);
     out.breakdown = cost_breakdown(frames, out.models);
     return out;

@@ -8,15 +8,21 @@
 /// Observations are the frames of a run (not warm-up): the timed batch's time over its rays
 /// against the counting pass's mean counters. Nested candidate models are compared by held-out
 /// error (k-fold over configurations) and the smallest within the tolerance of the best is kept:
-/// model no more than the data needs.
+/// model no more than the data needs. The ray-cast coefficients are drawn towards the calibration
+/// pass's values (runner/calibration.h) and kept within 3× of them; a term without a calibration
+/// value that the run's data put at 0 is dropped and the model says why. The memory-hierarchy
+/// candidate adds per-test and per-step costs for a working set beyond each cache level. Every
+/// structure is also validated leaving one scene out.
 
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "analysis/linear_fit.h"
+#include "runner/calibration.h"
 #include "runner/sqlite.h"
 
 namespace rcb {
@@ -29,6 +35,56 @@ struct FrameObservation {
     double n_t = 0, n_rb = 0, n_tp = 0;  ///< per ray
     double inserts = 0, removes = 0, moves = 0, objects = 0;
     double memory_mb = 0;
+    /// Where the structure's working set (memory_mb) sits: 0 within the first data cache, 1 within
+    /// the second, …, the number of recorded caches (at most 3) beyond the last one (memory).
+    int memory_tier = 0;
+
+    double frame_ns() const { return update_ns + raycast_ns; }
+};
+
+/// Which cache tier `bytes` falls in: the number of `caches` (by level, data and unified) smaller
+/// than it, at most 3.
+int memory_tier_of(double bytes, const std::vector<CacheLevel>& caches);
+
+/// A ray-cast coefficient measured by the calibration pass (runner/calibration.h): the micro-scenes'
+/// fit of eq. 5.4. `pinned` when the micro-scenes determine it (positive, interval within ±50%);
+/// otherwise `why` says what was wrong and the term gets no prior.
+struct CalibratedTerm {
+    std::string name;  ///< "C_RB", "C_T", "C_PREP"
+    double value = NAN, ci_low = NAN, ci_high = NAN;
+    bool pinned = false;
+    std::string why;
+};
+struct StructureCalibration {
+    std::string structure;
+    std::vector<CalibrationPoint> points;
+    std::vector<CalibratedTerm> terms;
+    double condition_number = NAN;
+    const CalibratedTerm* term(const std::string& name) const;
+};
+StructureCalibration fit_calibration(const std::string& structure, const std::vector<CalibrationPoint>& points);
+
+/// What the fit knows about the run beyond its frames: the calibration per structure (may be empty:
+/// then no priors) and the machine's caches (may be empty: then no memory-hierarchy model).
+struct ModelInputs {
+    std::vector<StructureCalibration> calibrations;
+    std::vector<CacheLevel> caches;
+};
+
+/// Leave-one-scene-out: for each scene, the frames of the fit (every other scene's) and the frames
+/// predicted (the scene's own), as indices into `frames`.
+struct SceneSplit {
+    std::string scene;
+    std::vector<std::size_t> train, test;
+};
+std::vector<SceneSplit> scene_splits(const std::vector<const FrameObservation*>& frames);
+
+/// One scene predicted from a fit on every other scene: mean over its configurations of the
+/// relative error of the median predicted time per frame (update + rays × C) against the median
+/// measured; NaN when no other scene measured the structure.
+struct SceneError {
+    std::string scene;
+    double frame_error = NAN, raycast_error = NAN;
 };
 
 /// Frames of one run; `run` is a run id, or 0 for the newest run (of `experiment` if given).
@@ -42,12 +98,17 @@ struct CandidateModel {
     LinearFit fit;
     double heldout_error = 0;  ///< mean absolute relative error on held-out configurations
     bool chosen = false;
+    std::vector<std::string> dropped;  ///< terms left out of this model, each with why
 };
 
 struct StructureModels {
     std::string structure;
     std::vector<std::string> unused_terms;  ///< terms that are always 0 for this structure (e.g. N_T of bf)
     std::vector<CandidateModel> raycast, update;
+    std::vector<SceneError> loso;  ///< leave-one-scene-out, with the chosen models' terms
+    double loso_error = NAN;       ///< mean frame_error over the scenes that could be predicted
+    double loso_raycast_error = NAN;
+    const StructureCalibration* calibration = nullptr;  ///< into the ModelInputs given, if any
     const CandidateModel* chosen(const std::string& target) const;
 };
 
@@ -55,7 +116,11 @@ struct StructureModels {
 inline constexpr double kSelectionTolerance = 0.05;
 inline constexpr double kSelectionFloor = 0.005;
 
-std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>& frames);
+/// `inputs` (kept alive by the caller while the result is used) gives priors and cache tiers.
+std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>& frames,
+                                             const ModelInputs& inputs = {});
+/// The run's stored calibration and caches (empty for runs made before they were stored).
+ModelInputs load_model_inputs(Database& db, std::int64_t run);
 
 /// Replaces the run's stored fits (schema: docs/database.md, tables fit and fit_coefficient).
 void store_fits(Database& db, std::int64_t run, const std::vector<StructureModels>& models);
@@ -76,6 +141,7 @@ std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& f
 struct RunFit {
     std::int64_t run = 0;
     std::size_t frames = 0;
+    std::shared_ptr<const ModelInputs> inputs;  ///< what `models` point into
     std::vector<StructureModels> models;
     std::vector<CostBreakdown> breakdown;
 };

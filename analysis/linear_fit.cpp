@@ -32,12 +32,37 @@ private:
     double y_;
 };
 
+/// A calibration prior: r = (γ / (s·μ) − 1) / σ on the scaled coefficient γ = β·s.
+class PriorResidual : public ceres::CostFunction {
+public:
+    PriorResidual(std::size_t k, std::size_t j, double scaled_mu, double sigma)
+        : k_(k), j_(j), mu_(scaled_mu), sigma_(sigma) {
+        set_num_residuals(1);
+        mutable_parameter_block_sizes()->push_back(int(k));
+    }
+    bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+        residuals[0] = (parameters[0][j_] / mu_ - 1) / sigma_;
+        if (jacobians && jacobians[0])
+            for (std::size_t j = 0; j < k_; ++j) jacobians[0][j] = j == j_ ? 1 / (mu_ * sigma_) : 0.0;
+        return true;
+    }
+
+private:
+    std::size_t k_, j_;
+    double mu_, sigma_;
+};
+
 double condition_number_of(const LinearProblem& p) {
     const std::size_t n = p.x.size(), k = p.terms.size();
     if (n == 0 || k == 0) return INFINITY;
-    Eigen::MatrixXd a(n, k);
+    std::size_t priors = 0;
+    for (std::size_t j = 0; j < k; ++j) priors += p.has_prior(j);
+    Eigen::MatrixXd a = Eigen::MatrixXd::Zero(Eigen::Index(n + priors), Eigen::Index(k));
     for (std::size_t i = 0; i < n; ++i)
         for (std::size_t j = 0; j < k; ++j) a(Eigen::Index(i), Eigen::Index(j)) = p.x[i][j] / p.y[i];
+    // The prior rows, in the units of the data rows (a relative residual per row).
+    for (std::size_t j = 0, r = n; j < k; ++j)
+        if (p.has_prior(j)) a(Eigen::Index(r++), Eigen::Index(j)) = 1 / (p.prior[j] * p.prior_sigma);
     // Scale columns to unit norm so that units (ns vs counts) do not count as ill-conditioning.
     for (Eigen::Index j = 0; j < a.cols(); ++j) {
         const double norm = a.col(j).norm();
@@ -56,6 +81,19 @@ double median_of(std::vector<double> v) {
 }
 
 }  // namespace
+
+LinearProblem LinearProblem::subset(const std::vector<std::size_t>& rows) const {
+    LinearProblem out;
+    out.terms = terms;
+    out.prior = prior;
+    out.prior_sigma = prior_sigma;
+    for (std::size_t i : rows) {
+        out.x.push_back(x[i]);
+        out.y.push_back(y[i]);
+        out.group.push_back(group[i]);
+    }
+    return out;
+}
 
 std::string LinearFit::status() const {
     if (!converged) return "did not converge";
@@ -102,13 +140,25 @@ LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
         const Eigen::VectorXd start = a.completeOrthogonalDecomposition().solve(b);
         for (std::size_t j = 0; j < k; ++j)
             beta[j] = std::isfinite(start(Eigen::Index(j))) ? std::max(0.0, start(Eigen::Index(j))) : 0.0;
+        for (std::size_t j = 0; j < k; ++j)  // inside a prior's range (the solver must start feasible)
+            if (p.has_prior(j))
+                beta[j] = std::clamp(beta[j], scale[j] * p.prior[j] / kPriorRange, scale[j] * p.prior[j] * kPriorRange);
     }
 
     ceres::Problem problem;
     for (std::size_t i = 0; i < n; ++i)
         problem.AddResidualBlock(new RelativeLinearResidual(xs[i], p.y[i]), new ceres::HuberLoss(huber_delta),
                                  beta.data());
-    for (std::size_t j = 0; j < k; ++j) problem.SetParameterLowerBound(beta.data(), int(j), 0.0);
+    for (std::size_t j = 0; j < k; ++j) {
+        if (p.has_prior(j)) {
+            problem.AddResidualBlock(new PriorResidual(k, j, scale[j] * p.prior[j], p.prior_sigma), nullptr,
+                                     beta.data());
+            problem.SetParameterLowerBound(beta.data(), int(j), scale[j] * p.prior[j] / kPriorRange);
+            problem.SetParameterUpperBound(beta.data(), int(j), scale[j] * p.prior[j] * kPriorRange);
+        } else {
+            problem.SetParameterLowerBound(beta.data(), int(j), 0.0);
+        }
+    }
     ceres::Solver::Options options;
     options.linear_solver_type = ceres::DENSE_QR;
     options.max_num_iterations = 1000;
@@ -120,6 +170,8 @@ LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
     fit.converged = summary.termination_type == ceres::CONVERGENCE;
     std::vector<double> gamma = beta;
     for (std::size_t j = 0; j < k; ++j) beta[j] = gamma[j] / scale[j];
+    for (std::size_t j = 0; j < k; ++j)  // absurd inputs (a count of 1e300): no estimate, and said so
+        if (!std::isfinite(beta[j])) beta[j] = 0, gamma[j] = 0, fit.converged = false;
 
     // Quality on the fitted data, in relative terms.
     double ss_res = 0, ss_tot = 0;
@@ -141,6 +193,11 @@ LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
     }
     fit.r2 = ss_tot > 0 ? 1 - ss_abs / ss_tot : 0;
     fit.rmse_relative = std::sqrt(ss_res / double(n));
+    if (!std::isfinite(fit.r2) || !std::isfinite(fit.rmse_relative)) {
+        fit.converged = false;
+        if (std::isnan(fit.r2)) fit.r2 = 0;
+        if (std::isnan(fit.rmse_relative)) fit.rmse_relative = INFINITY;
+    }
     fit.condition_number = condition_number_of(p);
     fit.ill_conditioned = !(fit.condition_number < kIllConditioned);
     fit.too_few_groups = fit.groups < k + 1;
@@ -171,6 +228,11 @@ LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
         c.ci_low = c.value - 1.96 * se;
         c.ci_high = c.value + 1.96 * se;
         c.spans_zero = !(c.ci_low > 0);  // NaN (no interval) counts as unsure too
+        if (p.has_prior(j)) {
+            c.prior = p.prior[j];
+            c.at_bound =
+                c.value <= p.prior[j] / kPriorRange * (1 + 1e-6) || c.value >= p.prior[j] * kPriorRange * (1 - 1e-6);
+        }
     }
     return fit;
 }
@@ -186,18 +248,9 @@ double cross_validated_error(const LinearProblem& p, int k) {
     double error = 0;
     std::size_t count = 0;
     for (int f = 0; f < folds; ++f) {
-        LinearProblem train{p.terms, {}, {}, {}};
-        std::vector<std::size_t> test;
-        for (std::size_t i = 0; i < p.y.size(); ++i) {
-            if (fold_of[p.group[i]] == f) {
-                test.push_back(i);
-            } else {
-                train.x.push_back(p.x[i]);
-                train.y.push_back(p.y[i]);
-                train.group.push_back(p.group[i]);
-            }
-        }
-        const LinearFit fit = fit_linear(train);
+        std::vector<std::size_t> test, rows;
+        for (std::size_t i = 0; i < p.y.size(); ++i) (fold_of[p.group[i]] == f ? test : rows).push_back(i);
+        const LinearFit fit = fit_linear(p.subset(rows));
         // Per held-out configuration: its median frame, measured against predicted. Medians keep
         // a few frames disturbed by other processes from standing in for the model's error.
         std::map<int, std::pair<std::vector<double>, std::vector<double>>> by_group;

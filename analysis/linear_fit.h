@@ -7,7 +7,14 @@
 /// A fit reports when it cannot be trusted: a design whose columns are (nearly) collinear, too few
 /// distinct configurations to separate the terms, or a coefficient whose interval spans zero. Those
 /// are flagged, never printed as numbers that look sure.
+///
+/// Calibration priors: a term may carry a value measured on designed micro-scenes (runner/
+/// calibration.h). It enters as one more residual, (β_j/μ_j − 1)/σ, and bounds β_j to
+/// [μ_j/3, 3·μ_j]: where the run's data cannot tell collinear terms apart, the calibration
+/// decides; where they can, the data do. The condition number is that of the design with the prior
+/// rows, so a prior makes a collinear design identifiable and its absence is reported.
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -18,13 +25,24 @@ struct LinearProblem {
     std::vector<std::vector<double>> x;  ///< rows of the design matrix
     std::vector<double> y;               ///< observations, > 0
     std::vector<int> group;              ///< the configuration each row came from (for k-fold)
+    std::vector<double> prior;           ///< per term: calibration value (> 0), or NaN; empty: none
+    double prior_sigma = 0.5;            ///< relative uncertainty of a prior
+
+    bool has_prior(std::size_t j) const { return j < prior.size() && prior[j] > 0; }
+    /// The rows at `rows`, with the same terms and priors.
+    LinearProblem subset(const std::vector<std::size_t>& rows) const;
 };
+
+/// A prior bounds its coefficient to [μ/kPriorRange, kPriorRange·μ].
+inline constexpr double kPriorRange = 3.0;
 
 struct Coefficient {
     std::string name;
     double value = 0;
     double ci_low = 0, ci_high = 0;  ///< 95% interval
     bool spans_zero = false;         ///< the interval includes 0: not distinguishable from no effect
+    double prior = NAN;              ///< the calibration value it was drawn towards, if any
+    bool at_bound = false;           ///< at μ/3 or 3μ: the run's data pull it beyond the calibration's range
 };
 
 struct LinearFit {

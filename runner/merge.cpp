@@ -23,6 +23,8 @@ MergeCount merge_into(ResultStore& out, Database& in) {
     }
     // Scene features travel with their scenes (an input older than the scene_feature table has none).
     const bool in_has_features = in.prepare("SELECT 1 FROM sqlite_master WHERE name = 'scene_feature'").step();
+    // The run's machine (cache sizes, calibration) travels with the run: the fit's priors need it.
+    const bool in_has_machine = in.prepare("SELECT 1 FROM sqlite_master WHERE name = 'calibration'").step();
     Statement runs = in.prepare(
         "SELECT run.id, run.uuid, experiment.name, experiment.description, experiment_hash, experiment_content, "
         "started_at, "
@@ -64,6 +66,25 @@ MergeCount merge_into(ResultStore& out, Database& in) {
             insert_run.run();
             run = o.last_insert_id();
             ++count.runs;
+            if (in_has_machine) {
+                Statement caches = in.prepare("SELECT level, type, size_bytes FROM run_cache WHERE run_id = ?");
+                caches.bind_all(runs.int64(0));
+                while (caches.step())
+                    o.prepare("INSERT INTO run_cache(run_id, level, type, size_bytes) VALUES (?,?,?,?)")
+                        .bind_all(run, caches.int64(0), caches.text(1), caches.int64(2))
+                        .run();
+                Statement cal = in.prepare(
+                    "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad FROM calibration WHERE run_id = "
+                    "?");
+                cal.bind_all(runs.int64(0));
+                while (cal.step())
+                    o.prepare(
+                         "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad) "
+                         "VALUES (?,?,?,?,?,?,?,?,?)")
+                        .bind_all(run, cal.text(0), cal.text(1), cal.text(2), cal.int64(3), cal.real(4), cal.real(5),
+                                  cal.real(6), cal.real(7))
+                        .run();
+            }
         }
 
         Statement cells = in.prepare(

@@ -10,6 +10,7 @@
 
 #include "core/error.h"
 #include "core/registry.h"
+#include "runner/calibration.h"
 #include "runner/store.h"
 
 namespace rcb {
@@ -70,6 +71,13 @@ RunOutcome run_experiment(const Experiment& e, const std::string& source, const 
     const std::size_t todo = plan.size() - out.done_before;
 
     tbb::global_control threads(tbb::global_control::max_allowed_parallelism, e.threads);
+    // The run's machine: cache sizes and each structure's calibration (at its first configuration,
+    // with the run's threads), measured once per run before its first cell.
+    std::vector<std::pair<std::string, nlohmann::json>> structures;
+    for (const ConfigSpec& c : e.configs)
+        if (std::none_of(structures.begin(), structures.end(), [&](const auto& s) { return s.first == c.structure; }))
+            structures.emplace_back(c.structure, c.params);
+    record_machine(store.db(), out.run, structures);
     SimulationOptions sim;
     sim.verify = e.verify;
     sim.warmup_frames = e.warmup_frames;

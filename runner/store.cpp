@@ -232,6 +232,30 @@ CREATE TABLE derived_category_scene (
     PRIMARY KEY (run_id, scene_id)
 );
 )sql",
+        // 5 → 6: the machine behind a run and the model's validation (runner/calibration.h,
+        // analysis/cost_model.h): the CPU's data caches, each structure's calibration micro-scenes,
+        // and per fit its leave-one-scene-out error and why terms were dropped.
+        R"sql(
+CREATE TABLE run_cache (
+    run_id     INTEGER NOT NULL REFERENCES run(id),
+    level      INTEGER NOT NULL,
+    type       TEXT NOT NULL,
+    size_bytes INTEGER NOT NULL
+);
+CREATE TABLE calibration (
+    run_id     INTEGER NOT NULL REFERENCES run(id),
+    structure  TEXT NOT NULL,
+    params     TEXT NOT NULL,
+    scene      TEXT NOT NULL,
+    rays       INTEGER NOT NULL,
+    n_rb       REAL NOT NULL,
+    n_t        REAL NOT NULL,
+    ns_per_ray REAL NOT NULL,
+    mad        REAL NOT NULL
+);
+ALTER TABLE fit ADD COLUMN loso_error REAL;
+ALTER TABLE fit ADD COLUMN notes TEXT NOT NULL DEFAULT '';
+)sql",
     };
     return all;
 }

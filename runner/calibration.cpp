@@ -1,0 +1,239 @@
+#include "runner/calibration.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "core/error.h"
+#include "core/hit_lists.h"
+#include "core/simulator.h"
+#include "runner/store.h"
+
+namespace rcb {
+
+namespace fs = std::filesystem;
+
+std::uint64_t parse_cache_size(const std::string& text, const std::string& where) {
+    std::size_t i = 0;
+    std::uint64_t value = 0;
+    while (i < text.size() && text[i] >= '0' && text[i] <= '9') {
+        if (value > (std::uint64_t(1) << 40)) throw InputError(where + ": cache size '" + text + "' is too large");
+        value = value * 10 + std::uint64_t(text[i++] - '0');
+    }
+    std::string unit = text.substr(i);
+    while (!unit.empty() && (unit.back() == '\n' || unit.back() == ' ')) unit.pop_back();
+    if (i == 0 || value == 0) throw InputError(where + ": not a cache size: '" + text + "'");
+    if (unit.empty()) return value;
+    if (unit == "K") return value << 10;
+    if (unit == "M") return value << 20;
+    if (unit == "G") return value << 30;
+    throw InputError(where + ": not a cache size: '" + text + "'");
+}
+
+std::vector<CacheLevel> read_cache_sizes(const std::string& dir) {
+    std::vector<CacheLevel> out;
+    std::error_code ec;
+    if (!fs::is_directory(dir, ec)) return out;
+    std::vector<fs::path> entries;
+    for (const auto& e : fs::directory_iterator(dir, ec))
+        if (e.path().filename().string().rfind("index", 0) == 0) entries.push_back(e.path());
+    std::sort(entries.begin(), entries.end());
+    auto read = [](const fs::path& p) {
+        std::ifstream in(p);
+        if (!in) throw InputError(p.string() + ": cannot be read");
+        std::string line;
+        std::getline(in, line);
+        return line;
+    };
+    for (const fs::path& e : entries) {
+        CacheLevel c;
+        c.type = read(e / "type");
+        if (c.type == "Instruction") continue;
+        if (c.type != "Data" && c.type != "Unified")
+            throw InputError((e / "type").string() + ": unknown cache type '" + c.type + "'");
+        const std::string level = read(e / "level");
+        if (level.empty() || level.size() > 2 || !std::all_of(level.begin(), level.end(), ::isdigit))
+            throw InputError((e / "level").string() + ": not a cache level: '" + level + "'");
+        c.level = std::stoi(level);
+        c.bytes = parse_cache_size(read(e / "size"), (e / "size").string());
+        out.push_back(c);
+    }
+    std::sort(out.begin(), out.end(), [](const CacheLevel& a, const CacheLevel& b) { return a.level < b.level; });
+    return out;
+}
+
+namespace {
+
+/// A fixed generator: the micro-scenes are the same on every machine and every run.
+struct Draw {
+    std::mt19937_64 rng{0x5eedca11b7a7e5ull};
+    float operator()(float lo, float hi) { return lo + (hi - lo) * float(double(rng() >> 11) * 0x1.0p-53); }
+};
+
+struct MicroScene {
+    std::string name;
+    std::vector<Object> objects;
+    std::vector<Segment> rays;
+};
+
+Aabb cube(Vec3 c, float half) { return {{c.x - half, c.y - half, c.z - half}, {c.x + half, c.y + half, c.z + half}}; }
+
+/// Boxes of edge 2 at the centres of an n×n×n lattice of spacing 10 (the world is [0, 10n]^3).
+std::vector<Object> lattice(int n) {
+    std::vector<Object> out;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j)
+            for (int k = 0; k < n; ++k)
+                out.push_back({Uid(out.size() + 1), cube({10.f * i + 5, 10.f * j + 5, 10.f * k + 5}, 1)});
+    return out;
+}
+
+std::vector<MicroScene> micro_scenes() {
+    Draw draw;
+    std::vector<MicroScene> out;
+    const int kRays = 512;
+    for (int n : {6, 10}) {
+        const float w = 10.f * float(n);
+        // Rays beside the world: start-up only.
+        MicroScene outside{"outside-" + std::to_string(n), lattice(n), {}};
+        for (int r = 0; r < kRays; ++r) {
+            const Vec3 p0{w + 20 + draw(0, w), draw(0, w), draw(0, w)};
+            outside.rays.push_back({p0, {p0.x + draw(5, w), p0.y + draw(-5, 5), p0.z + draw(-5, 5)}});
+        }
+        out.push_back(std::move(outside));
+        // Along the gaps between lattice rows: the whole width, no box met.
+        MicroScene gaps{"gaps-" + std::to_string(n), lattice(n), {}};
+        for (int r = 0; r < kRays; ++r) {
+            const float y = 10.f * float(1 + r % (n - 1)) + draw(-1, 1),
+                        z = 10.f * float(1 + (r / 7) % (n - 1)) + draw(-1, 1);
+            gaps.rays.push_back({{-5, y, z}, {w + 5, y, z}});
+        }
+        out.push_back(std::move(gaps));
+        // Along the rows: every ray meets the n boxes of its row.
+        MicroScene rows{"rows-" + std::to_string(n), lattice(n), {}};
+        for (int r = 0; r < kRays; ++r) {
+            const float y = 10.f * float(r % n) + 5 + draw(-0.5f, 0.5f),
+                        z = 10.f * float((r / 7) % n) + 5 + draw(-0.5f, 0.5f);
+            rows.rays.push_back({{-5, y, z}, {w + 5, y, z}});
+        }
+        out.push_back(std::move(rows));
+    }
+    // A hollow shell of boxes on the faces of [0, 100]^3, rays inside it: steps through empty space.
+    MicroScene shell{"shell", {}, {}};
+    for (int face = 0; face < 6; ++face)
+        for (int a = 0; a < 13; ++a)
+            for (int b = 0; b < 13; ++b) {
+                const float u = 2 + 8.f * float(a), v = 2 + 8.f * float(b), f = face % 2 ? 99.f : 1.f;
+                const Vec3 c = face / 2 == 0 ? Vec3{f, u, v} : face / 2 == 1 ? Vec3{u, f, v} : Vec3{u, v, f};
+                shell.objects.push_back({Uid(shell.objects.size() + 1), cube(c, 1)});
+            }
+    for (int r = 0; r < kRays; ++r)
+        shell.rays.push_back({{draw(15, 85), draw(15, 85), draw(15, 85)}, {draw(15, 85), draw(15, 85), draw(15, 85)}});
+    out.push_back(std::move(shell));
+    // A stack of identical boxes every ray crosses: box tests.
+    MicroScene stack{"stack", {}, {}};
+    for (int i = 0; i < 256; ++i) stack.objects.push_back({Uid(i + 1), cube({50, 50, 50}, 5)});
+    for (int r = 0; r < kRays / 4; ++r)
+        stack.rays.push_back({{draw(30, 40), draw(46, 54), draw(46, 54)}, {draw(60, 70), draw(46, 54), draw(46, 54)}});
+    out.push_back(std::move(stack));
+    return out;
+}
+
+}  // namespace
+
+std::vector<CalibrationPoint> calibrate_structure(const StructureInfo& info, const nlohmann::json& params,
+                                                  int repeats) {
+    std::vector<CalibrationPoint> out;
+    for (const MicroScene& scene : micro_scenes()) {
+        std::unique_ptr<Structure> s = info.make(params, "calibration of " + info.name);
+        s->build(scene.objects);
+        s->commit();
+        HitLists hits;
+        Counters counters;
+        s->cast_counted(scene.rays, hits, counters);
+        s->cast(scene.rays, hits);  // warm the caches and branch predictors
+        std::vector<double> ns;
+        for (int r = 0; r < repeats; ++r) {
+            const auto t0 = std::chrono::steady_clock::now();
+            s->cast(scene.rays, hits);
+            const auto t1 = std::chrono::steady_clock::now();
+            ns.push_back(double(std::chrono::duration_cast<std::chrono::nanoseconds>(t1 - t0).count()) /
+                         double(scene.rays.size()));
+        }
+        const Spread spread = spread_of(ns);
+        CalibrationPoint p;
+        p.scene = scene.name;
+        p.rays = std::uint32_t(scene.rays.size());
+        p.n_rb = double(counters.n_rb) / double(p.rays);
+        p.n_t = double(counters.n_t) / double(p.rays);
+        p.ns_per_ray = spread.median;
+        p.mad = spread.mad;
+        out.push_back(p);
+    }
+    return out;
+}
+
+void record_machine(Database& db, std::int64_t run,
+                    const std::vector<std::pair<std::string, nlohmann::json>>& structures,
+                    const std::string& cache_dir) {
+    auto recorded = [&] {
+        Statement s =
+            db.prepare("SELECT 1 FROM run_cache WHERE run_id = ? UNION ALL SELECT 1 FROM calibration WHERE run_id = ?");
+        s.bind_all(run, run);
+        return s.step();
+    };
+    if (recorded()) return;  // a resumed run keeps the machine state it began with
+    const std::vector<CacheLevel> caches = read_cache_sizes(cache_dir);
+    struct Measured {
+        std::string name;
+        nlohmann::json params;
+        std::vector<CalibrationPoint> points;
+    };
+    std::vector<Measured> measured;
+    for (const auto& [name, params] : structures) {
+        // A structure that cannot be built on the micro-scenes (a user's structure with its own
+        // limits) is left uncalibrated: its fit has no priors and says so; the run goes on.
+        try {
+            measured.push_back({name, params, calibrate_structure(find_structure(name), params)});
+        } catch (const std::exception&) {
+        }
+    }
+    Transaction t(db);
+    if (recorded()) return;  // another runner of the same run stored it meanwhile
+    for (const CacheLevel& c : caches)
+        db.prepare("INSERT INTO run_cache(run_id, level, type, size_bytes) VALUES (?,?,?,?)")
+            .bind_all(run, std::int64_t(c.level), c.type, std::int64_t(c.bytes))
+            .run();
+    for (const Measured& m : measured)
+        for (const CalibrationPoint& p : m.points)
+            db.prepare(
+                  "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad) VALUES "
+                  "(?,?,?,?,?,?,?,?,?)")
+                .bind_all(run, m.name, m.params.dump(), p.scene, std::int64_t(p.rays), p.n_rb, p.n_t, p.ns_per_ray,
+                          p.mad)
+                .run();
+    t.commit();
+}
+
+std::vector<CacheLevel> load_cache_sizes(Database& db, std::int64_t run) {
+    std::vector<CacheLevel> out;
+    Statement s = db.prepare("SELECT level, type, size_bytes FROM run_cache WHERE run_id = ? ORDER BY level, type");
+    s.bind(1, run);
+    while (s.step()) out.push_back({int(s.int64(0)), s.text(1), std::uint64_t(s.int64(2))});
+    return out;
+}
+
+std::vector<CalibrationPoint> load_calibration(Database& db, std::int64_t run, const std::string& structure) {
+    std::vector<CalibrationPoint> out;
+    Statement s = db.prepare(
+        "SELECT scene, rays, n_rb, n_t, ns_per_ray, mad FROM calibration WHERE run_id = ? AND structure = ? ORDER BY "
+        "rowid");
+    s.bind_all(run, structure);
+    while (s.step()) out.push_back({s.text(0), std::uint32_t(s.int64(1)), s.real(2), s.real(3), s.real(4), s.real(5)});
+    return out;
+}
+
+}  // namespace rcb

@@ -1,0 +1,64 @@
+#pragma once
+/// The machine behind a run: its cache sizes, and a calibration pass that measures each structure
+/// on designed micro-scenes.
+///
+/// In a real scene the counters of eq. 5.4 (thesis §5.1) move together: in a BVH every node visit
+/// leads to box tests, so N_RB and N_T are nearly collinear and a fit cannot tell C_RB from C_T.
+/// The micro-scenes vary them independently: rays outside every object's bounds (start-up only:
+/// C_PREP), rays through the empty inside of a hollow shell (traversal steps with few tests: C_T),
+/// a stack of identical boxes every ray crosses (box tests with few steps in a grid, the whole tree
+/// in a BVH: C_RB), and rays along the gaps and rows of a lattice (mixes). The scenes are small, so
+/// the coefficients they give are in-cache costs. The analysis stage fits them (the priors of the
+/// run's fit); this stage only measures and stores.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/registry.h"
+#include "runner/sqlite.h"
+
+namespace rcb {
+
+/// One data or unified cache of the CPU (instruction caches are left out).
+struct CacheLevel {
+    int level = 0;
+    std::string type;  ///< "Data" or "Unified"
+    std::uint64_t bytes = 0;
+};
+
+/// "32K", "1024K", "8M", "512" → bytes; InputError naming `where` for anything else.
+std::uint64_t parse_cache_size(const std::string& text, const std::string& where);
+
+/// The caches under `dir` (sysfs: index*/{level,type,size}), sorted by level. A missing folder
+/// gives none (a machine without sysfs); a malformed entry is an InputError naming its file.
+std::vector<CacheLevel> read_cache_sizes(const std::string& dir = "/sys/devices/system/cpu/cpu0/cache");
+
+/// One micro-scene measured: mean counters per ray and the median time per ray over repeats.
+struct CalibrationPoint {
+    std::string scene;
+    std::uint32_t rays = 0;
+    double n_rb = 0, n_t = 0;  ///< per ray
+    double ns_per_ray = 0;     ///< median over the repeats
+    double mad = 0;            ///< median absolute deviation over the repeats
+};
+
+/// Builds `info` with `params` on every micro-scene and times its ray batches (`repeats` times);
+/// deterministic scenes and rays. Takes well under a second per structure.
+std::vector<CalibrationPoint> calibrate_structure(const StructureInfo& info, const nlohmann::json& params,
+                                                  int repeats = 7);
+
+/// Stores the caches and each structure's calibration with the run (tables run_cache and
+/// calibration, docs/database.md), unless the run has them already (a resumed run keeps its own).
+/// `structures` are (name, complete params) pairs, one per structure.
+void record_machine(Database& db, std::int64_t run,
+                    const std::vector<std::pair<std::string, nlohmann::json>>& structures,
+                    const std::string& cache_dir = "/sys/devices/system/cpu/cpu0/cache");
+
+/// The stored caches and calibration points of a run (empty for runs made before they were stored).
+std::vector<CacheLevel> load_cache_sizes(Database& db, std::int64_t run);
+std::vector<CalibrationPoint> load_calibration(Database& db, std::int64_t run, const std::string& structure);
+
+}  // namespace rcb

@@ -1,0 +1,168 @@
+// The machine behind a run: cache sizes parsed from a sysfs folder (a fake one here), the
+// calibration micro-scenes varying the counters as designed, and both stored once per run.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include <cmath>
+
+#include "analysis/cost_model.h"
+#include "core/error.h"
+#include "core/registry.h"
+#include "runner/calibration.h"
+#include "runner/experiment.h"
+#include "runner/merge.h"
+#include "runner/run_experiment.h"
+#include "runner/store.h"
+
+namespace rcb {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path temp_dir(const std::string& name) {
+    const fs::path dir = fs::temp_directory_path() / ("rcb_calibration_" + std::to_string(::getpid()) + "_" + name);
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    return dir;
+}
+
+void write_cache(const fs::path& dir, int index, const std::string& level, const std::string& type,
+                 const std::string& size) {
+    const fs::path d = dir / ("index" + std::to_string(index));
+    fs::create_directories(d);
+    std::ofstream(d / "level") << level << '\n';
+    std::ofstream(d / "type") << type << '\n';
+    std::ofstream(d / "size") << size << '\n';
+}
+
+TEST(CacheSizes, ParseFromASysfsFolder) {
+    const fs::path dir = temp_dir("sysfs");
+    write_cache(dir, 0, "1", "Data", "48K");
+    write_cache(dir, 1, "1", "Instruction", "32K");
+    write_cache(dir, 2, "2", "Unified", "2048K");
+    write_cache(dir, 3, "3", "Unified", "96M");
+    const std::vector<CacheLevel> caches = read_cache_sizes(dir.string());
+    ASSERT_EQ(caches.size(), 3u);  // the instruction cache is left out
+    EXPECT_EQ(caches[0].level, 1);
+    EXPECT_EQ(caches[0].type, "Data");
+    EXPECT_EQ(caches[0].bytes, 48u << 10);
+    EXPECT_EQ(caches[1].bytes, 2048u << 10);
+    EXPECT_EQ(caches[2].level, 3);
+    EXPECT_EQ(caches[2].bytes, 96u << 20);
+
+    EXPECT_TRUE(read_cache_sizes((dir / "absent").string()).empty());
+    write_cache(dir, 4, "4", "Unified", "lots");
+    try {
+        read_cache_sizes(dir.string());
+        FAIL() << "a malformed size was accepted";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("index4/size"), std::string::npos) << e.what();
+    }
+    fs::remove_all(dir);
+}
+
+TEST(CacheSizes, Units) {
+    EXPECT_EQ(parse_cache_size("512", "x"), 512u);
+    EXPECT_EQ(parse_cache_size("32K", "x"), 32u << 10);
+    EXPECT_EQ(parse_cache_size("8M", "x"), 8u << 20);
+    EXPECT_THROW(parse_cache_size("", "x"), InputError);
+    EXPECT_THROW(parse_cache_size("K", "x"), InputError);
+    EXPECT_THROW(parse_cache_size("12Q", "x"), InputError);
+}
+
+TEST(Calibration, MicroScenesVaryTheCountersIndependently) {
+    for (const char* name : {"bf", "ug", "dbvh", "lbvh"}) {
+        const StructureInfo& info = find_structure(name);
+        const std::vector<CalibrationPoint> points = calibrate_structure(info, info.defaults(), 1);
+        ASSERT_EQ(points.size(), 8u) << name;
+        auto at = [&](const std::string& scene) {
+            for (const CalibrationPoint& p : points)
+                if (p.scene == scene) return p;
+            ADD_FAILURE() << name << ": no micro-scene " << scene;
+            return CalibrationPoint{};
+        };
+        EXPECT_EQ(at("stack").n_rb, 256) << name;  // every ray tests every box of the stack
+        for (const CalibrationPoint& p : points) EXPECT_GT(p.ns_per_ray, 0) << name << " " << p.scene;
+        if (std::string(name) == "bf") continue;  // brute force tests every box whatever the ray
+        // Rays beside the world: a tree tests nothing (the grid keeps a few objects outside its cells).
+        EXPECT_LT(at("outside-10").n_rb, std::string(name) == "ug" ? 10 : 1) << name;
+        EXPECT_LT(at("shell").n_rb, 1) << name;  // rays inside the hollow shell meet no box …
+        EXPECT_GE(at("shell").n_t, 4) << name;   // … but step through the structure
+    }
+}
+
+TEST(Calibration, StoredOncePerRun) {
+    const fs::path dir = temp_dir("run");
+    const Experiment e = parse_experiment(
+        R"({"frames": 2, "rays_per_frame": 50, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}, {"name": "dbvh", "params": {"mode": ["incremental", "rebuild"]}}]})",
+        "exp.json", ".");
+    RunOptions o;
+    o.db = (dir / "r.db").string();
+    const RunOutcome first = run_experiment(e, "exp.json", o);
+    ResultStore store(o.db);
+    auto count = [&](const char* table) {
+        Statement s = store.db().prepare(std::string("SELECT count(*) FROM ") + table + " WHERE run_id = ?");
+        s.bind(1, first.run);
+        s.step();
+        return s.int64(0);
+    };
+    EXPECT_EQ(load_calibration(store.db(), first.run, "bf").size(), 8u);
+    EXPECT_EQ(load_calibration(store.db(), first.run, "dbvh").size(), 8u);  // one structure, one calibration
+    EXPECT_EQ(count("calibration"), 16);
+    EXPECT_EQ(std::size_t(count("run_cache")), read_cache_sizes().size());
+    // Recording again (a resumed run) keeps what the run began with.
+    record_machine(store.db(), first.run, {{"bf", find_structure("bf").defaults()}});
+    EXPECT_EQ(count("calibration"), 16);
+    // A merged run keeps its machine, so the merged database is fitted with the same priors.
+    {
+        ResultStore merged((dir / "merged.db").string());
+        EXPECT_EQ(merge_into(merged, store.db()).runs, 1u);
+        const std::vector<CalibrationPoint> a = load_calibration(store.db(), first.run, "dbvh");
+        const std::vector<CalibrationPoint> b = load_calibration(merged.db(), 1, "dbvh");
+        ASSERT_EQ(a.size(), b.size());
+        for (std::size_t i = 0; i < a.size(); ++i) {
+            EXPECT_EQ(a[i].scene, b[i].scene);
+            EXPECT_EQ(a[i].ns_per_ray, b[i].ns_per_ray);
+        }
+        EXPECT_EQ(load_cache_sizes(merged.db(), 1).size(), read_cache_sizes().size());
+    }
+    fs::remove_all(dir);
+}
+
+TEST(Calibration, TheRunsFitUsesItAndStoresLeaveOneSceneOut) {
+    const fs::path dir = temp_dir("fit");
+    const Experiment e = parse_experiment(
+        R"({"frames": 3, "rays_per_frame": 100, "scenes": [{"preset": "uni-s"}, {"preset": "irreg-s"}, {"kind": "uniform", "objects": 300}], "structures": [{"name": "dbvh"}]})",
+        "exp.json", ".");
+    RunOptions o;
+    o.db = (dir / "r.db").string();
+    const RunOutcome outcome = run_experiment(e, "exp.json", o);
+    ResultStore store(o.db);
+    const RunFit fit = fit_run(store.db(), outcome.run);
+    ASSERT_EQ(fit.models.size(), 1u);
+    const StructureModels& m = fit.models[0];
+    ASSERT_NE(m.calibration, nullptr);
+    EXPECT_EQ(m.calibration->points.size(), 8u);
+    EXPECT_EQ(m.loso.size(), 3u);  // every scene predicted from the two others
+    const CandidateModel* chosen = m.chosen("raycast");
+    ASSERT_NE(chosen, nullptr);
+    for (const Coefficient& c : chosen->fit.coefficients) {
+        EXPECT_GT(c.value, 0) << c.name;  // no chosen coefficient at 0
+        if (std::isfinite(c.prior)) {     // and a calibrated one within 3× of its calibration
+            EXPECT_LE(c.value, kPriorRange * c.prior * (1 + 1e-9)) << c.name;
+            EXPECT_GE(c.value, c.prior / kPriorRange * (1 - 1e-9)) << c.name;
+        }
+    }
+    Statement s = store.db().prepare(
+        "SELECT loso_error FROM fit WHERE run_id = ? AND target = 'raycast' AND chosen = 1 AND loso_error IS NOT NULL");
+    s.bind(1, outcome.run);
+    ASSERT_TRUE(s.step());
+    EXPECT_NEAR(s.real(0), m.loso_error, 1e-12);
+    fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rcb
