@@ -325,20 +325,29 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) 
     std::vector<FrameObservation> out;
     std::map<std::tuple<std::int64_t, std::int64_t>, int> groups;
     Statement s = db.prepare(
-        "SELECT config.structure, config.params, scene.name, scene.spec, cell.scene_id, cell.config_id, frame.rays, "
+        "SELECT config.structure, config.params, NULL, NULL, cell.scene_id, cell.config_id, frame.rays, "
         "frame.raycast_ns, frame.update_ns, frame.n_t, frame.n_rb, frame.n_tp, frame.inserts, frame.removes, "
         "frame.moves, "
         "cell.objects, frame.memory_bytes FROM frame JOIN cell ON cell.id = frame.cell_id JOIN config ON config.id = "
         "cell.config_id "
-        "JOIN scene ON scene.id = cell.scene_id WHERE cell.run_id IN " +
+        "WHERE cell.run_id IN " +
         std::string(kRunGroupSql) + " AND frame.warmup = 0 ORDER BY cell.id, frame.frame");
     s.bind_all(run, run);
+    // Each scene's label and category once, not per frame (a scene's name or spec may be large).
+    std::map<std::int64_t, std::pair<std::string, std::string>> scenes;
+    Statement scene = db.prepare("SELECT " + std::string(kSceneLabelSql) + ", scene.spec FROM scene WHERE id = ?");
     while (s.step()) {
         FrameObservation f;
         f.structure = s.text(0);
         f.params = s.text(1);
-        f.scene = s.text(2);
-        f.category = scene_category(s.text(3));
+        auto [it, fresh] = scenes.try_emplace(s.int64(4));
+        if (fresh) {
+            scene.reset();
+            scene.bind(1, s.int64(4));
+            if (scene.step()) it->second = {scene.text(0), scene_category(scene.text(1))};
+        }
+        f.scene = it->second.first;
+        f.category = it->second.second;
         const auto key = std::make_tuple(s.int64(4), s.int64(5));
         f.config_group = groups.emplace(key, int(groups.size())).first->second;
         f.rays = s.real(6);

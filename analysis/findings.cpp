@@ -42,15 +42,16 @@ double median(std::vector<double> v) {
 }
 
 std::vector<Config> load_configs(Database& db, std::int64_t run) {
-    Statement s = db.prepare(
-        "SELECT scene.name, scene.spec, cell.objects, config.structure, config.params, cell.update_ns_median, "
-        "cell.raycast_ns_median, cell.memory_bytes, "
-        "(SELECT 1.0 * sum(n_t) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0), "
-        "(SELECT 1.0 * sum(n_rb) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0), "
-        "(SELECT 1.0 * sum(n_tp) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0) "
-        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id "
-        "WHERE cell.run_id IN " +
-        std::string(kRunGroupSql) + " ORDER BY cell.id");
+    Statement s =
+        db.prepare("SELECT " + std::string(kSceneLabelSql) +
+                   ", scene.spec, cell.objects, config.structure, config.params, cell.update_ns_median, "
+                   "cell.raycast_ns_median, cell.memory_bytes, "
+                   "(SELECT 1.0 * sum(n_t) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0), "
+                   "(SELECT 1.0 * sum(n_rb) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0), "
+                   "(SELECT 1.0 * sum(n_tp) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0) "
+                   "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id "
+                   "WHERE cell.run_id IN " +
+                   std::string(kRunGroupSql) + " ORDER BY cell.id");
     s.bind_all(run, run);
     struct Acc {
         Config c;

@@ -103,12 +103,13 @@ std::vector<SlowCell> slow_cells(Database& db, std::int64_t run) {
         while (s.step()) times[s.int64(0)].push_back(s.real(1));
         for (auto& [r, t] : times) medians[r] = spread_of(t).median;
     }
-    Statement s = db.prepare(
-        "SELECT scene.name, config.structure, config.params, cell.repetition, cell_state.load_1m, "
-        "cell_state.calibration_ns, cell.run_id FROM cell JOIN cell_state ON cell_state.cell_id = cell.id "
-        "JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id "
-        "WHERE cell_state.slow = 1 AND cell.run_id IN " +
-        std::string(kRunGroupSql) + " ORDER BY cell.id");
+    Statement s =
+        db.prepare("SELECT " + std::string(kSceneLabelSql) +
+                   ", config.structure, config.params, cell.repetition, cell_state.load_1m, "
+                   "cell_state.calibration_ns, cell.run_id FROM cell JOIN cell_state ON cell_state.cell_id = cell.id "
+                   "JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id "
+                   "WHERE cell_state.slow = 1 AND cell.run_id IN " +
+                   std::string(kRunGroupSql) + " ORDER BY cell.id");
     s.bind_all(run, run);
     while (s.step()) {
         const double median = medians[s.int64(6)];

@@ -90,7 +90,8 @@ std::vector<Entry> load_entries(Database& db, std::int64_t run) {
     std::map<std::pair<std::string, std::string>, Acc> acc;  // (scene, label)
     std::vector<std::pair<std::string, std::string>> order;
     Statement s = db.prepare(
-        "SELECT cell.id, scene.name, scene.spec, config.structure, config.params, cell.objects, cell.build_ns, "
+        "SELECT cell.id, " + std::string(kSceneLabelSql) +
+        ", scene.spec, config.structure, config.params, cell.objects, cell.build_ns, "
         "cell.update_ns_median, "
         "cell.raycast_ns_median, cell.memory_bytes, cell.repetition, "
         "(SELECT sum(hits) FROM frame WHERE cell_id = cell.id AND warmup = 0), (SELECT sum(missed) FROM frame WHERE "

@@ -398,7 +398,8 @@ RunCategories derive_run_categories(Database& db, std::int64_t run, std::uint64_
     out.run = run;
     std::vector<SceneFeatures> features;
     std::vector<std::string> fixed_categories;
-    Statement s = db.prepare(std::string("SELECT DISTINCT scene.id, scene.name, scene.spec FROM cell JOIN scene ON "
+    Statement s = db.prepare(std::string("SELECT DISTINCT scene.id, " + std::string(kSceneLabelSql) +
+                                         ", scene.spec FROM cell JOIN scene ON "
                                          "scene.id = cell.scene_id WHERE cell.run_id IN ") +
                              kRunGroupSql + " ORDER BY scene.id");
     s.bind_all(run, run);

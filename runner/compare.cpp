@@ -10,6 +10,7 @@
 
 #include "core/error.h"
 #include "core/simulator.h"
+#include "runner/store.h"
 
 namespace rcb {
 
@@ -77,11 +78,11 @@ struct Samples {
 std::map<Key, Samples> frames_of(Database& db, const std::vector<std::int64_t>& runs) {
     std::map<Key, Samples> out;
     const std::string ids = join(runs, ",", [](std::int64_t r) { return std::to_string(r); });
-    Statement s = db.prepare(
-        "SELECT scene.hash, scene.name, config.structure, config.params, frame.raycast_ns, frame.update_ns "
-        "FROM frame JOIN cell ON cell.id = frame.cell_id JOIN scene ON scene.id = cell.scene_id "
-        "JOIN config ON config.id = cell.config_id WHERE frame.warmup = 0 AND cell.run_id IN (" +
-        ids + ")");
+    Statement s = db.prepare("SELECT scene.hash, " + std::string(kSceneLabelSql) +
+                             ", config.structure, config.params, frame.raycast_ns, frame.update_ns "
+                             "FROM frame JOIN cell ON cell.id = frame.cell_id JOIN scene ON scene.id = cell.scene_id "
+                             "JOIN config ON config.id = cell.config_id WHERE frame.warmup = 0 AND cell.run_id IN (" +
+                             ids + ")");
     while (s.step()) {
         Samples& x = out[{s.text(0), s.text(2), s.text(3)}];
         x.scene_name = s.text(1);

@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "core/simulator.h"
 #include "runner/compare.h"
+#include "runner/store.h"
 
 namespace rcb {
 namespace {
@@ -139,7 +140,8 @@ std::vector<HistorySeries> load_history(Database& db, const HistoryQuery& q) {
     }
     // The cells first (a few per run), then each cell's frames by the frame table's key.
     Statement cells = db.prepare(
-        "SELECT cell.id, run.id, run.git_commit, run.started_at, experiment.name, scene.name, scene.hash, "
+        "SELECT cell.id, run.id, run.git_commit, run.started_at, experiment.name, " + std::string(kSceneLabelSql) +
+        ", scene.hash, "
         "config.structure, "
         "config.params FROM cell JOIN run ON run.id = cell.run_id JOIN experiment ON experiment.id = run.experiment_id "
         "JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id "

@@ -101,6 +101,17 @@ Database::Database(const std::string& path, bool read_only) : path_(path) {
     }
 }
 
+std::unique_ptr<Database> Database::in_memory_copy(const Database& source) {
+    auto copy = std::make_unique<Database>(":memory:", false);
+    sqlite3_backup* backup = sqlite3_backup_init(copy->db_, "main", source.db_, "main");
+    if (!backup) throw SqlError(source.path_ + ": " + sqlite3_errmsg(copy->db_), sqlite3_errcode(copy->db_));
+    const int step = sqlite3_backup_step(backup, -1);
+    const int rc = sqlite3_backup_finish(backup);
+    if (step != SQLITE_DONE || rc != SQLITE_OK) throw SqlError(source.path_ + ": " + sqlite3_errstr(rc), rc);
+    copy->path_ = source.path_;
+    return copy;
+}
+
 void Database::configure(bool read_only) {
     sqlite3_busy_timeout(db_, 60'000);
     sqlite3_extended_result_codes(db_, 1);

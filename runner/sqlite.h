@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <optional>
 #include <stdexcept>
+#include <memory>
 #include <string>
 
 namespace rcb {
@@ -73,6 +74,10 @@ public:
     ~Database();
     Database(const Database&) = delete;
     Database& operator=(const Database&) = delete;
+
+    /// A writable copy of `source` in memory (SQLite's online backup); path() still names the file,
+    /// for messages. Lets a reader migrate an older database without touching the file.
+    static std::unique_ptr<Database> in_memory_copy(const Database& source);
 
     void exec(const std::string& sql);
     Statement prepare(const std::string& sql) { return Statement(db_, sql); }

@@ -432,6 +432,12 @@ std::unique_ptr<Database> open_read_only(const std::string& path) {
         refuse_newer(version, path);
         if (version == 0) throw InputError(path + ": not an rcbench results database (no schema)");
         check_schema(*db, version);
+        // An older database is read through a migrated copy in memory, so every reader sees the
+        // latest schema (empty new tables) and the file stays as it is.
+        if (version < latest_schema_version()) {
+            db = Database::in_memory_copy(*db);
+            for (int v = version; v < latest_schema_version(); ++v) db->exec(migrations()[std::size_t(v)]);
+        }
     } catch (const SqlError& e) {
         throw InputError(path + ": cannot read the results database (" + e.what() + ")");
     }
@@ -575,11 +581,12 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
 
 std::vector<CellSummary> cell_summaries(Database& db, std::int64_t run_id) {
     std::vector<CellSummary> out;
-    Statement s = db.prepare(
-        "SELECT scene.name, config.structure, config.params, cell.raycast_ns_median, cell.update_ns_median, "
-        "cell.mismatches, coalesce(cell_state.slow, 0) "
-        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id "
-        "LEFT JOIN cell_state ON cell_state.cell_id = cell.id WHERE cell.run_id = ?");
+    Statement s =
+        db.prepare("SELECT " + std::string(kSceneLabelSql) +
+                   ", config.structure, config.params, cell.raycast_ns_median, cell.update_ns_median, "
+                   "cell.mismatches, coalesce(cell_state.slow, 0) "
+                   "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id "
+                   "LEFT JOIN cell_state ON cell_state.cell_id = cell.id WHERE cell.run_id = ?");
     s.bind(1, run_id);
     while (s.step())
         out.push_back({s.text(0), s.text(1), nlohmann::json::parse(s.text(2)), s.real(3), s.real(4), s.int64(5),

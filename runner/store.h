@@ -97,6 +97,14 @@ inline constexpr const char* kRunGroupSql =
     "AND substr(sib.shard, instr(sib.shard, '/')) = substr(me.shard, instr(me.shard, '/')) "
     "WHERE me.id = ? AND me.shard != '' GROUP BY sib.shard)";
 
+/// scene.name as tables and charts show it: a name over 80 characters is cut to 64 and ends in "..."
+/// and 12 hex digits of the scene's content hash, so distinct scenes stay distinct and a name of
+/// megabytes is not copied into every row, chart and caption. In SQL, so the long text never leaves
+/// SQLite.
+inline constexpr const char* kSceneLabelSql =
+    "(CASE WHEN length(scene.name) <= 80 THEN scene.name ELSE substr(scene.name, 1, 64) || '...' || "
+    "substr(scene.hash, 1, 12) END)";
+
 /// One stored cell, as the run summaries show it.
 struct CellSummary {
     std::string scene, structure;
@@ -108,7 +116,8 @@ struct CellSummary {
 /// The cells of a run.
 std::vector<CellSummary> cell_summaries(Database& db, std::int64_t run_id);
 
-/// Opens an existing database read-only; refuses a newer schema; InputError if it does not exist.
+/// Opens an existing database read-only; refuses a newer schema; an older one is read through a
+/// migrated copy in memory (the file is not changed); InputError if it does not exist.
 std::unique_ptr<Database> open_read_only(const std::string& path);
 
 /// Now, as ISO 8601 UTC ("2026-11-22T03:25:57Z"): the timestamps every table stores.
