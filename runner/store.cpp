@@ -437,6 +437,7 @@ std::unique_ptr<Database> open_read_only(const std::string& path) {
         if (version < latest_schema_version()) {
             db = Database::in_memory_copy(*db);
             for (int v = version; v < latest_schema_version(); ++v) db->exec(migrations()[std::size_t(v)]);
+            db->exec("PRAGMA user_version = " + std::to_string(latest_schema_version()));
         }
     } catch (const SqlError& e) {
         throw InputError(path + ": cannot read the results database (" + e.what() + ")");

@@ -287,6 +287,33 @@ TEST(Store, MannWhitneyMatchesTextbookValues) {
     EXPECT_NEAR(mann_whitney_p(a, b), 0.000183, 0.00002);
 }
 
+TEST(Store, ReadersSeeAnOlderDatabaseAtTheLatestSchemaWithoutChangingTheFile) {
+    const fs::path dir = temp_dir("old_reader");
+    const std::string v3 = (dir / "v3.db").string();
+    {
+        ResultStore old(v3, 3);  // before the machine state, scene features and calibration tables
+        old.db().exec("INSERT INTO experiment(name) VALUES ('kept')");
+    }
+    const auto version_of = [](Database& db) {
+        Statement v = db.prepare("PRAGMA user_version");
+        v.step();
+        return v.int64(0);
+    };
+    {
+        auto db = open_read_only(v3);
+        EXPECT_EQ(version_of(*db), latest_schema_version());
+        Statement s = db->prepare(
+            "SELECT (SELECT count(*) FROM experiment WHERE name = 'kept'), (SELECT count(*) FROM calibration), "
+            "(SELECT count(*) FROM cell_state), (SELECT count(*) FROM scene_feature)");
+        ASSERT_TRUE(s.step());
+        EXPECT_EQ(s.int64(0), 1);
+        EXPECT_EQ(s.int64(1) + s.int64(2) + s.int64(3), 0);
+    }
+    Database file(v3, true);
+    EXPECT_EQ(version_of(file), 3);  // the file itself was not migrated
+    fs::remove_all(dir);
+}
+
 TEST(Store, RefusesANewerSchemaAndMigratesAnOlderOne) {
     const fs::path dir = temp_dir("schema");
     const std::string old_db = (dir / "old.db").string();
