@@ -41,6 +41,10 @@ const Term kNrb{"C_RB", [](const FrameObservation& f) { return f.n_rb; }};
 const Term kNt{"C_T", [](const FrameObservation& f) { return f.n_t; }};
 const Term kPrep{"C_PREP", [](const FrameObservation&) { return 1.0; }};
 const Term kMemory{"C_MEM", [](const FrameObservation& f) { return f.memory_mb; }};
+/// What a reported hit costs beyond its box test (the visit: recording it in the ray's list). The
+/// thesis prices true and false positives alike (eq. 5.3); with few tests per ray, as brute force
+/// on a small scene or a grid's first cell, the hits' share shows.
+const Term kHits{"C_HIT", [](const FrameObservation& f) { return f.n_tp; }};
 
 /// The memory hierarchy: one column per cache tier the run's working sets reach beyond the
 /// smallest one, (w_RB·N_RB + w_T·N_T) where the working set has left the cache of level `tier`
@@ -402,6 +406,13 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
         std::vector<Built> raycast;
         raycast.push_back(candidate("no-prep", "raycast", with_rays, columns_of(core), priors, no_prior_why));
         raycast.push_back(candidate("eq5.4", "raycast", with_rays, columns_of(full), priors, no_prior_why));
+        const std::vector<Term> hit_terms = present(with_rays, {kHits}, nullptr);
+        if (!hit_terms.empty()) {
+            std::vector<Term> with_hits = full;
+            with_hits.push_back(kHits);
+            raycast.push_back(
+                candidate("with-hits", "raycast", with_rays, columns_of(with_hits), priors, no_prior_why));
+        }
         std::vector<Term> with_memory = full;
         with_memory.push_back(kMemory);
         raycast.push_back(

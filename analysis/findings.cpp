@@ -117,6 +117,21 @@ std::vector<Scene> scenes_of(const std::vector<Config>& configs) {
     return out;
 }
 
+/// A claim not yet decided: the verdict stays "untested" unless the run has what it needs.
+Finding claim(std::string text, std::string source) {
+    return {std::move(text), std::move(source), Finding::Verdict::untested, "", {}};
+}
+
+/// Confirmed when it holds everywhere it was tested, partly when somewhere, refuted when nowhere.
+Finding::Verdict verdict(bool everywhere, bool somewhere) {
+    return everywhere ? Finding::Verdict::confirmed : somewhere ? Finding::Verdict::partly : Finding::Verdict::refuted;
+}
+
+/// Why a claim about large scenes stayed untested.
+std::string no_large_scene(const std::string& which, const std::string& with) {
+    return "The run has no " + which + "scene of " + fixed(kLargeScene, 0) + " objects or more with " + with + ".";
+}
+
 std::string ms(double v) { return fixed(v, v < 0.1 ? 4 : 3) + " ms"; }
 std::string ratio(double v) { return fixed(v, v < 10 ? 2 : 1) + "x"; }
 std::string pct(double v) { return fixed(100 * v, 0) + "%"; }
@@ -138,9 +153,9 @@ std::string ranking_line(const Scene& s) {
 }
 
 /// "The winner on every scene" claims: `who` fastest per frame on the large scenes of `category`.
-Finding best_on(const std::vector<Scene>& scenes, const std::string& category, const std::string& who,
-                std::string claim, std::string source) {
-    Finding f{std::move(claim), std::move(source), Finding::Verdict::untested, "", {}};
+Finding best_on(const std::vector<Scene>& scenes, const std::string& category, const std::string& who, std::string text,
+                std::string source) {
+    Finding f = claim(std::move(text), std::move(source));
     int tested = 0, first = 0, near = 0;
     std::vector<std::string> winners;
     for (const Scene& s : scenes) {
@@ -155,13 +170,10 @@ Finding best_on(const std::vector<Scene>& scenes, const std::string& category, c
         f.evidence.push_back(ranking_line(s));
     }
     if (tested == 0) {
-        f.summary = "The run has no " + category + " scene of " + fixed(kLargeScene, 0) + " objects or more with " +
-                    who + " and another structure.";
+        f.summary = no_large_scene(category + " ", who + " and another structure");
         return f;
     }
-    f.verdict = first == tested               ? Finding::Verdict::confirmed
-                : near == tested || first > 0 ? Finding::Verdict::partly
-                                              : Finding::Verdict::refuted;
+    f.verdict = verdict(first == tested, near == tested || first > 0);
     f.summary = who + " is the fastest per frame on " + std::to_string(first) + " of " + std::to_string(tested) + " " +
                 category + " scenes" + (winners.empty() ? "." : "; elsewhere: " + [&] {
                     std::string w;
@@ -172,13 +184,10 @@ Finding best_on(const std::vector<Scene>& scenes, const std::string& category, c
 }
 
 Finding lbvh_trade(const std::vector<Scene>& scenes) {
-    Finding f{
+    Finding f = claim(
         "LBVH casts fast but its rebuild every frame makes its updates the slowest, which lowers its overall "
         "standing.",
-        "§6.3, Table 6.2; §7.1",
-        Finding::Verdict::untested,
-        "",
-        {}};
+        "§6.3, Table 6.2; §7.1");
     int tested = 0, fast_rays = 0, slow_updates = 0;
     for (const Scene& s : scenes) {
         if (s.objects < kLargeScene || !s.best.count("lbvh")) continue;
@@ -202,13 +211,10 @@ Finding lbvh_trade(const std::vector<Scene>& scenes) {
         f.evidence.push_back(line);
     }
     if (tested == 0) {
-        f.summary =
-            "The run has no scene of " + fixed(kLargeScene, 0) + " objects or more with lbvh and another tree or grid.";
+        f.summary = no_large_scene("", "lbvh and another tree or grid");
         return f;
     }
-    f.verdict = fast_rays == tested && slow_updates == tested ? Finding::Verdict::confirmed
-                : fast_rays + slow_updates > 0                ? Finding::Verdict::partly
-                                                              : Finding::Verdict::refuted;
+    f.verdict = verdict(fast_rays == tested && slow_updates == tested, fast_rays + slow_updates > 0);
     f.summary = "LBVH casts at least as fast as half of ug, hg and dbvh on " + std::to_string(fast_rays) + " of " +
                 std::to_string(tested) + " scenes, and has the slowest update on " + std::to_string(slow_updates) +
                 " of them.";
@@ -216,13 +222,10 @@ Finding lbvh_trade(const std::vector<Scene>& scenes) {
 }
 
 Finding full_sah(const std::vector<Config>& configs) {
-    Finding f{
+    Finding f = claim(
         "A DBVH rebuilt with a full SAH builder visits fewer nodes and casts about 40% faster than the "
         "incrementally built one.",
-        "§6.4.2, Table 6.4",
-        Finding::Verdict::untested,
-        "",
-        {}};
+        "§6.4.2, Table 6.4");
     std::vector<double> gains;
     std::map<std::string, std::pair<const Config*, const Config*>> by_scene;  // (incremental, rebuild)
     for (const Config& c : configs) {
@@ -246,9 +249,7 @@ Finding full_sah(const std::vector<Config>& configs) {
         return f;
     }
     const double g = median(gains);
-    f.verdict = g >= 0.25 && g <= 0.55 ? Finding::Verdict::confirmed
-                : g > 0.10             ? Finding::Verdict::partly
-                                       : Finding::Verdict::refuted;
+    f.verdict = verdict(g >= 0.25 && g <= 0.55, g > 0.10);
     f.summary = "The full-SAH DBVH casts " + pct(std::abs(g)) + (g >= 0 ? " faster" : " slower") +
                 " than the incremental one (median over " + std::to_string(gains.size()) +
                 " scenes; the thesis: about 40%).";
@@ -256,13 +257,10 @@ Finding full_sah(const std::vector<Config>& configs) {
 }
 
 Finding hg_memory(const std::vector<Scene>& scenes) {
-    Finding f{
+    Finding f = claim(
         "The hierarchical hash grid needs far more memory than the other structures (about 150 MB against 3 MB "
         "for the BVHs on irreg-l).",
-        "§6.2, Table 6.1",
-        Finding::Verdict::untested,
-        "",
-        {}};
+        "§6.2, Table 6.1");
     int tested = 0, largest = 0;
     double min_factor = INFINITY, max_factor = 0;
     for (const Scene& s : scenes) {
@@ -282,27 +280,21 @@ Finding hg_memory(const std::vector<Scene>& scenes) {
         f.evidence.push_back(line);
     }
     if (tested == 0) {
-        f.summary =
-            "The run has no scene of " + fixed(kLargeScene, 0) + " objects or more with hg and another structure.";
+        f.summary = no_large_scene("", "hg and another structure");
         return f;
     }
-    f.verdict = largest == tested && min_factor >= 2 ? Finding::Verdict::confirmed
-                : largest > 0                        ? Finding::Verdict::partly
-                                                     : Finding::Verdict::refuted;
+    f.verdict = verdict(largest == tested && min_factor >= 2, largest > 0);
     f.summary = "hg holds the most memory per object on " + std::to_string(largest) + " of " + std::to_string(tested) +
                 " scenes; its memory per object is " + ratio(min_factor) + " to " + ratio(max_factor) +
                 " the largest of ug's, dbvh's and lbvh's (the thesis: about 50x).";
     return f;
 }
 
-Finding traversal_cost(Database& db, std::int64_t run) {
-    Finding f{
+Finding traversal_cost(Database& db, std::int64_t run, const std::vector<Scene>& scenes) {
+    Finding f = claim(
         "A grid's traversal step is cheaper than a BVH's (a BVH step tests boxes), so grids win where both visit "
         "as many cells as nodes.",
-        "§6.4, Table 6.3",
-        Finding::Verdict::untested,
-        "",
-        {}};
+        "§6.4, Table 6.3");
     std::map<std::string, double> c_t;
     for (const char* s : {"ug", "hg", "dbvh", "lbvh"}) {
         // The chosen ray-cast model of the run's fit; per-category models give one value per category,
@@ -330,7 +322,18 @@ Finding traversal_cost(Database& db, std::int64_t run) {
             tree_min = std::min(tree_min, v);
     }
     f.evidence.push_back(line);
-    f.verdict = grid_max < tree_min ? Finding::Verdict::confirmed : Finding::Verdict::refuted;
+    // The other half of the thesis' argument: how many steps each takes, and so the traversal's
+    // share of a ray (C_T·N_T) on each large scene.
+    for (const Scene& sc : scenes) {
+        if (sc.objects < kLargeScene) continue;
+        std::string per_ray = sc.name + ", C_T·N_T per ray:";
+        for (const auto& [name, v] : c_t)
+            if (sc.best.count(name))
+                per_ray += " " + name + " " + fixed(v * sc.best.at(name).n_t, 0) + " ns (" +
+                           fixed(sc.best.at(name).n_t, 1) + " steps);";
+        f.evidence.push_back(per_ray);
+    }
+    f.verdict = verdict(grid_max < tree_min, false);
     f.summary = grid_max < tree_min ? "Every grid's C_T is below every BVH's (" + fixed(grid_max, 2) + " against " +
                                           fixed(tree_min, 2) + " ns and more)."
                                     : "A grid's C_T (" + fixed(grid_max, 2) + " ns) is not below every BVH's (" +
@@ -339,21 +342,18 @@ Finding traversal_cost(Database& db, std::int64_t run) {
 }
 
 Finding small_scenes(const std::vector<Scene>& scenes) {
-    Finding f{
+    Finding f = claim(
         "On small scenes the structures give little or no speed-up over brute force; as scenes grow it becomes "
         "pronounced.",
-        "§6.3",
-        Finding::Verdict::untested,
-        "",
-        {}};
+        "§6.3");
     std::vector<std::pair<double, double>> speedups;  // (objects, bf / best)
     for (const Scene& s : scenes) {
         const std::vector<const Config*> r = s.ranking();
         if (!s.best.count("bf") || r.empty()) continue;
         const double up = s.best.at("bf").frame_ms() / r[0]->frame_ms();
         speedups.emplace_back(s.objects, up);
-        f.evidence.push_back(s.name + " (" + fixed(s.objects, 0) + " objects): best " + r[0]->structure + " " +
-                             ratio(up) + " faster than bf per frame");
+        f.evidence.push_back(s.name + " (" + fixed(s.objects, 0) + " objects): bf takes " + ratio(up) +
+                             " the time of " + r[0]->structure + ", the best, per frame");
     }
     if (speedups.size() < 2) {
         f.summary = "Needs bf and another structure on at least two scenes.";
@@ -361,23 +361,18 @@ Finding small_scenes(const std::vector<Scene>& scenes) {
     }
     std::sort(speedups.begin(), speedups.end());
     const double small = speedups.front().second, large = speedups.back().second;
-    f.verdict = small < 2 && large > small ? Finding::Verdict::confirmed
-                : large > small            ? Finding::Verdict::partly
-                                           : Finding::Verdict::refuted;
-    f.summary = "The best structure is " + ratio(small) + " faster than bf on the smallest scene (" +
+    f.verdict = verdict(small < 2 && large > small, large > small);
+    f.summary = "Per frame, bf takes " + ratio(small) + " the best structure's time on the smallest scene (" +
                 fixed(speedups.front().first, 0) + " objects) and " + ratio(large) + " on the largest (" +
                 fixed(speedups.back().first, 0) + ").";
     return f;
 }
 
 Finding most_promising(const std::vector<Scene>& scenes) {
-    Finding f{
+    Finding f = claim(
         "Weighing query against update speed, HG and DBVH are the most promising choices, especially as the "
         "irregular part of a scene grows.",
-        "chapter 8",
-        Finding::Verdict::untested,
-        "",
-        {}};
+        "chapter 8");
     int tested = 0, both = 0, one = 0;
     for (const Scene& s : scenes) {
         if (s.category != "irregular" || s.objects < kLargeScene) continue;
@@ -391,13 +386,10 @@ Finding most_promising(const std::vector<Scene>& scenes) {
                              ratio(r[1]->frame_ms() / r[0]->frame_ms()) + ")");
     }
     if (tested == 0) {
-        f.summary =
-            "The run has no irregular scene of " + fixed(kLargeScene, 0) + " objects or more with three structures.";
+        f.summary = no_large_scene("irregular ", "three structures");
         return f;
     }
-    f.verdict = both == tested ? Finding::Verdict::confirmed
-                : one > 0      ? Finding::Verdict::partly
-                               : Finding::Verdict::refuted;
+    f.verdict = verdict(both == tested, one > 0);
     f.summary = "hg and dbvh are the two fastest per frame on " + std::to_string(both) + " of " +
                 std::to_string(tested) + " large irregular scenes, and one of them is among the two on " +
                 std::to_string(one) + ".";
@@ -429,7 +421,7 @@ std::vector<Finding> evaluate_findings(Database& db, std::int64_t run) {
             lbvh_trade(scenes),
             full_sah(configs),
             hg_memory(scenes),
-            traversal_cost(db, run),
+            traversal_cost(db, run, scenes),
             small_scenes(scenes),
             most_promising(scenes)};
 }
@@ -444,7 +436,9 @@ std::string findings_markdown(Database& db, std::int64_t run, const std::vector<
     if (s.step())
         md << "Computed by `rcbench findings` from run " << run << " of experiment `" << s.text(0) << "` (uuid "
            << s.text(1) << ", started " << s.text(2) << ", commit " << s.text(3) << ", " << s.text(4) << ", "
-           << s.text(5) << "). Thesis: Guo & Liao (2023), see [reference.md](reference.md).\n\n";
+           << s.text(5) << "). Thesis: Guo & Liao (2023), see [reference.md](reference.md). To make it again: "
+           << "`rcbench run` the experiment, `rcbench fit` the database (the traversal-cost claim reads the fit), "
+           << "then `rcbench findings`.\n\n";
     md << "Each claim is checked on rcbench's own structures (bf, ug, hg, dbvh, lbvh), each at its fastest "
           "configuration per scene; per frame = update + ray cast (thesis eq. 5.5), medians over repetitions. "
           "Claims about winners are read on scenes of "

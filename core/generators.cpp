@@ -22,10 +22,10 @@ Aabb box_around(const Vec3d& center, const Vec3d& extent) {
     return box_from(center - extent * 0.5, center + extent * 0.5);
 }
 
-/// "uni" (thesis §6.1): similar-sized boxes evenly spread without overlap. Each object gets its own
-/// cell of a k×k×k lattice (k = ⌈∛n⌉, cells chosen at random) and lies strictly inside it.
-std::vector<Object> uniform_objects(const SceneSettings& s, Random& rng) {
-    const std::uint32_t n = s.objects;
+/// One box in each of n cells of a k×k×k lattice of 10-unit cells (k = ⌈∛n⌉, cells chosen at
+/// random): per axis an extent of `min_fill` to `max_fill` of the cell, placed at random inside the
+/// cell less a `margin` (a fraction of the cell) at each face. No two boxes overlap.
+std::vector<Object> lattice_objects(std::uint32_t n, Random& rng, double min_fill, double max_fill, double margin) {
     std::uint64_t k = 1;
     while (k * k * k < n) ++k;
     constexpr double cell = 10.0;
@@ -39,12 +39,18 @@ std::vector<Object> uniform_objects(const SceneSettings& s, Random& rng) {
         const Vec3d origin{double(c % k) * cell, double((c / k) % k) * cell, double(c / (k * k)) * cell};
         Vec3d extent, min;
         for (int a = 0; a < 3; ++a) {
-            extent[a] = cell * rng.uniform(0.4, 0.7);
-            min[a] = origin[a] + 0.05 * cell + rng.uniform(0.0, 0.9 * cell - extent[a]);
+            extent[a] = cell * rng.uniform(min_fill, max_fill);
+            min[a] = origin[a] + margin * cell + rng.uniform(0.0, (1 - 2 * margin) * cell - extent[a]);
         }
         objects[i] = {i + 1, box_from(min, min + extent)};
     }
     return objects;
+}
+
+/// "uni" (thesis §6.1): similar-sized boxes evenly spread without overlap, each strictly inside its
+/// own lattice cell (40 to 70% of the cell per axis, 5% from its faces).
+std::vector<Object> uniform_objects(const SceneSettings& s, Random& rng) {
+    return lattice_objects(s.objects, rng, 0.4, 0.7, 0.05);
 }
 
 /// "irreg" (thesis §6.1, exported from a game engine): a ground of terrain tiles, a few buildings,
@@ -136,30 +142,11 @@ std::vector<Object> irregular_objects(const SceneSettings& s, Random& rng) {
     return objects;
 }
 
-/// "jittered": the peer-comparison uniform scene: one box per cell of a k×k×k lattice of 10-unit
-/// cells (k = ⌈∛n⌉, cells chosen at random), each axis of the box 4 to 8 units, placed anywhere
-/// inside its cell. Like "uniform", no two boxes overlap; the boxes are larger and fill their cells
-/// to the faces, so a ray meets more of them.
+/// "jittered": the peer-comparison uniform scene: one box per lattice cell, 4 to 8 units per axis,
+/// anywhere inside its cell. The boxes are larger than "uniform"'s and reach their cells' faces, so
+/// a ray meets more of them.
 std::vector<Object> jittered_objects(const SceneSettings& s, Random& rng) {
-    const std::uint32_t n = s.objects;
-    std::uint64_t k = 1;
-    while (k * k * k < n) ++k;
-    constexpr double cell = 10.0;
-    std::vector<std::uint32_t> cells(k * k * k);
-    std::iota(cells.begin(), cells.end(), 0u);
-    std::vector<Object> objects(n);
-    for (std::uint32_t i = 0; i < n; ++i) {
-        std::swap(cells[i], cells[i + rng.below(cells.size() - i)]);
-        const std::uint64_t c = cells[i];
-        const Vec3d origin{double(c % k) * cell, double((c / k) % k) * cell, double(c / (k * k)) * cell};
-        Vec3d extent, min;
-        for (int a = 0; a < 3; ++a) {
-            extent[a] = cell * rng.uniform(0.4, 0.8);
-            min[a] = origin[a] + rng.uniform(0.0, cell - extent[a]);
-        }
-        objects[i] = {i + 1, box_from(min, min + extent)};
-    }
-    return objects;
+    return lattice_objects(s.objects, rng, 0.4, 0.8, 0.0);
 }
 
 /// "clusters": the peer-comparison irregular scene, harder than "irregular": 0.15% huge objects
