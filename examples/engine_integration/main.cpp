@@ -125,16 +125,16 @@ public:
     }
     nlohmann::json stats() const override { return {{"entries", entries_.size()}}; }
     void validate() const override {
-        if (slot_.size() != entries_.size()) broken_invariant("sweep", "index and list differ in size");
+        if (slot_.size() != entries_.size()) rcb::broken_invariant("sweep", "index and list differ in size");
         for (std::size_t i = 0; i < entries_.size(); ++i) {
             if (i > 0 && by_min_x(entries_[i], entries_[i - 1]))
-                broken_invariant("sweep", "not sorted at entry " + std::to_string(i));
+                rcb::broken_invariant("sweep", "not sorted at entry " + std::to_string(i));
             if (slot_.at(entries_[i].uid) != i)
-                broken_invariant("sweep", "stale index of uid " + std::to_string(entries_[i].uid));
+                rcb::broken_invariant("sweep", "stale index of uid " + std::to_string(entries_[i].uid));
             const float expected =
                 std::max(i > 0 ? running_max_x_[i - 1] : entries_[i].box.max.x, entries_[i].box.max.x);
             if (running_max_x_[i] != expected)
-                broken_invariant("sweep", "running max x wrong at entry " + std::to_string(i));
+                rcb::broken_invariant("sweep", "running max x wrong at entry " + std::to_string(i));
         }
     }
 
