@@ -246,9 +246,10 @@ StructureCalibration fit_calibration(const std::string& structure, const std::ve
     const std::pair<const char*, double CalibrationPoint::*> counters[] = {{"C_RB", &CalibrationPoint::n_rb},
                                                                            {"C_T", &CalibrationPoint::n_t}};
     LinearProblem p;
-    for (const auto& [name, member] : counters)
-        if (std::any_of(points.begin(), points.end(), [&](const CalibrationPoint& q) { return q.*member > 0; }))
-            p.terms.push_back(name);
+    for (const auto& counter : counters)  // not a structured binding: clang 14 cannot capture one
+        if (std::any_of(points.begin(), points.end(),
+                        [&](const CalibrationPoint& q) { return q.*(counter.second) > 0; }))
+            p.terms.push_back(counter.first);
     p.terms.push_back("C_PREP");
     for (std::size_t i = 0; i < points.size(); ++i) {
         if (!(points[i].ns_per_ray > 0)) continue;
