@@ -10,6 +10,7 @@
 
 #include "analysis/cost_model.h"
 #include "core/number_text.h"
+#include "core/simulator.h"
 #include "runner/store.h"
 
 namespace rcb {
@@ -34,12 +35,7 @@ struct Config {
     double frame_ms() const { return update_ms + ray_ms; }
 };
 
-double median(std::vector<double> v) {
-    if (v.empty()) return NAN;
-    std::sort(v.begin(), v.end());
-    const std::size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
+double median(std::vector<double> v) { return spread_of(std::move(v)).median; }
 
 std::vector<Config> load_configs(Database& db, std::int64_t run) {
     Statement s =

@@ -47,18 +47,13 @@ const StructureNoise* NoiseFloor::find(const std::string& structure) const {
 }
 
 NoiseFloor noise_floor(Database& db, std::int64_t run) {
-    bool has_state = false;
-    {
-        Statement s = db.prepare("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'cell_state'");
-        has_state = s.step();
-    }
-    Statement s = db.prepare(
-        std::string("SELECT config.structure, cell.scene_id, cell.config_id, cell.raycast_ns_median, "
-                    "cell.update_ns_median, ") +
-        (has_state ? "cell_state.slow, cell_state.load_1m, cell_state.calibration_ns " : "NULL, NULL, NULL ") +
-        "FROM cell JOIN config ON config.id = cell.config_id " +
-        (has_state ? "LEFT JOIN cell_state ON cell_state.cell_id = cell.id " : "") + "WHERE cell.run_id IN " +
-        kRunGroupSql);
+    // Cells of runs made before the machine state have no cell_state row: NULL.
+    Statement s =
+        db.prepare(std::string("SELECT config.structure, cell.scene_id, cell.config_id, cell.raycast_ns_median, "
+                               "cell.update_ns_median, cell_state.slow, cell_state.load_1m, cell_state.calibration_ns "
+                               "FROM cell JOIN config ON config.id = cell.config_id "
+                               "LEFT JOIN cell_state ON cell_state.cell_id = cell.id WHERE cell.run_id IN ") +
+                   kRunGroupSql);
     s.bind_all(run, run);
     NoiseFloor out;
     std::vector<RepeatSample> samples;
@@ -87,10 +82,6 @@ NoiseFloor noise_floor(Database& db, std::int64_t run) {
 
 std::vector<SlowCell> slow_cells(Database& db, std::int64_t run) {
     std::vector<SlowCell> out;
-    {
-        Statement has = db.prepare("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'cell_state'");
-        if (!has.step()) return out;
-    }
     // The ratio is against the median of the cell's own run (each shard has its own machine).
     std::map<std::int64_t, double> medians;
     {

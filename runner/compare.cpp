@@ -89,9 +89,6 @@ std::map<Key, Samples> frames_of(Database& db, const std::vector<std::int64_t>& 
         x.raycast.push_back(s.real(4));
         x.update.push_back(s.real(5));
     }
-    // Databases older than the machine-state migration have no flags.
-    Statement has = db.prepare("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'cell_state'");
-    if (!has.step()) return out;
     Statement slow = db.prepare(
         "SELECT scene.hash, config.structure, config.params, count(*) FROM cell "
         "JOIN cell_state ON cell_state.cell_id = cell.id JOIN scene ON scene.id = cell.scene_id "

@@ -15,16 +15,6 @@ MergeCount merge_into(ResultStore& out, Database& in) {
         s.step();
         return s.int64(0);
     };
-    // An input older than the machine-state migration has no cell_state to copy.
-    bool has_state = false;
-    {
-        Statement s = in.prepare("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'cell_state'");
-        has_state = s.step();
-    }
-    // Scene features travel with their scenes (an input older than the scene_feature table has none).
-    const bool in_has_features = in.prepare("SELECT 1 FROM sqlite_master WHERE name = 'scene_feature'").step();
-    // The run's machine (cache sizes, calibration) travels with the run: the fit's priors need it.
-    const bool in_has_machine = in.prepare("SELECT 1 FROM sqlite_master WHERE name = 'calibration'").step();
     Statement runs = in.prepare(
         "SELECT run.id, run.uuid, experiment.name, experiment.description, experiment_hash, experiment_content, "
         "started_at, "
@@ -66,7 +56,7 @@ MergeCount merge_into(ResultStore& out, Database& in) {
             insert_run.run();
             run = o.last_insert_id();
             ++count.runs;
-            if (in_has_machine) {
+            {  // the run's machine (cache sizes, calibration) travels with it: the fit's priors need it
                 Statement caches = in.prepare("SELECT level, type, size_bytes FROM run_cache WHERE run_id = ?");
                 caches.bind_all(runs.int64(0));
                 while (caches.step())
@@ -109,7 +99,7 @@ MergeCount merge_into(ResultStore& out, Database& in) {
                           cells.real(9), cells.text(10))
                 .run();
             const std::int64_t scene = id_of("SELECT id FROM scene WHERE hash = ?", cells.text(3));
-            if (in_has_features && !stored_scene_features(o, scene))
+            if (!stored_scene_features(o, scene))  // features travel with their scene
                 if (const auto f = stored_scene_features(in, cells.int64(2))) store_scene_features(o, scene, *f);
             o.prepare("INSERT INTO config(structure, params) VALUES (?, ?) ON CONFLICT DO NOTHING")
                 .bind_all(cells.text(12), cells.text(13))
@@ -145,7 +135,7 @@ MergeCount merge_into(ResultStore& out, Database& in) {
                 insert_frame.bind(19, frames.text(17));
                 insert_frame.run();
             }
-            if (has_state) {
+            {
                 Statement state = in.prepare("SELECT load_1m, calibration_ns, slow FROM cell_state WHERE cell_id = ?");
                 state.bind(1, cells.int64(0));
                 if (state.step())

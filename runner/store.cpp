@@ -275,6 +275,12 @@ void refuse_newer(int version, const std::string& path) {
                          "); use a newer rcbench");
 }
 
+/// Brings `db` from schema `from` to `to`: the migrations in order, then the version stamp.
+void apply_migrations(Database& db, int from, int to) {
+    for (int v = from; v < to; ++v) db.exec(migrations()[std::size_t(v)]);
+    if (to > from) db.exec("PRAGMA user_version = " + std::to_string(to));
+}
+
 /// The tables, views and indexes as SQLite stores them (name → CREATE statement).
 std::map<std::string, std::string> schema_of(Database& db) {
     std::map<std::string, std::string> out;
@@ -288,7 +294,7 @@ std::map<std::string, std::string> schema_of(Database& db) {
 /// "no such table" in the middle of a command.
 void check_schema(Database& db, int version) {
     Database reference(":memory:", false);
-    for (int v = 0; v < version; ++v) reference.exec(migrations()[std::size_t(v)]);
+    apply_migrations(reference, 0, version);
     const auto want = schema_of(reference), have = schema_of(db);
     for (const auto& [name, sql] : want) {
         auto it = have.find(name);
@@ -418,8 +424,7 @@ void ResultStore::migrate(int target) {
     const int version = user_version(db_);
     refuse_newer(version, db_.path());
     if (version > 0) check_schema(db_, version);
-    for (int v = version; v < target; ++v) db_.exec(migrations()[std::size_t(v)]);
-    if (target > version) db_.exec("PRAGMA user_version = " + std::to_string(target));
+    apply_migrations(db_, version, target);
     t.commit();
 }
 
@@ -436,8 +441,7 @@ std::unique_ptr<Database> open_read_only(const std::string& path) {
         // latest schema (empty new tables) and the file stays as it is.
         if (version < latest_schema_version()) {
             db = Database::in_memory_copy(*db);
-            for (int v = version; v < latest_schema_version(); ++v) db->exec(migrations()[std::size_t(v)]);
-            db->exec("PRAGMA user_version = " + std::to_string(latest_schema_version()));
+            apply_migrations(*db, version, latest_schema_version());
         }
     } catch (const SqlError& e) {
         throw InputError(path + ": cannot read the results database (" + e.what() + ")");

@@ -125,7 +125,7 @@ private:
         bool subdivided = false;
     };
     static_assert(sizeof(Cell) <= 48, "a cell stays within 48 bytes (the ray reads it)");
-    using Index = std::array<int, 3>;
+    using Index = grid::Index;
 
     static std::uint64_t key_of(int depth, const Index& i) {
         return (std::uint64_t(depth) << 60) | (std::uint64_t(i[0]) << 40) | (std::uint64_t(i[1]) << 20) |
