@@ -43,6 +43,15 @@ constexpr Vec3T<T> max(Vec3T<T> a, Vec3T<T> b) {
 }
 
 template <typename T>
+constexpr T dot(Vec3T<T> a, Vec3T<T> b) {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+template <typename T>
+constexpr Vec3T<T> cross(Vec3T<T> a, Vec3T<T> b) {
+    return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+
+template <typename T>
 struct AabbT {
     Vec3T<T> min, max;
 

@@ -4,8 +4,11 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <limits>
 #include <mutex>
+#include <stdexcept>
 #include <tuple>
 
 namespace rcb {
@@ -44,11 +47,91 @@ Contact classify_prepared(const SegmentSlabsd& slabs, const Aabbd& box, double e
     return slabs.clip(shrunk(box, eps), tn, tf, t0, t1) ? Contact::hit : Contact::touch;
 }
 
+constexpr std::uint32_t kNoShape = ~std::uint32_t(0);
+
+double length(const Vec3d& v) { return std::sqrt(dot(v, v)); }
+
+/// The sign of det[r1; r2; r3] if no move of each row by up to `delta` (Euclidean) can change it,
+/// else 0. By multilinearity and Hadamard's inequality the determinant moves by at most
+/// (n1 + δ)(n2 + δ)(n3 + δ) − n1·n2·n3; the last term covers double's own rounding.
+int certain_sign(const Vec3d& r1, const Vec3d& r2, const Vec3d& r3, double delta) {
+    const double v = dot(r1, cross(r2, r3));
+    const double n1 = length(r1), n2 = length(r2), n3 = length(r3);
+    const double slack = (n1 + delta) * (n2 + delta) * (n3 + delta) - n1 * n2 * n3 + 1e-12 * n1 * n2 * n3;
+    return v > slack ? 1 : (v < -slack ? -1 : 0);
+}
+
+/// The segment crosses the triangle iff its ends are not strictly on one side of the plane and the
+/// three edges pass the segment's line on one side (Plücker signs). Certain signs decide hit and
+/// miss; anything else (ends on the plane, the line through an edge, a segment in the plane, a
+/// degenerate triangle crossed edge-on) is a touch. Points move by ε per axis, √3·ε in length, so
+/// a difference of two points by 2√3·ε.
+Contact classify_triangle(const Segmentd& s, const Shape& tri, double eps) {
+    const double delta = 2 * std::sqrt(3.0) * eps;
+    const Vec3d a = tri.point(0).as<double>(), b = tri.point(1).as<double>(), c = tri.point(2).as<double>();
+    const Vec3d d = s.delta();
+    const int o0 = certain_sign(b - a, c - a, s.p0 - a, delta), o1 = certain_sign(b - a, c - a, s.p1 - a, delta);
+    if (o0 != 0 && o0 == o1) return Contact::miss;
+    const int e[3] = {certain_sign(d, a - s.p0, b - s.p0, delta), certain_sign(d, b - s.p0, c - s.p0, delta),
+                      certain_sign(d, c - s.p0, a - s.p0, delta)};
+    const bool pos = e[0] > 0 || e[1] > 0 || e[2] > 0, neg = e[0] < 0 || e[1] < 0 || e[2] < 0;
+    if (pos && neg) return Contact::miss;
+    const bool inside = e[0] != 0 && e[1] != 0 && e[2] != 0;  // then all of one sign
+    return inside && o0 != 0 && o1 == -o0 ? Contact::hit : Contact::touch;
+}
+
+/// The box test in the obb's frame: a rotation keeps lengths, so moves of ε per world axis are
+/// moves of at most √3·ε per local axis.
+Contact classify_obb(const Segmentd& s, const Shape& box, double eps) {
+    const std::array<Vec3d, 3> axis = obb_axes<double>(box);
+    const Vec3d c = box.point(0).as<double>(), h = box.point(1).as<double>();
+    auto local = [&](const Vec3d& p) {
+        const Vec3d l = p - c;
+        return Vec3d{dot(l, axis[0]), dot(l, axis[1]), dot(l, axis[2])};
+    };
+    const Segmentd ls{local(s.p0), local(s.p1)};
+    return classify_prepared(SegmentSlabsd(ls), Aabbd{{-h.x, -h.y, -h.z}, h}, std::sqrt(3.0) * eps);
+}
+
+/// Spheres and capsules: the distance from the segment to the centre point or axis segment,
+/// which moves by at most 2√3·ε.
+Contact classify_round(const Segmentd& s, const Shape& shape, double eps) {
+    const bool sphere = shape.kind == ShapeKind::sphere;
+    const Vec3d p0 = shape.point(0).as<double>(), p1 = sphere ? p0 : shape.point(1).as<double>();
+    const double r = sphere ? shape.v[3] : shape.v[6];
+    const double dist = std::sqrt(closest_points(s, Segmentd{p0, p1}).distance2);
+    const double delta = 2 * std::sqrt(3.0) * eps;
+    if (dist > r + delta) return Contact::miss;
+    return dist < r - delta ? Contact::hit : Contact::touch;
+}
+
+Contact classify_shape_eps(const Segmentd& s, const Shape& shape, double eps) {
+    switch (shape.kind) {
+        case ShapeKind::triangle:
+            return classify_triangle(s, shape, eps);
+        case ShapeKind::obb:
+            return classify_obb(s, shape, eps);
+        case ShapeKind::sphere:
+        case ShapeKind::capsule:
+            return classify_round(s, shape, eps);
+        case ShapeKind::box:
+            break;
+    }
+    throw std::logic_error("classify_shape_contact: a box has no shape test");
+}
+
 }  // namespace
 
 Contact classify_contact(const Segmentd& s, const Aabbd& box) {
     double eps = kRelativeTolerance * std::max(magnitude_of(s.p0, s.p1), magnitude_of(box.min, box.max));
     return classify_prepared(SegmentSlabsd(s), box, eps);
+}
+
+Contact classify_shape_contact(const Segmentd& s, const Shape& shape) {
+    const Aabbd box = shape_bounds(shape).as<double>();
+    const double eps = kRelativeTolerance * std::max(magnitude_of(s.p0, s.p1), magnitude_of(box.min, box.max));
+    if (classify_prepared(SegmentSlabsd(s), box, eps) == Contact::miss) return Contact::miss;
+    return classify_shape_eps(s, shape, eps);
 }
 
 GroundTruth::GroundTruth(const std::vector<Object>& objects) {
@@ -59,7 +142,12 @@ GroundTruth::GroundTruth(const std::vector<Object>& objects) {
     }
     magnitude_.resize(n);
     uids_.resize(n);
+    shape_of_.assign(n, kNoShape);
     for (std::size_t i = 0; i < n; ++i) {
+        if (objects[i].shape.kind != ShapeKind::box) {
+            shape_of_[i] = std::uint32_t(shaped_.size());
+            shaped_.push_back(objects[i].shape);
+        }
         const Aabbd b = objects[i].box.as<double>();
         for (int a = 0; a < 3; ++a) {
             min_[a][i] = b.min[a];
@@ -70,9 +158,22 @@ GroundTruth::GroundTruth(const std::vector<Object>& objects) {
     }
 }
 
-void GroundTruth::classify(const Segment& segment, std::vector<Uid>& must, std::vector<Uid>& touch) const {
+void GroundTruth::classify(const Segment& segment, std::vector<Uid>& must, std::vector<Uid>& touch, Truth level) const {
     must.clear();
     touch.clear();
+    std::vector<Contacts> found;
+    contacts(segment, found);
+    for (const Contacts& c : found) {
+        const Contact k = level == Truth::boxes ? c.box : c.shape;
+        if (k == Contact::hit)
+            must.push_back(c.uid);
+        else if (k == Contact::touch)
+            touch.push_back(c.uid);
+    }
+}
+
+void GroundTruth::contacts(const Segment& segment, std::vector<Contacts>& out) const {
+    out.clear();
     const Segmentd s{segment.p0.as<double>(), segment.p1.as<double>()};
     const SegmentSlabsd slabs(s);
     const double seg_mag = magnitude_of(s.p0, s.p1);
@@ -104,67 +205,71 @@ void GroundTruth::classify(const Segment& segment, std::vector<Uid>& must, std::
             const double eps = kRelativeTolerance * std::max(seg_mag, magnitude_[i]);
             const Aabbd box{{min_[0][i], min_[1][i], min_[2][i]}, {max_[0][i], max_[1][i], max_[2][i]}};
             const Contact c = classify_prepared(slabs, box, eps);
-            if (c == Contact::hit)
-                must.push_back(uids_[i]);
-            else if (c == Contact::touch)
-                touch.push_back(uids_[i]);
+            if (c == Contact::miss) continue;
+            const Contact shape = shape_of_[i] == kNoShape ? c : classify_shape_eps(s, shaped_[shape_of_[i]], eps);
+            out.push_back({uids_[i], c, shape});
         }
     }
-    std::sort(must.begin(), must.end());
-    std::sort(touch.begin(), touch.end());
+    std::sort(out.begin(), out.end(), [](const Contacts& a, const Contacts& b) { return a.uid < b.uid; });
 }
 
-Verification GroundTruth::verify(std::span<const Segment> rays, const HitLists& hits, std::size_t max_examples) const {
+Verification GroundTruth::verify(std::span<const Segment> rays, const HitLists& hits, const Contract& contract,
+                                 std::size_t max_examples) const {
     Verification total;
     std::mutex merge;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 8),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
-                          Verification local;
-                          std::vector<Uid> must, touch, reported;
-                          auto note = [&](std::size_t ray, Uid uid, Discrepancy::Kind kind) {
-                              if (local.examples.size() < max_examples)
-                                  local.examples.push_back({static_cast<std::uint32_t>(ray), uid, kind});
-                          };
-                          for (std::size_t r = range.begin(); r != range.end(); ++r) {
-                              classify(rays[r], must, touch);
-                              auto got = hits.of(r);
-                              reported.assign(got.begin(), got.end());
-                              std::sort(reported.begin(), reported.end());
-                              // Duplicates first (adjacent after sorting), then a merge walk over the sorted sets.
-                              for (std::size_t i = 1; i < reported.size(); ++i)
-                                  if (reported[i] == reported[i - 1]) {
-                                      ++local.duplicate;
-                                      note(r, reported[i], Discrepancy::duplicate);
-                                  }
-                              auto last = std::unique(reported.begin(), reported.end());
-                              reported.erase(last, reported.end());
-                              std::size_t m = 0;
-                              for (Uid uid : reported) {
-                                  while (m < must.size() && must[m] < uid) {
-                                      ++local.missed;
-                                      note(r, must[m], Discrepancy::missed);
-                                      ++m;
-                                  }
-                                  if (m < must.size() && must[m] == uid) {
-                                      ++m;
-                                      continue;
-                                  }
-                                  if (!std::binary_search(touch.begin(), touch.end(), uid)) {
-                                      ++local.extra;
-                                      note(r, uid, Discrepancy::extra);
-                                  }
-                              }
-                              for (; m < must.size(); ++m) {
-                                  ++local.missed;
-                                  note(r, must[m], Discrepancy::missed);
-                              }
-                          }
-                          std::lock_guard<std::mutex> lock(merge);
-                          total.missed += local.missed;
-                          total.extra += local.extra;
-                          total.duplicate += local.duplicate;
-                          total.examples.insert(total.examples.end(), local.examples.begin(), local.examples.end());
-                      });
+    auto level = [](const Contacts& c, Truth t) { return t == Truth::boxes ? c.box : c.shape; };
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, rays.size(), 8), [&](const tbb::blocked_range<std::size_t>& range) {
+            Verification local;
+            std::vector<Contacts> found;
+            std::vector<Uid> reported;
+            auto note = [&](std::size_t ray, Uid uid, Discrepancy::Kind kind) {
+                if (local.examples.size() < max_examples)
+                    local.examples.push_back({static_cast<std::uint32_t>(ray), uid, kind});
+            };
+            for (std::size_t r = range.begin(); r != range.end(); ++r) {
+                contacts(rays[r], found);
+                auto got = hits.of(r);
+                reported.assign(got.begin(), got.end());
+                std::sort(reported.begin(), reported.end());
+                // Duplicates first (adjacent after sorting), then a merge walk over the sorted sets.
+                for (std::size_t i = 1; i < reported.size(); ++i)
+                    if (reported[i] == reported[i - 1]) {
+                        ++local.duplicate;
+                        note(r, reported[i], Discrepancy::duplicate);
+                    }
+                reported.erase(std::unique(reported.begin(), reported.end()), reported.end());
+                local.returned += reported.size();
+                // One uid of the union at a time: reported or not, its contacts or none (a clear miss).
+                std::size_t i = 0, j = 0;
+                while (i < reported.size() || j < found.size()) {
+                    const bool has_entry = j < found.size() && (i == reported.size() || found[j].uid <= reported[i]);
+                    const bool is_reported = i < reported.size() && (j == found.size() || reported[i] <= found[j].uid);
+                    const Uid uid = is_reported ? reported[i] : found[j].uid;
+                    const Contacts c = has_entry ? found[j] : Contacts{uid, Contact::miss, Contact::miss};
+                    if (!is_reported && level(c, contract.lower) == Contact::hit) {
+                        ++local.missed;
+                        note(r, uid, Discrepancy::missed);
+                    }
+                    if (is_reported && contract.upper && level(c, *contract.upper) == Contact::miss) {
+                        ++local.extra;
+                        note(r, uid, Discrepancy::extra);
+                    }
+                    if (is_reported && c.shape != Contact::miss) ++local.correct;
+                    if (c.shape == Contact::hit || (is_reported && c.shape == Contact::touch)) ++local.relevant;
+                    if (is_reported) ++i;
+                    if (has_entry) ++j;
+                }
+            }
+            std::lock_guard<std::mutex> lock(merge);
+            total.missed += local.missed;
+            total.extra += local.extra;
+            total.duplicate += local.duplicate;
+            total.returned += local.returned;
+            total.correct += local.correct;
+            total.relevant += local.relevant;
+            total.examples.insert(total.examples.end(), local.examples.begin(), local.examples.end());
+        });
     // Every chunk kept its first examples; keep the first of all, so the examples do not depend
     // on how the rays were split among threads.
     std::sort(total.examples.begin(), total.examples.end(), [](const Discrepancy& a, const Discrepancy& b) {

@@ -39,6 +39,9 @@ struct ParamSpec {
     std::string doc;
     bool tunable = false;    ///< the tuner may search it
     bool log_scale = false;  ///< search it on a log scale (spans orders of magnitude)
+    /// false: complete parameters leave it out while it has its default, so adding the parameter
+    /// to every structure does not change the recorded parameters of existing configurations.
+    bool recorded_when_default = true;
 
     nlohmann::json to_json() const;
     /// "an integer in 1..16", "a number in 0.01..64", "true or false", "one of low, medium".

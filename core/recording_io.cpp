@@ -2,6 +2,7 @@
 
 #include <zlib.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdio>
@@ -18,7 +19,8 @@ namespace {
 
 constexpr char kMagic[8] = {'R', 'C', 'B', 'S', 'C', 'E', 'N', 'E'};
 constexpr std::uint32_t kByteOrderMark = 0x01020304;
-constexpr std::size_t kObjectBytes = 4 + 6 * 4;
+constexpr std::size_t kObjectBytes = 4 + 6 * 4;               // version 1; version 2 adds a kind byte, see object()
+constexpr std::size_t kMinShapedObjectBytes = 4 + 1 + 4 * 4;  // version 2's smallest: a sphere
 constexpr std::size_t kRayBytes = 6 * 4;
 constexpr std::size_t kSectionHeaderBytes = 4 + 8 + 4;
 constexpr std::size_t kFrameHeaderBytes = 5 * 4;
@@ -45,7 +47,16 @@ public:
     }
     void f32(float v) { u32(std::bit_cast<std::uint32_t>(v)); }
     void vec(const Vec3& v) { f32(v.x), f32(v.y), f32(v.z); }
-    void object(const Object& o) { u32(o.uid), vec(o.box.min), vec(o.box.max); }
+    /// Version 1: uid, box. Version 2: uid, kind byte, then the box (kind 0) or the shape's floats.
+    void object(const Object& o, std::uint32_t version) {
+        u32(o.uid);
+        if (version >= 2) out_.push_back(static_cast<char>(o.shape.kind));
+        if (o.shape.kind == ShapeKind::box) {
+            vec(o.box.min), vec(o.box.max);
+        } else {
+            for (int i = 0; i < shape_floats(o.shape.kind); ++i) f32(o.shape.v[i]);
+        }
+    }
     void bytes(const std::string& s) { out_ += s; }
 
     /// Appends a section: tag, length, checksum, then the payload `body` wrote into its encoder.
@@ -88,11 +99,27 @@ public:
         v.x = f32(), v.y = f32(), v.z = f32();
         return v;
     }
-    Object object() {
+    /// See Encoder::object. A shaped object's box is its shape's bounds, once the shape is valid.
+    Object object(std::uint32_t version) {
         Object o;
         o.uid = u32();
-        o.box.min = vec();
-        o.box.max = vec();
+        if (version >= 2) {
+            need(1);
+            const auto kind = std::uint8_t(data_[pos_++]);
+            if (kind >= kShapeKinds)
+                throw InputError(context_ + ": uid " + std::to_string(o.uid) + ": unknown shape kind " +
+                                 std::to_string(kind) + " (known: 0 box, 1 triangle, 2 obb, 3 sphere, 4 capsule)");
+            o.shape.kind = ShapeKind(kind);
+        }
+        if (o.shape.kind == ShapeKind::box) {
+            o.box.min = vec();
+            o.box.max = vec();
+            return o;
+        }
+        for (int i = 0; i < shape_floats(o.shape.kind); ++i) o.shape.v[i] = f32();
+        if (std::string problem = shape_problem(o.shape, kMaxCoordinate); !problem.empty())
+            throw InputError(context_ + ": uid " + std::to_string(o.uid) + ": " + problem);
+        o.box = shape_bounds(o.shape);
         return o;
     }
     std::string bytes(std::size_t n) {
@@ -155,7 +182,14 @@ std::string segment_problem(const Segment& s) {
 }
 
 void check_object(const Object& o, const std::string& context) {
-    std::string problem = box_problem(o.box);
+    std::string problem;
+    if (o.shape.kind != ShapeKind::box) {
+        problem = shape_problem(o.shape, kMaxCoordinate);
+        if (problem.empty() && !(o.box == shape_bounds(o.shape)))
+            problem = "box is not its " + std::string(shape_name(o.shape.kind)) +
+                      "'s bounds (make shaped objects with shaped_object)";
+    }
+    if (problem.empty()) problem = box_problem(o.box);
     if (!problem.empty()) throw InputError(context + ": uid " + std::to_string(o.uid) + ": " + problem);
 }
 
@@ -207,15 +241,27 @@ void validate_recording(const Recording& r, const std::string& name) {
     for (std::size_t i = 0; i < r.frames.size(); ++i) validate_frame(r.frames[i], live, frame_context(name, i + 1));
 }
 
+std::uint32_t recording_version(const Recording& r) {
+    auto shaped = [](const std::vector<Object>& objects) {
+        return std::any_of(objects.begin(), objects.end(),
+                           [](const Object& o) { return o.shape.kind != ShapeKind::box; });
+    };
+    if (shaped(r.initial)) return 2;
+    for (const Frame& f : r.frames)
+        if (shaped(f.inserts) || shaped(f.moves)) return 2;
+    return 1;
+}
+
 std::string encode_recording(const Recording& r) {
+    const std::uint32_t version = recording_version(r);
     Encoder e;
     e.bytes(std::string(kMagic, sizeof kMagic));
-    e.u32(kRecordingVersion);
+    e.u32(version);
     e.u32(kByteOrderMark);
     e.section("META", [&](Encoder& p) { p.bytes(r.meta); });
     e.section("OBJS", [&](Encoder& p) {
         p.u32(static_cast<std::uint32_t>(r.initial.size()));
-        for (const Object& o : r.initial) p.object(o);
+        for (const Object& o : r.initial) p.object(o, version);
     });
     for (std::size_t i = 0; i < r.frames.size(); ++i) {
         const Frame& f = r.frames[i];
@@ -226,8 +272,8 @@ std::string encode_recording(const Recording& r) {
             p.u32(static_cast<std::uint32_t>(f.moves.size()));
             p.u32(static_cast<std::uint32_t>(f.rays.size()));
             for (Uid uid : f.removes) p.u32(uid);
-            for (const Object& o : f.inserts) p.object(o);
-            for (const Object& o : f.moves) p.object(o);
+            for (const Object& o : f.inserts) p.object(o, version);
+            for (const Object& o : f.moves) p.object(o, version);
             for (const Segment& s : f.rays) p.vec(s.p0), p.vec(s.p1);
         });
     }
@@ -243,9 +289,10 @@ Recording decode_recording(const std::string& bytes, const std::string& name) {
     std::uint32_t version = header.u32();
     std::uint32_t bom = header.u32();
     if (bom != kByteOrderMark) throw InputError(name + ": unknown byte-order mark (corrupt header)");
-    if (version != kRecordingVersion)
+    if (version < 1 || version > kRecordingVersion)
         throw InputError(name + ": format version " + std::to_string(version) +
-                         " is not supported (this rcbench reads version " + std::to_string(kRecordingVersion) + ")");
+                         " is not supported (this rcbench reads versions 1 to " + std::to_string(kRecordingVersion) +
+                         ")");
 
     Recording r;
     std::unordered_set<Uid> live;
@@ -276,10 +323,13 @@ Recording decode_recording(const std::string& bytes, const std::string& name) {
         } else if (tag == "OBJS") {
             if (expect != Expect::objs) throw InputError(where + ": unexpected OBJS section");
             std::uint32_t n = p.u32();
-            if (p.remaining() != std::uint64_t(n) * kObjectBytes)
-                throw InputError(where + ": size does not match its count of " + std::to_string(n) + " objects");
+            const bool fits = version == 1 ? p.remaining() == std::uint64_t(n) * kObjectBytes
+                                           : p.remaining() >= std::uint64_t(n) * kMinShapedObjectBytes;
+            if (!fits) throw InputError(where + ": size does not match its count of " + std::to_string(n) + " objects");
             r.initial.resize(n);
-            for (Object& o : r.initial) o = p.object();
+            for (Object& o : r.initial) o = p.object(version);
+            if (p.remaining() != 0)
+                throw InputError(where + ": size does not match its count of " + std::to_string(n) + " objects");
             live = validate_initial(r.initial, name);
             expect = Expect::frames;
         } else if (tag == "FRAM") {
@@ -289,18 +339,21 @@ Recording decode_recording(const std::string& bytes, const std::string& name) {
                 throw InputError(where + ": section carries frame number " + std::to_string(number) +
                                  " (out of order)");
             std::uint32_t n_rem = p.u32(), n_ins = p.u32(), n_mov = p.u32(), n_ray = p.u32();
-            std::uint64_t expected = std::uint64_t(n_rem) * 4 + (std::uint64_t(n_ins) + n_mov) * kObjectBytes +
-                                     std::uint64_t(n_ray) * kRayBytes;
-            if (length != kFrameHeaderBytes + expected) throw InputError(where + ": size does not match its counts");
+            const std::uint64_t objects = std::uint64_t(n_ins) + n_mov,
+                                fixed = kFrameHeaderBytes + std::uint64_t(n_rem) * 4 + std::uint64_t(n_ray) * kRayBytes;
+            const bool fits = version == 1 ? length == fixed + objects * kObjectBytes
+                                           : length >= fixed + objects * kMinShapedObjectBytes;
+            if (!fits) throw InputError(where + ": size does not match its counts");
             Frame f;
             f.removes.resize(n_rem);
             for (Uid& uid : f.removes) uid = p.u32();
             f.inserts.resize(n_ins);
-            for (Object& o : f.inserts) o = p.object();
+            for (Object& o : f.inserts) o = p.object(version);
             f.moves.resize(n_mov);
-            for (Object& o : f.moves) o = p.object();
+            for (Object& o : f.moves) o = p.object(version);
             f.rays.resize(n_ray);
             for (Segment& s : f.rays) s.p0 = p.vec(), s.p1 = p.vec();
+            if (p.remaining() != 0) throw InputError(where + ": size does not match its counts");
             validate_frame(f, live, where);
             r.frames.push_back(std::move(f));
             ++frames_seen;

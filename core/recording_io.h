@@ -1,5 +1,8 @@
 #pragma once
-/// The scene recording file (`.rcbscene`), version 1.
+/// The scene recording file (`.rcbscene`), versions 1 and 2. Version 2 stores shapes: each
+/// object is u32 uid, u8 shape kind (shape.h), then f32 min[3], max[3] for a box (kind 0) or the
+/// shape's floats, its box being the shape's bounds. The writer uses version 1 when every object is
+/// a box, so a box scene's bytes (and its hash in the results) do not change; both versions read.
 ///
 /// Every integer and float is little-endian whatever the host; floats are IEEE-754 binary32.
 ///
@@ -33,7 +36,10 @@
 
 namespace rcb {
 
-inline constexpr std::uint32_t kRecordingVersion = 1;
+/// The newest version this reader understands (it reads every older one too).
+inline constexpr std::uint32_t kRecordingVersion = 2;
+/// The version encode_recording writes: 1 for a scene of boxes only, else 2.
+std::uint32_t recording_version(const Recording& recording);
 
 /// Validates first (validate_recording: a recording the reader would reject is never written; the
 /// InputError names `path`), then writes atomically: to a temporary file beside `path`, renamed

@@ -1,6 +1,7 @@
 #include "core/registry.h"
 
 #include "core/peers/bullet_dbvt.h"
+#include "core/query_level.h"
 #include "core/peers/embree_boxes.h"
 #include "core/structures/brute_force.h"
 #include "core/structures/dynamic_bvh.h"
@@ -46,6 +47,20 @@ bool valid_name(const std::string& name) {
 
 const std::deque<StructureInfo>& structure_registry() { return registry(); }
 
+StructureInfo with_common_params(StructureInfo info) {
+    const ParamSpec query = query_param_spec();
+    for (const ParamSpec& p : info.params)
+        if (p.name == query.name) return info;
+    info.params.push_back(query);
+    if (info.make)
+        info.make = [own_make = std::move(info.make), name = info.name, specs = info.params](
+                        const nlohmann::json& params, const std::string& path) -> std::unique_ptr<Structure> {
+            check_params(specs, params, path, name);
+            return at_query_level(own_make(own_params(params), path), query_level_of(params));
+        };
+    return info;
+}
+
 const StructureInfo& register_structure(StructureInfo info) {
     const std::string where = "register_structure(" + quoted_excerpt(info.name) + ")";
     if (!valid_name(info.name))
@@ -57,6 +72,7 @@ const StructureInfo& register_structure(StructureInfo info) {
             throw InputError(where + ": a structure named '" + info.name + "' is already registered (" +
                              quoted_excerpt(known.summary, 60) + ")");
     if (!info.make) throw InputError(where + ": the entry has no factory (make is empty)");
+    info = with_common_params(std::move(info));
     check_params(info.params, info.defaults(), where + ": default params", info.name);
     registry().push_back(std::move(info));
     return registry().back();
@@ -80,6 +96,8 @@ nlohmann::json StructureInfo::complete(const nlohmann::json& params, const std::
     nlohmann::json j = defaults();
     if (params.is_object())
         for (const auto& [k, v] : params.items()) j[k] = v;
+    for (const ParamSpec& p : this->params)
+        if (!p.recorded_when_default && j.contains(p.name) && j[p.name] == p.default_value) j.erase(p.name);
     return j;
 }
 

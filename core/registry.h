@@ -27,7 +27,8 @@ struct StructureInfo {
 
     /// Every parameter at its default.
     nlohmann::json defaults() const;
-    /// `params` completed with the defaults (what a result records), after validation.
+    /// `params` completed with the defaults (what a result records), after validation; parameters
+    /// not recorded at their default (ParamSpec::recorded_when_default) are left out then.
     nlohmann::json complete(const nlohmann::json& params, const std::string& path) const;
 };
 
@@ -36,6 +37,11 @@ struct StructureInfo {
 const std::deque<StructureInfo>& structure_registry();
 /// Throws InputError "unknown structure 'x' (known: bf, ug, …)".
 const StructureInfo& find_structure(std::string_view name);
+
+/// `info` with the parameters the registry gives every structure (`query`, query_level.h): their
+/// specs appended, and `make` taking them off the parameters before the structure's own factory
+/// sees them. Entries that have them already are returned as they are.
+StructureInfo with_common_params(StructureInfo info);
 
 /// The registry entry of a structure type S with a nested `Params` and a constructor from it.
 template <class S>
@@ -47,7 +53,7 @@ StructureInfo describe_structure(std::string name, std::string summary) {
     info.make = [name](const nlohmann::json& params, const std::string& path) -> std::unique_ptr<Structure> {
         return std::make_unique<S>(params_from_json<typename S::Params>(params, path, name));
     };
-    return info;
+    return with_common_params(std::move(info));
 }
 
 /// Adds a structure to the registry, after rcbench's own, so that find_structure, simulate, the

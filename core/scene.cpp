@@ -51,11 +51,12 @@ void LiveSet::remove(Uid uid) {
 }
 
 void LiveSet::move(Uid uid, const Aabb& box) { objects_[index_.at(uid)].box = box; }
+void LiveSet::move(const Object& o) { objects_[index_.at(o.uid)] = o; }
 
 void LiveSet::apply(const Frame& frame) {
     for (Uid uid : frame.removes) remove(uid);
     for (const Object& o : frame.inserts) insert(o);
-    for (const Object& o : frame.moves) move(o.uid, o.box);
+    for (const Object& o : frame.moves) move(o);
 }
 
 Aabb bounds_of(const std::vector<Object>& objects) {

@@ -9,23 +9,29 @@
 #include <vector>
 
 #include "core/geometry.h"
+#include "core/shape.h"
 
 namespace rcb {
 
 using Uid = std::uint32_t;
 
+/// An object: its box, and the exact shape inside it (shape.h; by default the box itself). A
+/// shaped object's box is shape_bounds(shape): make one with shaped_object.
 struct Object {
     Uid uid = 0;
     Aabb box;
+    Shape shape;
     friend bool operator==(const Object&, const Object&) = default;
 };
+
+inline Object shaped_object(Uid uid, const Shape& shape) { return {uid, shape_bounds(shape), shape}; }
 
 /// One frame's changes and rays. Changes apply in the order removes, inserts, moves; a uid appears
 /// at most once among a frame's changes.
 struct Frame {
     std::vector<Object> inserts;
     std::vector<Uid> removes;
-    std::vector<Object> moves;  // uid and its new box
+    std::vector<Object> moves;  // uid and its new box (and shape)
     std::vector<Segment> rays;
     friend bool operator==(const Frame&, const Frame&) = default;
 
@@ -53,12 +59,14 @@ public:
     std::size_t size() const { return objects_.size(); }
     const std::vector<Object>& objects() const { return objects_; }
     const Aabb& box(Uid uid) const { return objects_[index_.at(uid)].box; }
+    const Object& object(Uid uid) const { return objects_[index_.at(uid)]; }
 
     /// Preconditions (checked by callers that face user input): insert of a new uid, remove and
     /// move of a live one.
     void insert(const Object& o);
     void remove(Uid uid);
     void move(Uid uid, const Aabb& box);
+    void move(const Object& o);  ///< new box and shape
     void apply(const Frame& frame);
 
 private:

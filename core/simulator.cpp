@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "core/error.h"
+#include "core/query_level.h"
 
 namespace rcb {
 namespace {
@@ -70,7 +71,8 @@ nlohmann::json SimulationResult::to_json() const {
     j["update_ns_mad"] = u.mad;
     j["raycast_ns_median"] = r.median;
     j["raycast_ns_mad"] = r.mad;
-    nlohmann::json frame, warmup, update, raycast, rays, hits, missed, extra, duplicate, n_t, n_rb, n_tp, memory, stats;
+    nlohmann::json frame, warmup, update, raycast, rays, hits, missed, extra, duplicate, returned, correct, relevant,
+        n_t, n_rb, n_tp, n_ro, n_ro_hits, memory, stats;
     for (const FrameResult& f : frames) {
         frame.push_back(f.frame);
         warmup.push_back(f.warmup);
@@ -81,9 +83,14 @@ nlohmann::json SimulationResult::to_json() const {
         missed.push_back(f.missed);
         extra.push_back(f.extra);
         duplicate.push_back(f.duplicate);
+        returned.push_back(f.returned);
+        correct.push_back(f.correct);
+        relevant.push_back(f.relevant);
         n_t.push_back(f.counters.n_t);
         n_rb.push_back(f.counters.n_rb);
         n_tp.push_back(f.counters.n_tp);
+        n_ro.push_back(f.counters.n_ro);
+        n_ro_hits.push_back(f.counters.n_ro_hits);
         memory.push_back(f.memory_bytes);
         stats.push_back(f.stats);
     }
@@ -97,9 +104,14 @@ nlohmann::json SimulationResult::to_json() const {
     j["missed"] = array(missed);
     j["extra"] = array(extra);
     j["duplicate"] = array(duplicate);
+    j["returned"] = array(returned);
+    j["correct"] = array(correct);
+    j["relevant"] = array(relevant);
     j["n_t"] = array(n_t);
     j["n_rb"] = array(n_rb);
     j["n_tp"] = array(n_tp);
+    j["n_ro"] = array(n_ro);
+    j["n_ro_hits"] = array(n_ro_hits);
     j["frame_memory_bytes"] = array(memory);
     j["stats"] = array(stats);
     nlohmann::json examples = nlohmann::json::array();
@@ -129,6 +141,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
     result.params = info.complete(params, params_path);
     result.verified = options.verify;
     std::unique_ptr<Structure> structure = info.make(params, params_path);
+    const Contract contract = contract_of(result.params);
 
     const Clock::time_point build_start = Clock::now();
     structure->build(recording.initial);
@@ -169,10 +182,13 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
         fr.hits = hits.uids.size();
 
         if (options.verify) {
-            const Verification v = GroundTruth(live.objects()).verify(frame.rays, hits);
+            const Verification v = GroundTruth(live.objects()).verify(frame.rays, hits, contract);
             fr.missed = v.missed;
             fr.extra = v.extra;
             fr.duplicate = v.duplicate;
+            fr.returned = v.returned;
+            fr.correct = v.correct;
+            fr.relevant = v.relevant;
             for (const Discrepancy& d : v.examples)
                 if (result.examples.size() < 20) result.examples.emplace_back(fr.frame, d);
         }

@@ -4,7 +4,8 @@
 ///     build (timed)
 ///     per frame:  apply the frame's changes + commit (timed: update)
 ///                 cast the frame's rays as one batch (timed: ray cast)
-///                 verify every ray's hits against the ground truth (not timed)
+///                 verify every ray's hits against the ground truth (not timed): the
+///                 configuration's contract (query_level.h) and its accuracy against the shapes
 ///                 the counting pass: the same rays with counters on (not timed)
 ///
 /// Timing wraps whole phases with std::chrono::steady_clock, never a single ray.
@@ -39,13 +40,19 @@ struct FrameResult {
     std::uint32_t inserts = 0, removes = 0, moves = 0, rays = 0;
     std::uint64_t update_ns = 0;
     std::uint64_t raycast_ns = 0;
-    std::uint64_t hits = 0;  ///< reported by the timed pass, summed over the rays
-    std::uint64_t missed = 0, extra = 0, duplicate = 0;
+    std::uint64_t hits = 0;                              ///< reported by the timed pass, summed over the rays
+    std::uint64_t missed = 0, extra = 0, duplicate = 0;  ///< against the configuration's contract
+    /// Accuracy against the shapes' truth (ground_truth.h, Verification): recall = correct /
+    /// relevant, precision = correct / returned.
+    std::uint64_t returned = 0, correct = 0, relevant = 0;
     Counters counters;  ///< from the counting pass, summed over the rays
     std::uint64_t memory_bytes = 0;
     nlohmann::json stats;  ///< Structure::stats() after the frame's commit
 
     std::uint64_t mismatches() const { return missed + extra + duplicate; }
+    /// 1 when nothing is expected (no true hits) or nothing returned.
+    double recall() const { return relevant ? double(correct) / double(relevant) : 1.0; }
+    double precision() const { return returned ? double(correct) / double(returned) : 1.0; }
 };
 
 /// Median and median absolute deviation of a series.

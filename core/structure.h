@@ -59,6 +59,9 @@ public:
     virtual std::optional<Hit> cast_closest(const Segment& segment) = 0;
     /// Whether the segment hits anything; stops at the first hit.
     virtual bool cast_any(const Segment& segment) = 0;
+    /// The candidate level (counters.h: CandidatesOf) for every query from now on, or back to the
+    /// box level. The registry's `query` parameter sets it (query_level.h).
+    virtual void set_candidates_only(bool on) = 0;
 
     virtual std::size_t size() const = 0;
     /// Bytes held by the structure (capacity, not only size: what the process pays).
@@ -82,33 +85,51 @@ class StructureBase : public Structure {
 public:
     void cast(std::span<const Segment> rays, HitLists& out) override {
         NoCounting count;
-        cast_all(rays, out, count);
+        at_level(count, [&](auto& policy) { cast_all(rays, out, policy); });
     }
     void cast_counted(std::span<const Segment> rays, HitLists& out, Counters& counters) override {
         Counting count{&counters};
-        cast_all(rays, out, count);
+        at_level(count, [&](auto& policy) { cast_all(rays, out, policy); });
     }
     std::optional<Hit> cast_closest(const Segment& segment) override {
         NoCounting count;
         std::optional<Hit> best;
-        derived().traverse(segment, count, [&](Uid uid, float t) {
-            if (!best || t < best->t || (t == best->t && uid < best->uid)) best = Hit{uid, t};
-            return true;
+        at_level(count, [&](auto& policy) {
+            derived().traverse(segment, policy, [&](Uid uid, float t) {
+                if (!best || t < best->t || (t == best->t && uid < best->uid)) best = Hit{uid, t};
+                return true;
+            });
         });
         return best;
     }
     bool cast_any(const Segment& segment) override {
         NoCounting count;
         bool any = false;
-        derived().traverse(segment, count, [&](Uid, float) {
-            any = true;
-            return false;
+        at_level(count, [&](auto& policy) {
+            derived().traverse(segment, policy, [&](Uid, float) {
+                any = true;
+                return false;
+            });
         });
         return any;
     }
+    void set_candidates_only(bool on) override { candidates_ = on; }
 
 private:
     Derived& derived() { return static_cast<Derived&>(*this); }
+
+    /// Runs `body` with `policy`, or with CandidatesOf it at the candidate level.
+    template <class Policy, class Body>
+    void at_level(Policy& policy, Body&& body) {
+        if (candidates_) {
+            CandidatesOf<Policy> candidates{policy};
+            body(candidates);
+        } else {
+            body(policy);
+        }
+    }
+
+    bool candidates_ = false;
 
     template <class Count>
     void cast_all(std::span<const Segment> rays, HitLists& out, Count& count) {

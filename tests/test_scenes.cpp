@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <random>
 
 #include "core/generators.h"
 #include "core/random.h"
@@ -307,6 +308,39 @@ bool reference_hit(const Segmentd& s, const Aabbd& b) {
         lo = std::max(lo, t0), hi = std::min(hi, t1);
     }
     return lo <= hi;
+}
+
+Recording with_shapes(const Recording& r, std::uint64_t seed) {
+    auto shaped = [seed](Object o) {
+        std::mt19937_64 rng(seed * 0x9e3779b97f4a7c15ull + o.uid);
+        const int kind = int(rng() % 5);
+        const Vec3 lo = o.box.min, hi = o.box.max, c = o.box.center(), h = o.box.extent() * 0.5f;
+        std::normal_distribution<float> n(0.0f, 1.0f);
+        switch (kind) {
+            case 1:
+                return shaped_object(o.uid, Shape::triangle(lo, {hi.x, lo.y, hi.z}, {lo.x, hi.y, c.z}));
+            case 2:
+                return shaped_object(o.uid, Shape::obb(c, h * 0.6f, {n(rng), n(rng), n(rng), n(rng)}));
+            case 3:
+                return shaped_object(o.uid, Shape::sphere(c, std::min({h.x, h.y, h.z})));
+            case 4: {
+                const int axis = h.x >= h.y && h.x >= h.z ? 0 : (h.y >= h.z ? 1 : 2);
+                const float r = std::min({h.x, h.y, h.z, 0.5f * h[axis]});
+                Vec3 a = c, b = c;
+                a[axis] = lo[axis] + r, b[axis] = hi[axis] - r;
+                return shaped_object(o.uid, Shape::capsule(a, b, r));
+            }
+            default:
+                return o;
+        }
+    };
+    Recording out = r;
+    for (Object& o : out.initial) o = shaped(o);
+    for (Frame& f : out.frames) {
+        for (Object& o : f.inserts) o = shaped(o);
+        for (Object& o : f.moves) o = shaped(o);
+    }
+    return out;
 }
 
 }  // namespace rcb::test

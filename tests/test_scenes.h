@@ -32,6 +32,10 @@ std::vector<NamedScene> hard_scenes();
 Recording generated_scene(const std::string& kind, std::uint32_t objects, std::uint32_t frames, std::uint64_t seed,
                           double change_fraction = 0.05);
 
+/// `r` with its objects given shapes inside their boxes, by uid (the same kind and rotation for an
+/// object all along): boxes, triangles spanning the box, rotated boxes, spheres and capsules.
+Recording with_shapes(const Recording& r, std::uint64_t seed);
+
 /// Exact reference for the segment–box test: the set of t in [0, 1] with p0 + t·d inside the box,
 /// per axis, by case analysis in double (no reciprocals, no NaN handling).
 bool reference_hit(const Segmentd& s, const Aabbd& b);

@@ -22,9 +22,11 @@ struct ExactLeafTest : btDbvt::ICollide {
     void Process(const btDbvtNode* leaf) override {
         if (q->stopped) return;  // btDbvt's ray test cannot be stopped early; the rest is skipped
         const auto slot = static_cast<std::uint32_t>(leaf->dataAsInt);
-        ++q->tests;
-        float tn, tf;
-        if (!q->slabs->clip(q->self->box_at(slot), tn, tf)) return;
+        float tn = 0, tf;
+        if (!q->candidates) {
+            ++q->tests;
+            if (!q->slabs->clip(q->self->box_at(slot), tn, tf)) return;
+        }
         ++q->hits;
         if (!q->on_hit(q->visit, q->self->uid_at(slot), tn)) q->stopped = true;
     }

@@ -62,6 +62,7 @@ public:
         const BulletDbvt* self;
         void* visit;
         bool (*on_hit)(void* visit, Uid uid, float t);
+        bool candidates = false;  ///< yield every leaf btDbvt reaches, untested (counters.h)
         std::uint64_t tests = 0;
         std::uint64_t hits = 0;
         bool stopped = false;
@@ -90,7 +91,8 @@ template <class Count, class Visit>
 void BulletDbvt::traverse(const Segment& s, Count& count, Visit&& visit) {
     const SegmentSlabs slabs(s);
     Query q{&slabs, this, &visit,
-            [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); }};
+            [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); },
+            Count::candidates};
     if (!dbvt_query(s, q)) {
         scan_boxes(slabs, std::span<const Aabb>(objects_.layout().all()), std::span<const Uid>(objects_.uids()), count,
                    visit);  // the exact fallback

@@ -49,9 +49,11 @@ void intersect_callback(const RTCIntersectFunctionNArguments* args) {
     if (!args->valid[0]) return;
     auto* ctx = reinterpret_cast<QueryContext*>(args->context);
     EmbreeBoxes::Query& q = *ctx->query;
-    ++q.tests;
-    float tn, tf;
-    if (!q.slabs->clip(q.self->box_at(args->primID), tn, tf)) return;
+    float tn = 0, tf;
+    if (!q.candidates) {
+        ++q.tests;
+        if (!q.slabs->clip(q.self->box_at(args->primID), tn, tf)) return;
+    }
     ++q.hits;
     if (!q.on_hit(q.visit, q.self->uid_at(args->primID), tn)) {
         auto* rayhit = reinterpret_cast<RTCRayHit*>(args->rayhit);

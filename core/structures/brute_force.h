@@ -54,6 +54,13 @@ template <class Count, class Visit>
 void BruteForce::traverse(const Segment& s, Count& count, Visit&& visit) {
     const SegmentSlabs slabs(s);
     const std::size_t n = objects_.size();
+    if constexpr (Count::candidates) {  // no test at all: every object is a candidate
+        for (std::uint32_t slot = 0; slot < n; ++slot) {
+            count.hits();
+            if (!visit(objects_.uid(slot), 0.0f)) return;
+        }
+        return;
+    }
     count.box_tests(n);
     std::size_t done = 0;
 #ifdef __AVX2__

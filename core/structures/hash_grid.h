@@ -209,7 +209,8 @@ bool HashGrid::visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, doub
     // branch per object.
     for (const BoxBlock& b : cell.own.blocks) {
         float tn[BoxBlock::kLanes];
-        for (unsigned hits = b.test(ctx.slabs, tn); hits; hits &= hits - 1) {
+        for (unsigned hits = b.test_at<std::remove_reference_t<decltype(ctx.count)>>(ctx.slabs, tn); hits;
+             hits &= hits - 1) {
             const int lane = __builtin_ctz(hits);
             Entry& e = entries_[b.slot[lane]];
             if (e.stamp == ctx.stamp) continue;
@@ -238,7 +239,7 @@ void HashGrid::traverse(const Segment& s, Count& count, Visit&& visit) {
     count.box_tests(large_.size());
     for (const BoxBlock& b : large_.cell().blocks) {
         float tn[BoxBlock::kLanes];
-        for (unsigned hits = b.test(ctx.slabs, tn); hits; hits &= hits - 1) {
+        for (unsigned hits = b.test_at<Count>(ctx.slabs, tn); hits; hits &= hits - 1) {
             const int lane = __builtin_ctz(hits);
             count.hits();
             if (!visit(entries_[b.slot[lane]].uid, tn[lane])) return;

@@ -91,6 +91,7 @@ public:
     const Aabb& node_box(std::uint32_t n) const { return nodes_[n].box; }
     std::uint32_t child(std::uint32_t n, int k) const { return nodes_[n].child[k]; }
     const Aabb& object_box(std::uint32_t n) const { return nodes_[n].box; }
+    const Aabb& leaf_box(std::uint32_t n) const { return nodes_[n].box; }
     Uid leaf_uid(std::uint32_t n) const { return nodes_[n].child[0]; }
     bool has_crowds() const { return crowds_ != 0; }
     bool is_crowd(std::uint32_t n) const { return nodes_[n].flags & kCrowd; }

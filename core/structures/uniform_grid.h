@@ -116,7 +116,7 @@ void UniformGrid::traverse(const Segment& s, Count& count, Visit&& visit) {
     count.box_tests(large_.size());
     for (const BoxBlock& b : large_.cell().blocks) {
         float tn[BoxBlock::kLanes];
-        for (unsigned hits = b.test(slabs, tn); hits; hits &= hits - 1) {
+        for (unsigned hits = b.test_at<Count>(slabs, tn); hits; hits &= hits - 1) {
             const int lane = __builtin_ctz(hits);
             count.hits();
             if (!visit(entries_[b.slot[lane]].uid, tn[lane])) return;
@@ -128,7 +128,7 @@ void UniformGrid::traverse(const Segment& s, Count& count, Visit&& visit) {
         count.box_tests(cell.size);
         for (const BoxBlock& b : cell.blocks) {
             float tn[BoxBlock::kLanes];
-            for (unsigned hits = b.test(slabs, tn); hits; hits &= hits - 1) {
+            for (unsigned hits = b.test_at<Count>(slabs, tn); hits; hits &= hits - 1) {
                 const int lane = __builtin_ctz(hits);
                 const std::uint32_t slot = b.slot[lane];
                 // An object in several cells is tested in each (cheaper than a branch per object

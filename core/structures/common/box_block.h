@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "core/counters.h"
 #include "core/geometry.h"
 
 #if defined(__SSE2__)
@@ -42,6 +43,24 @@ struct alignas(16) BoxBlock {
         return {{min[0][lane], min[1][lane], min[2][lane]}, {max[0][lane], max[1][lane], max[2][lane]}};
     }
 
+    /// Lanes that hold an object (unused lanes hold the empty box).
+    unsigned used() const {
+        unsigned mask = 0;
+        for (int k = 0; k < kLanes; ++k)
+            if (min[0][k] <= max[0][k]) mask |= 1u << k;
+        return mask;
+    }
+    /// test() at the traversal policy's level: at the candidate level (counters.h) every object in
+    /// the block, with t_near 0.
+    template <class Policy>
+    unsigned test_at(const SegmentSlabs& s, float t_near[kLanes]) const {
+        if constexpr (Policy::candidates) {
+            for (int k = 0; k < kLanes; ++k) t_near[k] = 0;
+            return used();
+        } else {
+            return test(s, t_near);
+        }
+    }
     /// The slab test of the four lanes: bit k of the result is set when lane k is hit, and
     /// t_near[k] is its entry parameter.
     unsigned test(const SegmentSlabs& s, float t_near[kLanes]) const {

@@ -10,14 +10,14 @@
 
 namespace rcb {
 
-/// Returns false when `visit` asked to stop.
+/// Returns false when `visit` asked to stop. At the candidate level every box is yielded.
 template <class Count, class Visit>
 bool scan_boxes(const SegmentSlabs& slabs, std::span<const Aabb> boxes, std::span<const Uid> uids, Count& count,
                 Visit&& visit) {
     count.box_tests(boxes.size());
     for (std::size_t i = 0; i < boxes.size(); ++i) {
-        float tn, tf;
-        if (!slabs.clip(boxes[i], tn, tf)) continue;
+        float tn = 0, tf;
+        if (!Count::candidates && !slabs.clip(boxes[i], tn, tf)) continue;
         count.hits();
         if (!visit(uids[i], tn)) return false;
     }

@@ -8,11 +8,13 @@
 ///     const Aabb& node_box(std::uint32_t node) const;      // inner nodes
 ///     std::uint32_t child(std::uint32_t node, int k) const; // inner nodes, k = 0, 1
 ///     const Aabb& object_box(std::uint32_t node) const;     // leaves: the object's own box
+///     const Aabb& leaf_box(std::uint32_t node) const;       // leaves: the box the tree stores
 ///     Uid leaf_uid(std::uint32_t node) const;
 ///
 /// A leaf is tested against the object's own box (for the DBVH that is not the enlarged "fat" box
 /// of the tree, so the hit set stays exact); that test is the N_RB object test. Every node popped
-/// from the stack is one traversal step N_T.
+/// from the stack is one traversal step N_T. At the candidate level (counters.h) a leaf is yielded
+/// when its stored box is hit, and crowds are not scanned.
 ///
 /// Crowds (optional): a tree that also provides
 ///     bool has_crowds() const;                  // whether any node is a crowd
@@ -61,13 +63,17 @@ void traverse_bvh(const Tree& tree, std::uint32_t root, std::uint32_t* stack, co
         count.traversal();
         float t_near, t_far;
         if (tree.is_leaf(node)) {
-            count.box_tests();
-            if (!slabs.clip(tree.object_box(node), t_near, t_far)) continue;
+            if constexpr (Count::candidates) {  // the leaf's stored (for the DBVH, fat) box
+                if (!slabs.clip(tree.leaf_box(node), t_near, t_far)) continue;
+            } else {
+                count.box_tests();
+                if (!slabs.clip(tree.object_box(node), t_near, t_far)) continue;
+            }
             count.hits();
             if (!visit(tree.leaf_uid(node), t_near)) return;
         } else {
             if (!slabs.clip(tree.node_box(node), t_near, t_far)) continue;
-            if constexpr (HasCrowds<Tree>) {
+            if constexpr (HasCrowds<Tree> && !Count::candidates) {
                 if (crowds && tree.is_crowd(node)) {
                     const CrowdScan r = tree.scan_crowd(node, slabs, count, visit);
                     if (r == CrowdScan::stop) return;

@@ -1,0 +1,252 @@
+// Shapes, their tests against the double-precision truth, the recording format's version 2, and
+// the query levels (candidates, boxes, shapes) of every structure.
+#include <gtest/gtest.h>
+#include <zlib.h>
+
+#include <cmath>
+#include <random>
+
+#include "core/error.h"
+#include "core/ground_truth.h"
+#include "core/query_level.h"
+#include "core/recording_io.h"
+#include "core/registry.h"
+#include "core/shape.h"
+#include "tests/test_scenes.h"
+
+namespace rcb {
+namespace {
+
+Contact truth(const Segment& s, const Shape& shape) {
+    return classify_shape_contact(Segmentd{s.p0.as<double>(), s.p1.as<double>()}, shape);
+}
+
+bool narrow(const Segment& s, const Shape& shape) { return segment_hits_shape(s, shape); }
+
+const Shape kTri = Shape::triangle({0, 0, 0}, {1, 0, 0}, {0, 1, 0});
+
+TEST(Shapes, TriangleFaceEdgeVertexAndPlane) {
+    // Through the face, squarely: both say hit.
+    const Segment face{{0.25f, 0.25f, -1}, {0.25f, 0.25f, 1}};
+    EXPECT_EQ(truth(face, kTri), Contact::hit);
+    EXPECT_TRUE(narrow(face, kTri));
+    float t = -1;
+    EXPECT_TRUE(segment_hits_shape(face, kTri, &t));
+    EXPECT_FLOAT_EQ(t, 0.5f);
+    // Beside it: both say miss.
+    const Segment beside{{0.75f, 0.75f, -1}, {0.75f, 0.75f, 1}};
+    EXPECT_EQ(truth(beside, kTri), Contact::miss);
+    EXPECT_FALSE(narrow(beside, kTri));
+    // Through an edge or a vertex, or along the plane: a touch, either answer is right.
+    EXPECT_EQ(truth(Segment{{0.5f, 0, -1}, {0.5f, 0, 1}}, kTri), Contact::touch);
+    EXPECT_EQ(truth(Segment{{0, 0, -1}, {0, 0, 1}}, kTri), Contact::touch);
+    EXPECT_EQ(truth(Segment{{-1, 0.2f, 0}, {2, 0.2f, 0}}, kTri), Contact::touch);
+    // Ending on the face is a touch; stopping short of it a miss.
+    EXPECT_EQ(truth(Segment{{0.25f, 0.25f, -1}, {0.25f, 0.25f, 0}}, kTri), Contact::touch);
+    EXPECT_EQ(truth(Segment{{0.25f, 0.25f, -1}, {0.25f, 0.25f, -0.5f}}, kTri), Contact::miss);
+    EXPECT_FALSE(narrow(Segment{{0.25f, 0.25f, -1}, {0.25f, 0.25f, -0.5f}}, kTri));
+}
+
+TEST(Shapes, WatertightAcrossASharedEdge) {
+    // Two triangles sharing the diagonal of the unit square: a segment through the diagonal hits
+    // at least one of them, however float rounds (Woop et al. 2013).
+    const Shape a = Shape::triangle({0, 0, 0}, {1, 0, 0}, {1, 1, 0});
+    const Shape b = Shape::triangle({0, 0, 0}, {1, 1, 0}, {0, 1, 0});
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f), tilt(-0.3f, 0.3f);
+    for (int i = 0; i < 2000; ++i) {
+        const float x = u(rng);
+        const Vec3 on{x, x, 0}, d{tilt(rng), tilt(rng), 1};
+        const Segment s{on - d, on + d};
+        EXPECT_TRUE(narrow(s, a) || narrow(s, b)) << "a segment slipped through the shared edge at x = " << x;
+    }
+}
+
+TEST(Shapes, DegenerateTriangleIsNeverAMustHit) {
+    const Shape line = Shape::triangle({0, 0, 0}, {1, 0, 0}, {2, 0, 0});
+    EXPECT_NE(truth(Segment{{0.5f, 0, -1}, {0.5f, 0, 1}}, line), Contact::hit);
+    EXPECT_EQ(truth(Segment{{0.5f, 3, -1}, {0.5f, 3, 1}}, line), Contact::miss);
+    EXPECT_FALSE(narrow(Segment{{0.5f, 3, -1}, {0.5f, 3, 1}}, line));
+}
+
+TEST(Shapes, RotatedBoxCutsTheCornersOfItsBounds) {
+    // A unit cube turned 45° about z: its bounds reach x = ±√2/2, the box itself not near the
+    // corners of the bounds.
+    const float half_angle = float(M_PI / 8);  // q = (cos θ/2, sin θ/2 · axis), θ = 45°
+    const Shape obb = Shape::obb({0, 0, 0}, {0.5f, 0.5f, 0.5f}, {std::cos(half_angle), 0, 0, std::sin(half_angle)});
+    const Aabb bounds = shape_bounds(obb);
+    EXPECT_NEAR(bounds.max.x, std::sqrt(0.5), 1e-6);
+    EXPECT_LE(bounds.min.x, -0.7071f);
+    const Segment corner{{0.6f, 0.6f, -1}, {0.6f, 0.6f, 1}};  // inside the bounds, outside the box
+    EXPECT_TRUE(segment_hits_box(corner, bounds));
+    EXPECT_EQ(truth(corner, obb), Contact::miss);
+    EXPECT_FALSE(narrow(corner, obb));
+    const Segment centre{{0.1f, 0.1f, -1}, {0.1f, 0.1f, 1}};
+    EXPECT_EQ(truth(centre, obb), Contact::hit);
+    EXPECT_TRUE(narrow(centre, obb));
+    // A zero-thickness box crossed squarely is hit.
+    const Shape flat = Shape::obb({0, 0, 0}, {1, 1, 0}, {1, 0, 0, 0});
+    EXPECT_EQ(truth(Segment{{0.2f, 0.3f, -1}, {0.2f, 0.3f, 1}}, flat), Contact::hit);
+    EXPECT_TRUE(narrow(Segment{{0.2f, 0.3f, -1}, {0.2f, 0.3f, 1}}, flat));
+}
+
+TEST(Shapes, SpheresAndCapsules) {
+    const Shape ball = Shape::sphere({0, 0, 0}, 1);
+    EXPECT_EQ(truth(Segment{{-2, 0.5f, 0}, {2, 0.5f, 0}}, ball), Contact::hit);
+    EXPECT_EQ(truth(Segment{{-2, 0.9f, 0.9f}, {2, 0.9f, 0.9f}}, ball), Contact::miss);  // in the bounds' corner
+    EXPECT_FALSE(narrow(Segment{{-2, 0.9f, 0.9f}, {2, 0.9f, 0.9f}}, ball));
+    EXPECT_EQ(truth(Segment{{-2, 1, 0}, {2, 1, 0}}, ball), Contact::touch);  // tangent
+    float t = -1;
+    EXPECT_TRUE(segment_hits_shape(Segment{{-2, 0, 0}, {2, 0, 0}}, ball, &t));
+    EXPECT_NEAR(t, 0.25f, 1e-5);
+    const Shape pill = Shape::capsule({0, 0, 0}, {4, 0, 0}, 0.5f);
+    EXPECT_EQ(truth(Segment{{2, -1, 0.3f}, {2, 1, 0.3f}}, pill), Contact::hit);
+    EXPECT_EQ(truth(Segment{{4.45f, -1, 0.45f}, {4.45f, 1, 0.45f}}, pill), Contact::miss);  // beyond the cap
+    EXPECT_FALSE(narrow(Segment{{4.45f, -1, 0.45f}, {4.45f, 1, 0.45f}}, pill));
+}
+
+/// Random shapes and segments (many near-grazing): the float narrow phase never contradicts a
+/// "must" of the double-precision truth.
+TEST(Shapes, NarrowPhaseAgreesWithTheTruthOnRandomCases) {
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> pos(-100.0f, 100.0f), size(0.0f, 5.0f), unit(-1.0f, 1.0f);
+    int hits = 0, misses = 0;
+    for (int i = 0; i < 20000; ++i) {
+        const Vec3 c{pos(rng), pos(rng), pos(rng)};
+        Shape shape;
+        switch (i % 4) {
+            case 0:
+                shape = Shape::triangle(c, c + Vec3{size(rng), size(rng), size(rng)},
+                                        c + Vec3{size(rng), -size(rng), size(rng)});
+                break;
+            case 1:
+                shape = Shape::obb(c, {size(rng), size(rng), size(rng)}, {unit(rng), unit(rng), unit(rng), unit(rng)});
+                break;
+            case 2:
+                shape = Shape::sphere(c, size(rng));
+                break;
+            default:
+                shape = Shape::capsule(c, c + Vec3{size(rng), size(rng), size(rng)}, size(rng) * 0.3f);
+        }
+        // Segments towards a point near the shape's bounds, some ending short of it.
+        const Aabb b = shape_bounds(shape);
+        const Vec3 target = b.center() + Vec3{unit(rng), unit(rng), unit(rng)} * (0.6f * b.longest_edge());
+        const Vec3 from = target + Vec3{unit(rng), unit(rng), unit(rng)} * 20.0f;
+        const Segment s{from, from + (target - from) * (1.0f + unit(rng))};
+        const Contact want = truth(s, shape);
+        const bool got = narrow(s, shape);
+        if (want == Contact::hit) EXPECT_TRUE(got) << shape_name(shape.kind) << " case " << i;
+        if (want == Contact::miss) EXPECT_FALSE(got) << shape_name(shape.kind) << " case " << i;
+        hits += want == Contact::hit;
+        misses += want == Contact::miss;
+    }
+    EXPECT_GT(hits, 2000);  // the cases exercise both answers
+    EXPECT_GT(misses, 2000);
+}
+
+TEST(Shapes, BadParametersAreNamed) {
+    Shape nan = kTri;
+    nan.v[4] = std::nanf("");
+    EXPECT_NE(shape_problem(nan, 1e15).find("non-finite"), std::string::npos);
+    Shape spin = Shape::obb({0, 0, 0}, {1, 1, 1}, {1, 0, 0, 0});
+    spin.v[6] = 2;  // |q| = 2: not a rotation
+    EXPECT_NE(shape_problem(spin, 1e15).find("unit quaternion"), std::string::npos);
+    EXPECT_NE(shape_problem(Shape::sphere({0, 0, 0}, -1), 1e15).find("negative radius"), std::string::npos);
+    EXPECT_NE(shape_problem(Shape::sphere({1e15f, 0, 0}, 1e14f), 1e15).find("beyond"), std::string::npos);
+    EXPECT_EQ(shape_problem(Shape::obb({0, 0, 0}, {1, 0, 1}, {1, 0, 0, 0}), 1e15), "");  // zero thickness is fine
+}
+
+Recording shaped_recording() {
+    Recording r = test::generated_scene("irregular", 300, 4, 5);
+    return test::with_shapes(r, 9);
+}
+
+TEST(Recording, Version2RoundTripsShapesAndVersion1StillReads) {
+    const Recording shaped = shaped_recording();
+    EXPECT_EQ(recording_version(shaped), 2u);
+    EXPECT_EQ(decode_recording(encode_recording(shaped), "shaped"), shaped);
+    const Recording boxes = test::generated_scene("irregular", 100, 2, 5);
+    const std::string bytes = encode_recording(boxes);
+    EXPECT_EQ(recording_version(boxes), 1u);
+    EXPECT_EQ(bytes[8], 1);  // a box scene is still written as version 1, byte for byte as before
+    EXPECT_EQ(decode_recording(bytes, "boxes"), boxes);
+}
+
+TEST(Recording, BadShapesAreRejectedNamingFileAndObject) {
+    Recording r = shaped_recording();
+    std::string bytes = encode_recording(r);
+    // Patch the first shaped object's first float to NaN, then fix the section's checksum by
+    // re-encoding through a recording whose shape is invalid: validate_recording must refuse it.
+    for (Object& o : r.initial)
+        if (o.shape.kind == ShapeKind::triangle) {
+            o.shape.v[0] = std::nanf("");
+            try {
+                validate_recording(r, "scene.rcbscene");
+                FAIL() << "a NaN vertex was accepted";
+            } catch (const InputError& e) {
+                const std::string m = e.what();
+                EXPECT_NE(m.find("scene.rcbscene"), std::string::npos) << m;
+                EXPECT_NE(m.find("uid " + std::to_string(o.uid)), std::string::npos) << m;
+                EXPECT_NE(m.find("non-finite"), std::string::npos) << m;
+                EXPECT_EQ(m.find('\n'), std::string::npos);
+            }
+            o.shape.v[0] = 0;
+            o.box = Aabb{{0, 0, 0}, {1, 1, 1}};  // a box that is not the shape's bounds
+            EXPECT_THROW(validate_recording(r, "scene.rcbscene"), InputError);
+            break;
+        }
+    // An unknown kind byte in the file (with the section's checksum made right again).
+    const std::size_t objs = bytes.find("OBJS"), payload = objs + 4 + 8 + 4;
+    std::uint64_t length = 0;
+    for (int i = 0; i < 8; ++i) length |= std::uint64_t(std::uint8_t(bytes[objs + 4 + i])) << (8 * i);
+    bytes[payload + 4 + 4] = 9;  // after the count and the first uid
+    const auto crc = std::uint32_t(crc32(0, reinterpret_cast<const Bytef*>(bytes.data() + payload), uInt(length)));
+    for (int i = 0; i < 4; ++i) bytes[objs + 12 + i] = char((crc >> (8 * i)) & 0xff);
+    try {
+        decode_recording(bytes, "scene.rcbscene");
+        FAIL();
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("unknown shape kind 9"), std::string::npos) << e.what();
+    }
+}
+
+/// Every structure and peer at every level on a scene of mixed shapes: the shapes level is exact
+/// against the shapes' truth, the candidate level a superset of the box level, the box level exact.
+TEST(QueryLevels, EveryStructureKeepsItsContract) {
+    const Recording r = shaped_recording();
+    for (const StructureInfo& info : structure_registry()) {
+        SCOPED_TRACE(info.name);
+        const SimulationResult boxes = test::expect_matches_ground_truth(r, info.name, {{"query", "boxes"}});
+        const SimulationResult shapes = test::expect_matches_ground_truth(r, info.name, {{"query", "shapes"}});
+        const SimulationResult candidates = test::expect_matches_ground_truth(r, info.name, {{"query", "candidates"}});
+        std::uint64_t box_hits = 0, shape_hits = 0, candidate_hits = 0;
+        for (std::size_t f = 0; f < boxes.frames.size(); ++f) {
+            box_hits += boxes.frames[f].hits;
+            shape_hits += shapes.frames[f].hits;
+            candidate_hits += candidates.frames[f].hits;
+            EXPECT_EQ(shapes.frames[f].precision(), 1.0);
+            EXPECT_EQ(shapes.frames[f].recall(), 1.0);
+            EXPECT_EQ(boxes.frames[f].recall(), 1.0);
+            EXPECT_EQ(candidates.frames[f].recall(), 1.0);
+            EXPECT_LE(candidates.frames[f].precision(), boxes.frames[f].precision());
+            EXPECT_GT(shapes.frames[f].counters.n_ro, 0u);
+            EXPECT_EQ(shapes.frames[f].counters.n_ro - shapes.frames[f].counters.n_ro_hits,
+                      boxes.frames[f].hits - shapes.frames[f].hits);  // N_BFP: box hit, shape missed
+        }
+        EXPECT_LT(shape_hits, box_hits);  // the shapes are tighter than their boxes
+        EXPECT_GE(candidate_hits, box_hits);
+        EXPECT_FALSE(boxes.params.contains("query"));  // the default level is not recorded
+        EXPECT_EQ(shapes.params.at("query"), "shapes");
+    }
+}
+
+TEST(QueryLevels, CandidatesAreASupersetOnTheHardScenes) {
+    for (const test::NamedScene& scene : test::hard_scenes())
+        for (const StructureInfo& info : structure_registry()) {
+            SCOPED_TRACE(scene.name + " / " + info.name);
+            test::expect_matches_ground_truth(scene.recording, info.name, {{"query", "candidates"}}, scene.name);
+        }
+}
+
+}  // namespace
+}  // namespace rcb
