@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <chrono>
 #include <stdexcept>
 #include <string>
 
@@ -171,6 +172,13 @@ void LinearBvh::rebuild() {
         return;
     }
     constexpr std::size_t kGrain = 4096;
+    using Clock = std::chrono::steady_clock;
+    auto lap = [last = Clock::now()](double& ms) mutable {
+        const Clock::time_point now = Clock::now();
+        ms = std::chrono::duration<double, std::milli>(now - last).count();
+        last = now;
+    };
+    phases_ = {};
     // 1. Morton codes of the centroids in the bounds of the centroids (min and max are exact, so
     //    the chunking does not change them).
     const std::size_t chunks = arena_ ? std::size_t(params_.threads) * 4 : 1;
@@ -210,9 +218,11 @@ void LinearBvh::rebuild() {
             order_[i] = std::uint32_t(i);
         }
     });
+    lap(phases_.codes);
     // 2. Sort; equal codes by size (see "Equal codes" in the header).
     radix_sort();
     order_equal_codes();
+    lap(phases_.sort);
     // Leaves in sorted order.
     nodes_.resize(2 * n - 1);
     leaf_base_ = std::uint32_t(n - 1);
@@ -225,6 +235,7 @@ void LinearBvh::rebuild() {
             nodes_[leaf_base_ + k] = Node{objects_.box(slot), {objects_.uid(slot), kNullNode}, kNullNode, 0, kShared};
         }
     });
+    lap(phases_.leaves);
     if (n > 1) {
         common_.resize(n - 1);
         ranges_.resize(n - 1);
@@ -270,6 +281,7 @@ void LinearBvh::rebuild() {
             }
         });
         nodes_[0].parent = kNullNode;
+        lap(phases_.hierarchy);
         // 4. Karras Algorithm 4: bounds bottom up; the first thread to reach a node stops, the
         //    second merges (acq_rel: it sees the first one's child box).
         if (flags_size_ < n - 1) {
@@ -327,6 +339,7 @@ void LinearBvh::rebuild() {
             }
         }
         crowds_ = crowds.load();
+        lap(phases_.boxes);
     } else {
         common_.clear();
         ranges_.clear();

@@ -85,6 +85,17 @@ public:
     int height() const { return nodes_.empty() ? -1 : nodes_[0].height; }
     /// The node array (for tests: identical for every thread count).
     const std::vector<Node>& nodes() const { return nodes_; }
+    /// The sorted Morton codes of the last rebuild (for tests).
+    const std::vector<std::uint64_t>& codes() const { return codes_; }
+    /// Wall time of the last rebuild's steps in milliseconds (bench/lbvh_build.cpp prints them).
+    struct Phases {
+        double codes = 0;      ///< centroid bounds, outlier trim, Morton codes
+        double sort = 0;       ///< radix sort and the size order of equal codes
+        double leaves = 0;     ///< leaf nodes in sorted order
+        double hierarchy = 0;  ///< inner nodes: children and parents
+        double boxes = 0;      ///< bounds (and common boxes) bottom up
+    };
+    const Phases& last_phases() const { return phases_; }
 
     // The tree interface of traverse_bvh.
     bool is_leaf(std::uint32_t n) const { return n >= leaf_base_; }
@@ -141,6 +152,7 @@ private:
     std::size_t crowds_ = 0;
     std::size_t tied_codes_ = 0;
     bool trimmed_ = false;
+    Phases phases_;
     // Crowds are looked for in this tree (see "Crowds" above), and rebuilds since they last were.
     bool crowds_checked_ = false;
     std::uint32_t rebuilds_since_crowd_check_ = 0;
