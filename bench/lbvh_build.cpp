@@ -30,7 +30,7 @@ double median(std::vector<double> v) {
 double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 struct Series {
-    std::vector<double> build, rebuild, codes, sort, leaves, hierarchy, boxes;
+    std::vector<double> build, rebuild, codes, sort, tree;
 };
 
 void print(const char* what, const std::vector<double>& t, std::size_t n) {
@@ -71,17 +71,15 @@ int run(int argc, char** argv) {
             t.commit();
             s[k].rebuild.push_back(ms_since(t0));
             const LinearBvh::Phases& p = t.last_phases();
-            s[k].codes.push_back(p.codes), s[k].sort.push_back(p.sort), s[k].leaves.push_back(p.leaves);
-            s[k].hierarchy.push_back(p.hierarchy), s[k].boxes.push_back(p.boxes);
+            s[k].codes.push_back(p.codes), s[k].sort.push_back(p.sort), s[k].tree.push_back(p.tree);
         }
     if (!(one.nodes() == two.nodes())) throw std::logic_error("1 and 2 threads built different trees");
     for (int k = 0; k < 2; ++k) {
         std::printf("threads=%d\n", k + 1);
         print("build", s[k].build, n);
         print("rebuild", s[k].rebuild, n);
-        std::printf("  rebuild steps (median ms): codes %.2f, sort %.2f, leaves %.2f, hierarchy %.2f, boxes %.2f\n",
-                    median(s[k].codes), median(s[k].sort), median(s[k].leaves), median(s[k].hierarchy),
-                    median(s[k].boxes));
+        std::printf("  rebuild steps (median ms): codes %.2f, sort %.2f, tree %.2f\n", median(s[k].codes),
+                    median(s[k].sort), median(s[k].tree));
     }
     std::printf("speed-up of 2 threads: build %.2fx, rebuild %.2fx\n", median(s[0].build) / median(s[1].build),
                 median(s[0].rebuild) / median(s[1].rebuild));
