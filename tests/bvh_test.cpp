@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
+#include <tuple>
 #include <iostream>
 
 #include "core/error.h"
@@ -235,6 +237,91 @@ TEST(LinearBvh, OneAndTwoThreadsBuildIdenticalTrees) {
     one.validate();
     two.validate();
     EXPECT_TRUE(one.nodes() == two.nodes());
+}
+
+/// The tree is Karras' binary radix tree over the sorted keys (code, then size for equal codes,
+/// then slot), numbered as in Karras 2012 (an inner node sits at the end of its range where its
+/// parent splits; root 0, leaves after the inner nodes): checked against a plain recursive
+/// construction from std::sort, with codes computed here as docs/structures.md defines them.
+TEST(LinearBvh, IsKarrasRadixTreeOfTheSortedCodes) {
+    Random rng(11);
+    std::vector<Object> objects;
+    for (Uid u = 0; u < 5000; ++u) {
+        Aabb b = random_box(rng, 100);
+        if (u % 4 == 0) {  // duplicate centroids with different sizes: runs of equal codes
+            const Vec3 c{float(rng.below(4)) * 10, float(rng.below(4)) * 10, float(rng.below(4)) * 10};
+            const float h = float(1 + rng.below(3));
+            b = {c - Vec3{h, h, h}, c + Vec3{h, h, h}};
+        }
+        objects.push_back({u * 3 + 1, b});
+    }
+    for (int threads : {1, 2}) {
+        LinearBvh tree(LinearBvh::Params{.threads = threads, .outlier_guard = false});
+        tree.build(objects);
+        tree.validate();
+        const std::size_t n = objects.size();
+        // Codes: centroids normalised to their bounds, 21 bits per axis, x in the highest bit.
+        Aabb cb = Aabb::empty();
+        for (const Object& o : objects) cb.min = min(cb.min, o.box.center()), cb.max = max(cb.max, o.box.center());
+        constexpr float kMax = float((1u << 21) - 1);
+        struct Key {
+            std::uint64_t code;
+            std::uint32_t area_bits, slot;
+        };
+        std::vector<Key> keys;
+        for (std::uint32_t i = 0; i < n; ++i) {
+            const Vec3 c = objects[i].box.center();
+            std::uint64_t code = 0;
+            for (int a = 0; a < 3; ++a) {
+                const float ext = cb.max[a] - cb.min[a];
+                const float scale = ext > 0 ? kMax / ext : 0.0f;
+                const auto q = std::uint64_t(std::clamp((c[a] - cb.min[a]) * scale, 0.0f, kMax));
+                for (int bit = 0; bit < 21; ++bit) code |= ((q >> bit) & 1) << (3 * bit + 2 - a);
+            }
+            keys.push_back({code, std::bit_cast<std::uint32_t>(objects[i].box.half_area()), i});
+        }
+        std::sort(keys.begin(), keys.end(), [](const Key& a, const Key& b) {
+            return std::tie(a.code, a.area_bits, a.slot) < std::tie(b.code, b.area_bits, b.slot);
+        });
+        const std::vector<LinearBvh::Node>& nodes = tree.nodes();
+        ASSERT_EQ(nodes.size(), 2 * n - 1);
+        ASSERT_EQ(tree.codes().size(), n);
+        const std::uint32_t leaf_base = std::uint32_t(n - 1);
+        for (std::size_t k = 0; k < n; ++k) {
+            ASSERT_EQ(tree.codes()[k], keys[k].code) << k;
+            ASSERT_EQ(nodes[leaf_base + k].child[0], objects[keys[k].slot].uid) << k;
+        }
+        // Karras' tree: a range splits where its first and last keys' common prefix ends (equal codes
+        // compare their sorted indices); the left part is node `split` (a leaf if it is one key), the
+        // right part node `split + 1`.
+        auto prefix = [&](std::uint32_t i, std::uint32_t j) {
+            const std::uint64_t x = keys[i].code ^ keys[j].code;
+            return x ? std::countl_zero(x) : 64 + std::countl_zero(i ^ j);
+        };
+        std::size_t inner = 0;
+        auto check = [&](auto&& self, std::uint32_t first, std::uint32_t last, std::uint32_t index,
+                         std::uint32_t parent) -> Aabb {
+            const LinearBvh::Node& node = nodes[index];
+            EXPECT_EQ(node.parent, parent) << index;
+            if (first == last) {
+                EXPECT_EQ(index, leaf_base + first);
+                return objects[keys[first].slot].box;
+            }
+            ++inner;
+            const int common = prefix(first, last);
+            std::uint32_t split = first;  // the last key sharing more than `common` with the first
+            while (prefix(first, split + 1) > common) ++split;
+            const std::uint32_t left = split == first ? leaf_base + split : split;
+            const std::uint32_t right = split + 1 == last ? leaf_base + split + 1 : split + 1;
+            EXPECT_EQ(node.child[0], left) << index;
+            EXPECT_EQ(node.child[1], right) << index;
+            const Aabb box = merge(self(self, first, split, left, index), self(self, split + 1, last, right, index));
+            EXPECT_TRUE(node.box == box) << index;
+            return box;
+        };
+        check(check, 0, std::uint32_t(n - 1), 0, kNullNode);
+        EXPECT_EQ(inner, n - 1);
+    }
 }
 
 TEST(Bvh, RejectsInvalidParams) {

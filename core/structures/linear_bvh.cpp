@@ -1,7 +1,9 @@
 #include "core/structures/linear_bvh.h"
 
 #include <algorithm>
+#include <array>
 #include <bit>
+#include <chrono>
 #include <stdexcept>
 #include <string>
 
@@ -10,6 +12,10 @@
 #include <tbb/task_arena.h>
 
 #include "core/structures/common/outlier_trim.h"
+
+#ifdef __BMI2__
+#include <immintrin.h>
+#endif
 
 namespace rcb {
 
@@ -20,20 +26,64 @@ struct LinearBvh::Arena {
 
 namespace {
 
-/// Spreads the low 21 bits of v to every third bit (the classic magic-number interleave).
-std::uint64_t spread_bits(std::uint64_t v) {
-    v &= 0x1fffffu;
-    v = (v | v << 32) & 0x1f00000000ffffull;
-    v = (v | v << 16) & 0x1f0000ff0000ffull;
-    v = (v | v << 8) & 0x100f00f00f00f00full;
-    v = (v | v << 4) & 0x10c30c30c30c30c3ull;
-    v = (v | v << 2) & 0x1249249249249249ull;
-    return v;
+/// Spreads the low 21 bits of v to every third bit: one pdep where BMI2 is there, else the classic
+/// magic-number interleave (the same result).
+std::uint64_t spread_bits(std::uint32_t v) {
+#ifdef __BMI2__
+    return _pdep_u64(v, 0x1249249249249249ull);
+#else
+    std::uint64_t x = v & 0x1fffffu;
+    x = (x | x << 32) & 0x1f00000000ffffull;
+    x = (x | x << 16) & 0x1f0000ff0000ffull;
+    x = (x | x << 8) & 0x100f00f00f00f00full;
+    x = (x | x << 4) & 0x10c30c30c30c30c3ull;
+    x = (x | x << 2) & 0x1249249249249249ull;
+    return x;
+#endif
 }
 
-constexpr int kDigitBits = 11;
-constexpr std::uint32_t kDigits = 1u << kDigitBits;
-constexpr int kPasses = (63 + kDigitBits - 1) / kDigitBits;  // 6
+// The sort: one most-significant-digit pass of kTopBits over all keys, then each bucket on its own
+// with kSubBits digits, down to runs of kInsertion keys, which an insertion sort finishes.
+constexpr int kTopBits = 11;
+constexpr std::uint32_t kTopDigits = 1u << kTopBits;
+constexpr int kSubBits = 8;
+constexpr std::size_t kInsertion = 32;
+
+/// Stable sort of k[0, n) (payload v) on their low `bits` bits (the bits above are equal); tk and
+/// tv are scratch of n. A bucket of 2 000 keys and its scratch fit in the L1/L2 caches, which is
+/// what makes this cheaper than more passes over all keys (Satish, Harris & Garland 2009, "Designing
+/// efficient sorting algorithms for manycore GPUs", use the same local-buckets idea).
+void sort_bucket(std::uint64_t* k, std::uint32_t* v, std::uint64_t* tk, std::uint32_t* tv, std::size_t n, int bits) {
+    while (bits > 0 && n > 1) {
+        if (n <= kInsertion) {
+            for (std::size_t i = 1; i < n; ++i) {
+                const std::uint64_t key = k[i];
+                const std::uint32_t val = v[i];
+                std::size_t j = i;
+                for (; j > 0 && k[j - 1] > key; --j) k[j] = k[j - 1], v[j] = v[j - 1];
+                k[j] = key, v[j] = val;
+            }
+            return;
+        }
+        const int d = std::min(bits, kSubBits), shift = bits - d;
+        const std::uint32_t mask = (1u << d) - 1;
+        std::uint32_t count[1u << kSubBits] = {};
+        for (std::size_t i = 0; i < n; ++i) ++count[(k[i] >> shift) & mask];
+        bits = shift;
+        if (count[(k[0] >> shift) & mask] == n) continue;  // one digit: nothing moves
+        std::uint32_t at[1u << kSubBits], sum = 0;
+        for (std::uint32_t g = 0; g <= mask; ++g) at[g] = sum, sum += count[g];
+        for (std::size_t i = 0; i < n; ++i) {
+            const std::uint32_t j = at[(k[i] >> shift) & mask]++;
+            tk[j] = k[i], tv[j] = v[i];
+        }
+        std::copy_n(tk, n, k);
+        std::copy_n(tv, n, v);
+        for (std::uint32_t g = 0, b = 0; g <= mask; b += count[g++])
+            if (count[g] > 1) sort_bucket(k + b, v + b, tk + b, tv + b, count[g], bits);
+        return;
+    }
+}
 
 }  // namespace
 
@@ -84,73 +134,61 @@ void LinearBvh::commit() {
     if (dirty_) rebuild();
 }
 
-/// Stable LSD radix sort of codes_ with order_ as payload. Per pass each chunk of the input counts
-/// its digits, an exclusive scan over (digit, chunk) gives every chunk its output offsets, and each
-/// chunk scatters its own range in order: stable, and the same result for any chunk count.
-void LinearBvh::radix_sort() {
+/// Stable radix sort of codes_ with order_ as payload, most significant digit first over the bits
+/// that vary (`varying`: the codes' OR xor AND). The first pass, over all keys, scatters each chunk
+/// of rebuild()'s in order with the digit counts it took (stable, and the same result for any chunk
+/// count); the buckets are then sorted independently, so the threads share them without changing
+/// the result.
+void LinearBvh::sort_codes(std::uint64_t varying) {
     const std::size_t n = codes_.size();
-    const std::size_t chunks = arena_ && n >= 65536 ? std::size_t(params_.threads) * 4 : 1;
-    const std::size_t chunk_len = (n + chunks - 1) / chunks;
-    histograms_.assign(chunks * kDigits, 0);
     codes_tmp_.resize(n);
     order_tmp_.resize(n);
-    std::uint64_t* src_k = codes_.data();
+    const int bits = 64 - std::countl_zero(varying);  // bits above are the same in every code
+    // The first pass uses the digit that rebuild() counted (bits 52 to 62) when the top bit varies
+    // (it does unless the centroids are flat in x); a short or narrow array goes to sort_bucket.
+    if (n < 4 * kTopDigits || bits != 63) {
+        sort_bucket(codes_.data(), order_.data(), codes_tmp_.data(), order_tmp_.data(), n, bits);
+        return;
+    }
+    constexpr int shift = 63 - kTopBits;
+    const std::size_t chunks = histograms_.size() / kTopDigits;
+    const std::size_t chunk_len = (n + chunks - 1) / chunks;
+    const std::uint64_t* src_k = codes_.data();
+    const std::uint32_t* src_v = order_.data();
     std::uint64_t* dst_k = codes_tmp_.data();
-    std::uint32_t* src_v = order_.data();
     std::uint32_t* dst_v = order_tmp_.data();
-    // Bits in which the codes differ at all: passes over constant digits are skipped.
-    std::uint64_t all_or = 0, all_and = ~0ull;
-    for (std::size_t i = 0; i < n; ++i) all_or |= src_k[i], all_and &= src_k[i];
-    const std::uint64_t varying = all_or ^ all_and;
-    // One chunk: the digit counts of every pass in a single read (they do not depend on the order).
-    std::vector<std::uint32_t>& all_counts = all_counts_;
-    if (chunks == 1) {
-        all_counts.assign(std::size_t(kPasses) * kDigits, 0u);
-        for (std::size_t i = 0; i < n; ++i)
-            for (int pass = 0; pass < kPasses; ++pass)
-                ++all_counts[std::size_t(pass) * kDigits + ((src_k[i] >> (pass * kDigitBits)) & (kDigits - 1))];
+    bucket_start_.resize(kTopDigits + 1);
+    std::uint32_t sum = 0;
+    for (std::uint32_t d = 0; d < kTopDigits; ++d) {
+        bucket_start_[d] = sum;
+        for (std::size_t c = 0; c < chunks; ++c) {
+            std::uint32_t& h = histograms_[c * kTopDigits + d];
+            const std::uint32_t count = h;
+            h = sum;
+            sum += count;
+        }
     }
-    for (int pass = 0; pass < kPasses; ++pass) {
-        const int shift = pass * kDigitBits;
-        if (((varying >> shift) & (kDigits - 1)) == 0) continue;
-        if (chunks == 1)
-            std::copy_n(all_counts.begin() + std::ptrdiff_t(pass) * kDigits, kDigits, histograms_.begin());
-        else
-            std::fill(histograms_.begin(), histograms_.end(), 0u);
-        if (chunks > 1)
-            parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
-                for (std::size_t c = c0; c < c1; ++c) {
-                    std::uint32_t* h = histograms_.data() + c * kDigits;
-                    const std::size_t b = std::min(n, c * chunk_len), e = std::min(n, b + chunk_len);
-                    for (std::size_t i = b; i < e; ++i) ++h[(src_k[i] >> shift) & (kDigits - 1)];
-                }
-            });
-        std::uint32_t sum = 0;
-        for (std::uint32_t d = 0; d < kDigits; ++d)
-            for (std::size_t c = 0; c < chunks; ++c) {
-                std::uint32_t& h = histograms_[c * kDigits + d];
-                const std::uint32_t count = h;
-                h = sum;
-                sum += count;
+    bucket_start_[kTopDigits] = sum;
+    parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+        for (std::size_t c = c0; c < c1; ++c) {
+            std::uint32_t* h = histograms_.data() + c * kTopDigits;
+            const std::size_t b = std::min(n, c * chunk_len), e = std::min(n, b + chunk_len);
+            for (std::size_t i = b; i < e; ++i) {
+                const std::uint32_t at = h[src_k[i] >> shift]++;
+                dst_k[at] = src_k[i];
+                dst_v[at] = src_v[i];
             }
-        parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
-            for (std::size_t c = c0; c < c1; ++c) {
-                std::uint32_t* h = histograms_.data() + c * kDigits;
-                const std::size_t b = std::min(n, c * chunk_len), e = std::min(n, b + chunk_len);
-                for (std::size_t i = b; i < e; ++i) {
-                    const std::uint32_t at = h[(src_k[i] >> shift) & (kDigits - 1)]++;
-                    dst_k[at] = src_k[i];
-                    dst_v[at] = src_v[i];
-                }
-            }
-        });
-        std::swap(src_k, dst_k);
-        std::swap(src_v, dst_v);
-    }
-    if (src_k != codes_.data()) {
-        codes_.swap(codes_tmp_);
-        order_.swap(order_tmp_);
-    }
+        }
+    });
+    // The buckets, in the scattered copy, with the first arrays as their scratch.
+    parallel(kTopDigits, 16, [&](std::size_t d0, std::size_t d1) {
+        for (std::size_t d = d0; d < d1; ++d) {
+            const std::uint32_t b = bucket_start_[d], e = bucket_start_[d + 1];
+            if (e - b > 1) sort_bucket(dst_k + b, dst_v + b, codes_.data() + b, order_.data() + b, e - b, shift);
+        }
+    });
+    codes_.swap(codes_tmp_);
+    order_.swap(order_tmp_);
 }
 
 void LinearBvh::rebuild() {
@@ -170,167 +208,210 @@ void LinearBvh::rebuild() {
         stack_.assign(1, 0);
         return;
     }
-    constexpr std::size_t kGrain = 4096;
+    using Clock = std::chrono::steady_clock;
+    auto lap = [last = Clock::now()](double& ms) mutable {
+        const Clock::time_point now = Clock::now();
+        ms = std::chrono::duration<double, std::milli>(now - last).count();
+        last = now;
+    };
+    phases_ = {};
+    const Aabb* boxes = objects_.layout().all().data();
     // 1. Morton codes of the centroids in the bounds of the centroids (min and max are exact, so
-    //    the chunking does not change them).
+    //    the chunking does not change them). One pass finds the bounds and, in the same read of
+    //    the boxes, codes them in the last rebuild's bounds; only when the bounds changed (an
+    //    extreme object moved) does a second pass code them again. The same pass counts the codes'
+    //    top digit for the sort.
     const std::size_t chunks = arena_ ? std::size_t(params_.threads) * 4 : 1;
-    std::vector<Aabb> part(chunks, Aabb::empty());
     const std::size_t chunk_len = (n + chunks - 1) / chunks;
-    parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
-        for (std::size_t c = c0; c < c1; ++c) {
-            Aabb b = Aabb::empty();
-            const std::size_t e = std::min(n, (c + 1) * chunk_len);
-            for (std::size_t i = c * chunk_len; i < e; ++i) {
-                const Vec3 m = objects_.box(i).center();
-                b.min = rcb::min(b.min, m), b.max = rcb::max(b.max, m);
-            }
-            part[c] = b;
-        }
-    });
-    Aabb cb = Aabb::empty();
-    for (const Aabb& b : part) cb = merge(cb, b);
-    if (params_.outlier_guard) trim_outliers(cb);
-    Vec3 scale;
+    struct Part {
+        Vec3 min, max;
+        std::uint64_t all_or, all_and;
+    };
+    std::array<Part, 64 * 4> part;
     constexpr float kMax = float((1u << 21) - 1);
-    for (int a = 0; a < 3; ++a) {
-        const float ext = cb.max[a] - cb.min[a];
-        scale[a] = ext > 0 ? kMax / ext : 0.0f;
-    }
     codes_.resize(n);
     order_.resize(n);
-    parallel(n, kGrain, [&](std::size_t b, std::size_t e) {
-        for (std::size_t i = b; i < e; ++i) {
-            const Vec3 c = objects_.box(i).center();
-            std::uint64_t q[3];
-            for (int a = 0; a < 3; ++a) {
-                const float v = std::clamp((c[a] - cb.min[a]) * scale[a], 0.0f, kMax);
-                q[a] = std::uint64_t(v);
-            }
-            codes_[i] = spread_bits(q[0]) << 2 | spread_bits(q[1]) << 1 | spread_bits(q[2]);
-            order_[i] = std::uint32_t(i);
+    histograms_.resize(chunks * kTopDigits);
+    auto encode = [&](const Aabb& cb, bool bounds, bool codes) {
+        Vec3 scale;
+        for (int a = 0; a < 3; ++a) {
+            const float ext = cb.max[a] - cb.min[a];
+            scale[a] = ext > 0 ? kMax / ext : 0.0f;
         }
-    });
+        parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+            for (std::size_t c = c0; c < c1; ++c) {
+                std::uint32_t* h = histograms_.data() + c * kTopDigits;
+                std::fill_n(h, kTopDigits, 0u);
+                Vec3 lo = Aabb::empty().min, hi = Aabb::empty().max;
+                std::uint64_t all_or = 0, all_and = ~0ull;
+                const std::size_t e = std::min(n, (c + 1) * chunk_len);
+                for (std::size_t i = c * chunk_len; i < e; ++i) {
+                    const Vec3 m = boxes[i].center();
+                    if (bounds) lo = rcb::min(lo, m), hi = rcb::max(hi, m);
+                    if (!codes) continue;
+                    // In [0, 2^21): the conversion to 32 bits truncates as one to 64 bits would.
+                    const auto qx = std::uint32_t(std::clamp((m.x - cb.min.x) * scale.x, 0.0f, kMax));
+                    const auto qy = std::uint32_t(std::clamp((m.y - cb.min.y) * scale.y, 0.0f, kMax));
+                    const auto qz = std::uint32_t(std::clamp((m.z - cb.min.z) * scale.z, 0.0f, kMax));
+                    const std::uint64_t code = spread_bits(qx) << 2 | spread_bits(qy) << 1 | spread_bits(qz);
+                    codes_[i] = code;
+                    order_[i] = std::uint32_t(i);
+                    all_or |= code, all_and &= code;
+                    ++h[code >> (63 - kTopBits)];
+                }
+                if (bounds) part[c].min = lo, part[c].max = hi;
+                part[c].all_or = all_or, part[c].all_and = all_and;
+            }
+        });
+    };
+    encode(code_bounds_, true, !code_bounds_.is_empty());
+    Aabb cb = Aabb::empty();
+    for (std::size_t c = 0; c < chunks; ++c) cb = merge(cb, Aabb{part[c].min, part[c].max});
+    if (params_.outlier_guard) trim_outliers(cb);
+    if (code_bounds_.is_empty() || !(cb == code_bounds_)) {
+        code_bounds_ = cb;
+        encode(cb, false, true);
+    }
+    std::uint64_t all_or = 0, all_and = ~0ull;
+    for (std::size_t c = 0; c < chunks; ++c) all_or |= part[c].all_or, all_and &= part[c].all_and;
+    lap(phases_.codes);
     // 2. Sort; equal codes by size (see "Equal codes" in the header).
-    radix_sort();
+    sort_codes(all_or ^ all_and);
     order_equal_codes();
-    // Leaves in sorted order.
+    lap(phases_.sort);
     nodes_.resize(2 * n - 1);
     leaf_base_ = std::uint32_t(n - 1);
-    parallel(n, kGrain, [&](std::size_t b, std::size_t e) {
-        for (std::size_t k = b; k < e; ++k) {
-            if (k + 16 < e)
-                __builtin_prefetch(&objects_.layout().all()[order_[k + 16]]),
-                    __builtin_prefetch(&objects_.uids()[order_[k + 16]]);
-            const std::uint32_t slot = order_[k];
-            nodes_[leaf_base_ + k] = Node{objects_.box(slot), {objects_.uid(slot), kNullNode}, kNullNode, 0, kShared};
-        }
-    });
-    if (n > 1) {
-        common_.resize(n - 1);
-        ranges_.resize(n - 1);
-        // 3. Karras Algorithm 3: every inner node i finds its range [i, j] and split γ on its own.
-        const std::uint64_t* codes = codes_.data();
-        const std::int64_t count = std::int64_t(n);
-        parallel(n - 1, kGrain, [&](std::size_t b, std::size_t e) {
-            for (std::size_t ui = b; ui < e; ++ui) {
-                const std::int64_t i = std::int64_t(ui);
-                const std::uint64_t ci = codes[ui];
-                // Karras 2012 δ(i, j): the length of the common prefix of the sorted keys i and j,
-                // −1 outside the array; equal codes compare their indices instead (the keys are in
-                // effect code·2^32 + index).
-                auto delta_i = [&](std::int64_t j) -> int {
-                    if (std::uint64_t(j) >= std::uint64_t(count)) return -1;
-                    const std::uint64_t x = ci ^ codes[j];
-                    return x ? __builtin_clzll(x) : 64 + __builtin_clz(std::uint32_t(i) ^ std::uint32_t(j));
-                };
-                const int d = delta_i(i + 1) - delta_i(i - 1) > 0 ? 1 : -1;
-                const int delta_min = delta_i(i - d);
-                std::int64_t l_max = 2;
-                while (delta_i(i + l_max * d) > delta_min) l_max *= 2;
-                std::int64_t l = 0;
-                for (std::int64_t t = l_max / 2; t >= 1; t /= 2) l += delta_i(i + (l + t) * d) > delta_min ? t : 0;
-                const std::int64_t j = i + l * d;
-                ranges_[ui] = {std::uint32_t(std::min(i, j)), std::uint32_t(std::max(i, j))};
-                const int delta_node = delta_i(j);
-                std::int64_t s = 0;
-                // Ceil-halving search (Karras' Figure 4: t = ⌈l / 2^k⌉), so that a split at any
-                // offset of the range can be reached.
-                for (int k = 1;; ++k) {
-                    const std::int64_t t = (l + (std::int64_t(1) << k) - 1) >> k;
-                    s += delta_i(i + (s + t) * d) > delta_node ? t : 0;
-                    if (t == 1) break;
-                }
-                const std::int64_t gamma = i + s * d + std::min(d, 0);
-                Node& node = nodes_[ui];
-                node.child[0] = std::min(i, j) == gamma ? leaf_base_ + std::uint32_t(gamma) : std::uint32_t(gamma);
-                node.child[1] =
-                    std::max(i, j) == gamma + 1 ? leaf_base_ + std::uint32_t(gamma + 1) : std::uint32_t(gamma + 1);
-                nodes_[node.child[0]].parent = std::uint32_t(ui);
-                nodes_[node.child[1]].parent = std::uint32_t(ui);
+    if (n == 1) {
+        nodes_[0] = Node{boxes[0], {objects_.uid(0), kNullNode}, kNullNode, 0, kShared};
+        common_.clear();
+        ranges_.clear();
+        lap(phases_.tree);
+        stack_.assign(2, 0);
+        return;
+    }
+    common_.resize(n - 1);
+    ranges_.resize(n - 1);
+    bound_.assign(n - 1, kNullNode);
+    // 3. The binary radix tree of Karras 2012 (thesis Algorithm 3) and its bounds (thesis
+    //    Algorithm 4) in one bottom-up pass, as Apetrei 2014 ("Fast and simple agglomerative LBVH
+    //    construction") builds it: a node over the keys [l, r] hangs below the split at r (as the
+    //    left child) when its keys share more bits with key r + 1 than key l − 1 does, else below
+    //    the split at l − 1 (as the right child). Each leaf climbs; at each split the first climber
+    //    to arrive leaves its far end in bound_ and stops, the second learns the parent's range
+    //    from it, merges the children and goes on. The nodes keep Karras' numbering (a node at the
+    //    end of its range where its parent splits; root 0), so the tree is exactly the one
+    //    Algorithm 3 gives: each node is merged once, from its finished children.
+    //    Threads take chunks of the leaves and climb only while the sibling starts in their chunk
+    //    (then every split and node they touch is their own: no atomics); the few nodes stopped at
+    //    a chunk's edge climb on afterwards, on one thread. The tree is the same for any chunking.
+    const std::uint64_t* codes = codes_.data();
+    const std::uint32_t last = std::uint32_t(n - 1);
+    // δ(s): the common prefix of the keys s and s + 1; equal codes compare their indices instead
+    // (Karras §4: the keys are in effect code·2^32 + index).
+    auto delta = [codes](std::uint32_t s) {
+        const std::uint64_t x = codes[s] ^ codes[s + 1];
+        return x ? std::countl_zero(x) : 64 + std::countl_zero(s ^ (s + 1));
+    };
+    // The common box of a node: the intersection of the boxes below, kept only while it is not
+    // empty (kShared); once empty it stays empty further up, so most nodes of a scene without
+    // crowds never compute one.
+    // Climbs from the finished node [l, r] within the chunk [b, e); returns whether it stopped at
+    // the chunk's edge (the sibling starts outside; [l, r] is then that node). Adds the crowds it
+    // marks to `found`.
+    // Plain pointers: stores into the nodes cannot then alias the members the loop reads.
+    Node* nodes = nodes_.data();
+    std::uint32_t* bound = bound_.data();
+    std::array<std::uint32_t, 2>* ranges = ranges_.data();
+    Aabb* common = common_.data();
+    const std::uint32_t leaf_base = leaf_base_;
+    const bool check_crowds = crowds_checked_;
+    auto climb = [&](std::uint32_t & first, std::uint32_t & end, std::uint32_t b, std::uint32_t e, std::size_t & found)
+        __attribute__((always_inline)) {
+        std::uint32_t l = first, r = end;
+        bool left = l == 0 || (r != last && delta(r) > delta(l - 1));
+        while (l != 0 || r != last) {
+            if (left ? r + 1 == e : l == b) {
+                first = l, end = r;
+                return true;
             }
-        });
-        nodes_[0].parent = kNullNode;
-        // 4. Karras Algorithm 4: bounds bottom up; the first thread to reach a node stops, the
-        //    second merges (acq_rel: it sees the first one's child box).
-        if (flags_size_ < n - 1) {
-            flags_ = std::make_unique<std::atomic<std::uint32_t>[]>(n - 1);
-            flags_size_ = n - 1;
-        }
-        parallel(n - 1, kGrain, [&](std::size_t b, std::size_t e) {
-            for (std::size_t i = b; i < e; ++i) flags_[i].store(0, std::memory_order_relaxed);
-        });
-        // The common box of a node: the intersection of the boxes below, kept only while it is not
-        // empty (kShared); once empty it stays empty further up, so most nodes of a scene without
-        // crowds never compute one.
-        std::atomic<std::size_t> crowds{0};
-        auto merge_children = [&](std::uint32_t p) {
-            Node& node = nodes_[p];
-            const Node& a = nodes_[node.child[0]];
-            const Node& c = nodes_[node.child[1]];
+            const std::uint32_t split = left ? r : l - 1;
+            const std::uint32_t other = bound[split];
+            bound[split] = left ? l : r;
+            if (other == kNullNode) return false;
+            if (left)
+                r = other;
+            else
+                l = other;
+            const bool root = l == 0 && r == last;
+            left = !root && (l == 0 || (r != last && delta(r) > delta(l - 1)));
+            const std::uint32_t p = root ? 0 : left ? r : l;
+            Node& node = nodes[p];
+            node.child[0] = l == split ? leaf_base + split : split;
+            node.child[1] = r == split + 1 ? leaf_base + split + 1 : split + 1;
+            Node& a = nodes[node.child[0]];
+            Node& c = nodes[node.child[1]];
+            a.parent = c.parent = p;
             node.box = merge(a.box, c.box);
             node.height = std::uint16_t(1 + std::max(a.height, c.height));
             node.flags = 0;
-            if (crowds_checked_ && (a.flags & c.flags & kShared)) {
-                const Aabb& ca = is_leaf(node.child[0]) ? a.box : common_[node.child[0]];
-                const Aabb& cc = is_leaf(node.child[1]) ? c.box : common_[node.child[1]];
-                const Aabb common{rcb::max(ca.min, cc.min), rcb::min(ca.max, cc.max)};
-                if (common.min.x <= common.max.x && common.min.y <= common.max.y && common.min.z <= common.max.z) {
-                    common_[p] = common;
+            ranges[p] = {l, r};
+            if (check_crowds && (a.flags & c.flags & kShared)) {
+                const Aabb& ca = node.child[0] >= leaf_base ? a.box : common[node.child[0]];
+                const Aabb& cc = node.child[1] >= leaf_base ? c.box : common[node.child[1]];
+                const Aabb shared{rcb::max(ca.min, cc.min), rcb::min(ca.max, cc.max)};
+                if (shared.min.x <= shared.max.x && shared.min.y <= shared.max.y && shared.min.z <= shared.max.z) {
+                    common[p] = shared;
                     node.flags = kShared;
-                    if (ranges_[p][1] - ranges_[p][0] + 1 >= kCrowdLeaves) {
+                    if (r - l + 1 >= kCrowdLeaves) {
                         node.flags |= kCrowd;
-                        crowds.fetch_add(1, std::memory_order_relaxed);
+                        ++found;
                     }
                 }
             }
-            return node.parent;
-        };
-        if (arena_) {
-            parallel(n, kGrain, [&](std::size_t b, std::size_t e) {
-                for (std::size_t k = b; k < e; ++k) {
-                    std::uint32_t p = nodes_[leaf_base_ + k].parent;
-                    while (p != kNullNode && flags_[p].fetch_add(1, std::memory_order_acq_rel) != 0)
-                        p = merge_children(p);
+        }
+        return false;
+    };
+    const Uid* uids = objects_.uids().data();
+    const std::uint32_t* order = order_.data();
+    pending_.resize(chunks);
+    constexpr std::uint32_t kAhead = 16, kBlock = 512;
+    std::array<std::size_t, 64 * 4> found{};
+    parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+        for (std::size_t c = c0; c < c1; ++c) {
+            const std::uint32_t b = std::uint32_t(std::min(n, c * chunk_len)),
+                                e = std::uint32_t(std::min(n, b + chunk_len));
+            pending_[c].clear();
+            // Blocks of leaves: first their boxes and uids, which come in sorted order, scattered
+            // over the slots (a tight loop that keeps many loads in flight), then their climbs,
+            // which find the new leaves in the cache.
+            for (std::uint32_t bb = b; bb < e; bb += kBlock) {
+                const std::uint32_t be = std::min(e, bb + kBlock);
+                for (std::uint32_t k = bb; k < be; ++k) {
+                    if (k + kAhead < e) {
+                        const std::uint32_t ahead = order[k + kAhead];
+                        __builtin_prefetch(&boxes[ahead]);
+                        __builtin_prefetch(reinterpret_cast<const char*>(&boxes[ahead + 1]) - 1);
+                        __builtin_prefetch(&uids[ahead]);
+                    }
+                    const std::uint32_t slot = order[k];
+                    nodes[leaf_base + k] = Node{boxes[slot], {uids[slot], kNullNode}, kNullNode, 0, kShared};
                 }
-            });
-        } else {
-            // One thread: the same walk with plain loads and stores of the flags (a locked
-            // read-modify-write per node costs a third of this step and protects nothing here).
-            for (std::size_t k = 0; k < n; ++k) {
-                std::uint32_t p = nodes_[leaf_base_ + k].parent;
-                while (p != kNullNode) {
-                    const std::uint32_t seen = flags_[p].load(std::memory_order_relaxed);
-                    flags_[p].store(seen + 1, std::memory_order_relaxed);
-                    if (seen == 0) break;
-                    p = merge_children(p);
+                for (std::uint32_t k = bb; k < be; ++k) {
+                    std::uint32_t l = k, r = k;
+                    if (climb(l, r, b, e, found[c])) pending_[c].push_back({l, r});
                 }
             }
         }
-        crowds_ = crowds.load();
-    } else {
-        common_.clear();
-        ranges_.clear();
+    });
+    // The nodes stopped at a chunk's edge climb on, with no edge.
+    std::size_t crowds = 0;
+    for (std::size_t c = 0; c < chunks; ++c) {
+        crowds += found[c];
+        for (auto [l, r] : pending_[c]) climb(l, r, 0, std::uint32_t(n), crowds);
     }
+    nodes_[0].parent = kNullNode;
+    crowds_ = crowds;
+    lap(phases_.tree);
     stack_.assign(std::size_t(nodes_[0].height) + 2, 0);
 }
 
@@ -373,11 +454,10 @@ double LinearBvh::sah_cost() const {
 std::size_t LinearBvh::memory_bytes() const {
     return nodes_.capacity() * sizeof(Node) + objects_.memory_bytes() +
            (codes_.capacity() + codes_tmp_.capacity()) * sizeof(std::uint64_t) +
-           (order_.capacity() + order_tmp_.capacity() + histograms_.capacity() + all_counts_.capacity() +
-            stack_.capacity()) *
+           (order_.capacity() + order_tmp_.capacity() + histograms_.capacity() + bucket_start_.capacity() +
+            bound_.capacity() + stack_.capacity()) *
                sizeof(std::uint32_t) +
-           flags_size_ * sizeof(std::atomic<std::uint32_t>) + common_.capacity() * sizeof(Aabb) +
-           ranges_.capacity() * sizeof(ranges_[0]) + sizeof(*this);
+           common_.capacity() * sizeof(Aabb) + ranges_.capacity() * sizeof(ranges_[0]) + sizeof(*this);
 }
 
 nlohmann::json LinearBvh::stats() const {

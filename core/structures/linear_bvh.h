@@ -1,13 +1,13 @@
 #pragma once
 /// Linear BVH (thesis §4.5, after Karras 2012), rebuilt at every commit: Morton codes of the
-/// centroids (21 bits per axis), a stable LSD radix sort, Karras' radix tree (thesis Algorithm 3)
-/// and bottom-up bounds with atomic flags (thesis Algorithm 4); `threads` runs the steps in a TBB
-/// arena and every step is deterministic, so the tree does not depend on the thread count. An
+/// centroids (21 bits per axis), a stable most-significant-digit radix sort, and Karras' radix tree
+/// (thesis Algorithm 3) with its bounds (thesis Algorithm 4) in one bottom-up pass after Apetrei
+/// 2014; `threads` runs the steps in a TBB arena and every step is deterministic, so the tree does
+/// not depend on the thread count. An
 /// outlier trim (common/outlier_trim.h), size-ordered ties of equal codes and crowd scans keep it
 /// fast on hostile scenes; answers are exact either way. docs/structures.md has the details.
 
 #include <array>
-#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <tuple>
@@ -85,6 +85,15 @@ public:
     int height() const { return nodes_.empty() ? -1 : nodes_[0].height; }
     /// The node array (for tests: identical for every thread count).
     const std::vector<Node>& nodes() const { return nodes_; }
+    /// The sorted Morton codes of the last rebuild (for tests).
+    const std::vector<std::uint64_t>& codes() const { return codes_; }
+    /// Wall time of the last rebuild's steps in milliseconds (bench/lbvh_build.cpp prints them).
+    struct Phases {
+        double codes = 0;  ///< centroid bounds, outlier trim, Morton codes
+        double sort = 0;   ///< radix sort and the size order of equal codes
+        double tree = 0;   ///< leaves, inner nodes and their bounds (one bottom-up pass)
+    };
+    const Phases& last_phases() const { return phases_; }
 
     // The tree interface of traverse_bvh.
     bool is_leaf(std::uint32_t n) const { return n >= leaf_base_; }
@@ -116,7 +125,7 @@ private:
     void rebuild();
     template <class F>
     void parallel(std::size_t n, std::size_t grain, F&& f);
-    void radix_sort();
+    void sort_codes(std::uint64_t varying);
     void trim_outliers(Aabb& centroid_bounds);
     void order_equal_codes();
 
@@ -131,9 +140,11 @@ private:
     std::uint32_t leaf_base_ = 0;
     std::vector<std::uint64_t> codes_, codes_tmp_;
     std::vector<std::uint32_t> order_, order_tmp_;
-    std::vector<std::uint32_t> histograms_, all_counts_;
-    std::unique_ptr<std::atomic<std::uint32_t>[]> flags_;
-    std::size_t flags_size_ = 0;
+    std::vector<std::uint32_t> histograms_, bucket_start_;
+    // Per split of the sorted keys: the far end of the first child to finish (kNullNode before).
+    std::vector<std::uint32_t> bound_;
+    // Per chunk of leaves: the nodes [l, r] whose climb stopped at the chunk's edge.
+    std::vector<std::vector<std::array<std::uint32_t, 2>>> pending_;
     std::vector<std::uint32_t> stack_;
     // Crowds, per inner node: the intersection of the boxes below, and the first and last leaf.
     std::vector<Aabb> common_;
@@ -142,6 +153,9 @@ private:
     std::size_t crowds_ = 0;
     std::size_t tied_codes_ = 0;
     bool trimmed_ = false;
+    // The bounds the last codes were normalised to (the first guess for the next rebuild's).
+    Aabb code_bounds_ = Aabb::empty();
+    Phases phases_;
     // Crowds are looked for in this tree (see "Crowds" above), and rebuilds since they last were.
     bool crowds_checked_ = false;
     std::uint32_t rebuilds_since_crowd_check_ = 0;
