@@ -31,8 +31,13 @@ void WideBvh::Block::clear(int k) {
 }
 
 Aabb WideBvh::Block::bounds() const {
-    Aabb b = Aabb::empty();
-    for (int k = 0; k < count; ++k) b = merge(b, box(k));
+    // All 8 lanes, branch-free: unused lanes hold the empty box, the identity of the union.
+    Aabb b;
+    for (int a = 0; a < 3; ++a) {
+        float lo = bound[a][0], hi = bound[3 + a][0];
+        for (int k = 1; k < kLanes; ++k) lo = std::min(lo, bound[a][k]), hi = std::max(hi, bound[3 + a][k]);
+        b.min[a] = lo, b.max[a] = hi;
+    }
     return b;
 }
 
@@ -107,7 +112,7 @@ void WideBvh::build(std::span<const Object> objects) {
         where_.emplace(o.uid, 0u);
         items_.push_back({o.box, centroid(o.box), o.uid});
     }
-    rebuilds_ = splits_ = 0;
+    rebuilds_ = splits_ = reinserts_ = 0;
     build_from_items();
 }
 
@@ -133,7 +138,7 @@ void WideBvh::build_from_items() {
     blocks_.reserve(items_.size() / std::size_t(params_.leaf_size) * 8 / 6 + 2);
     if (!items_.empty()) root_ = build_node(items_.data(), std::uint32_t(items_.size()), kNone, 0, 0);
     grow_stack(max_depth_);
-    cost_after_build_ = sah_cost();
+    total_after_build_ = total_sah();
     // The scratch is only needed again at the next rebuild, which is rare: not held in between.
     std::vector<Item>().swap(items_);
 }
@@ -243,7 +248,8 @@ std::uint32_t WideBvh::split(Item* items, std::uint32_t n) {
             }
         }
         if (best_axis >= 0) {
-            Item* mid = std::partition(items, items + n, [&](const Item& it) { return bin_of(it, best_axis) < best_split; });
+            Item* mid =
+                std::partition(items, items + n, [&](const Item& it) { return bin_of(it, best_axis) < best_split; });
             const auto m = std::uint32_t(mid - items);
             if (m > 0 && m < n) return m;
         }
@@ -323,7 +329,8 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
     std::array<Item, kLanes + 1> nine;
     {
         const Block& block = blocks_[leaf];
-        for (int k = 0; k < kLanes; ++k) nine[std::size_t(k)] = {block.box(k), centroid(block.box(k)), Uid(block.ref[k])};
+        for (int k = 0; k < kLanes; ++k)
+            nine[std::size_t(k)] = {block.box(k), centroid(block.box(k)), Uid(block.ref[k])};
     }
     nine[kLanes] = {o.box, centroid(o.box), o.uid};
     where_[o.uid] = 0;
@@ -453,6 +460,18 @@ void WideBvh::drop_child_lane(std::uint32_t b, int k) {
 void WideBvh::move(const Object& o) {
     const std::uint32_t at = where_.at(o.uid);
     const std::uint32_t b = at / kLanes;
+    if (params_.reinsert && b != root_) {
+        const Block& leaf = blocks_[b];
+        const Aabb box = blocks_[leaf.parent].box(leaf.lane_in_parent);
+        const Vec3 c = centroid(o.box);
+        if (!(box.min.x <= c.x && c.x <= box.max.x && box.min.y <= c.y && c.y <= box.max.y && box.min.z <= c.z &&
+              c.z <= box.max.z)) {
+            ++reinserts_;
+            remove(o.uid);
+            insert(o);
+            return;
+        }
+    }
     blocks_[b].set(int(at % kLanes), o.box);
     mark(b);
 }
@@ -484,7 +503,7 @@ void WideBvh::commit() {
         sah_largest_term_ = std::abs(sah_sum_);
     }
     const double ratio = params_.rebuild_ratio;
-    if (ratio > 0 && root_ != kNone && (ratio <= 1 || sah_cost() > ratio * cost_after_build_)) rebuild();
+    if (ratio > 0 && root_ != kNone && (ratio <= 1 || sah_growth() > ratio)) rebuild();
 }
 
 // ---- measures and invariants ----
@@ -497,6 +516,16 @@ double WideBvh::fresh_sah_sum() const {
         sum += area(blocks_[block.parent].box(block.lane_in_parent)) * weight(b);
     }
     return sum;
+}
+
+double WideBvh::total_sah() const {
+    return root_ == kNone ? 0.0 : area(blocks_[root_].bounds()) * weight(root_) + sah_sum_;
+}
+
+double WideBvh::sah_growth() const {
+    const double now = total_sah();
+    if (total_after_build_ > 0) return now / total_after_build_;
+    return now > 0 ? std::numeric_limits<double>::infinity() : 1.0;
 }
 
 double WideBvh::sah_cost() const {
@@ -524,13 +553,10 @@ std::size_t WideBvh::memory_bytes() const {
 }
 
 nlohmann::json WideBvh::stats() const {
-    return {{"sah_cost", sah_cost()},
-            {"sah_after_build", cost_after_build_},
-            {"depth", depth()},
-            {"nodes", blocks_.size() - free_count_},
-            {"leaves", leaves_},
-            {"rebuilds", rebuilds_},
-            {"leaf_splits", splits_}};
+    return {{"sah_cost", sah_cost()}, {"sah_growth", sah_growth()},
+            {"depth", depth()},       {"nodes", blocks_.size() - free_count_},
+            {"leaves", leaves_},      {"rebuilds", rebuilds_},
+            {"leaf_splits", splits_}, {"reinserts", reinserts_}};
 }
 
 void WideBvh::validate() const {
@@ -597,7 +623,8 @@ void WideBvh::validate() const {
     }
     if (objects != where_.size())
         fail(std::to_string(where_.size()) + " live uids but " + std::to_string(objects) + " objects in the tree");
-    if (leaves != leaves_) fail("leaf count says " + std::to_string(leaves_) + ", the tree has " + std::to_string(leaves));
+    if (leaves != leaves_)
+        fail("leaf count says " + std::to_string(leaves_) + ", the tree has " + std::to_string(leaves));
     if (reached + free_seen != total)
         fail("blocks neither in the tree nor free: " + std::to_string(total - reached - free_seen));
     if (stack_.size() < 7 * std::size_t(max_depth_) + 8) fail("traversal stack too small for the depth");

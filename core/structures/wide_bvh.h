@@ -5,7 +5,7 @@
 /// straight into wide nodes, splitting the child with the largest box until the node is full.
 /// Changes keep the tree: moves rewrite the object's lane and refit the path at commit, inserts
 /// descend to the leaf of least area growth (a full leaf splits), removes empty their lane. A
-/// running SAH cost triggers a full rebuild when it exceeds `rebuild_ratio` × the cost after the last
+/// running SAH sum triggers a full rebuild when it exceeds `rebuild_ratio` × its value after the last
 /// build. docs/structures.md has the details.
 
 #include <cstdint>
@@ -31,9 +31,12 @@ public:
         int leaf_size = 4;
         /// SAH bins per axis of the top-down build.
         int bins = 16;
-        /// Full rebuild at commit when the SAH cost exceeds this × the cost after the last build
-        /// (0: never).
+        /// Full rebuild at commit when the SAH sum exceeds this × its value after the last build
+        /// (sah_growth; 0: never).
         double rebuild_ratio = 1.3;
+        /// A move whose new centre lies outside its leaf's box (as of the last commit) reinserts the
+        /// object (remove, then insert by least area growth) instead of stretching the leaf.
+        bool reinsert = false;
 
         static constexpr auto fields() {
             return std::tuple{
@@ -41,8 +44,12 @@ public:
                 Field{"leaf_size", &Params::leaf_size, 1, 8, "objects per leaf at build time (inserts fill up to 8)"},
                 Field{"bins", &Params::bins, 2, 256, "SAH bins per axis of the build", true, true},
                 Field{"rebuild_ratio", &Params::rebuild_ratio, 0.0, 100.0,
-                      "full rebuild at commit when the SAH cost exceeds this x the cost after the last build (0: "
-                      "never; values in (0, 1] rebuild at every commit that follows a change)"}};
+                      "full rebuild at commit when the SAH sum (not divided by the root area) exceeds this x its "
+                      "value after the last build (0: never; values in (0, 1] rebuild at every commit that follows "
+                      "a change)"},
+                Field{"reinsert", &Params::reinsert, 0, 1,
+                      "a move whose centre leaves its leaf's box reinserts the object instead of stretching the "
+                      "leaf"}};
         }
     };
 
@@ -64,6 +71,10 @@ public:
     /// Expected node visits plus object tests of a ray that meets the root's box (the SAH with
     /// C_T = C_I = 1): Σ over nodes of area(node) · (1 + objects if a leaf) / area(root).
     double sah_cost() const;
+    /// The SAH sum not divided by the root's area, Σ over nodes of area(node) · (1 + objects if a
+    /// leaf), over the same sum right after the last build: what the rebuild policy watches. Not
+    /// normalised, so that a root grown by one far object does not hide the growth of the rest.
+    double sah_growth() const;
     /// Inner levels above the deepest leaf (0: the root is a leaf; -1: empty).
     int depth() const;
 
@@ -194,6 +205,7 @@ private:
     void grow_stack(int depth);
     /// Σ area(lane) · weight(child) over all non-root blocks, recomputed from the tree.
     double fresh_sah_sum() const;
+    double total_sah() const;
     void build_from_items();
 
     Params params_;
@@ -213,10 +225,10 @@ private:
     // The largest term added to or taken from sah_sum_ since it was last recomputed: when it dwarfs
     // the sum (a huge box left the tree), rounding could dominate, so commit recomputes the sum.
     double sah_largest_term_ = 0.0;
-    double cost_after_build_ = 0.0;
-    bool changed_ = false;  // changes since the last commit
+    double total_after_build_ = 0.0;  // total_sah() right after the last build
+    bool changed_ = false;            // changes since the last commit
     // Stats.
-    std::uint32_t rebuilds_ = 0, splits_ = 0;
+    std::uint32_t rebuilds_ = 0, splits_ = 0, reinserts_ = 0;
     // Build scratch.
     std::vector<Item> items_;
     struct Bin {
