@@ -8,6 +8,7 @@
 #include "core/structures/linear_bvh.h"
 #include "core/structures/hash_grid.h"
 #include "core/structures/uniform_grid.h"
+#include "core/structures/wide_bvh.h"
 
 namespace rcb {
 namespace {
@@ -21,6 +22,10 @@ std::deque<StructureInfo>& registry() {
         describe_structure<LinearBvh>("lbvh",
                                       "linear BVH: Karras 2012 Morton codes, radix sort, parallel radix tree, atomic "
                                       "bottom-up bounds, rebuilt every frame (thesis §4.5)"),
+        describe_structure<WideBvh>("wbvh",
+                                    "wide BVH: 8 child boxes per node in SoA lanes, one AVX2 slab test per node and "
+                                    "per leaf of up to 8 objects, binned-SAH build, refit and leaf splits on changes, "
+                                    "full rebuild when the SAH cost grew by rebuild_ratio"),
         describe_structure<UniformGrid>(
             "ug", "uniform grid: cells from eq. 4.1, 3D-DDA with mailboxes, incremental updates (thesis §4.2)"),
         describe_structure<HashGrid>(

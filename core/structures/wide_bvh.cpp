@@ -1,0 +1,636 @@
+#include "core/structures/wide_bvh.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <string>
+
+namespace rcb {
+
+namespace {
+
+/// Half the surface area in double (boxes near the coordinate limit overflow float); 0 for the
+/// empty box.
+double area(const Aabb& b) {
+    if (b.is_empty()) return 0.0;
+    const double x = double(b.max.x) - double(b.min.x), y = double(b.max.y) - double(b.min.y),
+                 z = double(b.max.z) - double(b.min.z);
+    return x * y + y * z + z * x;
+}
+
+/// The centre without overflow near the coordinate limit.
+Vec3 centroid(const Aabb& b) { return b.min * 0.5f + b.max * 0.5f; }
+
+}  // namespace
+
+void WideBvh::Block::clear(int k) {
+    constexpr float inf = std::numeric_limits<float>::infinity();
+    for (int a = 0; a < 3; ++a) bound[a][k] = inf, bound[3 + a][k] = -inf;
+    ref[k] = kNone;
+}
+
+Aabb WideBvh::Block::bounds() const {
+    // All 8 lanes, branch-free: unused lanes hold the empty box, the identity of the union.
+    Aabb b;
+    for (int a = 0; a < 3; ++a) {
+        float lo = bound[a][0], hi = bound[3 + a][0];
+        for (int k = 1; k < kLanes; ++k) lo = std::min(lo, bound[a][k]), hi = std::max(hi, bound[3 + a][k]);
+        b.min[a] = lo, b.max[a] = hi;
+    }
+    return b;
+}
+
+WideBvh::WideBvh() : WideBvh(Params{}) {}
+
+WideBvh::WideBvh(const Params& p) : params_(p) {}
+
+std::uint32_t WideBvh::allocate() {
+    std::uint32_t b;
+    if (free_ != kNone) {
+        b = free_;
+        free_ = blocks_[b].parent;
+        --free_count_;
+    } else {
+        blocks_.emplace_back();
+        b = std::uint32_t(blocks_.size() - 1);
+    }
+    Block& block = blocks_[b];
+    for (int k = 0; k < kLanes; ++k) block.clear(k);
+    block.parent = kNone;
+    block.depth = 0;
+    block.lane_in_parent = 0;
+    block.count = 0;
+    block.leaf = false;
+    block.dirty = false;
+    return b;
+}
+
+void WideBvh::release(std::uint32_t b) {
+    Block& block = blocks_[b];
+    if (block.leaf) --leaves_;
+    block.count = 0;
+    block.leaf = false;
+    block.dirty = false;
+    block.parent = free_;
+    free_ = b;
+    ++free_count_;
+}
+
+void WideBvh::mark(std::uint32_t b) {
+    changed_ = true;
+    if (blocks_[b].dirty) return;
+    blocks_[b].dirty = true;
+    dirty_.push_back(b);
+}
+
+void WideBvh::grow_stack(int depth) {
+    max_depth_ = std::max(max_depth_, depth);
+    // Popping one block pushes at most 8: at most 7 per inner level on the path plus one.
+    const std::size_t need = 7 * std::size_t(max_depth_) + 8;
+    if (stack_.size() < need) stack_.resize(need);
+}
+
+void WideBvh::set_lane(std::uint32_t b, int k, const Aabb& box) {
+    Block& block = blocks_[b];
+    if (!block.leaf) {
+        const double w = weight(block.ref[k]), before = area(block.box(k)) * w, after = area(box) * w;
+        sah_sum_ += after - before;
+        sah_largest_term_ = std::max({sah_largest_term_, before, after});
+    }
+    block.set(k, box);
+}
+
+// ---- build ----
+
+void WideBvh::build(std::span<const Object> objects) {
+    where_.clear();
+    where_.reserve(objects.size());
+    items_.clear();
+    items_.reserve(objects.size());
+    for (const Object& o : objects) {
+        where_.emplace(o.uid, 0u);
+        items_.push_back({o.box, centroid(o.box), o.uid});
+    }
+    rebuilds_ = splits_ = reinserts_ = 0;
+    build_from_items();
+}
+
+void WideBvh::rebuild() {
+    items_.clear();
+    items_.reserve(where_.size());
+    for (const Block& b : blocks_)
+        if (b.leaf)
+            for (int k = 0; k < b.count; ++k) items_.push_back({b.box(k), centroid(b.box(k)), Uid(b.ref[k])});
+    build_from_items();
+    ++rebuilds_;
+}
+
+void WideBvh::build_from_items() {
+    blocks_.clear();
+    root_ = free_ = kNone;
+    free_count_ = leaves_ = 0;
+    dirty_.clear();
+    sah_sum_ = sah_largest_term_ = 0.0;
+    max_depth_ = 0;
+    changed_ = false;
+    // About one leaf per leaf_size objects and one inner node per (width − 1) blocks below.
+    blocks_.reserve(items_.size() / std::size_t(params_.leaf_size) * 8 / 6 + 2);
+    if (!items_.empty()) root_ = build_node(items_.data(), std::uint32_t(items_.size()), kNone, 0, 0);
+    grow_stack(max_depth_);
+    total_after_build_ = total_sah();
+    // The scratch is only needed again at the next rebuild, which is rare: not held in between.
+    std::vector<Item>().swap(items_);
+}
+
+std::uint32_t WideBvh::build_node(Item* items, std::uint32_t n, std::uint32_t parent, int lane, int depth) {
+    const std::uint32_t b = allocate();
+    {
+        Block& block = blocks_[b];
+        block.parent = parent;
+        block.lane_in_parent = std::uint8_t(lane);
+        block.depth = std::uint16_t(depth);
+    }
+    max_depth_ = std::max(max_depth_, depth);
+    if (n <= std::uint32_t(params_.leaf_size)) {
+        Block& block = blocks_[b];
+        block.leaf = true;
+        block.count = std::uint8_t(n);
+        ++leaves_;
+        for (std::uint32_t i = 0; i < n; ++i) {
+            block.set(int(i), items[i].box);
+            block.ref[i] = items[i].uid;
+            where_.find(items[i].uid)->second = b * kLanes + i;
+        }
+        return b;
+    }
+    // Open the range with the largest box (Wald et al. 2008's collapse of a binary SAH tree into
+    // wide nodes, done while building): split it in two until `width` ranges or none can split.
+    struct Range {
+        Item* items;
+        std::uint32_t n;
+        Aabb box;
+        double area;
+    };
+    auto range = [](Item* p, std::uint32_t m) {
+        Aabb box = Aabb::empty();
+        for (std::uint32_t i = 0; i < m; ++i) box = merge(box, p[i].box);
+        return Range{p, m, box, area(box)};
+    };
+    std::array<Range, kLanes> r;
+    int nr = 1;
+    r[0] = range(items, n);
+    while (nr < params_.width) {
+        int pick = -1;
+        for (int i = 0; i < nr; ++i) {
+            if (r[i].n <= std::uint32_t(params_.leaf_size)) continue;
+            if (pick < 0 || r[i].area > r[pick].area || (r[i].area == r[pick].area && r[i].n > r[pick].n)) pick = i;
+        }
+        if (pick < 0) break;
+        const std::uint32_t m = split(r[pick].items, r[pick].n);
+        r[nr++] = range(r[pick].items + m, r[pick].n - m);
+        r[pick] = range(r[pick].items, m);
+    }
+    for (int j = 0; j < nr; ++j) {
+        const std::uint32_t c = build_node(r[j].items, r[j].n, b, j, depth + 1);
+        blocks_[b].ref[j] = c;
+        blocks_[b].count = std::uint8_t(j + 1);
+        set_lane(b, j, r[j].box);
+    }
+    return b;
+}
+
+std::uint32_t WideBvh::split(Item* items, std::uint32_t n) {
+    Aabb cb = Aabb::empty();
+    for (std::uint32_t i = 0; i < n; ++i)
+        cb.min = rcb::min(cb.min, items[i].centroid), cb.max = rcb::max(cb.max, items[i].centroid);
+    const int bins = params_.bins;
+    bin_scratch_.resize(3 * std::size_t(bins));
+    auto bin = [&](int axis) { return bin_scratch_.data() + std::size_t(axis) * std::size_t(bins); };
+    double scale[3];
+    bool any = false;
+    for (int a = 0; a < 3; ++a) {
+        const double ext = double(cb.max[a]) - double(cb.min[a]);
+        scale[a] = ext > 0 ? double(bins) / ext : 0.0;
+        any = any || ext > 0;
+        for (int k = 0; k < bins; ++k) bin(a)[k] = Bin{Aabb::empty(), 0};
+    }
+    auto bin_of = [&](const Item& it, int a) {
+        return std::min(bins - 1, int((double(it.centroid[a]) - double(cb.min[a])) * scale[a]));
+    };
+    if (any) {
+        for (std::uint32_t i = 0; i < n; ++i)
+            for (int a = 0; a < 3; ++a) {
+                if (scale[a] == 0) continue;
+                Bin& x = bin(a)[bin_of(items[i], a)];
+                x.box = merge(x.box, items[i].box);
+                ++x.n;
+            }
+        // Binned SAH (Wald 2007): cost area(left)·n_left + area(right)·n_right per bin border.
+        int best_axis = -1, best_split = 0;
+        double best_cost = std::numeric_limits<double>::infinity();
+        std::vector<double>& right = right_cost_;
+        right.resize(std::size_t(bins));
+        for (int a = 0; a < 3; ++a) {
+            if (scale[a] == 0) continue;
+            Aabb acc = Aabb::empty();
+            std::uint32_t m = 0;
+            for (int k = bins - 1; k > 0; --k) {
+                acc = merge(acc, bin(a)[k].box), m += bin(a)[k].n;
+                right[std::size_t(k)] = area(acc) * double(m);
+            }
+            acc = Aabb::empty(), m = 0;
+            for (int k = 0; k < bins - 1; ++k) {
+                acc = merge(acc, bin(a)[k].box), m += bin(a)[k].n;
+                if (m == 0 || m == n) continue;
+                const double cost = area(acc) * double(m) + right[std::size_t(k) + 1];
+                if (cost < best_cost) best_cost = cost, best_axis = a, best_split = k + 1;
+            }
+        }
+        if (best_axis >= 0) {
+            Item* mid =
+                std::partition(items, items + n, [&](const Item& it) { return bin_of(it, best_axis) < best_split; });
+            const auto m = std::uint32_t(mid - items);
+            if (m > 0 && m < n) return m;
+        }
+    }
+    const std::uint32_t half = n / 2;
+    if (!any) {
+        // One centroid (boxes nested around one centre, or duplicates): split by size, smallest
+        // half first, ties by uid, so that a subtree holds boxes of similar size.
+        std::nth_element(items, items + half, items + n, [](const Item& x, const Item& y) {
+            const double ax = area(x.box), ay = area(y.box);
+            return ax < ay || (ax == ay && x.uid < y.uid);
+        });
+    } else {
+        int axis = 0;
+        for (int a = 1; a < 3; ++a)
+            if (double(cb.max[a]) - double(cb.min[a]) > double(cb.max[axis]) - double(cb.min[axis])) axis = a;
+        std::nth_element(items, items + half, items + n, [axis](const Item& x, const Item& y) {
+            return x.centroid[axis] < y.centroid[axis] || (x.centroid[axis] == y.centroid[axis] && x.uid < y.uid);
+        });
+    }
+    return half;
+}
+
+// ---- changes ----
+
+std::uint32_t WideBvh::choose_leaf(const Aabb& box) const {
+    std::uint32_t b = root_;
+    while (!blocks_[b].leaf) {
+        const Block& block = blocks_[b];
+        int best = 0;
+        double best_growth = std::numeric_limits<double>::infinity(), best_area = best_growth;
+        for (int k = 0; k < block.count; ++k) {
+            const Aabb lane = block.box(k);
+            const double a = area(lane), growth = area(merge(lane, box)) - a;
+            if (growth < best_growth || (growth == best_growth && a < best_area))
+                best = k, best_growth = growth, best_area = a;
+        }
+        b = block.ref[best];
+    }
+    return b;
+}
+
+void WideBvh::insert(const Object& o) {
+    changed_ = true;
+    if (root_ == kNone) {
+        root_ = allocate();
+        Block& block = blocks_[root_];
+        block.leaf = true;
+        block.count = 1;
+        block.set(0, o.box);
+        block.ref[0] = o.uid;
+        ++leaves_;
+        where_[o.uid] = root_ * kLanes;
+        grow_stack(0);
+        return;
+    }
+    const std::uint32_t leaf = choose_leaf(o.box);
+    Block& block = blocks_[leaf];
+    if (block.count == kLanes) {
+        split_leaf(leaf, o);
+        return;
+    }
+    const int k = block.count++;
+    block.set(k, o.box);
+    block.ref[k] = o.uid;
+    where_[o.uid] = leaf * kLanes + std::uint32_t(k);
+    if (leaf != root_) {  // its weight grew by one
+        const double a = area(blocks_[block.parent].box(block.lane_in_parent));
+        sah_sum_ += a;
+        sah_largest_term_ = std::max(sah_largest_term_, a);
+    }
+    mark(leaf);
+}
+
+void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
+    ++splits_;
+    std::array<Item, kLanes + 1> nine;
+    {
+        const Block& block = blocks_[leaf];
+        for (int k = 0; k < kLanes; ++k)
+            nine[std::size_t(k)] = {block.box(k), centroid(block.box(k)), Uid(block.ref[k])};
+    }
+    nine[kLanes] = {o.box, centroid(o.box), o.uid};
+    where_[o.uid] = 0;
+    const std::uint32_t m = split(nine.data(), kLanes + 1);
+    // Take the leaf's term out of the running sum; set_lane below adds the new ones.
+    const std::uint32_t parent = blocks_[leaf].parent;
+    const int lane = blocks_[leaf].lane_in_parent;
+    if (parent != kNone) {
+        const double a = area(blocks_[parent].box(lane)) * weight(leaf);
+        sah_sum_ -= a;
+        sah_largest_term_ = std::max(sah_largest_term_, a);
+        blocks_[parent].clear(lane);
+        blocks_[parent].ref[lane] = leaf;
+    }
+    const std::uint32_t other = allocate();
+    auto fill = [&](std::uint32_t b, const Item* items, std::uint32_t count) {
+        Block& block = blocks_[b];
+        for (int k = 0; k < kLanes; ++k) block.clear(k);
+        block.leaf = true;
+        block.count = std::uint8_t(count);
+        for (std::uint32_t i = 0; i < count; ++i) {
+            block.set(int(i), items[i].box);
+            block.ref[i] = items[i].uid;
+            where_.find(items[i].uid)->second = b * kLanes + i;
+        }
+    };
+    fill(leaf, nine.data(), m);
+    fill(other, nine.data() + m, kLanes + 1 - m);
+    ++leaves_;
+    if (parent != kNone && blocks_[parent].count < kLanes) {
+        // Side by side in the parent.
+        Block& p = blocks_[parent];
+        const int k = p.count++;
+        p.ref[k] = other;
+        blocks_[other].parent = parent;
+        blocks_[other].lane_in_parent = std::uint8_t(k);
+        blocks_[other].depth = blocks_[leaf].depth;
+        set_lane(parent, lane, blocks_[leaf].bounds());
+        set_lane(parent, k, blocks_[other].bounds());
+        mark(parent);
+        return;
+    }
+    // Below a new inner node in the leaf's place (the parent is full, or the leaf is the root).
+    const std::uint32_t inner = allocate();
+    Block& in = blocks_[inner];
+    in.parent = parent;
+    in.lane_in_parent = std::uint8_t(lane);
+    in.depth = blocks_[leaf].depth;
+    in.count = 2;
+    in.ref[0] = leaf;
+    in.ref[1] = other;
+    for (int k = 0; k < 2; ++k) {
+        Block& c = blocks_[in.ref[k]];
+        c.parent = inner;
+        c.lane_in_parent = std::uint8_t(k);
+        c.depth = std::uint16_t(in.depth + 1);
+    }
+    grow_stack(in.depth + 1);
+    set_lane(inner, 0, blocks_[leaf].bounds());
+    set_lane(inner, 1, blocks_[other].bounds());
+    if (parent == kNone) {
+        root_ = inner;
+    } else {
+        blocks_[parent].ref[lane] = inner;
+        set_lane(parent, lane, blocks_[inner].bounds());
+        mark(parent);
+    }
+}
+
+void WideBvh::remove(Uid uid) {
+    auto it = where_.find(uid);
+    const std::uint32_t b = it->second / kLanes;
+    const int k = int(it->second % kLanes);
+    where_.erase(it);
+    Block& block = blocks_[b];
+    const int last = block.count - 1;
+    if (k != last) {
+        block.set(k, block.box(last));
+        block.ref[k] = block.ref[last];
+        where_.find(Uid(block.ref[k]))->second = b * kLanes + std::uint32_t(k);
+    }
+    block.clear(last);
+    --block.count;
+    changed_ = true;
+    if (b != root_) {  // its weight fell by one
+        const double a = area(blocks_[block.parent].box(block.lane_in_parent));
+        sah_sum_ -= a;
+        sah_largest_term_ = std::max(sah_largest_term_, a);
+    }
+    if (block.count == 0)
+        remove_block(b);
+    else
+        mark(b);
+}
+
+void WideBvh::remove_block(std::uint32_t b) {
+    if (b == root_) {
+        release(b);
+        root_ = kNone;
+        return;
+    }
+    const std::uint32_t parent = blocks_[b].parent;
+    const int lane = blocks_[b].lane_in_parent;
+    const double a = area(blocks_[parent].box(lane)) * weight(b);
+    sah_sum_ -= a;
+    sah_largest_term_ = std::max(sah_largest_term_, a);
+    release(b);
+    drop_child_lane(parent, lane);
+    if (blocks_[parent].count == 0)
+        remove_block(parent);
+    else
+        mark(parent);
+}
+
+void WideBvh::drop_child_lane(std::uint32_t b, int k) {
+    Block& block = blocks_[b];
+    const int last = block.count - 1;
+    if (k != last) {
+        block.set(k, block.box(last));
+        block.ref[k] = block.ref[last];
+        blocks_[block.ref[k]].lane_in_parent = std::uint8_t(k);
+    }
+    block.clear(last);
+    --block.count;
+}
+
+void WideBvh::move(const Object& o) {
+    const std::uint32_t at = where_.at(o.uid);
+    const std::uint32_t b = at / kLanes;
+    if (params_.reinsert && b != root_) {
+        const Block& leaf = blocks_[b];
+        const Aabb box = blocks_[leaf.parent].box(leaf.lane_in_parent);
+        const Vec3 c = centroid(o.box);
+        if (!(box.min.x <= c.x && c.x <= box.max.x && box.min.y <= c.y && c.y <= box.max.y && box.min.z <= c.z &&
+              c.z <= box.max.z)) {
+            ++reinserts_;
+            remove(o.uid);
+            insert(o);
+            return;
+        }
+    }
+    blocks_[b].set(int(at % kLanes), o.box);
+    mark(b);
+}
+
+/// Bottom-up refit of the marked blocks: each one's box goes into its lane in the parent, up the
+/// path while that changes the lane (above, the boxes already enclose what changed).
+void WideBvh::refit() {
+    for (const std::uint32_t d : dirty_) {
+        if (blocks_[d].count == 0) continue;  // released since it was marked
+        blocks_[d].dirty = false;
+        for (std::uint32_t c = d; c != root_;) {
+            const Block& block = blocks_[c];
+            const Aabb box = block.bounds();
+            const std::uint32_t p = block.parent;
+            if (box == blocks_[p].box(block.lane_in_parent)) break;
+            set_lane(p, block.lane_in_parent, box);
+            c = p;
+        }
+    }
+    dirty_.clear();
+}
+
+void WideBvh::commit() {
+    refit();
+    if (!changed_) return;
+    changed_ = false;
+    if (sah_largest_term_ > 1e6 * std::abs(sah_sum_)) {
+        sah_sum_ = fresh_sah_sum();
+        sah_largest_term_ = std::abs(sah_sum_);
+    }
+    const double ratio = params_.rebuild_ratio;
+    if (ratio > 0 && root_ != kNone && (ratio <= 1 || sah_growth() > ratio)) rebuild();
+}
+
+// ---- measures and invariants ----
+
+double WideBvh::fresh_sah_sum() const {
+    double sum = 0.0;
+    for (std::uint32_t b = 0; b < blocks_.size(); ++b) {
+        const Block& block = blocks_[b];
+        if (block.count == 0 || b == root_) continue;
+        sum += area(blocks_[block.parent].box(block.lane_in_parent)) * weight(b);
+    }
+    return sum;
+}
+
+double WideBvh::total_sah() const {
+    return root_ == kNone ? 0.0 : area(blocks_[root_].bounds()) * weight(root_) + sah_sum_;
+}
+
+double WideBvh::sah_growth() const {
+    const double now = total_sah();
+    if (total_after_build_ > 0) return now / total_after_build_;
+    return now > 0 ? std::numeric_limits<double>::infinity() : 1.0;
+}
+
+double WideBvh::sah_cost() const {
+    if (root_ == kNone) return 0.0;
+    const double root_area = area(blocks_[root_].bounds());
+    // A zero-area root (points or segments only): every box is met by a ray that meets the root,
+    // so count the blocks and the objects.
+    if (!(root_area > 0)) return double(blocks_.size() - free_count_) + double(where_.size());
+    return (root_area * weight(root_) + sah_sum_) / root_area;
+}
+
+int WideBvh::depth() const {
+    if (root_ == kNone) return -1;
+    int deepest = 0;
+    for (const Block& b : blocks_)
+        if (b.leaf && b.count > 0) deepest = std::max(deepest, int(b.depth));
+    return deepest;
+}
+
+std::size_t WideBvh::memory_bytes() const {
+    return blocks_.capacity() * sizeof(Block) + where_.bucket_count() * sizeof(void*) +
+           where_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) +
+           (dirty_.capacity() + stack_.capacity()) * sizeof(std::uint32_t) + items_.capacity() * sizeof(Item) +
+           bin_scratch_.capacity() * sizeof(Bin) + right_cost_.capacity() * sizeof(double) + sizeof(*this);
+}
+
+nlohmann::json WideBvh::stats() const {
+    return {{"sah_cost", sah_cost()}, {"sah_growth", sah_growth()},
+            {"depth", depth()},       {"nodes", blocks_.size() - free_count_},
+            {"leaves", leaves_},      {"rebuilds", rebuilds_},
+            {"leaf_splits", splits_}, {"reinserts", reinserts_}};
+}
+
+void WideBvh::validate() const {
+    auto fail = [](const std::string& what) { broken_invariant("wbvh", what); };
+    if (!dirty_.empty()) fail("blocks not refitted after changes (commit missing)");
+    const auto total = std::uint32_t(blocks_.size());
+    std::uint32_t free_seen = 0;
+    for (std::uint32_t b = free_; b != kNone; b = blocks_[b].parent) {
+        if (b >= total) fail("free list points outside the block array");
+        if (blocks_[b].count != 0) fail("block " + std::to_string(b) + " on the free list is in use");
+        if (++free_seen > total) fail("free list has a cycle");
+    }
+    if (free_seen != free_count_)
+        fail("free list holds " + std::to_string(free_seen) + " blocks, count says " + std::to_string(free_count_));
+    std::uint32_t reached = 0, leaves = 0;
+    std::size_t objects = 0;
+    auto is_unused = [](const Block& b, int k) {
+        constexpr float inf = std::numeric_limits<float>::infinity();
+        for (int a = 0; a < 3; ++a)
+            if (b.bound[a][k] != inf || b.bound[3 + a][k] != -inf) return false;
+        return true;
+    };
+    if (root_ != kNone) {
+        if (root_ >= total || blocks_[root_].parent != kNone || blocks_[root_].depth != 0)
+            fail("root has a parent, a depth or is out of range");
+        std::vector<std::uint32_t> stack{root_};
+        while (!stack.empty()) {
+            const std::uint32_t b = stack.back();
+            stack.pop_back();
+            if (++reached > total) fail("tree has a cycle");
+            const Block& block = blocks_[b];
+            const std::string name = "block " + std::to_string(b);
+            if (block.count == 0 || block.count > kLanes) fail(name + " has " + std::to_string(block.count) + " lanes");
+            if (block.depth > max_depth_) fail(name + " is deeper than the stack allows");
+            for (int k = block.count; k < kLanes; ++k)
+                if (!is_unused(block, k)) fail(name + ": an unused lane holds a box that segments can meet");
+            if (block.leaf) {
+                ++leaves;
+                for (int k = 0; k < block.count; ++k) {
+                    ++objects;
+                    const Uid uid = block.ref[k];
+                    auto it = where_.find(uid);
+                    if (it == where_.end() || it->second != b * kLanes + std::uint32_t(k))
+                        fail("uid " + std::to_string(uid) + " in " + name + " is not where the uid index says");
+                    const Aabb box = block.box(k);
+                    if (!(box.min.x <= box.max.x && box.min.y <= box.max.y && box.min.z <= box.max.z))
+                        fail("uid " + std::to_string(uid) + " has min > max");
+                }
+                continue;
+            }
+            for (int k = 0; k < block.count; ++k) {
+                const std::uint32_t c = block.ref[k];
+                if (c >= total) fail(name + ": child out of range");
+                const Block& child = blocks_[c];
+                if (child.parent != b || child.lane_in_parent != k)
+                    fail("block " + std::to_string(c) + " does not point back to lane " + std::to_string(k) + " of " +
+                         name);
+                if (child.depth != block.depth + 1) fail("block " + std::to_string(c) + " has a wrong depth");
+                if (child.count > 0 && !block.box(k).contains(child.bounds()))
+                    fail(name + " lane " + std::to_string(k) + " does not enclose its child");
+                stack.push_back(c);
+            }
+        }
+    }
+    if (objects != where_.size())
+        fail(std::to_string(where_.size()) + " live uids but " + std::to_string(objects) + " objects in the tree");
+    if (leaves != leaves_)
+        fail("leaf count says " + std::to_string(leaves_) + ", the tree has " + std::to_string(leaves));
+    if (reached + free_seen != total)
+        fail("blocks neither in the tree nor free: " + std::to_string(total - reached - free_seen));
+    if (stack_.size() < 7 * std::size_t(max_depth_) + 8) fail("traversal stack too small for the depth");
+    const double fresh = fresh_sah_sum();
+    if (!(std::abs(fresh - sah_sum_) <= 1e-6 * std::max(std::abs(fresh), sah_largest_term_ * 1e-6) + 1e-300))
+        fail("running SAH sum " + std::to_string(sah_sum_) + " differs from the tree's " + std::to_string(fresh));
+}
+
+}  // namespace rcb
