@@ -101,7 +101,13 @@ public:
         while (top != 0) {
             const Block& b = blocks_[stack[--top]];
             count.traversal();
-            unsigned mask = test(b, slabs, near, far, t_near);
+            unsigned mask;
+            if (Count::candidates && b.leaf) {  // a leaf reached through its box: all its objects
+                mask = (1u << b.count) - 1;
+                for (int k = 0; k < kLanes; ++k) t_near[k] = 0;
+            } else {
+                mask = test(b, slabs, near, far, t_near);
+            }
             if (b.leaf) {
                 count.box_tests(b.count);
                 while (mask != 0) {
