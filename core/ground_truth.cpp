@@ -247,7 +247,7 @@ Verification GroundTruth::verify(std::span<const Segment> rays, const HitLists& 
                     const bool is_reported = i < reported.size() && (j == found.size() || reported[i] <= found[j].uid);
                     const Uid uid = is_reported ? reported[i] : found[j].uid;
                     const Contacts c = has_entry ? found[j] : Contacts{uid, Contact::miss, Contact::miss};
-                    if (!is_reported && level(c, contract.lower) == Contact::hit) {
+                    if (!is_reported && contract.lower && level(c, *contract.lower) == Contact::hit) {
                         ++local.missed;
                         note(r, uid, Discrepancy::missed);
                     }

@@ -43,10 +43,11 @@ enum class Truth { boxes, shapes };
 
 /// What a configuration promises: every object that must be hit at level `lower` is reported, and
 /// nothing that clearly misses at level `upper` (no upper level: any live object may be reported,
-/// as by a broad phase's candidates). The box query: {boxes, boxes}; the narrow phase: {shapes,
-/// shapes}; a tighter leaf volume than the box: {shapes, boxes}; candidates: {boxes, none}.
+/// as by a broad phase's candidates; no lower level: hits may be lost, as by a peer without its
+/// padding). The box query: {boxes, boxes}; the narrow phase: {shapes, shapes}; a tighter leaf
+/// volume than the box: {shapes, boxes}; candidates: {boxes, none}; not robust: {none, boxes}.
 struct Contract {
-    Truth lower = Truth::boxes;
+    std::optional<Truth> lower = Truth::boxes;
     std::optional<Truth> upper = Truth::boxes;
 };
 

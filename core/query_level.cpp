@@ -1,6 +1,10 @@
 #include "core/query_level.h"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "core/error.h"
 
 namespace rcb {
 
@@ -18,6 +22,179 @@ ParamSpec query_param_spec() {
     return p;
 }
 
+ParamSpec leaf_bv_param_spec() {
+    ParamSpec p;
+    p.name = "leaf_bv";
+    p.kind = ParamKind::choice;
+    p.choices = {"aabb", "kdop14", "kdop18", "obb"};
+    p.default_value = "aabb";
+    p.doc = "bounding volume a shaped object's box hit is tested against next: aabb (none), kdop14, kdop18, obb";
+    p.tunable = false;
+    p.recorded_when_default = false;
+    return p;
+}
+
+LeafBv leaf_bv_of(const nlohmann::json& params) {
+    if (!params.is_object() || !params.contains("leaf_bv")) return LeafBv::aabb;
+    const std::string v = params.at("leaf_bv").get<std::string>();
+    return v == "kdop14" ? LeafBv::kdop14
+                         : (v == "kdop18" ? LeafBv::kdop18 : (v == "obb" ? LeafBv::obb : LeafBv::aabb));
+}
+
+namespace {
+
+// Directions of the diagonal slabs (the box's slabs are the box): kdop14's four cube diagonals,
+// kdop18's six face diagonals (Klosowski et al. 1998, "Efficient collision detection using bounding
+// volume hierarchies of k-DOPs").
+constexpr int kDiag14[4][3] = {{1, 1, 1}, {1, 1, -1}, {1, -1, 1}, {-1, 1, 1}};
+constexpr int kDiag18[6][3] = {{1, 1, 0}, {1, 0, 1}, {0, 1, 1}, {1, -1, 0}, {1, 0, -1}, {0, 1, -1}};
+
+int diagonals(LeafBv k) { return k == LeafBv::kdop14 ? 4 : (k == LeafBv::kdop18 ? 6 : 0); }
+Vec3d diagonal(LeafBv k, int i) {
+    const int* d = k == LeafBv::kdop14 ? kDiag14[i] : kDiag18[i];
+    return {double(d[0]), double(d[1]), double(d[2])};
+}
+
+float down(double x) {
+    float f = float(x);
+    return double(f) > x ? std::nextafter(f, -std::numeric_limits<float>::infinity()) : f;
+}
+float up(double x) {
+    float f = float(x);
+    return double(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
+}
+
+/// The shape's extent along `n`, in double.
+std::pair<double, double> extent_along(const Shape& s, const Vec3d& n) {
+    auto at = [&](int i) { return dot(s.point(i).as<double>(), n); };
+    switch (s.kind) {
+        case ShapeKind::triangle:
+            return {std::min({at(0), at(1), at(2)}), std::max({at(0), at(1), at(2)})};
+        case ShapeKind::obb: {
+            const std::array<Vec3d, 3> axis = obb_axes<double>(s);
+            const Vec3d h = s.point(1).as<double>();
+            const double reach =
+                std::abs(dot(axis[0], n)) * h.x + std::abs(dot(axis[1], n)) * h.y + std::abs(dot(axis[2], n)) * h.z;
+            return {at(0) - reach, at(0) + reach};
+        }
+        case ShapeKind::sphere:
+        case ShapeKind::capsule: {
+            const bool sphere = s.kind == ShapeKind::sphere;
+            const double r = (sphere ? s.v[3] : s.v[6]) * std::sqrt(dot(n, n));
+            const double a = at(0), b = sphere ? a : at(1);
+            return {std::min(a, b) - r, std::max(a, b) + r};
+        }
+        case ShapeKind::box:
+            break;
+    }
+    return {0, 0};
+}
+
+/// An oriented box around the shape, or a box-kind shape when it would be no tighter than the box.
+Shape enclosing_obb(const Object& o) {
+    const Shape& s = o.shape;
+    if (s.kind == ShapeKind::obb) return s;
+    Vec3d u, v, w;  // orthonormal axes
+    if (s.kind == ShapeKind::triangle) {
+        const Vec3d a = s.point(0).as<double>(), b = s.point(1).as<double>(), c = s.point(2).as<double>();
+        const Vec3d e[3] = {b - a, c - b, a - c};
+        int longest = 0;
+        for (int i = 1; i < 3; ++i)
+            if (dot(e[i], e[i]) > dot(e[longest], e[longest])) longest = i;
+        const Vec3d normal = cross(e[0], e[1]);
+        const double nl = std::sqrt(dot(normal, normal)), el = std::sqrt(dot(e[longest], e[longest]));
+        if (!(nl > 0) || !(el > 0)) return {};  // degenerate: the box is as tight
+        u = e[longest] * (1 / el), w = normal * (1 / nl), v = cross(w, u);
+    } else if (s.kind == ShapeKind::capsule) {
+        const Vec3d d = s.point(1).as<double>() - s.point(0).as<double>();
+        const double l = std::sqrt(dot(d, d));
+        if (!(l > 0)) return {};  // a sphere: the box is as tight
+        u = d * (1 / l);
+        const Vec3d helper = std::abs(u.x) < 0.6 ? Vec3d{1, 0, 0} : Vec3d{0, 1, 0};
+        w = cross(u, helper);
+        w = w * (1 / std::sqrt(dot(w, w)));
+        v = cross(w, u);
+    } else {
+        return {};  // a sphere's tightest box is its box
+    }
+    // Centre and half extents along the axes, grown by a few float roundings of the scene's
+    // magnitude so that the float box, its centre rounded, still contains the shape.
+    const auto [u0, u1] = extent_along(s, u);
+    const auto [v0, v1] = extent_along(s, v);
+    const auto [w0, w1] = extent_along(s, w);
+    const Vec3d c = u * (0.5 * (u0 + u1)) + v * (0.5 * (v0 + v1)) + w * (0.5 * (w0 + w1));
+    const Aabbd b = o.box.as<double>();
+    const double m = std::max({std::abs(b.min.x), std::abs(b.min.y), std::abs(b.min.z), std::abs(b.max.x),
+                               std::abs(b.max.y), std::abs(b.max.z)});
+    const double grow = 4 * m * std::numeric_limits<float>::epsilon();
+    // The rotation whose rows are u, v, w as a quaternion (Shepperd's method on R with columns u, v, w).
+    const double r[3][3] = {{u.x, v.x, w.x}, {u.y, v.y, w.y}, {u.z, v.z, w.z}};
+    double q[4];
+    const double tr = r[0][0] + r[1][1] + r[2][2];
+    if (tr > 0) {
+        const double k = 2 * std::sqrt(1 + tr);
+        q[0] = 0.25 * k, q[1] = (r[2][1] - r[1][2]) / k, q[2] = (r[0][2] - r[2][0]) / k, q[3] = (r[1][0] - r[0][1]) / k;
+    } else if (r[0][0] > r[1][1] && r[0][0] > r[2][2]) {
+        const double k = 2 * std::sqrt(1 + r[0][0] - r[1][1] - r[2][2]);
+        q[0] = (r[2][1] - r[1][2]) / k, q[1] = 0.25 * k, q[2] = (r[0][1] + r[1][0]) / k, q[3] = (r[0][2] + r[2][0]) / k;
+    } else if (r[1][1] > r[2][2]) {
+        const double k = 2 * std::sqrt(1 + r[1][1] - r[0][0] - r[2][2]);
+        q[0] = (r[0][2] - r[2][0]) / k, q[1] = (r[0][1] + r[1][0]) / k, q[2] = 0.25 * k, q[3] = (r[1][2] + r[2][1]) / k;
+    } else {
+        const double k = 2 * std::sqrt(1 + r[2][2] - r[0][0] - r[1][1]);
+        q[0] = (r[1][0] - r[0][1]) / k, q[1] = (r[0][2] + r[2][0]) / k, q[2] = (r[1][2] + r[2][1]) / k, q[3] = 0.25 * k;
+    }
+    // The float quaternion turns the axes by up to ~1e-7 rad: grow by that over the box's reach too.
+    const double reach = 0.5 * std::max({u1 - u0, v1 - v0, w1 - w0});
+    const double slack = grow + 8 * reach * std::numeric_limits<float>::epsilon();
+    return Shape::obb(c.as<float>(),
+                      {up(0.5 * (u1 - u0) + slack), up(0.5 * (v1 - v0) + slack), up(0.5 * (w1 - w0) + slack)},
+                      {float(q[0]), float(q[1]), float(q[2]), float(q[3])});
+}
+
+}  // namespace
+
+TightVolume tight_volume(const Object& o, LeafBv kind) {
+    TightVolume v;
+    if (kind == LeafBv::aabb || o.shape.kind == ShapeKind::box) return v;
+    if (kind == LeafBv::obb) {
+        v.obb = enclosing_obb(o);
+        if (v.obb.kind == ShapeKind::obb) v.kind = kind;
+        return v;
+    }
+    v.kind = kind;
+    for (int i = 0; i < diagonals(kind); ++i) {
+        const auto [lo, hi] = extent_along(o.shape, diagonal(kind, i));
+        v.slab[2 * i] = down(lo), v.slab[2 * i + 1] = up(hi);
+    }
+    return v;
+}
+
+bool segment_hits_volume(const Segment& s, const Aabb& box, const TightVolume& v) {
+    if (v.kind == LeafBv::aabb) return true;
+    if (v.kind == LeafBv::obb) return segment_hits_shape(s, v.obb);
+    // The box's slabs, then each diagonal slab: the segment meets the k-DOP iff the parameter
+    // intervals of all slabs overlap within [0, 1].
+    float tn, tf;
+    if (!SegmentSlabs(s).clip(box, tn, tf)) return false;
+    const Vec3 d = s.delta();
+    for (int i = 0; i < diagonals(v.kind); ++i) {
+        const int* n = v.kind == LeafBv::kdop14 ? kDiag14[i] : kDiag18[i];
+        const float o = float(n[0]) * s.p0.x + float(n[1]) * s.p0.y + float(n[2]) * s.p0.z;
+        const float dd = float(n[0]) * d.x + float(n[1]) * d.y + float(n[2]) * d.z;
+        const float lo = v.slab[2 * i], hi = v.slab[2 * i + 1];
+        if (dd == 0) {
+            if (o < lo || o > hi) return false;
+            continue;
+        }
+        float t0 = (lo - o) / dd, t1 = (hi - o) / dd;
+        if (t0 > t1) std::swap(t0, t1);
+        tn = std::max(tn, t0), tf = std::min(tf, t1);
+        if (tn > tf) return false;
+    }
+    return true;
+}
+
 QueryLevel query_level_of(const nlohmann::json& params) {
     if (!params.is_object() || !params.contains("query")) return QueryLevel::boxes;
     const std::string q = params.at("query").get<std::string>();
@@ -28,29 +205,43 @@ nlohmann::json own_params(const nlohmann::json& params) {
     if (!params.is_object()) return params;
     nlohmann::json own = params;
     own.erase("query");
+    own.erase("leaf_bv");
     return own;
 }
 
 Contract contract_of(const nlohmann::json& params) {
-    const bool tight_leaves = params.is_object() && params.contains("leaf_bv") && params.at("leaf_bv") != "aabb";
+    const bool object = params.is_object();
+    const bool tight_leaves = object && params.contains("leaf_bv") && params.at("leaf_bv") != "aabb";
+    const bool robust = !(object && params.contains("robust") && params.at("robust") == false);
+    Contract c;
     switch (query_level_of(params)) {
         case QueryLevel::candidates:
-            return {Truth::boxes, std::nullopt};
+            c = {Truth::boxes, std::nullopt};
+            break;
         case QueryLevel::shapes:
-            return {Truth::shapes, Truth::shapes};
+            c = {Truth::shapes, Truth::shapes};
+            break;
         case QueryLevel::boxes:
+            c = {tight_leaves ? Truth::shapes : Truth::boxes, Truth::boxes};
             break;
     }
-    return {tight_leaves ? Truth::shapes : Truth::boxes, Truth::boxes};
+    if (!robust) c.lower.reset();
+    return c;
 }
 
-std::unique_ptr<Structure> at_query_level(std::unique_ptr<Structure> broad, QueryLevel level) {
+std::unique_ptr<Structure> at_query_level(std::unique_ptr<Structure> broad, QueryLevel level, LeafBv bv,
+                                          const std::string& path) {
+    if (level == QueryLevel::candidates && bv != LeafBv::aabb)
+        throw InputError(join_path(path, "leaf_bv") +
+                         ": a tighter volume needs query boxes or shapes (candidates test no volume)");
     if (level == QueryLevel::candidates) broad->set_candidates_only(true);
-    if (level == QueryLevel::shapes) return std::make_unique<NarrowPhase>(std::move(broad));
+    if (level == QueryLevel::shapes || bv != LeafBv::aabb)
+        return std::make_unique<NarrowPhase>(std::move(broad), level == QueryLevel::shapes, bv);
     return broad;
 }
 
-NarrowPhase::NarrowPhase(std::unique_ptr<Structure> broad) : broad_(std::move(broad)) {}
+NarrowPhase::NarrowPhase(std::unique_ptr<Structure> broad, bool shapes, LeafBv bv)
+    : broad_(std::move(broad)), shapes_(shapes), bv_(bv) {}
 
 void NarrowPhase::set(const Object& o) {
     // Dense while uids stay below four times the object count (with a floor for small scenes).
@@ -69,13 +260,33 @@ void NarrowPhase::set(const Object& o) {
     if (e.live) shaped_ -= e.shape.kind != ShapeKind::box;
     live_ += !e.live;
     shaped_ += o.shape.kind != ShapeKind::box;
-    e = {o.box, o.shape, true};
+    std::uint32_t volume = e.volume;
+    if (bv_ != LeafBv::aabb) {
+        TightVolume v = tight_volume(o, bv_);
+        if (v.kind == LeafBv::aabb && volume != kNoVolume) {
+            free_volumes_.push_back(volume);
+            volume = kNoVolume;
+        } else if (v.kind != LeafBv::aabb) {
+            if (volume == kNoVolume) {
+                if (free_volumes_.empty()) {
+                    volume = std::uint32_t(volumes_.size());
+                    volumes_.emplace_back();
+                } else {
+                    volume = free_volumes_.back();
+                    free_volumes_.pop_back();
+                }
+            }
+            volumes_[volume] = v;
+        }
+    }
+    e = {o.box, o.shape, true, volume};
 }
 
 void NarrowPhase::erase(Uid uid) {
     const Entry& e = entry(uid);
     shaped_ -= e.shape.kind != ShapeKind::box;
     --live_;
+    if (e.volume != kNoVolume) free_volumes_.push_back(e.volume);
     if (uid < dense_.size())
         dense_[uid] = Entry{};
     else
@@ -86,6 +297,8 @@ void NarrowPhase::build(std::span<const Object> objects) {
     broad_->build(objects);
     dense_.clear();
     sparse_.clear();
+    volumes_.clear();
+    free_volumes_.clear();
     live_ = shaped_ = 0;
     for (const Object& o : objects) set(o);
 }
@@ -114,11 +327,14 @@ void NarrowPhase::filter(std::span<const Segment> rays, HitLists& hits, Tally&& 
         const std::uint32_t end = hits.offsets[r + 1];
         for (std::uint32_t i = begin; i < end; ++i) {
             const Uid uid = hits.uids[i];
-            const Shape& shape = entry(uid).shape;
-            if (shape.kind != ShapeKind::box) {
-                const bool hit = segment_hits_shape(rays[r], shape);
-                tally(hit);
-                if (!hit) continue;
+            const Entry& e = entry(uid);
+            if (e.shape.kind != ShapeKind::box) {
+                if (e.volume != kNoVolume && !segment_hits_volume(rays[r], e.box, volumes_[e.volume])) continue;
+                if (shapes_) {
+                    const bool hit = segment_hits_shape(rays[r], e.shape);
+                    tally(hit);
+                    if (!hit) continue;
+                }
             }
             hits.uids[write++] = uid;
         }
@@ -149,8 +365,9 @@ std::optional<Hit> NarrowPhase::cast_closest(const Segment& segment) {
     for (Uid uid : scratch_.of(0)) {
         const Entry& e = entry(uid);
         float t = 0, t_far;
-        if (e.shape.kind != ShapeKind::box ? !segment_hits_shape(segment, e.shape, &t) : !slabs.clip(e.box, t, t_far))
-            continue;
+        if (!slabs.clip(e.box, t, t_far)) continue;
+        if (e.volume != kNoVolume && !segment_hits_volume(segment, e.box, volumes_[e.volume])) continue;
+        if (shapes_ && e.shape.kind != ShapeKind::box && !segment_hits_shape(segment, e.shape, &t)) continue;
         if (!best || t < best->t || (t == best->t && uid < best->uid)) best = Hit{uid, t};
     }
     return best;
@@ -159,15 +376,17 @@ std::optional<Hit> NarrowPhase::cast_closest(const Segment& segment) {
 bool NarrowPhase::cast_any(const Segment& segment) {
     broad_->cast(std::span<const Segment>(&segment, 1), scratch_);
     for (Uid uid : scratch_.of(0)) {
-        const Shape& shape = entry(uid).shape;
-        if (shape.kind == ShapeKind::box || segment_hits_shape(segment, shape)) return true;
+        const Entry& e = entry(uid);
+        if (e.volume != kNoVolume && !segment_hits_volume(segment, e.box, volumes_[e.volume])) continue;
+        if (!shapes_ || e.shape.kind == ShapeKind::box || segment_hits_shape(segment, e.shape)) return true;
     }
     return false;
 }
 
 std::size_t NarrowPhase::memory_bytes() const {
     return broad_->memory_bytes() + dense_.capacity() * sizeof(Entry) +
-           sparse_.size() * (sizeof(Entry) + sizeof(Uid) + 2 * sizeof(void*));
+           sparse_.size() * (sizeof(Entry) + sizeof(Uid) + 2 * sizeof(void*)) +
+           volumes_.capacity() * sizeof(TightVolume) + free_volumes_.capacity() * sizeof(std::uint32_t);
 }
 
 void NarrowPhase::validate() const {

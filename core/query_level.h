@@ -13,7 +13,21 @@
 /// The thesis' model separates the costs of the levels (eq. 5.2–5.3): candidates whose box is
 /// missed are traversal-caused false positives (N_TFP), box hits whose shape is missed are
 /// bounding-volume false positives (N_BFP), and the narrow phase costs C_RO per shape test.
+///
+/// A second common parameter, `leaf_bv` (thesis §7.2: tighter bounding volumes), tests a shaped
+/// object's box hit once more against a tighter volume of its shape before the level's answer:
+///
+///     aabb    none (the default)
+///     kdop14  the box's slabs plus four slabs normal to the cube's diagonals (1, ±1, ±1)
+///     kdop18  the box's slabs plus six slabs normal to its face diagonals (1, ±1, 0), …
+///     obb     an oriented box around the shape (the shape itself for an obb; a zero-thickness
+///             box in a triangle's plane; along a capsule's axis)
+///
+/// The volumes are kept beside the structure, by uid, as the narrow phase's shapes are: the trade
+/// (fewer bounding-volume false positives against a dearer test and more memory) is the same as
+/// in a BVH's leaves, with one more indirection per box hit.
 
+#include <array>
 #include <memory>
 #include <string>
 #include <unordered_map>
@@ -28,12 +42,27 @@
 namespace rcb {
 
 enum class QueryLevel { candidates, boxes, shapes };
+enum class LeafBv { aabb, kdop14, kdop18, obb };
 
 /// The `query` parameter's spec. It is recorded only when it is not `boxes`, so a result of the
 /// box level keeps the parameters (and the configuration identity) it had before.
 ParamSpec query_param_spec();
+ParamSpec leaf_bv_param_spec();
 /// The level named by `params["query"]` (boxes when absent); `params` is already validated.
 QueryLevel query_level_of(const nlohmann::json& params);
+LeafBv leaf_bv_of(const nlohmann::json& params);
+
+/// A tighter volume than an object's box: the diagonal slabs of a k-DOP (the box's own slabs are
+/// the box), or an obb as a Shape. `kind` aabb: none (a box object, or a shape no tighter).
+struct TightVolume {
+    LeafBv kind = LeafBv::aabb;
+    std::array<float, 12> slab{};  ///< k-DOP: lo, hi per diagonal direction
+    Shape obb;
+};
+/// The volume of `object`'s shape, rounded outward: it contains the shape.
+TightVolume tight_volume(const Object& object, LeafBv kind);
+/// Whether the segment meets the volume (intersected with `box`, the object's box).
+bool segment_hits_volume(const Segment& segment, const Aabb& box, const TightVolume& volume);
 /// `params` without the keys the registry handles for every structure.
 nlohmann::json own_params(const nlohmann::json& params);
 
@@ -41,15 +70,19 @@ nlohmann::json own_params(const nlohmann::json& params);
 /// query level, and a leaf bounding volume tighter than the box (`leaf_bv`) where there is one.
 Contract contract_of(const nlohmann::json& params);
 
-/// `broad` answering at `level`: the candidate level switched on, or the narrow phase put after it.
-std::unique_ptr<Structure> at_query_level(std::unique_ptr<Structure> broad, QueryLevel level);
+/// `broad` answering at `level` with `bv`: the candidate level switched on, or the volume test and
+/// the narrow phase put after it. InputError (naming `path`) for a tighter volume at the
+/// candidate level, which tests no box.
+std::unique_ptr<Structure> at_query_level(std::unique_ptr<Structure> broad, QueryLevel level, LeafBv bv,
+                                          const std::string& path);
 
 /// The narrow phase after any structure: the structure's hits (its boxes, or a tighter leaf
 /// volume) filtered by the exact shape test, as engines run their narrow phase on the broad
 /// phase's pairs. Counts n_ro (shape tests) and n_ro_hits in the counting pass.
 class NarrowPhase final : public Structure {
 public:
-    explicit NarrowPhase(std::unique_ptr<Structure> broad);
+    /// `shapes`: test the shapes (the shapes level); `bv`: the tighter volume tested first.
+    NarrowPhase(std::unique_ptr<Structure> broad, bool shapes, LeafBv bv);
 
     void build(std::span<const Object> objects) override;
     void insert(const Object& object) override;
@@ -71,7 +104,9 @@ private:
         Aabb box = Aabb::empty();
         Shape shape;
         bool live = false;
+        std::uint32_t volume = kNoVolume;  ///< index into volumes_
     };
+    static constexpr std::uint32_t kNoVolume = ~std::uint32_t(0);
     /// The live object `uid` (precondition: live).
     const Entry& entry(Uid uid) const { return uid < dense_.size() ? dense_[uid] : sparse_.at(uid); }
     void set(const Object& o);
@@ -80,6 +115,10 @@ private:
     void filter(std::span<const Segment> rays, HitLists& hits, Tally&& tally) const;
 
     std::unique_ptr<Structure> broad_;
+    bool shapes_;
+    LeafBv bv_;
+    std::vector<TightVolume> volumes_;  // slots of the live objects' volumes, free ones listed
+    std::vector<std::uint32_t> free_volumes_;
     // uid → entry: a table indexed by uid while uids are dense (every generator's and importer's
     // are), so the narrow phase pays an array read per box hit; a hash map for the other uids.
     std::vector<Entry> dense_;

@@ -57,11 +57,12 @@ StructureInfo with_common_params(StructureInfo info) {
     for (const ParamSpec& p : info.params)
         if (p.name == query.name) return info;
     info.params.push_back(query);
+    info.params.push_back(leaf_bv_param_spec());
     if (info.make)
         info.make = [own_make = std::move(info.make), name = info.name, specs = info.params](
                         const nlohmann::json& params, const std::string& path) -> std::unique_ptr<Structure> {
             check_params(specs, params, path, name);
-            return at_query_level(own_make(own_params(params), path), query_level_of(params));
+            return at_query_level(own_make(own_params(params), path), query_level_of(params), leaf_bv_of(params), path);
         };
     return info;
 }

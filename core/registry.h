@@ -38,7 +38,8 @@ const std::deque<StructureInfo>& structure_registry();
 /// Throws InputError "unknown structure 'x' (known: bf, ug, …)".
 const StructureInfo& find_structure(std::string_view name);
 
-/// `info` with the parameters the registry gives every structure (`query`, query_level.h): their
+/// `info` with the parameters the registry gives every structure (`query`, `leaf_bv`:
+/// query_level.h): their
 /// specs appended, and `make` taking them off the parameters before the structure's own factory
 /// sees them. Entries that have them already are returned as they are.
 StructureInfo with_common_params(StructureInfo info);

@@ -128,7 +128,7 @@ TEST(RegisterStructure, ParamsOfARegisteredStructureAreChecked) {
     EXPECT_EQ(error_of([] {
                   find_structure("test_list_scan").make({{"cells", 4}}, "--param");
               }),
-              "--param.cells: unknown parameter of test_list_scan (known: query)");
+              "--param.cells: unknown parameter of test_list_scan (known: query, leaf_bv)");
 }
 
 TEST(RegisterStructure, RefusesDuplicateAndBadNames) {

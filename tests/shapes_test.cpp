@@ -248,5 +248,81 @@ TEST(QueryLevels, CandidatesAreASupersetOnTheHardScenes) {
         }
 }
 
+/// Tighter volumes: every level keeps its contract (a box-level answer through a k-DOP or obb lies
+/// between the shapes' hits and the boxes'), and each volume cuts the bounding-volume false
+/// positives (N_BFP) of the narrow phase.
+TEST(LeafVolumes, TighterVolumesKeepTheContractAndCutFalsePositives) {
+    const Recording r = shaped_recording();
+    for (const char* structure : {"dbvh", "lbvh", "wbvh", "ug", "embree"}) {
+        SCOPED_TRACE(structure);
+        const SimulationResult plain = test::expect_matches_ground_truth(r, structure, {{"query", "shapes"}});
+        std::uint64_t plain_bfp = 0;
+        for (const FrameResult& f : plain.frames) plain_bfp += f.counters.n_bfp();
+        ASSERT_GT(plain_bfp, 0u);
+        for (const char* bv : {"kdop14", "kdop18", "obb"}) {
+            SCOPED_TRACE(bv);
+            const SimulationResult tight =
+                test::expect_matches_ground_truth(r, structure, {{"query", "shapes"}, {"leaf_bv", bv}});
+            test::expect_matches_ground_truth(r, structure, {{"query", "boxes"}, {"leaf_bv", bv}});
+            std::uint64_t tight_bfp = 0;
+            for (std::size_t f = 0; f < tight.frames.size(); ++f) {
+                tight_bfp += tight.frames[f].counters.n_bfp();
+                EXPECT_EQ(tight.frames[f].hits, plain.frames[f].hits);
+            }
+            EXPECT_LT(tight_bfp, plain_bfp);
+            EXPECT_EQ(tight.params.at("leaf_bv"), bv);
+        }
+    }
+}
+
+TEST(LeafVolumes, VolumesContainTheirShapes) {
+    // A segment that must hit a shape must hit its volume, on random shapes and segments.
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> pos(-50.0f, 50.0f), size(0.0f, 4.0f), unit(-1.0f, 1.0f);
+    int tested = 0;
+    for (int i = 0; i < 5000; ++i) {
+        const Vec3 c{pos(rng), pos(rng), pos(rng)};
+        const Shape shape =
+            i % 3 == 0 ? Shape::triangle(c, c + Vec3{size(rng), size(rng), -size(rng)},
+                                         c + Vec3{-size(rng), size(rng), size(rng)})
+            : i % 3 == 1
+                ? Shape::obb(c, {size(rng), size(rng), size(rng)}, {unit(rng), unit(rng), unit(rng), unit(rng)})
+                : Shape::capsule(c, c + Vec3{size(rng), size(rng), size(rng)}, 0.3f * size(rng));
+        const Object o = shaped_object(1, shape);
+        const Vec3 target = o.box.center() + Vec3{unit(rng), unit(rng), unit(rng)} * (0.5f * o.box.longest_edge());
+        const Vec3 from = target + Vec3{unit(rng), unit(rng), unit(rng)} * 10.0f;
+        const Segment seg{from, from + (target - from) * 2.0f};
+        if (truth(seg, shape) != Contact::hit) continue;
+        ++tested;
+        for (LeafBv bv : {LeafBv::kdop14, LeafBv::kdop18, LeafBv::obb})
+            EXPECT_TRUE(segment_hits_volume(seg, o.box, tight_volume(o, bv))) << "case " << i << " bv " << int(bv);
+    }
+    EXPECT_GT(tested, 500);
+}
+
+TEST(LeafVolumes, CandidatesTakeNoVolume) {
+    try {
+        find_structure("dbvh").make({{"query", "candidates"}, {"leaf_bv", "kdop14"}}, "structures[0].params");
+        FAIL();
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("structures[0].params.leaf_bv"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(find_structure("bf").make({{"leaf_bv", "kdop26"}}, "params"), InputError);
+}
+
+/// The peers as shipped (no padding) promise no hit: the contract checks only that nothing is
+/// invented, and whatever they lose shows as recall.
+TEST(Robustness, PeersWithoutPaddingAreMeasuredNotTrusted) {
+    EXPECT_FALSE(contract_of({{"robust", false}}).lower.has_value());
+    EXPECT_TRUE(contract_of({{"robust", true}}).lower.has_value());
+    for (const test::NamedScene& scene : test::hard_scenes())
+        for (const char* peer : {"embree", "bullet_dbvt"}) {
+            SCOPED_TRACE(scene.name + " / " + peer);
+            const SimulationResult res =
+                test::expect_matches_ground_truth(scene.recording, peer, {{"robust", false}}, scene.name);
+            for (const FrameResult& f : res.frames) EXPECT_LE(f.recall(), 1.0);
+        }
+}
+
 }  // namespace
 }  // namespace rcb

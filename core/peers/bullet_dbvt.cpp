@@ -57,7 +57,7 @@ void BulletDbvt::build(std::span<const Object> objects) {
 }
 
 void BulletDbvt::set_leaf(std::uint32_t slot) {
-    const float pad = kPadRelative * scale_;
+    const float pad = this->pad();
     const Aabb& b = objects_.box(slot);
     btDbvtVolume v = btDbvtVolume::FromMM(btVector3(b.min.x - pad, b.min.y - pad, b.min.z - pad),
                                           btVector3(b.max.x + pad, b.max.y + pad, b.max.z + pad));
@@ -136,7 +136,7 @@ std::size_t BulletDbvt::memory_bytes() const {
 
 nlohmann::json BulletDbvt::stats() const {
     const int depth = tree_->m_root ? btDbvt::maxdepth(tree_->m_root) : 0;
-    return {{"depth", depth}, {"repads", repads_}, {"pad", kPadRelative * scale_}};
+    return {{"depth", depth}, {"repads", repads_}, {"pad", pad()}};
 }
 
 void BulletDbvt::validate() const {
@@ -146,7 +146,7 @@ void BulletDbvt::validate() const {
     if (std::size_t(tree_->m_leaves) != n)
         broken_invariant("bullet_dbvt", "tree has " + std::to_string(tree_->m_leaves) + " leaves for " +
                                             std::to_string(n) + " objects");
-    const float pad = kPadRelative * scale_;
+    const float pad = this->pad();
     for (std::size_t i = 0; i < n; ++i) {
         if (!leaves_[i] || !leaves_[i]->isleaf() || leaves_[i]->dataAsInt != int(i))
             broken_invariant("bullet_dbvt", "leaf of slot " + std::to_string(i) + " does not point back");

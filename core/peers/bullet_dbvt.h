@@ -25,9 +25,14 @@ class BulletDbvt : public StructureBase<BulletDbvt> {
 public:
     struct Params {
         int optimize_passes = 1;
+        bool robust = true;
         static constexpr auto fields() {
             return std::tuple{Field{"optimize_passes", &Params::optimize_passes, 0, 1024,
-                                    "btDbvt::optimizeIncremental passes per commit (btDbvtBroadphase's default is 1)"}};
+                                    "btDbvt::optimizeIncremental passes per commit (btDbvtBroadphase's default is 1)"},
+                              Field{"robust", &Params::robust, 0, 1,
+                                    "pad the leaves (false: btDbvt as shipped, unpadded: its float ray test may lose "
+                                    "touching hits; the result then promises no hit)",
+                                    false}};
         }
     };
 
@@ -68,6 +73,7 @@ public:
         bool stopped = false;
     };
     const Aabb& box_at(std::uint32_t slot) const { return objects_.box(slot); }
+    float pad() const { return params_.robust ? kPadRelative * scale_ : 0.0f; }
     Uid uid_at(std::uint32_t slot) const { return objects_.uid(slot); }
 
 private:

@@ -132,7 +132,7 @@ void EmbreeBoxes::commit() {
         m = std::max({m, std::abs(b.min.x), std::abs(b.min.y), std::abs(b.min.z), std::abs(b.max.x), std::abs(b.max.y),
                       std::abs(b.max.z)});
     m = std::max(m, std::numeric_limits<float>::min());
-    pad_ = kPadRelative * m;
+    pad_ = params_.robust ? kPadRelative * m : 0.0f;
     in_range_ = m >= kEmbreeMinScale && m + pad_ <= kEmbreeRange;
     far_ = in_range_ ? std::min(kFarFactor * m, kEmbreeRange / 2) : 0.0f;
     Device& d = *device_;

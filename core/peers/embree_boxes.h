@@ -27,6 +27,7 @@ public:
         std::string quality = "medium";
         bool refit = false;
         int threads = 1;
+        bool robust = true;
         static constexpr auto fields() {
             return std::tuple{
                 Field{"quality", &Params::quality, 0, 0,
@@ -34,7 +35,11 @@ public:
                       "low,medium"},
                 Field{"refit", &Params::refit, 0, 1,
                       "refit the BVH at commit (RTC_BUILD_QUALITY_REFIT) instead of rebuilding", true},
-                Field{"threads", &Params::threads, 1, 64, "commit (build) threads, a TBB task arena", false}};
+                Field{"threads", &Params::threads, 1, 64, "commit (build) threads, a TBB task arena", false},
+                Field{"robust", &Params::robust, 0, 1,
+                      "pad the bounds Embree gets (false: Embree as shipped, unpadded: it may lose touching hits; "
+                      "the result then promises no hit)",
+                      false}};
         }
     };
 
