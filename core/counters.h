@@ -15,6 +15,7 @@ namespace rcb {
 /// Sums over a batch of rays.
 struct Counters {
     std::uint64_t n_t = 0;        ///< traversal steps: BVH nodes or grid cells visited
+    std::uint64_t n_th = 0;       ///< of a tree's steps, node boxes hit: children pushed (0 for grids)
     std::uint64_t n_rb = 0;       ///< ray–box tests against objects' boxes
     std::uint64_t n_tp = 0;       ///< objects the traversal reported (box tests that hit, or candidates)
     std::uint64_t n_ro = 0;       ///< narrow-phase tests of exact shapes (thesis eq. 5.3, C_RO)
@@ -27,7 +28,7 @@ struct Counters {
     std::uint64_t n_bfp() const { return n_ro - n_ro_hits; }
 
     Counters& operator+=(const Counters& o) {
-        n_t += o.n_t, n_rb += o.n_rb, n_tp += o.n_tp, n_ro += o.n_ro, n_ro_hits += o.n_ro_hits;
+        n_t += o.n_t, n_th += o.n_th, n_rb += o.n_rb, n_tp += o.n_tp, n_ro += o.n_ro, n_ro_hits += o.n_ro_hits;
         return *this;
     }
     friend bool operator==(const Counters&, const Counters&) = default;
@@ -37,6 +38,7 @@ struct NoCounting {
     static constexpr bool enabled = false;
     static constexpr bool candidates = false;
     constexpr void traversal(std::uint64_t = 1) {}
+    constexpr void node_hits(std::uint64_t = 1) {}
     constexpr void box_tests(std::uint64_t = 1) {}
     constexpr void hits(std::uint64_t = 1) {}
 };
@@ -46,6 +48,7 @@ struct Counting {
     static constexpr bool candidates = false;
     Counters* sums;
     void traversal(std::uint64_t n = 1) { sums->n_t += n; }
+    void node_hits(std::uint64_t n = 1) { sums->n_th += n; }
     void box_tests(std::uint64_t n = 1) { sums->n_rb += n; }
     void hits(std::uint64_t n = 1) { sums->n_tp += n; }
 };

@@ -72,7 +72,7 @@ nlohmann::json SimulationResult::to_json() const {
     j["raycast_ns_median"] = r.median;
     j["raycast_ns_mad"] = r.mad;
     nlohmann::json frame, warmup, update, raycast, rays, hits, missed, extra, duplicate, returned, correct, relevant,
-        n_t, n_rb, n_tp, n_ro, n_ro_hits, memory, stats;
+        n_t, n_th, n_rb, n_tp, n_ro, n_ro_hits, memory, stats;
     for (const FrameResult& f : frames) {
         frame.push_back(f.frame);
         warmup.push_back(f.warmup);
@@ -87,6 +87,7 @@ nlohmann::json SimulationResult::to_json() const {
         correct.push_back(f.correct);
         relevant.push_back(f.relevant);
         n_t.push_back(f.counters.n_t);
+        n_th.push_back(f.counters.n_th);
         n_rb.push_back(f.counters.n_rb);
         n_tp.push_back(f.counters.n_tp);
         n_ro.push_back(f.counters.n_ro);
@@ -108,6 +109,7 @@ nlohmann::json SimulationResult::to_json() const {
     j["correct"] = array(correct);
     j["relevant"] = array(relevant);
     j["n_t"] = array(n_t);
+    j["n_th"] = array(n_th);
     j["n_rb"] = array(n_rb);
     j["n_tp"] = array(n_tp);
     j["n_ro"] = array(n_ro);

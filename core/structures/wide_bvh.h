@@ -117,6 +117,7 @@ public:
                     if (!visit(Uid(b.ref[k]), t_near[k])) return;
                 }
             } else {
+                count.node_hits(unsigned(__builtin_popcount(mask)));
                 // Highest lane first onto the stack, so lane order is visit order.
                 while (mask != 0) {
                     const int k = 31 - __builtin_clz(mask);

@@ -81,6 +81,7 @@ void traverse_bvh(const Tree& tree, std::uint32_t root, std::uint32_t* stack, co
                 }
             }
             // Child 0 on top: visited first.
+            count.node_hits();
             stack[top++] = tree.child(node, 1);
             stack[top++] = tree.child(node, 0);
         }
