@@ -126,8 +126,7 @@ TEST(ShapeScenes, MovesKeepKindAndRotationAndInsertsCopyShapes) {
                     EXPECT_EQ(m.shape.v[6], before.shape.v[6]);
                     // Translated: the axis keeps its direction and length (up to float rounding).
                     for (int a = 0; a < 3; ++a)
-                        EXPECT_NEAR(m.shape.v[3 + a] - m.shape.v[a], before.shape.v[3 + a] - before.shape.v[a],
-                                    1e-3);
+                        EXPECT_NEAR(m.shape.v[3 + a] - m.shape.v[a], before.shape.v[3 + a] - before.shape.v[a], 1e-3);
                     break;
                 }
                 default:
@@ -185,7 +184,7 @@ TEST(ShapeScenes, InvalidSharesAreRejectedNamingTheSetting) {
     for (const char* args : {"--rotated-share nan", "--sphere-share 1.5", "--capsule-share -1",
                              "--rotated-share 0.7 --sphere-share 0.7"}) {
         const ::test::Outcome r = ::test::run_shell(std::string(RCBENCH_BINARY) + " scene gen --preset uni-s " + args +
-                                                " -o /dev/null/never.rcbscene");
+                                                    " -o /dev/null/never.rcbscene");
         EXPECT_EQ(r.code, 2) << args << ": " << r.err;
         EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
         EXPECT_TRUE(r.err.find("share") != std::string::npos) << r.err;
@@ -194,10 +193,13 @@ TEST(ShapeScenes, InvalidSharesAreRejectedNamingTheSetting) {
 
 TEST(ShapeScenes, SceneInfoShowsTheVersionAndTheKinds) {
     const std::string dir = ::testing::TempDir();
-    const std::string shaped = dir + "/rcb_shape_scenes_info.rcbscene", plain = dir + "/rcb_shape_scenes_plain.rcbscene";
+    const std::string shaped = dir + "/rcb_shape_scenes_info.rcbscene",
+                      plain = dir + "/rcb_shape_scenes_plain.rcbscene";
     const std::string bin = RCBENCH_BINARY;
-    ASSERT_EQ(::test::run_shell(bin + " scene gen --preset uni-s --frames 2 --rotated-share 0.5 --sphere-share 0.2 "
-                                      "--capsule-share 0.1 -o " + shaped)
+    ASSERT_EQ(::test::run_shell(bin +
+                                " scene gen --preset uni-s --frames 2 --rotated-share 0.5 --sphere-share 0.2 "
+                                "--capsule-share 0.1 -o " +
+                                shaped)
                   .code,
               0);
     ASSERT_EQ(::test::run_shell(bin + " scene gen --preset uni-s --frames 2 -o " + plain).code, 0);
@@ -220,10 +222,10 @@ TEST(ShapeScenes, SceneInfoShowsTheVersionAndTheKinds) {
 }
 
 TEST(ShapeScenes, ExperimentKeysNameShapesOnlyWhenSet) {
-    const std::vector<SceneSpec> specs = parse_scenes(
-        nlohmann::json::parse(
-            R"([{"preset": "uni-s"}, {"preset": "uni-s", "rotated_share": 0.5, "sphere_share": 0.25}])"),
-        "scenes", SceneDefaults{}, ".");
+    const std::vector<SceneSpec> specs =
+        parse_scenes(nlohmann::json::parse(
+                         R"([{"preset": "uni-s"}, {"preset": "uni-s", "rotated_share": 0.5, "sphere_share": 0.25}])"),
+                     "scenes", SceneDefaults{}, ".");
     ASSERT_EQ(specs.size(), 2u);
     EXPECT_FALSE(specs[0].key.contains("shapes"));
     EXPECT_EQ(specs[1].key["shapes"]["rotated_share"], 0.5);
@@ -232,8 +234,12 @@ TEST(ShapeScenes, ExperimentKeysNameShapesOnlyWhenSet) {
 }
 
 TEST(ShapeScenes, EveryStructureMatchesTheGroundTruthOnGeneratedShapes) {
-    for (const char* preset : {"uni-s", "irreg-s"}) {
+    // The thesis' small scenes, and failure modes whose shapes are degenerate: zero-thickness
+    // oriented boxes and zero-radius spheres ("flat"), needles and points ("slivers"), a huge
+    // rotated box around a tiny cluster ("stadium").
+    for (const char* preset : {"uni-s", "irreg-s", "flat-s", "slivers-s", "stadium-s"}) {
         SceneSettings s = preset_settings(preset);
+        s.objects = std::min<std::uint32_t>(s.objects, 300);
         s.frames = 3;
         s.rays.per_frame = 200;
         s.rays.mix = parse_ray_mix("center,los,shots,inside");
