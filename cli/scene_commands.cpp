@@ -1,7 +1,9 @@
 // rcbench scene gen | import | info
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <memory>
 
@@ -79,8 +81,36 @@ double percentile(std::vector<double>& sorted, double p) {
     return i + 1 < sorted.size() ? sorted[i] * (1 - frac) + sorted[i + 1] * frac : sorted[i];
 }
 
+/// The format version in a recording's header (read_recording has checked the file already).
+std::uint32_t file_version(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    unsigned char header[12] = {};
+    in.read(reinterpret_cast<char*>(header), sizeof header);
+    return std::uint32_t(header[8]) | std::uint32_t(header[9]) << 8 | std::uint32_t(header[10]) << 16 |
+           std::uint32_t(header[11]) << 24;
+}
+
 void scene_info(const std::string& path, bool as_json) {
     const Recording r = read_recording(path);
+    const std::uint32_t version = file_version(path);
+    // Objects per shape kind: frame 0's, and those inserted or moved later (a move may not change
+    // an object's kind in generated scenes, but a recording is free to).
+    std::array<std::size_t, kShapeKinds> initial_kinds{}, later_kinds{};
+    for (const Object& o : r.initial) ++initial_kinds[int(o.shape.kind)];
+    for (const Frame& f : r.frames)
+        for (const auto* list : {&f.inserts, &f.moves})
+            for (const Object& o : *list) ++later_kinds[int(o.shape.kind)];
+    nlohmann::json kinds = nlohmann::json::object(), later = nlohmann::json::object();
+    std::string kinds_text, later_text;
+    for (int k = 0; k < kShapeKinds; ++k) {
+        const std::string name(shape_name(ShapeKind(k)));
+        kinds[name] = initial_kinds[k];
+        later[name] = later_kinds[k];
+        if (initial_kinds[k])
+            kinds_text += (kinds_text.empty() ? "" : ", ") + name + " " + std::to_string(initial_kinds[k]);
+        if (later_kinds[k])
+            later_text += (later_text.empty() ? "" : ", ") + name + " " + std::to_string(later_kinds[k]);
+    }
     const Aabb bounds = bounds_of(r.initial);
     std::vector<double> edges;
     edges.reserve(r.initial.size());
@@ -101,7 +131,10 @@ void scene_info(const std::string& path, bool as_json) {
     const nlohmann::json meta = parse_json_document(r.meta, path + ": META");
     nlohmann::json j = {
         {"file", path},
+        {"version", version},
         {"objects", r.initial.size()},
+        {"shapes", kinds},
+        {"changed_shapes", later},
         {"frames", r.frames.size()},
         {"rays", rays},
         {"rays_per_frame", rays / frames},
@@ -119,7 +152,10 @@ void scene_info(const std::string& path, bool as_json) {
     }
     std::cout << path << '\n';
     TextTable t({"", ""});  // label, value
+    t.add({"format version", std::to_string(version)});
     t.add({"objects (frame 0)", std::to_string(r.initial.size())});
+    t.add({"shapes (frame 0)", kinds_text.empty() ? "none" : kinds_text});
+    if (!later_text.empty()) t.add({"shapes inserted or moved", later_text});
     t.add({"frames", std::to_string(r.frames.size())});
     t.add({"rays per frame", fixed(rays / frames, 1)});
     t.add({"changes per frame", fixed(changes / frames, 1) + " (inserts " + std::to_string(inserts) + ", removes " +
@@ -147,6 +183,7 @@ void add_scene_commands(CLI::App& app) {
         std::uint32_t objects = 0;
         std::string out;
         DynamicsOptions dyn;
+        ShapeSettings shapes;
     };
     auto gen = std::make_shared<GenOptions>();
     CLI::App* g = scene->add_subcommand("gen", "Generate a scene recording from a preset or a kind");
@@ -160,6 +197,20 @@ void add_scene_commands(CLI::App& app) {
         ->check(whole_number(1, kMaxSceneObjects));
     g->add_option("-o,--output", gen->out, "Recording file to write")->required();
     add_dynamics_options(*g, gen->dyn);
+    g->add_option("--rotated-share", gen->shapes.rotated_share,
+                  "Share of the objects that become oriented boxes: the generated box's half extents, a random "
+                  "rotation (their boxes grow to the bounds)")
+        ->capture_default_str()
+        ->check(finite_range(0.0, 1.0));
+    g->add_option("--sphere-share", gen->shapes.sphere_share,
+                  "Share of the objects that become spheres inscribed in the generated box")
+        ->capture_default_str()
+        ->check(finite_range(0.0, 1.0));
+    g->add_option("--capsule-share", gen->shapes.capsule_share,
+                  "Share of the objects that become capsules along the generated box's longest axis (the three "
+                  "shares add up to at most 1)")
+        ->capture_default_str()
+        ->check(finite_range(0.0, 1.0));
     g->callback([gen] {
         SceneSettings s;
         if (!gen->preset.empty())
@@ -177,6 +228,8 @@ void add_scene_commands(CLI::App& app) {
         s.frames = gen->dyn.frames;
         s.dynamics = gen->dyn.dynamics;
         s.rays = ray_settings(gen->dyn);
+        s.shapes = gen->shapes;
+        check_shapes(s.shapes);
         check_output_path(gen->out, {}, "-o");
         check_scene_size(s.objects, s.frames, s.rays.per_frame, s.objects * s.dynamics.change_fraction,
                          "--objects/--frames/--rays");
@@ -202,13 +255,16 @@ void add_scene_commands(CLI::App& app) {
         ->required()
         ->check(input_file());
     i->add_option("-o,--output", imp->out, "Recording file to write")->required();
-    i->add_option("--bsp-mode", imp->file.bsp_mode,
-                  "Maps: one object per solid brush (brushes) or per draw-surface triangle (triangles)")
+    i->add_option(
+         "--bsp-mode", imp->file.bsp_mode,
+         "Maps: one box per solid brush (brushes) or one triangle object per draw-surface triangle, its box the "
+         "triangle's bounds (triangles)")
         ->capture_default_str()
         ->check(CLI::IsMember({"brushes", "triangles"}));
     i->add_option("--map", imp->file.map, "A .pk3 holding several maps: which one (NAME or maps/NAME.bsp)");
     i->add_option("--model-mode", imp->file.model_mode,
-                  "Models: one object per mesh instance (instances) or per triangle (triangles)")
+                  "Models: one box per mesh instance (instances) or one triangle object per triangle in world space "
+                  "(triangles)")
         ->capture_default_str()
         ->check(CLI::IsMember({"instances", "triangles"}));
     add_dynamics_options(*i, imp->dyn);
@@ -242,8 +298,10 @@ void add_scene_commands(CLI::App& app) {
         bool json = false;
     };
     auto info = std::make_shared<InfoOptions>();
-    CLI::App* n =
-        scene->add_subcommand("info", "Describe a recording: objects, frames, rays, bounds, size distribution");
+    CLI::App* n = scene->add_subcommand(
+        "info",
+        "Describe a recording: format version, objects per shape kind, frames, rays, bounds, size "
+        "distribution");
     n->add_option("file", info->file, "Recording file")->required()->check(input_file());
     n->add_flag("--json", info->json, "Print one JSON object");
     n->callback([info] { scene_info(info->file, info->json); });

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <numeric>
 #include <unordered_set>
 
@@ -14,7 +15,8 @@ namespace {
 // Stream numbers for mix_seed: each kind of randomness has its own stream (see generators.h).
 constexpr std::uint64_t kObjectStream = 1;
 constexpr std::uint64_t kDynamicsStream = 1'000'000;
-constexpr std::uint64_t kRayStream = 2'000'000;
+constexpr std::uint64_t kRayStream = 2'000'000;  // + frame, frames ≤ 1 000 000
+constexpr std::uint64_t kShapeStream = 4'000'000;
 
 Aabb box_from(const Vec3d& min, const Vec3d& max) { return {min.as<float>(), max.as<float>()}; }
 
@@ -306,6 +308,29 @@ std::vector<Object> sliver_objects(const SceneSettings& s, Random& rng) {
 /// bounds are stretched by 10^6 while the scene itself is unchanged.
 std::vector<Object> outlier_objects(const SceneSettings& s, Random& rng);
 
+/// The shape moved by `shift` (its points; radii, extents and rotation kept), in double, rounded
+/// once to float.
+Shape translated(Shape s, const Vec3d& shift) {
+    int points = 0;
+    switch (s.kind) {
+        case ShapeKind::box:
+            break;
+        case ShapeKind::triangle:
+            points = 3;
+            break;
+        case ShapeKind::obb:
+        case ShapeKind::sphere:
+            points = 1;  // the centre
+            break;
+        case ShapeKind::capsule:
+            points = 2;
+            break;
+    }
+    for (int p = 0; p < points; ++p)
+        for (int a = 0; a < 3; ++a) s.v[3 * p + a] = float(double(s.v[3 * p + a]) + shift[a]);
+    return s;
+}
+
 /// Picks `k` distinct indices below `n` (k much smaller than n: rejection is cheap).
 std::vector<std::size_t> distinct_indices(std::size_t k, std::size_t n, Random& rng) {
     std::vector<std::size_t> out;
@@ -339,16 +364,24 @@ Frame frame_changes(const LiveSet& live, const DynamicsSettings& d, Uid& next_ui
         const Object& o = objects[picked[i]];
         const double reach = d.move_scale * double(o.box.longest_edge());
         const Vec3d shift{reach * rng.uniform(-1, 1), reach * rng.uniform(-1, 1), reach * rng.uniform(-1, 1)};
-        f.moves.push_back({o.uid, box_from(o.box.min.as<double>() + shift, o.box.max.as<double>() + shift)});
+        if (o.shape.kind == ShapeKind::box)
+            f.moves.push_back({o.uid, box_from(o.box.min.as<double>() + shift, o.box.max.as<double>() + shift)});
+        else
+            f.moves.push_back(shaped_object(o.uid, translated(o.shape, shift)));
     }
     // An insert copies the size of a random live object and lands near another one, so inserts
     // follow the scene's own size and position distribution, whatever the scene.
+    // A shaped object's copy keeps its kind and rotation, its bounds centred where a box would be.
     for (std::size_t i = 0; i < inserts; ++i) {
-        const Aabbd shape = objects[rng.below(n)].box.as<double>();
+        const Object& model = objects[rng.below(n)];
+        const Aabbd shape = model.box.as<double>();
         const Aabbd anchor = objects[rng.below(n)].box.as<double>();
         Vec3d center = anchor.center();
         for (int a = 0; a < 3; ++a) center[a] += rng.uniform(-1, 1) * std::max(anchor.extent()[a], shape.extent()[a]);
-        f.inserts.push_back({next_uid++, box_around(center, shape.extent())});
+        if (model.shape.kind == ShapeKind::box)
+            f.inserts.push_back({next_uid++, box_around(center, shape.extent())});
+        else
+            f.inserts.push_back(shaped_object(next_uid++, translated(model.shape, center - shape.center())));
     }
     return f;
 }
@@ -464,7 +497,9 @@ std::vector<RayMode> parse_ray_mix(const std::string& text) {
     return mix;
 }
 
-std::vector<Object> generate_objects(const SceneSettings& s) {
+namespace {
+
+std::vector<Object> generate_boxes(const SceneSettings& s) {
     Random rng(mix_seed(s.seed, kObjectStream));
     if (s.kind == "uniform") return uniform_objects(s, rng);
     if (s.kind == "irregular") return irregular_objects(s, rng);
@@ -478,6 +513,72 @@ std::vector<Object> generate_objects(const SceneSettings& s) {
     if (s.kind == "outlier") return outlier_objects(s, rng);
     if (s.kind == "nested") return nested_objects(s, rng);
     throw InputError("unknown scene kind '" + s.kind + "' (known: " + join(scene_kinds()) + ")");
+}
+
+/// A uniformly random unit quaternion (w, x, y, z) (Shoemake 1992, "Uniform random rotations").
+std::array<float, 4> random_rotation(Random& rng) {
+    const double u1 = rng.uniform(), u2 = 2 * std::numbers::pi * rng.uniform(),
+                 u3 = 2 * std::numbers::pi * rng.uniform();
+    const double a = std::sqrt(1 - u1), b = std::sqrt(u1);
+    return {float(b * std::cos(u3)), float(a * std::sin(u2)), float(a * std::cos(u2)), float(b * std::sin(u3))};
+}
+
+}  // namespace
+
+std::vector<Object> generate_objects(const SceneSettings& s) {
+    check_shapes(s.shapes);
+    std::vector<Object> objects = generate_boxes(s);
+    if (!s.shapes.any()) return objects;
+    return apply_shapes(std::move(objects), s.shapes, s.seed);
+}
+
+std::vector<Object> apply_shapes(std::vector<Object> objects, const ShapeSettings& shapes, std::uint64_t seed) {
+    check_shapes(shapes);
+    const std::size_t n = objects.size();
+    Random rng(mix_seed(seed, kShapeStream));
+    // Exact counts in a fixed order (rotated, spheres, capsules), capped so they never exceed n
+    // when rounding adds up past it.
+    std::size_t counts[3], total = 0;
+    const double shares[3] = {shapes.rotated_share, shapes.sphere_share, shapes.capsule_share};
+    for (int k = 0; k < 3; ++k) {
+        counts[k] = std::min(n - total, static_cast<std::size_t>(std::llround(shares[k] * double(n))));
+        total += counts[k];
+    }
+    // Partial Fisher–Yates: the first `total` indices are a uniform random choice.
+    std::vector<std::size_t> order(n);
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    for (std::size_t i = 0; i < total; ++i) std::swap(order[i], order[i + rng.below(n - i)]);
+    std::size_t next = 0;
+    for (int k = 0; k < 3; ++k)
+        for (std::size_t i = 0; i < counts[k]; ++i) {
+            Object& o = objects[order[next++]];
+            const Vec3d c = o.box.as<double>().center();
+            const Vec3d h = o.box.as<double>().extent() * 0.5;
+            if (k == 0) {
+                o = shaped_object(o.uid, Shape::obb(c.as<float>(), h.as<float>(), random_rotation(rng)));
+            } else if (k == 1) {
+                o = shaped_object(o.uid, Shape::sphere(c.as<float>(), float(std::min({h.x, h.y, h.z}))));
+            } else {
+                const int axis = h.x >= h.y && h.x >= h.z ? 0 : (h.y >= h.z ? 1 : 2);
+                const double r = std::min(h[(axis + 1) % 3], h[(axis + 2) % 3]);
+                Vec3d p0 = c, p1 = c;
+                p0[axis] -= h[axis] - r, p1[axis] += h[axis] - r;
+                o = shaped_object(o.uid, Shape::capsule(p0.as<float>(), p1.as<float>(), float(r)));
+            }
+        }
+    return objects;
+}
+
+void check_shapes(const ShapeSettings& s) {
+    auto share = [](const char* name, double v) {
+        if (!(v >= 0 && v <= 1))  // NaN fails too
+            throw InputError(std::string(name) + ": expected a number in 0..1, got " + std::to_string(v));
+    };
+    share("rotated_share", s.rotated_share);
+    share("sphere_share", s.sphere_share);
+    share("capsule_share", s.capsule_share);
+    if (s.rotated_share + s.sphere_share + s.capsule_share > 1)
+        throw InputError("rotated_share + sphere_share + capsule_share exceeds 1");
 }
 
 namespace {
@@ -628,11 +729,17 @@ Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dyna
 nlohmann::json to_json(const SceneSettings& s) {
     nlohmann::json j = {{"generator", "rcbench"}, {"kind", s.kind}, {"objects", s.objects}};
     if (!s.preset.empty()) j["preset"] = s.preset;
+    // Only when set, so that a box scene's meta, and so its bytes, stay as they were.
+    if (s.shapes.any())
+        j["shapes"] = {{"rotated_share", s.shapes.rotated_share},
+                       {"sphere_share", s.shapes.sphere_share},
+                       {"capsule_share", s.shapes.capsule_share}};
     return j;
 }
 
 Recording generate_scene(const SceneSettings& s) {
     check_dynamics(s.dynamics);
+    check_shapes(s.shapes);
     check_scene_size(s.objects, s.frames, s.rays.per_frame, s.objects * s.dynamics.change_fraction, "scene");
     return add_dynamics(generate_objects(s), s.dynamics, s.rays, s.frames, s.seed, to_json(s));
 }

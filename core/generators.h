@@ -41,12 +41,27 @@ struct RaySettings {
     std::vector<RayMode> mix{{"center", 1.0}};
 };
 
+/// Which generated objects get an exact shape inside their box (shape.h), as shares of frame 0's
+/// objects; the rest stay boxes. A rotated object is an oriented box with the generated box's half
+/// extents and a uniformly random rotation, so its bounds (its new box) grow; a sphere is inscribed
+/// in the generated box, a capsule lies along the box's longest axis, inscribed too. Shaped
+/// objects give the ray–object test of the thesis' model (eq. 5.3, C_RO) and bv-caused false
+/// positives (eq. 5.2, N_BFP) something to measure. All 0 (the default) leaves a scene's bytes as
+/// they were.
+struct ShapeSettings {
+    double rotated_share = 0;
+    double sphere_share = 0;
+    double capsule_share = 0;
+    bool any() const { return rotated_share > 0 || sphere_share > 0 || capsule_share > 0; }
+};
+
 struct SceneSettings {
     std::string kind = "irregular";  ///< one of scene_kinds()
     std::uint32_t objects = 14021;
     std::uint64_t seed = 1;
     std::uint32_t frames = 10;
     DynamicsSettings dynamics;
+    ShapeSettings shapes;
     RaySettings rays;
     std::string preset;  ///< the preset it came from, if any (recorded in the meta)
 };
@@ -76,16 +91,26 @@ std::vector<std::string> failure_mode_kinds();
 std::vector<RayMode> parse_ray_mix(const std::string& text);
 std::vector<std::string> ray_mode_names();
 
-/// Frame 0's objects of a generated scene.
+/// Frame 0's objects of a generated scene, shaped as `settings.shapes` asks.
 std::vector<Object> generate_objects(const SceneSettings& settings);
+
+/// Gives exactly round(share × n) of the objects each shape (chosen at random, the rotations too,
+/// from the `seed`'s own stream: the boxes' draws are unchanged). Keeps uids; each shaped object's
+/// box becomes its shape's bounds.
+std::vector<Object> apply_shapes(std::vector<Object> objects, const ShapeSettings& shapes, std::uint64_t seed);
+
+/// InputError naming the setting when a share is outside [0, 1] or not a number, or the shares add
+/// up to more than 1.
+void check_shapes(const ShapeSettings& shapes);
 
 /// A full recording: generated objects, then `settings.frames` frames of dynamics and rays.
 Recording generate_scene(const SceneSettings& settings);
 /// InputError naming the setting when a share or scale is outside its range or not a number.
 void check_dynamics(const DynamicsSettings& dynamics);
 
-/// Gives any static object set (an import) the same dynamics and rays. `meta` is stored as given,
-/// with the dynamics, ray settings, frames and seed added.
+/// Gives any static object set (an import) the same dynamics and rays. A move translates an
+/// object's shape with its box (kind and rotation kept); an insert copies a live object's shape. `meta` is stored as
+/// given, with the dynamics, ray settings, frames and seed added.
 Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dynamics, const RaySettings& rays,
                        std::uint32_t frames, std::uint64_t seed, nlohmann::json meta);
 

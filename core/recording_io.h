@@ -7,7 +7,7 @@
 /// Every integer and float is little-endian whatever the host; floats are IEEE-754 binary32.
 ///
 ///     header   8 bytes  magic "RCBSCENE"
-///              u32      format version (1)
+///              u32      format version (1 or 2)
 ///              u32      byte-order mark 0x01020304, as written by the little-endian encoder;
 ///                       a reader seeing 0x04030201 knows the file was byte-swapped
 ///     sections, each:

@@ -176,18 +176,19 @@ std::vector<json> expand_grid(const StructureInfo& info, const json& grid, const
 void parse_scene(const json& s, const std::string& path, const SceneDefaults& d, const std::string& base_dir,
                  std::vector<SceneSpec>& out) {
     expect_object(s, path);
-    check_keys(
-        s, path,
-        {"name", "preset", "kind", "objects", "recording", "import", "import_options", "frames", "rays_per_frame",
-         "ray_mix", "change_fraction", "insert_share", "remove_share", "move_scale", "seed", "seeds"});
+    check_keys(s, path,
+               {"name", "preset", "kind", "objects", "recording", "import", "import_options", "frames",
+                "rays_per_frame", "ray_mix", "change_fraction", "insert_share", "remove_share", "move_scale",
+                "rotated_share", "sphere_share", "capsule_share", "seed", "seeds"});
     int sources =
         int(s.contains("preset")) + int(s.contains("kind")) + int(s.contains("recording")) + int(s.contains("import"));
     if (sources != 1) fail(path, "give exactly one of \"preset\", \"kind\", \"recording\" or \"import\"");
 
     if (s.contains("recording")) {
-        for (const char* k : {"objects", "frames", "rays_per_frame", "ray_mix", "change_fraction", "insert_share",
-                              "remove_share", "move_scale", "seed", "seeds"})
-            if (s.contains(k)) fail(at(path, k), "a recording brings its own frames, rays and dynamics");
+        for (const char* k :
+             {"objects", "frames", "rays_per_frame", "ray_mix", "change_fraction", "insert_share", "remove_share",
+              "move_scale", "rotated_share", "sphere_share", "capsule_share", "seed", "seeds"})
+            if (s.contains(k)) fail(at(path, k), "a recording brings its own objects, frames, rays and dynamics");
         SceneSpec spec;
         spec.source = SceneSpec::Source::recording;
         const std::string file = get_string(s, "recording", path, "");
@@ -237,6 +238,9 @@ void parse_scene(const json& s, const std::string& path, const SceneDefaults& d,
     }
     if (s.contains("import_options") && source != SceneSpec::Source::import)
         fail(at(path, "import_options"), "only an \"import\" scene takes import options");
+    for (const char* k : {"rotated_share", "sphere_share", "capsule_share"})
+        if (s.contains(k) && source == SceneSpec::Source::import)
+            fail(at(path, k), "an imported scene has the file's shapes");
     name = get_string(s, "name", path, name);
     const std::vector<std::uint64_t> objects = source == SceneSpec::Source::import
                                                    ? std::vector<std::uint64_t>{0}
@@ -260,6 +264,11 @@ void parse_scene(const json& s, const std::string& path, const SceneDefaults& d,
     base.dynamics.move_scale = get_number(s, "move_scale", path, 0, 1000, base.dynamics.move_scale);
     if (base.dynamics.insert_share + base.dynamics.remove_share > 1)
         fail(path, "insert_share + remove_share exceeds 1");
+    base.shapes.rotated_share = get_number(s, "rotated_share", path, 0, 1, 0);
+    base.shapes.sphere_share = get_number(s, "sphere_share", path, 0, 1, 0);
+    base.shapes.capsule_share = get_number(s, "capsule_share", path, 0, 1, 0);
+    if (base.shapes.rotated_share + base.shapes.sphere_share + base.shapes.capsule_share > 1)
+        fail(path, "rotated_share + sphere_share + capsule_share exceeds 1");
 
     for (std::uint64_t count : objects)
         for (std::uint64_t seed : seeds) {
@@ -284,8 +293,14 @@ void parse_scene(const json& s, const std::string& path, const SceneDefaults& d,
             if (source == SceneSpec::Source::import) {
                 spec.key["import"] = fs::path(file).filename().string();
                 if (importer_for(file) != "csv") spec.key["import_options"] = spec.import_options = import_options;
-            } else
+            } else {
                 spec.key["kind"] = base.kind, spec.key["objects"] = count;
+                // Only when set: a box scene's key (and so its results' identity) stays as it was.
+                if (base.shapes.any())
+                    spec.key["shapes"] = {{"rotated_share", base.shapes.rotated_share},
+                                          {"sphere_share", base.shapes.sphere_share},
+                                          {"capsule_share", base.shapes.capsule_share}};
+            }
             out.push_back(std::move(spec));
         }
 }

@@ -289,7 +289,15 @@ TEST(BspImport, OneBoxPerDrawSurfaceTriangle) {
     EXPECT_EQ(objects[0].box, box(0, 0, 0, 1, 1, 0));
     EXPECT_EQ(objects[1].box, box(0, 0, 0, 1, 1, 0));
     EXPECT_EQ(objects[2].box, box(0, 0, 0, 1, 1, 1));  // patch cell (0,0): (0,0,0) (1,0,1) (1,1,0)
-    for (std::size_t i = 0; i < objects.size(); ++i) EXPECT_EQ(objects[i].uid, i);
+    for (std::size_t i = 0; i < objects.size(); ++i) {
+        EXPECT_EQ(objects[i].uid, i);
+        // Each object is its triangle, and its box is the triangle's bounds.
+        EXPECT_EQ(objects[i].shape.kind, ShapeKind::triangle);
+        EXPECT_EQ(objects[i].box, shape_bounds(objects[i].shape));
+    }
+    EXPECT_EQ(objects[2].shape, Shape::triangle({0, 0, 0}, {1, 0, 1}, {1, 1, 0}));
+    // Brushes stay boxes.
+    for (const Object& o : parse_bsp(bytes, "tiny.bsp", "brushes")) EXPECT_EQ(o.shape.kind, ShapeKind::box);
 }
 
 TEST(BspImport, ErrorsNameTheFileAndTheLump) {
@@ -376,6 +384,40 @@ TEST(ModelImport, ObjInstancesAndTriangles) {
     const std::vector<Object> triangles = import_model(obj, "triangles", &s);
     EXPECT_EQ(triangles.size(), 3u);  // the quad triangulated, and the triangle
     EXPECT_EQ(s.triangles, 3u);
+    for (const Object& o : triangles) {
+        EXPECT_EQ(o.shape.kind, ShapeKind::triangle);
+        EXPECT_EQ(o.box, shape_bounds(o.shape));
+    }
+    EXPECT_NE(std::find_if(triangles.begin(), triangles.end(),
+                           [](const Object& o) {
+                               return o.shape == Shape::triangle({2, 2, 2}, {3, 2, 2}, {2, 3, 4});
+                           }),
+              triangles.end());
+    for (const Object& o : instances) EXPECT_EQ(o.shape.kind, ShapeKind::box);
+}
+
+TEST(ModelImport, DegenerateTrianglesStayAndNonFiniteVerticesAreNamed) {
+    // A triangle with two equal vertices is a valid (degenerate) shape: kept.
+    const std::string flat = write_text(scratch("flat.obj"), "o line\nv 0 0 0\nv 1 0 0\nv 1 0 0\nf 1 2 3\n");
+    const std::vector<Object> kept = import_model(flat, "triangles");
+    ASSERT_EQ(kept.size(), 1u);
+    EXPECT_EQ(kept[0].shape, Shape::triangle({0, 0, 0}, {1, 0, 0}, {1, 0, 0}));
+    // A vertex whose transforms overflow float (1e30 x 1e30) is not finite in world space: an
+    // error naming the file and the node.
+    const std::string gltf = R"({
+      "asset": {"version": "2.0"},
+      "scene": 0, "scenes": [{"nodes": [0]}],
+      "nodes": [{"scale": [1e30, 1e30, 1e30], "children": [1]}, {"name": "huge", "mesh": 0, "scale": [1e30, 1e30, 1e30]}],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}],
+      "bufferViews": [{"buffer": 0, "byteLength": 36}],
+      "buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]
+    })";
+    const std::string scaled = write_text(scratch("scaled.gltf"), gltf);
+    const std::string e = error_of([&] { import_model(scaled, "triangles"); });
+    EXPECT_NE(e.find("scaled.gltf: node 'huge'"), std::string::npos) << e;
+    EXPECT_NE(e.find("non-finite vertex"), std::string::npos) << e;
+    EXPECT_EQ(std::count(e.begin(), e.end(), '\n'), 0) << e;
 }
 
 TEST(ModelImport, GltfNodeTransformsPlaceEachInstanceInWorldSpace) {
@@ -397,7 +439,14 @@ TEST(ModelImport, GltfNodeTransformsPlaceEachInstanceInWorldSpace) {
               [](const Object& a, const Object& b) { return a.box.min.x < b.box.min.x; });
     EXPECT_EQ(objects[0].box, box(0, 0, 5, 2, 2, 5));
     EXPECT_EQ(objects[1].box, box(10, 0, 0, 11, 1, 0));
-    EXPECT_EQ(import_model(path, "triangles").size(), 2u);
+    // Triangles mode: each instance's triangle in world space, the same transforms applied.
+    std::vector<Object> triangles = import_model(path, "triangles");
+    ASSERT_EQ(triangles.size(), 2u);
+    std::sort(triangles.begin(), triangles.end(),
+              [](const Object& a, const Object& b) { return a.box.min.x < b.box.min.x; });
+    EXPECT_EQ(triangles[0].shape, Shape::triangle({0, 0, 5}, {2, 0, 5}, {0, 2, 5}));
+    EXPECT_EQ(triangles[1].shape, Shape::triangle({10, 0, 0}, {11, 0, 0}, {10, 1, 0}));
+    for (std::size_t i = 0; i < 2; ++i) EXPECT_EQ(triangles[i].box, objects[i].box);
 }
 
 TEST(ModelImport, ErrorsNameTheFile) {

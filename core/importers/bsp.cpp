@@ -246,9 +246,13 @@ std::vector<Object> parse_triangles(const Reader& r, BspSummary& sum) {
     std::vector<Object> out;
     out.reserve(estimate);
     std::size_t s = 0;
+    // Each object is its triangle (shape.h), the box its bounds; degenerate triangles stay (they
+    // are valid shapes, met edge-on or not at all). vertex() has rejected non-finite coordinates.
     auto triangle = [&](Vec3 a, Vec3 b, Vec3 c) {
-        out.push_back(Object{Uid(out.size()), Aabb{min(min(a, b), c), max(max(a, b), c)}});
-        if (!box_problem(out.back().box).empty()) check_object(out.back(), r.name + ": surface " + std::to_string(s));
+        out.push_back(shaped_object(Uid(out.size()), Shape::triangle(a, b, c)));
+        // The box is the vertices' exact bounds: its check names a coordinate out of range.
+        if (!box_problem(out.back().box).empty())
+            check_object(Object{out.back().uid, out.back().box}, r.name + ": surface " + std::to_string(s));
     };
     for (; s < surfaces; ++s) {
         const auto [type, first_vert, num_verts, first_index, num_indexes, w, h] = header(s);

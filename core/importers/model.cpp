@@ -108,12 +108,26 @@ std::vector<Object> read_model(const std::string& path, bool triangles, ModelSum
             const aiMesh* mesh = scene->mMeshes[n->mMeshes[i]];
             ++sum.instances;
             if (triangles) {
+                // Each object is its triangle in world space (the node's transform applied, as
+                // for the boxes), the box its bounds. Degenerate triangles stay (valid shapes); a
+                // vertex that is not finite, in the file or once transformed, is an error.
                 for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
                     const aiFace& face = mesh->mFaces[f];
                     if (face.mNumIndices != 3) continue;
-                    Aabb box = Aabb::empty();
-                    for (unsigned k = 0; k < 3; ++k) add(box, world * mesh->mVertices[face.mIndices[k]]);
-                    push(box);
+                    Vec3 p[3];
+                    for (unsigned k = 0; k < 3; ++k) {
+                        const aiVector3D v = world * mesh->mVertices[face.mIndices[k]];
+                        p[k] = {float(v.x), float(v.y), float(v.z)};
+                        if (!is_finite(p[k]))
+                            throw InputError(path + ": node " + quoted_excerpt(n->mName.C_Str()) + ": mesh " +
+                                             quoted_excerpt(mesh->mName.C_Str()) + " triangle " + std::to_string(f) +
+                                             " has a non-finite vertex");
+                    }
+                    out.push_back(shaped_object(Uid(out.size()), Shape::triangle(p[0], p[1], p[2])));
+                    // The box is the vertices' exact bounds: its check names a coordinate out of range.
+                    if (!box_problem(out.back().box).empty())
+                        check_object(Object{out.back().uid, out.back().box},
+                                     path + ": node " + quoted_excerpt(n->mName.C_Str()));
                     ++sum.triangles;
                 }
             } else {
