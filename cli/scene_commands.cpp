@@ -263,10 +263,10 @@ void add_scene_commands(CLI::App& app) {
         ->check(CLI::IsMember({"brushes", "triangles"}));
     i->add_option("--map", imp->file.map, "A .pk3 holding several maps: which one (NAME or maps/NAME.bsp)");
     i->add_option("--model-mode", imp->file.model_mode,
-                  "Models: one box per mesh instance (instances) or one triangle object per triangle in world space "
-                  "(triangles)")
+                  "Models: one box per mesh instance (instances), the same with a rotated instance as the oriented "
+                  "box of its mesh's bounds (obbs), or one triangle object per triangle in world space (triangles)")
         ->capture_default_str()
-        ->check(CLI::IsMember({"instances", "triangles"}));
+        ->check(CLI::IsMember({"instances", "obbs", "triangles"}));
     add_dynamics_options(*i, imp->dyn);
     i->callback([imp] {
         check_output_path(imp->out, {imp->input}, "-o");

@@ -449,11 +449,41 @@ TEST(ModelImport, GltfNodeTransformsPlaceEachInstanceInWorldSpace) {
     for (std::size_t i = 0; i < 2; ++i) EXPECT_EQ(triangles[i].box, objects[i].box);
 }
 
+TEST(ModelImport, RotatedInstancesAreOrientedBoxes) {
+    // The unit triangle's mesh under a node turned 45 degrees about z (glTF quaternion x, y, z, w)
+    // and translated: in obbs mode its object is the oriented box of the mesh's bounds.
+    const std::string gltf = R"({
+      "asset": {"version": "2.0"},
+      "scene": 0, "scenes": [{"nodes": [0, 1]}],
+      "nodes": [{"mesh": 0, "translation": [10, 0, 0], "rotation": [0, 0, 0.38268343, 0.92387953]}, {"mesh": 0}],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}],
+      "bufferViews": [{"buffer": 0, "byteLength": 36}],
+      "buffers": [{"byteLength": 36, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}]
+    })";
+    const std::string path = write_text(scratch("rotated.gltf"), gltf);
+    for (const Object& o : import_model(path, "instances")) EXPECT_EQ(o.shape.kind, ShapeKind::box);
+    std::vector<Object> objects = import_model(path, "obbs");
+    ASSERT_EQ(objects.size(), 2u);
+    std::sort(objects.begin(), objects.end(),
+              [](const Object& a, const Object& b) { return a.box.min.x < b.box.min.x; });
+    EXPECT_EQ(objects[0].shape.kind, ShapeKind::box);  // not rotated: the box
+    ASSERT_EQ(objects[1].shape.kind, ShapeKind::obb);  // turned 45 degrees about z
+    const Shape& obb = objects[1].shape;
+    EXPECT_NEAR(obb.v[3], 0.5, 1e-6);
+    EXPECT_NEAR(obb.v[4], 0.5, 1e-6);
+    EXPECT_EQ(obb.v[5], 0.0f);
+    EXPECT_EQ(objects[1].box, shape_bounds(obb));
+    // The mesh's local centre (0.5, 0.5, 0) turned by 45 degrees lies on the y axis, at 10 + (0, 0.707).
+    EXPECT_NEAR(obb.v[0], 10.0, 1e-5);
+    EXPECT_NEAR(obb.v[1], std::sqrt(0.5), 1e-5);
+}
+
 TEST(ModelImport, ErrorsNameTheFile) {
     const std::string junk = write_text(scratch("junk.glb"), "glTF but not really");
     const std::string e = error_of([&] { import_model(junk, "instances"); });
     EXPECT_NE(e.find("junk.glb: assimp: "), std::string::npos) << e;
-    EXPECT_NE(error_of([&] { import_model(junk, "points"); }).find("expected instances or triangles"),
+    EXPECT_NE(error_of([&] { import_model(junk, "points"); }).find("expected instances, obbs or triangles"),
               std::string::npos);
 }
 

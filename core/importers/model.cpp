@@ -6,9 +6,13 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <array>
+#include <cmath>
 #include <cstring>
 #include <exception>
 #include <functional>
+#include <limits>
+#include <optional>
 #include <vector>
 
 #include "core/error.h"
@@ -69,7 +73,41 @@ void for_each_node(const aiNode* root, Visit&& visit) {
     }
 }
 
-std::vector<Object> read_model(const std::string& path, bool triangles, ModelSummary& sum) {
+/// The oriented box of `mesh`'s local bounds under `world`, when `world` is scale, rotation and
+/// translation (checked by mapping the local box's corners back) and the rotation is not the
+/// identity; otherwise none.
+std::optional<Shape> instance_obb(const aiMesh* mesh, const aiMatrix4x4& world) {
+    aiVector3D lo = mesh->mVertices[0], hi = lo;
+    for (unsigned v = 1; v < mesh->mNumVertices; ++v) {
+        const aiVector3D& p = mesh->mVertices[v];
+        lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+        hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+    }
+    aiVector3D scaling, position;
+    aiQuaternion q;
+    world.Decompose(scaling, q, position);
+    if (std::abs(q.x) < 1e-6f && std::abs(q.y) < 1e-6f && std::abs(q.z) < 1e-6f) return std::nullopt;
+    const aiVector3D c_local = (lo + hi) * 0.5f, h_local = (hi - lo) * 0.5f;
+    const aiVector3D c = world * c_local;
+    const Vec3 half{std::abs(scaling.x) * h_local.x, std::abs(scaling.y) * h_local.y, std::abs(scaling.z) * h_local.z};
+    const Shape obb = Shape::obb({c.x, c.y, c.z}, half, {q.w, q.x, q.y, q.z});
+    if (!shape_problem(obb, std::numeric_limits<double>::max()).empty()) return std::nullopt;
+    // Each corner of the local box, transformed, must land on the obb's corresponding corner
+    // (within float rounding of the scene's magnitude): otherwise the matrix shears.
+    const std::array<Vec3d, 3> axis = obb_axes<double>(obb);
+    for (int k = 0; k < 8; ++k) {
+        const aiVector3D corner{k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z};
+        const aiVector3D w = world * corner;
+        const Vec3d d = Vec3d{w.x, w.y, w.z} - Vec3d{c.x, c.y, c.z};
+        const double m = 1e-4 * (std::sqrt(dot(d, d)) + std::abs(double(c.x)) + std::abs(double(c.y)) +
+                                 std::abs(double(c.z)) + 1e-30);
+        for (int a = 0; a < 3; ++a)
+            if (std::abs(dot(d, axis[a])) > double(half[a]) + m) return std::nullopt;
+    }
+    return obb;
+}
+
+std::vector<Object> read_model(const std::string& path, bool triangles, bool obbs, ModelSummary& sum) {
     Assimp::Importer importer;
     // Triangulate so polygons become triangles; nothing else changes the geometry.
     const aiScene* scene = importer.ReadFile(path, aiProcess_Triangulate);
@@ -134,7 +172,16 @@ std::vector<Object> read_model(const std::string& path, bool triangles, ModelSum
                 if (mesh->mNumVertices == 0) continue;
                 Aabb box = Aabb::empty();
                 for (unsigned v = 0; v < mesh->mNumVertices; ++v) add(box, world * mesh->mVertices[v]);
+                const std::size_t before = out.size();
                 push(box);
+                // In obbs mode a rotated instance is the oriented box of its mesh's own bounds under
+                // the node's transform; a transform that does not decompose into scale, rotation and
+                // translation (shear), or that does not rotate, keeps the world-space box.
+                if (obbs && out.size() > before) {
+                    const std::optional<Shape> obb = instance_obb(mesh, world);
+                    if (obb && shape_problem(*obb, kMaxCoordinate).empty())
+                        out.back() = shaped_object(out.back().uid, *obb);
+                }
             }
         }
     });
@@ -149,13 +196,13 @@ bool is_model_extension(const std::string& ext) {
 }
 
 std::vector<Object> import_model(const std::string& path, const std::string& mode, ModelSummary* summary) {
-    if (mode != "instances" && mode != "triangles")
-        throw InputError(path + ": model mode " + quoted_excerpt(mode) + ": expected instances or triangles");
+    if (mode != "instances" && mode != "obbs" && mode != "triangles")
+        throw InputError(path + ": model mode " + quoted_excerpt(mode) + ": expected instances, obbs or triangles");
     check_model_nesting(path);
     ModelSummary local;
     ModelSummary& sum = summary ? *summary : local;
     std::vector<Object> out;
-    run_with_stack(kImportStackBytes, [&] { out = read_model(path, mode == "triangles", sum); });
+    run_with_stack(kImportStackBytes, [&] { out = read_model(path, mode == "triangles", mode == "obbs", sum); });
     return out;
 }
 

@@ -65,8 +65,8 @@ ImportOptions import_options_from_json(const nlohmann::json& j, const std::strin
     o.model_mode = j.value("model_mode", o.model_mode);
     if (o.bsp_mode != "brushes" && o.bsp_mode != "triangles")
         throw InputError(path + ".bsp_mode: expected \"brushes\" or \"triangles\", got " + quoted_excerpt(o.bsp_mode));
-    if (o.model_mode != "instances" && o.model_mode != "triangles")
-        throw InputError(path + ".model_mode: expected \"instances\" or \"triangles\", got " +
+    if (o.model_mode != "instances" && o.model_mode != "obbs" && o.model_mode != "triangles")
+        throw InputError(path + ".model_mode: expected \"instances\", \"obbs\" or \"triangles\", got " +
                          quoted_excerpt(o.model_mode));
     return o;
 }

@@ -15,7 +15,7 @@ namespace rcb {
 struct ImportOptions {
     std::string bsp_mode = "brushes";      ///< .bsp/.pk3: "brushes" or "triangles"
     std::string map;                       ///< .pk3 with several maps: which one
-    std::string model_mode = "instances";  ///< models: "instances" or "triangles"
+    std::string model_mode = "instances";  ///< models: "instances", "obbs" or "triangles"
 };
 
 /// "csv", "bsp" or "model"; throws InputError naming the file for an extension nothing reads.
