@@ -6,11 +6,17 @@
 
 #include <filesystem>
 
+#include "core/error.h"
+#include "core/recording_io.h"
 #include "core/registry.h"
 #include "runner/experiment.h"
 #include "runner/merge.h"
 #include "runner/store.h"
+#include "tests/subprocess.h"
 #include "tests/test_scenes.h"
+#include "tuner/accuracy.h"
+#include "tuner/advise.h"
+#include "tuner/tuning.h"
 
 namespace rcb {
 namespace {
@@ -94,8 +100,8 @@ TEST(AccuracyColumns, ARunsFramesRoundTripThroughTheStoreAndMerge) {
     ASSERT_GT(results[1].frames.back().counters.n_ro, 0u);
     ASSERT_LT(results[0].frames.back().correct, results[0].frames.back().returned);
 
-    const Experiment e = parse_experiment(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "ug"}]})",
-                                          "roundtrip", ".");
+    const Experiment e =
+        parse_experiment(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "ug"}]})", "roundtrip", ".");
     const std::string a = (dir / "a.db").string(), b = (dir / "b.db").string();
     {
         ResultStore store(a);
@@ -132,6 +138,172 @@ TEST(AccuracyColumns, ARunsFramesRoundTripThroughTheStoreAndMerge) {
             EXPECT_EQ(n, results[i].frames.size()) << path;
         }
     }
+    fs::remove_all(dir);
+}
+
+std::string accuracy_error(const std::string& text) {
+    try {
+        parse_accuracy(text);
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+TEST(AccuracyConstraint, ParsesTheThreeFormsAndNamesWhatIsWrong) {
+    EXPECT_EQ(parse_accuracy("exact").kind, AccuracyConstraint::Kind::exact);
+    const AccuracyConstraint r = parse_accuracy("recall>=0.9");
+    EXPECT_EQ(r.kind, AccuracyConstraint::Kind::recall);
+    EXPECT_DOUBLE_EQ(r.bound, 0.9);
+    EXPECT_EQ(r.text(), "recall>=0.9");
+    EXPECT_EQ(parse_accuracy("precision>=1").text(), "precision>=1");
+    EXPECT_EQ(parse_accuracy("precision>=0").bound, 0.0);
+    EXPECT_NE(accuracy_error("exactly").find("--accuracy: \"exactly\" is not a constraint"), std::string::npos);
+    EXPECT_NE(accuracy_error("speed>=0.5").find("unknown measure \"speed\""), std::string::npos);
+    EXPECT_NE(accuracy_error("recall>=nan").find("\"nan\" is not a number"), std::string::npos);
+    EXPECT_NE(accuracy_error("recall>=").find("\"\" is not a number"), std::string::npos);
+    EXPECT_NE(accuracy_error("recall>=0.5x").find("is not a number"), std::string::npos);
+    EXPECT_NE(accuracy_error("precision>=1.5").find("precision 1.5 is outside 0..1"), std::string::npos);
+    EXPECT_NE(accuracy_error("recall>=-0.1").find("outside 0..1"), std::string::npos);
+}
+
+/// A measured candidate for the selection tests: `ms` per frame at a level with `precision`.
+Candidate synthetic(const char* structure, const char* level, double ms, double precision) {
+    Candidate c;
+    c.structure = structure;
+    c.params = {{"query", level}};
+    MeasuredCost m{ms, 0, 0, ms, 1e6};
+    m.accuracy.verified = true;
+    m.accuracy.exact_level = std::string(level) != "candidates";
+    m.accuracy.precision = precision;
+    c.measured = m;
+    return c;
+}
+
+TEST(AccuracyConstraint, ExactRejectsAFasterCandidateLevelThatAPrecisionBoundAccepts) {
+    const Candidate fast = synthetic("ug", "candidates", 0.4, 0.5), slow = synthetic("ug", "boxes", 0.6, 1.0);
+    const std::vector<const Candidate*> all{&fast, &slow};
+    const auto exact = meeting(all, parse_accuracy("exact"));
+    ASSERT_EQ(exact.size(), 1u);
+    EXPECT_EQ(exact[0], &slow);
+    const auto loose = meeting(all, parse_accuracy("precision>=0.4"));
+    ASSERT_EQ(loose.size(), 2u);
+    EXPECT_EQ(loose[simplest_within(loose, 0.03)], &fast);
+    EXPECT_EQ(meeting(all, parse_accuracy("precision>=0.6")).size(), 1u);
+    // A box-level configuration with mismatches is not exact; an unverified one meets no bound.
+    Candidate wrong = synthetic("ug", "boxes", 0.3, 1.0);
+    wrong.measured->accuracy.mismatches = 2;
+    EXPECT_TRUE(meeting({&wrong}, parse_accuracy("exact")).empty());
+    Candidate unverified = synthetic("ug", "boxes", 0.3, 1.0);
+    unverified.measured->accuracy.verified = false;
+    EXPECT_EQ(meeting({&unverified}, parse_accuracy("exact")).size(), 1u);
+    EXPECT_TRUE(meeting({&unverified}, parse_accuracy("recall>=0.5")).empty());
+
+    // advise ranks the same way: fastest first, the recommendation the fastest that meets.
+    std::vector<AdviceRow> rows{{"ug", "boxes", *slow.measured, false}, {"ug", "candidates", *fast.measured, false}};
+    EXPECT_EQ(rank_advice(rows, parse_accuracy("exact")), std::optional<std::size_t>(1));
+    EXPECT_EQ(rows[0].params, "candidates");
+    EXPECT_FALSE(rows[0].meets);
+    EXPECT_EQ(rank_advice(rows, parse_accuracy("precision>=0.4")), std::optional<std::size_t>(0));
+    EXPECT_EQ(rank_advice(rows, parse_accuracy("precision>=1.0")), std::optional<std::size_t>(1));
+    rows.pop_back();  // only the candidate level left
+    EXPECT_EQ(rank_advice(rows, parse_accuracy("exact")), std::nullopt);
+}
+
+TEST(AccuracyConstraint, TuningSearchesTheQueryLevelOnlyWhenInexactAnswersAreAllowed) {
+    const std::string text =
+        R"({"structures": ["ug"], "mode": "measured", "budget": 6, "frames": 3, "rays_per_frame": 200, "repetitions": 1,
+            "space": {"ug": {"density": [1, 4]}},
+            "categories": [{"name": "small", "scenes": [{"kind": "irregular", "objects": 1500}]}]})";
+    TuneSpec exact = parse_tune_spec(text, "t.json", ".");
+    set_accuracy(exact, parse_accuracy("exact"));
+    ASSERT_EQ(exact.space.at("ug").size(), 1u);  // density only
+    const CategoryTuning e = tune_category(exact, exact.categories[0]);
+    for (const Candidate& c : e.structures.at(0).candidates) {
+        EXPECT_FALSE(c.params.contains("query")) << c.params;
+        EXPECT_FALSE(c.measured->accuracy.verified);  // exact at the box level needs no verification
+    }
+
+    TuneSpec loose = parse_tune_spec(text, "t.json", ".");
+    set_accuracy(loose, parse_accuracy("precision>=0"));
+    ASSERT_EQ(loose.space.at("ug").size(), 2u);
+    EXPECT_EQ(loose.space.at("ug")[1].name, "query");
+    const CategoryTuning t = tune_category(loose, loose.categories[0]);
+    bool candidates_seen = false;
+    for (const Candidate& c : t.structures.at(0).candidates) {
+        ASSERT_TRUE(c.measured->accuracy.verified);
+        const std::string level = c.params.value("query", "boxes");
+        EXPECT_NE(c.params.value("query", ""), "boxes");  // the box level is not recorded
+        if (level == "candidates") {
+            candidates_seen = true;
+            // The candidates of a grid cell include boxes the ray misses: precision below 1.
+            EXPECT_LT(c.measured->accuracy.precision, 1.0);
+            EXPECT_DOUBLE_EQ(c.measured->accuracy.recall, 1.0);
+            EXPECT_FALSE(c.measured->accuracy.exact_level);
+        } else {
+            EXPECT_DOUBLE_EQ(c.measured->accuracy.precision, 1.0);  // a box-only scene
+            EXPECT_EQ(c.measured->accuracy.mismatches, 0u);
+        }
+    }
+    EXPECT_TRUE(candidates_seen);
+    // Everything meets precision >= 0: the choice is the fastest of all (up to the 3% rule).
+    double fastest = INFINITY;
+    for (const Candidate& c : t.structures.at(0).candidates) fastest = std::min(fastest, c.measured->ms);
+    EXPECT_EQ(t.fastest.measured->ms, fastest);
+}
+
+TEST(AccuracyConstraint, OnShapesOnlyTheNarrowPhaseIsPreciseAndABoundNothingMeetsIsOneLine) {
+    const fs::path dir = temp_dir("shaped");
+    const std::string scene = (dir / "shaped.rcbscene").string();
+    write_recording(test::with_shapes(test::generated_scene("irregular", 600, 3, 11), 4), scene);
+    const std::string text =
+        R"({"structures": ["ug"], "mode": "measured", "budget": 6, "repetitions": 1, "warmup_frames": 0,
+            "space": {"ug": {"query": ["candidates", "shapes"]}},
+            "categories": [{"name": "shaped", "scenes": [{"recording": ")" +
+        scene + R"("}]}]})";
+    TuneSpec spec = parse_tune_spec(text, "t.json", ".");
+    set_accuracy(spec, parse_accuracy("precision>=1"));
+    const CategoryTuning t = tune_category(spec, spec.categories[0]);
+    // The box level (the defaults, always measured) reports boxes whose shape the ray misses.
+    for (const Candidate& c : t.structures.at(0).candidates) {
+        const std::string level = c.params.value("query", "boxes");
+        if (level == "shapes")
+            EXPECT_DOUBLE_EQ(c.measured->accuracy.precision, 1.0);
+        else
+            EXPECT_LT(c.measured->accuracy.precision, 1.0) << level;
+        EXPECT_DOUBLE_EQ(c.measured->accuracy.recall, 1.0) << level;
+    }
+    EXPECT_EQ(t.chosen.params.value("query", ""), "shapes");
+
+    // Without the narrow phase in the space nothing meets precision 1: one line naming the
+    // category and the constraint.
+    spec.space["ug"] = {{"query", {"candidates"}}};
+    try {
+        tune_category(spec, spec.categories[0]);
+        FAIL() << "precision 1 met without the narrow phase";
+    } catch (const InputError& e) {
+        EXPECT_EQ(std::string(e.what()),
+                  "tune: no configuration of ug on category shaped meets --accuracy precision>=1");
+    }
+    fs::remove_all(dir);
+}
+
+TEST(AccuracyConstraint, TheCommandsRefuseABadConstraintInOneLine) {
+    const fs::path dir = temp_dir("cli");
+    const std::string scene = (dir / "s.rcbscene").string();
+    const auto run = [](const std::string& args) {
+        return ::test::run_shell(std::string(RCBENCH_BINARY) + " " + args);
+    };
+    ASSERT_EQ(run("scene gen --preset uni-s --frames 2 --rays 20 -o " + scene).code, 0);
+    for (const std::string& bad : {"recall>=nan", "precision>=2", "fast"}) {
+        const ::test::Outcome r = run("advise " + scene + " --accuracy '" + bad + "'");
+        EXPECT_EQ(r.code, 2) << r.err;
+        EXPECT_EQ(r.err.rfind("rcbench: --accuracy: ", 0), 0u) << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    }
+    const ::test::Outcome tune = run("tune " + scene + " --accuracy 'recall>=1.5'");
+    EXPECT_EQ(tune.code, 2) << tune.err;
+    EXPECT_EQ(tune.err.rfind("rcbench: --accuracy: recall 1.5 is outside 0..1", 0), 0u) << tune.err;
     fs::remove_all(dir);
 }
 

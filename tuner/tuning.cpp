@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/random.h"
 #include "core/registry.h"
+#include "core/query_level.h"
 #include "core/simulator.h"
 
 namespace rcb {
@@ -21,6 +22,9 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
+/// The measured search's cost of a configuration that fails the accuracy constraint (× its time).
+constexpr double kInaccuratePenalty = 1e6;
+
 }  // namespace
 
 const Recording& recording_of(const SceneSpec& scene) {
@@ -29,6 +33,16 @@ const Recording& recording_of(const SceneSpec& scene) {
     auto it = cache.find(key);
     if (it == cache.end()) it = cache.emplace(key, load_scene(scene)).first;
     return it->second;
+}
+
+namespace {}  // namespace
+
+json default_level(const std::string& structure, const std::string& param) {
+    // From the parameter's spec: a default that is not recorded (the box query level) is absent
+    // from defaults().
+    for (const ParamSpec& p : find_structure(structure).params)
+        if (p.name == param) return p.default_value;
+    return find_structure(structure).defaults()[param];
 }
 
 namespace {
@@ -41,6 +55,8 @@ json complete(const std::string& structure, const json& searched) {
     // candidate measured again.
     for (const ParamSpec& spec : info.params)
         if (spec.kind == ParamKind::real && p[spec.name].is_number()) p[spec.name] = p[spec.name].get<double>();
+    // The box level is not recorded (core/query_level.h): searched or not, it is the defaults'.
+    if (p.contains("query") && p["query"] == "boxes") p.erase("query");
     return p;
 }
 
@@ -282,19 +298,64 @@ TuneSpec load_tune_spec(const std::string& path) {
 }
 
 MeasuredCost measure(const TuneCategory& category, const std::string& structure, const json& params,
-                     std::uint32_t warmup_frames, std::uint32_t repetitions) {
+                     std::uint32_t warmup_frames, std::uint32_t repetitions, bool verify) {
     SimulationOptions o;
     o.verify = false;  // correctness is the tests' job; tuning measures speed
     o.count = false;
     o.warmup_frames = warmup_frames;
-    return summarise(run_simulations(category, structure, params, o, repetitions), category.scenes.size());
+    std::vector<SimulationResult> runs;
+    if (verify) {  // the first repetition also verified (untimed): the accuracy a constraint judges
+        SimulationOptions checked = o;
+        checked.verify = true;
+        runs = run_simulations(category, structure, params, checked, 1);
+        if (repetitions > 1) {
+            std::vector<SimulationResult> rest = run_simulations(category, structure, params, o, repetitions - 1);
+            runs.insert(runs.end(), std::make_move_iterator(rest.begin()), std::make_move_iterator(rest.end()));
+        }
+    } else {
+        runs = run_simulations(category, structure, params, o, repetitions);
+    }
+    MeasuredCost c = summarise(runs, category.scenes.size());
+    c.accuracy.exact_level = query_level_of(complete(structure, params)) != QueryLevel::candidates;
+    if (verify) {
+        c.accuracy.verified = true;
+        for (std::size_t s = 0; s < category.scenes.size(); ++s) {
+            std::uint64_t returned = 0, correct = 0, relevant = 0;
+            for (const FrameResult& f : runs[s].frames) {
+                c.accuracy.mismatches += f.mismatches();
+                if (f.warmup) continue;
+                returned += f.returned, correct += f.correct, relevant += f.relevant;
+            }
+            c.accuracy.precision = std::min(c.accuracy.precision, returned ? double(correct) / double(returned) : 1.0);
+            c.accuracy.recall = std::min(c.accuracy.recall, relevant ? double(correct) / double(relevant) : 1.0);
+        }
+    }
+    return c;
+}
+
+void set_accuracy(TuneSpec& spec, const AccuracyConstraint& accuracy) {
+    spec.accuracy = accuracy;
+    if (!accuracy.allows_inexact()) return;
+    const ParamSpec query = query_param_spec();
+    for (const std::string& structure : spec.structures) {
+        std::vector<SearchDimension>& dims = spec.space[structure];
+        if (std::none_of(dims.begin(), dims.end(), [&](const SearchDimension& d) { return d.name == query.name; }))
+            dims.push_back({query.name, levels_for(query)});
+    }
+}
+
+std::vector<const Candidate*> meeting(const std::vector<const Candidate*>& all, const AccuracyConstraint& accuracy) {
+    std::vector<const Candidate*> out;
+    for (const Candidate* c : all)
+        if (accuracy.met_by(c->measured->accuracy)) out.push_back(c);
+    return out;
 }
 
 Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category, const std::string& structure) {
     Predictor out;
     const std::vector<SearchDimension>& dims = spec.space.at(structure);
     json defaults_searched = json::object();
-    for (const SearchDimension& d : dims) defaults_searched[d.name] = find_structure(structure).defaults()[d.name];
+    for (const SearchDimension& d : dims) defaults_searched[d.name] = default_level(structure, d.name);
     // Calibrate eq. 5.4 on the defaults plus seeded random points of the space, measured.
     std::vector<FrameObservation> frames;
     Random rng(mix_seed(spec.seed, 7));
@@ -383,6 +444,7 @@ double spearman(const std::vector<double>& a, const std::vector<double>& b) {
 CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category) {
     CategoryTuning out;
     out.category = category.name;
+    std::vector<std::string> unmet;  // structures with no candidate that meets the accuracy
     for (const std::string& structure : spec.structures) {
         const Clock::time_point start = Clock::now();
         StructureTuning st;
@@ -395,7 +457,9 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
             auto it = measured_index.find(params.dump());
             if (it == measured_index.end()) {
                 Candidate c{structure, params, std::nullopt,
-                            measure(category, structure, params, spec.warmup_frames, spec.repetitions), is_default};
+                            measure(category, structure, params, spec.warmup_frames, spec.repetitions,
+                                    spec.accuracy.needs_verification()),
+                            is_default};
                 ++st.measurements;
                 st.candidates.push_back(c);
                 it = measured_index.emplace(params.dump(), st.candidates.size() - 1).first;
@@ -404,15 +468,21 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
             return st.candidates[it->second];
         };
         json defaults_searched = json::object();
-        for (const SearchDimension& d : dims) defaults_searched[d.name] = find_structure(structure).defaults()[d.name];
+        for (const SearchDimension& d : dims) defaults_searched[d.name] = default_level(structure, d.name);
         measure_candidate(defaults_searched, true);
 
         if (spec.mode == "measured") {
             // The defaults start the search and are measured already: every measurement is one of
             // the budget's evaluations.
             st.search = search_levels(
-                dims, [&](const json& p) { return measure_candidate(p, false).measured->ms; }, spec.budget, spec.seed,
-                defaults_searched);
+                dims,
+                [&](const json& p) {
+                    // A configuration that fails the accuracy is never the answer: far behind any
+                    // that meets it, and still ordered by its time so the search keeps its bearings.
+                    const MeasuredCost& m = *measure_candidate(p, false).measured;
+                    return spec.accuracy.met_by(m.accuracy) ? m.ms : kInaccuratePenalty * (1 + m.ms);
+                },
+                spec.budget, spec.seed, defaults_searched);
         } else {
             Predictor predictor = calibrate_predictor(spec, category, structure);
             st.measurements += predictor.measurements;
@@ -435,18 +505,28 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
             for (Candidate& c : st.candidates)
                 if (c.is_default && !c.predicted_ms) c.predicted_ms = predict(defaults_searched);
         }
-        st.best_candidate = std::size_t(
-            std::min_element(st.candidates.begin(), st.candidates.end(),
-                             [](const Candidate& a, const Candidate& b) { return a.measured->ms < b.measured->ms; }) -
-            st.candidates.begin());
         st.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+        std::optional<std::size_t> best;
+        for (std::size_t i = 0; i < st.candidates.size(); ++i)
+            if (spec.accuracy.met_by(st.candidates[i].measured->accuracy) &&
+                (!best || st.candidates[i].measured->ms < st.candidates[*best].measured->ms))
+                best = i;
+        if (!best) {
+            unmet.push_back(structure);
+            continue;
+        }
+        st.best_candidate = *best;
         out.structures.push_back(std::move(st));
     }
+    if (out.structures.empty())
+        throw InputError("tune: no configuration of " + join(unmet, ", ") + " on category " + category.name +
+                         " meets --accuracy " + spec.accuracy.text());
 
-    // Fastest measured overall, then the simplest within 3% of it.
-    std::vector<const Candidate*> all;
+    // Fastest measured overall among those that meet the accuracy, then the simplest within 3% of it.
+    std::vector<const Candidate*> candidates;
     for (const StructureTuning& st : out.structures)
-        for (const Candidate& c : st.candidates) all.push_back(&c);
+        for (const Candidate& c : st.candidates) candidates.push_back(&c);
+    const std::vector<const Candidate*> all = meeting(candidates, spec.accuracy);
     const Candidate* fastest = *std::min_element(all.begin(), all.end(), [](const Candidate* a, const Candidate* b) {
         return a->measured->ms < b->measured->ms;
     });
@@ -458,6 +538,9 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
                         std::to_string(out.chosen.measured->ms) + " ms) over the fastest, " + fastest->structure + " " +
                         fastest->params.dump() + " (" + std::to_string(fastest->measured->ms) +
                         " ms): within 3% and simpler";
+    if (!unmet.empty())
+        out.rule_note += std::string(out.rule_note.empty() ? "" : "; ") + "no configuration of " + join(unmet, ", ") +
+                         " met --accuracy " + spec.accuracy.text();
     return out;
 }
 
