@@ -6,6 +6,7 @@
 
 #include <filesystem>
 
+#include "analysis/charts.h"
 #include "core/error.h"
 #include "core/recording_io.h"
 #include "core/registry.h"
@@ -139,6 +140,20 @@ TEST(AccuracyColumns, ARunsFramesRoundTripThroughTheStoreAndMerge) {
         }
     }
     fs::remove_all(dir);
+}
+
+TEST(ParetoFront, KeepsTheFastestConfigurationOfEachAccuracyLevel) {
+    const std::vector<TradeoffPoint> points{
+        {"dbvh shapes", 0.9, 1.0}, {"ug boxes", 0.6, 0.78}, {"ug candidates", 0.4, 0.31}, {"hg boxes", 0.7, 0.5},
+        {"slow exact", 2.0, 1.0},  {"tie", 0.4, 0.2},       {"broken", NAN, 1.0}};
+    const std::vector<std::size_t> front = pareto_front(points);
+    EXPECT_EQ(front, (std::vector<std::size_t>{2, 1, 0}));
+    EXPECT_EQ(front_reading("S", "precision", points, front),
+              "On S, the precision front is: ug candidates (0.400 ms, precision 0.31), ug boxes (0.600 ms, 0.78), "
+              "dbvh shapes (0.900 ms, 1.00).");
+    // The fastest configuration being the most accurate leaves it alone on the front.
+    EXPECT_EQ(pareto_front({{"a", 1, 1}, {"b", 2, 0.5}}), (std::vector<std::size_t>{0}));
+    EXPECT_TRUE(pareto_front({}).empty());
 }
 
 std::string accuracy_error(const std::string& text) {
