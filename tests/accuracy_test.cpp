@@ -187,7 +187,7 @@ Candidate synthetic(const char* structure, const char* level, double ms, double 
     Candidate c;
     c.structure = structure;
     c.params = {{"query", level}};
-    MeasuredCost m{ms, 0, 0, ms, 1e6};
+    MeasuredCost m{ms, 0, 0, ms, 1e6, {}};
     m.accuracy.verified = true;
     m.accuracy.exact_level = std::string(level) != "candidates";
     m.accuracy.precision = precision;
@@ -310,7 +310,7 @@ TEST(AccuracyConstraint, TheCommandsRefuseABadConstraintInOneLine) {
         return ::test::run_shell(std::string(RCBENCH_BINARY) + " " + args);
     };
     ASSERT_EQ(run("scene gen --preset uni-s --frames 2 --rays 20 -o " + scene).code, 0);
-    for (const std::string& bad : {"recall>=nan", "precision>=2", "fast"}) {
+    for (const char* bad : {"recall>=nan", "precision>=2", "fast"}) {
         const ::test::Outcome r = run("advise " + scene + " --accuracy '" + bad + "'");
         EXPECT_EQ(r.code, 2) << r.err;
         EXPECT_EQ(r.err.rfind("rcbench: --accuracy: ", 0), 0u) << r.err;

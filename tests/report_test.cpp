@@ -156,8 +156,9 @@ TEST(Report, SpeedAgainstAccuracyNamesEachScenesParetoFrontFromTheData) {
         from = found == std::string::npos ? from : found + 1;
     }
     for (std::size_t i = 0; i < points.size(); ++i)
-        if (std::find(front.begin(), front.end(), i) == front.end())
+        if (std::find(front.begin(), front.end(), i) == front.end()) {
             EXPECT_EQ(sentence.find(points[i].label + " ("), std::string::npos) << points[i].label;
+        }
     EXPECT_EQ(points[front.back()].accuracy, 1.0);  // an exact configuration ends the front
     EXPECT_EQ(page.find("the recall front is: "), std::string::npos);
     fs::remove_all(dir);

@@ -19,9 +19,9 @@ namespace rcb {
 
 /// Accuracy of one configuration on a set of scenes.
 struct MeasuredAccuracy {
-    bool verified = false;        ///< measured against the ground truth (else only the level is known)
-    bool exact_level = true;      ///< its query level promises both sides (not candidates)
-    std::uint64_t mismatches = 0; ///< against its own contract, summed over the scenes
+    bool verified = false;             ///< measured against the ground truth (else only the level is known)
+    bool exact_level = true;           ///< its query level promises both sides (not candidates)
+    std::uint64_t mismatches = 0;      ///< against its own contract, summed over the scenes
     double precision = 1, recall = 1;  ///< the lowest over the scenes (each pooled over its frames)
 };
 
