@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "core/json_input.h"
+#include "core/query_level.h"
 #include "core/registry.h"
 #include "core/simulator.h"
 #include "runner/experiment.h"
@@ -78,7 +79,7 @@ Advice advise(const AdviseOptions& o) {
         rows.push_back({info.name, params.back().dump(), {}, is_tuned});
         // Inexact answers allowed: the same configuration at the other query levels competes too
         // (a tuned level is kept as the tuning chose it).
-        if (o.accuracy.allows_inexact() && !params.back().contains("query"))
+        if (o.accuracy.allows_inexact() && query_level_of(params.back()) == QueryLevel::boxes)
             for (const char* level : {"candidates", "shapes"}) {
                 nlohmann::json p = params.back();
                 p["query"] = level;

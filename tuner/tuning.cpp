@@ -35,16 +35,6 @@ const Recording& recording_of(const SceneSpec& scene) {
     return it->second;
 }
 
-namespace {}  // namespace
-
-json default_level(const std::string& structure, const std::string& param) {
-    // From the parameter's spec: a default that is not recorded (the box query level) is absent
-    // from defaults().
-    for (const ParamSpec& p : find_structure(structure).params)
-        if (p.name == param) return p.default_value;
-    return find_structure(structure).defaults()[param];
-}
-
 namespace {
 
 json complete(const std::string& structure, const json& searched) {
@@ -55,8 +45,6 @@ json complete(const std::string& structure, const json& searched) {
     // candidate measured again.
     for (const ParamSpec& spec : info.params)
         if (spec.kind == ParamKind::real && p[spec.name].is_number()) p[spec.name] = p[spec.name].get<double>();
-    // The box level is not recorded (core/query_level.h): searched or not, it is the defaults'.
-    if (p.contains("query") && p["query"] == "boxes") p.erase("query");
     return p;
 }
 
@@ -334,6 +322,10 @@ MeasuredCost measure(const TuneCategory& category, const std::string& structure,
     return c;
 }
 
+double constrained_cost(const MeasuredCost& cost, const AccuracyConstraint& accuracy) {
+    return accuracy.met_by(cost.accuracy) ? cost.ms : kInaccuratePenalty * (1 + cost.ms);
+}
+
 void set_accuracy(TuneSpec& spec, const AccuracyConstraint& accuracy) {
     spec.accuracy = accuracy;
     if (!accuracy.allows_inexact()) return;
@@ -356,7 +348,7 @@ Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category
     Predictor out;
     const std::vector<SearchDimension>& dims = spec.space.at(structure);
     json defaults_searched = json::object();
-    for (const SearchDimension& d : dims) defaults_searched[d.name] = default_level(structure, d.name);
+    for (const SearchDimension& d : dims) defaults_searched[d.name] = find_structure(structure).defaults()[d.name];
     // Calibrate eq. 5.4 on the defaults plus seeded random points of the space, measured.
     std::vector<FrameObservation> frames;
     Random rng(mix_seed(spec.seed, 7));
@@ -470,7 +462,7 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
             return st.candidates[it->second];
         };
         json defaults_searched = json::object();
-        for (const SearchDimension& d : dims) defaults_searched[d.name] = default_level(structure, d.name);
+        for (const SearchDimension& d : dims) defaults_searched[d.name] = find_structure(structure).defaults()[d.name];
         measure_candidate(defaults_searched, true);
 
         if (spec.mode == "measured") {
@@ -478,12 +470,7 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
             // the budget's evaluations.
             st.search = search_levels(
                 dims,
-                [&](const json& p) {
-                    // A configuration that fails the accuracy is never the answer: far behind any
-                    // that meets it, and still ordered by its time so the search keeps its bearings.
-                    const MeasuredCost& m = *measure_candidate(p, false).measured;
-                    return spec.accuracy.met_by(m.accuracy) ? m.ms : kInaccuratePenalty * (1 + m.ms);
-                },
+                [&](const json& p) { return constrained_cost(*measure_candidate(p, false).measured, spec.accuracy); },
                 spec.budget, spec.seed, defaults_searched);
         } else {
             Predictor predictor = calibrate_predictor(spec, category, structure);

@@ -64,10 +64,6 @@ TuneSpec parse_tune_spec(const std::string& text, const std::string& name, const
 /// linear steps otherwise; booleans and choices: every value).
 std::vector<SearchDimension> default_space(const std::string& structure);
 
-/// A parameter's default as a search level (the box query level included, which defaults()
-/// leaves out because it is not recorded).
-nlohmann::json default_level(const std::string& structure, const std::string& param);
-
 /// A cost with its spread over frames and repetitions (ms per frame).
 struct MeasuredCost {
     double ms = 0, mad = 0;
@@ -116,6 +112,11 @@ const Recording& recording_of(const SceneSpec& scene);
 /// times are unchanged) and the accuracy filled in; without, only the level is known.
 MeasuredCost measure(const TuneCategory& category, const std::string& structure, const nlohmann::json& params,
                      std::uint32_t warmup_frames, std::uint32_t repetitions, bool verify = false);
+
+/// What the measured search minimises: the time per frame of a configuration that meets
+/// `accuracy`, and far more (still ordered by time, so the search keeps its bearings) for one that
+/// does not.
+double constrained_cost(const MeasuredCost& cost, const AccuracyConstraint& accuracy);
 
 /// The predicted mode's cost: eq. 5.4 fitted to `spec.calibration` measured points (the defaults
 /// and seeded random points of the space), applied to the counters of an untimed replay, plus the
