@@ -136,6 +136,7 @@ struct CostBreakdown {
     double rb_term = 0, t_term = 0, prep = 0;  ///< C_RB·N_RB, C_T·N_T, C_PREP from the chosen model
     double n_tp = 0, n_fp = 0, n_t = 0;
     double c_rb = NAN, c_t = NAN;
+    double n_ro = 0, ro_term = 0;  ///< shape tests per ray and C_RO·N_RO (0 without a with-shapes model)
 };
 std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& frames,
                                           const std::vector<StructureModels>& models);

@@ -158,7 +158,9 @@ std::vector<FrameObservation> with_shape_tests(std::vector<FrameObservation> fra
 
 TEST(ModelSelection, TheNarrowPhasesCostIsRecoveredWithinItsIntervalWhereShapesWereTested) {
     const double c_ro = 12.0;
-    const auto models = fit_cost_models(with_shape_tests(synthetic_frames(0.8, 5.0, 40.0, 16, 11, 0.02), c_ro, 3));
+    const std::vector<FrameObservation> frames =
+        with_shape_tests(synthetic_frames(0.8, 5.0, 40.0, 16, 11, 0.02), c_ro, 3);
+    const auto models = fit_cost_models(frames);
     const CandidateModel* m = models[0].chosen("raycast");
     ASSERT_NE(m, nullptr);
     EXPECT_EQ(m->name, "with-shapes");
@@ -174,6 +176,12 @@ TEST(ModelSelection, TheNarrowPhasesCostIsRecoveredWithinItsIntervalWhereShapesW
         if (other.name == "eq5.4") {
             EXPECT_GT(other.heldout_error, 2 * m->heldout_error);
         }
+
+    // Table 6.3's analog carries the term: C_RO·N_RO where shapes were tested, 0 elsewhere.
+    for (const CostBreakdown& b : cost_breakdown(frames, models)) {
+        EXPECT_NEAR(b.ro_term, ro.value * b.n_ro, 1e-9 * (1 + b.ro_term));
+        EXPECT_EQ(b.n_ro > 0, b.ro_term > 0) << b.scene;
+    }
 
     // Shape tests that cost nothing measurable: the term is not needed, so eq. 5.4 stays chosen.
     const auto free = fit_cost_models(with_shape_tests(synthetic_frames(0.8, 5.0, 40.0, 16, 12, 0.02), 0.0, 4));
