@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -41,6 +42,40 @@ std::string data_label(const std::string& s) {
 bool drawable(double v) { return std::isfinite(v) && std::abs(v) < 1e100; }
 
 }  // namespace
+
+std::vector<std::size_t> pareto_front(const std::vector<TradeoffPoint>& points) {
+    std::vector<std::size_t> order;
+    for (std::size_t i = 0; i < points.size(); ++i)
+        if (std::isfinite(points[i].ms) && std::isfinite(points[i].accuracy)) order.push_back(i);
+    // Fastest first, the more accurate first among equal times: then a point is on the front
+    // exactly when it is more accurate than every point before it.
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+        if (points[a].ms != points[b].ms) return points[a].ms < points[b].ms;
+        return points[a].accuracy > points[b].accuracy;
+    });
+    std::vector<std::size_t> front;
+    for (std::size_t i : order)
+        if (front.empty() || points[i].accuracy > points[front.back()].accuracy) front.push_back(i);
+    return front;
+}
+
+std::string front_reading(const std::string& scene, const std::string& measure,
+                          const std::vector<TradeoffPoint>& points, const std::vector<std::size_t>& front) {
+    auto number = [](double v, int digits) {
+        std::ostringstream o;
+        o.setf(std::ios::fixed);
+        o.precision(digits);
+        o << v;
+        return o.str();
+    };
+    std::string out = "On " + scene + ", the " + measure + " front is: ";
+    for (std::size_t k = 0; k < front.size(); ++k) {
+        const TradeoffPoint& p = points[front[k]];
+        out += (k ? ", " : "") + p.label + " (" + number(p.ms, p.ms < 0.1 ? 4 : 3) + " ms, " +
+               (k ? "" : measure + " ") + number(p.accuracy, 2) + ")";
+    }
+    return out + ".";
+}
 
 bool gnuplot_available() { return std::system("command -v gnuplot >/dev/null 2>&1") == 0; }
 

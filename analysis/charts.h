@@ -26,6 +26,22 @@ struct Chart {
     std::string reading;  ///< one sentence saying what the chart shows
 };
 
+/// One configuration's cost and accuracy on a scene, for the speed-against-accuracy charts.
+struct TradeoffPoint {
+    std::string label;
+    double ms = 0;        ///< time per frame (update + rays, narrow phase included)
+    double accuracy = 1;  ///< precision or recall, 0..1
+};
+
+/// The Pareto front of `points` (the fastest configuration for each accuracy level): indices of
+/// the points that no other point beats by being faster and at least as accurate, fastest first.
+/// Of equal points the first is kept. Non-finite points are never on it.
+std::vector<std::size_t> pareto_front(const std::vector<TradeoffPoint>& points);
+
+/// "On S, the precision front is: a (0.400 ms, precision 0.31), b (0.600 ms, 0.78)." from the data.
+std::string front_reading(const std::string& scene, const std::string& measure,
+                          const std::vector<TradeoffPoint>& points, const std::vector<std::size_t>& front);
+
 /// The chart as an SVG document. Throws std::runtime_error when gnuplot is missing or fails.
 std::string render_svg(const Chart& chart);
 

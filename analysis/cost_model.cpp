@@ -44,6 +44,8 @@ const Term kMemory{"C_MEM", [](const FrameObservation& f) { return f.memory_mb; 
 /// What a reported hit costs beyond its box test (the visit: recording it in the ray's list). The
 /// thesis prices true and false positives alike (eq. 5.3); with few tests per ray, as brute force
 /// on a small scene or a grid's first cell, the hits' share shows.
+/// The narrow phase (thesis eq. 5.3): a test of an object's exact shape after its box was hit.
+const Term kShapes{"C_RO", [](const FrameObservation& f) { return f.n_ro; }};
 const Term kHits{"C_HIT", [](const FrameObservation& f) { return f.n_tp; }};
 
 /// The memory hierarchy: one column per cache tier the run's working sets reach beyond the
@@ -333,7 +335,8 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) 
         "SELECT config.structure, config.params, NULL, NULL, cell.scene_id, cell.config_id, frame.rays, "
         "frame.raycast_ns, frame.update_ns, frame.n_t, frame.n_rb, frame.n_tp, frame.inserts, frame.removes, "
         "frame.moves, "
-        "cell.objects, frame.memory_bytes FROM frame JOIN cell ON cell.id = frame.cell_id JOIN config ON config.id = "
+        "cell.objects, frame.memory_bytes, frame.n_ro FROM frame JOIN cell ON cell.id = frame.cell_id JOIN config ON "
+        "config.id = "
         "cell.config_id "
         "WHERE cell.run_id IN " +
         std::string(kRunGroupSql) + " AND frame.warmup = 0 ORDER BY cell.id, frame.frame");
@@ -364,6 +367,7 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) 
         f.moves = s.real(14);
         f.objects = s.real(15);
         f.memory_mb = s.real(16) / (1024.0 * 1024.0);
+        if (f.rays > 0) f.n_ro = s.real(17) / f.rays;
         out.push_back(f);
     }
     if (out.empty()) throw InputError("run " + std::to_string(run) + " has no measured frames to fit");
@@ -407,6 +411,14 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
         std::vector<Built> raycast;
         raycast.push_back(candidate("no-prep", "raycast", with_rays, columns_of(core), priors, no_prior_why));
         raycast.push_back(candidate("eq5.4", "raycast", with_rays, columns_of(full), priors, no_prior_why));
+        // The narrow phase's shape tests, where the structure ran any: a different cost per test
+        // from the box tests (a triangle's or a capsule's test is not a slab test).
+        if (!present(with_rays, {kShapes}, nullptr).empty()) {
+            std::vector<Term> with_shapes = full;
+            with_shapes.push_back(kShapes);
+            raycast.push_back(
+                candidate("with-shapes", "raycast", with_rays, columns_of(with_shapes), priors, no_prior_why));
+        }
         const std::vector<Term> hit_terms = present(with_rays, {kHits}, nullptr);
         if (!hit_terms.empty()) {
             std::vector<Term> with_hits = full;
@@ -576,10 +588,10 @@ std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& f
         std::vector<double> cost;
         for (const FrameObservation* f : fs) {
             cost.push_back(f->raycast_ns / f->rays);
-            b.n_tp += f->n_tp, b.n_fp += f->n_rb - f->n_tp, b.n_t += f->n_t;
+            b.n_tp += f->n_tp, b.n_fp += f->n_rb - f->n_tp, b.n_t += f->n_t, b.n_ro += f->n_ro;
         }
         const double n = double(fs.size());
-        b.n_tp /= n, b.n_fp /= n, b.n_t /= n;
+        b.n_tp /= n, b.n_fp /= n, b.n_t /= n, b.n_ro /= n;
         b.c_total = spread_of(cost).median;
         const std::string category = fs.front()->category;
         for (const StructureModels& s : models) {
@@ -596,6 +608,7 @@ std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& f
             b.prep = coefficient("C_PREP");
             b.rb_term = b.c_rb * (b.n_tp + b.n_fp);
             b.t_term = b.c_t * b.n_t;
+            b.ro_term = coefficient("C_RO") * b.n_ro;
         }
         out.push_back(b);
     }

@@ -2,6 +2,7 @@
 /// The thesis' performance model fitted to measurements (§5.1, eq. 5.4 and 5.5).
 ///
 /// Ray cast, per structure, per ray:   C = C_RB·N_RB + C_T·N_T + C_PREP      (N_RB = N_TP + N_FP)
+///                       with shapes:  … + C_RO·N_RO                         (eq. 5.3: the narrow phase)
 /// Update, per structure, per frame:   U = c_ins·inserts + c_rem·removes + c_mov·moves
 ///                                         + c_obj·objects (rebuilding structures) + c_frame
 ///
@@ -10,7 +11,9 @@
 /// error (k-fold over configurations) and the smallest within the tolerance of the best is kept:
 /// model no more than the data needs. The ray-cast coefficients are drawn towards the calibration
 /// pass's values (runner/calibration.h) and kept within 3× of them; a term without a calibration
-/// value that the run's data put at 0 is dropped and the model says why. The memory-hierarchy
+/// value that the run's data put at 0 is dropped and the model says why. Where a structure ran
+/// shape tests (N_RO > 0 in some frame) the with-shapes candidate adds C_RO·N_RO (eq. 5.3), chosen
+/// like any other only when the held-out error needs it. The memory-hierarchy
 /// candidate adds per-test and per-step costs for a working set beyond each cache level. Every
 /// structure is also validated leaving one scene out.
 
@@ -33,6 +36,7 @@ struct FrameObservation {
     int config_group = 0;                            ///< distinct (scene, structure, params)
     double rays = 0, raycast_ns = 0, update_ns = 0;
     double n_t = 0, n_rb = 0, n_tp = 0;  ///< per ray
+    double n_ro = 0;                     ///< narrow-phase shape tests per ray (0 below the shapes query level)
     double inserts = 0, removes = 0, moves = 0, objects = 0;
     double memory_mb = 0;
     /// Where the structure's working set (memory_mb) sits: 0 within the first data cache, 1 within
@@ -92,7 +96,7 @@ std::int64_t resolve_run(Database& db, std::int64_t run, const std::string& expe
 std::vector<FrameObservation> load_observations(Database& db, std::int64_t run);
 
 struct CandidateModel {
-    std::string name;    ///< e.g. "eq5.4", "no-prep", "per-category", "with-memory"
+    std::string name;    ///< e.g. "eq5.4", "no-prep", "with-shapes", "per-category", "with-memory"
     std::string target;  ///< "raycast" or "update"
     LinearProblem problem;
     LinearFit fit;
@@ -132,6 +136,7 @@ struct CostBreakdown {
     double rb_term = 0, t_term = 0, prep = 0;  ///< C_RB·N_RB, C_T·N_T, C_PREP from the chosen model
     double n_tp = 0, n_fp = 0, n_t = 0;
     double c_rb = NAN, c_t = NAN;
+    double n_ro = 0, ro_term = 0;  ///< shape tests per ray and C_RO·N_RO (0 without a with-shapes model)
 };
 std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& frames,
                                           const std::vector<StructureModels>& models);

@@ -1,9 +1,9 @@
 #pragma once
 /// The HTML report of a run: the thesis' tables (6.1 build, 6.2 ray cast and update, 6.3 cost
 /// breakdown, 6.4 DBVH incremental vs full SAH) and charts drawn by gnuplot (update against ray
-/// cast, speed against accuracy, predicted against measured, per-frame series, SAH cost over time,
-/// memory against time, build time against object count). One self-contained file: open it from
-/// disk, no network, no scripts.
+/// cast, time per frame against precision and recall with each scene's Pareto front named,
+/// predicted against measured, per-frame series, SAH cost over time, memory against time, build
+/// time against object count). One self-contained file: open it from disk, no network, no scripts.
 
 #include <cstdint>
 #include <string>

@@ -5,6 +5,7 @@
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "cli/table.h"
+#include "core/error.h"
 #include "tuner/advise.h"
 
 namespace rcb {
@@ -32,24 +33,53 @@ void add_advise_command(CLI::App& app) {
     cmd->add_option("--warmup", o->warmup, "Frames left out of the medians")
         ->capture_default_str()
         ->check(whole_number(0, 1'000'000));
-    cmd->callback([o] {
+    auto accuracy = std::make_shared<std::string>("exact");
+    cmd->add_option("--accuracy", *accuracy,
+                    "What the recommendation must answer: exact (no mismatches at the configuration's own query "
+                    "level), recall>=R or precision>=P (against the shapes; R, P in 0..1). A constraint other than "
+                    "exact also measures every structure at the candidates and shapes query levels")
+        ->capture_default_str();
+    cmd->callback([o, accuracy] {
         AdviseOptions options = *o;
+        options.accuracy = parse_accuracy(*accuracy);
         options.progress = [](const std::string& structure) { std::cerr << "measuring " << structure << " ...\n"; };
         const Advice advice = advise(options);
         const std::vector<AdviceRow>& rows = advice.rows;
         if (advice.chosen) std::cout << "Scene " << options.scene << " -> " << advice.chosen->explanation << "\n\n";
-        TextTable t({"structure", "parameters", "update ms", "ray cast ms", "per frame ms", "memory", ""});
-        for (const AdviceRow& r : rows)
-            t.add({r.structure, r.params, fixed(r.cost.update_ms, 4), fixed(r.cost.raycast_ms, 4),
-                   fixed(r.cost.ms, 4) + " ± " + fixed(r.cost.mad, 4), bytes_text(r.cost.memory_bytes),
-                   r.tuned ? "tuned" : "defaults"});
+        const bool verified = options.accuracy.needs_verification();
+        std::vector<std::string> header{"structure",    "parameters", "update ms", "ray cast ms",
+                                        "per frame ms", "memory",     ""};
+        if (verified) header.insert(header.end(), {"precision", "recall"});
+        TextTable t(header);
+        for (const AdviceRow& r : rows) {
+            std::vector<std::string> row{r.structure,
+                                         r.params,
+                                         fixed(r.cost.update_ms, 4),
+                                         fixed(r.cost.raycast_ms, 4),
+                                         fixed(r.cost.ms, 4) + " ± " + fixed(r.cost.mad, 4),
+                                         bytes_text(r.cost.memory_bytes),
+                                         std::string(r.tuned ? "tuned" : "defaults") + (r.meets ? "" : ", fails")};
+            if (verified)
+                row.insert(row.end(), {fixed(r.cost.accuracy.precision, 3), fixed(r.cost.accuracy.recall, 3)});
+            t.add(row);
+        }
         t.print(std::cout);
-        std::cout << "\nShip " << rows[0].structure << " " << rows[0].params << ": " << fixed(rows[0].cost.ms, 4)
-                  << " ms per frame (update " << fixed(rows[0].cost.update_ms, 4) << " + ray cast "
-                  << fixed(rows[0].cost.raycast_ms, 4) << "), " << bytes_text(rows[0].cost.memory_bytes) << ".";
-        if (rows.size() > 1)
-            std::cout << " Runner-up: " << rows[1].structure << ", " << fixed(rows[1].cost.ms / rows[0].cost.ms, 2)
-                      << "x its cost.";
+        if (!advice.recommended)
+            throw InputError(options.scene + ": no configuration meets --accuracy " + options.accuracy.text());
+        const AdviceRow& best = rows[*advice.recommended];
+        std::cout << "\nShip " << best.structure << " " << best.params << ": " << fixed(best.cost.ms, 4)
+                  << " ms per frame (update " << fixed(best.cost.update_ms, 4) << " + ray cast "
+                  << fixed(best.cost.raycast_ms, 4) << "), " << bytes_text(best.cost.memory_bytes)
+                  << (verified ? ", precision " + fixed(best.cost.accuracy.precision, 3) + ", recall " +
+                                     fixed(best.cost.accuracy.recall, 3)
+                               : std::string())
+                  << "; meets " << options.accuracy.text() << ".";
+        for (std::size_t i = *advice.recommended + 1; i < rows.size(); ++i)
+            if (rows[i].meets) {
+                std::cout << " Runner-up: " << rows[i].structure << ", " << fixed(rows[i].cost.ms / best.cost.ms, 2)
+                          << "x its cost.";
+                break;
+            }
         std::cout << '\n';
     });
 }

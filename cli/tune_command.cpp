@@ -15,6 +15,7 @@ void add_tune_command(CLI::App& app) {
         std::string file, db = "results/rcbench.db", out_dir = "results";
         bool exhaustive = false, derive = false;
         std::optional<std::uint64_t> seed;
+        std::string accuracy = "exact";
     };
     auto o = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand("tune",
@@ -27,6 +28,11 @@ void add_tune_command(CLI::App& app) {
         ->capture_default_str()
         ->check(non_empty());
     cmd->add_option("--seed", o->seed, "Override the file's search seed")->check(whole_number());
+    cmd->add_option("--accuracy", o->accuracy,
+                    "What the chosen configurations must answer: exact (no mismatches at the configuration's own "
+                    "query level), recall>=R or precision>=P (against the shapes, on every scene; R, P in 0..1). A "
+                    "constraint other than exact also searches the query level (candidates, boxes, shapes)")
+        ->capture_default_str();
     cmd->add_flag(
         "--exhaustive", o->exhaustive,
         "Also measure every configuration of each search space and report the tuner's gap to the true optimum");
@@ -35,8 +41,10 @@ void add_tune_command(CLI::App& app) {
                   "standardised scene features, k by silhouette; see docs/database.md) instead of per category "
                   "the file names");
     cmd->callback([o] {
+        const AccuracyConstraint accuracy = parse_accuracy(o->accuracy);
         TuneSpec spec = load_tune_spec(o->file);
         if (o->seed) spec.seed = *o->seed;
+        set_accuracy(spec, accuracy);
         TuneOptions options;
         options.file = o->file, options.db = o->db, options.out_dir = o->out_dir, options.exhaustive = o->exhaustive;
         options.derive_categories = o->derive;

@@ -256,6 +256,23 @@ CREATE TABLE calibration (
 ALTER TABLE fit ADD COLUMN loso_error REAL;
 ALTER TABLE fit ADD COLUMN notes TEXT NOT NULL DEFAULT '';
 )sql",
+        // 6 → 7: accuracy against the shapes' truth and the narrow phase's counters per frame
+        // (core/simulator.h FrameResult; thesis eq. 5.3). Frames stored before this version are of
+        // box-only scenes at the box level, where the shapes' truth is the boxes' truth: their
+        // accuracy follows from the mismatch counts they have (returned: distinct objects
+        // reported; correct: those not clearly missed; relevant: those plus the missed ones), and
+        // they ran no shape test. A tuning records the accuracy its choice had to meet (tuner/accuracy.h;
+        // before: exact).
+        R"sql(
+ALTER TABLE frame ADD COLUMN returned INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE frame ADD COLUMN correct INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE frame ADD COLUMN relevant INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE frame ADD COLUMN n_ro INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE frame ADD COLUMN n_ro_hits INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE tuning ADD COLUMN accuracy TEXT NOT NULL DEFAULT 'exact';
+UPDATE frame SET returned = max(hits - duplicate, 0), correct = max(hits - duplicate - extra, 0),
+                 relevant = max(hits - duplicate - extra, 0) + missed;
+)sql",
     };
     return all;
 }
@@ -569,7 +586,8 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
     Statement f = db_.prepare(
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, "
         "extra, "
-        "duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits) "
+        "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     for (const FrameResult& fr : res.frames) {
         std::optional<double> sah;
         if (fr.stats.contains("sah_cost") && fr.stats["sah_cost"].is_number()) sah = fr.stats["sah_cost"].get<double>();
@@ -577,7 +595,9 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
                    std::int64_t(fr.removes), std::int64_t(fr.moves), std::int64_t(fr.rays), std::int64_t(fr.update_ns),
                    std::int64_t(fr.raycast_ns), std::int64_t(fr.hits), std::int64_t(fr.missed), std::int64_t(fr.extra),
                    std::int64_t(fr.duplicate), std::int64_t(fr.counters.n_t), std::int64_t(fr.counters.n_rb),
-                   std::int64_t(fr.counters.n_tp), std::int64_t(fr.memory_bytes), sah, fr.stats.dump());
+                   std::int64_t(fr.counters.n_tp), std::int64_t(fr.memory_bytes), sah, fr.stats.dump(),
+                   std::int64_t(fr.returned), std::int64_t(fr.correct), std::int64_t(fr.relevant),
+                   std::int64_t(fr.counters.n_ro), std::int64_t(fr.counters.n_ro_hits));
         f.run();
     }
     t.commit();

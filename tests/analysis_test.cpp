@@ -2,6 +2,8 @@
 // outliers, collinear designs flagged, and model selection picking the model that made the data.
 #include <gtest/gtest.h>
 
+#include <map>
+
 #include "analysis/cost_model.h"
 #include "analysis/linear_fit.h"
 #include "core/random.h"
@@ -138,6 +140,55 @@ TEST(ModelSelection, PicksTheModelThatMadeTheData) {
     for (FrameObservation& f : mixed)
         if (f.category == "uniform") f.raycast_ns *= 3;  // uniform scenes cost 3× per unit here
     EXPECT_EQ(fit_cost_models(mixed)[0].chosen("raycast")->name, "per-category");
+}
+
+/// `frames` with narrow-phase tests in every other configuration (N_RO varied independently of
+/// the box tests, as tighter or looser boxes around the shapes do), costing `c_ro` ns each.
+std::vector<FrameObservation> with_shape_tests(std::vector<FrameObservation> frames, double c_ro, std::uint64_t seed) {
+    Random rng(seed);
+    std::map<int, double> n_ro;
+    for (FrameObservation& f : frames) {
+        if (f.config_group % 2 == 0) continue;  // the box-level configurations run no shape test
+        if (!n_ro.count(f.config_group)) n_ro[f.config_group] = rng.log_uniform(2, 400);
+        f.n_ro = n_ro[f.config_group] * (1 + 0.05 * rng.normal());
+        f.raycast_ns += f.rays * c_ro * f.n_ro;
+    }
+    return frames;
+}
+
+TEST(ModelSelection, TheNarrowPhasesCostIsRecoveredWithinItsIntervalWhereShapesWereTested) {
+    const double c_ro = 12.0;
+    const std::vector<FrameObservation> frames =
+        with_shape_tests(synthetic_frames(0.8, 5.0, 40.0, 16, 11, 0.02), c_ro, 3);
+    const auto models = fit_cost_models(frames);
+    const CandidateModel* m = models[0].chosen("raycast");
+    ASSERT_NE(m, nullptr);
+    EXPECT_EQ(m->name, "with-shapes");
+    ASSERT_EQ(m->fit.status(), "ok");
+    const Coefficient& ro = m->fit.coefficients.back();
+    EXPECT_EQ(ro.name, "C_RO");
+    EXPECT_LE(ro.ci_low, c_ro);
+    EXPECT_GE(ro.ci_high, c_ro);
+    EXPECT_NEAR(ro.value, c_ro, 0.1 * c_ro);
+    EXPECT_FALSE(ro.spans_zero);
+    // eq. 5.4 without the term cannot explain those frames: its held-out error is larger.
+    for (const CandidateModel& other : models[0].raycast)
+        if (other.name == "eq5.4") {
+            EXPECT_GT(other.heldout_error, 2 * m->heldout_error);
+        }
+
+    // Table 6.3's analog carries the term: C_RO·N_RO where shapes were tested, 0 elsewhere.
+    for (const CostBreakdown& b : cost_breakdown(frames, models)) {
+        EXPECT_NEAR(b.ro_term, ro.value * b.n_ro, 1e-9 * (1 + b.ro_term));
+        EXPECT_EQ(b.n_ro > 0, b.ro_term > 0) << b.scene;
+    }
+
+    // Shape tests that cost nothing measurable: the term is not needed, so eq. 5.4 stays chosen.
+    const auto free = fit_cost_models(with_shape_tests(synthetic_frames(0.8, 5.0, 40.0, 16, 12, 0.02), 0.0, 4));
+    EXPECT_EQ(free[0].chosen("raycast")->name, "eq5.4");
+    // Box-only data offers no with-shapes candidate at all.
+    for (const CandidateModel& c : fit_cost_models(synthetic_frames(0.8, 5.0, 40.0, 12, 1))[0].raycast)
+        EXPECT_NE(c.name, "with-shapes");
 }
 
 TEST(ModelSelection, UpdateCostsAreRecoveredPerOperation) {

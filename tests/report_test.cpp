@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -62,9 +63,12 @@ TEST(Report, DrawsEveryChartAndRendersInChromium) {
     const fs::path html = dir / "report.html";
     const ReportSummary s = write_report(db, run, html.string());
     const std::string page = read(html);
-    // Two scene categories (two update/ray-cast charts), accuracy, predicted/measured, per-frame
-    // series, SAH cost (dbvh and lbvh report it), memory, build.
-    EXPECT_EQ(s.charts, 8u);
+    // Two scene categories (two update/ray-cast charts), predicted/measured, per-frame series, SAH
+    // cost (dbvh and lbvh report it), memory, build; every configuration is exact at the box level
+    // on box scenes, so speed against accuracy is one line, not a flat chart.
+    EXPECT_EQ(s.charts, 7u);
+    EXPECT_NE(page.find("Every configuration was exact on every scene (no mismatches, precision = recall = 1"),
+              std::string::npos);
     EXPECT_EQ(count_of(page, "<svg"), s.charts);
     EXPECT_EQ(count_of(page, "<figcaption>"), s.charts);  // every chart has its sentence
     EXPECT_EQ(count_of(page, "<img"), 0u);                // nothing that could be a broken image
@@ -98,6 +102,65 @@ TEST(Report, DrawsEveryChartAndRendersInChromium) {
     ASSERT_GT(png.size(), 8u);
     EXPECT_EQ(png.substr(1, 3), "PNG");
     EXPECT_GT(png.size(), 60'000u);
+    fs::remove_all(dir);
+}
+
+TEST(Report, SpeedAgainstAccuracyNamesEachScenesParetoFrontFromTheData) {
+    ASSERT_TRUE(gnuplot_available());
+    const fs::path dir = fs::temp_directory_path() / ("rcb_report_front_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const std::string db_path = (dir / "r.db").string();
+    // The candidate level reports every object of the cells a ray crosses: recall 1, precision
+    // below 1; the box level is exact on box scenes.
+    const Experiment e = parse_experiment(
+        R"({"name": "front-test", "frames": 3, "rays_per_frame": 200,
+            "scenes": [{"kind": "uniform", "objects": 1500}],
+            "structures": [{"name": "ug", "grids": [{"query": "candidates"}, {"query": "boxes"}]}, {"name": "bf"}]})",
+        "front-test.json", ".");
+    RunOptions options;
+    options.db = db_path;
+    options.new_run = true;
+    const std::int64_t run = run_experiment(e, "front-test.json", options).run;
+    Database db(db_path, true);
+    const fs::path html = dir / "report.html";
+    const ReportSummary s = write_report(db, run, html.string());
+    const std::string page = read(html);
+    // One update/ray-cast chart, predicted/measured, per-frame series, memory, build (no BVH: no SAH
+    // chart), and precision on the scene; recall is 1 everywhere, said in a line, not drawn flat.
+    EXPECT_EQ(s.charts, 6u);
+    EXPECT_NE(page.find("The recall of every configuration on uniform is 1."), std::string::npos);
+    // The front in the reading, recomputed here from the stored cells.
+    std::vector<TradeoffPoint> points;
+    Statement q = db.prepare(
+        "SELECT config.structure, config.params, cell.update_ns_median / 1e6 + cell.raycast_ns_median / 1e6, "
+        "(SELECT 1.0 * sum(correct) / max(sum(returned), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0) "
+        "FROM cell JOIN config ON config.id = cell.config_id");
+    double candidates_precision = 1;
+    while (q.step()) {
+        const bool candidates = q.text(1).find("candidates") != std::string::npos;
+        if (candidates) candidates_precision = q.real(3);
+        points.push_back({q.text(0) + (candidates ? " query=candidates" : ""), q.real(2), q.real(3)});
+    }
+    EXPECT_LT(candidates_precision, 1.0);
+    ASSERT_EQ(points.size(), 3u);
+    const std::vector<std::size_t> front = pareto_front(points);
+    const std::size_t at = page.find("the precision front is: ");
+    ASSERT_NE(at, std::string::npos);
+    const std::string sentence = page.substr(at, page.find("</figcaption>", at) - at);
+    // Every configuration of the front in order, and none other.
+    std::size_t from = 0;
+    for (std::size_t i : front) {
+        const std::size_t found = sentence.find(points[i].label + " (", from);
+        EXPECT_NE(found, std::string::npos) << points[i].label << " in " << sentence;
+        from = found == std::string::npos ? from : found + 1;
+    }
+    for (std::size_t i = 0; i < points.size(); ++i)
+        if (std::find(front.begin(), front.end(), i) == front.end()) {
+            EXPECT_EQ(sentence.find(points[i].label + " ("), std::string::npos) << points[i].label;
+        }
+    EXPECT_EQ(points[front.back()].accuracy, 1.0);  // an exact configuration ends the front
+    EXPECT_EQ(page.find("the recall front is: "), std::string::npos);
     fs::remove_all(dir);
 }
 

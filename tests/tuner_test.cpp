@@ -82,7 +82,7 @@ TEST(TunerRule, PrefersTheSimplestConfigurationWithinThreePercent) {
     auto candidate = [](const char* structure, double ms, double memory) {
         Candidate c;
         c.structure = structure;
-        c.measured = MeasuredCost{ms, 0, 0, 0, memory};
+        c.measured = MeasuredCost{ms, 0, 0, 0, memory, {}};
         return c;
     };
     const Candidate hg_fast = candidate("hg", 1.00, 2e6), ug_close = candidate("ug", 1.02, 3e6),

@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "core/json_input.h"
+#include "core/query_level.h"
 #include "core/registry.h"
 #include "core/simulator.h"
 #include "runner/experiment.h"
@@ -76,13 +77,34 @@ Advice advise(const AdviseOptions& o) {
         const bool is_tuned = tuned.count(info.name) != 0;
         params.push_back(is_tuned ? info.complete(tuned[info.name], o.tuning) : info.defaults());
         rows.push_back({info.name, params.back().dump(), {}, is_tuned});
+        // Inexact answers allowed: the same configuration at the other query levels competes too
+        // (a tuned level is kept as the tuning chose it).
+        if (o.accuracy.allows_inexact() && query_level_of(params.back()) == QueryLevel::boxes)
+            for (const char* level : {"candidates", "shapes"}) {
+                nlohmann::json p = params.back();
+                p["query"] = level;
+                params.push_back(info.complete(p, "advise"));
+                rows.push_back({info.name, params.back().dump(), {}, is_tuned});
+            }
     }
     for (std::size_t i = 0; i < rows.size(); ++i) {
         if (o.progress) o.progress(rows[i].structure);
-        rows[i].cost = measure(category, rows[i].structure, params[i], o.warmup, o.repetitions);
+        rows[i].cost =
+            measure(category, rows[i].structure, params[i], o.warmup, o.repetitions, o.accuracy.needs_verification());
     }
-    std::sort(rows.begin(), rows.end(), [](const AdviceRow& a, const AdviceRow& b) { return a.cost.ms < b.cost.ms; });
+    advice.recommended = rank_advice(rows, o.accuracy);
     return advice;
+}
+
+std::optional<std::size_t> rank_advice(std::vector<AdviceRow>& rows, const AccuracyConstraint& accuracy) {
+    std::stable_sort(rows.begin(), rows.end(),
+                     [](const AdviceRow& a, const AdviceRow& b) { return a.cost.ms < b.cost.ms; });
+    std::optional<std::size_t> best;
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        rows[i].meets = accuracy.met_by(rows[i].cost.accuracy);
+        if (rows[i].meets && !best) best = i;
+    }
+    return best;
 }
 
 }  // namespace rcb

@@ -20,6 +20,9 @@ struct AdviseOptions {
     std::string category;           ///< its category; empty: the one nearest the scene's features
     std::uint32_t repetitions = 3;  ///< measurements per structure
     std::uint32_t warmup = 1;       ///< frames left out of the medians
+    /// What the recommendation must answer; one that allows inexact answers also measures every
+    /// structure at the other query levels (candidates, shapes) and verifies every measurement.
+    AccuracyConstraint accuracy;
     std::function<void(const std::string& structure)> progress;  ///< called as each structure starts
 };
 
@@ -27,6 +30,7 @@ struct AdviceRow {
     std::string structure, params;  ///< params as compact JSON
     MeasuredCost cost;
     bool tuned = false;
+    bool meets = true;  ///< meets the accuracy constraint
 };
 
 /// Which of a tuning's categories a scene resembles, and why.
@@ -38,14 +42,18 @@ struct CategoryChoice {
 };
 
 struct Advice {
-    std::vector<AdviceRow> rows;           ///< fastest per frame first
-    std::optional<CategoryChoice> chosen;  ///< when the category came from the scene's features
+    std::vector<AdviceRow> rows;             ///< fastest per frame first
+    std::optional<std::size_t> recommended;  ///< the fastest row that meets the accuracy; none when none does
+    std::optional<CategoryChoice> chosen;    ///< when the category came from the scene's features
 };
 
 /// InputError for a missing scene, --category without --tuning, a tuning file that is not a
 /// tuning result or lacks the category (or, with no category, lacks scene categories: written by
 /// an older rcbench), or warm-up that leaves no frame.
 Advice advise(const AdviseOptions& options);
+
+/// Sorts `rows` fastest first, marks which meet `accuracy`, and returns the fastest that does.
+std::optional<std::size_t> rank_advice(std::vector<AdviceRow>& rows, const AccuracyConstraint& accuracy);
 
 /// The category of `tuning` (a tuning result file) nearest the scene's features.
 CategoryChoice choose_category(const std::string& tuning, const nlohmann::json& tuning_json, const Recording& scene);

@@ -40,6 +40,10 @@ json candidate_json(const Candidate& c) {
                          {"update_ms", c.measured->update_ms},
                          {"raycast_ms", c.measured->raycast_ms},
                          {"memory_bytes", c.measured->memory_bytes}};
+    if (c.measured && c.measured->accuracy.verified)
+        j["measured"]["accuracy"] = {{"precision", c.measured->accuracy.precision},
+                                     {"recall", c.measured->accuracy.recall},
+                                     {"mismatches", c.measured->accuracy.mismatches}};
     return j;
 }
 
@@ -78,7 +82,7 @@ void store_tuning(ResultStore& store, const TuneSpec& spec, const CategoryTuning
             "measurements, "
             "seconds, stop_reason, on_bound, best_params, best_measured_ms, best_measured_mad, best_predicted_ms, "
             "default_params, "
-            "default_measured_ms, chosen) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+            "default_measured_ms, chosen, accuracy) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
         ins.bind_all(spec.name, ct.category, st.structure, st.mode, st.search.algorithm, utc_now(),
                      std::string(kGitCommit), spec.content, std::int64_t(st.search.evaluations.size()),
                      std::int64_t(st.measurements), st.seconds, st.search.stop_reason, bound.dump(), best.params.dump(),
@@ -87,6 +91,7 @@ void store_tuning(ResultStore& store, const TuneSpec& spec, const CategoryTuning
         ins.bind(18, def ? def->params.dump() : std::string("{}"));
         ins.bind(19, def ? std::optional<double>(def->measured->ms) : std::nullopt);
         ins.bind(20, std::int64_t(ct.chosen.structure == st.structure && ct.chosen.params == best.params));
+        ins.bind(21, spec.accuracy.text());
         ins.run();
         const std::int64_t id = db.last_insert_id();
         for (std::size_t i = 0; i < st.search.evaluations.size(); ++i)
@@ -147,15 +152,20 @@ TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
     TuneOutcome outcome;
     outcome.scene_categories = categorize_tuning_scenes(spec, o.derive_categories);
     std::ostringstream md;
-    json out = {{"name", spec.name}, {"mode", spec.mode},        {"budget", spec.budget},
-                {"seed", spec.seed}, {"git_commit", kGitCommit}, {"categories", json::array()}};
+    json out = {{"name", spec.name},
+                {"mode", spec.mode},
+                {"budget", spec.budget},
+                {"seed", spec.seed},
+                {"git_commit", kGitCommit},
+                {"categories", json::array()},
+                {"accuracy", spec.accuracy.text()}};
     // What `advise` needs to map an unseen scene to one of these categories.
     out["scene_categories"] = outcome.scene_categories.to_json();
     out["scene_categories"]["derived"] = o.derive_categories;
     md << "# Tuning " << spec.name << "\n\n"
        << spec.description << "\n\nMode: " << spec.mode << "; budget " << spec.budget
        << " distinct evaluations per structure and category; seed " << spec.seed << "; " << spec.repetitions
-       << " repetitions per measurement; commit " << kGitCommit
+       << " repetitions per measurement; accuracy " << spec.accuracy.text() << "; commit " << kGitCommit
        << ". Costs are per frame: update + the frame's rays (thesis eq. 5.5), median over frames and repetitions ± "
           "MAD, "
           "averaged over the category's scenes. The thesis does not publish its grid settings, so they cannot be "
@@ -189,6 +199,11 @@ TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
                 const Candidate& c = st.candidates[i];
                 std::string note = c.is_default ? "defaults" : "";
                 if (i == st.best_candidate) note += std::string(note.empty() ? "" : ", ") + "best measured";
+                if (c.measured->accuracy.verified)
+                    note += std::string(note.empty() ? "" : ", ") + "precision " +
+                            fixed(c.measured->accuracy.precision, 3) + ", recall " +
+                            fixed(c.measured->accuracy.recall, 3) +
+                            (spec.accuracy.met_by(c.measured->accuracy) ? "" : " (fails " + spec.accuracy.text() + ")");
                 md << "| " << c.structure << " | " << searched_parameters(spec, c) << " | "
                    << (c.predicted_ms ? fixed(*c.predicted_ms, 4) : "-") << " | " << cost_text(*c.measured) << " | "
                    << fixed(c.measured->update_ms, 4) << " | " << fixed(c.measured->raycast_ms, 4) << " | "
@@ -235,11 +250,14 @@ TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
                 for (const json& p : all) {
                     json full = find_structure(st.structure).defaults();
                     for (const auto& [k, v] : p.items()) full[k] = v;
-                    const double ms = measure(category, st.structure, full, spec.warmup_frames, spec.repetitions).ms;
+                    // The surface the search sees: configurations failing the accuracy priced out.
+                    const MeasuredCost m = measure(category, st.structure, full, spec.warmup_frames, spec.repetitions,
+                                                   spec.accuracy.needs_verification());
+                    const double ms = constrained_cost(m, spec.accuracy);
                     surface[p.dump()] = ms;
-                    measured.push_back(ms);
-                    surface_json.push_back({{"params", p}, {"ms", ms}});
-                    if (ms < best) best = ms, best_params = p;
+                    measured.push_back(m.ms);  // the prediction ranks times, not the accuracy
+                    surface_json.push_back({{"params", p}, {"ms", m.ms}, {"meets", spec.accuracy.met_by(m.accuracy)}});
+                    if (spec.accuracy.met_by(m.accuracy) && ms < best) best = ms, best_params = p;
                 }
                 const double tuned = st.candidates[st.best_candidate].measured->ms;
                 md << "| " << st.structure << " | " << all.size() << " | " << fixed(best, 4) << " "

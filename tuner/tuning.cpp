@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/random.h"
 #include "core/registry.h"
+#include "core/query_level.h"
 #include "core/simulator.h"
 
 namespace rcb {
@@ -20,6 +21,9 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
+
+/// The measured search's cost of a configuration that fails the accuracy constraint (× its time).
+constexpr double kInaccuratePenalty = 1e6;
 
 }  // namespace
 
@@ -61,6 +65,7 @@ void add_observations(const SimulationResult& r, const std::string& scene, const
         o.n_t = double(f.counters.n_t) / f.rays;
         o.n_rb = double(f.counters.n_rb) / f.rays;
         o.n_tp = double(f.counters.n_tp) / f.rays;
+        o.n_ro = double(f.counters.n_ro) / f.rays;
         o.inserts = f.inserts, o.removes = f.removes, o.moves = f.moves, o.objects = double(r.objects);
         o.memory_mb = double(f.memory_bytes) / (1024.0 * 1024.0);
         out.push_back(o);
@@ -282,12 +287,61 @@ TuneSpec load_tune_spec(const std::string& path) {
 }
 
 MeasuredCost measure(const TuneCategory& category, const std::string& structure, const json& params,
-                     std::uint32_t warmup_frames, std::uint32_t repetitions) {
+                     std::uint32_t warmup_frames, std::uint32_t repetitions, bool verify) {
     SimulationOptions o;
     o.verify = false;  // correctness is the tests' job; tuning measures speed
     o.count = false;
     o.warmup_frames = warmup_frames;
-    return summarise(run_simulations(category, structure, params, o, repetitions), category.scenes.size());
+    std::vector<SimulationResult> runs;
+    if (verify) {  // the first repetition also verified (untimed): the accuracy a constraint judges
+        SimulationOptions checked = o;
+        checked.verify = true;
+        runs = run_simulations(category, structure, params, checked, 1);
+        if (repetitions > 1) {
+            std::vector<SimulationResult> rest = run_simulations(category, structure, params, o, repetitions - 1);
+            runs.insert(runs.end(), std::make_move_iterator(rest.begin()), std::make_move_iterator(rest.end()));
+        }
+    } else {
+        runs = run_simulations(category, structure, params, o, repetitions);
+    }
+    MeasuredCost c = summarise(runs, category.scenes.size());
+    c.accuracy.exact_level = query_level_of(complete(structure, params)) != QueryLevel::candidates;
+    if (verify) {
+        c.accuracy.verified = true;
+        for (std::size_t s = 0; s < category.scenes.size(); ++s) {
+            std::uint64_t returned = 0, correct = 0, relevant = 0;
+            for (const FrameResult& f : runs[s].frames) {
+                c.accuracy.mismatches += f.mismatches();
+                if (f.warmup) continue;
+                returned += f.returned, correct += f.correct, relevant += f.relevant;
+            }
+            c.accuracy.precision = std::min(c.accuracy.precision, returned ? double(correct) / double(returned) : 1.0);
+            c.accuracy.recall = std::min(c.accuracy.recall, relevant ? double(correct) / double(relevant) : 1.0);
+        }
+    }
+    return c;
+}
+
+double constrained_cost(const MeasuredCost& cost, const AccuracyConstraint& accuracy) {
+    return accuracy.met_by(cost.accuracy) ? cost.ms : kInaccuratePenalty * (1 + cost.ms);
+}
+
+void set_accuracy(TuneSpec& spec, const AccuracyConstraint& accuracy) {
+    spec.accuracy = accuracy;
+    if (!accuracy.allows_inexact()) return;
+    const ParamSpec query = query_param_spec();
+    for (const std::string& structure : spec.structures) {
+        std::vector<SearchDimension>& dims = spec.space[structure];
+        if (std::none_of(dims.begin(), dims.end(), [&](const SearchDimension& d) { return d.name == query.name; }))
+            dims.push_back({query.name, levels_for(query)});
+    }
+}
+
+std::vector<const Candidate*> meeting(const std::vector<const Candidate*>& all, const AccuracyConstraint& accuracy) {
+    std::vector<const Candidate*> out;
+    for (const Candidate* c : all)
+        if (accuracy.met_by(c->measured->accuracy)) out.push_back(c);
+    return out;
 }
 
 Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category, const std::string& structure) {
@@ -331,12 +385,12 @@ Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category
         return 0.0;
     };
     const double c_rb = coefficient("C_RB"), c_t = coefficient("C_T"), c_prep = coefficient("C_PREP"),
-                 c_mem = coefficient("C_MEM");
+                 c_mem = coefficient("C_MEM"), c_ro = coefficient("C_RO");
     SimulationOptions replay;
     replay.verify = false;
     replay.timed_cast = false;
     replay.warmup_frames = spec.warmup_frames;
-    out.predict = [c_rb, c_t, c_prep, c_mem, replay, structure, cat = &category](const json& p) {
+    out.predict = [c_rb, c_t, c_prep, c_mem, c_ro, replay, structure, cat = &category](const json& p) {
         const auto runs = run_simulations(*cat, structure, complete(structure, p), replay, 1);
         double total = 0;
         for (const SimulationResult& r : runs) {
@@ -344,7 +398,8 @@ Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category
             for (const FrameResult& f : r.frames) {
                 if (f.warmup || f.rays == 0) continue;
                 const double per_ray = c_rb * double(f.counters.n_rb) / f.rays + c_t * double(f.counters.n_t) / f.rays +
-                                       c_prep + c_mem * double(f.memory_bytes) / (1024.0 * 1024.0);
+                                       c_prep + c_mem * double(f.memory_bytes) / (1024.0 * 1024.0) +
+                                       c_ro * double(f.counters.n_ro) / f.rays;
                 frame_ms.push_back((double(f.update_ns) + f.rays * per_ray) / 1e6);
             }
             total += spread_of(frame_ms).median;
@@ -383,6 +438,7 @@ double spearman(const std::vector<double>& a, const std::vector<double>& b) {
 CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category) {
     CategoryTuning out;
     out.category = category.name;
+    std::vector<std::string> unmet;  // structures with no candidate that meets the accuracy
     for (const std::string& structure : spec.structures) {
         const Clock::time_point start = Clock::now();
         StructureTuning st;
@@ -395,7 +451,9 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
             auto it = measured_index.find(params.dump());
             if (it == measured_index.end()) {
                 Candidate c{structure, params, std::nullopt,
-                            measure(category, structure, params, spec.warmup_frames, spec.repetitions), is_default};
+                            measure(category, structure, params, spec.warmup_frames, spec.repetitions,
+                                    spec.accuracy.needs_verification()),
+                            is_default};
                 ++st.measurements;
                 st.candidates.push_back(c);
                 it = measured_index.emplace(params.dump(), st.candidates.size() - 1).first;
@@ -411,8 +469,9 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
             // The defaults start the search and are measured already: every measurement is one of
             // the budget's evaluations.
             st.search = search_levels(
-                dims, [&](const json& p) { return measure_candidate(p, false).measured->ms; }, spec.budget, spec.seed,
-                defaults_searched);
+                dims,
+                [&](const json& p) { return constrained_cost(*measure_candidate(p, false).measured, spec.accuracy); },
+                spec.budget, spec.seed, defaults_searched);
         } else {
             Predictor predictor = calibrate_predictor(spec, category, structure);
             st.measurements += predictor.measurements;
@@ -435,18 +494,28 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
             for (Candidate& c : st.candidates)
                 if (c.is_default && !c.predicted_ms) c.predicted_ms = predict(defaults_searched);
         }
-        st.best_candidate = std::size_t(
-            std::min_element(st.candidates.begin(), st.candidates.end(),
-                             [](const Candidate& a, const Candidate& b) { return a.measured->ms < b.measured->ms; }) -
-            st.candidates.begin());
         st.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+        std::optional<std::size_t> best;
+        for (std::size_t i = 0; i < st.candidates.size(); ++i)
+            if (spec.accuracy.met_by(st.candidates[i].measured->accuracy) &&
+                (!best || st.candidates[i].measured->ms < st.candidates[*best].measured->ms))
+                best = i;
+        if (!best) {
+            unmet.push_back(structure);
+            continue;
+        }
+        st.best_candidate = *best;
         out.structures.push_back(std::move(st));
     }
+    if (out.structures.empty())
+        throw InputError("tune: no configuration of " + join(unmet, ", ") + " on category " + category.name +
+                         " meets --accuracy " + spec.accuracy.text());
 
-    // Fastest measured overall, then the simplest within 3% of it.
-    std::vector<const Candidate*> all;
+    // Fastest measured overall among those that meet the accuracy, then the simplest within 3% of it.
+    std::vector<const Candidate*> candidates;
     for (const StructureTuning& st : out.structures)
-        for (const Candidate& c : st.candidates) all.push_back(&c);
+        for (const Candidate& c : st.candidates) candidates.push_back(&c);
+    const std::vector<const Candidate*> all = meeting(candidates, spec.accuracy);
     const Candidate* fastest = *std::min_element(all.begin(), all.end(), [](const Candidate* a, const Candidate* b) {
         return a->measured->ms < b->measured->ms;
     });
@@ -458,6 +527,9 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
                         std::to_string(out.chosen.measured->ms) + " ms) over the fastest, " + fastest->structure + " " +
                         fastest->params.dump() + " (" + std::to_string(fastest->measured->ms) +
                         " ms): within 3% and simpler";
+    if (!unmet.empty())
+        out.rule_note += std::string(out.rule_note.empty() ? "" : "; ") + "no configuration of " + join(unmet, ", ") +
+                         " met --accuracy " + spec.accuracy.text();
     return out;
 }
 

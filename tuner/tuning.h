@@ -25,6 +25,7 @@
 #include <nlohmann/json.hpp>
 
 #include "runner/experiment.h"
+#include "tuner/accuracy.h"
 #include "tuner/search.h"
 
 namespace rcb {
@@ -46,7 +47,13 @@ struct TuneSpec {
     std::uint32_t warmup_frames = 1;
     std::uint32_t repetitions = 2;
     std::vector<TuneCategory> categories;
+    AccuracyConstraint accuracy;  ///< what the chosen configurations must answer (set_accuracy)
 };
+
+/// Sets the spec's accuracy constraint. One that allows inexact answers adds the query level
+/// (core/query_level.h) to every structure's search space that does not name it already: the
+/// candidate level and the narrow phase then compete with the box level on speed.
+void set_accuracy(TuneSpec& spec, const AccuracyConstraint& accuracy);
 
 /// Reads and validates (errors name the file and JSON path).
 TuneSpec load_tune_spec(const std::string& path);
@@ -62,6 +69,7 @@ struct MeasuredCost {
     double ms = 0, mad = 0;
     double update_ms = 0, raycast_ms = 0;
     double memory_bytes = 0;
+    MeasuredAccuracy accuracy;  ///< verified on the first repetition when asked
 };
 
 struct Candidate {
@@ -77,7 +85,7 @@ struct StructureTuning {
     std::string mode;
     SearchResult search;
     std::vector<Candidate> candidates;                     ///< measured ones (defaults included)
-    std::size_t best_candidate = 0;                        ///< lowest measured cost
+    std::size_t best_candidate = 0;                        ///< lowest measured cost meeting the accuracy
     std::string prediction_model;                          ///< the calibration's chosen model, for predicted modes
     std::function<double(const nlohmann::json&)> predict;  ///< predicted modes: the model's cost of searched params
     double seconds = 0;
@@ -99,8 +107,16 @@ const Recording& recording_of(const SceneSpec& scene);
 /// cast, eq. 5.5) over frames × repetitions, then the mean over the category's scenes. The mean,
 /// not the median, because the cost to minimise is the time spent on the category: a setting that
 /// is slow on one scene of three costs that time, and a median over scenes would ignore it.
+///
+/// With `verify`, the first repetition is also checked against the ground truth (untimed, so the
+/// times are unchanged) and the accuracy filled in; without, only the level is known.
 MeasuredCost measure(const TuneCategory& category, const std::string& structure, const nlohmann::json& params,
-                     std::uint32_t warmup_frames, std::uint32_t repetitions);
+                     std::uint32_t warmup_frames, std::uint32_t repetitions, bool verify = false);
+
+/// What the measured search minimises: the time per frame of a configuration that meets
+/// `accuracy`, and far more (still ordered by time, so the search keeps its bearings) for one that
+/// does not.
+double constrained_cost(const MeasuredCost& cost, const AccuracyConstraint& accuracy);
 
 /// The predicted mode's cost: eq. 5.4 fitted to `spec.calibration` measured points (the defaults
 /// and seeded random points of the space), applied to the counters of an untimed replay, plus the
@@ -117,7 +133,12 @@ Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category
 /// constant side.
 double spearman(const std::vector<double>& a, const std::vector<double>& b);
 
-/// Tunes every structure of the spec on one category.
+/// The candidates among `all` that meet `accuracy`, in their order.
+std::vector<const Candidate*> meeting(const std::vector<const Candidate*>& all, const AccuracyConstraint& accuracy);
+
+/// Tunes every structure of the spec on one category. Only candidates that meet the spec's
+/// accuracy are chosen; a structure with none is left out of the result (rule_note names it), and
+/// InputError when no candidate of the category meets it.
 CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category);
 
 /// Rank for the simplicity rule: lower is simpler.
