@@ -47,6 +47,9 @@ const Term kMemory{"C_MEM", [](const FrameObservation& f) { return f.memory_mb; 
 /// The narrow phase (thesis eq. 5.3): a test of an object's exact shape after its box was hit.
 const Term kShapes{"C_RO", [](const FrameObservation& f) { return f.n_ro; }};
 const Term kHits{"C_HIT", [](const FrameObservation& f) { return f.n_tp; }};
+/// What a tree step costs beyond a step when its node box is hit: the children pushed and, below,
+/// fetched (cache misses). Eq. 5.4 prices every step alike; a BVH's steps are hits and misses.
+const Term kNodeHits{"C_TH", [](const FrameObservation& f) { return f.n_th; }};
 
 /// The memory hierarchy: one column per cache tier the run's working sets reach beyond the
 /// smallest one, (w_RB·N_RB + w_T·N_T) where the working set has left the cache of level `tier`
@@ -335,7 +338,8 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) 
         "SELECT config.structure, config.params, NULL, NULL, cell.scene_id, cell.config_id, frame.rays, "
         "frame.raycast_ns, frame.update_ns, frame.n_t, frame.n_rb, frame.n_tp, frame.inserts, frame.removes, "
         "frame.moves, "
-        "cell.objects, frame.memory_bytes, frame.n_ro FROM frame JOIN cell ON cell.id = frame.cell_id JOIN config ON "
+        "cell.objects, frame.memory_bytes, frame.n_ro, frame.n_th FROM frame JOIN cell ON cell.id = frame.cell_id JOIN "
+        "config ON "
         "config.id = "
         "cell.config_id "
         "WHERE cell.run_id IN " +
@@ -367,7 +371,7 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) 
         f.moves = s.real(14);
         f.objects = s.real(15);
         f.memory_mb = s.real(16) / (1024.0 * 1024.0);
-        if (f.rays > 0) f.n_ro = s.real(17) / f.rays;
+        if (f.rays > 0) f.n_ro = s.real(17) / f.rays, f.n_th = s.real(18) / f.rays;
         out.push_back(f);
     }
     if (out.empty()) throw InputError("run " + std::to_string(run) + " has no measured frames to fit");
@@ -418,6 +422,13 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
             with_shapes.push_back(kShapes);
             raycast.push_back(
                 candidate("with-shapes", "raycast", with_rays, columns_of(with_shapes), priors, no_prior_why));
+        }
+        // Tree steps that enter a node (children pushed) against those that stop at its box.
+        if (!present(with_rays, {kNodeHits}, nullptr).empty()) {
+            std::vector<Term> with_node_hits = full;
+            with_node_hits.push_back(kNodeHits);
+            raycast.push_back(
+                candidate("with-node-hits", "raycast", with_rays, columns_of(with_node_hits), priors, no_prior_why));
         }
         const std::vector<Term> hit_terms = present(with_rays, {kHits}, nullptr);
         if (!hit_terms.empty()) {

@@ -37,6 +37,7 @@ struct FrameObservation {
     double rays = 0, raycast_ns = 0, update_ns = 0;
     double n_t = 0, n_rb = 0, n_tp = 0;  ///< per ray
     double n_ro = 0;                     ///< narrow-phase shape tests per ray (0 below the shapes query level)
+    double n_th = 0;                     ///< node boxes hit per ray (trees; 0 where not counted)
     double inserts = 0, removes = 0, moves = 0, objects = 0;
     double memory_mb = 0;
     /// Where the structure's working set (memory_mb) sits: 0 within the first data cache, 1 within

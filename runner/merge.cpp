@@ -118,7 +118,8 @@ MergeCount merge_into(ResultStore& out, Database& in) {
             Statement frames = in.prepare(
                 "SELECT frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, "
                 "duplicate, "
-                "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits FROM "
+                "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, n_th "
+                "FROM "
                 "frame "
                 "WHERE cell_id = ?");
             frames.bind(1, cells.int64(0));
@@ -126,7 +127,7 @@ MergeCount merge_into(ResultStore& out, Database& in) {
                 "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, "
                 "missed, "
                 "extra, duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, "
-                "n_ro_hits) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+                "n_ro_hits, n_th) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
             while (frames.step()) {
                 insert_frame.bind(1, cell);
                 for (int c = 0; c < 16; ++c) insert_frame.bind(c + 2, frames.int64(c));
@@ -135,7 +136,7 @@ MergeCount merge_into(ResultStore& out, Database& in) {
                 else
                     insert_frame.bind(18, frames.real(16));
                 insert_frame.bind(19, frames.text(17));
-                for (int c = 18; c < 23; ++c) insert_frame.bind(c + 2, frames.int64(c));
+                for (int c = 18; c < 24; ++c) insert_frame.bind(c + 2, frames.int64(c));
                 insert_frame.run();
             }
             {

@@ -261,7 +261,8 @@ ALTER TABLE fit ADD COLUMN notes TEXT NOT NULL DEFAULT '';
         // box-only scenes at the box level, where the shapes' truth is the boxes' truth: their
         // accuracy follows from the mismatch counts they have (returned: distinct objects
         // reported; correct: those not clearly missed; relevant: those plus the missed ones), and
-        // they ran no shape test. A tuning records the accuracy its choice had to meet (tuner/accuracy.h;
+        // they ran no shape test. n_th: the node boxes a tree's traversal hit (core/counters.h; 0 where
+        // not counted, as in older frames). A tuning records the accuracy its choice had to meet (tuner/accuracy.h;
         // before: exact).
         R"sql(
 ALTER TABLE frame ADD COLUMN returned INTEGER NOT NULL DEFAULT 0;
@@ -269,6 +270,7 @@ ALTER TABLE frame ADD COLUMN correct INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE frame ADD COLUMN relevant INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE frame ADD COLUMN n_ro INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE frame ADD COLUMN n_ro_hits INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE frame ADD COLUMN n_th INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE tuning ADD COLUMN accuracy TEXT NOT NULL DEFAULT 'exact';
 UPDATE frame SET returned = max(hits - duplicate, 0), correct = max(hits - duplicate - extra, 0),
                  relevant = max(hits - duplicate - extra, 0) + missed;
@@ -586,8 +588,8 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
     Statement f = db_.prepare(
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, "
         "extra, "
-        "duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits) "
-        "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, "
+        "n_th) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     for (const FrameResult& fr : res.frames) {
         std::optional<double> sah;
         if (fr.stats.contains("sah_cost") && fr.stats["sah_cost"].is_number()) sah = fr.stats["sah_cost"].get<double>();
@@ -597,7 +599,7 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
                    std::int64_t(fr.duplicate), std::int64_t(fr.counters.n_t), std::int64_t(fr.counters.n_rb),
                    std::int64_t(fr.counters.n_tp), std::int64_t(fr.memory_bytes), sah, fr.stats.dump(),
                    std::int64_t(fr.returned), std::int64_t(fr.correct), std::int64_t(fr.relevant),
-                   std::int64_t(fr.counters.n_ro), std::int64_t(fr.counters.n_ro_hits));
+                   std::int64_t(fr.counters.n_ro), std::int64_t(fr.counters.n_ro_hits), std::int64_t(fr.counters.n_th));
         f.run();
     }
     t.commit();

@@ -191,6 +191,31 @@ TEST(ModelSelection, TheNarrowPhasesCostIsRecoveredWithinItsIntervalWhereShapesW
         EXPECT_NE(c.name, "with-shapes");
 }
 
+TEST(ModelSelection, NodeHitsGetTheirOwnCostWhereStepsSplitUnevenly) {
+    // A tree whose steps are hits (children pushed and fetched, 9 ns more) in a share that varies
+    // by configuration independently of the step count: eq. 5.4's one C_T cannot fit it.
+    const double c_th = 9.0;
+    std::vector<FrameObservation> frames = synthetic_frames(0.8, 5.0, 40.0, 16, 21, 0.02);
+    Random rng(5);
+    std::map<int, double> share;
+    for (FrameObservation& f : frames) {
+        if (!share.count(f.config_group)) share[f.config_group] = rng.uniform(0.1, 0.9);
+        f.n_th = share[f.config_group] * f.n_t;
+        f.raycast_ns += f.rays * c_th * f.n_th;
+    }
+    const auto models = fit_cost_models(frames);
+    const CandidateModel* m = models[0].chosen("raycast");
+    ASSERT_NE(m, nullptr);
+    EXPECT_EQ(m->name, "with-node-hits");
+    const Coefficient& th = m->fit.coefficients.back();
+    EXPECT_EQ(th.name, "C_TH");
+    EXPECT_LE(th.ci_low, c_th);
+    EXPECT_GE(th.ci_high, c_th);
+    // Frames without node hits (grids, peers, older databases) offer no such candidate.
+    for (const CandidateModel& c : fit_cost_models(synthetic_frames(0.8, 5.0, 40.0, 12, 1))[0].raycast)
+        EXPECT_NE(c.name, "with-node-hits");
+}
+
 TEST(ModelSelection, UpdateCostsAreRecoveredPerOperation) {
     const auto models = fit_cost_models(synthetic_frames(0.8, 5.0, 40.0, 12, 7, 0.01));
     const CandidateModel* m = models[0].chosen("update");
