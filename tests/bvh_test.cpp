@@ -131,20 +131,6 @@ TEST(Bvh, ZeroOneAndTwoObjects) {
     }
 }
 
-std::vector<Uid> sorted_hits(Structure& s, const Segment& ray) {
-    HitLists out;
-    s.cast(std::span<const Segment>(&ray, 1), out);
-    std::vector<Uid> v(out.uids.begin(), out.uids.end());
-    std::sort(v.begin(), v.end());
-    return v;
-}
-
-Aabb random_box(Random& rng, float world) {
-    const Vec3 c{float(rng.uniform(0, world)), float(rng.uniform(0, world)), float(rng.uniform(0, world))};
-    const Vec3 h{float(rng.log_uniform(0.01, 2)), float(rng.log_uniform(0.01, 2)), float(rng.log_uniform(0.01, 2))};
-    return {c - h, c + h};
-}
-
 /// 10 000 frames of churn (removes, inserts, moves of up to an object size): every frame checked
 /// against brute force (same float slab test, so the answers must be identical), validate() every
 /// frame, and the SAH cost drift measured against a fresh binned-SAH build of the same objects.
@@ -157,7 +143,7 @@ TEST(DynamicBvh, ChurnOf10000FramesStaysCorrectAndItsSahCostBounded) {
         BruteForce bf;
         std::vector<Object> live;
         Uid next = 0;
-        for (int i = 0; i < kObjects; ++i) live.push_back({next++, random_box(rng, kWorld)});
+        for (int i = 0; i < kObjects; ++i) live.push_back({next++, test::random_box(rng, kWorld)});
         tree.build(live);
         bf.build(live);
         const double cost0 = tree.sah_cost();
@@ -170,7 +156,7 @@ TEST(DynamicBvh, ChurnOf10000FramesStaysCorrectAndItsSahCostBounded) {
                     tree.remove(live[i].uid), bf.remove(live[i].uid);
                     live[i] = live.back(), live.pop_back();
                 } else if (kind == 1 || live.empty()) {
-                    const Object o{next++, random_box(rng, kWorld)};
+                    const Object o{next++, test::random_box(rng, kWorld)};
                     tree.insert(o), bf.insert(o), live.push_back(o);
                 } else {
                     Object& o = live[rng.below(live.size())];
@@ -189,7 +175,8 @@ TEST(DynamicBvh, ChurnOf10000FramesStaysCorrectAndItsSahCostBounded) {
                                    float(rng.uniform(-5, kWorld + 5))},
                                   {float(rng.uniform(-5, kWorld + 5)), float(rng.uniform(-5, kWorld + 5)),
                                    float(rng.uniform(-5, kWorld + 5))}};
-                ASSERT_EQ(sorted_hits(tree, ray), sorted_hits(bf, ray)) << "frame " << frame << " ray " << k;
+                ASSERT_EQ(test::sorted_hits(tree, ray), test::sorted_hits(bf, ray))
+                    << "frame " << frame << " ray " << k;
             }
             if (frame % 500 == 499 || frame == kFrames - 1) {
                 DynamicBvh fresh(DynamicBvh::Params{.margin = 0.1, .mode = "rebuild"});
@@ -213,7 +200,7 @@ TEST(LinearBvh, OneAndTwoThreadsBuildIdenticalTrees) {
     Random rng(5);
     std::vector<Object> objects;
     for (Uid u = 0; u < 200000; ++u) {
-        Aabb b = random_box(rng, 1000);
+        Aabb b = test::random_box(rng, 1000);
         if (u % 3 == 0) {  // lattice: duplicate centroids and codes
             const Vec3 c{float(rng.below(8)), float(rng.below(8)), float(rng.below(8))};
             b = {c, c + Vec3{1, 1, 1}};
@@ -229,7 +216,7 @@ TEST(LinearBvh, OneAndTwoThreadsBuildIdenticalTrees) {
     EXPECT_TRUE(one.nodes() == two.nodes());
     for (Uid u = 0; u < 20000; ++u) {
         one.remove(u * 7), two.remove(u * 7);
-        const Object moved{u * 7 + 1, random_box(rng, 1000)};
+        const Object moved{u * 7 + 1, test::random_box(rng, 1000)};
         one.move(moved), two.move(moved);
     }
     one.commit();
@@ -247,7 +234,7 @@ TEST(LinearBvh, IsKarrasRadixTreeOfTheSortedCodes) {
     Random rng(11);
     std::vector<Object> objects;
     for (Uid u = 0; u < 5000; ++u) {
-        Aabb b = random_box(rng, 100);
+        Aabb b = test::random_box(rng, 100);
         if (u % 4 == 0) {  // duplicate centroids with different sizes: runs of equal codes
             const Vec3 c{float(rng.below(4)) * 10, float(rng.below(4)) * 10, float(rng.below(4)) * 10};
             const float h = float(1 + rng.below(3));

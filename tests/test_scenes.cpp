@@ -343,4 +343,18 @@ Recording with_shapes(const Recording& r, std::uint64_t seed) {
     return out;
 }
 
+std::vector<Uid> sorted_hits(Structure& s, const Segment& ray) {
+    HitLists out;
+    s.cast(std::span<const Segment>(&ray, 1), out);
+    std::vector<Uid> v(out.uids.begin(), out.uids.end());
+    std::sort(v.begin(), v.end());
+    return v;
+}
+
+Aabb random_box(Random& rng, float world) {
+    const Vec3 c{float(rng.uniform(0, world)), float(rng.uniform(0, world)), float(rng.uniform(0, world))};
+    const Vec3 h{float(rng.log_uniform(0.01, 2)), float(rng.log_uniform(0.01, 2)), float(rng.log_uniform(0.01, 2))};
+    return {c - h, c + h};
+}
+
 }  // namespace rcb::test

@@ -10,8 +10,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/random.h"
 #include "core/scene.h"
 #include "core/simulator.h"
+#include "core/structure.h"
 
 namespace rcb::test {
 
@@ -35,6 +37,12 @@ Recording generated_scene(const std::string& kind, std::uint32_t objects, std::u
 /// `r` with its objects given shapes inside their boxes, by uid (the same kind and rotation for an
 /// object all along): boxes, triangles spanning the box, rotated boxes, spheres and capsules.
 Recording with_shapes(const Recording& r, std::uint64_t seed);
+
+/// The hits of one ray, sorted by uid.
+std::vector<Uid> sorted_hits(Structure& s, const Segment& ray);
+
+/// A box centred uniformly in [0, world)³ with half extents log-uniform in [0.01, 2].
+Aabb random_box(Random& rng, float world);
 
 /// Exact reference for the segment–box test: the set of t in [0, 1] with p0 + t·d inside the box,
 /// per axis, by case analysis in double (no reciprocals, no NaN handling).

@@ -68,20 +68,6 @@ TEST(WideBvh, MatchesGroundTruthOnThePresets) {
     }
 }
 
-std::vector<Uid> sorted_hits(Structure& s, const Segment& ray) {
-    HitLists out;
-    s.cast(std::span<const Segment>(&ray, 1), out);
-    std::vector<Uid> v(out.uids.begin(), out.uids.end());
-    std::sort(v.begin(), v.end());
-    return v;
-}
-
-Aabb random_box(Random& rng, float world) {
-    const Vec3 c{float(rng.uniform(0, world)), float(rng.uniform(0, world)), float(rng.uniform(0, world))};
-    const Vec3 h{float(rng.log_uniform(0.01, 2)), float(rng.log_uniform(0.01, 2)), float(rng.log_uniform(0.01, 2))};
-    return {c - h, c + h};
-}
-
 /// Churn: removes, inserts (leaves fill and split) and moves of up to an object size, then far
 /// jumps. validate() after every batch of changes (a commit each), answers checked against brute
 /// force, and the SAH cost: its growth since the last build never above rebuild_ratio at a commit,
@@ -95,7 +81,7 @@ TEST(WideBvh, ChurnKeepsTheTreeValidAndItsSahCostWithinThePolicy) {
         BruteForce bf;
         std::vector<Object> live;
         Uid next = 0;
-        for (int i = 0; i < kObjects; ++i) live.push_back({next++, random_box(rng, kWorld)});
+        for (int i = 0; i < kObjects; ++i) live.push_back({next++, test::random_box(rng, kWorld)});
         tree.build(live);
         bf.build(live);
         double worst_vs_fresh = 0;
@@ -109,12 +95,12 @@ TEST(WideBvh, ChurnKeepsTheTreeValidAndItsSahCostWithinThePolicy) {
                         tree.remove(live[i].uid), bf.remove(live[i].uid);
                         live[i] = live.back(), live.pop_back();
                     } else if (kind == 1 || live.empty()) {
-                        const Object o{next++, random_box(rng, kWorld)};
+                        const Object o{next++, test::random_box(rng, kWorld)};
                         tree.insert(o), bf.insert(o), live.push_back(o);
                     } else {
                         Object& o = live[rng.below(live.size())];
                         if (jumps) {
-                            o.box = random_box(rng, kWorld);
+                            o.box = test::random_box(rng, kWorld);
                         } else {
                             const float reach = o.box.longest_edge();
                             const Vec3 d{float(rng.uniform(-reach, reach)), float(rng.uniform(-reach, reach)),
@@ -137,7 +123,8 @@ TEST(WideBvh, ChurnKeepsTheTreeValidAndItsSahCostWithinThePolicy) {
                                    float(rng.uniform(-5, kWorld + 5))},
                                   {float(rng.uniform(-5, kWorld + 5)), float(rng.uniform(-5, kWorld + 5)),
                                    float(rng.uniform(-5, kWorld + 5))}};
-                ASSERT_EQ(sorted_hits(tree, ray), sorted_hits(bf, ray)) << "frame " << frame << " ray " << k;
+                ASSERT_EQ(test::sorted_hits(tree, ray), test::sorted_hits(bf, ray))
+                    << "frame " << frame << " ray " << k;
             }
             if (frame % 100 == 99) {
                 WideBvh fresh;
@@ -172,18 +159,18 @@ TEST(WideBvh, NestedInsertsIntoAnEmptyTree) {
         ASSERT_NO_THROW(tree.validate()) << u;
     }
     const Segment ray{{0, 0, 0}, {1, 0, 0}};
-    EXPECT_EQ(sorted_hits(tree, ray).size(), live.size());
+    EXPECT_EQ(test::sorted_hits(tree, ray).size(), live.size());
     for (Uid u = 0; u < 300; u += 2) {
         tree.remove(u);
         tree.commit();
         ASSERT_NO_THROW(tree.validate()) << u;
     }
-    EXPECT_EQ(sorted_hits(tree, ray).size(), 150u);
+    EXPECT_EQ(test::sorted_hits(tree, ray).size(), 150u);
     for (Uid u = 1; u < 300; u += 2) tree.remove(u);
     tree.commit();
     tree.validate();
     EXPECT_EQ(tree.size(), 0u);
-    EXPECT_TRUE(sorted_hits(tree, ray).empty());
+    EXPECT_TRUE(test::sorted_hits(tree, ray).empty());
 }
 
 TEST(WideBvh, ClosestAndAnyHitStopEarly) {
