@@ -357,4 +357,36 @@ Aabb random_box(Random& rng, float world) {
     return {c - h, c + h};
 }
 
+void random_change(Random& rng, std::vector<Object>& live, Uid& next, float world, bool jump,
+                   std::initializer_list<Structure*> targets) {
+    const int kind = int(rng.below(3));
+    if (kind == 0 && live.size() > 1) {
+        const std::size_t i = rng.below(live.size());
+        for (Structure* s : targets) s->remove(live[i].uid);
+        live[i] = live.back(), live.pop_back();
+    } else if (kind == 1 || live.empty()) {
+        const Object o{next++, random_box(rng, world)};
+        for (Structure* s : targets) s->insert(o);
+        live.push_back(o);
+    } else {
+        Object& o = live[rng.below(live.size())];
+        if (jump) {
+            o.box = random_box(rng, world);
+        } else {
+            const float reach = o.box.longest_edge();
+            const Vec3 d{float(rng.uniform(-reach, reach)), float(rng.uniform(-reach, reach)),
+                         float(rng.uniform(-reach, reach))};
+            o.box = {o.box.min + d, o.box.max + d};
+        }
+        for (Structure* s : targets) s->move(o);
+    }
+}
+
+Segment random_segment(Random& rng, float world) {
+    auto coordinate = [&] { return float(rng.uniform(-5, world + 5)); };
+    const Vec3 p0{coordinate(), coordinate(), coordinate()};
+    const Vec3 p1{coordinate(), coordinate(), coordinate()};
+    return {p0, p1};
+}
+
 }  // namespace rcb::test

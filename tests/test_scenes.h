@@ -5,6 +5,7 @@
 /// the counting pass and Structure::validate() after every frame, and fails on any mismatch,
 /// naming the structure, parameters and the first discrepancies.
 
+#include <initializer_list>
 #include <string>
 #include <vector>
 
@@ -43,6 +44,15 @@ std::vector<Uid> sorted_hits(Structure& s, const Segment& ray);
 
 /// A box centred uniformly in [0, world)³ with half extents log-uniform in [0.01, 2].
 Aabb random_box(Random& rng, float world);
+
+/// One random change, applied to `live` and to every structure of `targets` (no commit): a remove,
+/// an insert of uid `next++`, or a move by up to the object's longest edge per axis (anywhere in
+/// the world with `jump`).
+void random_change(Random& rng, std::vector<Object>& live, Uid& next, float world, bool jump,
+                   std::initializer_list<Structure*> targets);
+
+/// A segment with both ends uniform in [-5, world + 5)³.
+Segment random_segment(Random& rng, float world);
 
 /// Exact reference for the segment–box test: the set of t in [0, 1] with p0 + t·d inside the box,
 /// per axis, by case analysis in double (no reciprocals, no NaN handling).

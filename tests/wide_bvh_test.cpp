@@ -88,28 +88,7 @@ TEST(WideBvh, ChurnKeepsTheTreeValidAndItsSahCostWithinThePolicy) {
         for (int frame = 0; frame < kFrames; ++frame) {
             const bool jumps = frame >= kFrames / 2;  // the second half moves objects anywhere
             for (int batch = 0; batch < 3; ++batch) {
-                for (int c = 0; c < 5; ++c) {
-                    const int kind = int(rng.below(3));
-                    if (kind == 0 && live.size() > 1) {
-                        const std::size_t i = rng.below(live.size());
-                        tree.remove(live[i].uid), bf.remove(live[i].uid);
-                        live[i] = live.back(), live.pop_back();
-                    } else if (kind == 1 || live.empty()) {
-                        const Object o{next++, test::random_box(rng, kWorld)};
-                        tree.insert(o), bf.insert(o), live.push_back(o);
-                    } else {
-                        Object& o = live[rng.below(live.size())];
-                        if (jumps) {
-                            o.box = test::random_box(rng, kWorld);
-                        } else {
-                            const float reach = o.box.longest_edge();
-                            const Vec3 d{float(rng.uniform(-reach, reach)), float(rng.uniform(-reach, reach)),
-                                         float(rng.uniform(-reach, reach))};
-                            o.box = {o.box.min + d, o.box.max + d};
-                        }
-                        tree.move(o), bf.move(o);
-                    }
-                }
+                for (int c = 0; c < 5; ++c) test::random_change(rng, live, next, kWorld, jumps, {&tree, &bf});
                 tree.commit();
                 bf.commit();
                 ASSERT_NO_THROW(tree.validate()) << "frame " << frame << " batch " << batch;
@@ -119,10 +98,7 @@ TEST(WideBvh, ChurnKeepsTheTreeValidAndItsSahCostWithinThePolicy) {
                 }
             }
             for (int k = 0; k < 3; ++k) {
-                const Segment ray{{float(rng.uniform(-5, kWorld + 5)), float(rng.uniform(-5, kWorld + 5)),
-                                   float(rng.uniform(-5, kWorld + 5))},
-                                  {float(rng.uniform(-5, kWorld + 5)), float(rng.uniform(-5, kWorld + 5)),
-                                   float(rng.uniform(-5, kWorld + 5))}};
+                const Segment ray = test::random_segment(rng, kWorld);
                 ASSERT_EQ(test::sorted_hits(tree, ray), test::sorted_hits(bf, ray))
                     << "frame " << frame << " ray " << k;
             }
