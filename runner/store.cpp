@@ -261,8 +261,7 @@ ALTER TABLE fit ADD COLUMN notes TEXT NOT NULL DEFAULT '';
         // box-only scenes at the box level, where the shapes' truth is the boxes' truth: their
         // accuracy follows from the mismatch counts they have (returned: distinct objects
         // reported; correct: those not clearly missed; relevant: those plus the missed ones), and
-        // they ran no shape test. n_th: the node boxes a tree's traversal hit (core/counters.h; 0 where
-        // not counted, as in older frames). A tuning records the accuracy its choice had to meet (tuner/accuracy.h;
+        // they ran no shape test. A tuning records the accuracy its choice had to meet (tuner/accuracy.h;
         // before: exact).
         R"sql(
 ALTER TABLE frame ADD COLUMN returned INTEGER NOT NULL DEFAULT 0;
@@ -270,10 +269,14 @@ ALTER TABLE frame ADD COLUMN correct INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE frame ADD COLUMN relevant INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE frame ADD COLUMN n_ro INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE frame ADD COLUMN n_ro_hits INTEGER NOT NULL DEFAULT 0;
-ALTER TABLE frame ADD COLUMN n_th INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE tuning ADD COLUMN accuracy TEXT NOT NULL DEFAULT 'exact';
 UPDATE frame SET returned = max(hits - duplicate, 0), correct = max(hits - duplicate - extra, 0),
                  relevant = max(hits - duplicate - extra, 0) + missed;
+)sql",
+        // 7 → 8: the node boxes a tree's traversal hit per frame (core/counters.h n_th; the cost
+        // model's C_TH). 0 where not counted: grids, peers, and frames stored before.
+        R"sql(
+ALTER TABLE frame ADD COLUMN n_th INTEGER NOT NULL DEFAULT 0;
 )sql",
     };
     return all;
