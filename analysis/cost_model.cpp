@@ -409,20 +409,18 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
         const std::vector<std::string> categories(category_set.begin(), category_set.end());
 
         // Ray cast: from the smallest model to the largest.
-        const std::vector<Term> core = present(with_rays, {kNrb, kNt}, &m.unused_terms);
+        // The narrow phase's shape tests, where the structure ran any, are a cost of their own in
+        // every candidate (a triangle's or a capsule's test is not a slab test; thesis eq. 5.3): a
+        // model without them would charge them to the box tests. Like any term without a prior,
+        // C_RO leaves a candidate when the frames cannot tell it from 0.
+        std::vector<Term> core = present(with_rays, {kNrb, kNt}, &m.unused_terms);
+        const bool shapes = !present(with_rays, {kShapes}, nullptr).empty();
+        if (shapes) core.push_back(kShapes);
         std::vector<Term> full = core;
         full.push_back(kPrep);
         std::vector<Built> raycast;
         raycast.push_back(candidate("no-prep", "raycast", with_rays, columns_of(core), priors, no_prior_why));
         raycast.push_back(candidate("eq5.4", "raycast", with_rays, columns_of(full), priors, no_prior_why));
-        // The narrow phase's shape tests, where the structure ran any: a different cost per test
-        // from the box tests (a triangle's or a capsule's test is not a slab test).
-        if (!present(with_rays, {kShapes}, nullptr).empty()) {
-            std::vector<Term> with_shapes = full;
-            with_shapes.push_back(kShapes);
-            raycast.push_back(
-                candidate("with-shapes", "raycast", with_rays, columns_of(with_shapes), priors, no_prior_why));
-        }
         // Tree steps that enter a node (children pushed) against those that stop at its box.
         if (!present(with_rays, {kNodeHits}, nullptr).empty()) {
             std::vector<Term> with_node_hits = full;
