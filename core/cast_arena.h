@@ -23,8 +23,8 @@ public:
     /// so per-slot scratch needs no lock.
     template <class Body>
     void run(std::size_t chunks, Body&& body) {
-        run_erased(chunks, [](void* b, std::size_t chunk, int slot) { (*static_cast<Body*>(b))(chunk, slot); },
-                   &body);
+        run_erased(
+            chunks, [](void* b, std::size_t chunk, int slot) { (*static_cast<Body*>(b))(chunk, slot); }, &body);
     }
 
 private:
