@@ -259,15 +259,15 @@ private:
             Count local = count;
             cast_range(
                 rays.subspan(rays.size() * c / chunks, rays.size() * (c + 1) / chunks - rays.size() * c / chunks),
-                parts_[c], local, scratch);
+                parts_[c].lists, local, scratch);
         });
         out.clear();
         std::size_t hits = 0;
-        for (std::size_t c = 0; c < chunks; ++c) hits += parts_[c].uids.size();
+        for (std::size_t c = 0; c < chunks; ++c) hits += parts_[c].lists.uids.size();
         out.uids.reserve(hits);
         out.offsets.reserve(rays.size() + 1);
         for (std::size_t c = 0; c < chunks; ++c) {
-            const HitLists& part = parts_[c];
+            const HitLists& part = parts_[c].lists;
             const auto base = std::uint32_t(out.uids.size());
             out.uids.insert(out.uids.end(), part.uids.begin(), part.uids.end());
             for (std::size_t r = 1; r < part.offsets.size(); ++r) out.offsets.push_back(base + part.offsets[r]);
@@ -277,7 +277,12 @@ private:
     bool candidates_ = false;
     std::vector<Scratch> scratch_ = std::vector<Scratch>(1);  // one per arena slot; 0: the caller's
     std::unique_ptr<CastArena> arena_;                        // null: one thread
-    std::vector<HitLists> parts_;                             // per chunk of a parallel batch
+    /// A chunk's hit lists on a cache line of its own: two threads appending to neighbouring lists
+    /// would write the same line at every hit.
+    struct alignas(64) Part {
+        HitLists lists;
+    };
+    std::vector<Part> parts_;  // per chunk of a parallel batch
     std::size_t last_chunks_ = 0;
 };
 

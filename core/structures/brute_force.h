@@ -19,7 +19,7 @@
 namespace rcb {
 
 /// A query's hit flags for one block of boxes (per thread: structure.h).
-struct BruteForceScratch {
+struct alignas(64) BruteForceScratch {
     /// Objects tested per block: the flags of one block stay in L1.
     static constexpr std::size_t kBlock = 1024;
     alignas(8) std::array<std::uint8_t, kBlock> hit{};

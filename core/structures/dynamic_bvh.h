@@ -97,7 +97,7 @@ public:
     }
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit, StackScratch& scratch) const {
-        traverse_bvh(*this, root_, scratch.stack.data(), s, count, visit);
+        traverse_bvh(*this, root_, scratch.stack(), s, count, visit);
     }
 
     /// The SAH cost of the tree (thesis eq. 3.2, C_T = C_I = 1; leaves with their fat boxes).

@@ -86,7 +86,7 @@ public:
     void fit(StackScratch& scratch) const { scratch.fit(nodes_.empty() ? 1u : std::size_t(nodes_[0].height) + 2u); }
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit, StackScratch& scratch) const {
-        traverse_bvh(*this, root(), scratch.stack.data(), s, count, visit);
+        traverse_bvh(*this, root(), scratch.stack(), s, count, visit);
     }
 
     /// The SAH cost of the tree (thesis eq. 3.2, C_T = C_I = 1).

@@ -104,7 +104,7 @@ public:
             near[a] = (slabs.near_is_max[a] ? 24 : 0) + 8 * a;
             far[a] = (slabs.near_is_max[a] ? 0 : 24) + 8 * a;
         }
-        std::uint32_t* stack = scratch.stack.data();
+        std::uint32_t* stack = scratch.stack();
         std::uint32_t top = 0;
         stack[top++] = root_;
         alignas(32) float t_near[kLanes];
