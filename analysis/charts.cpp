@@ -10,6 +10,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/number_text.h"
+
 namespace rcb {
 namespace {
 
@@ -146,6 +148,75 @@ std::string render_svg(const Chart& chart) {
     std::string text = svg.str();
     const auto start = text.find("<svg");
     return text.substr(start);
+}
+
+double log_log_slope(const std::vector<double>& x, const std::vector<double>& y) {
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    int n = 0;
+    for (std::size_t i = 0; i < x.size() && i < y.size(); ++i) {
+        if (!(x[i] > 0 && y[i] > 0 && std::isfinite(x[i]) && std::isfinite(y[i]))) continue;
+        const double lx = std::log(x[i]), ly = std::log(y[i]);
+        sx += lx, sy += ly, sxx += lx * lx, sxy += lx * ly, ++n;
+    }
+    const double d = n * sxx - sx * sx;
+    return n >= 2 && d > 1e-12 * std::max(1.0, n * sxx) ? (n * sxy - sx * sy) / d : NAN;
+}
+
+Chart growth_chart(const std::vector<GrowthPoint>& points, const std::string& scenes) {
+    Chart c;
+    c.title = "Per-frame cost against object count";
+    c.x_label = "objects";
+    c.y_label = "update + ray cast per frame (ms)";
+    c.log_x = c.log_y = true;
+    struct Fit {
+        std::string label;
+        double slope;
+    };
+    std::vector<Fit> fits;
+    double largest = 0;
+    for (const GrowthPoint& p : points) largest = std::max(largest, p.objects);
+    const GrowthPoint *fastest = nullptr, *slowest = nullptr;  // at the largest count
+    std::vector<std::string> labels;
+    for (const GrowthPoint& p : points)
+        if (std::find(labels.begin(), labels.end(), p.label) == labels.end()) labels.push_back(p.label);
+    for (const std::string& l : labels) {
+        std::vector<std::pair<double, double>> xy;
+        int style = 0;
+        for (const GrowthPoint& p : points)
+            if (p.label == l) {
+                xy.emplace_back(p.objects, p.frame_ms);
+                style = p.style;
+                if (p.objects == largest && p.frame_ms > 0) {
+                    if (!fastest || p.frame_ms < fastest->frame_ms) fastest = &p;
+                    if (!slowest || p.frame_ms > slowest->frame_ms) slowest = &p;
+                }
+            }
+        std::sort(xy.begin(), xy.end());
+        Series s{l, {}, {}, {}, true, style};
+        for (auto [x, y] : xy) s.x.push_back(x), s.y.push_back(y);
+        const double slope = log_log_slope(s.x, s.y);
+        if (std::isfinite(slope)) {
+            s.name += " (slope " + fixed(slope, 2) + ")";
+            fits.push_back({l, slope});
+        }
+        c.series.push_back(std::move(s));
+    }
+    if (fits.empty()) {
+        c.reading = "Too few object counts on " + scenes + " to fit slopes.";
+        return c;
+    }
+    std::string slopes;
+    for (const Fit& f : fits) slopes += (slopes.empty() ? "" : ", ") + f.label + " " + fixed(f.slope, 2);
+    const auto [flat, steep] =
+        std::minmax_element(fits.begin(), fits.end(), [](const Fit& a, const Fit& b) { return a.slope < b.slope; });
+    c.reading = "Least-squares slopes of log per-frame cost against log object count on " + scenes +
+                " (1 = linear, 0 = constant): " + slopes + ". Flattest growth: " + flat->label + " (" +
+                fixed(flat->slope, 2) + "); steepest: " + steep->label + " (" + fixed(steep->slope, 2) + ").";
+    if (fastest && slowest && fastest != slowest)
+        c.reading += " At " + fixed(largest, 0) + " objects the fastest is " + fastest->label + " (" +
+                     fixed(fastest->frame_ms, 3) + " ms per frame), the slowest " + slowest->label + " (" +
+                     fixed(slowest->frame_ms, 3) + " ms).";
+    return c;
 }
 
 }  // namespace rcb

@@ -42,6 +42,24 @@ std::vector<std::size_t> pareto_front(const std::vector<TradeoffPoint>& points);
 std::string front_reading(const std::string& scene, const std::string& measure,
                           const std::vector<TradeoffPoint>& points, const std::vector<std::size_t>& front);
 
+/// Least-squares slope of log(y) against log(x) over the points with x, y > 0; NaN with fewer than
+/// two distinct x.
+double log_log_slope(const std::vector<double>& x, const std::vector<double>& y);
+
+/// One configuration's per-frame cost (update + ray cast, ms) at one object count.
+struct GrowthPoint {
+    std::string label;
+    double objects = 0;
+    double frame_ms = 0;
+    int style = 0;  ///< as Series::style
+};
+
+/// Per-frame cost against object count on log-log axes: a series per label (in order of first
+/// appearance), its least-squares slope in the legend, and a reading computed from the points: the
+/// slopes, the flattest and steepest growth, and the fastest and slowest at the largest count.
+/// `scenes` names what the points come from ("irregular scenes").
+Chart growth_chart(const std::vector<GrowthPoint>& points, const std::string& scenes);
+
 /// The chart as an SVG document. Throws std::runtime_error when gnuplot is missing or fails.
 std::string render_svg(const Chart& chart);
 

@@ -192,19 +192,6 @@ private:
 
 std::string ms(double v) { return fixed(v, v < 0.1 ? 4 : 3); }
 
-/// Least-squares slope of log(y) against log(x).
-double log_log_slope(const std::vector<double>& x, const std::vector<double>& y) {
-    double sx = 0, sy = 0, sxx = 0, sxy = 0;
-    int n = 0;
-    for (std::size_t i = 0; i < x.size(); ++i) {
-        if (!(x[i] > 0 && y[i] > 0)) continue;
-        const double lx = std::log(x[i]), ly = std::log(y[i]);
-        sx += lx, sy += ly, sxx += lx * lx, sxy += lx * ly, ++n;
-    }
-    const double d = n * sxx - sx * sx;
-    return n >= 2 && d > 0 ? (n * sxy - sx * sy) / d : NAN;
-}
-
 /// The History section: per-run medians of the experiment's runs up to this one, on the largest
 /// scene, one line per configuration; the reading lists the steps of every scene and configuration
 /// (ray cast and update), found as runner/history.h describes. Nothing when this is the first run.
@@ -752,6 +739,26 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
         b.reading = slopes.empty() ? "Too few object counts to fit slopes."
                                    : "Slopes of log build time against log object count (1 = linear): " + slopes + ".";
         h.chart(b);
+
+        // Growth: per-frame cost against object count, on the scene category with the most distinct
+        // object counts (experiments/scale.json: irregular scenes of 10^4 to 10^6 objects).
+        std::map<std::string, std::vector<double>> counts;
+        for (const Entry& e : entries) {
+            std::vector<double>& v = counts[e.category];
+            if (std::find(v.begin(), v.end(), e.objects) == v.end()) v.push_back(e.objects);
+        }
+        std::string growth_category;
+        std::size_t most_counts = 1;
+        for (const auto& [category, v] : counts)
+            if (v.size() > most_counts) most_counts = v.size(), growth_category = category;
+        if (!growth_category.empty()) {
+            std::vector<GrowthPoint> points;
+            for (const Entry& e : entries)
+                if (e.category == growth_category)
+                    points.push_back({e.label, e.objects, e.total_ms(), style_of(e.label)});
+            h.heading("Growth with the object count");
+            h.chart(growth_chart(points, growth_category + " scenes"));
+        }
     }
 
     // Failure-mode scenes (by their generator kind) against brute force and against a

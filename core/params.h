@@ -60,6 +60,8 @@ struct Field {
     bool log_scale = false;
     /// For std::string fields: the allowed values, comma-separated.
     const char* choices = "";
+    /// ParamSpec::recorded_when_default.
+    bool recorded_when_default = true;
 };
 
 /// The same deduction spelled out: clang 14 (the fuzzing build) has no aggregate CTAD.
@@ -98,10 +100,10 @@ std::vector<ParamSpec> param_specs() {
     const P defaults{};
     std::apply(
         [&](auto... field) {
-            (specs.push_back(
-                 ParamSpec{field.name, detail::kind_of<std::remove_cvref_t<decltype(defaults.*(field.member))>>(),
-                           field.lo, field.hi, detail::split_choices(field.choices),
-                           nlohmann::json(defaults.*(field.member)), field.doc, field.tunable, field.log_scale}),
+            (specs.push_back(ParamSpec{
+                 field.name, detail::kind_of<std::remove_cvref_t<decltype(defaults.*(field.member))>>(), field.lo,
+                 field.hi, detail::split_choices(field.choices), nlohmann::json(defaults.*(field.member)), field.doc,
+                 field.tunable, field.log_scale, field.recorded_when_default}),
              ...);
         },
         P::fields());

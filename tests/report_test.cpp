@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -40,7 +41,7 @@ std::string read(const fs::path& p) {
 std::int64_t small_run(const std::string& db_path) {
     const Experiment e = parse_experiment(
         R"({"name": "report-test", "frames": 4, "rays_per_frame": 200,
-            "scenes": [{"kind": "uniform", "objects": 1500}, {"kind": "irregular", "objects": 3000, "ray_mix": "dense,center"},
+            "scenes": [{"kind": "uniform", "objects": 1500}, {"kind": "irregular", "name": "irregular-dense", "objects": 3000, "ray_mix": "dense,center"},
                        {"kind": "irregular", "objects": 6000}],
             "structures": [{"name": "bf"}, {"name": "dbvh", "grids": [{"mode": "incremental"}, {"mode": "rebuild"}]}, {"name": "lbvh"}]})",
         "report-test.json", ".");
@@ -64,16 +65,16 @@ TEST(Report, DrawsEveryChartAndRendersInChromium) {
     const ReportSummary s = write_report(db, run, html.string());
     const std::string page = read(html);
     // Two scene categories (two update/ray-cast charts), predicted/measured, per-frame series, SAH
-    // cost (dbvh and lbvh report it), memory, build; every configuration is exact at the box level
-    // on box scenes, so speed against accuracy is one line, not a flat chart.
-    EXPECT_EQ(s.charts, 7u);
+    // cost (dbvh and lbvh report it), memory, build, growth (irregular at two counts); every configuration is exact at
+    // the box level on box scenes, so speed against accuracy is one line, not a flat chart.
+    EXPECT_EQ(s.charts, 8u);
     EXPECT_NE(page.find("Every configuration was exact on every scene (no mismatches, precision = recall = 1"),
               std::string::npos);
     EXPECT_EQ(count_of(page, "<svg"), s.charts);
     EXPECT_EQ(count_of(page, "<figcaption>"), s.charts);  // every chart has its sentence
     EXPECT_EQ(count_of(page, "<img"), 0u);                // nothing that could be a broken image
     for (const char* section : {"Table 6.1", "Table 6.2", "Table 6.3", "Table 6.4", "Speed against accuracy",
-                                "Build time against object count"})
+                                "Build time against object count", "Per-frame cost against object count"})
         EXPECT_NE(page.find(section), std::string::npos) << section;
     EXPECT_EQ(page.find("http://www.w3.org/1999/xlink\" href=\"http"), std::string::npos);  // no remote resources
 
@@ -162,6 +163,28 @@ TEST(Report, SpeedAgainstAccuracyNamesEachScenesParetoFrontFromTheData) {
     EXPECT_EQ(points[front.back()].accuracy, 1.0);  // an exact configuration ends the front
     EXPECT_EQ(page.find("the recall front is: "), std::string::npos);
     fs::remove_all(dir);
+}
+
+TEST(Report, GrowthChartFitsSlopesAndReadsThemFromTheData) {
+    // a: costs 1, 10, 1000 ms at 10^4, 10^5, 10^6 (log10: 0, 1, 3 over 4, 5, 6: slope 1.5);
+    // b: 0.05·sqrt(N) (slope 0.5); c: one count only (no slope).
+    std::vector<GrowthPoint> points = {{"a", 1e4, 1.0}, {"a", 1e5, 10.0}, {"a", 1e6, 1000.0}, {"c", 1e5, 3.0}};
+    for (double n : {1e6, 1e4, 1e5}) points.push_back({"b", n, 0.05 * std::sqrt(n)});
+    const Chart c = growth_chart(points, "irregular scenes");
+    EXPECT_TRUE(c.log_x && c.log_y);
+    ASSERT_EQ(c.series.size(), 3u);
+    EXPECT_EQ(c.series[0].name, "a (slope 1.50)");
+    EXPECT_EQ(c.series[1].name, "c");
+    EXPECT_EQ(c.series[2].name, "b (slope 0.50)");
+    EXPECT_EQ(c.series[2].x, (std::vector<double>{1e4, 1e5, 1e6}));  // sorted by object count
+    EXPECT_NE(c.reading.find("a 1.50, b 0.50"), std::string::npos) << c.reading;
+    EXPECT_NE(c.reading.find("Flattest growth: b (0.50); steepest: a (1.50)"), std::string::npos) << c.reading;
+    EXPECT_NE(c.reading.find("At 1000000 objects the fastest is b (50.000 ms per frame), the slowest a (1000.000 ms)"),
+              std::string::npos)
+        << c.reading;
+    // One count per label: nothing to fit, and the reading says so.
+    EXPECT_NE(growth_chart({{"a", 1e4, 1.0}, {"b", 1e4, 2.0}}, "x").reading.find("Too few object counts"),
+              std::string::npos);
 }
 
 TEST(Report, ChartsNeedGnuplotAndSayWhyWithout) {

@@ -57,7 +57,7 @@ TEST(Experiment, ValidationNamesTheJsonPath) {
                   .find("exp.json: structures[1].name: unknown structure 'kd' (known: bf"),
               0u);
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf", "params": {"depth": 3}}]})"),
-              "exp.json: structures[0].params.depth: unknown parameter of bf (known: query, leaf_bv)");
+              "exp.json: structures[0].params.depth: unknown parameter of bf (known: cast_threads, query, leaf_bv)");
     EXPECT_EQ(error_of(R"({"scenes": [{"recording": "missing.rcbscene"}], "structures": [{"name": "bf"}]})"),
               "exp.json: scenes[0].recording: file not found: missing.rcbscene");
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "kind": "uniform"}], "structures": [{"name": "bf"}]})"),

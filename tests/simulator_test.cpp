@@ -26,7 +26,8 @@ public:
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit) {
         std::vector<std::pair<Uid, float>> all;
-        bf_.traverse(s, count, [&](Uid u, float t) { return all.emplace_back(u, t), true; });
+        bf_.traverse(
+            s, count, [&](Uid u, float t) { return all.emplace_back(u, t), true; }, scratch_);
         if (all.size() >= 2) all.pop_back();
         for (auto [u, t] : all)
             if (!visit(u, t)) return;
@@ -34,6 +35,7 @@ public:
 
 private:
     BruteForce bf_;
+    BruteForceScratch scratch_;
 };
 
 TEST(Simulator, ReportsEveryFramePhaseAndCounter) {

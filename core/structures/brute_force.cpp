@@ -39,7 +39,7 @@ void slab_test_boxes(const float* __restrict nx, const float* __restrict ny, con
 
 }  // namespace
 
-void BruteForce::test_block(const SegmentSlabs& slabs, std::size_t begin, std::size_t end) {
+void BruteForce::test_block(const SegmentSlabs& slabs, std::size_t begin, std::size_t end, std::uint8_t* hit) const {
     const float* near[3];
     const float* far[3];
     for (int a = 0; a < 3; ++a) {
@@ -49,12 +49,12 @@ void BruteForce::test_block(const SegmentSlabs& slabs, std::size_t begin, std::s
         far[a] = (slabs.near_is_max[a] ? lo : hi) + begin;
     }
     slab_test_boxes(near[0], near[1], near[2], far[0], far[1], far[2], slabs.origin.x, slabs.origin.y, slabs.origin.z,
-                    slabs.inv.x, slabs.inv.y, slabs.inv.z, end - begin, hit_.data());
+                    slabs.inv.x, slabs.inv.y, slabs.inv.z, end - begin, hit);
     const std::size_t n = end - begin, padded = (n + 7) / 8 * 8;
-    std::fill(hit_.begin() + std::ptrdiff_t(n), hit_.begin() + std::ptrdiff_t(padded), std::uint8_t(0));
+    std::fill(hit + n, hit + padded, std::uint8_t(0));
 }
 
-std::size_t BruteForce::memory_bytes() const { return objects_.memory_bytes() + sizeof(*this); }
+std::size_t BruteForce::memory_bytes() const { return objects_.memory_bytes() + sizeof(*this) + scratch_bytes(); }
 
 void BruteForce::validate() const { objects_.validate("bf"); }
 

@@ -18,13 +18,23 @@
 
 namespace rcb {
 
-class BruteForce : public StructureBase<BruteForce> {
+/// A query's hit flags for one block of boxes (per thread: structure.h).
+struct alignas(64) BruteForceScratch {
+    /// Objects tested per block: the flags of one block stay in L1.
+    static constexpr std::size_t kBlock = 1024;
+    alignas(8) std::array<std::uint8_t, kBlock> hit{};
+    std::size_t memory_bytes() const { return 0; }  // all in sizeof
+};
+
+class BruteForce : public StructureBase<BruteForce, BruteForceScratch> {
 public:
     struct Params {
-        static constexpr auto fields() { return std::tuple{}; }
+        int cast_threads = 1;
+        static constexpr auto fields() { return std::tuple{cast_threads_field<Params>()}; }
     };
 
-    explicit BruteForce(const Params& = {}) {}
+    BruteForce() : BruteForce(Params{}) {}
+    explicit BruteForce(const Params& p) { set_cast_threads(p.cast_threads); }
 
     void build(std::span<const Object> objects) override;
     void insert(const Object& object) override;
@@ -34,24 +44,24 @@ public:
     std::size_t memory_bytes() const override;
     void validate() const override;
 
+    // The traversal interface of StructureBase.
+    void prepare() {}
+    void fit(BruteForceScratch&) const {}
     template <class Count, class Visit>
-    void traverse(const Segment& s, Count& count, Visit&& visit);
+    void traverse(const Segment& s, Count& count, Visit&& visit, BruteForceScratch& scratch) const;
 
 private:
-    /// Objects tested per block: the flags of one block stay in L1.
-    static constexpr std::size_t kBlock = 1024;
+    static constexpr std::size_t kBlock = BruteForceScratch::kBlock;
 
-    /// Tests boxes [begin, end) and writes 1 (hit) or 0 per box into `hit_`, zeros up to a multiple
+    /// Tests boxes [begin, end) and writes 1 (hit) or 0 per box into `hit`, zeros up to a multiple
     /// of eight after them.
-    void test_block(const SegmentSlabs& slabs, std::size_t begin, std::size_t end);
+    void test_block(const SegmentSlabs& slabs, std::size_t begin, std::size_t end, std::uint8_t* hit) const;
 
     SoaSlotBoxes objects_;
-    // Per-block scratch of the query: hit flags, read back eight at a time.
-    alignas(8) std::array<std::uint8_t, kBlock> hit_{};
 };
 
 template <class Count, class Visit>
-void BruteForce::traverse(const Segment& s, Count& count, Visit&& visit) {
+void BruteForce::traverse(const Segment& s, Count& count, Visit&& visit, BruteForceScratch& scratch) const {
     const SegmentSlabs slabs(s);
     const std::size_t n = objects_.size();
     if constexpr (Count::candidates) {  // no test at all: every object is a candidate
@@ -104,10 +114,10 @@ void BruteForce::traverse(const Segment& s, Count& count, Visit&& visit) {
     // a time; hits are rare, so a hit's t is recomputed by the same slab test instead of stored.
     for (std::size_t begin = done; begin < n; begin += kBlock) {
         const std::size_t end = std::min(n, begin + kBlock);
-        test_block(slabs, begin, end);
+        test_block(slabs, begin, end, scratch.hit.data());
         for (std::size_t i = 0; i < end - begin; i += 8) {
             std::uint64_t word;
-            std::memcpy(&word, hit_.data() + i, sizeof word);
+            std::memcpy(&word, scratch.hit.data() + i, sizeof word);
             for (; word; word &= word - 1) {
                 const auto slot = std::uint32_t(begin + i + std::size_t(__builtin_ctzll(word) >> 3));
                 float t_near, t_far;

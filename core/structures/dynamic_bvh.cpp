@@ -14,7 +14,9 @@ float area(const Aabb& b) { return b.half_area(); }
 
 DynamicBvh::DynamicBvh() : DynamicBvh(Params{}) {}
 
-DynamicBvh::DynamicBvh(const Params& p) : params_(p), rebuild_mode_(p.mode == "rebuild") {}
+DynamicBvh::DynamicBvh(const Params& p) : params_(p), rebuild_mode_(p.mode == "rebuild") {
+    set_cast_threads(p.cast_threads);
+}
 
 std::uint32_t DynamicBvh::allocate() {
     if (free_ != kNullNode) {
@@ -574,10 +576,9 @@ double DynamicBvh::sah_cost() const {
 }
 
 std::size_t DynamicBvh::memory_bytes() const {
-    return nodes_.capacity() * sizeof(Node) + tight_.capacity() * sizeof(Aabb) +
-           stack_.capacity() * sizeof(std::uint32_t) + build_items_.capacity() * sizeof(BuildItem) +
-           bins_.capacity() * sizeof(Bin) + leaf_of_.bucket_count() * sizeof(void*) +
-           leaf_of_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) +
+    return nodes_.capacity() * sizeof(Node) + tight_.capacity() * sizeof(Aabb) + scratch_bytes() +
+           build_items_.capacity() * sizeof(BuildItem) + bins_.capacity() * sizeof(Bin) +
+           leaf_of_.bucket_count() * sizeof(void*) + leaf_of_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) +
            crowd_of_.capacity() * sizeof(std::uint32_t) + crowds_.capacity() * sizeof(Crowd) +
            packed_.capacity() * sizeof(PackedLeaf) + sizeof(*this);
 }

@@ -16,10 +16,11 @@
 #include "core/params.h"
 #include "core/structure.h"
 #include "core/structures/common/bvh_traversal.h"
+#include "core/structures/common/query_scratch.h"
 
 namespace rcb {
 
-class DynamicBvh : public StructureBase<DynamicBvh> {
+class DynamicBvh : public StructureBase<DynamicBvh, StackScratch> {
 public:
     struct Params {
         /// Leaf boxes are enlarged on every side by this fraction of the object's longest edge.
@@ -40,6 +41,7 @@ public:
         bool crowd_guard = true;
         /// incremental mode: binned-SAH rebuild when the height exceeds height_limit(size).
         bool height_guard = true;
+        int cast_threads = 1;
 
         static constexpr auto fields() {
             return std::tuple{
@@ -61,7 +63,8 @@ public:
                       "its leaves in order instead of descending (exact either way)",
                       false},
                 Field{"height_guard", &Params::height_guard, 0.0, 1.0,
-                      "incremental mode: binned-SAH rebuild when the height exceeds 4 bit_width(size) + 8", false}};
+                      "incremental mode: binned-SAH rebuild when the height exceeds 4 bit_width(size) + 8", false},
+                cast_threads_field<Params>()};
         }
     };
 
@@ -83,13 +86,18 @@ public:
     nlohmann::json stats() const override;
     void validate() const override;
 
-    template <class Count, class Visit>
-    void traverse(const Segment& s, Count& count, Visit&& visit) {
+    // The traversal interface of StructureBase: the deferred rebuild and crowd search, then const
+    // traversals with a stack per thread.
+    void prepare() {
         if (dirty_) rebuild();
         if (crowds_dirty_) find_crowds();
-        const std::uint32_t need = root_ == kNullNode ? 1u : std::uint32_t(nodes_[root_].height) + 2u;
-        if (stack_.size() < need) stack_.resize(need);
-        traverse_bvh(*this, root_, stack_.data(), s, count, visit);
+    }
+    void fit(StackScratch& scratch) const {
+        scratch.fit(root_ == kNullNode ? 1u : std::size_t(nodes_[root_].height) + 2u);
+    }
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit, StackScratch& scratch) const {
+        traverse_bvh(*this, root_, scratch.stack(), s, count, visit);
     }
 
     /// The SAH cost of the tree (thesis eq. 3.2, C_T = C_I = 1; leaves with their fat boxes).
@@ -158,7 +166,6 @@ private:
     std::uint32_t free_ = kNullNode;
     std::uint32_t free_count_ = 0;
     std::unordered_map<Uid, std::uint32_t> leaf_of_;
-    std::vector<std::uint32_t> stack_;
     // Rebuild mode.
     bool dirty_ = false;  // leaves changed, tree to be rebuilt at commit
     std::uint32_t frames_since_build_ = 0;

@@ -69,6 +69,7 @@ void CellTable::erase(std::uint64_t key) {
 // ----------------------------------------------------------------------------------------- HashGrid
 
 HashGrid::HashGrid(const Params& p) : params_(p) {
+    set_cast_threads(p.cast_threads);
     // The ranges in Params keep subdivision^max_depth ≤ 4^6 = 4096 < kMaxFineRes; checked again
     // here because a Params can be built in code without the registry's validation.
     double fine = 1;
@@ -152,7 +153,6 @@ void HashGrid::build(std::span<const Object> objects) {
     free_slots_.clear();
     slot_.clear();
     slot_.reserve(objects.size());
-    stamp_ = 0;
     entries_total_ = 0;
     build_objects_ = objects.size();
     large_.clear();
@@ -357,10 +357,10 @@ void HashGrid::insert(const Object& o) {
     if (!free_slots_.empty()) {
         slot = free_slots_.back();
         free_slots_.pop_back();
-        entries_[slot] = Entry{o.box, o.uid, 0};
+        entries_[slot] = Entry{o.box, o.uid};
     } else {
         slot = std::uint32_t(entries_.size());
-        entries_.push_back(Entry{o.box, o.uid, 0});
+        entries_.push_back(Entry{o.box, o.uid});
     }
     slot_.emplace(o.uid, slot);
     const grid::CellRange fine = lat_[params_.max_depth].range_of(o.box);
@@ -405,14 +405,6 @@ void HashGrid::move(const Object& o) {
     insert(o);
 }
 
-std::uint32_t HashGrid::next_stamp() {
-    if (++stamp_ == 0) {
-        for (Entry& e : entries_) e.stamp = 0;
-        stamp_ = 1;
-    }
-    return stamp_;
-}
-
 std::size_t HashGrid::memory_bytes() const {
     std::size_t bytes = sizeof(*this) + table_.memory_bytes();
     bytes += cells_.capacity() * sizeof(Cell) + retry_at_.capacity() * sizeof(std::uint32_t);
@@ -420,7 +412,8 @@ std::size_t HashGrid::memory_bytes() const {
     bytes += free_cells_.capacity() * sizeof(std::uint32_t);
     bytes += entries_.capacity() * sizeof(Entry) + free_slots_.capacity() * sizeof(std::uint32_t);
     bytes += slot_.bucket_count() * sizeof(void*) + slot_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t));
-    bytes += lat_.capacity() * sizeof(grid::Lattice) + pow_.capacity() * sizeof(int) + large_.memory_bytes();
+    bytes += lat_.capacity() * sizeof(grid::Lattice) + pow_.capacity() * sizeof(int) + large_.memory_bytes() +
+             scratch_bytes();
     return bytes;
 }
 

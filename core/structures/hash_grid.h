@@ -17,6 +17,7 @@
 #include "core/params.h"
 #include "core/structure.h"
 #include "core/structures/common/grid.h"
+#include "core/structures/common/query_scratch.h"
 
 namespace rcb {
 
@@ -58,7 +59,7 @@ private:
     std::size_t size_ = 0;
 };
 
-class HashGrid : public StructureBase<HashGrid> {
+class HashGrid : public StructureBase<HashGrid, StampScratch> {
 public:
     struct Params {
         double amp = 1.0;
@@ -69,6 +70,7 @@ public:
         bool entries_guard = true;
         bool outlier_guard = true;
         int max_cells = grid::kDefaultMaxCells;
+        int cast_threads = 1;
         static constexpr auto fields() {
             return std::tuple{
                 Field{"amp", &Params::amp, 0.01, 16.0, "top-level cells = objects × amp (eq. 4.2)", true, true},
@@ -90,7 +92,8 @@ public:
                 Field{"max_cells", &Params::max_cells, 0, 1 << 20,
                       "large-object guard: an object overlapping more than this many top-grid cells is kept in one "
                       "list that every ray tests once (0: off)",
-                      false}};
+                      false},
+                cast_threads_field<Params>()};
         }
     };
 
@@ -109,14 +112,16 @@ public:
     nlohmann::json stats() const override;
     void validate() const override;
 
+    // The traversal interface of StructureBase.
+    void prepare() {}
+    void fit(StampScratch& scratch) const { scratch.fit(entries_.size(), false); }
     template <class Count, class Visit>
-    void traverse(const Segment& s, Count& count, Visit&& visit);
+    void traverse(const Segment& s, Count& count, Visit&& visit, StampScratch& scratch) const;
 
 private:
     struct Entry {
         Aabb box;
         Uid uid = 0;
-        std::uint32_t stamp = 0;  ///< id of the last query that reported this object
     };
     struct Cell {
         BlockCell own;  ///< objects stored here, with copies of their boxes (box_block.h)
@@ -156,10 +161,8 @@ private:
     }
     void collapse(std::uint32_t cell, int depth, const Index& i);
     void gather_and_delete_children(int depth, const Index& i, std::vector<std::uint32_t>& out);
-    std::uint32_t next_stamp();
-
     template <class Ctx>
-    bool visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, double t_out);
+    bool visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, double t_out) const;
 
     Params params_;
     std::vector<grid::Lattice> lat_;  // per depth
@@ -172,7 +175,6 @@ private:
     std::vector<Entry> entries_;
     std::vector<std::uint32_t> free_slots_;
     std::unordered_map<Uid, std::uint32_t> slot_;
-    std::uint32_t stamp_ = 0;
     std::size_t entries_total_ = 0;  ///< sum of the cells' `own` sizes
     std::size_t build_objects_ = 0;
     /// Per cell: a leaf tries to split only with at least this many objects (see the memory guard);
@@ -193,12 +195,13 @@ struct HashGridQuery {
     SegmentSlabs slabs;
     Vec3d p0, d;
     std::uint32_t stamp;
+    std::uint32_t* stamps;  // the thread's mailboxes (query_scratch.h)
     Count& count;
     Visit& visit;
 };
 
 template <class Ctx>
-bool HashGrid::visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, double t_out) {
+bool HashGrid::visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, double t_out) const {
     ctx.count.traversal();
     const std::uint32_t id = table_.find(key_of(depth, c));
     if (id == CellTable::kNone) return true;
@@ -212,11 +215,11 @@ bool HashGrid::visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, doub
         for (unsigned hits = b.test_at<std::remove_reference_t<decltype(ctx.count)>>(ctx.slabs, tn); hits;
              hits &= hits - 1) {
             const int lane = __builtin_ctz(hits);
-            Entry& e = entries_[b.slot[lane]];
-            if (e.stamp == ctx.stamp) continue;
-            e.stamp = ctx.stamp;
+            const std::uint32_t slot = b.slot[lane];
+            if (ctx.stamps[slot] == ctx.stamp) continue;
+            ctx.stamps[slot] = ctx.stamp;
             ctx.count.hits();
-            if (!ctx.visit(e.uid, tn[lane])) return false;
+            if (!ctx.visit(entries_[slot].uid, tn[lane])) return false;
         }
     }
     if (!cell.subdivided) return true;
@@ -232,9 +235,14 @@ bool HashGrid::visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, doub
 }
 
 template <class Count, class Visit>
-void HashGrid::traverse(const Segment& s, Count& count, Visit&& visit) {
-    HashGridQuery<Count, std::remove_reference_t<Visit>> ctx{
-        SegmentSlabs(s), s.p0.as<double>(), s.p1.as<double>() - s.p0.as<double>(), next_stamp(), count, visit};
+void HashGrid::traverse(const Segment& s, Count& count, Visit&& visit, StampScratch& scratch) const {
+    HashGridQuery<Count, std::remove_reference_t<Visit>> ctx{SegmentSlabs(s),
+                                                             s.p0.as<double>(),
+                                                             s.p1.as<double>() - s.p0.as<double>(),
+                                                             scratch.next(),
+                                                             scratch.stamps.data(),
+                                                             count,
+                                                             visit};
     // Large objects first: each is in this list only, so it is tested once and needs no stamp.
     count.box_tests(large_.size());
     for (const BoxBlock& b : large_.cell().blocks) {

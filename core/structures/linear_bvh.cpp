@@ -91,6 +91,7 @@ LinearBvh::LinearBvh() : LinearBvh(Params{}) {}
 
 LinearBvh::LinearBvh(const Params& p) : params_(p) {
     if (params_.threads > 1) arena_ = std::make_unique<Arena>(params_.threads);
+    set_cast_threads(params_.cast_threads);
 }
 
 LinearBvh::~LinearBvh() = default;
@@ -205,7 +206,6 @@ void LinearBvh::rebuild() {
         common_.clear();
         ranges_.clear();
         leaf_base_ = 0;
-        stack_.assign(1, 0);
         return;
     }
     using Clock = std::chrono::steady_clock;
@@ -286,7 +286,6 @@ void LinearBvh::rebuild() {
         common_.clear();
         ranges_.clear();
         lap(phases_.tree);
-        stack_.assign(2, 0);
         return;
     }
     common_.resize(n - 1);
@@ -412,7 +411,6 @@ void LinearBvh::rebuild() {
     nodes_[0].parent = kNullNode;
     crowds_ = crowds;
     lap(phases_.tree);
-    stack_.assign(std::size_t(nodes_[0].height) + 2, 0);
 }
 
 void LinearBvh::order_equal_codes() {
@@ -455,9 +453,10 @@ std::size_t LinearBvh::memory_bytes() const {
     return nodes_.capacity() * sizeof(Node) + objects_.memory_bytes() +
            (codes_.capacity() + codes_tmp_.capacity()) * sizeof(std::uint64_t) +
            (order_.capacity() + order_tmp_.capacity() + histograms_.capacity() + bucket_start_.capacity() +
-            bound_.capacity() + stack_.capacity()) *
+            bound_.capacity()) *
                sizeof(std::uint32_t) +
-           common_.capacity() * sizeof(Aabb) + ranges_.capacity() * sizeof(ranges_[0]) + sizeof(*this);
+           scratch_bytes() + common_.capacity() * sizeof(Aabb) + ranges_.capacity() * sizeof(ranges_[0]) +
+           sizeof(*this);
 }
 
 nlohmann::json LinearBvh::stats() const {
@@ -546,7 +545,6 @@ void LinearBvh::validate() const {
     check(check, 0, first, last, common);
     if (first != 0 || last != n - 1) fail("the root does not span every leaf");
     if (crowds != crowds_) fail("crowd count " + std::to_string(crowds_) + ", tree has " + std::to_string(crowds));
-    if (stack_.size() < std::size_t(nodes_[0].height) + 2) fail("traversal stack smaller than the depth");
 }
 
 }  // namespace rcb

@@ -17,10 +17,11 @@
 #include "core/structures/common/slot_boxes.h"
 #include "core/structure.h"
 #include "core/structures/common/bvh_traversal.h"
+#include "core/structures/common/query_scratch.h"
 
 namespace rcb {
 
-class LinearBvh : public StructureBase<LinearBvh> {
+class LinearBvh : public StructureBase<LinearBvh, StackScratch> {
 public:
     struct Params {
         /// Threads of the build (1 or 2 on this machine; the tree does not depend on it).
@@ -30,12 +31,15 @@ public:
         bool outlier_guard = true;
         /// Scan the leaves of a crowd whose common box the segment meets (see "Crowds" above).
         bool crowd_guard = true;
+        /// Threads of the timed ray batch (`threads` is the build's; see docs/structures.md).
+        int cast_threads = 1;
         static constexpr auto fields() {
             return std::tuple{Field{"threads", &Params::threads, 1, 64, "build threads (TBB task arena)", false},
                               Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
                                     "Morton codes over the central 99% of the centroids when the full centroid bounds "
                                     "are over 8x larger (exact either way)",
                                     false},
+                              cast_threads_field<Params>(),
                               Field{"crowd_guard", &Params::crowd_guard, 0.0, 1.0,
                                     "a segment meeting the common box of a subtree of at least 16 boxes that share a "
                                     "point tests its leaves in order instead of descending (exact either way)",
@@ -74,10 +78,15 @@ public:
     nlohmann::json stats() const override;
     void validate() const override;
 
-    template <class Count, class Visit>
-    void traverse(const Segment& s, Count& count, Visit&& visit) {
+    // The traversal interface of StructureBase: the deferred rebuild, then const traversals with a
+    // stack per thread.
+    void prepare() {
         if (dirty_) rebuild();
-        traverse_bvh(*this, root(), stack_.data(), s, count, visit);
+    }
+    void fit(StackScratch& scratch) const { scratch.fit(nodes_.empty() ? 1u : std::size_t(nodes_[0].height) + 2u); }
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit, StackScratch& scratch) const {
+        traverse_bvh(*this, root(), scratch.stack(), s, count, visit);
     }
 
     /// The SAH cost of the tree (thesis eq. 3.2, C_T = C_I = 1).
@@ -145,7 +154,6 @@ private:
     std::vector<std::uint32_t> bound_;
     // Per chunk of leaves: the nodes [l, r] whose climb stopped at the chunk's edge.
     std::vector<std::vector<std::array<std::uint32_t, 2>>> pending_;
-    std::vector<std::uint32_t> stack_;
     // Crowds, per inner node: the intersection of the boxes below, and the first and last leaf.
     std::vector<Aabb> common_;
     std::vector<std::array<std::uint32_t, 2>> ranges_;

@@ -34,9 +34,6 @@ void UniformGrid::build(std::span<const Object> objects) {
     slot_.clear();
     slot_.reserve(objects.size());
     large_.clear();
-    stamp_ = 0;
-    stamps_.clear();
-    tested_.clear();
     for (const Object& o : objects) insert(o);
 }
 
@@ -58,12 +55,9 @@ void UniformGrid::insert(const Object& o) {
         slot = free_slots_.back();
         free_slots_.pop_back();
         entries_[slot] = Entry{o.box, o.uid};
-        stamps_[slot] = 0;
     } else {
         slot = std::uint32_t(entries_.size());
         entries_.push_back(Entry{o.box, o.uid});
-        stamps_.push_back(0);
-        if (params_.thesis_reset) tested_.push_back(0);
     }
     slot_.emplace(o.uid, slot);
     const grid::CellRange r = lat_.range_of(o.box);
@@ -112,22 +106,14 @@ void UniformGrid::move(const Object& o) {
     }
 }
 
-std::uint32_t UniformGrid::next_stamp() {
-    if (++stamp_ == 0) {  // wrapped: forget every old stamp once per 2^32 queries
-        std::fill(stamps_.begin(), stamps_.end(), 0u);
-        stamp_ = 1;
-    }
-    return stamp_;
-}
-
 std::size_t UniformGrid::memory_bytes() const {
     std::size_t bytes = sizeof(*this);
     bytes += cells_.capacity() * sizeof(BlockCell);
     for (const auto& c : cells_) bytes += c.blocks.capacity() * sizeof(BoxBlock);
-    bytes += stamps_.capacity() * sizeof(std::uint32_t);
+    bytes += scratch_bytes();
     bytes += entries_.capacity() * sizeof(Entry) + free_slots_.capacity() * sizeof(std::uint32_t);
     bytes += slot_.bucket_count() * sizeof(void*) + slot_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t));
-    bytes += tested_.capacity() + large_.memory_bytes();
+    bytes += large_.memory_bytes();
     return bytes;
 }
 
@@ -194,8 +180,6 @@ void UniformGrid::validate() const {
             fail("uid " + std::to_string(e.uid) + " is in " + std::to_string(seen[slot]) + " cells, overlaps " +
                  std::to_string(expected));
     }
-    if (stamps_.size() != entries_.size()) fail("stamps and slots differ in size");
-    if (params_.thesis_reset && tested_.size() != entries_.size()) fail("reset flags and slots differ in size");
 }
 
 }  // namespace rcb

@@ -20,10 +20,11 @@
 #include "core/structure.h"
 #include "core/structures/common/box_block.h"
 #include "core/structures/common/grid.h"
+#include "core/structures/common/query_scratch.h"
 
 namespace rcb {
 
-class UniformGrid : public StructureBase<UniformGrid> {
+class UniformGrid : public StructureBase<UniformGrid, StampScratch> {
 public:
     struct Params {
         // 4: what `rcbench tune experiments/tune-grids.json` finds on irreg-m and irreg-l (within 3%
@@ -33,6 +34,7 @@ public:
         bool thesis_reset = false;
         bool outlier_guard = true;
         int max_cells = grid::kDefaultMaxCells;
+        int cast_threads = 1;
         static constexpr auto fields() {
             return std::tuple{
                 Field{"density", &Params::density, 0.1, 64.0,
@@ -48,7 +50,8 @@ public:
                 Field{"thesis_reset", &Params::thesis_reset, 0.0, 1.0,
                       "avoid duplicate tests with the thesis' bool vector reset per ray (O(N) per ray) instead of "
                       "per-query stamps; for measuring the difference",
-                      false}};
+                      false},
+                cast_threads_field<Params>()};
         }
     };
 
@@ -56,7 +59,7 @@ public:
     static constexpr std::size_t kMaxCells = std::size_t(1) << 22;
 
     UniformGrid() : UniformGrid(Params{}) {}
-    explicit UniformGrid(const Params& p) : params_(p) {}
+    explicit UniformGrid(const Params& p) : params_(p) { set_cast_threads(p.cast_threads); }
 
     void build(std::span<const Object> objects) override;
     void insert(const Object& object) override;
@@ -67,8 +70,11 @@ public:
     nlohmann::json stats() const override;
     void validate() const override;
 
+    // The traversal interface of StructureBase.
+    void prepare() {}
+    void fit(StampScratch& scratch) const { scratch.fit(entries_.size(), params_.thesis_reset); }
     template <class Count, class Visit>
-    void traverse(const Segment& s, Count& count, Visit&& visit);
+    void traverse(const Segment& s, Count& count, Visit&& visit, StampScratch& scratch) const;
 
 private:
     struct Entry {
@@ -87,7 +93,6 @@ private:
     bool is_large(const grid::CellRange& r) const {
         return params_.max_cells > 0 && grid::cell_count(r) > std::size_t(params_.max_cells);
     }
-    std::uint32_t next_stamp();
 
     Params params_;
     grid::Lattice lat_;
@@ -98,20 +103,19 @@ private:
     std::vector<Entry> entries_;    // slot → object
     std::vector<std::uint32_t> free_slots_;
     std::unordered_map<Uid, std::uint32_t> slot_;  // uid → slot
-    std::uint32_t stamp_ = 0;
-    std::vector<std::uint32_t> stamps_;  // slot → id of the last query that reported it
-    std::vector<std::uint8_t> tested_;   // thesis_reset mode only
 };
 
 template <class Count, class Visit>
-void UniformGrid::traverse(const Segment& s, Count& count, Visit&& visit) {
+void UniformGrid::traverse(const Segment& s, Count& count, Visit&& visit, StampScratch& scratch) const {
     const SegmentSlabs slabs(s);
     const Vec3d p0 = s.p0.as<double>(), d = s.p1.as<double>() - p0;
     std::array<int, 3> start;
     for (int a = 0; a < 3; ++a) start[a] = lat_.index(a, p0[a]);
     const bool reset = params_.thesis_reset;
-    if (reset) std::fill(tested_.begin(), tested_.end(), std::uint8_t(0));
-    const std::uint32_t stamp = reset ? 0 : next_stamp();
+    std::uint8_t* tested = scratch.tested.data();
+    std::uint32_t* stamps = scratch.stamps.data();
+    if (reset) std::fill(tested, tested + entries_.size(), std::uint8_t(0));
+    const std::uint32_t stamp = reset ? 0 : scratch.next();
     // Large objects first: each is in this list only, so it is tested once and needs no stamp.
     count.box_tests(large_.size());
     for (const BoxBlock& b : large_.cell().blocks) {
@@ -134,11 +138,11 @@ void UniformGrid::traverse(const Segment& s, Count& count, Visit&& visit) {
                 // An object in several cells is tested in each (cheaper than a branch per object
                 // to skip it) and reported once.
                 if (reset) {
-                    if (tested_[slot]) continue;
-                    tested_[slot] = 1;
+                    if (tested[slot]) continue;
+                    tested[slot] = 1;
                 } else {
-                    if (stamps_[slot] == stamp) continue;
-                    stamps_[slot] = stamp;
+                    if (stamps[slot] == stamp) continue;
+                    stamps[slot] = stamp;
                 }
                 count.hits();
                 if (!visit(entries_[slot].uid, tn[lane])) return false;

@@ -43,7 +43,7 @@ Aabb WideBvh::Block::bounds() const {
 
 WideBvh::WideBvh() : WideBvh(Params{}) {}
 
-WideBvh::WideBvh(const Params& p) : params_(p) {}
+WideBvh::WideBvh(const Params& p) : params_(p) { set_cast_threads(p.cast_threads); }
 
 std::uint32_t WideBvh::allocate() {
     std::uint32_t b;
@@ -82,13 +82,6 @@ void WideBvh::mark(std::uint32_t b) {
     if (blocks_[b].dirty) return;
     blocks_[b].dirty = true;
     dirty_.push_back(b);
-}
-
-void WideBvh::grow_stack(int depth) {
-    max_depth_ = std::max(max_depth_, depth);
-    // Popping one block pushes at most 8: at most 7 per inner level on the path plus one.
-    const std::size_t need = 7 * std::size_t(max_depth_) + 8;
-    if (stack_.size() < need) stack_.resize(need);
 }
 
 void WideBvh::set_lane(std::uint32_t b, int k, const Aabb& box) {
@@ -547,9 +540,9 @@ int WideBvh::depth() const {
 
 std::size_t WideBvh::memory_bytes() const {
     return blocks_.capacity() * sizeof(Block) + where_.bucket_count() * sizeof(void*) +
-           where_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) +
-           (dirty_.capacity() + stack_.capacity()) * sizeof(std::uint32_t) + items_.capacity() * sizeof(Item) +
-           bin_scratch_.capacity() * sizeof(Bin) + right_cost_.capacity() * sizeof(double) + sizeof(*this);
+           where_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) + dirty_.capacity() * sizeof(std::uint32_t) +
+           scratch_bytes() + items_.capacity() * sizeof(Item) + bin_scratch_.capacity() * sizeof(Bin) +
+           right_cost_.capacity() * sizeof(double) + sizeof(*this);
 }
 
 nlohmann::json WideBvh::stats() const {
@@ -627,7 +620,6 @@ void WideBvh::validate() const {
         fail("leaf count says " + std::to_string(leaves_) + ", the tree has " + std::to_string(leaves));
     if (reached + free_seen != total)
         fail("blocks neither in the tree nor free: " + std::to_string(total - reached - free_seen));
-    if (stack_.size() < 7 * std::size_t(max_depth_) + 8) fail("traversal stack too small for the depth");
     const double fresh = fresh_sah_sum();
     if (!(std::abs(fresh - sah_sum_) <= 1e-6 * std::max(std::abs(fresh), sah_largest_term_ * 1e-6) + 1e-300))
         fail("running SAH sum " + std::to_string(sah_sum_) + " differs from the tree's " + std::to_string(fresh));

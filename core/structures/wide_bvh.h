@@ -8,6 +8,7 @@
 /// running SAH sum triggers a full rebuild when it exceeds `rebuild_ratio` × its value after the last
 /// build. docs/structures.md has the details.
 
+#include <algorithm>
 #include <cstdint>
 #include <tuple>
 #include <unordered_map>
@@ -15,6 +16,7 @@
 
 #include "core/params.h"
 #include "core/structure.h"
+#include "core/structures/common/query_scratch.h"
 
 #if defined(__AVX2__)
 #include <immintrin.h>
@@ -22,7 +24,7 @@
 
 namespace rcb {
 
-class WideBvh : public StructureBase<WideBvh> {
+class WideBvh : public StructureBase<WideBvh, StackScratch> {
 public:
     struct Params {
         /// Children per inner node at build time (the lanes of a node are 8 either way). 8 measured
@@ -40,6 +42,7 @@ public:
         /// A move whose new centre lies outside its leaf's box (as of the last commit) reinserts the
         /// object (remove, then insert by least area growth) instead of stretching the leaf.
         bool reinsert = false;
+        int cast_threads = 1;
 
         static constexpr auto fields() {
             return std::tuple{
@@ -53,7 +56,8 @@ public:
                       "a change)"},
                 Field{"reinsert", &Params::reinsert, 0, 1,
                       "a move whose centre leaves its leaf's box reinserts the object instead of stretching the "
-                      "leaf"}};
+                      "leaf"},
+                cast_threads_field<Params>()};
         }
     };
 
@@ -82,9 +86,15 @@ public:
     /// Inner levels above the deepest leaf (0: the root is a leaf; -1: empty).
     int depth() const;
 
-    template <class Count, class Visit>
-    void traverse(const Segment& s, Count& count, Visit&& visit) {
+    // The traversal interface of StructureBase: the deferred refit, then const traversals with a
+    // stack per thread.
+    void prepare() {
         if (!dirty_.empty()) refit();
+    }
+    /// Popping one block pushes at most 8: at most 7 per inner level on the path plus one.
+    void fit(StackScratch& scratch) const { scratch.fit(7 * std::size_t(max_depth_) + 8); }
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit, StackScratch& scratch) const {
         if (root_ == kNone) return;
         const SegmentSlabs slabs(s);
         // Per axis the offset of the near and far bounds in a block's `bound` array: min at
@@ -94,7 +104,7 @@ public:
             near[a] = (slabs.near_is_max[a] ? 24 : 0) + 8 * a;
             far[a] = (slabs.near_is_max[a] ? 0 : 24) + 8 * a;
         }
-        std::uint32_t* stack = stack_.data();
+        std::uint32_t* stack = scratch.stack();
         std::uint32_t top = 0;
         stack[top++] = root_;
         alignas(32) float t_near[kLanes];
@@ -213,7 +223,8 @@ private:
     double weight(std::uint32_t b) const { return 1.0 + (blocks_[b].leaf ? double(blocks_[b].count) : 0.0); }
     /// Unlinks the empty block `b` from its parent (and the parent, if that empties it).
     void remove_block(std::uint32_t b);
-    void grow_stack(int depth);
+    /// Raises max_depth_ to `depth` (the traversal stack follows in fit()).
+    void grow_stack(int depth) { max_depth_ = std::max(max_depth_, depth); }
     /// Σ area(lane) · weight(child) over all non-root blocks, recomputed from the tree.
     double fresh_sah_sum() const;
     double total_sah() const;
@@ -228,7 +239,6 @@ private:
     /// uid → block · 8 + lane.
     std::unordered_map<Uid, std::uint32_t> where_;
     std::vector<std::uint32_t> dirty_;
-    std::vector<std::uint32_t> stack_;
     int max_depth_ = 0;  // an upper bound on every block's depth (sizes the stack)
     // Running SAH: Σ over non-root blocks of area(its lane in the parent) · weight (double: areas
     // of boxes near the coordinate limit overflow float).
