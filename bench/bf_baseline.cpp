@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/bench_util.h"
 #include "core/error.h"
 #include "core/generators.h"
 #include "core/recording_io.h"
@@ -22,11 +23,7 @@
 namespace {
 
 using namespace rcb;
-
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-}
+using bench::median;
 
 /// The boxes per axis, padded to a multiple of eight with empty boxes (min > max: never hit).
 struct SoaScene {

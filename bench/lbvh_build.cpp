@@ -13,6 +13,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "bench/bench_util.h"
 #include "core/error.h"
 #include "core/generators.h"
 #include "core/structures/linear_bvh.h"
@@ -20,14 +21,9 @@
 namespace {
 
 using namespace rcb;
-using Clock = std::chrono::steady_clock;
-
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-}
-
-double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+using bench::Clock;
+using bench::median;
+using bench::ms_since;
 
 struct Series {
     std::vector<double> build, rebuild, codes, sort, tree;

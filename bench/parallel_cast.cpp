@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/bench_util.h"
 #include "core/error.h"
 #include "core/recording_io.h"
 #include "core/registry.h"
@@ -19,14 +20,9 @@
 namespace {
 
 using namespace rcb;
-using Clock = std::chrono::steady_clock;
-
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-}
-
-double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+using bench::Clock;
+using bench::median;
+using bench::ms_since;
 
 void print(const char* what, const std::vector<double>& t) {
     std::printf("  %-22s median %8.3f ms  (min %.3f, max %.3f)\n", what, median(t),
