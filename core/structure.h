@@ -11,7 +11,8 @@
 /// which calls `visit(uid, t_enter)` for every object whose box the closed segment meets (t_enter:
 /// the segment parameter in [0, 1] where it enters the box) and stops as soon as `visit` returns
 /// false. All hits (the workload), closest hit and any hit all run through that one loop, as do the
-/// timed pass (`NoCounting`) and the counting pass (`Counting`), see counters.h.
+/// timed pass (`NoCounting`), the counting pass (`Counting`) and the candidate level
+/// (`CandidatesOf`), see counters.h. Structures with per-query state use the Scratch form below.
 
 #include <algorithm>
 #include <cstddef>
