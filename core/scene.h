@@ -21,6 +21,10 @@ struct Object {
     Uid uid = 0;
     Aabb box;
     Shape shape;
+
+    constexpr Object() = default;
+    /// A box object (the default shape), or with its shape: `shape`'s bounds must be `box`.
+    constexpr Object(Uid u, const Aabb& b, const Shape& s = {}) : uid(u), box(b), shape(s) {}
     friend bool operator==(const Object&, const Object&) = default;
 };
 
