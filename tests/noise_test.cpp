@@ -55,7 +55,9 @@ TEST(NoiseState, TheCalibrationLoopTakesAFewMillisecondsAndTheLoadIsRead) {
     const MachineState m = sample_machine_state();
     EXPECT_GT(m.calibration_ns, 1e4);  // at least 10 µs: the loop was not optimised away
     EXPECT_LT(m.calibration_ns, 1e8);  // well under 100 ms even on a busy machine
-    if (fs::exists("/proc/loadavg")) EXPECT_GE(m.load_1m, 0.0);
+    if (fs::exists("/proc/loadavg")) {
+        EXPECT_GE(m.load_1m, 0.0);
+    }
 }
 
 TEST(NoiseFloor, RepeatabilityIsTheMedianRelativeDeviationFromEachCellsMedian) {

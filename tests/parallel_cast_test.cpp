@@ -61,7 +61,9 @@ void expect_same_as_one_thread(const test::NamedScene& scene, bool candidates, c
         for (const Segment& ray : frame.rays) {
             const auto ca = a.cast_closest(ray), cb = b.cast_closest(ray);
             ASSERT_EQ(ca.has_value(), cb.has_value()) << where;
-            if (ca) EXPECT_TRUE(ca->uid == cb->uid && ca->t == cb->t) << where;
+            if (ca) {
+                EXPECT_TRUE(ca->uid == cb->uid && ca->t == cb->t) << where;
+            }
             EXPECT_EQ(a.cast_any(ray), b.cast_any(ray)) << where;
         }
         b.validate();

@@ -211,7 +211,9 @@ TEST(Embree, TinyScenesTakeTheExactFallback) {
             for (const nlohmann::json& params : embree_configs()) {
                 const SimulationResult res =
                     test::expect_matches_ground_truth(r, "embree", params, s.name + " at " + std::to_string(m));
-                if (!res.frames.empty()) EXPECT_FALSE(res.frames.back().stats["in_range"].get<bool>());
+                if (!res.frames.empty()) {
+                    EXPECT_FALSE(res.frames.back().stats["in_range"].get<bool>());
+                }
             }
         }
 }

@@ -135,8 +135,12 @@ TEST(Shapes, NarrowPhaseAgreesWithTheTruthOnRandomCases) {
         const Segment s{from, from + (target - from) * (1.0f + unit(rng))};
         const Contact want = truth(s, shape);
         const bool got = narrow(s, shape);
-        if (want == Contact::hit) EXPECT_TRUE(got) << shape_name(shape.kind) << " case " << i;
-        if (want == Contact::miss) EXPECT_FALSE(got) << shape_name(shape.kind) << " case " << i;
+        if (want == Contact::hit) {
+            EXPECT_TRUE(got) << shape_name(shape.kind) << " case " << i;
+        }
+        if (want == Contact::miss) {
+            EXPECT_FALSE(got) << shape_name(shape.kind) << " case " << i;
+        }
         hits += want == Contact::hit;
         misses += want == Contact::miss;
     }
