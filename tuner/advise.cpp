@@ -75,7 +75,10 @@ Advice advise(const AdviseOptions& o) {
     std::vector<nlohmann::json> params;
     for (const StructureInfo& info : structure_registry()) {
         const bool is_tuned = tuned.count(info.name) != 0;
-        params.push_back(is_tuned ? info.complete(tuned[info.name], o.tuning) : info.defaults());
+        // The complete parameters a result records (parameters recorded only away from their
+        // default, as the query level, left out).
+        params.push_back(
+            info.complete(is_tuned ? tuned[info.name] : nlohmann::json::object(), is_tuned ? o.tuning : info.name));
         rows.push_back({info.name, params.back().dump(), {}, is_tuned});
         // Inexact answers allowed: the same configuration at the other query levels competes too
         // (a tuned level is kept as the tuning chose it).
