@@ -55,41 +55,6 @@ Vec3d diagonal(LeafBv k, int i) {
     return {double(d[0]), double(d[1]), double(d[2])};
 }
 
-float down(double x) {
-    float f = float(x);
-    return double(f) > x ? std::nextafter(f, -std::numeric_limits<float>::infinity()) : f;
-}
-float up(double x) {
-    float f = float(x);
-    return double(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
-}
-
-/// The shape's extent along `n`, in double.
-std::pair<double, double> extent_along(const Shape& s, const Vec3d& n) {
-    auto at = [&](int i) { return dot(s.point(i).as<double>(), n); };
-    switch (s.kind) {
-        case ShapeKind::triangle:
-            return {std::min({at(0), at(1), at(2)}), std::max({at(0), at(1), at(2)})};
-        case ShapeKind::obb: {
-            const std::array<Vec3d, 3> axis = obb_axes<double>(s);
-            const Vec3d h = s.point(1).as<double>();
-            const double reach =
-                std::abs(dot(axis[0], n)) * h.x + std::abs(dot(axis[1], n)) * h.y + std::abs(dot(axis[2], n)) * h.z;
-            return {at(0) - reach, at(0) + reach};
-        }
-        case ShapeKind::sphere:
-        case ShapeKind::capsule: {
-            const bool sphere = s.kind == ShapeKind::sphere;
-            const double r = (sphere ? s.v[3] : s.v[6]) * std::sqrt(dot(n, n));
-            const double a = at(0), b = sphere ? a : at(1);
-            return {std::min(a, b) - r, std::max(a, b) + r};
-        }
-        case ShapeKind::box:
-            break;
-    }
-    return {0, 0};
-}
-
 /// An oriented box around the shape, or a box-kind shape when it would be no tighter than the box.
 Shape enclosing_obb(const Object& o) {
     const Shape& s = o.shape;
@@ -119,9 +84,9 @@ Shape enclosing_obb(const Object& o) {
     }
     // Centre and half extents along the axes, grown by a few float roundings of the scene's
     // magnitude so that the float box, its centre rounded, still contains the shape.
-    const auto [u0, u1] = extent_along(s, u);
-    const auto [v0, v1] = extent_along(s, v);
-    const auto [w0, w1] = extent_along(s, w);
+    const auto [u0, u1] = shape_extent(s, u);
+    const auto [v0, v1] = shape_extent(s, v);
+    const auto [w0, w1] = shape_extent(s, w);
     const Vec3d c = u * (0.5 * (u0 + u1)) + v * (0.5 * (v0 + v1)) + w * (0.5 * (w0 + w1));
     const Aabbd b = o.box.as<double>();
     const double m = std::max({std::abs(b.min.x), std::abs(b.min.y), std::abs(b.min.z), std::abs(b.max.x),
@@ -148,7 +113,8 @@ Shape enclosing_obb(const Object& o) {
     const double reach = 0.5 * std::max({u1 - u0, v1 - v0, w1 - w0});
     const double slack = grow + 8 * reach * std::numeric_limits<float>::epsilon();
     return Shape::obb(c.as<float>(),
-                      {up(0.5 * (u1 - u0) + slack), up(0.5 * (v1 - v0) + slack), up(0.5 * (w1 - w0) + slack)},
+                      {float_above(0.5 * (u1 - u0) + slack), float_above(0.5 * (v1 - v0) + slack),
+                       float_above(0.5 * (w1 - w0) + slack)},
                       {float(q[0]), float(q[1]), float(q[2]), float(q[3])});
 }
 
@@ -164,8 +130,8 @@ TightVolume tight_volume(const Object& o, LeafBv kind) {
     }
     v.kind = kind;
     for (int i = 0; i < diagonals(kind); ++i) {
-        const auto [lo, hi] = extent_along(o.shape, diagonal(kind, i));
-        v.slab[2 * i] = down(lo), v.slab[2 * i + 1] = up(hi);
+        const auto [lo, hi] = shape_extent(o.shape, diagonal(kind, i));
+        v.slab[2 * i] = float_below(lo), v.slab[2 * i + 1] = float_above(hi);
     }
     return v;
 }
@@ -210,9 +176,8 @@ nlohmann::json own_params(const nlohmann::json& params) {
 }
 
 Contract contract_of(const nlohmann::json& params) {
-    const bool object = params.is_object();
-    const bool tight_leaves = object && params.contains("leaf_bv") && params.at("leaf_bv") != "aabb";
-    const bool robust = !(object && params.contains("robust") && params.at("robust") == false);
+    const bool tight_leaves = leaf_bv_of(params) != LeafBv::aabb;
+    const bool robust = !(params.is_object() && params.contains("robust") && params.at("robust") == false);
     Contract c;
     switch (query_level_of(params)) {
         case QueryLevel::candidates:
@@ -319,6 +284,16 @@ void NarrowPhase::move(const Object& object) {
 }
 
 template <class Tally>
+bool NarrowPhase::survives(const Segment& s, const Entry& e, float* t, Tally&& tally) const {
+    if (e.shape.kind == ShapeKind::box) return true;  // its box hit is the hit
+    if (e.volume != kNoVolume && !segment_hits_volume(s, e.box, volumes_[e.volume])) return false;
+    if (!shapes_) return true;
+    const bool hit = segment_hits_shape(s, e.shape, t);
+    tally(hit);
+    return hit;
+}
+
+template <class Tally>
 void NarrowPhase::filter(std::span<const Segment> rays, HitLists& hits, Tally&& tally) const {
     if (shaped_ == 0) return;  // boxes only: every box hit is a hit
     // In place: a ray's kept hits move down over the dropped ones.
@@ -327,16 +302,7 @@ void NarrowPhase::filter(std::span<const Segment> rays, HitLists& hits, Tally&& 
         const std::uint32_t end = hits.offsets[r + 1];
         for (std::uint32_t i = begin; i < end; ++i) {
             const Uid uid = hits.uids[i];
-            const Entry& e = entry(uid);
-            if (e.shape.kind != ShapeKind::box) {
-                if (e.volume != kNoVolume && !segment_hits_volume(rays[r], e.box, volumes_[e.volume])) continue;
-                if (shapes_) {
-                    const bool hit = segment_hits_shape(rays[r], e.shape);
-                    tally(hit);
-                    if (!hit) continue;
-                }
-            }
-            hits.uids[write++] = uid;
+            if (survives(rays[r], entry(uid), nullptr, tally)) hits.uids[write++] = uid;
         }
         begin = end;
         hits.offsets[r + 1] = write;
@@ -365,9 +331,7 @@ std::optional<Hit> NarrowPhase::cast_closest(const Segment& segment) {
     for (Uid uid : scratch_.of(0)) {
         const Entry& e = entry(uid);
         float t = 0, t_far;
-        if (!slabs.clip(e.box, t, t_far)) continue;
-        if (e.volume != kNoVolume && !segment_hits_volume(segment, e.box, volumes_[e.volume])) continue;
-        if (shapes_ && e.shape.kind != ShapeKind::box && !segment_hits_shape(segment, e.shape, &t)) continue;
+        if (!slabs.clip(e.box, t, t_far) || !survives(segment, e, &t, [](bool) {})) continue;
         if (!best || t < best->t || (t == best->t && uid < best->uid)) best = Hit{uid, t};
     }
     return best;
@@ -375,11 +339,8 @@ std::optional<Hit> NarrowPhase::cast_closest(const Segment& segment) {
 
 bool NarrowPhase::cast_any(const Segment& segment) {
     broad_->cast(std::span<const Segment>(&segment, 1), scratch_);
-    for (Uid uid : scratch_.of(0)) {
-        const Entry& e = entry(uid);
-        if (e.volume != kNoVolume && !segment_hits_volume(segment, e.box, volumes_[e.volume])) continue;
-        if (!shapes_ || e.shape.kind == ShapeKind::box || segment_hits_shape(segment, e.shape)) return true;
-    }
+    for (Uid uid : scratch_.of(0))
+        if (survives(segment, entry(uid), nullptr, [](bool) {})) return true;
     return false;
 }
 

@@ -111,6 +111,10 @@ private:
     const Entry& entry(Uid uid) const { return uid < dense_.size() ? dense_[uid] : sparse_.at(uid); }
     void set(const Object& o);
     void erase(Uid uid);
+    /// Whether a box hit of `e` passes its tighter volume and, at the shapes level, its shape
+    /// (`t`: the shape's entry, when given); `tally(hit)` after each shape test.
+    template <class Tally>
+    bool survives(const Segment& s, const Entry& e, float* t, Tally&& tally) const;
     template <class Tally>
     void filter(std::span<const Segment> rays, HitLists& hits, Tally&& tally) const;
 

@@ -50,7 +50,6 @@ void LiveSet::remove(Uid uid) {
     objects_.pop_back();
 }
 
-void LiveSet::move(Uid uid, const Aabb& box) { objects_[index_.at(uid)].box = box; }
 void LiveSet::move(const Object& o) { objects_[index_.at(o.uid)] = o; }
 
 void LiveSet::apply(const Frame& frame) {

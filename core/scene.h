@@ -69,7 +69,6 @@ public:
     /// move of a live one.
     void insert(const Object& o);
     void remove(Uid uid);
-    void move(Uid uid, const Aabb& box);
     void move(const Object& o);  ///< new box and shape
     void apply(const Frame& frame);
 

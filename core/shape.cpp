@@ -6,22 +6,6 @@
 namespace rcb {
 namespace {
 
-float round_down(double x) {
-    float f = float(x);
-    if (double(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
-    return f;
-}
-float round_up(double x) {
-    float f = float(x);
-    if (double(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
-    return f;
-}
-
-Aabb outward(const Aabbd& b) {
-    return {{round_down(b.min.x), round_down(b.min.y), round_down(b.min.z)},
-            {round_up(b.max.x), round_up(b.max.y), round_up(b.max.z)}};
-}
-
 Vec3 lerp(const Segment& s, float t) { return s.p0 + s.delta() * t; }
 
 /// Woop, Benthin & Wald 2013, §3: shear the triangle into the segment's frame, where the edge
@@ -176,29 +160,52 @@ std::string shape_problem(const Shape& s, double limit) {
     return std::string(shape_name(s.kind)) + " reaches beyond ±" + std::to_string(limit);
 }
 
-Aabb shape_bounds(const Shape& s) {
+float float_below(double x) {
+    float f = float(x);
+    if (double(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+    return f;
+}
+float float_above(double x) {
+    float f = float(x);
+    if (double(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+    return f;
+}
+
+std::pair<double, double> shape_extent(const Shape& s, const Vec3d& n) {
+    auto at = [&](int i) { return dot(s.point(i).as<double>(), n); };
     switch (s.kind) {
-        case ShapeKind::box:
-            break;
         case ShapeKind::triangle:
-            return {min(min(s.point(0), s.point(1)), s.point(2)), max(max(s.point(0), s.point(1)), s.point(2))};
+            return {std::min({at(0), at(1), at(2)}), std::max({at(0), at(1), at(2)})};
         case ShapeKind::obb: {
             const std::array<Vec3d, 3> axis = obb_axes<double>(s);
-            const Vec3d c = s.point(0).as<double>(), h = s.point(1).as<double>();
-            Vec3d reach;
-            for (int a = 0; a < 3; ++a)
-                reach[a] = std::abs(axis[0][a]) * h.x + std::abs(axis[1][a]) * h.y + std::abs(axis[2][a]) * h.z;
-            return outward({c - reach, c + reach});
+            const Vec3d h = s.point(1).as<double>();
+            const double reach =
+                std::abs(dot(axis[0], n)) * h.x + std::abs(dot(axis[1], n)) * h.y + std::abs(dot(axis[2], n)) * h.z;
+            return {at(0) - reach, at(0) + reach};
         }
         case ShapeKind::sphere:
         case ShapeKind::capsule: {
             const bool sphere = s.kind == ShapeKind::sphere;
-            const double r = sphere ? s.v[3] : s.v[6];
-            const Vec3d p0 = s.point(0).as<double>(), p1 = sphere ? p0 : s.point(1).as<double>();
-            return outward({min(p0, p1) - Vec3d{r, r, r}, max(p0, p1) + Vec3d{r, r, r}});
+            const double r = (sphere ? s.v[3] : s.v[6]) * std::sqrt(dot(n, n));
+            const double a = at(0), b = sphere ? a : at(1);
+            return {std::min(a, b) - r, std::max(a, b) + r};
         }
+        case ShapeKind::box:
+            break;
     }
-    return Aabb::empty();
+    return {0, 0};
+}
+
+Aabb shape_bounds(const Shape& s) {
+    if (s.kind == ShapeKind::box) return Aabb::empty();
+    Aabb b;
+    for (int a = 0; a < 3; ++a) {
+        Vec3d axis;
+        axis[a] = 1;
+        const auto [lo, hi] = shape_extent(s, axis);
+        b.min[a] = float_below(lo), b.max[a] = float_above(hi);
+    }
+    return b;
 }
 
 bool segment_hits_shape(const Segment& segment, const Shape& shape, float* t) {

@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <utility>
 
 #include "core/geometry.h"
 
@@ -54,8 +55,17 @@ struct Shape {
 /// all, like any engine's).
 std::string shape_problem(const Shape& shape, double limit);
 
+/// The interval of n·p over the points p of a valid, non-box shape, in double (n need not be a
+/// unit vector): the shape's bounds along n. shape_bounds takes it along the axes; the k-DOPs and
+/// oriented boxes around a shape (query_level.h) along their directions.
+std::pair<double, double> shape_extent(const Shape& shape, const Vec3d& n);
+
 /// Bounds of a valid shape, rounded outward to float: the box contains the shape exactly.
 Aabb shape_bounds(const Shape& shape);
+
+/// The largest float <= x, and the smallest float >= x: outward rounding of bounds.
+float float_below(double x);
+float float_above(double x);
 
 /// The narrow phase in float: whether the closed segment meets the shape, and (if `t` is given)
 /// the parameter in [0, 1] where it first does. A box-kind shape is not tested here (its box test
