@@ -96,10 +96,8 @@ Contact classify_obb(const Segmentd& s, const Shape& box, double eps) {
 /// Spheres and capsules: the distance from the segment to the centre point or axis segment,
 /// which moves by at most 2√3·ε.
 Contact classify_round(const Segmentd& s, const Shape& shape, double eps) {
-    const bool sphere = shape.kind == ShapeKind::sphere;
-    const Vec3d p0 = shape.point(0).as<double>(), p1 = sphere ? p0 : shape.point(1).as<double>();
-    const double r = sphere ? shape.v[3] : shape.v[6];
-    const double dist = std::sqrt(closest_points(s, Segmentd{p0, p1}).distance2);
+    const double r = shape.radius();
+    const double dist = std::sqrt(closest_points(s, shape.core<double>()).distance2);
     const double delta = 2 * std::sqrt(3.0) * eps;
     if (dist > r + delta) return Contact::miss;
     return dist < r - delta ? Contact::hit : Contact::touch;

@@ -67,9 +67,8 @@ float first_inside(float t_hit, Inside&& inside) {
 }
 
 bool hits_round(const Segment& s, const Shape& shape, float* t_out) {
-    const bool sphere = shape.kind == ShapeKind::sphere;
-    const Segment axis = sphere ? Segment{shape.point(0), shape.point(0)} : Segment{shape.point(0), shape.point(1)};
-    const float r = sphere ? shape.v[3] : shape.v[6];
+    const Segment axis = shape.core<float>();
+    const float r = shape.radius();
     const ClosestPoints<float> c = closest_points(s, axis);
     if (c.distance2 > r * r) return false;
     if (t_out)
@@ -185,9 +184,9 @@ std::pair<double, double> shape_extent(const Shape& s, const Vec3d& n) {
         }
         case ShapeKind::sphere:
         case ShapeKind::capsule: {
-            const bool sphere = s.kind == ShapeKind::sphere;
-            const double r = (sphere ? s.v[3] : s.v[6]) * std::sqrt(dot(n, n));
-            const double a = at(0), b = sphere ? a : at(1);
+            const SegmentT<double> core = s.core<double>();
+            const double r = s.radius() * std::sqrt(dot(n, n));
+            const double a = dot(core.p0, n), b = dot(core.p1, n);
             return {std::min(a, b) - r, std::max(a, b) + r};
         }
         case ShapeKind::box:

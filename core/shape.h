@@ -46,6 +46,14 @@ struct Shape {
     static Shape capsule(Vec3 p0, Vec3 p1, float radius);
 
     Vec3 point(int i) const { return {v[3 * i], v[3 * i + 1], v[3 * i + 2]}; }
+    /// A sphere or capsule as the points within radius() of core(): its centre (a zero-length
+    /// segment) or its axis.
+    template <typename T>
+    SegmentT<T> core() const {
+        const Vec3T<T> p0 = point(0).as<T>();
+        return {p0, kind == ShapeKind::sphere ? p0 : point(1).as<T>()};
+    }
+    float radius() const { return kind == ShapeKind::sphere ? v[3] : v[6]; }
     friend bool operator==(const Shape&, const Shape&) = default;
 };
 
