@@ -25,13 +25,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path temp_dir(const std::string& name) {
-    const fs::path dir = fs::temp_directory_path() / ("rcb_accuracy_" + std::to_string(::getpid()) + "_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
-
 std::int64_t count(Database& db, const std::string& sql) {
     Statement s = db.prepare(sql);
     s.step();
@@ -39,7 +32,7 @@ std::int64_t count(Database& db, const std::string& sql) {
 }
 
 TEST(AccuracyColumns, FramesOfAnOlderDatabaseReadAsTheirMismatchCountsSay) {
-    const fs::path dir = temp_dir("migrate");
+    const fs::path dir = test::temp_dir("accuracy", "migrate");
     const std::string path = (dir / "v6.db").string();
     {
         ResultStore old(path, 6);
@@ -92,7 +85,7 @@ TEST(AccuracyColumns, FramesOfAnOlderDatabaseReadAsTheirMismatchCountsSay) {
 }
 
 TEST(AccuracyColumns, ARunsFramesRoundTripThroughTheStoreAndMerge) {
-    const fs::path dir = temp_dir("roundtrip");
+    const fs::path dir = test::temp_dir("accuracy", "roundtrip");
     const Recording scene = test::with_shapes(test::generated_scene("irregular", 400, 3, 5), 9);
     // The candidate level on shapes: precision below 1, recall 1; the shape level runs the narrow
     // phase (n_ro > 0).
@@ -268,7 +261,7 @@ TEST(AccuracyConstraint, TuningSearchesTheQueryLevelOnlyWhenInexactAnswersAreAll
 }
 
 TEST(AccuracyConstraint, OnShapesOnlyTheNarrowPhaseIsPreciseAndABoundNothingMeetsIsOneLine) {
-    const fs::path dir = temp_dir("shaped");
+    const fs::path dir = test::temp_dir("accuracy", "shaped");
     const std::string scene = (dir / "shaped.rcbscene").string();
     write_recording(test::with_shapes(test::generated_scene("irregular", 600, 3, 11), 4), scene);
     const std::string text =
@@ -304,7 +297,7 @@ TEST(AccuracyConstraint, OnShapesOnlyTheNarrowPhaseIsPreciseAndABoundNothingMeet
 }
 
 TEST(AccuracyConstraint, TheCommandsRefuseABadConstraintInOneLine) {
-    const fs::path dir = temp_dir("cli");
+    const fs::path dir = test::temp_dir("accuracy", "cli");
     const std::string scene = (dir / "s.rcbscene").string();
     const auto run = [](const std::string& args) {
         return ::test::run_shell(std::string(RCBENCH_BINARY) + " " + args);

@@ -16,18 +16,12 @@
 #include "runner/merge.h"
 #include "runner/run_experiment.h"
 #include "runner/store.h"
+#include "tests/test_scenes.h"
 
 namespace rcb {
 namespace {
 
 namespace fs = std::filesystem;
-
-fs::path temp_dir(const std::string& name) {
-    const fs::path dir = fs::temp_directory_path() / ("rcb_calibration_" + std::to_string(::getpid()) + "_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
 
 void write_cache(const fs::path& dir, int index, const std::string& level, const std::string& type,
                  const std::string& size) {
@@ -39,7 +33,7 @@ void write_cache(const fs::path& dir, int index, const std::string& level, const
 }
 
 TEST(CacheSizes, ParseFromASysfsFolder) {
-    const fs::path dir = temp_dir("sysfs");
+    const fs::path dir = test::temp_dir("calibration", "sysfs");
     write_cache(dir, 0, "1", "Data", "48K");
     write_cache(dir, 1, "1", "Instruction", "32K");
     write_cache(dir, 2, "2", "Unified", "2048K");
@@ -95,7 +89,7 @@ TEST(Calibration, MicroScenesVaryTheCountersIndependently) {
 }
 
 TEST(Calibration, StoredOncePerRun) {
-    const fs::path dir = temp_dir("run");
+    const fs::path dir = test::temp_dir("calibration", "run");
     const Experiment e = parse_experiment(
         R"({"frames": 2, "rays_per_frame": 50, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}, {"name": "dbvh", "params": {"mode": ["incremental", "rebuild"]}}]})",
         "exp.json", ".");
@@ -133,7 +127,7 @@ TEST(Calibration, StoredOncePerRun) {
 }
 
 TEST(Calibration, TheRunsFitUsesItAndStoresLeaveOneSceneOut) {
-    const fs::path dir = temp_dir("fit");
+    const fs::path dir = test::temp_dir("calibration", "fit");
     const Experiment e = parse_experiment(
         R"({"frames": 3, "rays_per_frame": 100, "scenes": [{"preset": "uni-s"}, {"preset": "irreg-s"}, {"kind": "uniform", "objects": 300}], "structures": [{"name": "dbvh"}]})",
         "exp.json", ".");

@@ -15,18 +15,12 @@
 #include "runner/merge.h"
 #include "runner/run_experiment.h"
 #include "runner/store.h"
+#include "tests/test_scenes.h"
 
 namespace rcb {
 namespace {
 
 namespace fs = std::filesystem;
-
-fs::path temp_dir(const std::string& name) {
-    const fs::path dir = fs::temp_directory_path() / ("rcb_noise_" + std::to_string(::getpid()) + "_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
 
 std::int64_t count(Database& db, const std::string& sql) {
     Statement s = db.prepare(sql);
@@ -83,7 +77,7 @@ TEST(NoiseFloor, RepeatabilityIsTheMedianRelativeDeviationFromEachCellsMedian) {
 }
 
 TEST(NoiseFloor, EveryCellStoresItsStateAndCellsTenPercentSlowAreFlagged) {
-    const fs::path dir = temp_dir("flag");
+    const fs::path dir = test::temp_dir("noise", "flag");
     const std::string db_path = (dir / "r.db").string();
     const Experiment e = parse_experiment(kThree, "noise.json", dir.string());
     RunOptions o;
@@ -158,7 +152,7 @@ TEST(NoiseFloor, EveryCellStoresItsStateAndCellsTenPercentSlowAreFlagged) {
 }
 
 TEST(NoiseFloor, ADatabaseFromBeforeTheMachineStateMigratesAndItsCellsHaveNoState) {
-    const fs::path dir = temp_dir("old");
+    const fs::path dir = test::temp_dir("noise", "old");
     const std::string db_path = (dir / "old.db").string();
     const int before = latest_schema_version() - 1;
     {

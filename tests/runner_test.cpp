@@ -20,6 +20,7 @@
 #include "runner/experiment.h"
 #include "runner/store.h"
 #include "tuner/tuning.h"
+#include "tests/test_scenes.h"
 
 extern char** environ;
 
@@ -218,13 +219,6 @@ TEST(Experiment, EveryShippedExperimentAndTuningFileIsValid) {
     EXPECT_GE(tunings, 1u);      // tune-grids
 }
 
-fs::path temp_dir(const std::string& name) {
-    const fs::path dir = fs::temp_directory_path() / ("rcb_runner_" + std::to_string(::getpid()) + "_" + name);
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
-
 /// A fabricated result whose frames take `base × factor` ns with multiplicative noise.
 SimulationResult synthetic_result(double base, double factor, std::uint64_t seed, int frames) {
     SimulationResult r;
@@ -245,7 +239,7 @@ SimulationResult synthetic_result(double base, double factor, std::uint64_t seed
 }
 
 TEST(Store, CompareTellsATenPercentSlowdownFromNoise) {
-    const fs::path dir = temp_dir("compare");
+    const fs::path dir = test::temp_dir("runner", "compare");
     const std::string db_path = (dir / "r.db").string();
     const Experiment e = parse_experiment(kMinimal, "synthetic", ".");
     const Recording scene = load_scene(e.scenes[0]);
@@ -288,7 +282,7 @@ TEST(Store, MannWhitneyMatchesTextbookValues) {
 }
 
 TEST(Store, ReadersSeeAnOlderDatabaseAtTheLatestSchemaWithoutChangingTheFile) {
-    const fs::path dir = temp_dir("old_reader");
+    const fs::path dir = test::temp_dir("runner", "old_reader");
     const std::string v3 = (dir / "v3.db").string();
     {
         ResultStore old(v3, 3);  // before the machine state, scene features and calibration tables
@@ -315,7 +309,7 @@ TEST(Store, ReadersSeeAnOlderDatabaseAtTheLatestSchemaWithoutChangingTheFile) {
 }
 
 TEST(Store, RefusesANewerSchemaAndMigratesAnOlderOne) {
-    const fs::path dir = temp_dir("schema");
+    const fs::path dir = test::temp_dir("runner", "schema");
     const std::string old_db = (dir / "old.db").string();
     { ResultStore empty(old_db, 0); }  // a database at version 0: no tables yet
     {
@@ -403,7 +397,7 @@ void write_experiment(const fs::path& path, int repetitions) {
 }
 
 TEST(Store, KilledRunResumesToTheSameRowsAsAnUninterruptedRun) {
-    const fs::path dir = temp_dir("resume");
+    const fs::path dir = test::temp_dir("runner", "resume");
     const fs::path exp = dir / "resume.json";
     write_experiment(exp, 8);  // 16 cells
     const std::string killed = (dir / "killed.db").string(), whole = (dir / "whole.db").string();
@@ -434,7 +428,7 @@ TEST(Store, KilledRunResumesToTheSameRowsAsAnUninterruptedRun) {
 }
 
 TEST(Store, TwoRunnersOnOneDatabaseBothFinishWithNothingLostOrDuplicated) {
-    const fs::path dir = temp_dir("concurrent");
+    const fs::path dir = test::temp_dir("runner", "concurrent");
     const fs::path exp = dir / "resume.json";
     write_experiment(exp, 3);  // 6 cells
     const std::string db = (dir / "shared.db").string(), log = (dir / "log.txt").string();
@@ -453,7 +447,7 @@ TEST(Store, TwoRunnersOnOneDatabaseBothFinishWithNothingLostOrDuplicated) {
 }
 
 TEST(Store, FourRunnersStartedTogetherOnANewDatabaseMakeOneRun) {
-    const fs::path dir = temp_dir("four");
+    const fs::path dir = test::temp_dir("runner", "four");
     const fs::path exp = dir / "resume.json";
     write_experiment(exp, 2);  // 4 cells
     const std::string db = (dir / "new.db").string(), log = (dir / "log.txt").string();
@@ -467,7 +461,7 @@ TEST(Store, FourRunnersStartedTogetherOnANewDatabaseMakeOneRun) {
 }
 
 TEST(Store, MergingAKilledShardThenItsResumedRunCompletesTheMergedRun) {
-    const fs::path dir = temp_dir("merge_resumed");
+    const fs::path dir = test::temp_dir("runner", "merge_resumed");
     const fs::path exp = dir / "resume.json";
     write_experiment(exp, 8);  // 16 cells
     const std::string shard = (dir / "shard.db").string(), out = (dir / "all.db").string(),
@@ -492,7 +486,7 @@ TEST(Store, MergingAKilledShardThenItsResumedRunCompletesTheMergedRun) {
 }
 
 TEST(Store, TheAnalysisOfAShardSeesEveryShardOfItsPlan) {
-    const fs::path dir = temp_dir("shard_group");
+    const fs::path dir = test::temp_dir("runner", "shard_group");
     const fs::path exp = dir / "resume.json";
     write_experiment(exp, 2);  // 4 cells of 4 frames
     const std::string db = (dir / "all.db").string(), whole = (dir / "whole.db").string(),
@@ -508,7 +502,7 @@ TEST(Store, TheAnalysisOfAShardSeesEveryShardOfItsPlan) {
 }
 
 TEST(Store, ShardsMergeIntoTheWholePlanAndMergingTwiceAddsNothing) {
-    const fs::path dir = temp_dir("shards");
+    const fs::path dir = test::temp_dir("runner", "shards");
     const fs::path exp = dir / "resume.json";
     write_experiment(exp, 2);  // 4 cells
     const std::string log = (dir / "log.txt").string();
