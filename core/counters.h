@@ -10,6 +10,8 @@
 
 #include <cstdint>
 
+#include "core/outcome_predictor.h"
+
 namespace rcb {
 
 /// Sums over a batch of rays.
@@ -20,6 +22,7 @@ struct Counters {
     std::uint64_t n_tp = 0;       ///< objects the traversal reported (box tests that hit, or candidates)
     std::uint64_t n_ro = 0;       ///< narrow-phase tests of exact shapes (thesis eq. 5.3, C_RO)
     std::uint64_t n_ro_hits = 0;  ///< of those, the shapes hit
+    std::uint64_t n_mp = 0;       ///< steps whose outcome a history predictor missed (outcome_predictor.h)
 
     /// False positives: objects tested but not hit (thesis N_FP = N_RB − N_TP; N_TFP once shapes
     /// exist).
@@ -28,7 +31,8 @@ struct Counters {
     std::uint64_t n_bfp() const { return n_ro - n_ro_hits; }
 
     Counters& operator+=(const Counters& o) {
-        n_t += o.n_t, n_th += o.n_th, n_rb += o.n_rb, n_tp += o.n_tp, n_ro += o.n_ro, n_ro_hits += o.n_ro_hits;
+        n_t += o.n_t, n_th += o.n_th, n_rb += o.n_rb, n_tp += o.n_tp, n_ro += o.n_ro, n_ro_hits += o.n_ro_hits,
+            n_mp += o.n_mp;
         return *this;
     }
     friend bool operator==(const Counters&, const Counters&) = default;
@@ -47,7 +51,13 @@ struct Counting {
     static constexpr bool enabled = true;
     static constexpr bool candidates = false;
     Counters* sums;
-    void traversal(std::uint64_t n = 1) { sums->n_t += n; }
+    /// Where set, each step's outcome (what the counters did since the step before) goes to it.
+    OutcomePredictor* predictor = nullptr;
+
+    void traversal(std::uint64_t n = 1) {
+        if (predictor) predictor->next_step(sums->n_th, sums->n_rb, sums->n_tp);
+        sums->n_t += n;
+    }
     void node_hits(std::uint64_t n = 1) { sums->n_th += n; }
     void box_tests(std::uint64_t n = 1) { sums->n_rb += n; }
     void hits(std::uint64_t n = 1) { sums->n_tp += n; }

@@ -72,7 +72,7 @@ nlohmann::json SimulationResult::to_json() const {
     j["raycast_ns_median"] = r.median;
     j["raycast_ns_mad"] = r.mad;
     nlohmann::json frame, warmup, update, raycast, rays, hits, missed, extra, duplicate, returned, correct, relevant,
-        n_t, n_th, n_rb, n_tp, n_ro, n_ro_hits, memory, stats;
+        n_t, n_th, n_mp, n_rb, n_tp, n_ro, n_ro_hits, memory, stats;
     for (const FrameResult& f : frames) {
         frame.push_back(f.frame);
         warmup.push_back(f.warmup);
@@ -88,6 +88,7 @@ nlohmann::json SimulationResult::to_json() const {
         relevant.push_back(f.relevant);
         n_t.push_back(f.counters.n_t);
         n_th.push_back(f.counters.n_th);
+        n_mp.push_back(f.counters.n_mp);
         n_rb.push_back(f.counters.n_rb);
         n_tp.push_back(f.counters.n_tp);
         n_ro.push_back(f.counters.n_ro);
@@ -110,6 +111,7 @@ nlohmann::json SimulationResult::to_json() const {
     j["relevant"] = array(relevant);
     j["n_t"] = array(n_t);
     j["n_th"] = array(n_th);
+    j["n_mp"] = array(n_mp);
     j["n_rb"] = array(n_rb);
     j["n_tp"] = array(n_tp);
     j["n_ro"] = array(n_ro);

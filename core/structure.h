@@ -143,8 +143,11 @@ public:
         });
     }
     void cast_counted(std::span<const Segment> rays, HitLists& out, Counters& counters) override {
-        Counting count{&counters};
+        OutcomePredictor predictor;
+        Counting count{&counters, &predictor};
         at_level(count, [&](auto& policy) { cast_all(rays, out, policy); });
+        predictor.end(counters.n_th, counters.n_rb, counters.n_tp);
+        counters.n_mp += predictor.mispredicted();
     }
     std::optional<Hit> cast_closest(const Segment& segment) override {
         NoCounting count;

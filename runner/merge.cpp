@@ -64,15 +64,15 @@ MergeCount merge_into(ResultStore& out, Database& in) {
                         .bind_all(run, caches.int64(0), caches.text(1), caches.int64(2))
                         .run();
                 Statement cal = in.prepare(
-                    "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad FROM calibration WHERE run_id = "
-                    "?");
+                    "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp FROM calibration WHERE "
+                    "run_id = ?");
                 cal.bind_all(runs.int64(0));
                 while (cal.step())
                     o.prepare(
-                         "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad) "
-                         "VALUES (?,?,?,?,?,?,?,?,?)")
+                         "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, "
+                         "n_mp) VALUES (?,?,?,?,?,?,?,?,?,?)")
                         .bind_all(run, cal.text(0), cal.text(1), cal.text(2), cal.int64(3), cal.real(4), cal.real(5),
-                                  cal.real(6), cal.real(7))
+                                  cal.real(6), cal.real(7), cal.real(8))
                         .run();
             }
         }
@@ -118,7 +118,8 @@ MergeCount merge_into(ResultStore& out, Database& in) {
             Statement frames = in.prepare(
                 "SELECT frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, "
                 "duplicate, "
-                "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, n_th "
+                "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, n_th, "
+                "n_mp "
                 "FROM "
                 "frame "
                 "WHERE cell_id = ?");
@@ -127,7 +128,7 @@ MergeCount merge_into(ResultStore& out, Database& in) {
                 "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, "
                 "missed, "
                 "extra, duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, "
-                "n_ro_hits, n_th) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+                "n_ro_hits, n_th, n_mp) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
             while (frames.step()) {
                 insert_frame.bind(1, cell);
                 for (int c = 0; c < 16; ++c) insert_frame.bind(c + 2, frames.int64(c));
@@ -136,7 +137,7 @@ MergeCount merge_into(ResultStore& out, Database& in) {
                 else
                     insert_frame.bind(18, frames.real(16));
                 insert_frame.bind(19, frames.text(17));
-                for (int c = 18; c < 24; ++c) insert_frame.bind(c + 2, frames.int64(c));
+                for (int c = 18; c < 25; ++c) insert_frame.bind(c + 2, frames.int64(c));
                 insert_frame.run();
             }
             {

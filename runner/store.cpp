@@ -278,6 +278,13 @@ UPDATE frame SET returned = max(hits - duplicate, 0), correct = max(hits - dupli
         R"sql(
 ALTER TABLE frame ADD COLUMN n_th INTEGER NOT NULL DEFAULT 0;
 )sql",
+        // 8 → 9: the traversal steps whose outcome a history predictor missed, per frame and per
+        // calibration micro-scene (core/outcome_predictor.h n_mp; the cost model's C_MP). 0 where
+        // not counted: brute force, Embree, and frames stored before.
+        R"sql(
+ALTER TABLE frame ADD COLUMN n_mp INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE calibration ADD COLUMN n_mp REAL NOT NULL DEFAULT 0;
+)sql",
     };
     return all;
 }
@@ -592,7 +599,7 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, "
         "extra, "
         "duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, "
-        "n_th) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "n_th, n_mp) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     for (const FrameResult& fr : res.frames) {
         std::optional<double> sah;
         if (fr.stats.contains("sah_cost") && fr.stats["sah_cost"].is_number()) sah = fr.stats["sah_cost"].get<double>();
@@ -602,7 +609,8 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
                    std::int64_t(fr.duplicate), std::int64_t(fr.counters.n_t), std::int64_t(fr.counters.n_rb),
                    std::int64_t(fr.counters.n_tp), std::int64_t(fr.memory_bytes), sah, fr.stats.dump(),
                    std::int64_t(fr.returned), std::int64_t(fr.correct), std::int64_t(fr.relevant),
-                   std::int64_t(fr.counters.n_ro), std::int64_t(fr.counters.n_ro_hits), std::int64_t(fr.counters.n_th));
+                   std::int64_t(fr.counters.n_ro), std::int64_t(fr.counters.n_ro_hits), std::int64_t(fr.counters.n_th),
+                   std::int64_t(fr.counters.n_mp));
         f.run();
     }
     t.commit();

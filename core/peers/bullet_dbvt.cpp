@@ -104,7 +104,7 @@ void BulletDbvt::commit() {
     if (params_.optimize_passes > 0) tree_->optimizeIncremental(params_.optimize_passes);
 }
 
-bool BulletDbvt::dbvt_query(const Segment& s, Query& q) {
+bool BulletDbvt::dbvt_query(const Segment& s, Query& q, Counting* count) {
     if (objects_.empty()) return true;
     if (scale_ < kMinScale || !is_finite(s.p0) || !is_finite(s.p1)) return false;
     const float far = kFarFactor * scale_;
@@ -121,7 +121,30 @@ bool BulletDbvt::dbvt_query(const Segment& s, Query& q) {
     }
     ExactLeafTest collect(&q);
     const btVector3 zero(0, 0, 0);
-    tree_->rayTestInternal(tree_->m_root, from, to, inv, signs, btScalar(1), zero, zero, stack_->nodes, collect);
+    if (!count) {
+        tree_->rayTestInternal(tree_->m_root, from, to, inv, signs, btScalar(1), zero, zero, stack_->nodes, collect);
+        return true;
+    }
+    // The counting pass: btDbvt::rayTestInternal's walk step for step (the same node test in the
+    // same order, so the same leaves reach the collector), with its node visits counted; the
+    // library's own loop offers no hook for them.
+    std::vector<const btDbvtNode*>& stack = counting_stack_;
+    stack.assign(1, tree_->m_root);
+    while (!stack.empty()) {
+        const btDbvtNode* node = stack.back();
+        stack.pop_back();
+        count->traversal();
+        btVector3 bounds[2] = {node->volume.Mins(), node->volume.Maxs()};
+        btScalar t_min = 1, lambda_min = 0;
+        if (!btRayAabb2(from, inv, signs, bounds, t_min, lambda_min, btScalar(1))) continue;
+        if (node->isinternal()) {
+            count->node_hits(2);
+            stack.push_back(node->childs[0]);
+            stack.push_back(node->childs[1]);
+        } else {
+            collect.Process(node);
+        }
+    }
     return true;
 }
 

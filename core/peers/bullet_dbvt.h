@@ -4,7 +4,8 @@
 /// rayTestInternal. btDbvt's float ray test can miss touching boxes, so its leaves are padded boxes
 /// and each candidate is decided by rcb's own slab test on the unpadded box: hits equal every rcb
 /// structure's. Far or non-finite segments go to an exact scan. Counters: N_RB = candidate leaves
-/// plus scan tests; N_T is not observable (0). docs/structures.md has the exactness argument.
+/// plus scan tests; N_T, N_TH and N_MP from the counting pass's replica of rayTestInternal's walk
+/// (the library's loop has no hook). docs/structures.md has the exactness argument.
 
 #include <cstdint>
 #include <memory>
@@ -77,8 +78,9 @@ public:
     Uid uid_at(std::uint32_t slot) const { return objects_.uid(slot); }
 
 private:
-    /// Runs btDbvt's ray test; false when the segment needs the exact fallback.
-    bool dbvt_query(const Segment& s, Query& q);
+    /// Runs btDbvt's ray test, or with `count` (the counting pass) the same walk with its node
+    /// visits counted; false when the segment needs the exact fallback.
+    bool dbvt_query(const Segment& s, Query& q, Counting* count = nullptr);
     void set_leaf(std::uint32_t slot);  // inserts or updates the slot's leaf with its padded box
     /// Grows the scale (and re-pads every leaf) when `box` lies beyond it.
     void cover(const Aabb& box);
@@ -87,6 +89,7 @@ private:
     std::unique_ptr<btDbvt> tree_;
     struct Stack;
     std::unique_ptr<Stack> stack_;  // rayTestInternal's persistent stack
+    std::vector<const btDbvtNode*> counting_stack_;
     SlotBoxes objects_;
     std::vector<btDbvtNode*> leaves_;  // slot-indexed, as objects_
     float scale_ = 0;                  // S in the comment above; 0 before the first box
@@ -99,7 +102,9 @@ void BulletDbvt::traverse(const Segment& s, Count& count, Visit&& visit) {
     Query q{&slabs, this, &visit,
             [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); },
             Count::candidates};
-    if (!dbvt_query(s, q)) {
+    Counting* counting = nullptr;
+    if constexpr (Count::enabled) counting = &count;
+    if (!dbvt_query(s, q, counting)) {
         scan_boxes(slabs, std::span<const Aabb>(objects_.layout().all()), std::span<const Uid>(objects_.uids()), count,
                    visit);  // the exact fallback
         return;

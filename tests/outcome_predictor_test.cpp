@@ -1,0 +1,79 @@
+// The coherence counter: a history predictor that learns repeated traversals and misses novel ones,
+// deterministically, and the counting pass that feeds it.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <vector>
+
+#include "core/counters.h"
+#include "core/outcome_predictor.h"
+#include "core/random.h"
+#include "core/registry.h"
+#include "tests/test_scenes.h"
+
+namespace rcb {
+namespace {
+
+/// Feeds `outcomes` as steps (each outcome is a node-hit count) and returns the misses.
+std::uint64_t misses_of(const std::vector<std::uint32_t>& outcomes) {
+    OutcomePredictor p;
+    std::uint64_t n_th = 0;
+    for (std::uint32_t o : outcomes) {
+        p.next_step(n_th, 0, 0);
+        n_th += o;
+    }
+    p.end(n_th, 0, 0);
+    return p.mispredicted();
+}
+
+TEST(OutcomePredictor, LearnsARepeatedPathAndMissesRandomOnes) {
+    Random rng(3);
+    std::vector<std::uint32_t> path;
+    for (int i = 0; i < 60; ++i) path.push_back(std::uint32_t(rng.below(3)));
+    std::vector<std::uint32_t> repeated, random;
+    for (int r = 0; r < 200; ++r) {
+        repeated.insert(repeated.end(), path.begin(), path.end());
+        for (int i = 0; i < 60; ++i) random.push_back(std::uint32_t(rng.below(3)));
+    }
+    const std::uint64_t coherent = misses_of(repeated), incoherent = misses_of(random);
+    EXPECT_LT(coherent, 2 * path.size());        // the first pass, then next to nothing
+    EXPECT_GT(incoherent, random.size() / 2);     // two in three guesses wrong at random
+    EXPECT_EQ(misses_of(random), incoherent);     // deterministic
+}
+
+TEST(OutcomePredictor, TheCountingPassCountsCoherenceForEveryTraversal) {
+    // One scene, two ray sets with the same paths in total: one ray repeated, and rays in random
+    // directions. Every structure that counts steps sees the repeated ray as coherent.
+    const std::vector<Object> objects = test::generated_scene("irregular", 3000, 1, 9).initial;
+    Aabb world = objects.front().box;
+    for (const Object& o : objects)
+        for (int a = 0; a < 3; ++a)
+            world.min[a] = std::min(world.min[a], o.box.min[a]), world.max[a] = std::max(world.max[a], o.box.max[a]);
+    const Vec3 c = world.center();
+    Random rng(4);
+    std::vector<Segment> random_rays, one_ray;
+    for (int i = 0; i < 400; ++i) {
+        const Vec3 d = Vec3{float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1))};
+        random_rays.push_back({c, c + d * world.extent().x});
+    }
+    one_ray.assign(400, random_rays.front());
+    for (const char* name : {"ug", "hg", "dbvh", "lbvh", "wbvh", "bullet_dbvt"}) {
+        const StructureInfo& info = find_structure(name);
+        auto s = info.make(info.defaults(), name);
+        s->build(objects);
+        s->commit();
+        HitLists hits;
+        Counters coherent, incoherent;
+        s->cast_counted(one_ray, hits, coherent);
+        s->cast_counted(random_rays, hits, incoherent);
+        ASSERT_GT(coherent.n_t, 0u) << name;
+        EXPECT_LT(double(coherent.n_mp) / double(coherent.n_t), 0.05) << name;
+        EXPECT_GT(double(incoherent.n_mp) / double(incoherent.n_t), 0.1) << name;
+        Counters again;
+        s->cast_counted(random_rays, hits, again);
+        EXPECT_EQ(again, incoherent) << name;  // the same rays count the same
+    }
+}
+
+}  // namespace
+}  // namespace rcb
