@@ -50,6 +50,10 @@ const Term kHits{"C_HIT", [](const FrameObservation& f) { return f.n_tp; }};
 /// What a tree step costs beyond a step when its node box is hit: the children pushed and, below,
 /// fetched (cache misses). Eq. 5.4 prices every step alike; a BVH's steps are hits and misses.
 const Term kNodeHits{"C_TH", [](const FrameObservation& f) { return f.n_th; }};
+/// What a step costs beyond a predicted one when the ray before took another path (coherence): the
+/// branches the CPU guessed wrong and the nodes not in the L1 cache. N_MP is the steps a history
+/// predictor missed (core/outcome_predictor.h); eq. 5.4 prices coherent and incoherent rays alike.
+const Term kMispredicts{"C_MP", [](const FrameObservation& f) { return f.n_mp; }};
 
 /// The memory hierarchy: one column per cache tier the run's working sets reach beyond the
 /// smallest one, (w_RB·N_RB + w_T·N_T) where the working set has left the cache of level `tier`
@@ -248,8 +252,8 @@ StructureCalibration fit_calibration(const std::string& structure, const std::ve
     out.structure = structure;
     out.points = points;
     if (points.empty()) return out;
-    const std::pair<const char*, double CalibrationPoint::*> counters[] = {{"C_RB", &CalibrationPoint::n_rb},
-                                                                           {"C_T", &CalibrationPoint::n_t}};
+    const std::pair<const char*, double CalibrationPoint::*> counters[] = {
+        {"C_RB", &CalibrationPoint::n_rb}, {"C_T", &CalibrationPoint::n_t}, {"C_MP", &CalibrationPoint::n_mp}};
     LinearProblem p;
     for (const auto& counter : counters)  // not a structured binding: clang 14 cannot capture one
         if (std::any_of(points.begin(), points.end(),
@@ -260,7 +264,10 @@ StructureCalibration fit_calibration(const std::string& structure, const std::ve
         if (!(points[i].ns_per_ray > 0)) continue;
         std::vector<double> row;
         for (const std::string& t : p.terms)
-            row.push_back(t == "C_RB" ? points[i].n_rb : t == "C_T" ? points[i].n_t : 1.0);
+            row.push_back(t == "C_RB"   ? points[i].n_rb
+                          : t == "C_T"  ? points[i].n_t
+                          : t == "C_MP" ? points[i].n_mp
+                                        : 1.0);
         p.x.push_back(row);
         p.y.push_back(points[i].ns_per_ray);
         p.group.push_back(int(i));
@@ -338,7 +345,8 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) 
         "SELECT config.structure, config.params, NULL, NULL, cell.scene_id, cell.config_id, frame.rays, "
         "frame.raycast_ns, frame.update_ns, frame.n_t, frame.n_rb, frame.n_tp, frame.inserts, frame.removes, "
         "frame.moves, "
-        "cell.objects, frame.memory_bytes, frame.n_ro, frame.n_th FROM frame JOIN cell ON cell.id = frame.cell_id JOIN "
+        "cell.objects, frame.memory_bytes, frame.n_ro, frame.n_th, frame.n_mp FROM frame JOIN cell ON cell.id = "
+        "frame.cell_id JOIN "
         "config ON "
         "config.id = "
         "cell.config_id "
@@ -371,7 +379,7 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) 
         f.moves = s.real(14);
         f.objects = s.real(15);
         f.memory_mb = s.real(16) / (1024.0 * 1024.0);
-        if (f.rays > 0) f.n_ro = s.real(17) / f.rays, f.n_th = s.real(18) / f.rays;
+        if (f.rays > 0) f.n_ro = s.real(17) / f.rays, f.n_th = s.real(18) / f.rays, f.n_mp = s.real(19) / f.rays;
         out.push_back(f);
     }
     if (out.empty()) throw InputError("run " + std::to_string(run) + " has no measured frames to fit");
@@ -392,7 +400,7 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
         // Priors: the pinned calibration values; the others say why they are missing.
         std::map<std::string, double> priors;
         std::map<std::string, std::string> no_prior_why;
-        for (const char* name : {"C_RB", "C_T", "C_PREP"}) {
+        for (const char* name : {"C_RB", "C_T", "C_MP", "C_PREP"}) {
             const CalibratedTerm* t = m.calibration ? m.calibration->term(name) : nullptr;
             if (t && t->pinned)
                 priors[name] = t->value;
@@ -421,6 +429,13 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
         std::vector<Built> raycast;
         raycast.push_back(candidate("no-prep", "raycast", with_rays, columns_of(core), priors, no_prior_why));
         raycast.push_back(candidate("eq5.4", "raycast", with_rays, columns_of(full), priors, no_prior_why));
+        // Steps the ray before did not prepare (coherence): where the traversal counted any.
+        if (!present(with_rays, {kMispredicts}, nullptr).empty()) {
+            std::vector<Term> with_coherence = full;
+            with_coherence.push_back(kMispredicts);
+            raycast.push_back(
+                candidate("with-coherence", "raycast", with_rays, columns_of(with_coherence), priors, no_prior_why));
+        }
         // Tree steps that enter a node (children pushed) against those that stop at its box.
         if (!present(with_rays, {kNodeHits}, nullptr).empty()) {
             std::vector<Term> with_node_hits = full;
@@ -451,6 +466,14 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
             hierarchy.insert(hierarchy.end(), beyond.begin(), beyond.end());
             raycast.push_back(
                 candidate("memory-hierarchy", "raycast", with_rays, columns_of(hierarchy), priors, no_prior_why));
+        }
+        // Both: steps the ray before did not prepare, and steps and tests beyond the caches.
+        if (!present(with_rays, {kMispredicts}, nullptr).empty() && !beyond.empty()) {
+            std::vector<Term> both = full;
+            both.push_back(kMispredicts);
+            both.insert(both.end(), beyond.begin(), beyond.end());
+            raycast.push_back(
+                candidate("coherence-hierarchy", "raycast", with_rays, columns_of(both), priors, no_prior_why));
         }
         if (categories.size() > 1)
             raycast.push_back(

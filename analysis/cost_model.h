@@ -38,6 +38,7 @@ struct FrameObservation {
     double n_t = 0, n_rb = 0, n_tp = 0;  ///< per ray
     double n_ro = 0;                     ///< narrow-phase shape tests per ray (0 below the shapes query level)
     double n_th = 0;                     ///< node boxes hit per ray (trees; 0 where not counted)
+    double n_mp = 0;                     ///< steps a history predictor missed per ray (0 where not counted)
     double inserts = 0, removes = 0, moves = 0, objects = 0;
     double memory_mb = 0;
     /// Where the structure's working set (memory_mb) sits: 0 within the first data cache, 1 within
@@ -55,7 +56,7 @@ int memory_tier_of(double bytes, const std::vector<CacheLevel>& caches);
 /// fit of eq. 5.4. `pinned` when the micro-scenes determine it (positive, interval within ±50%);
 /// otherwise `why` says what was wrong and the term gets no prior.
 struct CalibratedTerm {
-    std::string name;  ///< "C_RB", "C_T", "C_PREP"
+    std::string name;  ///< "C_RB", "C_T", "C_MP", "C_PREP"
     double value = NAN, ci_low = NAN, ci_high = NAN;
     bool pinned = false;
     std::string why;

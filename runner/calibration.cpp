@@ -132,7 +132,11 @@ std::vector<MicroScene> micro_scenes() {
             }
     for (int r = 0; r < kRays; ++r)
         shell.rays.push_back({{draw(15, 85), draw(15, 85), draw(15, 85)}, {draw(15, 85), draw(15, 85), draw(15, 85)}});
+    // The same shell crossed kRays times by one ray: the steps of the random rays above, but each
+    // one predicted from the ray before (N_MP near 0), which pins C_MP against them.
+    MicroScene coherent{"shell-coherent", shell.objects, std::vector<Segment>(kRays, shell.rays.front())};
     out.push_back(std::move(shell));
+    out.push_back(std::move(coherent));
     // A stack of identical boxes every ray crosses: box tests.
     MicroScene stack{"stack", {}, {}};
     for (int i = 0; i < 256; ++i) stack.objects.push_back({Uid(i + 1), cube({50, 50, 50}, 5)});
@@ -169,6 +173,7 @@ std::vector<CalibrationPoint> calibrate_structure(const StructureInfo& info, con
         p.rays = std::uint32_t(scene.rays.size());
         p.n_rb = double(counters.n_rb) / double(p.rays);
         p.n_t = double(counters.n_t) / double(p.rays);
+        p.n_mp = double(counters.n_mp) / double(p.rays);
         p.ns_per_ray = spread.median;
         p.mad = spread.mad;
         out.push_back(p);
@@ -210,10 +215,10 @@ void record_machine(Database& db, std::int64_t run,
     for (const Measured& m : measured)
         for (const CalibrationPoint& p : m.points)
             db.prepare(
-                  "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad) VALUES "
-                  "(?,?,?,?,?,?,?,?,?)")
+                  "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp) "
+                  "VALUES (?,?,?,?,?,?,?,?,?,?)")
                 .bind_all(run, m.name, m.params.dump(), p.scene, std::int64_t(p.rays), p.n_rb, p.n_t, p.ns_per_ray,
-                          p.mad)
+                          p.mad, p.n_mp)
                 .run();
     t.commit();
 }
@@ -229,10 +234,11 @@ std::vector<CacheLevel> load_cache_sizes(Database& db, std::int64_t run) {
 std::vector<CalibrationPoint> load_calibration(Database& db, std::int64_t run, const std::string& structure) {
     std::vector<CalibrationPoint> out;
     Statement s = db.prepare(
-        "SELECT scene, rays, n_rb, n_t, ns_per_ray, mad FROM calibration WHERE run_id = ? AND structure = ? ORDER BY "
-        "rowid");
+        "SELECT scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp FROM calibration WHERE run_id = ? AND structure = ? "
+        "ORDER BY rowid");
     s.bind_all(run, structure);
-    while (s.step()) out.push_back({s.text(0), std::uint32_t(s.int64(1)), s.real(2), s.real(3), s.real(4), s.real(5)});
+    while (s.step())
+        out.push_back({s.text(0), std::uint32_t(s.int64(1)), s.real(2), s.real(3), s.real(4), s.real(5), s.real(6)});
     return out;
 }
 

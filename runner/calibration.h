@@ -6,8 +6,10 @@
 /// leads to box tests, so N_RB and N_T are nearly collinear and a fit cannot tell C_RB from C_T.
 /// The micro-scenes vary them independently: rays outside every object's bounds (start-up only:
 /// C_PREP), rays through the empty inside of a hollow shell (traversal steps with few tests: C_T),
-/// a stack of identical boxes every ray crosses (box tests with few steps in a grid, the whole tree
-/// in a BVH: C_RB), and rays along the gaps and rows of a lattice (mixes). The scenes are small, so
+/// the same shell crossed again and again by one ray (the same steps, each predicted from the ray
+/// before: C_MP, the extra cost of an unpredicted step), a stack of identical boxes every ray
+/// crosses (box tests with few steps in a grid, the whole tree in a BVH: C_RB), and rays along the
+/// gaps and rows of a lattice (mixes). The scenes are small, so
 /// the coefficients they give are in-cache costs. The analysis stage fits them (the priors of the
 /// run's fit); this stage only measures and stores.
 
@@ -43,6 +45,7 @@ struct CalibrationPoint {
     double n_rb = 0, n_t = 0;  ///< per ray
     double ns_per_ray = 0;     ///< median over the repeats
     double mad = 0;            ///< median absolute deviation over the repeats
+    double n_mp = 0;           ///< steps the history predictor missed, per ray (core/outcome_predictor.h)
 };
 
 /// Builds `info` with `params` on every micro-scene and times its ray batches (`repeats` times);

@@ -224,6 +224,37 @@ TEST(ModelSelection, NodeHitsGetTheirOwnCostWhereStepsSplitUnevenly) {
     for (const CandidateModel& c : plain[0].raycast) EXPECT_NE(c.name, "with-node-hits");
 }
 
+TEST(ModelSelection, IncoherentStepsGetTheirOwnCost) {
+    // Rays whose steps the ray before did not prepare (N_MP, varied by configuration independently
+    // of the step count, as coherent and random ray sets do) cost 14 ns more per such step.
+    const double c_mp = 14.0;
+    std::vector<FrameObservation> frames = synthetic_frames(0.8, 3.0, 40.0, 16, 22, 0.02);
+    Random rng(6);
+    std::map<int, double> share;
+    for (FrameObservation& f : frames) {
+        if (!share.count(f.config_group)) share[f.config_group] = rng.uniform(0.02, 0.5);
+        f.n_mp = share[f.config_group] * f.n_t;
+        f.raycast_ns += f.rays * c_mp * f.n_mp;
+    }
+    const auto models = fit_cost_models(frames);
+    const CandidateModel* m = models[0].chosen("raycast");
+    ASSERT_NE(m, nullptr);
+    EXPECT_EQ(m->name, "with-coherence");
+    const auto mp = std::find_if(m->fit.coefficients.begin(), m->fit.coefficients.end(),
+                                 [](const Coefficient& c) { return c.name == "C_MP"; });
+    ASSERT_NE(mp, m->fit.coefficients.end());
+    EXPECT_LE(mp->ci_low, c_mp);
+    EXPECT_GE(mp->ci_high, c_mp);
+    // Without the term the model misses by far more.
+    const auto eq54 = std::find_if(models[0].raycast.begin(), models[0].raycast.end(),
+                                   [](const CandidateModel& c) { return c.name == "eq5.4"; });
+    ASSERT_NE(eq54, models[0].raycast.end());
+    EXPECT_GT(eq54->heldout_error, 3 * m->heldout_error);
+    // Frames without the counter (brute force, Embree, older databases) offer no such candidate.
+    const auto plain = fit_cost_models(synthetic_frames(0.8, 5.0, 40.0, 12, 1));
+    for (const CandidateModel& c : plain[0].raycast) EXPECT_NE(c.name, "with-coherence");
+}
+
 TEST(ModelSelection, UpdateCostsAreRecoveredPerOperation) {
     const auto models = fit_cost_models(synthetic_frames(0.8, 5.0, 40.0, 12, 7, 0.01));
     const CandidateModel* m = models[0].chosen("update");

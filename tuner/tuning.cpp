@@ -67,6 +67,7 @@ void add_observations(const SimulationResult& r, const std::string& scene, const
         o.n_tp = double(f.counters.n_tp) / f.rays;
         o.n_ro = double(f.counters.n_ro) / f.rays;
         o.n_th = double(f.counters.n_th) / f.rays;
+        o.n_mp = double(f.counters.n_mp) / f.rays;
         o.inserts = f.inserts, o.removes = f.removes, o.moves = f.moves, o.objects = double(r.objects);
         o.memory_mb = double(f.memory_bytes) / (1024.0 * 1024.0);
         out.push_back(o);
@@ -386,22 +387,23 @@ Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category
         return 0.0;
     };
     const double c_rb = coefficient("C_RB"), c_t = coefficient("C_T"), c_prep = coefficient("C_PREP"),
-                 c_mem = coefficient("C_MEM"), c_ro = coefficient("C_RO"), c_th = coefficient("C_TH");
+                 c_mem = coefficient("C_MEM"), c_ro = coefficient("C_RO"), c_th = coefficient("C_TH"),
+                 c_mp = coefficient("C_MP");
     SimulationOptions replay;
     replay.verify = false;
     replay.timed_cast = false;
     replay.warmup_frames = spec.warmup_frames;
-    out.predict = [c_rb, c_t, c_prep, c_mem, c_ro, c_th, replay, structure, cat = &category](const json& p) {
+    out.predict = [c_rb, c_t, c_prep, c_mem, c_ro, c_th, c_mp, replay, structure, cat = &category](const json& p) {
         const auto runs = run_simulations(*cat, structure, complete(structure, p), replay, 1);
         double total = 0;
         for (const SimulationResult& r : runs) {
             std::vector<double> frame_ms;
             for (const FrameResult& f : r.frames) {
                 if (f.warmup || f.rays == 0) continue;
-                const double per_ray = c_rb * double(f.counters.n_rb) / f.rays + c_t * double(f.counters.n_t) / f.rays +
-                                       c_prep + c_mem * double(f.memory_bytes) / (1024.0 * 1024.0) +
-                                       c_ro * double(f.counters.n_ro) / f.rays +
-                                       c_th * double(f.counters.n_th) / f.rays;
+                const double per_ray =
+                    c_rb * double(f.counters.n_rb) / f.rays + c_t * double(f.counters.n_t) / f.rays + c_prep +
+                    c_mem * double(f.memory_bytes) / (1024.0 * 1024.0) + c_ro * double(f.counters.n_ro) / f.rays +
+                    c_th * double(f.counters.n_th) / f.rays + c_mp * double(f.counters.n_mp) / f.rays;
                 frame_ms.push_back((double(f.update_ns) + f.rays * per_ray) / 1e6);
             }
             total += spread_of(frame_ms).median;
