@@ -620,10 +620,10 @@ std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& f
         std::vector<double> cost;
         for (const FrameObservation* f : fs) {
             cost.push_back(f->raycast_ns / f->rays);
-            b.n_tp += f->n_tp, b.n_fp += f->n_rb - f->n_tp, b.n_t += f->n_t, b.n_ro += f->n_ro;
+            b.n_tp += f->n_tp, b.n_fp += f->n_rb - f->n_tp, b.n_t += f->n_t, b.n_ro += f->n_ro, b.n_mp += f->n_mp;
         }
         const double n = double(fs.size());
-        b.n_tp /= n, b.n_fp /= n, b.n_t /= n, b.n_ro /= n;
+        b.n_tp /= n, b.n_fp /= n, b.n_t /= n, b.n_ro /= n, b.n_mp /= n;
         b.c_total = spread_of(cost).median;
         const std::string category = fs.front()->category;
         for (const StructureModels& s : models) {
@@ -641,6 +641,7 @@ std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& f
             b.rb_term = b.c_rb * (b.n_tp + b.n_fp);
             b.t_term = b.c_t * b.n_t;
             b.ro_term = coefficient("C_RO") * b.n_ro;
+            b.mp_term = coefficient("C_MP") * b.n_mp;
         }
         out.push_back(b);
     }

@@ -139,6 +139,7 @@ struct CostBreakdown {
     double n_tp = 0, n_fp = 0, n_t = 0;
     double c_rb = NAN, c_t = NAN;
     double n_ro = 0, ro_term = 0;  ///< shape tests per ray and C_RO·N_RO (0 without a with-shapes model)
+    double n_mp = 0, mp_term = 0;  ///< unpredicted steps per ray and C_MP·N_MP (0 where the model has no C_MP)
 };
 std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& frames,
                                           const std::vector<StructureModels>& models);

@@ -120,6 +120,10 @@ void add_fit_command(CLI::App& app) {
         std::vector<std::string> breakdown_header{"scene",  "structure", "params", "C_total", "C_RBxN_RB", "C_TxN_T",
                                                   "C_PREP", "N_TP",      "N_FP",   "N_T",     "C_RB",      "C_T"};
         if (shapes) breakdown_header.insert(breakdown_header.begin() + 6, {"C_ROxN_RO", "N_RO"});
+        // The coherence columns where a chosen model prices unpredicted steps.
+        const bool coherence = std::any_of(fit.breakdown.begin(), fit.breakdown.end(),
+                                           [](const CostBreakdown& b) { return b.mp_term > 0; });
+        if (coherence) breakdown_header.insert(breakdown_header.begin() + 6, {"C_MPxN_MP", "N_MP"});
         TextTable t(breakdown_header);
         for (const CostBreakdown& b : fit.breakdown) {
             std::vector<std::string> row{b.scene,
@@ -135,6 +139,7 @@ void add_fit_command(CLI::App& app) {
                                          std::isfinite(b.c_rb) ? fixed(b.c_rb, 3) : "-",
                                          std::isfinite(b.c_t) ? fixed(b.c_t, 3) : "-"};
             if (shapes) row.insert(row.begin() + 6, {fixed(b.ro_term, 1), fixed(b.n_ro, 1)});
+            if (coherence) row.insert(row.begin() + 6, {fixed(b.mp_term, 1), fixed(b.n_mp, 1)});
             t.add(row);
         }
         t.print(std::cout);

@@ -121,6 +121,13 @@ std::vector<MicroScene> micro_scenes() {
         }
         out.push_back(std::move(rows));
     }
+    // Random segments across the larger lattice: steps and tests in paths no ray before prepared
+    // (many unpredicted steps, beside the rows' predictable ones).
+    MicroScene scatter{"scatter-10", lattice(10), {}};
+    for (int r = 0; r < kRays; ++r)
+        scatter.rays.push_back(
+            {{draw(0, 100), draw(0, 100), draw(0, 100)}, {draw(0, 100), draw(0, 100), draw(0, 100)}});
+    out.push_back(std::move(scatter));
     // A hollow shell of boxes on the faces of [0, 100]^3, rays inside it: steps through empty space.
     MicroScene shell{"shell", {}, {}};
     for (int face = 0; face < 6; ++face)

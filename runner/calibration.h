@@ -9,7 +9,7 @@
 /// the same shell crossed again and again by one ray (the same steps, each predicted from the ray
 /// before: C_MP, the extra cost of an unpredicted step), a stack of identical boxes every ray
 /// crosses (box tests with few steps in a grid, the whole tree in a BVH: C_RB), and rays along the
-/// gaps and rows of a lattice (mixes). The scenes are small, so
+/// gaps and rows of a lattice and random segments across it (mixes). The scenes are small, so
 /// the coefficients they give are in-cache costs. The analysis stage fits them (the priors of the
 /// run's fit); this stage only measures and stores.
 

@@ -71,7 +71,7 @@ TEST(Calibration, MicroScenesVaryTheCountersIndependently) {
     for (const char* name : {"bf", "ug", "dbvh", "lbvh"}) {
         const StructureInfo& info = find_structure(name);
         const std::vector<CalibrationPoint> points = calibrate_structure(info, info.defaults(), 1);
-        ASSERT_EQ(points.size(), 9u) << name;
+        ASSERT_EQ(points.size(), 10u) << name;
         auto at = [&](const std::string& scene) {
             for (const CalibrationPoint& p : points)
                 if (p.scene == scene) return p;
@@ -110,13 +110,13 @@ TEST(Calibration, StoredOncePerRun) {
         s.step();
         return s.int64(0);
     };
-    EXPECT_EQ(load_calibration(store.db(), first.run, "bf").size(), 9u);
-    EXPECT_EQ(load_calibration(store.db(), first.run, "dbvh").size(), 9u);  // one structure, one calibration
-    EXPECT_EQ(count("calibration"), 18);
+    EXPECT_EQ(load_calibration(store.db(), first.run, "bf").size(), 10u);
+    EXPECT_EQ(load_calibration(store.db(), first.run, "dbvh").size(), 10u);  // one structure, one calibration
+    EXPECT_EQ(count("calibration"), 20);
     EXPECT_EQ(std::size_t(count("run_cache")), read_cache_sizes().size());
     // Recording again (a resumed run) keeps what the run began with.
     record_machine(store.db(), first.run, {{"bf", find_structure("bf").defaults()}});
-    EXPECT_EQ(count("calibration"), 18);
+    EXPECT_EQ(count("calibration"), 20);
     // A merged run keeps its machine, so the merged database is fitted with the same priors.
     {
         ResultStore merged((dir / "merged.db").string());
@@ -146,7 +146,7 @@ TEST(Calibration, TheRunsFitUsesItAndStoresLeaveOneSceneOut) {
     ASSERT_EQ(fit.models.size(), 1u);
     const StructureModels& m = fit.models[0];
     ASSERT_NE(m.calibration, nullptr);
-    EXPECT_EQ(m.calibration->points.size(), 9u);
+    EXPECT_EQ(m.calibration->points.size(), 10u);
     EXPECT_EQ(m.loso.size(), 3u);  // every scene predicted from the two others
     const CandidateModel* chosen = m.chosen("raycast");
     ASSERT_NE(chosen, nullptr);

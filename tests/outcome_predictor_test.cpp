@@ -36,9 +36,9 @@ TEST(OutcomePredictor, LearnsARepeatedPathAndMissesRandomOnes) {
         for (int i = 0; i < 60; ++i) random.push_back(std::uint32_t(rng.below(3)));
     }
     const std::uint64_t coherent = misses_of(repeated), incoherent = misses_of(random);
-    EXPECT_LT(coherent, 2 * path.size());        // the first pass, then next to nothing
-    EXPECT_GT(incoherent, random.size() / 2);     // two in three guesses wrong at random
-    EXPECT_EQ(misses_of(random), incoherent);     // deterministic
+    EXPECT_LT(coherent, 2 * path.size());      // the first pass, then next to nothing
+    EXPECT_GT(incoherent, random.size() / 2);  // two in three guesses wrong at random
+    EXPECT_EQ(misses_of(random), incoherent);  // deterministic
 }
 
 TEST(OutcomePredictor, TheCountingPassCountsCoherenceForEveryTraversal) {
