@@ -139,9 +139,9 @@ std::vector<MicroScene> micro_scenes() {
             }
     for (int r = 0; r < kRays; ++r)
         shell.rays.push_back({{draw(15, 85), draw(15, 85), draw(15, 85)}, {draw(15, 85), draw(15, 85), draw(15, 85)}});
-    // The same shell crossed kRays times by one ray: the steps of the random rays above, but each
-    // one predicted from the ray before (N_MP near 0), which pins C_MP against them.
-    MicroScene coherent{"shell-coherent", shell.objects, std::vector<Segment>(kRays, shell.rays.front())};
+    // The same shell crossed kRays times by one long ray: steps like the random rays' above, but
+    // each one predicted from the ray before (N_MP near 0), which pins C_MP against them.
+    MicroScene coherent{"shell-coherent", shell.objects, std::vector<Segment>(kRays, {{16, 20, 30}, {84, 80, 70}})};
     out.push_back(std::move(shell));
     out.push_back(std::move(coherent));
     // A stack of identical boxes every ray crosses: box tests.
