@@ -199,18 +199,26 @@ TEST(ModelSelection, TheNarrowPhasesCostIsRecoveredWithinItsIntervalWhereShapesW
     for (const CandidateModel& c : boxes[0].raycast) EXPECT_EQ(shape_cost(c), nullptr) << c.name;
 }
 
+/// `frames` where a share of the steps, drawn per configuration in [low, high] independently of the
+/// step count, is counted in `counter` and costs `cost` ns more each.
+std::vector<FrameObservation> with_step_share(std::vector<FrameObservation> frames, double FrameObservation::*counter,
+                                              double cost, double low, double high, std::uint64_t seed) {
+    Random rng(seed);
+    std::map<int, double> share;
+    for (FrameObservation& f : frames) {
+        if (!share.count(f.config_group)) share[f.config_group] = rng.uniform(low, high);
+        f.*counter = share[f.config_group] * f.n_t;
+        f.raycast_ns += f.rays * cost * f.*counter;
+    }
+    return frames;
+}
+
 TEST(ModelSelection, NodeHitsGetTheirOwnCostWhereStepsSplitUnevenly) {
     // A tree whose steps are hits (children pushed and fetched, 9 ns more) in a share that varies
     // by configuration independently of the step count: eq. 5.4's one C_T cannot fit it.
     const double c_th = 9.0;
-    std::vector<FrameObservation> frames = synthetic_frames(0.8, 5.0, 40.0, 16, 21, 0.02);
-    Random rng(5);
-    std::map<int, double> share;
-    for (FrameObservation& f : frames) {
-        if (!share.count(f.config_group)) share[f.config_group] = rng.uniform(0.1, 0.9);
-        f.n_th = share[f.config_group] * f.n_t;
-        f.raycast_ns += f.rays * c_th * f.n_th;
-    }
+    const std::vector<FrameObservation> frames =
+        with_step_share(synthetic_frames(0.8, 5.0, 40.0, 16, 21, 0.02), &FrameObservation::n_th, c_th, 0.1, 0.9, 5);
     const auto models = fit_cost_models(frames);
     const CandidateModel* m = models[0].chosen("raycast");
     ASSERT_NE(m, nullptr);
@@ -228,14 +236,8 @@ TEST(ModelSelection, IncoherentStepsGetTheirOwnCost) {
     // Rays whose steps the ray before did not prepare (N_MP, varied by configuration independently
     // of the step count, as coherent and random ray sets do) cost 14 ns more per such step.
     const double c_mp = 14.0;
-    std::vector<FrameObservation> frames = synthetic_frames(0.8, 3.0, 40.0, 16, 22, 0.02);
-    Random rng(6);
-    std::map<int, double> share;
-    for (FrameObservation& f : frames) {
-        if (!share.count(f.config_group)) share[f.config_group] = rng.uniform(0.02, 0.5);
-        f.n_mp = share[f.config_group] * f.n_t;
-        f.raycast_ns += f.rays * c_mp * f.n_mp;
-    }
+    const std::vector<FrameObservation> frames =
+        with_step_share(synthetic_frames(0.8, 3.0, 40.0, 16, 22, 0.02), &FrameObservation::n_mp, c_mp, 0.02, 0.5, 6);
     const auto models = fit_cost_models(frames);
     const CandidateModel* m = models[0].chosen("raycast");
     ASSERT_NE(m, nullptr);
