@@ -213,48 +213,38 @@ std::vector<FrameObservation> with_step_share(std::vector<FrameObservation> fram
     return frames;
 }
 
-TEST(ModelSelection, NodeHitsGetTheirOwnCostWhereStepsSplitUnevenly) {
-    // A tree whose steps are hits (children pushed and fetched, 9 ns more) in a share that varies
-    // by configuration independently of the step count: eq. 5.4's one C_T cannot fit it.
-    const double c_th = 9.0;
-    const std::vector<FrameObservation> frames =
-        with_step_share(synthetic_frames(0.8, 5.0, 40.0, 16, 21, 0.02), &FrameObservation::n_th, c_th, 0.1, 0.9, 5);
-    const auto models = fit_cost_models(frames);
-    const CandidateModel* m = models[0].chosen("raycast");
-    ASSERT_NE(m, nullptr);
-    EXPECT_EQ(m->name, "with-node-hits");
-    const Coefficient& th = m->fit.coefficients.back();
-    EXPECT_EQ(th.name, "C_TH");
-    EXPECT_LE(th.ci_low, c_th);
-    EXPECT_GE(th.ci_high, c_th);
-    // Frames without node hits (grids, peers, older databases) offer no such candidate.
-    const auto plain = fit_cost_models(synthetic_frames(0.8, 5.0, 40.0, 12, 1));
-    for (const CandidateModel& c : plain[0].raycast) EXPECT_NE(c.name, "with-node-hits");
-}
-
-TEST(ModelSelection, IncoherentStepsGetTheirOwnCost) {
-    // Rays whose steps the ray before did not prepare (N_MP, varied by configuration independently
-    // of the step count, as coherent and random ray sets do) cost 14 ns more per such step.
-    const double c_mp = 14.0;
-    const std::vector<FrameObservation> frames =
-        with_step_share(synthetic_frames(0.8, 3.0, 40.0, 16, 22, 0.02), &FrameObservation::n_mp, c_mp, 0.02, 0.5, 6);
-    const auto models = fit_cost_models(frames);
-    const CandidateModel* m = models[0].chosen("raycast");
-    ASSERT_NE(m, nullptr);
-    EXPECT_EQ(m->name, "with-coherence");
-    const auto mp = std::find_if(m->fit.coefficients.begin(), m->fit.coefficients.end(),
-                                 [](const Coefficient& c) { return c.name == "C_MP"; });
-    ASSERT_NE(mp, m->fit.coefficients.end());
-    EXPECT_LE(mp->ci_low, c_mp);
-    EXPECT_GE(mp->ci_high, c_mp);
-    // Without the term the model misses by far more.
-    const auto eq54 = std::find_if(models[0].raycast.begin(), models[0].raycast.end(),
-                                   [](const CandidateModel& c) { return c.name == "eq5.4"; });
-    ASSERT_NE(eq54, models[0].raycast.end());
-    EXPECT_GT(eq54->heldout_error, 3 * m->heldout_error);
-    // Frames without the counter (brute force, Embree, older databases) offer no such candidate.
-    const auto plain = fit_cost_models(synthetic_frames(0.8, 5.0, 40.0, 12, 1));
-    for (const CandidateModel& c : plain[0].raycast) EXPECT_NE(c.name, "with-coherence");
+TEST(ModelSelection, StepsOfTwoKindsGetTheirOwnCost) {
+    // Two ways a step count splits, each in a share that varies by configuration independently of
+    // N_T, so that eq. 5.4's one C_T cannot fit it: a tree's node boxes hit (children pushed and
+    // fetched, N_TH), and steps the ray before did not prepare (N_MP, as coherent and random ray
+    // sets give).
+    struct Kind {
+        double FrameObservation::*counter;
+        const char *term, *candidate;
+        double cost, low, high;
+    };
+    for (const Kind& k : {Kind{&FrameObservation::n_th, "C_TH", "with-node-hits", 9.0, 0.1, 0.9},
+                          Kind{&FrameObservation::n_mp, "C_MP", "with-coherence", 14.0, 0.02, 0.5}}) {
+        const auto models = fit_cost_models(
+            with_step_share(synthetic_frames(0.8, 5.0, 40.0, 16, 21, 0.02), k.counter, k.cost, k.low, k.high, 5));
+        const CandidateModel* m = models[0].chosen("raycast");
+        ASSERT_NE(m, nullptr);
+        EXPECT_EQ(m->name, k.candidate);
+        const auto c = std::find_if(m->fit.coefficients.begin(), m->fit.coefficients.end(),
+                                    [&](const Coefficient& x) { return x.name == k.term; });
+        ASSERT_NE(c, m->fit.coefficients.end()) << k.term;
+        EXPECT_LE(c->ci_low, k.cost) << k.term;
+        EXPECT_GE(c->ci_high, k.cost) << k.term;
+        // Without the term the model misses by far more.
+        const auto eq54 = std::find_if(models[0].raycast.begin(), models[0].raycast.end(),
+                                       [](const CandidateModel& x) { return x.name == "eq5.4"; });
+        ASSERT_NE(eq54, models[0].raycast.end());
+        EXPECT_GT(eq54->heldout_error, 3 * m->heldout_error) << k.term;
+        // Frames without the counter (grids' N_TH, brute force's and Embree's N_MP, older
+        // databases) offer no such candidate.
+        const auto plain = fit_cost_models(synthetic_frames(0.8, 5.0, 40.0, 12, 1));
+        for (const CandidateModel& x : plain[0].raycast) EXPECT_NE(x.name, k.candidate);
+    }
 }
 
 TEST(ModelSelection, UpdateCostsAreRecoveredPerOperation) {
