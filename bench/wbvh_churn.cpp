@@ -3,9 +3,11 @@
 // 10% inserts, 10% removes; seeded), applied as the simulator does (removes, inserts, moves, one
 // commit). Every K frames, and after the last, the maintained tree's SAH cost is compared with a
 // fresh build of the same objects with the same parameters. Prints those ratios (worst, last,
-// mean), the per-frame update time (the changes plus the commit) as median, p99 and max, the memory
-// per object (at the end, the most seen after a commit, a fresh build's) and the final stats. Pin
-// it: `taskset -c 0 build/bench/wbvh_churn 14000 10000`; the times are one run's, repeat it.
+// mean), the per-frame update time (the changes plus the commit) as median, p99 and max, in wall
+// time and in the thread's CPU time (which leaves out the time another process held the core),
+// the memory per object (at the end, the most seen after a commit, a fresh build's) and the final
+// stats. Pin it: `taskset -c 0 build/bench/wbvh_churn 14000 10000`; the times are one run's,
+// repeat it.
 //
 //   build/bench/wbvh_churn [OBJECTS] [FRAMES] [key=value …]
 //     bench keys: every=K (default 500), preset=NAME (default irreg-l: its kind), seed=S (1),
@@ -14,6 +16,7 @@
 //     any other key is a wbvh parameter, e.g. rebuild_ratio=1.2
 #include <algorithm>
 #include <cstdio>
+#include <ctime>
 #include <string>
 #include <vector>
 
@@ -29,6 +32,14 @@ using namespace rcb;
 using bench::Clock;
 using bench::median;
 using bench::ms_since;
+
+/// This thread's CPU time in milliseconds: unlike the wall clock, it leaves out the time the thread
+/// waited for the core (the machine may be shared).
+double cpu_ms() {
+    timespec t{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return double(t.tv_sec) * 1e3 + double(t.tv_nsec) * 1e-6;
+}
 
 double quantile(std::vector<double> v, double q) {
     std::sort(v.begin(), v.end());
@@ -96,19 +107,22 @@ int run(int argc, char** argv) {
     const double build_ms = ms_since(t0);
     LiveSet live(rec.initial);
 
-    std::vector<double> update, ratios;
+    std::vector<double> update, update_cpu, ratios;
     update.reserve(frames);
+    update_cpu.reserve(frames);
     double total_ms = 0, peak_bytes_per_object = 0;
     std::uint32_t worst_frame = 0;
     std::printf("%8s %10s %10s %8s %9s %8s\n", "frame", "sah", "fresh", "ratio", "growth", "rebuilds");
     for (std::uint32_t f = 0; f < frames; ++f) {
         const Frame& frame = rec.frames[f];
+        const double c0 = cpu_ms();
         t0 = Clock::now();
         for (Uid uid : frame.removes) tree.remove(uid);
         for (const Object& o : frame.inserts) tree.insert(o);
         for (const Object& o : frame.moves) tree.move(o);
         tree.commit();
         update.push_back(ms_since(t0));
+        update_cpu.push_back(cpu_ms() - c0);
         total_ms += update.back();
         live.apply(frame);
         peak_bytes_per_object = std::max(peak_bytes_per_object,
@@ -133,6 +147,11 @@ int run(int argc, char** argv) {
                 *std::max_element(ratios.begin(), ratios.end()), worst_frame, ratios.back(), mean, ratios.size());
     std::printf("build %.2f ms; update per frame: median %.4f ms, p99 %.4f ms, max %.3f ms, total %.0f ms\n", build_ms,
                 median(update), quantile(update, 0.99), *std::max_element(update.begin(), update.end()), total_ms);
+    double total_cpu = 0;
+    for (double u : update_cpu) total_cpu += u;
+    std::printf("update per frame, thread CPU time: median %.4f ms, p99 %.4f ms, max %.3f ms, total %.0f ms\n",
+                median(update_cpu), quantile(update_cpu, 0.99), *std::max_element(update_cpu.begin(), update_cpu.end()),
+                total_cpu);
     std::printf("memory per object: %.1f B at the end, %.1f B at most, %.1f B for a fresh build\n",
                 double(tree.memory_bytes()) / n, peak_bytes_per_object, double(fresh.memory_bytes()) / n);
     std::printf("stats %s\n", tree.stats().dump().c_str());
