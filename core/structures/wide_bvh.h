@@ -9,6 +9,7 @@
 /// build. docs/structures.md has the details.
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <tuple>
 #include <unordered_map>
@@ -199,17 +200,56 @@ private:
         Vec3 centroid;
         Uid uid;
     };
-
+    /// Items [begin, begin + n) of items_ and their box (the union of the items' boxes).
+    struct Range {
+        std::uint32_t begin = 0, n = 0;
+        Aabb box = Aabb::empty();
+    };
+    /// A block still to build: a range below lane `lane` of `parent` (kNone: the root).
+    struct Pending {
+        Range range;
+        std::uint32_t parent = kNone;
+        std::uint16_t depth = 0;
+        std::uint8_t lane = 0;
+    };
+    struct Bin {
+        Aabb box;
+        std::uint32_t n;
+    };
     std::uint32_t allocate();
     void release(std::uint32_t b);
     void mark(std::uint32_t b);
     void refit();
+    /// The whole rebuild at once: gather, build, done.
     void rebuild();
-    /// Builds the subtree over items[0, n) below `parent` (lane `lane`) and returns its block.
-    std::uint32_t build_node(Item* items, std::uint32_t n, std::uint32_t parent, int lane, int depth);
-    /// Splits items[0, n) in two (binned SAH; by size or the median when that cannot split) and
-    /// returns the size of the first part, in 1..n-1.
+    /// Empties the tree (blocks, index, counters), keeping the build state.
+    void clear_tree();
+
+    // The top-down binned SAH build, resumable, so that a rebuild can be spread over commits:
+    // build_step() does at most about `budget` units of work (one unit: an item binned, bounded or
+    // partitioned, an object written to a leaf) and returns what it did; build() and rebuild() run
+    // it without a limit. Depth first: pending_ holds the blocks still to build, and the node being
+    // opened keeps its parts and the split in progress between steps.
+    void begin_build();
+    std::uint64_t build_step(std::uint64_t budget);
+    bool build_done() const { return pending_.empty() && !opening_; }
+    void end_build();
+    /// One step of the split of parts_[splitting_]: centroid bounds, binning, then the partition.
+    std::uint64_t split_step(std::uint64_t budget);
+    /// Chooses the binned-SAH split of the part from the bins; false when none splits it.
+    bool choose_split(std::uint32_t n);
+    /// The fallbacks when binning cannot split `part`: by size when its centroids coincide, else at
+    /// the median of the widest axis. Done whole (these parts are rare, and small in practice).
+    void split_by_size(int part);
+    /// The node being opened is complete: its block, its lanes, its parts pending as children.
+    void finish_node();
+    void make_leaf(const Pending& p);
+    /// Hooks block `b` into lane `lane` of `parent` (or makes it the root) and adds its SAH term.
+    void link(std::uint32_t b, std::uint32_t parent, int lane);
+    /// Splits items [0, n) in two (binned SAH; by size or the median when that cannot split) and
+    /// returns the size of the first part, in 1..n-1. For the nine objects of a leaf split.
     std::uint32_t split(Item* items, std::uint32_t n);
+
     /// The leaf a new box goes to: the child of least area growth at every level.
     std::uint32_t choose_leaf(const Aabb& box) const;
     /// Adds `o` to the full leaf `leaf`: the nine objects split in two leaves, side by side in the
@@ -228,8 +268,6 @@ private:
     /// Σ area(lane) · weight(child) over all non-root blocks, recomputed from the tree.
     double fresh_sah_sum() const;
     double total_sah() const;
-    void build_from_items();
-
     Params params_;
     std::vector<Block> blocks_;
     std::uint32_t root_ = kNone;
@@ -250,12 +288,22 @@ private:
     bool changed_ = false;            // changes since the last commit
     // Stats.
     std::uint32_t rebuilds_ = 0, splits_ = 0, reinserts_ = 0;
-    // Build scratch.
+
+    // Build state (of the tree being built).
     std::vector<Item> items_;
-    struct Bin {
-        Aabb box;
-        std::uint32_t n;
-    };
+    std::vector<Pending> pending_;
+    bool opening_ = false;  // a node is being opened: open_, parts_, splitting_ hold it
+    Pending open_;          // the node being opened
+    std::array<Range, kLanes> parts_;
+    int nparts_ = 0;
+    int splitting_ = -1;                    // the part being split, or -1
+    std::uint8_t split_stage_ = 0;          // 0: centroid bounds, 1: binning, 2: partition
+    std::uint32_t cursor_ = 0, right_ = 0;  // the next item of the stage; the partition's right-side scan
+    Aabb cbox_;                             // the centroid bounds of the part being split
+    double scale_[3] = {0, 0, 0};           // bins per unit of centroid, per axis (0: the axis is not binned)
+    int axis_ = 0, split_bin_ = 0;          // the chosen split: items of bins below split_bin_ on axis_ go left
+    std::uint32_t left_n_ = 0;
+    std::uint64_t build_work_ = 0;  // units of the build so far
     std::vector<Bin> bin_scratch_;
     std::vector<double> right_cost_;
 };
