@@ -97,6 +97,14 @@ void WideBvh::set_lane(std::uint32_t b, int k, const Aabb& box) {
 // ---- build ----
 
 void WideBvh::build(std::span<const Object> objects) {
+    // A rebuild in progress is dropped: the new contents replace everything.
+    phase_ = Phase::idle;
+    next_.reset();
+    log_.clear();
+    log_mark_ = 0;
+    gather_skip_.clear();
+    replay_cursor_ = 0;
+    changes_ = age_ = cycle_age_ = cycle_work_ = last_cycle_work_ = budget_ = work_ = 0;
     where_.clear();
     where_.reserve(objects.size() + objects.size() / 4);  // room for inserts before a rehash
     items_.clear();
@@ -106,6 +114,9 @@ void WideBvh::build(std::span<const Object> objects) {
     begin_build();
     build_step(std::numeric_limits<std::uint64_t>::max());
     end_build();
+    // Until a rebuild has measured it: the build's units plus about one per object for the gathering
+    // and one for the replay.
+    units_per_object_ = double(build_work_) / double(std::max<std::size_t>(1, objects.size())) + 2;
 }
 
 void WideBvh::rebuild() {
@@ -118,6 +129,7 @@ void WideBvh::rebuild() {
     build_step(std::numeric_limits<std::uint64_t>::max());
     end_build();
     ++rebuilds_;
+    age_ = 0;
 }
 
 void WideBvh::clear_tree() {
@@ -419,6 +431,12 @@ std::uint32_t WideBvh::choose_leaf(const Aabb& box) const {
 }
 
 void WideBvh::insert(const Object& o) {
+    ++changes_;
+    log_change(o.uid);
+    insert_object(o);
+}
+
+void WideBvh::insert_object(const Object& o) {
     changed_ = true;
     if (root_ == kNone) {
         root_ = allocate();
@@ -455,8 +473,10 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
     std::array<Item, kLanes + 1> nine;
     {
         const Block& block = blocks_[leaf];
-        for (int k = 0; k < kLanes; ++k)
+        for (int k = 0; k < kLanes; ++k) {
             nine[std::size_t(k)] = {block.box(k), centroid(block.box(k)), Uid(block.ref[k])};
+            log_relocation(Uid(block.ref[k]));
+        }
     }
     nine[kLanes] = {o.box, centroid(o.box), o.uid};
     where_[o.uid] = 0;
@@ -527,6 +547,12 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
 }
 
 void WideBvh::remove(Uid uid) {
+    ++changes_;
+    log_change(uid);
+    remove_object(uid);
+}
+
+void WideBvh::remove_object(Uid uid) {
     auto it = where_.find(uid);
     const std::uint32_t b = it->second / kLanes;
     const int k = int(it->second % kLanes);
@@ -537,6 +563,7 @@ void WideBvh::remove(Uid uid) {
         block.set(k, block.box(last));
         block.ref[k] = block.ref[last];
         where_.find(Uid(block.ref[k]))->second = b * kLanes + std::uint32_t(k);
+        log_relocation(Uid(block.ref[k]));
     }
     block.clear(last);
     --block.count;
@@ -584,6 +611,8 @@ void WideBvh::drop_child_lane(std::uint32_t b, int k) {
 }
 
 void WideBvh::move(const Object& o) {
+    ++changes_;
+    log_change(o.uid);
     const std::uint32_t at = where_.at(o.uid);
     const std::uint32_t b = at / kLanes;
     if (params_.reinsert && b != root_) {
@@ -593,8 +622,8 @@ void WideBvh::move(const Object& o) {
         if (!(box.min.x <= c.x && c.x <= box.max.x && box.min.y <= c.y && c.y <= box.max.y && box.min.z <= c.z &&
               c.z <= box.max.z)) {
             ++reinserts_;
-            remove(o.uid);
-            insert(o);
+            remove_object(o.uid);
+            insert_object(o);
             return;
         }
     }
@@ -622,14 +651,175 @@ void WideBvh::refit() {
 
 void WideBvh::commit() {
     refit();
+    budget_ = work_ = 0;
     if (!changed_) return;
     changed_ = false;
     if (sah_largest_term_ > 1e6 * std::abs(sah_sum_)) {
         sah_sum_ = fresh_sah_sum();
         sah_largest_term_ = std::abs(sah_sum_);
     }
+    const std::uint64_t changes = changes_;
+    changes_ = 0;
+    age_ += changes;
+    cycle_age_ += changes;
+    if (phase_ == Phase::idle && rebuild_due()) {
+        if (params_.rebuild_speed <= 0) {
+            rebuild();
+            return;
+        }
+        start_rebuild();
+    }
+    if (phase_ == Phase::idle) return;
+    budget_ = std::uint64_t(std::ceil(params_.rebuild_speed * double(changes) * units_per_object_));
+    // While replaying, the uids logged since the last commit are replayed on top of the budget: the
+    // log then shrinks by the budget's share at every commit, however slow the rebuild.
+    if (phase_ == Phase::replay) budget_ += (log_.size() - log_mark_) * kReplayUnits;
+    advance(budget_);
+    log_mark_ = log_.size();
+}
+
+// ---- progressive rebuild ----
+//
+// PhysX's dynamic pruner keeps one tree for queries while the next one is built over many frames,
+// new objects in a side structure meanwhile; Jolt's quad tree builds the next tree while the old
+// one answers, then swaps. Here the live tree takes every change as before (so no side structure
+// is needed), and the next tree is built from a gathering of the live objects, a budget of work
+// per commit; the uids changed since the gathering began are logged and replayed into the next
+// tree (present or not, same box as in the live tree), then the trees swap and the replaced one is
+// freed, again within the budget. Answers come from the live tree throughout, so they stay exact.
+
+bool WideBvh::rebuild_due() const {
+    if (root_ == kNone) return false;
     const double ratio = params_.rebuild_ratio;
-    if (ratio > 0 && root_ != kNone && (ratio <= 1 || sah_growth() > ratio)) rebuild();
+    if (ratio > 0 && (ratio <= 1 || sah_growth() > ratio)) return true;
+    return params_.rebuild_after > 0 && double(age_) >= params_.rebuild_after * double(where_.size());
+}
+
+void WideBvh::start_rebuild() {
+    if (!next_) {
+        Params p = params_;
+        p.rebuild_ratio = p.rebuild_after = p.rebuild_speed = 0;
+        p.cast_threads = 1;
+        next_ = std::make_unique<WideBvh>(p);
+    }
+    next_->items_.clear();
+    next_->items_.reserve(where_.size());
+    next_->where_.reserve(where_.size() + where_.size() / 4);  // room for inserts before a rehash
+    phase_ = Phase::gather;
+    gather_cursor_ = 0;
+    log_.clear();
+    log_mark_ = 0;
+    gather_skip_.clear();
+    replay_cursor_ = 0;
+    cycle_age_ = cycle_work_ = 0;
+}
+
+void WideBvh::advance(std::uint64_t budget) {
+    while (work_ < budget && phase_ != Phase::idle) {
+        std::uint64_t w = 0;
+        switch (phase_) {
+            case Phase::gather:
+                w = gather_step(budget - work_);
+                break;
+            case Phase::build:
+                w = next_->build_step(budget - work_);
+                if (next_->build_done()) {
+                    next_->end_build();
+                    phase_ = Phase::replay;
+                }
+                break;
+            case Phase::replay:
+                while (work_ + w < budget && replay_cursor_ < log_.size()) {
+                    replay(log_[replay_cursor_++]);
+                    w += kReplayUnits;
+                }
+                if (replay_cursor_ == log_.size()) {
+                    work_ += w, cycle_work_ += w, w = 0;
+                    swap_trees();
+                }
+                break;
+            case Phase::dispose: {
+                auto& index = next_->where_;
+                while (work_ + w < budget && !index.empty()) {
+                    index.erase(index.begin());
+                    w += kDisposeUnits;
+                }
+                if (index.empty()) {  // the rest is a few arrays, freed at once
+                    next_->clear_tree();
+                    std::vector<Block>().swap(next_->blocks_);
+                    std::vector<std::uint32_t>().swap(next_->dirty_);
+                    std::unordered_map<Uid, std::uint32_t>().swap(index);
+                    phase_ = Phase::idle;
+                }
+                break;
+            }
+            case Phase::idle:
+                break;
+        }
+        work_ += w;
+        cycle_work_ += w;
+    }
+}
+
+std::uint64_t WideBvh::gather_step(std::uint64_t budget) {
+    std::uint64_t w = 0;
+    std::vector<Item>& items = next_->items_;
+    while (w < budget && gather_cursor_ < blocks_.size()) {
+        const Block& b = blocks_[gather_cursor_++];
+        ++w;
+        if (!b.leaf) continue;
+        for (int k = 0; k < b.count; ++k) {
+            // An object changed since the gathering began is left to the replay: it may have been
+            // gathered already, or not at all (its lane moved).
+            const Uid uid = b.ref[k];
+            if (gather_skip_.empty() || gather_skip_.count(uid) == 0)
+                items.push_back({b.box(k), centroid(b.box(k)), uid});
+        }
+        w += b.count;
+    }
+    if (gather_cursor_ == blocks_.size()) {
+        gather_skip_.clear();
+        next_->begin_build();
+        phase_ = Phase::build;
+    }
+    return w;
+}
+
+void WideBvh::replay(Uid uid) {
+    const auto live = where_.find(uid);
+    const auto next = next_->where_.find(uid);
+    if (live == where_.end()) {
+        if (next != next_->where_.end()) next_->remove(uid);
+        return;
+    }
+    const Aabb box = blocks_[live->second / kLanes].box(int(live->second % kLanes));
+    if (next == next_->where_.end())
+        next_->insert(Object(uid, box));
+    else if (!(next_->blocks_[next->second / kLanes].box(int(next->second % kLanes)) == box))
+        next_->move(Object(uid, box));
+}
+
+void WideBvh::swap_trees() {
+    next_->commit();  // refits what the replay changed
+    std::swap(blocks_, next_->blocks_);
+    std::swap(root_, next_->root_);
+    std::swap(free_, next_->free_);
+    std::swap(free_count_, next_->free_count_);
+    std::swap(leaves_, next_->leaves_);
+    std::swap(where_, next_->where_);
+    std::swap(dirty_, next_->dirty_);
+    std::swap(max_depth_, next_->max_depth_);
+    std::swap(sah_sum_, next_->sah_sum_);
+    std::swap(sah_largest_term_, next_->sah_largest_term_);
+    total_after_build_ = total_sah();
+    age_ = cycle_age_;
+    last_cycle_work_ = cycle_work_;
+    units_per_object_ = double(cycle_work_) / double(std::max<std::size_t>(1, where_.size()));
+    ++rebuilds_;
+    log_.clear();
+    log_mark_ = 0;
+    replay_cursor_ = 0;
+    phase_ = Phase::dispose;
 }
 
 // ---- measures and invariants ----
@@ -672,22 +862,82 @@ int WideBvh::depth() const {
 }
 
 std::size_t WideBvh::memory_bytes() const {
-    return blocks_.capacity() * sizeof(Block) + where_.bucket_count() * sizeof(void*) +
-           where_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) + dirty_.capacity() * sizeof(std::uint32_t) +
-           scratch_bytes() + items_.capacity() * sizeof(Item) + pending_.capacity() * sizeof(Pending) +
-           bin_scratch_.capacity() * sizeof(Bin) + right_cost_.capacity() * sizeof(double) + sizeof(*this);
+    std::size_t bytes = blocks_.capacity() * sizeof(Block) + where_.bucket_count() * sizeof(void*) +
+                        where_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) +
+                        dirty_.capacity() * sizeof(std::uint32_t) + scratch_bytes() + items_.capacity() * sizeof(Item) +
+                        pending_.capacity() * sizeof(Pending) + bin_scratch_.capacity() * sizeof(Bin) +
+                        right_cost_.capacity() * sizeof(double) + log_.capacity() * sizeof(Uid) +
+                        gather_skip_.bucket_count() * sizeof(void*) + gather_skip_.size() * 2 * sizeof(void*) +
+                        sizeof(*this);
+    if (next_) bytes += next_->memory_bytes();
+    return bytes;
 }
 
 nlohmann::json WideBvh::stats() const {
-    return {{"sah_cost", sah_cost()}, {"sah_growth", sah_growth()},
-            {"depth", depth()},       {"nodes", blocks_.size() - free_count_},
-            {"leaves", leaves_},      {"rebuilds", rebuilds_},
-            {"leaf_splits", splits_}, {"reinserts", reinserts_}};
+    static constexpr const char* kPhases[] = {"idle", "gather", "build", "replay", "dispose"};
+    return {{"sah_cost", sah_cost()},
+            {"sah_growth", sah_growth()},
+            {"depth", depth()},
+            {"nodes", blocks_.size() - free_count_},
+            {"leaves", leaves_},
+            {"rebuilds", rebuilds_},
+            {"leaf_splits", splits_},
+            {"reinserts", reinserts_},
+            {"rebuild_phase", kPhases[int(phase_)]},
+            {"rebuild_budget", budget_},
+            {"rebuild_work", work_},
+            {"rebuilt_objects", units_per_object_ > 0 ? double(work_) / units_per_object_ : 0.0},
+            {"last_rebuild_work", last_cycle_work_}};
 }
 
 void WideBvh::validate() const {
+    validate_tree(true);
     auto fail = [](const std::string& what) { broken_invariant("wbvh", what); };
-    if (!dirty_.empty()) fail("blocks not refitted after changes (commit missing)");
+    if (phase_ == Phase::idle) {
+        if (!log_.empty() || replay_cursor_ != 0 || !gather_skip_.empty()) fail("a change log without a rebuild");
+        if (next_ && (next_->root_ != kNone || !next_->where_.empty() || !next_->blocks_.empty()))
+            fail("the replaced tree is not freed");
+        return;
+    }
+    if (!next_) fail("a rebuild without a next tree");
+    if (replay_cursor_ > log_.size()) fail("the replay is past the end of the log");
+    if (phase_ != Phase::gather && !gather_skip_.empty()) fail("uids left to skip after the gathering");
+    if (phase_ == Phase::dispose) return;
+    // The swap's precondition, kept from the gathering on: the next tree (its items while they are
+    // gathered and built) holds every live uid with its live box, except uids still to replay.
+    const std::unordered_set<Uid> to_replay(log_.begin() + std::ptrdiff_t(replay_cursor_), log_.end());
+    auto live_box = [&](Uid uid, const Aabb& box) {
+        const auto it = where_.find(uid);
+        return it != where_.end() && blocks_[it->second / kLanes].box(int(it->second % kLanes)) == box;
+    };
+    if (phase_ == Phase::replay) {
+        next_->validate_tree(false);
+        for (const auto& [uid, at] : next_->where_)
+            if (to_replay.count(uid) == 0 && !live_box(uid, next_->blocks_[at / kLanes].box(int(at % kLanes))))
+                fail("uid " + std::to_string(uid) + " of the next tree is not live with that box, and not logged");
+        for (const auto& [uid, at] : where_)
+            if (to_replay.count(uid) == 0 && next_->where_.count(uid) == 0)
+                fail("live uid " + std::to_string(uid) + " is not in the next tree, and not logged");
+        return;
+    }
+    std::unordered_set<Uid> gathered;
+    for (const Item& it : next_->items_) {
+        if (!gathered.insert(it.uid).second) fail("uid " + std::to_string(it.uid) + " gathered twice");
+        if (to_replay.count(it.uid) == 0 && !live_box(it.uid, it.box))
+            fail("uid " + std::to_string(it.uid) + " gathered with a box it no longer has, and not logged");
+    }
+    if (phase_ == Phase::build)
+        for (const auto& [uid, at] : where_)
+            if (to_replay.count(uid) == 0 && gathered.count(uid) == 0)
+                fail("live uid " + std::to_string(uid) + " was not gathered, and not logged");
+}
+
+void WideBvh::validate_tree(bool refitted) const {
+    // The next tree of a rebuild is checked before its refit: its lanes may not enclose yet.
+    auto fail = [refitted](const std::string& what) {
+        broken_invariant("wbvh", (refitted ? "" : "next tree: ") + what);
+    };
+    if (refitted && !dirty_.empty()) fail("blocks not refitted after changes (commit missing)");
     const auto total = std::uint32_t(blocks_.size());
     std::uint32_t free_seen = 0;
     for (std::uint32_t b = free_; b != kNone; b = blocks_[b].parent) {
@@ -741,7 +991,7 @@ void WideBvh::validate() const {
                     fail("block " + std::to_string(c) + " does not point back to lane " + std::to_string(k) + " of " +
                          name);
                 if (child.depth != block.depth + 1) fail("block " + std::to_string(c) + " has a wrong depth");
-                if (child.count > 0 && !block.box(k).contains(child.bounds()))
+                if (refitted && child.count > 0 && !block.box(k).contains(child.bounds()))
                     fail(name + " lane " + std::to_string(k) + " does not enclose its child");
                 stack.push_back(c);
             }
