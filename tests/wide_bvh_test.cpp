@@ -184,6 +184,60 @@ TEST(WideBvh, ProgressiveRebuildStaysExactInEveryPhase) {
     }
 }
 
+/// Edges of a progressive rebuild: every object removed while it runs (the next tree then empties
+/// in the replay, and the swap leaves an empty tree that takes inserts again), and build() in the
+/// middle of one (which drops it). validate() and brute force after every commit.
+TEST(WideBvh, ProgressiveRebuildSurvivesEmptyingAndRebuilding) {
+    constexpr float kWorld = 40;
+    Random rng(11);
+    WideBvh tree(WideBvh::Params{.rebuild_ratio = 1.0, .rebuild_speed = 0.5});
+    BruteForce bf;
+    std::vector<Object> live;
+    Uid next = 0;
+    for (int i = 0; i < 300; ++i) live.push_back({next++, test::random_box(rng, kWorld)});
+    tree.build(live);
+    bf.build(live);
+    auto check = [&](const std::string& when) {
+        ASSERT_NO_THROW(tree.validate()) << when;
+        for (int k = 0; k < 4; ++k) {
+            const Segment ray = test::random_segment(rng, kWorld);
+            ASSERT_EQ(test::sorted_hits(tree, ray), test::sorted_hits(bf, ray)) << when;
+        }
+    };
+    std::map<std::string, int> phases;
+    // Remove everything, a few objects per commit, while the rebuild started by the first commit runs.
+    while (!live.empty()) {
+        for (int c = 0; c < 5 && !live.empty(); ++c) {
+            tree.remove(live.back().uid);
+            bf.remove(live.back().uid);
+            live.pop_back();
+        }
+        tree.commit();
+        bf.commit();
+        ++phases[tree.stats()["rebuild_phase"].get<std::string>()];
+        check("removing, " + std::to_string(live.size()) + " left");
+    }
+    for (int i = 0; i < 20; ++i) {  // commits without changes: nothing to do
+        tree.commit();
+        check("empty");
+    }
+    EXPECT_GT(phases["build"] + phases["replay"], 0);
+    for (int frame = 0; frame < 200; ++frame) {
+        for (int c = 0; c < 6; ++c) test::random_change(rng, live, next, kWorld, false, {&tree, &bf});
+        tree.commit();
+        bf.commit();
+        check("refilling, frame " + std::to_string(frame));
+        if (frame == 120) {  // a new build in the middle of whatever the rebuild is doing
+            EXPECT_NE(tree.stats()["rebuild_phase"].get<std::string>(), "idle");
+            tree.build(live);
+            bf.build(live);
+            EXPECT_EQ(tree.stats()["rebuild_phase"].get<std::string>(), "idle");
+            check("after build()");
+        }
+    }
+    EXPECT_EQ(tree.size(), live.size());
+}
+
 /// What the maintenance policy is for: under long churn (1% changes per frame, moves of up to an
 /// object's size, inserts and removes) at the default parameters the SAH cost stays near a fresh
 /// build's, while the former policy (a whole rebuild when the SAH sum grew by 1.5, no
