@@ -24,8 +24,8 @@ std::deque<StructureInfo>& registry() {
                                       "bottom-up bounds, rebuilt every frame (thesis §4.5)"),
         describe_structure<WideBvh>("wbvh",
                                     "wide BVH: 8 child boxes per node in SoA lanes, one AVX2 slab test per node and "
-                                    "per leaf of up to 8 objects, binned-SAH build, refit and leaf splits on changes, "
-                                    "full rebuild when the SAH cost grew by rebuild_ratio"),
+                                    "per leaf of up to 8 objects, binned-SAH build, refit, reinsertion and leaf splits "
+                                    "on changes, progressive rebuild spread over commits"),
         describe_structure<UniformGrid>(
             "ug", "uniform grid: cells from eq. 4.1, 3D-DDA with mailboxes, incremental updates (thesis §4.2)"),
         describe_structure<HashGrid>(

@@ -97,16 +97,26 @@ void WideBvh::set_lane(std::uint32_t b, int k, const Aabb& box) {
 // ---- build ----
 
 void WideBvh::build(std::span<const Object> objects) {
+    // A rebuild in progress is dropped: the new contents replace everything.
+    phase_ = Phase::idle;
+    next_.reset();
+    log_.clear();
+    log_mark_ = 0;
+    gather_skip_.clear();
+    replay_cursor_ = 0;
+    changes_ = age_ = cycle_age_ = cycle_work_ = last_cycle_work_ = budget_ = work_ = 0;
     where_.clear();
-    where_.reserve(objects.size());
+    where_.reserve(objects.size() + objects.size() / 4);  // room for inserts before a rehash
     items_.clear();
     items_.reserve(objects.size());
-    for (const Object& o : objects) {
-        where_.emplace(o.uid, 0u);
-        items_.push_back({o.box, centroid(o.box), o.uid});
-    }
+    for (const Object& o : objects) items_.push_back({o.box, centroid(o.box), o.uid});
     rebuilds_ = splits_ = reinserts_ = 0;
-    build_from_items();
+    begin_build();
+    build_step(std::numeric_limits<std::uint64_t>::max());
+    end_build();
+    // Until a rebuild has measured it: the build's units plus about one per object for the gathering
+    // and one for the replay.
+    units_per_object_ = double(build_work_) / double(std::max<std::size_t>(1, objects.size())) + 2;
 }
 
 void WideBvh::rebuild() {
@@ -115,11 +125,14 @@ void WideBvh::rebuild() {
     for (const Block& b : blocks_)
         if (b.leaf)
             for (int k = 0; k < b.count; ++k) items_.push_back({b.box(k), centroid(b.box(k)), Uid(b.ref[k])});
-    build_from_items();
+    begin_build();
+    build_step(std::numeric_limits<std::uint64_t>::max());
+    end_build();
     ++rebuilds_;
+    age_ = 0;
 }
 
-void WideBvh::build_from_items() {
+void WideBvh::clear_tree() {
     blocks_.clear();
     root_ = free_ = kNone;
     free_count_ = leaves_ = 0;
@@ -127,143 +140,275 @@ void WideBvh::build_from_items() {
     sah_sum_ = sah_largest_term_ = 0.0;
     max_depth_ = 0;
     changed_ = false;
+}
+
+void WideBvh::begin_build() {
+    clear_tree();
     // About one leaf per leaf_size objects and one inner node per (width − 1) blocks below.
     blocks_.reserve(items_.size() / std::size_t(params_.leaf_size) * 8 / 6 + 2);
-    if (!items_.empty()) root_ = build_node(items_.data(), std::uint32_t(items_.size()), kNone, 0, 0);
+    pending_.clear();
+    opening_ = false;
+    splitting_ = -1;
+    build_work_ = 0;
+    if (!items_.empty()) pending_.push_back({Range{0, std::uint32_t(items_.size())}, kNone, 0, 0});
+}
+
+void WideBvh::end_build() {
     grow_stack(max_depth_);
     total_after_build_ = total_sah();
-    // The scratch is only needed again at the next rebuild, which is rare: not held in between.
+    // The scratch is only needed again at the next rebuild: not held in between.
     std::vector<Item>().swap(items_);
+    std::vector<Pending>().swap(pending_);
 }
 
-std::uint32_t WideBvh::build_node(Item* items, std::uint32_t n, std::uint32_t parent, int lane, int depth) {
-    const std::uint32_t b = allocate();
-    {
-        Block& block = blocks_[b];
-        block.parent = parent;
-        block.lane_in_parent = std::uint8_t(lane);
-        block.depth = std::uint16_t(depth);
-    }
-    max_depth_ = std::max(max_depth_, depth);
-    if (n <= std::uint32_t(params_.leaf_size)) {
-        Block& block = blocks_[b];
-        block.leaf = true;
-        block.count = std::uint8_t(n);
-        ++leaves_;
-        for (std::uint32_t i = 0; i < n; ++i) {
-            block.set(int(i), items[i].box);
-            block.ref[i] = items[i].uid;
-            where_.find(items[i].uid)->second = b * kLanes + i;
+std::uint64_t WideBvh::build_step(std::uint64_t budget) {
+    std::uint64_t work = 0;
+    while (work < budget) {
+        if (!opening_) {
+            if (pending_.empty()) break;
+            const Pending p = pending_.back();
+            pending_.pop_back();
+            if (p.range.n <= std::uint32_t(params_.leaf_size)) {
+                make_leaf(p);
+                work += p.range.n;
+                continue;
+            }
+            open_ = p;
+            opening_ = true;
+            parts_[0] = p.range;
+            nparts_ = 1;
+            splitting_ = -1;
         }
-        return b;
-    }
-    // Open the range with the largest box (Wald et al. 2008's collapse of a binary SAH tree into
-    // wide nodes, done while building): split it in two until `width` ranges or none can split.
-    struct Range {
-        Item* items;
-        std::uint32_t n;
-        Aabb box;
-        double area;
-    };
-    auto range = [](Item* p, std::uint32_t m) {
-        Aabb box = Aabb::empty();
-        for (std::uint32_t i = 0; i < m; ++i) box = merge(box, p[i].box);
-        return Range{p, m, box, area(box)};
-    };
-    std::array<Range, kLanes> r;
-    int nr = 1;
-    r[0] = range(items, n);
-    while (nr < params_.width) {
-        int pick = -1;
-        for (int i = 0; i < nr; ++i) {
-            if (r[i].n <= std::uint32_t(params_.leaf_size)) continue;
-            if (pick < 0 || r[i].area > r[pick].area || (r[i].area == r[pick].area && r[i].n > r[pick].n)) pick = i;
+        if (splitting_ < 0) {
+            // Split the part with the largest box (Wald et al. 2008's collapse of a binary SAH tree
+            // into wide nodes, done while building) until `width` parts or none can split.
+            int pick = -1;
+            double pick_area = 0;
+            for (int i = 0; i < nparts_ && nparts_ < params_.width; ++i) {
+                if (parts_[i].n <= std::uint32_t(params_.leaf_size)) continue;
+                const double a = area(parts_[i].box);
+                if (pick < 0 || a > pick_area || (a == pick_area && parts_[i].n > parts_[pick].n))
+                    pick = i, pick_area = a;
+            }
+            if (pick < 0) {
+                finish_node();
+                work += std::uint64_t(nparts_);
+                continue;
+            }
+            splitting_ = pick;
+            split_stage_ = 0;
+            cursor_ = parts_[pick].begin;
+            cbox_ = Aabb::empty();
         }
-        if (pick < 0) break;
-        const std::uint32_t m = split(r[pick].items, r[pick].n);
-        r[nr++] = range(r[pick].items + m, r[pick].n - m);
-        r[pick] = range(r[pick].items, m);
+        work += split_step(budget - work);
     }
-    for (int j = 0; j < nr; ++j) {
-        const std::uint32_t c = build_node(r[j].items, r[j].n, b, j, depth + 1);
-        blocks_[b].ref[j] = c;
-        blocks_[b].count = std::uint8_t(j + 1);
-        set_lane(b, j, r[j].box);
-    }
-    return b;
+    build_work_ += work;
+    return work;
 }
 
-std::uint32_t WideBvh::split(Item* items, std::uint32_t n) {
-    Aabb cb = Aabb::empty();
-    for (std::uint32_t i = 0; i < n; ++i)
-        cb.min = rcb::min(cb.min, items[i].centroid), cb.max = rcb::max(cb.max, items[i].centroid);
+std::uint64_t WideBvh::split_step(std::uint64_t budget) {
+    // The loops work on locals (the members could alias the items for the compiler).
+    const Range r = parts_[std::size_t(splitting_)];
+    const std::uint32_t end = r.begin + r.n;
     const int bins = params_.bins;
-    bin_scratch_.resize(3 * std::size_t(bins));
-    auto bin = [&](int axis) { return bin_scratch_.data() + std::size_t(axis) * std::size_t(bins); };
-    double scale[3];
-    bool any = false;
-    for (int a = 0; a < 3; ++a) {
-        const double ext = double(cb.max[a]) - double(cb.min[a]);
-        scale[a] = ext > 0 ? double(bins) / ext : 0.0;
-        any = any || ext > 0;
-        for (int k = 0; k < bins; ++k) bin(a)[k] = Bin{Aabb::empty(), 0};
+    Item* const items = items_.data();
+    Bin* const bin = bin_scratch_.data();
+    std::uint32_t i = cursor_;
+    const auto stop = std::uint32_t(std::min<std::uint64_t>(end, i + budget));
+    const std::uint64_t work = stop - i;
+    if (split_stage_ == 0) {  // centroid bounds
+        Aabb cb = cbox_;
+        for (; i < stop; ++i)
+            cb.min = rcb::min(cb.min, items[i].centroid), cb.max = rcb::max(cb.max, items[i].centroid);
+        cbox_ = cb;
+        cursor_ = i;
+        if (i < end) return work;
+        bin_scratch_.assign(3 * std::size_t(bins), Bin{Aabb::empty(), 0});
+        bool any = false;
+        for (int a = 0; a < 3; ++a) {
+            const double ext = double(cb.max[a]) - double(cb.min[a]);
+            scale_[a] = ext > 0 ? double(bins) / ext : 0.0;
+            any = any || ext > 0;
+        }
+        if (!any) {
+            split_by_size(splitting_);
+            return work + r.n;
+        }
+        split_stage_ = 1;
+        cursor_ = r.begin;
+        return work;
     }
-    auto bin_of = [&](const Item& it, int a) {
-        return std::min(bins - 1, int((double(it.centroid[a]) - double(cb.min[a])) * scale[a]));
-    };
-    if (any) {
-        for (std::uint32_t i = 0; i < n; ++i)
+    const Vec3 lo = cbox_.min;
+    if (split_stage_ == 1) {  // binning
+        const double scale[3] = {scale_[0], scale_[1], scale_[2]};
+        for (; i < stop; ++i) {
+            const Item& it = items[i];
             for (int a = 0; a < 3; ++a) {
                 if (scale[a] == 0) continue;
-                Bin& x = bin(a)[bin_of(items[i], a)];
-                x.box = merge(x.box, items[i].box);
+                Bin& x = bin[a * bins + std::min(bins - 1, int((double(it.centroid[a]) - double(lo[a])) * scale[a]))];
+                x.box = merge(x.box, it.box);
                 ++x.n;
             }
-        // Binned SAH (Wald 2007): cost area(left)·n_left + area(right)·n_right per bin border.
-        int best_axis = -1, best_split = 0;
-        double best_cost = std::numeric_limits<double>::infinity();
-        std::vector<double>& right = right_cost_;
-        right.resize(std::size_t(bins));
-        for (int a = 0; a < 3; ++a) {
-            if (scale[a] == 0) continue;
-            Aabb acc = Aabb::empty();
-            std::uint32_t m = 0;
-            for (int k = bins - 1; k > 0; --k) {
-                acc = merge(acc, bin(a)[k].box), m += bin(a)[k].n;
-                right[std::size_t(k)] = area(acc) * double(m);
-            }
-            acc = Aabb::empty(), m = 0;
-            for (int k = 0; k < bins - 1; ++k) {
-                acc = merge(acc, bin(a)[k].box), m += bin(a)[k].n;
-                if (m == 0 || m == n) continue;
-                const double cost = area(acc) * double(m) + right[std::size_t(k) + 1];
-                if (cost < best_cost) best_cost = cost, best_axis = a, best_split = k + 1;
-            }
         }
-        if (best_axis >= 0) {
-            Item* mid =
-                std::partition(items, items + n, [&](const Item& it) { return bin_of(it, best_axis) < best_split; });
-            const auto m = std::uint32_t(mid - items);
-            if (m > 0 && m < n) return m;
+        cursor_ = i;
+        if (i < end) return work;
+        if (!choose_split(r.n)) {
+            split_by_size(splitting_);
+            return work + r.n;
+        }
+        split_stage_ = 2;
+        cursor_ = r.begin;
+        right_ = r.begin + left_n_;
+        return work;
+    }
+    // Partition: the items of the left part's bins to [begin, begin + left_n_), swapped with the
+    // right part's items found there; resumable at any item.
+    const int axis = axis_, split_bin = split_bin_;
+    const double from = double(lo[axis]), scale = scale_[axis];
+    auto goes_left = [&](const Item& it) {
+        return std::min(bins - 1, int((double(it.centroid[axis]) - from) * scale)) < split_bin;
+    };
+    const std::uint32_t mid = r.begin + left_n_;
+    std::uint32_t j = right_;
+    std::uint64_t done = 0;
+    for (; done < budget && i < mid; ++done) {
+        if (goes_left(items[i])) {
+            ++i;
+        } else {
+            if (goes_left(items[j])) std::swap(items[i], items[j]), ++i;
+            ++j;
         }
     }
-    const std::uint32_t half = n / 2;
-    if (!any) {
+    cursor_ = i, right_ = j;
+    if (i < mid) return done;
+    // The parts' boxes are the unions of their bins'.
+    Aabb left = Aabb::empty(), right = Aabb::empty();
+    for (int k = 0; k < bins; ++k)
+        (k < split_bin ? left : right) = merge(k < split_bin ? left : right, bin[axis * bins + k].box);
+    parts_[std::size_t(nparts_++)] = Range{mid, r.n - left_n_, right};
+    parts_[std::size_t(splitting_)] = Range{r.begin, left_n_, left};
+    splitting_ = -1;
+    return done;
+}
+
+bool WideBvh::choose_split(std::uint32_t n) {
+    // Binned SAH (Wald 2007): cost area(left)·n_left + area(right)·n_right per bin border.
+    const int bins = params_.bins;
+    auto bin = [&](int axis) { return bin_scratch_.data() + std::size_t(axis) * std::size_t(bins); };
+    int best_axis = -1, best_split = 0;
+    double best_cost = std::numeric_limits<double>::infinity();
+    std::vector<double>& right = right_cost_;
+    right.resize(std::size_t(bins));
+    for (int a = 0; a < 3; ++a) {
+        if (scale_[a] == 0) continue;
+        Aabb acc = Aabb::empty();
+        std::uint32_t m = 0;
+        for (int k = bins - 1; k > 0; --k) {
+            acc = merge(acc, bin(a)[k].box), m += bin(a)[k].n;
+            right[std::size_t(k)] = area(acc) * double(m);
+        }
+        acc = Aabb::empty(), m = 0;
+        for (int k = 0; k < bins - 1; ++k) {
+            acc = merge(acc, bin(a)[k].box), m += bin(a)[k].n;
+            if (m == 0 || m == n) continue;
+            const double cost = area(acc) * double(m) + right[std::size_t(k) + 1];
+            if (cost < best_cost) best_cost = cost, best_axis = a, best_split = k + 1;
+        }
+    }
+    if (best_axis < 0) return false;
+    axis_ = best_axis;
+    split_bin_ = best_split;
+    left_n_ = 0;
+    for (int k = 0; k < best_split; ++k) left_n_ += bin(best_axis)[k].n;
+    return left_n_ > 0 && left_n_ < n;
+}
+
+void WideBvh::split_by_size(int part) {
+    const Range r = parts_[std::size_t(part)];
+    Item* items = items_.data() + r.begin;
+    const std::uint32_t half = r.n / 2;
+    if (scale_[0] == 0 && scale_[1] == 0 && scale_[2] == 0) {
         // One centroid (boxes nested around one centre, or duplicates): split by size, smallest
         // half first, ties by uid, so that a subtree holds boxes of similar size.
-        std::nth_element(items, items + half, items + n, [](const Item& x, const Item& y) {
+        std::nth_element(items, items + half, items + r.n, [](const Item& x, const Item& y) {
             const double ax = area(x.box), ay = area(y.box);
             return ax < ay || (ax == ay && x.uid < y.uid);
         });
     } else {
+        // Binning could not split: the median on the widest axis of the centroids.
         int axis = 0;
         for (int a = 1; a < 3; ++a)
-            if (double(cb.max[a]) - double(cb.min[a]) > double(cb.max[axis]) - double(cb.min[axis])) axis = a;
-        std::nth_element(items, items + half, items + n, [axis](const Item& x, const Item& y) {
+            if (double(cbox_.max[a]) - double(cbox_.min[a]) > double(cbox_.max[axis]) - double(cbox_.min[axis]))
+                axis = a;
+        std::nth_element(items, items + half, items + r.n, [axis](const Item& x, const Item& y) {
             return x.centroid[axis] < y.centroid[axis] || (x.centroid[axis] == y.centroid[axis] && x.uid < y.uid);
         });
     }
-    return half;
+    Aabb left = Aabb::empty(), right = Aabb::empty();
+    for (std::uint32_t i = 0; i < r.n; ++i) (i < half ? left : right) = merge(i < half ? left : right, items[i].box);
+    parts_[std::size_t(nparts_++)] = Range{r.begin + half, r.n - half, right};
+    parts_[std::size_t(part)] = Range{r.begin, half, left};
+    splitting_ = -1;
+}
+
+void WideBvh::finish_node() {
+    const std::uint32_t b = allocate();
+    Block& block = blocks_[b];
+    block.depth = open_.depth;
+    block.count = std::uint8_t(nparts_);
+    for (int j = 0; j < nparts_; ++j) block.set(j, parts_[std::size_t(j)].box);
+    max_depth_ = std::max(max_depth_, int(open_.depth));
+    link(b, open_.parent, open_.lane);
+    // Children in reverse, so that the first part is built next (depth first, in lane order).
+    for (int j = nparts_ - 1; j >= 0; --j)
+        pending_.push_back({parts_[std::size_t(j)], b, std::uint16_t(open_.depth + 1), std::uint8_t(j)});
+    opening_ = false;
+}
+
+void WideBvh::make_leaf(const Pending& p) {
+    const std::uint32_t b = allocate();
+    Block& block = blocks_[b];
+    block.leaf = true;
+    block.depth = p.depth;
+    block.count = std::uint8_t(p.range.n);
+    ++leaves_;
+    for (std::uint32_t i = 0; i < p.range.n; ++i) {
+        const Item& it = items_[p.range.begin + i];
+        block.set(int(i), it.box);
+        block.ref[i] = it.uid;
+        where_[it.uid] = b * kLanes + i;
+    }
+    max_depth_ = std::max(max_depth_, int(p.depth));
+    link(b, p.parent, p.lane);
+}
+
+void WideBvh::link(std::uint32_t b, std::uint32_t parent, int lane) {
+    blocks_[b].parent = parent;
+    blocks_[b].lane_in_parent = std::uint8_t(lane);
+    if (parent == kNone) {
+        root_ = b;
+        return;
+    }
+    blocks_[parent].ref[lane] = b;
+    const double term = area(blocks_[parent].box(lane)) * weight(b);
+    sah_sum_ += term;
+    sah_largest_term_ = std::max(sah_largest_term_, term);
+}
+
+std::uint32_t WideBvh::split(Item* items, std::uint32_t n) {
+    // The build's split run whole on these items: no build is in progress in this tree when one of
+    // its leaves splits (builds run to their end, or in the next tree of a progressive rebuild).
+    items_.assign(items, items + n);
+    parts_[0] = Range{0, n};
+    nparts_ = 1;
+    splitting_ = 0;
+    split_stage_ = 0;
+    cursor_ = 0;
+    cbox_ = Aabb::empty();
+    while (splitting_ >= 0) split_step(std::numeric_limits<std::uint64_t>::max());
+    std::copy(items_.begin(), items_.end(), items);
+    items_.clear();
+    return parts_[0].n;
 }
 
 // ---- changes ----
@@ -286,6 +431,12 @@ std::uint32_t WideBvh::choose_leaf(const Aabb& box) const {
 }
 
 void WideBvh::insert(const Object& o) {
+    ++changes_;
+    log_change(o.uid);
+    insert_object(o);
+}
+
+void WideBvh::insert_object(const Object& o) {
     changed_ = true;
     if (root_ == kNone) {
         root_ = allocate();
@@ -322,8 +473,10 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
     std::array<Item, kLanes + 1> nine;
     {
         const Block& block = blocks_[leaf];
-        for (int k = 0; k < kLanes; ++k)
+        for (int k = 0; k < kLanes; ++k) {
             nine[std::size_t(k)] = {block.box(k), centroid(block.box(k)), Uid(block.ref[k])};
+            log_relocation(Uid(block.ref[k]));
+        }
     }
     nine[kLanes] = {o.box, centroid(o.box), o.uid};
     where_[o.uid] = 0;
@@ -394,6 +547,12 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
 }
 
 void WideBvh::remove(Uid uid) {
+    ++changes_;
+    log_change(uid);
+    remove_object(uid);
+}
+
+void WideBvh::remove_object(Uid uid) {
     auto it = where_.find(uid);
     const std::uint32_t b = it->second / kLanes;
     const int k = int(it->second % kLanes);
@@ -404,6 +563,7 @@ void WideBvh::remove(Uid uid) {
         block.set(k, block.box(last));
         block.ref[k] = block.ref[last];
         where_.find(Uid(block.ref[k]))->second = b * kLanes + std::uint32_t(k);
+        log_relocation(Uid(block.ref[k]));
     }
     block.clear(last);
     --block.count;
@@ -451,6 +611,8 @@ void WideBvh::drop_child_lane(std::uint32_t b, int k) {
 }
 
 void WideBvh::move(const Object& o) {
+    ++changes_;
+    log_change(o.uid);
     const std::uint32_t at = where_.at(o.uid);
     const std::uint32_t b = at / kLanes;
     if (params_.reinsert && b != root_) {
@@ -460,8 +622,8 @@ void WideBvh::move(const Object& o) {
         if (!(box.min.x <= c.x && c.x <= box.max.x && box.min.y <= c.y && c.y <= box.max.y && box.min.z <= c.z &&
               c.z <= box.max.z)) {
             ++reinserts_;
-            remove(o.uid);
-            insert(o);
+            remove_object(o.uid);
+            insert_object(o);
             return;
         }
     }
@@ -489,14 +651,175 @@ void WideBvh::refit() {
 
 void WideBvh::commit() {
     refit();
+    budget_ = work_ = 0;
     if (!changed_) return;
     changed_ = false;
     if (sah_largest_term_ > 1e6 * std::abs(sah_sum_)) {
         sah_sum_ = fresh_sah_sum();
         sah_largest_term_ = std::abs(sah_sum_);
     }
+    const std::uint64_t changes = changes_;
+    changes_ = 0;
+    age_ += changes;
+    cycle_age_ += changes;
+    if (phase_ == Phase::idle && rebuild_due()) {
+        if (params_.rebuild_speed <= 0) {
+            rebuild();
+            return;
+        }
+        start_rebuild();
+    }
+    if (phase_ == Phase::idle) return;
+    budget_ = std::uint64_t(std::ceil(params_.rebuild_speed * double(changes) * units_per_object_));
+    // While replaying, the uids logged since the last commit are replayed on top of the budget: the
+    // log then shrinks by the budget's share at every commit, however slow the rebuild.
+    if (phase_ == Phase::replay) budget_ += (log_.size() - log_mark_) * kReplayUnits;
+    advance(budget_);
+    log_mark_ = log_.size();
+}
+
+// ---- progressive rebuild ----
+//
+// PhysX's dynamic pruner keeps one tree for queries while the next one is built over many frames,
+// new objects in a side structure meanwhile; Jolt's quad tree builds the next tree while the old
+// one answers, then swaps. Here the live tree takes every change as before (so no side structure
+// is needed), and the next tree is built from a gathering of the live objects, a budget of work
+// per commit; the uids changed since the gathering began are logged and replayed into the next
+// tree (present or not, same box as in the live tree), then the trees swap and the replaced one is
+// freed, again within the budget. Answers come from the live tree throughout, so they stay exact.
+
+bool WideBvh::rebuild_due() const {
+    if (root_ == kNone) return false;
     const double ratio = params_.rebuild_ratio;
-    if (ratio > 0 && root_ != kNone && (ratio <= 1 || sah_growth() > ratio)) rebuild();
+    if (ratio > 0 && (ratio <= 1 || sah_growth() > ratio)) return true;
+    return params_.rebuild_after > 0 && double(age_) >= params_.rebuild_after * double(where_.size());
+}
+
+void WideBvh::start_rebuild() {
+    if (!next_) {
+        Params p = params_;
+        p.rebuild_ratio = p.rebuild_after = p.rebuild_speed = 0;
+        p.cast_threads = 1;
+        next_ = std::make_unique<WideBvh>(p);
+    }
+    next_->items_.clear();
+    next_->items_.reserve(where_.size());
+    next_->where_.reserve(where_.size() + where_.size() / 4);  // room for inserts before a rehash
+    phase_ = Phase::gather;
+    gather_cursor_ = 0;
+    log_.clear();
+    log_mark_ = 0;
+    gather_skip_.clear();
+    replay_cursor_ = 0;
+    cycle_age_ = cycle_work_ = 0;
+}
+
+void WideBvh::advance(std::uint64_t budget) {
+    while (work_ < budget && phase_ != Phase::idle) {
+        std::uint64_t w = 0;
+        switch (phase_) {
+            case Phase::gather:
+                w = gather_step(budget - work_);
+                break;
+            case Phase::build:
+                w = next_->build_step(budget - work_);
+                if (next_->build_done()) {
+                    next_->end_build();
+                    phase_ = Phase::replay;
+                }
+                break;
+            case Phase::replay:
+                while (work_ + w < budget && replay_cursor_ < log_.size()) {
+                    replay(log_[replay_cursor_++]);
+                    w += kReplayUnits;
+                }
+                if (replay_cursor_ == log_.size()) {
+                    work_ += w, cycle_work_ += w, w = 0;
+                    swap_trees();
+                }
+                break;
+            case Phase::dispose: {
+                auto& index = next_->where_;
+                while (work_ + w < budget && !index.empty()) {
+                    index.erase(index.begin());
+                    w += kDisposeUnits;
+                }
+                if (index.empty()) {  // the rest is a few arrays, freed at once
+                    next_->clear_tree();
+                    std::vector<Block>().swap(next_->blocks_);
+                    std::vector<std::uint32_t>().swap(next_->dirty_);
+                    std::unordered_map<Uid, std::uint32_t>().swap(index);
+                    phase_ = Phase::idle;
+                }
+                break;
+            }
+            case Phase::idle:
+                break;
+        }
+        work_ += w;
+        cycle_work_ += w;
+    }
+}
+
+std::uint64_t WideBvh::gather_step(std::uint64_t budget) {
+    std::uint64_t w = 0;
+    std::vector<Item>& items = next_->items_;
+    while (w < budget && gather_cursor_ < blocks_.size()) {
+        const Block& b = blocks_[gather_cursor_++];
+        ++w;
+        if (!b.leaf) continue;
+        for (int k = 0; k < b.count; ++k) {
+            // An object changed since the gathering began is left to the replay: it may have been
+            // gathered already, or not at all (its lane moved).
+            const Uid uid = b.ref[k];
+            if (gather_skip_.empty() || gather_skip_.count(uid) == 0)
+                items.push_back({b.box(k), centroid(b.box(k)), uid});
+        }
+        w += b.count;
+    }
+    if (gather_cursor_ == blocks_.size()) {
+        gather_skip_.clear();
+        next_->begin_build();
+        phase_ = Phase::build;
+    }
+    return w;
+}
+
+void WideBvh::replay(Uid uid) {
+    const auto live = where_.find(uid);
+    const auto next = next_->where_.find(uid);
+    if (live == where_.end()) {
+        if (next != next_->where_.end()) next_->remove(uid);
+        return;
+    }
+    const Aabb box = blocks_[live->second / kLanes].box(int(live->second % kLanes));
+    if (next == next_->where_.end())
+        next_->insert(Object(uid, box));
+    else if (!(next_->blocks_[next->second / kLanes].box(int(next->second % kLanes)) == box))
+        next_->move(Object(uid, box));
+}
+
+void WideBvh::swap_trees() {
+    next_->commit();  // refits what the replay changed
+    std::swap(blocks_, next_->blocks_);
+    std::swap(root_, next_->root_);
+    std::swap(free_, next_->free_);
+    std::swap(free_count_, next_->free_count_);
+    std::swap(leaves_, next_->leaves_);
+    std::swap(where_, next_->where_);
+    std::swap(dirty_, next_->dirty_);
+    std::swap(max_depth_, next_->max_depth_);
+    std::swap(sah_sum_, next_->sah_sum_);
+    std::swap(sah_largest_term_, next_->sah_largest_term_);
+    total_after_build_ = total_sah();
+    age_ = cycle_age_;
+    last_cycle_work_ = cycle_work_;
+    units_per_object_ = double(cycle_work_) / double(std::max<std::size_t>(1, where_.size()));
+    ++rebuilds_;
+    log_.clear();
+    log_mark_ = 0;
+    replay_cursor_ = 0;
+    phase_ = Phase::dispose;
 }
 
 // ---- measures and invariants ----
@@ -539,22 +862,82 @@ int WideBvh::depth() const {
 }
 
 std::size_t WideBvh::memory_bytes() const {
-    return blocks_.capacity() * sizeof(Block) + where_.bucket_count() * sizeof(void*) +
-           where_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) + dirty_.capacity() * sizeof(std::uint32_t) +
-           scratch_bytes() + items_.capacity() * sizeof(Item) + bin_scratch_.capacity() * sizeof(Bin) +
-           right_cost_.capacity() * sizeof(double) + sizeof(*this);
+    std::size_t bytes = blocks_.capacity() * sizeof(Block) + where_.bucket_count() * sizeof(void*) +
+                        where_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) +
+                        dirty_.capacity() * sizeof(std::uint32_t) + scratch_bytes() + items_.capacity() * sizeof(Item) +
+                        pending_.capacity() * sizeof(Pending) + bin_scratch_.capacity() * sizeof(Bin) +
+                        right_cost_.capacity() * sizeof(double) + log_.capacity() * sizeof(Uid) +
+                        gather_skip_.bucket_count() * sizeof(void*) + gather_skip_.size() * 2 * sizeof(void*) +
+                        sizeof(*this);
+    if (next_) bytes += next_->memory_bytes();
+    return bytes;
 }
 
 nlohmann::json WideBvh::stats() const {
-    return {{"sah_cost", sah_cost()}, {"sah_growth", sah_growth()},
-            {"depth", depth()},       {"nodes", blocks_.size() - free_count_},
-            {"leaves", leaves_},      {"rebuilds", rebuilds_},
-            {"leaf_splits", splits_}, {"reinserts", reinserts_}};
+    static constexpr const char* kPhases[] = {"idle", "gather", "build", "replay", "dispose"};
+    return {{"sah_cost", sah_cost()},
+            {"sah_growth", sah_growth()},
+            {"depth", depth()},
+            {"nodes", blocks_.size() - free_count_},
+            {"leaves", leaves_},
+            {"rebuilds", rebuilds_},
+            {"leaf_splits", splits_},
+            {"reinserts", reinserts_},
+            {"rebuild_phase", kPhases[int(phase_)]},
+            {"rebuild_budget", budget_},
+            {"rebuild_work", work_},
+            {"rebuilt_objects", units_per_object_ > 0 ? double(work_) / units_per_object_ : 0.0},
+            {"last_rebuild_work", last_cycle_work_}};
 }
 
 void WideBvh::validate() const {
+    validate_tree(true);
     auto fail = [](const std::string& what) { broken_invariant("wbvh", what); };
-    if (!dirty_.empty()) fail("blocks not refitted after changes (commit missing)");
+    if (phase_ == Phase::idle) {
+        if (!log_.empty() || replay_cursor_ != 0 || !gather_skip_.empty()) fail("a change log without a rebuild");
+        if (next_ && (next_->root_ != kNone || !next_->where_.empty() || !next_->blocks_.empty()))
+            fail("the replaced tree is not freed");
+        return;
+    }
+    if (!next_) fail("a rebuild without a next tree");
+    if (replay_cursor_ > log_.size()) fail("the replay is past the end of the log");
+    if (phase_ != Phase::gather && !gather_skip_.empty()) fail("uids left to skip after the gathering");
+    if (phase_ == Phase::dispose) return;
+    // The swap's precondition, kept from the gathering on: the next tree (its items while they are
+    // gathered and built) holds every live uid with its live box, except uids still to replay.
+    const std::unordered_set<Uid> to_replay(log_.begin() + std::ptrdiff_t(replay_cursor_), log_.end());
+    auto live_box = [&](Uid uid, const Aabb& box) {
+        const auto it = where_.find(uid);
+        return it != where_.end() && blocks_[it->second / kLanes].box(int(it->second % kLanes)) == box;
+    };
+    if (phase_ == Phase::replay) {
+        next_->validate_tree(false);
+        for (const auto& [uid, at] : next_->where_)
+            if (to_replay.count(uid) == 0 && !live_box(uid, next_->blocks_[at / kLanes].box(int(at % kLanes))))
+                fail("uid " + std::to_string(uid) + " of the next tree is not live with that box, and not logged");
+        for (const auto& [uid, at] : where_)
+            if (to_replay.count(uid) == 0 && next_->where_.count(uid) == 0)
+                fail("live uid " + std::to_string(uid) + " is not in the next tree, and not logged");
+        return;
+    }
+    std::unordered_set<Uid> gathered;
+    for (const Item& it : next_->items_) {
+        if (!gathered.insert(it.uid).second) fail("uid " + std::to_string(it.uid) + " gathered twice");
+        if (to_replay.count(it.uid) == 0 && !live_box(it.uid, it.box))
+            fail("uid " + std::to_string(it.uid) + " gathered with a box it no longer has, and not logged");
+    }
+    if (phase_ == Phase::build)
+        for (const auto& [uid, at] : where_)
+            if (to_replay.count(uid) == 0 && gathered.count(uid) == 0)
+                fail("live uid " + std::to_string(uid) + " was not gathered, and not logged");
+}
+
+void WideBvh::validate_tree(bool refitted) const {
+    // The next tree of a rebuild is checked before its refit: its lanes may not enclose yet.
+    auto fail = [refitted](const std::string& what) {
+        broken_invariant("wbvh", (refitted ? "" : "next tree: ") + what);
+    };
+    if (refitted && !dirty_.empty()) fail("blocks not refitted after changes (commit missing)");
     const auto total = std::uint32_t(blocks_.size());
     std::uint32_t free_seen = 0;
     for (std::uint32_t b = free_; b != kNone; b = blocks_[b].parent) {
@@ -608,7 +991,7 @@ void WideBvh::validate() const {
                     fail("block " + std::to_string(c) + " does not point back to lane " + std::to_string(k) + " of " +
                          name);
                 if (child.depth != block.depth + 1) fail("block " + std::to_string(c) + " has a wrong depth");
-                if (child.count > 0 && !block.box(k).contains(child.bounds()))
+                if (refitted && child.count > 0 && !block.box(k).contains(child.bounds()))
                     fail(name + " lane " + std::to_string(k) + " does not enclose its child");
                 stack.push_back(c);
             }

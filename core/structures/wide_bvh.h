@@ -3,15 +3,22 @@
 /// leaves of up to 8 objects stored the same way (Wald, Benthin & Boulos 2008, "Getting rid of
 /// packets"; the BVH8 layout of Embree, Wald et al. 2014). Built top-down by binned SAH (Wald 2007)
 /// straight into wide nodes, splitting the child with the largest box until the node is full.
-/// Changes keep the tree: moves rewrite the object's lane and refit the path at commit, inserts
-/// descend to the leaf of least area growth (a full leaf splits), removes empty their lane. A
-/// running SAH sum triggers a full rebuild when it exceeds `rebuild_ratio` × its value after the last
-/// build. docs/structures.md has the details.
+/// Changes keep the tree: moves rewrite the object's lane and refit the path at commit (or reinsert
+/// the object when it left its leaf's box), inserts descend to the leaf of least area growth (a full
+/// leaf splits), removes empty their lane. Quality is kept by a progressive rebuild, as PhysX's
+/// dynamic pruner and Jolt's quad tree do: once the changes since the live tree was gathered reach
+/// `rebuild_after` × the objects (or its running SAH sum grew by `rebuild_ratio`), a next tree is
+/// built from the live objects a budget of work per commit (`rebuild_speed` objects' share per
+/// change), the changes meanwhile are logged and replayed into it, and the trees swap; the live tree
+/// answers throughout. docs/structures.md has the details and the measurements.
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
+#include <memory>
 #include <tuple>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "core/params.h"
@@ -35,13 +42,18 @@ public:
         int leaf_size = 8;
         /// SAH bins per axis of the top-down build.
         int bins = 16;
-        /// Full rebuild at commit when the SAH sum exceeds this × its value after the last build
-        /// (sah_growth; 0: never). 1.5 measured the best trade of rebuilds against rays on churned
-        /// irreg-l and clusters-l (5% changes per frame, moves of up to an object size).
+        /// A rebuild starts at commit when the SAH sum exceeds this × its value when the tree was last
+        /// built or swapped in (sah_growth; 0: never).
         double rebuild_ratio = 1.5;
+        /// A rebuild starts at commit once the changes since the live tree's objects were gathered
+        /// for its build reach this × the object count (0: never).
+        double rebuild_after = 2.0;
+        /// A started rebuild advances by this many objects' share of its work per change of the
+        /// commit, while the live tree answers (0: the whole rebuild in the commit that starts it).
+        double rebuild_speed = 4.0;
         /// A move whose new centre lies outside its leaf's box (as of the last commit) reinserts the
         /// object (remove, then insert by least area growth) instead of stretching the leaf.
-        bool reinsert = false;
+        bool reinsert = true;
         int cast_threads = 1;
 
         static constexpr auto fields() {
@@ -51,9 +63,15 @@ public:
                       "objects per leaf at build time (a full leaf splits on insert)"},
                 Field{"bins", &Params::bins, 2, 256, "SAH bins per axis of the build", true, true},
                 Field{"rebuild_ratio", &Params::rebuild_ratio, 0.0, 100.0,
-                      "full rebuild at commit when the SAH sum (not divided by the root area) exceeds this x its "
-                      "value after the last build (0: never; values in (0, 1] rebuild at every commit that follows "
-                      "a change)"},
+                      "a rebuild starts at commit when the SAH sum (not divided by the root area) exceeds this x its "
+                      "value when the tree was last built or swapped in (0: never; values in (0, 1] start one at "
+                      "every commit that follows a change)"},
+                Field{"rebuild_after", &Params::rebuild_after, 0.0, 1000.0,
+                      "a rebuild starts at commit once the changes since the live tree's objects were gathered reach "
+                      "this x the object count (0: never)"},
+                Field{"rebuild_speed", &Params::rebuild_speed, 0.0, 1000.0,
+                      "a started rebuild advances by this many objects' share of its work per change, while the "
+                      "live tree answers and its changes are logged and replayed (0: the whole rebuild at once)"},
                 Field{"reinsert", &Params::reinsert, 0, 1,
                       "a move whose centre leaves its leaf's box reinserts the object instead of stretching the "
                       "leaf"},
@@ -199,19 +217,68 @@ private:
         Vec3 centroid;
         Uid uid;
     };
+    /// Items [begin, begin + n) of items_ and their box (the union of the items' boxes).
+    struct Range {
+        std::uint32_t begin = 0, n = 0;
+        Aabb box = Aabb::empty();
+    };
+    /// A block still to build: a range below lane `lane` of `parent` (kNone: the root).
+    struct Pending {
+        Range range;
+        std::uint32_t parent = kNone;
+        std::uint16_t depth = 0;
+        std::uint8_t lane = 0;
+    };
+    struct Bin {
+        Aabb box;
+        std::uint32_t n;
+    };
+    /// Where a progressive rebuild is: gathering the live objects, building the next tree from
+    /// them, replaying the changes logged since the gathering began, or freeing the replaced tree.
+    enum class Phase : std::uint8_t { idle, gather, build, replay, dispose };
+    // Work units (the build's: an item binned, bounded or partitioned, an object written to a leaf)
+    // of a replayed uid (two lookups, then a lane write, an insert or a remove in the next tree) and
+    // of an index entry freed, from their times against the build's.
+    static constexpr std::uint64_t kReplayUnits = 16, kDisposeUnits = 4;
 
     std::uint32_t allocate();
     void release(std::uint32_t b);
     void mark(std::uint32_t b);
     void refit();
+    /// The whole rebuild at once: gather, build, done.
     void rebuild();
-    /// Builds the subtree over items[0, n) below `parent` (lane `lane`) and returns its block.
-    std::uint32_t build_node(Item* items, std::uint32_t n, std::uint32_t parent, int lane, int depth);
-    /// Splits items[0, n) in two (binned SAH; by size or the median when that cannot split) and
-    /// returns the size of the first part, in 1..n-1.
+    /// Empties the tree (blocks, index, counters), keeping the build state.
+    void clear_tree();
+
+    // The top-down binned SAH build, resumable, so that a rebuild can be spread over commits:
+    // build_step() does at most about `budget` units of work (one unit: an item binned, bounded or
+    // partitioned, an object written to a leaf) and returns what it did; build() and rebuild() run
+    // it without a limit, a progressive rebuild a share per commit. Depth first: pending_ holds the blocks still to
+    // build, and the node being opened keeps its parts and the split in progress between steps.
+    void begin_build();
+    std::uint64_t build_step(std::uint64_t budget);
+    bool build_done() const { return pending_.empty() && !opening_; }
+    void end_build();
+    /// One step of the split of parts_[splitting_]: centroid bounds, binning, then the partition.
+    std::uint64_t split_step(std::uint64_t budget);
+    /// Chooses the binned-SAH split of the part from the bins; false when none splits it.
+    bool choose_split(std::uint32_t n);
+    /// The fallbacks when binning cannot split `part`: by size when its centroids coincide, else at
+    /// the median of the widest axis. Done whole (these parts are rare, and small in practice).
+    void split_by_size(int part);
+    /// The node being opened is complete: its block, its lanes, its parts pending as children.
+    void finish_node();
+    void make_leaf(const Pending& p);
+    /// Hooks block `b` into lane `lane` of `parent` (or makes it the root) and adds its SAH term.
+    void link(std::uint32_t b, std::uint32_t parent, int lane);
+    /// Splits items [0, n) in two (binned SAH; by size or the median when that cannot split) and
+    /// returns the size of the first part, in 1..n-1. For the nine objects of a leaf split.
     std::uint32_t split(Item* items, std::uint32_t n);
+
     /// The leaf a new box goes to: the child of least area growth at every level.
     std::uint32_t choose_leaf(const Aabb& box) const;
+    void insert_object(const Object& o);
+    void remove_object(Uid uid);
     /// Adds `o` to the full leaf `leaf`: the nine objects split in two leaves, side by side in the
     /// parent when it has a free lane, else below a new inner node in the leaf's place.
     void split_leaf(std::uint32_t leaf, const Object& o);
@@ -228,7 +295,31 @@ private:
     /// Σ area(lane) · weight(child) over all non-root blocks, recomputed from the tree.
     double fresh_sah_sum() const;
     double total_sah() const;
-    void build_from_items();
+    /// The checks of validate() on this tree alone; `refitted` false (the next tree of a rebuild,
+    /// while changes are replayed into it): lanes need not enclose their children yet.
+    void validate_tree(bool refitted) const;
+
+    // ---- the progressive rebuild (the live tree's side) ----
+    bool rebuild_due() const;
+    void start_rebuild();
+    /// Advances the rebuild by about `budget` units; swaps the trees when the replay is done.
+    void advance(std::uint64_t budget);
+    std::uint64_t gather_step(std::uint64_t budget);
+    /// Makes the next tree hold `uid` as the live tree does now (present or not, same box).
+    void replay(Uid uid);
+    void swap_trees();
+    /// A change to the live tree while a rebuild gathers, builds or replays: the uid is replayed
+    /// into the next tree before the swap (and skipped by the gathering, if not yet gathered).
+    void log_change(Uid uid) {
+        if (phase_ == Phase::idle || phase_ == Phase::dispose) return;
+        log_.push_back(uid);
+        if (phase_ == Phase::gather) gather_skip_.insert(uid);
+    }
+    /// An object of the live tree moved to another lane (a leaf split, a remove filling its hole):
+    /// only the gathering cares, which could see it twice or not at all.
+    void log_relocation(Uid uid) {
+        if (phase_ == Phase::gather) log_change(uid);
+    }
 
     Params params_;
     std::vector<Block> blocks_;
@@ -246,18 +337,44 @@ private:
     // The largest term added to or taken from sah_sum_ since it was last recomputed: when it dwarfs
     // the sum (a huge box left the tree), rounding could dominate, so commit recomputes the sum.
     double sah_largest_term_ = 0.0;
-    double total_after_build_ = 0.0;  // total_sah() right after the last build
+    double total_after_build_ = 0.0;  // total_sah() right after the last build or swap
     bool changed_ = false;            // changes since the last commit
     // Stats.
     std::uint32_t rebuilds_ = 0, splits_ = 0, reinserts_ = 0;
-    // Build scratch.
+
+    // Build state (of the tree being built).
     std::vector<Item> items_;
-    struct Bin {
-        Aabb box;
-        std::uint32_t n;
-    };
+    std::vector<Pending> pending_;
+    bool opening_ = false;  // a node is being opened: open_, parts_, splitting_ hold it
+    Pending open_;          // the node being opened
+    std::array<Range, kLanes> parts_;
+    int nparts_ = 0;
+    int splitting_ = -1;                    // the part being split, or -1
+    std::uint8_t split_stage_ = 0;          // 0: centroid bounds, 1: binning, 2: partition
+    std::uint32_t cursor_ = 0, right_ = 0;  // the next item of the stage; the partition's right-side scan
+    Aabb cbox_;                             // the centroid bounds of the part being split
+    double scale_[3] = {0, 0, 0};           // bins per unit of centroid, per axis (0: the axis is not binned)
+    int axis_ = 0, split_bin_ = 0;          // the chosen split: items of bins below split_bin_ on axis_ go left
+    std::uint32_t left_n_ = 0;
+    std::uint64_t build_work_ = 0;  // units of the build so far
     std::vector<Bin> bin_scratch_;
     std::vector<double> right_cost_;
+
+    // Progressive rebuild state (of the live tree).
+    Phase phase_ = Phase::idle;
+    std::unique_ptr<WideBvh> next_;        // the tree being built (then the replaced one, disposed)
+    std::uint32_t gather_cursor_ = 0;      // the next block to gather
+    std::vector<Uid> log_;                 // uids changed since the gathering began
+    std::unordered_set<Uid> gather_skip_;  // uids changed while gathering: not gathered
+    std::size_t replay_cursor_ = 0;
+    std::size_t log_mark_ = 0;             // the log's size at the end of the last commit
+    std::uint64_t changes_ = 0;            // changes since the last commit
+    std::uint64_t age_ = 0;                // changes since the live tree's objects were gathered
+    std::uint64_t cycle_age_ = 0;          // changes since the rebuild in progress gathered
+    std::uint64_t cycle_work_ = 0;         // units of the rebuild in progress so far
+    std::uint64_t last_cycle_work_ = 0;    // units of the last progressive rebuild, to its swap
+    double units_per_object_ = 0;          // units of the last rebuild per object
+    std::uint64_t budget_ = 0, work_ = 0;  // of the last commit
 };
 
 }  // namespace rcb
