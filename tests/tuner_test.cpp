@@ -1,10 +1,15 @@
 // The tuner: the NLopt search against exhaustive search on a known cost surface, seed stability,
-// enumeration of small spaces, edge reporting, the simplicity rule, tuning files, and a real tuning.
+// enumeration of small spaces, edge reporting, the simplicity rule, tuning files, a real tuning, and
+// what a tuning records for advise (its spaces and cost models).
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 
 #include "core/error.h"
+#include "tests/test_scenes.h"
+#include "tuner/run_tuning.h"
 #include "tuner/search.h"
 #include "tuner/tuning.h"
 
@@ -163,6 +168,33 @@ TEST(Tune, TheDefaultsSpelledAsAnIntegerAreMeasuredOnce) {
     const CategoryTuning t = tune_category(spec, spec.categories[0]);
     ASSERT_EQ(t.structures.size(), 1u);
     EXPECT_EQ(t.structures[0].candidates.size(), 2u);  // density 2 and density 4 (the defaults), not a third
+}
+
+TEST(TuneRecordsForAdvise, EveryModeRecordsItsSpaceAndACostModel) {
+    namespace fs = std::filesystem;
+    const fs::path dir = test::temp_dir("tuner", "records_for_advise");
+    for (const char* mode : {"measured", "predicted-then-verified"}) {
+        const TuneSpec spec = parse_tune_spec(
+            std::string(R"({"name": "rec", "structures": ["ug"], "budget": 4, "calibration": 4, "frames": 3,
+                "rays_per_frame": 200, "repetitions": 1, "mode": ")") +
+                mode + R"(", "space": {"ug": {"density": [0.5, 1, 2, 4, 8]}},
+                "categories": [{"name": "u", "scenes": [{"kind": "uniform", "objects": 2000}]}]})",
+            "rec.json", dir.string());
+        TuneOptions o;
+        o.file = (dir / "rec.json").string();
+        o.db = (dir / "t.db").string();
+        o.out_dir = dir.string();
+        const TuneOutcome out = run_tuning(spec, o);
+        const json ug = json::parse(std::ifstream(out.json_path))["categories"][0]["structures"][0];
+        ASSERT_EQ(ug["space"].size(), 1u) << mode;
+        EXPECT_EQ(ug["space"][0]["name"], "density");
+        EXPECT_EQ(ug["space"][0]["levels"].size(), 5u);
+        // The measured mode fits it to the frames its search measured (counted on the first
+        // repetition), the predicted modes keep their calibration's.
+        ASSERT_TRUE(ug.contains("cost_model")) << mode;
+        EXPECT_GT(ug["cost_model"]["C_T"].get<double>() + ug["cost_model"]["C_RB"].get<double>(), 0) << mode;
+    }
+    fs::remove_all(dir);
 }
 
 }  // namespace

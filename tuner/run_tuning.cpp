@@ -221,6 +221,12 @@ TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
                        {"best", candidate_json(st.candidates[st.best_candidate])},
                        {"candidates", json::array()}};
             for (const Candidate& c : st.candidates) sj["candidates"].push_back(candidate_json(c));
+            // What advise needs to choose this structure's parameters for an unseen scene: the
+            // space searched here and the category's cost model, applied to that scene's counters.
+            sj["space"] = json::array();  // in the search's order of dimensions
+            for (const SearchDimension& d : spec.space.at(st.structure))
+                sj["space"].push_back({{"name", d.name}, {"levels", d.levels}});
+            if (st.cost_model) sj["cost_model"] = st.cost_model->to_json();
             cj["structures"].push_back(sj);
         }
         md << "\n| structure | search | evaluations (space) | measurements | seconds | stopped | best at the edge of "
