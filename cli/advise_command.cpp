@@ -36,7 +36,8 @@ void add_advise_command(CLI::App& app) {
         ->check(CLI::IsMember({"auto", "category", "model"}));
     cmd->add_option("--verify-top", o->verify_top,
                     "Model method: how many of its best predicted configurations are measured on the scene beside "
-                    "the category's parameters; the fastest measured is advised (0: the predicted best, alone)")
+                    "the category's parameters (configurations the replays count alike, one structure in effect, "
+                    "once); the fastest measured is advised (0: the predicted best, alone)")
         ->capture_default_str()
         ->check(whole_number(0, 16));
     cmd->add_flag("--exhaustive", o->exhaustive,

@@ -182,7 +182,7 @@ Advice advise(const AdviseOptions& o) {
         if (pc.method == "model") {
             pc.model = ts.model->model;
             pc.why = o.method == "model" ? "--method model"
-                                         : "the tuning holds category " + wanted + "'s cost model for " + info.name +
+                                         : "the tuning holds a cost model for " + info.name + " in category " + wanted +
                                                ", so this scene's own counters decide instead of the best of the "
                                                "category's scenes";
         } else {
@@ -240,16 +240,16 @@ Advice advise(const AdviseOptions& o) {
         // The best predictions are measured, one per structure in effect: a configuration that
         // counts exactly as one measured already is the same structure and tells nothing new.
         const std::size_t to_measure = std::max<std::size_t>(1, o.verify_top);
-        std::vector<ReplayCounts> measured_counts;
+        std::vector<std::optional<ReplayCounts>> measured_counts;
         for (std::size_t k = 0; k < order.size(); ++k) {
             ModelCandidate c{r.evaluations[order[k]].params, r.evaluations[order[k]].cost, std::nullopt, false};
             c.is_category = same_point(c.searched, pc.category_searched, pc.space);
             const std::optional<ReplayCounts> counts = counts_of(c.searched);
             const bool repeat =
-                counts && std::find(measured_counts.begin(), measured_counts.end(), *counts) != measured_counts.end();
+                counts && std::find(measured_counts.begin(), measured_counts.end(), counts) != measured_counts.end();
             if (measured_counts.size() < to_measure && !repeat) {
                 c.measured = measure(category, pc.structure, full_params(c.searched), o.warmup, o.repetitions, verify);
-                if (counts) measured_counts.push_back(*counts);
+                measured_counts.push_back(counts);
             }
             pc.candidates.push_back(std::move(c));
         }
