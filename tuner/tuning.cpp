@@ -295,10 +295,9 @@ MeasuredCost measure(const TuneCategory& category, const std::string& structure,
     o.count = false;
     o.warmup_frames = warmup_frames;
     std::vector<SimulationResult> runs;
-    if (verify || observations) {  // the first repetition also verified or counted (untimed)
+    if (verify) {  // the first repetition also verified (untimed): the accuracy a constraint judges
         SimulationOptions checked = o;
-        checked.verify = verify;  // the accuracy a constraint judges
-        checked.count = observations != nullptr;
+        checked.verify = true;
         runs = run_simulations(category, structure, params, checked, 1);
         if (repetitions > 1) {
             std::vector<SimulationResult> rest = run_simulations(category, structure, params, o, repetitions - 1);
@@ -307,10 +306,21 @@ MeasuredCost measure(const TuneCategory& category, const std::string& structure,
     } else {
         runs = run_simulations(category, structure, params, o, repetitions);
     }
-    if (observations)
-        for (std::size_t s = 0; s < category.scenes.size(); ++s)
-            add_observations(runs[s], category.scenes[s].name, category_of(category.scenes[s]), group * 100 + int(s),
+    if (observations) {
+        // The counters come from a replay of their own (deterministic, so frame for frame those of
+        // the timed run): counting between the timed frames would slow them by a few percent.
+        SimulationOptions replay = o;
+        replay.timed_cast = false;
+        replay.count = true;
+        const std::vector<SimulationResult> counted = run_simulations(category, structure, params, replay, 1);
+        for (std::size_t s = 0; s < category.scenes.size(); ++s) {
+            SimulationResult timed = runs[s];
+            for (std::size_t f = 0; f < timed.frames.size() && f < counted[s].frames.size(); ++f)
+                timed.frames[f].counters = counted[s].frames[f].counters;
+            add_observations(timed, category.scenes[s].name, category_of(category.scenes[s]), group * 100 + int(s),
                              *observations);
+        }
+    }
     MeasuredCost c = summarise(runs, category.scenes.size());
     c.accuracy.exact_level = query_level_of(complete(structure, params)) != QueryLevel::candidates;
     if (verify) {
@@ -518,8 +528,8 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
 
         if (spec.mode == "measured") {
             // The defaults start the search and are measured already: every measurement is one of
-            // the budget's evaluations. Their counted first repetitions fit the cost model that
-            // advise applies to unseen scenes, without a measurement of its own.
+            // the budget's evaluations. Their first repetitions, counted by untimed replays, fit the
+            // cost model that advise applies to unseen scenes, without a measurement of its own.
             st.search = search_levels(
                 dims,
                 [&](const json& p) { return constrained_cost(*measure_candidate(p, false).measured, spec.accuracy); },

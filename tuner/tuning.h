@@ -103,7 +103,7 @@ struct StructureTuning {
     std::string prediction_model;                          ///< the calibration's chosen model, for predicted modes
     std::function<double(const nlohmann::json&)> predict;  ///< predicted modes: the model's cost of searched params
     /// Eq. 5.4 for this structure on this category: the predicted modes' calibration, or in the
-    /// measured mode a fit to the frames the search measured (counted on their first repetition).
+    /// measured mode a fit to the frames the search measured (counted by an untimed replay).
     /// What advise applies to an unseen scene's counters. None when no model could be fitted.
     std::optional<CostCoefficients> cost_model;
     double seconds = 0;
@@ -129,8 +129,8 @@ const Recording& recording_of(const SceneSpec& scene);
 /// With `verify`, the first repetition is also checked against the ground truth (untimed, so the
 /// times are unchanged) and the accuracy filled in; without, only the level is known.
 ///
-/// With `observations`, the first repetition also runs the counting pass (untimed) and appends its
-/// frames as cost-model observations (config_group `group` × 100 + the scene's index).
+/// With `observations`, the first repetition's frames are appended as cost-model observations
+/// (config_group `group` × 100 + the scene's index), their counters from an untimed replay.
 MeasuredCost measure(const TuneCategory& category, const std::string& structure, const nlohmann::json& params,
                      std::uint32_t warmup_frames, std::uint32_t repetitions, bool verify = false,
                      std::vector<FrameObservation>* observations = nullptr, int group = 0);
