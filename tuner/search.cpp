@@ -94,11 +94,14 @@ struct DimensionMemory {
 /// ones before all, in a seeded order), so a parameter that barely matters does not steer the
 /// search into a side valley before the ones that do have moved; and a dimension is first tried in
 /// the direction that last improved it, or, never improved, towards the middle of its levels (a
-/// space brackets the optimum it is written for; at the exact middle, a seeded coin). Stops at a
-/// point no neighbour improves, or when the budget runs out (nlopt::forced_stop propagates).
+/// space brackets the optimum it is written for; at the exact middle, a seeded coin). While sweeps
+/// improve, a dimension that has moved is tried onward only: the way back was worse when it left.
+/// Stops at a point no neighbour improves (a last sweep tries both ways), or when the budget runs
+/// out (nlopt::forced_stop propagates).
 void pattern_search(Budgeted& b, std::vector<int> idx, Random& rng, DimensionMemory& memory) {
     const std::size_t n = b.dims->size();
     double best = b(idx);
+    bool onward_only = true;
     for (bool improved = true; improved;) {
         improved = false;
         std::vector<std::size_t> order(n);
@@ -112,6 +115,7 @@ void pattern_search(Budgeted& b, std::vector<int> idx, Random& rng, DimensionMem
             const int towards_middle = 2 * idx[d] > last ? -1 : 2 * idx[d] < last ? 1 : coin;
             const int first_dir = memory.last_dir[d] != 0 ? memory.last_dir[d] : towards_middle;
             for (int dir : {first_dir, -first_dir}) {
+                if (dir != first_dir && onward_only && memory.last_dir[d] != 0) break;
                 std::vector<int> next = idx;
                 next[d] += dir;
                 if (next[d] < 0 || next[d] > last) continue;
@@ -123,6 +127,11 @@ void pattern_search(Budgeted& b, std::vector<int> idx, Random& rng, DimensionMem
                 break;
             }
         }
+        // A sweep that found nothing onward tries the ways back too before the search stops.
+        if (improved)
+            onward_only = true;
+        else if (onward_only)
+            onward_only = false, improved = true;
     }
 }
 

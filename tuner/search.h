@@ -13,7 +13,8 @@
 /// levels, one dimension at a time) from the start point, the defaults, which the structures'
 /// authors chose to be good. Each sweep takes the dimensions that have changed the cost most
 /// first (unprobed ones before all, in a seeded order), and tries a dimension first in the
-/// direction that last improved it, else towards the middle of its levels. Grid parameters give smooth valleys (thesis
+/// direction that last improved it, else towards the middle of its levels; while sweeps improve, a
+/// dimension that has moved is not tried back the way it came. Grid parameters give smooth valleys (thesis
 /// §6.2: cost falls, then rises, with cell size and depth), so this reaches the valley floor in a few steps. With
 /// budget left, NLopt's GN_DIRECT_L_RAND (Gablonsky & Kelley's locally-biased DIRECT with randomised tie-breaking,
 /// seeded) looks at the whole box with half of what remains, and the pattern search restarts from the best point found;
