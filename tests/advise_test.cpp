@@ -223,16 +223,18 @@ TEST_F(AdviseFiles, BadOptionsAndTuningsAreOneLineErrors) {
                "none.json");
     json t = tuning_with(2.0, cost_model(1.0, 10.0));
     t["categories"][0]["structures"][0]["cost_model"]["C_RB"] = "fast";
-    expect_bad(::test::run_shell(bin + " advise " + scene + " --tuning " + write_tuning("nan.json", t) + " --category c"),
-               "C_RB");
+    expect_bad(
+        ::test::run_shell(bin + " advise " + scene + " --tuning " + write_tuning("nan.json", t) + " --category c"),
+        "C_RB");
     t = tuning_with(2.0, cost_model(1.0, 10.0));
     t["categories"][0]["structures"][0]["space"][0]["levels"] = json::array({1, -3});
-    expect_bad(::test::run_shell(bin + " advise " + scene + " --tuning " + write_tuning("lv.json", t) + " --category c"),
-               "lv.json");
+    expect_bad(
+        ::test::run_shell(bin + " advise " + scene + " --tuning " + write_tuning("lv.json", t) + " --category c"),
+        "lv.json");
     t = tuning_with(2.0, cost_model(1.0, 10.0));
     t["categories"][0]["structures"][0].erase("space");
     expect_bad(::test::run_shell(bin + " advise " + scene + " --tuning " + write_tuning("old.json", t) +
-                               " --category c --exhaustive"),
+                                 " --category c --exhaustive"),
                "records no search space");
 }
 
