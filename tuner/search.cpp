@@ -90,15 +90,15 @@ struct DimensionMemory {
 /// leaves the budget in a side valley.
 ///
 /// With a budget of a tenth of the space every probe counts, so the search spends them where they
-/// are likely to pay: each sweep takes the dimensions that changed the cost most first (unprobed
-/// ones before all: in the space's order in the first sweep, which lists the main parameters
-/// first, later in a seeded order), so a parameter that barely matters does not steer the search
-/// into a side valley before the ones that do have moved; and a dimension is first tried in
-/// the direction that last improved it, or, never improved, towards the middle of its levels (a
-/// space brackets the optimum it is written for; at the exact middle, a seeded coin). While sweeps
-/// improve, a dimension that has moved is tried onward only: the way back was worse when it left.
-/// Stops at a point no neighbour improves (a last sweep tries both ways), or when the budget runs
-/// out (nlopt::forced_stop propagates).
+/// are likely to pay. Each sweep takes the dimensions that changed the cost most first, so a
+/// parameter that barely matters does not steer the search into a side valley before the ones
+/// that do have moved; unprobed ones come before all, in the first sweep in the space's order (the
+/// structure's parameter list, main parameters first), later in a seeded order. A dimension is
+/// first tried in the direction that last improved it, or, never improved, towards the middle of
+/// its levels (a space brackets the optimum it is written for; at the exact middle, a seeded
+/// coin). While sweeps improve, a dimension that has moved is tried onward only: the way back was
+/// worse when it left. Stops at a point no neighbour improves (a last sweep tries both ways), or
+/// when the budget runs out (nlopt::forced_stop propagates).
 void pattern_search(Budgeted& b, std::vector<int> idx, Random& rng, DimensionMemory& memory) {
     const std::size_t n = b.dims->size();
     double best = b(idx);
@@ -107,8 +107,9 @@ void pattern_search(Budgeted& b, std::vector<int> idx, Random& rng, DimensionMem
         improved = false;
         std::vector<std::size_t> order(n);
         for (std::size_t d = 0; d < n; ++d) order[d] = d;
-        // Until a sweep has probed them, the dimensions keep the space's order (structures and
-        // tuning files list their main parameters first); then the seeded order breaks ties.
+        // Until a sweep has probed them, the dimensions keep the space's order (a tuning's space
+        // follows the structure's parameter list, which names the main parameters first); then
+        // the seeded order breaks ties.
         if (std::any_of(memory.effect.begin(), memory.effect.end(), [](double e) { return !std::isinf(e); }))
             for (std::size_t d = n; d > 1; --d) std::swap(order[d - 1], order[rng.below(d)]);  // Fisher–Yates
         std::stable_sort(order.begin(), order.end(),
