@@ -340,13 +340,18 @@ Advice advise(const AdviseOptions& o) {
             ex.best_ms = INFINITY;
             const std::vector<json> all = enumerate_space(pc.space);
             ex.configurations = all.size();
+            std::vector<json> full_params;
             for (const json& p : all) {
                 json full = ts.params;
                 for (const auto& [k, v] : p.items()) full[k] = v;
-                const MeasuredCost m =
-                    measure(category, pc.structure, info.complete(full, o.tuning), o.warmup, o.repetitions, verify);
+                full_params.push_back(info.complete(full, o.tuning));
+            }
+            const std::vector<MeasuredCost> costs =
+                measure_interleaved(category, pc.structure, full_params, o.warmup, o.repetitions, verify);
+            for (std::size_t i = 0; i < all.size(); ++i) {
+                const json& p = all[i];
                 // Configurations that fail the accuracy are priced out, as in tune --exhaustive.
-                const double ms = constrained_cost(m, o.accuracy);
+                const double ms = constrained_cost(costs[i], o.accuracy);
                 if (ms < ex.best_ms) ex.best_ms = ms, ex.best_searched = p;
                 if (same_point(p, pc.chosen_searched, pc.space)) ex.advised_ms = ms;
                 if (same_point(p, pc.category_searched, pc.space)) ex.category_ms = ms;

@@ -253,12 +253,19 @@ TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
                 std::map<std::string, double> surface;  // searched params → measured ms
                 std::vector<double> measured;
                 json surface_json = json::array();
+                std::vector<json> full_params;
                 for (const json& p : all) {
                     json full = find_structure(st.structure).defaults();
                     for (const auto& [k, v] : p.items()) full[k] = v;
+                    full_params.push_back(full);
+                }
+                const std::vector<MeasuredCost> costs =
+                    measure_interleaved(category, st.structure, full_params, spec.warmup_frames, spec.repetitions,
+                                        spec.accuracy.needs_verification());
+                for (std::size_t i = 0; i < all.size(); ++i) {
+                    const json& p = all[i];
+                    const MeasuredCost& m = costs[i];
                     // The surface the search sees: configurations failing the accuracy priced out.
-                    const MeasuredCost m = measure(category, st.structure, full, spec.warmup_frames, spec.repetitions,
-                                                   spec.accuracy.needs_verification());
                     const double ms = constrained_cost(m, spec.accuracy);
                     surface[p.dump()] = ms;
                     measured.push_back(m.ms);  // the prediction ranks times, not the accuracy

@@ -287,40 +287,29 @@ TuneSpec load_tune_spec(const std::string& path) {
     return parse_tune_spec(read_text_file(path), path, fs::path(path).parent_path().string());
 }
 
-MeasuredCost measure(const TuneCategory& category, const std::string& structure, const json& params,
-                     std::uint32_t warmup_frames, std::uint32_t repetitions, bool verify,
-                     std::vector<FrameObservation>* observations, int group) {
+namespace {
+
+SimulationOptions measuring_options(std::uint32_t warmup_frames) {
     SimulationOptions o;
     o.verify = false;  // correctness is the tests' job; tuning measures speed
     o.count = false;
     o.warmup_frames = warmup_frames;
-    std::vector<SimulationResult> runs;
-    if (verify) {  // the first repetition also verified (untimed): the accuracy a constraint judges
-        SimulationOptions checked = o;
-        checked.verify = true;
-        runs = run_simulations(category, structure, params, checked, 1);
-        if (repetitions > 1) {
-            std::vector<SimulationResult> rest = run_simulations(category, structure, params, o, repetitions - 1);
-            runs.insert(runs.end(), std::make_move_iterator(rest.begin()), std::make_move_iterator(rest.end()));
-        }
-    } else {
-        runs = run_simulations(category, structure, params, o, repetitions);
-    }
-    if (observations) {
-        // The counters come from a replay of their own (deterministic, so frame for frame those of
-        // the timed run): counting between the timed frames would slow them by a few percent.
-        SimulationOptions replay = o;
-        replay.timed_cast = false;
-        replay.count = true;
-        const std::vector<SimulationResult> counted = run_simulations(category, structure, params, replay, 1);
-        for (std::size_t s = 0; s < category.scenes.size(); ++s) {
-            SimulationResult timed = runs[s];
-            for (std::size_t f = 0; f < timed.frames.size() && f < counted[s].frames.size(); ++f)
-                timed.frames[f].counters = counted[s].frames[f].counters;
-            add_observations(timed, category.scenes[s].name, category_of(category.scenes[s]), group * 100 + int(s),
-                             *observations);
-        }
-    }
+    return o;
+}
+
+/// One repetition of a configuration on every scene of the category; `verify` also checks it
+/// against the ground truth (untimed): the accuracy a constraint judges.
+std::vector<SimulationResult> one_repetition(const TuneCategory& category, const std::string& structure,
+                                             const json& params, std::uint32_t warmup_frames, bool verify) {
+    SimulationOptions o = measuring_options(warmup_frames);
+    o.verify = verify;
+    return run_simulations(category, structure, params, o, 1);
+}
+
+/// The cost of measured runs, repetition-major (the first repetition's runs first, verified when
+/// `verify`).
+MeasuredCost cost_of(const std::vector<SimulationResult>& runs, const TuneCategory& category,
+                     const std::string& structure, const json& params, bool verify) {
     MeasuredCost c = summarise(runs, category.scenes.size());
     c.accuracy.exact_level = query_level_of(complete(structure, params)) != QueryLevel::candidates;
     if (verify) {
@@ -337,6 +326,51 @@ MeasuredCost measure(const TuneCategory& category, const std::string& structure,
         }
     }
     return c;
+}
+
+}  // namespace
+
+MeasuredCost measure(const TuneCategory& category, const std::string& structure, const json& params,
+                     std::uint32_t warmup_frames, std::uint32_t repetitions, bool verify,
+                     std::vector<FrameObservation>* observations, int group) {
+    std::vector<SimulationResult> runs;
+    for (std::uint32_t rep = 0; rep < repetitions; ++rep) {
+        std::vector<SimulationResult> r =
+            one_repetition(category, structure, params, warmup_frames, verify && rep == 0);
+        runs.insert(runs.end(), std::make_move_iterator(r.begin()), std::make_move_iterator(r.end()));
+    }
+    if (observations) {
+        // The counters come from a replay of their own (deterministic, so frame for frame those of
+        // the timed run): counting between the timed frames would slow them by a few percent.
+        SimulationOptions replay = measuring_options(warmup_frames);
+        replay.timed_cast = false;
+        replay.count = true;
+        const std::vector<SimulationResult> counted = run_simulations(category, structure, params, replay, 1);
+        for (std::size_t s = 0; s < category.scenes.size(); ++s) {
+            SimulationResult timed = runs[s];
+            for (std::size_t f = 0; f < timed.frames.size() && f < counted[s].frames.size(); ++f)
+                timed.frames[f].counters = counted[s].frames[f].counters;
+            add_observations(timed, category.scenes[s].name, category_of(category.scenes[s]), group * 100 + int(s),
+                             *observations);
+        }
+    }
+    return cost_of(runs, category, structure, params, verify);
+}
+
+std::vector<MeasuredCost> measure_interleaved(const TuneCategory& category, const std::string& structure,
+                                              const std::vector<json>& params, std::uint32_t warmup_frames,
+                                              std::uint32_t repetitions, bool verify) {
+    std::vector<std::vector<SimulationResult>> runs(params.size());
+    for (std::uint32_t rep = 0; rep < repetitions; ++rep)
+        for (std::size_t i = 0; i < params.size(); ++i) {
+            std::vector<SimulationResult> r =
+                one_repetition(category, structure, params[i], warmup_frames, verify && rep == 0);
+            runs[i].insert(runs[i].end(), std::make_move_iterator(r.begin()), std::make_move_iterator(r.end()));
+        }
+    std::vector<MeasuredCost> out;
+    for (std::size_t i = 0; i < params.size(); ++i)
+        out.push_back(cost_of(runs[i], category, structure, params[i], verify));
+    return out;
 }
 
 double constrained_cost(const MeasuredCost& cost, const AccuracyConstraint& accuracy) {
