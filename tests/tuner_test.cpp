@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "core/error.h"
+#include "core/registry.h"
 #include "tests/test_scenes.h"
 #include "tuner/run_tuning.h"
 #include "tuner/search.h"
@@ -195,6 +196,35 @@ TEST(TuneRecordsForAdvise, EveryModeRecordsItsSpaceAndACostModel) {
         EXPECT_GT(ug["cost_model"]["C_T"].get<double>() + ug["cost_model"]["C_RB"].get<double>(), 0) << mode;
     }
     fs::remove_all(dir);
+}
+
+TEST(Tune, InterleavedMeasurementsGiveOneVerifiedCostPerConfiguration) {
+    // The exhaustive checks' repetition-major measurement: one cost per configuration, in order,
+    // verified on the first repetition when asked, each over every repetition's frames.
+    TuneCategory c;
+    c.name = "u";
+    SceneSpec s;
+    s.name = "u";
+    s.settings.kind = "uniform";
+    s.settings.objects = 1500;
+    s.settings.frames = 3;
+    s.settings.rays.per_frame = 100;
+    s.key = {{"interleaved", 1}};
+    c.scenes.push_back(s);
+    const std::vector<json> params{find_structure("ug").complete({{"density", 1.0}}, "t"),
+                                   find_structure("ug").complete({{"density", 8.0}}, "t"),
+                                   find_structure("ug").complete({{"density", 1.0}, {"query", "candidates"}}, "t")};
+    const std::vector<MeasuredCost> costs = measure_interleaved(c, "ug", params, 1, 2, true);
+    ASSERT_EQ(costs.size(), 3u);
+    for (const MeasuredCost& m : costs) {
+        EXPECT_GT(m.ms, 0);
+        EXPECT_TRUE(m.accuracy.verified);
+        EXPECT_EQ(m.accuracy.mismatches, 0u);
+    }
+    EXPECT_TRUE(costs[0].accuracy.exact_level);
+    EXPECT_FALSE(costs[2].accuracy.exact_level);  // the candidate level promises no upper side
+    EXPECT_LT(costs[2].accuracy.precision, 1.0);  // and returns candidates the boxes rule out
+    EXPECT_GT(costs[1].memory_bytes, 0);
 }
 
 }  // namespace
