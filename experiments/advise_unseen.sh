@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Advice for scenes the tuning never saw (docs/model.md, "Advice for unseen scenes"): tunes
-# experiments/advise-train.json (synthetic scenes and six OpenArena maps, as in real.json), imports
+# experiments/tune-advise.json (synthetic scenes and six OpenArena maps, as in real.json), imports
 # OpenArena maps that are in neither, and advises each from that tuning with --exhaustive, which
 # also measures every configuration of the tuned spaces on the map: each structure's line gives the
 # map's own best, the advised configuration's gap to it and the category's parameters' gap.
@@ -8,7 +8,7 @@
 #   experiments/advise_unseen.sh [MAP ...]
 #     default maps: oa_dm2 delta oa_dm3 oa_dm5 oa_dm6 oa_dm7 hydronex q3dm6ish (pak1-maps.pk3, brushes)
 #
-# Writes into RCB_ADVISE_DIR (default results/advise-unseen): the tuning (tuning-advise-train.json,
+# Writes into RCB_ADVISE_DIR (default results/advise-unseen): the tuning (tuning-advise.json,
 # .md, advise.db; kept and reused when it exists, delete it to tune again), each map's scene
 # (MAP-brushes.rcbscene: 20 frames of 1% dynamics, 1000 centre rays, seed 1, as the tuning's maps),
 # advise-MAP.txt (the advice) and summary.txt (every map's category and exhaustive lines).
@@ -29,9 +29,9 @@ if [ ! -f data/maps/pak1-maps.pk3 ]; then
   exit 2
 fi
 mkdir -p "$dir"
-tuning=$dir/tuning-advise-train.json
+tuning=$dir/tuning-advise.json
 if [ ! -f "$tuning" ]; then
-  "$rcbench" tune experiments/advise-train.json --db "$dir/advise.db" --out-dir "$dir"
+  "$rcbench" tune experiments/tune-advise.json --db "$dir/advise.db" --out-dir "$dir"
 fi
 summary=$dir/summary.txt
 : >"$summary"
