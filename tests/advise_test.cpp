@@ -99,8 +99,11 @@ TEST_F(AdviseFiles, TheModelMethodFollowsTheCostOfAStepAgainstATest) {
         previous = d;
         chosen.push_back(d);
         // The row advised for ug is the model's choice, measured.
-        for (const AdviceRow& r : a.rows)
-            if (r.structure == "ug") EXPECT_EQ(json::parse(r.params)["density"].get<double>(), d);
+        for (const AdviceRow& r : a.rows) {
+            if (r.structure == "ug") {
+                EXPECT_EQ(json::parse(r.params)["density"].get<double>(), d);
+            }
+        }
     }
     EXPECT_EQ(chosen.front(), kDensities.front());
     EXPECT_EQ(chosen.back(), kDensities.back());
