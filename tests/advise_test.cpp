@@ -151,6 +151,23 @@ TEST_F(AdviseFiles, WithoutACostModelAutoKeepsTheCategorysParametersAndSaysWhy) 
     EXPECT_THROW(advise(o), InputError);
 }
 
+TEST_F(AdviseFiles, AParameterRecordedOnlyAwayFromItsDefaultStillStartsTheSearch) {
+    // A tuning that searched the query level records a best at the default level (boxes) without
+    // it; the category's point in the space must still be the boxes level, not the middle one.
+    json t = tuning_with(1.0, cost_model(2.0, 20.0));
+    t["categories"][0]["structures"][0]["space"].push_back(
+        {{"name", "query"}, {"levels", json::array({"candidates", "boxes", "shapes"})}});
+    AdviseOptions o = options(write_tuning("t.json", t));
+    o.verify_top = 1;
+    const Advice a = advise(o);
+    const ParameterChoice& pc = ug_choice(a);
+    EXPECT_EQ(pc.category_searched["query"], "boxes");
+    EXPECT_EQ(pc.category_searched["density"].get<double>(), 1.0);
+    bool category_measured = false;
+    for (const ModelCandidate& c : pc.candidates) category_measured |= c.is_category && c.measured.has_value();
+    EXPECT_TRUE(category_measured);
+}
+
 TEST_F(AdviseFiles, TheExhaustiveCheckMeasuresTheWholeSpaceOnTheScene) {
     AdviseOptions o = options(write_tuning("t.json", tuning_with(4.0, cost_model(2.0, 20.0))));
     o.exhaustive = true;

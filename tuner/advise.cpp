@@ -43,7 +43,7 @@ namespace {
 
 /// What a tuning result holds for one structure of one category.
 struct TunedStructure {
-    json params;                            ///< the category's best, complete
+    json params;                            ///< the category's best, every parameter
     std::vector<SearchDimension> space;     ///< empty: a tuning written before spaces were recorded
     std::optional<CostCoefficients> model;  ///< none: no model could be fitted, or an older tuning
 };
@@ -85,7 +85,10 @@ std::map<std::string, TunedStructure> read_category(const json& t, const std::st
                 const StructureInfo& info = find_structure(name);
                 const std::string where = tuning + ": category \"" + wanted + "\", " + name;
                 TunedStructure ts;
-                ts.params = s.at("best").at("params");
+                // Every parameter, those recorded only away from their default (the query level)
+                // included, so that a space searching them finds the category's level.
+                ts.params = info.defaults();
+                for (const auto& [k, v] : s.at("best").at("params").items()) ts.params[k] = v;
                 if (s.contains("space")) ts.space = read_space(s["space"], info, where);
                 if (s.contains("cost_model")) ts.model = CostCoefficients::from_json(s["cost_model"], where);
                 tuned[name] = std::move(ts);
