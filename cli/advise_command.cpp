@@ -27,6 +27,24 @@ void add_advise_command(CLI::App& app) {
     cmd->add_option("--category", o->category,
                     "Which category of the tuning file this scene resembles (default: chosen from the scene's "
                     "features)");
+    cmd->add_option("--method", o->method,
+                    "How a tuned structure's parameters are chosen for this scene: category (the category's tuned "
+                    "parameters as they are), model (the category's cost model, fitted while tuning, applied to this "
+                    "scene's own counters: counting replays of the tuning's space, the best measured beside the "
+                    "category's parameters), auto (model where the tuning holds one, else category)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "category", "model"}));
+    cmd->add_option("--verify-top", o->verify_top,
+                    "Model method: how many of its best predicted configurations are measured on the scene beside "
+                    "the category's parameters (configurations the replays count alike, one structure in effect, "
+                    "once); the fastest measured is advised (0: the predicted best, alone)")
+        ->capture_default_str()
+        ->check(whole_number(0, 16));
+    cmd->add_flag("--exhaustive", o->exhaustive,
+                  "Also measure every configuration of each tuned structure's space on the scene and report how far "
+                  "the advised and the category's parameters are from the scene's own best (needs --tuning)");
+    auto json_out = std::make_shared<bool>(false);
+    cmd->add_flag("--json", *json_out, "Print the advice as one JSON object instead of tables");
     cmd->add_option("--repetitions", o->repetitions, "Measurements per structure")
         ->capture_default_str()
         ->check(CLI::Range(1u, 100u));
@@ -39,13 +57,21 @@ void add_advise_command(CLI::App& app) {
                     "level), recall>=R or precision>=P (against the shapes; R, P in 0..1). A constraint other than "
                     "exact also measures every structure at the candidates and shapes query levels")
         ->capture_default_str();
-    cmd->callback([o, accuracy] {
+    cmd->callback([o, accuracy, json_out] {
         AdviseOptions options = *o;
         options.accuracy = parse_accuracy(*accuracy);
         options.progress = [](const std::string& structure) { std::cerr << "measuring " << structure << " ...\n"; };
         const Advice advice = advise(options);
         const std::vector<AdviceRow>& rows = advice.rows;
+        if (*json_out) {
+            std::cout << advice_json(advice, options).dump(2) << '\n';
+            if (!advice.recommended)
+                throw InputError(options.scene + ": no configuration meets --accuracy " + options.accuracy.text());
+            return;
+        }
         if (advice.chosen) std::cout << "Scene " << options.scene << " -> " << advice.chosen->explanation << "\n\n";
+        for (const ParameterChoice& pc : advice.parameters) std::cout << pc.summary << '\n';
+        if (!advice.parameters.empty()) std::cout << '\n';
         const bool verified = options.accuracy.needs_verification();
         std::vector<std::string> header{"structure",    "parameters", "update ms", "ray cast ms",
                                         "per frame ms", "memory",     ""};
@@ -81,6 +107,16 @@ void add_advise_command(CLI::App& app) {
                 break;
             }
         std::cout << '\n';
+        if (!advice.exhaustive.empty()) {
+            auto percent_text = [](double gap) { return (gap >= 0 ? "+" : "") + fixed(100 * gap, 1) + "%"; };
+            std::cout << "\nEvery configuration of the tuned spaces measured on this scene:\n";
+            TextTable e({"structure", "configurations", "scene's best", "ms", "advised", "gap", "category's", "gap"});
+            for (const ExhaustiveAdvice& x : advice.exhaustive)
+                e.add({x.structure, std::to_string(x.configurations), searched_text(x.best_searched),
+                       fixed(x.best_ms, 4), searched_text(x.advised_searched), percent_text(x.advised_gap()),
+                       searched_text(x.category_searched), percent_text(x.category_gap())});
+            e.print(std::cout);
+        }
     });
 }
 

@@ -151,6 +151,11 @@ TEST_F(SceneCategoryFiles, AdviseWithoutACategoryPicksTheCategoryOfTheScenesItRe
     bool tuned_ug = false;
     for (const AdviceRow& r : advice.rows) tuned_ug |= r.structure == "ug" && r.tuned;
     EXPECT_TRUE(tuned_ug);  // the chosen category's parameters were used
+    // ... and the advice says how it chose them, from the category it matched.
+    ASSERT_EQ(advice.parameters.size(), 1u);
+    EXPECT_EQ(advice.parameters[0].structure, "ug");
+    EXPECT_FALSE(advice.parameters[0].why.empty());
+    EXPECT_NE(advice.parameters[0].summary.find(uniform), std::string::npos) << advice.parameters[0].summary;
 
     const nlohmann::json t = nlohmann::json::parse(std::ifstream(out.json_path));
     EXPECT_EQ(choose_category(out.json_path, t, read_recording(path("unseen-irregular.rcbscene"))).category, irregular);

@@ -1,10 +1,16 @@
 // The tuner: the NLopt search against exhaustive search on a known cost surface, seed stability,
-// enumeration of small spaces, edge reporting, the simplicity rule, tuning files, and a real tuning.
+// enumeration of small spaces, edge reporting, the simplicity rule, tuning files, a real tuning, and
+// what a tuning records for advise (its spaces and cost models).
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 
 #include "core/error.h"
+#include "core/registry.h"
+#include "tests/test_scenes.h"
+#include "tuner/run_tuning.h"
 #include "tuner/search.h"
 #include "tuner/tuning.h"
 
@@ -163,6 +169,62 @@ TEST(Tune, TheDefaultsSpelledAsAnIntegerAreMeasuredOnce) {
     const CategoryTuning t = tune_category(spec, spec.categories[0]);
     ASSERT_EQ(t.structures.size(), 1u);
     EXPECT_EQ(t.structures[0].candidates.size(), 2u);  // density 2 and density 4 (the defaults), not a third
+}
+
+TEST(TuneRecordsForAdvise, EveryModeRecordsItsSpaceAndACostModel) {
+    namespace fs = std::filesystem;
+    const fs::path dir = test::temp_dir("tuner", "records_for_advise");
+    for (const char* mode : {"measured", "predicted-then-verified"}) {
+        const TuneSpec spec = parse_tune_spec(
+            std::string(R"({"name": "rec", "structures": ["ug"], "budget": 4, "calibration": 4, "frames": 3,
+                "rays_per_frame": 200, "repetitions": 1, "mode": ")") +
+                mode + R"(", "space": {"ug": {"density": [0.5, 1, 2, 4, 8]}},
+                "categories": [{"name": "u", "scenes": [{"kind": "uniform", "objects": 2000}]}]})",
+            "rec.json", dir.string());
+        TuneOptions o;
+        o.file = (dir / "rec.json").string();
+        o.db = (dir / "t.db").string();
+        o.out_dir = dir.string();
+        const TuneOutcome out = run_tuning(spec, o);
+        const json ug = json::parse(std::ifstream(out.json_path))["categories"][0]["structures"][0];
+        ASSERT_EQ(ug["space"].size(), 1u) << mode;
+        EXPECT_EQ(ug["space"][0]["name"], "density");
+        EXPECT_EQ(ug["space"][0]["levels"].size(), 5u);
+        // The measured mode fits it to the frames its search measured (counted on the first
+        // repetition), the predicted modes keep their calibration's.
+        ASSERT_TRUE(ug.contains("cost_model")) << mode;
+        EXPECT_GT(ug["cost_model"]["C_T"].get<double>() + ug["cost_model"]["C_RB"].get<double>(), 0) << mode;
+    }
+    fs::remove_all(dir);
+}
+
+TEST(Tune, InterleavedMeasurementsGiveOneVerifiedCostPerConfiguration) {
+    // The exhaustive checks' repetition-major measurement: one cost per configuration, in order,
+    // verified on the first repetition when asked, each over every repetition's frames.
+    TuneCategory c;
+    c.name = "u";
+    SceneSpec s;
+    s.name = "u";
+    s.settings.kind = "uniform";
+    s.settings.objects = 1500;
+    s.settings.frames = 3;
+    s.settings.rays.per_frame = 100;
+    s.key = {{"interleaved", 1}};
+    c.scenes.push_back(s);
+    const std::vector<json> params{find_structure("ug").complete({{"density", 1.0}}, "t"),
+                                   find_structure("ug").complete({{"density", 8.0}}, "t"),
+                                   find_structure("ug").complete({{"density", 1.0}, {"query", "candidates"}}, "t")};
+    const std::vector<MeasuredCost> costs = measure_interleaved(c, "ug", params, 1, 2, true);
+    ASSERT_EQ(costs.size(), 3u);
+    for (const MeasuredCost& m : costs) {
+        EXPECT_GT(m.ms, 0);
+        EXPECT_TRUE(m.accuracy.verified);
+        EXPECT_EQ(m.accuracy.mismatches, 0u);
+    }
+    EXPECT_TRUE(costs[0].accuracy.exact_level);
+    EXPECT_FALSE(costs[2].accuracy.exact_level);  // the candidate level promises no upper side
+    EXPECT_LT(costs[2].accuracy.precision, 1.0);  // and returns candidates the boxes rule out
+    EXPECT_GT(costs[1].memory_bytes, 0);
 }
 
 }  // namespace

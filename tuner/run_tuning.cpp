@@ -221,6 +221,12 @@ TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
                        {"best", candidate_json(st.candidates[st.best_candidate])},
                        {"candidates", json::array()}};
             for (const Candidate& c : st.candidates) sj["candidates"].push_back(candidate_json(c));
+            // What advise needs to choose this structure's parameters for an unseen scene: the
+            // space searched here and the category's cost model, applied to that scene's counters.
+            sj["space"] = json::array();  // in the search's order of dimensions
+            for (const SearchDimension& d : spec.space.at(st.structure))
+                sj["space"].push_back({{"name", d.name}, {"levels", d.levels}});
+            if (st.cost_model) sj["cost_model"] = st.cost_model->to_json();
             cj["structures"].push_back(sj);
         }
         md << "\n| structure | search | evaluations (space) | measurements | seconds | stopped | best at the edge of "
@@ -247,12 +253,19 @@ TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
                 std::map<std::string, double> surface;  // searched params → measured ms
                 std::vector<double> measured;
                 json surface_json = json::array();
+                std::vector<json> full_params;
                 for (const json& p : all) {
                     json full = find_structure(st.structure).defaults();
                     for (const auto& [k, v] : p.items()) full[k] = v;
+                    full_params.push_back(full);
+                }
+                const std::vector<MeasuredCost> costs =
+                    measure_interleaved(category, st.structure, full_params, spec.warmup_frames, spec.repetitions,
+                                        spec.accuracy.needs_verification());
+                for (std::size_t i = 0; i < all.size(); ++i) {
+                    const json& p = all[i];
+                    const MeasuredCost& m = costs[i];
                     // The surface the search sees: configurations failing the accuracy priced out.
-                    const MeasuredCost m = measure(category, st.structure, full, spec.warmup_frames, spec.repetitions,
-                                                   spec.accuracy.needs_verification());
                     const double ms = constrained_cost(m, spec.accuracy);
                     surface[p.dump()] = ms;
                     measured.push_back(m.ms);  // the prediction ranks times, not the accuracy

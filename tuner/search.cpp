@@ -74,36 +74,69 @@ std::vector<nlohmann::json> enumerate_space(const std::vector<SearchDimension>& 
 
 namespace {
 
+/// What the restarts of one search share about each dimension: the direction that last improved
+/// it (0: none yet) and the largest relative change of the cost a step in it has made (∞: never
+/// stepped).
+struct DimensionMemory {
+    std::vector<int> last_dir;
+    std::vector<double> effect;
+    explicit DimensionMemory(std::size_t n) : last_dir(n, 0), effect(n, std::numeric_limits<double>::infinity()) {}
+};
+
 /// Coordinate (compass) search on the level lattice from `idx`, the exploratory move of Hooke &
-/// Jeeves restricted to neighbouring levels: the dimensions in a seeded order, each tried one level
-/// up or down, first in the direction that last improved it (`last_dir`, shared by the restarts of
-/// one search), and a move taken at once. One step per dimension and sweep, so a dimension is
-/// revisited after its neighbours moved: grid parameters interact (a coarser top grid wants a
-/// different depth), and a line walked to its end in one dimension leaves the budget in a side
-/// valley. Stops at a point no neighbour improves, or when the budget runs out
-/// (nlopt::forced_stop propagates).
-void pattern_search(Budgeted& b, std::vector<int> idx, Random& rng, std::vector<int>& last_dir) {
+/// Jeeves restricted to neighbouring levels, a move taken at once. One step per dimension and
+/// sweep, so a dimension is revisited after its neighbours moved: grid parameters interact (a
+/// coarser top grid wants a different depth), and a line walked to its end in one dimension
+/// leaves the budget in a side valley.
+///
+/// With a budget of a tenth of the space every probe counts, so the search spends them where they
+/// are likely to pay. Each sweep takes the dimensions that changed the cost most first, so a
+/// parameter that barely matters does not steer the search into a side valley before the ones
+/// that do have moved; unprobed ones come before all, in the first sweep in the space's order (the
+/// structure's parameter list, main parameters first), later in a seeded order. A dimension is
+/// first tried in the direction that last improved it, or, never improved, towards the middle of
+/// its levels (a space brackets the optimum it is written for; at the exact middle, a seeded
+/// coin). While sweeps improve, a dimension that has moved is tried onward only: the way back was
+/// worse when it left. Stops at a point no neighbour improves (a last sweep tries both ways), or
+/// when the budget runs out (nlopt::forced_stop propagates).
+void pattern_search(Budgeted& b, std::vector<int> idx, Random& rng, DimensionMemory& memory) {
     const std::size_t n = b.dims->size();
     double best = b(idx);
+    bool onward_only = true;
     for (bool improved = true; improved;) {
         improved = false;
         std::vector<std::size_t> order(n);
         for (std::size_t d = 0; d < n; ++d) order[d] = d;
-        for (std::size_t d = n; d > 1; --d) std::swap(order[d - 1], order[rng.below(d)]);  // Fisher–Yates
+        // Until a sweep has probed them, the dimensions keep the space's order (a tuning's space
+        // follows the structure's parameter list, which names the main parameters first); then
+        // the seeded order breaks ties.
+        if (std::any_of(memory.effect.begin(), memory.effect.end(), [](double e) { return !std::isinf(e); }))
+            for (std::size_t d = n; d > 1; --d) std::swap(order[d - 1], order[rng.below(d)]);  // Fisher–Yates
+        std::stable_sort(order.begin(), order.end(),
+                         [&](std::size_t a, std::size_t c) { return memory.effect[a] > memory.effect[c]; });
         for (std::size_t d : order) {
             const int last = int((*b.dims)[d].levels.size()) - 1;
-            const int random_dir = rng.below(2) ? 1 : -1;
-            const int first_dir = last_dir[d] != 0 ? last_dir[d] : random_dir;
+            const int coin = rng.below(2) ? 1 : -1;
+            const int towards_middle = 2 * idx[d] > last ? -1 : 2 * idx[d] < last ? 1 : coin;
+            const int first_dir = memory.last_dir[d] != 0 ? memory.last_dir[d] : towards_middle;
             for (int dir : {first_dir, -first_dir}) {
+                if (dir != first_dir && onward_only && memory.last_dir[d] != 0) break;
                 std::vector<int> next = idx;
                 next[d] += dir;
                 if (next[d] < 0 || next[d] > last) continue;
                 const double c = b(next);
+                const double change = std::abs(c - best) / std::max(std::abs(best), 1e-300);
+                memory.effect[d] = std::isinf(memory.effect[d]) ? change : std::max(memory.effect[d], change);
                 if (!(c < best)) continue;
-                best = c, idx = next, improved = true, last_dir[d] = dir;
+                best = c, idx = next, improved = true, memory.last_dir[d] = dir;
                 break;
             }
         }
+        // A sweep that found nothing onward tries the ways back too before the search stops.
+        if (improved)
+            onward_only = true;
+        else if (onward_only)
+            onward_only = false, improved = true;
     }
 }
 
@@ -137,7 +170,7 @@ SearchResult search_levels(const std::vector<SearchDimension>& dims,
         std::vector<double> lo(n, 0.0), hi(n);
         for (unsigned d = 0; d < n; ++d) hi[d] = double(dims[d].levels.size() - 1);
         const std::size_t full_budget = b.budget;
-        std::vector<int> last_dir(n, 0);
+        DimensionMemory memory(n);
         auto best_index = [&] {
             auto best = std::min_element(result.evaluations.begin(), result.evaluations.end(),
                                          [](const Evaluation& a, const Evaluation& c) { return a.cost < c.cost; });
@@ -146,7 +179,7 @@ SearchResult search_levels(const std::vector<SearchDimension>& dims,
         try {
             // Local first, from the start point (the defaults, usually a good configuration): on
             // the smooth valleys of grid parameters this reaches the optimum in a few steps.
-            pattern_search(b, index_of(start), rng, last_dir);
+            pattern_search(b, index_of(start), rng, memory);
             // Then, while budget is left, a global look (DIRECT, with half of what is left beyond
             // the points already seen, which it revisits for free) and a local polish from the
             // best point so far; until DIRECT finds nothing new.
@@ -171,7 +204,7 @@ SearchResult search_levels(const std::vector<SearchDimension>& dims,
                 }
                 b.budget = full_budget;
                 b.exhausted = false;
-                pattern_search(b, best_index(), rng, last_dir);
+                pattern_search(b, best_index(), rng, memory);
                 if (b.memo.size() == before) break;  // nothing new anywhere: converged
             }
             if (result.stop_reason.empty()) result.stop_reason = b.memo.size() >= full_budget ? "budget" : "converged";

@@ -10,13 +10,17 @@
 ///
 /// Algorithm: a budget far below the space (a tenth of it, say) buys a few dozen measurements, so
 /// the search goes local first: a coordinate pattern search on the level lattice (neighbouring
-/// levels, one dimension at a time in a seeded order) from the start point, the defaults, which
-/// the structures' authors chose to be good. Grid parameters give smooth valleys (thesis §6.2:
-/// cost falls, then rises, with cell size and depth), so this reaches the valley floor in a few
-/// steps. With budget left, NLopt's GN_DIRECT_L_RAND (Gablonsky & Kelley's locally-biased DIRECT
-/// with randomised tie-breaking, seeded) looks at the whole box with half of what remains, and
-/// the pattern search restarts from the best point found; until the budget is spent or neither
-/// finds a new point. A space no larger than the budget is simply enumerated.
+/// levels, one dimension at a time) from the start point, the defaults, which the structures'
+/// authors chose to be good. Each sweep takes the dimensions that have changed the cost most
+/// first (unprobed ones before all: the first sweep in the space's order, which a tuning takes
+/// from the structure's parameter list, main parameters first; later ones in a seeded order). It
+/// tries a dimension first in the direction that last improved it, else towards the middle of its
+/// levels, and while sweeps improve, not back the way it came. Grid parameters give smooth valleys
+/// (thesis §6.2: cost falls, then rises, with cell size and depth), so this reaches the valley
+/// floor in a few steps. With budget left, NLopt's GN_DIRECT_L_RAND (Gablonsky & Kelley's
+/// locally-biased DIRECT with randomised tie-breaking, seeded) looks at the whole box with half of
+/// what remains, and the pattern search restarts from the best point found; until the budget is
+/// spent or neither finds a new point. A space no larger than the budget is simply enumerated.
 
 #include <cstdint>
 #include <functional>

@@ -288,24 +288,29 @@ TuneSpec load_tune_spec(const std::string& path) {
     return parse_tune_spec(read_text_file(path), path, fs::path(path).parent_path().string());
 }
 
-MeasuredCost measure(const TuneCategory& category, const std::string& structure, const json& params,
-                     std::uint32_t warmup_frames, std::uint32_t repetitions, bool verify) {
+namespace {
+
+SimulationOptions measuring_options(std::uint32_t warmup_frames) {
     SimulationOptions o;
     o.verify = false;  // correctness is the tests' job; tuning measures speed
     o.count = false;
     o.warmup_frames = warmup_frames;
-    std::vector<SimulationResult> runs;
-    if (verify) {  // the first repetition also verified (untimed): the accuracy a constraint judges
-        SimulationOptions checked = o;
-        checked.verify = true;
-        runs = run_simulations(category, structure, params, checked, 1);
-        if (repetitions > 1) {
-            std::vector<SimulationResult> rest = run_simulations(category, structure, params, o, repetitions - 1);
-            runs.insert(runs.end(), std::make_move_iterator(rest.begin()), std::make_move_iterator(rest.end()));
-        }
-    } else {
-        runs = run_simulations(category, structure, params, o, repetitions);
-    }
+    return o;
+}
+
+/// One repetition of a configuration on every scene of the category; `verify` also checks it
+/// against the ground truth (untimed): the accuracy a constraint judges.
+std::vector<SimulationResult> one_repetition(const TuneCategory& category, const std::string& structure,
+                                             const json& params, std::uint32_t warmup_frames, bool verify) {
+    SimulationOptions o = measuring_options(warmup_frames);
+    o.verify = verify;
+    return run_simulations(category, structure, params, o, 1);
+}
+
+/// The cost of measured runs, repetition-major (the first repetition's runs first, verified when
+/// `verify`).
+MeasuredCost cost_of(const std::vector<SimulationResult>& runs, const TuneCategory& category,
+                     const std::string& structure, const json& params, bool verify) {
     MeasuredCost c = summarise(runs, category.scenes.size());
     c.accuracy.exact_level = query_level_of(complete(structure, params)) != QueryLevel::candidates;
     if (verify) {
@@ -322,6 +327,51 @@ MeasuredCost measure(const TuneCategory& category, const std::string& structure,
         }
     }
     return c;
+}
+
+}  // namespace
+
+MeasuredCost measure(const TuneCategory& category, const std::string& structure, const json& params,
+                     std::uint32_t warmup_frames, std::uint32_t repetitions, bool verify,
+                     std::vector<FrameObservation>* observations, int group) {
+    std::vector<SimulationResult> runs;
+    for (std::uint32_t rep = 0; rep < repetitions; ++rep) {
+        std::vector<SimulationResult> r =
+            one_repetition(category, structure, params, warmup_frames, verify && rep == 0);
+        runs.insert(runs.end(), std::make_move_iterator(r.begin()), std::make_move_iterator(r.end()));
+    }
+    if (observations) {
+        // The counters come from a replay of their own (deterministic, so frame for frame those of
+        // the timed run): counting between the timed frames would slow them by a few percent.
+        SimulationOptions replay = measuring_options(warmup_frames);
+        replay.timed_cast = false;
+        replay.count = true;
+        const std::vector<SimulationResult> counted = run_simulations(category, structure, params, replay, 1);
+        for (std::size_t s = 0; s < category.scenes.size(); ++s) {
+            SimulationResult timed = runs[s];
+            for (std::size_t f = 0; f < timed.frames.size() && f < counted[s].frames.size(); ++f)
+                timed.frames[f].counters = counted[s].frames[f].counters;
+            add_observations(timed, category.scenes[s].name, category_of(category.scenes[s]), group * 100 + int(s),
+                             *observations);
+        }
+    }
+    return cost_of(runs, category, structure, params, verify);
+}
+
+std::vector<MeasuredCost> measure_interleaved(const TuneCategory& category, const std::string& structure,
+                                              const std::vector<json>& params, std::uint32_t warmup_frames,
+                                              std::uint32_t repetitions, bool verify) {
+    std::vector<std::vector<SimulationResult>> runs(params.size());
+    for (std::uint32_t rep = 0; rep < repetitions; ++rep)
+        for (std::size_t i = 0; i < params.size(); ++i) {
+            std::vector<SimulationResult> r =
+                one_repetition(category, structure, params[i], warmup_frames, verify && rep == 0);
+            runs[i].insert(runs[i].end(), std::make_move_iterator(r.begin()), std::make_move_iterator(r.end()));
+        }
+    std::vector<MeasuredCost> out;
+    for (std::size_t i = 0; i < params.size(); ++i)
+        out.push_back(cost_of(runs[i], category, structure, params[i], verify));
+    return out;
 }
 
 double constrained_cost(const MeasuredCost& cost, const AccuracyConstraint& accuracy) {
@@ -344,6 +394,81 @@ std::vector<const Candidate*> meeting(const std::vector<const Candidate*>& all, 
     for (const Candidate* c : all)
         if (accuracy.met_by(c->measured->accuracy)) out.push_back(c);
     return out;
+}
+
+json CostCoefficients::to_json() const {
+    return {{"model", model}, {"C_RB", c_rb}, {"C_T", c_t},   {"C_PREP", c_prep},
+            {"C_MEM", c_mem}, {"C_RO", c_ro}, {"C_TH", c_th}, {"C_MP", c_mp}};
+}
+
+CostCoefficients CostCoefficients::from_json(const json& j, const std::string& where) {
+    if (!j.is_object()) throw InputError(where + ": a cost model must be an object");
+    CostCoefficients c;
+    for (auto [name, value] : {std::pair{"C_RB", &c.c_rb},
+                               {"C_T", &c.c_t},
+                               {"C_PREP", &c.c_prep},
+                               {"C_MEM", &c.c_mem},
+                               {"C_RO", &c.c_ro},
+                               {"C_TH", &c.c_th}}) {
+        if (!j.contains(name) || !j[name].is_number() || !std::isfinite(j[name].get<double>()))
+            throw InputError(where + ": cost model coefficient " + name + " is missing or not a finite number");
+        *value = j[name].get<double>();
+    }
+    // C_MP came later: a tuning written before it has none (its model did not price coherence).
+    if (j.contains("C_MP")) {
+        if (!j["C_MP"].is_number() || !std::isfinite(j["C_MP"].get<double>()))
+            throw InputError(where + ": cost model coefficient C_MP is not a finite number");
+        c.c_mp = j["C_MP"].get<double>();
+    }
+    if (j.contains("model") && j["model"].is_string()) c.model = j["model"].get<std::string>();
+    return c;
+}
+
+std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservation>& frames) {
+    const std::vector<StructureModels> models = fit_cost_models(frames);
+    const CandidateModel* model = models.empty() ? nullptr : models.front().chosen("raycast");
+    if (!model) return std::nullopt;
+    auto coefficient = [&](const char* name) {
+        for (const Coefficient& c : model->fit.coefficients)
+            if (c.name.rfind(name, 0) == 0 && (c.name.size() == std::strlen(name) || c.name[std::strlen(name)] == '['))
+                return c.value;
+        return 0.0;
+    };
+    CostCoefficients c;
+    c.c_rb = coefficient("C_RB"), c.c_t = coefficient("C_T"), c.c_prep = coefficient("C_PREP");
+    c.c_mem = coefficient("C_MEM"), c.c_ro = coefficient("C_RO"), c.c_th = coefficient("C_TH");
+    c.c_mp = coefficient("C_MP");
+    c.model = model->name + " (held-out error " + std::to_string(int(std::lround(100 * model->heldout_error))) + "%, " +
+              model->fit.status() + ")";
+    return c;
+}
+
+double predict_cost(const CostCoefficients& c, const TuneCategory& category, const std::string& structure,
+                    const json& searched, std::uint32_t warmup_frames, ReplayCounts* counts) {
+    SimulationOptions replay;
+    replay.verify = false;
+    replay.timed_cast = false;
+    replay.warmup_frames = warmup_frames;
+    const auto runs = run_simulations(category, structure, complete(structure, searched), replay, 1);
+    double total = 0;
+    for (const SimulationResult& r : runs) {
+        std::vector<double> frame_ms;
+        for (const FrameResult& f : r.frames) {
+            if (f.warmup || f.rays == 0) continue;
+            if (counts) {
+                counts->n_t += f.counters.n_t, counts->n_rb += f.counters.n_rb, counts->n_tp += f.counters.n_tp;
+                counts->n_ro += f.counters.n_ro, counts->n_th += f.counters.n_th, counts->n_mp += f.counters.n_mp;
+                counts->memory_bytes += f.memory_bytes;
+            }
+            const double per_ray =
+                c.c_rb * double(f.counters.n_rb) / f.rays + c.c_t * double(f.counters.n_t) / f.rays + c.c_prep +
+                c.c_mem * double(f.memory_bytes) / (1024.0 * 1024.0) + c.c_ro * double(f.counters.n_ro) / f.rays +
+                c.c_th * double(f.counters.n_th) / f.rays + c.c_mp * double(f.counters.n_mp) / f.rays;
+            frame_ms.push_back((double(f.update_ns) + f.rays * per_ray) / 1e6);
+        }
+        total += spread_of(frame_ms).median;
+    }
+    return total / double(runs.size());
 }
 
 Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category, const std::string& structure) {
@@ -373,42 +498,14 @@ Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category
         ++group;
         ++out.measurements;
     }
-    const std::vector<StructureModels> models = fit_cost_models(frames);
-    const CandidateModel* model = models.empty() ? nullptr : models.front().chosen("raycast");
-    if (!model)
+    const std::optional<CostCoefficients> fitted = fit_coefficients(frames);
+    if (!fitted)
         throw std::runtime_error("tune: the calibration of " + structure + " on " + category.name +
                                  " gave no cost model");
-    out.model = model->name + " (held-out error " + std::to_string(int(std::lround(100 * model->heldout_error))) +
-                "%, " + model->fit.status() + ")";
-    auto coefficient = [&](const char* name) {
-        for (const Coefficient& c : model->fit.coefficients)
-            if (c.name.rfind(name, 0) == 0 && (c.name.size() == std::strlen(name) || c.name[std::strlen(name)] == '['))
-                return c.value;
-        return 0.0;
-    };
-    const double c_rb = coefficient("C_RB"), c_t = coefficient("C_T"), c_prep = coefficient("C_PREP"),
-                 c_mem = coefficient("C_MEM"), c_ro = coefficient("C_RO"), c_th = coefficient("C_TH"),
-                 c_mp = coefficient("C_MP");
-    SimulationOptions replay;
-    replay.verify = false;
-    replay.timed_cast = false;
-    replay.warmup_frames = spec.warmup_frames;
-    out.predict = [c_rb, c_t, c_prep, c_mem, c_ro, c_th, c_mp, replay, structure, cat = &category](const json& p) {
-        const auto runs = run_simulations(*cat, structure, complete(structure, p), replay, 1);
-        double total = 0;
-        for (const SimulationResult& r : runs) {
-            std::vector<double> frame_ms;
-            for (const FrameResult& f : r.frames) {
-                if (f.warmup || f.rays == 0) continue;
-                const double per_ray =
-                    c_rb * double(f.counters.n_rb) / f.rays + c_t * double(f.counters.n_t) / f.rays + c_prep +
-                    c_mem * double(f.memory_bytes) / (1024.0 * 1024.0) + c_ro * double(f.counters.n_ro) / f.rays +
-                    c_th * double(f.counters.n_th) / f.rays + c_mp * double(f.counters.n_mp) / f.rays;
-                frame_ms.push_back((double(f.update_ns) + f.rays * per_ray) / 1e6);
-            }
-            total += spread_of(frame_ms).median;
-        }
-        return total / double(runs.size());
+    out.coefficients = *fitted;
+    out.model = fitted->model;
+    out.predict = [c = *fitted, structure, warmup = spec.warmup_frames, cat = &category](const json& p) {
+        return predict_cost(c, *cat, structure, p, warmup);
     };
     return out;
 }
@@ -450,13 +547,15 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
         st.mode = spec.mode;
         const std::vector<SearchDimension>& dims = spec.space.at(structure);
         std::map<std::string, std::size_t> measured_index;  // params dump → candidate
+        std::vector<FrameObservation> observed;             // the measured mode's counted frames
         auto measure_candidate = [&](const json& searched, bool is_default) -> Candidate& {
             const json params = complete(structure, searched);
             auto it = measured_index.find(params.dump());
             if (it == measured_index.end()) {
                 Candidate c{structure, params, std::nullopt,
                             measure(category, structure, params, spec.warmup_frames, spec.repetitions,
-                                    spec.accuracy.needs_verification()),
+                                    spec.accuracy.needs_verification(), spec.mode == "measured" ? &observed : nullptr,
+                                    int(st.candidates.size())),
                             is_default};
                 ++st.measurements;
                 st.candidates.push_back(c);
@@ -471,16 +570,19 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
 
         if (spec.mode == "measured") {
             // The defaults start the search and are measured already: every measurement is one of
-            // the budget's evaluations.
+            // the budget's evaluations. Their first repetitions, counted by untimed replays, fit the
+            // cost model that advise applies to unseen scenes, without a measurement of its own.
             st.search = search_levels(
                 dims,
                 [&](const json& p) { return constrained_cost(*measure_candidate(p, false).measured, spec.accuracy); },
                 spec.budget, spec.seed, defaults_searched);
+            st.cost_model = fit_coefficients(observed);
         } else {
             Predictor predictor = calibrate_predictor(spec, category, structure);
             st.measurements += predictor.measurements;
             st.prediction_model = predictor.model;
             st.predict = predictor.predict;
+            st.cost_model = predictor.coefficients;
             const auto& predict = predictor.predict;
             st.search = search_levels(dims, predict, spec.budget, spec.seed, defaults_searched);
             // Verify: measure the best predicted candidates (the defaults are measured already).

@@ -24,6 +24,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "analysis/cost_model.h"
 #include "runner/experiment.h"
 #include "tuner/accuracy.h"
 #include "tuner/search.h"
@@ -80,6 +81,19 @@ struct Candidate {
     bool is_default = false;
 };
 
+/// Eq. 5.4 as the predicted mode applies it, ns per ray: C_RB·N_RB + C_T·N_T + C_PREP + C_MEM·MB +
+/// C_RO·N_RO + C_TH·N_TH (counters per ray, MB the structure's memory), a term 0 where the chosen
+/// model lacks it. Machine costs, not scene properties: fitted on one set of scenes, they price the
+/// counters of another (what advise does with a tuning's model on an unseen scene).
+struct CostCoefficients {
+    double c_rb = 0, c_t = 0, c_prep = 0, c_mem = 0, c_ro = 0, c_th = 0, c_mp = 0;
+    std::string model;  ///< the chosen model and its held-out error
+
+    nlohmann::json to_json() const;
+    /// InputError "<where>: …" when a coefficient is missing or not a finite number.
+    static CostCoefficients from_json(const nlohmann::json& j, const std::string& where);
+};
+
 struct StructureTuning {
     std::string structure;
     std::string mode;
@@ -88,6 +102,10 @@ struct StructureTuning {
     std::size_t best_candidate = 0;                        ///< lowest measured cost meeting the accuracy
     std::string prediction_model;                          ///< the calibration's chosen model, for predicted modes
     std::function<double(const nlohmann::json&)> predict;  ///< predicted modes: the model's cost of searched params
+    /// Eq. 5.4 for this structure on this category: the predicted modes' calibration, or in the
+    /// measured mode a fit to the frames the search measured (counted by an untimed replay).
+    /// What advise applies to an unseen scene's counters. None when no model could be fitted.
+    std::optional<CostCoefficients> cost_model;
     double seconds = 0;
     std::size_t measurements = 0;  ///< simulator runs of the measured kind
 };
@@ -110,22 +128,53 @@ const Recording& recording_of(const SceneSpec& scene);
 ///
 /// With `verify`, the first repetition is also checked against the ground truth (untimed, so the
 /// times are unchanged) and the accuracy filled in; without, only the level is known.
+///
+/// With `observations`, the first repetition's frames are appended as cost-model observations
+/// (config_group `group` × 100 + the scene's index), their counters from an untimed replay.
 MeasuredCost measure(const TuneCategory& category, const std::string& structure, const nlohmann::json& params,
-                     std::uint32_t warmup_frames, std::uint32_t repetitions, bool verify = false);
+                     std::uint32_t warmup_frames, std::uint32_t repetitions, bool verify = false,
+                     std::vector<FrameObservation>* observations = nullptr, int group = 0);
+
+/// Every configuration of `params` (complete) measured as measure() does, but repetition-major as
+/// `rcbench run` plans: repetition r of every configuration before repetition r + 1 of any, so a
+/// burst of load on a shared machine spreads over one repetition of many configurations (which
+/// their medians absorb) instead of falling on every repetition of one. For exhaustive checks.
+std::vector<MeasuredCost> measure_interleaved(const TuneCategory& category, const std::string& structure,
+                                              const std::vector<nlohmann::json>& params, std::uint32_t warmup_frames,
+                                              std::uint32_t repetitions, bool verify = false);
 
 /// What the measured search minimises: the time per frame of a configuration that meets
 /// `accuracy`, and far more (still ordered by time, so the search keeps its bearings) for one that
 /// does not.
 double constrained_cost(const MeasuredCost& cost, const AccuracyConstraint& accuracy);
 
+/// Eq. 5.4 fitted (analysis/cost_model.h) to measured frames of one structure, the ray-cast model
+/// the fit chooses; nullopt when it chooses none (too few distinct configurations).
+std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservation>& frames);
+
+/// What a replay counted over its measured frames and scenes. Two configurations with equal
+/// counts are one structure in effect (a hash grid of depth 0 ignores its capacity and
+/// subdivision), so measuring both tells nothing new.
+struct ReplayCounts {
+    std::uint64_t n_t = 0, n_rb = 0, n_tp = 0, n_ro = 0, n_th = 0, n_mp = 0, memory_bytes = 0;
+    friend bool operator==(const ReplayCounts&, const ReplayCounts&) = default;
+};
+
+/// The predicted cost of a configuration (searched parameters) on `category`: the coefficients
+/// applied to the counters of an untimed replay (no timed rays, no verification), plus the
+/// replay's own update time; ms per frame, median over frames, mean over the category's scenes.
+/// `counts`, when given, receives what the replay counted.
+double predict_cost(const CostCoefficients& coefficients, const TuneCategory& category, const std::string& structure,
+                    const nlohmann::json& searched, std::uint32_t warmup_frames, ReplayCounts* counts = nullptr);
+
 /// The predicted mode's cost: eq. 5.4 fitted to `spec.calibration` measured points (the defaults
-/// and seeded random points of the space), applied to the counters of an untimed replay, plus the
-/// replay's update time; ms per frame, mean over the category's scenes. `predict` refers to
+/// and seeded random points of the space), applied by predict_cost. `predict` refers to
 /// `category`, which must outlive it.
 struct Predictor {
     std::function<double(const nlohmann::json&)> predict;  ///< searched parameters → ms per frame
-    std::string model;                                     ///< the chosen model and its held-out error
-    std::size_t measurements = 0;                          ///< measured calibration points
+    CostCoefficients coefficients;
+    std::string model;             ///< the chosen model and its held-out error
+    std::size_t measurements = 0;  ///< measured calibration points
 };
 Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category, const std::string& structure);
 

@@ -1,0 +1,262 @@
+// advise's choice of a tuned structure's parameters for a scene: the category's, or the category's
+// cost model applied to the scene's own counters; its exhaustive check; and its bad inputs.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "core/error.h"
+#include "core/generators.h"
+#include "core/recording_io.h"
+#include "tests/subprocess.h"
+#include "tests/test_scenes.h"
+#include "tuner/advise.h"
+#include "tuner/run_tuning.h"
+
+namespace rcb {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+const std::vector<double> kDensities{0.125, 0.25, 0.5, 1, 2, 4, 8, 16};
+
+Recording uniform_scene(std::uint32_t objects, std::uint64_t seed) {
+    SceneSettings s;
+    s.kind = "uniform";
+    s.objects = objects;
+    s.seed = seed;
+    s.frames = 3;
+    s.rays.per_frame = 200;
+    return generate_scene(s);
+}
+
+/// A tuning result as rcbench tune writes it, by hand: one category "c" whose UG was tuned to
+/// `density` over kDensities, with the cost model `model` (none: null).
+json tuning_with(double density, const json& model) {
+    json ug = {{"structure", "ug"},
+               {"best", {{"params", {{"density", density}}}}},
+               {"space", json::array({{{"name", "density"}, {"levels", kDensities}}})}};
+    if (!model.is_null()) ug["cost_model"] = model;
+    return {{"name", "hand"},
+            {"budget", 30},
+            {"seed", 1},
+            {"categories", json::array({{{"category", "c"}, {"structures", json::array({ug})}}})}};
+}
+
+json cost_model(double c_rb, double c_t) {
+    return {{"model", "by hand"}, {"C_RB", c_rb}, {"C_T", c_t}, {"C_PREP", 0.0},
+            {"C_MEM", 0.0},       {"C_RO", 0.0},  {"C_TH", 0.0}};
+}
+
+class AdviseFiles : public ::testing::Test {
+protected:
+    void SetUp() override {
+        dir_ = test::temp_dir("advise", ::testing::UnitTest::GetInstance()->current_test_info()->name());
+        write_recording(uniform_scene(3000, 3), path("scene.rcbscene"));
+    }
+    void TearDown() override { fs::remove_all(dir_); }
+    std::string path(const std::string& name) const { return (dir_ / name).string(); }
+    std::string write_tuning(const std::string& name, const json& t) const {
+        std::ofstream(path(name)) << t.dump(2);
+        return path(name);
+    }
+    AdviseOptions options(const std::string& tuning) const {
+        AdviseOptions o;
+        o.scene = path("scene.rcbscene");
+        o.tuning = tuning;
+        o.category = "c";
+        o.repetitions = 1;
+        o.warmup = 0;
+        return o;
+    }
+    static const ParameterChoice& ug_choice(const Advice& a) {
+        for (const ParameterChoice& pc : a.parameters)
+            if (pc.structure == "ug") return pc;
+        throw std::logic_error("no ug choice");
+    }
+    fs::path dir_;
+};
+
+TEST_F(AdviseFiles, TheModelMethodFollowsTheCostOfAStepAgainstATest) {
+    // UG's density is objects per cell. A cell step cheap against a box test: a fine grid (few
+    // objects per cell, fewer tests per ray); an expensive one: a coarse grid (fewer cells walked).
+    // Priced by the model alone (--verify-top 0), the advised density must rise with a step's price
+    // against a test's, from the lowest level to the highest, whatever the category's tuned density
+    // says. Per-ray terms of a microsecond and more drown the replay's timed update.
+    AdviseOptions o = options("");
+    o.verify_top = 0;
+    double previous = 0;
+    std::vector<double> chosen;
+    for (double ratio : {1e-4, 1e-2, 1.0, 1e2, 1e4}) {  // C_T / C_RB
+        o.tuning = write_tuning("t.json", tuning_with(1.0, cost_model(1e5 / std::sqrt(ratio), 1e5 * std::sqrt(ratio))));
+        const Advice a = advise(o);
+        const ParameterChoice& pc = ug_choice(a);
+        ASSERT_EQ(pc.method, "model") << pc.why;
+        EXPECT_EQ(pc.replays, kDensities.size());  // the space is within the budget: every level replayed
+        const double d = pc.chosen_searched["density"].get<double>();
+        EXPECT_GE(d, previous) << "C_T/C_RB " << ratio;
+        previous = d;
+        chosen.push_back(d);
+        // The row advised for ug is the model's choice, measured.
+        for (const AdviceRow& r : a.rows) {
+            if (r.structure == "ug") {
+                EXPECT_EQ(json::parse(r.params)["density"].get<double>(), d);
+            }
+        }
+    }
+    EXPECT_EQ(chosen.front(), kDensities.front());
+    EXPECT_EQ(chosen.back(), kDensities.back());
+}
+
+TEST_F(AdviseFiles, MeasuresTheModelsBestBesideTheCategorysAndKeepsTheFastest) {
+    AdviseOptions o = options(write_tuning("t.json", tuning_with(0.125, cost_model(2.0, 20.0))));
+    o.verify_top = 2;
+    const Advice a = advise(o);
+    const ParameterChoice& pc = ug_choice(a);
+    ASSERT_EQ(pc.method, "model");
+    EXPECT_NE(pc.why.find("cost model"), std::string::npos) << pc.why;
+    std::size_t measured = 0;
+    bool category_measured = false;
+    double fastest = INFINITY;
+    for (const ModelCandidate& c : pc.candidates) {
+        EXPECT_TRUE(c.predicted_ms.has_value());  // every level was replayed
+        if (!c.measured) continue;
+        ++measured;
+        category_measured |= c.is_category;
+        fastest = std::min(fastest, c.measured->ms);
+    }
+    EXPECT_EQ(measured, 3u);  // the model's two best and the category's finest grid
+    EXPECT_TRUE(category_measured);
+    ASSERT_TRUE(pc.candidates.front().measured.has_value());
+    EXPECT_EQ(pc.candidates.front().measured->ms, fastest);  // the fastest measured is advised
+    EXPECT_EQ(pc.chosen_searched, pc.candidates.front().searched);
+    EXPECT_NE(pc.summary.find("fastest measured"), std::string::npos) << pc.summary;
+}
+
+TEST_F(AdviseFiles, WithoutACostModelAutoKeepsTheCategorysParametersAndSaysWhy) {
+    const std::string t = write_tuning("t.json", tuning_with(2.0, nullptr));
+    const Advice a = advise(options(t));
+    const ParameterChoice& pc = ug_choice(a);
+    EXPECT_EQ(pc.method, "category");
+    EXPECT_NE(pc.why.find("no cost model"), std::string::npos) << pc.why;
+    EXPECT_EQ(pc.chosen_searched["density"].get<double>(), 2.0);
+    // --method category keeps them even where a model exists.
+    AdviseOptions o = options(write_tuning("m.json", tuning_with(2.0, cost_model(1.0, 10.0))));
+    o.method = "category";
+    EXPECT_EQ(ug_choice(advise(o)).method, "category");
+    // --method model insists on one.
+    o = options(t);
+    o.method = "model";
+    EXPECT_THROW(advise(o), InputError);
+}
+
+TEST_F(AdviseFiles, AParameterRecordedOnlyAwayFromItsDefaultStillStartsTheSearch) {
+    // A tuning that searched the query level records a best at the default level (boxes) without
+    // it; the category's point in the space must still be the boxes level, not the middle one.
+    json t = tuning_with(1.0, cost_model(2.0, 20.0));
+    t["categories"][0]["structures"][0]["space"].push_back(
+        {{"name", "query"}, {"levels", json::array({"candidates", "boxes", "shapes"})}});
+    AdviseOptions o = options(write_tuning("t.json", t));
+    o.verify_top = 1;
+    const Advice a = advise(o);
+    const ParameterChoice& pc = ug_choice(a);
+    EXPECT_EQ(pc.category_searched["query"], "boxes");
+    EXPECT_EQ(pc.category_searched["density"].get<double>(), 1.0);
+    bool category_measured = false;
+    for (const ModelCandidate& c : pc.candidates) category_measured |= c.is_category && c.measured.has_value();
+    EXPECT_TRUE(category_measured);
+}
+
+TEST_F(AdviseFiles, TheExhaustiveCheckMeasuresTheWholeSpaceOnTheScene) {
+    AdviseOptions o = options(write_tuning("t.json", tuning_with(4.0, cost_model(2.0, 20.0))));
+    o.exhaustive = true;
+    const Advice a = advise(o);
+    ASSERT_EQ(a.exhaustive.size(), 1u);
+    const ExhaustiveAdvice& e = a.exhaustive[0];
+    EXPECT_EQ(e.structure, "ug");
+    EXPECT_EQ(e.configurations, kDensities.size());
+    EXPECT_GT(e.best_ms, 0);
+    EXPECT_GE(e.advised_gap(), 0.0);  // the scene's best is the least of the same measurements
+    EXPECT_GE(e.category_gap(), 0.0);
+    EXPECT_EQ(e.category_searched["density"].get<double>(), 4.0);
+    EXPECT_EQ(e.advised_searched, ug_choice(a).chosen_searched);
+    // The JSON form carries the same figures.
+    const json j = advice_json(a, o);
+    EXPECT_EQ(j["parameters"][0]["method"], "model");
+    EXPECT_DOUBLE_EQ(j["exhaustive"][0]["advised_gap"].get<double>(), e.advised_gap());
+    EXPECT_EQ(j["rows"].size(), a.rows.size());
+}
+
+TEST(AdviseCounts, ConfigurationsThatAreOneStructureInEffectCountAlike) {
+    // A hash grid of depth 0 never splits a cell: its capacity and subdivision change nothing.
+    TuneCategory c;
+    c.name = "u";
+    SceneSpec s;
+    s.name = "u";
+    s.source = SceneSpec::Source::generated;
+    s.settings.kind = "uniform";
+    s.settings.objects = 2000;
+    s.settings.frames = 2;
+    s.settings.rays.per_frame = 100;
+    s.key = {{"advise-counts", 1}};
+    c.scenes.push_back(s);
+    const CostCoefficients model = CostCoefficients::from_json(cost_model(1.0, 10.0), "test");
+    auto counts = [&](const json& p) {
+        ReplayCounts r;
+        predict_cost(model, c, "hg", p, 0, &r);
+        return r;
+    };
+    const ReplayCounts flat8 = counts({{"amp", 1.0}, {"max_depth", 0}, {"max_capacity", 8}, {"subdivision", 2}});
+    const ReplayCounts flat32 = counts({{"amp", 1.0}, {"max_depth", 0}, {"max_capacity", 32}, {"subdivision", 3}});
+    EXPECT_EQ(flat8, flat32);
+    EXPECT_GT(flat8.n_t, 0u);
+    EXPECT_NE(flat8, counts({{"amp", 0.25}, {"max_depth", 0}, {"max_capacity", 8}, {"subdivision", 2}}));
+}
+
+TEST(AdviseCostModel, RoundTripsAndRefusesNonFiniteCoefficients) {
+    const CostCoefficients c = CostCoefficients::from_json(cost_model(1.5, 12.0), "t.json");
+    EXPECT_EQ(c.c_rb, 1.5);
+    EXPECT_EQ(c.c_t, 12.0);
+    EXPECT_EQ(CostCoefficients::from_json(c.to_json(), "again").to_json(), c.to_json());
+    json bad = cost_model(1.5, 12.0);
+    bad["C_T"] = "x";
+    EXPECT_THROW(CostCoefficients::from_json(bad, "t.json"), InputError);
+    bad.erase("C_T");
+    EXPECT_THROW(CostCoefficients::from_json(bad, "t.json"), InputError);
+}
+
+TEST_F(AdviseFiles, BadOptionsAndTuningsAreOneLineErrors) {
+    const std::string bin = RCBENCH_BINARY, scene = path("scene.rcbscene");
+    auto expect_bad = [](const ::test::Outcome& r, const std::string& needle) {
+        EXPECT_EQ(r.code, 2) << r.err;
+        EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    };
+    const std::string none = write_tuning("none.json", tuning_with(2.0, nullptr));
+    expect_bad(::test::run_shell(bin + " advise " + scene + " --method bogus"), "--method");
+    expect_bad(::test::run_shell(bin + " advise " + scene + " --verify-top 17"), "--verify-top");
+    expect_bad(::test::run_shell(bin + " advise " + scene + " --verify-top -1"), "--verify-top");
+    expect_bad(::test::run_shell(bin + " advise " + scene + " --verify-top x"), "--verify-top");
+    expect_bad(::test::run_shell(bin + " advise " + scene + " --exhaustive"), "--exhaustive needs --tuning");
+    expect_bad(::test::run_shell(bin + " advise " + scene + " --tuning " + none + " --category c --method model"),
+               "none.json");
+    json t = tuning_with(2.0, cost_model(1.0, 10.0));
+    t["categories"][0]["structures"][0]["cost_model"]["C_RB"] = "fast";
+    expect_bad(
+        ::test::run_shell(bin + " advise " + scene + " --tuning " + write_tuning("nan.json", t) + " --category c"),
+        "C_RB");
+    t = tuning_with(2.0, cost_model(1.0, 10.0));
+    t["categories"][0]["structures"][0]["space"][0]["levels"] = json::array({1, -3});
+    expect_bad(
+        ::test::run_shell(bin + " advise " + scene + " --tuning " + write_tuning("lv.json", t) + " --category c"),
+        "lv.json");
+    t = tuning_with(2.0, cost_model(1.0, 10.0));
+    t["categories"][0]["structures"][0].erase("space");
+    expect_bad(::test::run_shell(bin + " advise " + scene + " --tuning " + write_tuning("old.json", t) +
+                                 " --category c --exhaustive"),
+               "records no search space");
+}
+
+}  // namespace
+}  // namespace rcb
