@@ -224,6 +224,15 @@ TEST(AdviseCostModel, RoundTripsAndRefusesNonFiniteCoefficients) {
     EXPECT_THROW(CostCoefficients::from_json(bad, "t.json"), InputError);
     bad.erase("C_T");
     EXPECT_THROW(CostCoefficients::from_json(bad, "t.json"), InputError);
+    // C_MP (coherence) is optional: a tuning written before it prices no unpredicted step.
+    json older = cost_model(1.5, 12.0);
+    older.erase("C_MP");
+    EXPECT_EQ(CostCoefficients::from_json(older, "old.json").c_mp, 0.0);
+    json coherent = cost_model(1.5, 12.0);
+    coherent["C_MP"] = 9.0;
+    EXPECT_EQ(CostCoefficients::from_json(coherent, "t.json").c_mp, 9.0);
+    coherent["C_MP"] = "fast";
+    EXPECT_THROW(CostCoefficients::from_json(coherent, "t.json"), InputError);
 }
 
 TEST_F(AdviseFiles, BadOptionsAndTuningsAreOneLineErrors) {
