@@ -73,6 +73,23 @@ std::vector<Term> hierarchy_terms(const std::vector<const FrameObservation*>& fr
     }
     return out;
 }
+/// The memory hierarchy for updates: one column per cache tier the run's working sets reach
+/// beyond the smallest, the changes of a frame (inserts + removes + moves) where the working set
+/// has left the cache of level `tier`: what a change pays beyond its in-cache cost when the cells
+/// or nodes it touches are no longer cached.
+std::vector<Term> update_hierarchy_terms(const std::vector<const FrameObservation*>& frames) {
+    std::set<int> tiers;
+    for (const FrameObservation* f : frames) tiers.insert(f->memory_tier);
+    std::vector<Term> out;
+    if (tiers.size() < 2) return out;
+    for (auto it = std::next(tiers.begin()); it != tiers.end(); ++it) {
+        const int tier = *it;
+        out.push_back({"c_change>L" + std::to_string(tier), [=](const FrameObservation& f) {
+                           return f.memory_tier >= tier ? f.inserts + f.removes + f.moves : 0.0;
+                       }});
+    }
+    return out;
+}
 const Term kInsert{"c_insert", [](const FrameObservation& f) { return f.inserts; }};
 const Term kRemove{"c_remove", [](const FrameObservation& f) { return f.removes; }};
 const Term kMove{"c_move", [](const FrameObservation& f) { return f.moves; }};
@@ -491,6 +508,14 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
         std::vector<Built> update;
         update.push_back(candidate("per-operation", "update", fs, columns_of(ops_frame), {}, {}));
         update.push_back(candidate("with-rebuild", "update", fs, columns_of(rebuild), {}, {}));
+        // Changes that touch a working set beyond the caches cost more (a 40 000-object grid's
+        // cells, not a 2 000-object one's).
+        const std::vector<Term> change_tiers = update_hierarchy_terms(fs);
+        if (!change_tiers.empty() && !ops.empty()) {
+            std::vector<Term> hierarchy = ops_frame;
+            hierarchy.insert(hierarchy.end(), change_tiers.begin(), change_tiers.end());
+            update.push_back(candidate("update-hierarchy", "update", fs, columns_of(hierarchy), {}, {}));
+        }
         std::set<std::string> param_set;
         for (const FrameObservation* f : fs) param_set.insert(f->params);
         if (param_set.size() > 1)  // each configuration its own update costs (e.g. incremental vs rebuild)

@@ -259,6 +259,28 @@ TEST(ModelSelection, UpdateCostsAreRecoveredPerOperation) {
     EXPECT_NEAR(m->fit.coefficients[3].value, 1000, 150);  // c_frame
 }
 
+TEST(ModelSelection, ChangesBeyondTheCachesGetTheirOwnCost) {
+    // Half the configurations' working sets have left the second cache: each of their changes
+    // costs 600 ns more (cells or nodes fetched from memory). One cost per operation cannot fit both.
+    std::vector<FrameObservation> frames = synthetic_frames(0.8, 5.0, 40.0, 12, 8, 0.01);
+    for (FrameObservation& f : frames) {
+        f.memory_tier = f.config_group % 2 ? 2 : 1;
+        if (f.memory_tier == 2) f.update_ns += 600 * (f.inserts + f.removes + f.moves);
+    }
+    const auto models = fit_cost_models(frames);
+    const CandidateModel* m = models[0].chosen("update");
+    ASSERT_NE(m, nullptr);
+    EXPECT_EQ(m->name, "update-hierarchy");
+    const auto c = std::find_if(m->fit.coefficients.begin(), m->fit.coefficients.end(),
+                                [](const Coefficient& x) { return x.name == "c_change>L2"; });
+    ASSERT_NE(c, m->fit.coefficients.end());
+    EXPECT_LE(c->ci_low, 600);
+    EXPECT_GE(c->ci_high, 600);
+    // Working sets in one tier only: no such candidate.
+    const auto one_tier = fit_cost_models(synthetic_frames(0.8, 5.0, 40.0, 12, 8, 0.01));
+    for (const CandidateModel& x : one_tier[0].update) EXPECT_NE(x.name, "update-hierarchy");
+}
+
 TEST(ModelSelection, TermsThatAreAlwaysZeroAreLeftOut) {
     std::vector<FrameObservation> frames = synthetic_frames(0.4, 0.0, 100.0, 10, 8);
     for (FrameObservation& f : frames) f.n_t = 0;  // brute force has no traversal
