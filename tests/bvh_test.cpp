@@ -194,6 +194,7 @@ TEST(LinearBvh, OneAndTwoThreadsBuildIdenticalTrees) {
     two.validate();
     ASSERT_EQ(one.nodes().size(), two.nodes().size());
     EXPECT_TRUE(one.nodes() == two.nodes());
+    EXPECT_TRUE(one.meta() == two.meta());
     for (Uid u = 0; u < 20000; ++u) {
         one.remove(u * 7), two.remove(u * 7);
         const Object moved{u * 7 + 1, test::random_box(rng, 1000)};
@@ -204,6 +205,7 @@ TEST(LinearBvh, OneAndTwoThreadsBuildIdenticalTrees) {
     one.validate();
     two.validate();
     EXPECT_TRUE(one.nodes() == two.nodes());
+    EXPECT_TRUE(one.meta() == two.meta());
 }
 
 /// The tree is Karras' binary radix tree over the sorted keys (code, then size for equal codes,
@@ -266,12 +268,11 @@ TEST(LinearBvh, IsKarrasRadixTreeOfTheSortedCodes) {
             return x ? std::countl_zero(x) : 64 + std::countl_zero(i ^ j);
         };
         std::size_t inner = 0;
-        auto check = [&](auto&& self, std::uint32_t first, std::uint32_t last, std::uint32_t index,
-                         std::uint32_t parent) -> Aabb {
+        auto check = [&](auto&& self, std::uint32_t first, std::uint32_t last, std::uint32_t index) -> Aabb {
             const LinearBvh::Node& node = nodes[index];
-            EXPECT_EQ(node.parent, parent) << index;
             if (first == last) {
                 EXPECT_EQ(index, leaf_base + first);
+                EXPECT_EQ(node.child[1], kNullNode) << index;
                 return objects[keys[first].slot].box;
             }
             ++inner;
@@ -282,11 +283,11 @@ TEST(LinearBvh, IsKarrasRadixTreeOfTheSortedCodes) {
             const std::uint32_t right = split + 1 == last ? leaf_base + split + 1 : split + 1;
             EXPECT_EQ(node.child[0], left) << index;
             EXPECT_EQ(node.child[1], right) << index;
-            const Aabb box = merge(self(self, first, split, left, index), self(self, split + 1, last, right, index));
+            const Aabb box = merge(self(self, first, split, left), self(self, split + 1, last, right));
             EXPECT_TRUE(node.box == box) << index;
             return box;
         };
-        check(check, 0, std::uint32_t(n - 1), 0, kNullNode);
+        check(check, 0, std::uint32_t(n - 1), 0);
         EXPECT_EQ(inner, n - 1);
     }
 }

@@ -201,6 +201,7 @@ void LinearBvh::rebuild() {
     crowds_ = tied_codes_ = 0;
     if (n == 0) {
         nodes_.clear();
+        meta_.clear();
         codes_.clear();
         order_.clear();
         common_.clear();
@@ -282,15 +283,17 @@ void LinearBvh::rebuild() {
     nodes_.resize(2 * n - 1);
     leaf_base_ = std::uint32_t(n - 1);
     if (n == 1) {
-        nodes_[0] = Node{boxes[0], {objects_.uid(0), kNullNode}, kNullNode, 0, kShared};
+        nodes_[0] = Node{boxes[0], {objects_.uid(0), kNullNode}};
+        meta_.clear();
         common_.clear();
         ranges_.clear();
         lap(phases_.tree);
         return;
     }
+    meta_.resize(n - 1);
     common_.resize(n - 1);
     ranges_.resize(n - 1);
-    bound_.assign(n - 1, kNullNode);
+    bound_.resize(n - 1, kNullNode);
     // 3. The binary radix tree of Karras 2012 (thesis Algorithm 3) and its bounds (thesis
     //    Algorithm 4) in one bottom-up pass, as Apetrei 2014 ("Fast and simple agglomerative LBVH
     //    construction") builds it: a node over the keys [l, r] hangs below the split at r (as the
@@ -319,6 +322,7 @@ void LinearBvh::rebuild() {
     // marks to `found`.
     // Plain pointers: stores into the nodes cannot then alias the members the loop reads.
     Node* nodes = nodes_.data();
+    Meta* meta = meta_.data();
     std::uint32_t* bound = bound_.data();
     std::array<std::uint32_t, 2>* ranges = ranges_.data();
     Aabb* common = common_.data();
@@ -335,8 +339,11 @@ void LinearBvh::rebuild() {
             }
             const std::uint32_t split = left ? r : l - 1;
             const std::uint32_t other = bound[split];
-            bound[split] = left ? l : r;
-            if (other == kNullNode) return false;
+            if (other == kNullNode) {
+                bound[split] = left ? l : r;
+                return false;
+            }
+            bound[split] = kNullNode;
             if (left)
                 r = other;
             else
@@ -344,29 +351,34 @@ void LinearBvh::rebuild() {
             const bool root = l == 0 && r == last;
             left = !root && (l == 0 || (r != last && delta(r) > delta(l - 1)));
             const std::uint32_t p = root ? 0 : left ? r : l;
+            // A leaf child's Meta is implied (height 0, shared); meta[split] is read either way
+            // (always in range) so that the choice is a select, not a branch.
+            const bool leaf0 = l == split, leaf1 = r == split + 1;
+            const std::uint32_t c0 = leaf0 ? leaf_base + split : split;
+            const std::uint32_t c1 = leaf1 ? leaf_base + split + 1 : split + 1;
+            const Meta m0 = leaf0 ? Meta{0, kShared} : meta[split];
+            const Meta m1 = leaf1 ? Meta{0, kShared} : meta[std::min(split + 1, last - 1)];
+            const Node& a = nodes[c0];
+            const Node& c = nodes[c1];
             Node& node = nodes[p];
-            node.child[0] = l == split ? leaf_base + split : split;
-            node.child[1] = r == split + 1 ? leaf_base + split + 1 : split + 1;
-            Node& a = nodes[node.child[0]];
-            Node& c = nodes[node.child[1]];
-            a.parent = c.parent = p;
             node.box = merge(a.box, c.box);
-            node.height = std::uint16_t(1 + std::max(a.height, c.height));
-            node.flags = 0;
-            ranges[p] = {l, r};
-            if (check_crowds && (a.flags & c.flags & kShared)) {
-                const Aabb& ca = node.child[0] >= leaf_base ? a.box : common[node.child[0]];
-                const Aabb& cc = node.child[1] >= leaf_base ? c.box : common[node.child[1]];
+            node.child[0] = c0, node.child[1] = c1;
+            Meta m{std::uint8_t(1 + std::max(m0.height, m1.height)), 0};
+            if (check_crowds && (m0.flags & m1.flags & kShared)) {
+                const Aabb& ca = leaf0 ? a.box : common[c0];
+                const Aabb& cc = leaf1 ? c.box : common[c1];
                 const Aabb shared{rcb::max(ca.min, cc.min), rcb::min(ca.max, cc.max)};
                 if (shared.min.x <= shared.max.x && shared.min.y <= shared.max.y && shared.min.z <= shared.max.z) {
                     common[p] = shared;
-                    node.flags = kShared;
+                    m.flags = kShared;
                     if (r - l + 1 >= kCrowdLeaves) {
-                        node.flags |= kCrowd;
+                        m.flags |= kCrowd;
+                        ranges[p] = {l, r};
                         ++found;
                     }
                 }
             }
+            meta[p] = m;
         }
         return false;
     };
@@ -393,7 +405,7 @@ void LinearBvh::rebuild() {
                         __builtin_prefetch(&uids[ahead]);
                     }
                     const std::uint32_t slot = order[k];
-                    nodes[leaf_base + k] = Node{boxes[slot], {uids[slot], kNullNode}, kNullNode, 0, kShared};
+                    nodes[leaf_base + k] = Node{boxes[slot], {uids[slot], kNullNode}};
                 }
                 for (std::uint32_t k = bb; k < be; ++k) {
                     std::uint32_t l = k, r = k;
@@ -408,7 +420,6 @@ void LinearBvh::rebuild() {
         crowds += found[c];
         for (auto [l, r] : pending_[c]) climb(l, r, 0, std::uint32_t(n), crowds);
     }
-    nodes_[0].parent = kNullNode;
     crowds_ = crowds;
     lap(phases_.tree);
 }
@@ -450,7 +461,7 @@ double LinearBvh::sah_cost() const {
 }
 
 std::size_t LinearBvh::memory_bytes() const {
-    return nodes_.capacity() * sizeof(Node) + objects_.memory_bytes() +
+    return nodes_.capacity() * sizeof(Node) + meta_.capacity() * sizeof(Meta) + objects_.memory_bytes() +
            (codes_.capacity() + codes_tmp_.capacity()) * sizeof(std::uint64_t) +
            (order_.capacity() + order_tmp_.capacity() + histograms_.capacity() + bucket_start_.capacity() +
             bound_.capacity()) *
@@ -476,7 +487,7 @@ void LinearBvh::validate() const {
     if (n == 0) return;
     std::vector<std::uint8_t> seen(nodes_.size(), 0);
     std::vector<std::uint32_t> stack{0};
-    if (nodes_[0].parent != kNullNode) fail("root has a parent");
+    if (meta_.size() != n - 1) fail("meta array has " + std::to_string(meta_.size()) + " entries");
     std::size_t leaves = 0;
     std::vector<std::uint8_t> slot_seen(n, 0);
     while (!stack.empty()) {
@@ -487,7 +498,7 @@ void LinearBvh::validate() const {
         const Node& node = nodes_[v];
         if (is_leaf(v)) {
             ++leaves;
-            if (node.height != 0) fail("leaf with a height");
+            if (node.child[1] != kNullNode) fail("leaf " + std::to_string(v) + " has a second child");
             const std::uint32_t* slot = objects_.find(node.child[0]);
             if (!slot) fail("leaf " + std::to_string(v) + " holds unknown uid " + std::to_string(node.child[0]));
             if (slot_seen[*slot]++) fail("uid " + std::to_string(node.child[0]) + " in two leaves");
@@ -499,14 +510,12 @@ void LinearBvh::validate() const {
         for (int k = 0; k < 2; ++k) {
             const std::uint32_t c = node.child[k];
             if (c >= nodes_.size()) fail("child out of range");
-            if (nodes_[c].parent != v)
-                fail("child " + std::to_string(c) + " does not point back to " + std::to_string(v));
             if (!node.box.contains(nodes_[c].box))
                 fail("node " + std::to_string(v) + " does not enclose child " + std::to_string(c));
-            hmax = std::max(hmax, int(nodes_[c].height));
+            hmax = std::max(hmax, is_leaf(c) ? 0 : int(meta_[c].height));
             stack.push_back(c);
         }
-        if (node.height != 1 + hmax) fail("node " + std::to_string(v) + " has a wrong height");
+        if (meta_[v].height != 1 + hmax) fail("node " + std::to_string(v) + " has a wrong height");
     }
     if (leaves != n) fail(std::to_string(n) + " objects but " + std::to_string(leaves) + " leaves reached");
     // Crowds: every inner node's leaf range and common box as the subtree gives them, and the flag
@@ -516,7 +525,6 @@ void LinearBvh::validate() const {
         if (is_leaf(v)) {
             first = last = v - leaf_base_;
             common = nodes_[v].box;
-            if (nodes_[v].flags != kShared) fail("leaf " + std::to_string(v) + " has wrong flags");
             return;
         }
         std::uint32_t f0, l0, f1, l1;
@@ -526,17 +534,17 @@ void LinearBvh::validate() const {
         if (l0 + 1 != f1) fail("node " + std::to_string(v) + ": its children's leaves are not consecutive");
         first = f0, last = l1;
         common = {rcb::max(c0.min, c1.min), rcb::min(c0.max, c1.max)};
-        if (ranges_[v][0] != first || ranges_[v][1] != last)
-            fail("node " + std::to_string(v) + " has a wrong leaf range");
         const bool shared =
             common.min.x <= common.max.x && common.min.y <= common.max.y && common.min.z <= common.max.z;
         const bool crowd = crowds_checked_ && last - first + 1 >= kCrowdLeaves && shared;
-        if (bool(nodes_[v].flags & kCrowd) != crowd)
+        if (crowd && (ranges_[v][0] != first || ranges_[v][1] != last))
+            fail("crowd " + std::to_string(v) + " has a wrong leaf range");
+        if (bool(meta_[v].flags & kCrowd) != crowd)
             fail("node " + std::to_string(v) +
                  (crowd ? " is a crowd but not marked" : " is marked as a crowd but is none"));
-        if (bool(nodes_[v].flags & kShared) != (crowds_checked_ && shared))
+        if (bool(meta_[v].flags & kShared) != (crowds_checked_ && shared))
             fail("node " + std::to_string(v) + " has a wrong shared flag");
-        if ((nodes_[v].flags & kShared) && !(common_[v] == common))
+        if ((meta_[v].flags & kShared) && !(common_[v] == common))
             fail("node " + std::to_string(v) + " has a stale common box");
         crowds += crowd;
     };

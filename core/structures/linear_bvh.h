@@ -7,6 +7,7 @@
 /// outlier trim (common/outlier_trim.h), size-ordered ties of equal codes and crowd scans keep it
 /// fast on hostile scenes; answers are exact either way. docs/structures.md has the details.
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -50,19 +51,23 @@ public:
     static constexpr std::uint32_t kCrowdLeaves = 16;
     /// A tree without crowds is followed by this many rebuilds before crowds are looked for again.
     static constexpr std::uint32_t kCrowdCheckEvery = 8;
-    /// Node flags: the node is a crowd; the boxes below share a point (then common_ holds their
-    /// intersection for an inner node; a leaf always has this flag).
-    static constexpr std::uint16_t kCrowd = 1, kShared = 2;
+    /// Inner node flags: the node is a crowd; the boxes below share a point (then common_ holds
+    /// their intersection; a leaf always counts as shared).
+    static constexpr std::uint8_t kCrowd = 1, kShared = 2;
 
-    struct Node {
+    /// 32 bytes, aligned: two to a cache line, none across two. It holds what the traversal reads;
+    /// what only the build and validate() need (height, flags) is kept per inner node in Meta.
+    struct alignas(32) Node {
         Aabb box;                // 24 B
-        std::uint32_t child[2];  // 8 B: a leaf keeps its uid in child[0]
-        std::uint32_t parent;    // 4 B: kNullNode at the root
-        std::uint16_t height;    // 2 B: 0 for leaves (at most 97: codes and indices have 96 bits)
-        std::uint16_t flags;     // 2 B: kCrowd, kShared (see above)
+        std::uint32_t child[2];  // 8 B: a leaf keeps its uid in child[0], kNullNode in child[1]
         friend bool operator==(const Node&, const Node&) = default;
     };
-    static_assert(sizeof(Node) == 40);
+    static_assert(sizeof(Node) == 32);
+    struct Meta {
+        std::uint8_t height;  // at least 1 (leaves have 0); at most 97: codes and indices have 96 bits
+        std::uint8_t flags;   // kCrowd, kShared
+        friend bool operator==(const Meta&, const Meta&) = default;
+    };
 
     LinearBvh();
     explicit LinearBvh(const Params& p);
@@ -83,7 +88,7 @@ public:
     void prepare() {
         if (dirty_) rebuild();
     }
-    void fit(StackScratch& scratch) const { scratch.fit(nodes_.empty() ? 1u : std::size_t(nodes_[0].height) + 2u); }
+    void fit(StackScratch& scratch) const { scratch.fit(std::size_t(std::max(height(), 0)) + 2u); }
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit, StackScratch& scratch) const {
         traverse_bvh(*this, root(), scratch.stack(), s, count, visit);
@@ -91,9 +96,11 @@ public:
 
     /// The SAH cost of the tree (thesis eq. 3.2, C_T = C_I = 1).
     double sah_cost() const;
-    int height() const { return nodes_.empty() ? -1 : nodes_[0].height; }
+    int height() const { return meta_.empty() ? int(nodes_.size()) - 1 : meta_[0].height; }
     /// The node array (for tests: identical for every thread count).
     const std::vector<Node>& nodes() const { return nodes_; }
+    /// Height and flags of the inner nodes (for tests: identical for every thread count).
+    const std::vector<Meta>& meta() const { return meta_; }
     /// The sorted Morton codes of the last rebuild (for tests).
     const std::vector<std::uint64_t>& codes() const { return codes_; }
     /// Wall time of the last rebuild's steps in milliseconds (bench/lbvh_build.cpp prints them).
@@ -112,7 +119,7 @@ public:
     const Aabb& leaf_box(std::uint32_t n) const { return nodes_[n].box; }
     Uid leaf_uid(std::uint32_t n) const { return nodes_[n].child[0]; }
     bool has_crowds() const { return crowds_ != 0; }
-    bool is_crowd(std::uint32_t n) const { return nodes_[n].flags & kCrowd; }
+    bool is_crowd(std::uint32_t n) const { return meta_[n].flags & kCrowd; }
     template <class Count, class Visit>
     CrowdScan scan_crowd(std::uint32_t n, const SegmentSlabs& slabs, Count& count, Visit& visit) const {
         float t_near, t_far;
@@ -146,15 +153,18 @@ private:
     bool dirty_ = false;
     // The tree and the build's scratch (kept between builds: no allocation once sized).
     std::vector<Node> nodes_;
+    std::vector<Meta> meta_;
     std::uint32_t leaf_base_ = 0;
     std::vector<std::uint64_t> codes_, codes_tmp_;
     std::vector<std::uint32_t> order_, order_tmp_;
     std::vector<std::uint32_t> histograms_, bucket_start_;
-    // Per split of the sorted keys: the far end of the first child to finish (kNullNode before).
+    // Per split of the sorted keys: the far end of the first child to finish; kNullNode before
+    // and again after the build (the second child resets it: no clearing pass).
     std::vector<std::uint32_t> bound_;
     // Per chunk of leaves: the nodes [l, r] whose climb stopped at the chunk's edge.
     std::vector<std::vector<std::array<std::uint32_t, 2>>> pending_;
-    // Crowds, per inner node: the intersection of the boxes below, and the first and last leaf.
+    // Per inner node: the intersection of the boxes below (where kShared); per crowd: its first
+    // and last leaf.
     std::vector<Aabb> common_;
     std::vector<std::array<std::uint32_t, 2>> ranges_;
     // Guard reports (stats): nodes that are crowds, objects in runs of equal codes, outliers trimmed.
