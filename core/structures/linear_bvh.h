@@ -34,12 +34,18 @@ public:
         bool crowd_guard = true;
         /// Threads of the timed ray batch (`threads` is the build's; see docs/structures.md).
         int cast_threads = 1;
+        /// Sort from the last rebuild's order when few objects changed (the same tree either way).
+        bool coherent_sort = true;
         static constexpr auto fields() {
             return std::tuple{Field{"threads", &Params::threads, 1, 64, "build threads (TBB task arena)", false},
                               Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
                                     "Morton codes over the central 99% of the centroids when the full centroid bounds "
                                     "are over 8x larger (exact either way)",
                                     false},
+                              Field{"coherent_sort", &Params::coherent_sort, 0.0, 1.0,
+                                    "sort from the last rebuild's order when at most 1/16 of the objects changed (the "
+                                    "same tree either way)",
+                                    false, false, "", false},
                               cast_threads_field<Params>(),
                               Field{"crowd_guard", &Params::crowd_guard, 0.0, 1.0,
                                     "a segment meeting the common box of a subtree of at least 16 boxes that share a "
@@ -110,6 +116,8 @@ public:
         double tree = 0;   ///< leaves, inner nodes and their bounds (one bottom-up pass)
     };
     const Phases& last_phases() const { return phases_; }
+    /// Whether the last rebuild sorted from the previous order (resort(); for tests and benches).
+    bool last_resorted() const { return resorted_; }
 
     // The tree interface of traverse_bvh.
     bool is_leaf(std::uint32_t n) const { return n >= leaf_base_; }
@@ -144,6 +152,8 @@ private:
     void sort_codes(std::uint64_t varying);
     void trim_outliers(Aabb& centroid_bounds);
     void order_equal_codes();
+    template <class Lap>
+    bool resort(std::size_t chunks, Lap& lap, bool& bounds_known);
 
     Params params_;
     struct Arena;
@@ -161,6 +171,18 @@ private:
     // Per split of the sorted keys: the far end of the first child to finish; kNullNode before
     // and again after the build (the second child resets it: no clearing pass).
     std::vector<std::uint32_t> bound_;
+    // resort(): changes since the last rebuild (kNoOrder after build()), per chunk the kept
+    // positions, and the positions out of order, per chunk and all.
+    static constexpr std::size_t kNoOrder = std::size_t(-1) / 2;
+    std::size_t changes_ = kNoOrder;
+    // The full centroid bounds of the last rebuild (before the outlier trim), and whether a change
+    // since may have moved them (insert()).
+    Aabb centroid_bounds_ = Aabb::empty();
+    bool centroids_moved_ = true;
+    bool resorted_ = false;
+    std::vector<std::uint32_t> kept_;
+    std::vector<std::vector<std::uint32_t>> outliers_;
+    std::vector<std::uint32_t> outliers_all_;
     // Per chunk of leaves: the nodes [l, r] whose climb stopped at the chunk's edge.
     std::vector<std::vector<std::array<std::uint32_t, 2>>> pending_;
     // Per inner node: the intersection of the boxes below (where kShared); per crowd: its first
