@@ -428,6 +428,9 @@ bool LinearBvh::resort(std::size_t chunks, Lap& lap, bool& bounds_known) {
     std::uint64_t* out_codes = codes_tmp_.data();
     std::uint32_t* out_order = order_tmp_.data();
     const std::uint32_t* outl = out.data();
+    // Each part also counts its keys in runs of equal codes (the stats' "tied_codes", already in
+    // their order) as far as it sees; the parts' first and last keys are settled below.
+    std::array<std::size_t, 64 * 4> tied;
     parallel(parts, 1, [&](std::size_t i0, std::size_t i1) {
         for (std::size_t i = i0; i < i1; ++i) {
             std::uint32_t a = run[i][0];
@@ -435,22 +438,41 @@ bool LinearBvh::resort(std::size_t chunks, Lap& lap, bool& bounds_known) {
             std::uint32_t o = merge_part[i][0];
             const std::uint32_t o_end = merge_part[i][1];
             std::uint32_t j = merge_part[i][2];
+            std::size_t t = 0, same = 0;  // same: keys so far with the previous key's code
+            std::uint64_t prev = 0;
             while (a < a_end || o < o_end) {
                 const bool take_outlier = a == a_end || (o < o_end && less(outl[o], kept[a]));
                 const std::uint32_t k = take_outlier ? outl[o++] : kept[a++];
-                out_codes[j] = codes[k];
+                const std::uint64_t code = codes[k];
+                same = j != merge_part[i][2] && code == prev ? same + 1 : 1;
+                t += same == 2 ? 2 : same > 2;
+                prev = code;
+                out_codes[j] = code;
                 out_order[j] = seq[k];
                 nodes[leaf_base + j] = record(k);
                 ++j;
             }
+            tied[i] = t;
         }
     });
     codes_.swap(codes_tmp_);
     order_.swap(order_tmp_);
-    // The keys in runs of equal codes (the stats' "tied_codes"), already in their order.
     tied_codes_ = 0;
-    for (std::size_t k = 0; k < n; ++k)
-        tied_codes_ += (k > 0 && codes_[k] == codes_[k - 1]) || (k + 1 < n && codes_[k] == codes_[k + 1]);
+    {
+        const std::uint64_t* c = codes_.data();
+        // Whether key j has an equal code beside it in [b, e).
+        auto in_run = [c](std::size_t j, std::size_t b, std::size_t e) {
+            return (j > b && c[j] == c[j - 1]) || (j + 1 < e && c[j] == c[j + 1]);
+        };
+        for (std::size_t i = 0; i < parts; ++i) {
+            const std::size_t b = merge_part[i][2], e = i + 1 < parts ? merge_part[i + 1][2] : n;
+            tied_codes_ += tied[i];
+            for (std::size_t j : {b, e - 1}) {
+                tied_codes_ += std::size_t(in_run(j, 0, n)) - std::size_t(in_run(j, b, e));
+                if (e - b == 1) break;
+            }
+        }
+    }
     lap(phases_.sort);
     return true;
 }
