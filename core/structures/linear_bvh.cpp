@@ -313,7 +313,7 @@ bool LinearBvh::resort(std::size_t chunks, Lap& lap, bool& bounds_known) {
     {
         const Vec3 scale = scale_of(cb);
         parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
-            constexpr std::size_t kAhead = 16;
+            constexpr std::size_t kAhead = 48;  // rows ahead: the gather waits on memory misses
             for (std::size_t c = c0; c < c1; ++c) {
                 const std::size_t b = std::min(n, c * chunk_len), e = std::min(n, b + chunk_len);
                 for (std::size_t k = b; k < e; ++k) {

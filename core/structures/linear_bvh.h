@@ -1,9 +1,10 @@
 #pragma once
 /// Linear BVH (thesis §4.5, after Karras 2012), rebuilt at every commit: Morton codes of the
-/// centroids (21 bits per axis), a stable most-significant-digit radix sort, and Karras' radix tree
-/// (thesis Algorithm 3) with its bounds (thesis Algorithm 4) in one bottom-up pass after Apetrei
-/// 2014; `threads` runs the steps in a TBB arena and every step is deterministic, so the tree does
-/// not depend on the thread count. An
+/// centroids (21 bits per axis), a stable most-significant-digit radix sort (or, when few objects
+/// changed, a merge of the keys that left the last rebuild's order back into it: the same order),
+/// and Karras' radix tree (thesis Algorithm 3) with its bounds (thesis Algorithm 4) in one
+/// bottom-up pass after Apetrei 2014; `threads` runs the steps in a TBB arena and every step is
+/// deterministic, so the tree does not depend on the thread count. An
 /// outlier trim (common/outlier_trim.h), size-ordered ties of equal codes and crowd scans keep it
 /// fast on hostile scenes; answers are exact either way. docs/structures.md has the details.
 
