@@ -233,9 +233,9 @@ void LinearBvh::sort_codes(std::uint64_t varying) {
 /// last sorted order (its slots; slots gone dropped, new ones last), are then nearly in order, as
 /// in the incremental sorts of sweep-and-prune broad phases (Baraff 1992; Cohen et al. 1995,
 /// "I-COLLIDE"). One pass gathers each box and uid in that order, codes it and writes its leaf
-/// record; one pass splits off the keys (code, slot) that break the order (a kept key above the
-/// new one is dropped when at most kLook of them are, else the new one), the dropped ones are
-/// sorted, and a merge writes the codes, slots and leaves in order. The result is the radix sort's
+/// record; one pass splits off the keys (code, then half area and slot) that break the order (the
+/// kept keys above the new one are dropped when at most kLook of them are, else the new one), the
+/// dropped ones are sorted, and a merge writes the codes, slots and leaves in order. The result is the radix sort's
 /// exactly (same keys, same total order), only cheaper: no scatter over 2048 buckets, and the leaves
 /// come from records read in order rather than from a gather in sorted order. Returns false (and
 /// leaves everything to the radix path) when there is no usable order or more than 1/16 of the

@@ -112,9 +112,9 @@ public:
     const std::vector<std::uint64_t>& codes() const { return codes_; }
     /// Wall time of the last rebuild's steps in milliseconds (bench/lbvh_build.cpp prints them).
     struct Phases {
-        double codes = 0;  ///< centroid bounds, outlier trim, Morton codes
-        double sort = 0;   ///< radix sort and the size order of equal codes
-        double tree = 0;   ///< leaves, inner nodes and their bounds (one bottom-up pass)
+        double codes = 0;  ///< centroid bounds, outlier trim, Morton codes (resort(): and the leaf records)
+        double sort = 0;   ///< radix sort and the size order of equal codes (resort(): the split and merge)
+        double tree = 0;   ///< leaves (resort(): written by the merge), inner nodes and their bounds
     };
     const Phases& last_phases() const { return phases_; }
     /// Whether the last rebuild sorted from the previous order (resort(); for tests and benches).
