@@ -766,10 +766,12 @@ double LinearBvh::sah_cost() const {
 }
 
 std::size_t LinearBvh::memory_bytes() const {
+    std::size_t outliers = outliers_all_.capacity();
+    for (const std::vector<std::uint32_t>& o : outliers_) outliers += o.capacity();
     return nodes_.capacity() * sizeof(Node) + meta_.capacity() * sizeof(Meta) + objects_.memory_bytes() +
            (codes_.capacity() + codes_tmp_.capacity()) * sizeof(std::uint64_t) +
            (order_.capacity() + order_tmp_.capacity() + histograms_.capacity() + bucket_start_.capacity() +
-            bound_.capacity()) *
+            bound_.capacity() + kept_.capacity() + outliers) *
                sizeof(std::uint32_t) +
            scratch_bytes() + common_.capacity() * sizeof(Aabb) + ranges_.capacity() * sizeof(ranges_[0]) +
            sizeof(*this);
