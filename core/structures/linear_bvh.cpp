@@ -432,25 +432,41 @@ bool LinearBvh::resort(std::size_t chunks, Lap& lap, bool& bounds_known) {
     // their order) as far as it sees; the parts' first and last keys are settled below.
     std::array<std::size_t, 64 * 4> tied;
     parallel(parts, 1, [&](std::size_t i0, std::size_t i1) {
+        // Local restrict pointers: the stores below then do not make the loop reload them.
+        const std::uint64_t* __restrict in_codes = codes;
+        const std::uint32_t* __restrict in_order = seq;
+        const std::uint32_t* __restrict kept_at = kept;
+        std::uint64_t* __restrict codes_to = out_codes;
+        std::uint32_t* __restrict order_to = out_order;
+        Node* __restrict leaves = nodes + leaf_base;
         for (std::size_t i = i0; i < i1; ++i) {
             std::uint32_t a = run[i][0];
             const std::uint32_t a_end = run[i][1];
             std::uint32_t o = merge_part[i][0];
             const std::uint32_t o_end = merge_part[i][1];
-            std::uint32_t j = merge_part[i][2];
+            const std::uint32_t j0 = merge_part[i][2];
+            std::uint32_t j = j0;
             std::size_t t = 0, same = 0;  // same: keys so far with the previous key's code
             std::uint64_t prev = 0;
-            while (a < a_end || o < o_end) {
-                const bool take_outlier = a == a_end || (o < o_end && less(outl[o], kept[a]));
-                const std::uint32_t k = take_outlier ? outl[o++] : kept[a++];
-                const std::uint64_t code = codes[k];
-                same = j != merge_part[i][2] && code == prev ? same + 1 : 1;
+            auto put = [&](std::uint32_t k) {
+                const std::uint64_t code = in_codes[k];
+                same = j != j0 && code == prev ? same + 1 : 1;
                 t += same == 2 ? 2 : same > 2;
                 prev = code;
-                out_codes[j] = code;
-                out_order[j] = seq[k];
-                nodes[leaf_base + j] = record(k);
+                codes_to[j] = code;
+                order_to[j] = in_order[k];
+                leaves[j] = k == n - 1 ? last_record : nodes[k];
                 ++j;
+            };
+            for (;;) {
+                // The kept keys below the next outlier (all, when none is left): found by a binary
+                // search, then copied with no comparison per key.
+                const std::uint32_t stop =
+                    o < o_end ? std::uint32_t(std::lower_bound(kept_at + a, kept_at + a_end, outl[o], less) - kept_at)
+                              : a_end;
+                for (; a < stop; ++a) put(kept_at[a]);
+                if (o == o_end) break;
+                put(outl[o++]);
             }
             tied[i] = t;
         }
