@@ -1,9 +1,11 @@
 // Build speed of the linear BVH: a generated scene (irreg-xl by default: 1 000 000 objects) is
-// built from scratch (build(): the slot table, then the tree) and rebuilt after 1% of the objects
-// moved (commit(): the tree only, what every frame pays), `repeats` times for 1 and 2 build threads,
-// alternating in one process so that both see the same machine. Prints medians with min and max,
-// objects per second, the median time of each step of the rebuild (LinearBvh::last_phases) and the
-// two-thread speed-up. Pin it: `taskset -c 0 … --threads 1`, `taskset -c 0,1 …`.
+// built from scratch (build(): the slot table, then the tree) and rebuilt twice, after 1% of the
+// objects moved and after they moved back (commit(): the tree only, what every frame pays),
+// `repeats` times for 1 and 2 build threads and for 1 thread with the radix sort only
+// (coherent_sort off), alternating in one process so that all see the same machine. Prints medians
+// with min and max, objects per second, the median time of each step of the rebuild
+// (LinearBvh::last_phases), how many rebuilds sorted from the last order, and the two-thread
+// speed-up. Pin it: `taskset -c 0 …` for one core, `taskset -c 0,1 …` for two.
 //
 //   build/bench/lbvh_build [PRESET] [REPEATS]      PRESET: irreg-xl, clusters-xl, … (default irreg-xl)
 #include <algorithm>
@@ -49,33 +51,43 @@ int run(int argc, char** argv) {
     const std::vector<Object>& moves = rec.frames.at(0).moves;
     std::unordered_map<Uid, Aabb> first_box;
     for (const Object& o : objects) first_box.emplace(o.uid, o.box);
-    std::vector<Object> back;  // the moved objects' first boxes: every other rebuild moves them back
-    for (const Object& m : moves) back.push_back({m.uid, first_box.at(m.uid)});
+    std::vector<Object> back_list;  // the moved objects' first boxes: the second rebuild moves them back
+    for (const Object& m : moves) back_list.push_back({m.uid, first_box.at(m.uid)});
+    const std::vector<Object>& back = back_list;
     const std::size_t n = objects.size();
     std::printf("%s: %zu objects, %zu moves per rebuild, %d repeats\n", preset.c_str(), n, moves.size(), repeats);
 
-    LinearBvh one(LinearBvh::Params{.threads = 1}), two(LinearBvh::Params{.threads = 2});
-    Series s[2];
+    LinearBvh one(LinearBvh::Params{.threads = 1}), two(LinearBvh::Params{.threads = 2}),
+        radix(LinearBvh::Params{.threads = 1, .coherent_sort = false});
+    LinearBvh* trees[3] = {&one, &two, &radix};
+    const char* names[3] = {"threads=1", "threads=2", "threads=1, radix sort only"};
+    Series s[3];
+    int resorted[3] = {};
     for (int r = 0; r < repeats; ++r)
-        for (int k = 0; k < 2; ++k) {
-            LinearBvh& t = k == 0 ? one : two;
+        for (int k = 0; k < 3; ++k) {
+            LinearBvh& t = *trees[k];
             Clock::time_point t0 = Clock::now();
             t.build(objects);
             s[k].build.push_back(ms_since(t0));
-            for (const Object& m : r % 2 ? back : moves) t.move(m);
-            t0 = Clock::now();
-            t.commit();
-            s[k].rebuild.push_back(ms_since(t0));
-            const LinearBvh::Phases& p = t.last_phases();
-            s[k].codes.push_back(p.codes), s[k].sort.push_back(p.sort), s[k].tree.push_back(p.tree);
+            for (const std::vector<Object>* change : {&moves, &back}) {
+                for (const Object& m : *change) t.move(m);
+                t0 = Clock::now();
+                t.commit();
+                s[k].rebuild.push_back(ms_since(t0));
+                const LinearBvh::Phases& p = t.last_phases();
+                s[k].codes.push_back(p.codes), s[k].sort.push_back(p.sort), s[k].tree.push_back(p.tree);
+                resorted[k] += t.last_resorted();
+            }
         }
-    if (!(one.nodes() == two.nodes())) throw std::logic_error("1 and 2 threads built different trees");
-    for (int k = 0; k < 2; ++k) {
-        std::printf("threads=%d\n", k + 1);
+    if (!(one.nodes() == two.nodes()) || !(one.nodes() == radix.nodes()))
+        throw std::logic_error("the configurations built different trees");
+    for (int k = 0; k < 3; ++k) {
+        std::printf("%s\n", names[k]);
         print("build", s[k].build, n);
         print("rebuild", s[k].rebuild, n);
-        std::printf("  rebuild steps (median ms): codes %.2f, sort %.2f, tree %.2f\n", median(s[k].codes),
-                    median(s[k].sort), median(s[k].tree));
+        std::printf(
+            "  rebuild steps (median ms): codes %.2f, sort %.2f, tree %.2f; %d of %zu sorted from the last order\n",
+            median(s[k].codes), median(s[k].sort), median(s[k].tree), resorted[k], s[k].rebuild.size());
     }
     std::printf("speed-up of 2 threads: build %.2fx, rebuild %.2fx\n", median(s[0].build) / median(s[1].build),
                 median(s[0].rebuild) / median(s[1].rebuild));

@@ -194,6 +194,7 @@ TEST(LinearBvh, OneAndTwoThreadsBuildIdenticalTrees) {
     two.validate();
     ASSERT_EQ(one.nodes().size(), two.nodes().size());
     EXPECT_TRUE(one.nodes() == two.nodes());
+    EXPECT_TRUE(one.meta() == two.meta());
     for (Uid u = 0; u < 20000; ++u) {
         one.remove(u * 7), two.remove(u * 7);
         const Object moved{u * 7 + 1, test::random_box(rng, 1000)};
@@ -204,90 +205,168 @@ TEST(LinearBvh, OneAndTwoThreadsBuildIdenticalTrees) {
     one.validate();
     two.validate();
     EXPECT_TRUE(one.nodes() == two.nodes());
+    EXPECT_TRUE(one.meta() == two.meta());
+}
+
+/// The sort from the last rebuild's order (coherent_sort) gives the radix sort's tree exactly:
+/// 20 rebuilds of 30 000 objects with moves small and large, removes and inserts, and runs of equal
+/// codes, for 1 and 2 threads. It is taken whenever at most 1/16 of the objects changed and the
+/// code bounds stayed (two far objects hold them), and not otherwise: in frame 10 a sixth of the
+/// objects change, in frames 5 and 15 a third object moves beyond the bounds.
+TEST(LinearBvh, CoherentSortBuildsTheRadixSortsTree) {
+    for (int threads : {1, 2}) {
+        Random rng(17);
+        std::vector<Object> live{{0, {Vec3{-2000, -2000, -2000}, Vec3{-1999, -1999, -1999}}},
+                                 {1, {Vec3{3000, 3000, 3000}, Vec3{3001, 3001, 3001}}},
+                                 {2, {Vec3{500, 500, 500}, Vec3{501, 501, 501}}}};
+        constexpr std::size_t kFixed = 3;  // never changed at random
+        Uid next = kFixed;
+        auto random_object = [&](Uid uid) {
+            Aabb b = test::random_box(rng, 1000);
+            if (uid % 5 == 0) {  // a lattice: equal codes
+                const Vec3 c{float(rng.below(6)) * 100, float(rng.below(6)) * 100, float(rng.below(6)) * 100};
+                const float h = float(1 + rng.below(4));
+                b = {c - Vec3{h, h, h}, c + Vec3{h, h, h}};
+            }
+            return Object{uid, b};
+        };
+        while (live.size() < 30000) live.push_back(random_object(next++));
+        LinearBvh coherent(LinearBvh::Params{.threads = threads}),
+            radix(LinearBvh::Params{.threads = threads, .coherent_sort = false});
+        coherent.build(live);
+        radix.build(live);
+        for (int frame = 0; frame < 20; ++frame) {
+            const int changes = frame == 10 ? 5000 : 1500;
+            for (int c = 0; c < changes; ++c) {
+                const std::size_t i = kFixed + rng.below(live.size() - kFixed);
+                const std::uint64_t kind = rng.below(10);
+                if (kind == 0) {  // remove
+                    coherent.remove(live[i].uid), radix.remove(live[i].uid);
+                    live[i] = live.back();
+                    live.pop_back();
+                } else if (kind == 1) {  // insert
+                    live.push_back(random_object(next++));
+                    coherent.insert(live.back()), radix.insert(live.back());
+                } else {  // move: mostly a little, sometimes far (inside the bounds)
+                    Object& o = live[i];
+                    const float d = kind == 2 ? 500.0f : 2.0f;
+                    const Vec3 shift{float(rng.uniform(-0.5, 0.5)) * d, float(rng.uniform(-0.5, 0.5)) * d,
+                                     float(rng.uniform(-0.5, 0.5)) * d};
+                    o.box = {o.box.min + shift, o.box.max + shift};
+                    coherent.move(o), radix.move(o);
+                }
+            }
+            const bool beyond = frame == 5 || frame == 15;
+            if (beyond) {
+                const Vec3 c{float(4000 + frame), 0, 0};
+                live[2].box = {c, c + Vec3{1, 1, 1}};
+                coherent.move(live[2]), radix.move(live[2]);
+            }
+            coherent.commit();
+            radix.commit();
+            EXPECT_EQ(coherent.last_resorted(), frame != 10 && !beyond) << frame;
+            EXPECT_FALSE(radix.last_resorted());
+            ASSERT_NO_THROW(coherent.validate()) << frame;
+            ASSERT_TRUE(coherent.codes() == radix.codes()) << frame;
+            ASSERT_TRUE(coherent.nodes() == radix.nodes()) << frame;
+            ASSERT_TRUE(coherent.meta() == radix.meta()) << frame;
+            EXPECT_EQ(coherent.stats(), radix.stats()) << frame;
+        }
+    }
 }
 
 /// The tree is Karras' binary radix tree over the sorted keys (code, then size for equal codes,
 /// then slot), numbered as in Karras 2012 (an inner node sits at the end of its range where its
 /// parent splits; root 0, leaves after the inner nodes): checked against a plain recursive
-/// construction from std::sort, with codes computed here as docs/structures.md defines them.
+/// construction from std::sort, with codes computed here as docs/structures.md defines them. 5 000
+/// objects take the sort's short path, 30 000 its bucket path (which also writes the leaves).
 TEST(LinearBvh, IsKarrasRadixTreeOfTheSortedCodes) {
-    Random rng(11);
-    std::vector<Object> objects;
-    for (Uid u = 0; u < 5000; ++u) {
-        Aabb b = test::random_box(rng, 100);
-        if (u % 4 == 0) {  // duplicate centroids with different sizes: runs of equal codes
-            const Vec3 c{float(rng.below(4)) * 10, float(rng.below(4)) * 10, float(rng.below(4)) * 10};
-            const float h = float(1 + rng.below(3));
-            b = {c - Vec3{h, h, h}, c + Vec3{h, h, h}};
-        }
-        objects.push_back({u * 3 + 1, b});
-    }
-    for (int threads : {1, 2}) {
-        LinearBvh tree(LinearBvh::Params{.threads = threads, .outlier_guard = false});
-        tree.build(objects);
-        tree.validate();
-        const std::size_t n = objects.size();
-        // Codes: centroids normalised to their bounds, 21 bits per axis, x in the highest bit.
-        Aabb cb = Aabb::empty();
-        for (const Object& o : objects) cb.min = min(cb.min, o.box.center()), cb.max = max(cb.max, o.box.center());
-        constexpr float kMax = float((1u << 21) - 1);
-        struct Key {
-            std::uint64_t code;
-            std::uint32_t area_bits, slot;
-        };
-        std::vector<Key> keys;
-        for (std::uint32_t i = 0; i < n; ++i) {
-            const Vec3 c = objects[i].box.center();
-            std::uint64_t code = 0;
-            for (int a = 0; a < 3; ++a) {
-                const float ext = cb.max[a] - cb.min[a];
-                const float scale = ext > 0 ? kMax / ext : 0.0f;
-                const auto q = std::uint64_t(std::clamp((c[a] - cb.min[a]) * scale, 0.0f, kMax));
-                for (int bit = 0; bit < 21; ++bit) code |= ((q >> bit) & 1) << (3 * bit + 2 - a);
+    for (const Uid count : {5000u, 30000u}) {
+        Random rng(11);
+        std::vector<Object> objects;
+        for (Uid u = 0; u < count; ++u) {
+            Aabb b = test::random_box(rng, 100);
+            if (u % 4 == 0) {  // duplicate centroids with different sizes: runs of equal codes
+                const Vec3 c{float(rng.below(4)) * 10, float(rng.below(4)) * 10, float(rng.below(4)) * 10};
+                const float h = float(1 + rng.below(3));
+                b = {c - Vec3{h, h, h}, c + Vec3{h, h, h}};
             }
-            keys.push_back({code, std::bit_cast<std::uint32_t>(objects[i].box.half_area()), i});
+            objects.push_back({u * 3 + 1, b});
         }
-        std::sort(keys.begin(), keys.end(), [](const Key& a, const Key& b) {
-            return std::tie(a.code, a.area_bits, a.slot) < std::tie(b.code, b.area_bits, b.slot);
-        });
-        const std::vector<LinearBvh::Node>& nodes = tree.nodes();
-        ASSERT_EQ(nodes.size(), 2 * n - 1);
-        ASSERT_EQ(tree.codes().size(), n);
-        const std::uint32_t leaf_base = std::uint32_t(n - 1);
-        for (std::size_t k = 0; k < n; ++k) {
-            ASSERT_EQ(tree.codes()[k], keys[k].code) << k;
-            ASSERT_EQ(nodes[leaf_base + k].child[0], objects[keys[k].slot].uid) << k;
-        }
-        // Karras' tree: a range splits where its first and last keys' common prefix ends (equal codes
-        // compare their sorted indices); the left part is node `split` (a leaf if it is one key), the
-        // right part node `split + 1`.
-        auto prefix = [&](std::uint32_t i, std::uint32_t j) {
-            const std::uint64_t x = keys[i].code ^ keys[j].code;
-            return x ? std::countl_zero(x) : 64 + std::countl_zero(i ^ j);
-        };
-        std::size_t inner = 0;
-        auto check = [&](auto&& self, std::uint32_t first, std::uint32_t last, std::uint32_t index,
-                         std::uint32_t parent) -> Aabb {
-            const LinearBvh::Node& node = nodes[index];
-            EXPECT_EQ(node.parent, parent) << index;
-            if (first == last) {
-                EXPECT_EQ(index, leaf_base + first);
-                return objects[keys[first].slot].box;
+        for (int threads : {1, 2}) {
+            LinearBvh tree(LinearBvh::Params{.threads = threads, .outlier_guard = false});
+            tree.build(objects);
+            tree.validate();
+            const std::size_t n = objects.size();
+            // Codes: centroids normalised to their bounds, 21 bits per axis, x in the highest bit.
+            Aabb cb = Aabb::empty();
+            for (const Object& o : objects) cb.min = min(cb.min, o.box.center()), cb.max = max(cb.max, o.box.center());
+            constexpr float kMax = float((1u << 21) - 1);
+            struct Key {
+                std::uint64_t code;
+                std::uint32_t area_bits, slot;
+            };
+            std::vector<Key> keys;
+            for (std::uint32_t i = 0; i < n; ++i) {
+                const Vec3 c = objects[i].box.center();
+                std::uint64_t code = 0;
+                for (int a = 0; a < 3; ++a) {
+                    const float ext = cb.max[a] - cb.min[a];
+                    const float scale = ext > 0 ? kMax / ext : 0.0f;
+                    const auto q = std::uint64_t(std::clamp((c[a] - cb.min[a]) * scale, 0.0f, kMax));
+                    for (int bit = 0; bit < 21; ++bit) code |= ((q >> bit) & 1) << (3 * bit + 2 - a);
+                }
+                keys.push_back({code, std::bit_cast<std::uint32_t>(objects[i].box.half_area()), i});
             }
-            ++inner;
-            const int common = prefix(first, last);
-            std::uint32_t split = first;  // the last key sharing more than `common` with the first
-            while (prefix(first, split + 1) > common) ++split;
-            const std::uint32_t left = split == first ? leaf_base + split : split;
-            const std::uint32_t right = split + 1 == last ? leaf_base + split + 1 : split + 1;
-            EXPECT_EQ(node.child[0], left) << index;
-            EXPECT_EQ(node.child[1], right) << index;
-            const Aabb box = merge(self(self, first, split, left, index), self(self, split + 1, last, right, index));
-            EXPECT_TRUE(node.box == box) << index;
-            return box;
-        };
-        check(check, 0, std::uint32_t(n - 1), 0, kNullNode);
-        EXPECT_EQ(inner, n - 1);
+            std::sort(keys.begin(), keys.end(), [](const Key& a, const Key& b) {
+                return std::tie(a.code, a.area_bits, a.slot) < std::tie(b.code, b.area_bits, b.slot);
+            });
+            const std::vector<LinearBvh::Node>& nodes = tree.nodes();
+            ASSERT_EQ(nodes.size(), 2 * n - 1);
+            ASSERT_EQ(tree.codes().size(), n);
+            const std::uint32_t leaf_base = std::uint32_t(n - 1);
+            for (std::size_t k = 0; k < n; ++k) {
+                ASSERT_EQ(tree.codes()[k], keys[k].code) << k;
+                ASSERT_EQ(nodes[leaf_base + k].child[0], objects[keys[k].slot].uid) << k;
+            }
+            // Karras' tree: a range splits where its first and last keys' common prefix ends (equal codes
+            // compare their sorted indices); the left part is node `split` (a leaf if it is one key), the
+            // right part node `split + 1`.
+            auto prefix = [&](std::uint32_t i, std::uint32_t j) {
+                const std::uint64_t x = keys[i].code ^ keys[j].code;
+                return x ? std::countl_zero(x) : 64 + std::countl_zero(i ^ j);
+            };
+            std::size_t inner = 0;
+            // Returns the subtree's box and sets its height.
+            auto check = [&](auto&& self, std::uint32_t first, std::uint32_t last, std::uint32_t index,
+                             int& height) -> Aabb {
+                const LinearBvh::Node& node = nodes[index];
+                if (first == last) {
+                    EXPECT_EQ(index, leaf_base + first);
+                    EXPECT_EQ(node.child[1], kNullNode) << index;
+                    height = 0;
+                    return objects[keys[first].slot].box;
+                }
+                ++inner;
+                const int common = prefix(first, last);
+                std::uint32_t split = first;  // the last key sharing more than `common` with the first
+                while (prefix(first, split + 1) > common) ++split;
+                const std::uint32_t left = split == first ? leaf_base + split : split;
+                const std::uint32_t right = split + 1 == last ? leaf_base + split + 1 : split + 1;
+                EXPECT_EQ(node.child[0], left) << index;
+                EXPECT_EQ(node.child[1], right) << index;
+                int h0, h1;
+                const Aabb box = merge(self(self, first, split, left, h0), self(self, split + 1, last, right, h1));
+                EXPECT_TRUE(node.box == box) << index;
+                height = 1 + std::max(h0, h1);
+                EXPECT_EQ(tree.meta()[index].height, height) << index;
+                return box;
+            };
+            int height;
+            check(check, 0, std::uint32_t(n - 1), 0, height);
+            EXPECT_EQ(inner, n - 1);
+            EXPECT_EQ(tree.height(), height);
+        }
     }
 }
 

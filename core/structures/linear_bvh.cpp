@@ -4,6 +4,7 @@
 #include <array>
 #include <bit>
 #include <chrono>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 
@@ -71,11 +72,25 @@ void sort_bucket(std::uint64_t* k, std::uint32_t* v, std::uint64_t* tk, std::uin
         for (std::size_t i = 0; i < n; ++i) ++count[(k[i] >> shift) & mask];
         bits = shift;
         if (count[(k[0] >> shift) & mask] == n) continue;  // one digit: nothing moves
-        std::uint32_t at[1u << kSubBits], sum = 0;
-        for (std::uint32_t g = 0; g <= mask; ++g) at[g] = sum, sum += count[g];
+        std::uint32_t at[1u << kSubBits], sum = 0, largest = 0;
+        for (std::uint32_t g = 0; g <= mask; ++g) at[g] = sum, sum += count[g], largest = std::max(largest, count[g]);
         for (std::size_t i = 0; i < n; ++i) {
             const std::uint32_t j = at[(k[i] >> shift) & mask]++;
             tk[j] = k[i], tv[j] = v[i];
+        }
+        if (largest <= kInsertion) {
+            // Every digit's keys are few (the common case of a top bucket: about 500 keys over
+            // 256 digits): one insertion pass copies them back in order. A key only passes keys
+            // of its own digit, so this costs about as much as the copy, and replaces a call per
+            // digit.
+            for (std::size_t i = 0; i < n; ++i) {
+                const std::uint64_t key = tk[i];
+                const std::uint32_t val = tv[i];
+                std::size_t j = i;
+                for (; j > 0 && k[j - 1] > key; --j) k[j] = k[j - 1], v[j] = v[j - 1];
+                k[j] = key, v[j] = val;
+            }
+            return;
         }
         std::copy_n(tk, n, k);
         std::copy_n(tv, n, v);
@@ -112,22 +127,43 @@ void LinearBvh::build(std::span<const Object> objects) {
     objects_.clear();
     objects_.reserve(objects.size());
     for (const Object& o : objects) objects_.insert(o);
+    changes_ = kNoOrder;  // new slots: the last order says nothing about them
+    centroids_moved_ = true;
     rebuilds_since_crowd_check_ = kCrowdCheckEvery;  // look for crowds in the first tree
     rebuild();
 }
 
+/// The centroid bounds of the last rebuild stay exact while no centre leaves them and none on
+/// their faces goes (a conservative test: a centre on a face may have a twin there).
+namespace {
+bool inside(const Vec3& c, const Aabb& b) {
+    return b.min.x <= c.x && c.x <= b.max.x && b.min.y <= c.y && c.y <= b.max.y && b.min.z <= c.z && c.z <= b.max.z;
+}
+bool strictly_inside(const Vec3& c, const Aabb& b) {
+    return b.min.x < c.x && c.x < b.max.x && b.min.y < c.y && c.y < b.max.y && b.min.z < c.z && c.z < b.max.z;
+}
+}  // namespace
+
 void LinearBvh::insert(const Object& o) {
     objects_.insert(o);
+    ++changes_;
+    centroids_moved_ |= !inside(o.box.center(), centroid_bounds_);
     dirty_ = true;
 }
 
 void LinearBvh::remove(Uid uid) {
-    objects_.remove(uid);
+    Aabb old;
+    objects_.remove(uid, &old);
+    ++changes_;
+    centroids_moved_ |= !strictly_inside(old.center(), centroid_bounds_);
     dirty_ = true;
 }
 
 void LinearBvh::move(const Object& o) {
-    objects_.move(o);
+    Aabb old;
+    objects_.move(o, &old);
+    ++changes_;
+    centroids_moved_ |= !strictly_inside(old.center(), centroid_bounds_) || !inside(o.box.center(), centroid_bounds_);
     dirty_ = true;
 }
 
@@ -135,7 +171,7 @@ void LinearBvh::commit() {
     if (dirty_) rebuild();
 }
 
-/// Stable radix sort of codes_ with order_ as payload, most significant digit first over the bits
+/// Stable radix sort of codes_ with their slots as payload (into order_), most significant digit first over the bits
 /// that vary (`varying`: the codes' OR xor AND). The first pass, over all keys, scatters each chunk
 /// of rebuild()'s in order with the digit counts it took (stable, and the same result for any chunk
 /// count); the buckets are then sorted independently, so the threads share them without changing
@@ -148,6 +184,7 @@ void LinearBvh::sort_codes(std::uint64_t varying) {
     // The first pass uses the digit that rebuild() counted (bits 52 to 62) when the top bit varies
     // (it does unless the centroids are flat in x); a short or narrow array goes to sort_bucket.
     if (n < 4 * kTopDigits || bits != 63) {
+        std::iota(order_.begin(), order_.end(), 0u);
         sort_bucket(codes_.data(), order_.data(), codes_tmp_.data(), order_tmp_.data(), n, bits);
         return;
     }
@@ -155,7 +192,6 @@ void LinearBvh::sort_codes(std::uint64_t varying) {
     const std::size_t chunks = histograms_.size() / kTopDigits;
     const std::size_t chunk_len = (n + chunks - 1) / chunks;
     const std::uint64_t* src_k = codes_.data();
-    const std::uint32_t* src_v = order_.data();
     std::uint64_t* dst_k = codes_tmp_.data();
     std::uint32_t* dst_v = order_tmp_.data();
     bucket_start_.resize(kTopDigits + 1);
@@ -177,7 +213,7 @@ void LinearBvh::sort_codes(std::uint64_t varying) {
             for (std::size_t i = b; i < e; ++i) {
                 const std::uint32_t at = h[src_k[i] >> shift]++;
                 dst_k[at] = src_k[i];
-                dst_v[at] = src_v[i];
+                dst_v[at] = std::uint32_t(i);
             }
         }
     });
@@ -192,6 +228,271 @@ void LinearBvh::sort_codes(std::uint64_t varying) {
     order_.swap(order_tmp_);
 }
 
+/// Steps 1 and 2 (codes, sort, equal codes) and the leaves, from the last rebuild's order instead
+/// of a radix sort, when at most 1/16 of the objects changed since: the objects, visited in the
+/// last sorted order (its slots; slots gone dropped, new ones last), are then nearly in order, as
+/// in the incremental sorts of sweep-and-prune broad phases (Baraff 1992; Cohen et al. 1995,
+/// "I-COLLIDE"). One pass gathers each box and uid in that order, codes it and writes its leaf
+/// record; one pass splits off the keys (code, then half area and slot) that break the order (the
+/// kept keys above the new one are dropped when at most kLook of them are, else the new one), the
+/// dropped ones are sorted, and a merge writes the codes, slots and leaves in order. The result is the radix sort's
+/// exactly (same keys, same total order), only cheaper: no scatter over 2048 buckets, and the leaves
+/// come from records read in order rather than from a gather in sorted order. Returns false (and
+/// leaves everything to the radix path) when there is no usable order or more than 1/16 of the
+/// keys are out of place (the first build, mass changes, a change of the code bounds that reorders
+/// many codes).
+template <class Lap>
+bool LinearBvh::resort(std::size_t chunks, Lap& lap, bool& bounds_known) {
+    const std::size_t n = objects_.size(), n_old = order_.size();
+    if (!params_.coherent_sort || n < 4 * kTopDigits || n_old == 0 || changes_ > n / 16) return false;
+    const Aabb* boxes = objects_.layout().all().data();
+    const Uid* uids = objects_.uids().data();
+    // The centroid bounds first: the last ones when no change could have moved them (see
+    // insert()), else a pass in slot order (a sequential read). When they changed (an extreme
+    // object moved), every code moves on the grid and the Morton order of shifted or scaled points
+    // differs from the last one almost everywhere, so the radix path takes over, with these bounds.
+    const std::size_t chunk_len = (n + chunks - 1) / chunks;
+    std::array<Aabb, 64 * 4> part;
+    if (!centroids_moved_) {
+        part[0] = centroid_bounds_;
+        for (std::size_t c = 1; c < chunks; ++c) part[c] = Aabb::empty();
+    } else
+        parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+            for (std::size_t c = c0; c < c1; ++c) {
+                Vec3 lo = Aabb::empty().min, hi = Aabb::empty().max;
+                const std::size_t e = std::min(n, (c + 1) * chunk_len);
+                for (std::size_t i = std::min(n, c * chunk_len); i < e; ++i) {
+                    const Vec3 m = boxes[i].center();
+                    lo = rcb::min(lo, m), hi = rcb::max(hi, m);
+                }
+                part[c] = {lo, hi};
+            }
+        });
+    Aabb cb = Aabb::empty();
+    for (std::size_t c = 0; c < chunks; ++c) cb = merge(cb, part[c]);
+    centroid_bounds_ = cb;
+    if (params_.outlier_guard) trim_outliers(cb);
+    bounds_known = true;
+    if (!(cb == code_bounds_)) {
+        code_bounds_ = cb;
+        return false;
+    }
+    // The last order: slots past the end dropped (their objects now live in lower slots, which
+    // stay where they were: out of place, to be split off), new slots appended.
+    if (n < n_old)
+        order_.erase(std::remove_if(order_.begin(), order_.end(), [n](std::uint32_t s) { return s >= n; }),
+                     order_.end());
+    for (std::size_t s = n_old; s < n; ++s) order_.push_back(std::uint32_t(s));
+    codes_.resize(n);
+    codes_tmp_.resize(n);
+    order_tmp_.resize(n);
+    kept_.resize(n);
+    nodes_.resize(2 * n - 1);
+    leaf_base_ = std::uint32_t(n - 1);
+    std::uint32_t* seq = order_.data();
+    std::uint64_t* codes = codes_.data();
+    Node* nodes = nodes_.data();
+    // 1. Codes and the leaf records (box and uid), in the last order.
+    //    The records go to the node array's first n nodes (the inner nodes' part, unused until
+    //    the tree step, and the first leaf, whose record is set aside before the merge).
+    constexpr float kMax = float((1u << 21) - 1);
+    auto scale_of = [&](const Aabb& cb) {
+        Vec3 scale;
+        for (int a = 0; a < 3; ++a) {
+            const float ext = cb.max[a] - cb.min[a];
+            scale[a] = ext > 0 ? kMax / ext : 0.0f;
+        }
+        return scale;
+    };
+    auto code_of = [&](const Vec3& m, const Aabb& cb, const Vec3& scale) {
+        const auto qx = std::uint32_t(std::clamp((m.x - cb.min.x) * scale.x, 0.0f, kMax));
+        const auto qy = std::uint32_t(std::clamp((m.y - cb.min.y) * scale.y, 0.0f, kMax));
+        const auto qz = std::uint32_t(std::clamp((m.z - cb.min.z) * scale.z, 0.0f, kMax));
+        return spread_bits(qx) << 2 | spread_bits(qy) << 1 | spread_bits(qz);
+    };
+    {
+        const Vec3 scale = scale_of(cb);
+        parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+            constexpr std::size_t kAhead = 48;  // rows ahead: the gather waits on memory misses
+            for (std::size_t c = c0; c < c1; ++c) {
+                const std::size_t b = std::min(n, c * chunk_len), e = std::min(n, b + chunk_len);
+                for (std::size_t k = b; k < e; ++k) {
+                    if (k + kAhead < e) {
+                        const std::uint32_t ahead = seq[k + kAhead];
+                        __builtin_prefetch(&boxes[ahead]);
+                        __builtin_prefetch(reinterpret_cast<const char*>(&boxes[ahead + 1]) - 1);
+                        __builtin_prefetch(&uids[ahead]);
+                    }
+                    const std::uint32_t slot = seq[k];
+                    const Aabb box = boxes[slot];
+                    codes[k] = code_of(box.center(), cb, scale);
+                    nodes[k] = Node{box, {uids[slot], kNullNode}};
+                }
+            }
+        });
+    }
+    lap(phases_.codes);
+    // The first leaf's record, set aside: the merge writes that node.
+    const Node last_record = nodes[n - 1];
+    auto record = [&](std::uint32_t k) -> const Node& { return k == n - 1 ? last_record : nodes[k]; };
+    // 2. Split off the keys out of order, per chunk: kept_[b, top) holds the chunk's kept
+    //    positions (their keys ascending), outliers_[c] the others. The key is the final order's:
+    //    the code, then for equal codes the half area's bits and the slot (see "Equal codes").
+    auto less = [&](std::uint32_t i, std::uint32_t j) {
+        if (codes[i] != codes[j]) return codes[i] < codes[j];
+        const auto ai = std::bit_cast<std::uint32_t>(record(i).box.half_area()),
+                   aj = std::bit_cast<std::uint32_t>(record(j).box.half_area());
+        return ai < aj || (ai == aj && seq[i] < seq[j]);
+    };
+    constexpr std::uint32_t kLook = 8;
+    std::uint32_t* kept = kept_.data();
+    outliers_.resize(chunks);
+    std::array<std::array<std::uint32_t, 2>, 64 * 4> run;  // per chunk: its kept positions in kept_
+    parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+        for (std::size_t c = c0; c < c1; ++c) {
+            std::vector<std::uint32_t>& out = outliers_[c];
+            out.clear();
+            const auto b = std::uint32_t(std::min(n, c * chunk_len)), e = std::uint32_t(std::min(n, b + chunk_len));
+            std::uint32_t top = b;
+            for (std::uint32_t k = b; k < e; ++k) {
+                if (top == b || !less(k, kept[top - 1])) {
+                    kept[top++] = k;
+                    continue;
+                }
+                // kept[p, top) are the kept keys above k's, looked for down to kLook of them.
+                std::uint32_t p = top - 1;
+                while (p > b && top - p < kLook && less(k, kept[p - 1])) --p;
+                if (p == b || !less(k, kept[p - 1])) {
+                    out.insert(out.end(), kept + p, kept + top);
+                    top = p;
+                    kept[top++] = k;
+                } else {
+                    out.push_back(k);
+                }
+            }
+            run[c] = {b, top};
+        }
+    });
+    // Where two chunks' kept runs meet out of order, the same rule on one side or the other.
+    std::vector<std::uint32_t>& extra = outliers_[0];
+    std::size_t prev = chunks;  // the last chunk with kept keys so far
+    for (std::size_t c = 0; c < chunks; ++c) {
+        std::uint32_t &kb = run[c][0], &kt = run[c][1];
+        while (kb < kt && prev < chunks && less(kept[kb], kept[run[prev][1] - 1])) {
+            std::uint32_t &pb = run[prev][0], &pt = run[prev][1];
+            if (pt - pb >= 2 && !less(kept[kb], kept[pt - 2]))
+                extra.push_back(kept[--pt]);
+            else
+                extra.push_back(kept[kb++]);
+            if (pb == pt) {  // that run emptied: compare with the one before it
+                std::size_t q = prev;
+                prev = chunks;
+                while (q-- > 0)
+                    if (run[q][0] < run[q][1]) {
+                        prev = q;
+                        break;
+                    }
+            }
+        }
+        if (kb < kt) prev = c;
+    }
+    std::vector<std::uint32_t>& out = outliers_all_;
+    out.clear();
+    for (std::size_t c = 0; c < chunks; ++c) out.insert(out.end(), outliers_[c].begin(), outliers_[c].end());
+    if (out.size() > n / 16) return false;  // too far from the last order: the radix path
+    std::sort(out.begin(), out.end(), less);
+    // 3. The merge, per chunk with kept keys: its run and the outliers from its first kept key
+    //    (from the start for the first such chunk) to the next chunk's first kept key.
+    std::array<std::array<std::uint32_t, 3>, 64 * 4> merge_part;  // outliers [lo, hi), output start
+    std::size_t parts = 0;
+    {
+        std::uint32_t written = 0, lo = 0;
+        std::array<std::size_t, 64 * 4> chunk_of;
+        for (std::size_t c = 0; c < chunks; ++c)
+            if (run[c][0] < run[c][1]) chunk_of[parts++] = c;
+        for (std::size_t i = 0; i < parts; ++i) {
+            const std::size_t c = chunk_of[i];
+            const std::uint32_t hi =
+                i + 1 < parts
+                    ? std::uint32_t(std::lower_bound(out.begin(), out.end(), kept[run[chunk_of[i + 1]][0]], less) -
+                                    out.begin())
+                    : std::uint32_t(out.size());
+            merge_part[i] = {lo, hi, written + lo};
+            written += run[c][1] - run[c][0];
+            lo = hi;
+            run[i] = run[c];  // compacted: part i's kept run
+        }
+    }
+    if (parts == 0) return false;
+    const std::uint32_t leaf_base = leaf_base_;
+    std::uint64_t* out_codes = codes_tmp_.data();
+    std::uint32_t* out_order = order_tmp_.data();
+    const std::uint32_t* outl = out.data();
+    // Each part also counts its keys in runs of equal codes (the stats' "tied_codes", already in
+    // their order) as far as it sees; the parts' first and last keys are settled below.
+    std::array<std::size_t, 64 * 4> tied;
+    parallel(parts, 1, [&](std::size_t i0, std::size_t i1) {
+        // Local restrict pointers: the stores below then do not make the loop reload them.
+        const std::uint64_t* __restrict in_codes = codes;
+        const std::uint32_t* __restrict in_order = seq;
+        const std::uint32_t* __restrict kept_at = kept;
+        std::uint64_t* __restrict codes_to = out_codes;
+        std::uint32_t* __restrict order_to = out_order;
+        Node* __restrict leaves = nodes + leaf_base;
+        for (std::size_t i = i0; i < i1; ++i) {
+            std::uint32_t a = run[i][0];
+            const std::uint32_t a_end = run[i][1];
+            std::uint32_t o = merge_part[i][0];
+            const std::uint32_t o_end = merge_part[i][1];
+            const std::uint32_t j0 = merge_part[i][2];
+            std::uint32_t j = j0;
+            std::size_t t = 0, same = 0;  // same: keys so far with the previous key's code
+            std::uint64_t prev = 0;
+            auto put = [&](std::uint32_t k) {
+                const std::uint64_t code = in_codes[k];
+                same = j != j0 && code == prev ? same + 1 : 1;
+                t += same == 2 ? 2 : same > 2;
+                prev = code;
+                codes_to[j] = code;
+                order_to[j] = in_order[k];
+                leaves[j] = k == n - 1 ? last_record : nodes[k];
+                ++j;
+            };
+            for (;;) {
+                // The kept keys below the next outlier (all, when none is left): found by a binary
+                // search, then copied with no comparison per key.
+                const std::uint32_t stop =
+                    o < o_end ? std::uint32_t(std::lower_bound(kept_at + a, kept_at + a_end, outl[o], less) - kept_at)
+                              : a_end;
+                for (; a < stop; ++a) put(kept_at[a]);
+                if (o == o_end) break;
+                put(outl[o++]);
+            }
+            tied[i] = t;
+        }
+    });
+    codes_.swap(codes_tmp_);
+    order_.swap(order_tmp_);
+    tied_codes_ = 0;
+    {
+        const std::uint64_t* c = codes_.data();
+        // Whether key j has an equal code beside it in [b, e).
+        auto in_run = [c](std::size_t j, std::size_t b, std::size_t e) {
+            return (j > b && c[j] == c[j - 1]) || (j + 1 < e && c[j] == c[j + 1]);
+        };
+        for (std::size_t i = 0; i < parts; ++i) {
+            const std::size_t b = merge_part[i][2], e = i + 1 < parts ? merge_part[i + 1][2] : n;
+            tied_codes_ += tied[i];
+            for (std::size_t j : {b, e - 1}) {
+                tied_codes_ += std::size_t(in_run(j, 0, n)) - std::size_t(in_run(j, b, e));
+                if (e - b == 1) break;
+            }
+        }
+    }
+    lap(phases_.sort);
+    return true;
+}
+
 void LinearBvh::rebuild() {
     dirty_ = false;
     const std::size_t n = objects_.size();
@@ -201,6 +502,7 @@ void LinearBvh::rebuild() {
     crowds_ = tied_codes_ = 0;
     if (n == 0) {
         nodes_.clear();
+        meta_.clear();
         codes_.clear();
         order_.clear();
         common_.clear();
@@ -216,81 +518,95 @@ void LinearBvh::rebuild() {
     };
     phases_ = {};
     const Aabb* boxes = objects_.layout().all().data();
-    // 1. Morton codes of the centroids in the bounds of the centroids (min and max are exact, so
-    //    the chunking does not change them). One pass finds the bounds and, in the same read of
-    //    the boxes, codes them in the last rebuild's bounds; only when the bounds changed (an
-    //    extreme object moved) does a second pass code them again. The same pass counts the codes'
-    //    top digit for the sort.
     const std::size_t chunks = arena_ ? std::size_t(params_.threads) * 4 : 1;
     const std::size_t chunk_len = (n + chunks - 1) / chunks;
-    struct Part {
-        Vec3 min, max;
-        std::uint64_t all_or, all_and;
-    };
-    std::array<Part, 64 * 4> part;
-    constexpr float kMax = float((1u << 21) - 1);
-    codes_.resize(n);
-    order_.resize(n);
-    histograms_.resize(chunks * kTopDigits);
-    auto encode = [&](const Aabb& cb, bool bounds, bool codes) {
-        Vec3 scale;
-        for (int a = 0; a < 3; ++a) {
-            const float ext = cb.max[a] - cb.min[a];
-            scale[a] = ext > 0 ? kMax / ext : 0.0f;
-        }
-        parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
-            for (std::size_t c = c0; c < c1; ++c) {
-                std::uint32_t* h = histograms_.data() + c * kTopDigits;
-                std::fill_n(h, kTopDigits, 0u);
-                Vec3 lo = Aabb::empty().min, hi = Aabb::empty().max;
-                std::uint64_t all_or = 0, all_and = ~0ull;
-                const std::size_t e = std::min(n, (c + 1) * chunk_len);
-                for (std::size_t i = c * chunk_len; i < e; ++i) {
-                    const Vec3 m = boxes[i].center();
-                    if (bounds) lo = rcb::min(lo, m), hi = rcb::max(hi, m);
-                    if (!codes) continue;
-                    // In [0, 2^21): the conversion to 32 bits truncates as one to 64 bits would.
-                    const auto qx = std::uint32_t(std::clamp((m.x - cb.min.x) * scale.x, 0.0f, kMax));
-                    const auto qy = std::uint32_t(std::clamp((m.y - cb.min.y) * scale.y, 0.0f, kMax));
-                    const auto qz = std::uint32_t(std::clamp((m.z - cb.min.z) * scale.z, 0.0f, kMax));
-                    const std::uint64_t code = spread_bits(qx) << 2 | spread_bits(qy) << 1 | spread_bits(qz);
-                    codes_[i] = code;
-                    order_[i] = std::uint32_t(i);
-                    all_or |= code, all_and &= code;
-                    ++h[code >> (63 - kTopBits)];
-                }
-                if (bounds) part[c].min = lo, part[c].max = hi;
-                part[c].all_or = all_or, part[c].all_and = all_and;
+    // Steps 1 and 2 from the last tree's order when few objects changed (see resort()); it writes
+    // the leaves too. Otherwise, or when it finds the order too far from the new one:
+    bool bounds_known = false;
+    const bool leaves_written = resorted_ = resort(chunks, lap, bounds_known);
+    if (!leaves_written) {
+        // 1. Morton codes of the centroids in the bounds of the centroids (min and max are exact, so
+        //    the chunking does not change them). One pass finds the bounds and, in the same read of
+        //    the boxes, codes them in the last rebuild's bounds; only when the bounds changed (an
+        //    extreme object moved) does a second pass code them again. The same pass counts the codes'
+        //    top digit for the sort.
+        struct Part {
+            Vec3 min, max;
+            std::uint64_t all_or, all_and;
+        };
+        std::array<Part, 64 * 4> part;
+        constexpr float kMax = float((1u << 21) - 1);
+        codes_.resize(n);
+        order_.resize(n);
+        histograms_.resize(chunks * kTopDigits);
+        auto encode = [&](const Aabb& cb, bool bounds, bool codes) {
+            Vec3 scale;
+            for (int a = 0; a < 3; ++a) {
+                const float ext = cb.max[a] - cb.min[a];
+                scale[a] = ext > 0 ? kMax / ext : 0.0f;
             }
-        });
-    };
-    encode(code_bounds_, true, !code_bounds_.is_empty());
-    Aabb cb = Aabb::empty();
-    for (std::size_t c = 0; c < chunks; ++c) cb = merge(cb, Aabb{part[c].min, part[c].max});
-    if (params_.outlier_guard) trim_outliers(cb);
-    if (code_bounds_.is_empty() || !(cb == code_bounds_)) {
-        code_bounds_ = cb;
-        encode(cb, false, true);
+            parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+                for (std::size_t c = c0; c < c1; ++c) {
+                    std::uint32_t* h = histograms_.data() + c * kTopDigits;
+                    std::fill_n(h, kTopDigits, 0u);
+                    Vec3 lo = Aabb::empty().min, hi = Aabb::empty().max;
+                    std::uint64_t all_or = 0, all_and = ~0ull;
+                    const std::size_t e = std::min(n, (c + 1) * chunk_len);
+                    for (std::size_t i = c * chunk_len; i < e; ++i) {
+                        const Vec3 m = boxes[i].center();
+                        if (bounds) lo = rcb::min(lo, m), hi = rcb::max(hi, m);
+                        if (!codes) continue;
+                        // In [0, 2^21): the conversion to 32 bits truncates as one to 64 bits would.
+                        const auto qx = std::uint32_t(std::clamp((m.x - cb.min.x) * scale.x, 0.0f, kMax));
+                        const auto qy = std::uint32_t(std::clamp((m.y - cb.min.y) * scale.y, 0.0f, kMax));
+                        const auto qz = std::uint32_t(std::clamp((m.z - cb.min.z) * scale.z, 0.0f, kMax));
+                        const std::uint64_t code = spread_bits(qx) << 2 | spread_bits(qy) << 1 | spread_bits(qz);
+                        codes_[i] = code;
+                        all_or |= code, all_and &= code;
+                        ++h[code >> (63 - kTopBits)];
+                    }
+                    if (bounds) part[c].min = lo, part[c].max = hi;
+                    part[c].all_or = all_or, part[c].all_and = all_and;
+                }
+            });
+        };
+        if (bounds_known) {  // resort() found them: one pass
+            encode(code_bounds_, false, true);
+        } else {
+            encode(code_bounds_, true, !code_bounds_.is_empty());
+            Aabb cb = Aabb::empty();
+            for (std::size_t c = 0; c < chunks; ++c) cb = merge(cb, Aabb{part[c].min, part[c].max});
+            centroid_bounds_ = cb;
+            if (params_.outlier_guard) trim_outliers(cb);
+            if (code_bounds_.is_empty() || !(cb == code_bounds_)) {
+                code_bounds_ = cb;
+                encode(cb, false, true);
+            }
+        }
+        std::uint64_t all_or = 0, all_and = ~0ull;
+        for (std::size_t c = 0; c < chunks; ++c) all_or |= part[c].all_or, all_and &= part[c].all_and;
+        lap(phases_.codes);
+        // 2. Sort; equal codes by size (see "Equal codes" in the header).
+        sort_codes(all_or ^ all_and);
+        order_equal_codes();
+        lap(phases_.sort);
     }
-    std::uint64_t all_or = 0, all_and = ~0ull;
-    for (std::size_t c = 0; c < chunks; ++c) all_or |= part[c].all_or, all_and &= part[c].all_and;
-    lap(phases_.codes);
-    // 2. Sort; equal codes by size (see "Equal codes" in the header).
-    sort_codes(all_or ^ all_and);
-    order_equal_codes();
-    lap(phases_.sort);
+    changes_ = 0;
+    centroids_moved_ = false;
     nodes_.resize(2 * n - 1);
     leaf_base_ = std::uint32_t(n - 1);
     if (n == 1) {
-        nodes_[0] = Node{boxes[0], {objects_.uid(0), kNullNode}, kNullNode, 0, kShared};
+        nodes_[0] = Node{boxes[0], {objects_.uid(0), kNullNode}};
+        meta_.clear();
         common_.clear();
         ranges_.clear();
         lap(phases_.tree);
         return;
     }
+    meta_.resize(n - 1);
     common_.resize(n - 1);
     ranges_.resize(n - 1);
-    bound_.assign(n - 1, kNullNode);
+    bound_.resize(n - 1, kNullNode);
     // 3. The binary radix tree of Karras 2012 (thesis Algorithm 3) and its bounds (thesis
     //    Algorithm 4) in one bottom-up pass, as Apetrei 2014 ("Fast and simple agglomerative LBVH
     //    construction") builds it: a node over the keys [l, r] hangs below the split at r (as the
@@ -319,6 +635,7 @@ void LinearBvh::rebuild() {
     // marks to `found`.
     // Plain pointers: stores into the nodes cannot then alias the members the loop reads.
     Node* nodes = nodes_.data();
+    Meta* meta = meta_.data();
     std::uint32_t* bound = bound_.data();
     std::array<std::uint32_t, 2>* ranges = ranges_.data();
     Aabb* common = common_.data();
@@ -335,8 +652,11 @@ void LinearBvh::rebuild() {
             }
             const std::uint32_t split = left ? r : l - 1;
             const std::uint32_t other = bound[split];
-            bound[split] = left ? l : r;
-            if (other == kNullNode) return false;
+            if (other == kNullNode) {
+                bound[split] = left ? l : r;
+                return false;
+            }
+            bound[split] = kNullNode;
             if (left)
                 r = other;
             else
@@ -344,29 +664,34 @@ void LinearBvh::rebuild() {
             const bool root = l == 0 && r == last;
             left = !root && (l == 0 || (r != last && delta(r) > delta(l - 1)));
             const std::uint32_t p = root ? 0 : left ? r : l;
+            // A leaf child's Meta is implied (height 0, shared); meta[split] is read either way
+            // (always in range) so that the choice is a select, not a branch.
+            const bool leaf0 = l == split, leaf1 = r == split + 1;
+            const std::uint32_t c0 = leaf0 ? leaf_base + split : split;
+            const std::uint32_t c1 = leaf1 ? leaf_base + split + 1 : split + 1;
+            const Meta m0 = leaf0 ? Meta{0, kShared} : meta[split];
+            const Meta m1 = leaf1 ? Meta{0, kShared} : meta[std::min(split + 1, last - 1)];
+            const Node& a = nodes[c0];
+            const Node& c = nodes[c1];
             Node& node = nodes[p];
-            node.child[0] = l == split ? leaf_base + split : split;
-            node.child[1] = r == split + 1 ? leaf_base + split + 1 : split + 1;
-            Node& a = nodes[node.child[0]];
-            Node& c = nodes[node.child[1]];
-            a.parent = c.parent = p;
             node.box = merge(a.box, c.box);
-            node.height = std::uint16_t(1 + std::max(a.height, c.height));
-            node.flags = 0;
-            ranges[p] = {l, r};
-            if (check_crowds && (a.flags & c.flags & kShared)) {
-                const Aabb& ca = node.child[0] >= leaf_base ? a.box : common[node.child[0]];
-                const Aabb& cc = node.child[1] >= leaf_base ? c.box : common[node.child[1]];
+            node.child[0] = c0, node.child[1] = c1;
+            Meta m{std::uint8_t(1 + std::max(m0.height, m1.height)), 0};
+            if (check_crowds && (m0.flags & m1.flags & kShared)) {
+                const Aabb& ca = leaf0 ? a.box : common[c0];
+                const Aabb& cc = leaf1 ? c.box : common[c1];
                 const Aabb shared{rcb::max(ca.min, cc.min), rcb::min(ca.max, cc.max)};
                 if (shared.min.x <= shared.max.x && shared.min.y <= shared.max.y && shared.min.z <= shared.max.z) {
                     common[p] = shared;
-                    node.flags = kShared;
+                    m.flags = kShared;
                     if (r - l + 1 >= kCrowdLeaves) {
-                        node.flags |= kCrowd;
+                        m.flags |= kCrowd;
+                        ranges[p] = {l, r};
                         ++found;
                     }
                 }
             }
+            meta[p] = m;
         }
         return false;
     };
@@ -385,7 +710,7 @@ void LinearBvh::rebuild() {
             // which find the new leaves in the cache.
             for (std::uint32_t bb = b; bb < e; bb += kBlock) {
                 const std::uint32_t be = std::min(e, bb + kBlock);
-                for (std::uint32_t k = bb; k < be; ++k) {
+                for (std::uint32_t k = bb; k < be && !leaves_written; ++k) {
                     if (k + kAhead < e) {
                         const std::uint32_t ahead = order[k + kAhead];
                         __builtin_prefetch(&boxes[ahead]);
@@ -393,9 +718,17 @@ void LinearBvh::rebuild() {
                         __builtin_prefetch(&uids[ahead]);
                     }
                     const std::uint32_t slot = order[k];
-                    nodes[leaf_base + k] = Node{boxes[slot], {uids[slot], kNullNode}, kNullNode, 0, kShared};
+                    nodes[leaf_base + k] = Node{boxes[slot], {uids[slot], kNullNode}};
                 }
                 for (std::uint32_t k = bb; k < be; ++k) {
+                    // The next block's boxes and uids into L2 while this block climbs (the climbs
+                    // wait on branches, not on memory): its gather then hits the cache.
+                    if (k + kBlock < e && !leaves_written) {
+                        const std::uint32_t next = order[k + kBlock];
+                        __builtin_prefetch(&boxes[next], 0, 2);
+                        __builtin_prefetch(reinterpret_cast<const char*>(&boxes[next + 1]) - 1, 0, 2);
+                        __builtin_prefetch(&uids[next], 0, 2);
+                    }
                     std::uint32_t l = k, r = k;
                     if (climb(l, r, b, e, found[c])) pending_[c].push_back({l, r});
                 }
@@ -408,7 +741,6 @@ void LinearBvh::rebuild() {
         crowds += found[c];
         for (auto [l, r] : pending_[c]) climb(l, r, 0, std::uint32_t(n), crowds);
     }
-    nodes_[0].parent = kNullNode;
     crowds_ = crowds;
     lap(phases_.tree);
 }
@@ -450,10 +782,12 @@ double LinearBvh::sah_cost() const {
 }
 
 std::size_t LinearBvh::memory_bytes() const {
-    return nodes_.capacity() * sizeof(Node) + objects_.memory_bytes() +
+    std::size_t outliers = outliers_all_.capacity();
+    for (const std::vector<std::uint32_t>& o : outliers_) outliers += o.capacity();
+    return nodes_.capacity() * sizeof(Node) + meta_.capacity() * sizeof(Meta) + objects_.memory_bytes() +
            (codes_.capacity() + codes_tmp_.capacity()) * sizeof(std::uint64_t) +
            (order_.capacity() + order_tmp_.capacity() + histograms_.capacity() + bucket_start_.capacity() +
-            bound_.capacity()) *
+            bound_.capacity() + kept_.capacity() + outliers) *
                sizeof(std::uint32_t) +
            scratch_bytes() + common_.capacity() * sizeof(Aabb) + ranges_.capacity() * sizeof(ranges_[0]) +
            sizeof(*this);
@@ -476,7 +810,7 @@ void LinearBvh::validate() const {
     if (n == 0) return;
     std::vector<std::uint8_t> seen(nodes_.size(), 0);
     std::vector<std::uint32_t> stack{0};
-    if (nodes_[0].parent != kNullNode) fail("root has a parent");
+    if (meta_.size() != n - 1) fail("meta array has " + std::to_string(meta_.size()) + " entries");
     std::size_t leaves = 0;
     std::vector<std::uint8_t> slot_seen(n, 0);
     while (!stack.empty()) {
@@ -487,7 +821,7 @@ void LinearBvh::validate() const {
         const Node& node = nodes_[v];
         if (is_leaf(v)) {
             ++leaves;
-            if (node.height != 0) fail("leaf with a height");
+            if (node.child[1] != kNullNode) fail("leaf " + std::to_string(v) + " has a second child");
             const std::uint32_t* slot = objects_.find(node.child[0]);
             if (!slot) fail("leaf " + std::to_string(v) + " holds unknown uid " + std::to_string(node.child[0]));
             if (slot_seen[*slot]++) fail("uid " + std::to_string(node.child[0]) + " in two leaves");
@@ -499,14 +833,12 @@ void LinearBvh::validate() const {
         for (int k = 0; k < 2; ++k) {
             const std::uint32_t c = node.child[k];
             if (c >= nodes_.size()) fail("child out of range");
-            if (nodes_[c].parent != v)
-                fail("child " + std::to_string(c) + " does not point back to " + std::to_string(v));
             if (!node.box.contains(nodes_[c].box))
                 fail("node " + std::to_string(v) + " does not enclose child " + std::to_string(c));
-            hmax = std::max(hmax, int(nodes_[c].height));
+            hmax = std::max(hmax, is_leaf(c) ? 0 : int(meta_[c].height));
             stack.push_back(c);
         }
-        if (node.height != 1 + hmax) fail("node " + std::to_string(v) + " has a wrong height");
+        if (meta_[v].height != 1 + hmax) fail("node " + std::to_string(v) + " has a wrong height");
     }
     if (leaves != n) fail(std::to_string(n) + " objects but " + std::to_string(leaves) + " leaves reached");
     // Crowds: every inner node's leaf range and common box as the subtree gives them, and the flag
@@ -516,7 +848,6 @@ void LinearBvh::validate() const {
         if (is_leaf(v)) {
             first = last = v - leaf_base_;
             common = nodes_[v].box;
-            if (nodes_[v].flags != kShared) fail("leaf " + std::to_string(v) + " has wrong flags");
             return;
         }
         std::uint32_t f0, l0, f1, l1;
@@ -526,17 +857,17 @@ void LinearBvh::validate() const {
         if (l0 + 1 != f1) fail("node " + std::to_string(v) + ": its children's leaves are not consecutive");
         first = f0, last = l1;
         common = {rcb::max(c0.min, c1.min), rcb::min(c0.max, c1.max)};
-        if (ranges_[v][0] != first || ranges_[v][1] != last)
-            fail("node " + std::to_string(v) + " has a wrong leaf range");
         const bool shared =
             common.min.x <= common.max.x && common.min.y <= common.max.y && common.min.z <= common.max.z;
         const bool crowd = crowds_checked_ && last - first + 1 >= kCrowdLeaves && shared;
-        if (bool(nodes_[v].flags & kCrowd) != crowd)
+        if (crowd && (ranges_[v][0] != first || ranges_[v][1] != last))
+            fail("crowd " + std::to_string(v) + " has a wrong leaf range");
+        if (bool(meta_[v].flags & kCrowd) != crowd)
             fail("node " + std::to_string(v) +
                  (crowd ? " is a crowd but not marked" : " is marked as a crowd but is none"));
-        if (bool(nodes_[v].flags & kShared) != (crowds_checked_ && shared))
+        if (bool(meta_[v].flags & kShared) != (crowds_checked_ && shared))
             fail("node " + std::to_string(v) + " has a wrong shared flag");
-        if ((nodes_[v].flags & kShared) && !(common_[v] == common))
+        if ((meta_[v].flags & kShared) && !(common_[v] == common))
             fail("node " + std::to_string(v) + " has a stale common box");
         crowds += crowd;
     };

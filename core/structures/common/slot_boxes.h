@@ -104,10 +104,12 @@ public:
 
     /// Removes `uid` (present) and returns the slot it had. When that was not the last slot, the last
     /// slot's object now lives there: a caller with per-slot arrays of its own moves their last
-    /// element into the returned slot and pops them, as this does.
-    std::uint32_t remove(Uid uid) {
+    /// element into the returned slot and pops them, as this does. `old`, when given, receives the
+    /// removed box.
+    std::uint32_t remove(Uid uid, Aabb* old = nullptr) {
         auto it = index_.find(uid);
         const std::uint32_t slot = it->second;
+        if (old) *old = boxes_.get(slot);
         index_.erase(it);
         const auto last = static_cast<std::uint32_t>(uids_.size() - 1);
         if (slot != last) {
@@ -119,9 +121,11 @@ public:
         return slot;
     }
 
-    /// Gives the live object `o.uid` the box `o.box`; returns its slot.
-    std::uint32_t move(const Object& o) {
+    /// Gives the live object `o.uid` the box `o.box`; returns its slot. `old`, when given, receives
+    /// the box it had.
+    std::uint32_t move(const Object& o, Aabb* old = nullptr) {
         const std::uint32_t slot = index_.at(o.uid);
+        if (old) *old = boxes_.get(slot);
         boxes_.set(slot, o.box);
         return slot;
     }
