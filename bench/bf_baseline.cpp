@@ -75,8 +75,7 @@ std::size_t cast_avx2(const SoaScene& s, const std::vector<Segment>& rays, std::
 int run(int argc, char** argv) {
     if (argc < 2 || argc > 3) throw InputError("usage: bf_baseline SCENE [REPEATS] (SCENE: .rcbscene file or preset)");
     const std::string what = argv[1];
-    const int repeats = argc == 3 ? std::stoi(argv[2]) : 5;
-    if (repeats < 1 || repeats > 1000) throw InputError("REPEATS: from 1 to 1000");
+    const int repeats = argc == 3 ? int(bench::count_arg(argv[2], "REPEATS", 1, 1000)) : 5;
     const Recording rec = std::filesystem::exists(what) ? read_recording(what) : generate_scene(preset_settings(what));
     if (rec.frames.empty() || rec.frames[0].rays.empty()) throw InputError(what + ": no rays in frame 1");
     const std::vector<Segment>& rays = rec.frames[0].rays;
@@ -118,14 +117,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-    try {
-        return run(argc, argv);
-    } catch (const rcb::InputError& e) {
-        std::fprintf(stderr, "bf_baseline: %s\n", e.what());
-        return 2;
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "bf_baseline: %s\n", e.what());
-        return 1;
-    }
-}
+int main(int argc, char** argv) { return rcb::bench::main_of("bf_baseline", run, argc, argv); }

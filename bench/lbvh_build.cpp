@@ -40,8 +40,7 @@ void print(const char* what, const std::vector<double>& t, std::size_t n) {
 int run(int argc, char** argv) {
     if (argc > 3) throw InputError("usage: lbvh_build [PRESET] [REPEATS]");
     const std::string preset = argc >= 2 ? argv[1] : "irreg-xl";
-    const int repeats = argc == 3 ? std::stoi(argv[2]) : 5;
-    if (repeats < 1 || repeats > 1000) throw InputError("REPEATS: from 1 to 1000");
+    const int repeats = argc == 3 ? int(bench::count_arg(argv[2], "REPEATS", 1, 1000)) : 5;
     SceneSettings settings = preset_settings(preset);
     settings.frames = 1;
     settings.rays.per_frame = 1;
@@ -96,14 +95,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-    try {
-        return run(argc, argv);
-    } catch (const rcb::InputError& e) {
-        std::fprintf(stderr, "lbvh_build: %s\n", e.what());
-        return 2;
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "lbvh_build: %s\n", e.what());
-        return 1;
-    }
-}
+int main(int argc, char** argv) { return rcb::bench::main_of("lbvh_build", run, argc, argv); }

@@ -33,9 +33,8 @@ int run(int argc, char** argv) {
     if (argc < 3 || argc > 5) throw InputError("usage: parallel_cast RECORDING STRUCTURE [THREADS] [WARMUP]");
     const Recording rec = read_recording(argv[1]);
     const StructureInfo& info = find_structure(argv[2]);
-    const int threads = argc >= 4 ? std::stoi(argv[3]) : 2;
-    const std::size_t warmup = argc >= 5 ? std::stoul(argv[4]) : 2;
-    if (threads < 2 || threads > 64) throw InputError("THREADS: from 2 to 64");
+    const int threads = argc >= 4 ? int(bench::count_arg(argv[3], "THREADS", 2, 64)) : 2;
+    const std::size_t warmup = argc >= 5 ? bench::count_arg(argv[4], "WARMUP", 0, 1000000) : 2;
     std::unique_ptr<Structure> s[2] = {info.make(nlohmann::json::object(), "one"),
                                        info.make({{"cast_threads", threads}}, "many")};
     for (auto& st : s) st->build(rec.initial);
@@ -79,14 +78,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-    try {
-        return run(argc, argv);
-    } catch (const InputError& e) {
-        std::fprintf(stderr, "parallel_cast: %s\n", e.what());
-        return 2;
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "parallel_cast: %s\n", e.what());
-        return 1;
-    }
-}
+int main(int argc, char** argv) { return rcb::bench::main_of("parallel_cast", run, argc, argv); }

@@ -56,7 +56,7 @@ int run(int argc, char** argv) {
     for (int i = 1; i < argc; ++i) {
         const std::string arg = argv[i];
         if (arg.find('=') == std::string::npos) {
-            const auto v = std::stoul(arg);
+            const auto v = bench::count_arg(argv[i], positional == 0 ? "OBJECTS" : "FRAMES", 1, 100000000);
             if (positional == 0)
                 objects = std::uint32_t(v);
             else if (positional == 1)
@@ -160,14 +160,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-    try {
-        return run(argc, argv);
-    } catch (const rcb::InputError& e) {
-        std::fprintf(stderr, "wbvh_churn: %s\n", e.what());
-        return 2;
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "wbvh_churn: %s\n", e.what());
-        return 1;
-    }
-}
+int main(int argc, char** argv) { return rcb::bench::main_of("wbvh_churn", run, argc, argv); }
