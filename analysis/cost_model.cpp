@@ -95,6 +95,9 @@ const Term kRemove{"c_remove", [](const FrameObservation& f) { return f.removes;
 const Term kMove{"c_move", [](const FrameObservation& f) { return f.moves; }};
 const Term kObjects{"c_object", [](const FrameObservation& f) { return f.objects; }};
 const Term kFrame{"c_frame", [](const FrameObservation&) { return 1.0; }};
+/// One price for any change: where a run's scenes mix inserts, removes and moves in one proportion
+/// (the thesis' 1% dynamics everywhere), the per-operation costs cannot be told apart.
+const Term kChange{"c_change", [](const FrameObservation& f) { return f.inserts + f.removes + f.moves; }};
 
 /// A column of a model: a term, restricted to one scene category when `category` is set.
 /// With `by_params`, `category` holds a configuration's parameters instead (one cost per
@@ -506,6 +509,10 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
         std::vector<Term> rebuild = ops_frame;
         rebuild.push_back(kObjects);
         std::vector<Built> update;
+        const std::vector<Term> change_frame = {kChange, kFrame};
+        std::vector<Term> change_rebuild = change_frame;
+        change_rebuild.push_back(kObjects);
+        if (!ops.empty()) update.push_back(candidate("per-change", "update", fs, columns_of(change_frame), {}, {}));
         update.push_back(candidate("per-operation", "update", fs, columns_of(ops_frame), {}, {}));
         update.push_back(candidate("with-rebuild", "update", fs, columns_of(rebuild), {}, {}));
         // Changes that touch a working set beyond the caches cost more (a 40 000-object grid's
@@ -518,10 +525,15 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
         }
         std::set<std::string> param_set;
         for (const FrameObservation* f : fs) param_set.insert(f->params);
-        if (param_set.size() > 1)  // each configuration its own update costs (e.g. incremental vs rebuild)
+        if (param_set.size() > 1) {  // each configuration its own update costs (e.g. incremental vs rebuild)
+            if (!ops.empty())
+                update.push_back(candidate(
+                    "per-configuration-change", "update", fs,
+                    columns_of(change_rebuild, {param_set.begin(), param_set.end()}, true, structure), {}, {}));
             update.push_back(candidate("per-configuration", "update", fs,
                                        columns_of(rebuild, {param_set.begin(), param_set.end()}, true, structure), {},
                                        {}));
+        }
         for (Built& b : update) m.update.push_back(b.model);
         select(m.update);
 

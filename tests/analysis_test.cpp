@@ -281,6 +281,23 @@ TEST(ModelSelection, ChangesBeyondTheCachesGetTheirOwnCost) {
     for (const CandidateModel& x : one_tier[0].update) EXPECT_NE(x.name, "update-hierarchy");
 }
 
+TEST(ModelSelection, ChangesInOneProportionGetOnePrice) {
+    // Every scene inserts, removes and moves in one proportion (the thesis' dynamics): the
+    // per-operation costs cannot be told apart, one price per change can.
+    std::vector<FrameObservation> frames = synthetic_frames(0.8, 5.0, 40.0, 12, 9, 0.01);
+    for (FrameObservation& f : frames) {
+        const double changes = 20.0 * (1 + f.config_group);
+        f.inserts = 0.1 * changes, f.removes = 0.1 * changes, f.moves = 0.8 * changes;
+        f.update_ns = 450 * changes + 1000;
+    }
+    const auto models = fit_cost_models(frames);
+    const CandidateModel* m = models[0].chosen("update");
+    ASSERT_NE(m, nullptr);
+    EXPECT_EQ(m->name, "per-change");
+    EXPECT_EQ(m->fit.status(), "ok");
+    EXPECT_NEAR(m->fit.coefficients.front().value, 450, 20);
+}
+
 TEST(ModelSelection, TermsThatAreAlwaysZeroAreLeftOut) {
     std::vector<FrameObservation> frames = synthetic_frames(0.4, 0.0, 100.0, 10, 8);
     for (FrameObservation& f : frames) f.n_t = 0;  // brute force has no traversal
