@@ -55,40 +55,28 @@ const Term kNodeHits{"C_TH", [](const FrameObservation& f) { return f.n_th; }};
 /// predictor missed (core/outcome_predictor.h); eq. 5.4 prices coherent and incoherent rays alike.
 const Term kMispredicts{"C_MP", [](const FrameObservation& f) { return f.n_mp; }};
 
-/// The memory hierarchy: one column per cache tier the run's working sets reach beyond the
-/// smallest one, (w_RB·N_RB + w_T·N_T) where the working set has left the cache of level `tier`
-/// (and every smaller one). The weights are the calibration's in-cache costs (from small scenes),
-/// so the coefficient is the extra fraction of the in-cache cost that a test and a step pay there;
-/// without a calibration value a weight is 1 (the coefficient is then in ns per unit).
-std::vector<Term> hierarchy_terms(const std::vector<const FrameObservation*>& frames, double w_rb, double w_t) {
+/// The memory hierarchy: one column per cache tier the run's working sets reach beyond the smallest
+/// one, named `prefix` + the tier, worth `value` of a frame where its working set has left the cache
+/// of level `tier` (and every smaller one), 0 elsewhere. None when every working set sits in one tier.
+std::vector<Term> tier_terms(const std::vector<const FrameObservation*>& frames, const std::string& prefix,
+                             const std::function<double(const FrameObservation&)>& value) {
     std::set<int> tiers;
     for (const FrameObservation* f : frames) tiers.insert(f->memory_tier);
     std::vector<Term> out;
     if (tiers.size() < 2) return out;  // one tier only: the base costs already are its costs
     for (auto it = std::next(tiers.begin()); it != tiers.end(); ++it) {
         const int tier = *it;
-        out.push_back({"slow>L" + std::to_string(tier), [=](const FrameObservation& f) {
-                           return f.memory_tier >= tier ? w_rb * f.n_rb + w_t * f.n_t : 0.0;
-                       }});
+        out.push_back({prefix + std::to_string(tier),
+                       [=](const FrameObservation& f) { return f.memory_tier >= tier ? value(f) : 0.0; }});
     }
     return out;
 }
-/// The memory hierarchy for updates: one column per cache tier the run's working sets reach
-/// beyond the smallest, the changes of a frame (inserts + removes + moves) where the working set
-/// has left the cache of level `tier`: what a change pays beyond its in-cache cost when the cells
-/// or nodes it touches are no longer cached.
-std::vector<Term> update_hierarchy_terms(const std::vector<const FrameObservation*>& frames) {
-    std::set<int> tiers;
-    for (const FrameObservation* f : frames) tiers.insert(f->memory_tier);
-    std::vector<Term> out;
-    if (tiers.size() < 2) return out;
-    for (auto it = std::next(tiers.begin()); it != tiers.end(); ++it) {
-        const int tier = *it;
-        out.push_back({"c_change>L" + std::to_string(tier), [=](const FrameObservation& f) {
-                           return f.memory_tier >= tier ? f.inserts + f.removes + f.moves : 0.0;
-                       }});
-    }
-    return out;
+/// Ray cast: (w_RB·N_RB + w_T·N_T) beyond each tier. The weights are the calibration's in-cache
+/// costs (from small scenes), so the coefficient is the extra fraction of the in-cache cost that a
+/// test and a step pay there; without a calibration value a weight is 1 (the coefficient is then in
+/// ns per unit).
+std::vector<Term> hierarchy_terms(const std::vector<const FrameObservation*>& frames, double w_rb, double w_t) {
+    return tier_terms(frames, "slow>L", [=](const FrameObservation& f) { return w_rb * f.n_rb + w_t * f.n_t; });
 }
 const Term kInsert{"c_insert", [](const FrameObservation& f) { return f.inserts; }};
 const Term kRemove{"c_remove", [](const FrameObservation& f) { return f.removes; }};
@@ -98,6 +86,11 @@ const Term kFrame{"c_frame", [](const FrameObservation&) { return 1.0; }};
 /// One price for any change: where a run's scenes mix inserts, removes and moves in one proportion
 /// (the thesis' 1% dynamics everywhere), the per-operation costs cannot be told apart.
 const Term kChange{"c_change", [](const FrameObservation& f) { return f.inserts + f.removes + f.moves; }};
+/// Updates: a frame's changes beyond each tier, what a change pays beyond its in-cache cost when the
+/// cells or nodes it touches are no longer cached.
+std::vector<Term> update_hierarchy_terms(const std::vector<const FrameObservation*>& frames) {
+    return tier_terms(frames, "c_change>L", kChange.value);
+}
 
 /// A column of a model: a term, restricted to one scene category when `category` is set.
 /// With `by_params`, `category` holds a configuration's parameters instead (one cost per
@@ -450,7 +443,8 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
         raycast.push_back(candidate("no-prep", "raycast", with_rays, columns_of(core), priors, no_prior_why));
         raycast.push_back(candidate("eq5.4", "raycast", with_rays, columns_of(full), priors, no_prior_why));
         // Steps the ray before did not prepare (coherence): where the traversal counted any.
-        if (!present(with_rays, {kMispredicts}, nullptr).empty()) {
+        const bool coherence = !present(with_rays, {kMispredicts}, nullptr).empty();
+        if (coherence) {
             std::vector<Term> with_coherence = full;
             with_coherence.push_back(kMispredicts);
             raycast.push_back(
@@ -488,7 +482,7 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
                 candidate("memory-hierarchy", "raycast", with_rays, columns_of(hierarchy), priors, no_prior_why));
         }
         // Both: steps the ray before did not prepare, and steps and tests beyond the caches.
-        if (!present(with_rays, {kMispredicts}, nullptr).empty() && !beyond.empty()) {
+        if (coherence && !beyond.empty()) {
             std::vector<Term> both = full;
             both.push_back(kMispredicts);
             both.insert(both.end(), beyond.begin(), beyond.end());

@@ -38,7 +38,6 @@ public:
 private:
     /// One step's outcome; counts a misprediction when the predictor guessed another.
     void step(std::uint32_t outcome) {
-        outcome &= 0xffffu;
         std::uint32_t predicted = last_outcome_;  // base prediction: the previous outcome
         std::array<std::uint32_t, kTables> index{}, tag{};
         for (int t = kTables - 1; t >= 0; --t) {
