@@ -210,7 +210,7 @@ TEST(AdviseCounts, ConfigurationsThatAreOneStructureInEffectCountAlike) {
     const ReplayCounts flat8 = counts({{"amp", 1.0}, {"max_depth", 0}, {"max_capacity", 8}, {"subdivision", 2}});
     const ReplayCounts flat32 = counts({{"amp", 1.0}, {"max_depth", 0}, {"max_capacity", 32}, {"subdivision", 3}});
     EXPECT_EQ(flat8, flat32);
-    EXPECT_GT(flat8.n_t, 0u);
+    EXPECT_GT(flat8.counters.n_t, 0u);
     EXPECT_NE(flat8, counts({{"amp", 0.25}, {"max_depth", 0}, {"max_capacity", 8}, {"subdivision", 2}}));
 }
 

@@ -307,6 +307,21 @@ std::vector<SimulationResult> one_repetition(const TuneCategory& category, const
     return run_simulations(category, structure, params, o, 1);
 }
 
+/// `repetitions` of every configuration of `params`, repetition-major (repetition r of every
+/// configuration before repetition r + 1 of any); the first verified when `verify`.
+std::vector<std::vector<SimulationResult>> repeated_runs(const TuneCategory& category, const std::string& structure,
+                                                         const std::vector<json>& params, std::uint32_t warmup_frames,
+                                                         std::uint32_t repetitions, bool verify) {
+    std::vector<std::vector<SimulationResult>> runs(params.size());
+    for (std::uint32_t rep = 0; rep < repetitions; ++rep)
+        for (std::size_t i = 0; i < params.size(); ++i) {
+            std::vector<SimulationResult> r =
+                one_repetition(category, structure, params[i], warmup_frames, verify && rep == 0);
+            runs[i].insert(runs[i].end(), std::make_move_iterator(r.begin()), std::make_move_iterator(r.end()));
+        }
+    return runs;
+}
+
 /// The cost of measured runs, repetition-major (the first repetition's runs first, verified when
 /// `verify`).
 MeasuredCost cost_of(const std::vector<SimulationResult>& runs, const TuneCategory& category,
@@ -334,12 +349,8 @@ MeasuredCost cost_of(const std::vector<SimulationResult>& runs, const TuneCatego
 MeasuredCost measure(const TuneCategory& category, const std::string& structure, const json& params,
                      std::uint32_t warmup_frames, std::uint32_t repetitions, bool verify,
                      std::vector<FrameObservation>* observations, int group) {
-    std::vector<SimulationResult> runs;
-    for (std::uint32_t rep = 0; rep < repetitions; ++rep) {
-        std::vector<SimulationResult> r =
-            one_repetition(category, structure, params, warmup_frames, verify && rep == 0);
-        runs.insert(runs.end(), std::make_move_iterator(r.begin()), std::make_move_iterator(r.end()));
-    }
+    const std::vector<SimulationResult> runs = std::move(
+        repeated_runs(category, structure, std::vector<json>{params}, warmup_frames, repetitions, verify).front());
     if (observations) {
         // The counters come from a replay of their own (deterministic, so frame for frame those of
         // the timed run): counting between the timed frames would slow them by a few percent.
@@ -361,13 +372,8 @@ MeasuredCost measure(const TuneCategory& category, const std::string& structure,
 std::vector<MeasuredCost> measure_interleaved(const TuneCategory& category, const std::string& structure,
                                               const std::vector<json>& params, std::uint32_t warmup_frames,
                                               std::uint32_t repetitions, bool verify) {
-    std::vector<std::vector<SimulationResult>> runs(params.size());
-    for (std::uint32_t rep = 0; rep < repetitions; ++rep)
-        for (std::size_t i = 0; i < params.size(); ++i) {
-            std::vector<SimulationResult> r =
-                one_repetition(category, structure, params[i], warmup_frames, verify && rep == 0);
-            runs[i].insert(runs[i].end(), std::make_move_iterator(r.begin()), std::make_move_iterator(r.end()));
-        }
+    const std::vector<std::vector<SimulationResult>> runs =
+        repeated_runs(category, structure, params, warmup_frames, repetitions, verify);
     std::vector<MeasuredCost> out;
     for (std::size_t i = 0; i < params.size(); ++i)
         out.push_back(cost_of(runs[i], category, structure, params[i], verify));
@@ -455,11 +461,7 @@ double predict_cost(const CostCoefficients& c, const TuneCategory& category, con
         std::vector<double> frame_ms;
         for (const FrameResult& f : r.frames) {
             if (f.warmup || f.rays == 0) continue;
-            if (counts) {
-                counts->n_t += f.counters.n_t, counts->n_rb += f.counters.n_rb, counts->n_tp += f.counters.n_tp;
-                counts->n_ro += f.counters.n_ro, counts->n_th += f.counters.n_th, counts->n_mp += f.counters.n_mp;
-                counts->memory_bytes += f.memory_bytes;
-            }
+            if (counts) counts->counters += f.counters, counts->memory_bytes += f.memory_bytes;
             const double per_ray =
                 c.c_rb * double(f.counters.n_rb) / f.rays + c.c_t * double(f.counters.n_t) / f.rays + c.c_prep +
                 c.c_mem * double(f.memory_bytes) / (1024.0 * 1024.0) + c.c_ro * double(f.counters.n_ro) / f.rays +

@@ -25,6 +25,7 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/cost_model.h"
+#include "core/counters.h"
 #include "runner/experiment.h"
 #include "tuner/accuracy.h"
 #include "tuner/search.h"
@@ -82,7 +83,7 @@ struct Candidate {
 };
 
 /// Eq. 5.4 as the predicted mode applies it, ns per ray: C_RB·N_RB + C_T·N_T + C_PREP + C_MEM·MB +
-/// C_RO·N_RO + C_TH·N_TH (counters per ray, MB the structure's memory), a term 0 where the chosen
+/// C_RO·N_RO + C_TH·N_TH + C_MP·N_MP (counters per ray, MB the structure's memory), a term 0 where the chosen
 /// model lacks it. Machine costs, not scene properties: fitted on one set of scenes, they price the
 /// counters of another (what advise does with a tuning's model on an unseen scene).
 struct CostCoefficients {
@@ -156,7 +157,8 @@ std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservat
 /// counts are one structure in effect (a hash grid of depth 0 ignores its capacity and
 /// subdivision), so measuring both tells nothing new.
 struct ReplayCounts {
-    std::uint64_t n_t = 0, n_rb = 0, n_tp = 0, n_ro = 0, n_th = 0, n_mp = 0, memory_bytes = 0;
+    Counters counters;  ///< summed over the measured frames of every scene
+    std::uint64_t memory_bytes = 0;
     friend bool operator==(const ReplayCounts&, const ReplayCounts&) = default;
 };
 
