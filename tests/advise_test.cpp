@@ -190,17 +190,7 @@ TEST_F(AdviseFiles, TheExhaustiveCheckMeasuresTheWholeSpaceOnTheScene) {
 
 TEST(AdviseCounts, ConfigurationsThatAreOneStructureInEffectCountAlike) {
     // A hash grid of depth 0 never splits a cell: its capacity and subdivision change nothing.
-    TuneCategory c;
-    c.name = "u";
-    SceneSpec s;
-    s.name = "u";
-    s.source = SceneSpec::Source::generated;
-    s.settings.kind = "uniform";
-    s.settings.objects = 2000;
-    s.settings.frames = 2;
-    s.settings.rays.per_frame = 100;
-    s.key = {{"advise-counts", 1}};
-    c.scenes.push_back(s);
+    const TuneCategory c{"u", {test::generated_spec("u", "uniform", 2000, 2, 100, {{"advise-counts", 1}})}};
     const CostCoefficients model = CostCoefficients::from_json(cost_model(1.0, 10.0), "test");
     auto counts = [&](const json& p) {
         ReplayCounts r;

@@ -204,16 +204,7 @@ TEST(TuneRecordsForAdvise, EveryModeRecordsItsSpaceAndACostModel) {
 TEST(Tune, InterleavedMeasurementsGiveOneVerifiedCostPerConfiguration) {
     // The exhaustive checks' repetition-major measurement: one cost per configuration, in order,
     // verified on the first repetition when asked, each over every repetition's frames.
-    TuneCategory c;
-    c.name = "u";
-    SceneSpec s;
-    s.name = "u";
-    s.settings.kind = "uniform";
-    s.settings.objects = 1500;
-    s.settings.frames = 3;
-    s.settings.rays.per_frame = 100;
-    s.key = {{"interleaved", 1}};
-    c.scenes.push_back(s);
+    const TuneCategory c{"u", {test::generated_spec("u", "uniform", 1500, 3, 100, {{"interleaved", 1}})}};
     const std::vector<json> params{find_structure("ug").complete({{"density", 1.0}}, "t"),
                                    find_structure("ug").complete({{"density", 8.0}}, "t"),
                                    find_structure("ug").complete({{"density", 1.0}, {"query", "candidates"}}, "t")};
