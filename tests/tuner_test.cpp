@@ -7,7 +7,9 @@
 #include <filesystem>
 #include <fstream>
 
+#include "analysis/linear_fit.h"
 #include "core/error.h"
+#include "core/random.h"
 #include "core/registry.h"
 #include "tests/test_scenes.h"
 #include "tuner/run_tuning.h"
@@ -199,6 +201,58 @@ TEST(TuneRecordsForAdvise, EveryModeRecordsItsSpaceAndACostModel) {
         EXPECT_GT(m["C_T"].get<double>() + m["C_RB"].get<double>() + m["C_MP"].get<double>(), 0) << mode << m.dump();
     }
     fs::remove_all(dir);
+}
+
+TEST(TuneCostModel, TheMachinesCalibrationKeepsRayWorkInAFewPointFit) {
+    // Five configurations of one scene whose counters barely move, timed by a noisy machine that
+    // hides the rays' work: the free fit prices it at 0 and leaves a start-up cost alone, which
+    // ranks nothing; fitted again with the calibration's priors, C_T stays within 3x of its value.
+    constexpr double kT = 4.0, kPrep = 30.0;
+    Random rng(11);
+    std::vector<FrameObservation> frames;
+    for (int c = 0; c < 5; ++c)
+        for (int f = 0; f < 4; ++f) {
+            FrameObservation o;
+            o.structure = "ug", o.scene = "u", o.category = "uniform";
+            o.params = "{\"density\":" + std::to_string(c) + "}";
+            o.config_group = c, o.rays = 200;
+            o.n_t = 10 + c * (1 + 0.01 * rng.normal());
+            o.raycast_ns = o.rays * (kPrep + kT * 10) * (1 + 0.05 * rng.normal());
+            frames.push_back(o);
+        }
+    const std::optional<CostCoefficients> bare = fit_coefficients(frames);
+    ASSERT_TRUE(bare.has_value());
+    EXPECT_EQ(bare->c_t, 0.0) << bare->to_json().dump();
+
+    std::vector<CalibrationPoint> points;  // micro-scenes at C_T = 4, C_PREP = 30
+    for (double n_t : {1.0, 20.0, 40.0, 60.0, 15.0, 120.0})
+        points.push_back({"micro", 512, 0.0, n_t, (kT * n_t + kPrep) * (1 + 0.01 * rng.normal()), 0.1});
+    ModelInputs priors;
+    priors.calibrations.push_back(fit_calibration("ug", points));
+    const std::optional<CostCoefficients> pinned = fit_coefficients(frames, priors);
+    ASSERT_TRUE(pinned.has_value());
+    EXPECT_GE(pinned->c_t, kT / kPriorRange * 0.99) << pinned->to_json().dump();
+    EXPECT_LE(pinned->c_t, kT * kPriorRange * 1.01) << pinned->to_json().dump();
+    EXPECT_NE(pinned->model.find("with the calibration's priors"), std::string::npos) << pinned->model;
+
+    // Frames that do show the rays' work keep the free fit's balance: C_T = 20 where the
+    // calibration says 4 (beyond its 3x range).
+    for (FrameObservation& o : frames) o.raycast_ns = o.rays * (kPrep + 20 * o.n_t) * (1 + 0.01 * rng.normal());
+    const std::optional<CostCoefficients> free = fit_coefficients(frames, priors);
+    ASSERT_TRUE(free.has_value());
+    EXPECT_NEAR(free->c_t, 20, 2) << free->to_json().dump();
+    EXPECT_EQ(free->model.find("priors"), std::string::npos) << free->model;
+}
+
+TEST(TuneCostModel, MachinePriorsCalibrateEveryBuildableStructure) {
+    const ModelInputs priors = machine_priors({"ug", "dbvh"});
+    ASSERT_EQ(priors.calibrations.size(), 2u);
+    for (const StructureCalibration& c : priors.calibrations) {
+        EXPECT_FALSE(c.points.empty()) << c.structure;
+        const CalibratedTerm* t = c.term("C_T");
+        ASSERT_NE(t, nullptr) << c.structure;
+        EXPECT_GT(t->value, 0) << c.structure;
+    }
 }
 
 TEST(Tune, InterleavedMeasurementsGiveOneVerifiedCostPerConfiguration) {

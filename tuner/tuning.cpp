@@ -14,6 +14,7 @@
 #include "core/registry.h"
 #include "core/query_level.h"
 #include "core/simulator.h"
+#include "runner/calibration.h"
 
 namespace rcb {
 namespace {
@@ -430,8 +431,9 @@ CostCoefficients CostCoefficients::from_json(const json& j, const std::string& w
     return c;
 }
 
-std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservation>& frames) {
-    const std::vector<StructureModels> models = fit_cost_models(frames);
+namespace {
+
+std::optional<CostCoefficients> chosen_coefficients(const std::vector<StructureModels>& models) {
     const CandidateModel* model = models.empty() ? nullptr : models.front().chosen("raycast");
     if (!model) return std::nullopt;
     auto coefficient = [&](const char* name) {
@@ -446,6 +448,19 @@ std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservat
     c.c_mp = coefficient("C_MP");
     c.model = model->name + " (held-out error " + std::to_string(int(std::lround(100 * model->heldout_error))) + "%, " +
               model->fit.status() + ")";
+    return c;
+}
+
+}  // namespace
+
+std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservation>& frames,
+                                                 const ModelInputs& priors) {
+    std::optional<CostCoefficients> c = chosen_coefficients(fit_cost_models(frames));
+    const bool prices_rays = c && c->c_rb + c->c_t + c->c_th + c->c_mp > 0;
+    if (c && !prices_rays && !priors.calibrations.empty()) {
+        c = chosen_coefficients(fit_cost_models(frames, priors));
+        if (c) c->model += " with the calibration's priors (without them the fit priced no ray work)";
+    }
     return c;
 }
 
@@ -473,7 +488,21 @@ double predict_cost(const CostCoefficients& c, const TuneCategory& category, con
     return total / double(runs.size());
 }
 
-Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category, const std::string& structure) {
+ModelInputs machine_priors(const std::vector<std::string>& structures) {
+    ModelInputs out;
+    out.caches = read_cache_sizes();
+    for (const std::string& name : structures) {
+        try {
+            const StructureInfo& info = find_structure(name);
+            out.calibrations.push_back(fit_calibration(name, calibrate_structure(info, info.defaults())));
+        } catch (const std::exception&) {  // not buildable on the micro-scenes: its fits go without priors
+        }
+    }
+    return out;
+}
+
+Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category, const std::string& structure,
+                              const ModelInputs& priors) {
     Predictor out;
     const std::vector<SearchDimension>& dims = spec.space.at(structure);
     json defaults_searched = json::object();
@@ -500,7 +529,7 @@ Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category
         ++group;
         ++out.measurements;
     }
-    const std::optional<CostCoefficients> fitted = fit_coefficients(frames);
+    const std::optional<CostCoefficients> fitted = fit_coefficients(frames, priors);
     if (!fitted)
         throw std::runtime_error("tune: the calibration of " + structure + " on " + category.name +
                                  " gave no cost model");
@@ -538,7 +567,7 @@ double spearman(const std::vector<double>& a, const std::vector<double>& b) {
     return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : NAN;
 }
 
-CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category) {
+CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category, const ModelInputs& priors) {
     CategoryTuning out;
     out.category = category.name;
     std::vector<std::string> unmet;  // structures with no candidate that meets the accuracy
@@ -578,9 +607,9 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category)
                 dims,
                 [&](const json& p) { return constrained_cost(*measure_candidate(p, false).measured, spec.accuracy); },
                 spec.budget, spec.seed, defaults_searched);
-            st.cost_model = fit_coefficients(observed);
+            st.cost_model = fit_coefficients(observed, priors);
         } else {
-            Predictor predictor = calibrate_predictor(spec, category, structure);
+            Predictor predictor = calibrate_predictor(spec, category, structure, priors);
             st.measurements += predictor.measurements;
             st.prediction_model = predictor.model;
             st.predict = predictor.predict;

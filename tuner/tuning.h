@@ -150,8 +150,19 @@ std::vector<MeasuredCost> measure_interleaved(const TuneCategory& category, cons
 double constrained_cost(const MeasuredCost& cost, const AccuracyConstraint& accuracy);
 
 /// Eq. 5.4 fitted (analysis/cost_model.h) to measured frames of one structure, the ray-cast model
-/// the fit chooses; nullopt when it chooses none (too few distinct configurations).
-std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservation>& frames);
+/// the fit chooses; nullopt when it chooses none (too few distinct configurations). The fit is
+/// free of the calibration: its balance of C_RB and C_T ranks a map's configurations better than
+/// the micro-scenes' in-cache values (docs/model.md). But a tuning measures a few configurations
+/// of one category whose counters move together, and on a noisy machine the free fit may price
+/// every ray's work at 0 and leave a start-up cost alone, which ranks nothing; then the fit is
+/// made again with `priors`, the machine's calibration (machine_priors), and the model says so.
+std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservation>& frames,
+                                                 const ModelInputs& priors = {});
+
+/// The calibration pass of `rcbench run` (runner/calibration.h) for each of `structures` at its
+/// defaults, and the machine's caches: the priors of the tuner's fits. A structure the
+/// micro-scenes cannot build gets none.
+ModelInputs machine_priors(const std::vector<std::string>& structures);
 
 /// What a replay counted over its measured frames and scenes. Two configurations with equal
 /// counts are one structure in effect (a hash grid of depth 0 ignores its capacity and
@@ -178,7 +189,8 @@ struct Predictor {
     std::string model;             ///< the chosen model and its held-out error
     std::size_t measurements = 0;  ///< measured calibration points
 };
-Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category, const std::string& structure);
+Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category, const std::string& structure,
+                              const ModelInputs& priors = {});
 
 /// Spearman's rank correlation (ties get their mean rank); NaN for fewer than two pairs or a
 /// constant side.
@@ -190,7 +202,7 @@ std::vector<const Candidate*> meeting(const std::vector<const Candidate*>& all, 
 /// Tunes every structure of the spec on one category. Only candidates that meet the spec's
 /// accuracy are chosen; a structure with none is left out of the result (rule_note names it), and
 /// InputError when no candidate of the category meets it.
-CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category);
+CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category, const ModelInputs& priors = {});
 
 /// Rank for the simplicity rule: lower is simpler.
 int structure_simplicity(const std::string& structure);
