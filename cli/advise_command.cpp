@@ -40,6 +40,12 @@ void add_advise_command(CLI::App& app) {
                     "once); the fastest measured is advised (0: the predicted best, alone)")
         ->capture_default_str()
         ->check(whole_number(0, 16));
+    cmd->add_option("--refine", o->refine,
+                    "Model method: at most this many more measurements, a descent from the fastest verified "
+                    "configuration one level of one parameter at a time while a neighbour is faster (corrects what "
+                    "the model misranks; 0: none, and none with --verify-top 0)")
+        ->capture_default_str()
+        ->check(whole_number(0, 64));
     cmd->add_flag("--exhaustive", o->exhaustive,
                   "Also measure every configuration of each tuned structure's space on the scene and report how far "
                   "the advised and the category's parameters are from the scene's own best (needs --tuning)");

@@ -2,6 +2,7 @@
 // cost model applied to the scene's own counters; its exhaustive check; and its bad inputs.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -112,6 +113,7 @@ TEST_F(AdviseFiles, TheModelMethodFollowsTheCostOfAStepAgainstATest) {
 TEST_F(AdviseFiles, MeasuresTheModelsBestBesideTheCategorysAndKeepsTheFastest) {
     AdviseOptions o = options(write_tuning("t.json", tuning_with(0.125, cost_model(2.0, 20.0))));
     o.verify_top = 2;
+    o.refine = 0;
     const Advice a = advise(o);
     const ParameterChoice& pc = ug_choice(a);
     ASSERT_EQ(pc.method, "model");
@@ -132,6 +134,31 @@ TEST_F(AdviseFiles, MeasuresTheModelsBestBesideTheCategorysAndKeepsTheFastest) {
     EXPECT_EQ(pc.candidates.front().measured->ms, fastest);  // the fastest measured is advised
     EXPECT_EQ(pc.chosen_searched, pc.candidates.front().searched);
     EXPECT_NE(pc.summary.find("fastest measured"), std::string::npos) << pc.summary;
+}
+
+TEST_F(AdviseFiles, AMeasuredDescentCorrectsAModelThatMisranks) {
+    // A model that prices a box test a million times a cell step ranks the finest grid (1/8 of an
+    // object per cell) first; on 3000 uniform boxes a coarser grid is faster, and the descent from
+    // the verified best walks up the densities, one level at a time, within its measurements.
+    AdviseOptions o = options(write_tuning("t.json", tuning_with(0.125, cost_model(1e4, 0.01))));
+    o.verify_top = 1;
+    o.refine = 4;
+    const Advice a = advise(o);
+    const ParameterChoice& pc = ug_choice(a);
+    ASSERT_EQ(pc.method, "model");
+    EXPECT_GE(pc.refined, 1u);
+    EXPECT_LE(pc.refined, 4u);
+    std::vector<double> measured;
+    for (const ModelCandidate& c : pc.candidates)
+        if (c.measured) measured.push_back(c.searched["density"].get<double>());
+    EXPECT_EQ(measured.size(), 1 + pc.refined);  // the verified best (the category's) and the descent
+    std::sort(measured.begin(), measured.end());
+    EXPECT_EQ(std::adjacent_find(measured.begin(), measured.end()), measured.end());  // none twice
+    EXPECT_GT(pc.chosen_searched["density"].get<double>(), 0.125) << pc.summary;
+    EXPECT_NE(pc.summary.find("by the measured descent"), std::string::npos) << pc.summary;
+
+    o.refine = 0;  // the model's best and the category's, nothing more
+    EXPECT_EQ(ug_choice(advise(o)).refined, 0u);
 }
 
 TEST_F(AdviseFiles, WithoutACostModelAutoKeepsTheCategorysParametersAndSaysWhy) {

@@ -264,9 +264,61 @@ Advice advise(const AdviseOptions& o) {
                 pc.candidates.push_back({pc.category_searched, std::nullopt, std::nullopt, true});
                 category_candidate = pc.candidates.end() - 1;
             }
-            if (!category_candidate->measured)
+            if (!category_candidate->measured) {
                 category_candidate->measured =
                     measure(category, pc.structure, full_params(pc.category_searched), o.warmup, o.repetitions, verify);
+                measured_counts.push_back(counts_of(pc.category_searched));
+            }
+        }
+        // The model's error (held out, a few percent) can rank a neighbour of the best below it,
+        // so a measured descent refines the verified best: one level up or down in one parameter
+        // at a time, moving to any faster configuration, until none is or `refine` measurements
+        // are spent. A neighbour that counts like one measured already is that structure again.
+        std::size_t& refined = pc.refined;
+        auto faster = [&](const MeasuredCost& a, const MeasuredCost& b) {
+            const bool ma = o.accuracy.met_by(a.accuracy), mb = o.accuracy.met_by(b.accuracy);
+            return ma != mb ? ma : a.ms < b.ms;
+        };
+        std::optional<std::size_t> current;  // into pc.candidates: the fastest measured
+        for (std::size_t k = 0; k < pc.candidates.size(); ++k)
+            if (pc.candidates[k].measured &&
+                (!current || faster(*pc.candidates[k].measured, *pc.candidates[*current].measured)))
+                current = k;
+        for (bool moved = o.verify_top > 0 && current; moved && refined < o.refine;) {
+            moved = false;
+            const json from = pc.candidates[*current].searched;
+            for (const SearchDimension& d : pc.space) {
+                const auto at = std::find(d.levels.begin(), d.levels.end(), from[d.name]);
+                for (const std::ptrdiff_t step : {std::ptrdiff_t(1), std::ptrdiff_t(-1)}) {
+                    const std::ptrdiff_t i = (at - d.levels.begin()) + step;
+                    if (at == d.levels.end() || i < 0 || i >= std::ptrdiff_t(d.levels.size()) || refined == o.refine)
+                        continue;
+                    json q = from;
+                    q[d.name] = d.levels[std::size_t(i)];
+                    std::optional<ReplayCounts> counts = counts_of(q);
+                    std::optional<double> predicted;
+                    if (!counts) {
+                        ReplayCounts replayed;
+                        predicted = predict_cost(model, category, pc.structure, q, o.warmup, &replayed);
+                        counted.push_back({q, replayed});
+                        counts = replayed;
+                    }
+                    if (std::find(measured_counts.begin(), measured_counts.end(), counts) != measured_counts.end())
+                        continue;
+                    std::size_t k = 0;
+                    while (k < pc.candidates.size() && !same_point(pc.candidates[k].searched, q, pc.space)) ++k;
+                    if (k == pc.candidates.size())
+                        pc.candidates.push_back(
+                            {q, predicted, std::nullopt, same_point(q, pc.category_searched, pc.space)});
+                    pc.candidates[k].measured =
+                        measure(category, pc.structure, full_params(q), o.warmup, o.repetitions, verify);
+                    measured_counts.push_back(counts);
+                    ++refined;
+                    if (faster(*pc.candidates[k].measured, *pc.candidates[*current].measured))
+                        current = k, moved = true;
+                }
+                if (moved) break;
+            }
         }
         // Measured first, fastest (meeting the accuracy) first; then the rest by prediction.
         std::stable_sort(
@@ -292,6 +344,7 @@ Advice advise(const AdviseOptions& o) {
                      wanted + ", " + pc.model + ", on this scene's counters (" + pc.why +
                      "): " + std::to_string(pc.replays) + " of " + std::to_string(pc.space_size) +
                      " configurations replayed (" + r.algorithm + "); measured " + measured_text +
+                     (pc.refined > 0 ? "; " + std::to_string(pc.refined) + " of them by the measured descent" : "") +
                      (o.verify_top > 0 ? "; the fastest measured is advised."
                                        : "; the predicted best is advised (--verify-top 0).");
     }
@@ -405,7 +458,9 @@ json advice_json(const Advice& a, const AdviseOptions& o) {
                    {"params", pc.chosen_searched},
                    {"summary", pc.summary},
                    {"candidates", json::array()}};
-        if (pc.method == "model") pj["model"] = pc.model, pj["replays"] = pc.replays, pj["space_size"] = pc.space_size;
+        if (pc.method == "model")
+            pj["model"] = pc.model, pj["replays"] = pc.replays, pj["space_size"] = pc.space_size,
+            pj["refined"] = pc.refined;
         for (const ModelCandidate& c : pc.candidates) {
             json cj = {{"params", c.searched}, {"category", c.is_category}};
             if (c.predicted_ms) cj["predicted_ms"] = *c.predicted_ms;

@@ -11,8 +11,10 @@
 ///             counters: counting replays of the tuning's space on the scene (its search, with the
 ///             tuning's budget and seed, from the category's parameters), ranked by predicted cost;
 ///             the `verify_top` best (one per structure in effect: equal counts are one structure)
-///             are measured beside the category's parameters and the fastest measured is advised
-///             (0: the predicted best alone)
+///             are measured beside the category's parameters; from the fastest of them a measured
+///             descent (one level of one parameter at a time, at most `refine` measurements)
+///             corrects the model's misranked neighbours, and the fastest measured is advised
+///             (verify_top 0: the predicted best alone)
 /// `auto` takes the model where the tuning holds one for the structure, else the category.
 
 #include <cstdint>
@@ -32,6 +34,7 @@ struct AdviseOptions {
     std::string category;           ///< its category; empty: the one nearest the scene's features
     std::string method = "auto";    ///< how tuned parameters are chosen: auto, category, model
     std::uint32_t verify_top = 3;   ///< model method: its best configurations measured beside the category's
+    std::uint32_t refine = 6;       ///< model method: measurements of the descent from the fastest verified
     bool exhaustive = false;        ///< also measure every configuration of each tuned structure's space
     std::uint32_t repetitions = 3;  ///< measurements per structure
     std::uint32_t warmup = 1;       ///< frames left out of the medians
@@ -74,6 +77,7 @@ struct ParameterChoice {
     std::vector<SearchDimension> space;       ///< the tuning's space (empty: an older tuning without one)
     std::string model;                        ///< the cost model applied (model method)
     std::size_t replays = 0, space_size = 0;  ///< counting replays of the scene (model method) and the space
+    std::size_t refined = 0;                  ///< configurations the measured descent added (model method)
     std::vector<ModelCandidate>
         candidates;       ///< model method: measured ones first, fastest first; then the rest by prediction
     std::string summary;  ///< one paragraph for the terminal
