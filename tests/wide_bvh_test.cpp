@@ -32,8 +32,8 @@ std::vector<nlohmann::json> wbvh_param_sets(std::uint64_t seed) {
         {{"rebuild_ratio", 1.0}, {"rebuild_speed", 3.0}, {"width", 4}, {"leaf_size", 2}},
         // The whole rebuild at once, at every commit that follows a change.
         {{"rebuild_ratio", 1.0}, {"rebuild_speed", 0.0}, {"reinsert", false}},
-        {{"width", 2}, {"leaf_size", 1}, {"bins", 2}, {"rebuild_after", 0.05}},
-        {{"reinsert", false}, {"rebuild_ratio", 0.0}, {"rebuild_after", 0.0}}};
+        {{"width", 2}, {"leaf_size", 1}, {"bins", 2}, {"rebuild_after", 0.05}, {"push", "loop"}},
+        {{"reinsert", false}, {"rebuild_ratio", 0.0}, {"rebuild_after", 0.0}, {"push", "fixed"}}};
     Random rng(seed);
     for (int i = 0; i < 2; ++i)
         sets.push_back({{"width", int(2 + rng.below(7))},
@@ -42,7 +42,8 @@ std::vector<nlohmann::json> wbvh_param_sets(std::uint64_t seed) {
                         {"rebuild_ratio", rng.below(3) == 0 ? 0.0 : rng.uniform(1.0, 2.0)},
                         {"rebuild_after", rng.below(3) == 0 ? 0.0 : rng.uniform(0.01, 1.0)},
                         {"rebuild_speed", rng.below(4) == 0 ? 0.0 : rng.uniform(0.1, 10.0)},
-                        {"reinsert", rng.below(2) == 1}});
+                        {"reinsert", rng.below(2) == 1},
+                        {"push", rng.below(2) == 1 ? "loop" : "fixed"}});
     return sets;
 }
 
@@ -339,6 +340,26 @@ TEST(WideBvh, ClosestAndAnyHitStopEarly) {
     tree.cast_counted(std::span<const Segment>(&ray, 1), out, c);
     EXPECT_EQ(c.n_tp, 100u);
     EXPECT_EQ(out.uids.size(), 100u);
+}
+
+TEST(WideBvh, BothWaysOfPushingChildrenVisitTheSameNodesInTheSameOrder) {
+    // Params::push changes how the hit lanes reach the stack, not which or in what order: the
+    // hits, their order and every counter (the outcome predictor's N_MP included) are equal.
+    const Recording r = test::generated_scene("irregular", 3000, 1, 5, 0.0);
+    std::vector<HitLists> out(2);
+    std::vector<Counters> counters(2);
+    for (int i = 0; i < 2; ++i) {
+        const std::unique_ptr<Structure> t =
+            find_structure("wbvh").make({{"push", i == 0 ? "loop" : "fixed"}}, "params");
+        t->build(r.initial);
+        t->commit();
+        t->cast_counted(r.frames[0].rays, out[i], counters[i]);
+    }
+    EXPECT_EQ(out[0].uids, out[1].uids);
+    EXPECT_EQ(out[0].offsets, out[1].offsets);
+    EXPECT_EQ(counters[0], counters[1]);
+    EXPECT_GT(counters[0].n_th, 0u);
+    EXPECT_THROW(find_structure("wbvh").make({{"push", "sometimes"}}, "params"), InputError);
 }
 
 TEST(WideBvh, RejectsInvalidParams) {

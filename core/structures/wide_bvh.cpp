@@ -6,6 +6,8 @@
 #include <limits>
 #include <string>
 
+#include <unistd.h>
+
 namespace rcb {
 
 namespace {
@@ -859,6 +861,14 @@ int WideBvh::depth() const {
     for (const Block& b : blocks_)
         if (b.leaf && b.count > 0) deepest = std::max(deepest, int(b.depth));
     return deepest;
+}
+
+std::size_t WideBvh::l2_bytes() {
+    static const std::size_t bytes = [] {
+        const long b = sysconf(_SC_LEVEL2_CACHE_SIZE);
+        return b > 0 ? std::size_t(b) : std::size_t(1) << 20;
+    }();
+    return bytes;
 }
 
 std::size_t WideBvh::memory_bytes() const {

@@ -54,6 +54,13 @@ public:
         /// A move whose new centre lies outside its leaf's box (as of the last commit) reinserts the
         /// object (remove, then insert by least area growth) instead of stretching the leaf.
         bool reinsert = true;
+        /// How the hit children of a node go onto the stack: one step per hit child (`loop`), or
+        /// eight branch-free steps, every lane written and a hit one kept (`fixed`). The loop's
+        /// exit is a branch no predictor learns, but its speculation runs ahead into the next
+        /// node; that pays once the tree misses the cache and costs while it does not (measured:
+        /// fixed 6-8% faster rays at 14 k objects, 1.5 MB; 3% slower at 6.7 MB, 13-34% slower at
+        /// 22-110 MB). `auto`: fixed while the blocks fit in the L2 cache.
+        std::string push = "auto";
         int cast_threads = 1;
 
         static constexpr auto fields() {
@@ -75,6 +82,11 @@ public:
                 Field{"reinsert", &Params::reinsert, 0, 1,
                       "a move whose centre leaves its leaf's box reinserts the object instead of stretching the "
                       "leaf"},
+                Field{"push", &Params::push, 0, 0,
+                      "how a node's hit children go onto the stack: loop (one step per hit child; its speculation "
+                      "runs ahead through cache misses), fixed (eight branch-free steps; no mispredicted loop exit), "
+                      "auto (fixed while the tree's blocks fit in the L2 cache)",
+                      true, false, "auto,fixed,loop", false},
                 cast_threads_field<Params>()};
         }
     };
@@ -108,11 +120,27 @@ public:
     // stack per thread.
     void prepare() {
         if (!dirty_.empty()) refit();
+        fixed_push_ =
+            params_.push == "fixed" || (params_.push == "auto" && blocks_.size() * sizeof(Block) <= l2_bytes());
     }
     /// Popping one block pushes at most 8: at most 7 per inner level on the path plus one.
     void fit(StackScratch& scratch) const { scratch.fit(7 * std::size_t(max_depth_) + 8); }
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit, StackScratch& scratch) const {
+        if (fixed_push_)
+            traverse_with<true>(s, count, visit, scratch);
+        else
+            traverse_with<false>(s, count, visit, scratch);
+    }
+
+private:
+    static constexpr std::uint32_t kNone = 0xffffffffu;
+
+    /// The L2 data cache of this machine (sysconf), or 1 MiB where it does not say.
+    static std::size_t l2_bytes();
+
+    template <bool kFixedPush, class Count, class Visit>
+    void traverse_with(const Segment& s, Count& count, Visit& visit, StackScratch& scratch) const {
         if (root_ == kNone) return;
         const SegmentSlabs slabs(s);
         // Per axis the offset of the near and far bounds in a block's `bound` array: min at
@@ -146,19 +174,22 @@ public:
                 }
             } else {
                 count.node_hits(unsigned(__builtin_popcount(mask)));
-                // Highest lane first onto the stack, so lane order is visit order. Every lane is
-                // written and only a hit one kept: eight fixed steps instead of a loop over the hit
-                // lanes, whose trip count a branch predictor cannot learn (fit leaves room).
-                for (int k = kLanes - 1; k >= 0; --k) {
-                    stack[top] = b.ref[k];
-                    top += (mask >> k) & 1u;
+                // Highest lane first onto the stack, so lane order is visit order (Params::push).
+                if constexpr (kFixedPush) {
+                    for (int k = kLanes - 1; k >= 0; --k) {  // fit leaves room for the unkept lanes
+                        stack[top] = b.ref[k];
+                        top += (mask >> k) & 1u;
+                    }
+                } else {
+                    while (mask != 0) {
+                        const int k = 31 - __builtin_clz(mask);
+                        mask &= ~(1u << k);
+                        stack[top++] = b.ref[k];
+                    }
                 }
             }
         }
     }
-
-private:
-    static constexpr std::uint32_t kNone = 0xffffffffu;
 
     /// A node or a leaf: lane k holds child k's box (inner) or object k's box (leaf), minima of the
     /// three axes then maxima, 8 floats each; unused lanes hold the empty box (+inf, -inf), which
@@ -331,7 +362,8 @@ private:
     /// uid → block · 8 + lane.
     std::unordered_map<Uid, std::uint32_t> where_;
     std::vector<std::uint32_t> dirty_;
-    int max_depth_ = 0;  // an upper bound on every block's depth (sizes the stack)
+    int max_depth_ = 0;        // an upper bound on every block's depth (sizes the stack)
+    bool fixed_push_ = false;  // Params::push as prepare() resolved it for the tree's size
     // Running SAH: Σ over non-root blocks of area(its lane in the parent) · weight (double: areas
     // of boxes near the coordinate limit overflow float).
     double sah_sum_ = 0.0;
