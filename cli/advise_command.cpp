@@ -42,8 +42,8 @@ void add_advise_command(CLI::App& app) {
         ->check(whole_number(0, 16));
     cmd->add_option("--refine", o->refine,
                     "Model method: at most this many more measurements, a descent from the fastest verified "
-                    "configuration one level of one parameter at a time while a neighbour is faster (corrects what "
-                    "the model misranks; 0: none, and none with --verify-top 0)")
+                    "configuration one level of one parameter at a time (two where one finds nothing) while a "
+                    "neighbour is faster (corrects what the model misranks; 0: none, and none with --verify-top 0)")
         ->capture_default_str()
         ->check(whole_number(0, 64));
     cmd->add_flag("--exhaustive", o->exhaustive,

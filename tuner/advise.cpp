@@ -272,8 +272,9 @@ Advice advise(const AdviseOptions& o) {
         }
         // The model's error (held out, a few percent) can rank a neighbour of the best below it,
         // so a measured descent refines the verified best: one level up or down in one parameter
-        // at a time, moving to any faster configuration, until none is or `refine` measurements
-        // are spent. A neighbour that counts like one measured already is that structure again.
+        // at a time (two where one finds nothing), moving to any faster configuration, until none
+        // is or `refine` measurements are spent. A neighbour that counts like one measured already
+        // is that structure again.
         std::size_t& refined = pc.refined;
         auto faster = [&](const MeasuredCost& a, const MeasuredCost& b) {
             const bool ma = o.accuracy.met_by(a.accuracy), mb = o.accuracy.met_by(b.accuracy);
@@ -284,42 +285,51 @@ Advice advise(const AdviseOptions& o) {
             if (pc.candidates[k].measured &&
                 (!current || faster(*pc.candidates[k].measured, *pc.candidates[*current].measured)))
                 current = k;
-        for (bool moved = o.verify_top > 0 && current; moved && refined < o.refine;) {
-            moved = false;
-            const json from = pc.candidates[*current].searched;
+        // Measures `q` unless it is a structure measured already; true when it is the fastest now.
+        auto probe = [&](const json& q) {
+            std::optional<ReplayCounts> counts = counts_of(q);
+            std::optional<double> predicted;
+            if (!counts) {
+                ReplayCounts replayed;
+                predicted = predict_cost(model, category, pc.structure, q, o.warmup, &replayed);
+                counted.push_back({q, replayed});
+                counts = replayed;
+            }
+            if (std::find(measured_counts.begin(), measured_counts.end(), counts) != measured_counts.end())
+                return false;
+            std::size_t k = 0;
+            while (k < pc.candidates.size() && !same_point(pc.candidates[k].searched, q, pc.space)) ++k;
+            if (k == pc.candidates.size())
+                pc.candidates.push_back({q, predicted, std::nullopt, same_point(q, pc.category_searched, pc.space)});
+            pc.candidates[k].measured =
+                measure(category, pc.structure, full_params(q), o.warmup, o.repetitions, verify);
+            measured_counts.push_back(counts);
+            ++refined;
+            if (!faster(*pc.candidates[k].measured, *pc.candidates[*current].measured)) return false;
+            current = k;
+            return true;
+        };
+        // Neighbours one level away first; where none is faster, two levels away, past a bump (a
+        // map's walls can make a grid's cost rise and fall again along one parameter).
+        auto step_from = [&](const json& from, std::ptrdiff_t stride) {
             for (const SearchDimension& d : pc.space) {
                 const auto at = std::find(d.levels.begin(), d.levels.end(), from[d.name]);
-                for (const std::ptrdiff_t step : {std::ptrdiff_t(1), std::ptrdiff_t(-1)}) {
+                if (at == d.levels.end()) continue;
+                for (const std::ptrdiff_t step : {stride, -stride}) {
                     const std::ptrdiff_t i = (at - d.levels.begin()) + step;
-                    if (at == d.levels.end() || i < 0 || i >= std::ptrdiff_t(d.levels.size()) || refined == o.refine)
-                        continue;
+                    if (i < 0 || i >= std::ptrdiff_t(d.levels.size()) || refined == o.refine) continue;
                     json q = from;
                     q[d.name] = d.levels[std::size_t(i)];
-                    std::optional<ReplayCounts> counts = counts_of(q);
-                    std::optional<double> predicted;
-                    if (!counts) {
-                        ReplayCounts replayed;
-                        predicted = predict_cost(model, category, pc.structure, q, o.warmup, &replayed);
-                        counted.push_back({q, replayed});
-                        counts = replayed;
-                    }
-                    if (std::find(measured_counts.begin(), measured_counts.end(), counts) != measured_counts.end())
-                        continue;
-                    std::size_t k = 0;
-                    while (k < pc.candidates.size() && !same_point(pc.candidates[k].searched, q, pc.space)) ++k;
-                    if (k == pc.candidates.size())
-                        pc.candidates.push_back(
-                            {q, predicted, std::nullopt, same_point(q, pc.category_searched, pc.space)});
-                    pc.candidates[k].measured =
-                        measure(category, pc.structure, full_params(q), o.warmup, o.repetitions, verify);
-                    measured_counts.push_back(counts);
-                    ++refined;
-                    if (faster(*pc.candidates[k].measured, *pc.candidates[*current].measured))
-                        current = k, moved = true;
+                    if (probe(q)) return true;
                 }
-                if (moved) break;
             }
-        }
+            return false;
+        };
+        if (o.verify_top > 0 && current)
+            while (refined < o.refine) {
+                const json from = pc.candidates[*current].searched;
+                if (!step_from(from, 1) && !step_from(from, 2)) break;
+            }
         // Measured first, fastest (meeting the accuracy) first; then the rest by prediction.
         std::stable_sort(
             pc.candidates.begin(), pc.candidates.end(), [&](const ModelCandidate& a, const ModelCandidate& b) {

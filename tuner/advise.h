@@ -12,7 +12,8 @@
 ///             tuning's budget and seed, from the category's parameters), ranked by predicted cost;
 ///             the `verify_top` best (one per structure in effect: equal counts are one structure)
 ///             are measured beside the category's parameters; from the fastest of them a measured
-///             descent (one level of one parameter at a time, at most `refine` measurements)
+///             descent (one level of one parameter at a time, two where one finds nothing; at
+///             most `refine` measurements)
 ///             corrects the model's misranked neighbours, and the fastest measured is advised
 ///             (verify_top 0: the predicted best alone)
 /// `auto` takes the model where the tuning holds one for the structure, else the category.
