@@ -706,6 +706,28 @@ std::optional<RaycastCoefficients> stored_raycast_coefficients(Database& db, std
     return out;
 }
 
+BreakdownColumns breakdown_columns(const std::vector<CostBreakdown>& breakdown, const std::string& times) {
+    const bool shapes =
+        std::any_of(breakdown.begin(), breakdown.end(), [](const CostBreakdown& b) { return b.n_ro > 0; });
+    const bool coherence =
+        std::any_of(breakdown.begin(), breakdown.end(), [](const CostBreakdown& b) { return b.mp_term > 0; });
+    BreakdownColumns out;
+    out.header = {"C_total", "C_RB" + times + "N_RB", "C_T" + times + "N_T"};
+    if (coherence) out.header.insert(out.header.end(), {"C_MP" + times + "N_MP", "N_MP"});
+    if (shapes) out.header.insert(out.header.end(), {"C_RO" + times + "N_RO", "N_RO"});
+    out.header.insert(out.header.end(), {"C_PREP", "N_TP", "N_FP", "N_T", "C_RB", "C_T"});
+    for (const CostBreakdown& b : breakdown) {
+        std::vector<std::string> row{fixed(b.c_total, 1), fixed(b.rb_term, 1), fixed(b.t_term, 1)};
+        if (coherence) row.insert(row.end(), {fixed(b.mp_term, 1), fixed(b.n_mp, 1)});
+        if (shapes) row.insert(row.end(), {fixed(b.ro_term, 1), fixed(b.n_ro, 1)});
+        row.insert(row.end(),
+                   {fixed(b.prep, 1), fixed(b.n_tp, 1), fixed(b.n_fp, 1), fixed(b.n_t, 1),
+                    std::isfinite(b.c_rb) ? fixed(b.c_rb, 3) : "-", std::isfinite(b.c_t) ? fixed(b.c_t, 3) : "-"});
+        out.rows.push_back(std::move(row));
+    }
+    return out;
+}
+
 RunFit fit_run(Database& db, std::int64_t run) {
     RunFit out;
     out.run = run;

@@ -144,6 +144,16 @@ struct CostBreakdown {
 std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& frames,
                                           const std::vector<StructureModels>& models);
 
+/// The Table 6.3 analog's cost and count columns as `fit` and the report print them: C_total, the
+/// terms, the counts and the coefficients, with C_MP·N_MP and N_MP only where a chosen model prices
+/// unpredicted steps and C_RO·N_RO and N_RO only where a configuration tested shapes (eq. 5.3).
+/// `times` spells the product in the header ("x" or "×"); each row's text follows its breakdown's.
+struct BreakdownColumns {
+    std::vector<std::string> header;
+    std::vector<std::vector<std::string>> rows;
+};
+BreakdownColumns breakdown_columns(const std::vector<CostBreakdown>& breakdown, const std::string& times);
+
 /// The fit stage's entry point: the run's frames fitted per structure (fit_cost_models), the fits
 /// stored in the database (store_fits), and the Table 6.3 analog.
 struct RunFit {

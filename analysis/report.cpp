@@ -546,24 +546,13 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
 
         std::vector<std::vector<std::string>> rows;
         const std::vector<CostBreakdown> breakdown = cost_breakdown(frames, models);
-        // The narrow phase's columns (eq. 5.3) only where a configuration tested shapes.
-        const bool shapes =
-            std::any_of(breakdown.begin(), breakdown.end(), [](const CostBreakdown& b) { return b.n_ro > 0; });
-        // The coherence columns where a chosen model prices unpredicted steps.
-        const bool coherence =
-            std::any_of(breakdown.begin(), breakdown.end(), [](const CostBreakdown& b) { return b.mp_term > 0; });
-        for (const CostBreakdown& b : breakdown) {
-            rows.push_back({b.scene, config_label(b.structure, b.params), fixed(b.c_total, 1), fixed(b.rb_term, 1),
-                            fixed(b.t_term, 1), fixed(b.prep, 1), fixed(b.n_tp, 1), fixed(b.n_fp, 1), fixed(b.n_t, 1),
-                            std::isfinite(b.c_rb) ? fixed(b.c_rb, 3) : "-",
-                            std::isfinite(b.c_t) ? fixed(b.c_t, 3) : "-"});
-            if (shapes) rows.back().insert(rows.back().begin() + 5, {fixed(b.ro_term, 1), fixed(b.n_ro, 1)});
-            if (coherence) rows.back().insert(rows.back().begin() + 5, {fixed(b.mp_term, 1), fixed(b.n_mp, 1)});
+        const BreakdownColumns columns = breakdown_columns(breakdown, "×");
+        for (std::size_t i = 0; i < breakdown.size(); ++i) {
+            rows.push_back({breakdown[i].scene, config_label(breakdown[i].structure, breakdown[i].params)});
+            rows.back().insert(rows.back().end(), columns.rows[i].begin(), columns.rows[i].end());
         }
-        std::vector<std::string> header{"scene", "configuration", "C_total", "C_RB×N_RB", "C_T×N_T", "C_PREP",
-                                        "N_TP",  "N_FP",          "N_T",     "C_RB",      "C_T"};
-        if (shapes) header.insert(header.begin() + 5, {"C_RO×N_RO", "N_RO"});
-        if (coherence) header.insert(header.begin() + 5, {"C_MP×N_MP", "N_MP"});
+        std::vector<std::string> header{"scene", "configuration"};
+        header.insert(header.end(), columns.header.begin(), columns.header.end());
         h.table(header, rows,
                 "Thesis Table 6.3 analog: ns per ray; counts per ray; C terms from each structure's chosen model");
         std::vector<std::vector<std::string>> sel;

@@ -114,32 +114,14 @@ void add_fit_command(CLI::App& app) {
         }
 
         std::cout << "\nThesis Table 6.3 analog (ns per ray; the C terms from each structure's chosen model):\n";
-        // The narrow phase's columns (thesis eq. 5.3) only where a configuration tested shapes.
-        const bool shapes =
-            std::any_of(fit.breakdown.begin(), fit.breakdown.end(), [](const CostBreakdown& b) { return b.n_ro > 0; });
-        std::vector<std::string> breakdown_header{"scene",  "structure", "params", "C_total", "C_RBxN_RB", "C_TxN_T",
-                                                  "C_PREP", "N_TP",      "N_FP",   "N_T",     "C_RB",      "C_T"};
-        if (shapes) breakdown_header.insert(breakdown_header.begin() + 6, {"C_ROxN_RO", "N_RO"});
-        // The coherence columns where a chosen model prices unpredicted steps.
-        const bool coherence = std::any_of(fit.breakdown.begin(), fit.breakdown.end(),
-                                           [](const CostBreakdown& b) { return b.mp_term > 0; });
-        if (coherence) breakdown_header.insert(breakdown_header.begin() + 6, {"C_MPxN_MP", "N_MP"});
+        const BreakdownColumns columns = breakdown_columns(fit.breakdown, "x");
+        std::vector<std::string> breakdown_header{"scene", "structure", "params"};
+        breakdown_header.insert(breakdown_header.end(), columns.header.begin(), columns.header.end());
         TextTable t(breakdown_header);
-        for (const CostBreakdown& b : fit.breakdown) {
-            std::vector<std::string> row{b.scene,
-                                         b.structure,
-                                         b.params,
-                                         fixed(b.c_total, 1),
-                                         fixed(b.rb_term, 1),
-                                         fixed(b.t_term, 1),
-                                         fixed(b.prep, 1),
-                                         fixed(b.n_tp, 1),
-                                         fixed(b.n_fp, 1),
-                                         fixed(b.n_t, 1),
-                                         std::isfinite(b.c_rb) ? fixed(b.c_rb, 3) : "-",
-                                         std::isfinite(b.c_t) ? fixed(b.c_t, 3) : "-"};
-            if (shapes) row.insert(row.begin() + 6, {fixed(b.ro_term, 1), fixed(b.n_ro, 1)});
-            if (coherence) row.insert(row.begin() + 6, {fixed(b.mp_term, 1), fixed(b.n_mp, 1)});
+        for (std::size_t i = 0; i < fit.breakdown.size(); ++i) {
+            const CostBreakdown& b = fit.breakdown[i];
+            std::vector<std::string> row{b.scene, b.structure, b.params};
+            row.insert(row.end(), columns.rows[i].begin(), columns.rows[i].end());
             t.add(row);
         }
         t.print(std::cout);
