@@ -392,6 +392,16 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
             for (const auto& [grid, gpath] : grids)
                 for (const json& params : expand_grid(*info, grid, gpath)) {
                     ConfigSpec c{info->name, info->complete(params, gpath)};
+                    // The run's "threads" caps every TBB arena of the process, a structure's own
+                    // threads included: a configuration asking for more would be measured on fewer.
+                    for (const char* key : {"threads", "cast_threads"})
+                        if (c.params.contains(key) && c.params[key].is_number_unsigned() &&
+                            c.params[key].get<std::uint64_t>() > e.threads)
+                            fail(at(gpath, key),
+                                 c.params[key].dump() + " threads, more than the experiment's \"threads\" (" +
+                                     std::to_string(e.threads) +
+                                     "), which caps every thread of the run: set \"threads\" to at least " +
+                                     c.params[key].dump());
                     if (seen.insert(c.structure + c.params.dump()).second) e.configs.push_back(std::move(c));
                     if (e.configs.size() > kMaxPlanCells)
                         fail("structures", "more than " + std::to_string(kMaxPlanCells) + " configurations");

@@ -59,6 +59,14 @@ TEST(Experiment, ValidationNamesTheJsonPath) {
               0u);
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf", "params": {"depth": 3}}]})"),
               "exp.json: structures[0].params.depth: unknown parameter of bf (known: cast_threads, query, leaf_bv)");
+    // A structure's threads beyond the run's would be measured on the run's (TBB's cap is global).
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}],
+                           "structures": [{"name": "wbvh", "grids": [{"cast_threads": [1, 2]}]}]})"),
+              "exp.json: structures[0].grids[0].cast_threads: 2 threads, more than the experiment's \"threads\" (1), "
+              "which caps every thread of the run: set \"threads\" to at least 2");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "threads": 2,
+                           "structures": [{"name": "wbvh", "grids": [{"cast_threads": [1, 2]}]}]})"),
+              "");
     EXPECT_EQ(error_of(R"({"scenes": [{"recording": "missing.rcbscene"}], "structures": [{"name": "bf"}]})"),
               "exp.json: scenes[0].recording: file not found: missing.rcbscene");
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "kind": "uniform"}], "structures": [{"name": "bf"}]})"),
