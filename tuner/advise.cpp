@@ -276,6 +276,7 @@ Advice advise(const AdviseOptions& o) {
         // is or `refine` measurements are spent. A neighbour that counts like one measured already
         // is that structure again.
         std::size_t& refined = pc.refined;
+        // Meeting the accuracy first, then the lower time per frame.
         auto faster = [&](const MeasuredCost& a, const MeasuredCost& b) {
             const bool ma = o.accuracy.met_by(a.accuracy), mb = o.accuracy.met_by(b.accuracy);
             return ma != mb ? ma : a.ms < b.ms;
@@ -313,6 +314,7 @@ Advice advise(const AdviseOptions& o) {
         // map's walls can make a grid's cost rise and fall again along one parameter).
         auto step_from = [&](const json& from, std::ptrdiff_t stride) {
             for (const SearchDimension& d : pc.space) {
+                if (!from.contains(d.name)) continue;
                 const auto at = std::find(d.levels.begin(), d.levels.end(), from[d.name]);
                 if (at == d.levels.end()) continue;
                 for (const std::ptrdiff_t step : {stride, -stride}) {
@@ -331,14 +333,13 @@ Advice advise(const AdviseOptions& o) {
                 if (!step_from(from, 1) && !step_from(from, 2)) break;
             }
         // Measured first, fastest (meeting the accuracy) first; then the rest by prediction.
-        std::stable_sort(
-            pc.candidates.begin(), pc.candidates.end(), [&](const ModelCandidate& a, const ModelCandidate& b) {
-                if (a.measured.has_value() != b.measured.has_value()) return a.measured.has_value();
-                if (!a.measured) return a.predicted_ms.value_or(INFINITY) < b.predicted_ms.value_or(INFINITY);
-                const bool ma = o.accuracy.met_by(a.measured->accuracy), mb = o.accuracy.met_by(b.measured->accuracy);
-                if (ma != mb) return ma;
-                return a.measured->ms < b.measured->ms;
-            });
+        std::stable_sort(pc.candidates.begin(), pc.candidates.end(),
+                         [&](const ModelCandidate& a, const ModelCandidate& b) {
+                             if (a.measured.has_value() != b.measured.has_value()) return a.measured.has_value();
+                             if (!a.measured)
+                                 return a.predicted_ms.value_or(INFINITY) < b.predicted_ms.value_or(INFINITY);
+                             return faster(*a.measured, *b.measured);
+                         });
         pc.chosen_searched = pc.candidates.front().searched;
         configured[index].second = full_params(pc.chosen_searched);
 
