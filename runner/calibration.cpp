@@ -155,6 +155,14 @@ std::vector<MicroScene> micro_scenes() {
 
 }  // namespace
 
+std::vector<CalibrationPoint> calibrate_if_buildable(const std::string& name, const nlohmann::json& params) {
+    try {
+        return calibrate_structure(find_structure(name), params);
+    } catch (const std::exception&) {
+        return {};
+    }
+}
+
 std::vector<CalibrationPoint> calibrate_structure(const StructureInfo& info, const nlohmann::json& params,
                                                   int repeats) {
     std::vector<CalibrationPoint> out;
@@ -205,14 +213,8 @@ void record_machine(Database& db, std::int64_t run,
         std::vector<CalibrationPoint> points;
     };
     std::vector<Measured> measured;
-    for (const auto& [name, params] : structures) {
-        // A structure that cannot be built on the micro-scenes (a user's structure with its own
-        // limits) is left uncalibrated: its fit has no priors and says so; the run goes on.
-        try {
-            measured.push_back({name, params, calibrate_structure(find_structure(name), params)});
-        } catch (const std::exception&) {
-        }
-    }
+    for (const auto& [name, params] : structures)
+        measured.push_back({name, params, calibrate_if_buildable(name, params)});
     Transaction t(db);
     if (recorded()) return;  // another runner of the same run stored it meanwhile
     for (const CacheLevel& c : caches)

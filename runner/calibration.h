@@ -53,6 +53,11 @@ struct CalibrationPoint {
 std::vector<CalibrationPoint> calibrate_structure(const StructureInfo& info, const nlohmann::json& params,
                                                   int repeats = 7);
 
+/// calibrate_structure for the registered structure `name`, or no points when it cannot be built
+/// on the micro-scenes (a user's structure with its own limits): its fits then go without priors
+/// and say so.
+std::vector<CalibrationPoint> calibrate_if_buildable(const std::string& name, const nlohmann::json& params);
+
 /// Stores the caches and each structure's calibration with the run (tables run_cache and
 /// calibration, docs/database.md), unless the run has them already (a resumed run keeps its own).
 /// `structures` are (name, complete params) pairs, one per structure.

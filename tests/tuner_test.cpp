@@ -229,7 +229,12 @@ TEST(TuneCostModel, TheMachinesCalibrationKeepsRayWorkInAFewPointFit) {
         points.push_back({"micro", 512, 0.0, n_t, (kT * n_t + kPrep) * (1 + 0.01 * rng.normal()), 0.1});
     ModelInputs priors;
     priors.calibrations.push_back(fit_calibration("ug", points));
-    const std::optional<CostCoefficients> pinned = fit_coefficients(frames, priors);
+    bool asked = false;
+    const auto source = [&]() -> const ModelInputs& {
+        asked = true;
+        return priors;
+    };
+    const std::optional<CostCoefficients> pinned = fit_coefficients(frames, source);
     ASSERT_TRUE(pinned.has_value());
     EXPECT_GE(pinned->c_t, kT / kPriorRange * 0.99) << pinned->to_json().dump();
     EXPECT_LE(pinned->c_t, kT * kPriorRange * 1.01) << pinned->to_json().dump();
@@ -238,20 +243,25 @@ TEST(TuneCostModel, TheMachinesCalibrationKeepsRayWorkInAFewPointFit) {
     // Frames that do show the rays' work keep the free fit's balance: C_T = 20 where the
     // calibration says 4 (beyond its 3x range).
     for (FrameObservation& o : frames) o.raycast_ns = o.rays * (kPrep + 20 * o.n_t) * (1 + 0.01 * rng.normal());
-    const std::optional<CostCoefficients> free = fit_coefficients(frames, priors);
+    asked = false;
+    const std::optional<CostCoefficients> free = fit_coefficients(frames, source);
     ASSERT_TRUE(free.has_value());
     EXPECT_NEAR(free->c_t, 20, 2) << free->to_json().dump();
     EXPECT_EQ(free->model.find("priors"), std::string::npos) << free->model;
+    EXPECT_FALSE(asked);  // the calibration is not even measured where the free fit prices the rays
 }
 
 TEST(TuneCostModel, MachinePriorsCalibrateEveryBuildableStructure) {
-    const ModelInputs priors = machine_priors({"ug", "dbvh"});
-    ASSERT_EQ(priors.calibrations.size(), 2u);
-    for (const StructureCalibration& c : priors.calibrations) {
+    MachinePriors priors;
+    for (const char* name : {"ug", "dbvh"}) {
+        const ModelInputs& in = priors.of(name);
+        ASSERT_EQ(in.calibrations.size(), 1u) << name;
+        const StructureCalibration& c = in.calibrations[0];
         EXPECT_FALSE(c.points.empty()) << c.structure;
         const CalibratedTerm* t = c.term("C_T");
         ASSERT_NE(t, nullptr) << c.structure;
         EXPECT_GT(t->value, 0) << c.structure;
+        EXPECT_EQ(&priors.of(name), &in);  // measured once, then kept
     }
 }
 

@@ -180,11 +180,11 @@ TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
                << outcome.scene_categories.categories[i].nearest_fixed << " |\n";
         }
     }
-    // One calibration of every structure on this machine: the priors of every category's fits.
-    const ModelInputs priors = machine_priors(spec.structures);
+    // The machine's calibration of a structure, measured once if any category's fit needs it.
+    MachinePriors priors;
     for (const TuneCategory& category : spec.categories) {
         if (o.progress) o.progress(category.name);
-        const CategoryTuning ct = tune_category(spec, category, priors);
+        const CategoryTuning ct = tune_category(spec, category, &priors);
         store_tuning(store, spec, ct);
         md << "\n## " << ct.category << "\n\nRecommended: **" << ct.chosen.structure << " "
            << searched_parameters(spec, ct.chosen) << "** at " << cost_text(*ct.chosen.measured) << " ms per frame";
@@ -304,7 +304,7 @@ TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
                 std::function<double(const json&)> predict = st.predict;
                 std::string model = st.prediction_model;
                 if (!predict) {
-                    Predictor p = calibrate_predictor(spec, category, st.structure, priors);
+                    Predictor p = calibrate_predictor(spec, category, st.structure, &priors);
                     predict = p.predict, model = p.model;
                 }
                 std::vector<double> predicted;

@@ -454,11 +454,11 @@ std::optional<CostCoefficients> chosen_coefficients(const std::vector<StructureM
 }  // namespace
 
 std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservation>& frames,
-                                                 const ModelInputs& priors) {
+                                                 const std::function<const ModelInputs&()>& priors) {
     std::optional<CostCoefficients> c = chosen_coefficients(fit_cost_models(frames));
     const bool prices_rays = c && c->c_rb + c->c_t + c->c_th + c->c_mp > 0;
-    if (c && !prices_rays && !priors.calibrations.empty()) {
-        c = chosen_coefficients(fit_cost_models(frames, priors));
+    if (c && !prices_rays && priors && !priors().calibrations.empty()) {
+        c = chosen_coefficients(fit_cost_models(frames, priors()));
         if (c) c->model += " with the calibration's priors (without them the fit priced no ray work)";
     }
     return c;
@@ -488,21 +488,31 @@ double predict_cost(const CostCoefficients& c, const TuneCategory& category, con
     return total / double(runs.size());
 }
 
-ModelInputs machine_priors(const std::vector<std::string>& structures) {
-    ModelInputs out;
-    out.caches = read_cache_sizes();
-    for (const std::string& name : structures) {
-        try {
-            const StructureInfo& info = find_structure(name);
-            out.calibrations.push_back(fit_calibration(name, calibrate_structure(info, info.defaults())));
-        } catch (const std::exception&) {  // not buildable on the micro-scenes: its fits go without priors
-        }
+const ModelInputs& MachinePriors::of(const std::string& structure) {
+    auto it = measured_.find(structure);
+    if (it == measured_.end()) {
+        ModelInputs in;
+        in.caches = read_cache_sizes();
+        const std::vector<CalibrationPoint> points =
+            calibrate_if_buildable(structure, find_structure(structure).defaults());
+        if (!points.empty()) in.calibrations.push_back(fit_calibration(structure, points));
+        it = measured_.emplace(structure, std::move(in)).first;
     }
-    return out;
+    return it->second;
 }
 
+namespace {
+
+/// `structure`'s priors from `priors`, asked for only when a fit needs them; none without `priors`.
+std::function<const ModelInputs&()> priors_of(MachinePriors* priors, const std::string& structure) {
+    if (!priors) return {};
+    return [priors, structure]() -> const ModelInputs& { return priors->of(structure); };
+}
+
+}  // namespace
+
 Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category, const std::string& structure,
-                              const ModelInputs& priors) {
+                              MachinePriors* priors) {
     Predictor out;
     const std::vector<SearchDimension>& dims = spec.space.at(structure);
     json defaults_searched = json::object();
@@ -529,7 +539,7 @@ Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category
         ++group;
         ++out.measurements;
     }
-    const std::optional<CostCoefficients> fitted = fit_coefficients(frames, priors);
+    const std::optional<CostCoefficients> fitted = fit_coefficients(frames, priors_of(priors, structure));
     if (!fitted)
         throw std::runtime_error("tune: the calibration of " + structure + " on " + category.name +
                                  " gave no cost model");
@@ -567,7 +577,7 @@ double spearman(const std::vector<double>& a, const std::vector<double>& b) {
     return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : NAN;
 }
 
-CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category, const ModelInputs& priors) {
+CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category, MachinePriors* priors) {
     CategoryTuning out;
     out.category = category.name;
     std::vector<std::string> unmet;  // structures with no candidate that meets the accuracy
@@ -607,7 +617,7 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category,
                 dims,
                 [&](const json& p) { return constrained_cost(*measure_candidate(p, false).measured, spec.accuracy); },
                 spec.budget, spec.seed, defaults_searched);
-            st.cost_model = fit_coefficients(observed, priors);
+            st.cost_model = fit_coefficients(observed, priors_of(priors, structure));
         } else {
             Predictor predictor = calibrate_predictor(spec, category, structure, priors);
             st.measurements += predictor.measurements;

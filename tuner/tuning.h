@@ -149,20 +149,26 @@ std::vector<MeasuredCost> measure_interleaved(const TuneCategory& category, cons
 /// does not.
 double constrained_cost(const MeasuredCost& cost, const AccuracyConstraint& accuracy);
 
+/// The machine's calibration (runner/calibration.h, a structure at its defaults) and caches: the
+/// priors of the tuner's fits. A structure's is measured the first time a fit asks for it, then
+/// kept; one the micro-scenes cannot build has none.
+class MachinePriors {
+public:
+    const ModelInputs& of(const std::string& structure);
+
+private:
+    std::map<std::string, ModelInputs> measured_;
+};
+
 /// Eq. 5.4 fitted (analysis/cost_model.h) to measured frames of one structure, the ray-cast model
 /// the fit chooses; nullopt when it chooses none (too few distinct configurations). The fit is
 /// free of the calibration: its balance of C_RB and C_T ranks a map's configurations better than
 /// the micro-scenes' in-cache values (docs/model.md). But a tuning measures a few configurations
 /// of one category whose counters move together, and on a noisy machine the free fit may price
 /// every ray's work at 0 and leave a start-up cost alone, which ranks nothing; then the fit is
-/// made again with `priors`, the machine's calibration (machine_priors), and the model says so.
+/// made again with `priors()`, the structure's calibration (MachinePriors), and the model says so.
 std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservation>& frames,
-                                                 const ModelInputs& priors = {});
-
-/// The calibration pass of `rcbench run` (runner/calibration.h) for each of `structures` at its
-/// defaults, and the machine's caches: the priors of the tuner's fits. A structure the
-/// micro-scenes cannot build gets none.
-ModelInputs machine_priors(const std::vector<std::string>& structures);
+                                                 const std::function<const ModelInputs&()>& priors = {});
 
 /// What a replay counted over its measured frames and scenes. Two configurations with equal
 /// counts are one structure in effect (a hash grid of depth 0 ignores its capacity and
@@ -190,7 +196,7 @@ struct Predictor {
     std::size_t measurements = 0;  ///< measured calibration points
 };
 Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category, const std::string& structure,
-                              const ModelInputs& priors = {});
+                              MachinePriors* priors = nullptr);
 
 /// Spearman's rank correlation (ties get their mean rank); NaN for fewer than two pairs or a
 /// constant side.
@@ -202,7 +208,7 @@ std::vector<const Candidate*> meeting(const std::vector<const Candidate*>& all, 
 /// Tunes every structure of the spec on one category. Only candidates that meet the spec's
 /// accuracy are chosen; a structure with none is left out of the result (rule_note names it), and
 /// InputError when no candidate of the category meets it.
-CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category, const ModelInputs& priors = {});
+CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category, MachinePriors* priors = nullptr);
 
 /// Rank for the simplicity rule: lower is simpler.
 int structure_simplicity(const std::string& structure);
