@@ -50,9 +50,9 @@ int run(int argc, char** argv) {
     const std::vector<Object>& moves = rec.frames.at(0).moves;
     std::unordered_map<Uid, Aabb> first_box;
     for (const Object& o : objects) first_box.emplace(o.uid, o.box);
-    std::vector<Object> back_list;  // the moved objects' first boxes: the second rebuild moves them back
-    for (const Object& m : moves) back_list.push_back({m.uid, first_box.at(m.uid)});
-    const std::vector<Object>& back = back_list;
+    std::vector<Object> back;  // the moved objects' first boxes: the second rebuild moves them back
+    for (const Object& m : moves) back.push_back({m.uid, first_box.at(m.uid)});
+    const std::vector<Object>* const changes[] = {&moves, &back};
     const std::size_t n = objects.size();
     std::printf("%s: %zu objects, %zu moves per rebuild, %d repeats\n", preset.c_str(), n, moves.size(), repeats);
 
@@ -68,7 +68,7 @@ int run(int argc, char** argv) {
             Clock::time_point t0 = Clock::now();
             t.build(objects);
             s[k].build.push_back(ms_since(t0));
-            for (const std::vector<Object>* change : {&moves, &back}) {
+            for (const std::vector<Object>* change : changes) {
                 for (const Object& m : *change) t.move(m);
                 t0 = Clock::now();
                 t.commit();
