@@ -10,7 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "core/number_text.h"
+#include "core/base/number_text.h"
 
 namespace rcb {
 namespace {

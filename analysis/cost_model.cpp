@@ -11,9 +11,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/error.h"
-#include "core/number_text.h"
-#include "core/simulator.h"
+#include "core/base/error.h"
+#include "core/base/number_text.h"
+#include "core/sim/simulator.h"
 #include "runner/run_experiment.h"
 #include "runner/store.h"
 
@@ -52,7 +52,7 @@ const Term kHits{"C_HIT", [](const FrameObservation& f) { return f.n_tp; }};
 const Term kNodeHits{"C_TH", [](const FrameObservation& f) { return f.n_th; }};
 /// What a step costs beyond a predicted one when the ray before took another path (coherence): the
 /// branches the CPU guessed wrong and the nodes not in the L1 cache. N_MP is the steps a history
-/// predictor missed (core/outcome_predictor.h); eq. 5.4 prices coherent and incoherent rays alike.
+/// predictor missed (core/accel/outcome_predictor.h); eq. 5.4 prices coherent and incoherent rays alike.
 const Term kMispredicts{"C_MP", [](const FrameObservation& f) { return f.n_mp; }};
 
 /// The memory hierarchy: one column per cache tier the run's working sets reach beyond the smallest

@@ -9,8 +9,8 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/cost_model.h"
-#include "core/number_text.h"
-#include "core/simulator.h"
+#include "core/base/number_text.h"
+#include "core/sim/simulator.h"
 #include "runner/store.h"
 
 namespace rcb {

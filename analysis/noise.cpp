@@ -3,8 +3,8 @@
 #include <cmath>
 #include <map>
 
-#include "core/number_text.h"
-#include "core/simulator.h"
+#include "core/base/number_text.h"
+#include "core/sim/simulator.h"
 #include "runner/store.h"
 
 namespace rcb {

@@ -18,13 +18,13 @@
 #include "analysis/cost_model.h"
 #include "analysis/findings.h"
 #include "analysis/noise.h"
-#include "core/error.h"
-#include "core/generators.h"
-#include "core/output_file.h"
-#include "core/registry.h"
-#include "core/simulator.h"
+#include "core/base/error.h"
+#include "core/scene/generate/generators.h"
+#include "core/base/output_file.h"
+#include "core/accel/registry.h"
+#include "core/sim/simulator.h"
 #include "runner/store.h"
-#include "core/number_text.h"
+#include "core/base/number_text.h"
 #include "runner/history.h"
 
 namespace rcb {
@@ -384,7 +384,7 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
     }
 
     // Speed against accuracy: per scene, time per frame against precision and against recall of
-    // every configuration (query levels included: candidates, boxes, shapes; core/query_level.h),
+    // every configuration (query levels included: candidates, boxes, shapes; core/accel/query_level.h),
     // with the Pareto front named. A scene where every configuration is exact gets one line.
     h.heading("Speed against accuracy");
     {

@@ -7,9 +7,9 @@
 #include <set>
 
 #include "analysis/cost_model.h"
-#include "core/error.h"
-#include "core/number_text.h"
-#include "core/random.h"
+#include "core/base/error.h"
+#include "core/base/number_text.h"
+#include "core/base/random.h"
 #include "runner/store.h"
 
 namespace rcb {

@@ -15,10 +15,10 @@
 #include <vector>
 
 #include "bench/bench_util.h"
-#include "core/error.h"
-#include "core/generators.h"
-#include "core/recording_io.h"
-#include "core/structures/brute_force.h"
+#include "core/base/error.h"
+#include "core/scene/generate/generators.h"
+#include "core/scene/recording_io.h"
+#include "core/accel/brute_force.h"
 
 namespace {
 

@@ -16,9 +16,9 @@
 #include <vector>
 
 #include "bench/bench_util.h"
-#include "core/error.h"
-#include "core/generators.h"
-#include "core/structures/linear_bvh.h"
+#include "core/base/error.h"
+#include "core/scene/generate/generators.h"
+#include "core/accel/bvh/linear_bvh.h"
 
 namespace {
 

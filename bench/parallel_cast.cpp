@@ -13,9 +13,9 @@
 #include <vector>
 
 #include "bench/bench_util.h"
-#include "core/error.h"
-#include "core/recording_io.h"
-#include "core/registry.h"
+#include "core/base/error.h"
+#include "core/scene/recording_io.h"
+#include "core/accel/registry.h"
 
 namespace {
 

@@ -21,10 +21,10 @@
 #include <vector>
 
 #include "bench/bench_util.h"
-#include "core/error.h"
-#include "core/generators.h"
-#include "core/params.h"
-#include "core/structures/wide_bvh.h"
+#include "core/base/error.h"
+#include "core/scene/generate/generators.h"
+#include "core/accel/params.h"
+#include "core/accel/bvh/wide_bvh.h"
 
 namespace {
 

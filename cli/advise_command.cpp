@@ -5,7 +5,7 @@
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "cli/table.h"
-#include "core/error.h"
+#include "core/base/error.h"
 #include "tuner/advise.h"
 
 namespace rcb {

@@ -3,9 +3,9 @@
 #include <iostream>
 #include <memory>
 
-#include "core/csv.h"
-#include "core/recording_io.h"
-#include "core/registry.h"
+#include "core/scene/import/csv.h"
+#include "core/scene/recording_io.h"
+#include "core/accel/registry.h"
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "cli/structure_options.h"

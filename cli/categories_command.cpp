@@ -7,7 +7,7 @@
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "cli/table.h"
-#include "core/number_text.h"
+#include "core/base/number_text.h"
 #include "runner/store.h"
 
 namespace rcb {

@@ -9,8 +9,8 @@
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "cli/table.h"
-#include "core/error.h"
-#include "core/number_text.h"
+#include "core/base/error.h"
+#include "core/base/number_text.h"
 #include "runner/history.h"
 #include "runner/store.h"
 

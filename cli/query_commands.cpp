@@ -4,8 +4,8 @@
 #include <map>
 #include <memory>
 
-#include "core/error.h"
-#include "core/output_file.h"
+#include "core/base/error.h"
+#include "core/base/output_file.h"
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "runner/compare.h"

@@ -6,7 +6,7 @@
 #include "cli/commands.h"
 #include "analysis/cost_model.h"
 #include "analysis/report.h"
-#include "core/output_file.h"
+#include "core/base/output_file.h"
 #include "runner/store.h"
 
 namespace rcb {

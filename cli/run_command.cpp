@@ -9,9 +9,9 @@
 #include <map>
 #include <memory>
 
-#include "core/error.h"
-#include "core/output_file.h"
-#include "core/registry.h"
+#include "core/base/error.h"
+#include "core/base/output_file.h"
+#include "core/accel/registry.h"
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "runner/experiment.h"

@@ -7,14 +7,14 @@
 #include <iostream>
 #include <memory>
 
-#include "core/csv.h"
-#include "core/error.h"
-#include "core/generators.h"
-#include "core/importers/scene_import.h"
-#include "core/json_input.h"
-#include "core/output_file.h"
-#include "core/recording_io.h"
-#include "core/scene_features.h"
+#include "core/scene/import/csv.h"
+#include "core/base/error.h"
+#include "core/scene/generate/generators.h"
+#include "core/scene/import/scene_import.h"
+#include "core/base/json_input.h"
+#include "core/base/output_file.h"
+#include "core/scene/recording_io.h"
+#include "core/sim/scene_features.h"
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "cli/table.h"

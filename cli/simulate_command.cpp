@@ -4,12 +4,12 @@
 #include <iostream>
 #include <memory>
 
-#include "core/recording_io.h"
-#include "core/simulator.h"
+#include "core/scene/recording_io.h"
+#include "core/sim/simulator.h"
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
-#include "core/error.h"
-#include "core/output_file.h"
+#include "core/base/error.h"
+#include "core/base/output_file.h"
 #include "cli/table.h"
 
 namespace rcb {

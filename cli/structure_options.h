@@ -7,7 +7,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include "core/params.h"
+#include "core/accel/params.h"
 
 namespace rcb {
 

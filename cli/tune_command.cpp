@@ -5,7 +5,7 @@
 
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
-#include "core/number_text.h"
+#include "core/base/number_text.h"
 #include "tuner/run_tuning.h"
 
 namespace rcb {

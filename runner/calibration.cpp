@@ -7,9 +7,9 @@
 #include <fstream>
 #include <random>
 
-#include "core/error.h"
-#include "core/hit_lists.h"
-#include "core/simulator.h"
+#include "core/base/error.h"
+#include "core/truth/hit_lists.h"
+#include "core/sim/simulator.h"
 #include "runner/store.h"
 
 namespace rcb {

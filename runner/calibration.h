@@ -19,7 +19,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/registry.h"
+#include "core/accel/registry.h"
 #include "runner/sqlite.h"
 
 namespace rcb {
@@ -45,7 +45,7 @@ struct CalibrationPoint {
     double n_rb = 0, n_t = 0;  ///< per ray
     double ns_per_ray = 0;     ///< median over the repeats
     double mad = 0;            ///< median absolute deviation over the repeats
-    double n_mp = 0;           ///< steps the history predictor missed, per ray (core/outcome_predictor.h)
+    double n_mp = 0;           ///< steps the history predictor missed, per ray (core/accel/outcome_predictor.h)
 };
 
 /// Builds `info` with `params` on every micro-scene and times its ray batches (`repeats` times);

@@ -8,8 +8,8 @@
 #include <map>
 #include <tuple>
 
-#include "core/error.h"
-#include "core/simulator.h"
+#include "core/base/error.h"
+#include "core/sim/simulator.h"
 #include "runner/store.h"
 
 namespace rcb {

@@ -8,12 +8,12 @@
 #include <set>
 #include <sstream>
 
-#include "core/csv.h"
-#include "core/importers/scene_import.h"
-#include "core/error.h"
-#include "core/json_input.h"
-#include "core/recording_io.h"
-#include "core/registry.h"
+#include "core/scene/import/csv.h"
+#include "core/scene/import/scene_import.h"
+#include "core/base/error.h"
+#include "core/base/json_input.h"
+#include "core/scene/recording_io.h"
+#include "core/accel/registry.h"
 
 namespace rcb {
 namespace fs = std::filesystem;

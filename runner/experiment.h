@@ -9,10 +9,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/generators.h"
-#include "core/json_input.h"
-#include "core/params.h"
-#include "core/scene.h"
+#include "core/scene/generate/generators.h"
+#include "core/base/json_input.h"
+#include "core/accel/params.h"
+#include "core/scene/scene.h"
 
 namespace rcb {
 

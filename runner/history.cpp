@@ -7,8 +7,8 @@
 #include <map>
 #include <tuple>
 
-#include "core/error.h"
-#include "core/simulator.h"
+#include "core/base/error.h"
+#include "core/sim/simulator.h"
 #include "runner/compare.h"
 #include "runner/store.h"
 

@@ -8,8 +8,8 @@
 #include <fstream>
 #include <set>
 
-#include "core/error.h"
-#include "core/registry.h"
+#include "core/base/error.h"
+#include "core/accel/registry.h"
 #include "runner/calibration.h"
 #include "runner/store.h"
 

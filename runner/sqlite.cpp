@@ -3,7 +3,7 @@
 #include <chrono>
 #include <thread>
 
-#include "core/error.h"
+#include "core/base/error.h"
 
 namespace rcb {
 

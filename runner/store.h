@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "core/scene_features.h"
-#include "core/simulator.h"
+#include "core/sim/scene_features.h"
+#include "core/sim/simulator.h"
 #include "runner/experiment.h"
 #include "runner/sqlite.h"
 

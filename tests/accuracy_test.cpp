@@ -7,10 +7,10 @@
 #include <filesystem>
 
 #include "analysis/charts.h"
-#include "core/error.h"
-#include "core/query_level.h"
-#include "core/recording_io.h"
-#include "core/registry.h"
+#include "core/base/error.h"
+#include "core/accel/query_level.h"
+#include "core/scene/recording_io.h"
+#include "core/accel/registry.h"
 #include "runner/experiment.h"
 #include "runner/merge.h"
 #include "runner/store.h"

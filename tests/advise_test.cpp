@@ -6,9 +6,9 @@
 #include <filesystem>
 #include <fstream>
 
-#include "core/error.h"
-#include "core/generators.h"
-#include "core/recording_io.h"
+#include "core/base/error.h"
+#include "core/scene/generate/generators.h"
+#include "core/scene/recording_io.h"
 #include "tests/subprocess.h"
 #include "tests/test_scenes.h"
 #include "tuner/advise.h"

@@ -2,10 +2,10 @@
 // independent check written differently (interval arithmetic per axis, no slabs object).
 #include <gtest/gtest.h>
 
-#include "core/ground_truth.h"
-#include "core/random.h"
-#include "core/registry.h"
-#include "core/structures/brute_force.h"
+#include "core/truth/ground_truth.h"
+#include "core/base/random.h"
+#include "core/accel/registry.h"
+#include "core/accel/brute_force.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

@@ -8,13 +8,13 @@
 #include <tuple>
 #include <iostream>
 
-#include "core/error.h"
-#include "core/generators.h"
-#include "core/random.h"
-#include "core/registry.h"
-#include "core/structures/brute_force.h"
-#include "core/structures/dynamic_bvh.h"
-#include "core/structures/linear_bvh.h"
+#include "core/base/error.h"
+#include "core/scene/generate/generators.h"
+#include "core/base/random.h"
+#include "core/accel/registry.h"
+#include "core/accel/brute_force.h"
+#include "core/accel/bvh/dynamic_bvh.h"
+#include "core/accel/bvh/linear_bvh.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

@@ -9,8 +9,8 @@
 #include <cmath>
 
 #include "analysis/cost_model.h"
-#include "core/error.h"
-#include "core/registry.h"
+#include "core/base/error.h"
+#include "core/accel/registry.h"
 #include "runner/calibration.h"
 #include "runner/experiment.h"
 #include "runner/merge.h"

@@ -7,7 +7,7 @@
 
 #include "analysis/cost_model.h"
 #include "analysis/linear_fit.h"
-#include "core/random.h"
+#include "core/base/random.h"
 
 namespace rcb {
 namespace {

@@ -1,8 +1,8 @@
 // CSV import of boxes and rays: optional header, comments, CRLF; errors with file and line.
 #include <gtest/gtest.h>
 
-#include "core/csv.h"
-#include "core/error.h"
+#include "core/scene/import/csv.h"
+#include "core/base/error.h"
 
 namespace rcb {
 namespace {

@@ -8,7 +8,7 @@
 #include <filesystem>
 
 #include "analysis/findings.h"
-#include "core/registry.h"
+#include "core/accel/registry.h"
 #include "runner/store.h"
 
 namespace rcb {

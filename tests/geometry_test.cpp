@@ -2,8 +2,8 @@
 // hit the boxes containing their point, and the float test is exact wherever its arithmetic is.
 #include <gtest/gtest.h>
 
-#include "core/geometry.h"
-#include "core/random.h"
+#include "core/base/geometry.h"
+#include "core/base/random.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

@@ -5,11 +5,11 @@
 #include <algorithm>
 #include <chrono>
 
-#include "core/error.h"
-#include "core/random.h"
-#include "core/registry.h"
-#include "core/structures/hash_grid.h"
-#include "core/structures/uniform_grid.h"
+#include "core/base/error.h"
+#include "core/base/random.h"
+#include "core/accel/registry.h"
+#include "core/accel/grid/hash_grid.h"
+#include "core/accel/grid/uniform_grid.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

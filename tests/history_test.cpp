@@ -15,8 +15,8 @@
 
 #include "analysis/charts.h"
 #include "analysis/report.h"
-#include "core/error.h"
-#include "core/registry.h"
+#include "core/base/error.h"
+#include "core/accel/registry.h"
 #include "runner/history.h"
 #include "runner/run_experiment.h"
 #include "runner/store.h"

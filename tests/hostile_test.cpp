@@ -30,8 +30,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/random.h"
-#include "core/recording_io.h"
+#include "core/base/random.h"
+#include "core/scene/recording_io.h"
 #include "runner/sqlite.h"
 #include "tests/subprocess.h"
 
@@ -529,7 +529,7 @@ Mutant mutate_words(const std::string& in, rcb::Random& r) {
     return {s, what, {}};
 }
 
-// --- The recording format (core/recording_io.h): sections after a 16-byte header. ---
+// --- The recording format (core/scene/recording_io.h): sections after a 16-byte header. ---
 
 struct Section {
     std::size_t at;  // offset of the tag

@@ -15,14 +15,14 @@
 #include <filesystem>
 #include <fstream>
 
-#include "core/error.h"
-#include "core/generators.h"
-#include "core/csv.h"
-#include "core/recording_io.h"
-#include "core/importers/bsp.h"
-#include "core/importers/model.h"
-#include "core/importers/nesting.h"
-#include "core/importers/scene_import.h"
+#include "core/base/error.h"
+#include "core/scene/generate/generators.h"
+#include "core/scene/import/csv.h"
+#include "core/scene/recording_io.h"
+#include "core/scene/import/bsp.h"
+#include "core/scene/import/model.h"
+#include "core/scene/import/nesting.h"
+#include "core/scene/import/scene_import.h"
 #include "runner/experiment.h"
 #include "tests/test_scenes.h"
 #include "tests/real_data.h"

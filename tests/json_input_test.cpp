@@ -3,8 +3,8 @@
 
 #include <string>
 
-#include "core/error.h"
-#include "core/json_input.h"
+#include "core/base/error.h"
+#include "core/base/json_input.h"
 
 namespace rcb {
 namespace {

@@ -5,10 +5,10 @@
 #include <algorithm>
 #include <vector>
 
-#include "core/counters.h"
-#include "core/outcome_predictor.h"
-#include "core/random.h"
-#include "core/registry.h"
+#include "core/accel/counters.h"
+#include "core/accel/outcome_predictor.h"
+#include "core/base/random.h"
+#include "core/accel/registry.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

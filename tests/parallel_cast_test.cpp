@@ -5,12 +5,12 @@
 
 #include <string>
 
-#include "core/structures/brute_force.h"
-#include "core/structures/dynamic_bvh.h"
-#include "core/structures/hash_grid.h"
-#include "core/structures/linear_bvh.h"
-#include "core/structures/uniform_grid.h"
-#include "core/structures/wide_bvh.h"
+#include "core/accel/brute_force.h"
+#include "core/accel/bvh/dynamic_bvh.h"
+#include "core/accel/grid/hash_grid.h"
+#include "core/accel/bvh/linear_bvh.h"
+#include "core/accel/grid/uniform_grid.h"
+#include "core/accel/bvh/wide_bvh.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

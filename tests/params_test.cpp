@@ -1,8 +1,8 @@
 // Typed parameters: JSON in and out, and validation messages with the JSON path.
 #include <gtest/gtest.h>
 
-#include "core/params.h"
-#include "core/registry.h"
+#include "core/accel/params.h"
+#include "core/accel/registry.h"
 
 namespace rcb {
 namespace {

@@ -6,12 +6,12 @@
 #include <functional>
 #include <limits>
 
-#include "core/error.h"
-#include "core/random.h"
-#include "core/recording_io.h"
-#include "core/peers/bullet_dbvt.h"
-#include "core/peers/embree_boxes.h"
-#include "core/registry.h"
+#include "core/base/error.h"
+#include "core/base/random.h"
+#include "core/scene/recording_io.h"
+#include "core/accel/peers/bullet_dbvt.h"
+#include "core/accel/peers/embree_boxes.h"
+#include "core/accel/registry.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

@@ -11,9 +11,9 @@
 #include <limits>
 #include <sstream>
 
-#include "core/error.h"
-#include "core/recorder.h"
-#include "core/recording_io.h"
+#include "core/base/error.h"
+#include "core/scene/recorder.h"
+#include "core/scene/recording_io.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

@@ -5,9 +5,9 @@
 #include <cmath>
 #include <filesystem>
 
-#include "core/error.h"
-#include "core/generators.h"
-#include "core/recording_io.h"
+#include "core/base/error.h"
+#include "core/scene/generate/generators.h"
+#include "core/scene/recording_io.h"
 
 namespace rcb {
 namespace {

@@ -7,10 +7,10 @@
 #include <unordered_map>
 #include <vector>
 
-#include "core/error.h"
-#include "core/registry.h"
-#include "core/simulator.h"
-#include "core/structure.h"
+#include "core/base/error.h"
+#include "core/accel/registry.h"
+#include "core/sim/simulator.h"
+#include "core/accel/structure.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

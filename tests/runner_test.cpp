@@ -13,8 +13,8 @@
 #include <fstream>
 #include <thread>
 
-#include "core/error.h"
-#include "core/random.h"
+#include "core/base/error.h"
+#include "core/base/random.h"
 #include "analysis/cost_model.h"
 #include "runner/compare.h"
 #include "runner/experiment.h"

@@ -5,8 +5,8 @@
 #include <fstream>
 
 #include "analysis/scene_categories.h"
-#include "core/generators.h"
-#include "core/recording_io.h"
+#include "core/scene/generate/generators.h"
+#include "core/scene/recording_io.h"
 #include "runner/store.h"
 #include "tests/subprocess.h"
 #include "tuner/advise.h"

@@ -8,10 +8,10 @@
 #include <cmath>
 #include <limits>
 
-#include "core/error.h"
-#include "core/generators.h"
-#include "core/recording_io.h"
-#include "core/registry.h"
+#include "core/base/error.h"
+#include "core/scene/generate/generators.h"
+#include "core/scene/recording_io.h"
+#include "core/accel/registry.h"
 #include "runner/experiment.h"
 #include "tests/subprocess.h"
 #include "tests/test_scenes.h"

@@ -6,12 +6,12 @@
 #include <cmath>
 #include <random>
 
-#include "core/error.h"
-#include "core/ground_truth.h"
-#include "core/query_level.h"
-#include "core/recording_io.h"
-#include "core/registry.h"
-#include "core/shape.h"
+#include "core/base/error.h"
+#include "core/truth/ground_truth.h"
+#include "core/accel/query_level.h"
+#include "core/scene/recording_io.h"
+#include "core/accel/registry.h"
+#include "core/scene/shape.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

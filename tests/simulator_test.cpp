@@ -1,9 +1,9 @@
 // The simulator: phases, results, and that verification really catches a wrong structure.
 #include <gtest/gtest.h>
 
-#include "core/registry.h"
-#include "core/simulator.h"
-#include "core/structures/brute_force.h"
+#include "core/accel/registry.h"
+#include "core/sim/simulator.h"
+#include "core/accel/brute_force.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

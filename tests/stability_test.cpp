@@ -13,13 +13,13 @@
 #include <cstdint>
 #include <string>
 
-#include "core/generators.h"
-#include "core/recording_io.h"
-#include "core/registry.h"
-#include "core/structures/dynamic_bvh.h"
-#include "core/structures/hash_grid.h"
-#include "core/structures/linear_bvh.h"
-#include "core/structures/uniform_grid.h"
+#include "core/scene/generate/generators.h"
+#include "core/scene/recording_io.h"
+#include "core/accel/registry.h"
+#include "core/accel/bvh/dynamic_bvh.h"
+#include "core/accel/grid/hash_grid.h"
+#include "core/accel/bvh/linear_bvh.h"
+#include "core/accel/grid/uniform_grid.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

@@ -1,15 +1,15 @@
-// What several structures share (core/structures/common/): the loop over a range of cells, the
-// outlier trim, the slot tables in both layouts, and validate()'s one way to fail.
+// What several structures share (core/accel/common/, core/accel/grid/grid.h, core/accel/bvh/bvh_traversal.h): the loop
+// over a range of cells, the outlier trim, the slot tables in both layouts, and validate()'s one way to fail.
 #include <gtest/gtest.h>
 
 #include <stdexcept>
 #include <string>
 #include <vector>
 
-#include "core/structure.h"
-#include "core/structures/common/grid.h"
-#include "core/structures/common/outlier_trim.h"
-#include "core/structures/common/slot_boxes.h"
+#include "core/accel/structure.h"
+#include "core/accel/grid/grid.h"
+#include "core/accel/common/outlier_trim.h"
+#include "core/accel/common/slot_boxes.h"
 
 namespace rcb {
 namespace {

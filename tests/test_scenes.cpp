@@ -7,10 +7,10 @@
 #include <algorithm>
 #include <random>
 
-#include "core/generators.h"
-#include "core/random.h"
-#include "core/recording_io.h"
-#include "core/registry.h"
+#include "core/scene/generate/generators.h"
+#include "core/base/random.h"
+#include "core/scene/recording_io.h"
+#include "core/accel/registry.h"
 
 namespace rcb::test {
 namespace {

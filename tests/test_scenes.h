@@ -12,10 +12,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/random.h"
-#include "core/scene.h"
-#include "core/simulator.h"
-#include "core/structure.h"
+#include "core/base/random.h"
+#include "core/scene/scene.h"
+#include "core/sim/simulator.h"
+#include "core/accel/structure.h"
 #include "runner/experiment.h"
 
 namespace rcb::test {

@@ -8,9 +8,9 @@
 #include <fstream>
 
 #include "analysis/linear_fit.h"
-#include "core/error.h"
-#include "core/random.h"
-#include "core/registry.h"
+#include "core/base/error.h"
+#include "core/base/random.h"
+#include "core/accel/registry.h"
 #include "tests/test_scenes.h"
 #include "tuner/run_tuning.h"
 #include "tuner/search.h"

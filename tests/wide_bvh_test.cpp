@@ -11,12 +11,12 @@
 #include <map>
 #include <string>
 
-#include "core/error.h"
-#include "core/generators.h"
-#include "core/random.h"
-#include "core/registry.h"
-#include "core/structures/brute_force.h"
-#include "core/structures/wide_bvh.h"
+#include "core/base/error.h"
+#include "core/scene/generate/generators.h"
+#include "core/base/random.h"
+#include "core/accel/registry.h"
+#include "core/accel/brute_force.h"
+#include "core/accel/bvh/wide_bvh.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

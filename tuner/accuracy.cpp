@@ -3,8 +3,8 @@
 #include <charconv>
 #include <cmath>
 
-#include "core/error.h"
-#include "core/number_text.h"
+#include "core/base/error.h"
+#include "core/base/number_text.h"
 
 namespace rcb {
 

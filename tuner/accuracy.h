@@ -3,13 +3,13 @@
 /// and `rcbench advise` (--accuracy). Speed is traded for accuracy only when the user allows it.
 ///
 ///     exact          the answer is what the configuration's level promises, nothing more or less:
-///                    no mismatches against its contract (core/ground_truth.h) and a level that
+///                    no mismatches against its contract (core/truth/ground_truth.h) and a level that
 ///                    promises both sides (boxes or shapes; candidates promise no upper side)
 ///     recall>=R      correct / relevant against the shapes' truth at least R on every scene
 ///     precision>=P   correct / returned against the shapes' truth at least P on every scene
 ///
 /// The thesis measures speed only at the exact box level (§6); the query levels of
-/// core/query_level.h make the broad phase's candidates and the narrow phase choices with a cost
+/// core/accel/query_level.h make the broad phase's candidates and the narrow phase choices with a cost
 /// and an accuracy (eq. 5.2–5.3), and these constraints say which of them a caller accepts.
 
 #include <cstdint>

@@ -5,12 +5,12 @@
 #include <filesystem>
 #include <map>
 
-#include "core/error.h"
-#include "core/json_input.h"
-#include "core/number_text.h"
-#include "core/query_level.h"
-#include "core/registry.h"
-#include "core/simulator.h"
+#include "core/base/error.h"
+#include "core/base/json_input.h"
+#include "core/base/number_text.h"
+#include "core/accel/query_level.h"
+#include "core/accel/registry.h"
+#include "core/sim/simulator.h"
 #include "runner/experiment.h"
 
 namespace rcb {

@@ -7,10 +7,10 @@
 
 #include "analysis/charts.h"
 #include "analysis/cost_model.h"
-#include "core/number_text.h"
-#include "core/output_file.h"
-#include "core/registry.h"
-#include "core/simulator.h"
+#include "core/base/number_text.h"
+#include "core/base/output_file.h"
+#include "core/accel/registry.h"
+#include "core/sim/simulator.h"
 #include "runner/build_info.h"
 #include "runner/store.h"
 

@@ -7,7 +7,7 @@
 #include <limits>
 #include <map>
 
-#include "core/random.h"
+#include "core/base/random.h"
 
 namespace rcb {
 namespace {

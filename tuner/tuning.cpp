@@ -9,11 +9,11 @@
 #include <set>
 
 #include "analysis/cost_model.h"
-#include "core/error.h"
-#include "core/random.h"
-#include "core/registry.h"
-#include "core/query_level.h"
-#include "core/simulator.h"
+#include "core/base/error.h"
+#include "core/base/random.h"
+#include "core/accel/registry.h"
+#include "core/accel/query_level.h"
+#include "core/sim/simulator.h"
 #include "runner/calibration.h"
 
 namespace rcb {

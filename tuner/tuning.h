@@ -25,7 +25,7 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/cost_model.h"
-#include "core/counters.h"
+#include "core/accel/counters.h"
 #include "runner/experiment.h"
 #include "tuner/accuracy.h"
 #include "tuner/search.h"
@@ -53,7 +53,7 @@ struct TuneSpec {
 };
 
 /// Sets the spec's accuracy constraint. One that allows inexact answers adds the query level
-/// (core/query_level.h) to every structure's search space that does not name it already: the
+/// (core/accel/query_level.h) to every structure's search space that does not name it already: the
 /// candidate level and the narrow phase then compete with the box level on speed.
 void set_accuracy(TuneSpec& spec, const AccuracyConstraint& accuracy);
 

@@ -22,12 +22,12 @@
 #include <unordered_map>
 #include <vector>
 
-#include <core/error.h>
-#include <core/recorder.h>
-#include <core/recording_io.h>
-#include <core/registry.h>
-#include <core/simulator.h>
-#include <core/structure.h>
+#include <core/base/error.h>
+#include <core/scene/recorder.h>
+#include <core/scene/recording_io.h>
+#include <core/accel/registry.h>
+#include <core/sim/simulator.h>
+#include <core/accel/structure.h>
 
 namespace {
 

@@ -1,12 +1,12 @@
-/// libFuzzer target: the Quake III BSP importer (core/importers/bsp.h), both modes. Any bytes must
+/// libFuzzer target: the Quake III BSP importer (core/scene/import/bsp.h), both modes. Any bytes must
 /// import or throw InputError; imported boxes must be valid (finite, min <= max).
 #include <cstdint>
 #include <cstdlib>
 #include <span>
 
-#include "core/error.h"
-#include "core/importers/bsp.h"
-#include "core/recording_io.h"
+#include "core/base/error.h"
+#include "core/scene/import/bsp.h"
+#include "core/scene/recording_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     const std::span<const std::uint8_t> bytes(data, size);

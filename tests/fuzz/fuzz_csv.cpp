@@ -1,12 +1,12 @@
-/// libFuzzer target: the CSV importers (core/csv.h). The first byte picks boxes or rays; any text
+/// libFuzzer target: the CSV importers (core/scene/import/csv.h). The first byte picks boxes or rays; any text
 /// must parse or throw InputError, and parsed boxes and rays must be valid (finite, min <= max).
 #include <cstdint>
 #include <cstdlib>
 #include <string>
 
-#include "core/csv.h"
-#include "core/error.h"
-#include "core/recording_io.h"
+#include "core/scene/import/csv.h"
+#include "core/base/error.h"
+#include "core/scene/recording_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
     if (size == 0) return 0;

@@ -14,10 +14,10 @@
 
 #include <fuzzer/FuzzedDataProvider.h>
 
-#include "core/error.h"
-#include "core/recording_io.h"
-#include "core/registry.h"
-#include "core/simulator.h"
+#include "core/base/error.h"
+#include "core/scene/recording_io.h"
+#include "core/accel/registry.h"
+#include "core/sim/simulator.h"
 
 namespace {
 

@@ -1,4 +1,4 @@
-/// libFuzzer target: the recording reader (core/recording_io.h). The input is a recording file
+/// libFuzzer target: the recording reader (core/scene/recording_io.h). The input is a recording file
 /// whose section checksums are recomputed first, so that mutations reach the section parsers
 /// instead of stopping at the CRC check. Any input must either decode or throw InputError; a
 /// decoded recording must encode and decode to itself.
@@ -9,8 +9,8 @@
 
 #include <zlib.h>
 
-#include "core/error.h"
-#include "core/recording_io.h"
+#include "core/base/error.h"
+#include "core/scene/recording_io.h"
 
 namespace {
 

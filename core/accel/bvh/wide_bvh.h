@@ -1,0 +1,413 @@
+#pragma once
+/// Wide BVH: 8 child boxes per node in SoA lanes, tested with one AVX2 slab test per node, and
+/// leaves of up to 8 objects stored the same way (Wald, Benthin & Boulos 2008, "Getting rid of
+/// packets"; the BVH8 layout of Embree, Wald et al. 2014). Built top-down by binned SAH (Wald 2007)
+/// straight into wide nodes, splitting the child with the largest box until the node is full.
+/// Changes keep the tree: moves rewrite the object's lane and refit the path at commit (or reinsert
+/// the object when it left its leaf's box), inserts descend to the leaf of least area growth (a full
+/// leaf splits), removes empty their lane. Quality is kept by a progressive rebuild, as PhysX's
+/// dynamic pruner and Jolt's quad tree do: once the changes since the live tree was gathered reach
+/// `rebuild_after` × the objects (or its running SAH sum grew by `rebuild_ratio`), a next tree is
+/// built from the live objects a budget of work per commit (`rebuild_speed` objects' share per
+/// change), the changes meanwhile are logged and replayed into it, and the trees swap; the live tree
+/// answers throughout. docs/structures.md has the details and the measurements.
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <tuple>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "core/accel/params.h"
+#include "core/accel/structure.h"
+#include "core/accel/common/query_scratch.h"
+
+#if defined(__AVX2__)
+#include <immintrin.h>
+#endif
+
+namespace rcb {
+
+class WideBvh : public StructureBase<WideBvh, StackScratch> {
+public:
+    struct Params {
+        /// Children per inner node at build time (the lanes of a node are 8 either way). 8 measured
+        /// 1.3-1.5x faster rays than 4 on irreg-l, clusters-l and jittered-l.
+        int width = 8;
+        /// Objects per leaf at build time; a full leaf splits on insert. 8 measured fastest (rays
+        /// 5-15% faster than 4, 110 against 195 B per object).
+        int leaf_size = 8;
+        /// SAH bins per axis of the top-down build.
+        int bins = 16;
+        /// A rebuild starts at commit when the SAH sum exceeds this × its value when the tree was last
+        /// built or swapped in (sah_growth; 0: never).
+        double rebuild_ratio = 1.5;
+        /// A rebuild starts at commit once the changes since the live tree's objects were gathered
+        /// for its build reach this × the object count (0: never).
+        double rebuild_after = 2.0;
+        /// A started rebuild advances by this many objects' share of its work per change of the
+        /// commit, while the live tree answers (0: the whole rebuild in the commit that starts it).
+        double rebuild_speed = 4.0;
+        /// A move whose new centre lies outside its leaf's box (as of the last commit) reinserts the
+        /// object (remove, then insert by least area growth) instead of stretching the leaf.
+        bool reinsert = true;
+        /// How the hit children of a node go onto the stack: one step per hit child (`loop`), or
+        /// eight branch-free steps, every lane written and a hit one kept (`fixed`). The loop's
+        /// exit is a branch no predictor learns, but its speculation runs ahead into the next
+        /// node; that pays once the tree misses the cache and costs while it does not (measured:
+        /// fixed 6-8% faster rays at 14 k objects, 1.5 MB; 3% slower at 6.7 MB, 13-34% slower at
+        /// 22-110 MB). `auto`: fixed while the blocks fit in the L2 cache.
+        std::string push = "auto";
+        int cast_threads = 1;
+
+        static constexpr auto fields() {
+            return std::tuple{
+                Field{"width", &Params::width, 2, 8, "children per inner node at build time (lanes are 8 either way)"},
+                Field{"leaf_size", &Params::leaf_size, 1, 8,
+                      "objects per leaf at build time (a full leaf splits on insert)"},
+                Field{"bins", &Params::bins, 2, 256, "SAH bins per axis of the build", true, true},
+                Field{"rebuild_ratio", &Params::rebuild_ratio, 0.0, 100.0,
+                      "a rebuild starts at commit when the SAH sum (not divided by the root area) exceeds this x its "
+                      "value when the tree was last built or swapped in (0: never; values in (0, 1] start one at "
+                      "every commit that follows a change)"},
+                Field{"rebuild_after", &Params::rebuild_after, 0.0, 1000.0,
+                      "a rebuild starts at commit once the changes since the live tree's objects were gathered reach "
+                      "this x the object count (0: never)"},
+                Field{"rebuild_speed", &Params::rebuild_speed, 0.0, 1000.0,
+                      "a started rebuild advances by this many objects' share of its work per change, while the "
+                      "live tree answers and its changes are logged and replayed (0: the whole rebuild at once)"},
+                Field{"reinsert", &Params::reinsert, 0, 1,
+                      "a move whose centre leaves its leaf's box reinserts the object instead of stretching the "
+                      "leaf"},
+                Field{"push", &Params::push, 0, 0,
+                      "how a node's hit children go onto the stack: loop (one step per hit child; its speculation "
+                      "runs ahead through cache misses), fixed (eight branch-free steps; no mispredicted loop exit), "
+                      "auto (fixed while the tree's blocks fit in the L2 cache)",
+                      true, false, "auto,fixed,loop", false},
+                cast_threads_field<Params>()};
+        }
+    };
+
+    static constexpr int kLanes = 8;
+
+    WideBvh();
+    explicit WideBvh(const Params& p);
+
+    void build(std::span<const Object> objects) override;
+    void insert(const Object& object) override;
+    void remove(Uid uid) override;
+    void move(const Object& object) override;
+    void commit() override;
+    std::size_t size() const override { return where_.size(); }
+    std::size_t memory_bytes() const override;
+    nlohmann::json stats() const override;
+    void validate() const override;
+
+    /// Expected node visits plus object tests of a ray that meets the root's box (the SAH with
+    /// C_T = C_I = 1): Σ over nodes of area(node) · (1 + objects if a leaf) / area(root).
+    double sah_cost() const;
+    /// The SAH sum not divided by the root's area, Σ over nodes of area(node) · (1 + objects if a
+    /// leaf), over the same sum right after the last build: what the rebuild policy watches. Not
+    /// normalised, so that a root grown by one far object does not hide the growth of the rest.
+    double sah_growth() const;
+    /// Inner levels above the deepest leaf (0: the root is a leaf; -1: empty).
+    int depth() const;
+
+    // The traversal interface of StructureBase: the deferred refit, then const traversals with a
+    // stack per thread.
+    void prepare() {
+        if (!dirty_.empty()) refit();
+        fixed_push_ =
+            params_.push == "fixed" || (params_.push == "auto" && blocks_.size() * sizeof(Block) <= l2_bytes());
+    }
+    /// Popping one block pushes at most 8: at most 7 per inner level on the path plus one.
+    void fit(StackScratch& scratch) const { scratch.fit(7 * std::size_t(max_depth_) + 8); }
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit, StackScratch& scratch) const {
+        if (fixed_push_)
+            traverse_with<true>(s, count, visit, scratch);
+        else
+            traverse_with<false>(s, count, visit, scratch);
+    }
+
+private:
+    static constexpr std::uint32_t kNone = 0xffffffffu;
+
+    /// The L2 data cache of this machine (sysconf), or 1 MiB where it does not say.
+    static std::size_t l2_bytes();
+
+    template <bool kFixedPush, class Count, class Visit>
+    void traverse_with(const Segment& s, Count& count, Visit& visit, StackScratch& scratch) const {
+        if (root_ == kNone) return;
+        const SegmentSlabs slabs(s);
+        // Per axis the offset of the near and far bounds in a block's `bound` array: min at
+        // 8·axis, max at 24 + 8·axis; the near side is the max when the direction is negative.
+        int near[3], far[3];
+        for (int a = 0; a < 3; ++a) {
+            near[a] = (slabs.near_is_max[a] ? 24 : 0) + 8 * a;
+            far[a] = (slabs.near_is_max[a] ? 0 : 24) + 8 * a;
+        }
+        std::uint32_t* stack = scratch.stack();
+        std::uint32_t top = 0;
+        stack[top++] = root_;
+        alignas(32) float t_near[kLanes];
+        while (top != 0) {
+            const Block& b = blocks_[stack[--top]];
+            count.traversal();
+            unsigned mask;
+            if (Count::candidates && b.leaf) {  // a leaf reached through its box: all its objects
+                mask = (1u << b.count) - 1;
+                for (int k = 0; k < kLanes; ++k) t_near[k] = 0;
+            } else {
+                mask = test(b, slabs, near, far, t_near);
+            }
+            if (b.leaf) {
+                count.box_tests(b.count);
+                while (mask != 0) {
+                    const int k = __builtin_ctz(mask);
+                    mask &= mask - 1;
+                    count.hits();
+                    if (!visit(Uid(b.ref[k]), t_near[k])) return;
+                }
+            } else {
+                count.node_hits(unsigned(__builtin_popcount(mask)));
+                // Highest lane first onto the stack, so lane order is visit order (Params::push).
+                if constexpr (kFixedPush) {
+                    for (int k = kLanes - 1; k >= 0; --k) {  // fit leaves room for the unkept lanes
+                        stack[top] = b.ref[k];
+                        top += (mask >> k) & 1u;
+                    }
+                } else {
+                    while (mask != 0) {
+                        const int k = 31 - __builtin_clz(mask);
+                        mask &= ~(1u << k);
+                        stack[top++] = b.ref[k];
+                    }
+                }
+            }
+        }
+    }
+
+    /// A node or a leaf: lane k holds child k's box (inner) or object k's box (leaf), minima of the
+    /// three axes then maxima, 8 floats each; unused lanes hold the empty box (+inf, -inf), which
+    /// no segment meets, so a block is always tested whole.
+    struct alignas(32) Block {
+        float bound[6][kLanes];       // 192 B: min x, y, z, max x, y, z
+        std::uint32_t ref[kLanes];    // 32 B: child block (inner) or uid (leaf)
+        std::uint32_t parent;         // kNone at the root; the next free block on the free list
+        std::uint16_t depth;          // inner levels above this block (0 at the root)
+        std::uint8_t lane_in_parent;  // this block's lane in its parent
+        std::uint8_t count;           // lanes in use, 1..8 (0: free)
+        bool leaf;
+        bool dirty;  // on dirty_: its box in the parent is refitted at commit
+        Aabb box(int k) const {
+            return {{bound[0][k], bound[1][k], bound[2][k]}, {bound[3][k], bound[4][k], bound[5][k]}};
+        }
+        void set(int k, const Aabb& b) {
+            for (int a = 0; a < 3; ++a) bound[a][k] = b.min[a], bound[3 + a][k] = b.max[a];
+        }
+        void clear(int k);
+        /// The union of the lanes in use.
+        Aabb bounds() const;
+    };
+    static_assert(sizeof(Block) == 256);
+
+    /// The slab test of a block's 8 lanes: bit k set when lane k is hit, t_near[k] its entry
+    /// parameter. SegmentSlabs::clip exactly: the same float operations in the same order, and
+    /// VMAXPS/VMINPS return their second operand when either is NaN, as max_ignoring_nan(lo, tn).
+    static unsigned test(const Block& b, const SegmentSlabs& s, const int near[3], const int far[3],
+                         float t_near[kLanes]) {
+#if defined(__AVX2__)
+        const float* base = &b.bound[0][0];
+        __m256 tn = _mm256_setzero_ps(), tf = _mm256_set1_ps(1.0f);
+        for (int a = 0; a < 3; ++a) {
+            const __m256 o = _mm256_set1_ps(s.origin[a]), inv = _mm256_set1_ps(s.inv[a]);
+            const __m256 lo = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(base + near[a]), o), inv);
+            const __m256 hi = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(base + far[a]), o), inv);
+            tn = _mm256_max_ps(lo, tn);
+            tf = _mm256_min_ps(hi, tf);
+        }
+        _mm256_store_ps(t_near, tn);
+        return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(tn, tf, _CMP_LE_OQ)));
+#else
+        (void)near, (void)far;
+        unsigned mask = 0;
+        for (int k = 0; k < kLanes; ++k) {
+            float tf;
+            if (s.clip(b.box(k), t_near[k], tf)) mask |= 1u << k;
+        }
+        return mask;
+#endif
+    }
+
+    /// An object during a build: its box, centroid and uid.
+    struct Item {
+        Aabb box;
+        Vec3 centroid;
+        Uid uid;
+    };
+    /// Items [begin, begin + n) of items_ and their box (the union of the items' boxes).
+    struct Range {
+        std::uint32_t begin = 0, n = 0;
+        Aabb box = Aabb::empty();
+    };
+    /// A block still to build: a range below lane `lane` of `parent` (kNone: the root).
+    struct Pending {
+        Range range;
+        std::uint32_t parent = kNone;
+        std::uint16_t depth = 0;
+        std::uint8_t lane = 0;
+    };
+    struct Bin {
+        Aabb box;
+        std::uint32_t n;
+    };
+    /// Where a progressive rebuild is: gathering the live objects, building the next tree from
+    /// them, replaying the changes logged since the gathering began, or freeing the replaced tree.
+    enum class Phase : std::uint8_t { idle, gather, build, replay, dispose };
+    // Work units (the build's: an item binned, bounded or partitioned, an object written to a leaf)
+    // of a replayed uid (two lookups, then a lane write, an insert or a remove in the next tree) and
+    // of an index entry freed, from their times against the build's.
+    static constexpr std::uint64_t kReplayUnits = 16, kDisposeUnits = 4;
+
+    std::uint32_t allocate();
+    void release(std::uint32_t b);
+    void mark(std::uint32_t b);
+    void refit();
+    /// The whole rebuild at once: gather, build, done.
+    void rebuild();
+    /// Empties the tree (blocks, index, counters), keeping the build state.
+    void clear_tree();
+
+    // The top-down binned SAH build, resumable, so that a rebuild can be spread over commits:
+    // build_step() does at most about `budget` units of work (one unit: an item binned, bounded or
+    // partitioned, an object written to a leaf) and returns what it did; build() and rebuild() run
+    // it without a limit, a progressive rebuild a share per commit. Depth first: pending_ holds the blocks still to
+    // build, and the node being opened keeps its parts and the split in progress between steps.
+    void begin_build();
+    std::uint64_t build_step(std::uint64_t budget);
+    bool build_done() const { return pending_.empty() && !opening_; }
+    void end_build();
+    /// One step of the split of parts_[splitting_]: centroid bounds, binning, then the partition.
+    std::uint64_t split_step(std::uint64_t budget);
+    /// Chooses the binned-SAH split of the part from the bins; false when none splits it.
+    bool choose_split(std::uint32_t n);
+    /// The fallbacks when binning cannot split `part`: by size when its centroids coincide, else at
+    /// the median of the widest axis. Done whole (these parts are rare, and small in practice).
+    void split_by_size(int part);
+    /// The node being opened is complete: its block, its lanes, its parts pending as children.
+    void finish_node();
+    void make_leaf(const Pending& p);
+    /// Hooks block `b` into lane `lane` of `parent` (or makes it the root) and adds its SAH term.
+    void link(std::uint32_t b, std::uint32_t parent, int lane);
+    /// Splits items [0, n) in two (binned SAH; by size or the median when that cannot split) and
+    /// returns the size of the first part, in 1..n-1. For the nine objects of a leaf split.
+    std::uint32_t split(Item* items, std::uint32_t n);
+
+    /// The leaf a new box goes to: the child of least area growth at every level.
+    std::uint32_t choose_leaf(const Aabb& box) const;
+    void insert_object(const Object& o);
+    void remove_object(Uid uid);
+    /// Adds `o` to the full leaf `leaf`: the nine objects split in two leaves, side by side in the
+    /// parent when it has a free lane, else below a new inner node in the leaf's place.
+    void split_leaf(std::uint32_t leaf, const Object& o);
+    /// Writes `box` into lane `k` of `b` and keeps the running SAH sum.
+    void set_lane(std::uint32_t b, int k, const Aabb& box);
+    /// Removes lane `k` of inner block `b` (its child already released or moved): the last lane
+    /// takes its place.
+    void drop_child_lane(std::uint32_t b, int k);
+    double weight(std::uint32_t b) const { return 1.0 + (blocks_[b].leaf ? double(blocks_[b].count) : 0.0); }
+    /// Unlinks the empty block `b` from its parent (and the parent, if that empties it).
+    void remove_block(std::uint32_t b);
+    /// Raises max_depth_ to `depth` (the traversal stack follows in fit()).
+    void grow_stack(int depth) { max_depth_ = std::max(max_depth_, depth); }
+    /// Σ area(lane) · weight(child) over all non-root blocks, recomputed from the tree.
+    double fresh_sah_sum() const;
+    double total_sah() const;
+    /// The checks of validate() on this tree alone; `refitted` false (the next tree of a rebuild,
+    /// while changes are replayed into it): lanes need not enclose their children yet.
+    void validate_tree(bool refitted) const;
+
+    // ---- the progressive rebuild (the live tree's side) ----
+    bool rebuild_due() const;
+    void start_rebuild();
+    /// Advances the rebuild by about `budget` units; swaps the trees when the replay is done.
+    void advance(std::uint64_t budget);
+    std::uint64_t gather_step(std::uint64_t budget);
+    /// Makes the next tree hold `uid` as the live tree does now (present or not, same box).
+    void replay(Uid uid);
+    void swap_trees();
+    /// A change to the live tree while a rebuild gathers, builds or replays: the uid is replayed
+    /// into the next tree before the swap (and skipped by the gathering, if not yet gathered).
+    void log_change(Uid uid) {
+        if (phase_ == Phase::idle || phase_ == Phase::dispose) return;
+        log_.push_back(uid);
+        if (phase_ == Phase::gather) gather_skip_.insert(uid);
+    }
+    /// An object of the live tree moved to another lane (a leaf split, a remove filling its hole):
+    /// only the gathering cares, which could see it twice or not at all.
+    void log_relocation(Uid uid) {
+        if (phase_ == Phase::gather) log_change(uid);
+    }
+
+    Params params_;
+    std::vector<Block> blocks_;
+    std::uint32_t root_ = kNone;
+    std::uint32_t free_ = kNone;
+    std::uint32_t free_count_ = 0;
+    std::uint32_t leaves_ = 0;
+    /// uid → block · 8 + lane.
+    std::unordered_map<Uid, std::uint32_t> where_;
+    std::vector<std::uint32_t> dirty_;
+    int max_depth_ = 0;        // an upper bound on every block's depth (sizes the stack)
+    bool fixed_push_ = false;  // Params::push as prepare() resolved it for the tree's size
+    // Running SAH: Σ over non-root blocks of area(its lane in the parent) · weight (double: areas
+    // of boxes near the coordinate limit overflow float).
+    double sah_sum_ = 0.0;
+    // The largest term added to or taken from sah_sum_ since it was last recomputed: when it dwarfs
+    // the sum (a huge box left the tree), rounding could dominate, so commit recomputes the sum.
+    double sah_largest_term_ = 0.0;
+    double total_after_build_ = 0.0;  // total_sah() right after the last build or swap
+    bool changed_ = false;            // changes since the last commit
+    // Stats.
+    std::uint32_t rebuilds_ = 0, splits_ = 0, reinserts_ = 0;
+
+    // Build state (of the tree being built).
+    std::vector<Item> items_;
+    std::vector<Pending> pending_;
+    bool opening_ = false;  // a node is being opened: open_, parts_, splitting_ hold it
+    Pending open_;          // the node being opened
+    std::array<Range, kLanes> parts_;
+    int nparts_ = 0;
+    int splitting_ = -1;                    // the part being split, or -1
+    std::uint8_t split_stage_ = 0;          // 0: centroid bounds, 1: binning, 2: partition
+    std::uint32_t cursor_ = 0, right_ = 0;  // the next item of the stage; the partition's right-side scan
+    Aabb cbox_;                             // the centroid bounds of the part being split
+    double scale_[3] = {0, 0, 0};           // bins per unit of centroid, per axis (0: the axis is not binned)
+    int axis_ = 0, split_bin_ = 0;          // the chosen split: items of bins below split_bin_ on axis_ go left
+    std::uint32_t left_n_ = 0;
+    std::uint64_t build_work_ = 0;  // units of the build so far
+    std::vector<Bin> bin_scratch_;
+    std::vector<double> right_cost_;
+
+    // Progressive rebuild state (of the live tree).
+    Phase phase_ = Phase::idle;
+    std::unique_ptr<WideBvh> next_;        // the tree being built (then the replaced one, disposed)
+    std::uint32_t gather_cursor_ = 0;      // the next block to gather
+    std::vector<Uid> log_;                 // uids changed since the gathering began
+    std::unordered_set<Uid> gather_skip_;  // uids changed while gathering: not gathered
+    std::size_t replay_cursor_ = 0;
+    std::size_t log_mark_ = 0;             // the log's size at the end of the last commit
+    std::uint64_t changes_ = 0;            // changes since the last commit
+    std::uint64_t age_ = 0;                // changes since the live tree's objects were gathered
+    std::uint64_t cycle_age_ = 0;          // changes since the rebuild in progress gathered
+    std::uint64_t cycle_work_ = 0;         // units of the rebuild in progress so far
+    std::uint64_t last_cycle_work_ = 0;    // units of the last progressive rebuild, to its swap
+    double units_per_object_ = 0;          // units of the last rebuild per object
+    std::uint64_t budget_ = 0, work_ = 0;  // of the last commit
+};
+
+}  // namespace rcb

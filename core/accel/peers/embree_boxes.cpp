@@ -1,0 +1,198 @@
+#include "core/accel/peers/embree_boxes.h"
+
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include <embree3/rtcore.h>
+#include <tbb/task_arena.h>
+
+namespace rcb {
+
+struct EmbreeBoxes::Device {
+    RTCDevice device = nullptr;
+    RTCScene scene = nullptr;
+    RTCGeometry geometry = nullptr;
+    std::unique_ptr<tbb::task_arena> arena;
+    /// Bytes Embree holds, from its memory monitor callback.
+    std::atomic<std::int64_t> bytes{0};
+    std::string error;  // the last error Embree reported
+
+    ~Device() {
+        if (geometry) rtcReleaseGeometry(geometry);
+        if (scene) rtcReleaseScene(scene);
+        if (device) rtcReleaseDevice(device);
+    }
+};
+
+namespace {
+
+struct QueryContext {
+    RTCIntersectContext base;  // first member: Embree hands our pointer back to the callbacks
+    EmbreeBoxes::Query* query;
+};
+
+void bounds_callback(const RTCBoundsFunctionArguments* args) {
+    const auto* self = static_cast<const EmbreeBoxes*>(args->geometryUserPtr);
+    const Aabb& b = self->box_at(args->primID);
+    const float pad = self->pad();
+    RTCBounds* o = args->bounds_o;
+    o->lower_x = b.min.x - pad, o->lower_y = b.min.y - pad, o->lower_z = b.min.z - pad;
+    o->upper_x = b.max.x + pad, o->upper_y = b.max.y + pad, o->upper_z = b.max.z + pad;
+}
+
+/// Records a hit without committing it (tfar unchanged), so traversal goes on; the decision is
+/// rcb's exact SegmentSlabs test on the unpadded box.
+void intersect_callback(const RTCIntersectFunctionNArguments* args) {
+    if (!args->valid[0]) return;
+    auto* ctx = reinterpret_cast<QueryContext*>(args->context);
+    EmbreeBoxes::Query& q = *ctx->query;
+    float tn = 0, tf;
+    if (!q.candidates) {
+        ++q.tests;
+        if (!q.slabs->clip(q.self->box_at(args->primID), tn, tf)) return;
+    }
+    ++q.hits;
+    if (!q.on_hit(q.visit, q.self->uid_at(args->primID), tn)) {
+        auto* rayhit = reinterpret_cast<RTCRayHit*>(args->rayhit);
+        rayhit->ray.tfar = -std::numeric_limits<float>::infinity();  // culls every remaining node
+    }
+}
+
+void error_callback(void* user, RTCError code, const char* message) {
+    auto* d = static_cast<EmbreeBoxes::Device*>(user);
+    d->error = "embree error " + std::to_string(int(code)) + ": " + (message ? message : "");
+}
+
+bool memory_callback(void* user, ssize_t bytes, bool) {
+    static_cast<EmbreeBoxes::Device*>(user)->bytes += bytes;
+    return true;
+}
+
+}  // namespace
+
+EmbreeBoxes::EmbreeBoxes() : EmbreeBoxes(Params{}) {}
+
+EmbreeBoxes::EmbreeBoxes(const Params& params) : params_(params), device_(std::make_unique<Device>()) {
+    Device& d = *device_;
+    d.device = rtcNewDevice(nullptr);
+    if (!d.device)
+        throw std::runtime_error("embree: rtcNewDevice failed (error " +
+                                 std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+    rtcSetDeviceErrorFunction(d.device, error_callback, &d);
+    rtcSetDeviceMemoryMonitorFunction(d.device, memory_callback, &d);
+    d.scene = rtcNewScene(d.device);
+    const bool low = params_.quality == "low";
+    rtcSetSceneBuildQuality(d.scene, low || params_.refit ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM);
+    if (params_.refit) rtcSetSceneFlags(d.scene, RTC_SCENE_FLAG_DYNAMIC);
+    d.geometry = rtcNewGeometry(d.device, RTC_GEOMETRY_TYPE_USER);
+    rtcSetGeometryUserPrimitiveCount(d.geometry, 0);
+    rtcSetGeometryUserData(d.geometry, this);
+    rtcSetGeometryBoundsFunction(d.geometry, bounds_callback, nullptr);
+    rtcSetGeometryIntersectFunction(d.geometry, intersect_callback);
+    rtcSetGeometryBuildQuality(
+        d.geometry, params_.refit ? RTC_BUILD_QUALITY_REFIT : (low ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM));
+    rtcCommitGeometry(d.geometry);
+    rtcAttachGeometry(d.scene, d.geometry);
+    d.arena = std::make_unique<tbb::task_arena>(params_.threads);
+    if (!d.error.empty()) throw std::runtime_error("embree: " + d.error);
+}
+
+EmbreeBoxes::~EmbreeBoxes() = default;
+
+void EmbreeBoxes::build(std::span<const Object> objects) {
+    objects_.clear();
+    objects_.reserve(objects.size());
+    for (const Object& o : objects) insert(o);
+    dirty_ = true;
+    commit();
+}
+
+void EmbreeBoxes::insert(const Object& o) {
+    objects_.insert(o);
+    dirty_ = true;
+}
+
+void EmbreeBoxes::remove(Uid uid) {
+    objects_.remove(uid);
+    dirty_ = true;
+}
+
+void EmbreeBoxes::move(const Object& o) {
+    objects_.move(o);
+    dirty_ = true;
+}
+
+void EmbreeBoxes::commit() {
+    if (!dirty_) return;
+    float m = 0;
+    for (const Aabb& b : objects_.layout().all())
+        m = std::max({m, std::abs(b.min.x), std::abs(b.min.y), std::abs(b.min.z), std::abs(b.max.x), std::abs(b.max.y),
+                      std::abs(b.max.z)});
+    m = std::max(m, std::numeric_limits<float>::min());
+    pad_ = params_.robust ? kPadRelative * m : 0.0f;
+    in_range_ = m >= kEmbreeMinScale && m + pad_ <= kEmbreeRange;
+    far_ = in_range_ ? std::min(kFarFactor * m, kEmbreeRange / 2) : 0.0f;
+    Device& d = *device_;
+    rtcSetGeometryUserPrimitiveCount(d.geometry, in_range_ ? static_cast<unsigned>(objects_.size()) : 0u);
+    rtcCommitGeometry(d.geometry);  // the bounds changed: Embree calls bounds_callback again
+    d.arena->execute([&] { rtcCommitScene(d.scene); });
+    if (!d.error.empty()) throw std::runtime_error("embree: " + d.error);
+    dirty_ = false;
+    ++commits_;
+}
+
+bool EmbreeBoxes::embree_query(const Segment& s, Query& q) {
+    if (objects_.empty()) return true;
+    if (!in_range_) return false;
+    const Vec3 d = s.delta();
+    if (d.x == 0 && d.y == 0 && d.z == 0) return false;
+    if (!is_finite(s.p0) || !is_finite(s.p1)) return false;
+    for (int a = 0; a < 3; ++a)
+        if (std::abs(s.p0[a]) > far_ || std::abs(s.p1[a]) > far_) return false;
+    QueryContext ctx;
+    rtcInitIntersectContext(&ctx.base);
+    ctx.query = &q;
+    RTCRayHit rh;
+    rh.ray.org_x = s.p0.x, rh.ray.org_y = s.p0.y, rh.ray.org_z = s.p0.z;
+    rh.ray.dir_x = d.x, rh.ray.dir_y = d.y, rh.ray.dir_z = d.z;
+    rh.ray.tnear = 0.0f;
+    rh.ray.tfar = 1.0f;
+    rh.ray.time = 0.0f;
+    rh.ray.mask = 0xFFFFFFFFu;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(device_->scene, &ctx.base, &rh);
+    return true;
+}
+
+std::size_t EmbreeBoxes::memory_bytes() const {
+    const std::size_t bytes = objects_.memory_bytes();
+    const std::int64_t embree = device_->bytes.load();
+    return bytes + sizeof(*this) + std::size_t(std::max<std::int64_t>(0, embree));
+}
+
+nlohmann::json EmbreeBoxes::stats() const {
+    return {{"commits", commits_}, {"pad", pad_}, {"embree_bytes", device_->bytes.load()}, {"in_range", in_range_}};
+}
+
+void EmbreeBoxes::validate() const {
+    const std::size_t n = objects_.size();
+    objects_.validate("embree");
+    if (dirty_ || n == 0 || !in_range_) return;
+    // Embree's scene bounds must enclose every (padded) box we gave it.
+    RTCBounds sb;
+    rtcGetSceneBounds(device_->scene, &sb);
+    for (std::size_t i = 0; i < n; ++i) {
+        const Aabb& b = objects_.box(i);
+        if (b.min.x < sb.lower_x || b.min.y < sb.lower_y || b.min.z < sb.lower_z || b.max.x > sb.upper_x ||
+            b.max.y > sb.upper_y || b.max.z > sb.upper_z)
+            broken_invariant("embree", "scene bounds do not enclose uid " + std::to_string(objects_.uid(i)));
+    }
+}
+
+}  // namespace rcb

@@ -1,0 +1,119 @@
+#pragma once
+/// Peer: Intel Embree 3 over the objects' boxes as a user geometry (primitive id = dense slot).
+/// All hits: the intersect callback records each hit and never commits it, so Embree keeps
+/// traversing. Embree's user-geometry traversal is not robust, so the bounds it gets are padded
+/// and the callback decides with rcb's own slab test on the unpadded box: hits, t and the touching
+/// rule equal every rcb structure's. Rays Embree cannot take (zero length, non-finite, beyond its
+/// range or the padding's) go to an exact scan. `quality` and `refit` map to Embree's build
+/// qualities. Counters: N_RB = callback calls plus scan tests; N_T is not exposed (0).
+/// docs/structures.md has the exactness argument and the limits.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "core/accel/params.h"
+#include "core/accel/common/box_scan.h"
+#include "core/accel/common/slot_boxes.h"
+#include "core/accel/structure.h"
+
+namespace rcb {
+
+class EmbreeBoxes : public StructureBase<EmbreeBoxes> {
+public:
+    struct Params {
+        std::string quality = "medium";
+        bool refit = false;
+        int threads = 1;
+        bool robust = true;
+        static constexpr auto fields() {
+            return std::tuple{
+                Field{"quality", &Params::quality, 0, 0,
+                      "Embree build quality: low (Morton, two-level) or medium (binned SAH)", true, false,
+                      "low,medium"},
+                Field{"refit", &Params::refit, 0, 1,
+                      "refit the BVH at commit (RTC_BUILD_QUALITY_REFIT) instead of rebuilding", true},
+                Field{"threads", &Params::threads, 1, 64, "commit (build) threads, a TBB task arena", false},
+                Field{"robust", &Params::robust, 0, 1,
+                      "pad the bounds Embree gets (false: Embree as shipped, unpadded: it may lose touching hits; "
+                      "the result then promises no hit)",
+                      false}};
+        }
+    };
+
+    /// Segments reaching beyond this × the largest box coordinate take the exact fallback.
+    static constexpr float kFarFactor = 16.0f;
+    static constexpr float kPadRelative = 1e-4f;
+    /// Below Embree's FLT_LARGE (1.844e18) with margin.
+    static constexpr float kEmbreeRange = 1e18f;
+    /// Four orders of magnitude above the scale where Embree first missed a hit (1e-12).
+    static constexpr float kEmbreeMinScale = 1e-8f;
+
+    EmbreeBoxes();
+    explicit EmbreeBoxes(const Params& params);
+    ~EmbreeBoxes() override;
+    EmbreeBoxes(const EmbreeBoxes&) = delete;
+    EmbreeBoxes& operator=(const EmbreeBoxes&) = delete;
+
+    void build(std::span<const Object> objects) override;
+    void insert(const Object& object) override;
+    void remove(Uid uid) override;
+    void move(const Object& object) override;
+    void commit() override;
+    std::size_t size() const override { return objects_.size(); }
+    std::size_t memory_bytes() const override;
+    nlohmann::json stats() const override;
+    void validate() const override;
+
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit);
+
+    /// What the intersect callback needs; public for the C callbacks in the .cpp.
+    struct Query;
+    struct Device;  // RTCDevice, RTCScene, RTCGeometry and the task arena
+    const Aabb& box_at(std::uint32_t slot) const { return objects_.box(slot); }
+    Uid uid_at(std::uint32_t slot) const { return objects_.uid(slot); }
+    float pad() const { return pad_; }
+
+private:
+    /// Runs Embree on one segment; returns false when the segment needs the fallback.
+    bool embree_query(const Segment& s, Query& q);
+
+    Params params_;
+    std::unique_ptr<Device> device_;
+    SlotBoxes objects_;     // slot = Embree primitive id
+    float pad_ = 0;         // padding of the bounds given to Embree at the last commit
+    float far_ = 0;         // min(kFarFactor · M, kEmbreeRange / 2) at the last commit
+    bool in_range_ = true;  // kEmbreeMinScale <= M and the padded boxes within kEmbreeRange: Embree holds them
+    bool dirty_ = true;
+    std::uint64_t commits_ = 0;
+};
+
+struct EmbreeBoxes::Query {
+    const SegmentSlabs* slabs;
+    const EmbreeBoxes* self;
+    void* visit;
+    bool (*on_hit)(void* visit, Uid uid, float t);
+    bool candidates = false;  ///< yield every primitive Embree reaches, untested (counters.h)
+    std::uint64_t tests = 0;
+    std::uint64_t hits = 0;
+};
+
+template <class Count, class Visit>
+void EmbreeBoxes::traverse(const Segment& s, Count& count, Visit&& visit) {
+    const SegmentSlabs slabs(s);
+    Query q{&slabs, this, &visit,
+            [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); },
+            Count::candidates};
+    if (!embree_query(s, q)) {
+        scan_boxes(slabs, std::span<const Aabb>(objects_.layout().all()), std::span<const Uid>(objects_.uids()), count,
+                   visit);  // the exact fallback
+        return;
+    }
+    count.box_tests(q.tests);
+    count.hits(q.hits);
+}
+
+}  // namespace rcb

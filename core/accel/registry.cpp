@@ -1,0 +1,110 @@
+#include "core/accel/registry.h"
+
+#include "core/accel/peers/bullet_dbvt.h"
+#include "core/accel/query_level.h"
+#include "core/accel/peers/embree_boxes.h"
+#include "core/accel/brute_force.h"
+#include "core/accel/bvh/dynamic_bvh.h"
+#include "core/accel/bvh/linear_bvh.h"
+#include "core/accel/grid/hash_grid.h"
+#include "core/accel/grid/uniform_grid.h"
+#include "core/accel/bvh/wide_bvh.h"
+
+namespace rcb {
+namespace {
+
+std::deque<StructureInfo>& registry() {
+    static std::deque<StructureInfo> all = {
+        describe_structure<BruteForce>("bf", "brute force: every object's box tested (the baseline, thesis §4.1)"),
+        describe_structure<DynamicBvh>("dbvh",
+                                       "dynamic BVH: Catto/Box2D SAH insertion with branch and bound, fat boxes, "
+                                       "rotations, optional full binned-SAH rebuilds (thesis §4.4)"),
+        describe_structure<LinearBvh>("lbvh",
+                                      "linear BVH: Karras 2012 Morton codes, radix sort, parallel radix tree, atomic "
+                                      "bottom-up bounds, rebuilt every frame (thesis §4.5)"),
+        describe_structure<WideBvh>("wbvh",
+                                    "wide BVH: 8 child boxes per node in SoA lanes, one AVX2 slab test per node and "
+                                    "per leaf of up to 8 objects, binned-SAH build, refit, reinsertion and leaf splits "
+                                    "on changes, progressive rebuild spread over commits"),
+        describe_structure<UniformGrid>(
+            "ug", "uniform grid: cells from eq. 4.1, 3D-DDA with mailboxes, incremental updates (thesis §4.2)"),
+        describe_structure<HashGrid>(
+            "hg", "hierarchical hash grid: Jevans-style recursive grids, only non-empty cells hashed (thesis §4.3)"),
+        describe_structure<EmbreeBoxes>("embree",
+                                        "peer: Intel Embree 3 user geometry of boxes, all hits recorded in the "
+                                        "intersect callback, rebuilt (Morton or binned SAH) or refitted at commit"),
+        describe_structure<BulletDbvt>("bullet_dbvt",
+                                       "peer: Bullet's btDbvt, incremental insert/update/remove, optimizeIncremental "
+                                       "passes per frame, rayTestInternal with exact leaf tests"),
+    };
+    return all;
+}
+
+bool valid_name(const std::string& name) {
+    if (name.empty() || name.size() > 64) return false;
+    for (char c : name)
+        if (!((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-'))
+            return false;
+    return true;
+}
+
+}  // namespace
+
+const std::deque<StructureInfo>& structure_registry() { return registry(); }
+
+StructureInfo with_common_params(StructureInfo info) {
+    const ParamSpec query = query_param_spec();
+    for (const ParamSpec& p : info.params)
+        if (p.name == query.name) return info;
+    info.params.push_back(query);
+    info.params.push_back(leaf_bv_param_spec());
+    if (info.make)
+        info.make = [own_make = std::move(info.make), name = info.name, specs = info.params](
+                        const nlohmann::json& params, const std::string& path) -> std::unique_ptr<Structure> {
+            check_params(specs, params, path, name);
+            return at_query_level(own_make(own_params(params), path), query_level_of(params), leaf_bv_of(params), path);
+        };
+    return info;
+}
+
+const StructureInfo& register_structure(StructureInfo info) {
+    const std::string where = "register_structure(" + quoted_excerpt(info.name) + ")";
+    if (!valid_name(info.name))
+        throw InputError(where + ": a structure name is 1 to 64 ASCII letters, digits, '_' or '-'");
+    if (info.name == "all")
+        throw InputError(where + ": 'all' is reserved (rcbench simulate --structure all runs every structure)");
+    for (const StructureInfo& known : registry())
+        if (known.name == info.name)
+            throw InputError(where + ": a structure named '" + info.name + "' is already registered (" +
+                             quoted_excerpt(known.summary, 60) + ")");
+    if (!info.make) throw InputError(where + ": the entry has no factory (make is empty)");
+    info = with_common_params(std::move(info));
+    check_params(info.params, info.defaults(), where + ": default params", info.name);
+    registry().push_back(std::move(info));
+    return registry().back();
+}
+
+const StructureInfo& find_structure(std::string_view name) {
+    for (const StructureInfo& info : structure_registry())
+        if (info.name == name) return info;
+    throw InputError("unknown structure '" + std::string(name) +
+                     "' (known: " + join(structure_registry(), ", ", &StructureInfo::name) + ")");
+}
+
+nlohmann::json StructureInfo::defaults() const {
+    nlohmann::json j = nlohmann::json::object();
+    for (const ParamSpec& p : params) j[p.name] = p.default_value;
+    return j;
+}
+
+nlohmann::json StructureInfo::complete(const nlohmann::json& params, const std::string& path) const {
+    check_params(this->params, params, path, name);
+    nlohmann::json j = defaults();
+    if (params.is_object())
+        for (const auto& [k, v] : params.items()) j[k] = v;
+    for (const ParamSpec& p : this->params)
+        if (!p.recorded_when_default && j.contains(p.name) && j[p.name] == p.default_value) j.erase(p.name);
+    return j;
+}
+
+}  // namespace rcb

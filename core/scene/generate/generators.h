@@ -1,0 +1,123 @@
+#pragma once
+/// Scene generators (the thesis' data generator, §5.2.1, rebuilt without Unity): a static object
+/// set, per-frame dynamics, and per-frame rays. Deterministic: the same settings give the same
+/// recording, byte for byte. Scene, dynamics and rays draw from separate streams derived from the
+/// seed, so e.g. changing the number of rays does not change the dynamics.
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/scene/scene.h"
+
+namespace rcb {
+
+/// How the objects change from frame to frame (thesis §5.2.1: 1% per frame by default).
+struct DynamicsSettings {
+    double change_fraction = 0.01;  ///< objects changed per frame, as a fraction of the live count
+    double insert_share = 0.1;      ///< of the changes, the share that are inserts
+    double remove_share = 0.1;      ///< … removes (the rest are moves)
+    double move_scale = 0.1;        ///< a move shifts each axis by up to this × the object's longest edge
+};
+
+/// Ray modes: `center` (thesis §6.1: from the scene centre in uniform directions, long enough to
+/// leave the scene), `dense` (§6.4: from the centre towards the densest region), and game uses
+/// (§3.2): `los` (line of sight between two objects' centres), `ground` (short downward rays from
+/// object tops), `shots` (short segments from objects in random directions), and `faces`
+/// (for stability tests: axis-parallel segments across the bounds lying in box face planes, along box edges,
+/// and in the planes of dyadic lattices over the bounds, where cells meet), and `inside` (from a
+/// random point inside a random object's box in a uniform direction, long enough to leave the
+/// scene: rays that start among a crowd).
+struct RayMode {
+    std::string mode;
+    double weight = 1;
+};
+
+struct RaySettings {
+    std::uint32_t per_frame = 1000;
+    std::vector<RayMode> mix{{"center", 1.0}};
+};
+
+/// Which generated objects get an exact shape inside their box (shape.h), as shares of frame 0's
+/// objects; the rest stay boxes. A rotated object is an oriented box with the generated box's half
+/// extents and a uniformly random rotation, so its bounds (its new box) grow; a sphere is inscribed
+/// in the generated box, a capsule lies along the box's longest axis, inscribed too. Shaped
+/// objects give the ray–object test of the thesis' model (eq. 5.3, C_RO) and bv-caused false
+/// positives (eq. 5.2, N_BFP) something to measure. All 0 (the default) leaves a scene's bytes as
+/// they were.
+struct ShapeSettings {
+    double rotated_share = 0;
+    double sphere_share = 0;
+    double capsule_share = 0;
+    bool any() const { return rotated_share > 0 || sphere_share > 0 || capsule_share > 0; }
+};
+
+struct SceneSettings {
+    std::string kind = "irregular";  ///< one of scene_kinds()
+    std::uint32_t objects = 14021;
+    std::uint64_t seed = 1;
+    std::uint32_t frames = 10;
+    DynamicsSettings dynamics;
+    ShapeSettings shapes;
+    RaySettings rays;
+    std::string preset;  ///< the preset it came from, if any (recorded in the meta)
+};
+
+/// The thesis' scenes (§6.1) by name: uni-s, uni-m, uni-l, irreg-s, irreg-m, irreg-l (99, 5 104
+/// and 14 021 objects), plus irreg-xl (1 000 000 objects). The peer-comparison scenes, harder than
+/// the thesis': jittered-m, jittered-l, clusters-m, clusters-l (5 104 and 14 021 objects) and
+/// clusters-xl (1 000 000).
+/// Failure-mode presets "<kind>-s" (1 000 objects) and "<kind>-m" (10 000) for every
+/// kind of failure_mode_kinds().
+SceneSettings preset_settings(std::string_view name);
+std::vector<std::string> preset_names();
+
+/// Every kind generate_objects knows: "uniform" and "irregular" (thesis §6.1), "jittered" and
+/// "clusters" (the peer-comparison scenes, generators.cpp says how they are drawn) and the failure
+/// modes.
+std::vector<std::string> scene_kinds();
+/// Scenes built to break a structure's assumptions: "stadium" (one huge box around a
+/// tiny dense cluster), "identical" (stacks of identical boxes), "same-centroid" (stacks with one
+/// centroid and sizes over four orders of magnitude), "flat" (zero-thickness boxes in one plane),
+/// "slivers" (long thin and zero-volume boxes), "outlier" (irregular plus one box 10^6 world sizes
+/// away), "nested" (every object shares one centroid: cubes nested around the origin, sizes over
+/// four orders of magnitude).
+std::vector<std::string> failure_mode_kinds();
+
+/// "center", "center:0.7,los:0.3": modes with weights. Throws InputError on unknown modes.
+std::vector<RayMode> parse_ray_mix(const std::string& text);
+std::vector<std::string> ray_mode_names();
+
+/// Frame 0's objects of a generated scene, shaped as `settings.shapes` asks.
+std::vector<Object> generate_objects(const SceneSettings& settings);
+
+/// Gives exactly round(share × n) of the objects each shape (chosen at random, the rotations too,
+/// from the `seed`'s own stream: the boxes' draws are unchanged). Keeps uids; each shaped object's
+/// box becomes its shape's bounds.
+std::vector<Object> apply_shapes(std::vector<Object> objects, const ShapeSettings& shapes, std::uint64_t seed);
+
+/// InputError naming the setting when a share is outside [0, 1] or not a number, or the shares add
+/// up to more than 1.
+void check_shapes(const ShapeSettings& shapes);
+
+/// A full recording: generated objects, then `settings.frames` frames of dynamics and rays.
+Recording generate_scene(const SceneSettings& settings);
+/// InputError naming the setting when a share or scale is outside its range or not a number.
+void check_dynamics(const DynamicsSettings& dynamics);
+
+/// Gives any static object set (an import) the same dynamics and rays. A move translates an
+/// object's shape with its box (kind and rotation kept); an insert copies a live object's shape. `meta` is stored as
+/// given, with the dynamics, ray settings, frames and seed added.
+Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dynamics, const RaySettings& rays,
+                       std::uint32_t frames, std::uint64_t seed, nlohmann::json meta);
+
+/// The rays of one frame for the given live objects (used by add_dynamics; exposed for tests).
+std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySettings& rays, std::uint64_t seed,
+                                   std::uint32_t frame);
+
+nlohmann::json to_json(const SceneSettings& settings);
+
+}  // namespace rcb

@@ -1,0 +1,215 @@
+#include "core/sim/simulator.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "core/base/error.h"
+#include "core/accel/query_level.h"
+
+namespace rcb {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::uint64_t ns_since(Clock::time_point start) {
+    return static_cast<std::uint64_t>(
+        std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count());
+}
+
+void validate_or_throw(const Structure& s, const std::string& name, std::uint32_t frame) {
+    try {
+        s.validate();
+    } catch (const std::logic_error& e) {
+        throw std::logic_error(name + ": invariant broken after frame " + std::to_string(frame) + ": " + e.what());
+    }
+}
+
+}  // namespace
+
+Spread spread_of(std::vector<double> v) {
+    if (v.empty()) return {};
+    auto median = [](std::vector<double>& x) {
+        std::sort(x.begin(), x.end());
+        const std::size_t n = x.size();
+        return n % 2 ? x[n / 2] : 0.5 * (x[n / 2 - 1] + x[n / 2]);
+    };
+    Spread s;
+    s.median = median(v);
+    for (double& x : v) x = std::abs(x - s.median);
+    s.mad = median(v);
+    return s;
+}
+
+std::uint64_t SimulationResult::mismatches() const {
+    std::uint64_t total = 0;
+    for (const FrameResult& f : frames) total += f.mismatches();
+    return total;
+}
+
+Spread SimulationResult::update_ns() const {
+    std::vector<double> v;
+    for (const FrameResult& f : frames)
+        if (!f.warmup) v.push_back(double(f.update_ns));
+    return spread_of(v);
+}
+
+Spread SimulationResult::raycast_ns() const {
+    std::vector<double> v;
+    for (const FrameResult& f : frames)
+        if (!f.warmup) v.push_back(double(f.raycast_ns));
+    return spread_of(v);
+}
+
+nlohmann::json SimulationResult::to_json() const {
+    nlohmann::json j = {
+        {"structure", structure},       {"params", params},     {"objects", objects},        {"build_ns", build_ns},
+        {"memory_bytes", memory_bytes}, {"verified", verified}, {"mismatches", mismatches()}};
+    const Spread u = update_ns(), r = raycast_ns();
+    j["update_ns_median"] = u.median;
+    j["update_ns_mad"] = u.mad;
+    j["raycast_ns_median"] = r.median;
+    j["raycast_ns_mad"] = r.mad;
+    nlohmann::json frame, warmup, update, raycast, rays, hits, missed, extra, duplicate, returned, correct, relevant,
+        n_t, n_th, n_mp, n_rb, n_tp, n_ro, n_ro_hits, memory, stats;
+    for (const FrameResult& f : frames) {
+        frame.push_back(f.frame);
+        warmup.push_back(f.warmup);
+        update.push_back(f.update_ns);
+        raycast.push_back(f.raycast_ns);
+        rays.push_back(f.rays);
+        hits.push_back(f.hits);
+        missed.push_back(f.missed);
+        extra.push_back(f.extra);
+        duplicate.push_back(f.duplicate);
+        returned.push_back(f.returned);
+        correct.push_back(f.correct);
+        relevant.push_back(f.relevant);
+        n_t.push_back(f.counters.n_t);
+        n_th.push_back(f.counters.n_th);
+        n_mp.push_back(f.counters.n_mp);
+        n_rb.push_back(f.counters.n_rb);
+        n_tp.push_back(f.counters.n_tp);
+        n_ro.push_back(f.counters.n_ro);
+        n_ro_hits.push_back(f.counters.n_ro_hits);
+        memory.push_back(f.memory_bytes);
+        stats.push_back(f.stats);
+    }
+    auto array = [](nlohmann::json a) { return a.is_null() ? nlohmann::json::array() : a; };
+    j["frame"] = array(frame);
+    j["warmup"] = array(warmup);
+    j["update_ns"] = array(update);
+    j["raycast_ns"] = array(raycast);
+    j["rays"] = array(rays);
+    j["hits"] = array(hits);
+    j["missed"] = array(missed);
+    j["extra"] = array(extra);
+    j["duplicate"] = array(duplicate);
+    j["returned"] = array(returned);
+    j["correct"] = array(correct);
+    j["relevant"] = array(relevant);
+    j["n_t"] = array(n_t);
+    j["n_th"] = array(n_th);
+    j["n_mp"] = array(n_mp);
+    j["n_rb"] = array(n_rb);
+    j["n_tp"] = array(n_tp);
+    j["n_ro"] = array(n_ro);
+    j["n_ro_hits"] = array(n_ro_hits);
+    j["frame_memory_bytes"] = array(memory);
+    j["stats"] = array(stats);
+    nlohmann::json examples = nlohmann::json::array();
+    static const char* kinds[] = {"missed", "extra", "duplicate"};
+    for (const auto& [f, d] : this->examples)
+        examples.push_back({{"frame", f}, {"ray", d.ray}, {"uid", d.uid}, {"kind", kinds[d.kind]}});
+    j["mismatch_examples"] = examples;
+    return j;
+}
+
+void check_warmup(std::size_t warmup_frames, std::size_t frames) {
+    // Warm-up frames are left out of every median: with none left there is nothing to report
+    // (a summary of zero frames would read as 0 ns).
+    if (warmup_frames > 0 && warmup_frames >= frames)
+        throw InputError(std::to_string(warmup_frames) + " warm-up frames leave none of the scene's " +
+                         std::to_string(frames) + " frames to measure");
+}
+
+SimulationResult simulate(const Recording& recording, const StructureInfo& info, const nlohmann::json& params,
+                          const SimulationOptions& options, const std::string& params_path,
+                          const FrameCallback& on_frame) {
+    const std::size_t frames = options.max_frames ? std::min<std::size_t>(options.max_frames, recording.frames.size())
+                                                  : recording.frames.size();
+    check_warmup(options.warmup_frames, frames);
+    SimulationResult result;
+    result.structure = info.name;
+    result.params = info.complete(params, params_path);
+    result.verified = options.verify;
+    std::unique_ptr<Structure> structure = info.make(params, params_path);
+    const Contract contract = contract_of(result.params);
+
+    const Clock::time_point build_start = Clock::now();
+    structure->build(recording.initial);
+    structure->commit();
+    result.build_ns = ns_since(build_start);
+    result.objects = recording.initial.size();
+    result.memory_bytes = structure->memory_bytes();
+    if (options.validate) validate_or_throw(*structure, info.name, 0);
+
+    LiveSet live(recording.initial);
+    HitLists hits, counted;
+    for (std::size_t i = 0; i < frames; ++i) {
+        const Frame& frame = recording.frames[i];
+        FrameResult fr;
+        fr.frame = static_cast<std::uint32_t>(i + 1);
+        fr.warmup = i < options.warmup_frames;
+        fr.inserts = static_cast<std::uint32_t>(frame.inserts.size());
+        fr.removes = static_cast<std::uint32_t>(frame.removes.size());
+        fr.moves = static_cast<std::uint32_t>(frame.moves.size());
+        fr.rays = static_cast<std::uint32_t>(frame.rays.size());
+
+        const Clock::time_point update_start = Clock::now();
+        for (Uid uid : frame.removes) structure->remove(uid);
+        for (const Object& o : frame.inserts) structure->insert(o);
+        for (const Object& o : frame.moves) structure->move(o);
+        structure->commit();
+        fr.update_ns = ns_since(update_start);
+        live.apply(frame);
+        if (options.validate) validate_or_throw(*structure, info.name, fr.frame);
+
+        if (options.timed_cast) {
+            const Clock::time_point cast_start = Clock::now();
+            structure->cast(frame.rays, hits);
+            fr.raycast_ns = ns_since(cast_start);
+        } else {
+            structure->cast_counted(frame.rays, hits, fr.counters);  // the counting pass is the only cast
+        }
+        fr.hits = hits.uids.size();
+
+        if (options.verify) {
+            const Verification v = GroundTruth(live.objects()).verify(frame.rays, hits, contract);
+            fr.missed = v.missed;
+            fr.extra = v.extra;
+            fr.duplicate = v.duplicate;
+            fr.returned = v.returned;
+            fr.correct = v.correct;
+            fr.relevant = v.relevant;
+            for (const Discrepancy& d : v.examples)
+                if (result.examples.size() < 20) result.examples.emplace_back(fr.frame, d);
+        }
+        if (options.count && options.timed_cast) {
+            structure->cast_counted(frame.rays, counted, fr.counters);
+            // The counting policy must not change what the traversal does.
+            if (counted.uids != hits.uids || counted.offsets != hits.offsets)
+                throw std::logic_error(info.name +
+                                       ": the counting pass reported other hits than the timed pass in frame " +
+                                       std::to_string(fr.frame));
+        }
+        fr.memory_bytes = structure->memory_bytes();
+        fr.stats = structure->stats();
+        if (on_frame) on_frame(fr);
+        result.frames.push_back(std::move(fr));
+    }
+    return result;
+}
+
+}  // namespace rcb

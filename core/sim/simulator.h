@@ -1,0 +1,93 @@
+#pragma once
+/// The simulator (thesis §5.2.2): replays a recording against one structure.
+///
+///     build (timed)
+///     per frame:  apply the frame's changes + commit (timed: update)
+///                 cast the frame's rays as one batch (timed: ray cast)
+///                 verify every ray's hits against the ground truth (not timed): the
+///                 configuration's contract (query_level.h) and its accuracy against the shapes
+///                 the counting pass: the same rays with counters on (not timed)
+///
+/// Timing wraps whole phases with std::chrono::steady_clock, never a single ray.
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/accel/counters.h"
+#include "core/truth/ground_truth.h"
+#include "core/accel/registry.h"
+#include "core/scene/scene.h"
+
+namespace rcb {
+
+struct SimulationOptions {
+    bool verify = true;  ///< compare every ray with the ground truth
+    bool count = true;   ///< run the counting pass
+    bool timed_cast =
+        true;  ///< time the ray batch; false: only the counting pass casts (the tuner's cheap prediction runs)
+    bool validate = false;            ///< call Structure::validate() after the build and every commit
+    std::uint32_t max_frames = 0;     ///< replay at most this many frames (0: all)
+    std::uint32_t warmup_frames = 0;  ///< the first frames run but are left out of the summaries
+};
+
+struct FrameResult {
+    std::uint32_t frame = 0;  ///< 1-based; frame 0 is the build
+    bool warmup = false;
+    std::uint32_t inserts = 0, removes = 0, moves = 0, rays = 0;
+    std::uint64_t update_ns = 0;
+    std::uint64_t raycast_ns = 0;
+    std::uint64_t hits = 0;                              ///< reported by the timed pass, summed over the rays
+    std::uint64_t missed = 0, extra = 0, duplicate = 0;  ///< against the configuration's contract
+    /// Accuracy against the shapes' truth (ground_truth.h, Verification): recall = correct /
+    /// relevant, precision = correct / returned.
+    std::uint64_t returned = 0, correct = 0, relevant = 0;
+    Counters counters;  ///< from the counting pass, summed over the rays
+    std::uint64_t memory_bytes = 0;
+    nlohmann::json stats;  ///< Structure::stats() after the frame's commit
+
+    std::uint64_t mismatches() const { return missed + extra + duplicate; }
+    /// 1 when nothing is expected (no true hits) or nothing returned.
+    double recall() const { return relevant ? double(correct) / double(relevant) : 1.0; }
+    double precision() const { return returned ? double(correct) / double(returned) : 1.0; }
+};
+
+/// Median and median absolute deviation of a series.
+struct Spread {
+    double median = 0;
+    double mad = 0;
+};
+Spread spread_of(std::vector<double> values);
+
+struct SimulationResult {
+    std::string structure;
+    nlohmann::json params;  ///< complete: defaults filled in
+    std::size_t objects = 0;
+    std::uint64_t build_ns = 0;
+    std::uint64_t memory_bytes = 0;  ///< after the build
+    std::vector<FrameResult> frames;
+    std::vector<std::pair<std::uint32_t, Discrepancy>> examples;  ///< (frame, discrepancy), the first few
+    bool verified = false;
+
+    std::uint64_t mismatches() const;
+    /// Over the frames that are not warm-up.
+    Spread update_ns() const;
+    Spread raycast_ns() const;
+    nlohmann::json to_json() const;
+};
+
+/// Called after each frame (for progress reports); may be empty.
+using FrameCallback = std::function<void(const FrameResult&)>;
+
+/// InputError when `warmup_frames` leave none of `frames` to measure (simulate checks it too).
+void check_warmup(std::size_t warmup_frames, std::size_t frames);
+
+/// `params` is validated against the structure's registry entry (errors name `params_path`).
+SimulationResult simulate(const Recording& recording, const StructureInfo& structure, const nlohmann::json& params,
+                          const SimulationOptions& options = {}, const std::string& params_path = "params",
+                          const FrameCallback& on_frame = {});
+
+}  // namespace rcb
