@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -173,83 +174,84 @@ std::vector<json> expand_grid(const StructureInfo& info, const json& grid, const
     return combos;
 }
 
-void parse_scene(const json& s, const std::string& path, const SceneDefaults& d, const std::string& base_dir,
-                 std::vector<SceneSpec>& out) {
-    expect_object(s, path);
-    check_keys(s, path,
-               {"name", "preset", "kind", "objects", "recording", "import", "import_options", "frames",
-                "rays_per_frame", "ray_mix", "change_fraction", "insert_share", "remove_share", "move_scale",
-                "rotated_share", "sphere_share", "capsule_share", "seed", "seeds"});
-    int sources =
-        int(s.contains("preset")) + int(s.contains("kind")) + int(s.contains("recording")) + int(s.contains("import"));
-    if (sources != 1) fail(path, "give exactly one of \"preset\", \"kind\", \"recording\" or \"import\"");
+const std::set<std::string> kSceneKeys = {
+    "name",           "preset",     "kind",           "objects",      "recording",       "import",
+    "import_options", "frames",     "rays_per_frame", "ray_mix",      "change_fraction", "insert_share",
+    "remove_share",   "move_scale", "rotated_share",  "sphere_share", "capsule_share",   "seed",
+    "seeds"};
 
-    if (s.contains("recording")) {
-        for (const char* k :
-             {"objects", "frames", "rays_per_frame", "ray_mix", "change_fraction", "insert_share", "remove_share",
-              "move_scale", "rotated_share", "sphere_share", "capsule_share", "seed", "seeds"})
-            if (s.contains(k)) fail(at(path, k), "a recording brings its own objects, frames, rays and dynamics");
-        SceneSpec spec;
-        spec.source = SceneSpec::Source::recording;
-        const std::string file = get_string(s, "recording", path, "");
-        spec.path = fs::path(file).is_absolute() ? file : (fs::path(base_dir) / file).lexically_normal().string();
-        if (!fs::is_regular_file(spec.path)) fail(at(path, "recording"), "file not found: " + spec.path);
-        spec.name = get_string(s, "name", path, fs::path(file).stem().string());
-        spec.key = {{"recording", fs::path(file).filename().string()}, {"name", spec.name}};
-        out.push_back(std::move(spec));
-        return;
-    }
+/// A recording entry: the file brings its objects, frames, rays and dynamics.
+void parse_recording_scene(const json& s, const std::string& path, const std::string& base_dir,
+                           std::vector<SceneSpec>& out) {
+    for (const char* k :
+         {"objects", "frames", "rays_per_frame", "ray_mix", "change_fraction", "insert_share", "remove_share",
+          "move_scale", "rotated_share", "sphere_share", "capsule_share", "seed", "seeds"})
+        if (s.contains(k)) fail(at(path, k), "a recording brings its own objects, frames, rays and dynamics");
+    SceneSpec spec;
+    spec.source = SceneSpec::Source::recording;
+    spec.where = path;
+    const std::string file = get_string(s, "recording", path, "");
+    spec.path = fs::path(file).is_absolute() ? file : (fs::path(base_dir) / file).lexically_normal().string();
+    if (!fs::is_regular_file(spec.path)) fail(at(path, "recording"), "file not found: " + spec.path);
+    spec.name = get_string(s, "name", path, fs::path(file).stem().string());
+    spec.key = {{"recording", fs::path(file).filename().string()}, {"name", spec.name}};
+    out.push_back(std::move(spec));
+}
 
+/// Where a generated or imported entry's objects come from: a preset, a kind, or a file to import.
+struct SceneSource {
     SceneSettings base;
-    std::string name;
+    std::string name;  ///< before "name" overrides it
     SceneSpec::Source source = SceneSpec::Source::generated;
     std::string file;
-    json import_options;  // import: the completed ImportOptions
+    json import_options;  ///< import: the completed ImportOptions
+};
+
+SceneSource parse_scene_source(const json& s, const std::string& path, const std::string& base_dir) {
+    SceneSource src;
     if (s.contains("preset")) {
         try {
-            base = preset_settings(get_string(s, "preset", path, ""));
+            src.base = preset_settings(get_string(s, "preset", path, ""));
         } catch (const InputError& e) {
             fail(at(path, "preset"), e.what());
         }
-        name = base.preset;
+        src.name = src.base.preset;
     } else if (s.contains("kind")) {
-        base.kind = get_string(s, "kind", path, "");
+        src.base.kind = get_string(s, "kind", path, "");
         const std::vector<std::string> kinds = scene_kinds();
-        if (std::find(kinds.begin(), kinds.end(), base.kind) == kinds.end())
+        if (std::find(kinds.begin(), kinds.end(), src.base.kind) == kinds.end())
             fail(at(path, "kind"), "expected one of " + join(kinds) + ", got " + json_excerpt(s["kind"]));
         if (!s.contains("objects")) fail(path, "a scene given by \"kind\" needs \"objects\"");
-        name = base.kind;
+        src.name = src.base.kind;
     } else {
-        source = SceneSpec::Source::import;
+        src.source = SceneSpec::Source::import;
         const std::string given = get_string(s, "import", path, "");
-        file = fs::path(given).is_absolute() ? given : (fs::path(base_dir) / given).lexically_normal().string();
-        if (!fs::is_regular_file(file)) fail(at(path, "import"), "file not found: " + file);
+        src.file = fs::path(given).is_absolute() ? given : (fs::path(base_dir) / given).lexically_normal().string();
+        if (!fs::is_regular_file(src.file)) fail(at(path, "import"), "file not found: " + src.file);
         if (s.contains("objects")) fail(at(path, "objects"), "an imported scene has the file's objects");
-        name = fs::path(given).stem().string();
+        src.name = fs::path(given).stem().string();
         // import_options_from_json's messages carry the JSON path already.
-        import_options =
+        src.import_options =
             to_json(import_options_from_json(s.value("import_options", json()), at(path, "import_options")));
         try {
-            importer_for(file);
+            importer_for(src.file);
         } catch (const InputError& e) {
             fail(at(path, "import"), e.what());
         }
-        if (!import_options["map"].get<std::string>().empty()) name = import_options["map"].get<std::string>();
+        if (!src.import_options["map"].get<std::string>().empty())
+            src.name = src.import_options["map"].get<std::string>();
     }
-    if (s.contains("import_options") && source != SceneSpec::Source::import)
+    if (s.contains("import_options") && src.source != SceneSpec::Source::import)
         fail(at(path, "import_options"), "only an \"import\" scene takes import options");
     for (const char* k : {"rotated_share", "sphere_share", "capsule_share"})
-        if (s.contains(k) && source == SceneSpec::Source::import)
+        if (s.contains(k) && src.source == SceneSpec::Source::import)
             fail(at(path, k), "an imported scene has the file's shapes");
-    name = get_string(s, "name", path, name);
-    const std::vector<std::uint64_t> objects = source == SceneSpec::Source::import
-                                                   ? std::vector<std::uint64_t>{0}
-                                                   : get_uint_list(s, "objects", path, 1, 100'000'000, {base.objects});
-    std::vector<std::uint64_t> seeds = d.seeds;
-    if (s.contains("seed") && s.contains("seeds")) fail(path, "give \"seed\" or \"seeds\", not both");
-    if (s.contains("seed")) seeds = {get_uint(s, "seed", path, 0, UINT64_MAX, 1)};
-    if (s.contains("seeds")) seeds = get_uint_list(s, "seeds", path, 0, UINT64_MAX, d.seeds);
+    src.name = get_string(s, "name", path, src.name);
+    return src;
+}
 
+/// The entry's frames, rays, dynamics and shapes over the file's defaults; returns the ray mix's text.
+std::string parse_scene_settings(const json& s, const std::string& path, const SceneDefaults& d, SceneSettings& base) {
     base.frames = static_cast<std::uint32_t>(get_uint(s, "frames", path, 1, 1'000'000, d.frames));
     base.rays.per_frame = static_cast<std::uint32_t>(get_uint(s, "rays_per_frame", path, 0, 100'000'000, d.rays));
     const std::string mix = get_string(s, "ray_mix", path, d.ray_mix);
@@ -269,40 +271,89 @@ void parse_scene(const json& s, const std::string& path, const SceneDefaults& d,
     base.shapes.capsule_share = get_number(s, "capsule_share", path, 0, 1, 0);
     if (base.shapes.rotated_share + base.shapes.sphere_share + base.shapes.capsule_share > 1)
         fail(path, "rotated_share + sphere_share + capsule_share exceeds 1");
+    return mix;
+}
 
+/// One concrete scene of an entry: its object count and seed, its name and its key.
+SceneSpec concrete_scene(const SceneSource& src, const SceneSettings& base, const std::string& mix, std::uint64_t count,
+                         std::uint64_t seed, bool many_counts, bool many_seeds) {
+    SceneSpec spec;
+    spec.source = src.source;
+    spec.settings = base;
+    spec.settings.seed = seed;
+    spec.path = src.file;
+    if (src.source != SceneSpec::Source::import) spec.settings.objects = static_cast<std::uint32_t>(count);
+    spec.name = src.name;
+    if (many_counts) spec.name.append("-").append(std::to_string(count));
+    if (many_seeds) spec.name.append("-s").append(std::to_string(seed));
+    json dyn = {{"change_fraction", base.dynamics.change_fraction},
+                {"insert_share", base.dynamics.insert_share},
+                {"remove_share", base.dynamics.remove_share},
+                {"move_scale", base.dynamics.move_scale}};
+    spec.key = {{"frames", base.frames},
+                {"rays_per_frame", base.rays.per_frame},
+                {"ray_mix", mix},
+                {"dynamics", dyn},
+                {"seed", seed}};
+    if (src.source == SceneSpec::Source::import) {
+        spec.key["import"] = fs::path(src.file).filename().string();
+        if (importer_for(src.file) != "csv") spec.key["import_options"] = spec.import_options = src.import_options;
+    } else {
+        spec.key["kind"] = base.kind, spec.key["objects"] = count;
+        // Only when set: a box scene's key (and so its results' identity) stays as it was.
+        if (base.shapes.any())
+            spec.key["shapes"] = {{"rotated_share", base.shapes.rotated_share},
+                                  {"sphere_share", base.shapes.sphere_share},
+                                  {"capsule_share", base.shapes.capsule_share}};
+    }
+    return spec;
+}
+
+void parse_scene(const json& s, const std::string& path, const SceneDefaults& d, const std::string& base_dir,
+                 std::vector<SceneSpec>& out) {
+    expect_object(s, path);
+    check_keys(s, path, kSceneKeys);
+    int sources =
+        int(s.contains("preset")) + int(s.contains("kind")) + int(s.contains("recording")) + int(s.contains("import"));
+    if (sources != 1) fail(path, "give exactly one of \"preset\", \"kind\", \"recording\" or \"import\"");
+    if (s.contains("recording")) return parse_recording_scene(s, path, base_dir, out);
+
+    SceneSource src = parse_scene_source(s, path, base_dir);
+    const std::vector<std::uint64_t> objects =
+        src.source == SceneSpec::Source::import ? std::vector<std::uint64_t>{0}
+                                                : get_uint_list(s, "objects", path, 1, 100'000'000, {src.base.objects});
+    std::vector<std::uint64_t> seeds = d.seeds;
+    if (s.contains("seed") && s.contains("seeds")) fail(path, "give \"seed\" or \"seeds\", not both");
+    if (s.contains("seed")) seeds = {get_uint(s, "seed", path, 0, UINT64_MAX, 1)};
+    if (s.contains("seeds")) seeds = get_uint_list(s, "seeds", path, 0, UINT64_MAX, d.seeds);
+    const std::string mix = parse_scene_settings(s, path, d, src.base);
     for (std::uint64_t count : objects)
         for (std::uint64_t seed : seeds) {
-            SceneSpec spec;
-            spec.source = source;
-            spec.settings = base;
-            spec.settings.seed = seed;
-            spec.path = file;
-            if (source != SceneSpec::Source::import) spec.settings.objects = static_cast<std::uint32_t>(count);
-            spec.name = name;
-            if (objects.size() > 1) spec.name.append("-").append(std::to_string(count));
-            if (seeds.size() > 1) spec.name.append("-s").append(std::to_string(seed));
-            json dyn = {{"change_fraction", base.dynamics.change_fraction},
-                        {"insert_share", base.dynamics.insert_share},
-                        {"remove_share", base.dynamics.remove_share},
-                        {"move_scale", base.dynamics.move_scale}};
-            spec.key = {{"frames", base.frames},
-                        {"rays_per_frame", base.rays.per_frame},
-                        {"ray_mix", mix},
-                        {"dynamics", dyn},
-                        {"seed", seed}};
-            if (source == SceneSpec::Source::import) {
-                spec.key["import"] = fs::path(file).filename().string();
-                if (importer_for(file) != "csv") spec.key["import_options"] = spec.import_options = import_options;
-            } else {
-                spec.key["kind"] = base.kind, spec.key["objects"] = count;
-                // Only when set: a box scene's key (and so its results' identity) stays as it was.
-                if (base.shapes.any())
-                    spec.key["shapes"] = {{"rotated_share", base.shapes.rotated_share},
-                                          {"sphere_share", base.shapes.sphere_share},
-                                          {"capsule_share", base.shapes.capsule_share}};
-            }
-            out.push_back(std::move(spec));
+            out.push_back(concrete_scene(src, src.base, mix, count, seed, objects.size() > 1, seeds.size() > 1));
+            out.back().where = path;
         }
+}
+
+/// Two entries describing one scene would share its cells (a cell's key holds the scene's key, not
+/// its name) and its stored row (scenes are stored by content): the second name would get no cells.
+void refuse_duplicate_scenes(const std::vector<SceneSpec>& scenes) {
+    std::map<std::string, std::size_t> by_key, by_file;
+    for (std::size_t i = 0; i < scenes.size(); ++i) {
+        const SceneSpec& s = scenes[i];
+        std::optional<std::size_t> first;
+        if (auto [it, added] = by_key.emplace(s.key.dump(), i); !added) first = it->second;
+        if (!first && s.source == SceneSpec::Source::recording) {
+            std::error_code ec;
+            const fs::path file = fs::weakly_canonical(s.path, ec);
+            if (auto [it, added] = by_file.emplace(ec ? s.path : file.string(), i); !added) first = it->second;
+        }
+        if (!first) continue;
+        const SceneSpec& f = scenes[*first];
+        if (f.where == s.where)
+            fail(s.where, "gives the scene \"" + s.name + "\" twice (a value repeated in \"objects\" or \"seeds\")");
+        fail(s.where, "the same scene as " + f.where + " (\"" + f.name + "\" and \"" + s.name +
+                          "\"): their cells would be stored as one; make them differ or drop one");
+    }
 }
 
 }  // namespace
@@ -312,6 +363,7 @@ std::vector<SceneSpec> parse_scenes(const json& scenes, const std::string& path,
     if (!scenes.is_array() || scenes.empty()) fail(path, "expected a non-empty list of scenes");
     std::vector<SceneSpec> out;
     for (std::size_t i = 0; i < scenes.size(); ++i) parse_scene(scenes[i], at(path, i), d, base_dir, out);
+    refuse_duplicate_scenes(out);
     return out;
 }
 
@@ -333,6 +385,69 @@ std::string stable_hash(const std::string& bytes) {
     std::snprintf(out, sizeof out, "%016llx", static_cast<unsigned long long>(h));
     return out;
 }
+
+namespace {
+
+/// The run's "threads" caps every TBB arena of the process, a structure's own threads included:
+/// a configuration asking for more would be measured on fewer. Checked on every expanded value,
+/// so a list, a range ({"from", "to", "step" or "times"}) and a single value are held alike.
+void check_thread_cap(const json& params, std::uint32_t threads, const std::string& path) {
+    for (const char* key : {"threads", "cast_threads"}) {
+        if (!params.contains(key) || !params[key].is_number_integer()) continue;
+        const std::int64_t asked = params[key].get<std::int64_t>();
+        if (asked > std::int64_t(threads))
+            fail(at(path, key), std::to_string(asked) + " threads, more than the experiment's \"threads\" (" +
+                                    std::to_string(threads) +
+                                    "), which caps every thread of the run: set \"threads\" to at least " +
+                                    std::to_string(asked));
+    }
+}
+
+/// One "structures" entry's parameter sets: its "params", or each of its "grids", with the path of each.
+std::vector<std::pair<json, std::string>> structure_grids(const json& s, const std::string& path) {
+    if (s.contains("params") && s.contains("grids")) fail(path, "give \"params\" or \"grids\", not both");
+    std::vector<std::pair<json, std::string>> grids;
+    if (!s.contains("grids")) {
+        grids.emplace_back(s.contains("params") ? s["params"] : json::object(), at(path, "params"));
+        return grids;
+    }
+    if (!s["grids"].is_array() || s["grids"].empty())
+        fail(at(path, "grids"), "expected a non-empty list of parameter grids");
+    for (std::size_t g = 0; g < s["grids"].size(); ++g) grids.emplace_back(s["grids"][g], at(at(path, "grids"), g));
+    return grids;
+}
+
+/// The distinct configurations of the "structures" list, grids expanded, in the file's order.
+std::vector<ConfigSpec> parse_configs(const json& j, std::uint32_t threads) {
+    if (!j.contains("structures") || !j["structures"].is_array() || j["structures"].empty())
+        fail("structures", "expected a non-empty list of structures");
+    std::vector<ConfigSpec> configs;
+    std::set<std::string> seen;
+    for (std::size_t i = 0; i < j["structures"].size(); ++i) {
+        const json& s = j["structures"][i];
+        const std::string path = at("structures", i);
+        expect_object(s, path);
+        check_keys(s, path, {"name", "params", "grids"});
+        if (!s.contains("name")) fail(path, "missing \"name\"");
+        const StructureInfo* info = nullptr;
+        try {
+            info = &find_structure(get_string(s, "name", path, ""));
+        } catch (const InputError& err) {
+            fail(at(path, "name"), err.what());
+        }
+        for (const auto& [grid, gpath] : structure_grids(s, path))
+            for (const json& params : expand_grid(*info, grid, gpath)) {
+                ConfigSpec c{info->name, info->complete(params, gpath)};
+                check_thread_cap(c.params, threads, gpath);
+                if (seen.insert(c.structure + c.params.dump()).second) configs.push_back(std::move(c));
+                if (configs.size() > kMaxPlanCells)
+                    fail("structures", "more than " + std::to_string(kMaxPlanCells) + " configurations");
+            }
+    }
+    return configs;
+}
+
+}  // namespace
 
 Experiment parse_experiment(const std::string& text, const std::string& name, const std::string& base_dir) {
     const json j = parse_json_document(text, name);
@@ -363,50 +478,7 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
             if (s.source != SceneSpec::Source::recording && e.warmup_frames >= s.settings.frames)
                 fail("warmup_frames", "leaves no measured frame in scene " + s.name);
 
-        if (!j.contains("structures") || !j["structures"].is_array() || j["structures"].empty())
-            fail("structures", "expected a non-empty list of structures");
-        std::set<std::string> seen;
-        for (std::size_t i = 0; i < j["structures"].size(); ++i) {
-            const json& s = j["structures"][i];
-            const std::string path = at("structures", i);
-            expect_object(s, path);
-            check_keys(s, path, {"name", "params", "grids"});
-            if (!s.contains("name")) fail(path, "missing \"name\"");
-            const std::string structure = get_string(s, "name", path, "");
-            const StructureInfo* info = nullptr;
-            try {
-                info = &find_structure(structure);
-            } catch (const InputError& err) {
-                fail(at(path, "name"), err.what());
-            }
-            if (s.contains("params") && s.contains("grids")) fail(path, "give \"params\" or \"grids\", not both");
-            std::vector<std::pair<json, std::string>> grids;
-            if (s.contains("grids")) {
-                if (!s["grids"].is_array() || s["grids"].empty())
-                    fail(at(path, "grids"), "expected a non-empty list of parameter grids");
-                for (std::size_t g = 0; g < s["grids"].size(); ++g)
-                    grids.emplace_back(s["grids"][g], at(at(path, "grids"), g));
-            } else {
-                grids.emplace_back(s.contains("params") ? s["params"] : json::object(), at(path, "params"));
-            }
-            for (const auto& [grid, gpath] : grids)
-                for (const json& params : expand_grid(*info, grid, gpath)) {
-                    ConfigSpec c{info->name, info->complete(params, gpath)};
-                    // The run's "threads" caps every TBB arena of the process, a structure's own
-                    // threads included: a configuration asking for more would be measured on fewer.
-                    for (const char* key : {"threads", "cast_threads"})
-                        if (c.params.contains(key) && c.params[key].is_number_unsigned() &&
-                            c.params[key].get<std::uint64_t>() > e.threads)
-                            fail(at(gpath, key),
-                                 c.params[key].dump() + " threads, more than the experiment's \"threads\" (" +
-                                     std::to_string(e.threads) +
-                                     "), which caps every thread of the run: set \"threads\" to at least " +
-                                     c.params[key].dump());
-                    if (seen.insert(c.structure + c.params.dump()).second) e.configs.push_back(std::move(c));
-                    if (e.configs.size() > kMaxPlanCells)
-                        fail("structures", "more than " + std::to_string(kMaxPlanCells) + " configurations");
-                }
-        }
+        e.configs = parse_configs(j, e.threads);
 
         // Refuse an oversized plan before allocating it (a typo such as 1000 repetitions of a
         // 6400-value grid would otherwise take minutes and gigabytes to expand).

@@ -25,6 +25,7 @@ struct SceneSpec {
     SceneSettings settings;         ///< generated: everything; import: dynamics, rays, frames, seed
     std::string path;               ///< recording or import: the file, resolved against the experiment's folder
     nlohmann::json import_options;  ///< import of a map or model: {"bsp_mode", "map", "model_mode"}
+    std::string where;              ///< the JSON path of the entry it came from, for errors ("scenes[2]")
 };
 
 /// One structure with one complete set of parameters.
@@ -83,6 +84,8 @@ struct SceneDefaults {
 };
 
 /// A list of scene entries (the "scenes" schema of experiments/README.md); errors name `path`.
+/// Two entries (or two values of one entry's "objects" or "seeds") that describe the same scene
+/// are refused, naming both: they would share their cells and their stored row.
 std::vector<SceneSpec> parse_scenes(const nlohmann::json& scenes, const std::string& path,
                                     const SceneDefaults& defaults, const std::string& base_dir);
 
