@@ -178,6 +178,108 @@ std::vector<SearchDimension> default_space(const std::string& structure) {
     return dims;
 }
 
+namespace {
+
+/// Whether the scene entry at `where` (a path ending in "[i]") in `scenes` gives its own rays.
+bool scene_sets_rays(const json& scenes, const std::string& where) {
+    const std::size_t open = where.rfind('[');
+    if (open == std::string::npos) return false;
+    const std::size_t i = std::stoul(where.substr(open + 1));
+    return i < scenes.size() && scenes[i].is_object() && scenes[i].contains("rays_per_frame");
+}
+
+/// A recording's frames and rays are known once it is read (here, into the cache the tuning
+/// measures from): warm-up must leave a frame, and the measured frames must cast rays.
+void check_tuned_recording(const SceneSpec& s, std::uint32_t warmup, const std::string& category) {
+    const Recording& r = recording_of(s);
+    const std::string scene = "scene " + s.name + " (" + s.path + ") of category " + category;
+    if (warmup >= r.frames.size())
+        fail("warmup_frames", std::to_string(warmup) + " warm-up frames leave none of the " +
+                                  std::to_string(r.frames.size()) + " frames of " + scene);
+    std::size_t rays = 0;
+    for (std::size_t f = warmup; f < r.frames.size(); ++f) rays += r.frames[f].rays.size();
+    if (rays == 0)
+        fail(at(s.where, "recording"),
+             "no rays in the measured frames of " + scene + ": a tuning fits its cost model per ray cast");
+}
+
+/// Thins the registry's levels of the parameters the file left out until a structure's space has
+/// at most kMaxPlanCells configurations (the exhaustive check and the predicted mode's calibration
+/// enumerate it): the widest such dimension keeps every other level, and its first, last and
+/// default levels. Levels the file gave stay as given; a space still too large is refused below.
+void fit_default_levels(const std::string& structure, std::vector<SearchDimension>& dims,
+                        const std::set<std::string>& given) {
+    auto size = [&] {
+        double n = 1;
+        for (const SearchDimension& d : dims) n *= double(std::max<std::size_t>(1, d.levels.size()));
+        return n;
+    };
+    const json defaults = find_structure(structure).defaults();
+    std::set<std::string> stuck = given;
+    while (size() > double(kMaxPlanCells)) {
+        SearchDimension* widest = nullptr;
+        for (SearchDimension& d : dims)
+            if (!stuck.count(d.name) && d.levels.size() > 3 && (!widest || d.levels.size() > widest->levels.size()))
+                widest = &d;
+        if (!widest) return;
+        std::vector<json> kept;
+        for (std::size_t i = 0; i < widest->levels.size(); ++i)
+            if (i % 2 == 0 || i + 1 == widest->levels.size() ||
+                widest->levels[i] == defaults.value(widest->name, json()))
+                kept.push_back(widest->levels[i]);
+        if (kept.size() == widest->levels.size()) stuck.insert(widest->name);
+        widest->levels = std::move(kept);
+    }
+}
+
+/// The search space of every tuned structure: the registry's default levels, the file's "space"
+/// over them, and default levels thinned to fit the limit.
+void parse_space(const json& j, TuneSpec& t) {
+    for (const std::string& s : t.structures) {
+        t.space[s] = default_space(s);
+        if (t.space[s].empty()) fail("structures", s + " has no tunable parameter");
+    }
+    std::map<std::string, std::set<std::string>> given;
+    if (j.contains("space")) {
+        expect_object(j["space"], "space");
+        for (const auto& [structure, params] : j["space"].items()) {
+            const std::string path = at("space", structure);
+            if (std::find(t.structures.begin(), t.structures.end(), structure) == t.structures.end())
+                fail(path, "not one of the structures tuned here");
+            expect_object(params, path);
+            const StructureInfo& info = find_structure(structure);
+            for (const auto& [param, value] : params.items()) {
+                auto spec = std::find_if(info.params.begin(), info.params.end(),
+                                         [&, &param = param](const ParamSpec& p) { return p.name == param; });
+                if (spec == info.params.end())
+                    check_params(info.params, json{{param, value}}, path, structure);  // throws
+                auto& dims = t.space[structure];
+                auto dim = std::find_if(dims.begin(), dims.end(),
+                                        [&, &param = param](const SearchDimension& d) { return d.name == param; });
+                std::vector<json> levels = expand_values(*spec, value, at(path, param));
+                if (dim == dims.end())
+                    dims.push_back({param, levels});  // a non-tunable parameter the user wants searched
+                else
+                    dim->levels = levels;
+                given[structure].insert(param);
+            }
+        }
+    }
+    // The exhaustive check and the predicted mode's calibration enumerate a space: refuse one
+    // too large to hold before anything is allocated.
+    for (auto& [structure, dims] : t.space) {
+        fit_default_levels(structure, dims, given[structure]);
+        double size = 1;
+        for (const SearchDimension& dim : dims) size *= double(std::max<std::size_t>(1, dim.levels.size()));
+        if (size > double(kMaxPlanCells))
+            fail(at("space", structure), "the search space has " + std::to_string(std::uint64_t(std::min(size, 1e19))) +
+                                             " configurations, more than the limit of " +
+                                             std::to_string(kMaxPlanCells) + "; give fewer levels");
+    }
+}
+
+}  // namespace
+
 TuneSpec parse_tune_spec(const std::string& text, const std::string& name, const std::string& base_dir) {
     const json j = parse_json_document(text, name);
     try {
@@ -220,45 +322,7 @@ TuneSpec parse_tune_spec(const std::string& text, const std::string& name, const
                 if (std::any_of(info.params.begin(), info.params.end(), [](const ParamSpec& p) { return p.tunable; }))
                     t.structures.push_back(info.name);
         }
-        for (const std::string& s : t.structures) {
-            t.space[s] = default_space(s);
-            if (t.space[s].empty()) fail("structures", s + " has no tunable parameter");
-        }
-        if (j.contains("space")) {
-            expect_object(j["space"], "space");
-            for (const auto& [structure, params] : j["space"].items()) {
-                const std::string path = at("space", structure);
-                if (std::find(t.structures.begin(), t.structures.end(), structure) == t.structures.end())
-                    fail(path, "not one of the structures tuned here");
-                expect_object(params, path);
-                const StructureInfo& info = find_structure(structure);
-                for (const auto& [param, value] : params.items()) {
-                    auto spec = std::find_if(info.params.begin(), info.params.end(),
-                                             [&, &param = param](const ParamSpec& p) { return p.name == param; });
-                    if (spec == info.params.end())
-                        check_params(info.params, json{{param, value}}, path, structure);  // throws
-                    auto& dims = t.space[structure];
-                    auto dim = std::find_if(dims.begin(), dims.end(),
-                                            [&, &param = param](const SearchDimension& d) { return d.name == param; });
-                    std::vector<json> levels = expand_values(*spec, value, at(path, param));
-                    if (dim == dims.end())
-                        dims.push_back({param, levels});  // a non-tunable parameter the user wants searched
-                    else
-                        dim->levels = levels;
-                }
-            }
-        }
-        // The exhaustive check and the predicted mode's calibration enumerate a space: refuse one
-        // too large to hold before anything is allocated.
-        for (const auto& [structure, dims] : t.space) {
-            double size = 1;
-            for (const SearchDimension& dim : dims) size *= double(std::max<std::size_t>(1, dim.levels.size()));
-            if (size > double(kMaxPlanCells))
-                fail(at("space", structure), "the search space has " +
-                                                 std::to_string(std::uint64_t(std::min(size, 1e19))) +
-                                                 " configurations, more than the limit of " +
-                                                 std::to_string(kMaxPlanCells) + "; give fewer levels");
-        }
+        parse_space(j, t);
         if (!j.contains("categories") || !j["categories"].is_array() || j["categories"].empty())
             fail("categories", "expected a non-empty list of scene categories");
         std::set<std::string> names;
@@ -273,9 +337,16 @@ TuneSpec parse_tune_spec(const std::string& text, const std::string& name, const
             if (!names.insert(cat.name).second) fail(at(path, "name"), "duplicate category name \"" + cat.name + "\"");
             if (!c.contains("scenes")) fail(at(path, "scenes"), "expected a non-empty list of scenes");
             cat.scenes = parse_scenes(c["scenes"], at(path, "scenes"), d, base_dir);
-            for (const SceneSpec& s : cat.scenes)
+            for (const SceneSpec& s : cat.scenes) {
                 if (s.source != SceneSpec::Source::recording && t.warmup_frames >= s.settings.frames)
                     fail("warmup_frames", "leaves no measured frame in category " + cat.name);
+                if (s.source == SceneSpec::Source::recording) check_tuned_recording(s, t.warmup_frames, cat.name);
+                // Every tuning fits eq. 5.4 per ray: a scene without rays leaves nothing to fit.
+                if (s.source != SceneSpec::Source::recording && s.settings.rays.per_frame == 0)
+                    fail(scene_sets_rays(c["scenes"], s.where) ? at(s.where, "rays_per_frame") : "rays_per_frame",
+                         "0 rays per frame in scene " + s.name + " of category " + cat.name +
+                             ": a tuning fits its cost model per ray cast, so it needs rays");
+            }
             t.categories.push_back(std::move(cat));
         }
         return t;
