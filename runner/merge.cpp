@@ -3,153 +3,182 @@
 #include <map>
 #include <string>
 
-namespace rcb {
+#include "core/base/error.h"
 
-MergeCount merge_into(ResultStore& out, Database& in) {
-    Database& o = out.db();
-    Transaction t(o);
-    MergeCount count;
-    auto id_of = [&](const std::string& select, auto&&... keys) {
-        Statement s = o.prepare(select);
-        s.bind_all(keys...);
-        s.step();
-        return s.int64(0);
-    };
-    Statement runs = in.prepare(
-        "SELECT run.id, run.uuid, experiment.name, experiment.description, experiment_hash, experiment_content, "
-        "started_at, "
-        "finished_at, git_commit, compiler, flags, cpu_model, cores, governor, hostname, threads, shard "
-        "FROM run JOIN experiment ON experiment.id = run.experiment_id ORDER BY run.id");
-    while (runs.step()) {
-        std::int64_t run = 0;
-        {
-            Statement existing = o.prepare("SELECT id FROM run WHERE uuid = ?");
-            existing.bind(1, runs.text(1));
-            if (existing.step()) run = existing.int64(0);
-        }
-        if (run) {
+namespace rcb {
+namespace {
+
+template <class... Keys>
+std::int64_t id_of(Database& db, const std::string& select, const Keys&... keys) {
+    Statement s = db.prepare(select);
+    s.bind_all(keys...);
+    s.step();
+    return s.int64(0);
+}
+
+/// A merge copies rows as the input's pages give them: damaged pages can give rows its own
+/// constraints forbid (a frame twice) or lose rows. SQLite's integrity check reads every page
+/// and index first, so such an input is refused as a whole, naming it.
+void check_integrity(Database& in) {
+    Statement s = in.prepare("PRAGMA integrity_check(1)");
+    const std::string first = s.step() ? s.text(0) : std::string("no answer");
+    if (first != "ok") throw InputError(in.path() + ": damaged results database (integrity check: " + first + ")");
+}
+
+/// The output's id of the input's run `runs` (a row of the run query below): the run with the same
+/// uuid, its finish time brought over; or a new run with the input's experiment, machine and
+/// calibration. Counts a new run.
+std::int64_t merge_run(Database& o, Database& in, Statement& runs, MergeCount& count) {
+    {
+        Statement existing = o.prepare("SELECT id FROM run WHERE uuid = ?");
+        existing.bind(1, runs.text(1));
+        if (existing.step()) {
+            const std::int64_t run = existing.int64(0);
             if (!runs.is_null(7))
                 o.prepare("UPDATE run SET finished_at = ? WHERE id = ? AND finished_at IS NULL")
                     .bind_all(runs.text(7), run)
                     .run();
-        } else {
-            o.prepare("INSERT INTO experiment(name, description) VALUES (?, ?) ON CONFLICT(name) DO NOTHING")
-                .bind_all(runs.text(2), runs.text(3))
-                .run();
-            const std::int64_t experiment = id_of("SELECT id FROM experiment WHERE name = ?", runs.text(2));
-            Statement insert_run = o.prepare(
-                "INSERT INTO run(uuid, experiment_id, experiment_hash, experiment_content, started_at, finished_at, "
-                "git_commit, "
-                "compiler, flags, cpu_model, cores, governor, hostname, threads, shard) VALUES "
-                "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
-            insert_run.bind_all(runs.text(1), experiment, runs.text(4), runs.text(5), runs.text(6));
-            if (runs.is_null(7))
-                insert_run.bind_null(6);
-            else
-                insert_run.bind(6, runs.text(7));
-            insert_run.bind(7, runs.text(8)).bind(8, runs.text(9)).bind(9, runs.text(10)).bind(10, runs.text(11));
-            insert_run.bind(11, runs.int64(12))
-                .bind(12, runs.text(13))
-                .bind(13, runs.text(14))
-                .bind(14, runs.int64(15));
-            insert_run.bind(15, runs.text(16));
-            insert_run.run();
-            run = o.last_insert_id();
-            ++count.runs;
-            {  // the run's machine (cache sizes, calibration) travels with it: the fit's priors need it
-                Statement caches = in.prepare("SELECT level, type, size_bytes FROM run_cache WHERE run_id = ?");
-                caches.bind_all(runs.int64(0));
-                while (caches.step())
-                    o.prepare("INSERT INTO run_cache(run_id, level, type, size_bytes) VALUES (?,?,?,?)")
-                        .bind_all(run, caches.int64(0), caches.text(1), caches.int64(2))
-                        .run();
-                Statement cal = in.prepare(
-                    "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp FROM calibration WHERE "
-                    "run_id = ?");
-                cal.bind_all(runs.int64(0));
-                while (cal.step())
-                    o.prepare(
-                         "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, "
-                         "n_mp) VALUES (?,?,?,?,?,?,?,?,?,?)")
-                        .bind_all(run, cal.text(0), cal.text(1), cal.text(2), cal.int64(3), cal.real(4), cal.real(5),
-                                  cal.real(6), cal.real(7), cal.real(8))
-                        .run();
-            }
+            return run;
         }
+    }
+    o.prepare("INSERT INTO experiment(name, description) VALUES (?, ?) ON CONFLICT(name) DO NOTHING")
+        .bind_all(runs.text(2), runs.text(3))
+        .run();
+    const std::int64_t experiment = id_of(o, "SELECT id FROM experiment WHERE name = ?", runs.text(2));
+    Statement insert_run = o.prepare(
+        "INSERT INTO run(uuid, experiment_id, experiment_hash, experiment_content, started_at, finished_at, "
+        "git_commit, compiler, flags, cpu_model, cores, governor, hostname, threads, shard) VALUES "
+        "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+    insert_run.bind_all(runs.text(1), experiment, runs.text(4), runs.text(5), runs.text(6));
+    if (runs.is_null(7))
+        insert_run.bind_null(6);
+    else
+        insert_run.bind(6, runs.text(7));
+    insert_run.bind(7, runs.text(8)).bind(8, runs.text(9)).bind(9, runs.text(10)).bind(10, runs.text(11));
+    insert_run.bind(11, runs.int64(12)).bind(12, runs.text(13)).bind(13, runs.text(14)).bind(14, runs.int64(15));
+    insert_run.bind(15, runs.text(16));
+    insert_run.run();
+    const std::int64_t run = o.last_insert_id();
+    ++count.runs;
+    // The run's machine (cache sizes, calibration) travels with it: the fit's priors need it.
+    Statement caches = in.prepare("SELECT level, type, size_bytes FROM run_cache WHERE run_id = ?");
+    caches.bind_all(runs.int64(0));
+    while (caches.step())
+        o.prepare("INSERT INTO run_cache(run_id, level, type, size_bytes) VALUES (?,?,?,?)")
+            .bind_all(run, caches.int64(0), caches.text(1), caches.int64(2))
+            .run();
+    Statement cal = in.prepare(
+        "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp FROM calibration WHERE run_id = ?");
+    cal.bind_all(runs.int64(0));
+    while (cal.step())
+        o.prepare(
+             "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp) "
+             "VALUES (?,?,?,?,?,?,?,?,?,?)")
+            .bind_all(run, cal.text(0), cal.text(1), cal.text(2), cal.int64(3), cal.real(4), cal.real(5), cal.real(6),
+                      cal.real(7), cal.real(8))
+            .run();
+    return run;
+}
 
-        Statement cells = in.prepare(
-            "SELECT cell.id, cell_key, scene.id, scene.hash, scene.name, scene.spec, scene.meta, scene.objects, "
-            "scene.frames, "
-            "scene.rays_per_frame, scene.stats, config.id, config.structure, config.params, repetition, finished_at, "
-            "cell.objects, build_ns, memory_bytes, verified, mismatches, cell.frames, update_ns_median, update_ns_mad, "
-            "raycast_ns_median, raycast_ns_mad FROM cell JOIN scene ON scene.id = cell.scene_id "
-            "JOIN config ON config.id = cell.config_id WHERE run_id = ?");
-        cells.bind(1, runs.int64(0));
-        while (cells.step()) {
-            {
-                Statement has = o.prepare("SELECT 1 FROM cell WHERE run_id = ? AND cell_key = ?");
-                has.bind_all(run, cells.text(1));
-                if (has.step()) continue;
-            }
-            o.prepare(
-                 "INSERT INTO scene(hash, name, spec, meta, objects, frames, rays_per_frame, stats) VALUES "
-                 "(?,?,?,?,?,?,?,?) "
-                 "ON CONFLICT(hash) DO NOTHING")
-                .bind_all(cells.text(3), cells.text(4), cells.text(5), cells.text(6), cells.int64(7), cells.int64(8),
-                          cells.real(9), cells.text(10))
-                .run();
-            const std::int64_t scene = id_of("SELECT id FROM scene WHERE hash = ?", cells.text(3));
-            if (!stored_scene_features(o, scene))  // features travel with their scene
-                if (const auto f = stored_scene_features(in, cells.int64(2))) store_scene_features(o, scene, *f);
-            o.prepare("INSERT INTO config(structure, params) VALUES (?, ?) ON CONFLICT DO NOTHING")
-                .bind_all(cells.text(12), cells.text(13))
-                .run();
-            const std::int64_t config =
-                id_of("SELECT id FROM config WHERE structure = ? AND params = ?", cells.text(12), cells.text(13));
-            o.prepare(
-                 "INSERT INTO cell(run_id, cell_key, scene_id, config_id, repetition, finished_at, objects, build_ns, "
-                 "memory_bytes, verified, mismatches, frames, update_ns_median, update_ns_mad, raycast_ns_median, "
-                 "raycast_ns_mad) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
-                .bind_all(run, cells.text(1), scene, config, cells.int64(14), cells.text(15), cells.int64(16),
-                          cells.int64(17), cells.int64(18), cells.int64(19), cells.int64(20), cells.int64(21),
-                          cells.real(22), cells.real(23), cells.real(24), cells.real(25))
-                .run();
-            const std::int64_t cell = o.last_insert_id();
-            Statement frames = in.prepare(
-                "SELECT frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, "
-                "duplicate, "
-                "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, n_th, "
-                "n_mp "
-                "FROM "
-                "frame "
-                "WHERE cell_id = ?");
-            frames.bind(1, cells.int64(0));
-            Statement insert_frame = o.prepare(
-                "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, "
-                "missed, "
-                "extra, duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, "
-                "n_ro_hits, n_th, n_mp) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
-            while (frames.step()) {
-                insert_frame.bind(1, cell);
-                for (int c = 0; c < 16; ++c) insert_frame.bind(c + 2, frames.int64(c));
-                if (frames.is_null(16))
-                    insert_frame.bind_null(18);
-                else
-                    insert_frame.bind(18, frames.real(16));
-                insert_frame.bind(19, frames.text(17));
-                for (int c = 18; c < 25; ++c) insert_frame.bind(c + 2, frames.int64(c));
-                insert_frame.run();
-            }
-            {
-                Statement state = in.prepare("SELECT load_1m, calibration_ns, slow FROM cell_state WHERE cell_id = ?");
-                state.bind(1, cells.int64(0));
-                if (state.step())
-                    o.prepare("INSERT INTO cell_state(cell_id, load_1m, calibration_ns, slow) VALUES (?,?,?,?)")
-                        .bind_all(cell, state.real(0), state.real(1), state.int64(2))
-                        .run();
-            }
-            ++count.cells;
+/// The output's ids of a cell's scene (with its features) and configuration, added when new.
+std::pair<std::int64_t, std::int64_t> merge_scene_and_config(Database& o, Database& in, Statement& cells) {
+    o.prepare(
+         "INSERT INTO scene(hash, name, spec, meta, objects, frames, rays_per_frame, stats) VALUES "
+         "(?,?,?,?,?,?,?,?) ON CONFLICT(hash) DO NOTHING")
+        .bind_all(cells.text(3), cells.text(4), cells.text(5), cells.text(6), cells.int64(7), cells.int64(8),
+                  cells.real(9), cells.text(10))
+        .run();
+    const std::int64_t scene = id_of(o, "SELECT id FROM scene WHERE hash = ?", cells.text(3));
+    if (!stored_scene_features(o, scene))  // features travel with their scene
+        if (const auto f = stored_scene_features(in, cells.int64(2))) store_scene_features(o, scene, *f);
+    o.prepare("INSERT INTO config(structure, params) VALUES (?, ?) ON CONFLICT DO NOTHING")
+        .bind_all(cells.text(12), cells.text(13))
+        .run();
+    const std::int64_t config =
+        id_of(o, "SELECT id FROM config WHERE structure = ? AND params = ?", cells.text(12), cells.text(13));
+    return {scene, config};
+}
+
+/// Copies the frames and the machine state of the input's cell `from` to the output's cell `to`.
+void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to) {
+    Statement frames = in.prepare(
+        "SELECT frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, duplicate, "
+        "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, n_th, n_mp "
+        "FROM frame WHERE cell_id = ?");
+    frames.bind(1, from);
+    Statement insert_frame = o.prepare(
+        "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, "
+        "missed, extra, duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, "
+        "n_ro_hits, n_th, n_mp) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+    while (frames.step()) {
+        insert_frame.bind(1, to);
+        for (int c = 0; c < 16; ++c) insert_frame.bind(c + 2, frames.int64(c));
+        if (frames.is_null(16))
+            insert_frame.bind_null(18);
+        else
+            insert_frame.bind(18, frames.real(16));
+        insert_frame.bind(19, frames.text(17));
+        for (int c = 18; c < 25; ++c) insert_frame.bind(c + 2, frames.int64(c));
+        insert_frame.run();
+    }
+    Statement state = in.prepare("SELECT load_1m, calibration_ns, slow FROM cell_state WHERE cell_id = ?");
+    state.bind(1, from);
+    if (state.step())
+        o.prepare("INSERT INTO cell_state(cell_id, load_1m, calibration_ns, slow) VALUES (?,?,?,?)")
+            .bind_all(to, state.real(0), state.real(1), state.int64(2))
+            .run();
+}
+
+/// Copies the cells of the input's run `in_run` that the output's run `run` does not have.
+void merge_cells(Database& o, Database& in, std::int64_t in_run, std::int64_t run, MergeCount& count) {
+    Statement cells = in.prepare(
+        "SELECT cell.id, cell_key, scene.id, scene.hash, scene.name, scene.spec, scene.meta, scene.objects, "
+        "scene.frames, scene.rays_per_frame, scene.stats, config.id, config.structure, config.params, repetition, "
+        "finished_at, cell.objects, build_ns, memory_bytes, verified, mismatches, cell.frames, update_ns_median, "
+        "update_ns_mad, raycast_ns_median, raycast_ns_mad FROM cell JOIN scene ON scene.id = cell.scene_id "
+        "JOIN config ON config.id = cell.config_id WHERE run_id = ?");
+    cells.bind(1, in_run);
+    while (cells.step()) {
+        {
+            Statement has = o.prepare("SELECT 1 FROM cell WHERE run_id = ? AND cell_key = ?");
+            has.bind_all(run, cells.text(1));
+            if (has.step()) continue;
         }
+        const auto [scene, config] = merge_scene_and_config(o, in, cells);
+        o.prepare(
+             "INSERT INTO cell(run_id, cell_key, scene_id, config_id, repetition, finished_at, objects, build_ns, "
+             "memory_bytes, verified, mismatches, frames, update_ns_median, update_ns_mad, raycast_ns_median, "
+             "raycast_ns_mad) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
+            .bind_all(run, cells.text(1), scene, config, cells.int64(14), cells.text(15), cells.int64(16),
+                      cells.int64(17), cells.int64(18), cells.int64(19), cells.int64(20), cells.int64(21),
+                      cells.real(22), cells.real(23), cells.real(24), cells.real(25))
+            .run();
+        merge_frames(o, in, cells.int64(0), o.last_insert_id());
+        ++count.cells;
+    }
+}
+
+}  // namespace
+
+MergeCount merge_into(ResultStore& out, Database& in) {
+    check_integrity(in);
+    Database& o = out.db();
+    Transaction t(o);
+    MergeCount count;
+    try {
+        Statement runs = in.prepare(
+            "SELECT run.id, run.uuid, experiment.name, experiment.description, experiment_hash, experiment_content, "
+            "started_at, finished_at, git_commit, compiler, flags, cpu_model, cores, governor, hostname, threads, "
+            "shard FROM run JOIN experiment ON experiment.id = run.experiment_id ORDER BY run.id");
+        while (runs.step()) {
+            const std::int64_t run = merge_run(o, in, runs, count);
+            merge_cells(o, in, runs.int64(0), run, count);
+        }
+    } catch (const SqlError& e) {
+        // The output was opened and its schema checked, and the input passed the integrity check:
+        // rows the output's constraints refuse came so from the input.
+        if ((e.code() & 0xff) != SQLITE_CONSTRAINT) throw;
+        throw InputError(in.path() + ": cannot merge this results database (" + e.what() + ")");
     }
     t.commit();
     return count;

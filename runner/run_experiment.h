@@ -19,6 +19,9 @@ struct RunOptions {
     std::size_t shard_k = 1, shard_n = 1;  ///< run every N-th cell from the K-th (1-based)
     bool new_run = false;                  ///< start a new run even when an unfinished one could resume
     std::int64_t run_id = 0;               ///< resume this run (0: the newest unfinished one, or a new one)
+    /// Called once when another runner holds the database and this one waits for it to finish
+    /// (one runner per database at a time; the waiting one then resumes the run it chose).
+    std::function<void()> on_wait;
 };
 
 /// What a run did: its id, the cells of the (shard's) plan, how many were done before, how many

@@ -115,28 +115,43 @@ std::unique_ptr<Database> Database::in_memory_copy(const Database& source) {
 void Database::configure(bool read_only) {
     sqlite3_busy_timeout(db_, 60'000);
     sqlite3_extended_result_codes(db_, 1);
-    if (!read_only) {
-        // WAL is a property of the file: switch once. The switch needs an exclusive lock and SQLite
-        // reports "locked" at once instead of waiting (e.g. while another process creates the same
-        // new file), so retry for as long as the busy timeout would have waited.
-        for (int attempt = 0;; ++attempt) {
-            try {
-                bool wal = false;
-                {
-                    Statement mode(db_, "PRAGMA journal_mode");  // finalised before the switch below
-                    wal = mode.step() && mode.text(0) == "wal";
-                }
-                if (!wal) exec("PRAGMA journal_mode=WAL");
-                break;
-            } catch (const SqlError& e) {
-                // Only contention is worth waiting for; a file that is not a database fails at once.
-                if ((e.code() != SQLITE_BUSY && e.code() != SQLITE_LOCKED) || attempt >= 6000) throw;
-                std::this_thread::sleep_for(std::chrono::milliseconds(10));
-            }
-        }
-        exec("PRAGMA synchronous=NORMAL");
-    }
     exec("PRAGMA foreign_keys=ON");
+    if (read_only) return;
+    bool wal = false, empty = false;
+    {
+        Statement mode(db_, "PRAGMA journal_mode");  // finalised before any switch
+        wal = mode.step() && mode.text(0) == "wal";
+        Statement pages(db_, "PRAGMA page_count");
+        empty = pages.step() && pages.int64(0) == 0;
+    }
+    wal_pending_ = !wal;
+    if (wal) exec("PRAGMA synchronous=NORMAL");
+    // A new file has no header to keep: WAL at once, as before anything is written to it.
+    if (empty) switch_to_wal();
+}
+
+void Database::switch_to_wal() {
+    if (!wal_pending_) return;
+    // WAL is a property of the file: switch once. The switch needs an exclusive lock and SQLite
+    // reports "locked" at once instead of waiting (e.g. while another process creates the same
+    // new file), so retry for as long as the busy timeout would have waited.
+    for (int attempt = 0;; ++attempt) {
+        try {
+            bool wal = false;
+            {
+                Statement mode(db_, "PRAGMA journal_mode");  // finalised before the switch below
+                wal = mode.step() && mode.text(0) == "wal";
+            }
+            if (!wal) exec("PRAGMA journal_mode=WAL");
+            break;
+        } catch (const SqlError& e) {
+            // Only contention is worth waiting for; a file that is not a database fails at once.
+            if ((e.code() != SQLITE_BUSY && e.code() != SQLITE_LOCKED) || attempt >= 6000) throw;
+            std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        }
+    }
+    exec("PRAGMA synchronous=NORMAL");
+    wal_pending_ = false;
 }
 
 Database::~Database() {

@@ -68,8 +68,10 @@ private:
 
 class Database {
 public:
-    /// Opens (creating it unless read-only) with WAL journaling and a busy timeout, so several
-    /// processes can share one file.
+    /// Opens (creating it unless read-only) with a busy timeout and, for writing, WAL journaling,
+    /// so several processes can share one file. An existing file not yet in WAL mode is switched
+    /// when the first transaction that wrote to it commits (switch_to_wal): a command refused
+    /// before it wrote anything leaves the file's header as it was.
     Database(const std::string& path, bool read_only);
     ~Database();
     Database(const Database&) = delete;
@@ -83,32 +85,40 @@ public:
     Statement prepare(const std::string& sql) { return Statement(db_, sql); }
     std::int64_t last_insert_id() const { return sqlite3_last_insert_rowid(db_); }
     const std::string& path() const { return path_; }
+    /// Rows inserted, changed or deleted through this connection so far.
+    std::int64_t total_changes() const { return sqlite3_total_changes64(db_); }
+    /// Switches a writable file to WAL journaling once (outside any transaction); a no-op after.
+    void switch_to_wal();
 
 private:
     void configure(bool read_only);
 
     sqlite3* db_ = nullptr;
     std::string path_;
+    bool wal_pending_ = false;  ///< writable, and not yet in WAL mode
 };
 
 /// BEGIN IMMEDIATE (takes the write lock up front, so concurrent writers queue instead of
 /// deadlocking); rolls back on destruction unless commit() was called.
 class Transaction {
 public:
-    explicit Transaction(Database& db) : db_(db) { db_.exec("BEGIN IMMEDIATE"); }
+    explicit Transaction(Database& db) : db_(db), changes_(db.total_changes()) { db_.exec("BEGIN IMMEDIATE"); }
     ~Transaction() {
         if (!done_) try {
                 db_.exec("ROLLBACK");
             } catch (...) {
             }
     }
+    /// Commits; the first commit that changed rows also switches the file to WAL.
     void commit() {
         db_.exec("COMMIT");
         done_ = true;
+        if (db_.total_changes() != changes_) db_.switch_to_wal();
     }
 
 private:
     Database& db_;
+    std::int64_t changes_;
     bool done_ = false;
 };
 
