@@ -26,7 +26,8 @@ void add_advise_command(CLI::App& app) {
         ->check(input_file());
     cmd->add_option("--category", o->category,
                     "Which category of the tuning file this scene resembles (default: chosen from the scene's "
-                    "features)");
+                    "features)")
+        ->check(non_empty());
     cmd->add_option("--method", o->method,
                     "How a tuned structure's parameters are chosen for this scene: category (the category's tuned "
                     "parameters as they are), model (the category's cost model, fitted while tuning, applied to this "

@@ -25,8 +25,9 @@ void add_categories_command(CLI::App& app) {
         "Derive scene categories from the features of a run's scenes (k-means on standardised features, k by "
         "silhouette) and store them with the run");
     cmd->add_option("db", o->db, "Results database")->required()->check(input_file());
-    cmd->add_option("--experiment", o->experiment, "Use the newest run of this experiment (default: the newest run)");
-    cmd->add_option("--run", o->run, "Use this run id");
+    cmd->add_option("--experiment", o->experiment, "Use the newest run of this experiment (default: the newest run)")
+        ->check(non_empty());
+    cmd->add_option("--run", o->run, "Use this run id")->check(run_id());
     cmd->add_option("--seed", o->seed, "Seed of the k-means++ starts")->capture_default_str()->check(whole_number());
     cmd->add_option("--max-k", o->max_k, "Most categories to consider")
         ->capture_default_str()

@@ -57,6 +57,10 @@ inline CLI::Validator input_file() {
         "FILE");
 }
 
+/// A run id as the database numbers them: 1 and up. An explicit 0 is refused, not read as "the
+/// newest run" (what leaving the option out means).
+inline CLI::Validator run_id() { return whole_number(1, std::uint64_t(std::numeric_limits<std::int64_t>::max())); }
+
 /// A non-empty text (names, folders).
 inline CLI::Validator non_empty() {
     return CLI::Validator([](std::string& text) -> std::string { return text.empty() ? "must not be empty" : ""; }, "");

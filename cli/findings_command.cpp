@@ -24,8 +24,9 @@ void add_findings_command(CLI::App& app) {
         "each verdict (the traversal-cost claim needs `rcbench fit` first)");
     cmd->add_option("db", o->db, "Results database")->required()->check(input_file());
     cmd->add_option("-o,--output", o->out, "Markdown file to write (default: standard output)");
-    cmd->add_option("--experiment", o->experiment, "The newest run of this experiment (default: the newest run)");
-    cmd->add_option("--run", o->run, "This run id");
+    cmd->add_option("--experiment", o->experiment, "The newest run of this experiment (default: the newest run)")
+        ->check(non_empty());
+    cmd->add_option("--run", o->run, "This run id")->check(run_id());
     cmd->callback([o] {
         if (!o->out.empty()) check_output_path(o->out, {o->db, o->db + "-wal", o->db + "-shm"}, "-o");
         auto db = open_read_only(o->db);

@@ -83,8 +83,9 @@ void add_fit_command(CLI::App& app) {
         "run's "
         "frames; choose the smallest adequate model by held-out error; store the coefficients in the database");
     cmd->add_option("db", o->db, "Results database")->required()->check(input_file());
-    cmd->add_option("--experiment", o->experiment, "Fit the newest run of this experiment (default: the newest run)");
-    cmd->add_option("--run", o->run, "Fit this run id");
+    cmd->add_option("--experiment", o->experiment, "Fit the newest run of this experiment (default: the newest run)")
+        ->check(non_empty());
+    cmd->add_option("--run", o->run, "Fit this run id")->check(run_id());
     cmd->callback([o] {
         open_read_only(o->db);     // an existing results database, checked (fit does not create one)
         ResultStore store(o->db);  // migrates, so the fit tables exist

@@ -101,9 +101,10 @@ void add_history_command(CLI::App& app) {
                                            "Per scene and configuration, the median frame time of every run in run "
                                            "order, and the steps beyond the runs' noise");
     history->add_option("db", o->db, "Results database")->required()->check(input_file());
-    history->add_option("--experiment", o->query.experiment, "Only this experiment (default: every experiment)");
-    history->add_option("--scene", o->query.scene, "Only this scene (its name in the experiment)");
-    history->add_option("--structure", o->query.structure, "Only this structure (e.g. dbvh)");
+    history->add_option("--experiment", o->query.experiment, "Only this experiment (default: every experiment)")
+        ->check(non_empty());
+    history->add_option("--scene", o->query.scene, "Only this scene (its name in the experiment)")->check(non_empty());
+    history->add_option("--structure", o->query.structure, "Only this structure (e.g. dbvh)")->check(non_empty());
     history->add_option("--metric", o->query.metric, "raycast or update")
         ->capture_default_str()
         ->check(CLI::IsMember({"raycast", "update"}));

@@ -21,9 +21,9 @@ void add_report_command(CLI::App& app) {
         "report", "Write a run's thesis-style tables and charts (gnuplot) as one self-contained HTML file");
     cmd->add_option("db", o->db, "Results database")->required()->check(input_file());
     cmd->add_option("-o,--output", o->out, "HTML file to write")->capture_default_str();
-    cmd->add_option("--experiment", o->experiment,
-                    "Report the newest run of this experiment (default: the newest run)");
-    cmd->add_option("--run", o->run, "Report this run id");
+    cmd->add_option("--experiment", o->experiment, "Report the newest run of this experiment (default: the newest run)")
+        ->check(non_empty());
+    cmd->add_option("--run", o->run, "Report this run id")->check(run_id());
     cmd->callback([o] {
         check_output_path(o->out, {o->db, o->db + "-wal", o->db + "-shm"}, "-o");
         auto db = open_read_only(o->db);

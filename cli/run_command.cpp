@@ -34,10 +34,16 @@ std::string duration_text(double seconds) {
     return buf;
 }
 
-/// Progress on stderr: one rewritten line on a terminal, one line per cell otherwise (CI logs).
+/// Progress: one rewritten line on stderr on a terminal, cleared when the run ends or fails; one
+/// line per cell on stdout otherwise (CI logs), so that stderr holds nothing but an error's one line.
 class Progress {
 public:
     explicit Progress(std::size_t total) : total_(total), tty_(isatty(STDERR_FILENO)), start_(Clock::now()) {}
+    ~Progress() {
+        if (tty_) std::cerr << "\r\033[K" << std::flush;
+    }
+    Progress(const Progress&) = delete;
+    Progress& operator=(const Progress&) = delete;
     void cell(std::size_t done, const std::string& what) {
         const double elapsed = std::chrono::duration<double>(Clock::now() - start_).count();
         const double eta = done ? elapsed / double(done) * double(total_ - done) : 0.0;
@@ -46,10 +52,7 @@ public:
         if (tty_)
             std::cerr << "\r\033[K" << line << std::flush;
         else
-            std::cerr << line << '\n';
-    }
-    void finish() {
-        if (tty_) std::cerr << "\r\033[K";
+            std::cout << line << std::endl;
     }
 
 private:
@@ -145,7 +148,7 @@ void add_run_command(CLI::App& app) {
     cmd->add_option("--shard", o->shard,
                     "Run only every N-th cell, starting at the K-th: K/N (merge shards with rcbench merge)");
     cmd->add_flag("--new-run", o->new_run, "Start a new run even if an unfinished one could be resumed");
-    cmd->add_option("--run", o->run_id, "Resume this run id");
+    cmd->add_option("--run", o->run_id, "Resume this run id")->check(run_id());
     cmd->add_flag("--dry-run", o->dry_run, "Print the plan and stop");
     cmd->callback([o] {
         const Experiment e = load_experiment(o->experiment);
@@ -172,14 +175,17 @@ void add_run_command(CLI::App& app) {
         run.shard_k = shard_k, run.shard_n = shard_n;
         run.new_run = o->new_run;
         run.run_id = o->run_id;
+        run.on_wait = [&] {
+            std::cout << "another rcbench run is writing " << o->db << "; waiting for it to finish" << std::endl;
+        };
         std::unique_ptr<Progress> progress;
         const RunOutcome done =
             run_experiment(e, o->experiment, run, [&](std::size_t ran, std::size_t todo, const std::string& what) {
                 if (!progress) progress = std::make_unique<Progress>(todo);
                 progress->cell(ran, what);
             });
-        if (progress) progress->finish();
-        std::cerr << "run " << done.run << " of " << e.name << ": " << done.planned << " cells, " << done.done_before
+        progress.reset();
+        std::cout << "run " << done.run << " of " << e.name << ": " << done.planned << " cells, " << done.done_before
                   << " done before, " << done.ran << " ran now -> " << o->db << '\n';
         print_summary(*open_read_only(o->db), done.run, e);
         if (done.mismatches)

@@ -48,7 +48,9 @@ void add_tune_command(CLI::App& app) {
         TuneOptions options;
         options.file = o->file, options.db = o->db, options.out_dir = o->out_dir, options.exhaustive = o->exhaustive;
         options.derive_categories = o->derive;
-        options.progress = [](const std::string& category) { std::cerr << "tuning " << category << " ...\n"; };
+        options.progress = [](const std::string& category) {
+            std::cout << "tuning " << category << " ..." << std::endl;
+        };
         const TuneOutcome out = run_tuning(spec, options);
         if (o->derive) {
             std::cout << "derived categories (" << out.scene_categories.rule << "):\n";

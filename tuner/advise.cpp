@@ -82,8 +82,14 @@ std::map<std::string, TunedStructure> read_category(const json& t, const std::st
             found = true;
             for (const auto& s : c.at("structures")) {
                 const std::string name = s.at("structure").get<std::string>();
-                const StructureInfo& info = find_structure(name);
                 const std::string where = tuning + ": category \"" + wanted + "\", " + name;
+                const StructureInfo* found_info = nullptr;
+                try {
+                    found_info = &find_structure(name);
+                } catch (const InputError& e) {
+                    throw InputError(tuning + ": category \"" + wanted + "\": " + e.what());
+                }
+                const StructureInfo& info = *found_info;
                 TunedStructure ts;
                 // Every parameter, those recorded only away from their default (the query level)
                 // included, so that a space searching them finds the category's level.

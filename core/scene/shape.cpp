@@ -1,6 +1,7 @@
 #include "core/scene/shape.h"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 namespace rcb {
@@ -156,7 +157,9 @@ std::string shape_problem(const Shape& s, double limit) {
             return "";
         }
     }
-    return std::string(shape_name(s.kind)) + " reaches beyond ±" + std::to_string(limit);
+    char shown[32];  // as the coordinate check prints it: ±1e+15, not ±1000000000000000.000000
+    std::snprintf(shown, sizeof shown, "%g", limit);
+    return std::string(shape_name(s.kind)) + " reaches beyond ±" + shown;
 }
 
 float float_below(double x) {
