@@ -198,4 +198,39 @@ TEST_F(Cli, AFileThatIsNotADatabaseFailsAtOnceNamingIt) {
     EXPECT_EQ(bytes_of(path("junk.db")), junk);
 }
 
+TEST_F(Cli, AnExplicitZeroOrEmptyValueIsRefusedNotReadAsTheDefault) {
+    write("ok.json",
+          R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");
+    ASSERT_EQ(run("run " + path("ok.json") + " --db " + path("r.db")).code, 0);
+    // Leaving --run out means the newest run; --run 0 is no run at all.
+    for (const char* command : {"categories", "fit", "findings"})
+        expect_bad_input(run(std::string(command) + " " + path("r.db") + " --run 0"),
+                         "--run: expected a whole number in 1..");
+    expect_bad_input(run("run " + path("ok.json") + " --db " + path("r.db") + " --run 0"), "--run");
+    expect_bad_input(run("fit " + path("r.db") + " --experiment ''"), "--experiment: must not be empty");
+    expect_bad_input(run("history " + path("r.db") + " --structure ''"), "--structure: must not be empty");
+    ASSERT_EQ(run("scene gen --preset uni-s --frames 3 -o " + path("s.rcbscene")).code, 0);
+    expect_bad_input(run("advise " + path("s.rcbscene") + " --category ''"), "--category: must not be empty");
+}
+
+TEST_F(Cli, ARunRefusedAtItsFirstSceneWritesOneLineNamingTheOptionAndTheFile) {
+    ASSERT_EQ(run("scene gen --preset uni-s --frames 1 --rays 10 -o " + path("one.rcbscene")).code, 0);
+    write("w.json",
+          R"({"warmup_frames": 1, "scenes": [{"recording": "one.rcbscene"}], "structures": [{"name": "bf"}]})");
+    const Outcome r = run("run " + path("w.json") + " --db " + path("r.db"));
+    // Before, a progress line came first, and the message named neither the option nor the file.
+    expect_bad_input(r, path("w.json") +
+                            ": warmup_frames: 1 warm-up frames leave none of the scene's 1 frames to "
+                            "measure (scenes[0]: scene one, " +
+                            path("one.rcbscene") + ")");
+}
+
+TEST_F(Cli, TheSecondOfTwoNamesForOneSceneIsRefusedBeforeAnythingRuns) {
+    write("dup.json", R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s", "name": "a"},
+                          {"preset": "uni-s", "name": "b"}], "structures": [{"name": "bf"}]})");
+    expect_bad_input(run("run " + path("dup.json") + " --db " + path("r.db")),
+                     "dup.json: scenes[1]: the same scene as scenes[0] (\"a\" and \"b\")");
+    EXPECT_FALSE(fs::exists(path("r.db")));
+}
+
 }  // namespace

@@ -32,6 +32,7 @@
 
 #include "core/base/random.h"
 #include "core/scene/recording_io.h"
+#include "core/scene/shape.h"
 #include "runner/sqlite.h"
 #include "tests/subprocess.h"
 
@@ -1304,6 +1305,107 @@ TEST_F(Hostile, TuningResultsForAdvise) {
                m.what});
         done(f);
     }
+}
+
+/// Inputs at the edges the runner, the tuner and the result commands used to get wrong: values a
+/// range lets past a check, two names for one scene, a tuning without rays, explicit zero or
+/// empty values, and errors that were not one line naming their place.
+TEST_F(Hostile, EdgesOfRunTuneMergeAndAdvise) {
+    ASSERT_NO_FATAL_FAILURE(make_database());
+    ASSERT_NO_FATAL_FAILURE(make_tuning_result());
+    auto experiment_with = [](const std::string& scenes, const std::string& structures, const std::string& extra) {
+        return R"({"frames": 2, "rays_per_frame": 8, )" + extra + R"("scenes": )" + scenes + R"(, "structures": )" +
+               structures + "}";
+    };
+    const std::string one_scene = R"([{"preset": "uni-s"}])";
+    std::vector<Case> cases;
+    auto dry_run = [&](const std::string& text, const std::vector<std::string>& places, const std::string& what) {
+        const std::string f = input("edge", ".json", text);
+        cases.push_back({.args = {"run", f, "--dry-run"}, .places = places, .inputs = {f}, .bad = true, .what = what});
+    };
+    dry_run(experiment_with(one_scene,
+                            R"([{"name": "wbvh", "grids": [{"cast_threads": {"from": 1, "to": 8, "step": 1}}]}])", ""),
+            {"structures[0].grids[0].cast_threads"}, "cast_threads range beyond the run's threads");
+    dry_run(experiment_with(one_scene,
+                            R"([{"name": "lbvh", "grids": [{"threads": {"from": 1, "to": 64, "times": 2}}]}])", ""),
+            {"structures[0].grids[0].threads"}, "threads geometric range beyond the run's threads");
+    dry_run(experiment_with(R"([{"preset": "uni-s", "name": "a"}, {"preset": "uni-s", "name": "b"}])",
+                            R"([{"name": "bf"}])", ""),
+            {"scenes[1]"}, "one scene under two names");
+    dry_run(
+        experiment_with(R"([{"recording": "base.rcbscene", "name": "a"}, {"recording": "base.rcbscene", "name": "b"}])",
+                        R"([{"name": "bf"}])", ""),
+        {"scenes[1]"}, "one recording under two names");
+    {
+        const std::string f = input(
+            "edge", ".json",
+            experiment_with(R"([{"recording": "base.rcbscene"}])", R"([{"name": "bf"}])", R"("warmup_frames": 3, )"));
+        const std::string db = fresh("edge", ".db");
+        cases.push_back({.args = {"run", f, "--db", db},
+                         .places = {"warmup_frames"},
+                         .writes = {db},
+                         .inputs = {f},
+                         .bad = true,
+                         .what = "warm-up that leaves none of a recording's frames"});
+    }
+    auto tune = [&](const json& doc, const std::vector<std::string>& places, const std::string& what) {
+        const std::string f = input("edge-tune", ".json", doc.dump());
+        const std::string db = fresh("edge-tune", ".db");
+        cases.push_back({.args = {"tune", f, "--db", db, "--out-dir", "edge-out"},
+                         .places = places,
+                         .writes = {db, "edge-out/"},
+                         .inputs = {f},
+                         .bad = true,
+                         .what = what});
+    };
+    json no_rays = tuning();
+    no_rays["rays_per_frame"] = 0;
+    no_rays["categories"][0]["scenes"] = json::array({json{{"preset", "uni-s"}, {"frames", 2}}});
+    tune(no_rays, {"rays_per_frame"}, "a tuning without rays");
+
+    // A merge input whose frame index lost its rows (an empty leaf page in place of its root).
+    std::string damaged = bases_["r.db"];
+    {
+        rcb::Database db((work_ / "r.db").string(), true);
+        rcb::Statement root = db.prepare("SELECT rootpage FROM sqlite_master WHERE name = 'sqlite_autoindex_frame_1'");
+        rcb::Statement size = db.prepare("PRAGMA page_size");
+        ASSERT_TRUE(root.step() && size.step());
+        const std::size_t at = std::size_t((root.int64(0) - 1) * size.int64(0));
+        ASSERT_LT(at + 8, damaged.size());
+        damaged.replace(at, 8, std::string("\x0a\0\0\0\0\0\0\0", 8));
+    }
+    const std::string bad_db = input("edge-damaged", ".db", damaged);
+    cases.push_back({.args = {"merge", "edge-merged.db", bad_db},
+                     .places = {bad_db},
+                     .writes = {"edge-merged.db"},
+                     .inputs = {bad_db},
+                     .bad = true,
+                     .what = "merge of a database with a damaged index"});
+    cases.push_back({.args = {"categories", "r.db", "--run", "0"}, .places = {"--run"}, .bad = true, .what = "run 0"});
+    cases.push_back({.args = {"fit", "r.db", "--experiment", ""},
+                     .places = {"--experiment"},
+                     .bad = true,
+                     .what = "empty experiment"});
+    cases.push_back({.args = {"advise", "base.rcbscene", "--tuning", "tr.json", "--category", ""},
+                     .places = {"--category"},
+                     .bad = true,
+                     .what = "empty category"});
+    json kd = json::parse(bases_["tr.json"]);
+    for (json& c : kd["categories"])
+        for (json& st : c["structures"]) st["structure"] = "kd";
+    const std::string tr = input("edge-tr", ".json", kd.dump());
+    cases.push_back({.args = {"advise", "base.rcbscene", "--tuning", tr, "--category", "tiny", "--repetitions", "1"},
+                     .places = {tr},
+                     .inputs = {tr},
+                     .bad = true,
+                     .what = "a tuning naming structure kd"});
+    for (const Case& c : cases) {
+        check("edges: " + c.args[0], c);
+        for (const std::string& f : c.inputs) done(f);
+    }
+    // A limit in a message reads as the file writes it, not as ±1000000000000000.000000.
+    EXPECT_EQ(rcb::shape_problem(rcb::Shape::sphere({1e15f, 0, 0}, 1e14f), rcb::kMaxCoordinate),
+              "sphere reaches beyond ±1e+15");
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -15,9 +15,12 @@
 
 #include "core/base/error.h"
 #include "core/base/random.h"
+#include "core/accel/registry.h"
+#include "core/scene/recording_io.h"
 #include "analysis/cost_model.h"
 #include "runner/compare.h"
 #include "runner/experiment.h"
+#include "runner/merge.h"
 #include "runner/store.h"
 #include "tuner/tuning.h"
 #include "tests/test_scenes.h"
@@ -527,6 +530,181 @@ TEST(Store, ShardsMergeIntoTheWholePlanAndMergingTwiceAddsNothing) {
     EXPECT_EQ(count(out, "SELECT count(*) FROM cell"), 4);
     EXPECT_EQ(count(out, "SELECT count(DISTINCT cell_key) FROM cell"), 4);
     EXPECT_EQ(count(out, "SELECT count(*) FROM frame"), 4 * 4);
+    fs::remove_all(dir);
+}
+
+TEST(Experiment, EveryExpandedThreadCountIsHeldToTheRunsThreads) {
+    // A range or a geometric range gives signed values: they got past the cap that a list met.
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}],
+                           "structures": [{"name": "wbvh", "grids": [{"cast_threads": {"from": 1, "to": 8, "step": 1}}]}]})"),
+              "exp.json: structures[0].grids[0].cast_threads: 2 threads, more than the experiment's \"threads\" (1), "
+              "which caps every thread of the run: set \"threads\" to at least 2");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "threads": 4,
+                           "structures": [{"name": "lbvh", "grids": [{"threads": {"from": 1, "to": 64, "times": 2}}]}]})"),
+              "exp.json: structures[0].grids[0].threads: 8 threads, more than the experiment's \"threads\" (4), "
+              "which caps every thread of the run: set \"threads\" to at least 8");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "threads": 64,
+                           "structures": [{"name": "lbvh", "grids": [{"threads": {"from": 1, "to": 64, "times": 2}}]}]})"),
+              "");
+    EXPECT_EQ(
+        error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "lbvh", "params": {"threads": 64}}]})"),
+        "exp.json: structures[0].params.threads: 64 threads, more than the experiment's \"threads\" (1), "
+        "which caps every thread of the run: set \"threads\" to at least 64");
+}
+
+TEST(Experiment, TwoEntriesOfOneSceneAreRefusedNamingBoth) {
+    // Same content, two names: one key for both, so the second name's cells were the first's.
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "name": "a"}, {"preset": "uni-s", "name": "b"}],
+                           "structures": [{"name": "bf"}]})"),
+              "exp.json: scenes[1]: the same scene as scenes[0] (\"a\" and \"b\"): their cells would be stored as "
+              "one; make them differ or drop one");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "seeds": [3, 3]}], "structures": [{"name": "bf"}]})"),
+              "exp.json: scenes[0]: gives the scene \"uni-s-s3\" twice (a value repeated in \"objects\" or \"seeds\")");
+    // Different content under two names stays two scenes; so do two seeds of one entry.
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "name": "a"}, {"preset": "uni-s", "name": "b", "seed": 2}],
+                           "structures": [{"name": "bf"}]})"),
+              "");
+    const fs::path dir = test::temp_dir("runner", "same_recording");
+    const std::string rec = (dir / "r.rcbscene").string();
+    write_recording(test::generated_scene("uniform", 50, 2, 1), rec);
+    try {
+        parse_experiment(
+            R"({"scenes": [{"recording": "r.rcbscene", "name": "x"}, {"recording": "./r.rcbscene", "name": "y"}],
+                            "structures": [{"name": "bf"}]})",
+            "exp.json", dir.string());
+        ADD_FAILURE() << "accepted one recording under two names";
+    } catch (const InputError& e) {
+        EXPECT_EQ(std::string(e.what()).rfind("exp.json: scenes[1]: the same scene as scenes[0] (\"x\" and \"y\")", 0),
+                  0u)
+            << e.what();
+    }
+    fs::remove_all(dir);
+}
+
+TEST(TuneSpec, TheDefaultSpaceOfEveryStructureFitsTheLimit) {
+    // No "structures" (every tunable structure) and ["wbvh"] without a space: the file names no
+    // space, so none may be refused as too large; the registry's levels are thinned to fit.
+    for (const char* structures : {"", R"("structures": ["wbvh"], )"}) {
+        const TuneSpec spec = parse_tune_spec(
+            std::string("{") + structures + R"("categories": [{"name": "c", "scenes": [{"preset": "uni-s"}]}]})",
+            "t.json", ".");
+        EXPECT_FALSE(spec.space.empty());
+        for (const auto& [structure, dims] : spec.space) {
+            double size = 1;
+            for (const SearchDimension& d : dims) size *= double(d.levels.size());
+            EXPECT_LE(size, double(kMaxPlanCells)) << structure;
+            // Thinning keeps a parameter's default level (where the search starts) when the
+            // registry's levels hold it, and the first and last levels.
+            const nlohmann::json defaults = find_structure(structure).defaults();
+            const std::vector<SearchDimension> registry = default_space(structure);
+            for (std::size_t i = 0; i < dims.size(); ++i) {
+                const std::vector<nlohmann::json>& all = registry[i].levels;
+                EXPECT_EQ(dims[i].levels.front(), all.front()) << structure << "." << dims[i].name;
+                EXPECT_EQ(dims[i].levels.back(), all.back()) << structure << "." << dims[i].name;
+                if (std::find(all.begin(), all.end(), defaults[dims[i].name]) == all.end()) continue;
+                EXPECT_NE(std::find(dims[i].levels.begin(), dims[i].levels.end(), defaults[dims[i].name]),
+                          dims[i].levels.end())
+                    << structure << "." << dims[i].name;
+            }
+        }
+    }
+    // The levels a file gives are kept as given.
+    const TuneSpec ug = parse_tune_spec(
+        R"({"structures": ["ug"], "space": {"ug": {"density": [1, 2, 3]}}, "categories": [{"name": "c", "scenes": [{"preset": "uni-s"}]}]})",
+        "t.json", ".");
+    EXPECT_EQ(ug.space.at("ug")[0].levels, (std::vector<nlohmann::json>{1, 2, 3}));
+}
+
+TEST(TuneSpec, ScenesWithoutRaysAreRefusedNamingTheKey) {
+    auto error = [](const std::string& text) {
+        try {
+            parse_tune_spec(text, "t.json", ".");
+        } catch (const InputError& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    EXPECT_EQ(
+        error(
+            R"({"structures": ["ug"], "rays_per_frame": 0, "categories": [{"name": "c", "scenes": [{"preset": "uni-s"}]}]})"),
+        "t.json: rays_per_frame: 0 rays per frame in scene uni-s of category c: a tuning fits its cost model per "
+        "ray cast, so it needs rays");
+    EXPECT_EQ(
+        error(
+            R"({"structures": ["ug"], "categories": [{"name": "c", "scenes": [{"preset": "uni-s"}, {"preset": "uni-m", "rays_per_frame": 0}]}]})"),
+        "t.json: categories[0].scenes[1].rays_per_frame: 0 rays per frame in scene uni-m of category c: a tuning fits "
+        "its cost model per ray cast, so it needs rays");
+}
+
+/// A results database made by one short run, in rollback-journal mode as an older or copied file may be.
+std::string small_database(const fs::path& dir, const std::string& name) {
+    const fs::path exp = dir / (name + ".json");
+    std::ofstream(exp)
+        << R"({"name": ")" << name
+        << R"(", "frames": 2, "rays_per_frame": 20, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})";
+    const std::string db = (dir / (name + ".db")).string();
+    EXPECT_EQ(wait_exit(spawn_rcbench({"run", exp.string(), "--db", db}, (dir / "log.txt").string())), 0);
+    Database(db, false).exec("PRAGMA journal_mode=DELETE");
+    return db;
+}
+
+std::string file_bytes(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+TEST(Store, ADamagedInputIsRefusedNamingItAndTheOutputIsLeftAsItWas) {
+    const fs::path dir = test::temp_dir("runner", "damaged_merge");
+    const std::string in = small_database(dir, "in"), out = small_database(dir, "out");
+    {
+        // Damage the frame table's primary-key index: an empty leaf page in place of its root,
+        // so the table holds rows its index does not (pages a disk or a copy garbled).
+        Database db(in, true);
+        Statement root = db.prepare("SELECT rootpage FROM sqlite_master WHERE name = 'sqlite_autoindex_frame_1'");
+        ASSERT_TRUE(root.step());
+        const std::int64_t page = root.int64(0);
+        Statement size = db.prepare("PRAGMA page_size");
+        ASSERT_TRUE(size.step());
+        std::fstream f(in, std::ios::in | std::ios::out | std::ios::binary);
+        f.seekp(std::streamoff((page - 1) * size.int64(0)));
+        const char empty_leaf[8] = {0x0a, 0, 0, 0, 0, 0, 0, 0};
+        f.write(empty_leaf, sizeof empty_leaf);
+    }
+    const std::string before = file_bytes(out);
+    try {
+        ResultStore store(out);
+        merge_into(store, *open_read_only(in));
+        ADD_FAILURE() << "merged a damaged database";
+    } catch (const InputError& e) {
+        EXPECT_EQ(std::string(e.what()).rfind(in + ": damaged results database (integrity check: ", 0), 0u) << e.what();
+    }
+    // Refused before anything was written: not even switched to WAL (the header's bytes 18-19).
+    EXPECT_EQ(file_bytes(out), before);
+    fs::remove_all(dir);
+}
+
+TEST(Store, TwoRunnersOfOnePlanMeasureEachCellOnce) {
+    const fs::path dir = test::temp_dir("runner", "one_runner");
+    const fs::path exp = dir / "resume.json";
+    write_experiment(exp, 3);  // 6 cells
+    const std::string db = (dir / "new.db").string();
+    const std::string log_a = (dir / "a.txt").string(), log_b = (dir / "b.txt").string();
+    const pid_t a = spawn_rcbench({"run", exp.string(), "--db", db}, log_a);
+    const pid_t b = spawn_rcbench({"run", exp.string(), "--db", db}, log_b);
+    ASSERT_EQ(wait_exit(a), 0);
+    ASSERT_EQ(wait_exit(b), 0);
+    // "run 1 of resume: 6 cells, D done before, R ran now": the two R add up to the plan, where
+    // both used to measure every cell and throw one result of each away.
+    auto ran = [](const std::string& log) {
+        const std::string text = file_bytes(log);
+        const std::size_t end = text.find(" ran now");
+        if (end == std::string::npos) return std::int64_t(-1);
+        const std::size_t start = text.rfind(", ", end) + 2;
+        return std::int64_t(std::stoll(text.substr(start, end - start)));
+    };
+    EXPECT_EQ(ran(log_a) + ran(log_b), 6) << file_bytes(log_a) << file_bytes(log_b);
+    EXPECT_EQ(count(db, "SELECT count(*) FROM run"), 1);
+    EXPECT_EQ(count(db, "SELECT count(*) FROM cell"), 6);
     fs::remove_all(dir);
 }
 
