@@ -1,5 +1,6 @@
 #include "runner/merge.h"
 
+#include <algorithm>
 #include <map>
 #include <string>
 
@@ -21,7 +22,8 @@ std::int64_t id_of(Database& db, const std::string& select, const Keys&... keys)
 /// and index first, so such an input is refused as a whole, naming it.
 void check_integrity(Database& in) {
     Statement s = in.prepare("PRAGMA integrity_check(1)");
-    const std::string first = s.step() ? s.text(0) : std::string("no answer");
+    std::string first = s.step() ? s.text(0) : std::string("no answer");
+    std::replace(first.begin(), first.end(), '\n', ' ');  // SQLite's report spans lines
     if (first != "ok") throw InputError(in.path() + ": damaged results database (integrity check: " + first + ")");
 }
 
