@@ -13,7 +13,7 @@ deps_only=0
 for arg in "$@"; do
   case "$arg" in
     --deps-only) deps_only=1 ;;
-    --test-tools) packages+=(chromium clang libclang-rt-14-dev clang-format) ;;
+    --test-tools) packages+=(chromium clang libclang-rt-14-dev clang-format python3-clang-14) ;;
     *) echo "setup.sh: unknown option $arg (known: --deps-only, --test-tools)" >&2; exit 2 ;;
   esac
 done
