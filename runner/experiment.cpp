@@ -180,6 +180,18 @@ const std::set<std::string> kSceneKeys = {
     "remove_share",   "move_scale", "rotated_share",  "sphere_share", "capsule_share",   "seed",
     "seeds"};
 
+/// A missing file. Real maps and models are never committed: one under data/maps/ or data/models/
+/// is fetched on demand, so the message names the script that fetches it.
+std::string file_not_found(const std::string& file) {
+    bool data = false;
+    for (const fs::path& part : fs::path(file)) {
+        if (data && (part == "maps" || part == "models"))
+            return "file not found: " + file + " (scripts/fetch_maps.sh fetches it)";
+        data = part == "data";
+    }
+    return "file not found: " + file;
+}
+
 /// A recording entry: the file brings its objects, frames, rays and dynamics.
 void parse_recording_scene(const json& s, const std::string& path, const std::string& base_dir,
                            std::vector<SceneSpec>& out) {
@@ -192,7 +204,7 @@ void parse_recording_scene(const json& s, const std::string& path, const std::st
     spec.where = path;
     const std::string file = get_string(s, "recording", path, "");
     spec.path = fs::path(file).is_absolute() ? file : (fs::path(base_dir) / file).lexically_normal().string();
-    if (!fs::is_regular_file(spec.path)) fail(at(path, "recording"), "file not found: " + spec.path);
+    if (!fs::is_regular_file(spec.path)) fail(at(path, "recording"), file_not_found(spec.path));
     spec.name = get_string(s, "name", path, fs::path(file).stem().string());
     spec.key = {{"recording", fs::path(file).filename().string()}, {"name", spec.name}};
     out.push_back(std::move(spec));
@@ -227,7 +239,7 @@ SceneSource parse_scene_source(const json& s, const std::string& path, const std
         src.source = SceneSpec::Source::import;
         const std::string given = get_string(s, "import", path, "");
         src.file = fs::path(given).is_absolute() ? given : (fs::path(base_dir) / given).lexically_normal().string();
-        if (!fs::is_regular_file(src.file)) fail(at(path, "import"), "file not found: " + src.file);
+        if (!fs::is_regular_file(src.file)) fail(at(path, "import"), file_not_found(src.file));
         if (s.contains("objects")) fail(at(path, "objects"), "an imported scene has the file's objects");
         src.name = fs::path(given).stem().string();
         // import_options_from_json's messages carry the JSON path already.

@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# Installs the Debian packages rcbench builds and runs with (only those missing), then builds
-# rcbench (Release) into build/.
+# Installs the Debian packages rcbench builds and runs with (only those missing), then builds the
+# rcbench executable alone (Release) into build/: the test suite and the micro-benchmarks are left
+# to the README's test command, which builds everything in the same build/.
 #   --deps-only    stop after the packages
 #   --test-tools   also install what CI's checks use: chromium (the report rendering test), clang with
-#                  its sanitizer and libFuzzer runtime (the sanitizer build), clang-format
+#                  its sanitizer and libFuzzer runtime (the sanitizer build), clang-format, and
+#                  libclang's Python bindings (scripts/check_function_length.py)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -13,7 +15,7 @@ deps_only=0
 for arg in "$@"; do
   case "$arg" in
     --deps-only) deps_only=1 ;;
-    --test-tools) packages+=(chromium clang libclang-rt-14-dev clang-format) ;;
+    --test-tools) packages+=(chromium clang libclang-rt-14-dev clang-format python3-clang-14) ;;
     *) echo "setup.sh: unknown option $arg (known: --deps-only, --test-tools)" >&2; exit 2 ;;
   esac
 done
@@ -32,4 +34,4 @@ fi
 if [ "$deps_only" = 1 ]; then exit 0; fi
 
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
-cmake --build build -j"$(nproc)"
+cmake --build build -j"$(nproc)" --target rcbench

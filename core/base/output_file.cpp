@@ -89,7 +89,8 @@ void write_file_atomically(const std::string& path, std::string_view bytes) {
     const fs::path target = write_target(path);
     fs::create_directories(target.parent_path(), ec);  // a failure shows as mkstemp's below
     // Hidden, unique per process, in the target's folder (rename is atomic within one file system).
-    std::string pattern = (target.parent_path() / ("." + target.filename().string() + ".XXXXXX")).string();
+    // ("dir/." then the name: GCC 12 warns falsely, -Wrestrict, on "." + std::string&&.)
+    std::string pattern = (target.parent_path() / ".").concat(target.filename().string() + ".XXXXXX").string();
     TempFile tmp;
     tmp.fd = ::mkstemp(pattern.data());
     if (tmp.fd < 0) throw InputError(path + ": cannot write here (" + std::strerror(errno) + ")");

@@ -1,0 +1,192 @@
+// The docs a newcomer reads against the binary they build: every command `rcbench --help` lists and
+// every structure `rcbench structures` lists is named in README.md or docs/architecture.md, every
+// command those docs name exists, and each command of the README's "Using it" block exists with the
+// options it is given and the repository files it names.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <set>
+#include <sstream>
+
+#include "tests/subprocess.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string read_source(const std::string& relative) {
+    std::ifstream in(fs::path(RCBENCH_SOURCE_DIR) / relative);
+    EXPECT_TRUE(in.good()) << relative;
+    return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+std::string docs() { return read_source("README.md") + read_source("docs/architecture.md"); }
+
+test::Outcome rcbench(const std::vector<std::string>& args) {
+    std::vector<std::string> argv{RCBENCH_BINARY};
+    argv.insert(argv.end(), args.begin(), args.end());
+    test::RunOptions o;
+    o.timeout_seconds = 120;
+    return test::run_process(argv, o);
+}
+
+/// The subcommands a CLI11 help text lists: the names indented under "Subcommands:".
+std::set<std::string> subcommands(const std::vector<std::string>& of) {
+    std::vector<std::string> args = of;
+    args.push_back("--help");
+    const test::Outcome r = rcbench(args);
+    EXPECT_EQ(r.code, 0) << r.err;
+    std::set<std::string> names;
+    std::istringstream lines(r.out.substr(std::min(r.out.size(), r.out.find("Subcommands:"))));
+    std::string line;
+    const std::regex entry(R"(^  ([a-z][a-z_-]*)\s)");
+    std::smatch m;
+    while (std::getline(lines, line))
+        if (std::regex_search(line, m, entry)) names.insert(m[1]);
+    return names;
+}
+
+/// True when `option` ("--json") is in `help` as a whole option name (not a prefix of "--json-out").
+bool has_option(const std::string& help, const std::string& option) {
+    for (std::size_t at = help.find(option); at != std::string::npos; at = help.find(option, at + 1)) {
+        const std::size_t end = at + option.size();
+        if (end == help.size() || !(std::isalnum(static_cast<unsigned char>(help[end])) || help[end] == '-' ||
+                                    help[end] == '_'))
+            return true;
+    }
+    return false;
+}
+
+/// The shell lines of the README's "Using it" section (its fenced block), comments removed.
+std::vector<std::string> using_it_lines() {
+    const std::string readme = read_source("README.md");
+    const std::size_t section = readme.find("## Using it");
+    EXPECT_NE(section, std::string::npos);
+    const std::size_t open = readme.find("```sh\n", section);
+    const std::size_t close = readme.find("\n```", open + 6);
+    EXPECT_NE(close, std::string::npos);
+    std::istringstream block(readme.substr(open + 6, close - open - 6));
+    std::vector<std::string> out;
+    std::string line;
+    while (std::getline(block, line)) {
+        const std::string command = line.substr(0, line.find('#'));
+        if (command.find_first_not_of(' ') != std::string::npos) out.push_back(command);
+    }
+    return out;
+}
+
+TEST(Docs, EveryCommandOfTheHelpIsNamedInTheDocs) {
+    const std::string text = docs();
+    const std::set<std::string> commands = subcommands({});
+    EXPECT_GE(commands.size(), 10u);  // scene, simulate, cast, structures, run, query, …
+    for (const std::string& c : commands) EXPECT_NE(text.find("rcbench " + c), std::string::npos) << c;
+    const std::set<std::string> scene = subcommands({"scene"});
+    EXPECT_GE(scene.size(), 4u);  // gen, import, info, features
+    for (const std::string& c : scene)
+        EXPECT_NE(text.find("rcbench scene " + c), std::string::npos) << "scene " << c;
+}
+
+TEST(Docs, EveryStructureIsNamedInTheDocs) {
+    const std::string text = docs();
+    const test::Outcome r = rcbench({"structures"});
+    ASSERT_EQ(r.code, 0) << r.err;
+    std::istringstream lines(r.out);
+    std::string line;
+    std::size_t structures = 0;
+    const std::regex heading(R"(^([a-z][a-z0-9_]*): )");
+    std::smatch m;
+    while (std::getline(lines, line)) {
+        if (!std::regex_search(line, m, heading)) continue;
+        ++structures;
+        const std::string name = m[1];
+        EXPECT_NE(text.find("`" + name + "`"), std::string::npos) << name;
+    }
+    EXPECT_GE(structures, 8u);  // bf, ug, hg, dbvh, lbvh, wbvh, embree, bullet_dbvt
+}
+
+TEST(Docs, EveryCommandTheDocsNameExists) {
+    const std::set<std::string> commands = subcommands({});
+    const std::set<std::string> scene = subcommands({"scene"});
+    // In prose a command is written `rcbench NAME …`; in a code block, build/rcbench NAME or, in a
+    // comment, rcbench NAME.
+    const std::regex named(R"((?:`|build/|: )rcbench ([a-z][a-z_-]*)(?: ([a-z][a-z_-]*))?)");
+    std::size_t checked = 0;
+    for (const char* file : {"README.md", "docs/architecture.md"}) {
+        const std::string text = read_source(file);
+        for (std::sregex_iterator it(text.begin(), text.end(), named), end; it != end; ++it) {
+            ++checked;
+            const std::string command = (*it)[1];
+            EXPECT_TRUE(commands.count(command)) << file << ": rcbench " << command;
+            if (command == "scene") {
+                EXPECT_TRUE(scene.count((*it)[2])) << file << ": rcbench scene " << (*it)[2];
+            }
+        }
+    }
+    EXPECT_GE(checked, 30u);
+}
+
+TEST(Docs, UsingItCommandsTakeTheirOptionsAndFilesExist) {
+    const std::vector<std::string> lines = using_it_lines();
+    ASSERT_GE(lines.size(), 30u);
+    const fs::path source = RCBENCH_SOURCE_DIR;
+    for (const std::string& line : lines) {
+        std::istringstream in(line);
+        std::vector<std::string> words;
+        for (std::string w; in >> w;) words.push_back(w);
+        std::string help;
+        if (words[0] == "build/rcbench") {
+            std::vector<std::string> command;  // empty for `build/rcbench --help`
+            if (words[1][0] != '-') command.push_back(words[1]);
+            if (words[1] == "scene") command.push_back(words[2]);
+            command.push_back("--help");
+            const test::Outcome r = rcbench(command);
+            EXPECT_EQ(r.code, 0) << line << "\n" << r.err;
+            help = r.out;
+        } else if (words[0].rfind("build/bench/", 0) == 0) {
+            const std::string name = words[0].substr(std::string("build/bench/").size());
+            EXPECT_TRUE(fs::is_regular_file(source / "bench" / (name + ".cpp"))) << line;
+        } else {
+            EXPECT_TRUE(fs::is_regular_file(source / words[0])) << line;  // scripts/…, experiments/…
+        }
+        for (const std::string& w : words) {
+            if (w.rfind("--", 0) == 0 && !help.empty()) {
+                EXPECT_TRUE(has_option(help, w.substr(0, w.find('=')))) << line << ": " << w;
+            }
+            if (w.rfind("experiments/", 0) == 0 || w.rfind("scripts/", 0) == 0) {
+                EXPECT_TRUE(fs::is_regular_file(source / w)) << line << ": " << w;
+            }
+        }
+    }
+}
+
+/// Maps and models are fetched on demand, never committed: an experiment naming one that is not
+/// there says which script fetches it; any other missing file does not.
+TEST(Docs, MissingFetchedDataNamesTheScript) {
+    const fs::path dir = fs::temp_directory_path() / ("rcb_docs_" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    const auto run_with = [&](const std::string& import) {
+        std::ofstream(dir / "exp.json") << R"({"name": "x", "structures": [{"name": "bf"}], "scenes": [{"import": ")"
+                                        << import << R"("}]})";
+        test::RunOptions o;
+        o.cwd = dir.string();
+        o.timeout_seconds = 120;
+        return test::run_process({RCBENCH_BINARY, "run", "exp.json", "--db", "x.db"}, o);
+    };
+    const test::Outcome fetched = run_with("data/maps/absent.pk3");
+    EXPECT_EQ(fetched.code, 2);
+    EXPECT_NE(fetched.err.find("scenes[0].import: file not found: data/maps/absent.pk3"), std::string::npos)
+        << fetched.err;
+    EXPECT_NE(fetched.err.find("scripts/fetch_maps.sh"), std::string::npos) << fetched.err;
+    EXPECT_EQ(std::count(fetched.err.begin(), fetched.err.end(), '\n'), 1) << fetched.err;
+    const test::Outcome own = run_with("levels/absent.csv");
+    EXPECT_EQ(own.code, 2);
+    EXPECT_NE(own.err.find("file not found: levels/absent.csv"), std::string::npos) << own.err;
+    EXPECT_EQ(own.err.find("fetch_maps"), std::string::npos) << own.err;
+    fs::remove_all(dir);
+}
+
+}  // namespace
