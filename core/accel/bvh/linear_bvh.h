@@ -38,20 +38,20 @@ public:
         /// Sort from the last rebuild's order when few objects changed (the same tree either way).
         bool coherent_sort = true;
         static constexpr auto fields() {
-            return std::tuple{Field{"threads", &Params::threads, 1, 64, "build threads (TBB task arena)", false},
+            return std::tuple{Field{"threads", &Params::threads, 1, 64, "build threads (TBB task arena)", kNotTuned},
                               Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
                                     "Morton codes over the central 99% of the centroids when the full centroid bounds "
                                     "are over 8x larger (exact either way)",
-                                    false},
+                                    kNotTuned},
                               Field{"coherent_sort", &Params::coherent_sort, 0.0, 1.0,
                                     "sort from the last rebuild's order when at most 1/16 of the objects changed (the "
                                     "same tree either way)",
-                                    false, false, "", false},
+                                    kNotTunedDefaultUnrecorded},
                               cast_threads_field<Params>(),
                               Field{"crowd_guard", &Params::crowd_guard, 0.0, 1.0,
                                     "a segment meeting the common box of a subtree of at least 16 boxes that share a "
                                     "point tests its leaves in order instead of descending (exact either way)",
-                                    false}};
+                                    kNotTuned}};
         }
     };
     /// Leaves below an inner node for it to be a crowd.

@@ -45,7 +45,9 @@ Aabb WideBvh::Block::bounds() const {
 
 WideBvh::WideBvh() : WideBvh(Params{}) {}
 
-WideBvh::WideBvh(const Params& p) : params_(p) { set_cast_threads(p.cast_threads); }
+WideBvh::WideBvh(const Params& p) : params_(p), push_(parse_choice<Push>(kPushChoices, p.push, "wbvh push")) {
+    set_cast_threads(p.cast_threads);
+}
 
 std::uint32_t WideBvh::allocate() {
     std::uint32_t b;

@@ -33,6 +33,13 @@ namespace rcb {
 
 class WideBvh : public StructureBase<WideBvh, StackScratch> {
 public:
+    /// Params::push, parsed once by the constructor; the enumerators follow kPushChoices.
+    enum class Push : std::uint8_t { automatic, fixed, loop };
+    static constexpr const char* kPushChoices = "auto,fixed,loop";
+    /// The field options of `push`: the tuner searches it; complete parameters leave it out at its
+    /// default.
+    static constexpr FieldOptions kPushOptions{.choices = kPushChoices, .recorded_when_default = false};
+
     struct Params {
         /// Children per inner node at build time (the lanes of a node are 8 either way). 8 measured
         /// 1.3-1.5x faster rays than 4 on irreg-l, clusters-l and jittered-l.
@@ -68,7 +75,7 @@ public:
                 Field{"width", &Params::width, 2, 8, "children per inner node at build time (lanes are 8 either way)"},
                 Field{"leaf_size", &Params::leaf_size, 1, 8,
                       "objects per leaf at build time (a full leaf splits on insert)"},
-                Field{"bins", &Params::bins, 2, 256, "SAH bins per axis of the build", true, true},
+                Field{"bins", &Params::bins, 2, 256, "SAH bins per axis of the build", kLogScale},
                 Field{"rebuild_ratio", &Params::rebuild_ratio, 0.0, 100.0,
                       "a rebuild starts at commit when the SAH sum (not divided by the root area) exceeds this x its "
                       "value when the tree was last built or swapped in (0: never; values in (0, 1] start one at "
@@ -86,7 +93,7 @@ public:
                       "how a node's hit children go onto the stack: loop (one step per hit child; its speculation "
                       "runs ahead through cache misses), fixed (eight branch-free steps; no mispredicted loop exit), "
                       "auto (fixed while the tree's blocks fit in the L2 cache)",
-                      true, false, "auto,fixed,loop", false},
+                      kPushOptions},
                 cast_threads_field<Params>()};
         }
     };
@@ -121,7 +128,7 @@ public:
     void prepare() {
         if (!dirty_.empty()) refit();
         fixed_push_ =
-            params_.push == "fixed" || (params_.push == "auto" && blocks_.size() * sizeof(Block) <= l2_bytes());
+            push_ == Push::fixed || (push_ == Push::automatic && blocks_.size() * sizeof(Block) <= l2_bytes());
     }
     /// Popping one block pushes at most 8: at most 7 per inner level on the path plus one.
     void fit(StackScratch& scratch) const { scratch.fit(7 * std::size_t(max_depth_) + 8); }
@@ -354,6 +361,7 @@ private:
     }
 
     Params params_;
+    Push push_;
     std::vector<Block> blocks_;
     std::uint32_t root_ = kNone;
     std::uint32_t free_ = kNone;
