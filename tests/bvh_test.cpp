@@ -208,6 +208,34 @@ TEST(LinearBvh, OneAndTwoThreadsBuildIdenticalTrees) {
     EXPECT_TRUE(one.meta() == two.meta());
 }
 
+/// The most build threads the parameter allows fill every per-chunk array (kMaxChunks chunks):
+/// the same tree as one thread, on the radix path and then from the last rebuild's order (two far
+/// objects hold the code bounds while 1 000 others move).
+TEST(LinearBvh, MostThreadsBuildTheOneThreadTree) {
+    Random rng(23);
+    std::vector<Object> objects{{0, {Vec3{-2000, -2000, -2000}, Vec3{-1999, -1999, -1999}}},
+                                {1, {Vec3{3000, 3000, 3000}, Vec3{3001, 3001, 3001}}}};
+    for (Uid u = 2; u < 30000; ++u) objects.push_back({u, test::random_box(rng, 1000)});
+    LinearBvh one(LinearBvh::Params{.threads = 1}), most(LinearBvh::Params{.threads = LinearBvh::kMaxThreads});
+    one.build(objects);
+    most.build(objects);
+    most.validate();
+    EXPECT_FALSE(most.last_resorted());
+    EXPECT_TRUE(one.nodes() == most.nodes());
+    EXPECT_TRUE(one.meta() == most.meta());
+    for (Uid u = 0; u < 1000; ++u) {
+        const Object moved{2 + u * 13, test::random_box(rng, 1000)};
+        one.move(moved), most.move(moved);
+    }
+    one.commit();
+    most.commit();
+    most.validate();
+    EXPECT_TRUE(most.last_resorted());
+    EXPECT_TRUE(one.nodes() == most.nodes());
+    EXPECT_TRUE(one.meta() == most.meta());
+    EXPECT_EQ(one.stats(), most.stats());
+}
+
 /// The sort from the last rebuild's order (coherent_sort) gives the radix sort's tree exactly:
 /// 20 rebuilds of 30 000 objects with moves small and large, removes and inserts, and runs of equal
 /// codes, for 1 and 2 threads. It is taken whenever at most 1/16 of the objects changed and the

@@ -1,11 +1,15 @@
 // Typed parameters: JSON in and out, and validation messages with the JSON path.
 #include <gtest/gtest.h>
 
+#include "core/accel/bvh/dynamic_bvh.h"
+#include "core/accel/bvh/wide_bvh.h"
 #include "core/accel/params.h"
 #include "core/accel/registry.h"
 
 namespace rcb {
 namespace {
+
+constexpr FieldOptions kQualityOptions{.tunable = false, .choices = "low,medium", .recorded_when_default = false};
 
 struct ExampleParams {
     double density = 2.0;
@@ -13,10 +17,10 @@ struct ExampleParams {
     bool rotate = true;
     std::string quality = "low";
     static constexpr auto fields() {
-        return std::tuple{Field{"density", &ExampleParams::density, 0.01, 64.0, "objects per cell", true, true},
+        return std::tuple{Field{"density", &ExampleParams::density, 0.01, 64.0, "objects per cell", kLogScale},
                           Field{"max_depth", &ExampleParams::max_depth, 1, 16, "levels"},
-                          Field{"rotate", &ExampleParams::rotate, 0, 1, "tree rotations", false},
-                          Field{"quality", &ExampleParams::quality, 0, 0, "build quality", false, false, "low,medium"}};
+                          Field{"rotate", &ExampleParams::rotate, 0, 1, "tree rotations", kNotTuned},
+                          Field{"quality", &ExampleParams::quality, 0, 0, "build quality", kQualityOptions}};
     }
 };
 
@@ -63,6 +67,32 @@ TEST(Params, SpecsDescribeTypesRangesAndDefaults) {
     EXPECT_EQ(specs[2].kind, ParamKind::boolean);
     EXPECT_FALSE(specs[2].tunable);
     EXPECT_EQ(specs[3].choices, (std::vector<std::string>{"low", "medium"}));
+    EXPECT_FALSE(specs[3].tunable);
+    EXPECT_FALSE(specs[3].recorded_when_default);
+    EXPECT_TRUE(specs[1].recorded_when_default);
+}
+
+enum class Quality { low, medium };
+
+TEST(Params, ChoicesParseOnceIntoTheirEnum) {
+    EXPECT_EQ(parse_choice<Quality>("low,medium", "low", "example quality"), Quality::low);
+    EXPECT_EQ(parse_choice<Quality>("low,medium", "medium", "example quality"), Quality::medium);
+    try {
+        parse_choice<Quality>("low,medium", "high", "example quality");
+        FAIL();
+    } catch (const InputError& e) {
+        EXPECT_STREQ(e.what(), "example quality: expected one of low, medium, got \"high\"");
+    }
+}
+
+TEST(Params, StructuresRefuseAChoiceOutsideTheirList) {
+    // Params made in C++ skip the JSON check; the constructor's parse still refuses the text.
+    WideBvh::Params w;
+    w.push = "sideways";
+    EXPECT_THROW(WideBvh{w}, InputError);
+    DynamicBvh::Params d;
+    d.mode = "sideways";
+    EXPECT_THROW(DynamicBvh{d}, InputError);
 }
 
 TEST(Params, CommandLineKeyValues) {

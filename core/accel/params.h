@@ -48,7 +48,27 @@ struct ParamSpec {
     std::string expectation() const;
 };
 
-/// One field of a Params struct. Aggregate CTAD deduces P and T from the member pointer.
+/// What a field is beyond its name, range and documentation, by name: one of the constants below
+/// (`Field{"bins", &P::bins, 2, 256, "SAH bins", kLogScale}`), `choices("low,medium")`, or
+/// designated initialisers (`FieldOptions{.tunable = false, .log_scale = true}`).
+struct FieldOptions {
+    bool tunable = true;     ///< ParamSpec::tunable
+    bool log_scale = false;  ///< ParamSpec::log_scale
+    /// For std::string fields: the allowed values, comma-separated.
+    const char* choices = "";
+    bool recorded_when_default = true;  ///< ParamSpec::recorded_when_default
+};
+
+/// A field the tuner leaves alone (guards, thread counts, switches kept for measuring).
+inline constexpr FieldOptions kNotTuned{.tunable = false};
+/// A tunable field searched on a log scale (it spans orders of magnitude).
+inline constexpr FieldOptions kLogScale{.log_scale = true};
+/// A field the tuner leaves alone that complete parameters leave out while it has its default.
+inline constexpr FieldOptions kNotTunedDefaultUnrecorded{.tunable = false, .recorded_when_default = false};
+/// A tunable std::string field with these allowed values (comma-separated).
+constexpr FieldOptions choices(const char* allowed) { return FieldOptions{.choices = allowed}; }
+
+/// One field of a Params struct.
 template <class P, class T>
 struct Field {
     const char* name;
@@ -56,17 +76,14 @@ struct Field {
     double lo;
     double hi;
     const char* doc;
-    bool tunable = true;
-    bool log_scale = false;
-    /// For std::string fields: the allowed values, comma-separated.
-    const char* choices = "";
-    /// ParamSpec::recorded_when_default.
-    bool recorded_when_default = true;
+    FieldOptions options = {};
 };
 
-/// The same deduction spelled out: clang 14 (the fuzzing build) has no aggregate CTAD.
-template <class P, class T, class... Rest>
-Field(const char*, T P::*, Rest...) -> Field<P, T>;
+// The deduction spelled out (clang 14, the fuzzing build, has no aggregate CTAD).
+template <class P, class T>
+Field(const char*, T P::*, double, double, const char*) -> Field<P, T>;
+template <class P, class T>
+Field(const char*, T P::*, double, double, const char*, FieldOptions) -> Field<P, T>;
 
 /// Joins a JSON path and a key for messages: ("structures[2].params", "max_depth").
 std::string join_path(std::string_view path, std::string_view key);
@@ -102,8 +119,8 @@ std::vector<ParamSpec> param_specs() {
         [&](auto... field) {
             (specs.push_back(ParamSpec{
                  field.name, detail::kind_of<std::remove_cvref_t<decltype(defaults.*(field.member))>>(), field.lo,
-                 field.hi, detail::split_choices(field.choices), nlohmann::json(defaults.*(field.member)), field.doc,
-                 field.tunable, field.log_scale, field.recorded_when_default}),
+                 field.hi, detail::split_choices(field.options.choices), nlohmann::json(defaults.*(field.member)),
+                 field.doc, field.options.tunable, field.options.log_scale, field.options.recorded_when_default}),
              ...);
         },
         P::fields());
@@ -133,6 +150,21 @@ P params_from_json(const nlohmann::json& j, const std::string& path, std::string
         },
         P::fields());
     return p;
+}
+
+/// A choice parameter's text as the enum whose enumerators list `choices` (comma-separated, as in
+/// FieldOptions::choices) in order: parsed once when a structure is configured, so that hot paths
+/// compare enums, while the text stays what users write and what is stored. Throws InputError
+/// "<param>: expected one of …, got …" for text outside the choices (JSON input is checked before).
+template <class E>
+E parse_choice(const char* choices, std::string_view value, std::string_view param) {
+    const std::vector<std::string> all = detail::split_choices(choices);
+    for (std::size_t i = 0; i < all.size(); ++i)
+        if (all[i] == value) return static_cast<E>(i);
+    ParamSpec spec;
+    spec.kind = ParamKind::choice;
+    spec.choices = all;
+    throw InputError(std::string(param) + ": expected " + spec.expectation() + ", got \"" + std::string(value) + "\"");
 }
 
 /// Parses a command-line `key=value` into (key, JSON value): numbers and true/false as such,

@@ -95,10 +95,7 @@ constexpr auto cast_threads_field() {
                  1,
                  64,
                  "threads of the timed ray batch (TBB task arena; the hits are the same for every count)",
-                 false,
-                 false,
-                 "",
-                 false};
+                 kNotTunedDefaultUnrecorded};
 }
 
 /// The scratch of a structure whose traversal keeps none between calls of its own (the peers):

@@ -14,7 +14,7 @@ float area(const Aabb& b) { return b.half_area(); }
 
 DynamicBvh::DynamicBvh() : DynamicBvh(Params{}) {}
 
-DynamicBvh::DynamicBvh(const Params& p) : params_(p), rebuild_mode_(p.mode == "rebuild") {
+DynamicBvh::DynamicBvh(const Params& p) : params_(p), mode_(parse_choice<Mode>(kModeChoices, p.mode, "dbvh mode")) {
     set_cast_threads(p.cast_threads);
 }
 
@@ -63,7 +63,7 @@ void DynamicBvh::build(std::span<const Object> objects) {
     nodes_.reserve(2 * objects.size());
     tight_.reserve(2 * objects.size());
     leaf_of_.reserve(objects.size());
-    if (rebuild_mode_) {
+    if (mode_ == Mode::rebuild) {
         for (const Object& o : objects) make_leaf(o);
         rebuild();
     } else {
@@ -83,12 +83,12 @@ void DynamicBvh::build(std::span<const Object> objects) {
     }
     changes_since_check_ = 0;
     guard_rebuilds_ = 0;
-    guard_baseline_ = !rebuild_mode_ && params_.sah_guard > 0 && root_ != kNullNode ? sah_cost() : 0.0;
+    guard_baseline_ = mode_ == Mode::incremental && params_.sah_guard > 0 && root_ != kNullNode ? sah_cost() : 0.0;
     look_for_crowds();
 }
 
 void DynamicBvh::insert(const Object& o) {
-    if (rebuild_mode_ && !dirty_ && params_.rebuild_every > 0 &&
+    if (mode_ == Mode::rebuild && !dirty_ && params_.rebuild_every > 0 &&
         frames_since_build_ + 1 >= std::uint32_t(params_.rebuild_every))
         dirty_ = true;  // this frame ends in a rebuild: only the leaves change until commit
     const std::uint32_t leaf = make_leaf(o);
@@ -98,7 +98,7 @@ void DynamicBvh::insert(const Object& o) {
 }
 
 void DynamicBvh::remove(Uid uid) {
-    if (rebuild_mode_ && !dirty_ && params_.rebuild_every > 0 &&
+    if (mode_ == Mode::rebuild && !dirty_ && params_.rebuild_every > 0 &&
         frames_since_build_ + 1 >= std::uint32_t(params_.rebuild_every))
         dirty_ = true;
     auto it = leaf_of_.find(uid);
@@ -111,7 +111,7 @@ void DynamicBvh::remove(Uid uid) {
 }
 
 void DynamicBvh::move(const Object& o) {
-    if (rebuild_mode_ && !dirty_ && params_.rebuild_every > 0 &&
+    if (mode_ == Mode::rebuild && !dirty_ && params_.rebuild_every > 0 &&
         frames_since_build_ + 1 >= std::uint32_t(params_.rebuild_every))
         dirty_ = true;
     const std::uint32_t leaf = leaf_of_.at(o.uid);
@@ -141,7 +141,7 @@ void DynamicBvh::check_sah_guard() {
 }
 
 void DynamicBvh::commit() {
-    if (!rebuild_mode_) {
+    if (mode_ == Mode::incremental) {
         check_sah_guard();
         if (params_.height_guard && root_ != kNullNode && nodes_[root_].height > height_limit(leaf_of_.size())) {
             rebuild();

@@ -2,7 +2,7 @@
 /// Dynamic BVH (thesis §4.4), after Catto's incremental tree as in Box2D v3: insertion picks the
 /// sibling by SAH with branch and bound and refits (optionally rotating) the ancestors; a move
 /// inside the leaf's fat box changes nothing in the tree. Rays test the object's own box at the
-/// leaf, never the fat box, so hits stay exact (common/bvh_traversal.h). `mode = rebuild` is the
+/// leaf, never the fat box, so hits stay exact (bvh_traversal.h). `mode = rebuild` is the
 /// thesis' Table 6.4 "full SAH" variant (binned SAH, Wald 2007). SAH, height and crowd guards keep
 /// the tree's cost bounded under churn and nested objects. docs/structures.md has the details.
 
@@ -22,12 +22,16 @@ namespace rcb {
 
 class DynamicBvh : public StructureBase<DynamicBvh, StackScratch> {
 public:
+    /// Params::mode, parsed once by the constructor; the enumerators follow kModeChoices.
+    enum class Mode : std::uint8_t { incremental, rebuild };
+    static constexpr const char* kModeChoices = "incremental,rebuild";
+
     struct Params {
         /// Leaf boxes are enlarged on every side by this fraction of the object's longest edge.
         double margin = 0.1;
         /// Tree rotations on the refit path (Box2D v3 b_RotateNodes).
         bool rotate = true;
-        /// "incremental": Catto insertion only; "rebuild": full binned-SAH builds (see above).
+        /// "incremental": Catto insertion only; "rebuild": full binned-SAH builds (the top of this file).
         std::string mode = "incremental";
         /// rebuild mode: rebuild at commit every this many frames (0: never by count).
         int rebuild_every = 1;
@@ -35,9 +39,11 @@ public:
         double rebuild_growth = 0.0;
         /// rebuild mode: SAH bins per axis of the top-down build.
         int bins = 16;
-        /// incremental mode: rebuild when the SAH cost grew by this factor (0: off; see above).
+        /// incremental mode: rebuild when the SAH cost grew by this factor (0: off; "SAH guard" in
+        /// docs/structures.md, Dynamic BVH).
         double sah_guard = 2.0;
-        /// Scan the leaves of a crowd whose common box the segment meets (see above).
+        /// Scan the leaves of a crowd whose common box the segment meets ("Crowd guard" in
+        /// docs/structures.md, Dynamic BVH).
         bool crowd_guard = true;
         /// incremental mode: binned-SAH rebuild when the height exceeds height_limit(size).
         bool height_guard = true;
@@ -47,23 +53,23 @@ public:
             return std::tuple{
                 Field{"margin", &Params::margin, 0.0, 4.0, "fat-box margin, × the object's longest edge per side"},
                 Field{"rotate", &Params::rotate, 0, 1, "tree rotations on the refit path (Box2D v3)"},
-                Field{"mode", &Params::mode, 0, 0, "incremental insertion, or full binned-SAH rebuilds", true, false,
-                      "incremental,rebuild"},
+                Field{"mode", &Params::mode, 0, 0, "incremental insertion, or full binned-SAH rebuilds",
+                      choices(kModeChoices)},
                 Field{"rebuild_every", &Params::rebuild_every, 0, 1000000,
-                      "rebuild mode: full rebuild every k frames (0: never by count)", true, true},
+                      "rebuild mode: full rebuild every k frames (0: never by count)", kLogScale},
                 Field{"rebuild_growth", &Params::rebuild_growth, 0.0, 100.0,
                       "rebuild mode: full rebuild when the SAH cost grew by this factor (0: never)"},
-                Field{"bins", &Params::bins, 2, 256, "rebuild mode: SAH bins per axis", true, true},
+                Field{"bins", &Params::bins, 2, 256, "rebuild mode: SAH bins per axis", kLogScale},
                 Field{"sah_guard", &Params::sah_guard, 0.0, 100.0,
                       "incremental mode: binned-SAH rebuild when the SAH cost grew by this factor since the last "
                       "build, checked every max(64, size/8) changes (0: off)",
-                      false},
+                      kNotTuned},
                 Field{"crowd_guard", &Params::crowd_guard, 0.0, 1.0,
                       "a segment meeting the common box of a subtree of at least 16 boxes that share a point tests "
                       "its leaves in order instead of descending (exact either way)",
-                      false},
+                      kNotTuned},
                 Field{"height_guard", &Params::height_guard, 0.0, 1.0,
-                      "incremental mode: binned-SAH rebuild when the height exceeds 4 bit_width(size) + 8", false},
+                      "incremental mode: binned-SAH rebuild when the height exceeds 4 bit_width(size) + 8", kNotTuned},
                 cast_threads_field<Params>()};
         }
     };
@@ -159,7 +165,7 @@ private:
     bool deferring() const { return dirty_; }
 
     Params params_;
-    bool rebuild_mode_ = false;
+    Mode mode_ = Mode::incremental;
     std::vector<Node> nodes_;
     std::vector<Aabb> tight_;  // per node: the object's own box (leaves only)
     std::uint32_t root_ = kNullNode;
@@ -182,8 +188,9 @@ private:
     std::uint32_t guard_rebuilds_ = 0;
     std::uint32_t height_rebuilds_ = 0;
     void check_sah_guard();
-    // Crowd guard (see above): per node its crowd (kNullNode: none), the crowds, the leaves packed
-    // in depth-first order; empty while the tree has no crowds.
+    // Crowd guard ("Crowd guard" in docs/structures.md, Dynamic BVH): per node its crowd
+    // (kNullNode: none), the crowds, the leaves packed in depth-first order; empty while the tree
+    // has no crowds.
     struct Crowd {
         Aabb common;
         std::uint32_t first, last;  // the run of packed leaves below

@@ -20,6 +20,10 @@
 
 namespace rcb {
 
+// Every per-chunk array holds the chunks of the most threads Params::threads allows.
+static_assert(LinearBvh::kMaxChunks >=
+              std::size_t(std::get<0>(LinearBvh::Params::fields()).hi) * LinearBvh::kChunksPerThread);
+
 struct LinearBvh::Arena {
     explicit Arena(int threads) : arena(threads) {}
     tbb::task_arena arena;
@@ -251,31 +255,13 @@ void LinearBvh::sort_codes(std::uint64_t varying) {
     order_.swap(order_tmp_);
 }
 
-/// Steps 1 and 2 (codes, sort, equal codes) and the leaves, from the last rebuild's order instead
-/// of a radix sort, when at most 1/16 of the objects changed since: the objects, visited in the
-/// last sorted order (its slots; slots gone dropped, new ones last), are then nearly in order, as
-/// in the incremental sorts of sweep-and-prune broad phases (Baraff 1992; Cohen et al. 1995,
-/// "I-COLLIDE"). One pass gathers each box and uid in that order, codes it and writes its leaf
-/// record; one pass splits off the keys (code, then half area and slot) that break the order (the
-/// kept keys above the new one are dropped when at most kLook of them are, else the new one), the
-/// dropped ones are sorted, and a merge writes the codes, slots and leaves in order. The result is the radix sort's
-/// exactly (same keys, same total order), only cheaper: no scatter over 2048 buckets, and the leaves
-/// come from records read in order rather than from a gather in sorted order. Returns false (and
-/// leaves everything to the radix path) when there is no usable order or more than 1/16 of the
-/// keys are out of place (the first build, mass changes, a change of the code bounds that reorders
-/// many codes).
-template <class Lap>
-bool LinearBvh::resort(std::size_t chunks, Lap& lap, bool& bounds_known) {
-    const std::size_t n = objects_.size(), n_old = order_.size();
-    if (!params_.coherent_sort || n < 4 * kTopDigits || n_old == 0 || changes_ > n / 16) return false;
+/// The centroid bounds for resort(), trimmed: the last ones when no change could have moved them
+/// (see insert()), else a pass in slot order (a sequential read). Stores the full bounds.
+Aabb LinearBvh::resort_bounds(std::size_t chunks) {
+    const std::size_t n = objects_.size();
     const Aabb* boxes = objects_.layout().all().data();
-    const Uid* uids = objects_.uids().data();
-    // The centroid bounds first: the last ones when no change could have moved them (see
-    // insert()), else a pass in slot order (a sequential read). When they changed (an extreme
-    // object moved), every code moves on the grid and the Morton order of shifted or scaled points
-    // differs from the last one almost everywhere, so the radix path takes over, with these bounds.
     const std::size_t chunk_len = (n + chunks - 1) / chunks;
-    std::array<Aabb, 64 * 4> part;
+    std::array<Aabb, kMaxChunks> part;
     if (!centroids_moved_) {
         part[0] = centroid_bounds_;
         for (std::size_t c = 1; c < chunks; ++c) part[c] = Aabb::empty();
@@ -295,6 +281,275 @@ bool LinearBvh::resort(std::size_t chunks, Lap& lap, bool& bounds_known) {
     for (std::size_t c = 0; c < chunks; ++c) cb = merge(cb, part[c]);
     centroid_bounds_ = cb;
     if (params_.outlier_guard) trim_outliers(cb);
+    return cb;
+}
+
+/// resort()'s step 1: codes and the leaf records (box and uid), in the last order (order_). The
+/// records go to the node array's first n nodes (the inner nodes' part, unused until the tree
+/// step, and the first leaf, whose record the merge sets aside before it writes that node).
+void LinearBvh::resort_codes(std::size_t chunks, const Aabb& cb) {
+    const std::size_t n = objects_.size(), chunk_len = (n + chunks - 1) / chunks;
+    const Aabb* boxes = objects_.layout().all().data();
+    const Uid* uids = objects_.uids().data();
+    const std::uint32_t* seq = order_.data();
+    std::uint64_t* codes = codes_.data();
+    Node* nodes = nodes_.data();
+    const MortonGrid grid(cb);
+    // The grid by value: read through a reference, the stores to the nodes (boxes too) could
+    // alias its bounds and reload them per object (a quarter slower).
+    parallel(chunks, 1, [&, grid](std::size_t c0, std::size_t c1) {
+        constexpr std::size_t kAhead = 48;  // rows ahead: the gather waits on memory misses
+        for (std::size_t c = c0; c < c1; ++c) {
+            const std::size_t b = std::min(n, c * chunk_len), e = std::min(n, b + chunk_len);
+            for (std::size_t k = b; k < e; ++k) {
+                if (k + kAhead < e) {
+                    const std::uint32_t ahead = seq[k + kAhead];
+                    __builtin_prefetch(&boxes[ahead]);
+                    __builtin_prefetch(reinterpret_cast<const char*>(&boxes[ahead + 1]) - 1);
+                    __builtin_prefetch(&uids[ahead]);
+                }
+                const std::uint32_t slot = seq[k];
+                const Aabb box = boxes[slot];
+                codes[k] = grid.code(box.center());
+                nodes[k] = Node{box, {uids[slot], kNullNode}};
+            }
+        }
+    });
+}
+
+/// resort()'s steps 2 and 3 over the codes and records of step 1 (position k: the k-th object of
+/// the last order): the split of the keys out of order, their sort, the merge of both into
+/// codes_tmp_, order_tmp_ and the leaves, and the count of tied codes.
+struct LinearBvh::Resort {
+    using Span = std::array<std::uint32_t, 2>;
+    LinearBvh& t;
+    const std::size_t n, chunks, chunk_len;
+    const std::uint64_t* codes;
+    const std::uint32_t* seq;
+    Node* nodes;
+    // The first leaf's record, set aside: the merge writes that node.
+    const Node last_record;
+    // Per chunk: its kept positions in kept_ (after plan(): per part, compacted).
+    std::array<Span, kMaxChunks> run;
+    // Per part of the merge: outliers [lo, hi), output start.
+    std::array<std::array<std::uint32_t, 3>, kMaxChunks> merge_part;
+    std::size_t parts = 0;
+    // Per part: its keys in runs of equal codes, as far as it sees.
+    std::array<std::size_t, kMaxChunks> tied;
+
+    Resort(LinearBvh& tree, std::size_t chunk_count)
+        : t(tree),
+          n(tree.objects_.size()),
+          chunks(chunk_count),
+          chunk_len((n + chunk_count - 1) / chunk_count),
+          codes(tree.codes_.data()),
+          seq(tree.order_.data()),
+          nodes(tree.nodes_.data()),
+          last_record(tree.nodes_[n - 1]) {}
+
+    const Node& record(std::uint32_t k) const { return k == n - 1 ? last_record : nodes[k]; }
+    /// The key is the final order's: the code, then for equal codes the half area's bits and the
+    /// slot ("Equal codes" in docs/structures.md, Linear BVH).
+    bool less(std::uint32_t i, std::uint32_t j) const {
+        if (codes[i] != codes[j]) return codes[i] < codes[j];
+        const auto ai = std::bit_cast<std::uint32_t>(record(i).box.half_area()),
+                   aj = std::bit_cast<std::uint32_t>(record(j).box.half_area());
+        return ai < aj || (ai == aj && seq[i] < seq[j]);
+    }
+    auto key_less() const {
+        return [this](std::uint32_t i, std::uint32_t j) { return less(i, j); };
+    }
+
+    /// Step 2, per chunk: kept_[b, top) holds the chunk's kept positions (their keys ascending),
+    /// outliers_[c] the others.
+    void split_off() {
+        constexpr std::uint32_t kLook = 8;
+        std::uint32_t* kept = t.kept_.data();
+        t.outliers_.resize(chunks);
+        t.parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+            for (std::size_t c = c0; c < c1; ++c) {
+                std::vector<std::uint32_t>& out = t.outliers_[c];
+                out.clear();
+                const auto b = std::uint32_t(std::min(n, c * chunk_len)), e = std::uint32_t(std::min(n, b + chunk_len));
+                std::uint32_t top = b;
+                for (std::uint32_t k = b; k < e; ++k) {
+                    if (top == b || !less(k, kept[top - 1])) {
+                        kept[top++] = k;
+                        continue;
+                    }
+                    // kept[p, top) are the kept keys above k's, looked for down to kLook of them.
+                    std::uint32_t p = top - 1;
+                    while (p > b && top - p < kLook && less(k, kept[p - 1])) --p;
+                    if (p == b || !less(k, kept[p - 1])) {
+                        out.insert(out.end(), kept + p, kept + top);
+                        top = p;
+                        kept[top++] = k;
+                    } else {
+                        out.push_back(k);
+                    }
+                }
+                run[c] = {b, top};
+            }
+        });
+    }
+
+    /// Where two chunks' kept runs meet out of order, the same rule on one side or the other.
+    void join_runs() {
+        const std::uint32_t* kept = t.kept_.data();
+        std::vector<std::uint32_t>& extra = t.outliers_[0];
+        std::size_t prev = chunks;  // the last chunk with kept keys so far
+        for (std::size_t c = 0; c < chunks; ++c) {
+            std::uint32_t &kb = run[c][0], &kt = run[c][1];
+            while (kb < kt && prev < chunks && less(kept[kb], kept[run[prev][1] - 1])) {
+                std::uint32_t &pb = run[prev][0], &pt = run[prev][1];
+                if (pt - pb >= 2 && !less(kept[kb], kept[pt - 2]))
+                    extra.push_back(kept[--pt]);
+                else
+                    extra.push_back(kept[kb++]);
+                if (pb == pt) {  // that run emptied: compare with the one before it
+                    std::size_t q = prev;
+                    prev = chunks;
+                    while (q-- > 0)
+                        if (run[q][0] < run[q][1]) {
+                            prev = q;
+                            break;
+                        }
+                }
+            }
+            if (kb < kt) prev = c;
+        }
+    }
+
+    /// All the outliers, sorted; false when they are too many (the radix path then).
+    bool sort_outliers() {
+        std::vector<std::uint32_t>& out = t.outliers_all_;
+        out.clear();
+        for (std::size_t c = 0; c < chunks; ++c) out.insert(out.end(), t.outliers_[c].begin(), t.outliers_[c].end());
+        if (out.size() > n / 16) return false;  // too far from the last order: the radix path
+        std::sort(out.begin(), out.end(), key_less());
+        return true;
+    }
+
+    /// Step 3's parts, one per chunk with kept keys: its run and the outliers from its first kept
+    /// key (from the start for the first such chunk) to the next chunk's first kept key. False
+    /// when no chunk kept a key.
+    bool plan() {
+        const std::vector<std::uint32_t>& out = t.outliers_all_;
+        const std::uint32_t* kept = t.kept_.data();
+        std::uint32_t written = 0, lo = 0;
+        std::array<std::size_t, kMaxChunks> chunk_of;
+        parts = 0;
+        for (std::size_t c = 0; c < chunks; ++c)
+            if (run[c][0] < run[c][1]) chunk_of[parts++] = c;
+        for (std::size_t i = 0; i < parts; ++i) {
+            const std::size_t c = chunk_of[i];
+            const std::uint32_t hi = i + 1 < parts
+                                         ? std::uint32_t(std::lower_bound(out.begin(), out.end(),
+                                                                          kept[run[chunk_of[i + 1]][0]], key_less()) -
+                                                         out.begin())
+                                         : std::uint32_t(out.size());
+            merge_part[i] = {lo, hi, written + lo};
+            written += run[c][1] - run[c][0];
+            lo = hi;
+            run[i] = run[c];  // compacted: part i's kept run
+        }
+        return parts != 0;
+    }
+
+    /// Step 3, the merge per part into codes_tmp_, order_tmp_ and the leaves. Each part also counts
+    /// its keys in runs of equal codes (the stats' "tied_codes", already in their order) as far as
+    /// it sees; count_tied() settles the parts' first and last keys.
+    void merge() {
+        const std::uint32_t leaf_base = t.leaf_base_;
+        std::uint64_t* out_codes = t.codes_tmp_.data();
+        std::uint32_t* out_order = t.order_tmp_.data();
+        const std::uint32_t* outl = t.outliers_all_.data();
+        const std::uint32_t* kept = t.kept_.data();
+        t.parallel(parts, 1, [&](std::size_t i0, std::size_t i1) {
+            // Local restrict pointers: the stores below then do not make the loop reload them.
+            const std::uint64_t* __restrict in_codes = codes;
+            const std::uint32_t* __restrict in_order = seq;
+            const std::uint32_t* __restrict kept_at = kept;
+            std::uint64_t* __restrict codes_to = out_codes;
+            std::uint32_t* __restrict order_to = out_order;
+            Node* __restrict leaves = nodes + leaf_base;
+            for (std::size_t i = i0; i < i1; ++i) {
+                std::uint32_t a = run[i][0];
+                const std::uint32_t a_end = run[i][1];
+                std::uint32_t o = merge_part[i][0];
+                const std::uint32_t o_end = merge_part[i][1];
+                const std::uint32_t j0 = merge_part[i][2];
+                std::uint32_t j = j0;
+                std::size_t same_count = 0, same = 0;  // same: keys so far with the previous key's code
+                std::uint64_t prev = 0;
+                auto put = [&](std::uint32_t k) {
+                    const std::uint64_t code = in_codes[k];
+                    same = j != j0 && code == prev ? same + 1 : 1;
+                    same_count += same == 2 ? 2 : same > 2;
+                    prev = code;
+                    codes_to[j] = code;
+                    order_to[j] = in_order[k];
+                    leaves[j] = k == n - 1 ? last_record : nodes[k];
+                    ++j;
+                };
+                for (;;) {
+                    // The kept keys below the next outlier (all, when none is left): found by a
+                    // binary search, then copied with no comparison per key.
+                    const std::uint32_t stop =
+                        o < o_end ? std::uint32_t(std::lower_bound(kept_at + a, kept_at + a_end, outl[o], key_less()) -
+                                                  kept_at)
+                                  : a_end;
+                    for (; a < stop; ++a) put(kept_at[a]);
+                    if (o == o_end) break;
+                    put(outl[o++]);
+                }
+                tied[i] = same_count;
+            }
+        });
+    }
+
+    /// The tied codes of the merged keys (codes_ after the swap): the parts' counts, with the keys
+    /// at their ends settled against their neighbours across the parts' borders.
+    std::size_t count_tied() const {
+        const std::uint64_t* c = t.codes_.data();
+        // Whether key j has an equal code beside it in [b, e).
+        auto in_run = [c](std::size_t j, std::size_t b, std::size_t e) {
+            return (j > b && c[j] == c[j - 1]) || (j + 1 < e && c[j] == c[j + 1]);
+        };
+        std::size_t total = 0;
+        for (std::size_t i = 0; i < parts; ++i) {
+            const std::size_t b = merge_part[i][2], e = i + 1 < parts ? merge_part[i + 1][2] : n;
+            total += tied[i];
+            for (std::size_t j : {b, e - 1}) {
+                total += std::size_t(in_run(j, 0, n)) - std::size_t(in_run(j, b, e));
+                if (e - b == 1) break;
+            }
+        }
+        return total;
+    }
+};
+
+/// Steps 1 and 2 (codes, sort, equal codes) and the leaves, from the last rebuild's order instead
+/// of a radix sort, when at most 1/16 of the objects changed since: the objects, visited in the
+/// last sorted order (its slots; slots gone dropped, new ones last), are then nearly in order, as
+/// in the incremental sorts of sweep-and-prune broad phases (Baraff 1992; Cohen et al. 1995,
+/// "I-COLLIDE"). One pass gathers each box and uid in that order, codes it and writes its leaf
+/// record; one pass splits off the keys (code, then half area and slot) that break the order (the
+/// kept keys above the new one are dropped when at most kLook of them are, else the new one), the
+/// dropped ones are sorted, and a merge writes the codes, slots and leaves in order. The result is
+/// the radix sort's exactly (same keys, same total order), only cheaper: no scatter over 2048
+/// buckets, and the leaves come from records read in order rather than from a gather in sorted
+/// order. Returns false (and leaves everything to the radix path) when there is no usable order or
+/// more than 1/16 of the keys are out of place (the first build, mass changes, a change of the
+/// code bounds that reorders many codes).
+template <class Lap>
+bool LinearBvh::resort(std::size_t chunks, Lap& lap, bool& bounds_known) {
+    const std::size_t n = objects_.size(), n_old = order_.size();
+    if (!params_.coherent_sort || n < 4 * kTopDigits || n_old == 0 || changes_ > n / 16) return false;
+    // When the bounds changed (an extreme object moved), every code moves on the grid and the
+    // Morton order of shifted or scaled points differs from the last one almost everywhere, so the
+    // radix path takes over, with these bounds.
+    const Aabb cb = resort_bounds(chunks);
     bounds_known = true;
     if (!(cb == code_bounds_)) {
         code_bounds_ = cb;
@@ -312,195 +567,75 @@ bool LinearBvh::resort(std::size_t chunks, Lap& lap, bool& bounds_known) {
     kept_.resize(n);
     nodes_.resize(2 * n - 1);
     leaf_base_ = std::uint32_t(n - 1);
-    std::uint32_t* seq = order_.data();
-    std::uint64_t* codes = codes_.data();
-    Node* nodes = nodes_.data();
-    // 1. Codes and the leaf records (box and uid), in the last order.
-    //    The records go to the node array's first n nodes (the inner nodes' part, unused until
-    //    the tree step, and the first leaf, whose record is set aside before the merge).
-    {
-        const MortonGrid grid(cb);
-        // The grid by value: read through a reference, the stores to the nodes (boxes too) could
-        // alias its bounds and reload them per object (a quarter slower).
-        parallel(chunks, 1, [&, grid](std::size_t c0, std::size_t c1) {
-            constexpr std::size_t kAhead = 48;  // rows ahead: the gather waits on memory misses
-            for (std::size_t c = c0; c < c1; ++c) {
-                const std::size_t b = std::min(n, c * chunk_len), e = std::min(n, b + chunk_len);
-                for (std::size_t k = b; k < e; ++k) {
-                    if (k + kAhead < e) {
-                        const std::uint32_t ahead = seq[k + kAhead];
-                        __builtin_prefetch(&boxes[ahead]);
-                        __builtin_prefetch(reinterpret_cast<const char*>(&boxes[ahead + 1]) - 1);
-                        __builtin_prefetch(&uids[ahead]);
-                    }
-                    const std::uint32_t slot = seq[k];
-                    const Aabb box = boxes[slot];
-                    codes[k] = grid.code(box.center());
-                    nodes[k] = Node{box, {uids[slot], kNullNode}};
-                }
-            }
-        });
-    }
+    resort_codes(chunks, cb);
     lap(phases_.codes);
-    // The first leaf's record, set aside: the merge writes that node.
-    const Node last_record = nodes[n - 1];
-    auto record = [&](std::uint32_t k) -> const Node& { return k == n - 1 ? last_record : nodes[k]; };
-    // 2. Split off the keys out of order, per chunk: kept_[b, top) holds the chunk's kept
-    //    positions (their keys ascending), outliers_[c] the others. The key is the final order's:
-    //    the code, then for equal codes the half area's bits and the slot (see "Equal codes").
-    auto less = [&](std::uint32_t i, std::uint32_t j) {
-        if (codes[i] != codes[j]) return codes[i] < codes[j];
-        const auto ai = std::bit_cast<std::uint32_t>(record(i).box.half_area()),
-                   aj = std::bit_cast<std::uint32_t>(record(j).box.half_area());
-        return ai < aj || (ai == aj && seq[i] < seq[j]);
-    };
-    constexpr std::uint32_t kLook = 8;
-    std::uint32_t* kept = kept_.data();
-    outliers_.resize(chunks);
-    std::array<std::array<std::uint32_t, 2>, 64 * 4> run;  // per chunk: its kept positions in kept_
-    parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
-        for (std::size_t c = c0; c < c1; ++c) {
-            std::vector<std::uint32_t>& out = outliers_[c];
-            out.clear();
-            const auto b = std::uint32_t(std::min(n, c * chunk_len)), e = std::uint32_t(std::min(n, b + chunk_len));
-            std::uint32_t top = b;
-            for (std::uint32_t k = b; k < e; ++k) {
-                if (top == b || !less(k, kept[top - 1])) {
-                    kept[top++] = k;
-                    continue;
-                }
-                // kept[p, top) are the kept keys above k's, looked for down to kLook of them.
-                std::uint32_t p = top - 1;
-                while (p > b && top - p < kLook && less(k, kept[p - 1])) --p;
-                if (p == b || !less(k, kept[p - 1])) {
-                    out.insert(out.end(), kept + p, kept + top);
-                    top = p;
-                    kept[top++] = k;
-                } else {
-                    out.push_back(k);
-                }
-            }
-            run[c] = {b, top};
-        }
-    });
-    // Where two chunks' kept runs meet out of order, the same rule on one side or the other.
-    std::vector<std::uint32_t>& extra = outliers_[0];
-    std::size_t prev = chunks;  // the last chunk with kept keys so far
-    for (std::size_t c = 0; c < chunks; ++c) {
-        std::uint32_t &kb = run[c][0], &kt = run[c][1];
-        while (kb < kt && prev < chunks && less(kept[kb], kept[run[prev][1] - 1])) {
-            std::uint32_t &pb = run[prev][0], &pt = run[prev][1];
-            if (pt - pb >= 2 && !less(kept[kb], kept[pt - 2]))
-                extra.push_back(kept[--pt]);
-            else
-                extra.push_back(kept[kb++]);
-            if (pb == pt) {  // that run emptied: compare with the one before it
-                std::size_t q = prev;
-                prev = chunks;
-                while (q-- > 0)
-                    if (run[q][0] < run[q][1]) {
-                        prev = q;
-                        break;
-                    }
-            }
-        }
-        if (kb < kt) prev = c;
-    }
-    std::vector<std::uint32_t>& out = outliers_all_;
-    out.clear();
-    for (std::size_t c = 0; c < chunks; ++c) out.insert(out.end(), outliers_[c].begin(), outliers_[c].end());
-    if (out.size() > n / 16) return false;  // too far from the last order: the radix path
-    std::sort(out.begin(), out.end(), less);
-    // 3. The merge, per chunk with kept keys: its run and the outliers from its first kept key
-    //    (from the start for the first such chunk) to the next chunk's first kept key.
-    std::array<std::array<std::uint32_t, 3>, 64 * 4> merge_part;  // outliers [lo, hi), output start
-    std::size_t parts = 0;
-    {
-        std::uint32_t written = 0, lo = 0;
-        std::array<std::size_t, 64 * 4> chunk_of;
-        for (std::size_t c = 0; c < chunks; ++c)
-            if (run[c][0] < run[c][1]) chunk_of[parts++] = c;
-        for (std::size_t i = 0; i < parts; ++i) {
-            const std::size_t c = chunk_of[i];
-            const std::uint32_t hi =
-                i + 1 < parts
-                    ? std::uint32_t(std::lower_bound(out.begin(), out.end(), kept[run[chunk_of[i + 1]][0]], less) -
-                                    out.begin())
-                    : std::uint32_t(out.size());
-            merge_part[i] = {lo, hi, written + lo};
-            written += run[c][1] - run[c][0];
-            lo = hi;
-            run[i] = run[c];  // compacted: part i's kept run
-        }
-    }
-    if (parts == 0) return false;
-    const std::uint32_t leaf_base = leaf_base_;
-    std::uint64_t* out_codes = codes_tmp_.data();
-    std::uint32_t* out_order = order_tmp_.data();
-    const std::uint32_t* outl = out.data();
-    // Each part also counts its keys in runs of equal codes (the stats' "tied_codes", already in
-    // their order) as far as it sees; the parts' first and last keys are settled below.
-    std::array<std::size_t, 64 * 4> tied;
-    parallel(parts, 1, [&](std::size_t i0, std::size_t i1) {
-        // Local restrict pointers: the stores below then do not make the loop reload them.
-        const std::uint64_t* __restrict in_codes = codes;
-        const std::uint32_t* __restrict in_order = seq;
-        const std::uint32_t* __restrict kept_at = kept;
-        std::uint64_t* __restrict codes_to = out_codes;
-        std::uint32_t* __restrict order_to = out_order;
-        Node* __restrict leaves = nodes + leaf_base;
-        for (std::size_t i = i0; i < i1; ++i) {
-            std::uint32_t a = run[i][0];
-            const std::uint32_t a_end = run[i][1];
-            std::uint32_t o = merge_part[i][0];
-            const std::uint32_t o_end = merge_part[i][1];
-            const std::uint32_t j0 = merge_part[i][2];
-            std::uint32_t j = j0;
-            std::size_t t = 0, same = 0;  // same: keys so far with the previous key's code
-            std::uint64_t prev = 0;
-            auto put = [&](std::uint32_t k) {
-                const std::uint64_t code = in_codes[k];
-                same = j != j0 && code == prev ? same + 1 : 1;
-                t += same == 2 ? 2 : same > 2;
-                prev = code;
-                codes_to[j] = code;
-                order_to[j] = in_order[k];
-                leaves[j] = k == n - 1 ? last_record : nodes[k];
-                ++j;
-            };
-            for (;;) {
-                // The kept keys below the next outlier (all, when none is left): found by a binary
-                // search, then copied with no comparison per key.
-                const std::uint32_t stop =
-                    o < o_end ? std::uint32_t(std::lower_bound(kept_at + a, kept_at + a_end, outl[o], less) - kept_at)
-                              : a_end;
-                for (; a < stop; ++a) put(kept_at[a]);
-                if (o == o_end) break;
-                put(outl[o++]);
-            }
-            tied[i] = t;
-        }
-    });
+    Resort r(*this, chunks);
+    r.split_off();
+    r.join_runs();
+    if (!r.sort_outliers() || !r.plan()) return false;
+    r.merge();
     codes_.swap(codes_tmp_);
     order_.swap(order_tmp_);
-    tied_codes_ = 0;
-    {
-        const std::uint64_t* c = codes_.data();
-        // Whether key j has an equal code beside it in [b, e).
-        auto in_run = [c](std::size_t j, std::size_t b, std::size_t e) {
-            return (j > b && c[j] == c[j - 1]) || (j + 1 < e && c[j] == c[j + 1]);
-        };
-        for (std::size_t i = 0; i < parts; ++i) {
-            const std::size_t b = merge_part[i][2], e = i + 1 < parts ? merge_part[i + 1][2] : n;
-            tied_codes_ += tied[i];
-            for (std::size_t j : {b, e - 1}) {
-                tied_codes_ += std::size_t(in_run(j, 0, n)) - std::size_t(in_run(j, b, e));
-                if (e - b == 1) break;
-            }
-        }
-    }
+    tied_codes_ = r.count_tied();
     lap(phases_.sort);
     return true;
+}
+
+/// Step 1 of the radix path: Morton codes of the centroids in the bounds of the centroids (min and
+/// max are exact, so the chunking does not change them). One pass finds the bounds and, in the
+/// same read of the boxes, codes them in the last rebuild's bounds; only when the bounds changed
+/// (an extreme object moved) does a second pass code them again. The same pass counts the codes'
+/// top digit for the sort. Returns the bits that vary among the codes (their OR xor AND).
+std::uint64_t LinearBvh::encode(std::size_t chunks, bool bounds_known) {
+    const std::size_t n = objects_.size(), chunk_len = (n + chunks - 1) / chunks;
+    const Aabb* boxes = objects_.layout().all().data();
+    struct Part {
+        Vec3 min, max;
+        std::uint64_t all_or, all_and;
+    };
+    std::array<Part, kMaxChunks> part;
+    codes_.resize(n);
+    order_.resize(n);
+    histograms_.resize(chunks * kTopDigits);
+    auto pass = [&](const Aabb& cb, bool bounds, bool codes) {
+        const MortonGrid grid(cb);
+        parallel(chunks, 1, [&, grid](std::size_t c0, std::size_t c1) {  // by value, as in resort_codes()
+            for (std::size_t c = c0; c < c1; ++c) {
+                std::uint32_t* h = histograms_.data() + c * kTopDigits;
+                std::fill_n(h, kTopDigits, 0u);
+                Vec3 lo = Aabb::empty().min, hi = Aabb::empty().max;
+                std::uint64_t all_or = 0, all_and = ~0ull;
+                const std::size_t e = std::min(n, (c + 1) * chunk_len);
+                for (std::size_t i = c * chunk_len; i < e; ++i) {
+                    const Vec3 m = boxes[i].center();
+                    if (bounds) lo = rcb::min(lo, m), hi = rcb::max(hi, m);
+                    if (!codes) continue;
+                    const std::uint64_t code = grid.code(m);
+                    codes_[i] = code;
+                    all_or |= code, all_and &= code;
+                    ++h[code >> (63 - kTopBits)];
+                }
+                if (bounds) part[c].min = lo, part[c].max = hi;
+                part[c].all_or = all_or, part[c].all_and = all_and;
+            }
+        });
+    };
+    if (bounds_known) {  // resort() found them: one pass
+        pass(code_bounds_, false, true);
+    } else {
+        pass(code_bounds_, true, !code_bounds_.is_empty());
+        Aabb cb = Aabb::empty();
+        for (std::size_t c = 0; c < chunks; ++c) cb = merge(cb, Aabb{part[c].min, part[c].max});
+        centroid_bounds_ = cb;
+        if (params_.outlier_guard) trim_outliers(cb);
+        if (code_bounds_.is_empty() || !(cb == code_bounds_)) {
+            code_bounds_ = cb;
+            pass(cb, false, true);
+        }
+    }
+    std::uint64_t all_or = 0, all_and = ~0ull;
+    for (std::size_t c = 0; c < chunks; ++c) all_or |= part[c].all_or, all_and &= part[c].all_and;
+    return all_or ^ all_and;
 }
 
 void LinearBvh::rebuild() {
@@ -527,68 +662,16 @@ void LinearBvh::rebuild() {
         last = now;
     };
     phases_ = {};
-    const Aabb* boxes = objects_.layout().all().data();
-    const std::size_t chunks = arena_ ? std::size_t(params_.threads) * 4 : 1;
-    const std::size_t chunk_len = (n + chunks - 1) / chunks;
+    const std::size_t chunks = arena_ ? std::size_t(params_.threads) * kChunksPerThread : 1;
     // Steps 1 and 2 from the last tree's order when few objects changed (see resort()); it writes
     // the leaves too. Otherwise, or when it finds the order too far from the new one:
     bool bounds_known = false;
     const bool leaves_written = resorted_ = resort(chunks, lap, bounds_known);
     if (!leaves_written) {
-        // 1. Morton codes of the centroids in the bounds of the centroids (min and max are exact, so
-        //    the chunking does not change them). One pass finds the bounds and, in the same read of
-        //    the boxes, codes them in the last rebuild's bounds; only when the bounds changed (an
-        //    extreme object moved) does a second pass code them again. The same pass counts the codes'
-        //    top digit for the sort.
-        struct Part {
-            Vec3 min, max;
-            std::uint64_t all_or, all_and;
-        };
-        std::array<Part, 64 * 4> part;
-        codes_.resize(n);
-        order_.resize(n);
-        histograms_.resize(chunks * kTopDigits);
-        auto encode = [&](const Aabb& cb, bool bounds, bool codes) {
-            const MortonGrid grid(cb);
-            parallel(chunks, 1, [&, grid](std::size_t c0, std::size_t c1) {  // by value, as in resort()
-                for (std::size_t c = c0; c < c1; ++c) {
-                    std::uint32_t* h = histograms_.data() + c * kTopDigits;
-                    std::fill_n(h, kTopDigits, 0u);
-                    Vec3 lo = Aabb::empty().min, hi = Aabb::empty().max;
-                    std::uint64_t all_or = 0, all_and = ~0ull;
-                    const std::size_t e = std::min(n, (c + 1) * chunk_len);
-                    for (std::size_t i = c * chunk_len; i < e; ++i) {
-                        const Vec3 m = boxes[i].center();
-                        if (bounds) lo = rcb::min(lo, m), hi = rcb::max(hi, m);
-                        if (!codes) continue;
-                        const std::uint64_t code = grid.code(m);
-                        codes_[i] = code;
-                        all_or |= code, all_and &= code;
-                        ++h[code >> (63 - kTopBits)];
-                    }
-                    if (bounds) part[c].min = lo, part[c].max = hi;
-                    part[c].all_or = all_or, part[c].all_and = all_and;
-                }
-            });
-        };
-        if (bounds_known) {  // resort() found them: one pass
-            encode(code_bounds_, false, true);
-        } else {
-            encode(code_bounds_, true, !code_bounds_.is_empty());
-            Aabb cb = Aabb::empty();
-            for (std::size_t c = 0; c < chunks; ++c) cb = merge(cb, Aabb{part[c].min, part[c].max});
-            centroid_bounds_ = cb;
-            if (params_.outlier_guard) trim_outliers(cb);
-            if (code_bounds_.is_empty() || !(cb == code_bounds_)) {
-                code_bounds_ = cb;
-                encode(cb, false, true);
-            }
-        }
-        std::uint64_t all_or = 0, all_and = ~0ull;
-        for (std::size_t c = 0; c < chunks; ++c) all_or |= part[c].all_or, all_and &= part[c].all_and;
+        const std::uint64_t varying = encode(chunks, bounds_known);  // 1. Morton codes
         lap(phases_.codes);
-        // 2. Sort; equal codes by size (see "Equal codes" in the header).
-        sort_codes(all_or ^ all_and);
+        // 2. Sort; equal codes by size ("Equal codes" in docs/structures.md, Linear BVH).
+        sort_codes(varying);
         order_equal_codes();
         lap(phases_.sort);
     }
@@ -597,53 +680,44 @@ void LinearBvh::rebuild() {
     nodes_.resize(2 * n - 1);
     leaf_base_ = std::uint32_t(n - 1);
     if (n == 1) {
-        nodes_[0] = Node{boxes[0], {objects_.uid(0), kNullNode}};
+        nodes_[0] = Node{objects_.layout().all()[0], {objects_.uid(0), kNullNode}};
         meta_.clear();
         common_.clear();
         ranges_.clear();
         lap(phases_.tree);
         return;
     }
-    meta_.resize(n - 1);
-    common_.resize(n - 1);
-    ranges_.resize(n - 1);
-    bound_.resize(n - 1, kNullNode);
-    // 3. The binary radix tree of Karras 2012 (thesis Algorithm 3) and its bounds (thesis
-    //    Algorithm 4) in one bottom-up pass, as Apetrei 2014 ("Fast and simple agglomerative LBVH
-    //    construction") builds it: a node over the keys [l, r] hangs below the split at r (as the
-    //    left child) when its keys share more bits with key r + 1 than key l − 1 does, else below
-    //    the split at l − 1 (as the right child). Each leaf climbs; at each split the first climber
-    //    to arrive leaves its far end in bound_ and stops, the second learns the parent's range
-    //    from it, merges the children and goes on. The nodes keep Karras' numbering (a node at the
-    //    end of its range where its parent splits; root 0), so the tree is exactly the one
-    //    Algorithm 3 gives: each node is merged once, from its finished children.
-    //    Threads take chunks of the leaves and climb only while the sibling starts in their chunk
-    //    (then every split and node they touch is their own: no atomics); the few nodes stopped at
-    //    a chunk's edge climb on afterwards, on one thread. The tree is the same for any chunking.
-    const std::uint64_t* codes = codes_.data();
-    const std::uint32_t last = std::uint32_t(n - 1);
-    // δ(s): the common prefix of the keys s and s + 1; equal codes compare their indices instead
-    // (Karras §4: the keys are in effect code·2^32 + index).
-    auto delta = [codes](std::uint32_t s) {
+    build_tree(chunks, leaves_written);
+    lap(phases_.tree);
+}
+
+/// Step 3's climb from a finished node of the radix tree (see build_tree()): the arrays it writes,
+/// as plain pointers, so that stores into the nodes cannot alias what the loop reads.
+struct LinearBvh::Climb {
+    const std::uint64_t* codes;
+    std::uint32_t last;  // the last key
+    Node* nodes;
+    Meta* meta;
+    std::uint32_t* bound;
+    std::array<std::uint32_t, 2>* ranges;
+    Aabb* common;
+    std::uint32_t leaf_base;
+    bool check_crowds;
+
+    /// δ(s): the common prefix of the keys s and s + 1; equal codes compare their indices instead
+    /// (Karras 2012, §4: the keys are in effect code·2^32 + index).
+    int delta(std::uint32_t s) const {
         const std::uint64_t x = codes[s] ^ codes[s + 1];
         return x ? std::countl_zero(x) : 64 + std::countl_zero(s ^ (s + 1));
-    };
-    // The common box of a node: the intersection of the boxes below, kept only while it is not
-    // empty (kShared); once empty it stays empty further up, so most nodes of a scene without
-    // crowds never compute one.
-    // Climbs from the finished node [l, r] within the chunk [b, e); returns whether it stopped at
-    // the chunk's edge (the sibling starts outside; [l, r] is then that node). Adds the crowds it
-    // marks to `found`.
-    // Plain pointers: stores into the nodes cannot then alias the members the loop reads.
-    Node* nodes = nodes_.data();
-    Meta* meta = meta_.data();
-    std::uint32_t* bound = bound_.data();
-    std::array<std::uint32_t, 2>* ranges = ranges_.data();
-    Aabb* common = common_.data();
-    const std::uint32_t leaf_base = leaf_base_;
-    const bool check_crowds = crowds_checked_;
-    auto climb = [&](std::uint32_t & first, std::uint32_t & end, std::uint32_t b, std::uint32_t e, std::size_t & found)
-        __attribute__((always_inline)) {
+    }
+
+    /// Climbs from the finished node [first, end] within the chunk [b, e); returns whether it
+    /// stopped at the chunk's edge (the sibling starts outside; [first, end] is then that node).
+    /// Adds the crowds it marks to `found`. The common box of a node: the intersection of the
+    /// boxes below, kept only while it is not empty (kShared); once empty it stays empty further
+    /// up, so most nodes of a scene without crowds never compute one.
+    __attribute__((always_inline)) bool operator()(std::uint32_t& first, std::uint32_t& end, std::uint32_t b,
+                                                   std::uint32_t e, std::size_t& found) const {
         std::uint32_t l = first, r = end;
         bool left = l == 0 || (r != last && delta(r) > delta(l - 1));
         while (l != 0 || r != last) {
@@ -695,12 +769,37 @@ void LinearBvh::rebuild() {
             meta[p] = m;
         }
         return false;
-    };
+    }
+};
+
+/// 3. The leaves (unless resort() wrote them) and the binary radix tree of Karras 2012 (thesis
+/// Algorithm 3) with its bounds (thesis Algorithm 4) in one bottom-up pass, as Apetrei 2014 ("Fast
+/// and simple agglomerative LBVH construction") builds it: a node over the keys [l, r] hangs below
+/// the split at r (as the left child) when its keys share more bits with key r + 1 than key l − 1
+/// does, else below the split at l − 1 (as the right child). Each leaf climbs; at each split the
+/// first climber to arrive leaves its far end in bound_ and stops, the second learns the parent's
+/// range from it, merges the children and goes on. The nodes keep Karras' numbering (a node at the
+/// end of its range where its parent splits; root 0), so the tree is exactly the one Algorithm 3
+/// gives: each node is merged once, from its finished children. Threads take chunks of the leaves
+/// and climb only while the sibling starts in their chunk (then every split and node they touch is
+/// their own: no atomics); the few nodes stopped at a chunk's edge climb on afterwards, on one
+/// thread. The tree is the same for any chunking.
+void LinearBvh::build_tree(std::size_t chunks, bool leaves_written) {
+    const std::size_t n = objects_.size(), chunk_len = (n + chunks - 1) / chunks;
+    meta_.resize(n - 1);
+    common_.resize(n - 1);
+    ranges_.resize(n - 1);
+    bound_.resize(n - 1, kNullNode);
+    Node* nodes = nodes_.data();
+    const std::uint32_t leaf_base = leaf_base_;
+    const Climb climb{codes_.data(),  std::uint32_t(n - 1), nodes,     meta_.data(),   bound_.data(),
+                      ranges_.data(), common_.data(),       leaf_base, crowds_checked_};
+    const Aabb* boxes = objects_.layout().all().data();
     const Uid* uids = objects_.uids().data();
     const std::uint32_t* order = order_.data();
     pending_.resize(chunks);
     constexpr std::uint32_t kAhead = 16, kBlock = 512;
-    std::array<std::size_t, 64 * 4> found{};
+    std::array<std::size_t, kMaxChunks> found{};
     parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
         for (std::size_t c = c0; c < c1; ++c) {
             const std::uint32_t b = std::uint32_t(std::min(n, c * chunk_len)),
@@ -743,7 +842,6 @@ void LinearBvh::rebuild() {
         for (auto [l, r] : pending_[c]) climb(l, r, 0, std::uint32_t(n), crowds);
     }
     crowds_ = crowds;
-    lap(phases_.tree);
 }
 
 void LinearBvh::order_equal_codes() {

@@ -25,33 +25,42 @@ namespace rcb {
 
 class LinearBvh : public StructureBase<LinearBvh, StackScratch> {
 public:
+    /// The most build threads (Params::threads' range).
+    static constexpr int kMaxThreads = 64;
+    /// Chunks of the keys per build thread: the unit the steps split the work into.
+    static constexpr std::size_t kChunksPerThread = 4;
+    /// The most chunks of a rebuild: the size of the per-chunk arrays on the build's stack.
+    static constexpr std::size_t kMaxChunks = std::size_t(kMaxThreads) * kChunksPerThread;
+
     struct Params {
         /// Threads of the build (1 or 2 on this machine; the tree does not depend on it).
         int threads = 1;
         /// Morton codes over the central 99% of the centroids when the full centroid bounds are more
-        /// than 8× larger (see "Outlier guard" above).
+        /// than 8× larger ("Outlier guard" in docs/structures.md, Linear BVH).
         bool outlier_guard = true;
-        /// Scan the leaves of a crowd whose common box the segment meets (see "Crowds" above).
+        /// Scan the leaves of a crowd whose common box the segment meets ("Crowds" in
+        /// docs/structures.md, Linear BVH).
         bool crowd_guard = true;
         /// Threads of the timed ray batch (`threads` is the build's; see docs/structures.md).
         int cast_threads = 1;
         /// Sort from the last rebuild's order when few objects changed (the same tree either way).
         bool coherent_sort = true;
         static constexpr auto fields() {
-            return std::tuple{Field{"threads", &Params::threads, 1, 64, "build threads (TBB task arena)", false},
-                              Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
-                                    "Morton codes over the central 99% of the centroids when the full centroid bounds "
-                                    "are over 8x larger (exact either way)",
-                                    false},
-                              Field{"coherent_sort", &Params::coherent_sort, 0.0, 1.0,
-                                    "sort from the last rebuild's order when at most 1/16 of the objects changed (the "
-                                    "same tree either way)",
-                                    false, false, "", false},
-                              cast_threads_field<Params>(),
-                              Field{"crowd_guard", &Params::crowd_guard, 0.0, 1.0,
-                                    "a segment meeting the common box of a subtree of at least 16 boxes that share a "
-                                    "point tests its leaves in order instead of descending (exact either way)",
-                                    false}};
+            return std::tuple{
+                Field{"threads", &Params::threads, 1, kMaxThreads, "build threads (TBB task arena)", kNotTuned},
+                Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
+                      "Morton codes over the central 99% of the centroids when the full centroid bounds "
+                      "are over 8x larger (exact either way)",
+                      kNotTuned},
+                Field{"coherent_sort", &Params::coherent_sort, 0.0, 1.0,
+                      "sort from the last rebuild's order when at most 1/16 of the objects changed (the "
+                      "same tree either way)",
+                      kNotTunedDefaultUnrecorded},
+                cast_threads_field<Params>(),
+                Field{"crowd_guard", &Params::crowd_guard, 0.0, 1.0,
+                      "a segment meeting the common box of a subtree of at least 16 boxes that share a "
+                      "point tests its leaves in order instead of descending (exact either way)",
+                      kNotTuned}};
         }
     };
     /// Leaves below an inner node for it to be a crowd.
@@ -148,6 +157,14 @@ public:
 private:
     std::uint32_t root() const { return nodes_.empty() ? kNullNode : 0u; }
     void rebuild();
+    // The rebuild's steps (the top of this file): the radix path's codes, the tree; resort()'s
+    // bounds and codes, and its split, sort and merge (Resort).
+    std::uint64_t encode(std::size_t chunks, bool bounds_known);
+    void build_tree(std::size_t chunks, bool leaves_written);
+    Aabb resort_bounds(std::size_t chunks);
+    void resort_codes(std::size_t chunks, const Aabb& cb);
+    struct Resort;
+    struct Climb;
     template <class F>
     void parallel(std::size_t n, std::size_t grain, F&& f);
     void sort_codes(std::uint64_t varying);
@@ -197,7 +214,8 @@ private:
     // The bounds the last codes were normalised to (the first guess for the next rebuild's).
     Aabb code_bounds_ = Aabb::empty();
     Phases phases_;
-    // Crowds are looked for in this tree (see "Crowds" above), and rebuilds since they last were.
+    // Crowds are looked for in this tree ("Crowds" in docs/structures.md, Linear BVH), and
+    // rebuilds since they last were.
     bool crowds_checked_ = false;
     std::uint32_t rebuilds_since_crowd_check_ = 0;
 };

@@ -45,7 +45,9 @@ Aabb WideBvh::Block::bounds() const {
 
 WideBvh::WideBvh() : WideBvh(Params{}) {}
 
-WideBvh::WideBvh(const Params& p) : params_(p) { set_cast_threads(p.cast_threads); }
+WideBvh::WideBvh(const Params& p) : params_(p), push_(parse_choice<Push>(kPushChoices, p.push, "wbvh push")) {
+    set_cast_threads(p.cast_threads);
+}
 
 std::uint32_t WideBvh::allocate() {
     std::uint32_t b;
@@ -100,36 +102,31 @@ void WideBvh::set_lane(std::uint32_t b, int k, const Aabb& box) {
 
 void WideBvh::build(std::span<const Object> objects) {
     // A rebuild in progress is dropped: the new contents replace everything.
-    phase_ = Phase::idle;
-    next_.reset();
-    log_.clear();
-    log_mark_ = 0;
-    gather_skip_.clear();
-    replay_cursor_ = 0;
-    changes_ = age_ = cycle_age_ = cycle_work_ = last_cycle_work_ = budget_ = work_ = 0;
+    rebuild_.reset();
+    changes_ = age_ = 0;
     where_.clear();
     where_.reserve(objects.size() + objects.size() / 4);  // room for inserts before a rehash
-    items_.clear();
-    items_.reserve(objects.size());
-    for (const Object& o : objects) items_.push_back({o.box, centroid(o.box), o.uid});
+    std::vector<Item>& items = builder_.items();
+    items.clear();
+    items.reserve(objects.size());
+    for (const Object& o : objects) items.push_back({o.box, centroid(o.box), o.uid});
     rebuilds_ = splits_ = reinserts_ = 0;
-    begin_build();
-    build_step(std::numeric_limits<std::uint64_t>::max());
-    end_build();
-    // Until a rebuild has measured it: the build's units plus about one per object for the gathering
-    // and one for the replay.
-    units_per_object_ = double(build_work_) / double(std::max<std::size_t>(1, objects.size())) + 2;
+    builder_.begin(*this);
+    builder_.step(*this, std::numeric_limits<std::uint64_t>::max());
+    builder_.end(*this);
+    rebuild_.estimate(builder_.work(), objects.size());
 }
 
 void WideBvh::rebuild() {
-    items_.clear();
-    items_.reserve(where_.size());
+    std::vector<Item>& items = builder_.items();
+    items.clear();
+    items.reserve(where_.size());
     for (const Block& b : blocks_)
         if (b.leaf)
-            for (int k = 0; k < b.count; ++k) items_.push_back({b.box(k), centroid(b.box(k)), Uid(b.ref[k])});
-    begin_build();
-    build_step(std::numeric_limits<std::uint64_t>::max());
-    end_build();
+            for (int k = 0; k < b.count; ++k) items.push_back({b.box(k), centroid(b.box(k)), Uid(b.ref[k])});
+    builder_.begin(*this);
+    builder_.step(*this, std::numeric_limits<std::uint64_t>::max());
+    builder_.end(*this);
     ++rebuilds_;
     age_ = 0;
 }
@@ -144,10 +141,10 @@ void WideBvh::clear_tree() {
     changed_ = false;
 }
 
-void WideBvh::begin_build() {
-    clear_tree();
+void WideBvh::Builder::begin(WideBvh& t) {
+    t.clear_tree();
     // About one leaf per leaf_size objects and one inner node per (width − 1) blocks below.
-    blocks_.reserve(items_.size() / std::size_t(params_.leaf_size) * 8 / 6 + 2);
+    t.blocks_.reserve(items_.size() / std::size_t(t.params_.leaf_size) * 8 / 6 + 2);
     pending_.clear();
     opening_ = false;
     splitting_ = -1;
@@ -155,23 +152,24 @@ void WideBvh::begin_build() {
     if (!items_.empty()) pending_.push_back({Range{0, std::uint32_t(items_.size())}, kNone, 0, 0});
 }
 
-void WideBvh::end_build() {
-    grow_stack(max_depth_);
-    total_after_build_ = total_sah();
+void WideBvh::Builder::end(WideBvh& t) {
+    t.grow_stack(t.max_depth_);
+    t.total_after_build_ = t.total_sah();
     // The scratch is only needed again at the next rebuild: not held in between.
     std::vector<Item>().swap(items_);
     std::vector<Pending>().swap(pending_);
 }
 
-std::uint64_t WideBvh::build_step(std::uint64_t budget) {
+std::uint64_t WideBvh::Builder::step(WideBvh& t, std::uint64_t budget) {
+    const Params& params = t.params_;
     std::uint64_t work = 0;
     while (work < budget) {
         if (!opening_) {
             if (pending_.empty()) break;
             const Pending p = pending_.back();
             pending_.pop_back();
-            if (p.range.n <= std::uint32_t(params_.leaf_size)) {
-                make_leaf(p);
+            if (p.range.n <= std::uint32_t(params.leaf_size)) {
+                make_leaf(t, p);
                 work += p.range.n;
                 continue;
             }
@@ -186,39 +184,39 @@ std::uint64_t WideBvh::build_step(std::uint64_t budget) {
             // into wide nodes, done while building) until `width` parts or none can split.
             int pick = -1;
             double pick_area = 0;
-            for (int i = 0; i < nparts_ && nparts_ < params_.width; ++i) {
-                if (parts_[i].n <= std::uint32_t(params_.leaf_size)) continue;
+            for (int i = 0; i < nparts_ && nparts_ < params.width; ++i) {
+                if (parts_[i].n <= std::uint32_t(params.leaf_size)) continue;
                 const double a = area(parts_[i].box);
                 if (pick < 0 || a > pick_area || (a == pick_area && parts_[i].n > parts_[pick].n))
                     pick = i, pick_area = a;
             }
             if (pick < 0) {
-                finish_node();
+                finish_node(t);
                 work += std::uint64_t(nparts_);
                 continue;
             }
             splitting_ = pick;
-            split_stage_ = 0;
+            stage_ = Stage::centroid_bounds;
             cursor_ = parts_[pick].begin;
             cbox_ = Aabb::empty();
         }
-        work += split_step(budget - work);
+        work += split_step(params, budget - work);
     }
     build_work_ += work;
     return work;
 }
 
-std::uint64_t WideBvh::split_step(std::uint64_t budget) {
+std::uint64_t WideBvh::Builder::split_step(const Params& p, std::uint64_t budget) {
     // The loops work on locals (the members could alias the items for the compiler).
     const Range r = parts_[std::size_t(splitting_)];
     const std::uint32_t end = r.begin + r.n;
-    const int bins = params_.bins;
+    const int bins = p.bins;
     Item* const items = items_.data();
     Bin* const bin = bin_scratch_.data();
     std::uint32_t i = cursor_;
     const auto stop = std::uint32_t(std::min<std::uint64_t>(end, i + budget));
     const std::uint64_t work = stop - i;
-    if (split_stage_ == 0) {  // centroid bounds
+    if (stage_ == Stage::centroid_bounds) {
         Aabb cb = cbox_;
         for (; i < stop; ++i)
             cb.min = rcb::min(cb.min, items[i].centroid), cb.max = rcb::max(cb.max, items[i].centroid);
@@ -236,12 +234,12 @@ std::uint64_t WideBvh::split_step(std::uint64_t budget) {
             split_by_size(splitting_);
             return work + r.n;
         }
-        split_stage_ = 1;
+        stage_ = Stage::binning;
         cursor_ = r.begin;
         return work;
     }
     const Vec3 lo = cbox_.min;
-    if (split_stage_ == 1) {  // binning
+    if (stage_ == Stage::binning) {
         const double scale[3] = {scale_[0], scale_[1], scale_[2]};
         for (; i < stop; ++i) {
             const Item& it = items[i];
@@ -254,11 +252,11 @@ std::uint64_t WideBvh::split_step(std::uint64_t budget) {
         }
         cursor_ = i;
         if (i < end) return work;
-        if (!choose_split(r.n)) {
+        if (!choose_split(bins, r.n)) {
             split_by_size(splitting_);
             return work + r.n;
         }
-        split_stage_ = 2;
+        stage_ = Stage::partition;
         cursor_ = r.begin;
         right_ = r.begin + left_n_;
         return work;
@@ -293,9 +291,8 @@ std::uint64_t WideBvh::split_step(std::uint64_t budget) {
     return done;
 }
 
-bool WideBvh::choose_split(std::uint32_t n) {
+bool WideBvh::Builder::choose_split(int bins, std::uint32_t n) {
     // Binned SAH (Wald 2007): cost area(left)·n_left + area(right)·n_right per bin border.
-    const int bins = params_.bins;
     auto bin = [&](int axis) { return bin_scratch_.data() + std::size_t(axis) * std::size_t(bins); };
     int best_axis = -1, best_split = 0;
     double best_cost = std::numeric_limits<double>::infinity();
@@ -325,7 +322,7 @@ bool WideBvh::choose_split(std::uint32_t n) {
     return left_n_ > 0 && left_n_ < n;
 }
 
-void WideBvh::split_by_size(int part) {
+void WideBvh::Builder::split_by_size(int part) {
     const Range r = parts_[std::size_t(part)];
     Item* items = items_.data() + r.begin;
     const std::uint32_t half = r.n / 2;
@@ -353,35 +350,35 @@ void WideBvh::split_by_size(int part) {
     splitting_ = -1;
 }
 
-void WideBvh::finish_node() {
-    const std::uint32_t b = allocate();
-    Block& block = blocks_[b];
+void WideBvh::Builder::finish_node(WideBvh& t) {
+    const std::uint32_t b = t.allocate();
+    Block& block = t.blocks_[b];
     block.depth = open_.depth;
     block.count = std::uint8_t(nparts_);
     for (int j = 0; j < nparts_; ++j) block.set(j, parts_[std::size_t(j)].box);
-    max_depth_ = std::max(max_depth_, int(open_.depth));
-    link(b, open_.parent, open_.lane);
+    t.max_depth_ = std::max(t.max_depth_, int(open_.depth));
+    t.link(b, open_.parent, open_.lane);
     // Children in reverse, so that the first part is built next (depth first, in lane order).
     for (int j = nparts_ - 1; j >= 0; --j)
         pending_.push_back({parts_[std::size_t(j)], b, std::uint16_t(open_.depth + 1), std::uint8_t(j)});
     opening_ = false;
 }
 
-void WideBvh::make_leaf(const Pending& p) {
-    const std::uint32_t b = allocate();
-    Block& block = blocks_[b];
+void WideBvh::Builder::make_leaf(WideBvh& t, const Pending& p) {
+    const std::uint32_t b = t.allocate();
+    Block& block = t.blocks_[b];
     block.leaf = true;
     block.depth = p.depth;
     block.count = std::uint8_t(p.range.n);
-    ++leaves_;
+    ++t.leaves_;
     for (std::uint32_t i = 0; i < p.range.n; ++i) {
         const Item& it = items_[p.range.begin + i];
         block.set(int(i), it.box);
         block.ref[i] = it.uid;
-        where_[it.uid] = b * kLanes + i;
+        t.where_[it.uid] = b * kLanes + i;
     }
-    max_depth_ = std::max(max_depth_, int(p.depth));
-    link(b, p.parent, p.lane);
+    t.max_depth_ = std::max(t.max_depth_, int(p.depth));
+    t.link(b, p.parent, p.lane);
 }
 
 void WideBvh::link(std::uint32_t b, std::uint32_t parent, int lane) {
@@ -397,17 +394,17 @@ void WideBvh::link(std::uint32_t b, std::uint32_t parent, int lane) {
     sah_largest_term_ = std::max(sah_largest_term_, term);
 }
 
-std::uint32_t WideBvh::split(Item* items, std::uint32_t n) {
+std::uint32_t WideBvh::Builder::split(const Params& p, Item* items, std::uint32_t n) {
     // The build's split run whole on these items: no build is in progress in this tree when one of
     // its leaves splits (builds run to their end, or in the next tree of a progressive rebuild).
     items_.assign(items, items + n);
     parts_[0] = Range{0, n};
     nparts_ = 1;
     splitting_ = 0;
-    split_stage_ = 0;
+    stage_ = Stage::centroid_bounds;
     cursor_ = 0;
     cbox_ = Aabb::empty();
-    while (splitting_ >= 0) split_step(std::numeric_limits<std::uint64_t>::max());
+    while (splitting_ >= 0) split_step(p, std::numeric_limits<std::uint64_t>::max());
     std::copy(items_.begin(), items_.end(), items);
     items_.clear();
     return parts_[0].n;
@@ -434,7 +431,7 @@ std::uint32_t WideBvh::choose_leaf(const Aabb& box) const {
 
 void WideBvh::insert(const Object& o) {
     ++changes_;
-    log_change(o.uid);
+    rebuild_.log_change(o.uid);
     insert_object(o);
 }
 
@@ -477,12 +474,12 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
         const Block& block = blocks_[leaf];
         for (int k = 0; k < kLanes; ++k) {
             nine[std::size_t(k)] = {block.box(k), centroid(block.box(k)), Uid(block.ref[k])};
-            log_relocation(Uid(block.ref[k]));
+            rebuild_.log_relocation(Uid(block.ref[k]));
         }
     }
     nine[kLanes] = {o.box, centroid(o.box), o.uid};
     where_[o.uid] = 0;
-    const std::uint32_t m = split(nine.data(), kLanes + 1);
+    const std::uint32_t m = builder_.split(params_, nine.data(), kLanes + 1);
     // Take the leaf's term out of the running sum; set_lane below adds the new ones.
     const std::uint32_t parent = blocks_[leaf].parent;
     const int lane = blocks_[leaf].lane_in_parent;
@@ -550,7 +547,7 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
 
 void WideBvh::remove(Uid uid) {
     ++changes_;
-    log_change(uid);
+    rebuild_.log_change(uid);
     remove_object(uid);
 }
 
@@ -565,7 +562,7 @@ void WideBvh::remove_object(Uid uid) {
         block.set(k, block.box(last));
         block.ref[k] = block.ref[last];
         where_.find(Uid(block.ref[k]))->second = b * kLanes + std::uint32_t(k);
-        log_relocation(Uid(block.ref[k]));
+        rebuild_.log_relocation(Uid(block.ref[k]));
     }
     block.clear(last);
     --block.count;
@@ -614,7 +611,7 @@ void WideBvh::drop_child_lane(std::uint32_t b, int k) {
 
 void WideBvh::move(const Object& o) {
     ++changes_;
-    log_change(o.uid);
+    rebuild_.log_change(o.uid);
     const std::uint32_t at = where_.at(o.uid);
     const std::uint32_t b = at / kLanes;
     if (params_.reinsert && b != root_) {
@@ -653,7 +650,7 @@ void WideBvh::refit() {
 
 void WideBvh::commit() {
     refit();
-    budget_ = work_ = 0;
+    rebuild_.open_commit();
     if (!changed_) return;
     changed_ = false;
     if (sah_largest_term_ > 1e6 * std::abs(sah_sum_)) {
@@ -663,21 +660,7 @@ void WideBvh::commit() {
     const std::uint64_t changes = changes_;
     changes_ = 0;
     age_ += changes;
-    cycle_age_ += changes;
-    if (phase_ == Phase::idle && rebuild_due()) {
-        if (params_.rebuild_speed <= 0) {
-            rebuild();
-            return;
-        }
-        start_rebuild();
-    }
-    if (phase_ == Phase::idle) return;
-    budget_ = std::uint64_t(std::ceil(params_.rebuild_speed * double(changes) * units_per_object_));
-    // While replaying, the uids logged since the last commit are replayed on top of the budget: the
-    // log then shrinks by the budget's share at every commit, however slow the rebuild.
-    if (phase_ == Phase::replay) budget_ += (log_.size() - log_mark_) * kReplayUnits;
-    advance(budget_);
-    log_mark_ = log_.size();
+    rebuild_.commit(*this, changes);
 }
 
 // ---- progressive rebuild ----
@@ -697,16 +680,50 @@ bool WideBvh::rebuild_due() const {
     return params_.rebuild_after > 0 && double(age_) >= params_.rebuild_after * double(where_.size());
 }
 
-void WideBvh::start_rebuild() {
+void WideBvh::ProgressiveRebuild::reset() {
+    phase_ = Phase::idle;
+    next_.reset();
+    log_.clear();
+    log_mark_ = 0;
+    gather_skip_.clear();
+    replay_cursor_ = 0;
+    cycle_age_ = cycle_work_ = last_cycle_work_ = budget_ = work_ = 0;
+}
+
+void WideBvh::ProgressiveRebuild::estimate(std::uint64_t build_work, std::size_t objects) {
+    units_per_object_ = double(build_work) / double(std::max<std::size_t>(1, objects)) + 2;
+}
+
+void WideBvh::ProgressiveRebuild::commit(WideBvh& live, std::uint64_t changes) {
+    cycle_age_ += changes;
+    const Params& params = live.params_;
+    if (phase_ == Phase::idle && live.rebuild_due()) {
+        if (params.rebuild_speed <= 0) {
+            live.rebuild();
+            return;
+        }
+        start(live);
+    }
+    if (phase_ == Phase::idle) return;
+    budget_ = std::uint64_t(std::ceil(params.rebuild_speed * double(changes) * units_per_object_));
+    // While replaying, the uids logged since the last commit are replayed on top of the budget: the
+    // log then shrinks by the budget's share at every commit, however slow the rebuild.
+    if (phase_ == Phase::replay) budget_ += (log_.size() - log_mark_) * kReplayUnits;
+    advance(live, budget_);
+    log_mark_ = log_.size();
+}
+
+void WideBvh::ProgressiveRebuild::start(const WideBvh& live) {
     if (!next_) {
-        Params p = params_;
+        Params p = live.params_;
         p.rebuild_ratio = p.rebuild_after = p.rebuild_speed = 0;
         p.cast_threads = 1;
         next_ = std::make_unique<WideBvh>(p);
     }
-    next_->items_.clear();
-    next_->items_.reserve(where_.size());
-    next_->where_.reserve(where_.size() + where_.size() / 4);  // room for inserts before a rehash
+    const std::size_t n = live.where_.size();
+    next_->builder_.items().clear();
+    next_->builder_.items().reserve(n);
+    next_->where_.reserve(n + n / 4);  // room for inserts before a rehash
     phase_ = Phase::gather;
     gather_cursor_ = 0;
     log_.clear();
@@ -716,28 +733,28 @@ void WideBvh::start_rebuild() {
     cycle_age_ = cycle_work_ = 0;
 }
 
-void WideBvh::advance(std::uint64_t budget) {
+void WideBvh::ProgressiveRebuild::advance(WideBvh& live, std::uint64_t budget) {
     while (work_ < budget && phase_ != Phase::idle) {
         std::uint64_t w = 0;
         switch (phase_) {
             case Phase::gather:
-                w = gather_step(budget - work_);
+                w = gather_step(live, budget - work_);
                 break;
             case Phase::build:
-                w = next_->build_step(budget - work_);
-                if (next_->build_done()) {
-                    next_->end_build();
+                w = next_->builder_.step(*next_, budget - work_);
+                if (next_->builder_.done()) {
+                    next_->builder_.end(*next_);
                     phase_ = Phase::replay;
                 }
                 break;
             case Phase::replay:
                 while (work_ + w < budget && replay_cursor_ < log_.size()) {
-                    replay(log_[replay_cursor_++]);
+                    replay(live, log_[replay_cursor_++]);
                     w += kReplayUnits;
                 }
                 if (replay_cursor_ == log_.size()) {
                     work_ += w, cycle_work_ += w, w = 0;
-                    swap_trees();
+                    swap_trees(live);
                 }
                 break;
             case Phase::dispose: {
@@ -763,11 +780,12 @@ void WideBvh::advance(std::uint64_t budget) {
     }
 }
 
-std::uint64_t WideBvh::gather_step(std::uint64_t budget) {
+std::uint64_t WideBvh::ProgressiveRebuild::gather_step(const WideBvh& live, std::uint64_t budget) {
     std::uint64_t w = 0;
-    std::vector<Item>& items = next_->items_;
-    while (w < budget && gather_cursor_ < blocks_.size()) {
-        const Block& b = blocks_[gather_cursor_++];
+    std::vector<Item>& items = next_->builder_.items();
+    const std::vector<Block>& blocks = live.blocks_;
+    while (w < budget && gather_cursor_ < blocks.size()) {
+        const Block& b = blocks[gather_cursor_++];
         ++w;
         if (!b.leaf) continue;
         for (int k = 0; k < b.count; ++k) {
@@ -779,45 +797,47 @@ std::uint64_t WideBvh::gather_step(std::uint64_t budget) {
         }
         w += b.count;
     }
-    if (gather_cursor_ == blocks_.size()) {
+    if (gather_cursor_ == blocks.size()) {
         gather_skip_.clear();
-        next_->begin_build();
+        next_->builder_.begin(*next_);
         phase_ = Phase::build;
     }
     return w;
 }
 
-void WideBvh::replay(Uid uid) {
-    const auto live = where_.find(uid);
-    const auto next = next_->where_.find(uid);
-    if (live == where_.end()) {
-        if (next != next_->where_.end()) next_->remove(uid);
+void WideBvh::ProgressiveRebuild::replay(const WideBvh& live, Uid uid) {
+    WideBvh& next = *next_;
+    const auto in_live = live.where_.find(uid);
+    const auto in_next = next.where_.find(uid);
+    if (in_live == live.where_.end()) {
+        if (in_next != next.where_.end()) next.remove(uid);
         return;
     }
-    const Aabb box = blocks_[live->second / kLanes].box(int(live->second % kLanes));
-    if (next == next_->where_.end())
-        next_->insert(Object(uid, box));
-    else if (!(next_->blocks_[next->second / kLanes].box(int(next->second % kLanes)) == box))
-        next_->move(Object(uid, box));
+    const Aabb box = live.blocks_[in_live->second / kLanes].box(int(in_live->second % kLanes));
+    if (in_next == next.where_.end())
+        next.insert(Object(uid, box));
+    else if (!(next.blocks_[in_next->second / kLanes].box(int(in_next->second % kLanes)) == box))
+        next.move(Object(uid, box));
 }
 
-void WideBvh::swap_trees() {
-    next_->commit();  // refits what the replay changed
-    std::swap(blocks_, next_->blocks_);
-    std::swap(root_, next_->root_);
-    std::swap(free_, next_->free_);
-    std::swap(free_count_, next_->free_count_);
-    std::swap(leaves_, next_->leaves_);
-    std::swap(where_, next_->where_);
-    std::swap(dirty_, next_->dirty_);
-    std::swap(max_depth_, next_->max_depth_);
-    std::swap(sah_sum_, next_->sah_sum_);
-    std::swap(sah_largest_term_, next_->sah_largest_term_);
-    total_after_build_ = total_sah();
-    age_ = cycle_age_;
+void WideBvh::ProgressiveRebuild::swap_trees(WideBvh& live) {
+    WideBvh& next = *next_;
+    next.commit();  // refits what the replay changed
+    std::swap(live.blocks_, next.blocks_);
+    std::swap(live.root_, next.root_);
+    std::swap(live.free_, next.free_);
+    std::swap(live.free_count_, next.free_count_);
+    std::swap(live.leaves_, next.leaves_);
+    std::swap(live.where_, next.where_);
+    std::swap(live.dirty_, next.dirty_);
+    std::swap(live.max_depth_, next.max_depth_);
+    std::swap(live.sah_sum_, next.sah_sum_);
+    std::swap(live.sah_largest_term_, next.sah_largest_term_);
+    live.total_after_build_ = live.total_sah();
+    live.age_ = cycle_age_;
     last_cycle_work_ = cycle_work_;
-    units_per_object_ = double(cycle_work_) / double(std::max<std::size_t>(1, where_.size()));
-    ++rebuilds_;
+    units_per_object_ = double(cycle_work_) / double(std::max<std::size_t>(1, live.where_.size()));
+    ++live.rebuilds_;
     log_.clear();
     log_mark_ = 0;
     replay_cursor_ = 0;
@@ -871,37 +891,48 @@ std::size_t WideBvh::l2_bytes() {
     return bytes;
 }
 
-std::size_t WideBvh::memory_bytes() const {
-    std::size_t bytes = blocks_.capacity() * sizeof(Block) + where_.bucket_count() * sizeof(void*) +
-                        where_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) +
-                        dirty_.capacity() * sizeof(std::uint32_t) + scratch_bytes() + items_.capacity() * sizeof(Item) +
-                        pending_.capacity() * sizeof(Pending) + bin_scratch_.capacity() * sizeof(Bin) +
-                        right_cost_.capacity() * sizeof(double) + log_.capacity() * sizeof(Uid) +
-                        gather_skip_.bucket_count() * sizeof(void*) + gather_skip_.size() * 2 * sizeof(void*) +
-                        sizeof(*this);
+std::size_t WideBvh::Builder::memory_bytes() const {
+    return items_.capacity() * sizeof(Item) + pending_.capacity() * sizeof(Pending) +
+           bin_scratch_.capacity() * sizeof(Bin) + right_cost_.capacity() * sizeof(double);
+}
+
+std::size_t WideBvh::ProgressiveRebuild::memory_bytes() const {
+    std::size_t bytes = log_.capacity() * sizeof(Uid) + gather_skip_.bucket_count() * sizeof(void*) +
+                        gather_skip_.size() * 2 * sizeof(void*);
     if (next_) bytes += next_->memory_bytes();
     return bytes;
 }
 
-nlohmann::json WideBvh::stats() const {
+std::size_t WideBvh::memory_bytes() const {
+    return blocks_.capacity() * sizeof(Block) + where_.bucket_count() * sizeof(void*) +
+           where_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) + dirty_.capacity() * sizeof(std::uint32_t) +
+           scratch_bytes() + builder_.memory_bytes() + rebuild_.memory_bytes() + sizeof(*this);
+}
+
+void WideBvh::ProgressiveRebuild::add_stats(nlohmann::json& stats) const {
     static constexpr const char* kPhases[] = {"idle", "gather", "build", "replay", "dispose"};
-    return {{"sah_cost", sah_cost()},
-            {"sah_growth", sah_growth()},
-            {"depth", depth()},
-            {"nodes", blocks_.size() - free_count_},
-            {"leaves", leaves_},
-            {"rebuilds", rebuilds_},
-            {"leaf_splits", splits_},
-            {"reinserts", reinserts_},
-            {"rebuild_phase", kPhases[int(phase_)]},
-            {"rebuild_budget", budget_},
-            {"rebuild_work", work_},
-            {"rebuilt_objects", units_per_object_ > 0 ? double(work_) / units_per_object_ : 0.0},
-            {"last_rebuild_work", last_cycle_work_}};
+    stats["rebuild_phase"] = kPhases[int(phase_)];
+    stats["rebuild_budget"] = budget_;
+    stats["rebuild_work"] = work_;
+    stats["rebuilt_objects"] = units_per_object_ > 0 ? double(work_) / units_per_object_ : 0.0;
+    stats["last_rebuild_work"] = last_cycle_work_;
+}
+
+nlohmann::json WideBvh::stats() const {
+    nlohmann::json stats = {{"sah_cost", sah_cost()}, {"sah_growth", sah_growth()},
+                            {"depth", depth()},       {"nodes", blocks_.size() - free_count_},
+                            {"leaves", leaves_},      {"rebuilds", rebuilds_},
+                            {"leaf_splits", splits_}, {"reinserts", reinserts_}};
+    rebuild_.add_stats(stats);
+    return stats;
 }
 
 void WideBvh::validate() const {
     validate_tree(true);
+    rebuild_.validate(*this);
+}
+
+void WideBvh::ProgressiveRebuild::validate(const WideBvh& live) const {
     auto fail = [](const std::string& what) { broken_invariant("wbvh", what); };
     if (phase_ == Phase::idle) {
         if (!log_.empty() || replay_cursor_ != 0 || !gather_skip_.empty()) fail("a change log without a rebuild");
@@ -917,27 +948,27 @@ void WideBvh::validate() const {
     // gathered and built) holds every live uid with its live box, except uids still to replay.
     const std::unordered_set<Uid> to_replay(log_.begin() + std::ptrdiff_t(replay_cursor_), log_.end());
     auto live_box = [&](Uid uid, const Aabb& box) {
-        const auto it = where_.find(uid);
-        return it != where_.end() && blocks_[it->second / kLanes].box(int(it->second % kLanes)) == box;
+        const auto it = live.where_.find(uid);
+        return it != live.where_.end() && live.blocks_[it->second / kLanes].box(int(it->second % kLanes)) == box;
     };
     if (phase_ == Phase::replay) {
         next_->validate_tree(false);
         for (const auto& [uid, at] : next_->where_)
             if (to_replay.count(uid) == 0 && !live_box(uid, next_->blocks_[at / kLanes].box(int(at % kLanes))))
                 fail("uid " + std::to_string(uid) + " of the next tree is not live with that box, and not logged");
-        for (const auto& [uid, at] : where_)
+        for (const auto& [uid, at] : live.where_)
             if (to_replay.count(uid) == 0 && next_->where_.count(uid) == 0)
                 fail("live uid " + std::to_string(uid) + " is not in the next tree, and not logged");
         return;
     }
     std::unordered_set<Uid> gathered;
-    for (const Item& it : next_->items_) {
+    for (const Item& it : next_->builder_.items()) {
         if (!gathered.insert(it.uid).second) fail("uid " + std::to_string(it.uid) + " gathered twice");
         if (to_replay.count(it.uid) == 0 && !live_box(it.uid, it.box))
             fail("uid " + std::to_string(it.uid) + " gathered with a box it no longer has, and not logged");
     }
     if (phase_ == Phase::build)
-        for (const auto& [uid, at] : where_)
+        for (const auto& [uid, at] : live.where_)
             if (to_replay.count(uid) == 0 && gathered.count(uid) == 0)
                 fail("live uid " + std::to_string(uid) + " was not gathered, and not logged");
 }

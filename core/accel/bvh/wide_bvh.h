@@ -33,6 +33,13 @@ namespace rcb {
 
 class WideBvh : public StructureBase<WideBvh, StackScratch> {
 public:
+    /// Params::push, parsed once by the constructor; the enumerators follow kPushChoices.
+    enum class Push : std::uint8_t { automatic, fixed, loop };
+    static constexpr const char* kPushChoices = "auto,fixed,loop";
+    /// The field options of `push`: the tuner searches it; complete parameters leave it out at its
+    /// default.
+    static constexpr FieldOptions kPushOptions{.choices = kPushChoices, .recorded_when_default = false};
+
     struct Params {
         /// Children per inner node at build time (the lanes of a node are 8 either way). 8 measured
         /// 1.3-1.5x faster rays than 4 on irreg-l, clusters-l and jittered-l.
@@ -68,7 +75,7 @@ public:
                 Field{"width", &Params::width, 2, 8, "children per inner node at build time (lanes are 8 either way)"},
                 Field{"leaf_size", &Params::leaf_size, 1, 8,
                       "objects per leaf at build time (a full leaf splits on insert)"},
-                Field{"bins", &Params::bins, 2, 256, "SAH bins per axis of the build", true, true},
+                Field{"bins", &Params::bins, 2, 256, "SAH bins per axis of the build", kLogScale},
                 Field{"rebuild_ratio", &Params::rebuild_ratio, 0.0, 100.0,
                       "a rebuild starts at commit when the SAH sum (not divided by the root area) exceeds this x its "
                       "value when the tree was last built or swapped in (0: never; values in (0, 1] start one at "
@@ -86,7 +93,7 @@ public:
                       "how a node's hit children go onto the stack: loop (one step per hit child; its speculation "
                       "runs ahead through cache misses), fixed (eight branch-free steps; no mispredicted loop exit), "
                       "auto (fixed while the tree's blocks fit in the L2 cache)",
-                      true, false, "auto,fixed,loop", false},
+                      kPushOptions},
                 cast_threads_field<Params>()};
         }
     };
@@ -121,7 +128,7 @@ public:
     void prepare() {
         if (!dirty_.empty()) refit();
         fixed_push_ =
-            params_.push == "fixed" || (params_.push == "auto" && blocks_.size() * sizeof(Block) <= l2_bytes());
+            push_ == Push::fixed || (push_ == Push::automatic && blocks_.size() * sizeof(Block) <= l2_bytes());
     }
     /// Popping one block pushes at most 8: at most 7 per inner level on the path plus one.
     void fit(StackScratch& scratch) const { scratch.fit(7 * std::size_t(max_depth_) + 8); }
@@ -273,6 +280,122 @@ private:
     // of an index entry freed, from their times against the build's.
     static constexpr std::uint64_t kReplayUnits = 16, kDisposeUnits = 4;
 
+    /// The top-down binned SAH build of one tree, resumable, so that a rebuild can be spread over
+    /// commits: step() does at most about `budget` units of work (one unit: an item binned, bounded
+    /// or partitioned, an object written to a leaf) and returns what it did; build() and rebuild()
+    /// run it without a limit, a progressive rebuild a share per commit. Depth first: pending_
+    /// holds the blocks still to build, and the node being opened keeps its parts and the split in
+    /// progress between steps. The tree passed to each call is the one it builds (its owner).
+    class Builder {
+    public:
+        /// The objects to build from: filled before begin(), freed by end().
+        std::vector<Item>& items() { return items_; }
+        const std::vector<Item>& items() const { return items_; }
+        /// Empties `t` and starts a build of items().
+        void begin(WideBvh& t);
+        std::uint64_t step(WideBvh& t, std::uint64_t budget);
+        bool done() const { return pending_.empty() && !opening_; }
+        void end(WideBvh& t);
+        /// Units of the build so far.
+        std::uint64_t work() const { return build_work_; }
+        /// Splits items [0, n) in two (binned SAH; by size or the median when that cannot split)
+        /// and returns the size of the first part, in 1..n-1. For the nine objects of a leaf split;
+        /// no build is in progress then (builds run to their end, or in the next tree).
+        std::uint32_t split(const Params& p, Item* items, std::uint32_t n);
+        std::size_t memory_bytes() const;
+
+    private:
+        /// The stage of the split of parts_[splitting_].
+        enum class Stage : std::uint8_t { centroid_bounds, binning, partition };
+        /// One step of the split of parts_[splitting_]: centroid bounds, binning, then the
+        /// partition.
+        std::uint64_t split_step(const Params& p, std::uint64_t budget);
+        /// Chooses the binned-SAH split of the part from the bins; false when none splits it.
+        bool choose_split(int bins, std::uint32_t n);
+        /// The fallbacks when binning cannot split `part`: by size when its centroids coincide,
+        /// else at the median of the widest axis. Done whole (these parts are rare, and small in
+        /// practice).
+        void split_by_size(int part);
+        /// The node being opened is complete: its block, its lanes, its parts pending as children.
+        void finish_node(WideBvh& t);
+        void make_leaf(WideBvh& t, const Pending& p);
+
+        std::vector<Item> items_;
+        std::vector<Pending> pending_;
+        bool opening_ = false;  // a node is being opened: open_, parts_, splitting_ hold it
+        Pending open_;          // the node being opened
+        std::array<Range, kLanes> parts_;
+        int nparts_ = 0;
+        int splitting_ = -1;  // the part being split, or -1
+        Stage stage_ = Stage::centroid_bounds;
+        std::uint32_t cursor_ = 0, right_ = 0;  // the next item of the stage; the partition's right-side scan
+        Aabb cbox_;                             // the centroid bounds of the part being split
+        double scale_[3] = {0, 0, 0};           // bins per unit of centroid, per axis (0: the axis is not binned)
+        int axis_ = 0, split_bin_ = 0;          // the chosen split: items of bins below split_bin_ on axis_ go left
+        std::uint32_t left_n_ = 0;
+        std::uint64_t build_work_ = 0;  // units of the build so far
+        std::vector<Bin> bin_scratch_;
+        std::vector<double> right_cost_;
+    };
+
+    /// The progressive rebuild of a live tree (the top of this file, and "progressive rebuild" in
+    /// wide_bvh.cpp): the next tree, the log of changes to replay into it, and the work per commit.
+    /// The tree passed to each call is the live one (its owner).
+    class ProgressiveRebuild {
+    public:
+        Phase phase() const { return phase_; }
+        /// Drops a rebuild in progress (build(): new contents replace everything).
+        void reset();
+        /// After a build of the live tree from `objects` objects in `build_work` units: until a
+        /// rebuild has measured it, the build's units plus about one per object for the gathering
+        /// and one for the replay.
+        void estimate(std::uint64_t build_work, std::size_t objects);
+        /// Every commit first: no budget and no work yet.
+        void open_commit() { budget_ = work_ = 0; }
+        /// A commit that follows changes (`changes` of them): starts a rebuild when one is due,
+        /// and spends the budget they earn on the one in progress.
+        void commit(WideBvh& live, std::uint64_t changes);
+        /// A change to the live tree while a rebuild gathers, builds or replays: the uid is
+        /// replayed into the next tree before the swap (and skipped by the gathering, if not yet
+        /// gathered).
+        void log_change(Uid uid) {
+            if (phase_ == Phase::idle || phase_ == Phase::dispose) return;
+            log_.push_back(uid);
+            if (phase_ == Phase::gather) gather_skip_.insert(uid);
+        }
+        /// An object of the live tree moved to another lane (a leaf split, a remove filling its
+        /// hole): only the gathering cares, which could see it twice or not at all.
+        void log_relocation(Uid uid) {
+            if (phase_ == Phase::gather) log_change(uid);
+        }
+        void add_stats(nlohmann::json& stats) const;
+        std::size_t memory_bytes() const;
+        /// The rebuild's invariants against the live tree (validate()).
+        void validate(const WideBvh& live) const;
+
+    private:
+        void start(const WideBvh& live);
+        /// Advances the rebuild by about `budget` units; swaps the trees when the replay is done.
+        void advance(WideBvh& live, std::uint64_t budget);
+        std::uint64_t gather_step(const WideBvh& live, std::uint64_t budget);
+        /// Makes the next tree hold `uid` as the live tree does now (present or not, same box).
+        void replay(const WideBvh& live, Uid uid);
+        void swap_trees(WideBvh& live);
+
+        Phase phase_ = Phase::idle;
+        std::unique_ptr<WideBvh> next_;        // the tree being built (then the replaced one, disposed)
+        std::uint32_t gather_cursor_ = 0;      // the next block to gather
+        std::vector<Uid> log_;                 // uids changed since the gathering began
+        std::unordered_set<Uid> gather_skip_;  // uids changed while gathering: not gathered
+        std::size_t replay_cursor_ = 0;
+        std::size_t log_mark_ = 0;             // the log's size at the end of the last commit
+        std::uint64_t cycle_age_ = 0;          // changes since the rebuild in progress gathered
+        std::uint64_t cycle_work_ = 0;         // units of the rebuild in progress so far
+        std::uint64_t last_cycle_work_ = 0;    // units of the last progressive rebuild, to its swap
+        double units_per_object_ = 0;          // units of the last rebuild per object
+        std::uint64_t budget_ = 0, work_ = 0;  // of the last commit
+    };
+
     std::uint32_t allocate();
     void release(std::uint32_t b);
     void mark(std::uint32_t b);
@@ -281,31 +404,8 @@ private:
     void rebuild();
     /// Empties the tree (blocks, index, counters), keeping the build state.
     void clear_tree();
-
-    // The top-down binned SAH build, resumable, so that a rebuild can be spread over commits:
-    // build_step() does at most about `budget` units of work (one unit: an item binned, bounded or
-    // partitioned, an object written to a leaf) and returns what it did; build() and rebuild() run
-    // it without a limit, a progressive rebuild a share per commit. Depth first: pending_ holds the blocks still to
-    // build, and the node being opened keeps its parts and the split in progress between steps.
-    void begin_build();
-    std::uint64_t build_step(std::uint64_t budget);
-    bool build_done() const { return pending_.empty() && !opening_; }
-    void end_build();
-    /// One step of the split of parts_[splitting_]: centroid bounds, binning, then the partition.
-    std::uint64_t split_step(std::uint64_t budget);
-    /// Chooses the binned-SAH split of the part from the bins; false when none splits it.
-    bool choose_split(std::uint32_t n);
-    /// The fallbacks when binning cannot split `part`: by size when its centroids coincide, else at
-    /// the median of the widest axis. Done whole (these parts are rare, and small in practice).
-    void split_by_size(int part);
-    /// The node being opened is complete: its block, its lanes, its parts pending as children.
-    void finish_node();
-    void make_leaf(const Pending& p);
     /// Hooks block `b` into lane `lane` of `parent` (or makes it the root) and adds its SAH term.
     void link(std::uint32_t b, std::uint32_t parent, int lane);
-    /// Splits items [0, n) in two (binned SAH; by size or the median when that cannot split) and
-    /// returns the size of the first part, in 1..n-1. For the nine objects of a leaf split.
-    std::uint32_t split(Item* items, std::uint32_t n);
 
     /// The leaf a new box goes to: the child of least area growth at every level.
     std::uint32_t choose_leaf(const Aabb& box) const;
@@ -330,30 +430,11 @@ private:
     /// The checks of validate() on this tree alone; `refitted` false (the next tree of a rebuild,
     /// while changes are replayed into it): lanes need not enclose their children yet.
     void validate_tree(bool refitted) const;
-
-    // ---- the progressive rebuild (the live tree's side) ----
+    /// Whether a commit starts a rebuild (Params::rebuild_ratio, rebuild_after).
     bool rebuild_due() const;
-    void start_rebuild();
-    /// Advances the rebuild by about `budget` units; swaps the trees when the replay is done.
-    void advance(std::uint64_t budget);
-    std::uint64_t gather_step(std::uint64_t budget);
-    /// Makes the next tree hold `uid` as the live tree does now (present or not, same box).
-    void replay(Uid uid);
-    void swap_trees();
-    /// A change to the live tree while a rebuild gathers, builds or replays: the uid is replayed
-    /// into the next tree before the swap (and skipped by the gathering, if not yet gathered).
-    void log_change(Uid uid) {
-        if (phase_ == Phase::idle || phase_ == Phase::dispose) return;
-        log_.push_back(uid);
-        if (phase_ == Phase::gather) gather_skip_.insert(uid);
-    }
-    /// An object of the live tree moved to another lane (a leaf split, a remove filling its hole):
-    /// only the gathering cares, which could see it twice or not at all.
-    void log_relocation(Uid uid) {
-        if (phase_ == Phase::gather) log_change(uid);
-    }
 
     Params params_;
+    Push push_;
     std::vector<Block> blocks_;
     std::uint32_t root_ = kNone;
     std::uint32_t free_ = kNone;
@@ -372,42 +453,13 @@ private:
     double sah_largest_term_ = 0.0;
     double total_after_build_ = 0.0;  // total_sah() right after the last build or swap
     bool changed_ = false;            // changes since the last commit
+    std::uint64_t changes_ = 0;       // changes since the last commit
+    std::uint64_t age_ = 0;           // changes since the live tree's objects were gathered
     // Stats.
     std::uint32_t rebuilds_ = 0, splits_ = 0, reinserts_ = 0;
 
-    // Build state (of the tree being built).
-    std::vector<Item> items_;
-    std::vector<Pending> pending_;
-    bool opening_ = false;  // a node is being opened: open_, parts_, splitting_ hold it
-    Pending open_;          // the node being opened
-    std::array<Range, kLanes> parts_;
-    int nparts_ = 0;
-    int splitting_ = -1;                    // the part being split, or -1
-    std::uint8_t split_stage_ = 0;          // 0: centroid bounds, 1: binning, 2: partition
-    std::uint32_t cursor_ = 0, right_ = 0;  // the next item of the stage; the partition's right-side scan
-    Aabb cbox_;                             // the centroid bounds of the part being split
-    double scale_[3] = {0, 0, 0};           // bins per unit of centroid, per axis (0: the axis is not binned)
-    int axis_ = 0, split_bin_ = 0;          // the chosen split: items of bins below split_bin_ on axis_ go left
-    std::uint32_t left_n_ = 0;
-    std::uint64_t build_work_ = 0;  // units of the build so far
-    std::vector<Bin> bin_scratch_;
-    std::vector<double> right_cost_;
-
-    // Progressive rebuild state (of the live tree).
-    Phase phase_ = Phase::idle;
-    std::unique_ptr<WideBvh> next_;        // the tree being built (then the replaced one, disposed)
-    std::uint32_t gather_cursor_ = 0;      // the next block to gather
-    std::vector<Uid> log_;                 // uids changed since the gathering began
-    std::unordered_set<Uid> gather_skip_;  // uids changed while gathering: not gathered
-    std::size_t replay_cursor_ = 0;
-    std::size_t log_mark_ = 0;             // the log's size at the end of the last commit
-    std::uint64_t changes_ = 0;            // changes since the last commit
-    std::uint64_t age_ = 0;                // changes since the live tree's objects were gathered
-    std::uint64_t cycle_age_ = 0;          // changes since the rebuild in progress gathered
-    std::uint64_t cycle_work_ = 0;         // units of the rebuild in progress so far
-    std::uint64_t last_cycle_work_ = 0;    // units of the last progressive rebuild, to its swap
-    double units_per_object_ = 0;          // units of the last rebuild per object
-    std::uint64_t budget_ = 0, work_ = 0;  // of the last commit
+    Builder builder_;             // builds this tree
+    ProgressiveRebuild rebuild_;  // builds the next one while this one answers
 };
 
 }  // namespace rcb

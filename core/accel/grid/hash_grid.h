@@ -73,26 +73,26 @@ public:
         int cast_threads = 1;
         static constexpr auto fields() {
             return std::tuple{
-                Field{"amp", &Params::amp, 0.01, 16.0, "top-level cells = objects × amp (eq. 4.2)", true, true},
+                Field{"amp", &Params::amp, 0.01, 16.0, "top-level cells = objects × amp (eq. 4.2)", kLogScale},
                 Field{"max_depth", &Params::max_depth, 0, 6, "levels of subdivision below the top grid"},
                 Field{"max_capacity", &Params::max_capacity, 1, 256,
-                      "objects a leaf holds before it splits (collapse at half)", true, true},
+                      "objects a leaf holds before it splits (collapse at half)", kLogScale},
                 Field{"subdivision", &Params::subdivision, 2, 4, "children per axis when a cell splits"},
                 Field{"max_entries_per_object", &Params::max_entries_per_object, 2, 256,
                       "memory guard: a split that would make the cells hold more than this many object entries per "
                       "object (over max(objects, objects at build, 64)) is refused",
-                      false},
+                      kNotTuned},
                 Field{"entries_guard", &Params::entries_guard, 0.0, 1.0,
                       "apply the max_entries_per_object memory guard (off: splits are limited by max_depth only)",
-                      false},
+                      kNotTuned},
                 Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
                       "top grid over the central 99% of the objects per axis when the full bounds are over 8x larger "
                       "(exact either way)",
-                      false},
+                      kNotTuned},
                 Field{"max_cells", &Params::max_cells, 0, 1 << 20,
                       "large-object guard: an object overlapping more than this many top-grid cells is kept in one "
                       "list that every ray tests once (0: off)",
-                      false},
+                      kNotTuned},
                 cast_threads_field<Params>()};
         }
     };

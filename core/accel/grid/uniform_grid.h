@@ -38,19 +38,19 @@ public:
         static constexpr auto fields() {
             return std::tuple{
                 Field{"density", &Params::density, 0.1, 64.0,
-                      "objects per cell in eq. 4.1 (cells = objects / density; capped at 4 Mi cells)", true, true},
+                      "objects per cell in eq. 4.1 (cells = objects / density; capped at 4 Mi cells)", kLogScale},
                 Field{"max_cells", &Params::max_cells, 0, 1 << 20,
                       "large-object guard: an object overlapping more than this many cells is kept in one list that "
                       "every ray tests once (0: off)",
-                      false},
+                      kNotTuned},
                 Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
                       "cover only the central 99% of the objects per axis when the full bounds are over 8x larger "
                       "(outliers go to the unbounded border cells; exact either way)",
-                      false},
+                      kNotTuned},
                 Field{"thesis_reset", &Params::thesis_reset, 0.0, 1.0,
                       "avoid duplicate tests with the thesis' bool vector reset per ray (O(N) per ray) instead of "
                       "per-query stamps; for measuring the difference",
-                      false},
+                      kNotTuned},
                 cast_threads_field<Params>()};
         }
     };

@@ -33,7 +33,7 @@ public:
                               Field{"robust", &Params::robust, 0, 1,
                                     "pad the leaves (false: btDbvt as shipped, unpadded: its float ray test may lose "
                                     "touching hits; the result then promises no hit)",
-                                    false}};
+                                    kNotTuned}};
         }
     };
 

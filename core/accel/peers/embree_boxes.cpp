@@ -75,7 +75,10 @@ bool memory_callback(void* user, ssize_t bytes, bool) {
 
 EmbreeBoxes::EmbreeBoxes() : EmbreeBoxes(Params{}) {}
 
-EmbreeBoxes::EmbreeBoxes(const Params& params) : params_(params), device_(std::make_unique<Device>()) {
+EmbreeBoxes::EmbreeBoxes(const Params& params)
+    : params_(params),
+      quality_(parse_choice<Quality>(kQualityChoices, params.quality, "embree quality")),
+      device_(std::make_unique<Device>()) {
     Device& d = *device_;
     d.device = rtcNewDevice(nullptr);
     if (!d.device)
@@ -84,7 +87,7 @@ EmbreeBoxes::EmbreeBoxes(const Params& params) : params_(params), device_(std::m
     rtcSetDeviceErrorFunction(d.device, error_callback, &d);
     rtcSetDeviceMemoryMonitorFunction(d.device, memory_callback, &d);
     d.scene = rtcNewScene(d.device);
-    const bool low = params_.quality == "low";
+    const bool low = quality_ == Quality::low;
     rtcSetSceneBuildQuality(d.scene, low || params_.refit ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM);
     if (params_.refit) rtcSetSceneFlags(d.scene, RTC_SCENE_FLAG_DYNAMIC);
     d.geometry = rtcNewGeometry(d.device, RTC_GEOMETRY_TYPE_USER);

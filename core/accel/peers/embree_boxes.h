@@ -23,6 +23,10 @@ namespace rcb {
 
 class EmbreeBoxes : public StructureBase<EmbreeBoxes> {
 public:
+    /// Params::quality, parsed once by the constructor; the enumerators follow kQualityChoices.
+    enum class Quality : std::uint8_t { low, medium };
+    static constexpr const char* kQualityChoices = "low,medium";
+
     struct Params {
         std::string quality = "medium";
         bool refit = false;
@@ -31,15 +35,14 @@ public:
         static constexpr auto fields() {
             return std::tuple{
                 Field{"quality", &Params::quality, 0, 0,
-                      "Embree build quality: low (Morton, two-level) or medium (binned SAH)", true, false,
-                      "low,medium"},
+                      "Embree build quality: low (Morton, two-level) or medium (binned SAH)", choices(kQualityChoices)},
                 Field{"refit", &Params::refit, 0, 1,
-                      "refit the BVH at commit (RTC_BUILD_QUALITY_REFIT) instead of rebuilding", true},
-                Field{"threads", &Params::threads, 1, 64, "commit (build) threads, a TBB task arena", false},
+                      "refit the BVH at commit (RTC_BUILD_QUALITY_REFIT) instead of rebuilding"},
+                Field{"threads", &Params::threads, 1, 64, "commit (build) threads, a TBB task arena", kNotTuned},
                 Field{"robust", &Params::robust, 0, 1,
                       "pad the bounds Embree gets (false: Embree as shipped, unpadded: it may lose touching hits; "
                       "the result then promises no hit)",
-                      false}};
+                      kNotTuned}};
         }
     };
 
@@ -82,6 +85,7 @@ private:
     bool embree_query(const Segment& s, Query& q);
 
     Params params_;
+    Quality quality_;
     std::unique_ptr<Device> device_;
     SlotBoxes objects_;     // slot = Embree primitive id
     float pad_ = 0;         // padding of the bounds given to Embree at the last commit
