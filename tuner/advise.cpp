@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <ostream>
 
 #include "core/base/error.h"
 #include "core/base/json_input.h"
