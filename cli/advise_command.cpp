@@ -10,6 +10,77 @@
 
 namespace rcb {
 
+namespace {
+
+/// The measured rows as a table, the recommendation and its runner-up.
+void print_rows(const Advice& advice, const AdviseOptions& options) {
+    const std::vector<AdviceRow>& rows = advice.rows;
+    const bool verified = options.accuracy.needs_verification();
+    std::vector<std::string> header{"structure",    "parameters", "update ms", "ray cast ms",
+                                    "per frame ms", "memory",     ""};
+    if (verified) header.insert(header.end(), {"precision", "recall"});
+    TextTable t(header);
+    for (const AdviceRow& r : rows) {
+        std::vector<std::string> row{r.structure,
+                                     r.params,
+                                     fixed(r.cost.update_ms, 4),
+                                     fixed(r.cost.raycast_ms, 4),
+                                     fixed(r.cost.ms, 4) + " ± " + fixed(r.cost.mad, 4),
+                                     bytes_text(r.cost.memory_bytes),
+                                     std::string(r.tuned ? "tuned" : "defaults") + (r.meets ? "" : ", fails")};
+        if (verified) row.insert(row.end(), {fixed(r.cost.accuracy.precision, 3), fixed(r.cost.accuracy.recall, 3)});
+        t.add(row);
+    }
+    t.print(std::cout);
+    if (!advice.recommended)
+        throw InputError(options.scene + ": no configuration meets --accuracy " + options.accuracy.text());
+    const AdviceRow& best = rows[*advice.recommended];
+    std::cout << "\nShip " << best.structure << " " << best.params << ": " << fixed(best.cost.ms, 4)
+              << " ms per frame (update " << fixed(best.cost.update_ms, 4) << " + ray cast "
+              << fixed(best.cost.raycast_ms, 4) << "), " << bytes_text(best.cost.memory_bytes)
+              << (verified ? ", precision " + fixed(best.cost.accuracy.precision, 3) + ", recall " +
+                                 fixed(best.cost.accuracy.recall, 3)
+                           : std::string())
+              << "; meets " << options.accuracy.text() << ".";
+    for (std::size_t i = *advice.recommended + 1; i < rows.size(); ++i)
+        if (rows[i].meets) {
+            std::cout << " Runner-up: " << rows[i].structure << ", " << fixed(rows[i].cost.ms / best.cost.ms, 2)
+                      << "x its cost.";
+            break;
+        }
+    std::cout << '\n';
+}
+
+/// --exhaustive: how far the advised and the category's parameters are from the scene's best.
+void print_exhaustive(const std::vector<ExhaustiveAdvice>& exhaustive) {
+    if (exhaustive.empty()) return;
+    auto percent_text = [](double gap) { return (gap >= 0 ? "+" : "") + fixed(100 * gap, 1) + "%"; };
+    std::cout << "\nEvery configuration of the tuned spaces measured on this scene:\n";
+    TextTable e({"structure", "configurations", "scene's best", "ms", "advised", "gap", "category's", "gap"});
+    for (const ExhaustiveAdvice& x : exhaustive)
+        e.add({x.structure, std::to_string(x.configurations), searched_text(x.best_searched), fixed(x.best_ms, 4),
+               searched_text(x.advised_searched), percent_text(x.advised_gap()), searched_text(x.category_searched),
+               percent_text(x.category_gap())});
+    e.print(std::cout);
+}
+
+/// The advice as advise prints it: one JSON object, or the category, the parameter choices and tables.
+void print_advice(const Advice& advice, const AdviseOptions& options, bool as_json) {
+    if (as_json) {
+        std::cout << advice_json(advice, options).dump(2) << '\n';
+        if (!advice.recommended)
+            throw InputError(options.scene + ": no configuration meets --accuracy " + options.accuracy.text());
+        return;
+    }
+    if (advice.chosen) std::cout << "Scene " << options.scene << " -> " << advice.chosen->explanation << "\n\n";
+    for (const ParameterChoice& pc : advice.parameters) std::cout << pc.summary << '\n';
+    if (!advice.parameters.empty()) std::cout << '\n';
+    print_rows(advice, options);
+    print_exhaustive(advice.exhaustive);
+}
+
+}  // namespace
+
 void add_advise_command(CLI::App& app) {
     auto o = std::make_shared<AdviseOptions>();
     CLI::App* cmd =
@@ -68,62 +139,7 @@ void add_advise_command(CLI::App& app) {
         AdviseOptions options = *o;
         options.accuracy = parse_accuracy(*accuracy);
         options.progress = [](const std::string& structure) { std::cerr << "measuring " << structure << " ...\n"; };
-        const Advice advice = advise(options);
-        const std::vector<AdviceRow>& rows = advice.rows;
-        if (*json_out) {
-            std::cout << advice_json(advice, options).dump(2) << '\n';
-            if (!advice.recommended)
-                throw InputError(options.scene + ": no configuration meets --accuracy " + options.accuracy.text());
-            return;
-        }
-        if (advice.chosen) std::cout << "Scene " << options.scene << " -> " << advice.chosen->explanation << "\n\n";
-        for (const ParameterChoice& pc : advice.parameters) std::cout << pc.summary << '\n';
-        if (!advice.parameters.empty()) std::cout << '\n';
-        const bool verified = options.accuracy.needs_verification();
-        std::vector<std::string> header{"structure",    "parameters", "update ms", "ray cast ms",
-                                        "per frame ms", "memory",     ""};
-        if (verified) header.insert(header.end(), {"precision", "recall"});
-        TextTable t(header);
-        for (const AdviceRow& r : rows) {
-            std::vector<std::string> row{r.structure,
-                                         r.params,
-                                         fixed(r.cost.update_ms, 4),
-                                         fixed(r.cost.raycast_ms, 4),
-                                         fixed(r.cost.ms, 4) + " ± " + fixed(r.cost.mad, 4),
-                                         bytes_text(r.cost.memory_bytes),
-                                         std::string(r.tuned ? "tuned" : "defaults") + (r.meets ? "" : ", fails")};
-            if (verified)
-                row.insert(row.end(), {fixed(r.cost.accuracy.precision, 3), fixed(r.cost.accuracy.recall, 3)});
-            t.add(row);
-        }
-        t.print(std::cout);
-        if (!advice.recommended)
-            throw InputError(options.scene + ": no configuration meets --accuracy " + options.accuracy.text());
-        const AdviceRow& best = rows[*advice.recommended];
-        std::cout << "\nShip " << best.structure << " " << best.params << ": " << fixed(best.cost.ms, 4)
-                  << " ms per frame (update " << fixed(best.cost.update_ms, 4) << " + ray cast "
-                  << fixed(best.cost.raycast_ms, 4) << "), " << bytes_text(best.cost.memory_bytes)
-                  << (verified ? ", precision " + fixed(best.cost.accuracy.precision, 3) + ", recall " +
-                                     fixed(best.cost.accuracy.recall, 3)
-                               : std::string())
-                  << "; meets " << options.accuracy.text() << ".";
-        for (std::size_t i = *advice.recommended + 1; i < rows.size(); ++i)
-            if (rows[i].meets) {
-                std::cout << " Runner-up: " << rows[i].structure << ", " << fixed(rows[i].cost.ms / best.cost.ms, 2)
-                          << "x its cost.";
-                break;
-            }
-        std::cout << '\n';
-        if (!advice.exhaustive.empty()) {
-            auto percent_text = [](double gap) { return (gap >= 0 ? "+" : "") + fixed(100 * gap, 1) + "%"; };
-            std::cout << "\nEvery configuration of the tuned spaces measured on this scene:\n";
-            TextTable e({"structure", "configurations", "scene's best", "ms", "advised", "gap", "category's", "gap"});
-            for (const ExhaustiveAdvice& x : advice.exhaustive)
-                e.add({x.structure, std::to_string(x.configurations), searched_text(x.best_searched),
-                       fixed(x.best_ms, 4), searched_text(x.advised_searched), percent_text(x.advised_gap()),
-                       searched_text(x.category_searched), percent_text(x.category_gap())});
-            e.print(std::cout);
-        }
+        print_advice(advise(options), options, *json_out);
     });
 }
 

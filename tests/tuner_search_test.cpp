@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 
 #include "tuner/run_tuning.h"
 #include "tuner/search.h"
@@ -153,6 +154,36 @@ TEST(TunerSearchBudget, WithoutAStartTheMiddleLevelsStart) {
     ASSERT_FALSE(r.evaluations.empty());
     EXPECT_EQ(r.evaluations.front().params,
               (json{{"amp", 0.5}, {"max_depth", 1}, {"max_capacity", 16}, {"subdivision", 2}}));
+}
+
+TEST(TunerExhaustiveCheck, TheSearchReplayedOnAMeasuredSurfaceFindsItsOptimum) {
+    // tune --exhaustive replays the search on the measured surface, one run per seed from the
+    // spec's: a surface as large as the budget is enumerated and its optimum found by every seed.
+    const std::vector<SearchDimension> dims = validate_like_space();
+    std::map<std::string, double> surface;
+    double best = INFINITY;
+    for (const json& p : enumerate_space(dims)) {
+        surface[p.dump()] = validate_like_cost(p);
+        best = std::min(best, surface[p.dump()]);
+    }
+    const json start{{"amp", 1.0}, {"max_depth", 2}, {"max_capacity", 16}, {"subdivision", 2}};
+    const std::vector<SurfaceReplay> all = replay_search_on_surface(dims, surface, 96, 7, 3, start);
+    ASSERT_EQ(all.size(), 3u);
+    for (std::size_t i = 0; i < all.size(); ++i) {
+        EXPECT_EQ(all[i].seed, 7 + i);
+        EXPECT_EQ(all[i].evaluations, 96u);
+        EXPECT_EQ(all[i].best_ms, best);
+        EXPECT_EQ(surface.at(all[i].best_params.dump()), best);
+    }
+    // Within a tenth of the space, each seed stays within its budget and reports what it evaluated.
+    for (const SurfaceReplay& r : replay_search_on_surface(dims, surface, 10, 1, 5, start)) {
+        EXPECT_LE(r.evaluations, 10u);
+        EXPECT_EQ(surface.at(r.best_params.dump()), r.best_ms);
+        EXPECT_GE(r.best_ms, best);
+    }
+    // A surface without a configuration of the space is a caller's mistake, not a silent skip.
+    surface.erase(start.dump());
+    EXPECT_THROW(replay_search_on_surface(dims, surface, 96, 1, 1, start), std::out_of_range);
 }
 
 TEST(Spearman, RanksWithTiesAndTheDegenerateCases) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <ostream>
 
 #include "core/base/error.h"
 #include "core/base/json_input.h"
@@ -39,14 +40,18 @@ std::string searched_text(const json& p) {
     return out;
 }
 
-namespace {
+AdviseMethod parse_advise_method(std::string_view text) {
+    if (text == "auto") return AdviseMethod::automatic;
+    if (text == "category") return AdviseMethod::category;
+    if (text == "model") return AdviseMethod::model;
+    throw InputError("--method: expected auto, category or model, got " + quoted_excerpt(std::string(text)));
+}
 
-/// What a tuning result holds for one structure of one category.
-struct TunedStructure {
-    json params;                            ///< the category's best, every parameter
-    std::vector<SearchDimension> space;     ///< empty: a tuning written before spaces were recorded
-    std::optional<CostCoefficients> model;  ///< none: no model could be fitted, or an older tuning
-};
+std::string_view method_name(ParameterMethod method) { return method == ParameterMethod::model ? "model" : "category"; }
+
+std::ostream& operator<<(std::ostream& out, ParameterMethod method) { return out << method_name(method); }
+
+namespace {
 
 /// The space a tuning recorded, each level checked against the structure's parameters (a level the
 /// structure refuses would fail minutes into the advice otherwise).
@@ -123,314 +128,418 @@ bool same_point(const json& a, const json& b, const std::vector<SearchDimension>
 
 std::string ms_text(double ms) { return fixed(ms, 4); }
 
+/// Why a tuned structure's parameters come from `method`, in one sentence.
+std::string method_reason(AdviseMethod asked, ParameterMethod method, const std::string& structure,
+                          const std::string& category) {
+    if (method == ParameterMethod::model)
+        return asked == AdviseMethod::model
+                   ? "--method model"
+                   : "the tuning holds a cost model for " + structure + " in category " + category +
+                         ", so this scene's own counters decide instead of the best of the "
+                         "category's scenes";
+    return asked == AdviseMethod::category
+               ? "--method category"
+               : "the tuning holds no cost model for " + structure + " in category " + category +
+                     " (tuned by an older rcbench, or too few configurations to fit "
+                     "one), so the category's parameters are used as they are";
+}
+
+std::string category_summary(const ParameterChoice& pc, const std::string& category) {
+    return pc.structure + ": " + searched_text(pc.category_searched) + ", category " + category +
+           "'s tuned parameters (" + pc.why + ").";
+}
+
+std::string model_summary(const ParameterChoice& pc, const std::string& category, const std::string& algorithm,
+                          std::uint32_t verify_top) {
+    std::string measured_text;
+    for (const ModelCandidate& c : pc.candidates) {
+        if (!c.measured) continue;
+        measured_text += std::string(measured_text.empty() ? "" : ", ") + searched_text(c.searched) + " " +
+                         ms_text(c.measured->ms) + " ms" +
+                         (c.predicted_ms ? " (predicted " + ms_text(*c.predicted_ms) + ")" : "") +
+                         (c.is_category ? " [category's]" : "");
+    }
+    return pc.structure + ": " + searched_text(pc.chosen_searched) + " by the cost model of category " + category +
+           ", " + pc.model + ", on this scene's counters (" + pc.why + "): " + std::to_string(pc.replays) + " of " +
+           std::to_string(pc.space_size) + " configurations replayed (" + algorithm + "); measured " + measured_text +
+           (pc.refined > 0 ? "; " + std::to_string(pc.refined) + " of them by the measured descent" : "") +
+           (verify_top > 0 ? "; the fastest measured is advised."
+                           : "; the predicted best is advised (--verify-top 0).");
+}
+
 }  // namespace
 
-Advice advise(const AdviseOptions& o) {
-    if (o.method != "auto" && o.method != "category" && o.method != "model")
-        throw InputError("--method: expected auto, category or model, got " + quoted_excerpt(o.method));
-    if (o.tuning.empty() && !o.category.empty()) throw InputError("--category needs --tuning");
-    if (o.tuning.empty() && o.exhaustive) throw InputError("--exhaustive needs --tuning");
-    if (!std::filesystem::is_regular_file(o.scene)) throw InputError(o.scene + ": no such file");
+json TunedStructure::with(const StructureInfo& info, const json& searched, const std::string& where) const {
+    json p = params;
+    for (const auto& [k, v] : searched.items()) p[k] = v;
+    return info.complete(p, where);
+}
+
+TuneCategory advise_scene(const std::string& scene) {
     TuneCategory category;
-    category.name = std::filesystem::path(o.scene).stem().string();
+    category.name = std::filesystem::path(scene).stem().string();
     SceneSpec spec;
     spec.name = category.name;
-    spec.path = o.scene;
-    spec.key = {{"advise", o.scene}};
-    const bool csv = o.scene.size() >= 4 && o.scene.compare(o.scene.size() - 4, 4, ".csv") == 0;
+    spec.path = scene;
+    spec.key = {{"advise", scene}};
+    const bool csv = scene.size() >= 4 && scene.compare(scene.size() - 4, 4, ".csv") == 0;
     spec.source = csv ? SceneSpec::Source::import : SceneSpec::Source::recording;
     if (csv) spec.settings.frames = 10;
     category.scenes.push_back(spec);
+    return category;
+}
 
-    Advice advice;
-    std::map<std::string, TunedStructure> tuned;
-    std::string wanted = o.category;
-    std::size_t budget = 30;
-    std::uint64_t seed = 1;
-    if (!o.tuning.empty()) {
-        const json t = parse_json_document(read_text_file(o.tuning), o.tuning);
-        if (wanted.empty()) {
-            advice.chosen = choose_category(o.tuning, t, recording_of(spec));
-            wanted = advice.chosen->category;
-        }
-        tuned = read_category(t, o.tuning, wanted);
-        if (t.contains("budget") && t["budget"].is_number_unsigned() && t["budget"].get<std::size_t>() > 0)
-            budget = std::min<std::size_t>(t["budget"].get<std::size_t>(), 10'000);
-        if (t.contains("seed") && t["seed"].is_number_unsigned()) seed = t["seed"].get<std::uint64_t>();
+TuningSelection select_tuning(const AdviseOptions& o, const TuneCategory& scene) {
+    TuningSelection selection;
+    selection.category = o.category;
+    if (o.tuning.empty()) return selection;
+    const json t = parse_json_document(read_text_file(o.tuning), o.tuning);
+    if (selection.category.empty()) {
+        selection.chosen = choose_category(o.tuning, t, recording_of(scene.scenes.front()));
+        selection.category = selection.chosen->category;
     }
-    try {
-        check_warmup(o.warmup, recording_of(spec).frames.size());
-    } catch (const InputError& e) {
-        throw InputError(o.scene + ": " + e.what());
-    }
+    selection.tuned = read_category(t, o.tuning, selection.category);
+    if (t.contains("budget") && t["budget"].is_number_unsigned() && t["budget"].get<std::size_t>() > 0)
+        selection.budget = std::min<std::size_t>(t["budget"].get<std::size_t>(), 10'000);
+    if (t.contains("seed") && t["seed"].is_number_unsigned()) selection.seed = t["seed"].get<std::uint64_t>();
+    return selection;
+}
 
-    // Every structure's parameters and method are checked before the first measurement, so a bad
-    // tuning file or an impossible --method fails at once, not after minutes of measuring.
-    std::vector<std::pair<const StructureInfo*, json>> configured;  // structure, complete params
+ParameterPlan plan_parameters(const TuningSelection& selection, AdviseMethod method, bool exhaustive,
+                              const std::string& tuning) {
+    ParameterPlan plan;
+    const std::string& category = selection.category;
     for (const StructureInfo& info : structure_registry()) {
-        auto it = tuned.find(info.name);
-        if (it == tuned.end()) {
-            configured.push_back({&info, info.complete(json::object(), info.name)});
+        auto it = selection.tuned.find(info.name);
+        if (it == selection.tuned.end()) {
+            plan.structures.push_back({&info, info.complete(json::object(), info.name)});
             continue;
         }
         const TunedStructure& ts = it->second;
-        configured.push_back({&info, info.complete(ts.params, o.tuning)});
+        plan.structures.push_back({&info, info.complete(ts.params, tuning)});
         ParameterChoice pc;
         pc.structure = info.name;
         pc.space = ts.space;
         pc.category_searched = searched_of(ts.params, ts.space);
         const bool can_model = ts.model && !ts.space.empty();
-        if (o.method == "model" && !can_model)
-            throw InputError(o.tuning + ": category \"" + wanted + "\" holds no cost model and space for " + info.name +
+        if (method == AdviseMethod::model && !can_model)
+            throw InputError(tuning + ": category \"" + category + "\" holds no cost model and space for " + info.name +
                              " (tuned by an older rcbench, or too few configurations to fit one); use --method "
                              "category or tune again");
-        if (o.exhaustive && ts.space.empty())
-            throw InputError(o.tuning + ": category \"" + wanted + "\" records no search space for " + info.name +
+        if (exhaustive && ts.space.empty())
+            throw InputError(tuning + ": category \"" + category + "\" records no search space for " + info.name +
                              " (tuned by an older rcbench); --exhaustive needs one: tune again");
-        pc.method = o.method == "category" || !can_model ? "category" : "model";
-        if (pc.method == "model") {
-            pc.model = ts.model->model;
-            pc.why = o.method == "model" ? "--method model"
-                                         : "the tuning holds a cost model for " + info.name + " in category " + wanted +
-                                               ", so this scene's own counters decide instead of the best of the "
-                                               "category's scenes";
-        } else {
-            pc.why = o.method == "category"
-                         ? "--method category"
-                         : "the tuning holds no cost model for " + info.name + " in category " + wanted +
-                               " (tuned by an older rcbench, or too few configurations to fit "
-                               "one), so the category's parameters are used as they are";
-        }
+        pc.method = method == AdviseMethod::category || !can_model ? ParameterMethod::category : ParameterMethod::model;
+        if (pc.method == ParameterMethod::model) pc.model = ts.model->model;
+        pc.why = method_reason(method, pc.method, info.name, category);
         pc.chosen_searched = pc.category_searched;
-        advice.parameters.push_back(std::move(pc));
+        plan.choices.push_back(std::move(pc));
     }
+    return plan;
+}
 
-    // The model method: the category's cost model on this scene's counters picks the candidates,
-    // measurements on the scene decide among them and the category's own parameters.
-    const bool verify = o.accuracy.needs_verification();
-    for (ParameterChoice& pc : advice.parameters) {
-        const TunedStructure& ts = tuned.at(pc.structure);
-        std::size_t index = 0;
-        while (configured[index].first->name != pc.structure) ++index;
-        const StructureInfo& info = *configured[index].first;
-        auto full_params = [&](const json& searched) {
-            json p = ts.params;
-            for (const auto& [k, v] : searched.items()) p[k] = v;
-            return info.complete(p, o.tuning);
-        };
-        if (pc.method == "category") {
-            pc.summary = pc.structure + ": " + searched_text(pc.category_searched) + ", category " + wanted +
-                         "'s tuned parameters (" + pc.why + ").";
-            continue;
+std::optional<ReplayCounts> ReplayLog::find(const json& searched, const std::vector<SearchDimension>& space) const {
+    for (const auto& [q, c] : entries)
+        if (same_point(searched, q, space)) return c;
+    return std::nullopt;
+}
+
+ModelRanking rank_by_model(const std::vector<SearchDimension>& space, const json& start, std::size_t budget,
+                           std::uint64_t seed, const ReplayPrediction& predict) {
+    ModelRanking ranking;
+    ranking.search = search_levels(
+        space,
+        [&](const json& p) {
+            ReplayCounts counts;
+            const double ms = predict(p, counts);
+            ranking.replays.entries.push_back({p, counts});
+            return ms;
+        },
+        budget, seed, start);
+    return ranking;
+}
+
+std::vector<std::size_t> prediction_order(const std::vector<Evaluation>& evaluations) {
+    std::vector<std::size_t> order(evaluations.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return evaluations[a].cost < evaluations[b].cost; });
+    return order;
+}
+
+ModelEvidence verify_candidates(const ModelRanking& ranking, const std::vector<SearchDimension>& space,
+                                const json& category_searched, std::uint32_t verify_top,
+                                const SceneMeasurement& measure) {
+    ModelEvidence e;
+    e.replays = ranking.replays;
+    const std::vector<Evaluation>& evaluations = ranking.search.evaluations;
+    // The best predictions are measured, one per structure in effect: a configuration that
+    // counts exactly as one measured already is the same structure and tells nothing new.
+    const std::size_t to_measure = std::max<std::size_t>(1, verify_top);
+    for (const std::size_t k : prediction_order(evaluations)) {
+        ModelCandidate c{evaluations[k].params, evaluations[k].cost, std::nullopt, false};
+        c.is_category = same_point(c.searched, category_searched, space);
+        const std::optional<ReplayCounts> counts = e.replays.find(c.searched, space);
+        const bool repeat =
+            counts && std::find(e.measured_counts.begin(), e.measured_counts.end(), counts) != e.measured_counts.end();
+        if (e.measured_counts.size() < to_measure && !repeat) {
+            c.measured = measure(c.searched);
+            e.measured_counts.push_back(counts);
         }
-        if (o.progress) o.progress(pc.structure + " (cost model on the scene)");
-        const CostCoefficients& model = *ts.model;
-        std::vector<std::pair<json, ReplayCounts>> counted;  // every replay's counts
-        const SearchResult r = search_levels(
-            pc.space,
-            [&](const json& p) {
-                ReplayCounts counts;
-                const double ms = predict_cost(model, category, pc.structure, p, o.warmup, &counts);
-                counted.push_back({p, counts});
-                return ms;
-            },
-            budget, seed, pc.category_searched);
-        auto counts_of = [&](const json& p) {
-            for (const auto& [q, c] : counted)
-                if (same_point(p, q, pc.space)) return std::optional<ReplayCounts>(c);
-            return std::optional<ReplayCounts>();
-        };
-        pc.replays = r.evaluations.size();
-        pc.space_size = r.space_size;
-        std::vector<std::size_t> order(r.evaluations.size());
-        for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-        std::stable_sort(order.begin(), order.end(),
-                         [&](std::size_t a, std::size_t b) { return r.evaluations[a].cost < r.evaluations[b].cost; });
-        // The best predictions are measured, one per structure in effect: a configuration that
-        // counts exactly as one measured already is the same structure and tells nothing new.
-        const std::size_t to_measure = std::max<std::size_t>(1, o.verify_top);
-        std::vector<std::optional<ReplayCounts>> measured_counts;
-        for (std::size_t k = 0; k < order.size(); ++k) {
-            ModelCandidate c{r.evaluations[order[k]].params, r.evaluations[order[k]].cost, std::nullopt, false};
-            c.is_category = same_point(c.searched, pc.category_searched, pc.space);
-            const std::optional<ReplayCounts> counts = counts_of(c.searched);
-            const bool repeat =
-                counts && std::find(measured_counts.begin(), measured_counts.end(), counts) != measured_counts.end();
-            if (measured_counts.size() < to_measure && !repeat) {
-                c.measured = measure(category, pc.structure, full_params(c.searched), o.warmup, o.repetitions, verify);
-                measured_counts.push_back(counts);
-            }
-            pc.candidates.push_back(std::move(c));
+        e.candidates.push_back(std::move(c));
+    }
+    // The category's parameters compete unless only the prediction decides (--verify-top 0).
+    if (verify_top == 0) return e;
+    auto category =
+        std::find_if(e.candidates.begin(), e.candidates.end(), [](const ModelCandidate& c) { return c.is_category; });
+    if (category == e.candidates.end()) {
+        e.candidates.push_back({category_searched, std::nullopt, std::nullopt, true});
+        category = e.candidates.end() - 1;
+    }
+    if (!category->measured) {
+        category->measured = measure(category_searched);
+        e.measured_counts.push_back(e.replays.find(category_searched, space));
+    }
+    return e;
+}
+
+bool measured_faster(const MeasuredCost& a, const MeasuredCost& b, const AccuracyConstraint& accuracy) {
+    const bool ma = accuracy.met_by(a.accuracy), mb = accuracy.met_by(b.accuracy);
+    return ma != mb ? ma : a.ms < b.ms;
+}
+
+std::vector<json> descent_neighbours(const std::vector<SearchDimension>& space, const json& from, std::size_t stride) {
+    std::vector<json> out;
+    for (const SearchDimension& d : space) {
+        if (!from.contains(d.name)) continue;
+        const auto at = std::find(d.levels.begin(), d.levels.end(), from[d.name]);
+        if (at == d.levels.end()) continue;
+        for (const std::ptrdiff_t step : {std::ptrdiff_t(stride), -std::ptrdiff_t(stride)}) {
+            const std::ptrdiff_t i = (at - d.levels.begin()) + step;
+            if (i < 0 || i >= std::ptrdiff_t(d.levels.size())) continue;
+            json q = from;
+            q[d.name] = d.levels[std::size_t(i)];
+            out.push_back(std::move(q));
         }
-        // The category's parameters compete unless only the prediction decides (--verify-top 0).
-        auto category_candidate = std::find_if(pc.candidates.begin(), pc.candidates.end(),
-                                               [](const ModelCandidate& c) { return c.is_category; });
-        if (o.verify_top > 0) {
-            if (category_candidate == pc.candidates.end()) {
-                pc.candidates.push_back({pc.category_searched, std::nullopt, std::nullopt, true});
-                category_candidate = pc.candidates.end() - 1;
-            }
-            if (!category_candidate->measured) {
-                category_candidate->measured =
-                    measure(category, pc.structure, full_params(pc.category_searched), o.warmup, o.repetitions, verify);
-                measured_counts.push_back(counts_of(pc.category_searched));
-            }
+    }
+    return out;
+}
+
+void refine_by_descent(ModelEvidence& e, const DescentSettings& s, const ReplayPrediction& predict,
+                       const SceneMeasurement& measure) {
+    auto faster = [&](std::size_t a, std::size_t b) {
+        return measured_faster(*e.candidates[a].measured, *e.candidates[b].measured, s.accuracy);
+    };
+    std::optional<std::size_t> current;  // into e.candidates: the fastest measured
+    for (std::size_t k = 0; k < e.candidates.size(); ++k)
+        if (e.candidates[k].measured && (!current || faster(k, *current))) current = k;
+    if (!current) return;
+    // Measures `q` unless it is a structure measured already; true when it is the fastest now.
+    auto probe = [&](const json& q) {
+        std::optional<ReplayCounts> counts = e.replays.find(q, s.space);
+        std::optional<double> predicted;
+        if (!counts) {
+            ReplayCounts replayed;
+            predicted = predict(q, replayed);
+            e.replays.entries.push_back({q, replayed});
+            counts = replayed;
         }
-        // The model's error (held out, a few percent) can rank a neighbour of the best below it,
-        // so a measured descent refines the verified best: one level up or down in one parameter
-        // at a time (two where one finds nothing), moving to any faster configuration, until none
-        // is or `refine` measurements are spent. A neighbour that counts like one measured already
-        // is that structure again.
-        std::size_t& refined = pc.refined;
-        // Meeting the accuracy first, then the lower time per frame.
-        auto faster = [&](const MeasuredCost& a, const MeasuredCost& b) {
-            const bool ma = o.accuracy.met_by(a.accuracy), mb = o.accuracy.met_by(b.accuracy);
-            return ma != mb ? ma : a.ms < b.ms;
-        };
-        std::optional<std::size_t> current;  // into pc.candidates: the fastest measured
-        for (std::size_t k = 0; k < pc.candidates.size(); ++k)
-            if (pc.candidates[k].measured &&
-                (!current || faster(*pc.candidates[k].measured, *pc.candidates[*current].measured)))
-                current = k;
-        // Measures `q` unless it is a structure measured already; true when it is the fastest now.
-        auto probe = [&](const json& q) {
-            std::optional<ReplayCounts> counts = counts_of(q);
-            std::optional<double> predicted;
-            if (!counts) {
-                ReplayCounts replayed;
-                predicted = predict_cost(model, category, pc.structure, q, o.warmup, &replayed);
-                counted.push_back({q, replayed});
-                counts = replayed;
-            }
-            if (std::find(measured_counts.begin(), measured_counts.end(), counts) != measured_counts.end())
-                return false;
-            std::size_t k = 0;
-            while (k < pc.candidates.size() && !same_point(pc.candidates[k].searched, q, pc.space)) ++k;
-            if (k == pc.candidates.size())
-                pc.candidates.push_back({q, predicted, std::nullopt, same_point(q, pc.category_searched, pc.space)});
-            pc.candidates[k].measured =
-                measure(category, pc.structure, full_params(q), o.warmup, o.repetitions, verify);
-            measured_counts.push_back(counts);
-            ++refined;
-            if (!faster(*pc.candidates[k].measured, *pc.candidates[*current].measured)) return false;
-            current = k;
-            return true;
-        };
-        // Neighbours one level away first; where none is faster, two levels away, past a bump (a
-        // map's walls can make a grid's cost rise and fall again along one parameter).
-        auto step_from = [&](const json& from, std::ptrdiff_t stride) {
-            for (const SearchDimension& d : pc.space) {
-                if (!from.contains(d.name)) continue;
-                const auto at = std::find(d.levels.begin(), d.levels.end(), from[d.name]);
-                if (at == d.levels.end()) continue;
-                for (const std::ptrdiff_t step : {stride, -stride}) {
-                    const std::ptrdiff_t i = (at - d.levels.begin()) + step;
-                    if (i < 0 || i >= std::ptrdiff_t(d.levels.size()) || refined == o.refine) continue;
-                    json q = from;
-                    q[d.name] = d.levels[std::size_t(i)];
-                    if (probe(q)) return true;
-                }
-            }
+        if (std::find(e.measured_counts.begin(), e.measured_counts.end(), counts) != e.measured_counts.end())
             return false;
-        };
-        if (o.verify_top > 0 && current)
-            while (refined < o.refine) {
-                const json from = pc.candidates[*current].searched;
-                if (!step_from(from, 1) && !step_from(from, 2)) break;
-            }
-        // Measured first, fastest (meeting the accuracy) first; then the rest by prediction.
-        std::stable_sort(pc.candidates.begin(), pc.candidates.end(),
-                         [&](const ModelCandidate& a, const ModelCandidate& b) {
-                             if (a.measured.has_value() != b.measured.has_value()) return a.measured.has_value();
-                             if (!a.measured)
-                                 return a.predicted_ms.value_or(INFINITY) < b.predicted_ms.value_or(INFINITY);
-                             return faster(*a.measured, *b.measured);
-                         });
-        pc.chosen_searched = pc.candidates.front().searched;
-        configured[index].second = full_params(pc.chosen_searched);
-
-        std::string measured_text;
-        for (const ModelCandidate& c : pc.candidates) {
-            if (!c.measured) continue;
-            measured_text += std::string(measured_text.empty() ? "" : ", ") + searched_text(c.searched) + " " +
-                             ms_text(c.measured->ms) + " ms" +
-                             (c.predicted_ms ? " (predicted " + ms_text(*c.predicted_ms) + ")" : "") +
-                             (c.is_category ? " [category's]" : "");
+        std::size_t k = 0;
+        while (k < e.candidates.size() && !same_point(e.candidates[k].searched, q, s.space)) ++k;
+        if (k == e.candidates.size())
+            e.candidates.push_back({q, predicted, std::nullopt, same_point(q, s.category_searched, s.space)});
+        e.candidates[k].measured = measure(q);
+        e.measured_counts.push_back(counts);
+        ++e.refined;
+        if (!faster(k, *current)) return false;
+        current = k;
+        return true;
+    };
+    auto step_from = [&](const json& from, std::size_t stride) {
+        for (const json& q : descent_neighbours(s.space, from, stride)) {
+            if (e.refined == s.refine) return false;
+            if (probe(q)) return true;
         }
-        pc.summary = pc.structure + ": " + searched_text(pc.chosen_searched) + " by the cost model of category " +
-                     wanted + ", " + pc.model + ", on this scene's counters (" + pc.why +
-                     "): " + std::to_string(pc.replays) + " of " + std::to_string(pc.space_size) +
-                     " configurations replayed (" + r.algorithm + "); measured " + measured_text +
-                     (pc.refined > 0 ? "; " + std::to_string(pc.refined) + " of them by the measured descent" : "") +
-                     (o.verify_top > 0 ? "; the fastest measured is advised."
-                                       : "; the predicted best is advised (--verify-top 0).");
+        return false;
+    };
+    while (e.refined < s.refine) {
+        const json from = e.candidates[*current].searched;
+        if (!step_from(from, 1) && !step_from(from, 2)) break;
     }
+}
 
-    // Every structure measured at its parameters (the model method's choice measured already).
-    std::vector<AdviceRow>& rows = advice.rows;
-    std::vector<json> params;
-    for (const auto& [info, p] : configured) {
-        const bool is_tuned = tuned.count(info->name) != 0;
-        params.push_back(p);
-        rows.push_back({info->name, p.dump(), {}, is_tuned});
+void order_candidates(std::vector<ModelCandidate>& candidates, const AccuracyConstraint& accuracy) {
+    std::stable_sort(candidates.begin(), candidates.end(), [&](const ModelCandidate& a, const ModelCandidate& b) {
+        if (a.measured.has_value() != b.measured.has_value()) return a.measured.has_value();
+        if (!a.measured) return a.predicted_ms.value_or(INFINITY) < b.predicted_ms.value_or(INFINITY);
+        return measured_faster(*a.measured, *b.measured, accuracy);
+    });
+}
+
+RowPlan plan_rows(const std::vector<StructurePlan>& structures, const std::vector<ParameterChoice>& choices,
+                  const AccuracyConstraint& accuracy) {
+    RowPlan plan;
+    for (const auto& [info, p] : structures) {
+        const bool is_tuned = std::any_of(choices.begin(), choices.end(),
+                                          [&](const ParameterChoice& pc) { return pc.structure == info->name; });
+        plan.params.push_back(p);
+        plan.rows.push_back({info->name, p.dump(), {}, is_tuned});
         // Inexact answers allowed: the same configuration at the other query levels competes too
         // (a tuned level is kept as the tuning chose it).
-        if (o.accuracy.allows_inexact() && query_level_of(p) == QueryLevel::boxes)
+        if (accuracy.allows_inexact() && query_level_of(p) == QueryLevel::boxes)
             for (const char* level : {"candidates", "shapes"}) {
                 json q = p;
                 q["query"] = level;
-                params.push_back(info->complete(q, "advise"));
-                rows.push_back({info->name, params.back().dump(), {}, is_tuned});
+                plan.params.push_back(info->complete(q, "advise"));
+                plan.rows.push_back({info->name, plan.params.back().dump(), {}, is_tuned});
             }
     }
-    std::map<std::string, MeasuredCost> already;  // the model method's measured choices, by params
-    for (const ParameterChoice& pc : advice.parameters)
+    return plan;
+}
+
+void measure_rows(RowPlan& plan, const std::vector<ParameterChoice>& choices,
+                  const std::function<MeasuredCost(const std::string&, const json&)>& measure,
+                  const std::function<void(const std::string&)>& progress) {
+    // The model method's measured choice, by structure; its row is the first of the structure's
+    // (the later ones are the other query levels).
+    std::map<std::string, MeasuredCost> already;
+    for (const ParameterChoice& pc : choices)
         for (const ModelCandidate& c : pc.candidates)
-            if (c.measured && same_point(c.searched, pc.chosen_searched, pc.space)) {
-                for (const auto& [info, p] : configured)
-                    if (info->name == pc.structure) already[info->name + p.dump()] = *c.measured;
-            }
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-        auto it = already.find(rows[i].structure + rows[i].params);
-        if (it != already.end()) {
-            rows[i].cost = it->second;
+            if (c.measured && same_point(c.searched, pc.chosen_searched, pc.space)) already[pc.structure] = *c.measured;
+    std::map<std::string, std::string> chosen_params;  // structure → its first row's params
+    for (const AdviceRow& r : plan.rows) chosen_params.emplace(r.structure, r.params);
+    for (std::size_t i = 0; i < plan.rows.size(); ++i) {
+        AdviceRow& row = plan.rows[i];
+        auto it = already.find(row.structure);
+        if (it != already.end() && chosen_params.at(row.structure) == row.params) {
+            row.cost = it->second;
             continue;
         }
-        if (o.progress) o.progress(rows[i].structure);
-        rows[i].cost = measure(category, rows[i].structure, params[i], o.warmup, o.repetitions, verify);
+        if (progress) progress(row.structure);
+        row.cost = measure(row.structure, plan.params[i]);
     }
-    advice.recommended = rank_advice(rows, o.accuracy);
+}
 
-    if (o.exhaustive)
-        for (const ParameterChoice& pc : advice.parameters) {
-            if (o.progress) o.progress(pc.structure + " (every configuration)");
-            const TunedStructure& ts = tuned.at(pc.structure);
-            const StructureInfo& info = find_structure(pc.structure);
-            ExhaustiveAdvice ex;
-            ex.structure = pc.structure;
-            ex.advised_searched = pc.chosen_searched;
-            ex.category_searched = pc.category_searched;
-            ex.best_ms = INFINITY;
-            const std::vector<json> all = enumerate_space(pc.space);
-            ex.configurations = all.size();
-            std::vector<json> full_params;
-            for (const json& p : all) {
-                json full = ts.params;
-                for (const auto& [k, v] : p.items()) full[k] = v;
-                full_params.push_back(info.complete(full, o.tuning));
-            }
-            const std::vector<MeasuredCost> costs =
-                measure_interleaved(category, pc.structure, full_params, o.warmup, o.repetitions, verify);
-            for (std::size_t i = 0; i < all.size(); ++i) {
-                const json& p = all[i];
-                // Configurations that fail the accuracy are priced out, as in tune --exhaustive.
-                const double ms = constrained_cost(costs[i], o.accuracy);
-                if (ms < ex.best_ms) ex.best_ms = ms, ex.best_searched = p;
-                if (same_point(p, pc.chosen_searched, pc.space)) ex.advised_ms = ms;
-                if (same_point(p, pc.category_searched, pc.space)) ex.category_ms = ms;
-            }
-            advice.exhaustive.push_back(ex);
+ExhaustiveAdvice compare_exhaustively(const ParameterChoice& pc, const std::vector<json>& configurations,
+                                      const std::vector<MeasuredCost>& costs, const AccuracyConstraint& accuracy) {
+    ExhaustiveAdvice ex;
+    ex.structure = pc.structure;
+    ex.advised_searched = pc.chosen_searched;
+    ex.category_searched = pc.category_searched;
+    ex.best_ms = INFINITY;
+    ex.configurations = configurations.size();
+    for (std::size_t i = 0; i < configurations.size(); ++i) {
+        const json& p = configurations[i];
+        const double ms = constrained_cost(costs[i], accuracy);
+        if (ms < ex.best_ms) ex.best_ms = ms, ex.best_searched = p;
+        if (same_point(p, pc.chosen_searched, pc.space)) ex.advised_ms = ms;
+        if (same_point(p, pc.category_searched, pc.space)) ex.category_ms = ms;
+    }
+    return ex;
+}
+
+namespace {
+
+/// What advise measures with: the scene and the options' repetitions, warm-up and accuracy.
+struct SceneMeter {
+    const TuneCategory& scene;
+    const AdviseOptions& options;
+    bool verify() const { return options.accuracy.needs_verification(); }
+    MeasuredCost operator()(const std::string& structure, const json& params) const {
+        return measure(scene, structure, params, options.warmup, options.repetitions, verify());
+    }
+};
+
+/// The model method for one tuned structure: its candidates predicted, verified, refined by the
+/// measured descent and ordered; the chosen parameters go into `plan`.
+void advise_by_model(ParameterChoice& pc, const TunedStructure& ts, StructurePlan& plan,
+                     const TuningSelection& selection, const SceneMeter& meter) {
+    const AdviseOptions& o = meter.options;
+    const StructureInfo& info = *plan.info;
+    const CostCoefficients& model = *ts.model;
+    const ReplayPrediction predict = [&](const json& searched, ReplayCounts& counts) {
+        return predict_cost(model, meter.scene, pc.structure, searched, o.warmup, &counts);
+    };
+    const SceneMeasurement measure_at = [&](const json& searched) {
+        return meter(pc.structure, ts.with(info, searched, o.tuning));
+    };
+    const ModelRanking ranking =
+        rank_by_model(pc.space, pc.category_searched, selection.budget, selection.seed, predict);
+    pc.replays = ranking.search.evaluations.size();
+    pc.space_size = ranking.search.space_size;
+    ModelEvidence evidence = verify_candidates(ranking, pc.space, pc.category_searched, o.verify_top, measure_at);
+    if (o.verify_top > 0)
+        refine_by_descent(evidence, {pc.space, pc.category_searched, o.refine, o.accuracy}, predict, measure_at);
+    order_candidates(evidence.candidates, o.accuracy);
+    pc.candidates = std::move(evidence.candidates);
+    pc.refined = evidence.refined;
+    pc.chosen_searched = pc.candidates.front().searched;
+    plan.params = ts.with(info, pc.chosen_searched, o.tuning);
+    pc.summary = model_summary(pc, selection.category, ranking.search.algorithm, o.verify_top);
+}
+
+/// --exhaustive: every configuration of each tuned structure's space measured on the scene.
+std::vector<ExhaustiveAdvice> check_exhaustively(const std::vector<ParameterChoice>& choices,
+                                                 const TuningSelection& selection, const SceneMeter& meter) {
+    const AdviseOptions& o = meter.options;
+    std::vector<ExhaustiveAdvice> out;
+    for (const ParameterChoice& pc : choices) {
+        if (o.progress) o.progress(pc.structure + " (every configuration)");
+        const TunedStructure& ts = selection.tuned.at(pc.structure);
+        const StructureInfo& info = find_structure(pc.structure);
+        const std::vector<json> all = enumerate_space(pc.space);
+        std::vector<json> full_params;
+        for (const json& p : all) full_params.push_back(ts.with(info, p, o.tuning));
+        const std::vector<MeasuredCost> costs =
+            measure_interleaved(meter.scene, pc.structure, full_params, o.warmup, o.repetitions, meter.verify());
+        out.push_back(compare_exhaustively(pc, all, costs, o.accuracy));
+    }
+    return out;
+}
+
+}  // namespace
+
+Advice advise(const AdviseOptions& o) {
+    const AdviseMethod method = parse_advise_method(o.method);
+    if (o.tuning.empty() && !o.category.empty()) throw InputError("--category needs --tuning");
+    if (o.tuning.empty() && o.exhaustive) throw InputError("--exhaustive needs --tuning");
+    if (!std::filesystem::is_regular_file(o.scene)) throw InputError(o.scene + ": no such file");
+    const TuneCategory scene = advise_scene(o.scene);
+    const TuningSelection selection = select_tuning(o, scene);
+    try {
+        check_warmup(o.warmup, recording_of(scene.scenes.front()).frames.size());
+    } catch (const InputError& e) {
+        throw InputError(o.scene + ": " + e.what());
+    }
+    // Every structure's parameters and method are checked before the first measurement, so a bad
+    // tuning file or an impossible --method fails at once, not after minutes of measuring.
+    ParameterPlan plan = plan_parameters(selection, method, o.exhaustive, o.tuning);
+
+    // The model method: the category's cost model on this scene's counters picks the candidates,
+    // measurements on the scene decide among them and the category's own parameters.
+    const SceneMeter meter{scene, o};
+    for (ParameterChoice& pc : plan.choices) {
+        if (pc.method == ParameterMethod::category) {
+            pc.summary = category_summary(pc, selection.category);
+            continue;
         }
+        if (o.progress) o.progress(pc.structure + " (cost model on the scene)");
+        auto structure = std::find_if(plan.structures.begin(), plan.structures.end(),
+                                      [&](const StructurePlan& s) { return s.info->name == pc.structure; });
+        advise_by_model(pc, selection.tuned.at(pc.structure), *structure, selection, meter);
+    }
+
+    // Every structure measured at its parameters (the model method's choice measured already).
+    Advice advice;
+    advice.chosen = selection.chosen;
+    RowPlan rows = plan_rows(plan.structures, plan.choices, o.accuracy);
+    measure_rows(rows, plan.choices, meter, o.progress);
+    advice.rows = std::move(rows.rows);
+    advice.recommended = rank_advice(advice.rows, o.accuracy);
+    if (o.exhaustive) advice.exhaustive = check_exhaustively(plan.choices, selection, meter);
+    advice.parameters = std::move(plan.choices);
     return advice;
 }
 
@@ -469,13 +578,13 @@ json advice_json(const Advice& a, const AdviseOptions& o) {
         j["category"] = {{"name", o.category}, {"explanation", "--category"}};
     for (const ParameterChoice& pc : a.parameters) {
         json pj = {{"structure", pc.structure},
-                   {"method", pc.method},
+                   {"method", method_name(pc.method)},
                    {"why", pc.why},
                    {"category_params", pc.category_searched},
                    {"params", pc.chosen_searched},
                    {"summary", pc.summary},
                    {"candidates", json::array()}};
-        if (pc.method == "model")
+        if (pc.method == ParameterMethod::model)
             pj["model"] = pc.model, pj["replays"] = pc.replays, pj["space_size"] = pc.space_size,
             pj["refined"] = pc.refined;
         for (const ModelCandidate& c : pc.candidates) {

@@ -20,8 +20,11 @@
 
 #include <cstdint>
 #include <functional>
+#include <iosfwd>
+#include <map>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "analysis/scene_categories.h"
@@ -29,11 +32,29 @@
 
 namespace rcb {
 
+struct StructureInfo;
+
+/// How tuned parameters are chosen (--method): `auto` is `automatic`.
+enum class AdviseMethod { automatic, category, model };
+
+/// Parses --method's text once, where it enters: auto, category or model; InputError
+/// "--method: expected auto, category or model, got …" otherwise.
+AdviseMethod parse_advise_method(std::string_view text);
+
+/// How one tuned structure's parameters were chosen for the scene.
+enum class ParameterMethod { category, model };
+
+/// "category" or "model", as advise --json writes it.
+std::string_view method_name(ParameterMethod method);
+/// Compares with that name (advise --json's "method"), so a choice reads like the JSON it writes.
+inline bool operator==(ParameterMethod method, std::string_view name) { return method_name(method) == name; }
+std::ostream& operator<<(std::ostream& out, ParameterMethod method);
+
 struct AdviseOptions {
     std::string scene;              ///< a recording, or a boxes CSV (given 10 frames of 1% dynamics, 1000 centre rays)
     std::string tuning;             ///< a tuning result (tuning-<name>.json), or empty: defaults
     std::string category;           ///< its category; empty: the one nearest the scene's features
-    std::string method = "auto";    ///< how tuned parameters are chosen: auto, category, model
+    std::string method = "auto";    ///< how tuned parameters are chosen: auto, category, model (parse_advise_method)
     std::uint32_t verify_top = 3;   ///< model method: its best configurations measured beside the category's
     std::uint32_t refine = 6;       ///< model method: measurements of the descent from the fastest verified
     bool exhaustive = false;        ///< also measure every configuration of each tuned structure's space
@@ -71,7 +92,7 @@ struct ModelCandidate {
 /// How a tuned structure's parameters were chosen for the scene, and why.
 struct ParameterChoice {
     std::string structure;
-    std::string method;                       ///< "category" or "model"
+    ParameterMethod method = ParameterMethod::category;
     std::string why;                          ///< one sentence: why this method
     nlohmann::json category_searched;         ///< the category's tuned values of the searched parameters
     nlohmann::json chosen_searched;           ///< what was advised
@@ -101,6 +122,153 @@ struct Advice {
     std::vector<ParameterChoice> parameters;   ///< per tuned structure, in registry order
     std::vector<ExhaustiveAdvice> exhaustive;  ///< with AdviseOptions::exhaustive, per tuned structure with a space
 };
+
+// The steps of advise, each callable and testable alone; advise() runs them in this order (parse,
+// compute and report apart, as pbrt-v4 splits its builders and google/benchmark compare.py its
+// report):
+//   advise_scene, select_tuning      the scene as a one-scene category; the tuning's category
+//   plan_parameters                  per structure its parameters and, tuned, the method and why
+//   model method, per tuned structure:
+//     rank_by_model                  the space replayed on the scene, priced by the category's model
+//     verify_candidates              the best predictions (one per structure in effect) and the
+//                                    category's parameters measured
+//     refine_by_descent              the measured descent from the fastest measured (--refine)
+//     order_candidates               measured first, fastest first; then by prediction
+//   plan_rows, measure_rows          every structure at its parameters measured, ranked by rank_advice
+//   compare_exhaustively             every configuration's measurement against the advice
+
+/// What a tuning result holds for one structure of one category.
+struct TunedStructure {
+    nlohmann::json params;                  ///< the category's best, every parameter
+    std::vector<SearchDimension> space;     ///< empty: a tuning written before spaces were recorded
+    std::optional<CostCoefficients> model;  ///< none: no model could be fitted, or an older tuning
+
+    /// The category's parameters with `searched` put in, completed (InputError naming `where`).
+    nlohmann::json with(const StructureInfo& info, const nlohmann::json& searched, const std::string& where) const;
+};
+
+/// The scene as advise measures it: a category of one scene, named for the file (a boxes CSV is
+/// imported with 10 frames of dynamics).
+TuneCategory advise_scene(const std::string& scene);
+
+/// The tuning's category for the scene and what it holds; without a tuning, none (defaults).
+struct TuningSelection {
+    std::string category;                         ///< empty without a tuning
+    std::optional<CategoryChoice> chosen;         ///< when the scene's features chose the category
+    std::map<std::string, TunedStructure> tuned;  ///< by structure
+    std::size_t budget = 30;                      ///< the tuning's search budget (the replays')
+    std::uint64_t seed = 1;                       ///< the tuning's search seed
+};
+
+/// Reads options.tuning (InputError for a file that is not a tuning result, a missing category,
+/// or no scene categories to choose one from); `scene` is advise_scene's.
+TuningSelection select_tuning(const AdviseOptions& options, const TuneCategory& scene);
+
+/// One registered structure and its complete parameters (the tuned, the model's choice, or defaults).
+struct StructurePlan {
+    const StructureInfo* info = nullptr;
+    nlohmann::json params;
+};
+
+struct ParameterPlan {
+    std::vector<StructurePlan> structures;  ///< every registered structure, in registry order
+    std::vector<ParameterChoice> choices;   ///< per tuned structure: its method and why; chosen = category's
+};
+
+/// Every structure's parameters and method, checked before the first measurement: InputError
+/// where `method` is model and a structure has no cost model and space, or `exhaustive` and no
+/// space. `tuning` names the file in messages.
+ParameterPlan plan_parameters(const TuningSelection& selection, AdviseMethod method, bool exhaustive,
+                              const std::string& tuning);
+
+/// A counting replay of searched parameters on the scene: the predicted ms per frame; `counts`
+/// receives what it counted.
+using ReplayPrediction = std::function<double(const nlohmann::json& searched, ReplayCounts& counts)>;
+/// A measurement of searched parameters on the scene.
+using SceneMeasurement = std::function<MeasuredCost(const nlohmann::json& searched)>;
+
+/// Every counting replay made of one structure, by searched parameters.
+struct ReplayLog {
+    std::vector<std::pair<nlohmann::json, ReplayCounts>> entries;
+    std::optional<ReplayCounts> find(const nlohmann::json& searched, const std::vector<SearchDimension>& space) const;
+};
+
+/// The model method's search: the tuning's space replayed on the scene (search_levels with the
+/// tuning's budget and seed, from the category's parameters).
+struct ModelRanking {
+    SearchResult search;
+    ReplayLog replays;
+};
+ModelRanking rank_by_model(const std::vector<SearchDimension>& space, const nlohmann::json& start, std::size_t budget,
+                           std::uint64_t seed, const ReplayPrediction& predict);
+
+/// Indices of `evaluations` by predicted cost, lowest first, ties in the order evaluated.
+std::vector<std::size_t> prediction_order(const std::vector<Evaluation>& evaluations);
+
+/// What the model method knows of one structure on the scene, step by step.
+struct ModelEvidence {
+    std::vector<ModelCandidate> candidates;
+    ReplayLog replays;                                         ///< every counting replay so far
+    std::vector<std::optional<ReplayCounts>> measured_counts;  ///< per measured structure in effect
+    std::size_t refined = 0;                                   ///< measurements the descent added
+};
+
+/// Every replayed configuration as a candidate, by prediction; the `verify_top` best (at least
+/// one) measured, skipping those that count like one measured already (the same structure in
+/// effect); then, unless verify_top is 0, the category's parameters measured too (added when the
+/// search did not replay them).
+ModelEvidence verify_candidates(const ModelRanking& ranking, const std::vector<SearchDimension>& space,
+                                const nlohmann::json& category_searched, std::uint32_t verify_top,
+                                const SceneMeasurement& measure);
+
+/// Meeting the accuracy first, then the lower time per frame.
+bool measured_faster(const MeasuredCost& a, const MeasuredCost& b, const AccuracyConstraint& accuracy);
+
+/// The neighbours the descent tries from `from`: per dimension in the space's order, the level
+/// `stride` up, then `stride` down (those that exist; a dimension `from` lacks or at a level not
+/// in the space has none).
+std::vector<nlohmann::json> descent_neighbours(const std::vector<SearchDimension>& space, const nlohmann::json& from,
+                                               std::size_t stride);
+
+struct DescentSettings {
+    std::vector<SearchDimension> space;
+    nlohmann::json category_searched;
+    std::uint32_t refine = 6;  ///< measurements the descent may add
+    AccuracyConstraint accuracy;
+};
+
+/// The model's error can rank a neighbour of the best below it, so a measured descent refines
+/// the fastest measured candidate: neighbours one level away (descent_neighbours, stride 1),
+/// where none is faster two levels away (past a bump: a map's walls can make a grid's cost rise
+/// and fall again along one parameter), moving to the first faster one, until none is or
+/// `refine` measurements are spent. A neighbour that counts like one measured already is that
+/// structure again and is not measured; one not replayed yet is replayed first.
+void refine_by_descent(ModelEvidence& evidence, const DescentSettings& settings, const ReplayPrediction& predict,
+                       const SceneMeasurement& measure);
+
+/// Measured first, fastest (meeting the accuracy) first; then the rest by prediction; stable.
+void order_candidates(std::vector<ModelCandidate>& candidates, const AccuracyConstraint& accuracy);
+
+/// The rows to measure: every structure at its parameters; when `accuracy` allows inexact answers,
+/// each one at the boxes level also at the candidates and shapes levels.
+struct RowPlan {
+    std::vector<AdviceRow> rows;         ///< costs not measured yet
+    std::vector<nlohmann::json> params;  ///< each row's complete parameters
+};
+RowPlan plan_rows(const std::vector<StructurePlan>& structures, const std::vector<ParameterChoice>& choices,
+                  const AccuracyConstraint& accuracy);
+
+/// Measures each row (`measure(structure, params)`) unless the model method measured its
+/// configuration already (that measurement is reused); `progress` as each measurement starts.
+void measure_rows(RowPlan& plan, const std::vector<ParameterChoice>& choices,
+                  const std::function<MeasuredCost(const std::string&, const nlohmann::json&)>& measure,
+                  const std::function<void(const std::string&)>& progress);
+
+/// Where the advice stands among every configuration of the space measured on the scene
+/// (`configurations` searched parameters and their `costs`): configurations that fail the
+/// accuracy priced out (constrained_cost), as tune --exhaustive does.
+ExhaustiveAdvice compare_exhaustively(const ParameterChoice& choice, const std::vector<nlohmann::json>& configurations,
+                                      const std::vector<MeasuredCost>& costs, const AccuracyConstraint& accuracy);
 
 /// InputError for a missing scene, a method other than auto, category or model, --category or
 /// --exhaustive without --tuning, a tuning file that is not a

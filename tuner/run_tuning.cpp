@@ -138,30 +138,41 @@ SceneClustering categorize_tuning_scenes(TuneSpec& spec, bool derive) {
     return clustering;
 }
 
-TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
-    TuneSpec spec = file_spec;
-    const fs::path md_path = fs::path(o.out_dir) / ("tuning-" + spec.name + ".md");
-    const fs::path json_path = fs::path(o.out_dir) / ("tuning-" + spec.name + ".json");
+std::vector<SurfaceReplay> replay_search_on_surface(const std::vector<SearchDimension>& dims,
+                                                    const std::map<std::string, double>& surface, std::size_t budget,
+                                                    std::uint64_t first_seed, std::size_t seeds,
+                                                    const nlohmann::json& start) {
+    std::vector<SurfaceReplay> out;
+    for (std::uint64_t seed = first_seed; seed < first_seed + seeds; ++seed) {
+        const SearchResult r = search_levels(
+            dims, [&](const nlohmann::json& p) { return surface.at(p.dump()); }, budget, seed, start);
+        out.push_back({seed, r.evaluations.size(), r.evaluations[r.best].cost, r.evaluations[r.best].params});
+    }
+    return out;
+}
+
+namespace {
+
+/// The output files of a tuning, checked before any work (InputError naming the option).
+struct TuningOutputs {
+    fs::path md, json;
+};
+
+TuningOutputs check_outputs(const TuneSpec& spec, const TuneOptions& o) {
+    const TuningOutputs out{fs::path(o.out_dir) / ("tuning-" + spec.name + ".md"),
+                            fs::path(o.out_dir) / ("tuning-" + spec.name + ".json")};
     std::vector<std::string> inputs{o.file, o.db};
     for (const TuneCategory& c : spec.categories)
         for (const SceneSpec& s : c.scenes) inputs.push_back(s.path);
     check_output_path(o.db, {o.file}, "--db");
-    check_output_path(md_path.string(), inputs, "--out-dir");
-    check_output_path(json_path.string(), inputs, "--out-dir");
-    ResultStore store(o.db);
-    TuneOutcome outcome;
-    outcome.scene_categories = categorize_tuning_scenes(spec, o.derive_categories);
+    check_output_path(out.md.string(), inputs, "--out-dir");
+    check_output_path(out.json.string(), inputs, "--out-dir");
+    return out;
+}
+
+/// The report's opening: the settings, and the derived categories' members.
+std::string header_md(const TuneSpec& spec, const SceneClustering& clustering, bool derived) {
     std::ostringstream md;
-    json out = {{"name", spec.name},
-                {"mode", spec.mode},
-                {"budget", spec.budget},
-                {"seed", spec.seed},
-                {"git_commit", kGitCommit},
-                {"categories", json::array()},
-                {"accuracy", spec.accuracy.text()}};
-    // What `advise` needs to map an unseen scene to one of these categories.
-    out["scene_categories"] = outcome.scene_categories.to_json();
-    out["scene_categories"]["derived"] = o.derive_categories;
     md << "# Tuning " << spec.name << "\n\n"
        << spec.description << "\n\nMode: " << spec.mode << "; budget " << spec.budget
        << " distinct evaluations per structure and category; seed " << spec.seed << "; " << spec.repetitions
@@ -170,179 +181,252 @@ TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
           "MAD, "
           "averaged over the category's scenes. The thesis does not publish its grid settings, so they cannot be "
           "compared here.\n";
-    if (o.derive_categories) {
-        md << "\nCategories derived from the scenes' features (" << outcome.scene_categories.rule << "):\n\n"
+    if (derived) {
+        md << "\nCategories derived from the scenes' features (" << clustering.rule << "):\n\n"
            << "| category | scenes | nearest fixed category |\n|---|---|---|\n";
         for (std::size_t i = 0; i < spec.categories.size(); ++i) {
             std::string list;
             for (const SceneSpec& s : spec.categories[i].scenes) list += (list.empty() ? "" : ", ") + s.name;
-            md << "| " << spec.categories[i].name << " | " << list << " | "
-               << outcome.scene_categories.categories[i].nearest_fixed << " |\n";
+            md << "| " << spec.categories[i].name << " | " << list << " | " << clustering.categories[i].nearest_fixed
+               << " |\n";
         }
     }
+    return md.str();
+}
+
+json header_json(const TuneSpec& spec, const SceneClustering& clustering, bool derived) {
+    json out = {{"name", spec.name},
+                {"mode", spec.mode},
+                {"budget", spec.budget},
+                {"seed", spec.seed},
+                {"git_commit", kGitCommit},
+                {"categories", json::array()},
+                {"accuracy", spec.accuracy.text()}};
+    // What `advise` needs to map an unseen scene to one of these categories.
+    out["scene_categories"] = clustering.to_json();
+    out["scene_categories"]["derived"] = derived;
+    return out;
+}
+
+std::string candidate_note(const TuneSpec& spec, const StructureTuning& st, std::size_t i) {
+    const Candidate& c = st.candidates[i];
+    std::string note = c.is_default ? "defaults" : "";
+    if (i == st.best_candidate) note += std::string(note.empty() ? "" : ", ") + "best measured";
+    if (c.measured->accuracy.verified)
+        note += std::string(note.empty() ? "" : ", ") + "precision " + fixed(c.measured->accuracy.precision, 3) +
+                ", recall " + fixed(c.measured->accuracy.recall, 3) +
+                (spec.accuracy.met_by(c.measured->accuracy) ? "" : " (fails " + spec.accuracy.text() + ")");
+    return note;
+}
+
+/// One category's section: the recommendation, every measured candidate, and each search.
+std::string category_md(const TuneSpec& spec, const CategoryTuning& ct) {
+    std::ostringstream md;
+    md << "\n## " << ct.category << "\n\nRecommended: **" << ct.chosen.structure << " "
+       << searched_parameters(spec, ct.chosen) << "** at " << cost_text(*ct.chosen.measured) << " ms per frame";
+    if (!ct.rule_note.empty()) md << " (" << ct.rule_note << ")";
+    md << ".\n\n| structure | configuration | predicted ms | measured ms | update ms | ray cast ms | memory B | "
+          "note |\n|---|---|---|---|---|---|---|---|\n";
+    for (const StructureTuning& st : ct.structures)
+        for (std::size_t i = 0; i < st.candidates.size(); ++i) {
+            const Candidate& c = st.candidates[i];
+            md << "| " << c.structure << " | " << searched_parameters(spec, c) << " | "
+               << (c.predicted_ms ? fixed(*c.predicted_ms, 4) : "-") << " | " << cost_text(*c.measured) << " | "
+               << fixed(c.measured->update_ms, 4) << " | " << fixed(c.measured->raycast_ms, 4) << " | "
+               << fixed(c.measured->memory_bytes, 0) << " | " << candidate_note(spec, st, i) << " |\n";
+        }
+    md << "\n| structure | search | evaluations (space) | measurements | seconds | stopped | best at the edge of "
+          "its range |\n|---|---|---|---|---|---|---|\n";
+    for (const StructureTuning& st : ct.structures) {
+        std::string edge;
+        for (const std::string& b : st.search.on_bound) edge += (edge.empty() ? "" : ", ") + b;
+        md << "| " << st.structure << " | " << st.search.algorithm
+           << (st.prediction_model.empty() ? "" : "; prediction: " + st.prediction_model) << " | "
+           << st.search.evaluations.size() << " (" << st.search.space_size << ") | " << st.measurements << " | "
+           << fixed(st.seconds, 1) << " | " << st.search.stop_reason << " | "
+           << (edge.empty() ? "-" : edge + ": consider widening its range") << " |\n";
+    }
+    return md.str();
+}
+
+json category_json(const TuneSpec& spec, const CategoryTuning& ct) {
+    json cj = {{"category", ct.category},
+               {"chosen", candidate_json(ct.chosen)},
+               {"fastest", candidate_json(ct.fastest)},
+               {"rule_note", ct.rule_note},
+               {"structures", json::array()}};
+    for (const StructureTuning& st : ct.structures) {
+        json sj = {{"structure", st.structure},
+                   {"algorithm", st.search.algorithm},
+                   {"stop_reason", st.search.stop_reason},
+                   {"on_bound", st.search.on_bound},
+                   {"evaluations", st.search.evaluations.size()},
+                   {"space_size", st.search.space_size},
+                   {"measurements", st.measurements},
+                   {"seconds", st.seconds},
+                   {"prediction_model", st.prediction_model},
+                   {"best", candidate_json(st.candidates[st.best_candidate])},
+                   {"candidates", json::array()}};
+        for (const Candidate& c : st.candidates) sj["candidates"].push_back(candidate_json(c));
+        // What advise needs to choose this structure's parameters for an unseen scene: the
+        // space searched here and the category's cost model, applied to that scene's counters.
+        sj["space"] = json::array();  // in the search's order of dimensions
+        for (const SearchDimension& d : spec.space.at(st.structure))
+            sj["space"].push_back({{"name", d.name}, {"levels", d.levels}});
+        if (st.cost_model) sj["cost_model"] = st.cost_model->to_json();
+        cj["structures"].push_back(sj);
+    }
+    return cj;
+}
+
+/// One structure's exhaustive check (--exhaustive): every configuration measured, the search
+/// replayed on that surface, and the prediction's ranking of it.
+struct ExhaustiveCheck {
+    std::string structure;
+    std::size_t configurations = 0, evaluations = 0;
+    double best_ms = INFINITY;  ///< the fastest configuration that meets the accuracy
+    json best_params;
+    double tuned_ms = 0;  ///< the tuner's best, as measured while tuning
+    std::vector<SurfaceReplay> replays;
+    std::string model;  ///< the prediction's model
+    double spearman = 0;
+    json surface = json::array();  ///< every configuration: params, ms, meets, predicted_ms
+};
+
+ExhaustiveCheck check_exhaustively(const TuneSpec& spec, const TuneCategory& category, const StructureTuning& st,
+                                   MachinePriors& priors) {
+    const std::vector<SearchDimension>& dims = spec.space.at(st.structure);
+    const json defaults = find_structure(st.structure).defaults();
+    ExhaustiveCheck ex;
+    ex.structure = st.structure;
+    ex.evaluations = st.search.evaluations.size();
+    const auto all = enumerate_space(dims);
+    ex.configurations = all.size();
+    std::vector<json> full_params;
+    for (const json& p : all) {
+        json full = defaults;
+        for (const auto& [k, v] : p.items()) full[k] = v;
+        full_params.push_back(full);
+    }
+    const std::vector<MeasuredCost> costs = measure_interleaved(category, st.structure, full_params, spec.warmup_frames,
+                                                                spec.repetitions, spec.accuracy.needs_verification());
+    std::map<std::string, double> surface;  // searched params → measured ms
+    std::vector<double> measured;
+    for (std::size_t i = 0; i < all.size(); ++i) {
+        const json& p = all[i];
+        const MeasuredCost& m = costs[i];
+        // The surface the search sees: configurations failing the accuracy priced out.
+        const double ms = constrained_cost(m, spec.accuracy);
+        surface[p.dump()] = ms;
+        measured.push_back(m.ms);  // the prediction ranks times, not the accuracy
+        ex.surface.push_back({{"params", p}, {"ms", m.ms}, {"meets", spec.accuracy.met_by(m.accuracy)}});
+        if (spec.accuracy.met_by(m.accuracy) && ms < ex.best_ms) ex.best_ms = ms, ex.best_params = p;
+    }
+    ex.tuned_ms = st.candidates[st.best_candidate].measured->ms;
+    // The search itself, replayed on the measured surface with five seeds: its gap to the
+    // optimum separated from the noise of measuring again.
+    json defaults_searched = json::object();
+    for (const SearchDimension& d : dims) defaults_searched[d.name] = defaults[d.name];
+    ex.replays = replay_search_on_surface(dims, surface, spec.budget, spec.seed, 5, defaults_searched);
+    // How well the predicted mode ranks the space: Spearman of prediction against measurement.
+    std::function<double(const json&)> predict = st.predict;
+    ex.model = st.prediction_model;
+    if (!predict) {
+        Predictor p = calibrate_predictor(spec, category, st.structure, &priors);
+        predict = p.predict, ex.model = p.model;
+    }
+    std::vector<double> predicted;
+    for (std::size_t i = 0; i < all.size(); ++i) {
+        predicted.push_back(predict(all[i]));
+        ex.surface[i]["predicted_ms"] = predicted.back();
+    }
+    ex.spearman = spearman(predicted, measured);
+    return ex;
+}
+
+std::string exhaustive_md(const TuneSpec& spec, const std::vector<ExhaustiveCheck>& checks) {
+    std::ostringstream md;
+    md << "\nExhaustive check (every configuration measured):\n\n| structure | configurations | best | tuner's "
+          "best measured | gap | tuner's evaluations |\n|---|---|---|---|---|---|\n";
+    for (const ExhaustiveCheck& ex : checks)
+        md << "| " << ex.structure << " | " << ex.configurations << " | " << fixed(ex.best_ms, 4) << " "
+           << ex.best_params.dump() << " | " << fixed(ex.tuned_ms, 4) << " | "
+           << fixed(100 * (ex.tuned_ms / ex.best_ms - 1), 1) << "% | " << ex.evaluations << " ("
+           << fixed(100.0 * double(ex.evaluations) / double(ex.configurations), 0) << "%) |\n";
+    md << "\nThe search replayed on the exhaustively measured surface (budget " << spec.budget
+       << ", starting from the defaults), five seeds; and the predicted mode's ranking of every "
+          "configuration:\n\n| structure | seed | evaluations (of the space) | best found | gap to the "
+          "optimum |\n|---|---|---|---|---|\n";
+    for (const ExhaustiveCheck& ex : checks) {
+        for (const SurfaceReplay& r : ex.replays)
+            md << "| " << ex.structure << " | " << r.seed << " | " << r.evaluations << " ("
+               << fixed(100.0 * double(r.evaluations) / double(ex.configurations), 0) << "%) | " << fixed(r.best_ms, 4)
+               << " " << r.best_params.dump() << " | " << fixed(100 * (r.best_ms / ex.best_ms - 1), 1) << "% |\n";
+        md << "| " << ex.structure << " | prediction (" << ex.model << ") | " << ex.configurations
+           << " predicted | Spearman " << fixed(ex.spearman, 3) << " against measured | |\n";
+    }
+    return md.str();
+}
+
+json exhaustive_json(const std::vector<ExhaustiveCheck>& checks) {
+    json out = json::array();
+    for (const ExhaustiveCheck& ex : checks) {
+        json seeds = json::array();
+        for (const SurfaceReplay& r : ex.replays)
+            seeds.push_back({{"seed", r.seed},
+                             {"evaluations", r.evaluations},
+                             {"best_ms", r.best_ms},
+                             {"best_params", r.best_params},
+                             {"gap", r.best_ms / ex.best_ms - 1}});
+        out.push_back({{"structure", ex.structure},
+                       {"configurations", ex.configurations},
+                       {"best_ms", ex.best_ms},
+                       {"best_params", ex.best_params},
+                       {"tuned_ms", ex.tuned_ms},
+                       {"evaluations", ex.evaluations},
+                       {"search_on_measured_surface", seeds},
+                       {"prediction_model", ex.model},
+                       {"prediction_spearman", ex.spearman},
+                       {"surface", ex.surface}});
+    }
+    return out;
+}
+
+}  // namespace
+
+TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
+    TuneSpec spec = file_spec;
+    const TuningOutputs files = check_outputs(spec, o);
+    ResultStore store(o.db);
+    TuneOutcome outcome;
+    outcome.scene_categories = categorize_tuning_scenes(spec, o.derive_categories);
+    std::string md = header_md(spec, outcome.scene_categories, o.derive_categories);
+    json out = header_json(spec, outcome.scene_categories, o.derive_categories);
     // The machine's calibration of a structure, measured once if any category's fit needs it.
     MachinePriors priors;
     for (const TuneCategory& category : spec.categories) {
         if (o.progress) o.progress(category.name);
         const CategoryTuning ct = tune_category(spec, category, &priors);
         store_tuning(store, spec, ct);
-        md << "\n## " << ct.category << "\n\nRecommended: **" << ct.chosen.structure << " "
-           << searched_parameters(spec, ct.chosen) << "** at " << cost_text(*ct.chosen.measured) << " ms per frame";
-        if (!ct.rule_note.empty()) md << " (" << ct.rule_note << ")";
-        md << ".\n\n| structure | configuration | predicted ms | measured ms | update ms | ray cast ms | memory B | "
-              "note |\n|---|---|---|---|---|---|---|---|\n";
-        json cj = {{"category", ct.category},
-                   {"chosen", candidate_json(ct.chosen)},
-                   {"fastest", candidate_json(ct.fastest)},
-                   {"rule_note", ct.rule_note},
-                   {"structures", json::array()}};
-        for (const StructureTuning& st : ct.structures) {
-            for (std::size_t i = 0; i < st.candidates.size(); ++i) {
-                const Candidate& c = st.candidates[i];
-                std::string note = c.is_default ? "defaults" : "";
-                if (i == st.best_candidate) note += std::string(note.empty() ? "" : ", ") + "best measured";
-                if (c.measured->accuracy.verified)
-                    note += std::string(note.empty() ? "" : ", ") + "precision " +
-                            fixed(c.measured->accuracy.precision, 3) + ", recall " +
-                            fixed(c.measured->accuracy.recall, 3) +
-                            (spec.accuracy.met_by(c.measured->accuracy) ? "" : " (fails " + spec.accuracy.text() + ")");
-                md << "| " << c.structure << " | " << searched_parameters(spec, c) << " | "
-                   << (c.predicted_ms ? fixed(*c.predicted_ms, 4) : "-") << " | " << cost_text(*c.measured) << " | "
-                   << fixed(c.measured->update_ms, 4) << " | " << fixed(c.measured->raycast_ms, 4) << " | "
-                   << fixed(c.measured->memory_bytes, 0) << " | " << note << " |\n";
-            }
-            json sj = {{"structure", st.structure},
-                       {"algorithm", st.search.algorithm},
-                       {"stop_reason", st.search.stop_reason},
-                       {"on_bound", st.search.on_bound},
-                       {"evaluations", st.search.evaluations.size()},
-                       {"space_size", st.search.space_size},
-                       {"measurements", st.measurements},
-                       {"seconds", st.seconds},
-                       {"prediction_model", st.prediction_model},
-                       {"best", candidate_json(st.candidates[st.best_candidate])},
-                       {"candidates", json::array()}};
-            for (const Candidate& c : st.candidates) sj["candidates"].push_back(candidate_json(c));
-            // What advise needs to choose this structure's parameters for an unseen scene: the
-            // space searched here and the category's cost model, applied to that scene's counters.
-            sj["space"] = json::array();  // in the search's order of dimensions
-            for (const SearchDimension& d : spec.space.at(st.structure))
-                sj["space"].push_back({{"name", d.name}, {"levels", d.levels}});
-            if (st.cost_model) sj["cost_model"] = st.cost_model->to_json();
-            cj["structures"].push_back(sj);
-        }
-        md << "\n| structure | search | evaluations (space) | measurements | seconds | stopped | best at the edge of "
-              "its range |\n|---|---|---|---|---|---|---|\n";
-        for (const StructureTuning& st : ct.structures) {
-            std::string edge;
-            for (const std::string& b : st.search.on_bound) edge += (edge.empty() ? "" : ", ") + b;
-            md << "| " << st.structure << " | " << st.search.algorithm
-               << (st.prediction_model.empty() ? "" : "; prediction: " + st.prediction_model) << " | "
-               << st.search.evaluations.size() << " (" << st.search.space_size << ") | " << st.measurements << " | "
-               << fixed(st.seconds, 1) << " | " << st.search.stop_reason << " | "
-               << (edge.empty() ? "-" : edge + ": consider widening its range") << " |\n";
-        }
+        md += category_md(spec, ct);
+        json cj = category_json(spec, ct);
         if (o.exhaustive) {
-            md << "\nExhaustive check (every configuration measured):\n\n| structure | configurations | best | tuner's "
-                  "best measured | gap | tuner's evaluations |\n|---|---|---|---|---|---|\n";
-            std::ostringstream seeds_md;
-            json ex = json::array();
-            for (const StructureTuning& st : ct.structures) {
-                const std::vector<SearchDimension>& dims = spec.space.at(st.structure);
-                double best = INFINITY;
-                json best_params;
-                const auto all = enumerate_space(dims);
-                std::map<std::string, double> surface;  // searched params → measured ms
-                std::vector<double> measured;
-                json surface_json = json::array();
-                std::vector<json> full_params;
-                for (const json& p : all) {
-                    json full = find_structure(st.structure).defaults();
-                    for (const auto& [k, v] : p.items()) full[k] = v;
-                    full_params.push_back(full);
-                }
-                const std::vector<MeasuredCost> costs =
-                    measure_interleaved(category, st.structure, full_params, spec.warmup_frames, spec.repetitions,
-                                        spec.accuracy.needs_verification());
-                for (std::size_t i = 0; i < all.size(); ++i) {
-                    const json& p = all[i];
-                    const MeasuredCost& m = costs[i];
-                    // The surface the search sees: configurations failing the accuracy priced out.
-                    const double ms = constrained_cost(m, spec.accuracy);
-                    surface[p.dump()] = ms;
-                    measured.push_back(m.ms);  // the prediction ranks times, not the accuracy
-                    surface_json.push_back({{"params", p}, {"ms", m.ms}, {"meets", spec.accuracy.met_by(m.accuracy)}});
-                    if (spec.accuracy.met_by(m.accuracy) && ms < best) best = ms, best_params = p;
-                }
-                const double tuned = st.candidates[st.best_candidate].measured->ms;
-                md << "| " << st.structure << " | " << all.size() << " | " << fixed(best, 4) << " "
-                   << best_params.dump() << " | " << fixed(tuned, 4) << " | " << fixed(100 * (tuned / best - 1), 1)
-                   << "% | " << st.search.evaluations.size() << " ("
-                   << fixed(100.0 * double(st.search.evaluations.size()) / double(all.size()), 0) << "%) |\n";
-                // The search itself, replayed on the measured surface with five seeds: its gap to the
-                // optimum separated from the noise of measuring again.
-                json defaults_searched = json::object();
-                for (const SearchDimension& d : dims)
-                    defaults_searched[d.name] = find_structure(st.structure).defaults()[d.name];
-                json seeds = json::array();
-                for (std::uint64_t seed = spec.seed; seed < spec.seed + 5; ++seed) {
-                    const SearchResult r = search_levels(
-                        dims, [&](const json& p) { return surface.at(p.dump()); }, spec.budget, seed,
-                        defaults_searched);
-                    const double found = r.evaluations[r.best].cost;
-                    seeds.push_back({{"seed", seed},
-                                     {"evaluations", r.evaluations.size()},
-                                     {"best_ms", found},
-                                     {"best_params", r.evaluations[r.best].params},
-                                     {"gap", found / best - 1}});
-                    seeds_md << "| " << st.structure << " | " << seed << " | " << r.evaluations.size() << " ("
-                             << fixed(100.0 * double(r.evaluations.size()) / double(all.size()), 0) << "%) | "
-                             << fixed(found, 4) << " " << r.evaluations[r.best].params.dump() << " | "
-                             << fixed(100 * (found / best - 1), 1) << "% |\n";
-                }
-                // How well the predicted mode ranks the space: Spearman of prediction against measurement.
-                std::function<double(const json&)> predict = st.predict;
-                std::string model = st.prediction_model;
-                if (!predict) {
-                    Predictor p = calibrate_predictor(spec, category, st.structure, &priors);
-                    predict = p.predict, model = p.model;
-                }
-                std::vector<double> predicted;
-                for (std::size_t i = 0; i < all.size(); ++i) {
-                    predicted.push_back(predict(all[i]));
-                    surface_json[i]["predicted_ms"] = predicted.back();
-                }
-                const double rho = spearman(predicted, measured);
-                seeds_md << "| " << st.structure << " | prediction (" << model << ") | " << all.size()
-                         << " predicted | Spearman " << fixed(rho, 3) << " against measured | |\n";
-                ex.push_back({{"structure", st.structure},
-                              {"configurations", all.size()},
-                              {"best_ms", best},
-                              {"best_params", best_params},
-                              {"tuned_ms", tuned},
-                              {"evaluations", st.search.evaluations.size()},
-                              {"search_on_measured_surface", seeds},
-                              {"prediction_model", model},
-                              {"prediction_spearman", rho},
-                              {"surface", surface_json}});
-            }
-            md << "\nThe search replayed on the exhaustively measured surface (budget " << spec.budget
-               << ", starting from the defaults), five seeds; and the predicted mode's ranking of every "
-                  "configuration:\n\n| structure | seed | evaluations (of the space) | best found | gap to the "
-                  "optimum |\n|---|---|---|---|---|\n"
-               << seeds_md.str();
-            cj["exhaustive"] = ex;
+            std::vector<ExhaustiveCheck> checks;
+            for (const StructureTuning& st : ct.structures)
+                checks.push_back(check_exhaustively(spec, category, st, priors));
+            md += exhaustive_md(spec, checks);
+            cj["exhaustive"] = exhaustive_json(checks);
         }
         const std::string svg_name = "tuning-" + spec.name + "-" + ct.category + ".svg";
         write_file_atomically((fs::path(o.out_dir) / svg_name).string(), convergence_chart(ct, spec));
-        md << "\n![convergence](" << svg_name << ")\n";
+        md += "\n![convergence](" + svg_name + ")\n";
         out["categories"].push_back(cj);
         outcome.categories.push_back(ct);
     }
-    write_file_atomically(md_path.string(), md.str());
-    write_file_atomically(json_path.string(), out.dump(2) + '\n');
-    outcome.md_path = md_path.string();
-    outcome.json_path = json_path.string();
+    write_file_atomically(files.md.string(), md);
+    write_file_atomically(files.json.string(), out.dump(2) + '\n');
+    outcome.md_path = files.md.string();
+    outcome.json_path = files.json.string();
     return outcome;
 }
 

@@ -2,7 +2,9 @@
 /// A whole tuning as one call: every category of a tuning file searched (tuning.h), the results
 /// stored in the database and written as tuning-<name>.md/.json with convergence charts.
 
+#include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -28,6 +30,12 @@ struct TuneOutcome {
     std::string md_path, json_path;
 };
 
+/// run_tuning's steps: the output paths checked; the scenes' features and categories
+/// (categorize_tuning_scenes); then per category tune_category (tuning.h: calibrate, search,
+/// measure, fit, verify), its rows stored, its report section and JSON; with --exhaustive every
+/// configuration measured and the search replayed on that surface (replay_search_on_surface);
+/// last the report, JSON and convergence charts written.
+///
 /// Output paths are checked before the search (InputError when they name an input or an
 /// unwritable place).
 TuneOutcome run_tuning(const TuneSpec& spec, const TuneOptions& options);
@@ -36,6 +44,22 @@ TuneOutcome run_tuning(const TuneSpec& spec, const TuneOptions& options);
 /// the distinct scenes of all categories are pooled and spec.categories is replaced by the derived
 /// categories (cluster_scenes, seeded by spec.seed), so that tuning runs per derived category.
 SceneClustering categorize_tuning_scenes(TuneSpec& spec, bool derive);
+
+/// The search replayed on an exhaustively measured surface, once per seed.
+struct SurfaceReplay {
+    std::uint64_t seed = 0;
+    std::size_t evaluations = 0;  ///< distinct configurations the search evaluated
+    double best_ms = 0;           ///< the best it found
+    nlohmann::json best_params;
+};
+
+/// search_levels on `surface` (searched parameters' compact JSON → cost) with `seeds` seeds from
+/// `first_seed`, each from `start` with `budget`: the search's gap to the optimum apart from the
+/// noise of measuring again. std::out_of_range when the surface lacks a configuration of `dims`.
+std::vector<SurfaceReplay> replay_search_on_surface(const std::vector<SearchDimension>& dims,
+                                                    const std::map<std::string, double>& surface, std::size_t budget,
+                                                    std::uint64_t first_seed, std::size_t seeds,
+                                                    const nlohmann::json& start);
 
 /// The searched parameters of a candidate, "density=4 outlier_guard=true".
 std::string searched_parameters(const TuneSpec& spec, const Candidate& candidate);
