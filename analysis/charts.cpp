@@ -89,11 +89,14 @@ std::string render_svg(const Chart& chart) {
     const char* dir_c = mkdtemp(pattern);
     if (!dir_c) throw std::runtime_error("cannot create a temporary folder for gnuplot");
     const fs::path dir(dir_c);
+    // Names are printed as written: gnuplot's enhanced text (on by default for SVG) would set
+    // bullet_dbvt as "bullet" with "dbvt" as a subscript. Tic labels keep it (10^4 on log axes).
     std::ostringstream script;
     script << "set terminal svg size 820,470 dynamic font 'sans,11' background rgb 'white'\n"
            << "set output " << quoted((dir / "chart.svg").string()) << "\n"
-           << "set title " << quoted(chart.title) << " font 'sans,13'\n"
-           << "set xlabel " << quoted(chart.x_label) << "\nset ylabel " << quoted(chart.y_label) << "\n"
+           << "set title " << quoted(chart.title) << " font 'sans,13' noenhanced\n"
+           << "set xlabel " << quoted(chart.x_label) << " noenhanced\nset ylabel " << quoted(chart.y_label)
+           << " noenhanced\n"
            << "set grid lc rgb '#dddddd'\nset key outside right top box opaque\nset border lc rgb '#555555'\n";
     if (chart.log_x) script << "set logscale x\n";
     if (chart.log_y) script << "set logscale y\n";
@@ -116,10 +119,10 @@ std::string render_svg(const Chart& chart) {
         const int style = (s.style > 0 ? s.style - 1 : index) % 8 + 1;
         plot += (plot.empty() ? "plot " : ", ") + quoted(data.string()) + " using 1:2 with " +
                 (s.lines ? "linespoints" : "points") + " pt " + std::to_string(style % 7 + 5) + " ps 1.2 lw 1.5 lc " +
-                std::to_string(style) + " title " + quoted(s.name);
+                std::to_string(style) + " title " + quoted(s.name) + " noenhanced";
         if (!s.labels.empty())
             plot += ", " + quoted(data.string()) +
-                    " using 1:2:3 with labels offset 0.8,0.6 font 'sans,8' tc rgb '#444444' notitle";
+                    " using 1:2:3 with labels offset 0.8,0.6 font 'sans,8' tc rgb '#444444' noenhanced notitle";
         ++index;
     }
     if (plot.empty()) {  // nothing drawable (a damaged database): an empty frame, not a gnuplot error

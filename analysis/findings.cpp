@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/cost_model.h"
+#include "core/accel/registry.h"
 #include "core/base/number_text.h"
 #include "core/sim/simulator.h"
 #include "runner/store.h"
@@ -23,7 +24,28 @@ constexpr double kLargeScene = 1000;
 /// Within this of the fastest counts as "as good as the best" (a partly-confirmed verdict).
 constexpr double kNearBest = 0.10;
 
-const std::vector<std::string> kOwn{"bf", "ug", "hg", "dbvh", "lbvh"};
+/// The compared structures of the given families, family by family in that order (grids before
+/// BVHs, as the thesis' tables list them), each family in registry order.
+std::vector<std::string> compared_of(std::initializer_list<Family> families) {
+    const std::vector<std::string> compared = findings_structures();
+    std::vector<std::string> out;
+    for (Family f : families)
+        for (const std::string& name : compared)
+            if (find_structure(name).family == f) out.push_back(name);
+    return out;
+}
+
+/// "a, b and c".
+std::string listed(const std::vector<std::string>& names, const std::string& suffix = "") {
+    std::string out;
+    for (std::size_t i = 0; i < names.size(); ++i)
+        out += (i == 0 ? "" : i + 1 == names.size() ? " and " : ", ") + names[i] + suffix;
+    return out;
+}
+
+bool contains(const std::vector<std::string>& names, const std::string& name) {
+    return std::find(names.begin(), names.end(), name) != names.end();
+}
 
 /// One configuration on one scene, medians over repetitions.
 struct Config {
@@ -55,9 +77,10 @@ std::vector<Config> load_configs(Database& db, std::int64_t run) {
     };
     std::map<std::tuple<std::string, std::string, std::string>, Acc> acc;
     std::vector<std::tuple<std::string, std::string, std::string>> order;
+    const std::vector<std::string> compared = findings_structures();
     while (s.step()) {
         const std::string structure = s.text(3);
-        if (std::find(kOwn.begin(), kOwn.end(), structure) == kOwn.end()) continue;
+        if (!contains(compared, structure)) continue;
         const auto key = std::make_tuple(s.text(0), structure, s.text(4));
         auto [it, fresh] = acc.try_emplace(key);
         if (fresh) order.push_back(key);
@@ -89,11 +112,11 @@ struct Scene {
     std::string name, category;
     double objects = 0;
     std::map<std::string, Config> best;  ///< by structure
-    /// Structures other than bf, fastest first.
+    /// Structures other than the scans (bf: the baseline), fastest first.
     std::vector<const Config*> ranking() const {
         std::vector<const Config*> r;
         for (const auto& [name, c] : best)
-            if (name != "bf") r.push_back(&c);
+            if (find_structure(name).family != Family::scan) r.push_back(&c);
         std::sort(r.begin(), r.end(), [](const Config* a, const Config* b) { return a->frame_ms() < b->frame_ms(); });
         return r;
     }
@@ -185,10 +208,12 @@ Finding lbvh_trade(const std::vector<Scene>& scenes) {
         "standing.",
         "§6.3, Table 6.2; §7.1");
     int tested = 0, fast_rays = 0, slow_updates = 0;
+    std::vector<std::string> other_names = compared_of({Family::grid, Family::bvh});
+    std::erase(other_names, "lbvh");
     for (const Scene& s : scenes) {
         if (s.objects < kLargeScene || !s.best.count("lbvh")) continue;
         std::vector<const Config*> others;
-        for (const char* o : {"ug", "hg", "dbvh"})
+        for (const std::string& o : other_names)
             if (s.best.count(o)) others.push_back(&s.best.at(o));
         if (others.empty()) continue;
         ++tested;
@@ -211,9 +236,9 @@ Finding lbvh_trade(const std::vector<Scene>& scenes) {
         return f;
     }
     f.verdict = verdict(fast_rays == tested && slow_updates == tested, fast_rays + slow_updates > 0);
-    f.summary = "LBVH casts at least as fast as half of ug, hg and dbvh on " + std::to_string(fast_rays) + " of " +
-                std::to_string(tested) + " scenes, and has the slowest update on " + std::to_string(slow_updates) +
-                " of them.";
+    f.summary = "LBVH casts at least as fast as half of " + listed(other_names) + " on " + std::to_string(fast_rays) +
+                " of " + std::to_string(tested) + " scenes, and has the slowest update on " +
+                std::to_string(slow_updates) + " of them.";
     return f;
 }
 
@@ -259,14 +284,16 @@ Finding hg_memory(const std::vector<Scene>& scenes) {
         "§6.2, Table 6.1");
     int tested = 0, largest = 0;
     double min_factor = INFINITY, max_factor = 0;
+    std::vector<std::string> other_names = compared_of({Family::grid, Family::bvh});
+    std::erase(other_names, "hg");
     for (const Scene& s : scenes) {
         if (s.objects < kLargeScene || !s.best.count("hg")) continue;
         double others = 0;
         std::string line = s.name + ", bytes per object: hg " + fixed(s.best.at("hg").bytes_per_object, 0);
-        for (const char* o : {"ug", "dbvh", "lbvh"})
+        for (const std::string& o : other_names)
             if (s.best.count(o)) {
                 others = std::max(others, s.best.at(o).bytes_per_object);
-                line += ", " + std::string(o) + " " + fixed(s.best.at(o).bytes_per_object, 0);
+                line += ", " + o + " " + fixed(s.best.at(o).bytes_per_object, 0);
             }
         if (!(others > 0)) continue;
         ++tested;
@@ -282,7 +309,7 @@ Finding hg_memory(const std::vector<Scene>& scenes) {
     f.verdict = verdict(largest == tested && min_factor >= 2, largest > 0);
     f.summary = "hg holds the most memory per object on " + std::to_string(largest) + " of " + std::to_string(tested) +
                 " scenes; its memory per object is " + ratio(min_factor) + " to " + ratio(max_factor) +
-                " the largest of ug's, dbvh's and lbvh's (the thesis: about 50x).";
+                " the largest of " + listed(other_names, "'s") + " (the thesis: about 50x).";
     return f;
 }
 
@@ -292,7 +319,7 @@ Finding traversal_cost(Database& db, std::int64_t run, const std::vector<Scene>&
         "as many cells as nodes.",
         "§6.4, Table 6.3");
     std::map<std::string, double> c_t;
-    for (const char* s : {"ug", "hg", "dbvh", "lbvh"}) {
+    for (const std::string& s : compared_of({Family::grid, Family::bvh})) {
         // The chosen ray-cast model of the run's fit; per-category models give one value per category,
         // the first (irregular before uniform) is used.
         for (const char* cat : {"irregular", "uniform", "import", "recording"}) {
@@ -303,7 +330,9 @@ Finding traversal_cost(Database& db, std::int64_t run, const std::vector<Scene>&
             }
         }
     }
-    const bool grids = c_t.count("ug") || c_t.count("hg"), trees = c_t.count("dbvh") || c_t.count("lbvh");
+    auto is_grid = [](const std::string& name) { return find_structure(name).family == Family::grid; };
+    const bool grids = std::any_of(c_t.begin(), c_t.end(), [&](const auto& e) { return is_grid(e.first); });
+    const bool trees = std::any_of(c_t.begin(), c_t.end(), [&](const auto& e) { return !is_grid(e.first); });
     if (!grids || !trees) {
         f.summary = "No stored fit with a positive C_T for a grid and a BVH: run `rcbench fit` on this database.";
         return f;
@@ -312,7 +341,7 @@ Finding traversal_cost(Database& db, std::int64_t run, const std::vector<Scene>&
     std::string line = "C_T per step (chosen fit):";
     for (const auto& [s, v] : c_t) {
         line += " " + s + " " + fixed(v, 2) + " ns;";
-        if (s == "ug" || s == "hg")
+        if (is_grid(s))
             grid_max = std::max(grid_max, v);
         else
             tree_min = std::min(tree_min, v);
@@ -394,6 +423,10 @@ Finding most_promising(const std::vector<Scene>& scenes) {
 
 }  // namespace
 
+std::vector<std::string> findings_structures() {
+    return structure_names([](const StructureInfo& info) { return info.origin != Origin::peer; });
+}
+
 const char* verdict_name(Finding::Verdict v) {
     switch (v) {
         case Finding::Verdict::confirmed:
@@ -435,7 +468,8 @@ std::string findings_markdown(Database& db, std::int64_t run, const std::vector<
            << s.text(5) << "). Thesis: Guo & Liao (2023), see [reference.md](reference.md). To make it again: "
            << "`rcbench run` the experiment, `rcbench fit` the database (the traversal-cost claim reads the fit), "
            << "then `rcbench findings`.\n\n";
-    md << "Each claim is checked on rcbench's own structures (bf, ug, hg, dbvh, lbvh), each at its fastest "
+    md << "Each claim is checked on rcbench's own structures (" << join(findings_structures(), ", ")
+       << "; the registry's structures that are not another library's), each at its fastest "
           "configuration per scene; per frame = update + ray cast (thesis eq. 5.5), medians over repetitions. "
           "Claims about winners are read on scenes of "
        << fixed(kLargeScene, 0) << " objects or more; within " << pct(kNearBest)

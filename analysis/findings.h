@@ -23,9 +23,14 @@ struct Finding {
 
 const char* verdict_name(Finding::Verdict v);
 
-/// The findings for a run (and its sibling shards). Structures compared are rcbench's own (bf, ug,
-/// hg, dbvh, lbvh), each at its fastest configuration per scene; per-frame cost = update + ray
-/// cast per frame (thesis eq. 5.5), medians over repetitions.
+/// The structures the findings compare: every registered structure that is not another library's
+/// (Origin::peer), in registry order. Claims about "the other structures" or "every grid" read
+/// this list filtered by family; claims about a named structure name it.
+std::vector<std::string> findings_structures();
+
+/// The findings for a run (and its sibling shards). Structures compared are findings_structures(),
+/// each at its fastest configuration per scene; per-frame cost = update + ray cast per frame
+/// (thesis eq. 5.5), medians over repetitions.
 std::vector<Finding> evaluate_findings(Database& db, std::int64_t run);
 
 /// The findings as Markdown (the source of docs/findings.md), headed by the run's provenance.

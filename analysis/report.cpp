@@ -10,6 +10,7 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 #include <tuple>
 
 #include <nlohmann/json.hpp>
@@ -84,6 +85,51 @@ struct Entry {
     bool exact() const { return missed + extra + duplicate == 0 && precision() == 1 && recall() == 1; }
 };
 
+// ---------------------------------------------------------------------------------------------
+// Loading: every query the report makes, in one place; rows are read by column name.
+
+/// A statement's columns by name (the SQL names each with AS), so a row is read by what it holds.
+class Columns {
+public:
+    explicit Columns(const Statement& s) {
+        for (int i = 0; i < s.columns(); ++i) index_[s.column_name(i)] = i;
+    }
+    int operator()(const std::string& name) const {
+        const auto it = index_.find(name);
+        if (it == index_.end()) throw std::logic_error("report: the query has no column '" + name + "'");
+        return it->second;
+    }
+
+private:
+    std::map<std::string, int> index_;
+};
+
+/// One cell of the run: its configuration, its medians and its frames' sums.
+constexpr const char* kCellColumns =
+    "cell.id AS id, scene.spec AS spec, config.structure AS structure, config.params AS params, "
+    "cell.objects AS objects, cell.build_ns AS build_ns, cell.update_ns_median AS update_ns, "
+    "cell.raycast_ns_median AS raycast_ns, cell.memory_bytes AS memory_bytes, cell.repetition AS repetition, "
+    "(SELECT sum(hits) FROM frame WHERE cell_id = cell.id AND warmup = 0) AS hits, "
+    "(SELECT sum(missed) FROM frame WHERE cell_id = cell.id) AS missed, "
+    "(SELECT sum(extra) FROM frame WHERE cell_id = cell.id) AS extra, "
+    "(SELECT sum(duplicate) FROM frame WHERE cell_id = cell.id) AS duplicate, "
+    "(SELECT sum(returned) FROM frame WHERE cell_id = cell.id AND warmup = 0) AS returned, "
+    "(SELECT sum(correct) FROM frame WHERE cell_id = cell.id AND warmup = 0) AS correct, "
+    "(SELECT sum(relevant) FROM frame WHERE cell_id = cell.id AND warmup = 0) AS relevant, "
+    "cell.verified AS verified ";
+
+/// Repetition 0's per-frame ray-cast times and SAH costs of one cell.
+void load_frame_series(Database& db, std::int64_t cell, Entry& e) {
+    Statement f =
+        db.prepare("SELECT raycast_ns AS raycast_ns, sah_cost AS sah_cost FROM frame WHERE cell_id = ? ORDER BY frame");
+    f.bind(1, cell);
+    const Columns col(f);
+    while (f.step()) {
+        e.frame_raycast_ms.push_back(f.real(col("raycast_ns")) / 1e6);
+        e.frame_sah.push_back(f.is_null(col("sah_cost")) ? NAN : f.real(col("sah_cost")));
+    }
+}
+
 std::vector<Entry> load_entries(Database& db, std::int64_t run) {
     struct Acc {
         Entry e;
@@ -91,49 +137,34 @@ std::vector<Entry> load_entries(Database& db, std::int64_t run) {
     };
     std::map<std::pair<std::string, std::string>, Acc> acc;  // (scene, label)
     std::vector<std::pair<std::string, std::string>> order;
-    Statement s = db.prepare(
-        "SELECT cell.id, " + std::string(kSceneLabelSql) +
-        ", scene.spec, config.structure, config.params, cell.objects, cell.build_ns, "
-        "cell.update_ns_median, "
-        "cell.raycast_ns_median, cell.memory_bytes, cell.repetition, "
-        "(SELECT sum(hits) FROM frame WHERE cell_id = cell.id AND warmup = 0), (SELECT sum(missed) FROM frame WHERE "
-        "cell_id = cell.id), "
-        "(SELECT sum(extra) FROM frame WHERE cell_id = cell.id), (SELECT sum(duplicate) FROM frame WHERE cell_id = "
-        "cell.id), (SELECT sum(returned) FROM frame WHERE cell_id = cell.id AND warmup = 0), "
-        "(SELECT sum(correct) FROM frame WHERE cell_id = cell.id AND warmup = 0), "
-        "(SELECT sum(relevant) FROM frame WHERE cell_id = cell.id AND warmup = 0), cell.verified "
-        "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id WHERE cell.run_id "
-        "IN " +
-        std::string(kRunGroupSql) + " ORDER BY cell.id");
+    Statement s = db.prepare("SELECT " + std::string(kSceneLabelSql) + " AS scene, " + kCellColumns +
+                             "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = "
+                             "cell.config_id WHERE cell.run_id IN " +
+                             std::string(kRunGroupSql) + " ORDER BY cell.id");
     s.bind_all(run, run);
+    const Columns col(s);
+    auto real = [&](const char* name) { return s.real(col(name)); };
     while (s.step()) {
-        const std::string label = config_label(s.text(3), s.text(4));
-        const auto key = std::make_pair(s.text(1), label);
+        const std::string label = config_label(s.text(col("structure")), s.text(col("params")));
+        const auto key = std::make_pair(s.text(col("scene")), label);
         auto [it, fresh] = acc.try_emplace(key);
         if (fresh) order.push_back(key);
         Acc& a = it->second;
         Entry& e = a.e;
-        e.scene = s.text(1);
-        e.category = scene_category(s.text(2));
-        e.structure = s.text(3);
-        e.params = s.text(4);
+        e.scene = s.text(col("scene"));
+        e.category = scene_category(s.text(col("spec")));
+        e.structure = s.text(col("structure"));
+        e.params = s.text(col("params"));
         e.label = label;
-        e.objects = s.real(5);
-        a.build.push_back(s.real(6) / 1e6);
-        a.update.push_back(s.real(7) / 1e6);
-        a.raycast.push_back(s.real(8) / 1e6);
-        a.memory.push_back(e.objects > 0 ? s.real(9) / e.objects : 0);
-        e.hits += s.real(11), e.missed += s.real(12), e.extra += s.real(13), e.duplicate += s.real(14);
-        e.returned += s.real(15), e.correct += s.real(16), e.relevant += s.real(17);
-        e.verified = e.verified && s.int64(18) != 0;
-        if (s.int64(10) == 0) {
-            Statement f = db.prepare("SELECT raycast_ns, sah_cost FROM frame WHERE cell_id = ? ORDER BY frame");
-            f.bind(1, s.int64(0));
-            while (f.step()) {
-                e.frame_raycast_ms.push_back(f.real(0) / 1e6);
-                e.frame_sah.push_back(f.is_null(1) ? NAN : f.real(1));
-            }
-        }
+        e.objects = real("objects");
+        a.build.push_back(real("build_ns") / 1e6);
+        a.update.push_back(real("update_ns") / 1e6);
+        a.raycast.push_back(real("raycast_ns") / 1e6);
+        a.memory.push_back(e.objects > 0 ? real("memory_bytes") / e.objects : 0);
+        e.hits += real("hits"), e.missed += real("missed"), e.extra += real("extra"), e.duplicate += real("duplicate");
+        e.returned += real("returned"), e.correct += real("correct"), e.relevant += real("relevant");
+        e.verified = e.verified && s.int64(col("verified")) != 0;
+        if (s.int64(col("repetition")) == 0) load_frame_series(db, s.int64(col("id")), e);
     }
     std::vector<Entry> out;
     for (const auto& key : order) {
@@ -148,6 +179,73 @@ std::vector<Entry> load_entries(Database& db, std::int64_t run) {
     return out;
 }
 
+/// The run's provenance, the report's first paragraph.
+struct RunHead {
+    std::string experiment, commit, cpu, started;
+};
+
+RunHead load_run_head(Database& db, std::int64_t run) {
+    Statement s = db.prepare(
+        "SELECT experiment.name AS experiment, run.git_commit AS git_commit, run.cpu_model AS cpu_model, "
+        "run.started_at AS started_at, run.cores AS cores FROM run JOIN experiment ON experiment.id = "
+        "run.experiment_id WHERE run.id = ?");
+    s.bind(1, run);
+    if (!s.step()) throw InputError("no run " + std::to_string(run));
+    const Columns col(s);
+    return {s.text(col("experiment")), s.text(col("git_commit")),
+            s.text(col("cpu_model")) + " (" + std::to_string(s.int64(col("cores"))) + " cores)",
+            s.text(col("started_at"))};
+}
+
+/// The ray-cast and update series of the experiment's runs up to this one (runner/history.h).
+struct History {
+    HistoryQuery query;  ///< the step options its reading quotes
+    std::vector<HistorySeries> cast, update;
+};
+
+History load_run_history(Database& db, std::int64_t run, const std::string& experiment) {
+    History h;
+    h.query.experiment = experiment;
+    h.query.up_to_run = run;
+    try {
+        h.cast = load_history(db, h.query);
+        HistoryQuery update = h.query;
+        update.metric = "update";
+        h.update = load_history(db, update);
+    } catch (const InputError&) {
+        h.cast.clear(), h.update.clear();  // no frame measured outside warm-up: no history to draw
+    }
+    return h;
+}
+
+/// Everything the report reads from the database.
+struct ReportData {
+    std::vector<Entry> entries;
+    RunHead head;
+    std::vector<SlowCell> slow;
+    std::vector<FrameObservation> frames;
+    ModelInputs model_inputs;
+    NoiseFloor noise;
+    std::vector<Finding> findings;
+    History history;
+};
+
+ReportData load_report_data(Database& db, std::int64_t run) {
+    ReportData d;
+    d.entries = load_entries(db, run);
+    d.head = load_run_head(db, run);
+    d.slow = slow_cells(db, run);
+    d.frames = load_observations(db, run);
+    d.model_inputs = load_model_inputs(db, run);
+    d.noise = noise_floor(db, run);
+    d.findings = evaluate_findings(db, run);
+    d.history = load_run_history(db, run, d.head.experiment);
+    return d;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Statistics over the loaded data: no HTML.
+
 template <typename T>
 std::vector<std::string> unique_in_order(const std::vector<Entry>& entries, T field) {
     std::vector<std::string> out;
@@ -155,6 +253,113 @@ std::vector<std::string> unique_in_order(const std::vector<Entry>& entries, T fi
         if (std::find(out.begin(), out.end(), field(e)) == out.end()) out.push_back(field(e));
     return out;
 }
+
+/// The entries with what every section asks of them.
+struct Entries {
+    explicit Entries(const std::vector<Entry>& entries)
+        : all(entries),
+          scenes(unique_in_order(entries, [](const Entry& e) { return e.scene; })),
+          labels(unique_in_order(entries, [](const Entry& e) { return e.label; })),
+          largest(scenes.front()) {
+        double most_objects = -1;
+        for (const Entry& e : all)
+            if (e.objects > most_objects) most_objects = e.objects, largest = e.scene;
+    }
+    /// A configuration keeps its colour and marker in every chart.
+    int style_of(const std::string& label) const {
+        return int(std::find(labels.begin(), labels.end(), label) - labels.begin()) + 1;
+    }
+    const Entry* find(const std::string& scene, const std::string& label) const {
+        for (const Entry& e : all)
+            if (e.scene == scene && e.label == label) return &e;
+        return nullptr;
+    }
+
+    const std::vector<Entry>& all;
+    std::vector<std::string> scenes, labels;  ///< in order of first appearance
+    std::string largest;                      ///< the scene with the most objects
+};
+
+/// The largest scene of `category`, and on it the configuration with the lowest update + ray cast
+/// (configurations in label order; the first of equal ones).
+std::pair<std::string, const Entry*> best_on_largest(const Entries& es, const std::string& category) {
+    std::string scene;
+    double most_objects = -1;
+    for (const Entry& e : es.all)
+        if (e.category == category && e.objects > most_objects) most_objects = e.objects, scene = e.scene;
+    const Entry* best = nullptr;
+    for (const std::string& l : es.labels)
+        for (const Entry& e : es.all)
+            if (e.category == category && e.label == l && e.scene == scene &&
+                (!best || e.total_ms() < best->total_ms()))
+                best = &e;
+    return {scene, best};
+}
+
+/// The configuration whose ray cast changed most from the first to the last quarter of its frames.
+std::pair<std::string, double> largest_drift(const Entries& es) {
+    double worst_drift = 0;
+    std::string worst;
+    for (const Entry& e : es.all) {
+        if (e.scene != es.largest || e.frame_raycast_ms.empty()) continue;
+        const std::size_t q = std::max<std::size_t>(1, e.frame_raycast_ms.size() / 4);
+        const double first =
+            spread_of({e.frame_raycast_ms.begin(), e.frame_raycast_ms.begin() + std::ptrdiff_t(q)}).median;
+        const double last = spread_of({e.frame_raycast_ms.end() - std::ptrdiff_t(q), e.frame_raycast_ms.end()}).median;
+        if (first > 0 && std::abs(last / first - 1) > std::abs(worst_drift))
+            worst_drift = last / first - 1, worst = e.label;
+    }
+    return {worst, worst_drift};
+}
+
+/// The scene category with the most distinct object counts (more than one), or "".
+std::string growth_category(const std::vector<Entry>& entries) {
+    std::map<std::string, std::vector<double>> counts;
+    for (const Entry& e : entries) {
+        std::vector<double>& v = counts[e.category];
+        if (std::find(v.begin(), v.end(), e.objects) == v.end()) v.push_back(e.objects);
+    }
+    std::string category;
+    std::size_t most_counts = 1;
+    for (const auto& [c, v] : counts)
+        if (v.size() > most_counts) most_counts = v.size(), category = c;
+    return category;
+}
+
+/// Brute force on `scene`, the baseline the thesis measures speed-ups against (§4.1): its first
+/// configuration, or only its configuration at the defaults.
+const Entry* baseline_on(const std::vector<Entry>& entries, const std::string& scene, bool default_params_only) {
+    for (const Entry& e : entries) {
+        if (e.scene != scene || e.structure != "bf") continue;
+        if (!default_params_only || e.label == "bf") return &e;
+    }
+    return nullptr;
+}
+
+/// One failure-mode cell against brute force and the benign scene of the same size.
+struct FailureCell {
+    double mismatches = 0;
+    double vs_bf = NAN, vs_benign = NAN;  ///< cost ratios; NaN without the other cell or its time
+};
+
+FailureCell failure_cell(const std::vector<Entry>& entries, const Entry& e) {
+    FailureCell c;
+    c.mismatches = e.missed + e.extra + e.duplicate;
+    const Entry* bf = baseline_on(entries, e.scene, false);
+    if (bf && bf->total_ms() > 0) c.vs_bf = e.total_ms() / bf->total_ms();
+    // The benign scene of a failure scene: generated irregular (else uniform) with as many objects.
+    for (const char* kind : {"irregular", "uniform"}) {
+        for (const Entry& b : entries)
+            if (b.category == kind && b.label == e.label && b.objects == e.objects) {
+                if (b.total_ms() > 0) c.vs_benign = e.total_ms() / b.total_ms();
+                return c;
+            }
+    }
+    return c;
+}
+
+// ---------------------------------------------------------------------------------------------
+// HTML: one function per section of the report.
 
 class Html {
 public:
@@ -192,22 +397,530 @@ private:
 
 std::string ms(double v) { return fixed(v, v < 0.1 ? 4 : 3); }
 
+/// Thesis Tables 6.1 and 6.2, and memory: configurations × scenes.
+void tables_section(Html& h, const Entries& es, const std::vector<SlowCell>& slow_cells) {
+    h.heading("Build and execution (thesis Tables 6.1 and 6.2)");
+    std::set<std::pair<std::string, std::string>> slow;  // (scene, configuration) with a slow repetition
+    for (const SlowCell& sc : slow_cells) slow.insert({sc.scene, config_label(sc.structure, sc.params)});
+    std::vector<std::string> header{"configuration"};
+    header.insert(header.end(), es.scenes.begin(), es.scenes.end());
+    std::vector<std::vector<std::string>> build, cast, memory;
+    for (const std::string& l : es.labels) {
+        std::vector<std::string> b{l}, c{l}, m{l};
+        for (const std::string& sc : es.scenes) {
+            const Entry* e = es.find(sc, l);
+            b.push_back(e ? ms(e->build_ms) : "-");
+            c.push_back(e ? ms(e->raycast_ms) + " (" + ms(e->update_ms) + ")" + (slow.count({sc, l}) ? " *" : "")
+                          : "-");
+            m.push_back(e ? fixed(e->memory_per_object, 0) : "-");
+        }
+        build.push_back(b), cast.push_back(c), memory.push_back(m);
+    }
+    h.table(header, build, "Build time (ms), Table 6.1");
+    h.table(header, cast,
+            std::string("Ray cast per frame (ms), with update per frame in parentheses, Table 6.2") +
+                (slow.empty() ? "" : "; * a repetition was measured on a slow machine (cell_state.slow)"));
+    h.table(header, memory, "Memory after the build (bytes per object)");
+}
+
+/// Update against ray cast (thesis Figures 6.1 and 6.2), one chart per scene category.
+void update_raycast_section(Html& h, const Entries& es) {
+    h.heading("Update against ray cast (thesis Figures 6.1 and 6.2)");
+    for (const std::string& category : unique_in_order(es.all, [](const Entry& e) { return e.category; })) {
+        Chart c;
+        c.title = "Update and ray cast per frame, " + category + " scenes";
+        c.x_label = "update per frame (ms)";
+        c.y_label = "ray cast per frame (ms)";
+        c.log_x = c.log_y = true;
+        for (const std::string& l : es.labels) {
+            Series s{l, {}, {}, {}, false, es.style_of(l)};
+            for (const Entry& e : es.all)
+                if (e.category == category && e.label == l) {
+                    s.x.push_back(std::max(e.update_ms, 1e-5));
+                    s.y.push_back(e.raycast_ms);
+                    s.labels.push_back(e.scene);
+                }
+            c.series.push_back(s);
+        }
+        const auto [best_scene, best] = best_on_largest(es, category);
+        const Entry* bf = es.find(best_scene, "bf");
+        c.reading = best ? "Lower left is better. On " + best_scene + ", the lowest update + ray cast per frame is " +
+                               best->label + " at " + ms(best->total_ms()) + " ms" +
+                               (bf && best != bf
+                                    ? ", " + fixed(bf->total_ms() / best->total_ms(), 1) + "x less than brute force"
+                                    : "") +
+                               "."
+                         : "No data.";
+        h.chart(c);
+    }
+}
+
+/// Time per frame against precision and against recall on one scene, with the Pareto front named.
+void tradeoff_charts(Html& h, const Entries& es, const std::string& sc, const std::vector<const Entry*>& here) {
+    const int front_style = int(es.labels.size()) + 1;
+    // A measure at 1 for every configuration would draw a flat chart: the other's reading says so.
+    auto all_one = [&](bool precision) {
+        return std::all_of(here.begin(), here.end(),
+                           [&](const Entry* e) { return (precision ? e->precision() : e->recall()) == 1; });
+    };
+    for (const char* measure : {"precision", "recall"}) {
+        const bool is_precision = std::string(measure) == "precision";
+        if (all_one(is_precision)) continue;
+        std::vector<TradeoffPoint> points;
+        for (const Entry* e : here)
+            points.push_back({e->label, e->total_ms(), is_precision ? e->precision() : e->recall()});
+        const std::vector<std::size_t> front = pareto_front(points);
+        Chart c;
+        c.title = "Time per frame against " + std::string(measure) + " on " + sc;
+        c.x_label = "update + ray cast per frame, narrow phase included (ms)";
+        c.y_label = std::string(measure) + " against the shapes";
+        c.log_x = true;
+        double lowest = 1;
+        for (const TradeoffPoint& p : points) lowest = std::min(lowest, p.accuracy);
+        c.extra = "set yrange [" + fixed(std::max(0.0, lowest - 0.05), 2) + ":1.02]";
+        for (std::size_t i = 0; i < points.size(); ++i)
+            c.series.push_back(
+                {points[i].label, {points[i].ms}, {points[i].accuracy}, {}, false, es.style_of(points[i].label)});
+        Series line{"Pareto front", {}, {}, {}, true, front_style};
+        for (std::size_t i : front) line.x.push_back(points[i].ms), line.y.push_back(points[i].accuracy);
+        c.series.push_back(line);
+        c.reading = front_reading(sc, measure, points, front) +
+                    " A configuration is on the front when no other is both faster and at least as "
+                    "accurate; up and left is better." +
+                    (all_one(!is_precision) ? std::string(" The ") + (is_precision ? "recall" : "precision") +
+                                                  " of every configuration on " + sc + " is 1."
+                                            : "");
+        h.chart(c);
+    }
+}
+
+/// Speed against accuracy: per scene, time per frame against precision and against recall of
+/// every configuration (query levels included: candidates, boxes, shapes; core/accel/query_level.h),
+/// with the Pareto front named. A scene where every configuration is exact gets one line.
+void accuracy_section(Html& h, const Entries& es) {
+    h.heading("Speed against accuracy");
+    std::vector<std::string> exact_scenes, unverified;
+    for (const std::string& sc : es.scenes) {
+        std::vector<const Entry*> here;
+        bool all_exact = true;
+        for (const Entry& e : es.all)
+            if (e.scene == sc) {
+                if (!e.verified) {
+                    unverified.push_back(e.label + " on " + sc);
+                    continue;
+                }
+                here.push_back(&e);
+                all_exact = all_exact && e.exact();
+            }
+        if (here.empty()) continue;
+        if (all_exact)
+            exact_scenes.push_back(sc);
+        else
+            tradeoff_charts(h, es, sc, here);
+    }
+    if (!exact_scenes.empty())
+        h.paragraph((exact_scenes.size() == es.scenes.size()
+                         ? "Every configuration was exact on every scene ("
+                         : "Every configuration was exact on " + join(exact_scenes, ", ") + " (") +
+                    std::string("no mismatches, precision = recall = 1 against the shapes), so speed is the only "
+                                "difference there."));
+    if (!unverified.empty())
+        h.paragraph("Not verified against the ground truth (accuracy unknown, left out of the charts): " +
+                    join(unverified, ", ") + ".");
+    std::vector<std::vector<std::string>> rows;
+    for (const Entry& e : es.all)
+        rows.push_back({e.scene, e.label, fixed(e.hits, 0), fixed(e.missed, 0), fixed(e.extra, 0),
+                        fixed(e.duplicate, 0), e.verified ? fixed(e.precision(), 3) : "-",
+                        e.verified ? fixed(e.recall(), 3) : "-"});
+    h.table({"scene", "configuration", "hits", "missed", "extra", "duplicate", "precision", "recall"}, rows,
+            "Hit sets against the ground truth: mismatches against each configuration's own contract (all "
+            "frames), precision and recall against the shapes (measured frames)");
+}
+
+/// A model's (measured, predicted) cost per ray, medians per configuration, in configuration order.
+std::vector<std::pair<double, double>> predicted_points(const CandidateModel& model) {
+    std::map<int, std::pair<std::vector<double>, std::vector<double>>> per_config;
+    for (std::size_t i = 0; i < model.problem.y.size(); ++i) {
+        per_config[model.problem.group[i]].first.push_back(model.problem.y[i]);
+        per_config[model.problem.group[i]].second.push_back(model.fit.predict(model.problem.x[i]));
+    }
+    std::vector<std::pair<double, double>> out;
+    for (auto& [g, v] : per_config) out.emplace_back(spread_of(v.first).median, spread_of(v.second).median);
+    return out;
+}
+
+/// Predicted against measured ray-cast cost per ray, one series per structure's chosen model.
+void predicted_chart(Html& h, const std::vector<StructureModels>& models, const NoiseFloor& noise) {
+    Chart c;
+    c.title = "Predicted against measured ray-cast cost per ray";
+    c.x_label = "measured (ns per ray)";
+    c.y_label = "predicted by the chosen model (ns per ray)";
+    c.log_x = c.log_y = true;
+    c.extra = "set style line 99 lc rgb '#888888' dt 2\n";
+    double lo = INFINITY, hi = 0;
+    std::string errors;
+    for (const StructureModels& m : models) {
+        const CandidateModel* chosen = m.chosen("raycast");
+        if (!chosen) continue;
+        Series s{m.structure + " (" + chosen->name + ")", {}, {}, {}, false};
+        for (const auto& [measured, predicted] : predicted_points(*chosen)) {
+            s.x.push_back(measured);
+            s.y.push_back(predicted);
+            lo = std::min(lo, measured), hi = std::max(hi, measured);
+        }
+        c.series.push_back(s);
+        const StructureNoise* n = noise.find(m.structure);
+        errors += (errors.empty() ? "" : ", ") + m.structure + " " + fixed(100 * chosen->heldout_error, 1) + "%" +
+                  (n && std::isfinite(n->raycast) ? " (repeats " + noise_text(n->raycast) + ")" : "");
+    }
+    if (hi > 0) {
+        std::ostringstream ref;
+        ref << "set arrow from " << lo * 0.7 << "," << lo * 0.7 << " to " << hi * 1.4 << "," << hi * 1.4
+            << " nohead lc rgb '#444444'\n"
+            << "set arrow from " << lo * 0.7 << "," << lo * 0.7 * 1.1 << " to " << hi * 1.4 << "," << hi * 1.4 * 1.1
+            << " nohead dt 2 lc rgb '#999999'\n"
+            << "set arrow from " << lo * 0.7 << "," << lo * 0.7 * 0.9 << " to " << hi * 1.4 << "," << hi * 1.4 * 0.9
+            << " nohead dt 2 lc rgb '#999999'\n";
+        c.extra += ref.str();
+    }
+    c.reading =
+        "One point per configuration (median over its frames); the solid line is a perfect prediction, the dashed "
+        "band ±10%. "
+        "Held-out error (configurations left out of the fit), with the scatter of repeated measurements of the "
+        "same cell in parentheses: " +
+        errors + ".";
+    h.chart(c);
+}
+
+/// The noise floor beside the model's error: what the machine cannot repeat, no model can predict.
+void noise_section(Html& h, const std::vector<StructureModels>& models, const NoiseFloor& noise,
+                   const std::vector<SlowCell>& slow_cells) {
+    std::vector<std::vector<std::string>> floor;
+    for (const StructureModels& m : models) {
+        const CandidateModel* chosen = m.chosen("raycast");
+        const StructureNoise* n = noise.find(m.structure);
+        floor.push_back({m.structure, chosen ? fixed(100 * chosen->heldout_error, 1) + "%" : "-",
+                         n ? noise_text(n->raycast) : "-", n ? noise_text(n->update) : "-",
+                         n ? std::to_string(n->cells) + " (" + std::to_string(n->repetitions) + ")" : "0",
+                         n ? std::to_string(n->slow) : "0"});
+    }
+    h.table({"structure", "held-out error (ray cast)", "repeatability (ray cast)", "repeatability (update)",
+             "repeated cells (repetitions)", "slow repetitions"},
+            floor,
+            "Noise floor: median absolute relative deviation of a repeated cell's time per frame from the median "
+            "of its repetitions (needs repetitions >= 2); error above it is the model's");
+    std::string state = std::to_string(noise.with_state) + " of " + std::to_string(noise.cells) +
+                        " cells have the machine's state recorded";
+    if (noise.with_state)
+        state += " (median 1-minute load " + fixed(noise.load_median, 2) + ", median calibration loop " +
+                 fixed(noise.calibration_median_ns / 1e6, 3) + " ms); " + std::to_string(noise.slow) +
+                 " were measured while the calibration loop ran more than 10% above its run's median";
+    h.paragraph(state + ".");
+    // The slow cells are marked "*" in Table 6.2 (a list here would repeat every scene's name).
+    if (noise.slow) {
+        double worst = 0;
+        for (const SlowCell& sc : slow_cells) worst = std::max(worst, sc.calibration_ratio);
+        h.paragraph("Cells measured on a slow machine are marked * in Table 6.2; the slowest calibration loop ran " +
+                    fixed(100 * (worst - 1), 0) + "% above its run's median.");
+    }
+}
+
+/// Thesis Table 6.3's analog and the model selection of each structure.
+void breakdown_tables(Html& h, const std::vector<StructureModels>& models,
+                      const std::vector<CostBreakdown>& breakdown) {
+    std::vector<std::vector<std::string>> rows;
+    const BreakdownColumns columns = breakdown_columns(breakdown, "×");
+    for (std::size_t i = 0; i < breakdown.size(); ++i) {
+        rows.push_back({breakdown[i].scene, config_label(breakdown[i].structure, breakdown[i].params)});
+        rows.back().insert(rows.back().end(), columns.rows[i].begin(), columns.rows[i].end());
+    }
+    std::vector<std::string> header{"scene", "configuration"};
+    header.insert(header.end(), columns.header.begin(), columns.header.end());
+    h.table(header, rows,
+            "Thesis Table 6.3 analog: ns per ray; counts per ray; C terms from each structure's chosen model");
+    std::vector<std::vector<std::string>> sel;
+    for (const StructureModels& m : models)
+        for (const CandidateModel& cm : m.raycast) {
+            std::string coefficients;
+            for (const Coefficient& co : cm.fit.coefficients)
+                coefficients +=
+                    (coefficients.empty() ? "" : "; ") + co.name + " " + fixed(co.value, 3) +
+                    (std::isfinite(co.ci_low) ? " [" + fixed(co.ci_low, 3) + ", " + fixed(co.ci_high, 3) + "]" : "") +
+                    (co.spans_zero ? " ~0?" : "");
+            sel.push_back({m.structure, cm.name, fixed(100 * cm.heldout_error, 1) + "%", fixed(cm.fit.r2, 3),
+                           cm.fit.status(), cm.chosen ? "chosen" : "",
+                           cm.fit.status() == "ok" ? coefficients : "(not identifiable)"});
+        }
+    h.table({"structure", "model", "held-out error", "R²", "status", "", "coefficients (ns, 95% interval)"}, sel,
+            "Model selection: the smallest model within max(0.5 points, 5%) of the best held-out error is chosen");
+}
+
+/// Which terms each structure's chosen model kept, against the calibration, and how well it
+/// predicts scenes it was not fitted on.
+void chosen_terms(Html& h, const std::vector<StructureModels>& models) {
+    std::vector<std::vector<std::string>> chosen_rows;
+    int calibrated = 0, within = 0;
+    for (const StructureModels& m : models) {
+        const CandidateModel* cm = m.chosen("raycast");
+        if (!cm) continue;
+        std::string terms, against, dropped;
+        for (const Coefficient& co : cm->fit.coefficients) {
+            terms += (terms.empty() ? "" : ", ") + co.name + " " + fixed(co.value, 3);
+            if (std::isfinite(co.prior)) {
+                ++calibrated;
+                within += !co.at_bound;
+                against += (against.empty() ? "" : ", ") + co.name + " ×" + fixed(co.value / co.prior, 2) +
+                           (co.at_bound ? " (at the 3× bound)" : "");
+            }
+        }
+        for (const std::string& d : cm->dropped) dropped += (dropped.empty() ? "" : "; ") + d;
+        chosen_rows.push_back({m.structure, cm->name, terms, against.empty() ? "no calibration value" : against,
+                               dropped.empty() ? "-" : dropped,
+                               std::isfinite(cm->heldout_error) ? fixed(100 * cm->heldout_error, 1) + "%" : "-",
+                               std::isfinite(m.loso_error) ? fixed(100 * m.loso_error, 1) + "%" : "-"});
+    }
+    h.table({"structure", "chosen model", "terms (ns per unit; slow>L…: fraction)", "against calibration",
+             "dropped, and why", "held-out (configurations)", "leave one scene out (time per frame)"},
+            chosen_rows,
+            "Chosen ray-cast terms per structure. Calibration: each structure on fixed micro-scenes that vary "
+            "N_RB and N_T independently; its pinned values are priors bounding the fit to 3×. Leave one scene "
+            "out: each scene's time per frame (update + rays × C) predicted from a fit on the other scenes.");
+    if (calibrated)
+        h.paragraph(
+            std::to_string(within) + " of " + std::to_string(calibrated) +
+            " calibrated coefficients of the chosen models lie inside the 3× range of their calibration "
+            "value without touching its bound" +
+            (within == calibrated ? "." : "; the others are held at the bound: the run's frames pull them further."));
+    else
+        h.paragraph(
+            "The run has no calibration (it was made before runs stored one): the coefficients are fitted "
+            "without priors and collinear counters may not be told apart.");
+}
+
+/// Cost model (thesis eq. 5.4, Table 6.3): predicted against measured, the noise floor, the
+/// breakdown, model selection and the chosen terms.
+void cost_model_section(Html& h, const ReportData& d, const std::vector<StructureModels>& models,
+                        const std::vector<CostBreakdown>& breakdown) {
+    h.heading("Cost model (thesis eq. 5.4, Table 6.3)");
+    predicted_chart(h, models, d.noise);
+    noise_section(h, models, d.noise, d.slow);
+    breakdown_tables(h, models, breakdown);
+    chosen_terms(h, models);
+}
+
+/// Thesis Table 6.4: DBVH incremental against full SAH, where the run has both.
+void dbvh_section(Html& h, const std::vector<CostBreakdown>& breakdown) {
+    std::vector<std::vector<std::string>> rows;
+    for (const CostBreakdown& b : breakdown)
+        if (b.structure == "dbvh")
+            rows.push_back({b.scene, config_label(b.structure, b.params), fixed(b.c_total, 1), fixed(b.n_tp, 1),
+                            fixed(b.n_fp, 1), fixed(b.n_t, 1)});
+    if (rows.size() > 1) {
+        h.heading("Tree quality of the dynamic BVH (thesis Table 6.4)");
+        h.table({"scene", "configuration", "C_total (ns/ray)", "N_TP", "N_FP", "N_T"}, rows,
+                "DBVH incremental insertion against full binned-SAH rebuilds");
+    }
+}
+
+/// The SAH cost's change from the first to the last frame of each tree on the largest scene.
+struct SahChange {
+    std::string label;
+    double change = 0;
+    Series series;
+};
+
+std::vector<SahChange> sah_changes(const Entries& es) {
+    std::vector<SahChange> out;
+    for (const Entry& e : es.all) {
+        if (e.scene != es.largest) continue;
+        Series s{e.label, {}, {}, {}, true, es.style_of(e.label)};
+        for (std::size_t f = 0; f < e.frame_sah.size(); ++f)
+            if (std::isfinite(e.frame_sah[f])) s.x.push_back(double(f + 1)), s.y.push_back(e.frame_sah[f]);
+        if (s.x.empty()) continue;
+        const double change = s.y.front() > 0 ? s.y.back() / s.y.front() - 1 : 0;
+        out.push_back({e.label, change, s});
+    }
+    return out;
+}
+
+/// Per-frame series on the largest scene: ray cast, and the trees' SAH cost.
+void over_time_section(Html& h, const Entries& es) {
+    h.heading("Over time, on " + es.largest);
+    Chart c;
+    c.title = "Ray cast per frame on " + es.largest;
+    c.x_label = "frame";
+    c.y_label = "ray cast per frame (ms)";
+    c.log_y = true;
+    for (const Entry& e : es.all) {
+        if (e.scene != es.largest || e.frame_raycast_ms.empty()) continue;
+        Series s{e.label, {}, {}, {}, true, es.style_of(e.label)};
+        for (std::size_t f = 0; f < e.frame_raycast_ms.size(); ++f)
+            s.x.push_back(double(f + 1)), s.y.push_back(e.frame_raycast_ms[f]);
+        c.series.push_back(s);
+    }
+    const auto [worst, worst_drift] = largest_drift(es);
+    c.reading = worst.empty()
+                    ? "No configuration changed by more than noise from the first to the last quarter of the frames."
+                    : "Largest change from the first to the last quarter of the frames: " + worst + ", " +
+                          fixed(100 * worst_drift, 1) + "% (noise included).";
+    h.chart(c);
+
+    Chart sah;
+    sah.title = "SAH cost of the tree per frame on " + es.largest + " (eq. 3.2)";
+    sah.x_label = "frame";
+    sah.y_label = "SAH cost (relative to the root's area)";
+    std::string growth, grew, fell;
+    for (const SahChange& t : sah_changes(es)) {
+        growth += (growth.empty() ? "" : ", ") + t.label + " " + fixed(100 * t.change, 1) + "%";
+        // Beyond 2% the tree's quality moved; within it, the tree kept its quality.
+        if (t.change > 0.02) grew += (grew.empty() ? "" : ", ") + t.label;
+        if (t.change < -0.02) fell += (fell.empty() ? "" : ", ") + t.label;
+        sah.series.push_back(t.series);
+    }
+    if (sah.series.empty()) return;
+    sah.reading = "Change of the SAH cost from the first to the last frame: " + growth + ". " +
+                  (grew.empty() ? std::string("No tree's cost grew by more than 2%")
+                                : "The cost grew by more than 2% for " + grew) +
+                  (fell.empty() ? std::string(".") : "; it fell by more than 2% for " + fell + ".");
+    h.chart(sah);
+}
+
+/// Memory against time per frame, for every configuration.
+void memory_chart(Html& h, const Entries& es) {
+    Chart c;
+    c.title = "Memory against time per frame";
+    c.x_label = "memory (bytes per object)";
+    c.y_label = "update + ray cast per frame (ms)";
+    c.log_x = c.log_y = true;
+    const Entry* most = nullptr;
+    for (const std::string& l : es.labels) {
+        Series s{l, {}, {}, {}, false, es.style_of(l)};
+        for (const Entry& e : es.all)
+            if (e.label == l) {
+                s.x.push_back(e.memory_per_object);
+                s.y.push_back(e.total_ms());
+                if (!most || e.memory_per_object > most->memory_per_object) most = &e;
+            }
+        c.series.push_back(s);
+    }
+    c.reading = most ? "Most memory per object: " + most->label + " on " + most->scene + ", " +
+                           fixed(most->memory_per_object, 0) + " bytes per object."
+                     : "No data.";
+    h.chart(c);
+}
+
+/// Build time against object count, with each configuration's log-log slope.
+void build_chart(Html& h, const Entries& es) {
+    Chart b;
+    b.title = "Build time against object count";
+    b.x_label = "objects";
+    b.y_label = "build (ms)";
+    b.log_x = b.log_y = true;
+    std::string slopes;
+    for (const std::string& l : es.labels) {
+        Series s{l, {}, {}, {}, true, es.style_of(l)};
+        std::vector<std::pair<double, double>> points;
+        for (const Entry& e : es.all)
+            if (e.label == l) points.emplace_back(e.objects, e.build_ms);
+        std::sort(points.begin(), points.end());
+        for (auto [x, y] : points) s.x.push_back(x), s.y.push_back(y);
+        const double slope = log_log_slope(s.x, s.y);
+        if (std::isfinite(slope)) {
+            s.name += " (slope " + fixed(slope, 2) + ")";
+            slopes += (slopes.empty() ? "" : ", ") + l + " " + fixed(slope, 2);
+        }
+        b.series.push_back(s);
+    }
+    b.reading = slopes.empty() ? "Too few object counts to fit slopes."
+                               : "Slopes of log build time against log object count (1 = linear): " + slopes + ".";
+    h.chart(b);
+}
+
+/// Memory against time; build time against object count; growth with the object count on the
+/// category with the most distinct object counts (experiments/scale.json: irregular scenes of 10^4
+/// to 10^6 objects).
+void memory_build_section(Html& h, const Entries& es) {
+    h.heading("Memory and build");
+    memory_chart(h, es);
+    build_chart(h, es);
+    const std::string category = growth_category(es.all);
+    if (category.empty()) return;
+    std::vector<GrowthPoint> points;
+    for (const Entry& e : es.all)
+        if (e.category == category) points.push_back({e.label, e.objects, e.total_ms(), es.style_of(e.label)});
+    h.heading("Growth with the object count");
+    h.chart(growth_chart(points, category + " scenes"));
+}
+
+/// Failure-mode scenes (by their generator kind) against brute force and against a benign scene of
+/// the same size, for every configuration.
+void failure_section(Html& h, const Entries& es) {
+    const std::vector<std::string> failure_kinds = failure_mode_kinds();
+    std::vector<std::string> failure_scenes;
+    for (const std::string& sc : es.scenes)
+        for (const Entry& e : es.all)
+            if (e.scene == sc &&
+                std::find(failure_kinds.begin(), failure_kinds.end(), e.category) != failure_kinds.end()) {
+                failure_scenes.push_back(sc);
+                break;
+            }
+    if (failure_scenes.empty()) return;
+    h.heading("Where methods fail");
+    auto ratio = [](double r) { return std::isnan(r) ? std::string("-") : fixed(r, r < 10 ? 2 : 1); };
+    std::vector<std::string> header{"configuration"};
+    header.insert(header.end(), failure_scenes.begin(), failure_scenes.end());
+    std::vector<std::vector<std::string>> rows;
+    std::size_t wrong = 0;
+    for (const std::string& l : es.labels) {
+        std::vector<std::string> row{l};
+        bool any = false;
+        for (const std::string& sc : failure_scenes) {
+            const Entry* e = es.find(sc, l);
+            if (!e) {
+                row.push_back("-");
+                continue;
+            }
+            any = true;
+            const FailureCell f = failure_cell(es.all, *e);
+            if (f.mismatches > 0) ++wrong;
+            row.push_back((f.mismatches > 0 ? "WRONG (" + fixed(f.mismatches, 0) + ")" : std::string("ok")) + "; " +
+                          ratio(f.vs_bf) + " bf; " + ratio(f.vs_benign) + " benign");
+        }
+        if (any) rows.push_back(row);
+    }
+    h.paragraph(
+        "Scenes built to break an assumption: stadium (one huge box around a tiny dense "
+        "cluster), identical (stacks of equal boxes), same-centroid (stacks with one centroid), flat "
+        "(zero-thickness boxes in one plane), slivers (long thin and zero-volume boxes), outlier (one "
+        "box 10^6 scene sizes away). Each cell: ok or WRONG (mismatches against the ground truth); "
+        "cost (update + ray cast per frame, medians) divided by brute force's on the same scene; and "
+        "divided by the same configuration's cost on the benign scene of the same size (generated "
+        "irregular, else uniform, with as many objects; '-' when the run has none). " +
+        std::string(wrong == 0 ? "Every configuration was exact on every failure scene."
+                               : std::to_string(wrong) + " configuration-scene pairs were not exact."));
+    h.table(header, rows, "Where methods fail: correctness, cost / brute force, cost / benign scene of the same size");
+}
+
+/// The thesis' conclusions against this run (analysis/findings.h; `rcbench findings` writes the same).
+void findings_section(Html& h, const std::vector<Finding>& findings) {
+    h.heading("Findings: the thesis' conclusions against this run");
+    for (const Finding& f : findings) {
+        h.paragraph(f.claim + " (thesis " + f.source + "): " + verdict_name(f.verdict) + ". " + f.summary);
+        if (f.evidence.empty()) continue;
+        std::vector<std::vector<std::string>> rows;
+        for (const std::string& e : f.evidence) rows.push_back({e});
+        h.table({"evidence"}, rows, f.claim);
+    }
+}
+
 /// The History section: per-run medians of the experiment's runs up to this one, on the largest
 /// scene, one line per configuration; the reading lists the steps of every scene and configuration
 /// (ray cast and update), found as runner/history.h describes. Nothing when this is the first run.
-void history_section(Html& h, Database& db, std::int64_t run, const std::string& experiment, const std::string& largest,
-                     const std::function<int(const std::string&)>& style_of) {
-    HistoryQuery q;
-    q.experiment = experiment;
-    q.up_to_run = run;
-    std::vector<HistorySeries> cast, update;
-    try {
-        cast = load_history(db, q);
-        q.metric = "update";
-        update = load_history(db, q);
-    } catch (const InputError&) {
-        return;  // no frame measured outside warm-up: no history to draw
-    }
+void history_section(Html& h, const History& history, const std::string& experiment, const Entries& es) {
+    const std::vector<HistorySeries>& cast = history.cast;
+    const std::vector<HistorySeries>& update = history.update;
+    const HistoryQuery& q = history.query;
+    const std::string& largest = es.largest;
     // The runs in run order (each series lists its points in that order).
     std::vector<std::tuple<std::string, std::int64_t, std::string>> runs;  // (started_at, id, commit)
     for (const HistorySeries& s : cast)
@@ -228,7 +941,8 @@ void history_section(Html& h, Database& db, std::int64_t run, const std::string&
     c.x_label = "run (commit)";
     c.y_label = "ray cast per frame (ms, median)";
     c.log_y = true;
-    // Tics name the run and its commit (text from the database: only plain characters reach gnuplot).
+    // Tics name the run and its commit (text from the database: only plain characters reach gnuplot,
+    // printed as written).
     std::string tics;
     const std::size_t every = (runs.size() + 11) / 12;
     for (std::size_t i = 0; i < runs.size(); i += every) {
@@ -238,12 +952,12 @@ void history_section(Html& h, Database& db, std::int64_t run, const std::string&
                     label.end());
         tics += (tics.empty() ? "" : ", ") + ("'" + label + "' " + std::to_string(i + 1));
     }
-    c.extra = "set xtics (" + tics + ") rotate by -30 font 'sans,9'\nset xrange [0.5:" + std::to_string(runs.size()) +
-              ".5]\n";
+    c.extra = "set xtics (" + tics +
+              ") rotate by -30 font 'sans,9' noenhanced\nset xrange [0.5:" + std::to_string(runs.size()) + ".5]\n";
     for (const HistorySeries& s : cast) {
         if (s.scene != largest) continue;
         const std::string label = config_label(s.structure, s.params);
-        Series line{label, {}, {}, {}, true, style_of(label)};
+        Series line{label, {}, {}, {}, true, es.style_of(label)};
         for (const HistoryPoint& p : s.points)
             line.x.push_back(position(p.run)), line.y.push_back(p.median_ns / 1e6), line.labels.emplace_back();
         for (const Step& step : s.steps)  // the steps written at the run where the new level starts
@@ -285,559 +999,8 @@ void history_section(Html& h, Database& db, std::int64_t run, const std::string&
     h.chart(c);
 }
 
-}  // namespace
-
-ReportSummary write_report(Database& db, std::int64_t run, const std::string& path) {
-    const std::vector<Entry> entries = load_entries(db, run);
-    const std::vector<std::string> scenes = unique_in_order(entries, [](const Entry& e) { return e.scene; });
-    const std::vector<std::string> labels = unique_in_order(entries, [](const Entry& e) { return e.label; });
-    // A configuration keeps its colour and marker in every chart.
-    auto style_of = [&](const std::string& label) {
-        return int(std::find(labels.begin(), labels.end(), label) - labels.begin()) + 1;
-    };
-    auto find = [&](const std::string& scene, const std::string& label) -> const Entry* {
-        for (const Entry& e : entries)
-            if (e.scene == scene && e.label == label) return &e;
-        return nullptr;
-    };
-    std::string experiment, commit, cpu, started;
-    {
-        Statement s = db.prepare(
-            "SELECT experiment.name, run.git_commit, run.cpu_model, run.started_at, run.cores FROM run JOIN experiment "
-            "ON "
-            "experiment.id = run.experiment_id WHERE run.id = ?");
-        s.bind(1, run);
-        if (!s.step()) throw InputError("no run " + std::to_string(run));
-        experiment = s.text(0), commit = s.text(1), cpu = s.text(2) + " (" + std::to_string(s.int64(4)) + " cores)",
-        started = s.text(3);
-    }
-    // The largest scene by objects: where the per-frame series and Table 6.4 are shown.
-    std::string largest = scenes.front();
-    double most_objects = -1;
-    for (const Entry& e : entries)
-        if (e.objects > most_objects) most_objects = e.objects, largest = e.scene;
-
-    Html h;
-    h.paragraph("Experiment " + experiment + ", run " + std::to_string(run) + " started " + started + " from commit " +
-                commit + " on " + cpu +
-                ". Times are medians over frames (and over repetitions); a frame casts its rays as one batch.");
-
-    // Thesis Tables 6.1 and 6.2.
-    h.heading("Build and execution (thesis Tables 6.1 and 6.2)");
-    {
-        std::set<std::pair<std::string, std::string>> slow;  // (scene, configuration) with a slow repetition
-        for (const SlowCell& sc : slow_cells(db, run)) slow.insert({sc.scene, config_label(sc.structure, sc.params)});
-        std::vector<std::string> header{"configuration"};
-        header.insert(header.end(), scenes.begin(), scenes.end());
-        std::vector<std::vector<std::string>> build, cast, memory;
-        for (const std::string& l : labels) {
-            std::vector<std::string> b{l}, c{l}, m{l};
-            for (const std::string& sc : scenes) {
-                const Entry* e = find(sc, l);
-                b.push_back(e ? ms(e->build_ms) : "-");
-                c.push_back(e ? ms(e->raycast_ms) + " (" + ms(e->update_ms) + ")" + (slow.count({sc, l}) ? " *" : "")
-                              : "-");
-                m.push_back(e ? fixed(e->memory_per_object, 0) : "-");
-            }
-            build.push_back(b), cast.push_back(c), memory.push_back(m);
-        }
-        h.table(header, build, "Build time (ms), Table 6.1");
-        h.table(header, cast,
-                std::string("Ray cast per frame (ms), with update per frame in parentheses, Table 6.2") +
-                    (slow.empty() ? "" : "; * a repetition was measured on a slow machine (cell_state.slow)"));
-        h.table(header, memory, "Memory after the build (bytes per object)");
-    }
-
-    // Update against ray cast (thesis Figures 6.1 and 6.2), one chart per scene category.
-    h.heading("Update against ray cast (thesis Figures 6.1 and 6.2)");
-    for (const std::string& category : unique_in_order(entries, [](const Entry& e) { return e.category; })) {
-        Chart c;
-        c.title = "Update and ray cast per frame, " + category + " scenes";
-        c.x_label = "update per frame (ms)";
-        c.y_label = "ray cast per frame (ms)";
-        c.log_x = c.log_y = true;
-        const Entry* best = nullptr;
-        std::string best_scene;
-        double most_objects = -1;
-        for (const Entry& e : entries)
-            if (e.category == category && e.objects > most_objects) most_objects = e.objects, best_scene = e.scene;
-        for (const std::string& l : labels) {
-            Series s{l, {}, {}, {}, false, style_of(l)};
-            for (const Entry& e : entries)
-                if (e.category == category && e.label == l) {
-                    s.x.push_back(std::max(e.update_ms, 1e-5));
-                    s.y.push_back(e.raycast_ms);
-                    s.labels.push_back(e.scene);
-                    if (e.scene == best_scene && (!best || e.total_ms() < best->total_ms())) best = &e;
-                }
-            c.series.push_back(s);
-        }
-        const Entry* bf = find(best_scene, "bf");
-        c.reading = best ? "Lower left is better. On " + best_scene + ", the lowest update + ray cast per frame is " +
-                               best->label + " at " + ms(best->total_ms()) + " ms" +
-                               (bf && best != bf
-                                    ? ", " + fixed(bf->total_ms() / best->total_ms(), 1) + "x less than brute force"
-                                    : "") +
-                               "."
-                         : "No data.";
-        h.chart(c);
-    }
-
-    // Speed against accuracy: per scene, time per frame against precision and against recall of
-    // every configuration (query levels included: candidates, boxes, shapes; core/accel/query_level.h),
-    // with the Pareto front named. A scene where every configuration is exact gets one line.
-    h.heading("Speed against accuracy");
-    {
-        std::vector<std::string> exact_scenes, unverified;
-        const int front_style = int(labels.size()) + 1;
-        for (const std::string& sc : scenes) {
-            std::vector<const Entry*> here;
-            bool all_exact = true;
-            for (const Entry& e : entries)
-                if (e.scene == sc) {
-                    if (!e.verified) {
-                        unverified.push_back(e.label + " on " + sc);
-                        continue;
-                    }
-                    here.push_back(&e);
-                    all_exact = all_exact && e.exact();
-                }
-            if (here.empty()) continue;
-            if (all_exact) {
-                exact_scenes.push_back(sc);
-                continue;
-            }
-            // A measure at 1 for every configuration would draw a flat chart: the other's reading says so.
-            auto all_one = [&](bool precision) {
-                return std::all_of(here.begin(), here.end(),
-                                   [&](const Entry* e) { return (precision ? e->precision() : e->recall()) == 1; });
-            };
-            for (const char* measure : {"precision", "recall"}) {
-                const bool is_precision = std::string(measure) == "precision";
-                if (all_one(is_precision)) continue;
-                std::vector<TradeoffPoint> points;
-                for (const Entry* e : here)
-                    points.push_back({e->label, e->total_ms(), is_precision ? e->precision() : e->recall()});
-                const std::vector<std::size_t> front = pareto_front(points);
-                Chart c;
-                c.title = "Time per frame against " + std::string(measure) + " on " + sc;
-                c.x_label = "update + ray cast per frame, narrow phase included (ms)";
-                c.y_label = std::string(measure) + " against the shapes";
-                c.log_x = true;
-                double lowest = 1;
-                for (const TradeoffPoint& p : points) lowest = std::min(lowest, p.accuracy);
-                c.extra = "set yrange [" + fixed(std::max(0.0, lowest - 0.05), 2) + ":1.02]";
-                for (std::size_t i = 0; i < points.size(); ++i)
-                    c.series.push_back(
-                        {points[i].label, {points[i].ms}, {points[i].accuracy}, {}, false, style_of(points[i].label)});
-                Series line{"Pareto front", {}, {}, {}, true, front_style};
-                for (std::size_t i : front) line.x.push_back(points[i].ms), line.y.push_back(points[i].accuracy);
-                c.series.push_back(line);
-                c.reading = front_reading(sc, measure, points, front) +
-                            " A configuration is on the front when no other is both faster and at least as "
-                            "accurate; up and left is better." +
-                            (all_one(!is_precision) ? std::string(" The ") + (is_precision ? "recall" : "precision") +
-                                                          " of every configuration on " + sc + " is 1."
-                                                    : "");
-                h.chart(c);
-            }
-        }
-        if (!exact_scenes.empty())
-            h.paragraph((exact_scenes.size() == scenes.size()
-                             ? "Every configuration was exact on every scene ("
-                             : "Every configuration was exact on " + join(exact_scenes, ", ") + " (") +
-                        std::string("no mismatches, precision = recall = 1 against the shapes), so speed is the only "
-                                    "difference there."));
-        if (!unverified.empty())
-            h.paragraph("Not verified against the ground truth (accuracy unknown, left out of the charts): " +
-                        join(unverified, ", ") + ".");
-        std::vector<std::vector<std::string>> rows;
-        for (const Entry& e : entries)
-            rows.push_back({e.scene, e.label, fixed(e.hits, 0), fixed(e.missed, 0), fixed(e.extra, 0),
-                            fixed(e.duplicate, 0), e.verified ? fixed(e.precision(), 3) : "-",
-                            e.verified ? fixed(e.recall(), 3) : "-"});
-        h.table({"scene", "configuration", "hits", "missed", "extra", "duplicate", "precision", "recall"}, rows,
-                "Hit sets against the ground truth: mismatches against each configuration's own contract (all "
-                "frames), precision and recall against the shapes (measured frames)");
-    }
-
-    // Cost model: predicted against measured, Table 6.3, model selection.
-    h.heading("Cost model (thesis eq. 5.4, Table 6.3)");
-    const std::vector<FrameObservation> frames = load_observations(db, run);
-    const ModelInputs model_inputs = load_model_inputs(db, run);
-    const std::vector<StructureModels> models = fit_cost_models(frames, model_inputs);
-    const NoiseFloor noise = noise_floor(db, run);
-    {
-        Chart c;
-        c.title = "Predicted against measured ray-cast cost per ray";
-        c.x_label = "measured (ns per ray)";
-        c.y_label = "predicted by the chosen model (ns per ray)";
-        c.log_x = c.log_y = true;
-        c.extra = "set style line 99 lc rgb '#888888' dt 2\n";
-        double lo = INFINITY, hi = 0;
-        std::string errors;
-        for (const StructureModels& m : models) {
-            const CandidateModel* chosen = m.chosen("raycast");
-            if (!chosen) continue;
-            Series s{m.structure + " (" + chosen->name + ")", {}, {}, {}, false};
-            std::map<int, std::pair<std::vector<double>, std::vector<double>>> per_config;
-            for (std::size_t i = 0; i < chosen->problem.y.size(); ++i) {
-                per_config[chosen->problem.group[i]].first.push_back(chosen->problem.y[i]);
-                per_config[chosen->problem.group[i]].second.push_back(chosen->fit.predict(chosen->problem.x[i]));
-            }
-            for (auto& [g, v] : per_config) {
-                s.x.push_back(spread_of(v.first).median);
-                s.y.push_back(spread_of(v.second).median);
-                lo = std::min(lo, s.x.back()), hi = std::max(hi, s.x.back());
-            }
-            c.series.push_back(s);
-            const StructureNoise* n = noise.find(m.structure);
-            errors += (errors.empty() ? "" : ", ") + m.structure + " " + fixed(100 * chosen->heldout_error, 1) + "%" +
-                      (n && std::isfinite(n->raycast) ? " (repeats " + noise_text(n->raycast) + ")" : "");
-        }
-        if (hi > 0) {
-            std::ostringstream ref;
-            ref << "set arrow from " << lo * 0.7 << "," << lo * 0.7 << " to " << hi * 1.4 << "," << hi * 1.4
-                << " nohead lc rgb '#444444'\n"
-                << "set arrow from " << lo * 0.7 << "," << lo * 0.7 * 1.1 << " to " << hi * 1.4 << "," << hi * 1.4 * 1.1
-                << " nohead dt 2 lc rgb '#999999'\n"
-                << "set arrow from " << lo * 0.7 << "," << lo * 0.7 * 0.9 << " to " << hi * 1.4 << "," << hi * 1.4 * 0.9
-                << " nohead dt 2 lc rgb '#999999'\n";
-            c.extra += ref.str();
-        }
-        c.reading =
-            "One point per configuration (median over its frames); the solid line is a perfect prediction, the dashed "
-            "band ±10%. "
-            "Held-out error (configurations left out of the fit), with the scatter of repeated measurements of the "
-            "same cell in parentheses: " +
-            errors + ".";
-        h.chart(c);
-
-        // The noise floor beside the model's error: what the machine cannot repeat, no model can predict.
-        std::vector<std::vector<std::string>> floor;
-        for (const StructureModels& m : models) {
-            const CandidateModel* chosen = m.chosen("raycast");
-            const StructureNoise* n = noise.find(m.structure);
-            floor.push_back({m.structure, chosen ? fixed(100 * chosen->heldout_error, 1) + "%" : "-",
-                             n ? noise_text(n->raycast) : "-", n ? noise_text(n->update) : "-",
-                             n ? std::to_string(n->cells) + " (" + std::to_string(n->repetitions) + ")" : "0",
-                             n ? std::to_string(n->slow) : "0"});
-        }
-        h.table({"structure", "held-out error (ray cast)", "repeatability (ray cast)", "repeatability (update)",
-                 "repeated cells (repetitions)", "slow repetitions"},
-                floor,
-                "Noise floor: median absolute relative deviation of a repeated cell's time per frame from the median "
-                "of its repetitions (needs repetitions >= 2); error above it is the model's");
-        std::string state = std::to_string(noise.with_state) + " of " + std::to_string(noise.cells) +
-                            " cells have the machine's state recorded";
-        if (noise.with_state)
-            state += " (median 1-minute load " + fixed(noise.load_median, 2) + ", median calibration loop " +
-                     fixed(noise.calibration_median_ns / 1e6, 3) + " ms); " + std::to_string(noise.slow) +
-                     " were measured while the calibration loop ran more than 10% above its run's median";
-        h.paragraph(state + ".");
-        // The slow cells are marked "*" in Table 6.2 (a list here would repeat every scene's name).
-        if (noise.slow) {
-            double worst = 0;
-            for (const SlowCell& sc : slow_cells(db, run)) worst = std::max(worst, sc.calibration_ratio);
-            h.paragraph(
-                "Cells measured on a slow machine are marked * in Table 6.2; the slowest calibration loop ran " +
-                fixed(100 * (worst - 1), 0) + "% above its run's median.");
-        }
-
-        std::vector<std::vector<std::string>> rows;
-        const std::vector<CostBreakdown> breakdown = cost_breakdown(frames, models);
-        const BreakdownColumns columns = breakdown_columns(breakdown, "×");
-        for (std::size_t i = 0; i < breakdown.size(); ++i) {
-            rows.push_back({breakdown[i].scene, config_label(breakdown[i].structure, breakdown[i].params)});
-            rows.back().insert(rows.back().end(), columns.rows[i].begin(), columns.rows[i].end());
-        }
-        std::vector<std::string> header{"scene", "configuration"};
-        header.insert(header.end(), columns.header.begin(), columns.header.end());
-        h.table(header, rows,
-                "Thesis Table 6.3 analog: ns per ray; counts per ray; C terms from each structure's chosen model");
-        std::vector<std::vector<std::string>> sel;
-        for (const StructureModels& m : models)
-            for (const CandidateModel& cm : m.raycast) {
-                std::string coefficients;
-                for (const Coefficient& co : cm.fit.coefficients)
-                    coefficients +=
-                        (coefficients.empty() ? "" : "; ") + co.name + " " + fixed(co.value, 3) +
-                        (std::isfinite(co.ci_low) ? " [" + fixed(co.ci_low, 3) + ", " + fixed(co.ci_high, 3) + "]"
-                                                  : "") +
-                        (co.spans_zero ? " ~0?" : "");
-                sel.push_back({m.structure, cm.name, fixed(100 * cm.heldout_error, 1) + "%", fixed(cm.fit.r2, 3),
-                               cm.fit.status(), cm.chosen ? "chosen" : "",
-                               cm.fit.status() == "ok" ? coefficients : "(not identifiable)"});
-            }
-        h.table({"structure", "model", "held-out error", "R²", "status", "", "coefficients (ns, 95% interval)"}, sel,
-                "Model selection: the smallest model within max(0.5 points, 5%) of the best held-out error is chosen");
-
-        // Which terms each structure's chosen model kept, against the calibration, and how well it
-        // predicts scenes it was not fitted on.
-        std::vector<std::vector<std::string>> chosen_rows;
-        int calibrated = 0, within = 0;
-        for (const StructureModels& m : models) {
-            const CandidateModel* cm = m.chosen("raycast");
-            if (!cm) continue;
-            std::string terms, against, dropped;
-            for (const Coefficient& co : cm->fit.coefficients) {
-                terms += (terms.empty() ? "" : ", ") + co.name + " " + fixed(co.value, 3);
-                if (std::isfinite(co.prior)) {
-                    ++calibrated;
-                    within += !co.at_bound;
-                    against += (against.empty() ? "" : ", ") + co.name + " ×" + fixed(co.value / co.prior, 2) +
-                               (co.at_bound ? " (at the 3× bound)" : "");
-                }
-            }
-            for (const std::string& d : cm->dropped) dropped += (dropped.empty() ? "" : "; ") + d;
-            chosen_rows.push_back({m.structure, cm->name, terms, against.empty() ? "no calibration value" : against,
-                                   dropped.empty() ? "-" : dropped,
-                                   std::isfinite(cm->heldout_error) ? fixed(100 * cm->heldout_error, 1) + "%" : "-",
-                                   std::isfinite(m.loso_error) ? fixed(100 * m.loso_error, 1) + "%" : "-"});
-        }
-        h.table({"structure", "chosen model", "terms (ns per unit; slow>L…: fraction)", "against calibration",
-                 "dropped, and why", "held-out (configurations)", "leave one scene out (time per frame)"},
-                chosen_rows,
-                "Chosen ray-cast terms per structure. Calibration: each structure on fixed micro-scenes that vary "
-                "N_RB and N_T independently; its pinned values are priors bounding the fit to 3×. Leave one scene "
-                "out: each scene's time per frame (update + rays × C) predicted from a fit on the other scenes.");
-        if (calibrated)
-            h.paragraph(std::to_string(within) + " of " + std::to_string(calibrated) +
-                        " calibrated coefficients of the chosen models lie inside the 3× range of their calibration "
-                        "value without touching its bound" +
-                        (within == calibrated
-                             ? "."
-                             : "; the others are held at the bound: the run's frames pull them further."));
-        else
-            h.paragraph(
-                "The run has no calibration (it was made before runs stored one): the coefficients are fitted "
-                "without priors and collinear counters may not be told apart.");
-    }
-
-    // Table 6.4: DBVH incremental against full SAH, where the run has both.
-    {
-        std::vector<std::vector<std::string>> rows;
-        for (const CostBreakdown& b : cost_breakdown(frames, models))
-            if (b.structure == "dbvh")
-                rows.push_back({b.scene, config_label(b.structure, b.params), fixed(b.c_total, 1), fixed(b.n_tp, 1),
-                                fixed(b.n_fp, 1), fixed(b.n_t, 1)});
-        if (rows.size() > 1) {
-            h.heading("Tree quality of the dynamic BVH (thesis Table 6.4)");
-            h.table({"scene", "configuration", "C_total (ns/ray)", "N_TP", "N_FP", "N_T"}, rows,
-                    "DBVH incremental insertion against full binned-SAH rebuilds");
-        }
-    }
-
-    // Per-frame series on the largest scene.
-    h.heading("Over time, on " + largest);
-    {
-        Chart c;
-        c.title = "Ray cast per frame on " + largest;
-        c.x_label = "frame";
-        c.y_label = "ray cast per frame (ms)";
-        c.log_y = true;
-        double worst_drift = 0;
-        std::string worst;
-        for (const Entry& e : entries) {
-            if (e.scene != largest || e.frame_raycast_ms.empty()) continue;
-            Series s{e.label, {}, {}, {}, true, style_of(e.label)};
-            for (std::size_t f = 0; f < e.frame_raycast_ms.size(); ++f)
-                s.x.push_back(double(f + 1)), s.y.push_back(e.frame_raycast_ms[f]);
-            c.series.push_back(s);
-            const std::size_t q = std::max<std::size_t>(1, e.frame_raycast_ms.size() / 4);
-            const double first =
-                spread_of({e.frame_raycast_ms.begin(), e.frame_raycast_ms.begin() + std::ptrdiff_t(q)}).median;
-            const double last =
-                spread_of({e.frame_raycast_ms.end() - std::ptrdiff_t(q), e.frame_raycast_ms.end()}).median;
-            if (first > 0 && std::abs(last / first - 1) > std::abs(worst_drift))
-                worst_drift = last / first - 1, worst = e.label;
-        }
-        c.reading =
-            worst.empty()
-                ? "No configuration changed by more than noise from the first to the last quarter of the frames."
-                : "Largest change from the first to the last quarter of the frames: " + worst + ", " +
-                      fixed(100 * worst_drift, 1) + "% (noise included).";
-        h.chart(c);
-
-        Chart sah;
-        sah.title = "SAH cost of the tree per frame on " + largest + " (eq. 3.2)";
-        sah.x_label = "frame";
-        sah.y_label = "SAH cost (relative to the root's area)";
-        std::string growth, grew, fell;
-        for (const Entry& e : entries) {
-            if (e.scene != largest) continue;
-            Series s{e.label, {}, {}, {}, true, style_of(e.label)};
-            for (std::size_t f = 0; f < e.frame_sah.size(); ++f)
-                if (std::isfinite(e.frame_sah[f])) s.x.push_back(double(f + 1)), s.y.push_back(e.frame_sah[f]);
-            if (s.x.empty()) continue;
-            const double change = s.y.front() > 0 ? s.y.back() / s.y.front() - 1 : 0;
-            growth += (growth.empty() ? "" : ", ") + e.label + " " + fixed(100 * change, 1) + "%";
-            // Beyond 2% the tree's quality moved; within it, the tree kept its quality.
-            if (change > 0.02) grew += (grew.empty() ? "" : ", ") + e.label;
-            if (change < -0.02) fell += (fell.empty() ? "" : ", ") + e.label;
-            sah.series.push_back(s);
-        }
-        if (!sah.series.empty()) {
-            sah.reading = "Change of the SAH cost from the first to the last frame: " + growth + ". " +
-                          (grew.empty() ? std::string("No tree's cost grew by more than 2%")
-                                        : "The cost grew by more than 2% for " + grew) +
-                          (fell.empty() ? std::string(".") : "; it fell by more than 2% for " + fell + ".");
-            h.chart(sah);
-        }
-    }
-
-    // Memory against time; build time against object count.
-    h.heading("Memory and build");
-    {
-        Chart c;
-        c.title = "Memory against time per frame";
-        c.x_label = "memory (bytes per object)";
-        c.y_label = "update + ray cast per frame (ms)";
-        c.log_x = c.log_y = true;
-        const Entry* most = nullptr;
-        for (const std::string& l : labels) {
-            Series s{l, {}, {}, {}, false, style_of(l)};
-            for (const Entry& e : entries)
-                if (e.label == l) {
-                    s.x.push_back(e.memory_per_object);
-                    s.y.push_back(e.total_ms());
-                    if (!most || e.memory_per_object > most->memory_per_object) most = &e;
-                }
-            c.series.push_back(s);
-        }
-        c.reading = most ? "Most memory per object: " + most->label + " on " + most->scene + ", " +
-                               fixed(most->memory_per_object, 0) + " bytes per object."
-                         : "No data.";
-        h.chart(c);
-
-        Chart b;
-        b.title = "Build time against object count";
-        b.x_label = "objects";
-        b.y_label = "build (ms)";
-        b.log_x = b.log_y = true;
-        std::string slopes;
-        for (const std::string& l : labels) {
-            Series s{l, {}, {}, {}, true, style_of(l)};
-            std::vector<std::pair<double, double>> points;
-            for (const Entry& e : entries)
-                if (e.label == l) points.emplace_back(e.objects, e.build_ms);
-            std::sort(points.begin(), points.end());
-            for (auto [x, y] : points) s.x.push_back(x), s.y.push_back(y);
-            const double slope = log_log_slope(s.x, s.y);
-            if (std::isfinite(slope)) {
-                s.name += " (slope " + fixed(slope, 2) + ")";
-                slopes += (slopes.empty() ? "" : ", ") + l + " " + fixed(slope, 2);
-            }
-            b.series.push_back(s);
-        }
-        b.reading = slopes.empty() ? "Too few object counts to fit slopes."
-                                   : "Slopes of log build time against log object count (1 = linear): " + slopes + ".";
-        h.chart(b);
-
-        // Growth: per-frame cost against object count, on the scene category with the most distinct
-        // object counts (experiments/scale.json: irregular scenes of 10^4 to 10^6 objects).
-        std::map<std::string, std::vector<double>> counts;
-        for (const Entry& e : entries) {
-            std::vector<double>& v = counts[e.category];
-            if (std::find(v.begin(), v.end(), e.objects) == v.end()) v.push_back(e.objects);
-        }
-        std::string growth_category;
-        std::size_t most_counts = 1;
-        for (const auto& [category, v] : counts)
-            if (v.size() > most_counts) most_counts = v.size(), growth_category = category;
-        if (!growth_category.empty()) {
-            std::vector<GrowthPoint> points;
-            for (const Entry& e : entries)
-                if (e.category == growth_category)
-                    points.push_back({e.label, e.objects, e.total_ms(), style_of(e.label)});
-            h.heading("Growth with the object count");
-            h.chart(growth_chart(points, growth_category + " scenes"));
-        }
-    }
-
-    // Failure-mode scenes (by their generator kind) against brute force and against a
-    // benign scene of the same size, for every configuration.
-    {
-        const std::vector<std::string> failure_kinds = failure_mode_kinds();
-        auto is_failure = [&](const Entry& e) {
-            return std::find(failure_kinds.begin(), failure_kinds.end(), e.category) != failure_kinds.end();
-        };
-        std::vector<std::string> failure_scenes;
-        for (const std::string& sc : scenes)
-            for (const Entry& e : entries)
-                if (e.scene == sc && is_failure(e)) {
-                    failure_scenes.push_back(sc);
-                    break;
-                }
-        if (!failure_scenes.empty()) {
-            h.heading("Where methods fail");
-            // The benign scene of a failure scene: generated irregular (else uniform) with as many objects.
-            auto benign_of = [&](const Entry& f, const std::string& label) -> const Entry* {
-                for (const char* kind : {"irregular", "uniform"})
-                    for (const Entry& e : entries)
-                        if (e.category == kind && e.label == label && e.objects == f.objects) return &e;
-                return nullptr;
-            };
-            auto bf_of = [&](const std::string& scene) -> const Entry* {
-                for (const Entry& e : entries)
-                    if (e.scene == scene && e.structure == "bf") return &e;
-                return nullptr;
-            };
-            auto ratio = [](double a, double b) { return b > 0 ? fixed(a / b, a / b < 10 ? 2 : 1) : std::string("-"); };
-            std::vector<std::string> header{"configuration"};
-            header.insert(header.end(), failure_scenes.begin(), failure_scenes.end());
-            std::vector<std::vector<std::string>> rows;
-            std::size_t wrong = 0;
-            for (const std::string& l : labels) {
-                std::vector<std::string> row{l};
-                bool any = false;
-                for (const std::string& sc : failure_scenes) {
-                    const Entry* e = find(sc, l);
-                    if (!e) {
-                        row.push_back("-");
-                        continue;
-                    }
-                    any = true;
-                    const double mismatches = e->missed + e->extra + e->duplicate;
-                    if (mismatches > 0) ++wrong;
-                    const Entry* bf = bf_of(sc);
-                    const Entry* benign = benign_of(*e, l);
-                    row.push_back((mismatches > 0 ? "WRONG (" + fixed(mismatches, 0) + ")" : std::string("ok")) + "; " +
-                                  (bf ? ratio(e->total_ms(), bf->total_ms()) : "-") + " bf; " +
-                                  (benign ? ratio(e->total_ms(), benign->total_ms()) : "-") + " benign");
-                }
-                if (any) rows.push_back(row);
-            }
-            h.paragraph(
-                "Scenes built to break an assumption: stadium (one huge box around a tiny dense "
-                "cluster), identical (stacks of equal boxes), same-centroid (stacks with one centroid), flat "
-                "(zero-thickness boxes in one plane), slivers (long thin and zero-volume boxes), outlier (one "
-                "box 10^6 scene sizes away). Each cell: ok or WRONG (mismatches against the ground truth); "
-                "cost (update + ray cast per frame, medians) divided by brute force's on the same scene; and "
-                "divided by the same configuration's cost on the benign scene of the same size (generated "
-                "irregular, else uniform, with as many objects; '-' when the run has none). " +
-                std::string(wrong == 0 ? "Every configuration was exact on every failure scene."
-                                       : std::to_string(wrong) + " configuration-scene pairs were not exact."));
-            h.table(header, rows,
-                    "Where methods fail: correctness, cost / brute force, cost / benign scene of the same size");
-        }
-    }
-
-    // The thesis' conclusions against this run (analysis/findings.h; `rcbench findings` writes the same).
-    {
-        const std::vector<Finding> findings = evaluate_findings(db, run);
-        h.heading("Findings: the thesis' conclusions against this run");
-        for (const Finding& f : findings) {
-            h.paragraph(f.claim + " (thesis " + f.source + "): " + verdict_name(f.verdict) + ". " + f.summary);
-            if (f.evidence.empty()) continue;
-            std::vector<std::vector<std::string>> rows;
-            for (const std::string& e : f.evidence) rows.push_back({e});
-            h.table({"evidence"}, rows, f.claim);
-        }
-    }
-
-    history_section(h, db, run, experiment, largest, style_of);
-
+/// The page around the sections: one self-contained file, no scripts, no remote resources.
+std::string page(const std::string& experiment, const Html& h) {
     std::ostringstream page;
     page << "<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8><title>rcbench report: "
          << html_escape(experiment)
@@ -850,7 +1013,32 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
             "report: "
          << html_escape(experiment) << "</h1>\n"
          << h.str() << "</body></html>\n";
-    write_file_atomically(path, page.str());
+    return page.str();
+}
+
+}  // namespace
+
+ReportSummary write_report(Database& db, std::int64_t run, const std::string& path) {
+    const ReportData d = load_report_data(db, run);
+    const Entries es(d.entries);
+    const std::vector<StructureModels> models = fit_cost_models(d.frames, d.model_inputs);
+    const std::vector<CostBreakdown> breakdown = cost_breakdown(d.frames, models);
+
+    Html h;
+    h.paragraph("Experiment " + d.head.experiment + ", run " + std::to_string(run) + " started " + d.head.started +
+                " from commit " + d.head.commit + " on " + d.head.cpu +
+                ". Times are medians over frames (and over repetitions); a frame casts its rays as one batch.");
+    tables_section(h, es, d.slow);
+    update_raycast_section(h, es);
+    accuracy_section(h, es);
+    cost_model_section(h, d, models, breakdown);
+    dbvh_section(h, breakdown);
+    over_time_section(h, es);
+    memory_build_section(h, es);
+    failure_section(h, es);
+    findings_section(h, d.findings);
+    history_section(h, d.history, d.head.experiment, es);
+    write_file_atomically(path, page(d.head.experiment, h));
     return {run, h.charts(), h.tables()};
 }
 

@@ -99,6 +99,10 @@ TEST(RegisterStructure, JoinsTheRegistryAfterTheBuiltIns) {
     EXPECT_EQ(&find_structure("test_list_scan"), r.list_scan);
     EXPECT_EQ(r.list_scan->name, "test_list_scan");
     EXPECT_EQ(r.list_scan->summary, "a list scanned per ray (registry_test)");
+    // Without an origin and a family, a program's structure is its own and of no family rcbench
+    // filters by (findings compare it; it is in no "every grid" or "every BVH" list).
+    EXPECT_EQ(r.list_scan->origin, Origin::own);
+    EXPECT_EQ(r.list_scan->family, Family::other);
     EXPECT_EQ(structure_registry().front().name, "bf");
     EXPECT_EQ(&find_structure("bf"), r.bf_before) << "registering moved an existing entry";
     bool listed = false;

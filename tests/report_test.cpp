@@ -187,6 +187,22 @@ TEST(Report, GrowthChartFitsSlopesAndReadsThemFromTheData) {
               std::string::npos);
 }
 
+TEST(Report, ChartsPrintNamesAsWritten) {
+    // gnuplot's enhanced text would set bullet_dbvt as "bullet" with a subscript "dbvt" (and drop
+    // the underscore); legends, titles, axis labels and point labels print names as written.
+    ASSERT_TRUE(gnuplot_available()) << "gnuplot is part of rcbench's dependencies";
+    Chart c;
+    c.title = "cost on irreg_l";
+    c.x_label = "N_RB per ray";
+    c.y_label = "C_T (ns)";
+    c.series.push_back({"bullet_dbvt", {1, 2}, {1, 2}, {"uni_s", "x^2"}, true, 1});
+    c.series.push_back({"lbvh query=candidates", {1, 2}, {2, 3}, {}, false, 2});
+    const std::string svg = render_svg(c);
+    for (const char* text : {"bullet_dbvt", "cost on irreg_l", "N_RB per ray", "C_T (ns)", "uni_s", "x^2"})
+        EXPECT_NE(svg.find(std::string(">") + text + "<"), std::string::npos) << text;
+    EXPECT_EQ(svg.find("bulletdbvt"), std::string::npos);  // the legend's <title> under enhanced text
+}
+
 TEST(Report, ChartsNeedGnuplotAndSayWhyWithout) {
     // render_svg names the missing tool instead of writing an empty chart.
     const char* path = std::getenv("PATH");

@@ -14,28 +14,37 @@ namespace rcb {
 namespace {
 
 std::deque<StructureInfo>& registry() {
+    // One entry per structure: name, summary, origin and family (registry.h).
     static std::deque<StructureInfo> all = {
-        describe_structure<BruteForce>("bf", "brute force: every object's box tested (the baseline, thesis §4.1)"),
+        describe_structure<BruteForce>("bf", "brute force: every object's box tested (the baseline, thesis §4.1)",
+                                       Origin::thesis, Family::scan),
         describe_structure<DynamicBvh>("dbvh",
                                        "dynamic BVH: Catto/Box2D SAH insertion with branch and bound, fat boxes, "
-                                       "rotations, optional full binned-SAH rebuilds (thesis §4.4)"),
+                                       "rotations, optional full binned-SAH rebuilds (thesis §4.4)",
+                                       Origin::thesis, Family::bvh),
         describe_structure<LinearBvh>("lbvh",
                                       "linear BVH: Karras 2012 Morton codes, radix sort, parallel radix tree, atomic "
-                                      "bottom-up bounds, rebuilt every frame (thesis §4.5)"),
+                                      "bottom-up bounds, rebuilt every frame (thesis §4.5)",
+                                      Origin::thesis, Family::bvh),
         describe_structure<WideBvh>("wbvh",
                                     "wide BVH: 8 child boxes per node in SoA lanes, one AVX2 slab test per node and "
                                     "per leaf of up to 8 objects, binned-SAH build, refit, reinsertion and leaf splits "
-                                    "on changes, progressive rebuild spread over commits"),
+                                    "on changes, progressive rebuild spread over commits",
+                                    Origin::own, Family::bvh),
         describe_structure<UniformGrid>(
-            "ug", "uniform grid: cells from eq. 4.1, 3D-DDA with mailboxes, incremental updates (thesis §4.2)"),
+            "ug", "uniform grid: cells from eq. 4.1, 3D-DDA with mailboxes, incremental updates (thesis §4.2)",
+            Origin::thesis, Family::grid),
         describe_structure<HashGrid>(
-            "hg", "hierarchical hash grid: Jevans-style recursive grids, only non-empty cells hashed (thesis §4.3)"),
+            "hg", "hierarchical hash grid: Jevans-style recursive grids, only non-empty cells hashed (thesis §4.3)",
+            Origin::thesis, Family::grid),
         describe_structure<EmbreeBoxes>("embree",
                                         "peer: Intel Embree 3 user geometry of boxes, all hits recorded in the "
-                                        "intersect callback, rebuilt (Morton or binned SAH) or refitted at commit"),
+                                        "intersect callback, rebuilt (Morton or binned SAH) or refitted at commit",
+                                        Origin::peer, Family::peer),
         describe_structure<BulletDbvt>("bullet_dbvt",
                                        "peer: Bullet's btDbvt, incremental insert/update/remove, optimizeIncremental "
-                                       "passes per frame, rayTestInternal with exact leaf tests"),
+                                       "passes per frame, rayTestInternal with exact leaf tests",
+                                       Origin::peer, Family::peer),
     };
     return all;
 }
@@ -51,6 +60,41 @@ bool valid_name(const std::string& name) {
 }  // namespace
 
 const std::deque<StructureInfo>& structure_registry() { return registry(); }
+
+std::vector<std::string> structure_names(const std::function<bool(const StructureInfo&)>& keep) {
+    std::vector<std::string> out;
+    for (const StructureInfo& info : structure_registry())
+        if (!keep || keep(info)) out.push_back(info.name);
+    return out;
+}
+
+const char* origin_name(Origin origin) {
+    switch (origin) {
+        case Origin::thesis:
+            return "thesis";
+        case Origin::own:
+            return "own";
+        case Origin::peer:
+            return "peer";
+    }
+    return "";
+}
+
+const char* family_name(Family family) {
+    switch (family) {
+        case Family::scan:
+            return "scan";
+        case Family::grid:
+            return "grid";
+        case Family::bvh:
+            return "bvh";
+        case Family::peer:
+            return "peer";
+        case Family::other:
+            return "other";
+    }
+    return "";
+}
 
 StructureInfo with_common_params(StructureInfo info) {
     const ParamSpec query = query_param_spec();

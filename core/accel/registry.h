@@ -1,6 +1,7 @@
 #pragma once
 /// Structures by name (pbrt-style: one factory by name, unknown names and parameters reported).
-/// A new structure of rcbench adds one line to registry.cpp and nothing else; a program linking
+/// A new structure of rcbench adds one line to registry.cpp (name, origin, family, summary) and
+/// nothing else: every list of structures is made from the registry; a program linking
 /// rcbench as a library adds its own with register_structure (below), without editing rcbench.
 
 #include <deque>
@@ -17,9 +18,28 @@
 
 namespace rcb {
 
+/// Where a structure comes from; the findings and the report filter the registry by it.
+enum class Origin {
+    thesis,  ///< one of Guo & Liao's (2023) structures, chapter 4: bf ug hg dbvh lbvh
+    own,     ///< rcbench's own beyond the thesis (wbvh), and a program's own registered at run time
+    peer,    ///< another library's behind the same interface (embree, bullet_dbvt)
+};
+/// What a structure is, for lists that compare like with like ("every grid").
+enum class Family {
+    scan,   ///< tests every object per ray: the baseline, not an acceleration structure
+    grid,   ///< cells of a lattice walked per ray
+    bvh,    ///< a bounding-volume tree
+    peer,   ///< another library's structure, its inside not rcbench's
+    other,  ///< none of these (the default of register_structure)
+};
+const char* origin_name(Origin origin);
+const char* family_name(Family family);
+
 struct StructureInfo {
     std::string name;
     std::string summary;
+    Origin origin = Origin::own;
+    Family family = Family::other;
     std::vector<ParamSpec> params;
     /// Makes the structure from a parameter object (defaults for missing keys); `path` prefixes
     /// error messages, e.g. "structures[2].params" or "--param".
@@ -35,6 +55,9 @@ struct StructureInfo {
 /// Every registered structure, in registration order: rcbench's own, then those added by
 /// register_structure. A deque, so that references (find_structure's) stay valid when one is added.
 const std::deque<StructureInfo>& structure_registry();
+/// The names of the registered structures `keep` accepts, in registration order: the one way a
+/// list of structures is made (findings, the tuner, the fuzzers), so a new structure joins them all.
+std::vector<std::string> structure_names(const std::function<bool(const StructureInfo&)>& keep = {});
 /// Throws InputError "unknown structure 'x' (known: bf, ug, …)".
 const StructureInfo& find_structure(std::string_view name);
 
@@ -46,10 +69,13 @@ StructureInfo with_common_params(StructureInfo info);
 
 /// The registry entry of a structure type S with a nested `Params` and a constructor from it.
 template <class S>
-StructureInfo describe_structure(std::string name, std::string summary) {
+StructureInfo describe_structure(std::string name, std::string summary, Origin origin = Origin::own,
+                                 Family family = Family::other) {
     StructureInfo info;
     info.name = name;
     info.summary = std::move(summary);
+    info.origin = origin;
+    info.family = family;
     info.params = param_specs<typename S::Params>();
     info.make = [name](const nlohmann::json& params, const std::string& path) -> std::unique_ptr<Structure> {
         return std::make_unique<S>(params_from_json<typename S::Params>(params, path, name));
@@ -70,10 +96,11 @@ StructureInfo describe_structure(std::string name, std::string summary) {
 ///     rcb::simulate(recording, rcb::find_structure("sweep"), {});
 const StructureInfo& register_structure(StructureInfo info);
 
-/// register_structure(describe_structure<S>(name, summary)).
+/// register_structure(describe_structure<S>(name, summary, origin, family)).
 template <class S>
-const StructureInfo& register_structure(std::string name, std::string summary) {
-    return register_structure(describe_structure<S>(std::move(name), std::move(summary)));
+const StructureInfo& register_structure(std::string name, std::string summary, Origin origin = Origin::own,
+                                        Family family = Family::other) {
+    return register_structure(describe_structure<S>(std::move(name), std::move(summary), origin, family));
 }
 
 }  // namespace rcb

@@ -2,8 +2,9 @@
 ///
 /// The input becomes a small scene and its changes: objects and rays on a coarse lattice (so that
 /// faces, edges and centroids coincide often), zero-size boxes, huge and far coordinates, removes,
-/// moves and inserts over a few frames, axis-parallel and zero-length rays. Every structure, at its
-/// defaults and at settings that stress its limits (guards off, capacity 1, rebuild modes), replays
+/// moves and inserts over a few frames, axis-parallel and zero-length rays. Every registered
+/// structure, at its defaults and at the settings its ParamSpecs give (differential_settings.h:
+/// each choice and bool value, guards off, every number at the low end of its range), replays
 /// it through the simulator with verification against the double-precision ground truth and
 /// validate() after every frame. A mismatch or a failed invariant aborts.
 #include <cstdint>
@@ -18,6 +19,7 @@
 #include "core/scene/recording_io.h"
 #include "core/accel/registry.h"
 #include "core/sim/simulator.h"
+#include "tests/fuzz/differential_settings.h"
 
 namespace {
 
@@ -96,22 +98,6 @@ rcb::Recording scene(FuzzedDataProvider& in) {
     return r;
 }
 
-/// Settings that stress each structure beyond its defaults.
-std::vector<nlohmann::json> variants(const std::string& name) {
-    std::vector<nlohmann::json> v{nlohmann::json::object()};
-    if (name == "ug") v.push_back({{"density", 0.1}, {"outlier_guard", false}});
-    if (name == "hg") {
-        v.push_back({{"max_capacity", 1}, {"max_depth", 3}, {"entries_guard", false}, {"outlier_guard", false}});
-        v.push_back({{"max_capacity", 2}, {"subdivision", 3}, {"max_depth", 2}, {"max_entries_per_object", 2}});
-    }
-    if (name == "dbvh") {
-        v.push_back({{"mode", "rebuild"}, {"rebuild_every", 2}, {"bins", 2}});
-        v.push_back({{"sah_guard", 1.0}, {"margin", 0.0}, {"rotate", false}});
-    }
-    if (name == "lbvh") v.push_back({{"outlier_guard", false}});
-    return v;
-}
-
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -126,11 +112,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     o.verify = true;
     o.count = true;
     o.validate = true;
-    for (const rcb::StructureInfo& info : rcb::structure_registry()) {
-        for (const nlohmann::json& params : variants(info.name)) {
-            const rcb::SimulationResult res = rcb::simulate(r, info, params, o);
+    static const auto plan = rcb::fuzz::differential_plan();
+    for (const auto& [info, settings] : plan) {
+        for (const nlohmann::json& params : settings) {
+            const rcb::SimulationResult res = rcb::simulate(r, *info, params, o);
             if (res.mismatches() != 0) {
-                std::fprintf(stderr, "%s %s: %llu mismatches\n", info.name.c_str(), params.dump().c_str(),
+                std::fprintf(stderr, "%s %s: %llu mismatches\n", info->name.c_str(), params.dump().c_str(),
                              static_cast<unsigned long long>(res.mismatches()));
                 for (const auto& [frame, d] : res.examples)
                     std::fprintf(stderr, "  frame %u ray %zu uid %llu kind %d\n", frame, std::size_t(d.ray),
