@@ -170,13 +170,8 @@ void scene_info(const std::string& path, bool as_json) {
     std::cout << "origin  " << json_excerpt(meta, 400) << '\n';
 }
 
-}  // namespace
-
-void add_scene_commands(CLI::App& app) {
-    CLI::App* scene = app.add_subcommand("scene", "Generate, import and inspect scene recordings");
-    scene->require_subcommand(1);
-
-    // scene gen
+/// `scene gen`: a scene from a preset or a kind.
+void add_gen_command(CLI::App& scene) {
     struct GenOptions {
         std::string preset;
         std::string kind;
@@ -186,7 +181,7 @@ void add_scene_commands(CLI::App& app) {
         ShapeSettings shapes;
     };
     auto gen = std::make_shared<GenOptions>();
-    CLI::App* g = scene->add_subcommand("gen", "Generate a scene recording from a preset or a kind");
+    CLI::App* g = scene.add_subcommand("gen", "Generate a scene recording from a preset or a kind");
     g->add_option("--preset", gen->preset,
                   "Thesis scenes uni-s/m/l and irreg-s/m/l (99, 5104, 14021 objects), irreg-xl (1M); peer-comparison "
                   "scenes jittered-m/l and clusters-m/l (5104, 14021), clusters-xl (1M); failure modes <kind>-s/m "
@@ -237,19 +232,44 @@ void add_scene_commands(CLI::App& app) {
         write_recording(r, gen->out);
         print_written(r, gen->out);
     });
+}
 
-    // scene import
-    struct ImportCommandOptions {
-        std::string input;
-        std::string out;
-        DynamicsOptions dyn;
-        ImportOptions file;  // .bsp/.pk3 and model modes
-    };
+struct ImportCommandOptions {
+    std::string input;
+    std::string out;
+    DynamicsOptions dyn;
+    ImportOptions file;  // .bsp/.pk3 and model modes
+};
+
+/// `scene import`'s work once the options are parsed: the file's objects, dynamics and rays.
+void run_import(const ImportCommandOptions& imp) {
+    check_output_path(imp.out, {imp.input}, "-o");
+    nlohmann::json meta;
+    std::vector<Object> objects;
+    if (importer_for(imp.input) != "csv") {
+        objects = import_objects(imp.input, imp.file, &meta);
+        if (objects.empty()) throw InputError(imp.input + ": no objects to import");
+        meta["generator"] = "rcbench import";
+    } else {
+        objects = read_boxes_csv(imp.input);
+        if (objects.empty()) throw InputError(imp.input + ": no boxes to import");
+        meta = {{"generator", "rcbench import"},
+                {"source", std::filesystem::path(imp.input).filename().string()},
+                {"objects", objects.size()}};
+    }
+    const Recording r =
+        add_dynamics(std::move(objects), imp.dyn.dynamics, ray_settings(imp.dyn), imp.dyn.frames, imp.dyn.seed, meta);
+    write_recording(r, imp.out);
+    print_written(r, imp.out);
+}
+
+/// `scene import`: a static scene from a file, given dynamics and rays.
+void add_import_command(CLI::App& scene) {
     auto imp = std::make_shared<ImportCommandOptions>();
     CLI::App* i =
-        scene->add_subcommand("import",
-                              "Import a static scene (CSV: uid,minx,miny,minz,maxx,maxy,maxz; Quake III/OpenArena "
-                              ".bsp/.pk3; any model assimp reads) and give it dynamics and rays");
+        scene.add_subcommand("import",
+                             "Import a static scene (CSV: uid,minx,miny,minz,maxx,maxy,maxz; Quake III/OpenArena "
+                             ".bsp/.pk3; any model assimp reads) and give it dynamics and rays");
     i->add_option("input", imp->input,
                   "Boxes file (.csv), map (.bsp, or .pk3 with maps/*.bsp) or model (.obj, .gltf, .glb, .fbx, ...)")
         ->required()
@@ -261,6 +281,12 @@ void add_scene_commands(CLI::App& app) {
          "triangle's bounds (triangles)")
         ->capture_default_str()
         ->check(CLI::IsMember({"brushes", "triangles"}));
+    i->add_option("--bsp-max-triangles", imp->file.bsp_max_triangles,
+                  "Maps in triangles mode: refuse a map that would make more triangles than this (a budget on the "
+                  "import's time and memory that real maps stay far below; surfaces sharing their vertices can "
+                  "expand a small file to millions)")
+        ->capture_default_str()
+        ->check(whole_number(1, kMaxSceneObjects));
     i->add_option("--map", imp->file.map, "A .pk3 holding several maps: which one (NAME or maps/NAME.bsp)");
     i->add_option("--model-mode", imp->file.model_mode,
                   "Models: one box per mesh instance (instances), the same with a rotated instance as the oriented "
@@ -268,46 +294,30 @@ void add_scene_commands(CLI::App& app) {
         ->capture_default_str()
         ->check(CLI::IsMember({"instances", "obbs", "triangles"}));
     add_dynamics_options(*i, imp->dyn);
-    i->callback([imp] {
-        check_output_path(imp->out, {imp->input}, "-o");
-        if (importer_for(imp->input) != "csv") {
-            nlohmann::json meta;
-            std::vector<Object> objects = import_objects(imp->input, imp->file, &meta);
-            if (objects.empty()) throw InputError(imp->input + ": no objects to import");
-            meta["generator"] = "rcbench import";
-            const Recording r = add_dynamics(std::move(objects), imp->dyn.dynamics, ray_settings(imp->dyn),
-                                             imp->dyn.frames, imp->dyn.seed, meta);
-            write_recording(r, imp->out);
-            print_written(r, imp->out);
-            return;
-        }
-        std::vector<Object> objects = read_boxes_csv(imp->input);
-        if (objects.empty()) throw InputError(imp->input + ": no boxes to import");
-        nlohmann::json meta = {{"generator", "rcbench import"},
-                               {"source", std::filesystem::path(imp->input).filename().string()},
-                               {"objects", objects.size()}};
-        const Recording r = add_dynamics(std::move(objects), imp->dyn.dynamics, ray_settings(imp->dyn), imp->dyn.frames,
-                                         imp->dyn.seed, meta);
-        write_recording(r, imp->out);
-        print_written(r, imp->out);
-    });
+    i->callback([imp] { run_import(*imp); });
+}
 
-    // scene info
-    struct InfoOptions {
-        std::string file;
-        bool json = false;
-    };
+struct InfoOptions {
+    std::string file;
+    bool json = false;
+};
+
+/// `scene info`: what a recording holds.
+void add_info_command(CLI::App& scene) {
     auto info = std::make_shared<InfoOptions>();
-    CLI::App* n = scene->add_subcommand(
-        "info",
-        "Describe a recording: format version, objects per shape kind, frames, rays, bounds, size "
-        "distribution");
+    CLI::App* n =
+        scene.add_subcommand("info",
+                             "Describe a recording: format version, objects per shape kind, frames, rays, bounds, size "
+                             "distribution");
     n->add_option("file", info->file, "Recording file")->required()->check(input_file());
     n->add_flag("--json", info->json, "Print one JSON object");
     n->callback([info] { scene_info(info->file, info->json); });
+}
 
+/// `scene features`: the features derived categories are made of.
+void add_features_command(CLI::App& scene) {
     auto feat = std::make_shared<InfoOptions>();
-    CLI::App* fe = scene->add_subcommand(
+    CLI::App* fe = scene.add_subcommand(
         "features",
         "Print a recording's scene features (object count, size distribution, clustering, per-ray statistics of "
         "frame 0, change rate): what derived categories are made of");
@@ -322,6 +332,17 @@ void add_scene_commands(CLI::App& app) {
         for (std::size_t i = 0; i < kSceneFeatureCount; ++i)
             std::cout << scene_feature_names()[i] << ' ' << nlohmann::json(f.values[i]).dump() << '\n';
     });
+}
+
+}  // namespace
+
+void add_scene_commands(CLI::App& app) {
+    CLI::App* scene = app.add_subcommand("scene", "Generate, import and inspect scene recordings");
+    scene->require_subcommand(1);
+    add_gen_command(*scene);
+    add_import_command(*scene);
+    add_info_command(*scene);
+    add_features_command(*scene);
 }
 
 }  // namespace rcb

@@ -244,5 +244,66 @@ TEST(Grids, LargeObjectsMoveBetweenTheListAndTheCells) {
     }
 }
 
+/// A guard switched off says in stats() when it would have fired: without it a grid is unbounded
+/// on such scenes (docs/structures.md), and a slow run must show why. Identical large boxes (the
+/// large-object guard lists them), identical flat boxes (the hash grid's memory guard refuses the
+/// splits along their plane), one far object (the outlier guard).
+TEST(Grids, GuardsSwitchedOffSayWhenTheyWouldHaveFired) {
+    std::vector<Object> objs, flat;
+    Random rng(31);
+    for (Uid i = 0; i < 300; ++i) objs.push_back({i, test::random_box(rng, 10)});
+    flat = objs;
+    for (Uid i = 300; i < 600; ++i) objs.push_back({i, {{2, 2, 2}, {8, 8, 8}}});
+    for (Uid i = 300; i < 600; ++i) flat.push_back({i, {{2, 2, 5.05f}, {8, 8, 5.05f}}});
+    auto guards_off = [](const Structure& g) {
+        const nlohmann::json st = g.stats();
+        return st.contains("guards_off") ? st["guards_off"] : nlohmann::json::object();
+    };
+    for (const char* name : {"ug", "hg"}) {
+        SCOPED_TRACE(name);
+        auto on = find_structure(name).make({}, "params");
+        on->build(objs);
+        EXPECT_GE(on->stats()["large_objects"].get<std::uint64_t>(), 300u);
+        EXPECT_EQ(guards_off(*on), nlohmann::json::object());
+        auto off = find_structure(name).make({{"max_cells", 0}}, "params");
+        off->build(objs);
+        off->validate();
+        EXPECT_EQ(off->stats()["large_objects"].get<std::uint64_t>(), 0u);
+        const std::uint64_t would_list = guards_off(*off).value("max_cells", std::uint64_t(0));
+        EXPECT_GE(would_list, 300u);
+        off->remove(599);  // the count follows the live objects
+        off->commit();
+        EXPECT_EQ(guards_off(*off).value("max_cells", std::uint64_t(0)), would_list - 1);
+    }
+    // The hash grid's memory guard: on, it refuses splits along the plane; off, it says how often
+    // it would have.
+    const nlohmann::json deep = {{"max_cells", 0}, {"max_depth", 3}, {"max_capacity", 1}};
+    auto guarded = find_structure("hg").make(deep, "params");
+    guarded->build(flat);
+    const nlohmann::json st = guarded->stats();
+    EXPECT_GT(st["refused_splits"].get<std::uint64_t>() + st["guard_collapses"].get<std::uint64_t>(), 0u);
+    EXPECT_FALSE(guards_off(*guarded).contains("entries_guard"));
+    nlohmann::json unguarded_params = deep;
+    unguarded_params["entries_guard"] = false;
+    auto unguarded = find_structure("hg").make(unguarded_params, "params");
+    unguarded->build(flat);
+    unguarded->validate();
+    EXPECT_GT(guards_off(*unguarded).value("entries_guard", std::uint64_t(0)), 0u);
+    // One object 1e6 away: trimmed with the outlier guard, named without it.
+    std::vector<Object> outlier = objs;
+    outlier.push_back({1000, {{1e6f, 1e6f, 1e6f}, {1e6f + 1, 1e6f + 1, 1e6f + 1}}});
+    for (const char* name : {"ug", "hg"}) {
+        SCOPED_TRACE(name);
+        auto on = find_structure(name).make({}, "params");
+        on->build(outlier);
+        EXPECT_TRUE(on->stats()["outlier_trimmed"].get<bool>());
+        EXPECT_FALSE(guards_off(*on).contains("outlier_guard"));
+        auto off = find_structure(name).make({{"outlier_guard", false}}, "params");
+        off->build(outlier);
+        EXPECT_FALSE(off->stats()["outlier_trimmed"].get<bool>());
+        EXPECT_EQ(guards_off(*off).value("outlier_guard", false), true);
+    }
+}
+
 }  // namespace
 }  // namespace rcb

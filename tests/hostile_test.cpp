@@ -2363,4 +2363,189 @@ TEST_F(Hostile, ArgumentsOfResultCommands) {
     for (const Case& c : cases) check("arguments: " + c.args[0], c);
 }
 
+// ---------------------------------------------------------------------------------------------
+// Edges: shapes at large coordinates, truncated maps, maps that expand to millions of triangles,
+// grids with their guards off.
+
+/// Random shapes of every kind at every magnitude the format allows (1e0 to 1e15), with rays
+/// towards them from far away (capsules' half along their axis), and the capsule whose hit a float
+/// closest-point test lost at 1e12: `simulate` at query=shapes must agree with the ground truth in
+/// every structure (exit 1 is a disagreement).
+rcb::Recording shapes_at_every_scale() {
+    rcb::Random r(rcb::mix_seed(9, 1));
+    rcb::Recording rec;
+    rec.meta = R"({"generator": "hostile_test shapes_at_every_scale"})";
+    rec.frames.resize(1);
+    auto unit = [&] {
+        const rcb::Vec3d d{r.normal(), r.normal(), r.normal()};
+        return d * (1 / std::sqrt(rcb::dot(d, d) + 1e-300));
+    };
+    rcb::Uid uid = 0;
+    for (int e = 0; e <= 15; ++e) {
+        const double scale = std::pow(10.0, e);
+        for (int i = 0; i < 16; ++i) {
+            rcb::Vec3d c;
+            for (int a = 0; a < 3; ++a) c[a] = (r.below(2) ? 1 : -1) * scale * r.uniform(0.2, 0.4);
+            const double size = r.log_uniform(1e-5, 0.1) * scale;
+            const rcb::Vec3d u = unit();
+            rcb::Shape shape;
+            switch (i % 4) {
+                case 0:
+                    shape = rcb::Shape::triangle(c.as<float>(), (c + unit() * size).as<float>(),
+                                                 (c + unit() * size).as<float>());
+                    break;
+                case 1:
+                    shape =
+                        rcb::Shape::obb(c.as<float>(), (rcb::Vec3d{1, 0.5, 0.25} * size).as<float>(),
+                                        {float(r.normal()), float(r.normal()), float(r.normal()), float(r.normal())});
+                    break;
+                case 2:
+                    shape = rcb::Shape::sphere(c.as<float>(), float(size));
+                    break;
+                default:
+                    shape = rcb::Shape::capsule(c.as<float>(), (c + u * size).as<float>(),
+                                                float(size * r.log_uniform(1e-4, 1)));
+            }
+            rec.initial.push_back(rcb::shaped_object(uid++, shape));
+            for (int k = 0; k < 4; ++k) {
+                const rcb::Vec3d target = c + unit() * (size * r.uniform(0, 1.5));
+                const rcb::Vec3d dir = i % 4 == 3 && k % 2 ? u + unit() * 1e-3 : unit();
+                const rcb::Vec3d from = target - dir * (scale * r.uniform(0.2, 0.4));
+                rec.frames[0].rays.push_back(
+                    {from.as<float>(), (from + (target - from) * r.uniform(0.5, 2)).as<float>()});
+            }
+        }
+    }
+    const rcb::Shape thick = rcb::Shape::capsule({8.33427014e11f, 9.31151806e11f, 1.15502337e12f},
+                                                 {7.44215675e11f, 8.41504927e11f, 1.12235521e12f}, 1e10f);
+    rec.initial.push_back(rcb::shaped_object(uid++, thick));
+    rec.frames[0].rays.push_back(
+        {{7.46387407e11f, 8.36942627e11f, 1.11675402e12f}, {7.4635667e11f, 8.36911718e11f, 1.11674269e12f}});
+    return rec;
+}
+
+TEST_F(Hostile, EdgesShapesAtEveryScaleInEveryStructure) {
+    rcb::write_recording(shapes_at_every_scale(), (work_ / "scales.rcbscene").string());
+    bases_["scales.rcbscene"] = read_bytes(work_ / "scales.rcbscene");
+    for (const char* s : {"bf", "ug", "hg", "dbvh", "lbvh", "wbvh", "embree", "bullet_dbvt"})
+        check("edges: shapes at every scale",
+              {{"simulate", "--scene", "scales.rcbscene", "--structure", s, "--param", "query=shapes"},
+               {"scales.rcbscene"},
+               {},
+               {},
+               false,
+               std::string("query=shapes in ") + s});
+}
+
+/// The fuzz seed map cut at every length past its header: refused in both modes (brushes mode
+/// reads no lump after 9 and accepted maps cut there), naming the lump.
+TEST_F(Hostile, EdgesTruncatedMapsInEveryMode) {
+    ASSERT_NO_FATAL_FAILURE(make_bsp());
+    const std::string bsp = bases_["tiny.bsp"];
+    const std::size_t header = 8 + 17 * 8;
+    const std::size_t step = std::max<std::size_t>(1, (bsp.size() - header) / std::size_t(mutants(40)));
+    for (std::size_t size = header; size < bsp.size(); size += step) {
+        const std::string f = input("cut", ".bsp", bsp.substr(0, size));
+        for (const char* mode : {"brushes", "triangles"}) {
+            const std::string out = fresh("imported", ".rcbscene");
+            check("edges: truncated map",
+                  {{"scene", "import", f, "--bsp-mode", mode, "--frames", "1", "--rays", "8", "-o", out},
+                   {f},
+                   {out},
+                   {f},
+                   true,
+                   "cut to " + std::to_string(size) + " of " + std::to_string(bsp.size()) + " bytes"});
+        }
+        done(f);
+    }
+}
+
+/// A small map whose patches all name one 100x100 grid: 10 million triangles, under the object
+/// limit, refused by triangles mode's budget at once (it took 17-23 s); the budget as an option.
+TEST_F(Hostile, EdgesMapsExpandingToMillionsOfTriangles) {
+    ASSERT_NO_FATAL_FAILURE(make_bsp());
+    auto i32 = [](std::string& b, std::int32_t v) { b.append(reinterpret_cast<const char*>(&v), 4); };
+    auto f32 = [&](std::string& b, float v) {
+        std::int32_t i;
+        std::memcpy(&i, &v, 4);
+        i32(b, i);
+    };
+    std::array<std::string, 17> lump;
+    for (int y = 0; y < 100; ++y)
+        for (int x = 0; x < 100; ++x) {
+            f32(lump[10], float(x)), f32(lump[10], float(y)), f32(lump[10], 0);
+            for (int k = 0; k < 7; ++k) f32(lump[10], 0);
+            i32(lump[10], -1);
+        }
+    for (int s = 0; s < 510; ++s) {  // patch surfaces (type 2) of the whole grid
+        for (std::int32_t v : {0, -1, 2, 0, 100 * 100, 0, 0, 0, 0, 0, 0, 0}) i32(lump[13], v);
+        for (int k = 0; k < 12; ++k) f32(lump[13], 0);
+        i32(lump[13], 100), i32(lump[13], 100);
+    }
+    std::string map = "IBSP";
+    i32(map, 46);
+    std::int32_t offset = 8 + 17 * 8;
+    for (const std::string& l : lump)
+        i32(map, offset), i32(map, std::int32_t(l.size())), offset += std::int32_t(l.size());
+    for (const std::string& l : lump) map += l;
+    base("bomb.bsp", map);
+    std::vector<Case> cases = {
+        {{"scene", "import", "bomb.bsp", "--bsp-mode", "triangles", "--frames", "1", "--rays", "8", "-o", "b.rcbscene"},
+         {"bomb.bsp"},
+         {"b.rcbscene"},
+         {},
+         true,
+         "10 million triangles from shared patches"},
+        {{"scene", "import", "tiny.bsp", "--bsp-mode", "triangles", "--bsp-max-triangles", "1", "-o", "t.rcbscene"},
+         {"tiny.bsp"},
+         {"t.rcbscene"},
+         {},
+         true,
+         "a budget of one triangle"},
+        {{"scene", "import", "tiny.bsp", "--bsp-mode", "triangles", "--bsp-max-triangles", "0", "-o", "t.rcbscene"},
+         {"--bsp-max-triangles"},
+         {"t.rcbscene"},
+         {},
+         true,
+         "a budget of zero"},
+        {{"scene", "import", "tiny.bsp", "--bsp-mode", "triangles", "--bsp-max-triangles", "1e99", "-o", "t.rcbscene"},
+         {"--bsp-max-triangles"},
+         {"t.rcbscene"},
+         {},
+         true,
+         "a budget beyond the object limit"},
+        {{"scene", "import", "tiny.bsp", "--bsp-mode", "triangles", "--bsp-max-triangles", "1000", "-o", "t.rcbscene"},
+         {},
+         {"t.rcbscene"},
+         {},
+         false,
+         "a budget the map fits"},
+    };
+    for (const Case& c : cases) check("edges: triangle budget", c);
+}
+
+/// A uniform grid with its guards off on identical boxes is unbounded by design (the guards are
+/// there to be measured); it finishes on a small scene and says in its stats which guard would
+/// have fired.
+TEST_F(Hostile, EdgesGridsWithTheirGuardsOffSaySo) {
+    setup_run({"scene", "gen", "--preset", "identical-s", "--frames", "2", "--rays", "16", "-o", "same.rcbscene"},
+              {"same.rcbscene"});
+    for (const char* s : {"ug", "hg"}) {
+        const std::vector<std::string> args = {
+            "simulate", "--scene",     "same.rcbscene", "--structure",         s,
+            "--param",  "max_cells=0", "--param",       "outlier_guard=false", "--json"};
+        check("edges: guards off", {args, {}, {}, {}, false, std::string("guards off in ") + s});
+        std::vector<std::string> argv{RCBENCH_BINARY};
+        argv.insert(argv.end(), args.begin(), args.end());
+        test::RunOptions o;
+        o.cwd = work_.string();
+        o.timeout_seconds = time_limit();
+        const test::Outcome out = test::run_process(argv, o);
+        ASSERT_EQ(out.code, 0) << out.err;
+        const json j = json::parse(out.out.substr(0, out.out.find('\n')));
+        ASSERT_TRUE(j.contains("stats")) << out.out.substr(0, 300);
+        EXPECT_NE(j["stats"].dump().find("\"guards_off\":{\"max_cells\":"), std::string::npos) << s;
+    }
+}
+
 }  // namespace

@@ -596,6 +596,64 @@ TEST(BspImport, TriangleCountsAreEstimatedAndLimitedBeforeAllocating) {
     EXPECT_EQ(parse_bsp(one.bytes(), "one.bsp", "triangles").size(), 2u * 99 * 99);
 }
 
+TEST(BspImport, TrianglesBeyondTheBudgetAreRefusedNamingHowToRaiseIt) {
+    // 510 patches naming one 100x100 grid: 10 million triangles from a 490 KB file, under the
+    // object limit (such a map took 17-23 s and 1.9 GB); refused by the default budget.
+    TinyBsp m;
+    for (int y = 0; y < 100; ++y)
+        for (int x = 0; x < 100; ++x) m.vertex({float(x), float(y), 0});
+    for (int s = 0; s < 510; ++s) m.surface(2, 0, 100 * 100, 0, 0, 100, 100);
+    const std::uint64_t triangles = 510u * 2 * 99 * 99;
+    const std::string mib = std::to_string((triangles * sizeof(Object) + (1 << 20) - 1) >> 20);
+    EXPECT_EQ(error_of([&] { parse_bsp(m.bytes(), "bomb.bsp", "triangles"); }),
+              "bomb.bsp: triangles mode would make " + std::to_string(triangles) + " triangles (" + mib +
+                  " MiB of objects before any structure), more than the budget of 4194304; raise it with "
+                  "--bsp-max-triangles (import_options.bsp_max_triangles in an experiment)");
+    // A budget below a small map refuses it; raised to the map's count, it imports.
+    TinyBsp three;
+    three.lump[10] = m.lump[10];
+    for (int s = 0; s < 3; ++s) three.surface(2, 0, 100 * 100, 0, 0, 100, 100);
+    EXPECT_NE(error_of([&] {
+                  parse_bsp(three.bytes(), "three.bsp", "triangles", nullptr, 3 * 19602 - 1);
+              }).find("more than the budget of 58805"),
+              std::string::npos);
+    EXPECT_EQ(parse_bsp(three.bytes(), "three.bsp", "triangles", nullptr, 3 * 19602).size(), 3u * 19602);
+    // Brushes mode makes no triangles: the budget does not apply.
+    EXPECT_NO_THROW(parse_bsp(tiny_map().bytes(), "tiny.bsp", "brushes", nullptr, 1));
+    // The option from experiment files: a whole number in range, recorded only when not the default.
+    EXPECT_EQ(import_options_from_json({{"bsp_max_triangles", 100}}, "o").bsp_max_triangles, 100u);
+    EXPECT_EQ(to_json(import_options_from_json({{"bsp_max_triangles", 100}}, "o"))["bsp_max_triangles"], 100);
+    EXPECT_FALSE(to_json(ImportOptions{}).contains("bsp_max_triangles"));
+    for (const nlohmann::json& bad : {nlohmann::json(0), nlohmann::json(-5), nlohmann::json(1.5),
+                                      nlohmann::json("many"), nlohmann::json(std::uint64_t(1) << 40)})
+        EXPECT_NE(error_of([&] {
+                      import_options_from_json({{"bsp_max_triangles", bad}}, "scenes[0].import_options");
+                  }).find("scenes[0].import_options.bsp_max_triangles: expected a whole number from 1 to"),
+                  std::string::npos)
+            << bad.dump();
+}
+
+TEST(BspImport, TruncatedMapsAreRefusedInEveryModeNamingTheLump) {
+    // Cut 40 bytes: only the surfaces lump (13) runs past the end, which brushes mode does not read.
+    const Bytes whole = tiny_map().bytes();
+    Bytes cut = whole;
+    cut.resize(cut.size() - 40);
+    for (const char* mode : {"brushes", "triangles"}) {
+        const std::string e = error_of([&] { parse_bsp(cut, "cut.bsp", mode); });
+        EXPECT_NE(e.find("cut.bsp: lump 13 (surfaces): offset"), std::string::npos) << mode << ": " << e;
+        EXPECT_NE(e.find("runs past the end of the file (" + std::to_string(cut.size()) + " bytes): truncated"),
+                  std::string::npos)
+            << mode << ": " << e;
+    }
+    // Every cut after the header, in both modes.
+    for (std::size_t size = 8 + 17 * 8; size < whole.size(); ++size)
+        for (const char* mode : {"brushes", "triangles"}) {
+            const Bytes part(whole.begin(), whole.begin() + std::ptrdiff_t(size));
+            const std::string e = error_of([&] { parse_bsp(part, "cut.bsp", mode); });
+            EXPECT_NE(e.find("runs past the end of the file"), std::string::npos) << size << ' ' << mode << ": " << e;
+        }
+}
+
 TEST(BspImport, BrushesReferringToTheSameSidesOverAndOverAreRefused) {
     // 7000 brushes each claiming the same 10000 sides: 7e7 side visits from a 170 KB file.
     TinyBsp m;

@@ -148,6 +148,95 @@ TEST(Shapes, NarrowPhaseAgreesWithTheTruthOnRandomCases) {
     EXPECT_GT(misses, 2000);
 }
 
+/// The narrow phase against the truth at every magnitude the format allows (coordinates up to
+/// ±1e15), shapes from 1e-5 of the magnitude to a tenth of it, long segments from far away
+/// through points near (and on) the shape, half the capsules' segments nearly along the axis:
+/// where a float closest-point test cancels or overflows.
+TEST(Shapes, NarrowPhaseAgreesWithTheTruthAtEveryScale) {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> unit(-1.0, 1.0), one(0.0, 1.0), exponent(-4.0, 0.0), tilt(-1e-3, 1e-3);
+    auto random_unit = [&] {
+        Vec3d d{unit(rng), unit(rng), unit(rng)};
+        return d * (1 / std::sqrt(dot(d, d) + 1e-300));
+    };
+    for (int e = 0; e <= 15; ++e) {
+        const double scale = std::pow(10.0, e);
+        SCOPED_TRACE("coordinates ~1e" + std::to_string(e));
+        std::array<int, kShapeKinds> hits{}, misses{};
+        for (int i = 0; i < 4000; ++i) {
+            Vec3d c;  // between 0.2 and 0.4 scale per axis, either sign
+            for (int a = 0; a < 3; ++a) c[a] = (unit(rng) < 0 ? -1 : 1) * scale * (0.3 + 0.1 * unit(rng));
+            const double size = 0.1 * scale * std::pow(10.0, exponent(rng));
+            const Vec3d u = random_unit();
+            Shape shape;
+            Vec3d target;  // a point in, on or near the shape
+            switch (i % 4) {
+                case 0: {
+                    const Vec3d b = c + random_unit() * size, d = c + random_unit() * size;
+                    shape = Shape::triangle(c.as<float>(), b.as<float>(), d.as<float>());
+                    const double x = one(rng) * 0.7, y = one(rng) * 0.7;
+                    target = c + (b - c) * x + (d - c) * y;
+                    break;
+                }
+                case 1:
+                    shape = Shape::obb(c.as<float>(), (Vec3d{one(rng), one(rng), one(rng)} * size).as<float>(),
+                                       {float(unit(rng)), float(unit(rng)), float(unit(rng)), float(unit(rng))});
+                    target = c + random_unit() * (size * 1.5 * one(rng));
+                    break;
+                case 2:
+                    shape = Shape::sphere(c.as<float>(), float(size));
+                    target = c + random_unit() * (size * 1.5 * one(rng));
+                    break;
+                default: {
+                    const double radius = size * std::pow(10.0, exponent(rng));
+                    shape = Shape::capsule(c.as<float>(), (c + u * size).as<float>(), float(radius));
+                    target = c + u * (size * (1.2 * one(rng) - 0.1)) + random_unit() * (radius * 2 * one(rng));
+                }
+            }
+            ASSERT_EQ(shape_problem(shape, 1e15), "") << "case " << i;
+            const Vec3d dir = i % 8 == 3 ? (u + Vec3d{tilt(rng), tilt(rng), tilt(rng)}) : random_unit();
+            const Vec3d from = target - dir * (0.4 * scale * (0.5 + 0.5 * one(rng)));
+            const Segment s{from.as<float>(), (from + (target - from) * (1.0 + unit(rng))).as<float>()};
+            const Contact want = truth(s, shape);
+            const bool got = narrow(s, shape);
+            if (want == Contact::hit) {
+                EXPECT_TRUE(got) << shape_name(shape.kind) << " case " << i << " missed";
+            }
+            if (want == Contact::miss) {
+                EXPECT_FALSE(got) << shape_name(shape.kind) << " case " << i << " hit, the truth is a miss";
+            }
+            hits[int(shape.kind)] += want == Contact::hit;
+            misses[int(shape.kind)] += want == Contact::miss;
+        }
+        for (int k = 1; k < kShapeKinds; ++k) {  // both answers are exercised for every kind
+            EXPECT_GT(hits[k], 100) << shape_name(ShapeKind(k));
+            EXPECT_GT(misses[k], 100) << shape_name(ShapeKind(k));
+        }
+    }
+}
+
+/// Capsules at 1e11-1e12 whose answer a float closest-point test got wrong: a segment 2e11 away
+/// reported as a hit (the denominator overflowed to NaN), and one 1.8e7 from an axis of radius
+/// 5.5e7, nearly along it, reported as a miss (the denominator cancelled).
+TEST(Shapes, CapsulesAtLargeCoordinates) {
+    const Shape thin = Shape::capsule({2.88819872e+11f, -2.5212579e+11f, -2.13571256e+11f},
+                                      {2.8897683e+11f, -2.51936113e+11f, -2.13435302e+11f}, 17078822.0f);
+    const Segment far{{1.58959583e+11f, -4.09146262e+11f, -3.25959942e+11f},
+                      {1.76768041e+11f, -3.87612901e+11f, -3.10547612e+11f}};
+    ASSERT_EQ(truth(far, thin), Contact::miss);
+    EXPECT_FALSE(narrow(far, thin));
+    const Shape thick = Shape::capsule({-2.27016114e+11f, -2.96937652e+11f, 3.04662479e+11f},
+                                       {-2.82998637e+11f, -3.36413262e+11f, 3.32195103e+11f}, 55192436.0f);
+    const Segment along{{9.29877504e+09f, -1.30828739e+11f, 1.88307685e+11f},
+                        {-3.05622319e+11f, -3.52257114e+11f, 3.43322657e+11f}};
+    ASSERT_EQ(truth(along, thick), Contact::hit);
+    EXPECT_TRUE(narrow(along, thick));
+    float t = -1;
+    EXPECT_TRUE(segment_hits_shape(along, thick, &t));
+    EXPECT_GT(t, 0.0f);
+    EXPECT_LE(t, 1.0f);
+}
+
 TEST(Shapes, BadParametersAreNamed) {
     Shape nan = kTri;
     nan.v[4] = std::nanf("");

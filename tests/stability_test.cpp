@@ -194,6 +194,22 @@ TEST(Stability, GuardsOffStayExactOnTheHardScenes) {
     }
 }
 
+/// Identical boxes with the large-object guard off: every box sits in every cell, unbounded by
+/// design (docs/structures.md); exact, and every frame's stats name the guard that would have
+/// listed them.
+TEST(Stability, GridsWithoutTheLargeObjectGuardSaySoInEveryFrame) {
+    const Recording r = generate_scene(failure_scene("identical", 1000, 2));
+    for (const char* name : {"ug", "hg"}) {
+        const SimulationResult on = counted(r, name, {});
+        const SimulationResult off = counted(r, name, {{"max_cells", 0}, {"outlier_guard", false}});
+        ASSERT_FALSE(off.frames.empty());
+        for (const FrameResult& f : on.frames) EXPECT_FALSE(f.stats.contains("guards_off")) << name;
+        for (const FrameResult& f : off.frames)
+            EXPECT_GE(f.stats["guards_off"].value("max_cells", std::uint64_t(0)), 900u) << name << ' ' << f.stats;
+        EXPECT_LT(box_tests(on), box_tests(off)) << name;
+    }
+}
+
 /// A far outlier: without the guard the grids put the scene into a few cells (N_RB near brute
 /// force); with it they cover the scene itself. Both exact.
 TEST(Stability, OutlierGuardKeepsTheGridsFine) {
@@ -205,6 +221,8 @@ TEST(Stability, OutlierGuardKeepsTheGridsFine) {
         const SimulationResult off = counted(r, name, {{"outlier_guard", false}});
         EXPECT_TRUE(on.frames.back().stats["outlier_trimmed"].get<bool>()) << name;
         EXPECT_FALSE(off.frames.back().stats["outlier_trimmed"].get<bool>()) << name;
+        EXPECT_FALSE(on.frames.back().stats.contains("guards_off")) << name;
+        EXPECT_EQ(off.frames.back().stats["guards_off"]["outlier_guard"], true) << name;  // and it says so
         EXPECT_LT(5 * box_tests(on), box_tests(off)) << name << ": guard " << box_tests(on) << " vs " << box_tests(off);
     }
     const SimulationResult on = counted(r, "lbvh", {}), off = counted(r, "lbvh", {{"outlier_guard", false}});

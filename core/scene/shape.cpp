@@ -7,8 +7,6 @@
 namespace rcb {
 namespace {
 
-Vec3 lerp(const Segment& s, float t) { return s.p0 + s.delta() * t; }
-
 /// Woop, Benthin & Wald 2013, §3: shear the triangle into the segment's frame, where the edge
 /// functions U, V, W are exact in sign up to rounding and an edge shared by two triangles gets the
 /// same value (of opposite sign) in both, so nothing slips between them.
@@ -55,27 +53,39 @@ bool hits_obb(const Segment& s, const Shape& box, float* t_out) {
 }
 
 /// First t in [0, t_hit] where `inside(t)` holds, for a predicate that holds on an interval
-/// containing t_hit (a line meets a convex shape in an interval): bisection, 24 steps (float).
+/// containing t_hit (a line meets a convex shape in an interval): bisection, 24 steps (float's
+/// precision of t).
 template <class Inside>
-float first_inside(float t_hit, Inside&& inside) {
-    if (inside(0.0f)) return 0.0f;
-    float lo = 0.0f, hi = t_hit;
+double first_inside(double t_hit, Inside&& inside) {
+    if (inside(0.0)) return 0.0;
+    double lo = 0.0, hi = t_hit;
     for (int i = 0; i < 24; ++i) {
-        const float mid = 0.5f * (lo + hi);
+        const double mid = 0.5 * (lo + hi);
         (inside(mid) ? hi : lo) = mid;
     }
     return hi;
 }
 
+/// Spheres and capsules: the closest points of the segment and the core (Ericson 2005, §5.1.9)
+/// in double, relative to the core's midpoint. In float the test is wrong at large coordinates:
+/// the denominator |d1|²·|d2|² − (d1·d2)² overflows once lengths reach ~1e10, and for long,
+/// nearly parallel segments it cancels to noise, which puts the closest point far from the true
+/// one. The inputs are floats, exact in double; double's products stay finite up to the format's
+/// ±1e15 and its rounding is far inside the truth's tolerance (ground_truth.h), so the answer
+/// agrees with the double-precision truth at every scale the format allows.
 bool hits_round(const Segment& s, const Shape& shape, float* t_out) {
-    const Segment axis = shape.core<float>();
-    const float r = shape.radius();
-    const ClosestPoints<float> c = closest_points(s, axis);
-    if (c.distance2 > r * r) return false;
+    const SegmentT<double> world = shape.core<double>();
+    const Vec3d o = (world.p0 + world.p1) * 0.5;
+    const SegmentT<double> axis{world.p0 - o, world.p1 - o};
+    const SegmentT<double> seg{s.p0.as<double>() - o, s.p1.as<double>() - o};
+    const double r = shape.radius(), r2 = r * r;
+    const ClosestPoints<double> c = closest_points(seg, axis);
+    if (!(c.distance2 <= r2)) return false;
     if (t_out)
-        *t_out = first_inside(c.s, [&](float t) {
-            return closest_points(Segment{lerp(s, t), lerp(s, t)}, axis).distance2 <= r * r;
-        });
+        *t_out = float(first_inside(c.s, [&](double t) {
+            const Vec3d p = seg.at(t);
+            return closest_points(SegmentT<double>{p, p}, axis).distance2 <= r2;
+        }));
     return true;
 }
 

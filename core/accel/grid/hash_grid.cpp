@@ -118,6 +118,8 @@ grid::CellRange HashGrid::child_range(const grid::CellRange& fine, int depth, co
 
 void HashGrid::build(std::span<const Object> objects) {
     const Aabb world = grid::lattice_bounds(objects, params_.outlier_guard, &trimmed_);
+    would_trim_ = false;
+    if (!params_.outlier_guard) grid::lattice_bounds(objects, true, &would_trim_);  // for stats() only
     const int f = params_.subdivision, depth = params_.max_depth;
     pow_.assign(depth + 1, 1);
     for (int k = 1; k <= depth; ++k) pow_[k] = pow_[k - 1] * f;
@@ -156,7 +158,7 @@ void HashGrid::build(std::span<const Object> objects) {
     entries_total_ = 0;
     build_objects_ = objects.size();
     large_.clear();
-    refused_splits_ = guard_collapses_ = 0;
+    refused_splits_ = guard_collapses_ = unguarded_overruns_ = 0;
     for (const Object& o : objects) insert(o);
 }
 
@@ -222,7 +224,9 @@ void HashGrid::insert_into(int depth, const Index& i, std::uint32_t slot, const 
         // boxes: every insert lands in the same subdivided cells). Over the budget, the cell
         // collapses into a leaf holding each of its objects once, and the object joins it.
         const std::size_t child_entries = grid::cell_count(r);
-        if (params_.entries_guard && entries_total_ + child_entries > entry_budget()) {
+        const bool over = entries_total_ + child_entries > entry_budget();
+        unguarded_overruns_ += over && !params_.entries_guard;
+        if (params_.entries_guard && over) {
             collapse(id, depth, i);
             ++guard_collapses_;
             own_push(id, slot);
@@ -254,8 +258,9 @@ void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
     }
     // The split stops at 3/4 of the budget while a descending object collapses a cell only at the
     // full budget (insert_into): the gap keeps a collapsed cell from splitting straight back.
-    const bool over_budget =
-        params_.entries_guard && entries_total_ - moving.size() + child_entries > entry_budget() / 4 * 3;
+    const bool over = entries_total_ - moving.size() + child_entries > entry_budget() / 4 * 3;
+    const bool over_budget = params_.entries_guard && over;
+    unguarded_overruns_ += over && !params_.entries_guard && !moving.empty();
     if (moving.empty() || over_budget) {
         // Refused: try again once the leaf has doubled (amortised O(1) per insert, see the header).
         refused_splits_ += over_budget && !moving.empty();
@@ -431,20 +436,33 @@ nlohmann::json HashGrid::stats() const {
         over += !cells_[id].subdivided && depth < params_.max_depth &&
                 cells_[id].own.size > std::uint32_t(params_.max_capacity);
     });
-    return {{"cells", table_.size()},
-            {"cells_per_depth", per_depth},
-            {"max_depth_used", deepest},
-            {"subdivided_cells", subdivided},
-            {"entries", entries},
-            {"largest_cell", largest},
-            {"over_capacity_leaves", over},
-            {"top_res", {lat_[0].res[0], lat_[0].res[1], lat_[0].res[2]}},
-            {"top_cell_size", lat_[0].size},
-            {"top_res_clamped", clamped_},
-            {"outlier_trimmed", trimmed_},
-            {"refused_splits", refused_splits_},
-            {"guard_collapses", guard_collapses_},
-            {"large_objects", large_.size()}};
+    nlohmann::json j = {{"cells", table_.size()},
+                        {"cells_per_depth", per_depth},
+                        {"max_depth_used", deepest},
+                        {"subdivided_cells", subdivided},
+                        {"entries", entries},
+                        {"largest_cell", largest},
+                        {"over_capacity_leaves", over},
+                        {"top_res", {lat_[0].res[0], lat_[0].res[1], lat_[0].res[2]}},
+                        {"top_cell_size", lat_[0].size},
+                        {"top_res_clamped", clamped_},
+                        {"outlier_trimmed", trimmed_},
+                        {"refused_splits", refused_splits_},
+                        {"guard_collapses", guard_collapses_},
+                        {"large_objects", large_.size()}};
+    // A guard switched off that would have fired: said here, since the grid is unbounded without it.
+    nlohmann::json off = nlohmann::json::object();
+    if (params_.max_cells == 0) {
+        std::size_t would_list = 0;  // objects over the default guard's top-cell count
+        for (const auto& [uid, slot] : slot_)
+            would_list += grid::cell_count(range_at(lat_[params_.max_depth].range_of(entries_[slot].box), 0)) >
+                          std::size_t(grid::kDefaultMaxCells);
+        if (would_list) off["max_cells"] = would_list;
+    }
+    if (unguarded_overruns_) off["entries_guard"] = unguarded_overruns_;
+    if (would_trim_) off["outlier_guard"] = true;
+    if (!off.empty()) j["guards_off"] = off;
+    return j;
 }
 
 void HashGrid::validate() const {

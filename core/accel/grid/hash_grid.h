@@ -83,15 +83,18 @@ public:
                       "object (over max(objects, objects at build, 64)) is refused",
                       kNotTuned},
                 Field{"entries_guard", &Params::entries_guard, 0.0, 1.0,
-                      "apply the max_entries_per_object memory guard (off: splits are limited by max_depth only)",
+                      "apply the max_entries_per_object memory guard (off: splits are limited by max_depth only, "
+                      "unbounded on coinciding surfaces; stats guards_off.entries_guard counts the splits and "
+                      "descents it would have refused)",
                       kNotTuned},
                 Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
                       "top grid over the central 99% of the objects per axis when the full bounds are over 8x larger "
-                      "(exact either way)",
+                      "(exact either way; stats guards_off.outlier_guard says when it would have trimmed)",
                       kNotTuned},
                 Field{"max_cells", &Params::max_cells, 0, 1 << 20,
                       "large-object guard: an object overlapping more than this many top-grid cells is kept in one "
-                      "list that every ray tests once (0: off)",
+                      "list that every ray tests once (0: off, unbounded: scene-sized boxes sit in every top cell; "
+                      "stats guards_off.max_cells counts the objects the default would have listed)",
                       kNotTuned},
                 cast_threads_field<Params>()};
         }
@@ -184,6 +187,8 @@ private:
     // Guard reports since the build (stats).
     std::size_t refused_splits_ = 0;
     std::size_t guard_collapses_ = 0;
+    std::size_t unguarded_overruns_ = 0;  ///< entries_guard off: its refusals and collapses that did not happen
+    bool would_trim_ = false;             ///< the outlier guard is off and would have trimmed the top grid
     /// The large-object guard's test, on the object's top-grid range.
     bool is_large(const grid::CellRange& top) const {
         return params_.max_cells > 0 && grid::cell_count(top) > std::size_t(params_.max_cells);

@@ -8,6 +8,8 @@ namespace rcb {
 
 void UniformGrid::build(std::span<const Object> objects) {
     const Aabb world = grid::lattice_bounds(objects, params_.outlier_guard, &trimmed_);
+    would_trim_ = false;
+    if (!params_.outlier_guard) grid::lattice_bounds(objects, true, &would_trim_);  // for stats() only
     const double longest = double(world.longest_edge());
     // Eq. 4.1: cells_per_dimension = (number / density)^(1/3), size = longest_edge / cells_per_dimension.
     const double per_dim = std::max(1.0, std::cbrt(double(objects.size()) / params_.density));
@@ -124,15 +126,26 @@ nlohmann::json UniformGrid::stats() const {
         non_empty += c.size != 0;
         largest = std::max(largest, std::size_t(c.size));
     }
-    return {{"cells", cells_.size()},
-            {"res", {lat_.res[0], lat_.res[1], lat_.res[2]}},
-            {"cell_size", lat_.size},
-            {"non_empty_cells", non_empty},
-            {"entries", entries},
-            {"largest_cell", largest},
-            {"cell_cap_hit", clamped_},
-            {"outlier_trimmed", trimmed_},
-            {"large_objects", large_.size()}};
+    nlohmann::json j = {{"cells", cells_.size()},
+                        {"res", {lat_.res[0], lat_.res[1], lat_.res[2]}},
+                        {"cell_size", lat_.size},
+                        {"non_empty_cells", non_empty},
+                        {"entries", entries},
+                        {"largest_cell", largest},
+                        {"cell_cap_hit", clamped_},
+                        {"outlier_trimmed", trimmed_},
+                        {"large_objects", large_.size()}};
+    // A guard switched off that would have fired: said here, since the grid is unbounded without it.
+    nlohmann::json off = nlohmann::json::object();
+    if (params_.max_cells == 0) {
+        std::size_t would_list = 0;  // objects over the default guard's cell count
+        for (const auto& [uid, slot] : slot_)
+            would_list += grid::cell_count(lat_.range_of(entries_[slot].box)) > std::size_t(grid::kDefaultMaxCells);
+        if (would_list) off["max_cells"] = would_list;
+    }
+    if (would_trim_) off["outlier_guard"] = true;
+    if (!off.empty()) j["guards_off"] = off;
+    return j;
 }
 
 void UniformGrid::validate() const {

@@ -5,7 +5,9 @@
 /// (common/box_block.h); duplicate hits are dropped with per-query stamps. Guards keep it exact and
 /// bounded on hostile scenes: unbounded border cells, an outlier trim of the lattice, a list for
 /// objects larger than `max_cells` cells, and a cap on the cell count. docs/structures.md has the
-/// details and the reasons.
+/// details and the reasons. The outlier and large-object guards can be switched off (to measure
+/// what they prevent); the grid is then unbounded on such scenes, and stats() names under
+/// "guards_off" what the guard at its default would have done.
 
 #include <array>
 #include <cmath>
@@ -41,11 +43,14 @@ public:
                       "objects per cell in eq. 4.1 (cells = objects / density; capped at 4 Mi cells)", kLogScale},
                 Field{"max_cells", &Params::max_cells, 0, 1 << 20,
                       "large-object guard: an object overlapping more than this many cells is kept in one list that "
-                      "every ray tests once (0: off)",
+                      "every ray tests once (0: off, unbounded: an object then sits in every cell it overlaps, so "
+                      "scene-sized or identical boxes cost objects x cells entries, and time per move and ray; "
+                      "stats guards_off.max_cells counts the objects the default would have listed)",
                       kNotTuned},
                 Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
                       "cover only the central 99% of the objects per axis when the full bounds are over 8x larger "
-                      "(outliers go to the unbounded border cells; exact either way)",
+                      "(outliers go to the unbounded border cells; exact either way; off: one far object can put "
+                      "the scene into a few cells, stats guards_off.outlier_guard says when it would have trimmed)",
                       kNotTuned},
                 Field{"thesis_reset", &Params::thesis_reset, 0.0, 1.0,
                       "avoid duplicate tests with the thesis' bool vector reset per ray (O(N) per ray) instead of "
@@ -98,6 +103,7 @@ private:
     grid::Lattice lat_;
     bool clamped_ = false;          ///< the cell cap enlarged the cells
     bool trimmed_ = false;          ///< the outlier guard trimmed the lattice
+    bool would_trim_ = false;       ///< the outlier guard is off and would have trimmed it
     std::vector<BlockCell> cells_;  // cell → objects (copies of their boxes)
     BlockList large_;               // the large-object guard's objects (in no cell)
     std::vector<Entry> entries_;    // slot → object

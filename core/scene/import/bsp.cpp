@@ -103,13 +103,16 @@ struct Reader {
                 fail_lump(l, "negative offset or length (" + std::to_string(off) + ", " + std::to_string(len) + ")");
             offset[l] = std::uint32_t(off), length[l] = std::uint32_t(len);
         }
+        // Every lump, read by this mode or not: a file cut short is refused the same in every mode.
+        for (int l = 0; l < kLumps; ++l)
+            if (std::uint64_t(offset[l]) + length[l] > bytes.size())
+                fail_lump(l, "offset " + std::to_string(offset[l]) + " + length " + std::to_string(length[l]) +
+                                 " runs past the end of the file (" + std::to_string(bytes.size()) +
+                                 " bytes): truncated");
     }
 
-    /// Checks that lump `l` lies inside the file and holds whole records; returns the record count.
+    /// Checks that lump `l` (inside the file: header()) holds whole records; returns the record count.
     std::size_t records(int l, std::size_t record_bytes) const {
-        if (std::uint64_t(offset[l]) + length[l] > bytes.size())
-            fail_lump(l, "offset " + std::to_string(offset[l]) + " + length " + std::to_string(length[l]) +
-                             " runs past the end of the file (" + std::to_string(bytes.size()) + " bytes): truncated");
         if (length[l] % record_bytes != 0)
             fail_lump(l,
                       "length " + std::to_string(length[l]) + " is not a multiple of " + std::to_string(record_bytes));
@@ -191,7 +194,7 @@ std::vector<Object> parse_brushes(const Reader& r, BspSummary& sum) {
     return out;
 }
 
-std::vector<Object> parse_triangles(const Reader& r, BspSummary& sum) {
+std::vector<Object> parse_triangles(const Reader& r, std::uint64_t max_triangles, BspSummary& sum) {
     const std::size_t verts = r.records(kDrawVerts, kDrawVertBytes);
     const std::size_t indexes = r.records(kDrawIndexes, kIndexBytes);
     const std::size_t surfaces = r.records(kSurfaces, kSurfaceBytes);
@@ -243,6 +246,12 @@ std::vector<Object> parse_triangles(const Reader& r, BspSummary& sum) {
         throw InputError(r.name + ": triangles mode would make " + std::to_string(estimate) +
                          " triangles, more than the limit of " + std::to_string(kMaxSceneObjects) +
                          " objects per scene (kMaxSceneObjects, scene.h); try --bsp-mode brushes");
+    if (estimate > max_triangles)
+        throw InputError(r.name + ": triangles mode would make " + std::to_string(estimate) + " triangles (" +
+                         std::to_string((estimate * sizeof(Object) + (1 << 20) - 1) >> 20) +
+                         " MiB of objects before any structure), more than the budget of " +
+                         std::to_string(max_triangles) +
+                         "; raise it with --bsp-max-triangles (import_options.bsp_max_triangles in an experiment)");
     std::vector<Object> out;
     out.reserve(estimate);
     std::size_t s = 0;
@@ -336,14 +345,14 @@ std::vector<std::uint8_t> read_file_bytes(const std::string& path) {
 }  // namespace
 
 std::vector<Object> parse_bsp(std::span<const std::uint8_t> bytes, const std::string& name, const std::string& mode,
-                              BspSummary* summary) {
+                              BspSummary* summary, std::uint64_t max_triangles) {
     if (mode != "brushes" && mode != "triangles")
         throw InputError(name + ": bsp mode '" + mode + "': expected brushes or triangles");
     Reader r{bytes, name, {}, {}};
     r.header();
     BspSummary local;
     BspSummary& sum = summary ? *summary : local;
-    return mode == "brushes" ? parse_brushes(r, sum) : parse_triangles(r, sum);
+    return mode == "brushes" ? parse_brushes(r, sum) : parse_triangles(r, max_triangles, sum);
 }
 
 std::vector<std::string> pk3_maps(const std::string& path) {
@@ -410,12 +419,12 @@ std::vector<Object> import_bsp(const std::string& path, const BspOptions& option
         const std::vector<std::uint8_t> bytes = read_zip_entry(path, entry);
         sum.map = entry;
         return parse_bsp(bytes, std::filesystem::path(path).filename().string() + ":" + shown(entry), options.mode,
-                         &sum);
+                         &sum, options.max_triangles);
     }
     if (!options.map.empty()) throw InputError(path + ": --map is for a .pk3; a .bsp is one map");
     const std::vector<std::uint8_t> bytes = read_file_bytes(path);
     sum.map = std::filesystem::path(path).filename().string();
-    return parse_bsp(bytes, path, options.mode, &sum);
+    return parse_bsp(bytes, path, options.mode, &sum, options.max_triangles);
 }
 
 }  // namespace rcb

@@ -19,7 +19,13 @@
 ///
 /// Before allocating objects, the importer counts them (triangles mode: exactly, from the surfaces'
 /// index counts and patch sizes) and refuses more than kMaxSceneObjects (scene.h); every object's
-/// box is checked against the coordinate limit (check_object, recording_io.h).
+/// box is checked against the coordinate limit (check_object, recording_io.h). Surfaces may share
+/// vertices and indexes, so a small file can expand to millions of triangles: triangles mode also
+/// refuses more than a budget (BspOptions::max_triangles, kDefaultBspMaxTriangles), a bound on
+/// the import's time and memory that a real map stays far below, raised on request.
+///
+/// Every lump must lie inside the file, whether the mode reads it or not: a truncated map is
+/// refused, naming the first lump cut off, in both modes.
 ///
 /// A `.pk3` is a zip: the map is read from `maps/NAME.bsp` inside it (libzip). Errors name the file
 /// and the lump: "q3dm1.bsp: lump 8 (brushes): length 13 is not a multiple of 12".
@@ -38,9 +44,15 @@ namespace rcb {
 /// only stops a corrupt or hostile size (a zip entry claiming gigabytes).
 inline constexpr std::uint64_t kMaxMapBytes = std::uint64_t(512) << 20;
 
+/// The default budget of triangles mode. Every triangle of a real map needs its own indexes or
+/// patch control points in the file (12 or about 22 bytes each), so the largest maps (under 20 MB)
+/// stay under two million; four Mi triangles are reached only by surfaces that share their data.
+inline constexpr std::uint64_t kDefaultBspMaxTriangles = std::uint64_t(1) << 22;
+
 struct BspOptions {
     std::string mode = "brushes";  ///< "brushes" or "triangles"
     std::string map;               ///< in a .pk3 with several maps: which (NAME or maps/NAME.bsp)
+    std::uint64_t max_triangles = kDefaultBspMaxTriangles;  ///< triangles mode's budget
 };
 
 /// What an import kept and skipped (for messages and the recording's meta).
@@ -55,7 +67,7 @@ std::vector<Object> import_bsp(const std::string& path, const BspOptions& option
 
 /// The same from bytes in memory; `name` is used in messages.
 std::vector<Object> parse_bsp(std::span<const std::uint8_t> bytes, const std::string& name, const std::string& mode,
-                              BspSummary* summary = nullptr);
+                              BspSummary* summary = nullptr, std::uint64_t max_triangles = kDefaultBspMaxTriangles);
 
 /// The maps (`maps/*.bsp` entries) inside a .pk3, sorted.
 std::vector<std::string> pk3_maps(const std::string& path);

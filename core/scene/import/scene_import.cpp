@@ -29,7 +29,7 @@ std::vector<Object> import_objects(const std::string& path, const ImportOptions&
         objects = read_boxes_csv(path);
     } else if (kind == "bsp") {
         BspSummary s;
-        objects = import_bsp(path, BspOptions{options.bsp_mode, options.map}, &s);
+        objects = import_bsp(path, BspOptions{options.bsp_mode, options.map, options.bsp_max_triangles}, &s);
         m["mode"] = options.bsp_mode;
         m["map"] = s.map;
         if (options.bsp_mode == "brushes")
@@ -54,10 +54,24 @@ std::vector<Object> import_objects(const std::string& path, const ImportOptions&
 ImportOptions import_options_from_json(const nlohmann::json& j, const std::string& path) {
     ImportOptions o;
     if (j.is_null()) return o;
-    if (!j.is_object()) throw InputError(path + ": expected an object with bsp_mode, map, model_mode");
+    if (!j.is_object())
+        throw InputError(path + ": expected an object with bsp_mode, map, model_mode, bsp_max_triangles");
     for (const auto& [k, v] : j.items()) {
+        if (k == "bsp_max_triangles") {
+            std::uint64_t n = 0;
+            if (v.is_number_unsigned())
+                n = v.get<std::uint64_t>();
+            else if (v.is_number_integer() && v.get<std::int64_t>() > 0)
+                n = std::uint64_t(v.get<std::int64_t>());
+            if (n < 1 || n > kMaxSceneObjects)
+                throw InputError(path + "." + k + ": expected a whole number from 1 to " +
+                                 std::to_string(kMaxSceneObjects) + ", got " + quoted_excerpt(v.dump()));
+            o.bsp_max_triangles = n;
+            continue;
+        }
         if (k != "bsp_mode" && k != "map" && k != "model_mode")
-            throw InputError(path + ": unknown key " + quoted_excerpt(k) + " (known: bsp_mode, map, model_mode)");
+            throw InputError(path + ": unknown key " + quoted_excerpt(k) +
+                             " (known: bsp_mode, map, model_mode, bsp_max_triangles)");
         if (!v.is_string()) throw InputError(path + "." + k + ": expected a string, got " + quoted_excerpt(v.dump()));
     }
     o.bsp_mode = j.value("bsp_mode", o.bsp_mode);
@@ -72,7 +86,9 @@ ImportOptions import_options_from_json(const nlohmann::json& j, const std::strin
 }
 
 nlohmann::json to_json(const ImportOptions& o) {
-    return {{"bsp_mode", o.bsp_mode}, {"map", o.map}, {"model_mode", o.model_mode}};
+    nlohmann::json j = {{"bsp_mode", o.bsp_mode}, {"map", o.map}, {"model_mode", o.model_mode}};
+    if (o.bsp_max_triangles != kDefaultBspMaxTriangles) j["bsp_max_triangles"] = o.bsp_max_triangles;
+    return j;
 }
 
 }  // namespace rcb
