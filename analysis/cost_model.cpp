@@ -31,65 +31,81 @@ std::string scene_category(const std::string& spec_text) {
 
 namespace {
 
-/// A term: its name and how to read it from a frame.
+/// A column's source: its name and how to read it from a frame.
 struct Term {
     std::string name;
     std::function<double(const FrameObservation&)> value;
 };
 
-const Term kNrb{"C_RB", [](const FrameObservation& f) { return f.n_rb; }};
-const Term kNt{"C_T", [](const FrameObservation& f) { return f.n_t; }};
-const Term kPrep{"C_PREP", [](const FrameObservation&) { return 1.0; }};
-const Term kMemory{"C_MEM", [](const FrameObservation& f) { return f.memory_mb; }};
-/// What a reported hit costs beyond its box test (the visit: recording it in the ray's list). The
-/// thesis prices true and false positives alike (eq. 5.3); with few tests per ray, as brute force
-/// on a small scene or a grid's first cell, the hits' share shows.
-/// The narrow phase (thesis eq. 5.3): a test of an object's exact shape after its box was hit.
-const Term kShapes{"C_RO", [](const FrameObservation& f) { return f.n_ro; }};
-const Term kHits{"C_HIT", [](const FrameObservation& f) { return f.n_tp; }};
-/// What a tree step costs beyond a step when its node box is hit: the children pushed and, below,
-/// fetched (cache misses). Eq. 5.4 prices every step alike; a BVH's steps are hits and misses.
-const Term kNodeHits{"C_TH", [](const FrameObservation& f) { return f.n_th; }};
-/// What a step costs beyond a predicted one when the ray before took another path (coherence): the
-/// branches the CPU guessed wrong and the nodes not in the L1 cache. N_MP is the steps a history
-/// predictor missed (core/accel/outcome_predictor.h); eq. 5.4 prices coherent and incoherent rays alike.
-const Term kMispredicts{"C_MP", [](const FrameObservation& f) { return f.n_mp; }};
+/// A table term (not a per-tier one) as a column source: its counters' sum, or 1 for a constant.
+Term term_of(const CostTerm& t) {
+    std::vector<double FrameObservation::*> fields;
+    for (const char* symbol : t.counters) fields.push_back(find_counter(symbol).field);
+    if (fields.empty()) return {t.name, [](const FrameObservation&) { return 1.0; }};
+    return {t.name, [fields](const FrameObservation& f) {
+                double sum = 0;
+                for (const auto field : fields) sum += f.*field;
+                return sum;
+            }};
+}
 
-/// The memory hierarchy: one column per cache tier the run's working sets reach beyond the smallest
-/// one, named `prefix` + the tier, worth `value` of a frame where its working set has left the cache
-/// of level `tier` (and every smaller one), 0 elsewhere. None when every working set sits in one tier.
-std::vector<Term> tier_terms(const std::vector<const FrameObservation*>& frames, const std::string& prefix,
-                             const std::function<double(const FrameObservation&)>& value) {
+bool occurs(const std::vector<const FrameObservation*>& frames, const Term& t) {
+    return std::any_of(frames.begin(), frames.end(), [&](const FrameObservation* f) { return t.value(*f) != 0; });
+}
+
+const char* target_name(Target target) { return target == Target::raycast ? "raycast" : "update"; }
+
+/// Calibration priors by term name (the pinned values); the terms with a prior in the table but
+/// none here say why.
+struct Priors {
+    std::map<std::string, double> value;
+    std::map<std::string, std::string> why_not;
+};
+
+Priors priors_of(const StructureCalibration* calibration) {
+    Priors p;
+    for (const CostTerm& term : cost_terms()) {
+        if (!term.prior) continue;
+        const CalibratedTerm* t = calibration ? calibration->term(term.name) : nullptr;
+        if (t && t->pinned)
+            p.value[term.name] = t->value;
+        else
+            p.why_not[term.name] = t             ? t->why
+                                   : calibration ? "the micro-scenes never exercise it"
+                                                 : "the run has no calibration";
+    }
+    return p;
+}
+
+/// A per-tier term's columns: one per cache tier the frames' working sets reach beyond the
+/// smallest, named the term + the tier, worth Σ w_k·(term k) in a frame whose working set has left
+/// the cache of level `tier` (and every smaller one), 0 elsewhere. None when every working set sits
+/// in one tier (the base costs already are its costs). w_k is the term's prior (the calibration's
+/// in-cache cost; the coefficient is then the extra fraction of it a test or step pays beyond the
+/// cache), 1 without one, 0 where the frames lack the term.
+std::vector<Term> tier_columns(const CostTerm& tiered, const std::vector<const FrameObservation*>& frames,
+                               const Priors& priors) {
     std::set<int> tiers;
     for (const FrameObservation* f : frames) tiers.insert(f->memory_tier);
     std::vector<Term> out;
-    if (tiers.size() < 2) return out;  // one tier only: the base costs already are its costs
+    if (tiers.size() < 2) return out;
+    std::vector<std::pair<double, Term>> weighted;
+    for (const char* name : tiered.weighted_by) {
+        const Term t = term_of(find_term(name));
+        const auto prior = priors.value.find(name);
+        weighted.push_back({!occurs(frames, t) ? 0.0 : prior != priors.value.end() ? prior->second : 1.0, t});
+    }
+    const auto value = [weighted](const FrameObservation& f) {
+        double sum = 0;
+        for (const auto& [w, t] : weighted) sum += w * t.value(f);
+        return sum;
+    };
     for (auto it = std::next(tiers.begin()); it != tiers.end(); ++it) {
         const int tier = *it;
-        out.push_back({prefix + std::to_string(tier),
+        out.push_back({tiered.name + std::to_string(tier),
                        [=](const FrameObservation& f) { return f.memory_tier >= tier ? value(f) : 0.0; }});
     }
     return out;
-}
-/// Ray cast: (w_RB·N_RB + w_T·N_T) beyond each tier. The weights are the calibration's in-cache
-/// costs (from small scenes), so the coefficient is the extra fraction of the in-cache cost that a
-/// test and a step pay there; without a calibration value a weight is 1 (the coefficient is then in
-/// ns per unit).
-std::vector<Term> hierarchy_terms(const std::vector<const FrameObservation*>& frames, double w_rb, double w_t) {
-    return tier_terms(frames, "slow>L", [=](const FrameObservation& f) { return w_rb * f.n_rb + w_t * f.n_t; });
-}
-const Term kInsert{"c_insert", [](const FrameObservation& f) { return f.inserts; }};
-const Term kRemove{"c_remove", [](const FrameObservation& f) { return f.removes; }};
-const Term kMove{"c_move", [](const FrameObservation& f) { return f.moves; }};
-const Term kObjects{"c_object", [](const FrameObservation& f) { return f.objects; }};
-const Term kFrame{"c_frame", [](const FrameObservation&) { return 1.0; }};
-/// One price for any change: where a run's scenes mix inserts, removes and moves in one proportion
-/// (the thesis' 1% dynamics everywhere), the per-operation costs cannot be told apart.
-const Term kChange{"c_change", [](const FrameObservation& f) { return f.inserts + f.removes + f.moves; }};
-/// Updates: a frame's changes beyond each tier, what a change pays beyond its in-cache cost when the
-/// cells or nodes it touches are no longer cached.
-std::vector<Term> update_hierarchy_terms(const std::vector<const FrameObservation*>& frames) {
-    return tier_terms(frames, "c_change>L", kChange.value);
 }
 
 /// A column of a model: a term, restricted to one scene category when `category` is set.
@@ -166,18 +182,38 @@ LinearProblem build_problem(const std::vector<const FrameObservation*>& frames, 
     return p;
 }
 
-/// Drops terms that are 0 in every frame (they cannot be fitted and the structure does not have them).
-std::vector<Term> present(const std::vector<const FrameObservation*>& frames, const std::vector<Term>& terms,
-                          std::vector<std::string>* unused = nullptr) {
-    std::vector<Term> out;
-    for (const Term& t : terms) {
-        const bool any =
-            std::any_of(frames.begin(), frames.end(), [&](const FrameObservation* f) { return t.value(*f) != 0; });
-        if (any)
-            out.push_back(t);
-        else if (unused && std::find(unused->begin(), unused->end(), t.name) == unused->end())
-            unused->push_back(t.name);
+/// The columns of `form` over `frames` (its target's), or none where the form does not apply: a
+/// required term that never occurs, a per-tier term without a tier beyond the smallest, a split
+/// into fewer than two groups. A term that is 0 in every frame is left out unless the table keeps it.
+std::optional<std::vector<Column>> form_columns(const ModelForm& form,
+                                                const std::vector<const FrameObservation*>& frames,
+                                                const Priors& priors, const std::string& structure) {
+    for (const char* name : form.required)
+        if (!occurs(frames, term_of(find_term(name)))) return std::nullopt;
+    std::vector<Term> terms;
+    for (const char* name : form.terms) {
+        const CostTerm& t = find_term(name);
+        if (t.per_tier) {
+            const std::vector<Term> tiers = tier_columns(t, frames, priors);
+            if (tiers.empty()) return std::nullopt;
+            terms.insert(terms.end(), tiers.begin(), tiers.end());
+        } else if (Term term = term_of(t); t.when_absent == WhenAbsent::keep || occurs(frames, term)) {
+            terms.push_back(std::move(term));
+        }
     }
+    if (form.split == Split::none) return columns_of(terms);
+    std::set<std::string> groups;
+    for (const FrameObservation* f : frames) groups.insert(form.split == Split::by_params ? f->params : f->category);
+    if (groups.size() < 2) return std::nullopt;
+    return columns_of(terms, {groups.begin(), groups.end()}, form.split == Split::by_params, structure);
+}
+
+/// The table's terms of `target` that never occur in `frames` and that it names when absent.
+std::vector<std::string> unused_terms(Target target, const std::vector<const FrameObservation*>& frames) {
+    std::vector<std::string> out;
+    for (const CostTerm& t : cost_terms())
+        if (t.target == target && t.when_absent == WhenAbsent::drop_named && !occurs(frames, term_of(t)))
+            out.push_back(t.name);
     return out;
 }
 
@@ -208,13 +244,12 @@ struct Built {
 /// identifiable fit, indistinguishable from 0) is dropped and the fit repeated, so that no chosen
 /// coefficient sits at 0. Columns with a prior are bounded to its range and never dropped.
 Built candidate(const std::string& name, const std::string& target, const std::vector<const FrameObservation*>& frames,
-                std::vector<Column> columns, const std::map<std::string, double>& priors,
-                const std::map<std::string, std::string>& no_prior_why) {
+                std::vector<Column> columns, const Priors& priors) {
     Built b;
     b.model.name = name;
     b.model.target = target;
     for (;;) {
-        b.model.problem = build_problem(frames, columns, target, priors);
+        b.model.problem = build_problem(frames, columns, target, priors.value);
         b.model.fit = fit_linear(b.model.problem);
         std::size_t drop = columns.size();
         for (std::size_t j = 0; j < columns.size() && columns.size() > 1; ++j) {
@@ -230,8 +265,8 @@ Built candidate(const std::string& name, const std::string& target, const std::v
         if (drop == columns.size()) break;
         const Coefficient& c = b.model.fit.coefficients[drop];
         std::string why = c.name + ": ";
-        const auto it = no_prior_why.find(columns[drop].term.name);
-        if (it != no_prior_why.end()) why += "no calibration value (" + it->second + "); ";
+        const auto it = priors.why_not.find(columns[drop].term.name);
+        if (it != priors.why_not.end()) why += "no calibration value (" + it->second + "); ";
         why += c.value > 0 ? "the run's frames cannot tell it from 0 (95% interval [" + fixed(c.ci_low, 3) + ", " +
                                  fixed(c.ci_high, 3) + "])"
                            : "the run's frames put it at 0";
@@ -265,22 +300,24 @@ StructureCalibration fit_calibration(const std::string& structure, const std::ve
     out.structure = structure;
     out.points = points;
     if (points.empty()) return out;
-    const std::pair<const char*, double CalibrationPoint::*> counters[] = {
-        {"C_RB", &CalibrationPoint::n_rb}, {"C_T", &CalibrationPoint::n_t}, {"C_MP", &CalibrationPoint::n_mp}};
+    // The table's terms with a prior: those the micro-scenes count (where any point counted them),
+    // then the constants.
+    std::vector<double CalibrationPoint::*> counted;  // per term; nullptr: a constant
     LinearProblem p;
-    for (const auto& counter : counters)  // not a structured binding: clang 14 cannot capture one
-        if (std::any_of(points.begin(), points.end(),
-                        [&](const CalibrationPoint& q) { return q.*(counter.second) > 0; }))
-            p.terms.push_back(counter.first);
-    p.terms.push_back("C_PREP");
+    for (const bool constant : {false, true})
+        for (const CostTerm& t : cost_terms()) {
+            if (!t.prior || t.counters.empty() != constant) continue;
+            double CalibrationPoint::*counter = constant ? nullptr : find_counter(t.counters.front()).calibrated;
+            if (!constant && (!counter || !std::any_of(points.begin(), points.end(),
+                                                       [&](const CalibrationPoint& q) { return q.*counter > 0; })))
+                continue;
+            p.terms.push_back(t.name);
+            counted.push_back(counter);
+        }
     for (std::size_t i = 0; i < points.size(); ++i) {
         if (!(points[i].ns_per_ray > 0)) continue;
         std::vector<double> row;
-        for (const std::string& t : p.terms)
-            row.push_back(t == "C_RB"   ? points[i].n_rb
-                          : t == "C_T"  ? points[i].n_t
-                          : t == "C_MP" ? points[i].n_mp
-                                        : 1.0);
+        for (double CalibrationPoint::*counter : counted) row.push_back(counter ? points[i].*counter : 1.0);
         p.x.push_back(row);
         p.y.push_back(points[i].ns_per_ray);
         p.group.push_back(int(i));
@@ -351,48 +388,86 @@ std::int64_t resolve_run(Database& db, std::int64_t run, const std::string& expe
     return s.int64(0);
 }
 
+namespace {
+
+/// A query's columns by name (its `AS` aliases), so reads name what they read.
+class NamedColumns {
+public:
+    explicit NamedColumns(const Statement& s) {
+        for (int i = 0; i < s.columns(); ++i) index_[s.column_name(i)] = i;
+    }
+    int operator[](const std::string& name) const {
+        const auto it = index_.find(name);
+        if (it == index_.end()) throw std::logic_error("the query has no column " + name);
+        return it->second;
+    }
+
+private:
+    std::map<std::string, int> index_;
+};
+
+/// The one query of a run's measured frames: what identifies a frame, then every counter of
+/// frame_counters() under its alias.
+std::string observations_sql() {
+    std::string sql =
+        "SELECT config.structure AS structure, config.params AS params, cell.scene_id AS scene_id, "
+        "cell.config_id AS config_id, frame.rays AS rays, frame.raycast_ns AS raycast_ns, "
+        "frame.update_ns AS update_ns";
+    for (const FrameCounter& c : frame_counters()) sql += std::string(", ") + c.column + " AS " + c.alias;
+    return sql +
+           " FROM frame JOIN cell ON cell.id = frame.cell_id JOIN config ON config.id = cell.config_id "
+           "WHERE cell.run_id IN " +
+           kRunGroupSql + " AND frame.warmup = 0 ORDER BY cell.id, frame.frame";
+}
+
+/// A stored counter as the observation holds it (per-ray counts only in frames with rays).
+void read_counter(const FrameCounter& c, double stored, FrameObservation& f) {
+    switch (c.scale) {
+        case CounterScale::per_ray:
+            if (f.rays > 0) f.*(c.field) = stored / f.rays;
+            break;
+        case CounterScale::mebibytes:
+            f.*(c.field) = stored / (1024.0 * 1024.0);
+            break;
+        case CounterScale::as_is:
+            f.*(c.field) = stored;
+            break;
+    }
+}
+
+}  // namespace
+
 std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) {
     std::vector<FrameObservation> out;
     std::map<std::tuple<std::int64_t, std::int64_t>, int> groups;
-    Statement s = db.prepare(
-        "SELECT config.structure, config.params, NULL, NULL, cell.scene_id, cell.config_id, frame.rays, "
-        "frame.raycast_ns, frame.update_ns, frame.n_t, frame.n_rb, frame.n_tp, frame.inserts, frame.removes, "
-        "frame.moves, "
-        "cell.objects, frame.memory_bytes, frame.n_ro, frame.n_th, frame.n_mp FROM frame JOIN cell ON cell.id = "
-        "frame.cell_id JOIN "
-        "config ON "
-        "config.id = "
-        "cell.config_id "
-        "WHERE cell.run_id IN " +
-        std::string(kRunGroupSql) + " AND frame.warmup = 0 ORDER BY cell.id, frame.frame");
+    Statement s = db.prepare(observations_sql());
     s.bind_all(run, run);
+    const NamedColumns col(s);
+    std::vector<int> counter_column;
+    for (const FrameCounter& c : frame_counters()) counter_column.push_back(col[c.alias]);
     // Each scene's label and category once, not per frame (a scene's name or spec may be large).
     std::map<std::int64_t, std::pair<std::string, std::string>> scenes;
     Statement scene = db.prepare("SELECT " + std::string(kSceneLabelSql) + ", scene.spec FROM scene WHERE id = ?");
     while (s.step()) {
         FrameObservation f;
-        f.structure = s.text(0);
-        f.params = s.text(1);
-        auto [it, fresh] = scenes.try_emplace(s.int64(4));
+        f.structure = s.text(col["structure"]);
+        f.params = s.text(col["params"]);
+        const std::int64_t scene_id = s.int64(col["scene_id"]);
+        auto [it, fresh] = scenes.try_emplace(scene_id);
         if (fresh) {
             scene.reset();
-            scene.bind(1, s.int64(4));
+            scene.bind(1, scene_id);
             if (scene.step()) it->second = {scene.text(0), scene_category(scene.text(1))};
         }
         f.scene = it->second.first;
         f.category = it->second.second;
-        const auto key = std::make_tuple(s.int64(4), s.int64(5));
+        const auto key = std::make_tuple(scene_id, s.int64(col["config_id"]));
         f.config_group = groups.emplace(key, int(groups.size())).first->second;
-        f.rays = s.real(6);
-        f.raycast_ns = s.real(7);
-        f.update_ns = s.real(8);
-        if (f.rays > 0) f.n_t = s.real(9) / f.rays, f.n_rb = s.real(10) / f.rays, f.n_tp = s.real(11) / f.rays;
-        f.inserts = s.real(12);
-        f.removes = s.real(13);
-        f.moves = s.real(14);
-        f.objects = s.real(15);
-        f.memory_mb = s.real(16) / (1024.0 * 1024.0);
-        if (f.rays > 0) f.n_ro = s.real(17) / f.rays, f.n_th = s.real(18) / f.rays, f.n_mp = s.real(19) / f.rays;
+        f.rays = s.real(col["rays"]);
+        f.raycast_ns = s.real(col["raycast_ns"]);
+        f.update_ns = s.real(col["update_ns"]);
+        for (std::size_t i = 0; i < counter_column.size(); ++i)
+            read_counter(frame_counters()[i], s.real(counter_column[i]), f);
         out.push_back(f);
     }
     if (out.empty()) throw InputError("run " + std::to_string(run) + " has no measured frames to fit");
@@ -401,187 +476,118 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) 
     return out;
 }
 
+namespace {
+
+/// Every form of `target` that applies to `frames`, fitted, from the smallest to the largest.
+std::vector<Built> fit_forms(Target target, const std::vector<const FrameObservation*>& frames, const Priors& priors,
+                             const std::string& structure) {
+    std::vector<Built> out;
+    for (const ModelForm& form : model_forms()) {
+        if (form.target != target) continue;
+        if (std::optional<std::vector<Column>> columns = form_columns(form, frames, priors, structure))
+            out.push_back(candidate(form.name, target_name(target), frames, std::move(*columns), priors));
+    }
+    return out;
+}
+
+/// Fits and selects `target`'s forms; `built` receives the candidates with their columns.
+std::vector<CandidateModel> fit_target(Target target, const std::vector<const FrameObservation*>& frames,
+                                       const Priors& priors, const std::string& structure, std::vector<Built>& built) {
+    built = fit_forms(target, frames, priors, structure);
+    std::vector<CandidateModel> models;
+    for (const Built& b : built) models.push_back(b.model);
+    select(models);
+    return models;
+}
+
+const Built* chosen_built(const std::vector<CandidateModel>& models, const std::vector<Built>& built) {
+    for (std::size_t i = 0; i < models.size(); ++i)
+        if (models[i].chosen) return &built[i];
+    return nullptr;
+}
+
+/// One scene predicted from the chosen models' columns fitted on every other scene's frames: per
+/// configuration, the median predicted frame (update + rays × C) and ray against the measured.
+SceneError predict_scene(const SceneSplit& split, const std::vector<const FrameObservation*>& fs, const Built& rc,
+                         const Built& up, const Priors& priors) {
+    SceneError e{split.scene, NAN, NAN};
+    std::vector<const FrameObservation*> train;
+    for (std::size_t i : split.train) train.push_back(fs[i]);
+    const LinearProblem rp = build_problem(train, rc.columns, "raycast", priors.value);
+    const LinearProblem upp = build_problem(train, up.columns, "update", {});
+    if (rp.y.empty() || upp.y.empty()) return e;
+    const LinearFit rf = fit_linear(rp), uf = fit_linear(upp);
+    std::map<int, std::array<std::vector<double>, 4>> by_config;  // measured/predicted frame, ray
+    for (std::size_t i : split.test) {
+        const FrameObservation& f = *fs[i];
+        const double per_ray = f.rays > 0 ? rf.predict(row_of(f, rc.columns)) : 0.0;
+        auto& v = by_config[f.config_group];
+        v[0].push_back(f.frame_ns());
+        v[1].push_back(uf.predict(row_of(f, up.columns)) + f.rays * per_ray);
+        if (f.rays > 0 && f.raycast_ns > 0) {
+            v[2].push_back(f.raycast_ns / f.rays);
+            v[3].push_back(per_ray);
+        }
+    }
+    double fe = 0, re = 0;
+    int fn = 0, rn = 0;
+    for (const auto& [g, v] : by_config) {
+        const double measured = median_of(v[0]);
+        if (measured > 0) fe += std::abs(median_of(v[1]) - measured) / measured, ++fn;
+        if (!v[2].empty()) {
+            const double ray = median_of(v[2]);
+            re += std::abs(median_of(v[3]) - ray) / ray, ++rn;
+        }
+    }
+    if (fn) e.frame_error = fe / fn;
+    if (rn) e.raycast_error = re / rn;
+    return e;
+}
+
+/// Leave one scene out with the chosen models' columns (fit.loso_error): each scene's errors and
+/// their means over the scenes that could be predicted.
+void leave_one_scene_out(StructureModels& m, const std::vector<const FrameObservation*>& fs, const Built& rc,
+                         const Built& up, const Priors& priors) {
+    double frame_sum = 0, raycast_sum = 0;
+    int frame_n = 0, raycast_n = 0;
+    for (const SceneSplit& split : scene_splits(fs)) {
+        const SceneError e = predict_scene(split, fs, rc, up, priors);
+        if (!std::isnan(e.frame_error)) frame_sum += e.frame_error, ++frame_n;
+        if (!std::isnan(e.raycast_error)) raycast_sum += e.raycast_error, ++raycast_n;
+        m.loso.push_back(e);
+    }
+    if (frame_n) m.loso_error = frame_sum / frame_n;
+    if (raycast_n) m.loso_raycast_error = raycast_sum / raycast_n;
+}
+
+/// One structure's candidates (model_forms()), chosen models and leave-one-scene-out.
+StructureModels fit_structure(const std::string& structure, const std::vector<const FrameObservation*>& fs,
+                              const ModelInputs& inputs) {
+    StructureModels m;
+    m.structure = structure;
+    for (const StructureCalibration& c : inputs.calibrations)
+        if (c.structure == structure) m.calibration = &c;
+    const Priors priors = priors_of(m.calibration);
+    std::vector<const FrameObservation*> with_rays;
+    for (const FrameObservation* f : fs)
+        if (f->rays > 0) with_rays.push_back(f);
+    m.unused_terms = unused_terms(Target::raycast, with_rays);
+    std::vector<Built> raycast, update;
+    m.raycast = fit_target(Target::raycast, with_rays, priors, structure, raycast);
+    m.update = fit_target(Target::update, fs, Priors{}, structure, update);
+    const Built* rc = chosen_built(m.raycast, raycast);
+    const Built* up = chosen_built(m.update, update);
+    if (rc && up) leave_one_scene_out(m, fs, *rc, *up, priors);
+    return m;
+}
+
+}  // namespace
+
 std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>& frames, const ModelInputs& inputs) {
     std::map<std::string, std::vector<const FrameObservation*>> by_structure;
     for (const FrameObservation& f : frames) by_structure[f.structure].push_back(&f);
     std::vector<StructureModels> out;
-    for (const auto& [structure, fs] : by_structure) {
-        StructureModels m;
-        m.structure = structure;
-        for (const StructureCalibration& c : inputs.calibrations)
-            if (c.structure == structure) m.calibration = &c;
-        // Priors: the pinned calibration values; the others say why they are missing.
-        std::map<std::string, double> priors;
-        std::map<std::string, std::string> no_prior_why;
-        for (const char* name : {"C_RB", "C_T", "C_MP", "C_PREP"}) {
-            const CalibratedTerm* t = m.calibration ? m.calibration->term(name) : nullptr;
-            if (t && t->pinned)
-                priors[name] = t->value;
-            else
-                no_prior_why[name] = t               ? t->why
-                                     : m.calibration ? "the micro-scenes never exercise it"
-                                                     : "the run has no calibration";
-        }
-        std::vector<const FrameObservation*> with_rays;
-        for (const FrameObservation* f : fs)
-            if (f->rays > 0) with_rays.push_back(f);
-        std::set<std::string> category_set;
-        for (const FrameObservation* f : with_rays) category_set.insert(f->category);
-        const std::vector<std::string> categories(category_set.begin(), category_set.end());
-
-        // Ray cast: from the smallest model to the largest.
-        // The narrow phase's shape tests, where the structure ran any, are a cost of their own in
-        // every candidate (a triangle's or a capsule's test is not a slab test; thesis eq. 5.3): a
-        // model without them would charge them to the box tests. Like any term without a prior,
-        // C_RO leaves a candidate when the frames cannot tell it from 0.
-        std::vector<Term> core = present(with_rays, {kNrb, kNt}, &m.unused_terms);
-        const bool shapes = !present(with_rays, {kShapes}, nullptr).empty();
-        if (shapes) core.push_back(kShapes);
-        std::vector<Term> full = core;
-        full.push_back(kPrep);
-        std::vector<Built> raycast;
-        raycast.push_back(candidate("no-prep", "raycast", with_rays, columns_of(core), priors, no_prior_why));
-        raycast.push_back(candidate("eq5.4", "raycast", with_rays, columns_of(full), priors, no_prior_why));
-        // Steps the ray before did not prepare (coherence): where the traversal counted any.
-        const bool coherence = !present(with_rays, {kMispredicts}, nullptr).empty();
-        if (coherence) {
-            std::vector<Term> with_coherence = full;
-            with_coherence.push_back(kMispredicts);
-            raycast.push_back(
-                candidate("with-coherence", "raycast", with_rays, columns_of(with_coherence), priors, no_prior_why));
-        }
-        // Tree steps that enter a node (children pushed) against those that stop at its box.
-        if (!present(with_rays, {kNodeHits}, nullptr).empty()) {
-            std::vector<Term> with_node_hits = full;
-            with_node_hits.push_back(kNodeHits);
-            raycast.push_back(
-                candidate("with-node-hits", "raycast", with_rays, columns_of(with_node_hits), priors, no_prior_why));
-        }
-        const std::vector<Term> hit_terms = present(with_rays, {kHits}, nullptr);
-        if (!hit_terms.empty()) {
-            std::vector<Term> with_hits = full;
-            with_hits.push_back(kHits);
-            raycast.push_back(
-                candidate("with-hits", "raycast", with_rays, columns_of(with_hits), priors, no_prior_why));
-        }
-        std::vector<Term> with_memory = full;
-        with_memory.push_back(kMemory);
-        raycast.push_back(
-            candidate("with-memory", "raycast", with_rays, columns_of(with_memory), priors, no_prior_why));
-        // Per-test and per-step costs beyond each cache level the working set leaves.
-        const auto has = [&](const char* name) {
-            return std::any_of(core.begin(), core.end(), [&](const Term& t) { return t.name == name; });
-        };
-        const double w_rb = !has("C_RB") ? 0.0 : priors.count("C_RB") ? priors.at("C_RB") : 1.0;
-        const double w_t = !has("C_T") ? 0.0 : priors.count("C_T") ? priors.at("C_T") : 1.0;
-        const std::vector<Term> beyond = hierarchy_terms(with_rays, w_rb, w_t);
-        if (!beyond.empty()) {
-            std::vector<Term> hierarchy = full;
-            hierarchy.insert(hierarchy.end(), beyond.begin(), beyond.end());
-            raycast.push_back(
-                candidate("memory-hierarchy", "raycast", with_rays, columns_of(hierarchy), priors, no_prior_why));
-        }
-        // Both: steps the ray before did not prepare, and steps and tests beyond the caches.
-        if (coherence && !beyond.empty()) {
-            std::vector<Term> both = full;
-            both.push_back(kMispredicts);
-            both.insert(both.end(), beyond.begin(), beyond.end());
-            raycast.push_back(
-                candidate("coherence-hierarchy", "raycast", with_rays, columns_of(both), priors, no_prior_why));
-        }
-        if (categories.size() > 1)
-            raycast.push_back(
-                candidate("per-category", "raycast", with_rays, columns_of(full, categories), priors, no_prior_why));
-        for (Built& b : raycast) m.raycast.push_back(b.model);
-        select(m.raycast);
-
-        // Update: per-operation costs, then a per-object (rebuild) cost.
-        std::vector<std::string> unused_update;
-        const std::vector<Term> ops = present(fs, {kInsert, kRemove, kMove}, &unused_update);
-        std::vector<Term> ops_frame = ops;
-        ops_frame.push_back(kFrame);
-        std::vector<Term> rebuild = ops_frame;
-        rebuild.push_back(kObjects);
-        std::vector<Built> update;
-        const std::vector<Term> change_frame = {kChange, kFrame};
-        std::vector<Term> change_rebuild = change_frame;
-        change_rebuild.push_back(kObjects);
-        if (!ops.empty()) update.push_back(candidate("per-change", "update", fs, columns_of(change_frame), {}, {}));
-        update.push_back(candidate("per-operation", "update", fs, columns_of(ops_frame), {}, {}));
-        update.push_back(candidate("with-rebuild", "update", fs, columns_of(rebuild), {}, {}));
-        // Changes that touch a working set beyond the caches cost more (a 40 000-object grid's
-        // cells, not a 2 000-object one's).
-        const std::vector<Term> change_tiers = update_hierarchy_terms(fs);
-        if (!change_tiers.empty() && !ops.empty()) {
-            std::vector<Term> hierarchy = ops_frame;
-            hierarchy.insert(hierarchy.end(), change_tiers.begin(), change_tiers.end());
-            update.push_back(candidate("update-hierarchy", "update", fs, columns_of(hierarchy), {}, {}));
-        }
-        std::set<std::string> param_set;
-        for (const FrameObservation* f : fs) param_set.insert(f->params);
-        if (param_set.size() > 1) {  // each configuration its own update costs (e.g. incremental vs rebuild)
-            if (!ops.empty())
-                update.push_back(candidate(
-                    "per-configuration-change", "update", fs,
-                    columns_of(change_rebuild, {param_set.begin(), param_set.end()}, true, structure), {}, {}));
-            update.push_back(candidate("per-configuration", "update", fs,
-                                       columns_of(rebuild, {param_set.begin(), param_set.end()}, true, structure), {},
-                                       {}));
-        }
-        for (Built& b : update) m.update.push_back(b.model);
-        select(m.update);
-
-        // Leave one scene out: the chosen models' columns fitted on every other scene, the scene's
-        // frames predicted from their counters.
-        const Built* rc = nullptr;
-        const Built* up = nullptr;
-        for (std::size_t i = 0; i < m.raycast.size(); ++i)
-            if (m.raycast[i].chosen) rc = &raycast[i];
-        for (std::size_t i = 0; i < m.update.size(); ++i)
-            if (m.update[i].chosen) up = &update[i];
-        if (rc && up) {
-            double frame_sum = 0, raycast_sum = 0;
-            int frame_n = 0, raycast_n = 0;
-            for (const SceneSplit& split : scene_splits(fs)) {
-                SceneError e{split.scene, NAN, NAN};
-                std::vector<const FrameObservation*> train;
-                for (std::size_t i : split.train) train.push_back(fs[i]);
-                const LinearProblem rp = build_problem(train, rc->columns, "raycast", priors);
-                const LinearProblem upp = build_problem(train, up->columns, "update", {});
-                if (!rp.y.empty() && !upp.y.empty()) {
-                    const LinearFit rf = fit_linear(rp), uf = fit_linear(upp);
-                    std::map<int, std::array<std::vector<double>, 4>> by_config;  // measured/predicted frame, ray
-                    for (std::size_t i : split.test) {
-                        const FrameObservation& f = *fs[i];
-                        const double per_ray = f.rays > 0 ? rf.predict(row_of(f, rc->columns)) : 0.0;
-                        auto& v = by_config[f.config_group];
-                        v[0].push_back(f.frame_ns());
-                        v[1].push_back(uf.predict(row_of(f, up->columns)) + f.rays * per_ray);
-                        if (f.rays > 0 && f.raycast_ns > 0) {
-                            v[2].push_back(f.raycast_ns / f.rays);
-                            v[3].push_back(per_ray);
-                        }
-                    }
-                    double fe = 0, re = 0;
-                    int fn = 0, rn = 0;
-                    for (const auto& [g, v] : by_config) {
-                        const double measured = median_of(v[0]);
-                        if (measured > 0) fe += std::abs(median_of(v[1]) - measured) / measured, ++fn;
-                        if (!v[2].empty()) {
-                            const double ray = median_of(v[2]);
-                            re += std::abs(median_of(v[3]) - ray) / ray, ++rn;
-                        }
-                    }
-                    if (fn) e.frame_error = fe / fn, frame_sum += e.frame_error, ++frame_n;
-                    if (rn) e.raycast_error = re / rn, raycast_sum += e.raycast_error, ++raycast_n;
-                }
-                m.loso.push_back(e);
-            }
-            if (frame_n) m.loso_error = frame_sum / frame_n;
-            if (raycast_n) m.loso_raycast_error = raycast_sum / raycast_n;
-        }
-        out.push_back(std::move(m));
-    }
+    for (const auto& [structure, fs] : by_structure) out.push_back(fit_structure(structure, fs, inputs));
     return out;
 }
 
@@ -639,6 +645,60 @@ void store_fits(Database& db, std::int64_t run, const std::vector<StructureModel
     t.commit();
 }
 
+const TermShare& CostBreakdown::term(const std::string& name) const {
+    for (const TermShare& t : terms)
+        if (t.name == name) return t;
+    throw std::logic_error("the breakdown does not show " + name);
+}
+
+namespace {
+
+/// The ray-cast terms the Table 6.3 analog shows, in the table's order.
+std::vector<const CostTerm*> breakdown_terms() {
+    std::vector<const CostTerm*> out;
+    for (const CostTerm& t : cost_terms())
+        if (t.target == Target::raycast && t.breakdown != BreakdownShow::none) out.push_back(&t);
+    return out;
+}
+
+bool counts_box_tests(const CostTerm& t) { return t.counters.size() == 1 && std::string(t.counters[0]) == "N_RB"; }
+
+/// One (scene, configuration)'s row: the measured cost, the counts' means and, from the structure's
+/// chosen ray-cast model (its per-category copies: the scene's category), each term's share.
+CostBreakdown breakdown_row(const std::vector<const FrameObservation*>& fs,
+                            const std::vector<StructureModels>& models) {
+    CostBreakdown b;
+    std::vector<Term> sources;
+    for (const CostTerm* t : breakdown_terms()) {
+        b.terms.push_back({t->name, 0, NAN, 0});
+        sources.push_back(term_of(*t));
+    }
+    std::vector<double> cost;
+    for (const FrameObservation* f : fs) {
+        cost.push_back(f->raycast_ns / f->rays);
+        b.n_tp += f->n_tp, b.n_fp += f->n_rb - f->n_tp, b.n_t += f->n_t;
+        for (std::size_t k = 0; k < sources.size(); ++k) b.terms[k].count += sources[k].value(*f);
+    }
+    const double n = double(fs.size());
+    b.n_tp /= n, b.n_fp /= n, b.n_t /= n;
+    for (std::size_t k = 0; k < b.terms.size(); ++k)
+        // The thesis writes N_RB as N_TP + N_FP (eq. 5.4), and so does the breakdown.
+        b.terms[k].count = counts_box_tests(*breakdown_terms()[k]) ? b.n_tp + b.n_fp : b.terms[k].count / n;
+    b.c_total = spread_of(cost).median;
+    for (const StructureModels& s : models) {
+        if (s.structure != fs.front()->structure) continue;
+        const CandidateModel* m = s.chosen("raycast");
+        if (!m) break;
+        for (TermShare& t : b.terms) {
+            t.coefficient = fitted_value(m->fit.coefficients, t.name, fs.front()->category);
+            t.product = t.coefficient * t.count;
+        }
+    }
+    return b;
+}
+
+}  // namespace
+
 std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& frames,
                                           const std::vector<StructureModels>& models) {
     std::map<std::tuple<std::string, std::string, std::string>, std::vector<const FrameObservation*>> rows;
@@ -646,83 +706,86 @@ std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& f
         if (f.rays > 0) rows[{f.scene, f.structure, f.params}].push_back(&f);
     std::vector<CostBreakdown> out;
     for (const auto& [key, fs] : rows) {
-        CostBreakdown b;
+        CostBreakdown b = breakdown_row(fs, models);
         std::tie(b.scene, b.structure, b.params) = key;
-        std::vector<double> cost;
-        for (const FrameObservation* f : fs) {
-            cost.push_back(f->raycast_ns / f->rays);
-            b.n_tp += f->n_tp, b.n_fp += f->n_rb - f->n_tp, b.n_t += f->n_t, b.n_ro += f->n_ro, b.n_mp += f->n_mp;
-        }
-        const double n = double(fs.size());
-        b.n_tp /= n, b.n_fp /= n, b.n_t /= n, b.n_ro /= n, b.n_mp /= n;
-        b.c_total = spread_of(cost).median;
-        const std::string category = fs.front()->category;
-        for (const StructureModels& s : models) {
-            if (s.structure != b.structure) continue;
-            const CandidateModel* m = s.chosen("raycast");
-            if (!m) break;
-            auto coefficient = [&](const std::string& name) {
-                for (const Coefficient& c : m->fit.coefficients)
-                    if (c.name == name || c.name == name + "[" + category + "]") return c.value;
-                return 0.0;
-            };
-            b.c_rb = coefficient("C_RB");
-            b.c_t = coefficient("C_T");
-            b.prep = coefficient("C_PREP");
-            b.rb_term = b.c_rb * (b.n_tp + b.n_fp);
-            b.t_term = b.c_t * b.n_t;
-            b.ro_term = coefficient("C_RO") * b.n_ro;
-            b.mp_term = coefficient("C_MP") * b.n_mp;
-        }
-        out.push_back(b);
+        out.push_back(std::move(b));
     }
     return out;
 }
 
-std::optional<RaycastCoefficients> stored_raycast_coefficients(Database& db, std::int64_t run,
-                                                               const std::string& structure,
-                                                               const std::string& category) {
+std::optional<CostCoefficients> stored_raycast_coefficients(Database& db, std::int64_t run,
+                                                            const std::string& structure, const std::string& category) {
     Statement s = db.prepare(
-        "SELECT fit.model, fit_coefficient.name, fit_coefficient.value FROM fit JOIN fit_coefficient ON "
-        "fit_coefficient.fit_id = fit.id "
+        "SELECT fit.model AS model, fit_coefficient.name AS name, fit_coefficient.value AS value FROM fit JOIN "
+        "fit_coefficient ON fit_coefficient.fit_id = fit.id "
         "WHERE fit.run_id = ? AND fit.structure = ? AND fit.target = 'raycast' AND fit.chosen = 1");
     s.bind_all(run, structure);
-    std::optional<RaycastCoefficients> out;
+    const NamedColumns col(s);
+    std::string model;
+    std::vector<Coefficient> fitted;
     while (s.step()) {
-        if (!out) out = RaycastCoefficients{0, 0, 0, s.text(0)};
-        std::string name = s.text(1);
-        const auto bracket = name.find('[');
-        if (bracket != std::string::npos) {  // per-category: only this scene's category
-            if (name.substr(bracket) != "[" + category + "]") continue;
-            name = name.substr(0, bracket);
-        }
-        if (name == "C_RB")
-            out->c_rb = s.real(2);
-        else if (name == "C_T")
-            out->c_t = s.real(2);
-        else if (name == "C_PREP")
-            out->c_prep = s.real(2);
+        model = s.text(col["model"]);
+        Coefficient c;
+        c.name = s.text(col["name"]);
+        c.value = s.real(col["value"]);
+        fitted.push_back(c);
     }
+    if (fitted.empty()) return std::nullopt;
+    CostCoefficients out = CostCoefficients::from_fit(fitted, category);
+    out.model = model;
     return out;
 }
 
 BreakdownColumns breakdown_columns(const std::vector<CostBreakdown>& breakdown, const std::string& times) {
-    const bool shapes =
-        std::any_of(breakdown.begin(), breakdown.end(), [](const CostBreakdown& b) { return b.n_ro > 0; });
-    const bool coherence =
-        std::any_of(breakdown.begin(), breakdown.end(), [](const CostBreakdown& b) { return b.mp_term > 0; });
+    // Which terms show: every one of kind product and value; where_priced and where_counted where
+    // some row prices or counts them. Then the thesis' columns: the always-shown terms' counts (N_RB
+    // as N_TP and N_FP) and coefficients.
+    const std::vector<const CostTerm*> terms = breakdown_terms();
+    std::vector<bool> shown(terms.size());
+    for (std::size_t k = 0; k < terms.size(); ++k) {
+        const BreakdownShow how = terms[k]->breakdown;
+        shown[k] = how == BreakdownShow::product || how == BreakdownShow::value ||
+                   std::any_of(breakdown.begin(), breakdown.end(), [&](const CostBreakdown& b) {
+                       return (how == BreakdownShow::where_priced ? b.terms[k].product : b.terms[k].count) > 0;
+                   });
+    }
     BreakdownColumns out;
-    out.header = {"C_total", "C_RB" + times + "N_RB", "C_T" + times + "N_T"};
-    if (coherence) out.header.insert(out.header.end(), {"C_MP" + times + "N_MP", "N_MP"});
-    if (shapes) out.header.insert(out.header.end(), {"C_RO" + times + "N_RO", "N_RO"});
-    out.header.insert(out.header.end(), {"C_PREP", "N_TP", "N_FP", "N_T", "C_RB", "C_T"});
+    out.header = {"C_total"};
+    std::vector<std::string> counts{"N_TP", "N_FP"}, coefficients;
+    for (std::size_t k = 0; k < terms.size(); ++k) {
+        if (!shown[k]) continue;
+        const std::string name = terms[k]->name, counter = terms[k]->counters.empty() ? "" : terms[k]->counters[0];
+        if (terms[k]->breakdown == BreakdownShow::value) {
+            out.header.push_back(name);
+            continue;
+        }
+        out.header.push_back(name + times + counter);
+        if (terms[k]->breakdown != BreakdownShow::product)
+            out.header.push_back(counter);
+        else {
+            if (!counts_box_tests(*terms[k])) counts.push_back(counter);
+            coefficients.push_back(name);
+        }
+    }
+    out.header.insert(out.header.end(), counts.begin(), counts.end());
+    out.header.insert(out.header.end(), coefficients.begin(), coefficients.end());
     for (const CostBreakdown& b : breakdown) {
-        std::vector<std::string> row{fixed(b.c_total, 1), fixed(b.rb_term, 1), fixed(b.t_term, 1)};
-        if (coherence) row.insert(row.end(), {fixed(b.mp_term, 1), fixed(b.n_mp, 1)});
-        if (shapes) row.insert(row.end(), {fixed(b.ro_term, 1), fixed(b.n_ro, 1)});
-        row.insert(row.end(),
-                   {fixed(b.prep, 1), fixed(b.n_tp, 1), fixed(b.n_fp, 1), fixed(b.n_t, 1),
-                    std::isfinite(b.c_rb) ? fixed(b.c_rb, 3) : "-", std::isfinite(b.c_t) ? fixed(b.c_t, 3) : "-"});
+        std::vector<std::string> row{fixed(b.c_total, 1)}, count_cells{fixed(b.n_tp, 1), fixed(b.n_fp, 1)},
+            coefficient_cells;
+        for (std::size_t k = 0; k < terms.size(); ++k) {
+            if (!shown[k]) continue;
+            const TermShare& t = b.terms[k];
+            row.push_back(fixed(t.product, 1));
+            if (terms[k]->breakdown == BreakdownShow::where_priced ||
+                terms[k]->breakdown == BreakdownShow::where_counted)
+                row.push_back(fixed(t.count, 1));
+            else if (terms[k]->breakdown == BreakdownShow::product) {
+                if (!counts_box_tests(*terms[k])) count_cells.push_back(fixed(t.count, 1));
+                coefficient_cells.push_back(std::isfinite(t.coefficient) ? fixed(t.coefficient, 3) : "-");
+            }
+        }
+        row.insert(row.end(), count_cells.begin(), count_cells.end());
+        row.insert(row.end(), coefficient_cells.begin(), coefficient_cells.end());
         out.rows.push_back(std::move(row));
     }
     return out;

@@ -16,6 +16,9 @@
 /// like any other only when the held-out error needs it. The memory-hierarchy
 /// candidate adds per-test and per-step costs for a working set beyond each cache level. Every
 /// structure is also validated leaving one scene out.
+///
+/// The terms, their counters and the candidate forms are one table (analysis/model_terms.h): the
+/// fit, the breakdown, the stored coefficients and the tuner read it.
 
 #include <cmath>
 #include <cstdint>
@@ -25,28 +28,11 @@
 #include <vector>
 
 #include "analysis/linear_fit.h"
+#include "analysis/model_terms.h"
 #include "runner/calibration.h"
 #include "runner/sqlite.h"
 
 namespace rcb {
-
-/// One measured frame with everything the models use.
-struct FrameObservation {
-    std::string structure, params, scene, category;  ///< category: "uniform", "irregular", …
-    int config_group = 0;                            ///< distinct (scene, structure, params)
-    double rays = 0, raycast_ns = 0, update_ns = 0;
-    double n_t = 0, n_rb = 0, n_tp = 0;  ///< per ray
-    double n_ro = 0;                     ///< narrow-phase shape tests per ray (0 below the shapes query level)
-    double n_th = 0;                     ///< node boxes hit per ray (trees; 0 where not counted)
-    double n_mp = 0;                     ///< steps a history predictor missed per ray (0 where not counted)
-    double inserts = 0, removes = 0, moves = 0, objects = 0;
-    double memory_mb = 0;
-    /// Where the structure's working set (memory_mb) sits: 0 within the first data cache, 1 within
-    /// the second, …, the number of recorded caches (at most 3) beyond the last one (memory).
-    int memory_tier = 0;
-
-    double frame_ns() const { return update_ns + raycast_ns; }
-};
 
 /// Which cache tier `bytes` falls in: the number of `caches` (by level, data and unified) smaller
 /// than it, at most 3.
@@ -131,15 +117,22 @@ ModelInputs load_model_inputs(Database& db, std::int64_t run);
 /// Replaces the run's stored fits (schema: docs/database.md, tables fit and fit_coefficient).
 void store_fits(Database& db, std::int64_t run, const std::vector<StructureModels>& models);
 
+/// A ray-cast term's share of one row of the Table 6.3 analog.
+struct TermShare {
+    std::string name;          ///< the term (cost_terms(): those the breakdown shows)
+    double count = 0;          ///< its value per ray, mean over frames (C_RB's: N_TP + N_FP)
+    double coefficient = NAN;  ///< from the chosen model, 0 where it lacks the term, NaN without a chosen model
+    double product = 0;        ///< coefficient × count (0 without a chosen model)
+};
+
 /// Thesis Table 6.3 analog: one row per (scene, configuration).
 struct CostBreakdown {
     std::string scene, structure, params;
-    double c_total = 0;                        ///< measured ns per ray (median over frames)
-    double rb_term = 0, t_term = 0, prep = 0;  ///< C_RB·N_RB, C_T·N_T, C_PREP from the chosen model
-    double n_tp = 0, n_fp = 0, n_t = 0;
-    double c_rb = NAN, c_t = NAN;
-    double n_ro = 0, ro_term = 0;  ///< shape tests per ray and C_RO·N_RO (0 without a with-shapes model)
-    double n_mp = 0, mp_term = 0;  ///< unpredicted steps per ray and C_MP·N_MP (0 where the model has no C_MP)
+    double c_total = 0;                  ///< measured ns per ray (median over frames)
+    double n_tp = 0, n_fp = 0, n_t = 0;  ///< the thesis' counts per ray (Tables 6.3, 6.4): N_RB as N_TP + N_FP, and N_T
+    std::vector<TermShare> terms;        ///< one per term of cost_terms() the breakdown shows, in its order
+    /// The share of term `name`; std::logic_error for a term the breakdown does not show.
+    const TermShare& term(const std::string& name) const;
 };
 std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& frames,
                                           const std::vector<StructureModels>& models);
@@ -165,15 +158,10 @@ struct RunFit {
 };
 RunFit fit_run(Database& db, std::int64_t run);
 
-/// The stored, chosen ray-cast coefficients of a structure for a run (for the tuner's predictions);
+/// The stored, chosen ray-cast coefficients of a structure for a run (what findings compare);
 /// from a per-category model, those of `category` ("uniform", "irregular", …).
-struct RaycastCoefficients {
-    double c_rb = 0, c_t = 0, c_prep = 0;
-    std::string model;
-};
-std::optional<RaycastCoefficients> stored_raycast_coefficients(Database& db, std::int64_t run,
-                                                               const std::string& structure,
-                                                               const std::string& category);
+std::optional<CostCoefficients> stored_raycast_coefficients(Database& db, std::int64_t run,
+                                                            const std::string& structure, const std::string& category);
 
 /// "uniform", "irregular", "import", "recording": the category of a scene from its stored spec.
 std::string scene_category(const std::string& spec_json);

@@ -324,8 +324,8 @@ Finding traversal_cost(Database& db, std::int64_t run, const std::vector<Scene>&
         // the first (irregular before uniform) is used.
         for (const char* cat : {"irregular", "uniform", "import", "recording"}) {
             const auto co = stored_raycast_coefficients(db, run, s, cat);
-            if (co && co->c_t > 0) {
-                c_t[s] = co->c_t;
+            if (co && (*co)["C_T"] > 0) {
+                c_t[s] = (*co)["C_T"];
                 break;
             }
         }

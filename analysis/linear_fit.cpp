@@ -108,57 +108,62 @@ double LinearFit::predict(const std::vector<double>& row) const {
     return y;
 }
 
-LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
-    LinearFit fit;
-    const std::size_t k = p.terms.size(), n = p.y.size();
-    fit.observations = n;
-    fit.groups = std::set<int>(p.group.begin(), p.group.end()).size();
-    fit.coefficients.resize(k);
-    for (std::size_t j = 0; j < k; ++j) fit.coefficients[j].name = p.terms[j];
-    if (n == 0 || k == 0) return fit;
+namespace {
 
-    // Solve for γ_j = β_j·s_j on columns scaled to unit RMS (x_ij / y_i / s_j): the solver then
-    // sees terms of one magnitude whatever their units (a per-frame constant next to a per-object
-    // count), and converges in a few iterations; β and its covariance are mapped back below.
+/// Each column's RMS of x_ij / y_i (1 for a column that is 0 throughout): the solver works on
+/// γ_j = β_j·s_j over columns scaled to unit RMS, so it sees terms of one magnitude whatever their
+/// units (a per-frame constant next to a per-object count) and converges in a few iterations.
+std::vector<double> column_scales(const LinearProblem& p) {
+    const std::size_t k = p.terms.size(), n = p.y.size();
     std::vector<double> scale(k, 1.0);
     for (std::size_t j = 0; j < k; ++j) {
         double sum = 0;
         for (std::size_t i = 0; i < n; ++i) sum += (p.x[i][j] / p.y[i]) * (p.x[i][j] / p.y[i]);
         if (sum > 0) scale[j] = std::sqrt(sum / double(n));
     }
-    std::vector<std::vector<double>> xs(n, std::vector<double>(k));
+    return scale;
+}
+
+/// The unconstrained least-squares solution in γ, clamped to the bounds (the solver must start
+/// feasible: at least 0, inside a prior's range).
+std::vector<double> starting_point(const LinearProblem& p, const std::vector<std::vector<double>>& xs,
+                                   const std::vector<double>& scale) {
+    const std::size_t k = p.terms.size(), n = p.y.size();
+    std::vector<double> gamma(k, 0.0);
+    Eigen::MatrixXd a(n, k);
+    Eigen::VectorXd b = Eigen::VectorXd::Ones(Eigen::Index(n));
     for (std::size_t i = 0; i < n; ++i)
-        for (std::size_t j = 0; j < k; ++j) xs[i][j] = p.x[i][j] / scale[j];
+        for (std::size_t j = 0; j < k; ++j) a(Eigen::Index(i), Eigen::Index(j)) = xs[i][j] / p.y[i];
+    const Eigen::VectorXd start = a.completeOrthogonalDecomposition().solve(b);
+    for (std::size_t j = 0; j < k; ++j)
+        gamma[j] = std::isfinite(start(Eigen::Index(j))) ? std::max(0.0, start(Eigen::Index(j))) : 0.0;
+    for (std::size_t j = 0; j < k; ++j)
+        if (p.has_prior(j))
+            gamma[j] = std::clamp(gamma[j], scale[j] * p.prior[j] / kPriorRange, scale[j] * p.prior[j] * kPriorRange);
+    return gamma;
+}
 
-    // Start from the unconstrained least-squares solution, clamped to the bounds.
-    std::vector<double> beta(k, 0.0);  // γ while solving
-    {
-        Eigen::MatrixXd a(n, k);
-        Eigen::VectorXd b = Eigen::VectorXd::Ones(Eigen::Index(n));
-        for (std::size_t i = 0; i < n; ++i)
-            for (std::size_t j = 0; j < k; ++j) a(Eigen::Index(i), Eigen::Index(j)) = xs[i][j] / p.y[i];
-        const Eigen::VectorXd start = a.completeOrthogonalDecomposition().solve(b);
-        for (std::size_t j = 0; j < k; ++j)
-            beta[j] = std::isfinite(start(Eigen::Index(j))) ? std::max(0.0, start(Eigen::Index(j))) : 0.0;
-        for (std::size_t j = 0; j < k; ++j)  // inside a prior's range (the solver must start feasible)
-            if (p.has_prior(j))
-                beta[j] = std::clamp(beta[j], scale[j] * p.prior[j] / kPriorRange, scale[j] * p.prior[j] * kPriorRange);
-    }
-
-    ceres::Problem problem;
+/// The Huber-weighted relative residuals of every row, the priors' residuals and the bounds, on
+/// the parameter block `gamma` (which must outlive the problem).
+void add_residuals(ceres::Problem& problem, const LinearProblem& p, const std::vector<std::vector<double>>& xs,
+                   const std::vector<double>& scale, double huber_delta, std::vector<double>& gamma) {
+    const std::size_t k = p.terms.size(), n = p.y.size();
     for (std::size_t i = 0; i < n; ++i)
         problem.AddResidualBlock(new RelativeLinearResidual(xs[i], p.y[i]), new ceres::HuberLoss(huber_delta),
-                                 beta.data());
+                                 gamma.data());
     for (std::size_t j = 0; j < k; ++j) {
         if (p.has_prior(j)) {
             problem.AddResidualBlock(new PriorResidual(k, j, scale[j] * p.prior[j], p.prior_sigma), nullptr,
-                                     beta.data());
-            problem.SetParameterLowerBound(beta.data(), int(j), scale[j] * p.prior[j] / kPriorRange);
-            problem.SetParameterUpperBound(beta.data(), int(j), scale[j] * p.prior[j] * kPriorRange);
+                                     gamma.data());
+            problem.SetParameterLowerBound(gamma.data(), int(j), scale[j] * p.prior[j] / kPriorRange);
+            problem.SetParameterUpperBound(gamma.data(), int(j), scale[j] * p.prior[j] * kPriorRange);
         } else {
-            problem.SetParameterLowerBound(beta.data(), int(j), 0.0);
+            problem.SetParameterLowerBound(gamma.data(), int(j), 0.0);
         }
     }
+}
+
+bool solve(ceres::Problem& problem) {
     ceres::Solver::Options options;
     options.linear_solver_type = ceres::DENSE_QR;
     options.max_num_iterations = 1000;
@@ -167,13 +172,13 @@ LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
     options.logging_type = ceres::SILENT;
     ceres::Solver::Summary summary;
     ceres::Solve(options, &problem, &summary);
-    fit.converged = summary.termination_type == ceres::CONVERGENCE;
-    std::vector<double> gamma = beta;
-    for (std::size_t j = 0; j < k; ++j) beta[j] = gamma[j] / scale[j];
-    for (std::size_t j = 0; j < k; ++j)  // absurd inputs (a count of 1e300): no estimate, and said so
-        if (!std::isfinite(beta[j])) beta[j] = 0, gamma[j] = 0, fit.converged = false;
+    return summary.termination_type == ceres::CONVERGENCE;
+}
 
-    // Quality on the fitted data, in relative terms.
+/// R² (of the absolute residuals) and the RMS relative error on the fitted data; returns Σr² of
+/// the relative residuals. A non-finite result marks the fit as not converged.
+double set_quality(const LinearProblem& p, const std::vector<double>& beta, LinearFit& fit) {
+    const std::size_t k = p.terms.size(), n = p.y.size();
     double ss_res = 0, ss_tot = 0;
     for (std::size_t i = 0; i < n; ++i) {
         double pred = 0;
@@ -198,33 +203,39 @@ LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
         if (std::isnan(fit.r2)) fit.r2 = 0;
         if (std::isnan(fit.rmse_relative)) fit.rmse_relative = INFINITY;
     }
-    fit.condition_number = condition_number_of(p);
-    fit.ill_conditioned = !(fit.condition_number < kIllConditioned);
-    fit.too_few_groups = fit.groups < k + 1;
+    return ss_res;
+}
 
-    // 95% intervals: Ceres' (JᵀJ)⁻¹ scaled by the residual variance s² = Σr² / (n − k).
+/// Cov(β) (k × k, row-major) from Ceres' (JᵀJ)⁻¹ of the problem's block, which holds `gamma`
+/// (the solution in γ): Cov(β_i, β_j) = Cov(γ_i, γ_j) / (s_i s_j). Empty when Ceres cannot give it.
+std::vector<double> coefficient_covariance(ceres::Problem& problem, std::vector<double>& block,
+                                           const std::vector<double>& gamma, const std::vector<double>& scale) {
+    const std::size_t k = scale.size();
     std::vector<double> covariance(k * k, NAN);
-    bool have_covariance = false;
-    if (!fit.ill_conditioned && n > k) {
-        ceres::Covariance::Options copt;
-        copt.algorithm_type = ceres::DENSE_SVD;
-        copt.null_space_rank = -1;  // rank-deficient designs still give an answer; we flag them above
-        ceres::Covariance cov(copt);
-        // The problem's parameter block holds γ: restore it, then map Cov(γ) to Cov(β) = Cov(γ) / (s_i s_j).
-        std::vector<double> solved = beta;
-        beta = gamma;
-        std::vector<std::pair<const double*, const double*>> blocks{{beta.data(), beta.data()}};
-        if (cov.Compute(blocks, &problem))
-            have_covariance = cov.GetCovarianceBlock(beta.data(), beta.data(), covariance.data());
-        beta = solved;
-        for (std::size_t i = 0; i < k; ++i)
-            for (std::size_t j = 0; j < k; ++j) covariance[i * k + j] /= scale[i] * scale[j];
-    }
-    const double s2 = n > k ? ss_res / double(n - k) : NAN;
+    ceres::Covariance::Options copt;
+    copt.algorithm_type = ceres::DENSE_SVD;
+    copt.null_space_rank = -1;  // rank-deficient designs still give an answer; they are flagged apart
+    ceres::Covariance cov(copt);
+    const std::vector<double> solved = block;
+    block = gamma;
+    std::vector<std::pair<const double*, const double*>> blocks{{block.data(), block.data()}};
+    const bool have =
+        cov.Compute(blocks, &problem) && cov.GetCovarianceBlock(block.data(), block.data(), covariance.data());
+    block = solved;
+    for (std::size_t i = 0; i < k; ++i)
+        for (std::size_t j = 0; j < k; ++j) covariance[i * k + j] /= scale[i] * scale[j];
+    return have ? covariance : std::vector<double>{};
+}
+
+/// Each coefficient's value, 95% interval (the covariance scaled by the residual variance s²), and
+/// where a prior drew it, whether it sits at the prior's bound.
+void set_coefficients(const LinearProblem& p, const std::vector<double>& beta, const std::vector<double>& covariance,
+                      double s2, LinearFit& fit) {
+    const std::size_t k = p.terms.size();
     for (std::size_t j = 0; j < k; ++j) {
         Coefficient& c = fit.coefficients[j];
         c.value = beta[j];
-        const double se = have_covariance ? std::sqrt(std::max(0.0, covariance[j * k + j] * s2)) : NAN;
+        const double se = !covariance.empty() ? std::sqrt(std::max(0.0, covariance[j * k + j] * s2)) : NAN;
         c.ci_low = c.value - 1.96 * se;
         c.ci_high = c.value + 1.96 * se;
         c.spans_zero = !(c.ci_low > 0);  // NaN (no interval) counts as unsure too
@@ -234,6 +245,41 @@ LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
                 c.value <= p.prior[j] / kPriorRange * (1 + 1e-6) || c.value >= p.prior[j] * kPriorRange * (1 - 1e-6);
         }
     }
+}
+
+}  // namespace
+
+LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
+    LinearFit fit;
+    const std::size_t k = p.terms.size(), n = p.y.size();
+    fit.observations = n;
+    fit.groups = std::set<int>(p.group.begin(), p.group.end()).size();
+    fit.coefficients.resize(k);
+    for (std::size_t j = 0; j < k; ++j) fit.coefficients[j].name = p.terms[j];
+    if (n == 0 || k == 0) return fit;
+
+    // Solve for γ on scaled columns; β and its covariance are mapped back below.
+    const std::vector<double> scale = column_scales(p);
+    std::vector<std::vector<double>> xs(n, std::vector<double>(k));
+    for (std::size_t i = 0; i < n; ++i)
+        for (std::size_t j = 0; j < k; ++j) xs[i][j] = p.x[i][j] / scale[j];
+    std::vector<double> beta = starting_point(p, xs, scale);  // γ while solving
+    ceres::Problem problem;
+    add_residuals(problem, p, xs, scale, huber_delta, beta);
+    fit.converged = solve(problem);
+    std::vector<double> gamma = beta;
+    for (std::size_t j = 0; j < k; ++j) beta[j] = gamma[j] / scale[j];
+    for (std::size_t j = 0; j < k; ++j)  // absurd inputs (a count of 1e300): no estimate, and said so
+        if (!std::isfinite(beta[j])) beta[j] = 0, gamma[j] = 0, fit.converged = false;
+
+    const double ss_res = set_quality(p, beta, fit);
+    fit.condition_number = condition_number_of(p);
+    fit.ill_conditioned = !(fit.condition_number < kIllConditioned);
+    fit.too_few_groups = fit.groups < k + 1;
+    // 95% intervals: Ceres' (JᵀJ)⁻¹ scaled by the residual variance s² = Σr² / (n − k).
+    const std::vector<double> covariance =
+        !fit.ill_conditioned && n > k ? coefficient_covariance(problem, beta, gamma, scale) : std::vector<double>{};
+    set_coefficients(p, beta, covariance, n > k ? ss_res / double(n - k) : NAN, fit);
     return fit;
 }
 

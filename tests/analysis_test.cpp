@@ -187,8 +187,9 @@ TEST(ModelSelection, TheNarrowPhasesCostIsRecoveredWithinItsIntervalWhereShapesW
 
     // Table 6.3's analog carries the term: C_RO·N_RO where shapes were tested, 0 elsewhere.
     for (const CostBreakdown& b : cost_breakdown(frames, models)) {
-        EXPECT_NEAR(b.ro_term, ro->value * b.n_ro, 1e-9 * (1 + b.ro_term));
-        EXPECT_EQ(b.n_ro > 0, b.ro_term > 0) << b.scene;
+        const TermShare& shapes = b.term("C_RO");
+        EXPECT_NEAR(shapes.product, ro->value * shapes.count, 1e-9 * (1 + shapes.product));
+        EXPECT_EQ(shapes.count > 0, shapes.product > 0) << b.scene;
     }
 
     // Shape tests that cost nothing measurable: the chosen model drops the term.

@@ -9,6 +9,7 @@
 
 #include "analysis/linear_fit.h"
 #include "core/base/error.h"
+#include "core/base/json_input.h"
 #include "core/base/random.h"
 #include "core/accel/registry.h"
 #include "tests/test_scenes.h"
@@ -222,7 +223,7 @@ TEST(TuneCostModel, TheMachinesCalibrationKeepsRayWorkInAFewPointFit) {
         }
     const std::optional<CostCoefficients> bare = fit_coefficients(frames);
     ASSERT_TRUE(bare.has_value());
-    EXPECT_EQ(bare->c_t, 0.0) << bare->to_json().dump();
+    EXPECT_EQ((*bare)["C_T"], 0.0) << bare->to_json().dump();
 
     std::vector<CalibrationPoint> points;  // micro-scenes at C_T = 4, C_PREP = 30
     for (double n_t : {1.0, 20.0, 40.0, 60.0, 15.0, 120.0})
@@ -236,8 +237,8 @@ TEST(TuneCostModel, TheMachinesCalibrationKeepsRayWorkInAFewPointFit) {
     };
     const std::optional<CostCoefficients> pinned = fit_coefficients(frames, source);
     ASSERT_TRUE(pinned.has_value());
-    EXPECT_GE(pinned->c_t, kT / kPriorRange * 0.99) << pinned->to_json().dump();
-    EXPECT_LE(pinned->c_t, kT * kPriorRange * 1.01) << pinned->to_json().dump();
+    EXPECT_GE((*pinned)["C_T"], kT / kPriorRange * 0.99) << pinned->to_json().dump();
+    EXPECT_LE((*pinned)["C_T"], kT * kPriorRange * 1.01) << pinned->to_json().dump();
     EXPECT_NE(pinned->model.find("with the calibration's priors"), std::string::npos) << pinned->model;
 
     // Frames that do show the rays' work keep the free fit's balance: C_T = 20 where the
@@ -246,7 +247,7 @@ TEST(TuneCostModel, TheMachinesCalibrationKeepsRayWorkInAFewPointFit) {
     asked = false;
     const std::optional<CostCoefficients> free = fit_coefficients(frames, source);
     ASSERT_TRUE(free.has_value());
-    EXPECT_NEAR(free->c_t, 20, 2) << free->to_json().dump();
+    EXPECT_NEAR((*free)["C_T"], 20, 2) << free->to_json().dump();
     EXPECT_EQ(free->model.find("priors"), std::string::npos) << free->model;
     EXPECT_FALSE(asked);  // the calibration is not even measured where the free fit prices the rays
 }
@@ -262,6 +263,90 @@ TEST(TuneCostModel, MachinePriorsCalibrateEveryBuildableStructure) {
         ASSERT_NE(t, nullptr) << c.structure;
         EXPECT_GT(t->value, 0) << c.structure;
         EXPECT_EQ(&priors.of(name), &in);  // measured once, then kept
+    }
+}
+
+/// Frames of one structure whose reported hits cost `c_hit` ns each beyond their box tests:
+/// C = 0.8·N_RB + 5·N_T + 40 + c_hit·N_TP per ray, N_TP varying apart from N_RB across 16 configurations.
+std::vector<FrameObservation> hit_priced_frames(double c_hit) {
+    Random rng(21);
+    std::vector<FrameObservation> frames;
+    for (int c = 0; c < 16; ++c)
+        for (int f = 0; f < 6; ++f) {
+            FrameObservation o;
+            o.structure = "bf", o.scene = "s" + std::to_string(c % 4), o.category = "uniform";
+            o.params = "{\"c\":" + std::to_string(c) + "}";
+            o.config_group = c, o.rays = 500;
+            o.n_rb = 50 + 40 * (c % 4) + rng.uniform(0, 1);
+            o.n_t = 10 + 7 * (c / 4) + rng.uniform(0, 1);
+            o.n_tp = 1 + 3 * ((c * 7) % 5) + rng.uniform(0, 0.2);
+            o.raycast_ns = o.rays * (0.8 * o.n_rb + 5 * o.n_t + 40 + c_hit * o.n_tp) * (1 + 0.005 * rng.normal());
+            o.update_ns = 1000, o.memory_mb = 1;
+            frames.push_back(o);
+        }
+    return frames;
+}
+
+TEST(TuneCostModel, AWithHitsFitsHitTermRoundTripsThroughATuningFileAndPricesHits) {
+    // The free fit chooses with-hits where hits cost their own: its C_HIT reaches the tuner.
+    const std::optional<CostCoefficients> fitted = fit_coefficients(hit_priced_frames(25.0));
+    ASSERT_TRUE(fitted.has_value());
+    EXPECT_EQ(fitted->model.rfind("with-hits", 0), 0u) << fitted->model;
+    EXPECT_NEAR((*fitted)["C_HIT"], 25.0, 2.5) << fitted->to_json().dump();
+
+    // Written into a tuning file as run_tuning does and read back as advise does.
+    const std::filesystem::path dir = test::temp_dir("tune", "hits");
+    const std::string path = (dir / "tuning.json").string();
+    {
+        json tuning{
+            {"categories",
+             json::array({{{"category", "u"},
+                           {"structures", json::array({{{"structure", "bf"}, {"cost_model", fitted->to_json()}}})}}})}};
+        std::ofstream(path) << tuning.dump(2);
+    }
+    const json read = parse_json_document(read_text_file(path), path);
+    const CostCoefficients back =
+        CostCoefficients::from_json(read["categories"][0]["structures"][0]["cost_model"], path);
+    EXPECT_EQ(back.to_json(), fitted->to_json());
+    EXPECT_EQ(back["C_HIT"], (*fitted)["C_HIT"]);
+    std::filesystem::remove_all(dir);
+
+    // predict_cost prices the replay's hits with it: C_HIT·N_TP per frame more than without.
+    const TuneCategory c{"u", {test::generated_spec("u", "uniform", 1500, 3, 200, {{"hits", 1}})}};
+    CostCoefficients without = back;
+    without["C_HIT"] = 0;
+    CostCoefficients priced = without;
+    priced["C_HIT"] = 1e4;  // far above the replay's update time, which is measured
+    ReplayCounts counts;
+    const double base = predict_cost(without, c, "ug", json::object(), 1, &counts);
+    const double with_hits = predict_cost(priced, c, "ug", json::object(), 1);
+    ASSERT_GT(counts.counters.n_tp, 0u);
+    const double hits_ms_per_frame = 1e4 * double(counts.counters.n_tp) / 2 / 1e6;  // two measured frames
+    EXPECT_GT(with_hits - base, 0.5 * hits_ms_per_frame);
+    EXPECT_LT(with_hits - base, 1.5 * hits_ms_per_frame);
+}
+
+TEST(TuneCostModel, TuningsWrittenBeforeTheHitTermReadWithoutIt) {
+    // A cost_model as tunings wrote it before C_HIT (and before C_MP): absent reads as 0.
+    const json older{{"model", "eq5.4"}, {"C_RB", 1.5}, {"C_T", 12.0}, {"C_PREP", 30.0},
+                     {"C_MEM", 0.0},     {"C_RO", 0.0}, {"C_TH", 0.0}};
+    const CostCoefficients c = CostCoefficients::from_json(older, "old.json");
+    EXPECT_EQ(c["C_HIT"], 0.0);
+    EXPECT_EQ(c["C_MP"], 0.0);
+    EXPECT_EQ(c["C_T"], 12.0);
+    FrameObservation f;
+    f.n_rb = 2, f.n_t = 3, f.n_tp = 5;
+    EXPECT_DOUBLE_EQ(c.per_ray(f), 1.5 * 2 + 12.0 * 3 + 30.0);
+    // Present, it is read and priced like any term; not a number, it is refused with the file.
+    json hits = older;
+    hits["C_HIT"] = 4.0;
+    EXPECT_DOUBLE_EQ(CostCoefficients::from_json(hits, "t.json").per_ray(f), 1.5 * 2 + 12.0 * 3 + 30.0 + 4.0 * 5);
+    hits["C_HIT"] = "x";
+    try {
+        CostCoefficients::from_json(hits, "t.json");
+        ADD_FAILURE() << "a non-numeric C_HIT was read";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("t.json: cost model coefficient C_HIT"), std::string::npos) << e.what();
     }
 }
 

@@ -5,7 +5,6 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
-#include <cstring>
 #include <set>
 
 #include "analysis/cost_model.h"
@@ -54,23 +53,12 @@ void add_observations(const SimulationResult& r, const std::string& scene, const
                       std::vector<FrameObservation>& out) {
     for (const FrameResult& f : r.frames) {
         if (f.warmup || f.rays == 0) continue;
-        FrameObservation o;
+        FrameObservation o = observation_of(f, double(r.objects));
         o.structure = r.structure;
         o.params = r.params.dump();
         o.scene = scene;
         o.category = category;
         o.config_group = group;
-        o.rays = f.rays;
-        o.raycast_ns = double(f.raycast_ns);
-        o.update_ns = double(f.update_ns);
-        o.n_t = double(f.counters.n_t) / f.rays;
-        o.n_rb = double(f.counters.n_rb) / f.rays;
-        o.n_tp = double(f.counters.n_tp) / f.rays;
-        o.n_ro = double(f.counters.n_ro) / f.rays;
-        o.n_th = double(f.counters.n_th) / f.rays;
-        o.n_mp = double(f.counters.n_mp) / f.rays;
-        o.inserts = f.inserts, o.removes = f.removes, o.moves = f.moves, o.objects = double(r.objects);
-        o.memory_mb = double(f.memory_bytes) / (1024.0 * 1024.0);
         out.push_back(o);
     }
 }
@@ -474,52 +462,23 @@ std::vector<const Candidate*> meeting(const std::vector<const Candidate*>& all, 
     return out;
 }
 
-json CostCoefficients::to_json() const {
-    return {{"model", model}, {"C_RB", c_rb}, {"C_T", c_t},   {"C_PREP", c_prep},
-            {"C_MEM", c_mem}, {"C_RO", c_ro}, {"C_TH", c_th}, {"C_MP", c_mp}};
-}
-
-CostCoefficients CostCoefficients::from_json(const json& j, const std::string& where) {
-    if (!j.is_object()) throw InputError(where + ": a cost model must be an object");
-    CostCoefficients c;
-    for (auto [name, value] : {std::pair{"C_RB", &c.c_rb},
-                               {"C_T", &c.c_t},
-                               {"C_PREP", &c.c_prep},
-                               {"C_MEM", &c.c_mem},
-                               {"C_RO", &c.c_ro},
-                               {"C_TH", &c.c_th}}) {
-        if (!j.contains(name) || !j[name].is_number() || !std::isfinite(j[name].get<double>()))
-            throw InputError(where + ": cost model coefficient " + name + " is missing or not a finite number");
-        *value = j[name].get<double>();
-    }
-    // C_MP came later: a tuning written before it has none (its model did not price coherence).
-    if (j.contains("C_MP")) {
-        if (!j["C_MP"].is_number() || !std::isfinite(j["C_MP"].get<double>()))
-            throw InputError(where + ": cost model coefficient C_MP is not a finite number");
-        c.c_mp = j["C_MP"].get<double>();
-    }
-    if (j.contains("model") && j["model"].is_string()) c.model = j["model"].get<std::string>();
-    return c;
-}
-
 namespace {
 
 std::optional<CostCoefficients> chosen_coefficients(const std::vector<StructureModels>& models) {
     const CandidateModel* model = models.empty() ? nullptr : models.front().chosen("raycast");
     if (!model) return std::nullopt;
-    auto coefficient = [&](const char* name) {
-        for (const Coefficient& c : model->fit.coefficients)
-            if (c.name.rfind(name, 0) == 0 && (c.name.size() == std::strlen(name) || c.name[std::strlen(name)] == '['))
-                return c.value;
-        return 0.0;
-    };
-    CostCoefficients c;
-    c.c_rb = coefficient("C_RB"), c.c_t = coefficient("C_T"), c.c_prep = coefficient("C_PREP");
-    c.c_mem = coefficient("C_MEM"), c.c_ro = coefficient("C_RO"), c.c_th = coefficient("C_TH");
-    c.c_mp = coefficient("C_MP");
+    // A per-category model (a tuning category of several scene kinds): the first category's terms.
+    CostCoefficients c = CostCoefficients::from_fit(model->fit.coefficients, "");
     c.model = model->name + " (held-out error " + std::to_string(int(std::lround(100 * model->heldout_error))) + "%, " +
               model->fit.status() + ")";
     return c;
+}
+
+/// Whether `c` prices any of the traversal's work (cost_terms(): `traversal`).
+bool prices_ray_work(const CostCoefficients& c) {
+    for (const CostTerm* t : tuning_terms())
+        if (t->traversal && c[t->name] > 0) return true;
+    return false;
 }
 
 }  // namespace
@@ -527,7 +486,7 @@ std::optional<CostCoefficients> chosen_coefficients(const std::vector<StructureM
 std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservation>& frames,
                                                  const std::function<const ModelInputs&()>& priors) {
     std::optional<CostCoefficients> c = chosen_coefficients(fit_cost_models(frames));
-    const bool prices_rays = c && c->c_rb + c->c_t + c->c_th + c->c_mp > 0;
+    const bool prices_rays = c && prices_ray_work(*c);
     if (c && !prices_rays && priors && !priors().calibrations.empty()) {
         c = chosen_coefficients(fit_cost_models(frames, priors()));
         if (c) c->model += " with the calibration's priors (without them the fit priced no ray work)";
@@ -548,10 +507,7 @@ double predict_cost(const CostCoefficients& c, const TuneCategory& category, con
         for (const FrameResult& f : r.frames) {
             if (f.warmup || f.rays == 0) continue;
             if (counts) counts->counters += f.counters, counts->memory_bytes += f.memory_bytes;
-            const double per_ray =
-                c.c_rb * double(f.counters.n_rb) / f.rays + c.c_t * double(f.counters.n_t) / f.rays + c.c_prep +
-                c.c_mem * double(f.memory_bytes) / (1024.0 * 1024.0) + c.c_ro * double(f.counters.n_ro) / f.rays +
-                c.c_th * double(f.counters.n_th) / f.rays + c.c_mp * double(f.counters.n_mp) / f.rays;
+            const double per_ray = c.per_ray(observation_of(f, double(r.objects)));
             frame_ms.push_back((double(f.update_ns) + f.rays * per_ray) / 1e6);
         }
         total += spread_of(frame_ms).median;

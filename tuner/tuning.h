@@ -82,18 +82,11 @@ struct Candidate {
     bool is_default = false;
 };
 
-/// Eq. 5.4 as the predicted mode applies it, ns per ray: C_RB·N_RB + C_T·N_T + C_PREP + C_MEM·MB +
-/// C_RO·N_RO + C_TH·N_TH + C_MP·N_MP (counters per ray, MB the structure's memory), a term 0 where the chosen
-/// model lacks it. Machine costs, not scene properties: fitted on one set of scenes, they price the
-/// counters of another (what advise does with a tuning's model on an unseen scene).
-struct CostCoefficients {
-    double c_rb = 0, c_t = 0, c_prep = 0, c_mem = 0, c_ro = 0, c_th = 0, c_mp = 0;
-    std::string model;  ///< the chosen model and its held-out error
-
-    nlohmann::json to_json() const;
-    /// InputError "<where>: …" when a coefficient is missing or not a finite number.
-    static CostCoefficients from_json(const nlohmann::json& j, const std::string& where);
-};
+// CostCoefficients (analysis/model_terms.h): eq. 5.4 as the predicted mode applies it, ns per ray,
+// every ray-cast term of the cost-term table a tuning carries (C_RB·N_RB + C_T·N_T + C_PREP + …,
+// C_HIT·N_TP included), 0 where the chosen model lacks it. Machine costs, not scene properties:
+// fitted on one set of scenes, they price the counters of another (what advise does with a
+// tuning's model on an unseen scene).
 
 struct StructureTuning {
     std::string structure;
