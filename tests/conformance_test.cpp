@@ -2,9 +2,8 @@
 // ground truth on the hard scenes at parameter sets drawn from its own ParamSpecs (ranges, integers,
 // reals, choices, booleans: test::random_params). test::expect_matches_ground_truth verifies every
 // ray at the configuration's own contract, runs the counting pass and validate() after the build
-// and after every frame's update. Every other draw gives the scenes' objects shapes, so that the
-// query levels and leaf volumes drawn meet something to test. The seed is printed on failure;
-// RCB_CONFORMANCE_SEED=<n> draws other sets.
+// and after every frame's update. The seed is printed on failure; RCB_CONFORMANCE_SEED=<n> draws
+// other sets.
 #include <gtest/gtest.h>
 
 #include <cctype>
@@ -34,14 +33,9 @@ std::vector<std::string> registered_names() {
     return names;
 }
 
-const std::vector<test::NamedScene>& scenes(bool shaped) {
-    static const std::vector<test::NamedScene> boxes = test::hard_scenes();
-    static const std::vector<test::NamedScene> shapes = [] {
-        std::vector<test::NamedScene> out = boxes;
-        for (test::NamedScene& s : out) s.recording = test::with_shapes(s.recording, 3), s.name += "+shapes";
-        return out;
-    }();
-    return shaped ? shapes : boxes;
+const std::vector<test::NamedScene>& scenes() {
+    static const std::vector<test::NamedScene> hard = test::hard_scenes();
+    return hard;
 }
 
 class Conformance : public ::testing::TestWithParam<std::string> {};
@@ -57,7 +51,7 @@ TEST_P(Conformance, MatchesTheGroundTruthOnTheHardScenesAtRandomParameters) {
         const nlohmann::json params = test::random_params(info, rng);
         SCOPED_TRACE("RCB_CONFORMANCE_SEED=" + std::to_string(seed) + ", draw " + std::to_string(draw) + ": " +
                      info.name + ' ' + params.dump());
-        for (const test::NamedScene& s : scenes(draw % 2 == 1))
+        for (const test::NamedScene& s : scenes())
             test::expect_matches_ground_truth(s.recording, info.name, params, s.name);
     }
 }
