@@ -32,7 +32,8 @@ std::int64_t count(Database& db, const std::string& sql) {
 }
 
 TEST(AccuracyColumns, FramesOfAnOlderDatabaseReadAsTheirMismatchCountsSay) {
-    const fs::path dir = test::temp_dir("accuracy", "migrate");
+    const test::TempDir temp("accuracy", "migrate");
+    const fs::path& dir = temp.path();
     const std::string path = (dir / "v6.db").string();
     {
         ResultStore old(path, 6);
@@ -80,11 +81,11 @@ TEST(AccuracyColumns, FramesOfAnOlderDatabaseReadAsTheirMismatchCountsSay) {
         EXPECT_EQ(count(store.db(), "PRAGMA user_version"), latest_schema_version());
         check(store.db());
     }
-    fs::remove_all(dir);
 }
 
 TEST(AccuracyColumns, ARunsFramesRoundTripThroughTheStoreAndMerge) {
-    const fs::path dir = test::temp_dir("accuracy", "roundtrip");
+    const test::TempDir temp("accuracy", "roundtrip");
+    const fs::path& dir = temp.path();
     const Recording scene = test::with_shapes(test::generated_scene("irregular", 400, 3, 5), 9);
     // The candidate level on shapes: precision below 1, recall 1; the shape level runs the narrow
     // phase (n_ro > 0).
@@ -135,7 +136,6 @@ TEST(AccuracyColumns, ARunsFramesRoundTripThroughTheStoreAndMerge) {
             EXPECT_EQ(n, results[i].frames.size()) << path;
         }
     }
-    fs::remove_all(dir);
 }
 
 TEST(ParetoFront, KeepsTheFastestConfigurationOfEachAccuracyLevel) {
@@ -153,12 +153,7 @@ TEST(ParetoFront, KeepsTheFastestConfigurationOfEachAccuracyLevel) {
 }
 
 std::string accuracy_error(const std::string& text) {
-    try {
-        parse_accuracy(text);
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "";
+    return test::input_error_of([&] { parse_accuracy(text); });
 }
 
 TEST(AccuracyConstraint, ParsesTheThreeFormsAndNamesWhatIsWrong) {
@@ -263,7 +258,8 @@ TEST(AccuracyConstraint, TuningSearchesTheQueryLevelOnlyWhenInexactAnswersAreAll
 }
 
 TEST(AccuracyConstraint, OnShapesOnlyTheNarrowPhaseIsPreciseAndABoundNothingMeetsIsOneLine) {
-    const fs::path dir = test::temp_dir("accuracy", "shaped");
+    const test::TempDir temp("accuracy", "shaped");
+    const fs::path& dir = temp.path();
     const std::string scene = (dir / "shaped.rcbscene").string();
     write_recording(test::with_shapes(test::generated_scene("irregular", 600, 3, 11), 4), scene);
     const std::string text =
@@ -288,18 +284,13 @@ TEST(AccuracyConstraint, OnShapesOnlyTheNarrowPhaseIsPreciseAndABoundNothingMeet
     // Without the narrow phase in the space nothing meets precision 1: one line naming the
     // category and the constraint.
     spec.space["ug"] = {{"query", {"candidates"}}};
-    try {
-        tune_category(spec, spec.categories[0]);
-        FAIL() << "precision 1 met without the narrow phase";
-    } catch (const InputError& e) {
-        EXPECT_EQ(std::string(e.what()),
-                  "tune: no configuration of ug on category shaped meets --accuracy precision>=1");
-    }
-    fs::remove_all(dir);
+    EXPECT_EQ(test::input_error_of([&] { tune_category(spec, spec.categories[0]); }),
+              "tune: no configuration of ug on category shaped meets --accuracy precision>=1");
 }
 
 TEST(AccuracyConstraint, TheCommandsRefuseABadConstraintInOneLine) {
-    const fs::path dir = test::temp_dir("accuracy", "cli");
+    const test::TempDir temp("accuracy", "cli");
+    const fs::path& dir = temp.path();
     const std::string scene = (dir / "s.rcbscene").string();
     const auto run = [](const std::string& args) {
         return ::test::run_shell(std::string(RCBENCH_BINARY) + " " + args);
@@ -314,7 +305,6 @@ TEST(AccuracyConstraint, TheCommandsRefuseABadConstraintInOneLine) {
     const ::test::Outcome tune = run("tune " + scene + " --accuracy 'recall>=1.5'");
     EXPECT_EQ(tune.code, 2) << tune.err;
     EXPECT_EQ(tune.err.rfind("rcbench: --accuracy: recall 1.5 is outside 0..1", 0), 0u) << tune.err;
-    fs::remove_all(dir);
 }
 
 }  // namespace

@@ -52,12 +52,8 @@ json cost_model(double c_rb, double c_t) {
 
 class AdviseFiles : public ::testing::Test {
 protected:
-    void SetUp() override {
-        dir_ = test::temp_dir("advise", ::testing::UnitTest::GetInstance()->current_test_info()->name());
-        write_recording(uniform_scene(3000, 3), path("scene.rcbscene"));
-    }
-    void TearDown() override { fs::remove_all(dir_); }
-    std::string path(const std::string& name) const { return (dir_ / name).string(); }
+    void SetUp() override { write_recording(uniform_scene(3000, 3), path("scene.rcbscene")); }
+    std::string path(const std::string& name) const { return dir_.file(name); }
     std::string write_tuning(const std::string& name, const json& t) const {
         std::ofstream(path(name)) << t.dump(2);
         return path(name);
@@ -76,7 +72,7 @@ protected:
             if (pc.structure == "ug") return pc;
         throw std::logic_error("no ug choice");
     }
-    fs::path dir_;
+    test::TempDir dir_{"advise"};  // rcb_advise_<pid>_<test>, removed after the test
 };
 
 TEST_F(AdviseFiles, TheModelMethodFollowsTheCostOfAStepAgainstATest) {

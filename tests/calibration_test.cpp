@@ -33,7 +33,8 @@ void write_cache(const fs::path& dir, int index, const std::string& level, const
 }
 
 TEST(CacheSizes, ParseFromASysfsFolder) {
-    const fs::path dir = test::temp_dir("calibration", "sysfs");
+    const test::TempDir temp("calibration", "sysfs");
+    const fs::path& dir = temp.path();
     write_cache(dir, 0, "1", "Data", "48K");
     write_cache(dir, 1, "1", "Instruction", "32K");
     write_cache(dir, 2, "2", "Unified", "2048K");
@@ -49,13 +50,7 @@ TEST(CacheSizes, ParseFromASysfsFolder) {
 
     EXPECT_TRUE(read_cache_sizes((dir / "absent").string()).empty());
     write_cache(dir, 4, "4", "Unified", "lots");
-    try {
-        read_cache_sizes(dir.string());
-        FAIL() << "a malformed size was accepted";
-    } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find("index4/size"), std::string::npos) << e.what();
-    }
-    fs::remove_all(dir);
+    test::expect_input_error([&] { read_cache_sizes(dir.string()); }, "index4/size");
 }
 
 TEST(CacheSizes, Units) {
@@ -96,7 +91,8 @@ TEST(Calibration, MicroScenesVaryTheCountersIndependently) {
 }
 
 TEST(Calibration, StoredOncePerRun) {
-    const fs::path dir = test::temp_dir("calibration", "run");
+    const test::TempDir temp("calibration", "run");
+    const fs::path& dir = temp.path();
     const Experiment e = parse_experiment(
         R"({"frames": 2, "rays_per_frame": 50, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}, {"name": "dbvh", "params": {"mode": ["incremental", "rebuild"]}}]})",
         "exp.json", ".");
@@ -130,11 +126,11 @@ TEST(Calibration, StoredOncePerRun) {
         }
         EXPECT_EQ(load_cache_sizes(merged.db(), 1).size(), read_cache_sizes().size());
     }
-    fs::remove_all(dir);
 }
 
 TEST(Calibration, TheRunsFitUsesItAndStoresLeaveOneSceneOut) {
-    const fs::path dir = test::temp_dir("calibration", "fit");
+    const test::TempDir temp("calibration", "fit");
+    const fs::path& dir = temp.path();
     const Experiment e = parse_experiment(
         R"({"frames": 3, "rays_per_frame": 100, "scenes": [{"preset": "uni-s"}, {"preset": "irreg-s"}, {"kind": "uniform", "objects": 300}], "structures": [{"name": "dbvh"}]})",
         "exp.json", ".");
@@ -162,7 +158,6 @@ TEST(Calibration, TheRunsFitUsesItAndStoresLeaveOneSceneOut) {
     s.bind(1, outcome.run);
     ASSERT_TRUE(s.step());
     EXPECT_NEAR(s.real(0), m.loso_error, 1e-12);
-    fs::remove_all(dir);
 }
 
 }  // namespace

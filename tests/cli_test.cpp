@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/subprocess.h"
+#include "tests/test_support.h"
 
 namespace {
 
@@ -16,18 +17,11 @@ using test::Outcome;
 
 class Cli : public ::testing::Test {
 protected:
-    void SetUp() override {
-        dir_ = fs::temp_directory_path() / ("rcb_cli_" + std::to_string(::getpid()) + "_" +
-                                            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
-
     Outcome run(const std::string& args) { return test::run_shell(std::string(RCBENCH_BINARY) + " " + args); }
-    std::string path(const std::string& name) const { return (dir_ / name).string(); }
+    std::string path(const std::string& name) const { return dir_.file(name); }
     void write(const std::string& name, const std::string& text) const { std::ofstream(path(name)) << text; }
 
-    fs::path dir_;
+    rcb::test::TempDir dir_{"cli"};  // rcb_cli_<pid>_<test>, removed after the test
 };
 
 /// Bad input: exit 2 and exactly one line on stderr containing `needle`.

@@ -3,17 +3,13 @@
 
 #include "core/scene/import/csv.h"
 #include "core/base/error.h"
+#include "tests/test_support.h"
 
 namespace rcb {
 namespace {
 
 std::string boxes_error(const std::string& text) {
-    try {
-        parse_boxes_csv(text, "boxes.csv");
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "";
+    return test::input_error_of([&] { parse_boxes_csv(text, "boxes.csv"); });
 }
 
 TEST(Csv, ReadsBoxesWithOrWithoutHeaderCommentsAndCrlf) {
@@ -44,12 +40,8 @@ TEST(Csv, ReadsRaysAndRejectsBadOnes) {
     const auto rays = parse_rays_csv("x0,y0,z0,x1,y1,z1\n0,0,0,1,2,3\n", "rays.csv");
     ASSERT_EQ(rays.size(), 1u);
     EXPECT_EQ(rays[0].p1.y, 2.0f);
-    try {
-        parse_rays_csv("0,0,0,1,2,3\n0,0,inf,1,2,3\n", "rays.csv");
-        FAIL();
-    } catch (const InputError& e) {
-        EXPECT_STREQ(e.what(), "rays.csv:2: non-finite coordinate");
-    }
+    EXPECT_EQ(test::input_error_of([] { parse_rays_csv("0,0,0,1,2,3\n0,0,inf,1,2,3\n", "rays.csv"); }),
+              "rays.csv:2: non-finite coordinate");
     EXPECT_THROW(read_rays_csv("/nonexistent/rays.csv"), InputError);
 }
 
@@ -98,14 +90,9 @@ TEST(Csv, CoordinatesBeyondTheLimitAreRejectedNamingLineUidAndLimit) {
     ASSERT_EQ(edge.size(), 1u);
     EXPECT_EQ(edge[0].box.min.x, -1e15f);
     EXPECT_EQ(edge[0].box.min.z, 1e-20f);
-    try {
-        parse_rays_csv("0,0,0,1,2,3\n0,0,0,1,2.5e15,3\n", "rays.csv");
-        FAIL();
-    } catch (const InputError& e) {
-        EXPECT_STREQ(e.what(),
-                     "rays.csv:2: field 5 (y1): coordinate '2.5e15' beyond ±1e+15 (the largest magnitude every "
-                     "structure handles exactly)");
-    }
+    EXPECT_EQ(test::input_error_of([] { parse_rays_csv("0,0,0,1,2,3\n0,0,0,1,2.5e15,3\n", "rays.csv"); }),
+              "rays.csv:2: field 5 (y1): coordinate '2.5e15' beyond ±1e+15 (the largest magnitude every "
+              "structure handles exactly)");
 }
 
 TEST(Csv, ErrorsQuoteAtMostAnExcerptOfTheField) {

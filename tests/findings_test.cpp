@@ -10,6 +10,7 @@
 #include "analysis/findings.h"
 #include "core/accel/registry.h"
 #include "runner/store.h"
+#include "tests/test_support.h"
 
 namespace rcb {
 namespace {
@@ -77,8 +78,8 @@ const Finding& by_source(const std::vector<Finding>& all, const std::string& wor
 }
 
 TEST(Findings, VerdictsFollowTheMeasurements) {
-    const fs::path path = fs::temp_directory_path() / ("rcb_findings_" + std::to_string(::getpid()) + ".db");
-    fs::remove(path);
+    const test::TempDir dir("findings", "verdicts");
+    const fs::path path = dir.path() / "f.db";
     std::int64_t run = 0;
     {
         FindingsDb db(path.string());
@@ -120,12 +121,11 @@ TEST(Findings, VerdictsFollowTheMeasurements) {
     const std::string md = findings_markdown(db, run, f);
     EXPECT_NE(md.find("**partly confirmed**"), std::string::npos);
     EXPECT_NE(md.find("**not tested by this run**: No stored fit"), std::string::npos);
-    fs::remove(path);
 }
 
 TEST(Findings, ARunWithoutTheNeededScenesTestsNothingItCannot) {
-    const fs::path path = fs::temp_directory_path() / ("rcb_findings_empty_" + std::to_string(::getpid()) + ".db");
-    fs::remove(path);
+    const test::TempDir dir("findings", "empty");
+    const fs::path path = dir.path() / "f.db";
     std::int64_t run = 0;
     {
         FindingsDb db(path.string());
@@ -138,7 +138,6 @@ TEST(Findings, ARunWithoutTheNeededScenesTestsNothingItCannot) {
         EXPECT_EQ(f.verdict, Finding::Verdict::untested) << f.claim;
         EXPECT_FALSE(f.summary.empty()) << f.claim;
     }
-    fs::remove(path);
 }
 
 }  // namespace

@@ -15,37 +15,19 @@
 namespace rcb {
 namespace {
 
-/// The large-object guard's limit: off, the tightest, or in between.
-int random_max_cells(Random& rng) {
-    const int k = int(rng.below(4));
-    return k == 0 ? 0 : (k == 1 ? 1 : int(2 + rng.below(100)));
-}
+nlohmann::json random_ug_params(Random& rng) { return test::random_params(find_structure("ug"), rng); }
 
-nlohmann::json random_ug_params(Random& rng) {
-    return {{"density", rng.log_uniform(0.1, 64.0)}, {"max_cells", random_max_cells(rng)}};
-}
-
-nlohmann::json random_hg_params(Random& rng) {
-    return {{"amp", rng.log_uniform(0.01, 16.0)},
-            {"max_depth", int(rng.below(7))},
-            {"max_capacity", int(1 + rng.below(rng.below(2) ? 4 : 64))},
-            {"subdivision", int(2 + rng.below(3))},
-            {"max_cells", random_max_cells(rng)}};
-}
+nlohmann::json random_hg_params(Random& rng) { return test::random_params(find_structure("hg"), rng); }
 
 TEST(UniformGrid, MatchesGroundTruthOnEveryHardSceneAtDefaults) {
     for (const test::NamedScene& s : test::hard_scenes())
         test::expect_matches_ground_truth(s.recording, "ug", {}, s.name);
 }
 
-TEST(UniformGrid, MatchesGroundTruthOnEveryHardSceneOverRandomParams) {
-    Random rng(301);
-    const auto scenes = test::hard_scenes();
-    for (int round = 0; round < 4; ++round)
-        for (const test::NamedScene& s : scenes)
-            test::expect_matches_ground_truth(s.recording, "ug", random_ug_params(rng), s.name);
+/// Random parameter sets on the hard scenes: conformance_test.cpp.
+TEST(UniformGrid, MatchesGroundTruthOnEveryHardSceneAtTheEndsOfTheRange) {
     // The extremes of the range and the thesis' reset mode.
-    for (const test::NamedScene& s : scenes) {
+    for (const test::NamedScene& s : test::hard_scenes()) {
         test::expect_matches_ground_truth(s.recording, "ug", {{"density", 0.1}}, s.name);
         test::expect_matches_ground_truth(s.recording, "ug", {{"density", 64.0}, {"thesis_reset", true}}, s.name);
     }
@@ -66,14 +48,10 @@ TEST(HashGrid, MatchesGroundTruthOnEveryHardSceneAtDefaults) {
         test::expect_matches_ground_truth(s.recording, "hg", {}, s.name);
 }
 
-TEST(HashGrid, MatchesGroundTruthOnEveryHardSceneOverRandomParams) {
-    Random rng(303);
-    const auto scenes = test::hard_scenes();
-    for (int round = 0; round < 6; ++round)
-        for (const test::NamedScene& s : scenes)
-            test::expect_matches_ground_truth(s.recording, "hg", random_hg_params(rng), s.name);
+/// Random parameter sets on the hard scenes: conformance_test.cpp.
+TEST(HashGrid, MatchesGroundTruthOnEveryHardSceneDeepAndFine) {
     // Deep and fine: every split path exercised, capacity 1 splits every shared cell.
-    for (const test::NamedScene& s : scenes)
+    for (const test::NamedScene& s : test::hard_scenes())
         test::expect_matches_ground_truth(
             s.recording, "hg", {{"amp", 0.01}, {"max_depth", 6}, {"max_capacity", 1}, {"subdivision", 4}}, s.name);
 }
@@ -100,14 +78,7 @@ TEST(Grids, LongChurnRunMatchesGroundTruth) {
 TEST(Grids, OutOfRangeParametersAreRefusedWithTheRange) {
     const StructureInfo& ug = find_structure("ug");
     const StructureInfo& hg = find_structure("hg");
-    auto message = [](auto&& f) {
-        try {
-            f();
-        } catch (const InputError& e) {
-            return std::string(e.what());
-        }
-        return std::string();
-    };
+    const auto message = test::input_error_of;
     std::string m = message([&] { ug.make({{"density", 0.001}}, "params"); });
     EXPECT_NE(m.find("density"), std::string::npos) << m;
     EXPECT_NE(m.find("0.1..64"), std::string::npos) << m;
@@ -147,7 +118,8 @@ TEST(Grids, ClosestAndAnyHitAgreeWithBruteForce) {
     Random rng(22);
     for (const char* name : {"ug", "hg"}) {
         for (int trial = 0; trial < 4; ++trial) {
-            const nlohmann::json params = std::string(name) == "ug" ? random_ug_params(rng) : random_hg_params(rng);
+            // At the box level: a candidate is no hit of the closest-hit query.
+            const nlohmann::json params = test::random_params(find_structure(name), rng, {"query"});
             auto grid = find_structure(name).make(params, "params");
             auto bf = find_structure("bf").make({}, "params");
             grid->build(r.initial);

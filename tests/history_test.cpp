@@ -21,23 +21,12 @@
 #include "runner/run_experiment.h"
 #include "runner/store.h"
 #include "subprocess.h"
+#include "tests/test_support.h"
 
 namespace rcb {
 namespace {
 
 namespace fs = std::filesystem;
-
-/// A fresh folder for one test, removed at the end.
-struct TempDir {
-    fs::path path;
-    explicit TempDir(const std::string& name)
-        : path(fs::temp_directory_path() / ("rcb_history_" + name + "_" + std::to_string(::getpid()))) {
-        fs::remove_all(path);
-        fs::create_directories(path);
-    }
-    ~TempDir() { fs::remove_all(path); }
-    std::string file(const std::string& name) const { return (path / name).string(); }
-};
 
 /// Frame times as a busy machine gives them: each run has its own level (2% run-to-run spread),
 /// each frame a log-normal 5% spread around it, and one frame in twenty is hit by something else
@@ -144,7 +133,7 @@ std::size_t total_steps(const std::vector<HistorySeries>& series) {
 TEST(History, FindsOneStepAtTheRunThatBecameSlower) {
     // Run 4 and every run after it are 20% slower: a regression introduced at run 4.
     for (std::uint64_t seed = 1; seed <= 5; ++seed) {
-        TempDir dir("step" + std::to_string(seed));
+        const test::TempDir dir("history", "step" + std::to_string(seed));
         std::vector<std::int64_t> ids;
         {
             SyntheticDb db(dir.file("h.db"));
@@ -177,7 +166,7 @@ TEST(History, FindsOneStepAtTheRunThatBecameSlower) {
 TEST(History, PureNoiseHasNoStep) {
     // The same machine noise and no change: 5 seeds × 4 series × 2 metrics, and not one step.
     for (std::uint64_t seed = 1; seed <= 5; ++seed) {
-        TempDir dir("noise" + std::to_string(seed));
+        const test::TempDir dir("history", "noise" + std::to_string(seed));
         {
             SyntheticDb db(dir.file("h.db"));
             six_runs(db, 100 + seed, [](int, const std::string&) { return 1.0; });
@@ -191,7 +180,7 @@ TEST(History, PureNoiseHasNoStep) {
 }
 
 TEST(History, ASlowLastRunIsAStepAndAFasterRunIsANegativeStep) {
-    TempDir dir("last");
+    const test::TempDir dir("history", "last");
     {
         SyntheticDb db(dir.file("h.db"));
         // dbvh: only the last run is 30% slower; bf: 25% faster from run 3 on.
@@ -217,7 +206,7 @@ TEST(History, AOneRunBlipInsideTheHistoryIsNoLevelChange) {
     // One run alone 30% slower (a busy machine), the runs after it back: no level changed, wherever
     // inside the history the blip falls.
     for (int blip = 2; blip <= 5; ++blip) {
-        TempDir dir("blip" + std::to_string(blip));
+        const test::TempDir dir("history", "blip" + std::to_string(blip));
         {
             SyntheticDb db(dir.file("h.db"));
             six_runs(db, 10 + std::uint64_t(blip), [blip](int r, const std::string&) { return r == blip ? 1.3 : 1.0; });
@@ -229,7 +218,7 @@ TEST(History, AOneRunBlipInsideTheHistoryIsNoLevelChange) {
 
 TEST(History, ALevelHeldByTwoRunsIsTwoSteps) {
     // Runs 3 and 4 slower, then fixed: up at run 3, down at run 5.
-    TempDir dir("plateau");
+    const test::TempDir dir("history", "plateau");
     {
         SyntheticDb db(dir.file("h.db"));
         six_runs(db, 31, [](int r, const std::string&) { return r == 3 || r == 4 ? 1.25 : 1.0; });
@@ -246,7 +235,7 @@ TEST(History, ALevelHeldByTwoRunsIsTwoSteps) {
 }
 
 TEST(History, FiltersSelectExperimentSceneStructureAndMetric) {
-    TempDir dir("filters");
+    const test::TempDir dir("history", "filters");
     {
         SyntheticDb db(dir.file("h.db"));
         // Ray cast unchanged; update of dbvh 40% slower from run 5 on.
@@ -302,7 +291,7 @@ TEST(History, FiltersSelectExperimentSceneStructureAndMetric) {
 
 TEST(History, RunOrderIsWhenTheRunsStartedNotTheirIds) {
     // A database merged from elsewhere: ids in one order, start times in another.
-    TempDir dir("order");
+    const test::TempDir dir("history", "order");
     {
         SyntheticDb db(dir.file("h.db"));
         std::mt19937_64 rng(3);
@@ -323,20 +312,13 @@ TEST(History, RunOrderIsWhenTheRunsStartedNotTheirIds) {
 }
 
 TEST(History, ErrorsNameWhatMatchedNothing) {
-    TempDir dir("errors");
+    const test::TempDir dir("history", "errors");
     {
         SyntheticDb db(dir.file("h.db"));
         six_runs(db, 1, [](int, const std::string&) { return 1.0; });
     }
     Database db(dir.file("h.db"), true);
-    auto message = [&](const HistoryQuery& q) {
-        try {
-            load_history(db, q);
-        } catch (const InputError& e) {
-            return std::string(e.what());
-        }
-        return std::string("no error");
-    };
+    auto message = [&](const HistoryQuery& q) { return test::input_error_of([&] { load_history(db, q); }); };
     HistoryQuery q;
     q.experiment = "nope";
     EXPECT_NE(message(q).find("no experiment 'nope' (known: hist)"), std::string::npos) << message(q);
@@ -415,7 +397,7 @@ std::string read(const std::string& path) {
 TEST(History, ReportHasAHistorySectionFromTheSecondRunOn) {
     ASSERT_TRUE(gnuplot_available())
         << "gnuplot is part of rcbench's dependencies (scripts/setup.sh installs gnuplot-nox)";
-    TempDir dir("report");
+    const test::TempDir dir("history", "report");
     const std::string db_path = dir.file("r.db");
     const std::int64_t first = small_run(db_path);
     const std::int64_t second = small_run(db_path);
@@ -443,23 +425,23 @@ TEST(History, ReportHasAHistorySectionFromTheSecondRunOn) {
 TEST(History, CommandPrintsTheTableAndRefusesBadInput) {
     // Until cli/main.cpp adds the command, rcbench's help does not list it (and `rcbench history
     // --help` falls through to that help).
-    const test::Outcome help = test::run_process({RCBENCH_BINARY, "--help"});
+    const ::test::Outcome help = ::test::run_process({RCBENCH_BINARY, "--help"});
     if (help.out.find("\n  history ") == std::string::npos)
         GTEST_SKIP() << "rcbench has no history command yet (cli/main.cpp does not add it)";
-    TempDir dir("cli");
+    const test::TempDir dir("history", "cli");
     {
         SyntheticDb db(dir.file("h.db"));
         six_runs(db, 2, [](int r, const std::string& s) { return s == "dbvh" && r >= 4 ? 1.2 : 1.0; });
     }
     const std::string db = dir.file("h.db");
-    const test::Outcome all = test::run_process({RCBENCH_BINARY, "history", db, "--experiment", "hist"});
+    const ::test::Outcome all = ::test::run_process({RCBENCH_BINARY, "history", db, "--experiment", "hist"});
     ASSERT_EQ(all.code, 0) << all.err;
     EXPECT_NE(all.out.find("run 1"), std::string::npos);
     EXPECT_NE(all.out.find("(c0ffee6)"), std::string::npos) << all.out;
     EXPECT_NE(all.out.find("step at run 4 (c0ffee4): +"), std::string::npos) << all.out;
     EXPECT_NE(all.out.find("2 steps in 4 series over 6 runs"), std::string::npos) << all.out;
 
-    const test::Outcome bf = test::run_process(
+    const ::test::Outcome bf = ::test::run_process(
         {RCBENCH_BINARY, "history", db, "--structure", "bf", "--scene", "small", "--metric", "update"});
     ASSERT_EQ(bf.code, 0) << bf.err;
     EXPECT_EQ(bf.out.find("dbvh"), std::string::npos);
@@ -471,7 +453,7 @@ TEST(History, CommandPrintsTheTableAndRefusesBadInput) {
           std::vector<std::string>{db, "--threshold", "nan"}}) {
         std::vector<std::string> argv{RCBENCH_BINARY, "history"};
         argv.insert(argv.end(), bad.begin(), bad.end());
-        const test::Outcome o = test::run_process(argv);
+        const ::test::Outcome o = ::test::run_process(argv);
         EXPECT_EQ(o.code, 2) << bad.back();
         EXPECT_TRUE(o.out.empty()) << o.out;
         EXPECT_EQ(std::count(o.err.begin(), o.err.end(), '\n'), 1) << o.err;

@@ -143,9 +143,8 @@ std::string write_text(const fs::path& path, const std::string& text) {
 }
 
 fs::path scratch(const std::string& name) {
-    const fs::path dir = fs::temp_directory_path() / ("rcb_importers_" + std::to_string(::getpid()));
-    fs::create_directories(dir);
-    return dir / name;
+    static const test::TempDir dir("importers", "scratch");  // removed when the process ends
+    return dir.path() / name;
 }
 
 std::uint32_t crc32(const Bytes& data) {
@@ -185,14 +184,7 @@ Bytes stored_zip(const std::vector<std::pair<std::string, Bytes>>& entries) {
     return z;
 }
 
-std::string error_of(const std::function<void()>& f) {
-    try {
-        f();
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "(no InputError)";
-}
+std::string error_of(const std::function<void()>& f) { return test::input_error_of(f); }
 
 Aabb box(float x0, float y0, float z0, float x1, float y1, float z1) { return {{x0, y0, z0}, {x1, y1, z1}}; }
 

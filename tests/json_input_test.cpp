@@ -5,17 +5,13 @@
 
 #include "core/base/error.h"
 #include "core/base/json_input.h"
+#include "tests/test_support.h"
 
 namespace rcb {
 namespace {
 
 std::string error_of(const std::string& text) {
-    try {
-        parse_json_document(text, "f.json");
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "";
+    return test::input_error_of([&] { parse_json_document(text, "f.json"); });
 }
 
 TEST(JsonInput, DeepNestingIsRefusedNotACrash) {

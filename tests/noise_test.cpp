@@ -77,7 +77,8 @@ TEST(NoiseFloor, RepeatabilityIsTheMedianRelativeDeviationFromEachCellsMedian) {
 }
 
 TEST(NoiseFloor, EveryCellStoresItsStateAndCellsTenPercentSlowAreFlagged) {
-    const fs::path dir = test::temp_dir("noise", "flag");
+    const test::TempDir temp("noise", "flag");
+    const fs::path& dir = temp.path();
     const std::string db_path = (dir / "r.db").string();
     const Experiment e = parse_experiment(kThree, "noise.json", dir.string());
     RunOptions o;
@@ -148,11 +149,11 @@ TEST(NoiseFloor, EveryCellStoresItsStateAndCellsTenPercentSlowAreFlagged) {
         EXPECT_EQ(count(m.db(), "SELECT count(*) FROM cell_state"), 12);
         EXPECT_EQ(count(m.db(), "SELECT count(*) FROM cell_state WHERE slow = 1"), 1);
     }
-    fs::remove_all(dir);
 }
 
 TEST(NoiseFloor, ADatabaseFromBeforeTheMachineStateMigratesAndItsCellsHaveNoState) {
-    const fs::path dir = test::temp_dir("noise", "old");
+    const test::TempDir temp("noise", "old");
+    const fs::path& dir = temp.path();
     const std::string db_path = (dir / "old.db").string();
     const int before = latest_schema_version() - 1;
     {
@@ -182,7 +183,6 @@ TEST(NoiseFloor, ADatabaseFromBeforeTheMachineStateMigratesAndItsCellsHaveNoStat
     ASSERT_EQ(n.structures.size(), 1u);
     EXPECT_NEAR(n.structures[0].raycast, 10.0 / 110.0, 1e-12);  // 100 and 120 about their median 110
     EXPECT_EQ(store.flag_slow_cells(1), 0u);
-    fs::remove_all(dir);
 }
 
 }  // namespace

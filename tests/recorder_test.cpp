@@ -24,31 +24,15 @@ namespace fs = std::filesystem;
 /// A fresh folder per test, removed at the end.
 class RecorderTest : public ::testing::Test {
 protected:
-    void SetUp() override {
-        dir_ = fs::temp_directory_path() / ("rcb_recorder_" + std::to_string(::getpid()) + "_" +
-                                            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-        fs::remove_all(dir_);
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
-    std::string path(const std::string& name = "scene.rcbscene") const { return (dir_ / name).string(); }
+    std::string path(const std::string& name = "scene.rcbscene") const { return dir_.file(name); }
 
-    fs::path dir_;
+    test::TempDir dir_{"recorder"};  // rcb_recorder_<pid>_<test>, removed after the test
 };
 
 Aabb box(float x, float y = 0, float z = 0, float size = 1) { return {{x, y, z}, {x + size, y + size, z + size}}; }
 Segment seg(float x0, float x1) { return {{x0, 0.5f, 0.5f}, {x1, 0.5f, 0.5f}}; }
 
-/// The message of the InputError `f` throws, "" if none.
-template <class F>
-std::string error_of(F&& f) {
-    try {
-        f();
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "";
-}
+const auto error_of = test::input_error_of;
 
 std::string contents(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
@@ -233,11 +217,11 @@ TEST_F(RecorderTest, MisuseIsAnErrorNamingFileFrameAndUid) {
 
 TEST_F(RecorderTest, BadPathOrMetaIsRefusedBeforeRecording) {
     EXPECT_EQ(error_of([&] { Recorder rec(""); }), "recorder: empty output path");
-    EXPECT_EQ(error_of([&] { Recorder rec(dir_.string()); }),
-              "recorder " + dir_.string() + ": is a directory, not a file to write");
-    const std::string missing = (dir_ / "no" / "x.rcbscene").string();
+    EXPECT_EQ(error_of([&] { Recorder rec(dir_.path().string()); }),
+              "recorder " + dir_.path().string() + ": is a directory, not a file to write");
+    const std::string missing = (dir_.path() / "no" / "x.rcbscene").string();
     EXPECT_EQ(error_of([&] { Recorder rec(missing); }),
-              "recorder " + missing + ": folder " + (dir_ / "no").string() + " does not exist");
+              "recorder " + missing + ": folder " + (dir_.path() / "no").string() + " does not exist");
     EXPECT_EQ(error_of([&] { Recorder rec(path(), "[1, 2]"); }),
               "recorder " + path() + ": meta must be a JSON object, got [1,2]");
     EXPECT_NE(error_of([&] { Recorder rec(path(), "{\"engine\": "); }).find("recorder " + path() + ": meta"),
@@ -259,7 +243,7 @@ TEST_F(RecorderTest, AnExistingFileStaysUntilTheNewOneIsComplete) {
 /// The destructor writes when close() was not called, and a failure there is reported on stderr,
 /// never thrown (the destructor may run while an exception unwinds the engine).
 TEST_F(RecorderTest, DestructorNeverThrows) {
-    const fs::path sub = dir_ / "sub";
+    const fs::path sub = dir_.path() / "sub";
     fs::create_directories(sub);
     const std::string p = (sub / "x.rcbscene").string();
     ::testing::internal::CaptureStderr();

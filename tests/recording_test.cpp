@@ -1,6 +1,7 @@
 // The recording file: round trip, determinism, and every kind of corruption rejected with a
-// message naming the file, the frame and the uid or ray.
+// message naming the file, the frame and the uid or ray; version 2 with shapes.
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <cmath>
 #include <filesystem>
@@ -8,6 +9,7 @@
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/scene/recording_io.h"
+#include "tests/test_scenes.h"
 
 namespace rcb {
 namespace {
@@ -20,23 +22,18 @@ Recording small_recording() {
 }
 
 std::string error_of(const std::string& bytes) {
-    try {
-        decode_recording(bytes, "scene.rcbscene");
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "";
+    return test::input_error_of([&] { decode_recording(bytes, "scene.rcbscene"); });
 }
 
 std::string error_of(const Recording& r) { return error_of(encode_recording(r)); }
 
 TEST(Recording, RoundTripsThroughAFile) {
     const Recording r = small_recording();
-    const std::string path = (std::filesystem::temp_directory_path() / "rcb_roundtrip.rcbscene").string();
+    const test::TempDir dir("recording", "roundtrip");
+    const std::string path = dir.file("r.rcbscene");
     write_recording(r, path);
     EXPECT_EQ(read_recording(path), r);
     EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
-    std::filesystem::remove(path);
 }
 
 TEST(Recording, HeaderIsLittleEndianAndVersioned) {
@@ -158,19 +155,14 @@ TEST(Recording, TheWriterRefusesWhatTheReaderWouldReject) {
     // A scene with coordinates near ±3e38 was written, and then refused by rcbench's own reader.
     Recording r = small_recording();
     r.initial[2].box = {{-3e38f, 0, 0}, {3e38f, 1, 1}};
-    const std::string path = (std::filesystem::temp_directory_path() / "rcb_refused.rcbscene").string();
-    std::filesystem::remove(path);
-    try {
-        write_recording(r, path);
-        FAIL() << "written";
-    } catch (const InputError& e) {
-        EXPECT_EQ(
-            std::string(e.what()).rfind(path + " (not written): frame 0: uid " + std::to_string(r.initial[2].uid) +
-                                            ": coordinate -3e+38 beyond ±1e+15",
-                                        0),
-            0u)
-            << e.what();
-    }
+    const test::TempDir dir("recording", "refused");
+    const std::string path = dir.file("r.rcbscene");
+    const std::string m = test::input_error_of([&] { write_recording(r, path); });
+    EXPECT_EQ(m.rfind(path + " (not written): frame 0: uid " + std::to_string(r.initial[2].uid) +
+                          ": coordinate -3e+38 beyond ±1e+15",
+                      0),
+              0u)
+        << m;
     EXPECT_FALSE(std::filesystem::exists(path));
     EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
     Recording dup = small_recording();
@@ -190,6 +182,47 @@ TEST(Recording, UnknownSectionTagsAreQuotedAndEscaped) {
 TEST(Recording, ReadingAMissingFileOrAFolderIsAnInputError) {
     EXPECT_THROW(read_recording("/nonexistent/scene.rcbscene"), InputError);
     EXPECT_THROW(read_recording(std::filesystem::temp_directory_path().string()), InputError);
+}
+
+Recording shaped_recording() { return test::with_shapes(test::generated_scene("irregular", 300, 4, 5), 9); }
+
+TEST(Recording, Version2RoundTripsShapesAndVersion1StillReads) {
+    const Recording shaped = shaped_recording();
+    EXPECT_EQ(recording_version(shaped), 2u);
+    EXPECT_EQ(decode_recording(encode_recording(shaped), "shaped"), shaped);
+    const Recording boxes = test::generated_scene("irregular", 100, 2, 5);
+    const std::string bytes = encode_recording(boxes);
+    EXPECT_EQ(recording_version(boxes), 1u);
+    EXPECT_EQ(bytes[8], 1);  // a box scene is still written as version 1, byte for byte as before
+    EXPECT_EQ(decode_recording(bytes, "boxes"), boxes);
+}
+
+TEST(Recording, BadShapesAreRejectedNamingFileAndObject) {
+    Recording r = shaped_recording();
+    std::string bytes = encode_recording(r);
+    // Patch the first shaped object's first float to NaN, then fix the section's checksum by
+    // re-encoding through a recording whose shape is invalid: validate_recording must refuse it.
+    for (Object& o : r.initial)
+        if (o.shape.kind == ShapeKind::triangle) {
+            o.shape.v[0] = std::nanf("");
+            const std::string m = test::input_error_of([&] { validate_recording(r, "scene.rcbscene"); });
+            EXPECT_NE(m.find("scene.rcbscene"), std::string::npos) << m;
+            EXPECT_NE(m.find("uid " + std::to_string(o.uid)), std::string::npos) << m;
+            EXPECT_NE(m.find("non-finite"), std::string::npos) << m;
+            EXPECT_EQ(m.find('\n'), std::string::npos);
+            o.shape.v[0] = 0;
+            o.box = Aabb{{0, 0, 0}, {1, 1, 1}};  // a box that is not the shape's bounds
+            EXPECT_THROW(validate_recording(r, "scene.rcbscene"), InputError);
+            break;
+        }
+    // An unknown kind byte in the file (with the section's checksum made right again).
+    const std::size_t objs = bytes.find("OBJS"), payload = objs + 4 + 8 + 4;
+    std::uint64_t length = 0;
+    for (int i = 0; i < 8; ++i) length |= std::uint64_t(std::uint8_t(bytes[objs + 4 + i])) << (8 * i);
+    bytes[payload + 4 + 4] = 9;  // after the count and the first uid
+    const auto crc = std::uint32_t(crc32(0, reinterpret_cast<const Bytef*>(bytes.data() + payload), uInt(length)));
+    for (int i = 0; i < 4; ++i) bytes[objs + 12 + i] = char((crc >> (8 * i)) & 0xff);
+    test::expect_input_error([&] { decode_recording(bytes, "scene.rcbscene"); }, "unknown shape kind 9");
 }
 
 }  // namespace

@@ -84,14 +84,12 @@ const Registered& registered() {
     return r;
 }
 
-template <class F>
-std::string error_of(F&& f) {
-    try {
-        f();
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "";
+const auto error_of = test::input_error_of;
+
+TEST(Registry, UnknownStructureListsTheKnownOnes) {
+    const std::string m = test::input_error_of([] { find_structure("kdtree"); });
+    EXPECT_EQ(m.find("unknown structure 'kdtree' (known: bf"), 0u) << m;
+    EXPECT_EQ(find_structure("bf").name, "bf");
 }
 
 TEST(RegisterStructure, JoinsTheRegistryAfterTheBuiltIns) {

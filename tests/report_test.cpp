@@ -18,6 +18,7 @@
 #include "runner/run_experiment.h"
 #include "runner/store.h"
 #include "tests/real_data.h"
+#include "tests/test_support.h"
 
 namespace rcb {
 namespace {
@@ -54,9 +55,8 @@ std::int64_t small_run(const std::string& db_path) {
 TEST(Report, DrawsEveryChartAndRendersInChromium) {
     ASSERT_TRUE(gnuplot_available())
         << "gnuplot is part of rcbench's dependencies (scripts/setup.sh installs gnuplot-nox)";
-    const fs::path dir = fs::temp_directory_path() / ("rcb_report_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const test::TempDir temp("report", "charts");
+    const fs::path& dir = temp.path();
     const std::string db_path = (dir / "r.db").string();
     const std::int64_t run = small_run(db_path);
 
@@ -103,14 +103,12 @@ TEST(Report, DrawsEveryChartAndRendersInChromium) {
     ASSERT_GT(png.size(), 8u);
     EXPECT_EQ(png.substr(1, 3), "PNG");
     EXPECT_GT(png.size(), 60'000u);
-    fs::remove_all(dir);
 }
 
 TEST(Report, SpeedAgainstAccuracyNamesEachScenesParetoFrontFromTheData) {
     ASSERT_TRUE(gnuplot_available());
-    const fs::path dir = fs::temp_directory_path() / ("rcb_report_front_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const test::TempDir temp("report", "front");
+    const fs::path& dir = temp.path();
     const std::string db_path = (dir / "r.db").string();
     // The candidate level reports every object of the cells a ray crosses: recall 1, precision
     // below 1; the box level is exact on box scenes.
@@ -162,7 +160,6 @@ TEST(Report, SpeedAgainstAccuracyNamesEachScenesParetoFrontFromTheData) {
         }
     EXPECT_EQ(points[front.back()].accuracy, 1.0);  // an exact configuration ends the front
     EXPECT_EQ(page.find("the recall front is: "), std::string::npos);
-    fs::remove_all(dir);
 }
 
 TEST(Report, GrowthChartFitsSlopesAndReadsThemFromTheData) {

@@ -11,6 +11,7 @@
 #include "tests/subprocess.h"
 #include "tuner/advise.h"
 #include "tuner/run_tuning.h"
+#include "tests/test_support.h"
 
 namespace rcb {
 namespace {
@@ -36,14 +37,8 @@ std::size_t feature(std::string_view name) {
 
 class SceneCategoryFiles : public ::testing::Test {
 protected:
-    void SetUp() override {
-        dir_ = fs::temp_directory_path() / ("rcb_features_" + std::to_string(::getpid()) + "_" +
-                                            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
-    std::string path(const std::string& name) const { return (dir_ / name).string(); }
-    fs::path dir_;
+    std::string path(const std::string& name) const { return dir_.file(name); }
+    test::TempDir dir_{"features"};  // rcb_features_<pid>_<test>, removed after the test
 };
 
 TEST(SceneFeatures, AreDeterministicForASeed) {
@@ -125,11 +120,11 @@ TEST_F(SceneCategoryFiles, AdviseWithoutACategoryPicksTheCategoryOfTheScenesItRe
                 {"kind": "uniform", "objects": 1500, "seed": 1}, {"kind": "uniform", "objects": 1500, "seed": 2},
                 {"kind": "uniform", "objects": 1500, "seed": 3}, {"kind": "irregular", "objects": 4000, "seed": 1},
                 {"kind": "irregular", "objects": 4000, "seed": 2}, {"kind": "irregular", "objects": 4000, "seed": 3}]}]})",
-        "two.json", dir_.string());
+        "two.json", dir_.path().string());
     TuneOptions o;
     o.file = path("two.json");
     o.db = path("r.db");
-    o.out_dir = dir_.string();
+    o.out_dir = dir_.path().string();
     o.derive_categories = true;
     const TuneOutcome out = run_tuning(spec, o);
     ASSERT_EQ(out.categories.size(), 2u) << out.scene_categories.rule;
@@ -170,7 +165,7 @@ TEST_F(SceneCategoryFiles, RunsStoreFeaturesAndDeriveCategoriesOrSayWhyNot) {
         "scenes": [{"kind": "uniform", "objects": 800}, {"kind": "uniform", "objects": 900},
                    {"kind": "irregular", "objects": 3000}, {"kind": "irregular", "objects": 3500}],
         "structures": [{"name": "bf"}]})";
-    const test::Outcome run = test::run_shell(bin + " run " + exp + " --db " + db);
+    const ::test::Outcome run = ::test::run_shell(bin + " run " + exp + " --db " + db);
     ASSERT_EQ(run.code, 0) << run.err;
     {
         auto d = open_read_only(db);
@@ -180,7 +175,7 @@ TEST_F(SceneCategoryFiles, RunsStoreFeaturesAndDeriveCategoriesOrSayWhyNot) {
         EXPECT_EQ(s.int64(1), 4 * std::int64_t(kSceneFeatureCount));
     }
     // merge copies the scenes' features with the scenes.
-    const test::Outcome merged = test::run_shell(bin + " merge " + path("m.db") + " " + db);
+    const ::test::Outcome merged = ::test::run_shell(bin + " merge " + path("m.db") + " " + db);
     ASSERT_EQ(merged.code, 0) << merged.err;
     {
         auto d = open_read_only(path("m.db"));
@@ -188,7 +183,7 @@ TEST_F(SceneCategoryFiles, RunsStoreFeaturesAndDeriveCategoriesOrSayWhyNot) {
         ASSERT_TRUE(s.step());
         EXPECT_EQ(s.int64(0), 4 * std::int64_t(kSceneFeatureCount));
     }
-    const test::Outcome cats = test::run_shell(bin + " categories " + db);
+    const ::test::Outcome cats = ::test::run_shell(bin + " categories " + db);
     ASSERT_EQ(cats.code, 0) << cats.err;
     EXPECT_NE(cats.out.find("2 categories"), std::string::npos) << cats.out;
     {
@@ -203,35 +198,35 @@ TEST_F(SceneCategoryFiles, RunsStoreFeaturesAndDeriveCategoriesOrSayWhyNot) {
         ResultStore store(db);
         store.db().exec("DELETE FROM scene_feature");
     }
-    const test::Outcome old = test::run_shell(bin + " categories " + db);
+    const ::test::Outcome old = ::test::run_shell(bin + " categories " + db);
     EXPECT_EQ(old.code, 2) << old.err;
     EXPECT_NE(old.err.find("has no stored features"), std::string::npos) << old.err;
     EXPECT_EQ(std::count(old.err.begin(), old.err.end(), '\n'), 1) << old.err;
     // A new run of the same scenes stores their features again.
-    ASSERT_EQ(test::run_shell(bin + " run " + exp + " --db " + db + " --new-run").code, 0);
-    const test::Outcome again = test::run_shell(bin + " categories " + db);
+    ASSERT_EQ(::test::run_shell(bin + " run " + exp + " --db " + db + " --new-run").code, 0);
+    const ::test::Outcome again = ::test::run_shell(bin + " categories " + db);
     EXPECT_EQ(again.code, 0) << again.err;
 }
 
 TEST_F(SceneCategoryFiles, BadInputsToFeaturesAndAdviceAreOneLineErrors) {
     const std::string bin = RCBENCH_BINARY;
-    auto expect_bad = [](const test::Outcome& r, const std::string& needle) {
+    auto expect_bad = [](const ::test::Outcome& r, const std::string& needle) {
         EXPECT_EQ(r.code, 2) << r.err;
         EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
         EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     };
-    expect_bad(test::run_shell(bin + " scene features " + path("missing.rcbscene")), "missing.rcbscene");
+    expect_bad(::test::run_shell(bin + " scene features " + path("missing.rcbscene")), "missing.rcbscene");
     write_recording(scene("uniform", 300, 1), path("s.rcbscene"));
-    const test::Outcome f = test::run_shell(bin + " scene features --json " + path("s.rcbscene"));
+    const ::test::Outcome f = ::test::run_shell(bin + " scene features --json " + path("s.rcbscene"));
     ASSERT_EQ(f.code, 0) << f.err;
     EXPECT_EQ(nlohmann::json::parse(f.out).size(), kSceneFeatureCount);
     // A tuning result without scene categories (an older rcbench wrote it) and no --category.
     std::ofstream(path("old.json")) << R"({"name": "old", "categories": [{"category": "c", "structures": []}]})";
-    expect_bad(test::run_shell(bin + " advise " + path("s.rcbscene") + " --tuning " + path("old.json")),
+    expect_bad(::test::run_shell(bin + " advise " + path("s.rcbscene") + " --tuning " + path("old.json")),
                "no scene categories");
-    expect_bad(test::run_shell(bin + " advise " + path("missing.rcbscene") + " --tuning " + path("old.json")),
+    expect_bad(::test::run_shell(bin + " advise " + path("missing.rcbscene") + " --tuning " + path("old.json")),
                "missing.rcbscene");
-    expect_bad(test::run_shell(bin + " categories " + path("missing.db")), "missing.db");
+    expect_bad(::test::run_shell(bin + " categories " + path("missing.db")), "missing.db");
 }
 
 }  // namespace

@@ -151,12 +151,7 @@ TEST(ShapeScenes, InvalidSharesAreRejectedNamingTheSetting) {
     auto message = [](ShapeSettings shapes) -> std::string {
         SceneSettings s = preset_settings("uni-s");
         s.shapes = shapes;
-        try {
-            generate_scene(s);
-        } catch (const InputError& e) {
-            return e.what();
-        }
-        return "";
+        return test::input_error_of([&] { generate_scene(s); });
     };
     const double nan = std::numeric_limits<double>::quiet_NaN();
     EXPECT_EQ(message({-0.1, 0, 0}).rfind("rotated_share: expected a number in 0..1", 0), 0u);
@@ -166,13 +161,9 @@ TEST(ShapeScenes, InvalidSharesAreRejectedNamingTheSetting) {
     EXPECT_EQ(message({0.5, 0.25, 0.25}), "");  // exactly 1 is fine
 
     // In an experiment's scene spec: the JSON path and the setting.
-    auto spec_error = [](const std::string& scene) -> std::string {
-        try {
-            parse_scenes(nlohmann::json::parse("[" + scene + "]"), "scenes", SceneDefaults{}, ".");
-        } catch (const InputError& e) {
-            return e.what();
-        }
-        return "";
+    auto spec_error = [](const std::string& scene) {
+        return test::input_error_of(
+            [&] { parse_scenes(nlohmann::json::parse("[" + scene + "]"), "scenes", SceneDefaults{}, "."); });
     };
     EXPECT_NE(spec_error(R"({"preset": "uni-s", "rotated_share": 2})").find("rotated_share"), std::string::npos);
     EXPECT_NE(spec_error(R"({"preset": "uni-s", "sphere_share": "half"})").find("sphere_share"), std::string::npos);

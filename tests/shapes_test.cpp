@@ -1,7 +1,6 @@
-// Shapes, their tests against the double-precision truth, the recording format's version 2, and
-// the query levels (candidates, boxes, shapes) of every structure.
+// Shapes, their tests against the double-precision truth, and the query levels (candidates, boxes,
+// shapes) of every structure. The recording format's version 2: recording_test.cpp.
 #include <gtest/gtest.h>
-#include <zlib.h>
 
 #include <cmath>
 #include <random>
@@ -254,55 +253,6 @@ Recording shaped_recording() {
     return test::with_shapes(r, 9);
 }
 
-TEST(Recording, Version2RoundTripsShapesAndVersion1StillReads) {
-    const Recording shaped = shaped_recording();
-    EXPECT_EQ(recording_version(shaped), 2u);
-    EXPECT_EQ(decode_recording(encode_recording(shaped), "shaped"), shaped);
-    const Recording boxes = test::generated_scene("irregular", 100, 2, 5);
-    const std::string bytes = encode_recording(boxes);
-    EXPECT_EQ(recording_version(boxes), 1u);
-    EXPECT_EQ(bytes[8], 1);  // a box scene is still written as version 1, byte for byte as before
-    EXPECT_EQ(decode_recording(bytes, "boxes"), boxes);
-}
-
-TEST(Recording, BadShapesAreRejectedNamingFileAndObject) {
-    Recording r = shaped_recording();
-    std::string bytes = encode_recording(r);
-    // Patch the first shaped object's first float to NaN, then fix the section's checksum by
-    // re-encoding through a recording whose shape is invalid: validate_recording must refuse it.
-    for (Object& o : r.initial)
-        if (o.shape.kind == ShapeKind::triangle) {
-            o.shape.v[0] = std::nanf("");
-            try {
-                validate_recording(r, "scene.rcbscene");
-                FAIL() << "a NaN vertex was accepted";
-            } catch (const InputError& e) {
-                const std::string m = e.what();
-                EXPECT_NE(m.find("scene.rcbscene"), std::string::npos) << m;
-                EXPECT_NE(m.find("uid " + std::to_string(o.uid)), std::string::npos) << m;
-                EXPECT_NE(m.find("non-finite"), std::string::npos) << m;
-                EXPECT_EQ(m.find('\n'), std::string::npos);
-            }
-            o.shape.v[0] = 0;
-            o.box = Aabb{{0, 0, 0}, {1, 1, 1}};  // a box that is not the shape's bounds
-            EXPECT_THROW(validate_recording(r, "scene.rcbscene"), InputError);
-            break;
-        }
-    // An unknown kind byte in the file (with the section's checksum made right again).
-    const std::size_t objs = bytes.find("OBJS"), payload = objs + 4 + 8 + 4;
-    std::uint64_t length = 0;
-    for (int i = 0; i < 8; ++i) length |= std::uint64_t(std::uint8_t(bytes[objs + 4 + i])) << (8 * i);
-    bytes[payload + 4 + 4] = 9;  // after the count and the first uid
-    const auto crc = std::uint32_t(crc32(0, reinterpret_cast<const Bytef*>(bytes.data() + payload), uInt(length)));
-    for (int i = 0; i < 4; ++i) bytes[objs + 12 + i] = char((crc >> (8 * i)) & 0xff);
-    try {
-        decode_recording(bytes, "scene.rcbscene");
-        FAIL();
-    } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find("unknown shape kind 9"), std::string::npos) << e.what();
-    }
-}
-
 /// Every structure and peer at every level on a scene of mixed shapes: the shapes level is exact
 /// against the shapes' truth, the candidate level a superset of the box level, the box level exact.
 TEST(QueryLevels, EveryStructureKeepsItsContract) {
@@ -394,12 +344,11 @@ TEST(LeafVolumes, VolumesContainTheirShapes) {
 }
 
 TEST(LeafVolumes, CandidatesTakeNoVolume) {
-    try {
-        find_structure("dbvh").make({{"query", "candidates"}, {"leaf_bv", "kdop14"}}, "structures[0].params");
-        FAIL();
-    } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find("structures[0].params.leaf_bv"), std::string::npos) << e.what();
-    }
+    test::expect_input_error(
+        [] {
+            find_structure("dbvh").make({{"query", "candidates"}, {"leaf_bv", "kdop14"}}, "structures[0].params");
+        },
+        "structures[0].params.leaf_bv");
     EXPECT_THROW(find_structure("bf").make({{"leaf_bv", "kdop26"}}, "params"), InputError);
 }
 

@@ -395,8 +395,8 @@ TEST(Stability, LongChurnStaysExact) {
 /// scene of the same size.
 TEST(Stability, ReportShowsWhereMethodsFail) {
     namespace fs = std::filesystem;
-    const fs::path dir = fs::temp_directory_path() / ("rcb_stability_" + std::to_string(::getpid()));
-    fs::create_directories(dir);
+    const test::TempDir temp("stability", "report");
+    const fs::path& dir = temp.path();
     std::ofstream(dir / "mini.json")
         << R"({"name": "mini", "frames": 3, "rays_per_frame": 200, "ray_mix": "center,faces",
         "scenes": [{"preset": "outlier-s"}, {"preset": "stadium-s"}, {"kind": "irregular", "objects": 1000}],
@@ -414,7 +414,6 @@ TEST(Stability, ReportShowsWhereMethodsFail) {
     EXPECT_NE(section.find("<td>ug outlier_guard=false</td><td class=n>ok; "), std::string::npos);
     EXPECT_NE(section.find("<td>bf</td><td class=n>ok; 1.00 bf; "), std::string::npos);
     EXPECT_NE(section.find("Every configuration was exact on every failure scene."), std::string::npos);
-    fs::remove_all(dir);
 }
 
 }  // namespace

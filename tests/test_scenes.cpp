@@ -2,8 +2,6 @@
 
 #include <gtest/gtest.h>
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <random>
 
@@ -402,14 +400,6 @@ Segment random_segment(Random& rng, float world) {
     const Vec3 p0{coordinate(), coordinate(), coordinate()};
     const Vec3 p1{coordinate(), coordinate(), coordinate()};
     return {p0, p1};
-}
-
-std::filesystem::path temp_dir(const std::string& suite, const std::string& name) {
-    const std::filesystem::path dir =
-        std::filesystem::temp_directory_path() / ("rcb_" + suite + "_" + std::to_string(::getpid()) + "_" + name);
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
 }
 
 }  // namespace rcb::test

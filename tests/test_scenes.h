@@ -17,6 +17,7 @@
 #include "core/sim/simulator.h"
 #include "core/accel/structure.h"
 #include "runner/experiment.h"
+#include "tests/test_support.h"
 
 namespace rcb::test {
 
@@ -40,10 +41,6 @@ Recording generated_scene(const std::string& kind, std::uint32_t objects, std::u
 /// `r` with its objects given shapes inside their boxes, by uid (the same kind and rotation for an
 /// object all along): boxes, triangles spanning the box, rotated boxes, spheres and capsules.
 Recording with_shapes(const Recording& r, std::uint64_t seed);
-
-/// An empty folder rcb_<suite>_<pid>_<name> in the system's temporary folder (emptied if it
-/// exists), for a test's databases and files.
-std::filesystem::path temp_dir(const std::string& suite, const std::string& name);
 
 /// The hits of one ray, sorted by uid.
 std::vector<Uid> sorted_hits(Structure& s, const Segment& ray);

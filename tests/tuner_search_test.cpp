@@ -12,6 +12,7 @@
 #include "tuner/run_tuning.h"
 #include "tuner/search.h"
 #include "tuner/tuning.h"
+#include "tests/test_support.h"
 
 namespace rcb {
 namespace {
@@ -200,9 +201,8 @@ TEST(Spearman, RanksWithTiesAndTheDegenerateCases) {
 
 TEST(TunerExhaustiveCheck, ReplaysFiveSeedsOnTheMeasuredSurfaceAndRanksThePrediction) {
     namespace fs = std::filesystem;
-    const fs::path dir = fs::temp_directory_path() / ("rcb_tuner_exhaustive_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
+    const test::TempDir temp("tuner", "exhaustive");
+    const fs::path& dir = temp.path();
     const TuneSpec spec = parse_tune_spec(
         R"({"name": "ex", "mode": "measured", "structures": ["ug"], "budget": 3, "calibration": 4, "seed": 7,
             "frames": 3, "rays_per_frame": 200, "repetitions": 1,
@@ -237,7 +237,6 @@ TEST(TunerExhaustiveCheck, ReplaysFiveSeedsOnTheMeasuredSurfaceAndRanksThePredic
     EXPECT_GE(rho, -1.0);
     EXPECT_LE(rho, 1.0);
     EXPECT_FALSE(ex["prediction_model"].get<std::string>().empty());  // calibrated although the mode is measured
-    fs::remove_all(dir);
 }
 
 }  // namespace

@@ -103,12 +103,7 @@ TEST(TunerRule, PrefersTheSimplestConfigurationWithinThreePercent) {
 }
 
 std::string tune_error(const std::string& text) {
-    try {
-        parse_tune_spec(text, "t.json", ".");
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "";
+    return test::input_error_of([&] { parse_tune_spec(text, "t.json", "."); });
 }
 
 TEST(TuneSpec, ValidatesWithJsonPaths) {
@@ -135,6 +130,14 @@ TEST(TuneSpec, ValidatesWithJsonPaths) {
     ASSERT_EQ(spec.space.at("ug").size(), 1u);  // density; thesis_reset is not tunable
     EXPECT_EQ(spec.space.at("ug")[0].name, "density");
     EXPECT_GE(spec.space.at("ug")[0].levels.size(), 8u);
+}
+
+TEST(TuneSpec, AHugeSearchSpaceIsRefusedBeforeItIsEnumerated) {
+    const std::string text = R"({"structures": ["hg"], "space": {"hg": {"amp": {"from": 0.01, "to": 16, "step": 0.002},
+        "max_capacity": {"from": 1, "to": 256, "step": 1}, "max_depth": [0, 1, 2, 3, 4, 5, 6]}},
+        "categories": [{"name": "c", "scenes": [{"preset": "uni-s"}]}]})";
+    const std::string m = test::input_error_of([&] { parse_tune_spec(text, "t.json", "."); });
+    EXPECT_EQ(m.rfind("t.json: space.hg: the search space has", 0), 0u) << m;
 }
 
 TEST(Tune, PredictedThenVerifiedMeasuresItsCandidatesAndTheDefaults) {
@@ -176,7 +179,8 @@ TEST(Tune, TheDefaultsSpelledAsAnIntegerAreMeasuredOnce) {
 
 TEST(TuneRecordsForAdvise, EveryModeRecordsItsSpaceAndACostModel) {
     namespace fs = std::filesystem;
-    const fs::path dir = test::temp_dir("tuner", "records_for_advise");
+    const test::TempDir temp("tuner", "records_for_advise");
+    const fs::path& dir = temp.path();
     for (const char* mode : {"measured", "predicted-then-verified"}) {
         const TuneSpec spec = parse_tune_spec(
             std::string(R"({"name": "rec", "structures": ["ug"], "budget": 4, "calibration": 4, "frames": 3,
@@ -201,7 +205,6 @@ TEST(TuneRecordsForAdvise, EveryModeRecordsItsSpaceAndACostModel) {
         const json& m = ug["cost_model"];
         EXPECT_GT(m["C_T"].get<double>() + m["C_RB"].get<double>() + m["C_MP"].get<double>(), 0) << mode << m.dump();
     }
-    fs::remove_all(dir);
 }
 
 TEST(TuneCostModel, TheMachinesCalibrationKeepsRayWorkInAFewPointFit) {

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <iostream>
 #include <map>
+#include <optional>
 #include <string>
 
 #include "core/base/error.h"
@@ -22,7 +23,8 @@
 namespace rcb {
 namespace {
 
-std::vector<nlohmann::json> wbvh_param_sets(std::uint64_t seed) {
+/// Chosen sets and two drawn from the wbvh's parameter specs (with `seed`; none without).
+std::vector<nlohmann::json> wbvh_param_sets(std::optional<std::uint64_t> seed) {
     std::vector<nlohmann::json> sets{
         nlohmann::json::object(),
         {{"rebuild_ratio", 0.0}, {"rebuild_after", 0.0}},
@@ -34,23 +36,16 @@ std::vector<nlohmann::json> wbvh_param_sets(std::uint64_t seed) {
         {{"rebuild_ratio", 1.0}, {"rebuild_speed", 0.0}, {"reinsert", false}},
         {{"width", 2}, {"leaf_size", 1}, {"bins", 2}, {"rebuild_after", 0.05}, {"push", "loop"}},
         {{"reinsert", false}, {"rebuild_ratio", 0.0}, {"rebuild_after", 0.0}, {"push", "fixed"}}};
-    Random rng(seed);
-    for (int i = 0; i < 2; ++i)
-        sets.push_back({{"width", int(2 + rng.below(7))},
-                        {"leaf_size", int(1 + rng.below(8))},
-                        {"bins", int(2 + rng.below(31))},
-                        {"rebuild_ratio", rng.below(3) == 0 ? 0.0 : rng.uniform(1.0, 2.0)},
-                        {"rebuild_after", rng.below(3) == 0 ? 0.0 : rng.uniform(0.01, 1.0)},
-                        {"rebuild_speed", rng.below(4) == 0 ? 0.0 : rng.uniform(0.1, 10.0)},
-                        {"reinsert", rng.below(2) == 1},
-                        {"push", rng.below(2) == 1 ? "loop" : "fixed"}});
+    if (!seed) return sets;
+    Random rng(*seed);
+    for (int i = 0; i < 2; ++i) sets.push_back(test::random_params(find_structure("wbvh"), rng));
     return sets;
 }
 
-TEST(WideBvh, MatchesGroundTruthOnEveryHardSceneWithRandomParams) {
-    std::uint64_t seed = 1;
+/// Random parameter sets on the hard scenes: conformance_test.cpp.
+TEST(WideBvh, MatchesGroundTruthOnEveryHardSceneWithChosenParams) {
     for (const test::NamedScene& s : test::hard_scenes())
-        for (const nlohmann::json& p : wbvh_param_sets(seed++))
+        for (const nlohmann::json& p : wbvh_param_sets(std::nullopt))
             test::expect_matches_ground_truth(s.recording, "wbvh", p, s.name);
 }
 
