@@ -54,8 +54,8 @@ std::set<std::string> subcommands(const std::vector<std::string>& of) {
 bool has_option(const std::string& help, const std::string& option) {
     for (std::size_t at = help.find(option); at != std::string::npos; at = help.find(option, at + 1)) {
         const std::size_t end = at + option.size();
-        if (end == help.size() || !(std::isalnum(static_cast<unsigned char>(help[end])) || help[end] == '-' ||
-                                    help[end] == '_'))
+        if (end == help.size() ||
+            !(std::isalnum(static_cast<unsigned char>(help[end])) || help[end] == '-' || help[end] == '_'))
             return true;
     }
     return false;
@@ -86,8 +86,7 @@ TEST(Docs, EveryCommandOfTheHelpIsNamedInTheDocs) {
     for (const std::string& c : commands) EXPECT_NE(text.find("rcbench " + c), std::string::npos) << c;
     const std::set<std::string> scene = subcommands({"scene"});
     EXPECT_GE(scene.size(), 4u);  // gen, import, info, features
-    for (const std::string& c : scene)
-        EXPECT_NE(text.find("rcbench scene " + c), std::string::npos) << "scene " << c;
+    for (const std::string& c : scene) EXPECT_NE(text.find("rcbench scene " + c), std::string::npos) << "scene " << c;
 }
 
 TEST(Docs, EveryStructureIsNamedInTheDocs) {
