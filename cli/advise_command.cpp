@@ -1,4 +1,6 @@
 // rcbench advise: measure every structure on a user's scene and recommend the one to ship.
+#include <unistd.h>
+
 #include <iostream>
 #include <memory>
 
@@ -138,7 +140,9 @@ void add_advise_command(CLI::App& app) {
     cmd->callback([o, accuracy, json_out] {
         AdviseOptions options = *o;
         options.accuracy = parse_accuracy(*accuracy);
-        options.progress = [](const std::string& structure) { std::cerr << "measuring " << structure << " ...\n"; };
+        // Progress only where a person watches: off a terminal, stderr holds nothing but an error's one line.
+        if (isatty(STDERR_FILENO))
+            options.progress = [](const std::string& structure) { std::cerr << "measuring " << structure << " ...\n"; };
         print_advice(advise(options), options, *json_out);
     });
 }

@@ -16,13 +16,19 @@ std::string error_of(const std::string& text) {
 
 TEST(JsonInput, DeepNestingIsRefusedNotACrash) {
     const std::string deep = std::string(50000, '[') + std::string(50000, ']');
-    EXPECT_EQ(error_of(deep), "f.json: JSON nests deeper than 64 levels");
+    EXPECT_EQ(error_of(deep), "f.json: [0][0][0][0][0][0][0][0]...: JSON nests deeper than 64 levels");
     const std::string objects = [] {
         std::string s;
         for (int i = 0; i < 50000; ++i) s += "{\"a\":";
         return s + "1" + std::string(50000, '}');
     }();
-    EXPECT_EQ(error_of(objects), "f.json: JSON nests deeper than 64 levels");
+    EXPECT_EQ(error_of(objects), "f.json: a.a.a.a.a.a.a.a...: JSON nests deeper than 64 levels");
+    // The message names the path to the nest, keys and element indices as the file has them.
+    std::string nest = "{\"structures\": [1, {\"params\": ";
+    for (int i = 0; i < 70; ++i) nest += "[";
+    for (int i = 0; i < 70; ++i) nest += "]";
+    EXPECT_EQ(error_of(nest + "}]}"),
+              "f.json: structures[1].params[0][0][0][0][0]...: JSON nests deeper than 64 levels");
     // At the limit it parses.
     EXPECT_EQ(error_of(std::string(kMaxJsonDepth, '[') + std::string(kMaxJsonDepth, ']')), "");
     EXPECT_NE(error_of(std::string(kMaxJsonDepth + 1, '[') + std::string(kMaxJsonDepth + 1, ']')), "");
