@@ -92,7 +92,11 @@ TEST(AdviseSteps, PlanParametersChoosesTheMethodPerStructureAndRefusesTheImpossi
     ug.params = find_structure("ug").defaults();
     ug.params["density"] = 2.0;
     ug.space = {{"density", {1.0, 2.0, 4.0}}};
-    ug.model = CostCoefficients{1, 10, 0, 0, 0, 0, 0, "by hand"};
+    CostCoefficients by_hand;
+    by_hand["C_RB"] = 1;
+    by_hand["C_T"] = 10;
+    by_hand.model = "by hand";
+    ug.model = by_hand;
     TunedStructure hg;  // an older tuning: neither space nor model
     hg.params = find_structure("hg").defaults();
     s.tuned = {{"ug", ug}, {"hg", hg}};

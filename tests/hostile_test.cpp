@@ -815,12 +815,12 @@ json tuning() {
 // The harness.
 
 struct Case {
-    std::vector<std::string> args;    // after the binary; relative paths are inside the work folder
-    std::vector<std::string> places;  // an exit-2 error must name one of these
-    std::vector<std::string> writes;  // what it was asked to write, relative ("dir/" for a folder's contents)
-    std::vector<std::string> inputs;  // files made for this case alone: removed after it unless it failed
-    bool bad = false;                 // certainly bad input: exit 0 is a failure too
-    std::string what;                 // the mutation or hostile argument
+    std::vector<std::string> args{};    // after the binary; relative paths are inside the work folder
+    std::vector<std::string> places{};  // an exit-2 error must name one of these
+    std::vector<std::string> writes{};  // what it was asked to write, relative ("dir/" for a folder's contents)
+    std::vector<std::string> inputs{};  // files made for this case alone: removed after it unless it failed
+    bool bad = false;                   // certainly bad input: exit 0 is a failure too
+    std::string what{};                 // the mutation or hostile argument
 };
 
 struct Entry {

@@ -39,7 +39,7 @@ public:
         bool backwards = false;
         static constexpr auto fields() {
             return std::tuple{Field{"block", &Params::block, 1, 64, "objects tested per block"},
-                              Field{"backwards", &Params::backwards, 0, 1, "scan from the last object", false}};
+                              Field{"backwards", &Params::backwards, 0, 1, "scan from the last object", kNotTuned}};
         }
     };
     Toy() : Toy(Params{}) {}

@@ -31,7 +31,12 @@ public:
         std::string out;
         for (std::size_t i = 0; i + 1 < steps_.size() && i < max_steps; ++i) {
             const Step& s = steps_[i];
-            out += s.array ? "[" + std::to_string(s.index) + "]" : (out.empty() ? "" : ".") + s.key;
+            if (s.array) {
+                out.append("[").append(std::to_string(s.index)).append("]");
+            } else {
+                if (!out.empty()) out.append(".");
+                out.append(s.key);
+            }
         }
         if (steps_.size() > max_steps + 1) out += "...";
         return out;
