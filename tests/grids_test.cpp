@@ -225,7 +225,7 @@ TEST(Grids, GuardsSwitchedOffSayWhenTheyWouldHaveFired) {
     Random rng(31);
     for (Uid i = 0; i < 300; ++i) objs.push_back({i, test::random_box(rng, 10)});
     flat = objs;
-    for (Uid i = 300; i < 600; ++i) objs.push_back({i, {{2, 2, 2}, {8, 8, 8}}});
+    for (Uid i = 300; i < 600; ++i) objs.push_back({i, {{1, 1, 1}, {9, 9, 9}}});
     for (Uid i = 300; i < 600; ++i) flat.push_back({i, {{2, 2, 5.05f}, {8, 8, 5.05f}}});
     auto guards_off = [](const Structure& g) {
         const nlohmann::json st = g.stats();
@@ -235,10 +235,12 @@ TEST(Grids, GuardsSwitchedOffSayWhenTheyWouldHaveFired) {
         SCOPED_TRACE(name);
         auto on = find_structure(name).make({}, "params");
         on->build(objs);
+        on->commit();
         EXPECT_GE(on->stats()["large_objects"].get<std::uint64_t>(), 300u);
         EXPECT_EQ(guards_off(*on), nlohmann::json::object());
         auto off = find_structure(name).make({{"max_cells", 0}}, "params");
         off->build(objs);
+        off->commit();
         off->validate();
         EXPECT_EQ(off->stats()["large_objects"].get<std::uint64_t>(), 0u);
         const std::uint64_t would_list = guards_off(*off).value("max_cells", std::uint64_t(0));

