@@ -5,7 +5,6 @@
 #include <filesystem>
 #include <functional>
 #include <set>
-#include <source_location>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -21,9 +20,10 @@ namespace rcb::test {
 std::string input_error_of(const std::function<void()>& f);
 
 /// Expects `f` to throw an InputError whose message contains `substring`; a failure is reported at
-/// the caller's line, with the message `f` threw or that it threw none.
+/// the caller's line, with the message `f` threw or that it threw none. (__builtin_FILE and
+/// __builtin_LINE, not std::source_location: clang 14 with libstdc++ 12 has no source_location.)
 void expect_input_error(const std::function<void()>& f, const std::string& substring,
-                        std::source_location where = std::source_location::current());
+                        const char* file = __builtin_FILE(), int line = __builtin_LINE());
 
 /// An empty folder rcb_<suite>_<pid>_<name> in the system's temporary folder (emptied if it
 /// exists), for a test's databases and files.
