@@ -382,8 +382,10 @@ RowPlan plan_rows(const std::vector<StructurePlan>& structures, const std::vecto
                   const AccuracyConstraint& accuracy) {
     RowPlan plan;
     for (const auto& [info, p] : structures) {
+        // A plain reference for the lambda: clang 14 cannot capture a structured binding.
+        const std::string& name = info->name;
         const bool is_tuned = std::any_of(choices.begin(), choices.end(),
-                                          [&](const ParameterChoice& pc) { return pc.structure == info->name; });
+                                          [&](const ParameterChoice& pc) { return pc.structure == name; });
         plan.params.push_back(p);
         plan.rows.push_back({info->name, p.dump(), {}, is_tuned});
         // Inexact answers allowed: the same configuration at the other query levels competes too
