@@ -1,5 +1,6 @@
 // The simulator: phases, results, and that verification really catches a wrong structure.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include "core/accel/registry.h"
 #include "core/sim/simulator.h"
@@ -76,6 +77,48 @@ TEST(Simulator, MedianAndMadOfFrames) {
     EXPECT_EQ(s.median, 3);
     EXPECT_EQ(s.mad, 1);
     EXPECT_EQ(spread_of({2, 4}).median, 3);
+}
+
+TEST(Simulator, TheMediansIntervalIsTheOrderStatisticsOfTheBinomialAndNarrowsWithMoreValues) {
+    // 18 values (a dense.json cell's measured frames): the 95% interval is x(5) .. x(14) (Conover's
+    // table: P(Binomial(18, 1/2) <= 4) = 0.015, P(<= 5) = 0.048).
+    std::vector<double> v;
+    for (int i = 1; i <= 18; ++i) v.push_back(i);
+    const Spread s = spread_of(v);
+    EXPECT_EQ(s.ci_low, 5);
+    EXPECT_EQ(s.ci_high, 14);
+    // Below 6 values no interval reaches 95%: the whole range.
+    EXPECT_EQ(spread_of({3, 1, 2, 5, 4}).ci_low, 1);
+    EXPECT_EQ(spread_of({3, 1, 2, 5, 4}).ci_high, 5);
+    // The same noisy source: the interval of 400 draws is narrower than that of 25.
+    Random rng(7);
+    std::vector<double> few, many;
+    for (int i = 0; i < 400; ++i) (i < 25 ? few : many).push_back(1.0 + 0.1 * rng.normal());
+    many.insert(many.end(), few.begin(), few.end());
+    const Spread a = spread_of(few), b = spread_of(many);
+    EXPECT_LT(b.ci_high - b.ci_low, 0.5 * (a.ci_high - a.ci_low));
+    EXPECT_LE(b.ci_low, b.median);
+    EXPECT_GE(b.ci_high, b.median);
+}
+
+TEST(Simulator, OneThreadedConfigurationsAreTimedOnTheThreadsCpuClockAndKeepTheWallTimes) {
+    const Recording r = test::generated_scene("uniform", 300, 3, 1);
+    SimulationOptions o;
+    const SimulationResult one = simulate(r, find_structure("bf"), {}, o);
+    EXPECT_EQ(one.clock, TimingClock::thread_cpu);
+    for (const FrameResult& f : one.frames) {
+        EXPECT_EQ(f.raycast_ns, f.raycast.cpu_ns);
+        EXPECT_EQ(f.update_ns, f.update.cpu_ns);
+        EXPECT_GT(f.raycast.wall_ns, 0u);
+    }
+    EXPECT_EQ(one.to_json()["clock"], "thread-cpu");
+    EXPECT_EQ(one.to_json()["raycast_wall_ns"].size(), one.frames.size());
+    // A batch cast on two threads is timed on the wall clock: the caller's CPU time would leave the
+    // other thread's work out. (TBB allows two threads here even on a one-core machine.)
+    const tbb::global_control allow(tbb::global_control::max_allowed_parallelism, 2);
+    const SimulationResult two = simulate(r, find_structure("bf"), {{"cast_threads", 2}}, o);
+    EXPECT_EQ(two.clock, TimingClock::wall);
+    for (const FrameResult& f : two.frames) EXPECT_EQ(f.raycast_ns, f.raycast.wall_ns);
 }
 
 }  // namespace

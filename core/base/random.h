@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <numbers>
 #include <random>
+#include <utility>
+#include <vector>
 
 #include "core/base/geometry.h"
 
@@ -36,6 +38,11 @@ public:
         do x = engine_();
         while (x >= limit);
         return x % n;
+    }
+    /// Fisher–Yates with below(): the same order for a seed on every standard library.
+    template <typename T>
+    void shuffle(std::vector<T>& v) {
+        for (std::size_t i = v.size(); i > 1; --i) std::swap(v[i - 1], v[std::size_t(below(i))]);
     }
     /// Standard normal (Box–Muller).
     double normal() {

@@ -1,7 +1,8 @@
 #include "core/sim/simulator.h"
 
+#include <tbb/global_control.h>
+
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <stdexcept>
 
@@ -11,11 +12,16 @@
 namespace rcb {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-std::uint64_t ns_since(Clock::time_point start) {
-    return static_cast<std::uint64_t>(
-        std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count());
+/// The clock of a configuration's timings (core/base/stopwatch.h): the thread's CPU time when all
+/// its work runs on the calling thread (TBB allows one thread, or every thread parameter is 1),
+/// else the wall time.
+TimingClock timing_clock(const nlohmann::json& params) {
+    if (tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism) <= 1)
+        return TimingClock::thread_cpu;
+    for (const char* key : {"threads", "cast_threads"})
+        if (params.contains(key) && params[key].is_number_integer() && params[key].get<std::int64_t>() > 1)
+            return TimingClock::wall;
+    return TimingClock::thread_cpu;
 }
 
 void validate_or_throw(const Structure& s, const std::string& name, std::uint32_t frame) {
@@ -24,6 +30,22 @@ void validate_or_throw(const Structure& s, const std::string& name, std::uint32_
     } catch (const std::logic_error& e) {
         throw std::logic_error(name + ": invariant broken after frame " + std::to_string(frame) + ": " + e.what());
     }
+}
+
+/// The 1-based rank k of the lower end of the 95% interval of a median of n values: the largest k
+/// with P(Binomial(n, 1/2) <= k - 1) <= 0.025, at least 1.
+std::size_t median_interval_rank(std::size_t n) {
+    // P(B <= j) summed term by term in logs (n may be in the thousands).
+    double cumulative = 0;
+    std::size_t k = 1;
+    for (std::size_t j = 0; j < n; ++j) {
+        const double log_term = std::lgamma(double(n) + 1) - std::lgamma(double(j) + 1) -
+                                std::lgamma(double(n - j) + 1) - double(n) * std::log(2.0);
+        cumulative += std::exp(log_term);
+        if (cumulative > 0.025) break;
+        k = j + 1;  // P(B <= k - 1) <= 0.025: x(k) may be the lower end
+    }
+    return std::min(k, (n + 1) / 2);
 }
 
 }  // namespace
@@ -37,6 +59,9 @@ Spread spread_of(std::vector<double> v) {
     };
     Spread s;
     s.median = median(v);
+    const std::size_t k = median_interval_rank(v.size());
+    s.ci_low = v[k - 1];
+    s.ci_high = v[v.size() - k];
     for (double& x : v) x = std::abs(x - s.median);
     s.mad = median(v);
     return s;
@@ -71,13 +96,16 @@ nlohmann::json SimulationResult::to_json() const {
     j["update_ns_mad"] = u.mad;
     j["raycast_ns_median"] = r.median;
     j["raycast_ns_mad"] = r.mad;
-    nlohmann::json frame, warmup, update, raycast, rays, hits, missed, extra, duplicate, returned, correct, relevant,
-        n_t, n_th, n_mp, n_rb, n_tp, n_ro, n_ro_hits, memory, stats;
+    j["clock"] = clock_name(clock);
+    nlohmann::json frame, warmup, update, raycast, update_wall, raycast_wall, rays, hits, missed, extra, duplicate,
+        returned, correct, relevant, n_t, n_th, n_mp, n_rb, n_tp, n_ro, n_ro_hits, memory, stats;
     for (const FrameResult& f : frames) {
         frame.push_back(f.frame);
         warmup.push_back(f.warmup);
         update.push_back(f.update_ns);
         raycast.push_back(f.raycast_ns);
+        update_wall.push_back(f.update.wall_ns);
+        raycast_wall.push_back(f.raycast.wall_ns);
         rays.push_back(f.rays);
         hits.push_back(f.hits);
         missed.push_back(f.missed);
@@ -101,6 +129,8 @@ nlohmann::json SimulationResult::to_json() const {
     j["warmup"] = array(warmup);
     j["update_ns"] = array(update);
     j["raycast_ns"] = array(raycast);
+    j["update_wall_ns"] = array(update_wall);
+    j["raycast_wall_ns"] = array(raycast_wall);
     j["rays"] = array(rays);
     j["hits"] = array(hits);
     j["missed"] = array(missed);
@@ -147,10 +177,11 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
     std::unique_ptr<Structure> structure = info.make(params, params_path);
     const Contract contract = contract_of(result.params);
 
-    const Clock::time_point build_start = Clock::now();
+    result.clock = timing_clock(result.params);
+    const Stopwatch build_watch;
     structure->build(recording.initial);
     structure->commit();
-    result.build_ns = ns_since(build_start);
+    result.build_ns = build_watch.ns(result.clock);
     result.objects = recording.initial.size();
     result.memory_bytes = structure->memory_bytes();
     if (options.validate) validate_or_throw(*structure, info.name, 0);
@@ -167,19 +198,21 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
         fr.moves = static_cast<std::uint32_t>(frame.moves.size());
         fr.rays = static_cast<std::uint32_t>(frame.rays.size());
 
-        const Clock::time_point update_start = Clock::now();
+        const Stopwatch update_watch;
         for (Uid uid : frame.removes) structure->remove(uid);
         for (const Object& o : frame.inserts) structure->insert(o);
         for (const Object& o : frame.moves) structure->move(o);
         structure->commit();
-        fr.update_ns = ns_since(update_start);
+        fr.update = update_watch.elapsed();
+        fr.update_ns = on_clock(fr.update, result.clock);
         live.apply(frame);
         if (options.validate) validate_or_throw(*structure, info.name, fr.frame);
 
         if (options.timed_cast) {
-            const Clock::time_point cast_start = Clock::now();
+            const Stopwatch cast_watch;
             structure->cast(frame.rays, hits);
-            fr.raycast_ns = ns_since(cast_start);
+            fr.raycast = cast_watch.elapsed();
+            fr.raycast_ns = on_clock(fr.raycast, result.clock);
         } else {
             structure->cast_counted(frame.rays, hits, fr.counters);  // the counting pass is the only cast
         }

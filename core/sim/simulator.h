@@ -8,7 +8,10 @@
 ///                 configuration's contract (query_level.h) and its accuracy against the shapes
 ///                 the counting pass: the same rays with counters on (not timed)
 ///
-/// Timing wraps whole phases with std::chrono::steady_clock, never a single ray.
+/// Timing wraps whole phases, never a single ray (core/base/stopwatch.h): with the thread's CPU
+/// time when the configuration's work runs on one thread, so a time slice another process takes
+/// on the core is not counted as the structure's cost; with the wall time otherwise. Both are
+/// kept per frame.
 
 #include <cstdint>
 #include <functional>
@@ -18,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/accel/counters.h"
+#include "core/base/stopwatch.h"
 #include "core/truth/ground_truth.h"
 #include "core/accel/registry.h"
 #include "core/scene/scene.h"
@@ -38,8 +42,9 @@ struct FrameResult {
     std::uint32_t frame = 0;  ///< 1-based; frame 0 is the build
     bool warmup = false;
     std::uint32_t inserts = 0, removes = 0, moves = 0, rays = 0;
-    std::uint64_t update_ns = 0;
-    std::uint64_t raycast_ns = 0;
+    std::uint64_t update_ns = 0;                         ///< on the result's clock
+    std::uint64_t raycast_ns = 0;                        ///< on the result's clock
+    Elapsed update, raycast;                             ///< both clocks (wall − CPU: time the thread waited)
     std::uint64_t hits = 0;                              ///< reported by the timed pass, summed over the rays
     std::uint64_t missed = 0, extra = 0, duplicate = 0;  ///< against the configuration's contract
     /// Accuracy against the shapes' truth (ground_truth.h, Verification): recall = correct /
@@ -55,10 +60,15 @@ struct FrameResult {
     double precision() const { return returned ? double(correct) / double(returned) : 1.0; }
 };
 
-/// Median and median absolute deviation of a series.
+/// Median and median absolute deviation of a series, and a distribution-free 95% interval of the
+/// median: the order statistics x(k) and x(n+1-k) with the largest k for which a Binomial(n, 1/2)
+/// falls below k with probability at most 2.5% (Conover, "Practical Nonparametric Statistics",
+/// §3.2). It narrows as values are added; below 6 values no such k exists and the interval is the
+/// whole range. Over a cell's frames it is wide where frames differ in work, not only in noise.
 struct Spread {
     double median = 0;
     double mad = 0;
+    double ci_low = 0, ci_high = 0;
 };
 Spread spread_of(std::vector<double> values);
 
@@ -66,6 +76,7 @@ struct SimulationResult {
     std::string structure;
     nlohmann::json params;  ///< complete: defaults filled in
     std::size_t objects = 0;
+    TimingClock clock = TimingClock::wall;  ///< what build_ns, update_ns and raycast_ns measure
     std::uint64_t build_ns = 0;
     std::uint64_t memory_bytes = 0;  ///< after the build
     std::vector<FrameResult> frames;
