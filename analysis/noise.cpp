@@ -1,10 +1,12 @@
 #include "analysis/noise.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 
 #include "core/base/number_text.h"
 #include "core/sim/simulator.h"
+#include "runner/run_experiment.h"
 #include "runner/store.h"
 
 namespace rcb {
@@ -24,17 +26,21 @@ std::vector<StructureNoise> repeatability(const std::vector<RepeatSample>& sampl
             ++n.cells;
             n.repetitions += reps.size();
             std::vector<double> c, u;
-            for (const RepeatSample* r : reps) c.push_back(r->raycast_ns), u.push_back(r->update_ns);
-            const double mc = spread_of(c).median, mu = spread_of(u).median;
-            // Only finite deviations count: a damaged database can hold anything.
-            auto add = [](std::vector<double>& to, double t, double m) {
-                const double d = std::abs(t - m) / m;
-                if (m > 0 && std::isfinite(d)) to.push_back(d);
+            for (const RepeatSample* r : reps)
+                if (r->repetition < 2) c.push_back(r->raycast_ns), u.push_back(r->update_ns);
+            if (c.size() < 2) continue;
+            // Only finite spreads count: a damaged database can hold anything.
+            auto add = [](std::vector<double>& to, const std::vector<double>& values) {
+                if (std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v) && v > 0; }))
+                    to.push_back(relative_range(values));
             };
-            for (const RepeatSample* r : reps) add(cast, r->raycast_ns, mc), add(update, r->update_ns, mu);
+            add(cast, c);
+            add(update, u);
         }
-        if (!cast.empty()) n.raycast = spread_of(cast).median;
-        if (!update.empty()) n.update = spread_of(update).median;
+        n.raycast = quantile(cast, 0.5);
+        n.raycast_p90 = quantile(cast, 0.9);
+        n.update = quantile(update, 0.5);
+        n.update_p90 = quantile(update, 0.9);
         out.push_back(n);
     }
     return out;
@@ -50,7 +56,8 @@ NoiseFloor noise_floor(Database& db, std::int64_t run) {
     // Cells of runs made before the machine state have no cell_state row: NULL.
     Statement s =
         db.prepare(std::string("SELECT config.structure, cell.scene_id, cell.config_id, cell.raycast_ns_median, "
-                               "cell.update_ns_median, cell_state.slow, cell_state.load_1m, cell_state.calibration_ns "
+                               "cell.update_ns_median, cell_state.slow, cell_state.load_1m, cell_state.calibration_ns, "
+                               "cell.repetition "
                                "FROM cell JOIN config ON config.id = cell.config_id "
                                "LEFT JOIN cell_state ON cell_state.cell_id = cell.id WHERE cell.run_id IN ") +
                    kRunGroupSql);
@@ -64,6 +71,7 @@ NoiseFloor noise_floor(Database& db, std::int64_t run) {
         r.cell = std::to_string(s.int64(1)) + ":" + std::to_string(s.int64(2));
         r.raycast_ns = s.real(3);
         r.update_ns = s.real(4);
+        r.repetition = s.int64(8);
         ++out.cells;
         if (!s.is_null(5)) {
             r.slow = s.int64(5) != 0;
@@ -107,6 +115,18 @@ std::vector<SlowCell> slow_cells(Database& db, std::int64_t run) {
         out.push_back({s.text(0), s.text(1), s.text(2), s.int64(3), s.real(4), median > 0 ? s.real(5) / median : NAN});
     }
     return out;
+}
+
+double quantile(std::vector<double> values, double q) {
+    if (values.empty()) return NAN;
+    std::sort(values.begin(), values.end());
+    const double at = q * double(values.size() - 1);
+    const std::size_t lo = std::size_t(std::floor(at)), hi = std::min(lo + 1, values.size() - 1);
+    return values[lo] + (at - double(lo)) * (values[hi] - values[lo]);
+}
+
+std::string noise_text(double p50, double p90) {
+    return std::isfinite(p50) ? noise_text(p50) + " / " + noise_text(p90) : "-";
 }
 
 std::string noise_text(double deviation) { return std::isfinite(deviation) ? fixed(100 * deviation, 1) + "%" : "-"; }

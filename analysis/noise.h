@@ -4,9 +4,12 @@
 /// than the machine's own scatter cannot be blamed on the model).
 ///
 /// Repeatability of a structure: for every cell (scene × configuration) measured in two or more
-/// repetitions, each repetition's time per frame (the cell's median over its frames) is compared
-/// with the median of the cell's repetitions; the median of |t − median| / median over all those
-/// repetitions is the structure's median absolute relative deviation.
+/// repetitions, the spread of its repetitions' medians, (max − min) / median: for two repetitions
+/// the relative difference of two independent measurements of the cell, as two runs of one
+/// experiment would be compared. The repetitions of a cell run at different times of the run, in
+/// different orders, each on a freshly built structure (runner/experiment.h). Its median and 90th
+/// percentile over the cells are the structure's noise. Only the first two repetitions count: the
+/// runner adds more where those disagree, and the spread of those would measure the selection.
 
 #include <cmath>
 #include <cstdint>
@@ -23,15 +26,18 @@ struct RepeatSample {
     std::string cell;                      ///< identifies scene × configuration
     double raycast_ns = 0, update_ns = 0;  ///< per frame (the cell's median over frames)
     bool slow = false;                     ///< measured while the calibration loop ran slow
+    std::int64_t repetition = 0;
 };
 
 struct StructureNoise {
     std::string structure;
     std::size_t cells = 0;        ///< cells with at least two repetitions
     std::size_t repetitions = 0;  ///< repetitions of those cells
-    double raycast = NAN;         ///< median absolute relative deviation of ray-cast time per frame
+    double raycast = NAN;         ///< median over cells of the repetitions' spread of ray-cast time per frame
+    double raycast_p90 = NAN;     ///< its 90th percentile
     double update = NAN;          ///< the same of update time per frame (NaN when no update time)
-    std::size_t slow = 0;         ///< repetitions (of any cell) flagged slow
+    double update_p90 = NAN;
+    std::size_t slow = 0;  ///< repetitions (of any cell) flagged slow
 };
 
 /// Per structure, in name order; a structure with no repeated cell has NaN deviations.
@@ -63,5 +69,10 @@ std::vector<SlowCell> slow_cells(Database& db, std::int64_t run);
 
 /// "2.3%", or "-" when there is no repeated cell.
 std::string noise_text(double deviation);
+/// "2.3% / 7.9%" (median / p90), or "-".
+std::string noise_text(double p50, double p90);
+
+/// The q-quantile (0..1) of `values` by linear interpolation between order statistics; NaN when empty.
+double quantile(std::vector<double> values, double q);
 
 }  // namespace rcb

@@ -571,7 +571,7 @@ void predicted_chart(Html& h, const std::vector<StructureModels>& models, const 
         c.series.push_back(s);
         const StructureNoise* n = noise.find(m.structure);
         errors += (errors.empty() ? "" : ", ") + m.structure + " " + fixed(100 * chosen->heldout_error, 1) + "%" +
-                  (n && std::isfinite(n->raycast) ? " (repeats " + noise_text(n->raycast) + ")" : "");
+                  (n && std::isfinite(n->raycast) ? " (repeats " + noise_text(n->raycast, n->raycast_p90) + ")" : "");
     }
     if (hi > 0) {
         std::ostringstream ref;
@@ -600,21 +600,23 @@ void noise_section(Html& h, const std::vector<StructureModels>& models, const No
         const CandidateModel* chosen = m.chosen("raycast");
         const StructureNoise* n = noise.find(m.structure);
         floor.push_back({m.structure, chosen ? fixed(100 * chosen->heldout_error, 1) + "%" : "-",
-                         n ? noise_text(n->raycast) : "-", n ? noise_text(n->update) : "-",
+                         n ? noise_text(n->raycast, n->raycast_p90) : "-",
+                         n ? noise_text(n->update, n->update_p90) : "-",
                          n ? std::to_string(n->cells) + " (" + std::to_string(n->repetitions) + ")" : "0",
                          n ? std::to_string(n->slow) : "0"});
     }
     h.table({"structure", "held-out error (ray cast)", "repeatability (ray cast)", "repeatability (update)",
              "repeated cells (repetitions)", "slow repetitions"},
             floor,
-            "Noise floor: median absolute relative deviation of a repeated cell's time per frame from the median "
-            "of its repetitions (needs repetitions >= 2); error above it is the model's");
+            "Noise floor: how far the first two repetitions of a cell differ in time per frame, (max - min) / "
+            "median, median / 90th percentile over the repeated cells (needs repetitions >= 2); error above it is "
+            "the model's");
     std::string state = std::to_string(noise.with_state) + " of " + std::to_string(noise.cells) +
                         " cells have the machine's state recorded";
     if (noise.with_state)
         state += " (median 1-minute load " + fixed(noise.load_median, 2) + ", median calibration loop " +
                  fixed(noise.calibration_median_ns / 1e6, 3) + " ms); " + std::to_string(noise.slow) +
-                 " were measured while the calibration loop ran more than 10% above its run's median";
+                 " were measured while the calibration loop or memory probe ran more than 10% above its run's median";
     h.paragraph(state + ".");
     // The slow cells are marked "*" in Table 6.2 (a list here would repeat every scene's name).
     if (noise.slow) {

@@ -130,25 +130,27 @@ void add_fit_command(CLI::App& app) {
         std::cout << "\nPer structure: the chosen ray-cast model and its terms; held-out error over configurations "
                      "(ray cast, 5-fold); leave-one-scene-out error (each scene predicted from a fit on the others: "
                      "time per frame = update + rays x C, and the ray-cast part alone); beside them the noise floor, "
-                     "the median absolute relative deviation of a repeated cell's ray-cast time per frame from the "
-                     "median of its repetitions (\"-\": no cell was repeated). Targets: <= 10% for rcbench's "
+                     "how far two repetitions of a cell (run at different times, in other orders, on fresh "
+                     "structures) differ in ray-cast time per frame, (max - min) / median, median and 90th "
+                     "percentile over the cells (\"-\": no cell was repeated). Targets: <= 10% for rcbench's "
                      "structures, <= 15% for the peers.\n";
         const NoiseFloor noise = noise_floor(store.db(), run);
-        TextTable e({"structure", "model", "terms", "held-out (configs)", "LOSO frame", "LOSO ray cast", "noise floor",
-                     "slow cells", "status"});
+        TextTable e({"structure", "model", "terms", "held-out (configs)", "LOSO frame", "LOSO ray cast",
+                     "noise p50 / p90", "slow cells", "status"});
         for (const StructureModels& s : models)
             if (const CandidateModel* m = s.chosen("raycast")) {
                 std::string terms;
                 for (const std::string& t : m->problem.terms) terms += (terms.empty() ? "" : " ") + t;
                 const StructureNoise* n = noise.find(s.structure);
                 e.add({s.structure, m->name, terms, percent(m->heldout_error), percent(s.loso_error),
-                       percent(s.loso_raycast_error), n ? noise_text(n->raycast) : "-",
+                       percent(s.loso_raycast_error), n ? noise_text(n->raycast, n->raycast_p90) : "-",
                        n ? std::to_string(n->slow) : "0", m->fit.status()});
             }
         e.print(std::cout);
         if (noise.slow)
             std::cout << noise.slow << " of " << noise.cells
-                      << " cells were measured while the calibration loop ran more than 10% above its run's median "
+                      << " cells were measured while the calibration loop or memory probe ran more than 10% above its "
+                         "run's median "
                          "(cell_state.slow)\n";
         std::cout << "\nLeave-one-scene-out error per scene (time per frame; '-': no other scene measured the "
                      "structure):\n";

@@ -44,7 +44,9 @@ public:
     }
     Progress(const Progress&) = delete;
     Progress& operator=(const Progress&) = delete;
-    void cell(std::size_t done, const std::string& what) {
+    /// `total` grows when rounds of repetitions are added where the stored ones disagree.
+    void cell(std::size_t done, std::size_t total, const std::string& what) {
+        total_ = total;
         const double elapsed = std::chrono::duration<double>(Clock::now() - start_).count();
         const double eta = done ? elapsed / double(done) * double(total_ - done) : 0.0;
         std::string line = "cell " + std::to_string(done + 1) + "/" + std::to_string(total_) + "  " + what +
@@ -121,7 +123,8 @@ void print_summary(Database& db, std::int64_t run_id, const Experiment& e) {
     t.print(std::cout);
     if (slow)
         std::cout << "* " << slow
-                  << " cells measured while the machine was slow (calibration loop more than 10% above the run's "
+                  << " cells measured while the machine was slow (calibration loop or memory probe more than 10% above "
+                     "the run's "
                      "median; cell_state.slow)\n";
     if (mismatches) std::cout << "MISMATCHES against the ground truth: " << mismatches << '\n';
 }
@@ -182,11 +185,16 @@ void add_run_command(CLI::App& app) {
         const RunOutcome done =
             run_experiment(e, o->experiment, run, [&](std::size_t ran, std::size_t todo, const std::string& what) {
                 if (!progress) progress = std::make_unique<Progress>(todo);
-                progress->cell(ran, what);
+                progress->cell(ran, todo, what);
             });
         progress.reset();
         std::cout << "run " << done.run << " of " << e.name << ": " << done.planned << " cells, " << done.done_before
                   << " done before, " << done.ran << " ran now -> " << o->db << '\n';
+        if (done.added)
+            std::cout << done.added << " repetitions added where a cell's repetitions spread by more than "
+                      << fixed(100 * e.repeat_spread, 1) << "% (at most " << e.max_repetitions << " per cell)\n";
+        if (done.resampled)
+            std::cout << done.resampled << " cells waited for a slow machine before they were measured\n";
         print_summary(*open_read_only(o->db), done.run, e);
         if (done.mismatches)
             throw std::runtime_error(std::to_string(done.mismatches) +

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <numeric>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -13,6 +14,7 @@
 #include "core/scene/import/scene_import.h"
 #include "core/base/error.h"
 #include "core/base/json_input.h"
+#include "core/base/random.h"
 #include "core/scene/recording_io.h"
 #include "core/accel/registry.h"
 
@@ -461,13 +463,53 @@ std::vector<ConfigSpec> parse_configs(const json& j, std::uint32_t threads) {
 
 }  // namespace
 
+std::string cell_key(const Experiment& e, std::size_t scene, std::size_t config, std::uint32_t repetition) {
+    const json key = {{"scene", e.scenes[scene].key},
+                      {"structure", e.configs[config].structure},
+                      {"params", e.configs[config].params},
+                      {"repetition", repetition}};
+    return stable_hash(key.dump());
+}
+
+std::vector<std::pair<std::size_t, std::size_t>> all_pairs(const Experiment& e) {
+    std::vector<std::pair<std::size_t, std::size_t>> pairs;
+    for (std::size_t s = 0; s < e.scenes.size(); ++s)
+        for (std::size_t c = 0; c < e.configs.size(); ++c) pairs.emplace_back(s, c);
+    return pairs;
+}
+
+std::vector<Cell> repetition_cells(const Experiment& e, std::uint32_t repetition,
+                                   const std::vector<std::pair<std::size_t, std::size_t>>& pairs) {
+    // The scenes in a shuffled order, and within each scene its configurations in a shuffled order,
+    // drawn from the file's hash and the repetition (the same file gives the same order): a cell's
+    // place in the run, and so what ran just before it, changes from repetition to repetition
+    // (Mytkowicz et al. 2009 on measurement bias from a fixed setup).
+    Random rng(mix_seed(std::stoull(e.hash, nullptr, 16), repetition));
+    std::vector<std::size_t> scene_rank(e.scenes.size());
+    std::iota(scene_rank.begin(), scene_rank.end(), std::size_t{0});
+    rng.shuffle(scene_rank);
+    std::vector<std::vector<std::size_t>> config_rank(e.scenes.size());
+    for (auto& ranks : config_rank) {
+        ranks.resize(e.configs.size());
+        std::iota(ranks.begin(), ranks.end(), std::size_t{0});
+        rng.shuffle(ranks);
+    }
+    std::vector<Cell> cells;
+    for (const auto& [s, c] : pairs) cells.push_back({s, c, repetition, cell_key(e, s, c, repetition)});
+    std::sort(cells.begin(), cells.end(), [&](const Cell& a, const Cell& b) {
+        if (a.scene != b.scene) return scene_rank[a.scene] < scene_rank[b.scene];
+        return config_rank[a.scene][a.config] < config_rank[b.scene][b.config];
+    });
+    return cells;
+}
+
 Experiment parse_experiment(const std::string& text, const std::string& name, const std::string& base_dir) {
     const json j = parse_json_document(text, name);
     try {
         expect_object(j, "(top level)");
         check_keys(j, "",
-                   {"name", "description", "frames", "warmup_frames", "repetitions", "rays_per_frame", "ray_mix",
-                    "seeds", "threads", "verify", "scenes", "structures"});
+                   {"name", "description", "frames", "warmup_frames", "repetitions", "max_repetitions", "repeat_spread",
+                    "rays_per_frame", "ray_mix", "seeds", "threads", "verify", "scenes", "structures"});
         Experiment e;
         e.content = text;
         e.hash = stable_hash(text);
@@ -475,6 +517,11 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
         if (e.name.empty()) fail("name", "must not be empty");
         e.description = get_string(j, "description", "", "");
         e.repetitions = static_cast<std::uint32_t>(get_uint(j, "repetitions", "", 1, 1000, 1));
+        // Two repetitions or more can disagree; then up to two more are added by default.
+        const std::uint64_t default_max = e.repetitions >= 2 ? e.repetitions + 2 : e.repetitions;
+        e.max_repetitions = static_cast<std::uint32_t>(
+            get_uint(j, "max_repetitions", "", e.repetitions, 1000, std::min<std::uint64_t>(default_max, 1000)));
+        e.repeat_spread = get_number(j, "repeat_spread", "", 0, 10, e.repeat_spread);
         e.warmup_frames = static_cast<std::uint32_t>(get_uint(j, "warmup_frames", "", 0, 1000, 0));
         e.threads = static_cast<std::uint32_t>(get_uint(j, "threads", "", 1, 1024, 1));
         e.verify = get_bool(j, "verify", "", true);
@@ -502,15 +549,10 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
                                     " repetitions), more than the limit of " + std::to_string(kMaxPlanCells) +
                                     "; split it into several experiment files");
         e.plan.reserve(std::size_t(cells));
-        for (std::uint32_t r = 0; r < e.repetitions; ++r)
-            for (std::size_t s = 0; s < e.scenes.size(); ++s)
-                for (std::size_t c = 0; c < e.configs.size(); ++c) {
-                    const json key = {{"scene", e.scenes[s].key},
-                                      {"structure", e.configs[c].structure},
-                                      {"params", e.configs[c].params},
-                                      {"repetition", r}};
-                    e.plan.push_back({s, c, r, stable_hash(key.dump())});
-                }
+        for (std::uint32_t r = 0; r < e.repetitions; ++r) {
+            const std::vector<Cell> round = repetition_cells(e, r, all_pairs(e));
+            e.plan.insert(e.plan.end(), round.begin(), round.end());
+        }
         return e;
     } catch (const InputError& err) {
         throw InputError(name + ": " + err.what());

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -51,6 +52,11 @@ struct Experiment {
     std::string content;  ///< the file's text, stored with the run
     std::string hash;     ///< of the content
     std::uint32_t repetitions = 1;
+    /// Repetitions added, one round at a time, to the cells whose repetitions disagree: a cell
+    /// whose ray-cast or update medians spread by more than `repeat_spread` of their median
+    /// ((max − min) / median) gets another, up to this many in all.
+    std::uint32_t max_repetitions = 1;
+    double repeat_spread = 0.05;
     std::uint32_t warmup_frames = 0;
     std::uint32_t threads = 1;  ///< TBB parallelism for the run (verification, threaded structures)
     bool verify = true;
@@ -59,9 +65,20 @@ struct Experiment {
     /// Repetition-major: repetition r of every cell (scene × configuration, scene by scene) runs
     /// before repetition r + 1 of any, so the repetitions of one cell are spread over the whole
     /// run and their spread measures the machine's drift (the noise floor), which then biases no
-    /// ratio. Each scene is loaded once per repetition.
+    /// ratio. Each repetition visits the scenes, and each scene's configurations, in its own
+    /// seeded order (repetition_cells). Each scene is loaded once per repetition.
     std::vector<Cell> plan;
 };
+
+/// The stable key of a cell: a hash of (scene key, structure, params, repetition).
+std::string cell_key(const Experiment& e, std::size_t scene, std::size_t config, std::uint32_t repetition);
+/// Every (scene, configuration) pair of the experiment.
+std::vector<std::pair<std::size_t, std::size_t>> all_pairs(const Experiment& e);
+/// Repetition `repetition` of the given (scene, configuration) pairs, in that repetition's order:
+/// scenes shuffled, and each scene's configurations shuffled, seeded by the file's hash and the
+/// repetition.
+std::vector<Cell> repetition_cells(const Experiment& e, std::uint32_t repetition,
+                                   const std::vector<std::pair<std::size_t, std::size_t>>& pairs);
 
 /// Reads and validates; errors name the file and the JSON path, e.g.
 /// "quick.json: structures[2].params.max_depth: expected an integer in 1..16, got \"x\"".

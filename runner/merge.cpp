@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <map>
+#include <optional>
 #include <string>
 
 #include "core/base/error.h"
@@ -101,17 +102,24 @@ std::pair<std::int64_t, std::int64_t> merge_scene_and_config(Database& o, Databa
     return {scene, config};
 }
 
+/// A nullable REAL column.
+std::optional<double> optional_real(const Statement& s, int column) {
+    if (s.is_null(column)) return std::nullopt;
+    return s.real(column);
+}
+
 /// Copies the frames and the machine state of the input's cell `from` to the output's cell `to`.
 void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to) {
     Statement frames = in.prepare(
         "SELECT frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, duplicate, "
-        "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, n_th, n_mp "
-        "FROM frame WHERE cell_id = ?");
+        "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, n_th, n_mp, "
+        "update_wall_ns, raycast_wall_ns FROM frame WHERE cell_id = ?");
     frames.bind(1, from);
     Statement insert_frame = o.prepare(
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, "
         "missed, extra, duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, "
-        "n_ro_hits, n_th, n_mp) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "n_ro_hits, n_th, n_mp, update_wall_ns, raycast_wall_ns) "
+        "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     while (frames.step()) {
         insert_frame.bind(1, to);
         for (int c = 0; c < 16; ++c) insert_frame.bind(c + 2, frames.int64(c));
@@ -121,13 +129,18 @@ void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to)
             insert_frame.bind(18, frames.real(16));
         insert_frame.bind(19, frames.text(17));
         for (int c = 18; c < 25; ++c) insert_frame.bind(c + 2, frames.int64(c));
+        for (int c = 25; c < 27; ++c)  // NULL in frames stored before the wall times were kept
+            frames.is_null(c) ? insert_frame.bind_null(c + 2) : insert_frame.bind(c + 2, frames.int64(c));
         insert_frame.run();
     }
-    Statement state = in.prepare("SELECT load_1m, calibration_ns, slow FROM cell_state WHERE cell_id = ?");
+    Statement state =
+        in.prepare("SELECT load_1m, calibration_ns, slow, resampled, memory_ns FROM cell_state WHERE cell_id = ?");
     state.bind(1, from);
     if (state.step())
-        o.prepare("INSERT INTO cell_state(cell_id, load_1m, calibration_ns, slow) VALUES (?,?,?,?)")
-            .bind_all(to, state.real(0), state.real(1), state.int64(2))
+        o.prepare(
+             "INSERT INTO cell_state(cell_id, load_1m, calibration_ns, slow, resampled, memory_ns) VALUES "
+             "(?,?,?,?,?,?)")
+            .bind_all(to, state.real(0), state.real(1), state.int64(2), state.int64(3), optional_real(state, 4))
             .run();
 }
 
@@ -137,7 +150,8 @@ void merge_cells(Database& o, Database& in, std::int64_t in_run, std::int64_t ru
         "SELECT cell.id, cell_key, scene.id, scene.hash, scene.name, scene.spec, scene.meta, scene.objects, "
         "scene.frames, scene.rays_per_frame, scene.stats, config.id, config.structure, config.params, repetition, "
         "finished_at, cell.objects, build_ns, memory_bytes, verified, mismatches, cell.frames, update_ns_median, "
-        "update_ns_mad, raycast_ns_median, raycast_ns_mad FROM cell JOIN scene ON scene.id = cell.scene_id "
+        "update_ns_mad, raycast_ns_median, raycast_ns_mad, clock, update_ns_ci_low, update_ns_ci_high, "
+        "raycast_ns_ci_low, raycast_ns_ci_high FROM cell JOIN scene ON scene.id = cell.scene_id "
         "JOIN config ON config.id = cell.config_id WHERE run_id = ?");
     cells.bind(1, in_run);
     while (cells.step()) {
@@ -150,10 +164,13 @@ void merge_cells(Database& o, Database& in, std::int64_t in_run, std::int64_t ru
         o.prepare(
              "INSERT INTO cell(run_id, cell_key, scene_id, config_id, repetition, finished_at, objects, build_ns, "
              "memory_bytes, verified, mismatches, frames, update_ns_median, update_ns_mad, raycast_ns_median, "
-             "raycast_ns_mad) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
+             "raycast_ns_mad, clock, update_ns_ci_low, update_ns_ci_high, raycast_ns_ci_low, raycast_ns_ci_high) "
+             "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
             .bind_all(run, cells.text(1), scene, config, cells.int64(14), cells.text(15), cells.int64(16),
                       cells.int64(17), cells.int64(18), cells.int64(19), cells.int64(20), cells.int64(21),
-                      cells.real(22), cells.real(23), cells.real(24), cells.real(25))
+                      cells.real(22), cells.real(23), cells.real(24), cells.real(25), cells.text(26),
+                      optional_real(cells, 27), optional_real(cells, 28), optional_real(cells, 29),
+                      optional_real(cells, 30))
             .run();
         merge_frames(o, in, cells.int64(0), o.last_insert_id());
         ++count.cells;

@@ -11,9 +11,12 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <numeric>
 #include <set>
+#include <thread>
 
 #include "core/base/error.h"
+#include "core/base/random.h"
 #include "core/accel/registry.h"
 #include "core/sim/simulator.h"
 #include "runner/calibration.h"
@@ -53,7 +56,35 @@ MachineState sample_machine_state() {
             std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start).count()));
     }
     m.calibration_ns = spread_of(passes).median;
+    m.memory_ns = memory_probe_ns();
     return m;
+}
+
+double memory_probe_ns() {
+    // One random cycle through 8 MiB of 4-byte indices (Sattolo's shuffle, fixed seed), built once:
+    // each step's load depends on the last, so the time is the latency of the caches and memory a
+    // process on the other core competes for.
+    constexpr std::size_t kEntries = std::size_t(8) << 18;  // 8 MiB of std::uint32_t
+    constexpr int kSteps = 200'000;
+    static const std::vector<std::uint32_t> cycle = [] {
+        std::vector<std::uint32_t> order(kEntries), next(kEntries);
+        std::iota(order.begin(), order.end(), std::uint32_t{0});
+        Random rng(0x6d656d70726f6265ULL);
+        for (std::size_t i = kEntries - 1; i > 0; --i) std::swap(order[i], order[std::size_t(rng.below(i))]);
+        for (std::size_t i = 0; i < kEntries; ++i) next[order[i]] = order[(i + 1) % kEntries];
+        return next;
+    }();
+    std::vector<double> passes;
+    std::uint32_t at = 0;
+    for (int pass = 0; pass < 3; ++pass) {
+        const auto start = std::chrono::steady_clock::now();
+        for (int i = 0; i < kSteps; ++i) at = cycle[at];
+        passes.push_back(double(
+            std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start).count()));
+    }
+    volatile std::uint32_t sink = at;  // the chain's result is used, so it cannot be folded away
+    (void)sink;
+    return spread_of(passes).median;
 }
 
 namespace {
@@ -118,7 +149,124 @@ void check_loaded_scene(const Experiment& e, std::size_t index, const Recording&
                          "): their cells would be stored as one; make them differ or drop one");
 }
 
+/// The machine's state before a cell, used: while the calibration loop or the memory probe runs
+/// more than kSlowCalibration slower than the median of the run's samples so far (another process
+/// on the core or on the caches, a throttled clock), wait and sample again, up to kResampleLimit times; the cell is
+/// then measured, and flagged afterwards if it was still slow (ResultStore::flag_slow_cells).
+MachineState settled_machine_state(std::vector<double>& samples, std::vector<double>& memory) {
+    constexpr int kResampleLimit = 5;
+    constexpr auto kResampleWait = std::chrono::milliseconds(200);
+    constexpr std::size_t kSamplesBeforeJudging = 5;
+    MachineState state = sample_machine_state();
+    const auto median = [](const std::vector<double>& v) { return spread_of(v).median; };
+    while (samples.size() >= kSamplesBeforeJudging && state.resampled < kResampleLimit &&
+           (state.calibration_ns > (1 + kSlowCalibration) * median(samples) ||
+            state.memory_ns > (1 + kSlowCalibration) * median(memory))) {
+        std::this_thread::sleep_for(kResampleWait);
+        const int resampled = state.resampled + 1;
+        state = sample_machine_state();
+        state.resampled = resampled;
+    }
+    samples.push_back(state.calibration_ns);
+    memory.push_back(state.memory_ns);
+    return state;
+}
+
+/// Runs one list of cells, skipping those stored; shared by the planned repetitions and the rounds
+/// added where repetitions disagree.
+class CellRunner {
+public:
+    CellRunner(const Experiment& e, const std::string& source, ResultStore& store, RunOutcome& out)
+        : e_(e), source_(source), store_(store), out_(out), experiment_(store.experiment_id(e)) {
+        sim_.verify = e.verify;
+        sim_.warmup_frames = e.warmup_frames;
+    }
+
+    void run(const std::vector<Cell>& cells, const std::set<std::string>& done, std::size_t todo,
+             const RunProgress& progress) {
+        for (const Cell& c : cells) {
+            // Another runner on the same database may have stored the cell since we looked.
+            if (done.count(c.key) || store_.cell_done(out_.run, c.key)) continue;
+            const SceneSpec& scene = e_.scenes[c.scene];
+            const ConfigSpec& config = e_.configs[c.config];
+            load(c.scene);
+            if (progress)
+                progress(out_.ran, todo,
+                         scene.name + "  " + config_label(config) + "  rep " + std::to_string(c.repetition));
+            SimulationResult res;
+            MachineState state;
+            try {
+                state = settled_machine_state(calibration_samples_, memory_samples_);
+                res = simulate(recording_, find_structure(config.structure), config.params, sim_);
+            } catch (const InputError& err) {
+                throw InputError(source_ + ": scene " + scene.name + ": " + err.what());
+            }
+            out_.mismatches += res.mismatches();
+            out_.resampled += state.resampled > 0;
+            store_.store_cell(out_.run, experiment_, c, scene, recording_, scene_hash_, res, state);
+            ++out_.ran;
+        }
+    }
+
+private:
+    // Consecutive cells of a scene share one load.
+    void load(std::size_t index) {
+        if (loaded_ == index) return;
+        const SceneSpec& scene = e_.scenes[index];
+        try {
+            recording_ = load_scene(scene);
+        } catch (const InputError& err) {
+            throw InputError(source_ + ": scene " + scene.name + ": " + err.what());
+        }
+        scene_hash_ = recording_hash(recording_);
+        loaded_ = index;
+        check_loaded_scene(e_, index, recording_, scene_hash_, scene_by_hash_, source_);
+    }
+
+    const Experiment& e_;
+    const std::string& source_;
+    ResultStore& store_;
+    RunOutcome& out_;
+    std::int64_t experiment_;
+    SimulationOptions sim_;
+    std::size_t loaded_ = SIZE_MAX;
+    Recording recording_;
+    std::string scene_hash_;
+    std::map<std::string, std::size_t> scene_by_hash_;
+    std::vector<double> calibration_samples_, memory_samples_;
+};
+
+/// Repetition `round` of the (scene, configuration) pairs of `plan` whose first `round`
+/// repetitions are all stored and disagree: ray-cast or update medians spread by more than
+/// e.repeat_spread of their median.
+std::vector<Cell> disagreeing_cells(const Experiment& e, const std::vector<Cell>& plan,
+                                    const std::map<std::string, std::pair<double, double>>& medians,
+                                    std::uint32_t round) {
+    std::vector<std::pair<std::size_t, std::size_t>> pairs;
+    for (const Cell& c : plan) {
+        if (c.repetition != 0) continue;
+        std::vector<double> cast, update;
+        for (std::uint32_t r = 0; r < round; ++r) {
+            const auto it = medians.find(cell_key(e, c.scene, c.config, r));
+            if (it == medians.end()) break;
+            cast.push_back(it->second.first);
+            update.push_back(it->second.second);
+        }
+        if (cast.size() != round) continue;
+        if (relative_range(cast) > e.repeat_spread || relative_range(update) > e.repeat_spread)
+            pairs.emplace_back(c.scene, c.config);
+    }
+    return repetition_cells(e, round, pairs);
+}
+
 }  // namespace
+
+double relative_range(const std::vector<double>& values) {
+    if (values.size() < 2) return 0;
+    const auto [lo, hi] = std::minmax_element(values.begin(), values.end());
+    const double median = spread_of(values).median;
+    return median > 0 ? (*hi - *lo) / median : 0;
+}
 
 RunOutcome run_experiment(const Experiment& e, const std::string& source, const RunOptions& options,
                           const RunProgress& progress) {
@@ -137,7 +285,6 @@ RunOutcome run_experiment(const Experiment& e, const std::string& source, const 
     }
     // After choosing the run, so a runner that waited resumes the run it would have shared.
     const RunnerLock lock(options.db, options.on_wait);
-    const std::int64_t experiment = store.experiment_id(e);
     const std::set<std::string> done = store.finished_cells(out.run);
     for (const Cell& c : plan) out.done_before += done.count(c.key) != 0;
     const std::size_t todo = plan.size() - out.done_before;
@@ -150,42 +297,17 @@ RunOutcome run_experiment(const Experiment& e, const std::string& source, const 
         if (std::none_of(structures.begin(), structures.end(), [&](const auto& s) { return s.first == c.structure; }))
             structures.emplace_back(c.structure, c.params);
     record_machine(store.db(), out.run, structures);
-    SimulationOptions sim;
-    sim.verify = e.verify;
-    sim.warmup_frames = e.warmup_frames;
-    // Cells are repetition-major; consecutive cells of a scene share one load.
-    std::size_t loaded = SIZE_MAX;
-    Recording recording;
-    std::string scene_hash;
-    std::map<std::string, std::size_t> scene_by_hash;
-    for (const Cell& c : plan) {
-        // Another runner on the same database may have stored the cell since we looked.
-        if (done.count(c.key) || store.cell_done(out.run, c.key)) continue;
-        const SceneSpec& scene = e.scenes[c.scene];
-        const ConfigSpec& config = e.configs[c.config];
-        if (loaded != c.scene) {
-            try {
-                recording = load_scene(scene);
-            } catch (const InputError& err) {
-                throw InputError(source + ": scene " + scene.name + ": " + err.what());
-            }
-            scene_hash = recording_hash(recording);
-            loaded = c.scene;
-            check_loaded_scene(e, c.scene, recording, scene_hash, scene_by_hash, source);
-        }
-        if (progress)
-            progress(out.ran, todo, scene.name + "  " + config_label(config) + "  rep " + std::to_string(c.repetition));
-        SimulationResult res;
-        MachineState state;
-        try {
-            state = sample_machine_state();
-            res = simulate(recording, find_structure(config.structure), config.params, sim);
-        } catch (const InputError& err) {
-            throw InputError(source + ": scene " + scene.name + ": " + err.what());
-        }
-        out.mismatches += res.mismatches();
-        store.store_cell(out.run, experiment, c, scene, recording, scene_hash, res, state);
-        ++out.ran;
+    CellRunner runner(e, source, store, out);
+    runner.run(plan, done, todo, progress);
+    // Rounds of repetitions where the stored ones disagree, each judged on what is stored.
+    for (std::uint32_t round = e.repetitions; round < e.max_repetitions; ++round) {
+        const std::vector<Cell> extra = disagreeing_cells(e, plan, store.cell_medians(out.run), round);
+        if (extra.empty()) break;
+        const std::set<std::string> now = store.finished_cells(out.run);
+        std::size_t left = 0;
+        for (const Cell& c : extra) left += now.count(c.key) == 0;
+        out.added += extra.size();
+        runner.run(extra, now, out.ran + left, progress);
     }
     out.slow = store.flag_slow_cells(out.run);
     const std::set<std::string> now_done = store.finished_cells(out.run);

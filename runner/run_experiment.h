@@ -30,16 +30,21 @@ struct RunOutcome {
     std::int64_t run = 0;
     std::size_t planned = 0, done_before = 0, ran = 0;
     std::uint64_t mismatches = 0;
-    std::size_t slow = 0;  ///< cells of the run flagged as measured on a slow machine (store.h)
+    std::size_t slow = 0;       ///< cells of the run flagged as measured on a slow machine (store.h)
+    std::size_t resampled = 0;  ///< cells measured after waiting for a slow machine (now)
+    std::size_t added = 0;      ///< repetitions added where the stored ones disagreed (now or before)
     bool finished = false;
 };
 
-/// The machine's state now: the 1-minute load average (/proc/loadavg; -1 when unreadable) and
-/// the median time of three passes of a fixed integer loop (about 1 ms each on a 3 GHz core). The
-/// loop is a dependent multiply-add chain, so it measures the core's speed (frequency, a
-/// co-scheduled process) and not memory; timed before each cell to separate the machine's noise
-/// from the cost model's error.
+/// The machine's state now: the 1-minute load average (/proc/loadavg; -1 when unreadable), the
+/// memory probe (memory_probe_ns) and the median time of three passes of a fixed integer loop (about 1 ms each on a 3
+/// GHz core). The loop is a dependent multiply-add chain, so it measures the core's speed (frequency, a co-scheduled
+/// process) and not memory; timed before each cell to separate the machine's noise from the cost model's error.
 MachineState sample_machine_state();
+/// The median time of three passes of 200 000 dependent loads along a random cycle through 8 MiB:
+/// the latency of the shared caches and memory, which a process on the other core slows though it
+/// leaves the integer loop alone (a memory-bound ray batch then slows with it).
+double memory_probe_ns();
 
 /// Called before each cell runs: cells run so far, cells to run, and what runs now.
 using RunProgress = std::function<void(std::size_t ran, std::size_t todo, const std::string& what)>;
@@ -50,7 +55,11 @@ std::vector<Cell> shard_plan(const Experiment& e, std::size_t shard_k, std::size
 /// Short label of a configuration: its structure and the parameters that differ from the defaults.
 std::string config_label(const ConfigSpec& c);
 
-/// Runs the cells not yet stored; `source` names the experiment in errors. InputError for bad input
+/// (max − min) / median of a cell's repetitions; 0 for fewer than two.
+double relative_range(const std::vector<double>& values);
+
+/// Runs the cells not yet stored, then rounds of repetitions where the stored ones disagree
+/// (Experiment::max_repetitions, repeat_spread); `source` names the experiment in errors. InputError for bad input
 /// (a scene that cannot be loaded, warm-up that leaves no frame), naming the scene.
 RunOutcome run_experiment(const Experiment& e, const std::string& source, const RunOptions& options,
                           const RunProgress& progress = {});

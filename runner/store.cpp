@@ -285,6 +285,22 @@ ALTER TABLE frame ADD COLUMN n_th INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE frame ADD COLUMN n_mp INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE calibration ADD COLUMN n_mp REAL NOT NULL DEFAULT 0;
 )sql",
+        // 9 → 10: measurements that repeat. Which clock a cell's times are on (core/base/stopwatch.h:
+        // the thread's CPU time when its work runs on one thread; cells stored before were wall
+        // time), the 95% interval of each median over the cell's frames, each frame's wall times
+        // beside the clock's, the memory probe beside the integer loop, and how often the runner
+        // sampled the machine again before measuring because it was slow (cell_state.resampled).
+        R"sql(
+ALTER TABLE cell ADD COLUMN clock TEXT NOT NULL DEFAULT 'wall';
+ALTER TABLE cell ADD COLUMN update_ns_ci_low REAL;
+ALTER TABLE cell ADD COLUMN update_ns_ci_high REAL;
+ALTER TABLE cell ADD COLUMN raycast_ns_ci_low REAL;
+ALTER TABLE cell ADD COLUMN raycast_ns_ci_high REAL;
+ALTER TABLE frame ADD COLUMN update_wall_ns INTEGER;
+ALTER TABLE frame ADD COLUMN raycast_wall_ns INTEGER;
+ALTER TABLE cell_state ADD COLUMN resampled INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE cell_state ADD COLUMN memory_ns REAL;
+)sql",
     };
     return all;
 }
@@ -583,23 +599,28 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
     const Spread u = res.update_ns(), c = res.raycast_ns();
     db_.prepare(
            "INSERT INTO cell(run_id, cell_key, scene_id, config_id, repetition, finished_at, objects, build_ns, "
-           "memory_bytes, "
-           "verified, mismatches, frames, update_ns_median, update_ns_mad, raycast_ns_median, raycast_ns_mad) "
-           "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
+           "memory_bytes, verified, mismatches, frames, update_ns_median, update_ns_mad, raycast_ns_median, "
+           "raycast_ns_mad, clock, update_ns_ci_low, update_ns_ci_high, raycast_ns_ci_low, raycast_ns_ci_high) "
+           "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
         .bind_all(run_id, cell.key, scene, config, std::int64_t(cell.repetition), utc_now(), std::int64_t(res.objects),
                   std::int64_t(res.build_ns), std::int64_t(res.memory_bytes), std::int64_t(res.verified),
-                  std::int64_t(res.mismatches()), std::int64_t(res.frames.size()), u.median, u.mad, c.median, c.mad)
+                  std::int64_t(res.mismatches()), std::int64_t(res.frames.size()), u.median, u.mad, c.median, c.mad,
+                  std::string(clock_name(res.clock)), u.ci_low, u.ci_high, c.ci_low, c.ci_high)
         .run();
     const std::int64_t cell_id = db_.last_insert_id();
     if (state)
-        db_.prepare("INSERT INTO cell_state(cell_id, load_1m, calibration_ns, slow) VALUES (?,?,?,0)")
-            .bind_all(cell_id, state->load_1m, state->calibration_ns)
+        db_.prepare(
+               "INSERT INTO cell_state(cell_id, load_1m, calibration_ns, slow, resampled, memory_ns) VALUES "
+               "(?,?,?,0,?,?)")
+            .bind_all(cell_id, state->load_1m, state->calibration_ns, std::int64_t(state->resampled),
+                      std::isfinite(state->memory_ns) ? std::optional<double>(state->memory_ns) : std::nullopt)
             .run();
     Statement f = db_.prepare(
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, "
         "extra, "
         "duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, "
-        "n_th, n_mp) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "n_th, n_mp, update_wall_ns, raycast_wall_ns) VALUES "
+        "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     for (const FrameResult& fr : res.frames) {
         std::optional<double> sah;
         if (fr.stats.contains("sah_cost") && fr.stats["sah_cost"].is_number()) sah = fr.stats["sah_cost"].get<double>();
@@ -610,7 +631,7 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
                    std::int64_t(fr.counters.n_tp), std::int64_t(fr.memory_bytes), sah, fr.stats.dump(),
                    std::int64_t(fr.returned), std::int64_t(fr.correct), std::int64_t(fr.relevant),
                    std::int64_t(fr.counters.n_ro), std::int64_t(fr.counters.n_ro_hits), std::int64_t(fr.counters.n_th),
-                   std::int64_t(fr.counters.n_mp));
+                   std::int64_t(fr.counters.n_mp), std::int64_t(fr.update.wall_ns), std::int64_t(fr.raycast.wall_ns));
         f.run();
     }
     t.commit();
@@ -632,24 +653,44 @@ std::vector<CellSummary> cell_summaries(Database& db, std::int64_t run_id) {
     return out;
 }
 
+std::map<std::string, std::pair<double, double>> ResultStore::cell_medians(std::int64_t run_id) {
+    std::map<std::string, std::pair<double, double>> out;
+    Statement s = db_.prepare("SELECT cell_key, raycast_ns_median, update_ns_median FROM cell WHERE run_id = ?");
+    s.bind(1, run_id);
+    while (s.step()) out[s.text(0)] = {s.real(1), s.real(2)};
+    return out;
+}
+
 std::size_t ResultStore::flag_slow_cells(std::int64_t run_id) {
     Transaction t(db_);
-    std::vector<double> times;
+    std::vector<double> loop, memory;
     {
         Statement s = db_.prepare(
-            "SELECT cell_state.calibration_ns FROM cell_state JOIN cell ON cell.id = cell_state.cell_id "
-            "WHERE cell.run_id = ?");
+            "SELECT cell_state.calibration_ns, cell_state.memory_ns FROM cell_state JOIN cell ON cell.id = "
+            "cell_state.cell_id WHERE cell.run_id = ?");
         s.bind(1, run_id);
-        while (s.step()) times.push_back(s.real(0));
+        while (s.step()) {
+            loop.push_back(s.real(0));
+            if (!s.is_null(1)) memory.push_back(s.real(1));
+        }
     }
-    if (times.empty()) return 0;
-    const double limit = (1 + kSlowCalibration) * spread_of(times).median;
+    if (loop.empty()) return 0;
+    const double loop_limit = (1 + kSlowCalibration) * spread_of(loop).median;
+    // Cells stored before the memory probe have NULL there: compared with nothing.
+    const double memory_limit = memory.empty() ? 1e300 : (1 + kSlowCalibration) * spread_of(memory).median;
     db_.prepare(
-           "UPDATE cell_state SET slow = (calibration_ns > ?) WHERE cell_id IN (SELECT id FROM cell WHERE run_id = ?)")
-        .bind_all(limit, run_id)
+           "UPDATE cell_state SET slow = (calibration_ns > ? OR coalesce(memory_ns > ?, 0)) "
+           "WHERE cell_id IN (SELECT id FROM cell WHERE run_id = ?)")
+        .bind_all(loop_limit, memory_limit, run_id)
         .run();
+    Statement n = db_.prepare(
+        "SELECT count(*) FROM cell_state JOIN cell ON cell.id = cell_state.cell_id WHERE cell.run_id = ? AND "
+        "cell_state.slow = 1");
+    n.bind(1, run_id);
+    n.step();
+    const std::size_t slow = std::size_t(n.int64(0));
     t.commit();
-    return std::size_t(std::count_if(times.begin(), times.end(), [&](double x) { return x > limit; }));
+    return slow;
 }
 
 void ResultStore::finish_run(std::int64_t run_id) {

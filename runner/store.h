@@ -5,7 +5,9 @@
 /// when opened for writing; a newer one is refused. Each cell is stored in one transaction, so a
 /// killed runner loses at most the cell in flight.
 
+#include <cmath>
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <set>
 #include <string>
@@ -42,10 +44,12 @@ struct RunInfo {
 struct MachineState {
     double load_1m = 0;
     double calibration_ns = 0;
+    double memory_ns = NAN;  ///< the memory probe (run_experiment.h); NaN where not measured
+    int resampled = 0;       ///< times the runner waited and sampled again because the machine was slow
 };
 
-/// A cell whose calibration loop ran more than this fraction slower than its run's median was
-/// measured on a busy (or throttled) machine: it is flagged `slow`.
+/// A cell whose calibration loop or memory probe ran more than this fraction slower than its
+/// run's median was measured on a busy (or throttled) machine: it is flagged `slow`.
 inline constexpr double kSlowCalibration = 0.10;
 
 class ResultStore {
@@ -79,6 +83,8 @@ public:
     /// (kSlowCalibration); returns how many are flagged. Called after each runner pass, so the
     /// flags follow the median as a resumed run grows.
     std::size_t flag_slow_cells(std::int64_t run_id);
+    /// The stored ray-cast and update medians of the run's cells, by cell key.
+    std::map<std::string, std::pair<double, double>> cell_medians(std::int64_t run_id);
 
 private:
     void migrate(int target);

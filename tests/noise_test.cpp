@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 
 #include "analysis/noise.h"
 #include "analysis/report.h"
@@ -16,6 +17,7 @@
 #include "runner/run_experiment.h"
 #include "runner/store.h"
 #include "tests/test_scenes.h"
+#include "tests/test_support.h"
 
 namespace rcb {
 namespace {
@@ -27,7 +29,7 @@ std::int64_t count(Database& db, const std::string& sql) {
     return s.step() ? s.int64(0) : -1;
 }
 
-const char* kThree = R"({"name": "noise", "frames": 3, "rays_per_frame": 200, "repetitions": 3,
+const char* kThree = R"({"name": "noise", "frames": 3, "rays_per_frame": 200, "repetitions": 3, "max_repetitions": 3,
     "scenes": [{"kind": "uniform", "objects": 300}, {"kind": "irregular", "objects": 300}],
     "structures": [{"name": "bf"}, {"name": "ug"}]})";
 
@@ -36,13 +38,78 @@ TEST(NoisePlan, RepetitionROfEveryCellRunsBeforeRepetitionROnePlusOneOfAny) {
     ASSERT_EQ(e.plan.size(), 12u);  // 2 scenes × 2 configurations × 3 repetitions
     for (std::size_t i = 0; i < e.plan.size(); ++i) EXPECT_EQ(e.plan[i].repetition, i / 4) << i;
     // Within a repetition, scene by scene, so consecutive cells share a scene load.
-    EXPECT_EQ(e.plan[0].scene, 0u);
-    EXPECT_EQ(e.plan[1].scene, 0u);
-    EXPECT_EQ(e.plan[2].scene, 1u);
+    for (std::size_t r = 0; r < 3; ++r) EXPECT_EQ(e.plan[4 * r].scene, e.plan[4 * r + 1].scene) << r;
     // Shards still take every N-th cell, so each shard spreads its repetitions over its run too.
     const std::vector<Cell> shard = shard_plan(e, 2, 3);
     ASSERT_EQ(shard.size(), 4u);
     for (std::size_t i = 1; i < shard.size(); ++i) EXPECT_LE(shard[i - 1].repetition, shard[i].repetition);
+}
+
+TEST(NoisePlan, EachRepetitionVisitsEveryCellOnceInItsOwnSeededOrder) {
+    // 6 scenes × 5 configurations: 720 × 120 scene and configuration orders, so two repetitions in
+    // the same order would be a coincidence of well under 1%.
+    const char* text = R"({"name": "order", "frames": 2, "repetitions": 4,
+        "scenes": [{"kind": "uniform", "objects": [100, 200, 300, 400, 500, 600]}],
+        "structures": [{"name": "ug", "params": {"density": [1, 2, 4, 8, 16]}}]})";
+    const Experiment e = parse_experiment(text, "order.json", ".");
+    ASSERT_EQ(e.plan.size(), 4u * 30u);
+    std::vector<std::vector<std::pair<std::size_t, std::size_t>>> orders(4);
+    for (const Cell& c : e.plan) {
+        orders[c.repetition].emplace_back(c.scene, c.config);
+        EXPECT_EQ(c.key, cell_key(e, c.scene, c.config, c.repetition));
+    }
+    for (std::size_t r = 0; r < 4; ++r) {
+        std::set<std::pair<std::size_t, std::size_t>> seen(orders[r].begin(), orders[r].end());
+        EXPECT_EQ(seen.size(), 30u) << r;  // every cell once
+        // A scene's cells stay together (one load), in a scene order of this repetition.
+        std::set<std::size_t> done;
+        for (std::size_t i = 0; i < orders[r].size(); ++i) {
+            if (i > 0 && orders[r][i].first == orders[r][i - 1].first) continue;
+            EXPECT_TRUE(done.insert(orders[r][i].first).second) << "scene revisited in repetition " << r;
+        }
+    }
+    std::set<std::vector<std::pair<std::size_t, std::size_t>>> distinct(orders.begin(), orders.end());
+    EXPECT_EQ(distinct.size(), 4u);
+    // The same file gives the same order (the seed is the file's hash).
+    const Experiment again = parse_experiment(text, "order.json", ".");
+    for (std::size_t i = 0; i < e.plan.size(); ++i) EXPECT_EQ(again.plan[i].key, e.plan[i].key) << i;
+}
+
+TEST(NoisePlan, RepetitionsAreAddedWhereTheStoredOnesDisagreeUpToTheCap) {
+    const test::TempDir temp("noise", "added");
+    const auto run = [&](const std::string& name, double spread) {
+        const std::string text = R"({"name": "added", "frames": 3, "rays_per_frame": 100, "repetitions": 2,
+            "max_repetitions": 4, "repeat_spread": )" +
+                                 std::to_string(spread) + R"(,
+            "scenes": [{"kind": "uniform", "objects": 200}, {"kind": "irregular", "objects": 200}],
+            "structures": [{"name": "bf"}, {"name": "ug"}]})";
+        const Experiment e = parse_experiment(text, name, temp.path().string());
+        EXPECT_EQ(e.plan.size(), 8u);
+        RunOptions o;
+        o.db = (temp.path() / (name + ".db")).string();
+        const RunOutcome out = run_experiment(e, name, o);
+        EXPECT_TRUE(out.finished);
+        ResultStore store(o.db);
+        return std::pair(out, count(store.db(), "SELECT count(*) FROM cell"));
+    };
+    // Spread 0: two timings never agree to the nanosecond, so every cell gets two more repetitions.
+    const auto [all, all_cells] = run("zero", 0.0);
+    EXPECT_EQ(all.added, 8u);
+    EXPECT_EQ(all_cells, 16);
+    // Spread 10 (1000%): repetitions always agree; nothing is added.
+    const auto [none, none_cells] = run("wide", 10.0);
+    EXPECT_EQ(none.added, 0u);
+    EXPECT_EQ(none_cells, 8);
+}
+
+TEST(NoisePlan, MaxRepetitionsBelowRepetitionsIsRefused) {
+    test::expect_input_error(
+        [] {
+            parse_experiment(R"({"repetitions": 3, "max_repetitions": 2, "scenes": [{"preset": "uni-s"}],
+                                 "structures": [{"name": "bf"}]})",
+                             "cap.json", ".");
+        },
+        "cap.json: max_repetitions: expected an integer in 3..1000");
 }
 
 TEST(NoiseState, TheCalibrationLoopTakesAFewMillisecondsAndTheLoadIsRead) {
@@ -54,11 +121,13 @@ TEST(NoiseState, TheCalibrationLoopTakesAFewMillisecondsAndTheLoadIsRead) {
     }
 }
 
-TEST(NoiseFloor, RepeatabilityIsTheMedianRelativeDeviationFromEachCellsMedian) {
+TEST(NoiseFloor, RepeatabilityIsTheSpreadOfTheFirstTwoRepetitionsMedianAndP90OverCells) {
     const std::vector<RepeatSample> samples = {
-        {"ug", "a", 100, 10, false}, {"ug", "a", 110, 10, true}, {"ug", "a", 90, 10, false},
-        {"ug", "b", 200, 0, false},  {"ug", "b", 220, 0, false}, {"ug", "c", 500, 0, true},  // c: one repetition
-        {"bf", "x", 300, 5, false},
+        {"ug", "a", 100, 10, false, 0}, {"ug", "a", 110, 10, true, 1},
+        {"ug", "a", 300, 10, false, 2},  // an added repetition: not part of the two-run figure
+        {"ug", "b", 200, 0, false, 0},  {"ug", "b", 260, 0, false, 1},
+        {"ug", "c", 500, 0, true, 0},  // c: one repetition
+        {"bf", "x", 300, 5, false, 0},
     };
     const std::vector<StructureNoise> n = repeatability(samples);
     ASSERT_EQ(n.size(), 2u);
@@ -69,11 +138,25 @@ TEST(NoiseFloor, RepeatabilityIsTheMedianRelativeDeviationFromEachCellsMedian) {
     EXPECT_EQ(n[1].cells, 2u);
     EXPECT_EQ(n[1].repetitions, 5u);
     EXPECT_EQ(n[1].slow, 2u);
-    // a: deviations 0, 0.1, 0.1; b: 10/210 twice → median of {0, 0.0476, 0.0476, 0.1, 0.1}.
-    EXPECT_NEAR(n[1].raycast, 10.0 / 210.0, 1e-12);
+    // a: (110 − 100) / 105; b: (260 − 200) / 230. Median and 90th percentile of the two.
+    const double a = 10.0 / 105.0, b = 60.0 / 230.0;
+    EXPECT_NEAR(n[1].raycast, (a + b) / 2, 1e-12);
+    EXPECT_NEAR(n[1].raycast_p90, a + 0.9 * (b - a), 1e-12);
     EXPECT_NEAR(n[1].update, 0.0, 1e-12);  // a's update repeats exactly; b has none
-    EXPECT_EQ(noise_text(n[1].raycast), "4.8%");
+    EXPECT_EQ(noise_text(n[1].raycast), "17.8%");
+    EXPECT_EQ(noise_text(n[1].raycast, n[1].raycast_p90), "17.8% / 24.4%");
     EXPECT_EQ(noise_text(n[0].raycast), "-");
+    EXPECT_EQ(noise_text(n[0].raycast, n[0].raycast_p90), "-");
+}
+
+TEST(NoiseFloor, QuantilesInterpolateBetweenOrderStatistics) {
+    EXPECT_TRUE(std::isnan(quantile({}, 0.5)));
+    EXPECT_EQ(quantile({3, 1, 2}, 0.5), 2);
+    EXPECT_EQ(quantile({4, 1, 2, 3}, 0.5), 2.5);
+    EXPECT_NEAR(quantile({0, 10}, 0.9), 9, 1e-12);
+    EXPECT_EQ(quantile({5}, 0.9), 5);
+    EXPECT_EQ(relative_range({100, 110, 90}), 0.2);
+    EXPECT_EQ(relative_range({100}), 0);
 }
 
 TEST(NoiseFloor, EveryCellStoresItsStateAndCellsTenPercentSlowAreFlagged) {
@@ -89,6 +172,7 @@ TEST(NoiseFloor, EveryCellStoresItsStateAndCellsTenPercentSlowAreFlagged) {
     Database& db = store.db();
     EXPECT_EQ(count(db, "SELECT count(*) FROM cell_state"), 12);
     EXPECT_EQ(count(db, "SELECT count(*) FROM cell_state WHERE calibration_ns > 0"), 12);
+    EXPECT_EQ(count(db, "SELECT count(*) FROM cell_state WHERE memory_ns > 0"), 12);
     // Stored in plan order: repetition-major.
     {
         Statement s = db.prepare("SELECT repetition FROM cell ORDER BY id");
@@ -97,7 +181,7 @@ TEST(NoiseFloor, EveryCellStoresItsStateAndCellsTenPercentSlowAreFlagged) {
     }
     // A synthetic machine: eleven cells at 1.00 ms, one at 1.15 ms (15% slow) and one value set
     // just under the 10% limit must stay unflagged.
-    db.exec("UPDATE cell_state SET calibration_ns = 1.0e6");
+    db.exec("UPDATE cell_state SET calibration_ns = 1.0e6, memory_ns = 8.0e6");
     db.exec("UPDATE cell_state SET calibration_ns = 1.15e6 WHERE cell_id = (SELECT min(cell_id) FROM cell_state)");
     db.exec("UPDATE cell_state SET calibration_ns = 1.09e6 WHERE cell_id = (SELECT max(cell_id) FROM cell_state)");
     EXPECT_EQ(store.flag_slow_cells(out.run), 1u);
@@ -138,7 +222,8 @@ TEST(NoiseFloor, EveryCellStoresItsStateAndCellsTenPercentSlowAreFlagged) {
         EXPECT_NE(html.find("a repetition was measured on a slow machine"), std::string::npos);
         EXPECT_NE(html.find(") *</td>"), std::string::npos);
         EXPECT_NE(html.find("repeatability (ray cast)"), std::string::npos);
-        EXPECT_NE(html.find("1 were measured while the calibration loop ran more than 10%"), std::string::npos);
+        EXPECT_NE(html.find("1 were measured while the calibration loop or memory probe ran more than 10%"),
+                  std::string::npos);
     }
     // A merge carries the state and the flags.
     const std::string merged = (dir / "merged.db").string();
@@ -149,6 +234,10 @@ TEST(NoiseFloor, EveryCellStoresItsStateAndCellsTenPercentSlowAreFlagged) {
         EXPECT_EQ(count(m.db(), "SELECT count(*) FROM cell_state"), 12);
         EXPECT_EQ(count(m.db(), "SELECT count(*) FROM cell_state WHERE slow = 1"), 1);
     }
+    // The memory probe flags on its own: the integer loop at its median, the probe 12.5% slow.
+    db.exec("UPDATE cell_state SET memory_ns = 9.0e6 WHERE cell_id = (SELECT max(cell_id) FROM cell_state)");
+    EXPECT_EQ(store.flag_slow_cells(out.run), 2u);
+    EXPECT_EQ(count(db, "SELECT slow FROM cell_state WHERE cell_id = (SELECT max(cell_id) FROM cell_state)"), 1);
 }
 
 TEST(NoiseFloor, ADatabaseFromBeforeTheMachineStateMigratesAndItsCellsHaveNoState) {
@@ -181,7 +270,7 @@ TEST(NoiseFloor, ADatabaseFromBeforeTheMachineStateMigratesAndItsCellsHaveNoStat
     const NoiseFloor n = noise_floor(store.db(), 1);
     EXPECT_EQ(n.with_state, 0u);
     ASSERT_EQ(n.structures.size(), 1u);
-    EXPECT_NEAR(n.structures[0].raycast, 10.0 / 110.0, 1e-12);  // 100 and 120 about their median 110
+    EXPECT_NEAR(n.structures[0].raycast, 20.0 / 110.0, 1e-12);  // 100 and 120: (120 − 100) / 110
     EXPECT_EQ(store.flag_slow_cells(1), 0u);
 }
 
