@@ -279,5 +279,39 @@ TEST(Grids, GuardsSwitchedOffSayWhenTheyWouldHaveFired) {
     }
 }
 
+/// The hash grid without its entries guard stays bounded: a deep grid over crowded coinciding
+/// surfaces split them down to max_depth (the flat scene: 1568 entries per object at depth 5,
+/// minutes at depth 6), and now stops at the ceiling. Bounded work, counted in entries: at most
+/// the ceiling's budget plus each object's top cells (max_cells) per object, in every frame of the
+/// hard scenes with crowded surfaces, with the answers exact.
+TEST(HashGrid, WithoutTheEntriesGuardTheCeilingBoundsTheWork) {
+    const nlohmann::json deep = {{"entries_guard", false}, {"max_depth", 6}, {"subdivision", 4}, {"max_capacity", 1}};
+    const int max_cells = find_structure("hg").defaults()["max_cells"].get<int>();
+    auto bound = [&](std::size_t objects) {
+        return std::size_t(HashGrid::kEntriesCeiling + max_cells) * std::max<std::size_t>(objects, 64);
+    };
+    std::vector<test::NamedScene> scenes = test::hard_scenes();
+    const auto flat =
+        std::find_if(scenes.begin(), scenes.end(), [](const test::NamedScene& s) { return s.name == "flat"; });
+    ASSERT_NE(flat, scenes.end());
+    auto grid = find_structure("hg").make(deep, "params");
+    grid->build(flat->recording.initial);
+    grid->validate();
+    const nlohmann::json st = grid->stats();
+    ASSERT_LE(st["entries"].get<std::size_t>(), bound(flat->recording.initial.size()));
+    EXPECT_GT(st["guards_off"].value("entries_ceiling", std::uint64_t(0)), 0u);
+    EXPECT_GT(st["guards_off"].value("entries_guard", std::uint64_t(0)), 0u);
+    for (const test::NamedScene& s : scenes) {
+        if (s.name != "flat" && s.name != "lattice-faces" && s.name != "same-centroid" && s.name != "nested-crowd")
+            continue;  // the crowded surfaces that ran for minutes (the others: seconds, unbounded)
+        SCOPED_TRACE(s.name);
+        std::size_t objects = s.recording.initial.size();  // at most, in any frame
+        for (const Frame& f : s.recording.frames) objects += f.inserts.size();
+        const SimulationResult res = test::expect_matches_ground_truth(s.recording, "hg", deep, s.name);
+        for (const FrameResult& f : res.frames)
+            EXPECT_LE(f.stats["entries"].get<std::size_t>(), bound(objects)) << "frame " << f.frame;
+    }
+}
+
 }  // namespace
 }  // namespace rcb

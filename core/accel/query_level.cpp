@@ -140,23 +140,31 @@ bool segment_hits_volume(const Segment& s, const Aabb& box, const TightVolume& v
     if (v.kind == LeafBv::aabb) return true;
     if (v.kind == LeafBv::obb) return segment_hits_shape(s, v.obb);
     // The box's slabs, then each diagonal slab: the segment meets the k-DOP iff the parameter
-    // intervals of all slabs overlap within [0, 1].
-    float tn, tf;
-    if (!SegmentSlabs(s).clip(box, tn, tf)) return false;
-    const Vec3 d = s.delta();
-    for (int i = 0; i < diagonals(v.kind); ++i) {
-        const int* n = v.kind == LeafBv::kdop14 ? kDiag14[i] : kDiag18[i];
-        const float o = float(n[0]) * s.p0.x + float(n[1]) * s.p0.y + float(n[2]) * s.p0.z;
-        const float dd = float(n[0]) * d.x + float(n[1]) * d.y + float(n[2]) * d.z;
-        const float lo = v.slab[2 * i], hi = v.slab[2 * i + 1];
-        if (dd == 0) {
-            if (o < lo || o > hi) return false;
-            continue;
-        }
-        float t0 = (lo - o) / dd, t1 = (hi - o) / dd;
+    // intervals of all slabs overlap within [0, 1]. Conservative, so that no hit is lost: in double,
+    // every slab widened by many roundings of the magnitude m of the values (a sum of up to three
+    // terms ≤ m each). Rounded in float, the intervals of a zero-volume shape (each one a single t)
+    // came out disjoint and the hit was dropped; an extra candidate is only tested further.
+    const Vec3d p = s.p0.as<double>(), d = s.p1.as<double>() - p;
+    double m = 0;
+    for (int a = 0; a < 3; ++a)
+        m += std::max(
+            {std::abs(p[a]), std::abs(double(s.p1[a])), std::abs(double(box.min[a])), std::abs(double(box.max[a]))});
+    const double slack = 64 * std::numeric_limits<double>::epsilon() * m;
+    double tn = 0, tf = 1;
+    // The parameters t with lo - slack <= o + t·dd <= hi + slack, intersected with [tn, tf].
+    auto clip = [&](double o, double dd, double lo, double hi) {
+        lo -= slack, hi += slack;
+        if (dd == 0) return lo <= o && o <= hi;
+        double t0 = (lo - o) / dd, t1 = (hi - o) / dd;
         if (t0 > t1) std::swap(t0, t1);
         tn = std::max(tn, t0), tf = std::min(tf, t1);
-        if (tn > tf) return false;
+        return tn <= tf;
+    };
+    for (int a = 0; a < 3; ++a)
+        if (!clip(p[a], d[a], box.min[a], box.max[a])) return false;
+    for (int i = 0; i < diagonals(v.kind); ++i) {
+        const Vec3d n = diagonal(v.kind, i);
+        if (!clip(dot(n, p), dot(n, d), v.slab[2 * i], v.slab[2 * i + 1])) return false;
     }
     return true;
 }

@@ -158,7 +158,7 @@ void HashGrid::build(std::span<const Object> objects) {
     entries_total_ = 0;
     build_objects_ = objects.size();
     large_.clear();
-    refused_splits_ = guard_collapses_ = unguarded_overruns_ = 0;
+    refused_splits_ = guard_collapses_ = unguarded_overruns_ = ceiling_refusals_ = 0;
     for (const Object& o : objects) insert(o);
 }
 
@@ -223,12 +223,12 @@ void HashGrid::insert_into(int depth, const Index& i, std::uint32_t slot, const 
         // otherwise be copied into every child it overlaps however crowded the cell is (identical
         // boxes: every insert lands in the same subdivided cells). Over the budget, the cell
         // collapses into a leaf holding each of its objects once, and the object joins it.
+        // With the guard off, the ceiling (active_budget) collapses the cell instead.
         const std::size_t child_entries = grid::cell_count(r);
-        const bool over = entries_total_ + child_entries > entry_budget();
-        unguarded_overruns_ += over && !params_.entries_guard;
-        if (params_.entries_guard && over) {
+        unguarded_overruns_ += !params_.entries_guard && entries_total_ + child_entries > entry_budget();
+        if (entries_total_ + child_entries > active_budget()) {
             collapse(id, depth, i);
-            ++guard_collapses_;
+            ++(params_.entries_guard ? guard_collapses_ : ceiling_refusals_);
             own_push(id, slot);
             ++entries_total_;
             retry_at_[id] = 2 * cells_[id].own.size;
@@ -258,12 +258,13 @@ void HashGrid::split(std::uint32_t id, int depth, const Index& i) {
     }
     // The split stops at 3/4 of the budget while a descending object collapses a cell only at the
     // full budget (insert_into): the gap keeps a collapsed cell from splitting straight back.
-    const bool over = entries_total_ - moving.size() + child_entries > entry_budget() / 4 * 3;
-    const bool over_budget = params_.entries_guard && over;
-    unguarded_overruns_ += over && !params_.entries_guard && !moving.empty();
+    // With the guard off, the ceiling (active_budget) refuses instead.
+    const std::size_t after = entries_total_ - moving.size() + child_entries;
+    const bool over_budget = after > active_budget() / 4 * 3;
+    unguarded_overruns_ += !params_.entries_guard && after > entry_budget() / 4 * 3 && !moving.empty();
     if (moving.empty() || over_budget) {
         // Refused: try again once the leaf has doubled (amortised O(1) per insert, see the header).
-        refused_splits_ += over_budget && !moving.empty();
+        if (over_budget && !moving.empty()) ++(params_.entries_guard ? refused_splits_ : ceiling_refusals_);
         retry_at_[id] = std::uint32_t(2 * objects.size());
         set_own(id, objects);
         return;
@@ -460,6 +461,7 @@ nlohmann::json HashGrid::stats() const {
         if (would_list) off["max_cells"] = would_list;
     }
     if (unguarded_overruns_) off["entries_guard"] = unguarded_overruns_;
+    if (ceiling_refusals_) off["entries_ceiling"] = ceiling_refusals_;
     if (would_trim_) off["outlier_guard"] = true;
     if (!off.empty()) j["guards_off"] = off;
     return j;

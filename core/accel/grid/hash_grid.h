@@ -83,9 +83,10 @@ public:
                       "object (over max(objects, objects at build, 64)) is refused",
                       kNotTuned},
                 Field{"entries_guard", &Params::entries_guard, 0.0, 1.0,
-                      "apply the max_entries_per_object memory guard (off: splits are limited by max_depth only, "
-                      "unbounded on coinciding surfaces; stats guards_off.entries_guard counts the splits and "
-                      "descents it would have refused)",
+                      "apply the max_entries_per_object memory guard (off: splits are limited by max_depth and a "
+                      "fixed ceiling of 512 entries per object that keeps the work bounded; stats "
+                      "guards_off.entries_guard counts the splits and descents the guard would have refused, "
+                      "guards_off.entries_ceiling those the ceiling refused)",
                       kNotTuned},
                 Field{"outlier_guard", &Params::outlier_guard, 0.0, 1.0,
                       "top grid over the central 99% of the objects per axis when the full bounds are over 8x larger "
@@ -102,6 +103,11 @@ public:
 
     /// Finest-lattice cells per axis (20 bits per coordinate in the hash key).
     static constexpr int kMaxFineRes = 1 << 20;
+    /// Entries per object with entries_guard off. Without any limit, crowded surfaces split down to
+    /// max_depth (subdivision^(2·max_depth) cells per top cell: a deep grid ran for minutes on the
+    /// hard scenes); the ceiling bounds that work and lies above the guard's range (2..256), so
+    /// turning the guard off still shows what it prevents.
+    static constexpr int kEntriesCeiling = 512;
 
     HashGrid() : HashGrid(Params{}) {}
     explicit HashGrid(const Params& p);
@@ -158,10 +164,14 @@ private:
     std::vector<std::uint32_t> take_own(std::uint32_t cell);
     void set_own(std::uint32_t cell, const std::vector<std::uint32_t>& slots);
     void split(std::uint32_t cell, int depth, const Index& i);
-    /// The memory guard's limit on entries_total_.
-    std::size_t entry_budget() const {
-        return std::size_t(params_.max_entries_per_object) * std::max({slot_.size(), build_objects_, std::size_t(64)});
+    /// A limit on entries_total_ of `per_object` entries per object.
+    std::size_t budget(int per_object) const {
+        return std::size_t(per_object) * std::max({slot_.size(), build_objects_, std::size_t(64)});
     }
+    /// The memory guard's limit on entries_total_.
+    std::size_t entry_budget() const { return budget(params_.max_entries_per_object); }
+    /// The limit in force: the guard's, or with the guard off the ceiling.
+    std::size_t active_budget() const { return params_.entries_guard ? entry_budget() : budget(kEntriesCeiling); }
     void collapse(std::uint32_t cell, int depth, const Index& i);
     void gather_and_delete_children(int depth, const Index& i, std::vector<std::uint32_t>& out);
     template <class Ctx>
@@ -188,6 +198,7 @@ private:
     std::size_t refused_splits_ = 0;
     std::size_t guard_collapses_ = 0;
     std::size_t unguarded_overruns_ = 0;  ///< entries_guard off: its refusals and collapses that did not happen
+    std::size_t ceiling_refusals_ = 0;    ///< entries_guard off: splits and descents the ceiling refused
     bool would_trim_ = false;             ///< the outlier guard is off and would have trimmed the top grid
     /// The large-object guard's test, on the object's top-grid range.
     bool is_large(const grid::CellRange& top) const {
