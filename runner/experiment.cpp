@@ -517,10 +517,9 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
         if (e.name.empty()) fail("name", "must not be empty");
         e.description = get_string(j, "description", "", "");
         e.repetitions = static_cast<std::uint32_t>(get_uint(j, "repetitions", "", 1, 1000, 1));
-        // Two repetitions or more can disagree; then up to two more are added by default.
-        const std::uint64_t default_max = e.repetitions >= 2 ? e.repetitions + 2 : e.repetitions;
-        e.max_repetitions = static_cast<std::uint32_t>(
-            get_uint(j, "max_repetitions", "", e.repetitions, 1000, std::min<std::uint64_t>(default_max, 1000)));
+        // None added unless asked: a plan's size then depends on nothing measured.
+        e.max_repetitions =
+            static_cast<std::uint32_t>(get_uint(j, "max_repetitions", "", e.repetitions, 1000, e.repetitions));
         e.repeat_spread = get_number(j, "repeat_spread", "", 0, 10, e.repeat_spread);
         e.warmup_frames = static_cast<std::uint32_t>(get_uint(j, "warmup_frames", "", 0, 1000, 0));
         e.threads = static_cast<std::uint32_t>(get_uint(j, "threads", "", 1, 1024, 1));

@@ -55,7 +55,7 @@ struct Experiment {
     /// Repetitions added, one round at a time, to the cells whose repetitions disagree: a cell
     /// whose ray-cast or update medians spread by more than `repeat_spread` of their median
     /// ((max − min) / median) gets another, up to this many in all.
-    std::uint32_t max_repetitions = 1;
+    std::uint32_t max_repetitions = 1;  ///< `repetitions` unless the file asks for more
     double repeat_spread = 0.05;
     std::uint32_t warmup_frames = 0;
     std::uint32_t threads = 1;  ///< TBB parallelism for the run (verification, threaded structures)

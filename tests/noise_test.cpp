@@ -29,7 +29,7 @@ std::int64_t count(Database& db, const std::string& sql) {
     return s.step() ? s.int64(0) : -1;
 }
 
-const char* kThree = R"({"name": "noise", "frames": 3, "rays_per_frame": 200, "repetitions": 3, "max_repetitions": 3,
+const char* kThree = R"({"name": "noise", "frames": 3, "rays_per_frame": 200, "repetitions": 3,
     "scenes": [{"kind": "uniform", "objects": 300}, {"kind": "irregular", "objects": 300}],
     "structures": [{"name": "bf"}, {"name": "ug"}]})";
 
