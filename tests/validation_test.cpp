@@ -194,8 +194,9 @@ TEST(Bootstrap, QuantilesInterpolateAndTheSeedRepeats) {
 
 /// A results database with one run of `frames` (their scenes, configurations and counters), as
 /// `rcbench run` stores them.
-void write_run(const std::string& path, const std::vector<FrameObservation>& frames, const std::string& uuid) {
-    ResultStore store(path);
+void write_run(const std::string& path, const std::vector<FrameObservation>& frames, const std::string& uuid,
+               int version = latest_schema_version()) {
+    ResultStore store(path, version);
     Database& db = store.db();
     db.exec("INSERT OR IGNORE INTO experiment(name) VALUES ('synthetic')");
     db.prepare(
@@ -283,6 +284,19 @@ TEST(ValidateCommand, StoresTransferInTheTestDatabaseAndNestedInTheTrainOne) {
                     "SELECT count(*) FROM model_validation WHERE train = 'nested' AND split = "
                     "'leave-one-scene-out' AND train_run_uuid = 'ua'"),
               1);
+}
+
+TEST(ValidateCommand, AnOlderDatabaseIsMigratedAndGainsTheTable) {
+    const test::TempDir dir("validation");
+    const std::string old = dir.file("old.db");
+    write_run(old, known_run(5, 3, 2, 50, 2000, 0.02), "uo", 6);
+    EXPECT_EQ(count(old, "PRAGMA user_version"), 6);
+    const ::test::Outcome r = rcbench({"validate", "--train", old, "--resamples", "10"});
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(count(old, "PRAGMA user_version"), latest_schema_version());
+    EXPECT_EQ(count(old, "SELECT count(*) FROM model_validation WHERE split = 'leave-one-scene-out'"), 1);
+    EXPECT_NO_THROW(open_read_only(old));
+    EXPECT_NO_THROW(ResultStore{old});  // the writers' schema check accepts it too
 }
 
 TEST(ValidateCommand, BadInputNamesTheOptionAndExitsTwo) {
