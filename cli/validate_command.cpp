@@ -118,11 +118,11 @@ void add_validate_command(CLI::App& app) {
         const RunRef train_ref = parse_run_ref("--train", o->train);
         std::vector<ValidationGroup> groups;
         std::vector<std::string> unpredictable;
-        std::int64_t predicted_run = 0;
+        std::int64_t predicted_run = 0, train_run = 0;
         if (o->test.empty()) {
             ResultStore store = naming(train_ref, [&] { return ResultStore(train_ref.path); });  // stored with the run
             const LoadedRun train = load_run(store.db(), train_ref);
-            predicted_run = train.run;
+            predicted_run = train_run = train.run;
             groups = validate_nested(train.frames, train.inputs, nested_splits(train.frames), o->bootstrap);
             for (const ValidationGroup& g : groups)
                 store_validation(store.db(), train.run, "nested", train.uuid, g, o->bootstrap);
@@ -136,6 +136,7 @@ void add_validate_command(CLI::App& app) {
             ResultStore store = naming(test_ref, [&] { return ResultStore(test_ref.path); });
             const LoadedRun test = load_run(store.db(), test_ref);
             predicted_run = test.run;
+            train_run = train.run;
             TransferValidation v = validate_transfer(train.frames, train.inputs, test.frames, o->bootstrap);
             store_validation(store.db(), test.run, train_ref.path + ":" + std::to_string(train.run), train.uuid,
                              v.group, o->bootstrap);
@@ -145,6 +146,7 @@ void add_validate_command(CLI::App& app) {
         if (o->json) {
             nlohmann::json j{{"run", predicted_run},
                              {"train", o->train},
+                             {"train_run", train_run},
                              {"test", o->test.empty() ? nlohmann::json(nullptr) : nlohmann::json(o->test)},
                              {"bootstrap", {{"resamples", o->bootstrap.resamples}, {"seed", o->bootstrap.seed}}},
                              {"not_predictable", unpredictable},
@@ -155,7 +157,8 @@ void add_validate_command(CLI::App& app) {
         }
         std::cout << (o->test.empty() ? "run " + std::to_string(predicted_run) + ": nested splits. "
                                       : "run " + std::to_string(predicted_run) + " of " + o->test +
-                                            " predicted by the model of " + o->train + ". ");
+                                            " predicted by the model of run " + std::to_string(train_run) + " of " +
+                                            o->train + ". ");
         print_header(o->bootstrap);
         if (groups.empty()) std::cout << "no split applies: the run has one scene\n";
         for (const ValidationGroup& g : groups) print_group(g);
