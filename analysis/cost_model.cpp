@@ -8,6 +8,7 @@
 #include <functional>
 #include <map>
 #include <set>
+#include <tuple>
 
 #include <nlohmann/json.hpp>
 
@@ -27,6 +28,13 @@ std::string scene_category(const std::string& spec_text) {
         if (spec.contains("recording")) return "recording";
     }
     return "other";
+}
+
+std::string scene_ray_mix(const std::string& spec_text) {
+    const nlohmann::json spec = nlohmann::json::parse(spec_text, nullptr, false);
+    if (spec.is_object() && spec.contains("ray_mix") && spec["ray_mix"].is_string())
+        return spec["ray_mix"].get<std::string>();
+    return "";
 }
 
 namespace {
@@ -445,8 +453,8 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) 
     const NamedColumns col(s);
     std::vector<int> counter_column;
     for (const FrameCounter& c : frame_counters()) counter_column.push_back(col[c.alias]);
-    // Each scene's label and category once, not per frame (a scene's name or spec may be large).
-    std::map<std::int64_t, std::pair<std::string, std::string>> scenes;
+    // Each scene's label, category and ray mode once, not per frame (a name or spec may be large).
+    std::map<std::int64_t, std::array<std::string, 3>> scenes;
     Statement scene = db.prepare("SELECT " + std::string(kSceneLabelSql) + ", scene.spec FROM scene WHERE id = ?");
     while (s.step()) {
         FrameObservation f;
@@ -457,10 +465,9 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) 
         if (fresh) {
             scene.reset();
             scene.bind(1, scene_id);
-            if (scene.step()) it->second = {scene.text(0), scene_category(scene.text(1))};
+            if (scene.step()) it->second = {scene.text(0), scene_category(scene.text(1)), scene_ray_mix(scene.text(1))};
         }
-        f.scene = it->second.first;
-        f.category = it->second.second;
+        std::tie(f.scene, f.category, f.ray_mix) = std::tie(it->second[0], it->second[1], it->second[2]);
         const auto key = std::make_tuple(scene_id, s.int64(col["config_id"]));
         f.config_group = groups.emplace(key, int(groups.size())).first->second;
         f.rays = s.real(col["rays"]);
@@ -544,6 +551,26 @@ SceneError predict_scene(const SceneSplit& split, const std::vector<const FrameO
     return e;
 }
 
+/// A chosen model frozen: its columns and fitted coefficients as a function of a frame; NaN for a
+/// frame of a category (or configuration) that a split form has no column for.
+std::function<double(const FrameObservation&)> frozen(const Built& b) {
+    std::vector<double> beta;
+    for (const Coefficient& c : b.model.fit.coefficients) beta.push_back(c.value);
+    return [columns = b.columns, beta](const FrameObservation& f) {
+        double y = 0;
+        bool split = false, covered = false;
+        for (std::size_t j = 0; j < columns.size(); ++j) {
+            const Column& c = columns[j];
+            if (!c.category.empty()) {
+                split = true;
+                covered = covered || c.category == (c.by_params ? f.params : f.category);
+            }
+            y += beta[j] * c.value(f);
+        }
+        return !split || covered ? y : NAN;
+    };
+}
+
 /// Leave one scene out with the chosen models' columns (fit.loso_error): each scene's errors and
 /// their means over the scenes that could be predicted.
 void leave_one_scene_out(StructureModels& m, const std::vector<const FrameObservation*>& fs, const Built& rc,
@@ -577,7 +604,11 @@ StructureModels fit_structure(const std::string& structure, const std::vector<co
     m.update = fit_target(Target::update, fs, Priors{}, structure, update);
     const Built* rc = chosen_built(m.raycast, raycast);
     const Built* up = chosen_built(m.update, update);
-    if (rc && up) leave_one_scene_out(m, fs, *rc, *up, priors);
+    if (rc && up) {
+        leave_one_scene_out(m, fs, *rc, *up, priors);
+        m.predict_ray = frozen(*rc);
+        m.predict_update = frozen(*up);
+    }
     return m;
 }
 

@@ -22,6 +22,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -101,6 +102,11 @@ struct StructureModels {
     double loso_error = NAN;       ///< mean frame_error over the scenes that could be predicted
     double loso_raycast_error = NAN;
     const StructureCalibration* calibration = nullptr;  ///< into the ModelInputs given, if any
+    /// The chosen models frozen, form and coefficients as fitted here: ns per ray and ns of update of
+    /// any frame (another scene's, another run's) from its counters; NaN where a per-category or
+    /// per-configuration form has no column for the frame's category or configuration. Empty
+    /// unless both targets have a chosen model (analysis/validation.h).
+    std::function<double(const FrameObservation&)> predict_ray, predict_update;
     const CandidateModel* chosen(const std::string& target) const;
 };
 
@@ -165,5 +171,7 @@ std::optional<CostCoefficients> stored_raycast_coefficients(Database& db, std::i
 
 /// "uniform", "irregular", "import", "recording": the category of a scene from its stored spec.
 std::string scene_category(const std::string& spec_json);
+/// The scene's ray mode from its stored spec ("center", "dense,los", …); "" when it names none.
+std::string scene_ray_mix(const std::string& spec_json);
 
 }  // namespace rcb

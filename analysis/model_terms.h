@@ -25,6 +25,7 @@ struct Coefficient;
 /// One measured frame with everything the models use.
 struct FrameObservation {
     std::string structure, params, scene, category;  ///< category: "uniform", "irregular", …
+    std::string ray_mix;                             ///< the scene's ray mode (spec `ray_mix`), "" where unknown
     int config_group = 0;                            ///< distinct (scene, structure, params)
     double rays = 0, raycast_ns = 0, update_ns = 0;
     double n_t = 0, n_rb = 0, n_tp = 0;  ///< per ray

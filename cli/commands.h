@@ -16,6 +16,7 @@ void add_run_command(CLI::App& app);
 void add_query_commands(CLI::App& app);
 void add_history_command(CLI::App& app);
 void add_fit_command(CLI::App& app);
+void add_validate_command(CLI::App& app);
 void add_report_command(CLI::App& app);
 void add_findings_command(CLI::App& app);
 void add_tune_command(CLI::App& app);

@@ -45,6 +45,7 @@ int main(int argc, char** argv) {
     rcb::add_query_commands(app);
     rcb::add_history_command(app);
     rcb::add_fit_command(app);
+    rcb::add_validate_command(app);
     rcb::add_report_command(app);
     rcb::add_findings_command(app);
     rcb::add_tune_command(app);

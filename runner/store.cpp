@@ -290,6 +290,8 @@ ALTER TABLE calibration ADD COLUMN n_mp REAL NOT NULL DEFAULT 0;
         // time), the 95% interval of each median over the cell's frames, each frame's wall times
         // beside the clock's, the memory probe beside the integer loop, and how often the runner
         // sampled the machine again before measuring because it was slow (cell_state.resampled).
+        // And the cost model's validations: nested splits of one run, and a model frozen on one run
+        // predicting another (analysis/validation.h).
         R"sql(
 ALTER TABLE cell ADD COLUMN clock TEXT NOT NULL DEFAULT 'wall';
 ALTER TABLE cell ADD COLUMN update_ns_ci_low REAL;
@@ -300,6 +302,34 @@ ALTER TABLE frame ADD COLUMN update_wall_ns INTEGER;
 ALTER TABLE frame ADD COLUMN raycast_wall_ns INTEGER;
 ALTER TABLE cell_state ADD COLUMN resampled INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE cell_state ADD COLUMN memory_ns REAL;
+CREATE TABLE model_validation (
+    id                  INTEGER PRIMARY KEY,
+    run_id              INTEGER NOT NULL REFERENCES run(id),
+    created_at          TEXT NOT NULL,
+    train               TEXT NOT NULL,
+    train_run_uuid      TEXT NOT NULL,
+    split               TEXT NOT NULL,
+    splits              TEXT NOT NULL,
+    structure           TEXT NOT NULL,
+    cells               INTEGER NOT NULL,
+    unpredictable       INTEGER NOT NULL,
+    scenes              INTEGER NOT NULL,
+    frame_median        REAL,
+    frame_median_low    REAL,
+    frame_median_high   REAL,
+    frame_p90           REAL,
+    frame_p90_low       REAL,
+    frame_p90_high      REAL,
+    raycast_median      REAL,
+    raycast_median_low  REAL,
+    raycast_median_high REAL,
+    raycast_p90         REAL,
+    raycast_p90_low     REAL,
+    raycast_p90_high    REAL,
+    resamples           INTEGER NOT NULL,
+    seed                INTEGER NOT NULL,
+    models              TEXT NOT NULL
+);
 )sql",
     };
     return all;

@@ -1,0 +1,352 @@
+#include "analysis/validation.h"
+
+#include <algorithm>
+#include <functional>
+#include <set>
+
+#include "core/base/random.h"
+#include "runner/store.h"
+
+namespace rcb {
+namespace {
+
+/// One split per distinct value of `key` (in order of first appearance), that value's frames
+/// predicted from the rest; none when every frame has the same value.
+std::vector<ValidationSplit> leave_each_out(const std::vector<FrameObservation>& frames, const std::string& group,
+                                            const std::function<std::string(const FrameObservation&)>& key) {
+    std::vector<std::string> keys;
+    std::map<std::string, std::size_t> index;
+    std::vector<std::size_t> of(frames.size());
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+        const auto [it, added] = index.emplace(key(frames[i]), keys.size());
+        if (added) keys.push_back(it->first);
+        of[i] = it->second;
+    }
+    std::vector<ValidationSplit> out;
+    if (keys.size() < 2) return out;
+    for (std::size_t k = 0; k < keys.size(); ++k) {
+        ValidationSplit s{group, keys[k], {}, {}};
+        for (std::size_t i = 0; i < frames.size(); ++i) (of[i] == k ? s.test : s.train).push_back(i);
+        out.push_back(std::move(s));
+    }
+    return out;
+}
+
+std::string ray_mode_of(const FrameObservation& f) { return f.ray_mix.empty() ? "unspecified" : f.ray_mix; }
+
+/// The frames whose `key` is in `from` as train, those whose key is in `to` as test.
+ValidationSplit transfer_split(const std::vector<FrameObservation>& frames, const std::set<std::string>& from,
+                               const std::set<std::string>& to) {
+    const auto names = [](const std::set<std::string>& modes) {
+        std::string text;
+        for (const std::string& m : modes) text += (text.empty() ? "" : "+") + m;
+        return text;
+    };
+    ValidationSplit s;
+    s.name = "ray modes " + names(from) + " -> " + names(to);
+    s.group = s.name;
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+        const std::string mode = ray_mode_of(frames[i]);
+        if (from.count(mode)) s.train.push_back(i);
+        if (to.count(mode)) s.test.push_back(i);
+    }
+    return s;
+}
+
+double relative_error(double predicted, double measured) {
+    return std::isfinite(predicted) && measured > 0 ? std::abs(predicted - measured) / measured : NAN;
+}
+
+double median_or_nan(const std::vector<double>& v) {
+    return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); }) ? quantile(v, 0.5) : NAN;
+}
+
+/// One cell's frames priced by `m` (null: no model).
+CellPrediction predict_cell(const std::vector<const FrameObservation*>& fs, const StructureModels* m) {
+    CellPrediction c;
+    c.structure = fs.front()->structure, c.scene = fs.front()->scene, c.params = fs.front()->params;
+    const bool model = m && m->predict_ray && m->predict_update;
+    if (model) {
+        c.raycast_model = m->chosen("raycast")->name;
+        c.update_model = m->chosen("update")->name;
+    }
+    std::vector<double> frame, predicted_frame, raycast, predicted_raycast;
+    for (const FrameObservation* f : fs) {
+        frame.push_back(f->frame_ns());
+        if (f->rays > 0) raycast.push_back(f->raycast_ns);
+        if (!model) continue;
+        const double cast = f->rays > 0 ? f->rays * m->predict_ray(*f) : 0.0;
+        predicted_frame.push_back(m->predict_update(*f) + cast);
+        if (f->rays > 0) predicted_raycast.push_back(cast);
+    }
+    c.frame_ns = quantile(frame, 0.5);
+    c.raycast_ns = quantile(raycast, 0.5);
+    if (model) {
+        c.predicted_frame_ns = median_or_nan(predicted_frame);
+        c.predicted_raycast_ns = c.predictable() ? median_or_nan(predicted_raycast) : NAN;
+    }
+    c.frame_error = relative_error(c.predicted_frame_ns, c.frame_ns);
+    c.raycast_error = relative_error(c.predicted_raycast_ns, c.raycast_ns);
+    return c;
+}
+
+/// Median and p90 of one error over the cells, with the bootstrap over scenes: each resample
+/// draws as many scenes as there are, with replacement, and pools their cells.
+ErrorSummary summarize_error(const std::vector<const CellPrediction*>& cells, double CellPrediction::*error,
+                             const BootstrapOptions& options, std::uint64_t stream) {
+    std::map<std::string, std::vector<double>> by_scene;
+    std::vector<double> all;
+    for (const CellPrediction* c : cells)
+        if (std::isfinite(c->*error)) {
+            by_scene[c->scene].push_back(c->*error);
+            all.push_back(c->*error);
+        }
+    ErrorSummary out;
+    out.median = quantile(all, 0.5);
+    out.p90 = quantile(all, 0.9);
+    if (all.empty() || options.resamples <= 0) return out;
+    std::vector<const std::vector<double>*> scenes;
+    for (const auto& [scene, errors] : by_scene) scenes.push_back(&errors);
+    Random rng(mix_seed(options.seed, stream));
+    std::vector<double> medians, p90s, pooled;
+    for (int r = 0; r < options.resamples; ++r) {
+        pooled.clear();
+        for (std::size_t k = 0; k < scenes.size(); ++k) {
+            const std::vector<double>& drawn = *scenes[rng.below(scenes.size())];
+            pooled.insert(pooled.end(), drawn.begin(), drawn.end());
+        }
+        medians.push_back(quantile(pooled, 0.5));
+        p90s.push_back(quantile(pooled, 0.9));
+    }
+    out.median_low = quantile(medians, 0.025), out.median_high = quantile(medians, 0.975);
+    out.p90_low = quantile(p90s, 0.025), out.p90_high = quantile(p90s, 0.975);
+    return out;
+}
+
+nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+nlohmann::json error_json(const ErrorSummary& e) {
+    return {{"median", number(e.median)},
+            {"median_ci95", {number(e.median_low), number(e.median_high)}},
+            {"p90", number(e.p90)},
+            {"p90_ci95", {number(e.p90_low), number(e.p90_high)}}};
+}
+
+}  // namespace
+
+double quantile(std::vector<double> values, double q) {
+    if (values.empty()) return NAN;
+    std::sort(values.begin(), values.end());
+    const double at = q * double(values.size() - 1);
+    const std::size_t lo = std::size_t(std::floor(at)), hi = std::min(lo + 1, values.size() - 1);
+    return values[lo] + (at - double(lo)) * (values[hi] - values[lo]);
+}
+
+std::vector<ValidationSplit> scene_out_splits(const std::vector<FrameObservation>& frames) {
+    return leave_each_out(frames, kSceneOutGroup, [](const FrameObservation& f) { return f.scene; });
+}
+
+std::vector<ValidationSplit> generator_out_splits(const std::vector<FrameObservation>& frames) {
+    return leave_each_out(frames, "leave-one-generator-out", [](const FrameObservation& f) { return f.category; });
+}
+
+std::vector<ValidationSplit> largest_out_splits(const std::vector<FrameObservation>& frames) {
+    std::map<std::string, double> objects;  // per scene, its most objects in any frame
+    for (const FrameObservation& f : frames) objects[f.scene] = std::max(objects[f.scene], f.objects);
+    double most = 0;
+    for (const auto& [scene, n] : objects) most = std::max(most, n);
+    std::set<std::string> largest;
+    for (const auto& [scene, n] : objects)
+        if (n == most) largest.insert(scene);
+    if (largest.size() == objects.size()) return {};
+    ValidationSplit s{"leave-the-largest-out", "", {}, {}};
+    for (const std::string& scene : largest) s.name += (s.name.empty() ? "" : "+") + scene;
+    s.name += " (" + std::to_string(std::int64_t(most)) + " objects)";
+    for (std::size_t i = 0; i < frames.size(); ++i) (largest.count(frames[i].scene) ? s.test : s.train).push_back(i);
+    return {s};
+}
+
+std::vector<ValidationSplit> ray_mode_splits(const std::vector<FrameObservation>& frames) {
+    std::set<std::string> modes;
+    for (const FrameObservation& f : frames) modes.insert(ray_mode_of(f));
+    std::vector<ValidationSplit> out;
+    if (modes.size() < 2) return out;
+    for (const std::string& mode : modes) {
+        std::set<std::string> others = modes;
+        others.erase(mode);
+        out.push_back(transfer_split(frames, {mode}, others));
+        // With two modes "the others -> this one" is the other mode's "this one -> the others".
+        if (modes.size() > 2) out.push_back(transfer_split(frames, others, {mode}));
+    }
+    return out;
+}
+
+std::vector<ValidationSplit> nested_splits(const std::vector<FrameObservation>& frames) {
+    std::vector<ValidationSplit> out;
+    for (const auto& make : {scene_out_splits, generator_out_splits, largest_out_splits, ray_mode_splits}) {
+        std::vector<ValidationSplit> more = make(frames);
+        out.insert(out.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
+    }
+    return out;
+}
+
+std::vector<CellPrediction> predict_cells(const std::vector<StructureModels>& models,
+                                          const std::vector<const FrameObservation*>& frames,
+                                          const std::string& split) {
+    std::map<std::string, const StructureModels*> by_structure;
+    for (const StructureModels& m : models) by_structure[m.structure] = &m;
+    std::map<std::pair<std::string, int>, std::vector<const FrameObservation*>> cells;
+    for (const FrameObservation* f : frames) cells[{f->structure, f->config_group}].push_back(f);
+    std::vector<CellPrediction> out;
+    for (const auto& [key, fs] : cells) {
+        const auto it = by_structure.find(key.first);
+        out.push_back(predict_cell(fs, it == by_structure.end() ? nullptr : it->second));
+        out.back().split = split;
+    }
+    return out;
+}
+
+std::vector<CellPrediction> run_split(const std::vector<FrameObservation>& frames, const ValidationSplit& split,
+                                      const ModelInputs& inputs) {
+    std::vector<FrameObservation> train;
+    for (std::size_t i : split.train) train.push_back(frames[i]);
+    std::vector<const FrameObservation*> test;
+    for (std::size_t i : split.test) test.push_back(&frames[i]);
+    return predict_cells(fit_cost_models(train, inputs), test, split.name);
+}
+
+std::vector<StructureValidation> summarize(const std::vector<CellPrediction>& cells, const BootstrapOptions& options) {
+    std::map<std::string, std::vector<const CellPrediction*>> by_structure;
+    for (const CellPrediction& c : cells) by_structure[c.structure].push_back(&c);
+    std::vector<StructureValidation> out;
+    std::uint64_t stream = 0;
+    for (const auto& [structure, cs] : by_structure) {
+        StructureValidation v;
+        v.structure = structure;
+        v.cells = cs.size();
+        std::set<std::string> scenes, splits;
+        for (const CellPrediction* c : cs) {
+            if (!c->predictable()) ++v.unpredictable;
+            if (!c->predictable()) continue;
+            scenes.insert(c->scene);
+            if (!splits.insert(c->split).second) continue;  // forms counted once per split
+            ++v.raycast_models[c->raycast_model];
+            ++v.update_models[c->update_model];
+        }
+        v.scenes = scenes.size();
+        v.frame = summarize_error(cs, &CellPrediction::frame_error, options, stream++);
+        v.raycast = summarize_error(cs, &CellPrediction::raycast_error, options, stream++);
+        out.push_back(std::move(v));
+    }
+    return out;
+}
+
+std::vector<ValidationGroup> validate_nested(const std::vector<FrameObservation>& frames, const ModelInputs& inputs,
+                                             const std::vector<ValidationSplit>& splits,
+                                             const BootstrapOptions& options) {
+    std::vector<ValidationGroup> out;
+    for (const ValidationSplit& split : splits) {
+        auto g = std::find_if(out.begin(), out.end(), [&](const ValidationGroup& x) { return x.name == split.group; });
+        if (g == out.end()) g = out.insert(out.end(), ValidationGroup{split.group, {}, {}, {}});
+        g->splits.push_back(split.name);
+        std::vector<CellPrediction> cells = run_split(frames, split, inputs);
+        g->cells.insert(g->cells.end(), cells.begin(), cells.end());
+    }
+    for (ValidationGroup& g : out) g.structures = summarize(g.cells, options);
+    return out;
+}
+
+TransferValidation validate_transfer(const std::vector<FrameObservation>& train, const ModelInputs& train_inputs,
+                                     const std::vector<FrameObservation>& test, const BootstrapOptions& options) {
+    const std::vector<StructureModels> models = fit_cost_models(train, train_inputs);
+    std::vector<const FrameObservation*> frames;
+    for (const FrameObservation& f : test) frames.push_back(&f);
+    TransferValidation out;
+    out.group.name = kTransferGroup;
+    out.group.splits = {kTransferGroup};
+    out.group.cells = predict_cells(models, frames, kTransferGroup);
+    std::set<std::string> modelled, unpredictable;
+    for (const StructureModels& m : models)
+        if (m.predict_ray && m.predict_update) modelled.insert(m.structure);
+    for (const FrameObservation& f : test)
+        if (!modelled.count(f.structure)) unpredictable.insert(f.structure);
+    out.unpredictable.assign(unpredictable.begin(), unpredictable.end());
+    out.group.structures = summarize(out.group.cells, options);
+    return out;
+}
+
+std::map<std::pair<std::string, std::string>, double> scene_frame_errors(const std::vector<CellPrediction>& cells) {
+    std::map<std::pair<std::string, std::string>, std::pair<double, int>> sums;
+    for (const CellPrediction& c : cells)
+        if (std::isfinite(c.frame_error)) {
+            auto& [sum, n] = sums[{c.structure, c.scene}];
+            sum += c.frame_error, ++n;
+        }
+    std::map<std::pair<std::string, std::string>, double> out;
+    for (const auto& [key, s] : sums) out[key] = s.first / s.second;
+    return out;
+}
+
+std::string run_uuid(Database& db, std::int64_t run) {
+    Statement s = db.prepare("SELECT uuid FROM run WHERE id = ?");
+    s.bind(1, run);
+    return s.step() ? s.text(0) : "";
+}
+
+void store_validation(Database& db, std::int64_t run, const std::string& train, const std::string& train_uuid,
+                      const ValidationGroup& group, const BootstrapOptions& options) {
+    Transaction t(db);
+    db.prepare("DELETE FROM model_validation WHERE run_id = ? AND train_run_uuid = ? AND split = ?")
+        .bind_all(run, train_uuid, group.name)
+        .run();
+    const auto value = [](double v) { return std::isfinite(v) ? std::optional<double>(v) : std::nullopt; };
+    for (const StructureValidation& s : group.structures) {
+        Statement ins = db.prepare(
+            "INSERT INTO model_validation(run_id, created_at, train, train_run_uuid, split, splits, structure, cells, "
+            "unpredictable, scenes, frame_median, frame_median_low, frame_median_high, frame_p90, frame_p90_low, "
+            "frame_p90_high, raycast_median, raycast_median_low, raycast_median_high, raycast_p90, raycast_p90_low, "
+            "raycast_p90_high, resamples, seed, models) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        ins.bind_all(run, utc_now(), train, train_uuid, group.name, nlohmann::json(group.splits).dump(), s.structure,
+                     std::int64_t(s.cells), std::int64_t(s.unpredictable), std::int64_t(s.scenes));
+        int k = 11;
+        for (const ErrorSummary* e : {&s.frame, &s.raycast})
+            for (double v : {e->median, e->median_low, e->median_high, e->p90, e->p90_low, e->p90_high})
+                ins.bind(k++, value(v));
+        ins.bind(k++, std::int64_t(options.resamples));
+        ins.bind(k++, std::int64_t(options.seed));
+        ins.bind(k, nlohmann::json{{"raycast", s.raycast_models}, {"update", s.update_models}}.dump());
+        ins.run();
+    }
+    t.commit();
+}
+
+nlohmann::json validation_json(const ValidationGroup& group, bool with_cells) {
+    nlohmann::json j{{"group", group.name}, {"splits", group.splits}, {"structures", nlohmann::json::array()}};
+    for (const StructureValidation& s : group.structures)
+        j["structures"].push_back({{"structure", s.structure},
+                                   {"cells", s.cells},
+                                   {"unpredictable_cells", s.unpredictable},
+                                   {"scenes", s.scenes},
+                                   {"frame_error", error_json(s.frame)},
+                                   {"raycast_error", error_json(s.raycast)},
+                                   {"raycast_models", s.raycast_models},
+                                   {"update_models", s.update_models}});
+    if (!with_cells) return j;
+    j["cells"] = nlohmann::json::array();
+    for (const CellPrediction& c : group.cells)
+        j["cells"].push_back({{"split", c.split},
+                              {"structure", c.structure},
+                              {"scene", c.scene},
+                              {"params", c.params},
+                              {"raycast_model", c.raycast_model},
+                              {"update_model", c.update_model},
+                              {"frame_ns", number(c.frame_ns)},
+                              {"predicted_frame_ns", number(c.predicted_frame_ns)},
+                              {"raycast_ns", number(c.raycast_ns)},
+                              {"predicted_raycast_ns", number(c.predicted_raycast_ns)},
+                              {"frame_error", number(c.frame_error)},
+                              {"raycast_error", number(c.raycast_error)}});
+    return j;
+}
+
+}  // namespace rcb

@@ -1,0 +1,173 @@
+// rcbench validate: the cost model predicting what it never saw. With --test, the model chosen and
+// fitted on one run prices every cell of another; without, the run's nested splits (each split's
+// whole model selection redone on its train frames only).
+#include <charconv>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+
+#include "cli/cli_checks.h"
+#include "cli/commands.h"
+#include "analysis/validation.h"
+#include "core/base/error.h"
+#include "runner/store.h"
+#include "cli/validation_table.h"
+
+namespace rcb {
+namespace {
+
+/// "A.db" or "A.db:RUN", as given to `option`.
+struct RunRef {
+    std::string option, text, path;
+    std::int64_t run = 0;  ///< 0: the newest run with cells
+};
+
+RunRef parse_run_ref(const std::string& option, const std::string& text) {
+    RunRef r{option, text, text, 0};
+    const std::size_t colon = text.rfind(':');
+    if (colon != std::string::npos && colon + 1 < text.size() &&
+        text.find_first_not_of("0123456789", colon + 1) == std::string::npos) {
+        r.path = text.substr(0, colon);
+        const auto [end, ec] = std::from_chars(text.data() + colon + 1, text.data() + text.size(), r.run);
+        if (ec != std::errc() || r.run < 1) throw InputError(option + " " + text + ": a run id is a whole number >= 1");
+    }
+    if (!std::filesystem::is_regular_file(r.path))
+        throw InputError(option + " " + text + ": no such results database " + r.path);
+    return r;
+}
+
+/// What one run gives the validation: its id, uuid, frames and (for a train run) calibration and caches.
+struct LoadedRun {
+    std::int64_t run = 0;
+    std::string uuid;
+    std::vector<FrameObservation> frames;
+    ModelInputs inputs;
+};
+
+/// `f()`, with any InputError it throws (not a database, unknown run, no frames) naming the option
+/// and its value.
+template <class F>
+auto naming(const RunRef& ref, F f) {
+    try {
+        return f();
+    } catch (const InputError& e) {
+        throw InputError(ref.option + " " + ref.text + ": " + e.what());
+    }
+}
+
+LoadedRun load_run(Database& db, const RunRef& ref) {
+    return naming(ref, [&] {
+        LoadedRun out;
+        if (ref.run) {
+            Statement s = db.prepare("SELECT id FROM run WHERE id = ?");
+            s.bind(1, ref.run);
+            if (!s.step()) throw InputError("no run " + std::to_string(ref.run) + " in " + ref.path);
+        }
+        out.run = resolve_run(db, ref.run, "");
+        out.uuid = run_uuid(db, out.run);
+        out.frames = load_observations(db, out.run);
+        out.inputs = load_model_inputs(db, out.run);
+        return out;
+    });
+}
+
+void print_group(const ValidationGroup& g) {
+    std::cout << '\n' << g.name << " (" << g.splits.size() << (g.splits.size() == 1 ? " split" : " splits") << ")\n";
+    validation_table(g, "  ").print(std::cout);
+}
+
+void print_header(const BootstrapOptions& b) {
+    std::cout << "Absolute relative error per (scene x configuration) cell of the median time per frame (update + "
+                 "rays x C) and of the median ray-cast time per frame; median and p90 over cells per structure, "
+                 "in brackets the bootstrap 95% interval over scenes ("
+              << b.resamples << " resamples, seed " << b.seed
+              << "). Unpredictable: cells of a category or configuration the chosen per-category or "
+                 "per-configuration form never saw.\n";
+}
+
+}  // namespace
+
+void add_validate_command(CLI::App& app) {
+    struct Options {
+        std::string train, test;
+        bool json = false;
+        BootstrapOptions bootstrap;
+    };
+    auto o = std::make_shared<Options>();
+    CLI::App* cmd = app.add_subcommand(
+        "validate",
+        "Validate the cost model on what it never saw. With --test: the model form and coefficients chosen and "
+        "fitted on the train run (all its scenes) predict every cell of the test run from its counters; stored in "
+        "the test database (table model_validation). Without --test: the train run's nested splits (leave one "
+        "scene out, one scene category out, the largest scenes out, ray-mode transfer), each split's whole model "
+        "selection redone on its train frames only; stored in the train database. Per structure: median and p90 over "
+        "(scene x configuration) cells of the absolute relative error of time per frame and of ray-cast time per "
+        "frame, with bootstrap 95% intervals over scenes");
+    cmd->add_option("--train", o->train,
+                    "DB[:RUN]: the run the model is chosen and fitted on (default: its newest run with cells)")
+        ->required();
+    cmd->add_option("--test", o->test, "DB[:RUN]: the run predicted (default: its newest run with cells)");
+    cmd->add_flag("--json", o->json, "Print JSON (summaries and every cell's prediction) instead of tables");
+    cmd->add_option("--resamples", o->bootstrap.resamples, "Bootstrap resamples over scenes")
+        ->check(whole_number(1, 1000000))
+        ->default_val(2000);
+    cmd->add_option("--seed", o->bootstrap.seed, "Seed of the bootstrap")
+        ->check(whole_number(0, std::uint64_t(std::numeric_limits<std::int64_t>::max())))
+        ->default_val(1);
+    cmd->callback([o] {
+        const RunRef train_ref = parse_run_ref("--train", o->train);
+        std::vector<ValidationGroup> groups;
+        std::vector<std::string> unpredictable;
+        std::int64_t predicted_run = 0, train_run = 0;
+        if (o->test.empty()) {
+            ResultStore store = naming(train_ref, [&] { return ResultStore(train_ref.path); });  // stored with the run
+            const LoadedRun train = load_run(store.db(), train_ref);
+            predicted_run = train_run = train.run;
+            groups = validate_nested(train.frames, train.inputs, nested_splits(train.frames), o->bootstrap);
+            for (const ValidationGroup& g : groups)
+                store_validation(store.db(), train.run, "nested", train.uuid, g, o->bootstrap);
+        } else {
+            const RunRef test_ref = parse_run_ref("--test", o->test);
+            LoadedRun train;
+            {
+                auto db = naming(train_ref, [&] { return open_read_only(train_ref.path); });
+                train = load_run(*db, train_ref);
+            }
+            ResultStore store = naming(test_ref, [&] { return ResultStore(test_ref.path); });
+            const LoadedRun test = load_run(store.db(), test_ref);
+            predicted_run = test.run;
+            train_run = train.run;
+            TransferValidation v = validate_transfer(train.frames, train.inputs, test.frames, o->bootstrap);
+            store_validation(store.db(), test.run, train_ref.path + ":" + std::to_string(train.run), train.uuid,
+                             v.group, o->bootstrap);
+            groups.push_back(std::move(v.group));
+            unpredictable = v.unpredictable;
+        }
+        if (o->json) {
+            nlohmann::json j{{"run", predicted_run},
+                             {"train", o->train},
+                             {"train_run", train_run},
+                             {"test", o->test.empty() ? nlohmann::json(nullptr) : nlohmann::json(o->test)},
+                             {"bootstrap", {{"resamples", o->bootstrap.resamples}, {"seed", o->bootstrap.seed}}},
+                             {"not_predictable", unpredictable},
+                             {"groups", nlohmann::json::array()}};
+            for (const ValidationGroup& g : groups) j["groups"].push_back(validation_json(g, true));
+            std::cout << j.dump(2) << '\n';
+            return;
+        }
+        std::cout << (o->test.empty() ? "run " + std::to_string(predicted_run) + ": nested splits. "
+                                      : "run " + std::to_string(predicted_run) + " of " + o->test +
+                                            " predicted by the model of run " + std::to_string(train_run) + " of " +
+                                            o->train + ". ");
+        print_header(o->bootstrap);
+        if (groups.empty()) std::cout << "no split applies: the run has one scene\n";
+        for (const ValidationGroup& g : groups) print_group(g);
+        if (!unpredictable.empty()) {
+            std::cout << "\nnot predictable (not measured in the train run):";
+            for (const std::string& s : unpredictable) std::cout << ' ' << s;
+            std::cout << '\n';
+        }
+    });
+}
+
+}  // namespace rcb

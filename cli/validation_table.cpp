@@ -1,0 +1,39 @@
+#include "cli/validation_table.h"
+
+#include <cmath>
+
+namespace rcb {
+namespace {
+
+/// "12.3% [8.1, 17.0]": a value with its bootstrap interval, in percent.
+std::string with_interval(double v, double low, double high) {
+    std::string text = percent(v);
+    if (std::isfinite(v) && std::isfinite(low)) text += " [" + fixed(100 * low, 1) + ", " + fixed(100 * high, 1) + "]";
+    return text;
+}
+
+/// "eq5.4 x5, per-category x1": how many splits chose each form.
+std::string forms_text(const std::map<std::string, int>& forms) {
+    std::string text;
+    for (const auto& [form, n] : forms) text += (text.empty() ? "" : ", ") + form + " x" + std::to_string(n);
+    return text.empty() ? "-" : text;
+}
+
+}  // namespace
+
+std::string percent(double v) { return std::isfinite(v) ? fixed(100 * v, 1) + "%" : "-"; }
+
+TextTable validation_table(const ValidationGroup& group, const std::string& indent) {
+    TextTable t({indent + "structure", "cells", "scenes", "frame median", "frame p90", "ray cast median",
+                 "ray cast p90", "unpredictable", "ray-cast forms chosen"});
+    for (const StructureValidation& s : group.structures)
+        t.add({indent + s.structure, std::to_string(s.cells), std::to_string(s.scenes),
+               with_interval(s.frame.median, s.frame.median_low, s.frame.median_high),
+               with_interval(s.frame.p90, s.frame.p90_low, s.frame.p90_high),
+               with_interval(s.raycast.median, s.raycast.median_low, s.raycast.median_high),
+               with_interval(s.raycast.p90, s.raycast.p90_low, s.raycast.p90_high), std::to_string(s.unpredictable),
+               forms_text(s.raycast_models)});
+    return t;
+}
+
+}  // namespace rcb

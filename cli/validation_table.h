@@ -1,0 +1,20 @@
+#pragma once
+/// The validation summaries as terminal tables: `fit` prints nested leave-one-scene-out with them,
+/// `validate` every split.
+
+#include <string>
+
+#include "analysis/validation.h"
+#include "cli/table.h"
+
+namespace rcb {
+
+/// "12.3%", "-" for NaN.
+std::string percent(double v);
+
+/// One row per structure: cells, scenes, median and p90 of the frame and ray-cast errors (with
+/// their bootstrap intervals where computed), unpredictable cells, the ray-cast forms the splits
+/// chose. `indent` prefixes the first column.
+TextTable validation_table(const ValidationGroup& group, const std::string& indent);
+
+}  // namespace rcb

@@ -1,0 +1,333 @@
+// The cost model validated on what it never saw (analysis/validation.h): a held-out scene cannot
+// choose its own model in the nested splits; a model frozen on one run predicts another run's
+// frames as well as their noise allows; the bootstrap interval narrows with more scenes; and
+// `rcbench validate` stores its results and refuses bad input with exit 2.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+#include "analysis/validation.h"
+#include "core/base/random.h"
+#include "runner/store.h"
+#include "tests/subprocess.h"
+#include "tests/test_support.h"
+
+namespace rcb {
+namespace {
+
+constexpr double kRb = 2.0, kT = 4.0, kPrep = 30.0, kMove = 500.0, kFrame = 2000.0;
+
+/// One configuration's frames of structure `structure` in scene `scene`: ray cast from the known
+/// costs (plus `offset` ns per ray), update 500 ns per move + 2000, each with relative noise `noise`.
+void add_cell(std::vector<FrameObservation>& out, const std::string& structure, const std::string& scene, int group,
+              double n_rb, double n_t, double offset, double noise, Random& rng) {
+    for (int f = 0; f < 8; ++f) {
+        FrameObservation o;
+        o.structure = structure;
+        o.scene = scene;
+        o.category = "irregular";
+        o.ray_mix = "center";
+        o.params = "{}";
+        o.config_group = group;
+        o.rays = 1000;
+        o.n_rb = n_rb;
+        o.n_t = n_t;
+        o.objects = 1000 + group;
+        o.raycast_ns = o.rays * (kRb * n_rb + kT * n_t + offset) * (1 + noise * rng.normal());
+        o.moves = 50 + 10 * (group % 7);
+        o.update_ns = (kMove * o.moves + kFrame) * (1 + noise * rng.normal());
+        out.push_back(o);
+    }
+}
+
+/// `scenes` scenes of `configs` configurations each, counters drawn independently over [lo, hi].
+std::vector<FrameObservation> known_run(std::uint64_t seed, int scenes, int configs, double lo, double hi, double noise,
+                                        const std::string& structure = "tree") {
+    Random rng(seed);
+    std::vector<FrameObservation> out;
+    int group = 0;
+    for (int s = 0; s < scenes; ++s)
+        for (int c = 0; c < configs; ++c, ++group)
+            add_cell(out, structure, "scene" + std::to_string(s), group, rng.log_uniform(lo, hi),
+                     rng.log_uniform(lo, hi), kPrep, noise, rng);
+    return out;
+}
+
+const ValidationSplit& split_named(const std::vector<ValidationSplit>& splits, const std::string& name) {
+    const auto it =
+        std::find_if(splits.begin(), splits.end(), [&](const ValidationSplit& s) { return s.name == name; });
+    if (it == splits.end()) throw std::logic_error("no split " + name);
+    return *it;
+}
+
+TEST(NestedValidation, AHeldOutSceneCannotChooseItsOwnModel) {
+    // Five scenes priced without a per-ray constant, large enough that a constant would hardly show;
+    // scene "x" of few tests per ray with a 500 ns constant: with it, eq. 5.4's C_PREP wins.
+    Random rng(11);
+    std::vector<FrameObservation> frames;
+    int group = 0;
+    for (int s = 0; s < 5; ++s)
+        for (int c = 0; c < 4; ++c, ++group)
+            add_cell(frames, "tree", "scene" + std::to_string(s), group, rng.log_uniform(2000, 20000),
+                     rng.log_uniform(2000, 20000), 0.0, 0.01, rng);
+    for (int c = 0; c < 4; ++c, ++group)
+        add_cell(frames, "tree", "x", group, rng.log_uniform(5, 20), rng.log_uniform(5, 20), 500.0, 0.01, rng);
+
+    const std::vector<StructureModels> all = fit_cost_models(frames);
+    ASSERT_NE(all.at(0).chosen("raycast"), nullptr);
+    EXPECT_EQ(all.at(0).chosen("raycast")->name, "eq5.4");  // chosen with x among the scenes
+
+    const std::vector<ValidationSplit> splits = scene_out_splits(frames);
+    ASSERT_EQ(splits.size(), 6u);
+    const std::vector<CellPrediction> x = run_split(frames, split_named(splits, "x"), {});
+    ASSERT_EQ(x.size(), 4u);
+    for (const CellPrediction& c : x) {
+        EXPECT_EQ(c.scene, "x");
+        EXPECT_EQ(c.raycast_model, "no-prep");  // chosen without x: x did not pick its own model
+        EXPECT_GT(c.raycast_error, 0.5);        // and the constant it needs is missing
+    }
+    // Another scene's fold still has x to choose from.
+    for (const CellPrediction& c : run_split(frames, split_named(splits, "scene0"), {}))
+        EXPECT_EQ(c.raycast_model, "eq5.4");
+}
+
+TEST(NestedValidation, SplitsAreDataAndNeverLeakTheTestFrames) {
+    std::vector<FrameObservation> frames = known_run(3, 4, 2, 100, 1000, 0.01);
+    for (FrameObservation& f : frames) {
+        if (f.scene == "scene3") f.objects = 1e6;  // the largest
+        if (f.scene == "scene0" || f.scene == "scene1") f.category = "uniform";
+        if (f.scene == "scene1") f.ray_mix = "dense";
+    }
+    const std::vector<ValidationSplit> splits = nested_splits(frames);
+    std::map<std::string, int> groups;
+    for (const ValidationSplit& s : splits) {
+        ++groups[s.group];
+        EXPECT_FALSE(s.train.empty()) << s.name;
+        EXPECT_FALSE(s.test.empty()) << s.name;
+        for (std::size_t i : s.test) EXPECT_EQ(std::count(s.train.begin(), s.train.end(), i), 0) << s.name;
+    }
+    EXPECT_EQ(groups[kSceneOutGroup], 4);
+    EXPECT_EQ(groups["leave-one-generator-out"], 2);
+    EXPECT_EQ(groups["leave-the-largest-out"], 1);
+    EXPECT_EQ(groups["ray modes center -> dense"], 1);
+    EXPECT_EQ(groups["ray modes dense -> center"], 1);
+    EXPECT_EQ(split_named(splits, "scene3 (1000000 objects)").test.size(), 16u);
+    EXPECT_EQ(split_named(splits, "ray modes dense -> center").train.size(), 16u);
+}
+
+TEST(TransferValidation, AFrozenModelPredictsAnotherRunWithinItsNoise) {
+    // Run A: 8 scenes; run B: other scenes, counters over another range, and a structure A lacks.
+    const std::vector<FrameObservation> a = known_run(5, 8, 3, 50, 2000, 0.02);
+    std::vector<FrameObservation> b = known_run(6, 6, 3, 100, 5000, 0.02);
+    const std::vector<FrameObservation> other = known_run(7, 2, 1, 100, 1000, 0.02, "unknown");
+    for (FrameObservation f : other) {
+        f.config_group += 1000;
+        b.push_back(f);
+    }
+    const std::vector<StructureModels> models = fit_cost_models(a);
+    const CandidateModel* m = models.at(0).chosen("raycast");
+    ASSERT_NE(m, nullptr);
+    EXPECT_NEAR(fitted_value(m->fit.coefficients, "C_RB", ""), kRb, 0.05 * kRb);
+    EXPECT_NEAR(fitted_value(m->fit.coefficients, "C_T", ""), kT, 0.05 * kT);
+
+    const TransferValidation v = validate_transfer(a, {}, b, {500, 3});
+    EXPECT_EQ(v.unpredictable, std::vector<std::string>{"unknown"});
+    ASSERT_EQ(v.group.structures.size(), 2u);  // in name order
+    const StructureValidation &tree = v.group.structures[0], &unknown = v.group.structures[1];
+    ASSERT_EQ(tree.structure, "tree");
+    EXPECT_EQ(tree.cells, 18u);
+    EXPECT_EQ(tree.unpredictable, 0u);
+    EXPECT_EQ(tree.scenes, 6u);
+    // A cell's error is its median frame's: 8 frames of 2% noise, and the fit's own error.
+    EXPECT_LT(tree.raycast.median, 0.02);
+    EXPECT_LT(tree.frame.median, 0.02);
+    EXPECT_LT(tree.raycast.p90, 0.04);
+    EXPECT_LE(tree.raycast.median_low, tree.raycast.median);
+    EXPECT_GE(tree.raycast.median_high, tree.raycast.median);
+    EXPECT_EQ(unknown.unpredictable, 2u);  // listed, never priced
+    EXPECT_TRUE(std::isnan(unknown.frame.median));
+}
+
+TEST(Bootstrap, TheIntervalNarrowsAsScenesGrow) {
+    const auto width = [](int scenes) {
+        Random rng(21);
+        std::vector<CellPrediction> cells;
+        for (int s = 0; s < scenes; ++s) {
+            const double scene_bias = 0.05 * std::abs(rng.normal());  // cells of a scene err alike
+            for (int c = 0; c < 3; ++c) {
+                CellPrediction p;
+                p.structure = "tree", p.scene = "s" + std::to_string(s), p.split = p.scene;
+                p.predicted_frame_ns = 1;
+                p.frame_error = p.raycast_error = scene_bias + 0.01 * std::abs(rng.normal());
+                cells.push_back(p);
+            }
+        }
+        const StructureValidation v = summarize(cells, {2000, 9}).at(0);
+        EXPECT_LE(v.frame.median_low, v.frame.median);
+        EXPECT_GE(v.frame.median_high, v.frame.median);
+        return v.frame.median_high - v.frame.median_low;
+    };
+    const double few = width(5), some = width(20), many = width(80);
+    EXPECT_GT(few, some);
+    EXPECT_GT(some, many);
+    EXPECT_GT(many, 0);
+}
+
+TEST(Bootstrap, QuantilesInterpolateAndTheSeedRepeats) {
+    EXPECT_DOUBLE_EQ(quantile({4, 1, 3, 2}, 0.5), 2.5);
+    EXPECT_DOUBLE_EQ(quantile({1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11}, 0.9), 10);
+    EXPECT_TRUE(std::isnan(quantile({}, 0.5)));
+    std::vector<CellPrediction> cells;
+    for (int s = 0; s < 6; ++s) {
+        CellPrediction p;
+        p.structure = "tree", p.scene = "s" + std::to_string(s), p.predicted_frame_ns = 1;
+        p.frame_error = 0.01 * s;
+        cells.push_back(p);
+    }
+    const StructureValidation one = summarize(cells, {300, 4}).at(0), two = summarize(cells, {300, 4}).at(0);
+    EXPECT_EQ(one.frame.median_low, two.frame.median_low);
+    EXPECT_EQ(one.frame.p90_high, two.frame.p90_high);
+}
+
+/// A results database with one run of `frames` (their scenes, configurations and counters), as
+/// `rcbench run` stores them.
+void write_run(const std::string& path, const std::vector<FrameObservation>& frames, const std::string& uuid,
+               int version = latest_schema_version()) {
+    ResultStore store(path, version);
+    Database& db = store.db();
+    db.exec("INSERT OR IGNORE INTO experiment(name) VALUES ('synthetic')");
+    db.prepare(
+          "INSERT INTO run(uuid, experiment_id, experiment_hash, experiment_content, started_at, git_commit, "
+          "compiler, flags, cpu_model, cores, governor, hostname, threads, shard) VALUES (?, 1, 'h', '{}', 't', 'g', "
+          "'c', 'f', 'cpu', 1, 'gov', 'host', 1, '')")
+        .bind(1, uuid)
+        .run();
+    const std::int64_t run = db.last_insert_id();
+    std::map<int, std::int64_t> cells;
+    for (const FrameObservation& f : frames) {
+        if (!cells.count(f.config_group)) {
+            const std::string spec =
+                nlohmann::json{{"kind", f.category}, {"ray_mix", f.ray_mix}, {"objects", f.objects}}.dump();
+            db.prepare(
+                  "INSERT OR IGNORE INTO scene(hash, name, spec, meta, objects, frames, rays_per_frame, stats) "
+                  "VALUES (?, ?, ?, '{}', ?, 8, 1000, '{}')")
+                .bind_all(uuid + f.scene, f.scene, spec, std::int64_t(f.objects))
+                .run();
+            db.prepare("INSERT OR IGNORE INTO config(structure, params) VALUES (?, ?)")
+                .bind_all(f.structure, "{\"g\":" + std::to_string(f.config_group) + "}")
+                .run();
+            db.prepare(
+                  "INSERT INTO cell(run_id, cell_key, scene_id, config_id, repetition, finished_at, objects, "
+                  "build_ns, memory_bytes, verified, mismatches, frames, update_ns_median, update_ns_mad, "
+                  "raycast_ns_median, raycast_ns_mad) VALUES (?, ?, (SELECT id FROM scene WHERE hash = ?), "
+                  "(SELECT id FROM config WHERE structure = ? AND params = ?), 0, 't', ?, 1, 0, 0, 0, 8, 0, 0, 0, 0)")
+                .bind_all(run, std::to_string(f.config_group), uuid + f.scene, f.structure,
+                          "{\"g\":" + std::to_string(f.config_group) + "}", std::int64_t(f.objects))
+                .run();
+            cells[f.config_group] = db.last_insert_id();
+        }
+        const std::int64_t cell = cells[f.config_group];
+        Statement n = db.prepare("SELECT count(*) FROM frame WHERE cell_id = ?");
+        n.bind(1, cell);
+        n.step();
+        db.prepare(
+              "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, "
+              "missed, extra, duplicate, n_t, n_rb, n_tp, memory_bytes, stats) VALUES (?, ?, 0, 0, 0, ?, ?, ?, ?, 0, "
+              "0, 0, 0, ?, ?, 0, 0, '{}')")
+            .bind_all(cell, n.int64(0) + 1, std::int64_t(f.moves), std::int64_t(f.rays), std::int64_t(f.update_ns),
+                      std::int64_t(f.raycast_ns), std::int64_t(std::llround(f.n_t * f.rays)),
+                      std::int64_t(std::llround(f.n_rb * f.rays)))
+            .run();
+    }
+}
+
+::test::Outcome rcbench(std::vector<std::string> args) {
+    args.insert(args.begin(), RCBENCH_BINARY);
+    return ::test::run_process(args);
+}
+
+std::int64_t count(const std::string& path, const std::string& sql) {
+    Database db(path, true);
+    Statement s = db.prepare(sql);
+    s.step();
+    return s.int64(0);
+}
+
+TEST(ValidateCommand, StoresTransferInTheTestDatabaseAndNestedInTheTrainOne) {
+    const test::TempDir dir("validation");
+    const std::string a = dir.file("a.db"), b = dir.file("b.db");
+    write_run(a, known_run(5, 4, 2, 50, 2000, 0.02), "ua");
+    write_run(b, known_run(6, 3, 2, 100, 5000, 0.02), "ub");
+
+    const ::test::Outcome t = rcbench({"validate", "--train", a + ":1", "--test", b, "--json", "--resamples", "50"});
+    ASSERT_EQ(t.code, 0) << t.err;
+    const nlohmann::json j = nlohmann::json::parse(t.out);
+    EXPECT_EQ(j["bootstrap"]["seed"], 1);
+    ASSERT_EQ(j["groups"].size(), 1u);
+    EXPECT_EQ(j["groups"][0]["group"], "transfer");
+    EXPECT_LT(j["groups"][0]["structures"][0]["raycast_error"]["median"].get<double>(), 0.03);
+    EXPECT_EQ(count(b, "SELECT count(*) FROM model_validation WHERE train_run_uuid = 'ua' AND seed = 1"), 1);
+    EXPECT_EQ(count(b, "SELECT resamples FROM model_validation"), 50);
+    // Stored again: replaced, not added; the file still passes the schema check of every reader.
+    ASSERT_EQ(rcbench({"validate", "--train", a, "--test", b + ":1"}).code, 0);
+    EXPECT_EQ(count(b, "SELECT count(*) FROM model_validation"), 1);
+    EXPECT_EQ(count(a, "SELECT count(*) FROM sqlite_master WHERE name = 'model_validation'"), 0);
+    EXPECT_NO_THROW(open_read_only(b));
+
+    const ::test::Outcome n = rcbench({"validate", "--train", a, "--resamples", "20"});
+    ASSERT_EQ(n.code, 0) << n.err;
+    EXPECT_NE(n.out.find("leave-one-scene-out (4 splits)"), std::string::npos) << n.out;
+    EXPECT_EQ(count(a,
+                    "SELECT count(*) FROM model_validation WHERE train = 'nested' AND split = "
+                    "'leave-one-scene-out' AND train_run_uuid = 'ua'"),
+              1);
+}
+
+TEST(ValidateCommand, AnOlderDatabaseIsMigratedAndGainsTheTable) {
+    const test::TempDir dir("validation");
+    const std::string old = dir.file("old.db");
+    write_run(old, known_run(5, 3, 2, 50, 2000, 0.02), "uo", 6);
+    EXPECT_EQ(count(old, "PRAGMA user_version"), 6);
+    const ::test::Outcome r = rcbench({"validate", "--train", old, "--resamples", "10"});
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(count(old, "PRAGMA user_version"), latest_schema_version());
+    EXPECT_EQ(count(old, "SELECT count(*) FROM model_validation WHERE split = 'leave-one-scene-out'"), 1);
+    EXPECT_NO_THROW(open_read_only(old));
+    EXPECT_NO_THROW(ResultStore{old});  // the writers' schema check accepts it too
+}
+
+TEST(ValidateCommand, BadInputNamesTheOptionAndExitsTwo) {
+    const test::TempDir dir("validation");
+    const std::string a = dir.file("a.db"), empty = dir.file("empty.db");
+    write_run(a, known_run(5, 2, 2, 50, 2000, 0.02), "ua");
+    write_run(empty, {}, "ue");  // a run without cells
+    const std::vector<std::pair<std::vector<std::string>, std::string>> cases{
+        {{"--train", dir.file("absent.db")}, "--train " + dir.file("absent.db") + ": no such results database"},
+        {{"--train", a + ":7"}, "--train " + a + ":7: no run 7 in " + a},
+        {{"--train", a + ":0"}, "--train " + a + ":0: a run id is a whole number >= 1"},
+        {{"--train", empty + ":1"}, "--train " + empty + ":1: run 1 has no measured frames"},
+        {{"--train", empty}, "--train " + empty + ": " + empty + ": the database has no measured run"},
+        {{"--train", a, "--test", dir.file("absent.db")}, "--test " + dir.file("absent.db") + ": no such"},
+        {{"--train", a, "--test", empty + ":1"}, "--test " + empty + ":1: run 1 has no measured frames"},
+        {{"--train", a, "--resamples", "0"}, "--resamples"},
+        {{}, "--train is required"},
+    };
+    for (const auto& [args, message] : cases) {
+        std::vector<std::string> argv{"validate"};
+        argv.insert(argv.end(), args.begin(), args.end());
+        const ::test::Outcome r = rcbench(argv);
+        EXPECT_EQ(r.code, 2) << message << "\n" << r.err;
+        EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    }
+    const ::test::Outcome help = rcbench({"validate", "--help"});
+    EXPECT_EQ(help.code, 0);
+    for (const char* option : {"--train", "--test", "--json", "--resamples", "--seed"})
+        EXPECT_NE(help.out.find(option), std::string::npos) << option;
+}
+
+}  // namespace
+}  // namespace rcb
