@@ -326,12 +326,13 @@ std::string growth_category(const std::vector<Entry>& entries) {
     return category;
 }
 
-/// Brute force on `scene`, the baseline the thesis measures speed-ups against (§4.1): its first
-/// configuration, or only its configuration at the defaults.
+/// Brute force on `scene`, the baseline the thesis measures speed-ups against (§4.1; the registry's
+/// family scan): its first configuration, or only its configuration at the defaults.
 const Entry* baseline_on(const std::vector<Entry>& entries, const std::string& scene, bool default_params_only) {
     for (const Entry& e : entries) {
-        if (e.scene != scene || e.structure != "bf") continue;
-        if (!default_params_only || e.label == "bf") return &e;
+        const StructureInfo* info = registered_structure(e.structure);
+        if (e.scene != scene || !info || info->family != Family::scan) continue;
+        if (!default_params_only || e.label == e.structure) return &e;
     }
     return nullptr;
 }
@@ -443,7 +444,7 @@ void update_raycast_section(Html& h, const Entries& es) {
             c.series.push_back(s);
         }
         const auto [best_scene, best] = best_on_largest(es, category);
-        const Entry* bf = es.find(best_scene, "bf");
+        const Entry* bf = baseline_on(es.all, best_scene, true);
         c.reading = best ? "Lower left is better. On " + best_scene + ", the lowest update + ray cast per frame is " +
                                best->label + " at " + ms(best->total_ms()) + " ms" +
                                (bf && best != bf

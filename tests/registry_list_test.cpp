@@ -10,8 +10,6 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
-#include <tuple>
-#include <unordered_map>
 #include <vector>
 
 #include "analysis/charts.h"
@@ -22,6 +20,7 @@
 #include "runner/experiment.h"
 #include "runner/run_experiment.h"
 #include "tests/fuzz/differential_settings.h"
+#include "tests/test_support.h"
 #include "tuner/tuning.h"
 
 namespace rcb {
@@ -29,75 +28,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// A toy structure as a program outside rcbench would write it: the objects in a list, tested in
-/// blocks of `block` per ray, front to back or back to front. One tunable integer and one bool, so
-/// that it has a tuning space and a fuzzer setting of its own.
-class Toy : public StructureBase<Toy> {
-public:
-    struct Params {
-        int block = 4;
-        bool backwards = false;
-        static constexpr auto fields() {
-            return std::tuple{Field{"block", &Params::block, 1, 64, "objects tested per block"},
-                              Field{"backwards", &Params::backwards, 0, 1, "scan from the last object", kNotTuned}};
-        }
-    };
-    Toy() : Toy(Params{}) {}
-    explicit Toy(const Params& p) : params_(p) {}
-
-    void build(std::span<const Object> objects) override {
-        objects_.assign(objects.begin(), objects.end());
-        index_.clear();
-        for (std::size_t i = 0; i < objects_.size(); ++i) index_[objects_[i].uid] = i;
-    }
-    void insert(const Object& o) override {
-        index_[o.uid] = objects_.size();
-        objects_.push_back(o);
-    }
-    void remove(Uid uid) override {
-        const std::size_t i = index_.at(uid);
-        index_.erase(uid);
-        if (i + 1 != objects_.size()) {
-            objects_[i] = objects_.back();
-            index_[objects_[i].uid] = i;
-        }
-        objects_.pop_back();
-    }
-    void move(const Object& o) override { objects_[index_.at(o.uid)].box = o.box; }
-    std::size_t size() const override { return objects_.size(); }
-    std::size_t memory_bytes() const override { return objects_.capacity() * sizeof(Object) + index_.size() * 32; }
-    void validate() const override {
-        if (index_.size() != objects_.size()) throw std::logic_error("toy: index and list differ in size");
-    }
-
-    template <class Count, class Visit>
-    void traverse(const Segment& s, Count& count, Visit&& visit) {
-        const SegmentSlabs slabs(s);
-        const std::size_t n = objects_.size(), block = std::size_t(params_.block);
-        for (std::size_t start = 0; start < n; start += block) {
-            count.traversal();
-            const std::size_t end = std::min(n, start + block);
-            count.box_tests(end - start);
-            for (std::size_t k = start; k < end; ++k) {
-                const Object& o = objects_[params_.backwards ? n - 1 - k : k];
-                float t_near, t_far;
-                if (!slabs.clip(o.box, t_near, t_far)) continue;
-                count.hits();
-                if (!visit(o.uid, t_near)) return;
-            }
-        }
-    }
-
-private:
-    Params params_;
-    std::vector<Object> objects_;
-    std::unordered_map<Uid, std::size_t> index_;
-};
-
 /// Registered once per process (the registry is global), on first use.
 const StructureInfo& toy() {
-    static const StructureInfo& info =
-        register_structure<Toy>("toy", "a list tested in blocks (registry_list_test)", Origin::own, Family::other);
+    static const StructureInfo& info = register_structure<test::ToyList>(
+        "toy", "a list tested in blocks (registry_list_test)", Origin::own, Family::other);
     return info;
 }
 

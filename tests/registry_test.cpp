@@ -3,71 +3,16 @@
 #include <gtest/gtest.h>
 
 #include <string>
-#include <tuple>
-#include <unordered_map>
 #include <vector>
 
 #include "core/base/error.h"
 #include "core/accel/registry.h"
 #include "core/sim/simulator.h"
-#include "core/accel/structure.h"
 #include "tests/test_scenes.h"
+#include "tests/test_support.h"
 
 namespace rcb {
 namespace {
-
-/// The smallest honest structure: a list of objects scanned per ray (brute force without the
-/// vectorised layout), as a user outside rcbench would write it.
-class ListScan : public StructureBase<ListScan> {
-public:
-    struct Params {
-        static constexpr auto fields() { return std::tuple{}; }
-    };
-    explicit ListScan(const Params&) {}
-
-    void build(std::span<const Object> objects) override {
-        objects_.assign(objects.begin(), objects.end());
-        index_.clear();
-        for (std::size_t i = 0; i < objects_.size(); ++i) index_[objects_[i].uid] = i;
-    }
-    void insert(const Object& o) override {
-        index_[o.uid] = objects_.size();
-        objects_.push_back(o);
-    }
-    void remove(Uid uid) override {
-        const std::size_t i = index_.at(uid);
-        index_.erase(uid);
-        if (i + 1 != objects_.size()) {
-            objects_[i] = objects_.back();
-            index_[objects_[i].uid] = i;
-        }
-        objects_.pop_back();
-    }
-    void move(const Object& o) override { objects_[index_.at(o.uid)].box = o.box; }
-    std::size_t size() const override { return objects_.size(); }
-    std::size_t memory_bytes() const override { return objects_.capacity() * sizeof(Object) + index_.size() * 32; }
-    void validate() const override {
-        if (index_.size() != objects_.size()) throw std::logic_error("list_scan: index and list differ in size");
-        for (std::size_t i = 0; i < objects_.size(); ++i)
-            if (index_.at(objects_[i].uid) != i) throw std::logic_error("list_scan: index is stale");
-    }
-
-    template <class Count, class Visit>
-    void traverse(const Segment& s, Count& count, Visit&& visit) {
-        const SegmentSlabs slabs(s);
-        count.box_tests(objects_.size());
-        for (const Object& o : objects_) {
-            float t_near, t_far;
-            if (!slabs.clip(o.box, t_near, t_far)) continue;
-            count.hits();
-            if (!visit(o.uid, t_near)) return;
-        }
-    }
-
-private:
-    std::vector<Object> objects_;
-    std::unordered_map<Uid, std::size_t> index_;
-};
 
 /// Registered once per process (the registry is global). The address of bf's entry is taken just
 /// before, to check that registering moves no existing entry.
@@ -78,8 +23,8 @@ struct Registered {
 const Registered& registered() {
     static const Registered r = [] {
         const StructureInfo* bf = &find_structure("bf");
-        return Registered{bf,
-                          &register_structure<ListScan>("test_list_scan", "a list scanned per ray (registry_test)")};
+        return Registered{
+            bf, &register_structure<test::ToyList>("test_list_scan", "a list scanned per ray (registry_test)")};
     }();
     return r;
 }
@@ -130,7 +75,7 @@ TEST(RegisterStructure, ParamsOfARegisteredStructureAreChecked) {
     EXPECT_EQ(error_of([] {
                   find_structure("test_list_scan").make({{"cells", 4}}, "--param");
               }),
-              "--param.cells: unknown parameter of test_list_scan (known: query, leaf_bv)");
+              "--param.cells: unknown parameter of test_list_scan (known: block, backwards, query, leaf_bv)");
 }
 
 TEST(RegisterStructure, RefusesDuplicateAndBadNames) {
@@ -138,21 +83,21 @@ TEST(RegisterStructure, RefusesDuplicateAndBadNames) {
     const std::size_t before = structure_registry().size();
     EXPECT_EQ(
         error_of([] {
-            register_structure<ListScan>("bf", "mine");
+            register_structure<test::ToyList>("bf", "mine");
         }).rfind("register_structure('bf'): a structure named 'bf' is already registered ('brute force: every", 0),
         0u);
     EXPECT_NE(error_of([] {
-                  register_structure<ListScan>("test_list_scan", "again");
+                  register_structure<test::ToyList>("test_list_scan", "again");
               }).find("register_structure('test_list_scan'): a structure named 'test_list_scan' is already registered"),
               std::string::npos);
     for (const std::string& name :
          std::vector<std::string>{"", "has space", "a/b", "caf\xc3\xa9", std::string(65, 'x')})
         EXPECT_NE(error_of([&] {
-                      register_structure<ListScan>(name, "x");
+                      register_structure<test::ToyList>(name, "x");
                   }).find("a structure name is 1 to 64 ASCII letters, digits, '_' or '-'"),
                   std::string::npos)
             << name;
-    EXPECT_EQ(error_of([] { register_structure<ListScan>("all", "x"); }),
+    EXPECT_EQ(error_of([] { register_structure<test::ToyList>("all", "x"); }),
               "register_structure('all'): 'all' is reserved (rcbench simulate --structure all runs every structure)");
     EXPECT_EQ(structure_registry().size(), before);
 }
@@ -164,7 +109,7 @@ TEST(RegisterStructure, RefusesAnEntryWithoutFactoryOrWithABadDefault) {
     EXPECT_EQ(error_of([&] { register_structure(no_factory); }),
               "register_structure('test_no_factory'): the entry has no factory (make is empty)");
 
-    StructureInfo bad_default = describe_structure<ListScan>("test_bad_default", "x");
+    StructureInfo bad_default = describe_structure<test::ToyList>("test_bad_default", "x");
     ParamSpec cells;
     cells.name = "cells";
     cells.kind = ParamKind::integer;

@@ -154,9 +154,8 @@ std::size_t simplest_within(const std::vector<const Candidate*>& all, double tol
 }
 
 int structure_simplicity(const std::string& structure) {
-    if (structure == "ug") return 0;
-    if (structure == "hg") return 1;
-    return 2;
+    const StructureInfo* info = registered_structure(structure);
+    return info ? info->simplicity : StructureInfo{}.simplicity;
 }
 
 std::vector<SearchDimension> default_space(const std::string& structure) {

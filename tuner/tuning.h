@@ -203,11 +203,13 @@ std::vector<const Candidate*> meeting(const std::vector<const Candidate*>& all, 
 /// InputError when no candidate of the category meets it.
 CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category, MachinePriors* priors = nullptr);
 
-/// Rank for the simplicity rule: lower is simpler.
+/// Rank for the simplicity rule, lower is simpler: the registry entry's StructureInfo::simplicity,
+/// its default for a structure this program does not know.
 int structure_simplicity(const std::string& structure);
 
 /// The simplicity rule: among measured candidates within `tolerance` (0.03: 3%) of the fastest,
-/// the simplest (UG, then HG, then others; then less memory). Returns its index.
+/// the simplest (by structure_simplicity: UG, then HG, then others; then less memory). Returns its
+/// index.
 std::size_t simplest_within(const std::vector<const Candidate*>& candidates, double tolerance);
 
 }  // namespace rcb

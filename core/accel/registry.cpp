@@ -13,8 +13,15 @@
 namespace rcb {
 namespace {
 
+/// `info` at rank `simplicity` of the tuner's simplicity rule (StructureInfo::simplicity).
+StructureInfo ranked(StructureInfo info, int simplicity) {
+    info.simplicity = simplicity;
+    return info;
+}
+
 std::deque<StructureInfo>& registry() {
-    // One entry per structure: name, summary, origin and family (registry.h).
+    // One entry per structure: name, summary, origin and family (registry.h); the two grids the
+    // tuner's simplicity rule prefers are ranked.
     static std::deque<StructureInfo> all = {
         describe_structure<BruteForce>("bf", "brute force: every object's box tested (the baseline, thesis §4.1)",
                                        Origin::thesis, Family::scan),
@@ -31,12 +38,15 @@ std::deque<StructureInfo>& registry() {
                                     "per leaf of up to 8 objects, binned-SAH build, refit, reinsertion and leaf splits "
                                     "on changes, progressive rebuild spread over commits",
                                     Origin::own, Family::bvh),
-        describe_structure<UniformGrid>(
-            "ug", "uniform grid: cells from eq. 4.1, 3D-DDA with mailboxes, incremental updates (thesis §4.2)",
-            Origin::thesis, Family::grid),
-        describe_structure<HashGrid>(
-            "hg", "hierarchical hash grid: Jevans-style recursive grids, only non-empty cells hashed (thesis §4.3)",
-            Origin::thesis, Family::grid),
+        ranked(describe_structure<UniformGrid>(
+                   "ug", "uniform grid: cells from eq. 4.1, 3D-DDA with mailboxes, incremental updates (thesis §4.2)",
+                   Origin::thesis, Family::grid),
+               0),
+        ranked(
+            describe_structure<HashGrid>(
+                "hg", "hierarchical hash grid: Jevans-style recursive grids, only non-empty cells hashed (thesis §4.3)",
+                Origin::thesis, Family::grid),
+            1),
         describe_structure<EmbreeBoxes>("embree",
                                         "peer: Intel Embree 3 user geometry of boxes, all hits recorded in the "
                                         "intersect callback, rebuilt (Morton or binned SAH) or refitted at commit",
@@ -128,9 +138,14 @@ const StructureInfo& register_structure(StructureInfo info) {
     return registry().back();
 }
 
-const StructureInfo& find_structure(std::string_view name) {
+const StructureInfo* registered_structure(std::string_view name) {
     for (const StructureInfo& info : structure_registry())
-        if (info.name == name) return info;
+        if (info.name == name) return &info;
+    return nullptr;
+}
+
+const StructureInfo& find_structure(std::string_view name) {
+    if (const StructureInfo* info = registered_structure(name)) return *info;
     throw InputError("unknown structure '" + std::string(name) +
                      "' (known: " + join(structure_registry(), ", ", &StructureInfo::name) + ")");
 }

@@ -40,6 +40,10 @@ struct StructureInfo {
     std::string summary;
     Origin origin = Origin::own;
     Family family = Family::other;
+    /// Rank for the tuner's simplicity rule (simplest_within, tuner/tuning.h), lower is simpler:
+    /// among candidates within 3% of the fastest the simplest is recommended, as the thesis
+    /// prefers the uniform grid (0), then the hash grid (1); every other structure is 2.
+    int simplicity = 2;
     std::vector<ParamSpec> params;
     /// Makes the structure from a parameter object (defaults for missing keys); `path` prefixes
     /// error messages, e.g. "structures[2].params" or "--param".
@@ -60,6 +64,9 @@ const std::deque<StructureInfo>& structure_registry();
 std::vector<std::string> structure_names(const std::function<bool(const StructureInfo&)>& keep = {});
 /// Throws InputError "unknown structure 'x' (known: bf, ug, …)".
 const StructureInfo& find_structure(std::string_view name);
+/// The registered structure `name`, or nullptr: for names read from a database, which may hold
+/// structures a program registered and this one does not know.
+const StructureInfo* registered_structure(std::string_view name);
 
 /// `info` with the parameters the registry gives every structure (`query`, `leaf_bv`:
 /// query_level.h): their

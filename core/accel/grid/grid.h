@@ -169,6 +169,18 @@ void for_each_cell(const CellRange& r, F&& f) {
 /// a 3×3×3 block.
 inline constexpr int kDefaultMaxCells = 27;
 
+/// For a grid's stats "guards_off": with the large-object guard switched off (`max_cells` 0), how
+/// many of the objects (`slot`: uid → index into `entries`) it would have listed at its default;
+/// 0 when the guard is on. `range_of(box)` is the cell range the guard tests.
+template <class Entries, class RangeOf>
+std::size_t unguarded_large_objects(int max_cells, const std::unordered_map<Uid, std::uint32_t>& slot,
+                                    const Entries& entries, RangeOf&& range_of) {
+    if (max_cells != 0) return 0;
+    std::size_t n = 0;
+    for (const auto& [uid, s] : slot) n += cell_count(range_of(entries[s].box)) > std::size_t(kDefaultMaxCells);
+    return n;
+}
+
 }  // namespace grid
 
 }  // namespace rcb

@@ -453,13 +453,10 @@ nlohmann::json HashGrid::stats() const {
                         {"large_objects", large_.size()}};
     // A guard switched off that would have fired: said here, since the grid is unbounded without it.
     nlohmann::json off = nlohmann::json::object();
-    if (params_.max_cells == 0) {
-        std::size_t would_list = 0;  // objects over the default guard's top-cell count
-        for (const auto& [uid, slot] : slot_)
-            would_list += grid::cell_count(range_at(lat_[params_.max_depth].range_of(entries_[slot].box), 0)) >
-                          std::size_t(grid::kDefaultMaxCells);
-        if (would_list) off["max_cells"] = would_list;
-    }
+    if (const std::size_t would_list = grid::unguarded_large_objects(
+            params_.max_cells, slot_, entries_,
+            [&](const Aabb& b) { return range_at(lat_[params_.max_depth].range_of(b), 0); }))
+        off["max_cells"] = would_list;
     if (unguarded_overruns_) off["entries_guard"] = unguarded_overruns_;
     if (ceiling_refusals_) off["entries_ceiling"] = ceiling_refusals_;
     if (would_trim_) off["outlier_guard"] = true;

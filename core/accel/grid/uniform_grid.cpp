@@ -137,12 +137,9 @@ nlohmann::json UniformGrid::stats() const {
                         {"large_objects", large_.size()}};
     // A guard switched off that would have fired: said here, since the grid is unbounded without it.
     nlohmann::json off = nlohmann::json::object();
-    if (params_.max_cells == 0) {
-        std::size_t would_list = 0;  // objects over the default guard's cell count
-        for (const auto& [uid, slot] : slot_)
-            would_list += grid::cell_count(lat_.range_of(entries_[slot].box)) > std::size_t(grid::kDefaultMaxCells);
-        if (would_list) off["max_cells"] = would_list;
-    }
+    if (const std::size_t would_list = grid::unguarded_large_objects(params_.max_cells, slot_, entries_,
+                                                                     [&](const Aabb& b) { return lat_.range_of(b); }))
+        off["max_cells"] = would_list;
     if (would_trim_) off["outlier_guard"] = true;
     if (!off.empty()) j["guards_off"] = off;
     return j;
