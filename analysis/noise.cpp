@@ -117,14 +117,6 @@ std::vector<SlowCell> slow_cells(Database& db, std::int64_t run) {
     return out;
 }
 
-double quantile(std::vector<double> values, double q) {
-    if (values.empty()) return NAN;
-    std::sort(values.begin(), values.end());
-    const double at = q * double(values.size() - 1);
-    const std::size_t lo = std::size_t(std::floor(at)), hi = std::min(lo + 1, values.size() - 1);
-    return values[lo] + (at - double(lo)) * (values[hi] - values[lo]);
-}
-
 std::string noise_text(double p50, double p90) {
     return std::isfinite(p50) ? noise_text(p50) + " / " + noise_text(p90) : "-";
 }

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "analysis/statistics.h"
 #include "runner/sqlite.h"
 
 namespace rcb {
@@ -71,8 +72,5 @@ std::vector<SlowCell> slow_cells(Database& db, std::int64_t run);
 std::string noise_text(double deviation);
 /// "2.3% / 7.9%" (median / p90), or "-".
 std::string noise_text(double p50, double p90);
-
-/// The q-quantile (0..1) of `values` by linear interpolation between order statistics; NaN when empty.
-double quantile(std::vector<double> values, double q);
 
 }  // namespace rcb

@@ -25,6 +25,7 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/cost_model.h"
+#include "analysis/statistics.h"
 #include "runner/sqlite.h"
 
 namespace rcb {
@@ -94,9 +95,6 @@ struct StructureValidation {
 
 /// Per structure over `cells` (one group's), in structure order.
 std::vector<StructureValidation> summarize(const std::vector<CellPrediction>& cells, const BootstrapOptions& options);
-
-/// q in [0, 1] of `values`, linear between order statistics; NaN when empty.
-double quantile(std::vector<double> values, double q);
 
 /// One group's cells and their summaries.
 struct ValidationGroup {

@@ -28,7 +28,8 @@ TEST(Stopwatch, WorkOnTheThreadCountsOnTheCpuClock) {
     while (watch.elapsed().cpu_ns < 20'000'000u) x = x * 6364136223846793005ULL + 1;
     const Elapsed e = watch.elapsed();
     EXPECT_GE(e.cpu_ns, 20'000'000u);
-    EXPECT_GE(e.wall_ns + 1'000'000u, e.cpu_ns);  // never more CPU than wall time on one thread (1 ms slack for the two clocks' reads)
+    EXPECT_GE(e.wall_ns + 1'000'000u,
+              e.cpu_ns);  // never more CPU than wall time on one thread (1 ms slack for the two clocks' reads)
     EXPECT_NE(x, 0u);
     EXPECT_STREQ(clock_name(TimingClock::thread_cpu), "thread-cpu");
     EXPECT_STREQ(clock_name(TimingClock::wall), "wall");

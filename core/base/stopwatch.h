@@ -20,7 +20,9 @@ struct Elapsed {
 /// Which clock a measurement reports: the thread's CPU time for work on one thread, else wall.
 enum class TimingClock { wall, thread_cpu };
 const char* clock_name(TimingClock c);  ///< "wall", "thread-cpu"
-inline std::uint64_t on_clock(const Elapsed& e, TimingClock c) { return c == TimingClock::thread_cpu ? e.cpu_ns : e.wall_ns; }
+inline std::uint64_t on_clock(const Elapsed& e, TimingClock c) {
+    return c == TimingClock::thread_cpu ? e.cpu_ns : e.wall_ns;
+}
 
 class Stopwatch {
 public:
