@@ -8,6 +8,7 @@
 #include "core/base/output_file.h"
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
+#include "analysis/statistics.h"
 #include "runner/compare.h"
 #include "runner/merge.h"
 #include "runner/query.h"
@@ -40,6 +41,23 @@ void run_query(const std::string& path, const std::string& sql, bool csv) {
     TextTable t(result.columns);
     for (auto& r : result.rows) t.add(std::move(r));
     t.print(std::cout);
+}
+
+/// How far two runs of one experiment are apart, per metric: |candidate − baseline| / their mean
+/// over the scene × configuration cells, median, 90th percentile and worst (two runs of one
+/// experiment on one machine: the repeatability docs/architecture.md reports).
+void print_run_difference(const std::vector<Comparison>& rows) {
+    for (const std::string metric : {"raycast", "update"}) {
+        std::vector<double> d;
+        for (const Comparison& r : rows) {
+            const double mean = 0.5 * (r.baseline_median + r.candidate_median);
+            if (r.metric == metric && mean > 0) d.push_back(std::abs(r.candidate_median - r.baseline_median) / mean);
+        }
+        if (d.empty()) continue;
+        std::cout << metric << ": per-cell difference |candidate - baseline| / mean over " << d.size() << " cells: p50 "
+                  << fixed(100 * quantile(d, 0.5), 1) << "%, p90 " << fixed(100 * quantile(d, 0.9), 1) << "%, worst "
+                  << fixed(100 * quantile(d, 1.0), 1) << "%\n";
+    }
 }
 
 }  // namespace
@@ -97,6 +115,7 @@ void add_query_commands(CLI::App& app) {
             if (c->fail_pct >= 0 && r.verdict == "slower" && (r.ratio - 1) * 100 > c->fail_pct) ++regressions;
         }
         t.print(std::cout);
+        print_run_difference(rows);
         if (regressions)
             throw std::runtime_error(std::to_string(regressions) + " significant slowdowns above " +
                                      fixed(c->fail_pct, 1) + "%");
