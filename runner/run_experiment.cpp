@@ -65,7 +65,7 @@ double memory_probe_ns() {
     // each step's load depends on the last, so the time is the latency of the caches and memory a
     // process on the other core competes for.
     constexpr std::size_t kEntries = std::size_t(8) << 18;  // 8 MiB of std::uint32_t
-    constexpr int kSteps = 200'000;
+    constexpr int kSteps = 100'000;
     static const std::vector<std::uint32_t> cycle = [] {
         std::vector<std::uint32_t> order(kEntries), next(kEntries);
         std::iota(order.begin(), order.end(), std::uint32_t{0});
@@ -149,20 +149,24 @@ void check_loaded_scene(const Experiment& e, std::size_t index, const Recording&
                          "): their cells would be stored as one; make them differ or drop one");
 }
 
+constexpr auto kResampleWait = std::chrono::milliseconds(200);
+
 /// The machine's state before a cell, used: while the calibration loop or the memory probe runs
 /// more than kSlowCalibration slower than the median of the run's samples so far (another process
-/// on the core or on the caches, a throttled clock), wait and sample again, up to kResampleLimit times; the cell is
-/// then measured, and flagged afterwards if it was still slow (ResultStore::flag_slow_cells).
-MachineState settled_machine_state(std::vector<double>& samples, std::vector<double>& memory) {
+/// on the core or on the caches, a throttled clock), wait and sample again, up to kResampleLimit
+/// times and while `allowance` lasts; the cell is then measured, and flagged afterwards if it was
+/// still slow (ResultStore::flag_slow_cells).
+MachineState settled_machine_state(std::vector<double>& samples, std::vector<double>& memory,
+                                   std::chrono::nanoseconds allowance) {
     constexpr int kResampleLimit = 5;
-    constexpr auto kResampleWait = std::chrono::milliseconds(200);
     constexpr std::size_t kSamplesBeforeJudging = 5;
     MachineState state = sample_machine_state();
     const auto median = [](const std::vector<double>& v) { return spread_of(v).median; };
-    while (samples.size() >= kSamplesBeforeJudging && state.resampled < kResampleLimit &&
+    while (samples.size() >= kSamplesBeforeJudging && state.resampled < kResampleLimit && allowance >= kResampleWait &&
            (state.calibration_ns > (1 + kSlowCalibration) * median(samples) ||
             state.memory_ns > (1 + kSlowCalibration) * median(memory))) {
         std::this_thread::sleep_for(kResampleWait);
+        allowance -= kResampleWait;
         const int resampled = state.resampled + 1;
         state = sample_machine_state();
         state.resampled = resampled;
@@ -196,8 +200,13 @@ public:
             SimulationResult res;
             MachineState state;
             try {
-                state = settled_machine_state(calibration_samples_, memory_samples_);
+                // Waiting may take at most 5% of the time spent measuring: on a host whose caches
+                // other tenants share, the slow state can outlast any wait.
+                state = settled_machine_state(calibration_samples_, memory_samples_, measured_ / 20 - waited_);
+                waited_ += state.resampled * kResampleWait;
+                const auto start = std::chrono::steady_clock::now();
                 res = simulate(recording_, find_structure(config.structure), config.params, sim_);
+                measured_ += std::chrono::steady_clock::now() - start;
             } catch (const InputError& err) {
                 throw InputError(source_ + ": scene " + scene.name + ": " + err.what());
             }
@@ -234,6 +243,7 @@ private:
     std::string scene_hash_;
     std::map<std::string, std::size_t> scene_by_hash_;
     std::vector<double> calibration_samples_, memory_samples_;
+    std::chrono::nanoseconds measured_{0}, waited_{0};
 };
 
 /// Repetition `round` of the (scene, configuration) pairs of `plan` whose first `round`

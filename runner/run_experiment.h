@@ -41,7 +41,7 @@ struct RunOutcome {
 /// GHz core). The loop is a dependent multiply-add chain, so it measures the core's speed (frequency, a co-scheduled
 /// process) and not memory; timed before each cell to separate the machine's noise from the cost model's error.
 MachineState sample_machine_state();
-/// The median time of three passes of 200 000 dependent loads along a random cycle through 8 MiB:
+/// The median time of three passes of 100 000 dependent loads along a random cycle through 8 MiB:
 /// the latency of the shared caches and memory, which a process on the other core slows though it
 /// leaves the integer loop alone (a memory-bound ray batch then slows with it).
 double memory_probe_ns();

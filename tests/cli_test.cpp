@@ -227,4 +227,21 @@ TEST_F(Cli, TheSecondOfTwoNamesForOneSceneIsRefusedBeforeAnythingRuns) {
     EXPECT_FALSE(fs::exists(path("r.db")));
 }
 
+TEST_F(Cli, CompareEndsWithThePerCellDifferenceBetweenTheTwoRuns) {
+    write("e.json", R"({"name": "twice", "frames": 3, "rays_per_frame": 100,
+        "scenes": [{"kind": "uniform", "objects": 200}, {"kind": "irregular", "objects": 200}],
+        "structures": [{"name": "bf"}, {"name": "ug"}]})");
+    ASSERT_EQ(run("run " + path("e.json") + " --db " + path("r.db")).code, 0);
+    ASSERT_EQ(run("run " + path("e.json") + " --db " + path("r.db") + " --new-run").code, 0);
+    const Outcome c = run("compare " + path("r.db") + " --baseline 1 --candidate 2 --metric both");
+    ASSERT_EQ(c.code, 0) << c.err;
+    // 2 scenes x 2 configurations, each metric: the spread between two runs, as the docs report it.
+    EXPECT_NE(c.out.find("raycast: per-cell difference |candidate - baseline| / mean over 4 cells: p50 "),
+              std::string::npos)
+        << c.out;
+    EXPECT_NE(c.out.find("update: per-cell difference |candidate - baseline| / mean over 4 cells: p50 "),
+              std::string::npos)
+        << c.out;
+}
+
 }  // namespace
