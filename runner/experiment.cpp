@@ -471,13 +471,6 @@ std::string cell_key(const Experiment& e, std::size_t scene, std::size_t config,
     return stable_hash(key.dump());
 }
 
-std::vector<std::pair<std::size_t, std::size_t>> all_pairs(const Experiment& e) {
-    std::vector<std::pair<std::size_t, std::size_t>> pairs;
-    for (std::size_t s = 0; s < e.scenes.size(); ++s)
-        for (std::size_t c = 0; c < e.configs.size(); ++c) pairs.emplace_back(s, c);
-    return pairs;
-}
-
 std::vector<Cell> repetition_cells(const Experiment& e, std::uint32_t repetition,
                                    const std::vector<std::pair<std::size_t, std::size_t>>& pairs) {
     // The scenes in a shuffled order, and within each scene its configurations in a shuffled order,
@@ -502,6 +495,18 @@ std::vector<Cell> repetition_cells(const Experiment& e, std::uint32_t repetition
     });
     return cells;
 }
+
+namespace {
+
+/// Every (scene, configuration) pair of the experiment.
+std::vector<std::pair<std::size_t, std::size_t>> all_pairs(const Experiment& e) {
+    std::vector<std::pair<std::size_t, std::size_t>> pairs;
+    for (std::size_t s = 0; s < e.scenes.size(); ++s)
+        for (std::size_t c = 0; c < e.configs.size(); ++c) pairs.emplace_back(s, c);
+    return pairs;
+}
+
+}  // namespace
 
 Experiment parse_experiment(const std::string& text, const std::string& name, const std::string& base_dir) {
     const json j = parse_json_document(text, name);

@@ -72,8 +72,6 @@ struct Experiment {
 
 /// The stable key of a cell: a hash of (scene key, structure, params, repetition).
 std::string cell_key(const Experiment& e, std::size_t scene, std::size_t config, std::uint32_t repetition);
-/// Every (scene, configuration) pair of the experiment.
-std::vector<std::pair<std::size_t, std::size_t>> all_pairs(const Experiment& e);
 /// Repetition `repetition` of the given (scene, configuration) pairs, in that repetition's order:
 /// scenes shuffled, and each scene's configurations shuffled, seeded by the file's hash and the
 /// repetition.

@@ -39,52 +39,59 @@ std::string config_label(const ConfigSpec& c) {
     return changed.empty() ? c.structure : c.structure + " " + changed;
 }
 
+namespace {
+
+/// The median wall time of three passes of `pass(k)` (k = 0, 1, 2), in ns.
+template <typename Pass>
+double median_of_three_passes(Pass pass) {
+    std::vector<double> ns;
+    for (int k = 0; k < 3; ++k) {
+        const auto start = std::chrono::steady_clock::now();
+        pass(k);
+        ns.push_back(double(
+            std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start).count()));
+    }
+    return spread_of(ns).median;
+}
+
+}  // namespace
+
 MachineState sample_machine_state() {
     MachineState m;
     m.load_1m = -1;
     if (std::ifstream in("/proc/loadavg"); in) in >> m.load_1m;
     if (!std::isfinite(m.load_1m)) m.load_1m = -1;
-    std::vector<double> passes;
-    for (int pass = 0; pass < 3; ++pass) {
-        const auto start = std::chrono::steady_clock::now();
-        std::uint64_t x = 0x9e3779b97f4a7c15ULL + std::uint64_t(pass);
+    m.calibration_ns = median_of_three_passes([](int k) {
+        std::uint64_t x = 0x9e3779b97f4a7c15ULL + std::uint64_t(k);
         for (int i = 0; i < 750'000; ++i) x = x * 6364136223846793005ULL + 1442695040888963407ULL;
         // The result is used, so the chain cannot be folded away.
         volatile std::uint64_t sink = x;
         (void)sink;
-        passes.push_back(double(
-            std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start).count()));
-    }
-    m.calibration_ns = spread_of(passes).median;
+    });
     m.memory_ns = memory_probe_ns();
     return m;
 }
 
 double memory_probe_ns() {
-    // One random cycle through 8 MiB of 4-byte indices (Sattolo's shuffle, fixed seed), built once:
-    // each step's load depends on the last, so the time is the latency of the caches and memory a
-    // process on the other core competes for.
+    // One cycle through 8 MiB of 4-byte indices, visiting them in a shuffled order (fixed seed),
+    // built once: each step's load depends on the last, so the time is the latency of the caches
+    // and memory a process on the other core competes for.
     constexpr std::size_t kEntries = std::size_t(8) << 18;  // 8 MiB of std::uint32_t
     constexpr int kSteps = 100'000;
     static const std::vector<std::uint32_t> cycle = [] {
         std::vector<std::uint32_t> order(kEntries), next(kEntries);
         std::iota(order.begin(), order.end(), std::uint32_t{0});
-        Random rng(0x6d656d70726f6265ULL);
-        for (std::size_t i = kEntries - 1; i > 0; --i) std::swap(order[i], order[std::size_t(rng.below(i))]);
+        Random(0x6d656d70726f6265ULL).shuffle(order);
         for (std::size_t i = 0; i < kEntries; ++i) next[order[i]] = order[(i + 1) % kEntries];
         return next;
     }();
-    std::vector<double> passes;
     std::uint32_t at = 0;
-    for (int pass = 0; pass < 3; ++pass) {
-        const auto start = std::chrono::steady_clock::now();
+    const double ns = median_of_three_passes([&](int) {
         for (int i = 0; i < kSteps; ++i) at = cycle[at];
-        passes.push_back(double(
-            std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start).count()));
-    }
+    });
     volatile std::uint32_t sink = at;  // the chain's result is used, so it cannot be folded away
     (void)sink;
-    return spread_of(passes).median;
+    return ns;
 }
 
 namespace {
