@@ -104,7 +104,7 @@ TEST(Docs, EveryStructureIsNamedInTheDocs) {
         const std::string name = m[1];
         EXPECT_NE(text.find("`" + name + "`"), std::string::npos) << name;
     }
-    EXPECT_GE(structures, 8u);  // bf, ug, hg, dbvh, lbvh, wbvh, embree, bullet_dbvt
+    EXPECT_GE(structures, 10u);  // bf, ug, hg, dbvh, lbvh, wbvh, embree, bullet_dbvt, ode_quadtree, ode_hash
 }
 
 TEST(Docs, EveryCommandTheDocsNameExists) {

@@ -1,4 +1,4 @@
-// The peers (Embree, Bullet's btDbvt) in the same harness as our structures: differential tests
+// The peers (Embree, Bullet's btDbvt, ODE's quadtree and hash spaces) in the same harness as our structures: differential tests
 // against ground truth on every hard scene and on generated scenes, the exact fallbacks, and
 // parameter validation.
 #include <gtest/gtest.h>
@@ -11,6 +11,7 @@
 #include "core/scene/recording_io.h"
 #include "core/accel/peers/bullet_dbvt.h"
 #include "core/accel/peers/embree_boxes.h"
+#include "core/accel/peers/ode_spaces.h"
 #include "core/accel/registry.h"
 #include "tests/test_scenes.h"
 
@@ -330,6 +331,106 @@ TEST(Embree, RejectsBadParameters) {
     EXPECT_THROW(e.make({{"refit", 2}}, "params"), InputError);
     EXPECT_THROW(e.make({{"passes", 1}}, "params"), InputError);
     EXPECT_NO_THROW(e.make({{"quality", "low"}, {"refit", true}, {"threads", 2}}, "params"));
+}
+
+TEST(Ode, BothSpacesMatchGroundTruthOnEveryHardScene) {
+    for (const char* name : {"ode_quadtree", "ode_hash"})
+        for (const test::NamedScene& s : test::hard_scenes())
+            test::expect_matches_ground_truth(s.recording, name, nlohmann::json::object(), s.name);
+    for (int depth : {1, 9})
+        for (const test::NamedScene& s : test::hard_scenes())
+            test::expect_matches_ground_truth(s.recording, "ode_quadtree", {{"depth", depth}}, s.name);
+}
+
+TEST(Ode, BothSpacesMatchGroundTruthOnGeneratedScenes) {
+    for (const char* name : {"ode_quadtree", "ode_hash"}) {
+        test::expect_matches_ground_truth(test::generated_scene("uniform", 3000, 4, 11), name, nlohmann::json::object(),
+                                          "uniform-3000");
+        test::expect_matches_ground_truth(test::generated_scene("irregular", 3000, 4, 12), name,
+                                          nlohmann::json::object(), "irregular-3000");
+    }
+}
+
+TEST(Ode, TouchingAndZeroLengthSegmentsAreExact) {
+    OdeQuadTree quadtree;
+    expect_exact_on_touching_rays(quadtree);
+    OdeHash hash;
+    expect_exact_on_touching_rays(hash);
+}
+
+TEST(Ode, TheQuadtreePrunesAndTheHashSpaceScansEveryGeom) {
+    // What the sources say: dSpaceCollide2 walks the quadtree's blocks by the ray's AABB, and scans
+    // the hash space's geoms linearly.
+    const std::vector<Object> objects = grid_boxes();
+    const Segment seg{{0.5f, 0.5f, -1}, {0.5f, 0.5f, 9}};  // one column: uids 0..3
+    OdeQuadTree quadtree(OdeQuadTree::Params{4});
+    OdeHash hash;
+    for (Structure* s : std::initializer_list<Structure*>{&quadtree, &hash}) {
+        s->build(objects);
+        s->commit();
+    }
+    HitLists out;
+    Counters q, h;
+    quadtree.cast_counted(std::span<const Segment>(&seg, 1), out, q);
+    hash.cast_counted(std::span<const Segment>(&seg, 1), out, h);
+    EXPECT_EQ(q.n_tp, 4u);
+    EXPECT_EQ(h.n_tp, 4u);
+    EXPECT_LT(q.n_rb, objects.size() / 2);     // the candidates in the blocks it visits
+    EXPECT_EQ(h.n_rb, objects.size() + h.n_tp);  // every geom's AABB, then the candidates' exact tests
+}
+
+TEST(Ode, UpdatesKeepTheSpaceExactAndTheScaleGrows) {
+    for (bool use_quadtree : {true, false}) {
+        std::unique_ptr<Structure> peer = use_quadtree ? std::unique_ptr<Structure>(new OdeQuadTree)
+                                                       : std::unique_ptr<Structure>(new OdeHash);
+        peer->build(grid_boxes());
+        peer->commit();
+        peer->insert({500, {{1000, 1000, 1000}, {1001, 1001, 1001}}});  // beyond the quadtree's root: lives in it
+        peer->move({3, {{-5000, 0, 0}, {-4999, 1, 1}}});
+        peer->remove(9);
+        peer->remove(63);  // the last slot
+        peer->commit();
+        peer->validate();
+        EXPECT_EQ(peer->size(), 63u);
+        EXPECT_EQ(peer->stats()["repads"].get<int>(), 2);
+        EXPECT_EQ(sorted_hits(*peer, Segment{{1000.5f, 1000.5f, 0}, {1000.5f, 1000.5f, 1001}}),
+                  (std::vector<Uid>{500}));
+        EXPECT_EQ(sorted_hits(*peer, Segment{{-4999, 0.5f, 0.5f}, {-6000, 0.5f, 0.5f}}), (std::vector<Uid>{3}));
+        EXPECT_EQ(sorted_hits(*peer, Segment{{2.5f, 0.5f, -1}, {2.5f, 0.5f, 9}}), (std::vector<Uid>{16, 17, 18, 19}));
+        EXPECT_GT(peer->stats()["ode_bytes"].get<std::int64_t>(), 0);
+        const auto closest = peer->cast_closest(Segment{{9, 0.5f, 0.5f}, {-1, 0.5f, 0.5f}});
+        ASSERT_TRUE(closest.has_value());
+        EXPECT_EQ(closest->uid, 48u);
+        EXPECT_FALSE(peer->cast_any(Segment{{-1, -1, -1}, {-1, 9, -1}}));
+    }
+}
+
+TEST(Ode, ItsBytesGrowWithTheObjectsAndReturnWhenTheyGo) {
+    // The bytes ODE allocates for an instance, counted through its allocation hooks.
+    OdeHash peer;
+    peer.build({});
+    const auto ode_bytes = [&] { return peer.stats()["ode_bytes"].get<std::int64_t>(); };
+    const std::int64_t empty = ode_bytes();
+    const std::vector<Object> objects = grid_boxes();
+    for (const Object& o : objects) peer.insert(o);
+    EXPECT_GT(ode_bytes(), empty + std::int64_t(objects.size()) * 64);  // a box geom is over 64 bytes in ODE
+    EXPECT_GE(peer.memory_bytes(), std::size_t(ode_bytes()));
+    const std::int64_t full = ode_bytes();
+    for (const Object& o : objects) peer.remove(o.uid);
+    const std::int64_t drained = ode_bytes();  // ODE keeps a little after the first fill
+    EXPECT_LT(drained, full - std::int64_t(objects.size()) * 64);
+    for (const Object& o : objects) peer.insert(o);
+    EXPECT_EQ(ode_bytes(), full);
+    for (const Object& o : objects) peer.remove(o.uid);
+    EXPECT_EQ(ode_bytes(), drained);  // nothing per object is left behind
+}
+
+TEST(Ode, RejectsBadParameters) {
+    const StructureInfo& q = find_structure("ode_quadtree");
+    EXPECT_THROW(q.make({{"depth", 0}}, "params"), InputError);
+    EXPECT_THROW(q.make({{"depth", 10}}, "params"), InputError);
+    EXPECT_THROW(find_structure("ode_hash").make({{"depth", 4}}, "params"), InputError);
+    EXPECT_NO_THROW(q.make({{"depth", 3}}, "params"));
 }
 
 TEST(Bullet, MatchesGroundTruthOnEveryHardScene) {

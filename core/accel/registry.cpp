@@ -3,6 +3,7 @@
 #include "core/accel/peers/bullet_dbvt.h"
 #include "core/accel/query_level.h"
 #include "core/accel/peers/embree_boxes.h"
+#include "core/accel/peers/ode_spaces.h"
 #include "core/accel/brute_force.h"
 #include "core/accel/bvh/dynamic_bvh.h"
 #include "core/accel/bvh/linear_bvh.h"
@@ -55,6 +56,14 @@ std::deque<StructureInfo>& registry() {
                                        "peer: Bullet's btDbvt, incremental insert/update/remove, optimizeIncremental "
                                        "passes per frame, rayTestInternal with exact leaf tests",
                                        Origin::peer, Family::peer),
+        describe_structure<OdeQuadTree>("ode_quadtree",
+                                        "peer: ODE's dQuadTreeSpace of box geoms, the segment a ray geom through "
+                                        "dSpaceCollide2 (prunes blocks by the ray's AABB) with exact leaf tests",
+                                        Origin::peer, Family::peer),
+        describe_structure<OdeHash>("ode_hash",
+                                    "peer: ODE's dHashSpace of box geoms, the segment a ray geom through "
+                                    "dSpaceCollide2 (which scans every geom's AABB) with exact leaf tests",
+                                    Origin::peer, Family::peer),
     };
     return all;
 }

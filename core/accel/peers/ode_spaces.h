@@ -1,0 +1,164 @@
+#pragma once
+/// Peer: the Open Dynamics Engine's collision spaces (ODE 0.16, Debian's libode) queried the way an
+/// ODE program asks "what does this segment touch?": the segment is a ray geom, and
+/// dSpaceCollide2(ray, space) calls back for every object geom whose AABB overlaps the ray's AABB.
+/// Each object is a box geom of its padded box; every candidate the space reports is decided by
+/// rcb's exact slab test on the unpadded box, so hits, t and the touching rule equal every rcb
+/// structure's (the padding covers ODE's double-precision AABB arithmetic). What the sources do
+/// for this query:
+///   ode_quadtree  dQuadTreeSpace: a fixed quadtree over x and y (ODE's z-up plane) of `depth`
+///                 levels, its root the build's bounds; an object lives in the smallest block that
+///                 holds its AABB (the root when none does). dSpaceCollide2 prunes blocks by the
+///                 ray's AABB against the block's x–y rectangle, then tests each geom's AABB.
+///   ode_hash      dHashSpace: its multi-resolution hash serves space-wide collide() only;
+///                 dSpaceCollide2 with a single geom scans every geom's AABB linearly (the source
+///                 says so: "this could take advantage of the hash structure ... but it does not
+///                 yet").
+/// Rays ODE's AABBs cannot bound exactly (zero length, non-finite, beyond kFarFactor × the scene's
+/// scale) go to an exact scan. Counters: N_RB = the exact tests of the geoms the space reports, plus
+/// for the hash space its scan of every geom's AABB (the quadtree's own AABB tests in the blocks it
+/// visits are not exposed), plus scan tests; N_T is not exposed (0), as for Embree. Memory: rcb's arrays plus the bytes ODE allocated for this instance
+/// (counted through ODE's allocation hooks while the instance runs; one instance per thread at a time).
+
+#include <cstdint>
+#include <memory>
+#include <tuple>
+#include <vector>
+
+#include "core/accel/common/box_scan.h"
+#include "core/accel/common/slot_boxes.h"
+#include "core/accel/params.h"
+#include "core/accel/structure.h"
+
+namespace rcb {
+
+/// What both ODE peers share: the space, its geoms (slot-indexed like the table) and the query.
+class OdeSpace {
+public:
+    enum class Kind : std::uint8_t { quadtree, hash };
+
+    static constexpr float kFarFactor = 16.0f;
+    static constexpr float kPadRelative = 1e-6f;
+
+    OdeSpace(Kind kind, int depth);
+    ~OdeSpace();
+    OdeSpace(const OdeSpace&) = delete;
+    OdeSpace& operator=(const OdeSpace&) = delete;
+
+    void build(std::span<const Object> objects);
+    void insert(const Object& object);
+    void remove(Uid uid);
+    void move(const Object& object);
+    std::size_t size() const { return objects_.size(); }
+    std::size_t memory_bytes() const;
+    nlohmann::json stats() const;
+    void validate(const char* who) const;
+
+    /// The collector's view of one query (public for the callback in the .cpp).
+    struct Query {
+        const SegmentSlabs* slabs;
+        const OdeSpace* self;
+        void* visit;
+        bool (*on_hit)(void* visit, Uid uid, float t);
+        bool candidates = false;  ///< yield every geom ODE reports, untested (counters.h)
+        std::uint64_t tests = 0;
+        std::uint64_t hits = 0;
+        bool stopped = false;
+    };
+    const Aabb& box_at(std::uint32_t slot) const { return objects_.box(slot); }
+    Uid uid_at(std::uint32_t slot) const { return objects_.uid(slot); }
+
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit) {
+        const SegmentSlabs slabs(s);
+        Query q{&slabs, this, &visit,
+                [](void* v, Uid uid, float t) {
+                    return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t));
+                },
+                Count::candidates};
+        if (!ode_query(s, q)) {
+            scan_boxes(slabs, std::span<const Aabb>(objects_.layout().all()), std::span<const Uid>(objects_.uids()),
+                       count, visit);  // the exact fallback
+            return;
+        }
+        count.box_tests(q.tests);
+        count.hits(q.hits);
+    }
+
+private:
+    struct Ode;
+    /// dSpaceCollide2 of the segment's ray against the space; false when the segment needs the
+    /// exact fallback.
+    bool ode_query(const Segment& s, Query& q);
+    void set_geom(std::uint32_t slot);  ///< the slot's geom to its padded box
+    void cover(const Aabb& box);        ///< grows the scale (re-pads every geom) when `box` lies beyond it
+    float pad() const { return kPadRelative * scale_; }
+
+    Kind kind_;
+    int depth_;
+    std::unique_ptr<Ode> ode_;
+    SlotBoxes objects_;
+    float scale_ = 0;
+    std::uint64_t repads_ = 0;
+};
+
+/// ODE's quadtree space (see above).
+class OdeQuadTree : public StructureBase<OdeQuadTree> {
+public:
+    struct Params {
+        int depth = 6;
+        static constexpr auto fields() {
+            return std::tuple{Field{"depth", &Params::depth, 1, 9,
+                                    "levels of dQuadTreeSpace's block tree below its root (4^depth leaf blocks over "
+                                    "the build's x-y bounds)"}};
+        }
+    };
+    OdeQuadTree() : OdeQuadTree(Params{}) {}
+    explicit OdeQuadTree(const Params& p) : space_(OdeSpace::Kind::quadtree, p.depth) {}
+
+    void build(std::span<const Object> objects) override { space_.build(objects); }
+    void insert(const Object& object) override { space_.insert(object); }
+    void remove(Uid uid) override { space_.remove(uid); }
+    void move(const Object& object) override { space_.move(object); }
+    std::size_t size() const override { return space_.size(); }
+    std::size_t memory_bytes() const override { return space_.memory_bytes() + sizeof(*this); }
+    nlohmann::json stats() const override { return space_.stats(); }
+    void validate() const override { space_.validate("ode_quadtree"); }
+
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit) {
+        space_.traverse(s, count, std::forward<Visit>(visit));
+    }
+
+private:
+    OdeSpace space_;
+};
+
+/// ODE's hash space (see above: its segment query is a linear scan of the geoms' AABBs).
+class OdeHash : public StructureBase<OdeHash> {
+public:
+    struct Params {
+        static constexpr auto fields() { return std::tuple{}; }
+    };
+    OdeHash() : OdeHash(Params{}) {}
+    explicit OdeHash(const Params&) : space_(OdeSpace::Kind::hash, 0) {}
+
+    void build(std::span<const Object> objects) override { space_.build(objects); }
+    void insert(const Object& object) override { space_.insert(object); }
+    void remove(Uid uid) override { space_.remove(uid); }
+    void move(const Object& object) override { space_.move(object); }
+    std::size_t size() const override { return space_.size(); }
+    std::size_t memory_bytes() const override { return space_.memory_bytes() + sizeof(*this); }
+    nlohmann::json stats() const override { return space_.stats(); }
+    void validate() const override { space_.validate("ode_hash"); }
+
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit) {
+        space_.traverse(s, count, std::forward<Visit>(visit));
+    }
+
+private:
+    OdeSpace space_;
+};
+
+}  // namespace rcb
