@@ -35,7 +35,9 @@ void add_tune_command(CLI::App& app) {
         ->capture_default_str();
     cmd->add_flag(
         "--exhaustive", o->exhaustive,
-        "Also measure every configuration of each search space and report the tuner's gap to the true optimum");
+        "Also measure every configuration of each search space and report the tuner's gap to the true optimum, "
+        "and its regret beside random search and coordinate descent at the same budget (a tenth of the space's "
+        "structures in effect) on the same measurements");
     cmd->add_flag("--derive-categories", o->derive,
                   "Pool the file's scenes and tune per category derived from their features (k-means on "
                   "standardised scene features, k by silhouette; see docs/database.md) instead of per category "

@@ -13,6 +13,7 @@
 #include "core/sim/simulator.h"
 #include "runner/build_info.h"
 #include "runner/store.h"
+#include "tuner/search_baselines.h"
 
 namespace rcb {
 
@@ -291,7 +292,21 @@ struct ExhaustiveCheck {
     std::string model;  ///< the prediction's model
     double spearman = 0;
     json surface = json::array();  ///< every configuration: params, ms, meets, predicted_ms
+    BudgetComparison comparison;   ///< the tuner against random search and descent at one budget
 };
+
+/// The equal-budget comparison's budget: a tenth of the structures in effect of a space.
+constexpr double kComparisonBudgetShare = 0.1;
+
+/// Which configurations are one structure in effect: equal counts in a counting replay (no timed
+/// rays) over the category's measured frames.
+std::vector<std::size_t> effect_classes(const TuneSpec& spec, const TuneCategory& category,
+                                        const std::string& structure, const std::vector<json>& all) {
+    std::vector<ReplayCounts> counts(all.size());
+    for (std::size_t i = 0; i < all.size(); ++i)
+        predict_cost(CostCoefficients{}, category, structure, all[i], spec.warmup_frames, &counts[i]);
+    return equality_classes(counts, [](const ReplayCounts& a, const ReplayCounts& b) { return a == b; });
+}
 
 ExhaustiveCheck check_exhaustively(const TuneSpec& spec, const TuneCategory& category, const StructureTuning& st,
                                    MachinePriors& priors) {
@@ -311,13 +326,14 @@ ExhaustiveCheck check_exhaustively(const TuneSpec& spec, const TuneCategory& cat
     const std::vector<MeasuredCost> costs = measure_interleaved(category, st.structure, full_params, spec.warmup_frames,
                                                                 spec.repetitions, spec.accuracy.needs_verification());
     std::map<std::string, double> surface;  // searched params → measured ms
-    std::vector<double> measured;
+    std::vector<double> measured, constrained;
     for (std::size_t i = 0; i < all.size(); ++i) {
         const json& p = all[i];
         const MeasuredCost& m = costs[i];
         // The surface the search sees: configurations failing the accuracy priced out.
         const double ms = constrained_cost(m, spec.accuracy);
         surface[p.dump()] = ms;
+        constrained.push_back(ms);
         measured.push_back(m.ms);  // the prediction ranks times, not the accuracy
         ex.surface.push_back({{"params", p}, {"ms", m.ms}, {"meets", spec.accuracy.met_by(m.accuracy)}});
         if (spec.accuracy.met_by(m.accuracy) && ms < ex.best_ms) ex.best_ms = ms, ex.best_params = p;
@@ -328,6 +344,8 @@ ExhaustiveCheck check_exhaustively(const TuneSpec& spec, const TuneCategory& cat
     json defaults_searched = json::object();
     for (const SearchDimension& d : dims) defaults_searched[d.name] = defaults[d.name];
     ex.replays = replay_search_on_surface(dims, surface, spec.budget, spec.seed, 5, defaults_searched);
+    ex.comparison = compare_at_equal_budget(dims, constrained, effect_classes(spec, category, st.structure, all),
+                                            defaults_searched, kComparisonBudgetShare, spec.seed, 5);
     // How well the predicted mode ranks the space: Spearman of prediction against measurement.
     std::function<double(const json&)> predict = st.predict;
     ex.model = st.prediction_model;
@@ -365,7 +383,50 @@ std::string exhaustive_md(const TuneSpec& spec, const std::vector<ExhaustiveChec
         md << "| " << ex.structure << " | prediction (" << ex.model << ") | " << ex.configurations
            << " predicted | Spearman " << fixed(ex.spearman, 3) << " against measured | |\n";
     }
+    md << "\nAt equal budgets on the same measured surface: configurations that count alike in a "
+          "replay merged into one structure in effect (its cost the median of theirs); each method may "
+          "evaluate a tenth of those; regret = found / optimum − 1 (the tuner: median of five seeds; "
+          "random: the exact expectation; descent: coordinate descent from the defaults):\n\n"
+          "| structure | configurations | in effect | budget | tuner | random | descent |\n"
+          "|---|---|---|---|---|---|---|\n";
+    for (const ExhaustiveCheck& ex : checks) {
+        const BudgetComparison& c = ex.comparison;
+        md << "| " << ex.structure << " | " << c.configurations << " | " << c.classes << " | " << c.budget << " | "
+           << fixed(100 * c.tuner_regret, 1) << "% | " << fixed(100 * c.random_regret, 1) << "% | "
+           << fixed(100 * c.descent_regret, 1) << "% |\n";
+    }
     return md.str();
+}
+
+json comparison_json(const BudgetComparison& c) {
+    return {{"configurations", c.configurations}, {"in_effect", c.classes},
+            {"budget", c.budget},                 {"optimum_ms", c.optimum},
+            {"tuner_regrets", c.tuner_regrets},   {"tuner_regret", c.tuner_regret},
+            {"random_regret", c.random_regret},   {"descent_regret", c.descent_regret}};
+}
+
+/// The tuning's problems (category × structure) over all categories, at equal budgets.
+std::string suite_md(const SuiteSummary& s) {
+    std::ostringstream md;
+    md << "\n## Every problem at equal budgets\n\n" << s.problems
+       << " problems (category × structure), each method at a tenth of the structures in effect (median "
+       << fixed(100 * s.median_budget_share, 0) << "%):\n\n| method | regret median | regret p90 |\n|---|---|---|\n"
+       << "| tuner | " << fixed(100 * s.tuner_median, 1) << "% | " << fixed(100 * s.tuner_p90, 1) << "% |\n"
+       << "| random search | " << fixed(100 * s.random_median, 1) << "% | " << fixed(100 * s.random_p90, 1) << "% |\n"
+       << "| coordinate descent | " << fixed(100 * s.descent_median, 1) << "% | " << fixed(100 * s.descent_p90, 1)
+       << "% |\n\nThe tuner is below random search's regret in " << fixed(100 * s.beats_random, 0)
+       << "% of the problems and at or below the descent's in " << fixed(100 * s.matches_descent, 0) << "%.\n";
+    return md.str();
+}
+
+json suite_json(const SuiteSummary& s) {
+    return {{"problems", s.problems},
+            {"median_budget_share", s.median_budget_share},
+            {"tuner", {{"median", s.tuner_median}, {"p90", s.tuner_p90}}},
+            {"random", {{"median", s.random_median}, {"p90", s.random_p90}}},
+            {"descent", {{"median", s.descent_median}, {"p90", s.descent_p90}}},
+            {"beats_random", s.beats_random},
+            {"matches_descent", s.matches_descent}};
 }
 
 json exhaustive_json(const std::vector<ExhaustiveCheck>& checks) {
@@ -387,6 +448,7 @@ json exhaustive_json(const std::vector<ExhaustiveCheck>& checks) {
                        {"search_on_measured_surface", seeds},
                        {"prediction_model", ex.model},
                        {"prediction_spearman", ex.spearman},
+                       {"equal_budget", comparison_json(ex.comparison)},
                        {"surface", ex.surface}});
     }
     return out;
@@ -404,6 +466,7 @@ TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
     json out = header_json(spec, outcome.scene_categories, o.derive_categories);
     // The machine's calibration of a structure, measured once if any category's fit needs it.
     MachinePriors priors;
+    std::vector<BudgetComparison> problems;
     for (const TuneCategory& category : spec.categories) {
         if (o.progress) o.progress(category.name);
         const CategoryTuning ct = tune_category(spec, category, &priors);
@@ -416,12 +479,18 @@ TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
                 checks.push_back(check_exhaustively(spec, category, st, priors));
             md += exhaustive_md(spec, checks);
             cj["exhaustive"] = exhaustive_json(checks);
+            for (const ExhaustiveCheck& ex : checks) problems.push_back(ex.comparison);
         }
         const std::string svg_name = "tuning-" + spec.name + "-" + ct.category + ".svg";
         write_file_atomically((fs::path(o.out_dir) / svg_name).string(), convergence_chart(ct, spec));
         md += "\n![convergence](" + svg_name + ")\n";
         out["categories"].push_back(cj);
         outcome.categories.push_back(ct);
+    }
+    if (o.exhaustive) {
+        const SuiteSummary summary = summarize_suite(problems);
+        md += suite_md(summary);
+        out["equal_budget"] = suite_json(summary);
     }
     write_file_atomically(files.md.string(), md);
     write_file_atomically(files.json.string(), out.dump(2) + '\n');

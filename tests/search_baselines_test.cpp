@@ -1,0 +1,122 @@
+// The baselines a search is judged against at equal budgets (tuner/search_baselines.h): random
+// search's exact expectation, the model-free coordinate descent, the merging of configurations that
+// are one structure in effect, and the summary over problems.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numeric>
+
+#include "tuner/search_baselines.h"
+
+namespace rcb {
+namespace {
+
+std::vector<nlohmann::json> levels(int n) {
+    std::vector<nlohmann::json> out;
+    for (int i = 0; i < n; ++i) out.push_back(i);
+    return out;
+}
+
+/// The mean over every k-subset of the lowest cost: the expectation by enumeration.
+double enumerated_best_of(const std::vector<double>& costs, std::size_t k) {
+    const std::size_t n = costs.size();
+    double sum = 0;
+    std::size_t subsets = 0;
+    for (std::uint32_t mask = 0; mask < (1u << n); ++mask) {
+        if (std::size_t(__builtin_popcount(mask)) != k) continue;
+        double best = INFINITY;
+        for (std::size_t i = 0; i < n; ++i)
+            if (mask & (1u << i)) best = std::min(best, costs[i]);
+        sum += best, ++subsets;
+    }
+    return sum / double(subsets);
+}
+
+TEST(SearchBaselines, RandomSearchsExpectationIsExact) {
+    EXPECT_DOUBLE_EQ(expected_best_of_random({4, 2, 3, 1}, 1), 2.5);
+    EXPECT_DOUBLE_EQ(expected_best_of_random({4, 2, 3, 1}, 4), 1.0);
+    EXPECT_NEAR(expected_best_of_random({4, 2, 3, 1}, 2), 10.0 / 6.0, 1e-12);
+    const std::vector<double> costs = {3.5, 0.7, 9.1, 2.2, 2.2, 5.0, 1.3, 8.8, 0.9};
+    for (std::size_t k = 1; k <= costs.size(); ++k)
+        EXPECT_NEAR(expected_best_of_random(costs, k), enumerated_best_of(costs, k), 1e-12) << "k " << k;
+    EXPECT_DOUBLE_EQ(expected_best_of_random({5, 1}, 99), 1.0);  // k clamped to n
+    EXPECT_TRUE(std::isnan(expected_best_of_random({}, 3)));
+    // An unusable configuration only matters when it can be the best drawn.
+    EXPECT_DOUBLE_EQ(expected_best_of_random({1, INFINITY}, 2), 1.0);
+    EXPECT_TRUE(std::isinf(expected_best_of_random({1, INFINITY}, 1)));
+}
+
+TEST(SearchBaselines, CoordinateDescentWalksDownhillWithinItsBudget) {
+    const std::vector<SearchDimension> dims = {{"a", levels(8)}, {"b", levels(8)}};
+    // A separable bowl with its floor off-centre at a = 6, b = 1.
+    std::size_t calls = 0;
+    const auto bowl = [&](const nlohmann::json& p) {
+        ++calls;
+        const double a = p["a"].get<int>() - 6.0, b = p["b"].get<int>() - 1.0;
+        return 1 + a * a + 2 * b * b;
+    };
+    const SearchResult full = coordinate_descent(dims, bowl, 64, {{"a", 3}, {"b", 3}});
+    EXPECT_EQ(full.evaluations.front().params, (nlohmann::json{{"a", 3}, {"b", 3}}));  // the start first
+    EXPECT_EQ(full.evaluations[full.best].params, (nlohmann::json{{"a", 6}, {"b", 1}}));
+    EXPECT_EQ(full.stop_reason, "converged");
+    EXPECT_EQ(calls, full.evaluations.size());  // each configuration evaluated once
+    for (std::size_t budget : {1u, 3u, 5u}) {
+        const SearchResult r = coordinate_descent(dims, bowl, budget, {{"a", 3}, {"b", 3}});
+        EXPECT_EQ(r.evaluations.size(), budget);
+        EXPECT_EQ(r.stop_reason, "budget");
+        for (const Evaluation& e : r.evaluations) EXPECT_GE(e.cost, r.evaluations[r.best].cost);
+    }
+    // A missing start level is the middle one.
+    EXPECT_EQ(coordinate_descent(dims, bowl, 1, {{"a", 2}}).evaluations.front().params,
+              (nlohmann::json{{"a", 2}, {"b", 4}}));
+}
+
+TEST(SearchBaselines, EqualCountsAreOneStructureInEffect) {
+    const std::vector<int> counts = {5, 7, 5, 9, 7, 5};
+    EXPECT_EQ(equality_classes(counts, [](int a, int b) { return a == b; }),
+              (std::vector<std::size_t>{0, 1, 0, 2, 1, 0}));
+}
+
+TEST(SearchBaselines, TheComparisonMergesClassesAndPricesEveryMethodOnOneSurface) {
+    // 10 × 4 configurations; `b` changes nothing (one structure in effect per level of `a`), and
+    // the measurements of one class differ only by noise.
+    const std::vector<SearchDimension> dims = {{"a", levels(10)}, {"b", levels(4)}};
+    const std::vector<nlohmann::json> all = enumerate_space(dims);
+    std::vector<double> costs;
+    std::vector<std::size_t> class_of;
+    for (const nlohmann::json& p : all) {
+        const int a = p["a"].get<int>(), b = p["b"].get<int>();
+        costs.push_back(1.0 + 0.1 * std::abs(a - 8) + 0.001 * b);
+        class_of.push_back(std::size_t(a));
+    }
+    const BudgetComparison c = compare_at_equal_budget(dims, costs, class_of, {{"a", 2}, {"b", 0}}, 0.3, 1, 5);
+    EXPECT_EQ(c.configurations, 40u);
+    EXPECT_EQ(c.classes, 10u);
+    EXPECT_EQ(c.budget, 3u);
+    EXPECT_NEAR(c.optimum, 1.0015, 1e-12);  // class a = 8: the median of 1.000 … 1.003
+    EXPECT_EQ(c.tuner_regrets.size(), 5u);
+    std::vector<double> class_cost;
+    for (int a = 0; a < 10; ++a) class_cost.push_back(1.0015 + 0.1 * std::abs(a - 8));
+    EXPECT_NEAR(c.random_regret, expected_best_of_random(class_cost, 3) / 1.0015 - 1, 1e-12);
+    // Three steps of descent from a = 2 reach a = 3 at best (b's steps change nothing).
+    EXPECT_NEAR(c.descent_regret, class_cost[3] / 1.0015 - 1, 1e-12);
+    for (double r : c.tuner_regrets) EXPECT_GE(r, 0);
+}
+
+TEST(SearchBaselines, TheSummaryCountsWinsAndQuantiles) {
+    std::vector<BudgetComparison> problems(4);
+    const double tuner[] = {0.0, 0.01, 0.05, 0.02}, random[] = {0.1, 0.01, 0.2, 0.3}, descent[] = {0, 0, 0.1, 0.5};
+    for (std::size_t i = 0; i < 4; ++i) {
+        problems[i].tuner_regret = tuner[i], problems[i].random_regret = random[i];
+        problems[i].descent_regret = descent[i], problems[i].budget = 2, problems[i].classes = 20;
+    }
+    const SuiteSummary s = summarize_suite(problems);
+    EXPECT_EQ(s.problems, 4u);
+    EXPECT_DOUBLE_EQ(s.beats_random, 0.75);     // the tie at 1% is not a win
+    EXPECT_DOUBLE_EQ(s.matches_descent, 0.75);  // 1% > 0% loses
+    EXPECT_NEAR(s.tuner_median, 0.015, 1e-12);
+    EXPECT_DOUBLE_EQ(s.median_budget_share, 0.1);
+}
+
+}  // namespace
+}  // namespace rcb

@@ -1,0 +1,139 @@
+#include "tuner/search_baselines.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <optional>
+#include <string>
+
+#include "analysis/statistics.h"
+
+namespace rcb {
+
+double expected_best_of_random(std::vector<double> costs, std::size_t k) {
+    const std::size_t n = costs.size();
+    if (n == 0) return std::numeric_limits<double>::quiet_NaN();
+    k = std::clamp<std::size_t>(k, 1, n);
+    for (double& c : costs)
+        if (std::isnan(c)) c = std::numeric_limits<double>::infinity();
+    std::sort(costs.begin(), costs.end());
+    // P(the lowest drawn is the i-th lowest) = C(n − i, k − 1) / C(n, k): k / n for i = 1, then
+    // each next one (n − i − k + 1) / (n − i) times the last.
+    double p = double(k) / double(n), expected = 0;
+    for (std::size_t i = 1; i <= n - k + 1; ++i) {
+        if (p > 0) expected += p * costs[i - 1];
+        if (i < n) p *= double(n - i - k + 1) / double(n - i);
+    }
+    return expected;
+}
+
+namespace {
+
+/// Level indices of `start` per dimension (missing or unknown: the middle level).
+std::vector<std::size_t> start_levels(const std::vector<SearchDimension>& dims, const nlohmann::json& start) {
+    std::vector<std::size_t> idx(dims.size());
+    for (std::size_t d = 0; d < dims.size(); ++d) {
+        const auto& levels = dims[d].levels;
+        idx[d] = levels.size() / 2;
+        if (start.is_object() && start.contains(dims[d].name)) {
+            auto it = std::find(levels.begin(), levels.end(), start[dims[d].name]);
+            if (it != levels.end()) idx[d] = std::size_t(it - levels.begin());
+        }
+    }
+    return idx;
+}
+
+}  // namespace
+
+SearchResult coordinate_descent(const std::vector<SearchDimension>& dims,
+                                const std::function<double(const nlohmann::json&)>& objective, std::size_t budget,
+                                const nlohmann::json& start) {
+    SearchResult r;
+    r.algorithm = "coordinate descent";
+    r.space_size = enumerate_space(dims).size();
+    std::map<std::vector<std::size_t>, std::size_t> seen;  // level indices → evaluation
+    // The cost of `idx`, evaluated once; nullopt when a new point would exceed the budget.
+    auto cost = [&](const std::vector<std::size_t>& idx) -> std::optional<double> {
+        if (auto it = seen.find(idx); it != seen.end()) return r.evaluations[it->second].cost;
+        if (r.evaluations.size() >= budget) return std::nullopt;
+        nlohmann::json p = nlohmann::json::object();
+        for (std::size_t d = 0; d < dims.size(); ++d) p[dims[d].name] = dims[d].levels[idx[d]];
+        double c = objective(p);
+        if (!std::isfinite(c)) c = std::numeric_limits<double>::max() / 4;  // failed: avoid it
+        seen.emplace(idx, r.evaluations.size());
+        r.evaluations.push_back({p, c});
+        return c;
+    };
+    std::vector<std::size_t> at = start_levels(dims, start);
+    std::optional<double> best = cost(at);
+    r.stop_reason = "budget";
+    if (!best) return r;
+    for (bool improved = true; improved;) {
+        improved = false;
+        for (std::size_t d = 0; d < dims.size(); ++d)
+            for (int step : {+1, -1}) {
+                if ((step < 0 && at[d] == 0) || (step > 0 && at[d] + 1 >= dims[d].levels.size())) continue;
+                std::vector<std::size_t> next = at;
+                next[d] = std::size_t(std::ptrdiff_t(at[d]) + step);
+                const std::optional<double> c = cost(next);
+                if (!c) return r.best = seen.at(at), r;
+                if (*c < *best) at = next, best = c, improved = true;
+            }
+    }
+    r.best = seen.at(at);
+    r.stop_reason = "converged";
+    return r;
+}
+
+BudgetComparison compare_at_equal_budget(const std::vector<SearchDimension>& dims, const std::vector<double>& costs,
+                                         const std::vector<std::size_t>& class_of, const nlohmann::json& start,
+                                         double share, std::uint64_t first_seed, std::size_t seeds) {
+    const std::vector<nlohmann::json> all = enumerate_space(dims);
+    BudgetComparison out;
+    out.configurations = all.size();
+    out.classes = class_of.empty() ? 0 : *std::max_element(class_of.begin(), class_of.end()) + 1;
+    // A class's cost: the median of its members' measurements (one structure measured again).
+    std::vector<std::vector<double>> members(out.classes);
+    for (std::size_t i = 0; i < all.size(); ++i)
+        members[class_of[i]].push_back(std::isnan(costs[i]) ? std::numeric_limits<double>::infinity() : costs[i]);
+    std::vector<double> class_cost;
+    for (const std::vector<double>& m : members) class_cost.push_back(quantile(m, 0.5));
+    out.optimum = *std::min_element(class_cost.begin(), class_cost.end());
+    out.budget = std::max<std::size_t>(1, std::size_t(std::ceil(share * double(out.classes))));
+    std::map<std::string, double> surface;  // configuration → its class's cost
+    for (std::size_t i = 0; i < all.size(); ++i) surface[all[i].dump()] = class_cost[class_of[i]];
+    const auto objective = [&](const nlohmann::json& p) { return surface.at(p.dump()); };
+    const auto regret = [&](const SearchResult& r) { return r.evaluations[r.best].cost / out.optimum - 1; };
+    for (std::uint64_t seed = first_seed; seed < first_seed + seeds; ++seed)
+        out.tuner_regrets.push_back(regret(search_levels(dims, objective, out.budget, seed, start)));
+    out.tuner_regret = quantile(out.tuner_regrets, 0.5);
+    out.random_regret = expected_best_of_random(class_cost, out.budget) / out.optimum - 1;
+    out.descent_regret = regret(coordinate_descent(dims, objective, out.budget, start));
+    return out;
+}
+
+SuiteSummary summarize_suite(const std::vector<BudgetComparison>& problems) {
+    SuiteSummary s;
+    s.problems = problems.size();
+    if (problems.empty()) return s;
+    std::vector<double> tuner, random, descent, shares;
+    std::size_t beats = 0, matches = 0;
+    for (const BudgetComparison& p : problems) {
+        tuner.push_back(p.tuner_regret);
+        random.push_back(p.random_regret);
+        descent.push_back(p.descent_regret);
+        shares.push_back(double(p.budget) / double(std::max<std::size_t>(1, p.classes)));
+        if (p.tuner_regret < p.random_regret - 1e-9) ++beats;
+        if (p.tuner_regret <= p.descent_regret + 1e-9) ++matches;
+    }
+    s.tuner_median = quantile(tuner, 0.5), s.tuner_p90 = quantile(tuner, 0.9);
+    s.random_median = quantile(random, 0.5), s.random_p90 = quantile(random, 0.9);
+    s.descent_median = quantile(descent, 0.5), s.descent_p90 = quantile(descent, 0.9);
+    s.beats_random = double(beats) / double(s.problems);
+    s.matches_descent = double(matches) / double(s.problems);
+    s.median_budget_share = quantile(shares, 0.5);
+    return s;
+}
+
+}  // namespace rcb
