@@ -123,8 +123,9 @@ std::vector<json> expand_values(const ParamSpec& spec, const json& v, const std:
             const double step = s.get<double>();
             if (!((to - from) / step <= kMaxRangeValues))
                 fail(path, "the range takes more than " + std::to_string(kMaxRangeValues) + " steps");
+            // The last step may land a rounding past "to" (0.1 + 2 × 0.45): it is "to".
             for (std::size_t i = 0; from + double(i) * step <= to * (1 + 1e-12) + 1e-12; ++i) {
-                const double x = from + double(i) * step;
+                const double x = std::min(from + double(i) * step, to);
                 out.push_back(integer ? json(std::llround(x)) : json(x));
             }
         } else {
@@ -138,7 +139,8 @@ std::vector<json> expand_values(const ParamSpec& spec, const json& v, const std:
             if (!(steps <= kMaxRangeValues))
                 fail(path, "the range takes more than " + std::to_string(kMaxRangeValues) + " steps");
             for (double x = from; x <= to * (1 + 1e-12); x *= f.get<double>()) {
-                json value = integer ? json(std::llround(x)) : json(x);
+                const double level = std::min(x, to);  // 0.125 × √2^18 is a rounding above 64
+                json value = integer ? json(std::llround(level)) : json(level);
                 if (out.empty() || out.back() != value) out.push_back(value);
             }
         }

@@ -177,6 +177,14 @@ TEST(Experiment, ValueListsAndRangesExpandIntoTheCrossProduct) {
     EXPECT_EQ(grid, want);
     EXPECT_EQ(e.configs[12].params["rotate"], true);
     EXPECT_EQ(e.configs[13].params["rotate"], false);
+    // A range whose last level lands a rounding past its end, at the parameter's maximum: the end
+    // itself (0.125 × √2^18 was 64.00000000000001, refused as beyond ug's density range).
+    const Experiment g = parse_experiment(
+        R"({"scenes": [{"preset": "uni-s"}],
+            "structures": [{"name": "ug", "params": {"density": {"from": 0.125, "to": 64, "times": 1.4142135623730951}}}]})",
+        "g", ".");
+    ASSERT_EQ(g.configs.size(), 19u);
+    EXPECT_EQ(g.configs.back().params["density"].get<double>(), 64.0);
     EXPECT_EQ(
         error_of(
             R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "dbvh", "params": {"bins": {"from": 4, "to": 8, "step": 1.5}}}]})"),
