@@ -267,6 +267,47 @@ TransferValidation validate_transfer(const std::vector<FrameObservation>& train,
     return out;
 }
 
+ValidationGroup validate_calibration_only(const std::vector<FrameObservation>& frames, const ModelInputs& inputs,
+                                          const BootstrapOptions& options) {
+    ValidationGroup g{kCalibrationGroup, {kCalibrationGroup}, {}, {}};
+    std::map<std::pair<std::string, int>, std::vector<const FrameObservation*>> cells;
+    for (const FrameObservation& f : frames) cells[{f.structure, f.config_group}].push_back(&f);
+    for (const auto& [key, fs] : cells) {
+        const auto cal = std::find_if(inputs.calibrations.begin(), inputs.calibrations.end(),
+                                      [&](const StructureCalibration& c) { return c.structure == key.first; });
+        // ns per ray from the calibrated terms; NaN when the micro-scenes fitted none.
+        const auto per_ray = [&](const FrameObservation& f) {
+            if (cal == inputs.calibrations.end()) return double(NAN);
+            const std::pair<const char*, double> counters[] = {
+                {"C_PREP", 1.0}, {"C_RB", f.n_rb}, {"C_T", f.n_t}, {"C_MP", f.n_mp}};
+            double ns = 0;
+            bool any = false;
+            for (const auto& [name, count] : counters)
+                if (const CalibratedTerm* t = cal->term(name); t && std::isfinite(t->value))
+                    ns += t->value * count, any = true;
+            return any ? ns : double(NAN);
+        };
+        CellPrediction c;
+        c.split = kCalibrationGroup;
+        c.structure = key.first, c.scene = fs.front()->scene, c.params = fs.front()->params;
+        c.raycast_model = "calibration";
+        std::vector<double> frame, raycast, predicted;
+        for (const FrameObservation* f : fs) {
+            frame.push_back(f->frame_ns());
+            if (f->rays <= 0) continue;
+            raycast.push_back(f->raycast_ns);
+            predicted.push_back(f->rays * per_ray(*f));
+        }
+        c.frame_ns = quantile(frame, 0.5);
+        c.raycast_ns = quantile(raycast, 0.5);
+        c.predicted_raycast_ns = median_or_nan(predicted);
+        c.raycast_error = relative_error(c.predicted_raycast_ns, c.raycast_ns);
+        g.cells.push_back(std::move(c));
+    }
+    g.structures = summarize(g.cells, options);
+    return g;
+}
+
 std::map<std::pair<std::string, std::string>, double> scene_frame_errors(const std::vector<CellPrediction>& cells) {
     std::map<std::pair<std::string, std::string>, std::pair<double, int>> sums;
     for (const CellPrediction& c : cells)

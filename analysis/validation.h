@@ -61,7 +61,8 @@ struct CellPrediction {
     double raycast_ns = NAN, predicted_raycast_ns = NAN;  ///< ray cast per frame (NaN: no rays)
     double frame_error = NAN, raycast_error = NAN;        ///< |predicted − measured| / measured
     /// The structure had a model and the model a column for the cell's category and configuration.
-    bool predictable() const { return std::isfinite(predicted_frame_ns); }
+    /// (calibration alone prices the ray cast only: its frame error is NaN)
+    bool predictable() const { return std::isfinite(predicted_frame_ns) || std::isfinite(predicted_raycast_ns); }
 };
 
 /// Every cell of `frames` priced by `models` (their frozen predictors); cells of a structure
@@ -116,6 +117,16 @@ struct TransferValidation {
 };
 TransferValidation validate_transfer(const std::vector<FrameObservation>& train, const ModelInputs& train_inputs,
                                      const std::vector<FrameObservation>& test, const BootstrapOptions& options);
+
+inline constexpr const char* kCalibrationGroup = "calibration-only";
+
+/// Calibration alone: each cell's ray cast per frame priced by its run's micro-scene calibration
+/// (runner/calibration.h: rays × (C_PREP + C_RB·N_RB + C_T·N_T + C_MP·N_MP), the terms the
+/// micro-scenes fitted), nothing fitted on any experiment's frames. The calibration does not
+/// measure updates, so the frame error is NaN; a structure without calibrated terms is
+/// unpredictable.
+ValidationGroup validate_calibration_only(const std::vector<FrameObservation>& frames, const ModelInputs& inputs,
+                                          const BootstrapOptions& options);
 
 /// Mean frame error of each (structure, scene) over the scene's predictable cells: the per-scene
 /// view `fit` prints.

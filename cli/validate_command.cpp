@@ -102,7 +102,9 @@ void add_validate_command(CLI::App& app) {
         "scene out, one scene category out, the largest scenes out, ray-mode transfer), each split's whole model "
         "selection redone on its train frames only; stored in the train database. Per structure: median and p90 over "
         "(scene x configuration) cells of the absolute relative error of time per frame and of ray-cast time per "
-        "frame, with bootstrap 95% intervals over scenes");
+        "frame, with bootstrap 95% intervals over scenes. Both end with calibration alone: the predicted run's ray "
+        "casts priced by its own micro-scene calibration (rcbench run's calibration pass), nothing fitted on any "
+        "experiment's frames (ray cast only: the calibration does not measure updates)");
     cmd->add_option("--train", o->train,
                     "DB[:RUN]: the run the model is chosen and fitted on (default: its newest run with cells)")
         ->required();
@@ -124,6 +126,7 @@ void add_validate_command(CLI::App& app) {
             const LoadedRun train = load_run(store.db(), train_ref);
             predicted_run = train_run = train.run;
             groups = validate_nested(train.frames, train.inputs, nested_splits(train.frames), o->bootstrap);
+            groups.push_back(validate_calibration_only(train.frames, train.inputs, o->bootstrap));
             for (const ValidationGroup& g : groups)
                 store_validation(store.db(), train.run, "nested", train.uuid, g, o->bootstrap);
         } else {
@@ -141,6 +144,9 @@ void add_validate_command(CLI::App& app) {
             store_validation(store.db(), test.run, train_ref.path + ":" + std::to_string(train.run), train.uuid,
                              v.group, o->bootstrap);
             groups.push_back(std::move(v.group));
+            // The test run's own calibration (its machine's micro-scenes), no frames fitted.
+            groups.push_back(validate_calibration_only(test.frames, test.inputs, o->bootstrap));
+            store_validation(store.db(), test.run, "calibration", test.uuid, groups.back(), o->bootstrap);
             unpredictable = v.unpredictable;
         }
         if (o->json) {

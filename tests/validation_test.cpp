@@ -151,6 +151,32 @@ TEST(TransferValidation, AFrozenModelPredictsAnotherRunWithinItsNoise) {
     EXPECT_TRUE(std::isnan(unknown.frame.median));
 }
 
+TEST(CalibrationOnly, PricesTheRayCastFromTheCalibrationAloneAndNeverTheUpdate) {
+    std::vector<FrameObservation> frames = known_run(9, 3, 2, 50, 2000, 0.0);
+    Random rng(3);
+    add_cell(frames, "uncalibrated", "scene0", 100, 100, 100, kPrep, 0.0, rng);
+    ModelInputs inputs;
+    StructureCalibration c;
+    c.structure = "tree";
+    for (const auto& [name, value] : {std::pair{"C_RB", kRb}, {"C_T", kT}, {"C_PREP", kPrep}})
+        c.terms.push_back({name, value, value, value, true, ""});
+    inputs.calibrations.push_back(c);
+    ValidationGroup g = validate_calibration_only(frames, inputs, {50, 1});
+    EXPECT_EQ(g.name, "calibration-only");
+    ASSERT_EQ(g.structures.size(), 2u);
+    const StructureValidation& tree = g.structures[0];
+    EXPECT_EQ(tree.structure, "tree");
+    EXPECT_EQ(tree.cells, 6u);
+    EXPECT_EQ(tree.unpredictable, 0u);
+    EXPECT_LT(tree.raycast.p90, 1e-12);     // the calibration's costs are the scene's
+    EXPECT_TRUE(std::isnan(tree.frame.median));  // updates are not calibrated
+    EXPECT_EQ(g.structures[1].unpredictable, 1u);
+    // A calibration that misprices C_T by half shows up as the error it makes.
+    inputs.calibrations[0].terms[1].value = kT / 2;
+    g = validate_calibration_only(frames, inputs, {50, 1});
+    EXPECT_GT(g.structures[0].raycast.median, 0.05);
+}
+
 TEST(Bootstrap, TheIntervalNarrowsAsScenesGrow) {
     const auto width = [](int scenes) {
         Random rng(21);
@@ -266,14 +292,15 @@ TEST(ValidateCommand, StoresTransferInTheTestDatabaseAndNestedInTheTrainOne) {
     ASSERT_EQ(t.code, 0) << t.err;
     const nlohmann::json j = nlohmann::json::parse(t.out);
     EXPECT_EQ(j["bootstrap"]["seed"], 1);
-    ASSERT_EQ(j["groups"].size(), 1u);
+    ASSERT_EQ(j["groups"].size(), 2u);
     EXPECT_EQ(j["groups"][0]["group"], "transfer");
+    EXPECT_EQ(j["groups"][1]["group"], "calibration-only");  // these runs have no calibration: unpredictable
     EXPECT_LT(j["groups"][0]["structures"][0]["raycast_error"]["median"].get<double>(), 0.03);
     EXPECT_EQ(count(b, "SELECT count(*) FROM model_validation WHERE train_run_uuid = 'ua' AND seed = 1"), 1);
     EXPECT_EQ(count(b, "SELECT resamples FROM model_validation"), 50);
     // Stored again: replaced, not added; the file still passes the schema check of every reader.
     ASSERT_EQ(rcbench({"validate", "--train", a, "--test", b + ":1"}).code, 0);
-    EXPECT_EQ(count(b, "SELECT count(*) FROM model_validation"), 1);
+    EXPECT_EQ(count(b, "SELECT count(*) FROM model_validation"), 2);  // the transfer and calibration alone
     EXPECT_EQ(count(a, "SELECT count(*) FROM model_validation"), 0);  // a transfer is stored in the test run's file
     EXPECT_NO_THROW(open_read_only(b));
 

@@ -454,6 +454,17 @@ json exhaustive_json(const std::vector<ExhaustiveCheck>& checks) {
     return out;
 }
 
+/// The report and its JSON as they stand, with the equal-budget summary over `problems` so far.
+void write_report(const TuningOutputs& files, std::string md, json out, const std::vector<BudgetComparison>* problems) {
+    if (problems) {
+        const SuiteSummary summary = summarize_suite(*problems);
+        md += suite_md(summary);
+        out["equal_budget"] = suite_json(summary);
+    }
+    write_file_atomically(files.md.string(), md);
+    write_file_atomically(files.json.string(), out.dump(2) + '\n');
+}
+
 }  // namespace
 
 TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
@@ -486,14 +497,9 @@ TuneOutcome run_tuning(const TuneSpec& file_spec, const TuneOptions& o) {
         md += "\n![convergence](" + svg_name + ")\n";
         out["categories"].push_back(cj);
         outcome.categories.push_back(ct);
+        // Written after every category, so a long tuning stopped part-way keeps what it measured.
+        write_report(files, md, out, o.exhaustive ? &problems : nullptr);
     }
-    if (o.exhaustive) {
-        const SuiteSummary summary = summarize_suite(problems);
-        md += suite_md(summary);
-        out["equal_budget"] = suite_json(summary);
-    }
-    write_file_atomically(files.md.string(), md);
-    write_file_atomically(files.json.string(), out.dump(2) + '\n');
     outcome.md_path = files.md.string();
     outcome.json_path = files.json.string();
     return outcome;
