@@ -53,10 +53,38 @@ void print_rows(const Advice& advice, const AdviseOptions& options) {
     std::cout << '\n';
 }
 
+std::string percent_text(double gap) { return (gap >= 0 ? "+" : "") + fixed(100 * gap, 1) + "%"; }
+
+/// Per tuned structure, what advise measured and replayed to choose its parameters, beside the
+/// size of its space (what measuring every configuration would take).
+void print_budget(const std::vector<ParameterChoice>& choices, std::uint32_t repetitions) {
+    if (choices.empty()) return;
+    std::cout << "\nBudget per tuned structure (timed configurations, each run --repetitions " << repetitions
+              << " times; untimed counting replays; the space's configurations, none merged):\n";
+    TextTable t({"structure", "timed configurations", "timed measurements", "counting replays", "space"});
+    for (const ParameterChoice& pc : choices)
+        t.add({pc.structure, std::to_string(pc.budget.timed), std::to_string(pc.budget.timed_measurements),
+               std::to_string(pc.budget.replays), std::to_string(pc.budget.space)});
+    t.print(std::cout);
+}
+
+/// --exhaustive, per structure: advise, the pure model, the category's parameters and the
+/// baselines of advise's budget, each priced from the exhaustive table.
+void print_methods(const std::vector<ExhaustiveAdvice>& exhaustive, std::uint64_t seed) {
+    std::cout << "\nEach method's choice priced from the same exhaustive measurements (regret: its cost over the "
+                 "scene's best, minus 1; random and descent: no model, advise's timed configurations, random seed "
+              << seed << "):\n";
+    TextTable t({"structure", "method", "configurations timed", "parameters", "ms", "regret"});
+    for (const ExhaustiveAdvice& x : exhaustive)
+        for (const MethodOutcome& m : x.methods)
+            t.add({x.structure, m.method, std::to_string(m.timed), searched_text(m.searched), fixed(m.ms, 4),
+                   percent_text(m.regret)});
+    t.print(std::cout);
+}
+
 /// --exhaustive: how far the advised and the category's parameters are from the scene's best.
 void print_exhaustive(const std::vector<ExhaustiveAdvice>& exhaustive) {
     if (exhaustive.empty()) return;
-    auto percent_text = [](double gap) { return (gap >= 0 ? "+" : "") + fixed(100 * gap, 1) + "%"; };
     std::cout << "\nEvery configuration of the tuned spaces measured on this scene:\n";
     TextTable e({"structure", "configurations", "scene's best", "ms", "advised", "gap", "category's", "gap"});
     for (const ExhaustiveAdvice& x : exhaustive)
@@ -78,7 +106,9 @@ void print_advice(const Advice& advice, const AdviseOptions& options, bool as_js
     for (const ParameterChoice& pc : advice.parameters) std::cout << pc.summary << '\n';
     if (!advice.parameters.empty()) std::cout << '\n';
     print_rows(advice, options);
+    print_budget(advice.parameters, options.repetitions);
     print_exhaustive(advice.exhaustive);
+    if (!advice.exhaustive.empty()) print_methods(advice.exhaustive, advice.baseline_seed);
 }
 
 }  // namespace
@@ -88,7 +118,8 @@ void add_advise_command(CLI::App& app) {
     CLI::App* cmd =
         app.add_subcommand("advise",
                            "Measure every registered structure on a scene (recording or boxes CSV) at its tuned or "
-                           "default parameters, and recommend the one to ship");
+                           "default parameters, and recommend the one to ship; prints what choosing the tuned "
+                           "parameters measured (timed configurations, counting replays) beside the space's size");
     cmd->add_option("scene", o->scene,
                     "Recording (.rcbscene) or boxes CSV (given 10 frames of 1% dynamics and 1000 centre rays)")
         ->required()
@@ -122,7 +153,13 @@ void add_advise_command(CLI::App& app) {
         ->check(whole_number(0, 64));
     cmd->add_flag("--exhaustive", o->exhaustive,
                   "Also measure every configuration of each tuned structure's space on the scene and report how far "
-                  "the advised and the category's parameters are from the scene's own best (needs --tuning)");
+                  "the advised and the category's parameters are from the scene's own best (needs --tuning); beside "
+                  "them the pure-model choice (what --verify-top 0 --refine 0 advises) and two baselines with "
+                  "advise's number of timed configurations and no model: random configurations (--seed) and a "
+                  "measured descent from the category's parameters. All are priced from the same exhaustive "
+                  "measurements, so they share its noise and the budgets match exactly");
+    cmd->add_option("--seed", o->seed, "Seed of --exhaustive's random baseline (default: the tuning's search seed)")
+        ->check(whole_number());
     auto json_out = std::make_shared<bool>(false);
     cmd->add_flag("--json", *json_out, "Print the advice as one JSON object instead of tables");
     cmd->add_option("--repetitions", o->repetitions, "Measurements per structure")

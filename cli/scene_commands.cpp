@@ -1,4 +1,4 @@
-// rcbench scene gen | import | info
+// rcbench scene gen | import | info | features | maps
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -10,6 +10,7 @@
 #include "core/scene/import/csv.h"
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
+#include "core/scene/import/bsp.h"
 #include "core/scene/import/scene_import.h"
 #include "core/base/json_input.h"
 #include "core/base/output_file.h"
@@ -334,6 +335,23 @@ void add_features_command(CLI::App& scene) {
     });
 }
 
+/// `scene maps`: the maps inside a .pk3, by the names --map takes, for scripts that import them all.
+void add_maps_command(CLI::App& scene) {
+    auto file = std::make_shared<std::string>();
+    CLI::App* m = scene.add_subcommand(
+        "maps", "List the maps (maps/*.bsp) inside a .pk3, one per line, by the name scene import --map takes");
+    m->add_option("pk3", *file, "OpenArena / Quake III package (.pk3)")->required()->check(input_file());
+    m->callback([file] {
+        for (const std::string& entry : pk3_maps(*file)) {
+            const std::string name = std::filesystem::path(entry).stem().string();
+            // Printable ASCII as it is (one line each, spaces included); a name with control or
+            // non-ASCII bytes escaped, as messages show it.
+            const bool plain = std::all_of(name.begin(), name.end(), [](char c) { return c >= 0x20 && c < 0x7f; });
+            std::cout << (plain ? name : quoted_excerpt(name)) << '\n';
+        }
+    });
+}
+
 }  // namespace
 
 void add_scene_commands(CLI::App& app) {
@@ -343,6 +361,7 @@ void add_scene_commands(CLI::App& app) {
     add_import_command(*scene);
     add_info_command(*scene);
     add_features_command(*scene);
+    add_maps_command(*scene);
 }
 
 }  // namespace rcb

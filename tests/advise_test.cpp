@@ -211,6 +211,82 @@ TEST_F(AdviseFiles, TheExhaustiveCheckMeasuresTheWholeSpaceOnTheScene) {
     EXPECT_EQ(j["rows"].size(), a.rows.size());
 }
 
+TEST_F(AdviseFiles, TheBudgetCountsExactlyWhatWasTimedAndReplayed) {
+    // The tuner's measuring path tallies every simulation it runs (timed, or an untimed counting
+    // replay); advise's reported budget must account for each of them, per tuned structure, with
+    // every untuned structure's row measured once at its defaults beside it.
+    for (const char* method : {"model", "category"}) {
+        AdviseOptions o = options(write_tuning("t.json", tuning_with(0.125, cost_model(2.0, 20.0))));
+        o.method = method;
+        o.repetitions = 2;
+        o.refine = 2;
+        const SimulationTally before = simulation_tally();
+        const Advice a = advise(o);
+        const SimulationTally after = simulation_tally();
+        const ParameterChoice& pc = ug_choice(a);
+        const AdviseBudget& b = pc.budget;
+        const std::size_t untuned = a.rows.size() - 1;  // exact accuracy: one row per structure
+        EXPECT_EQ(after.timed - before.timed, b.timed_measurements + untuned * o.repetitions) << method;
+        EXPECT_EQ(after.counting - before.counting, b.replays) << method;
+        EXPECT_EQ(b.timed_measurements, b.timed * o.repetitions) << method;  // no configuration timed twice
+        EXPECT_EQ(b.space, kDensities.size());
+        if (std::string(method) == "model") {
+            std::size_t measured = 0;
+            for (const ModelCandidate& c : pc.candidates) measured += c.measured.has_value();
+            EXPECT_EQ(b.timed, measured);             // the advised row reuses its candidate's measurement
+            EXPECT_GE(b.timed, 2u);                   // the model's best and the category's at least
+            EXPECT_EQ(b.replays, kDensities.size());  // the space within the budget: each level once
+        } else {
+            EXPECT_EQ(b.timed, 1u);  // the category's parameters, measured for their row
+            EXPECT_EQ(b.replays, 0u);
+        }
+        const json j = advice_json(a, o)["parameters"][0]["budget"];
+        EXPECT_EQ(j, (json{{"timed", b.timed},
+                           {"timed_measurements", b.timed_measurements},
+                           {"replays", b.replays},
+                           {"space", b.space}}));
+    }
+}
+
+TEST_F(AdviseFiles, ExhaustiveReportsThePureModelAndBaselinesOfTheSameBudget) {
+    // A step priced far above a box test: the model alone ranks the coarsest grid first, whatever
+    // the replay's timed update adds, so two runs replay to the same prediction.
+    AdviseOptions o = options(write_tuning("t.json", tuning_with(2.0, cost_model(1e3, 1e7))));
+    o.exhaustive = true;
+    o.seed = 5;
+    const Advice full = advise(o);
+    const ParameterChoice& pc = ug_choice(full);
+    ASSERT_TRUE(pc.predicted_best.has_value());
+    ASSERT_EQ(full.exhaustive.size(), 1u);
+    const ExhaustiveAdvice& e = full.exhaustive[0];
+    EXPECT_EQ(e.budget, pc.budget);
+    std::vector<std::string> names;
+    for (const MethodOutcome& m : e.methods) names.push_back(m.method);
+    ASSERT_EQ(names, (std::vector<std::string>{"advise", "model", "category", "random", "descent"}));
+    EXPECT_EQ(e.methods[0].searched, pc.chosen_searched);
+    EXPECT_DOUBLE_EQ(e.methods[0].regret, e.advised_gap());
+    EXPECT_EQ(e.methods[1].searched, *pc.predicted_best);
+    EXPECT_DOUBLE_EQ(e.methods[2].regret, e.category_gap());
+    EXPECT_EQ(e.methods[3].timed, std::min(pc.budget.timed, kDensities.size()));  // the same budget
+    EXPECT_LE(e.methods[4].timed, pc.budget.timed);
+    EXPECT_GT(e.methods[4].timed, 0u);
+    for (const MethodOutcome& m : e.methods) EXPECT_GE(m.regret, 0.0) << m.method;  // none beats the table's best
+    const json j = advice_json(full, o);
+    EXPECT_EQ(j["baseline_seed"], 5);
+    EXPECT_EQ(j["exhaustive"][0]["methods"].size(), 5u);
+    EXPECT_EQ(j["exhaustive"][0]["methods"][1]["params"], *pc.predicted_best);
+
+    // --verify-top 0 --refine 0 advises the pure-model choice.
+    o.exhaustive = false;
+    o.verify_top = 0;
+    o.refine = 0;
+    const Advice pure_advice = advise(o);
+    const ParameterChoice& pure = ug_choice(pure_advice);
+    EXPECT_EQ(pure.chosen_searched, *pc.predicted_best);
+    EXPECT_EQ(pure.chosen_searched, *pure.predicted_best);
+    EXPECT_EQ(pure.budget.timed, 1u);  // the predicted best alone, measured for its row
+}
+
 TEST(AdviseCounts, ConfigurationsThatAreOneStructureInEffectCountAlike) {
     // A hash grid of depth 0 never splits a cell: its capacity and subdivision change nothing.
     const TuneCategory c{"u", {test::generated_spec("u", "uniform", 2000, 2, 100, {{"advise-counts", 1}})}};

@@ -14,6 +14,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
@@ -24,6 +25,7 @@
 #include "core/scene/import/nesting.h"
 #include "core/scene/import/scene_import.h"
 #include "runner/experiment.h"
+#include "tests/subprocess.h"
 #include "tests/test_scenes.h"
 #include "tests/real_data.h"
 
@@ -360,6 +362,34 @@ TEST(BspImport, ReadsMapsFromAPk3) {
     const std::string bad = write_file(scratch("bad.pk3"), stored_zip({{"maps/odd.bsp", odd.bytes()}}));
     EXPECT_EQ(error_of([&] { import_bsp(bad, {}); }),
               "bad.pk3:maps/odd.bsp: lump 2 (planes): length 417 is not a multiple of 16");
+}
+
+TEST(BspImport, SceneMapsListsAPk3sMapsByTheNameImportTakes) {
+    const Bytes map = tiny_map().bytes();
+    TinyBsp other = tiny_map();
+    other.brush({10, 10, 10}, {11, 11, 11}, 0);
+    const std::string pk3 = write_file(scratch("list.pk3"), stored_zip({{"maps/my map.bsp", other.bytes()},
+                                                                        {"readme.txt", Bytes{'h', 'i'}},
+                                                                        {"maps/a.bsp", map},
+                                                                        {"maps/odd\x01.bsp", map}}));
+    const std::string bin = RCBENCH_BINARY;
+    const ::test::Outcome listed = ::test::run_shell(bin + " scene maps " + pk3);
+    EXPECT_EQ(listed.code, 0) << listed.err;
+    // Sorted, only maps/*.bsp; a name with a control byte (libzip reads a name without the UTF-8
+    // flag as code page 437) is shown escaped, as messages show it.
+    std::istringstream lines(listed.out);
+    std::vector<std::string> names;
+    for (std::string line; std::getline(lines, line);) names.push_back(line);
+    ASSERT_EQ(names.size(), 3u) << listed.out;
+    EXPECT_EQ(names[0], "a");
+    EXPECT_EQ(names[1], "my map");
+    EXPECT_EQ(names[2].rfind("'odd\\x", 0), 0u) << names[2];
+    // A listed name imports as it is.
+    EXPECT_EQ(import_bsp(pk3, {"brushes", names[1]}).size(), 3u);
+    const std::string junk = write_text(scratch("list-junk.pk3"), "not a zip at all");
+    const ::test::Outcome bad = ::test::run_shell(bin + " scene maps " + junk);
+    EXPECT_EQ(bad.code, 2);
+    EXPECT_NE(bad.err.find("list-junk.pk3: not a readable zip"), std::string::npos) << bad.err;
 }
 
 TEST(ModelImport, ObjInstancesAndTriangles) {

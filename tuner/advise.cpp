@@ -425,9 +425,13 @@ void measure_rows(RowPlan& plan, const std::vector<ParameterChoice>& choices,
 }
 
 ExhaustiveAdvice compare_exhaustively(const ParameterChoice& pc, const std::vector<json>& configurations,
-                                      const std::vector<MeasuredCost>& costs, const AccuracyConstraint& accuracy) {
+                                      const std::vector<MeasuredCost>& costs, const AccuracyConstraint& accuracy,
+                                      std::uint64_t seed) {
     ExhaustiveAdvice ex;
     ex.structure = pc.structure;
+    ex.budget = pc.budget;
+    MethodInputs in{pc.space,          configurations,  {},  pc.chosen_searched, pc.category_searched,
+                    pc.predicted_best, pc.budget.timed, seed};
     ex.advised_searched = pc.chosen_searched;
     ex.category_searched = pc.category_searched;
     ex.best_ms = INFINITY;
@@ -435,24 +439,49 @@ ExhaustiveAdvice compare_exhaustively(const ParameterChoice& pc, const std::vect
     for (std::size_t i = 0; i < configurations.size(); ++i) {
         const json& p = configurations[i];
         const double ms = constrained_cost(costs[i], accuracy);
+        in.costs.push_back(ms);
         if (ms < ex.best_ms) ex.best_ms = ms, ex.best_searched = p;
         if (same_point(p, pc.chosen_searched, pc.space)) ex.advised_ms = ms;
         if (same_point(p, pc.category_searched, pc.space)) ex.category_ms = ms;
     }
+    ex.methods = compare_methods(in);
     return ex;
 }
 
 namespace {
 
-/// What advise measures with: the scene and the options' repetitions, warm-up and accuracy.
+/// Every configuration advise timed, by structure, once per measurement (its budget's source).
+using MeasurementLog = std::map<std::string, std::vector<json>>;
+
+/// What advise measures with: the scene and the options' repetitions, warm-up and accuracy; each
+/// measurement is logged (a pointer: the meter is copied into std::functions).
 struct SceneMeter {
     const TuneCategory& scene;
     const AdviseOptions& options;
+    MeasurementLog* log;
     bool verify() const { return options.accuracy.needs_verification(); }
     MeasuredCost operator()(const std::string& structure, const json& params) const {
+        (*log)[structure].push_back(params);
         return measure(scene, structure, params, options.warmup, options.repetitions, verify());
     }
 };
+
+/// A tuned structure's budget: its logged measurements (distinct configurations, and their
+/// repetitions), the replays counted while advising, and its space's size (0: none recorded).
+AdviseBudget budget_of(const ParameterChoice& pc, const MeasurementLog& log, std::uint32_t repetitions) {
+    AdviseBudget b;
+    b.replays = pc.budget.replays;
+    b.space = pc.space.empty() ? 0 : 1;
+    for (const SearchDimension& d : pc.space) b.space *= d.levels.size();
+    const auto it = log.find(pc.structure);
+    if (it == log.end()) return b;
+    std::vector<json> distinct;
+    for (const json& p : it->second)
+        if (std::find(distinct.begin(), distinct.end(), p) == distinct.end()) distinct.push_back(p);
+    b.timed = distinct.size();
+    b.timed_measurements = it->second.size() * repetitions;
+    return b;
+}
 
 /// The model method for one tuned structure: its candidates predicted, verified, refined by the
 /// measured descent and ordered; the chosen parameters go into `plan`.
@@ -462,6 +491,7 @@ void advise_by_model(ParameterChoice& pc, const TunedStructure& ts, StructurePla
     const StructureInfo& info = *plan.info;
     const CostCoefficients& model = *ts.model;
     const ReplayPrediction predict = [&](const json& searched, ReplayCounts& counts) {
+        ++pc.budget.replays;
         return predict_cost(model, meter.scene, pc.structure, searched, o.warmup, &counts);
     };
     const SceneMeasurement measure_at = [&](const json& searched) {
@@ -471,6 +501,8 @@ void advise_by_model(ParameterChoice& pc, const TunedStructure& ts, StructurePla
         rank_by_model(pc.space, pc.category_searched, selection.budget, selection.seed, predict);
     pc.replays = ranking.search.evaluations.size();
     pc.space_size = ranking.search.space_size;
+    if (!ranking.search.evaluations.empty())
+        pc.predicted_best = ranking.search.evaluations[prediction_order(ranking.search.evaluations).front()].params;
     ModelEvidence evidence = verify_candidates(ranking, pc.space, pc.category_searched, o.verify_top, measure_at);
     if (o.verify_top > 0)
         refine_by_descent(evidence, {pc.space, pc.category_searched, o.refine, o.accuracy}, predict, measure_at);
@@ -496,7 +528,7 @@ std::vector<ExhaustiveAdvice> check_exhaustively(const std::vector<ParameterChoi
         for (const json& p : all) full_params.push_back(ts.with(info, p, o.tuning));
         const std::vector<MeasuredCost> costs =
             measure_interleaved(meter.scene, pc.structure, full_params, o.warmup, o.repetitions, meter.verify());
-        out.push_back(compare_exhaustively(pc, all, costs, o.accuracy));
+        out.push_back(compare_exhaustively(pc, all, costs, o.accuracy, o.seed.value_or(selection.seed)));
     }
     return out;
 }
@@ -521,7 +553,8 @@ Advice advise(const AdviseOptions& o) {
 
     // The model method: the category's cost model on this scene's counters picks the candidates,
     // measurements on the scene decide among them and the category's own parameters.
-    const SceneMeter meter{scene, o};
+    MeasurementLog log;
+    const SceneMeter meter{scene, o, &log};
     for (ParameterChoice& pc : plan.choices) {
         if (pc.method == ParameterMethod::category) {
             pc.summary = category_summary(pc, selection.category);
@@ -538,6 +571,8 @@ Advice advise(const AdviseOptions& o) {
     advice.chosen = selection.chosen;
     RowPlan rows = plan_rows(plan.structures, plan.choices, o.accuracy);
     measure_rows(rows, plan.choices, meter, o.progress);
+    for (ParameterChoice& pc : plan.choices) pc.budget = budget_of(pc, log, o.repetitions);
+    advice.baseline_seed = o.seed.value_or(selection.seed);
     advice.rows = std::move(rows.rows);
     advice.recommended = rank_advice(advice.rows, o.accuracy);
     if (o.exhaustive) advice.exhaustive = check_exhaustively(plan.choices, selection, meter);
@@ -555,6 +590,34 @@ std::optional<std::size_t> rank_advice(std::vector<AdviceRow>& rows, const Accur
     }
     return best;
 }
+
+namespace {
+
+json budget_json(const AdviseBudget& b) {
+    return {
+        {"timed", b.timed}, {"timed_measurements", b.timed_measurements}, {"replays", b.replays}, {"space", b.space}};
+}
+
+json exhaustive_json(const ExhaustiveAdvice& e) {
+    json methods = json::array();
+    for (const MethodOutcome& m : e.methods)
+        methods.push_back(
+            {{"method", m.method}, {"timed", m.timed}, {"params", m.searched}, {"ms", m.ms}, {"regret", m.regret}});
+    return {{"structure", e.structure},
+            {"configurations", e.configurations},
+            {"best_params", e.best_searched},
+            {"best_ms", e.best_ms},
+            {"advised_params", e.advised_searched},
+            {"advised_ms", e.advised_ms},
+            {"advised_gap", e.advised_gap()},
+            {"category_params", e.category_searched},
+            {"category_ms", e.category_ms},
+            {"category_gap", e.category_gap()},
+            {"budget", budget_json(e.budget)},
+            {"methods", methods}};
+}
+
+}  // namespace
 
 json advice_json(const Advice& a, const AdviseOptions& o) {
     auto cost_json = [](const MeasuredCost& c) {
@@ -585,7 +648,9 @@ json advice_json(const Advice& a, const AdviseOptions& o) {
                    {"category_params", pc.category_searched},
                    {"params", pc.chosen_searched},
                    {"summary", pc.summary},
+                   {"budget", budget_json(pc.budget)},
                    {"candidates", json::array()}};
+        if (pc.predicted_best) pj["predicted_best"] = *pc.predicted_best;
         if (pc.method == ParameterMethod::model)
             pj["model"] = pc.model, pj["replays"] = pc.replays, pj["space_size"] = pc.space_size,
             pj["refined"] = pc.refined;
@@ -608,17 +673,8 @@ json advice_json(const Advice& a, const AdviseOptions& o) {
     if (a.recommended)
         j["recommended"] = {{"structure", a.rows[*a.recommended].structure},
                             {"params", json::parse(a.rows[*a.recommended].params)}};
-    for (const ExhaustiveAdvice& e : a.exhaustive)
-        j["exhaustive"].push_back({{"structure", e.structure},
-                                   {"configurations", e.configurations},
-                                   {"best_params", e.best_searched},
-                                   {"best_ms", e.best_ms},
-                                   {"advised_params", e.advised_searched},
-                                   {"advised_ms", e.advised_ms},
-                                   {"advised_gap", e.advised_gap()},
-                                   {"category_params", e.category_searched},
-                                   {"category_ms", e.category_ms},
-                                   {"category_gap", e.category_gap()}});
+    for (const ExhaustiveAdvice& e : a.exhaustive) j["exhaustive"].push_back(exhaustive_json(e));
+    if (o.exhaustive) j["baseline_seed"] = a.baseline_seed;
     return j;
 }
 

@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "analysis/scene_categories.h"
+#include "tuner/advise_baselines.h"
 #include "tuner/tuning.h"
 
 namespace rcb {
@@ -51,15 +52,16 @@ inline bool operator==(ParameterMethod method, std::string_view name) { return m
 std::ostream& operator<<(std::ostream& out, ParameterMethod method);
 
 struct AdviseOptions {
-    std::string scene;              ///< a recording, or a boxes CSV (given 10 frames of 1% dynamics, 1000 centre rays)
-    std::string tuning;             ///< a tuning result (tuning-<name>.json), or empty: defaults
-    std::string category;           ///< its category; empty: the one nearest the scene's features
-    std::string method = "auto";    ///< how tuned parameters are chosen: auto, category, model (parse_advise_method)
-    std::uint32_t verify_top = 3;   ///< model method: its best configurations measured beside the category's
-    std::uint32_t refine = 6;       ///< model method: measurements of the descent from the fastest verified
-    bool exhaustive = false;        ///< also measure every configuration of each tuned structure's space
-    std::uint32_t repetitions = 3;  ///< measurements per structure
-    std::uint32_t warmup = 1;       ///< frames left out of the medians
+    std::string scene;             ///< a recording, or a boxes CSV (given 10 frames of 1% dynamics, 1000 centre rays)
+    std::string tuning;            ///< a tuning result (tuning-<name>.json), or empty: defaults
+    std::string category;          ///< its category; empty: the one nearest the scene's features
+    std::string method = "auto";   ///< how tuned parameters are chosen: auto, category, model (parse_advise_method)
+    std::uint32_t verify_top = 3;  ///< model method: its best configurations measured beside the category's
+    std::uint32_t refine = 6;      ///< model method: measurements of the descent from the fastest verified
+    bool exhaustive = false;       ///< also measure every configuration of each tuned structure's space
+    std::optional<std::uint64_t> seed;  ///< --exhaustive's random baseline; none: the tuning's search seed
+    std::uint32_t repetitions = 3;      ///< measurements per structure
+    std::uint32_t warmup = 1;           ///< frames left out of the medians
     /// What the recommendation must answer; one that allows inexact answers also measures every
     /// structure at the other query levels (candidates, shapes) and verifies every measurement.
     AccuracyConstraint accuracy;
@@ -93,13 +95,15 @@ struct ModelCandidate {
 struct ParameterChoice {
     std::string structure;
     ParameterMethod method = ParameterMethod::category;
-    std::string why;                          ///< one sentence: why this method
-    nlohmann::json category_searched;         ///< the category's tuned values of the searched parameters
-    nlohmann::json chosen_searched;           ///< what was advised
-    std::vector<SearchDimension> space;       ///< the tuning's space (empty: an older tuning without one)
-    std::string model;                        ///< the cost model applied (model method)
-    std::size_t replays = 0, space_size = 0;  ///< counting replays of the scene (model method) and the space
-    std::size_t refined = 0;                  ///< configurations the measured descent added (model method)
+    std::string why;                               ///< one sentence: why this method
+    nlohmann::json category_searched;              ///< the category's tuned values of the searched parameters
+    nlohmann::json chosen_searched;                ///< what was advised
+    std::vector<SearchDimension> space;            ///< the tuning's space (empty: an older tuning without one)
+    std::string model;                             ///< the cost model applied (model method)
+    std::size_t replays = 0, space_size = 0;       ///< counting replays of the scene (model method) and the space
+    std::size_t refined = 0;                       ///< configurations the measured descent added (model method)
+    std::optional<nlohmann::json> predicted_best;  ///< model method: the best prediction (--verify-top 0 --refine 0's)
+    AdviseBudget budget;                           ///< what advise measured and replayed for this structure
     std::vector<ModelCandidate>
         candidates;       ///< model method: measured ones first, fastest first; then the rest by prediction
     std::string summary;  ///< one paragraph for the terminal
@@ -111,6 +115,8 @@ struct ExhaustiveAdvice {
     std::size_t configurations = 0;
     nlohmann::json best_searched, advised_searched, category_searched;
     double best_ms = 0, advised_ms = 0, category_ms = 0;  ///< from the same measurements
+    AdviseBudget budget;                                  ///< advise's, which the baselines match
+    std::vector<MethodOutcome> methods;  ///< advise, the pure model, the category's, the baselines (compare_methods)
     double advised_gap() const { return advised_ms / best_ms - 1; }
     double category_gap() const { return category_ms / best_ms - 1; }
 };
@@ -121,6 +127,7 @@ struct Advice {
     std::optional<CategoryChoice> chosen;      ///< when the category came from the scene's features
     std::vector<ParameterChoice> parameters;   ///< per tuned structure, in registry order
     std::vector<ExhaustiveAdvice> exhaustive;  ///< with AdviseOptions::exhaustive, per tuned structure with a space
+    std::uint64_t baseline_seed = 1;           ///< the random baseline's (--seed, else the tuning's search seed)
 };
 
 // The steps of advise, each callable and testable alone; advise() runs them in this order (parse,
@@ -266,9 +273,12 @@ void measure_rows(RowPlan& plan, const std::vector<ParameterChoice>& choices,
 
 /// Where the advice stands among every configuration of the space measured on the scene
 /// (`configurations` searched parameters and their `costs`): configurations that fail the
-/// accuracy priced out (constrained_cost), as tune --exhaustive does.
+/// accuracy priced out (constrained_cost), as tune --exhaustive does; beside it the pure model,
+/// the category's parameters and the baselines of the choice's budget (compare_methods, the
+/// random one seeded by `seed`), all priced from the same table.
 ExhaustiveAdvice compare_exhaustively(const ParameterChoice& choice, const std::vector<nlohmann::json>& configurations,
-                                      const std::vector<MeasuredCost>& costs, const AccuracyConstraint& accuracy);
+                                      const std::vector<MeasuredCost>& costs, const AccuracyConstraint& accuracy,
+                                      std::uint64_t seed = 1);
 
 /// InputError for a missing scene, a method other than auto, category or model, --category or
 /// --exhaustive without --tuning, a tuning file that is not a

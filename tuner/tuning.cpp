@@ -1,6 +1,7 @@
 #include "tuner/tuning.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -63,13 +64,17 @@ void add_observations(const SimulationResult& r, const std::string& scene, const
     }
 }
 
+std::atomic<std::uint64_t> timed_simulations{0}, counting_simulations{0};
+
 std::vector<SimulationResult> run_simulations(const TuneCategory& category, const std::string& structure,
                                               const json& params, const SimulationOptions& options,
                                               std::uint32_t repetitions) {
     std::vector<SimulationResult> out;
     for (std::uint32_t rep = 0; rep < repetitions; ++rep)
-        for (const SceneSpec& scene : category.scenes)
+        for (const SceneSpec& scene : category.scenes) {
             out.push_back(simulate(recording_of(scene), find_structure(structure), params, options));
+            ++(options.timed_cast ? timed_simulations : counting_simulations);
+        }
     return out;
 }
 
@@ -135,6 +140,8 @@ std::vector<json> levels_for(const ParamSpec& p) {
 }
 
 }  // namespace
+
+SimulationTally simulation_tally() { return {timed_simulations.load(), counting_simulations.load()}; }
 
 std::size_t simplest_within(const std::vector<const Candidate*>& all, double tolerance) {
     double fastest = INFINITY;

@@ -137,6 +137,15 @@ std::vector<MeasuredCost> measure_interleaved(const TuneCategory& category, cons
                                               const std::vector<nlohmann::json>& params, std::uint32_t warmup_frames,
                                               std::uint32_t repetitions, bool verify = false);
 
+/// How many simulations the tuner's measuring paths have run in this process, by kind, one per
+/// scene of a category: timed (their ray batches timed: measure, measure_interleaved) and
+/// counting replays (untimed: predict_cost, the counters of an observed measurement). advise
+/// reports its budget from its own calls; tests check it against these.
+struct SimulationTally {
+    std::uint64_t timed = 0, counting = 0;
+};
+SimulationTally simulation_tally();
+
 /// What the measured search minimises: the time per frame of a configuration that meets
 /// `accuracy`, and far more (still ordered by time, so the search keeps its bearings) for one that
 /// does not.

@@ -1,0 +1,90 @@
+#!/usr/bin/env bash
+# advise against its budget-matched baselines on every OpenArena map (docs/model.md, "The budget"):
+# runs `rcbench advise MAP --tuning T --exhaustive --json` on each map of data/maps/*.pk3 and
+# summarises, per map and tuned structure, the regret (cost / the map's exhaustive best − 1) of
+# advise, the pure-model choice, the category's parameters and the random and descent baselines,
+# all priced from the map's one exhaustive table; then, over the maps the tuning did not see, how
+# often each is within 5 % of the optimum and how often advise beats each baseline.
+#
+#   scripts/advise_study.sh [MAP ...]
+#     default maps: every map of every data/maps/*.pk3 (as `rcbench scene maps` lists them)
+#
+# Environment: RCBENCH (default build/rcbench), RCB_MAPS_DIR (default data/maps), RCB_STUDY_DIR
+# (default results/advise-study), RCB_TUNING (a tuning result; default
+# RCB_STUDY_DIR/tuning-advise.json, tuned from experiments/tune-advise.json, which reads
+# data/maps, when missing), RCB_CATEGORY (advise --category; default: chosen from each map's
+# features), RCB_SEEN (maps the tuning saw, space-separated; default the maps of
+# experiments/tune-advise.json when RCB_TUNING is unset, else none), RCB_REPETITIONS (default 5),
+# RCB_SEED (advise --seed, the random baseline's; default the tuning's search seed).
+# Writes RCB_STUDY_DIR/MAP-brushes.rcbscene (20 frames of 1% dynamics, seed 1, kept and reused),
+# advise-MAP.json and summary.txt (tab-separated). Needs jq. Pin it to an idle core (taskset -c 0):
+# every map measures each tuned space whole.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+rcbench=${RCBENCH:-build/rcbench}
+dir=${RCB_STUDY_DIR:-results/advise-study}
+reps=${RCB_REPETITIONS:-5}
+fail() {
+  echo "advise_study: $*" >&2
+  exit 2
+}
+command -v jq >/dev/null || fail "needs jq (Debian package jq) to read advise's JSON"
+[ -x "$rcbench" ] || fail "$rcbench is not an executable; build it or set RCBENCH"
+shopt -s nullglob
+pk3s=("${RCB_MAPS_DIR:-data/maps}"/*.pk3)
+((${#pk3s[@]} > 0)) || fail "no ${RCB_MAPS_DIR:-data/maps}/*.pk3; run scripts/fetch_maps.sh"
+mkdir -p "$dir"
+
+# Each pk3's maps, by the names import's --map takes.
+declare -A pk3_of
+for pk3 in "${pk3s[@]}"; do
+  while read -r m; do pk3_of[$m]=$pk3; done < <("$rcbench" scene maps "$pk3")
+done
+maps=("$@")
+if ((${#maps[@]} == 0)); then mapfile -t maps < <(printf '%s\n' "${!pk3_of[@]}" | sort); fi
+
+for map in "${maps[@]}"; do [ -n "${pk3_of[$map]:-}" ] || fail "no map $map in ${pk3s[*]}"; done
+
+tuning=${RCB_TUNING:-}
+seen=${RCB_SEEN-}
+if [ -z "$tuning" ]; then
+  tuning=$dir/tuning-advise.json
+  [ -f "$tuning" ] || "$rcbench" tune experiments/tune-advise.json --db "$dir/advise.db" --out-dir "$dir"
+  [ -n "${RCB_SEEN+set}" ] || seen=$(jq -r '.. | objects | .map? // empty' experiments/tune-advise.json | tr '\n' ' ')
+fi
+[ -f "$tuning" ] || fail "$tuning: no such tuning result"
+
+extra=()
+[ -z "${RCB_CATEGORY:-}" ] || extra+=(--category "$RCB_CATEGORY")
+[ -z "${RCB_SEED:-}" ] || extra+=(--seed "$RCB_SEED")
+for map in "${maps[@]}"; do
+  pk3=${pk3_of[$map]}
+  scene=$dir/$map-brushes.rcbscene
+  [ -f "$scene" ] || "$rcbench" scene import "$pk3" --map "$map" --bsp-mode brushes --frames 20 -o "$scene" >/dev/null
+  "$rcbench" advise "$scene" --tuning "$tuning" --exhaustive --json --warmup 2 --repetitions "$reps" \
+    "${extra[@]}" >"$dir/advise-$map.json"
+done
+
+# One line per map and tuned structure, then the unseen maps' totals.
+files=()
+for map in "${maps[@]}"; do files+=("$dir/advise-$map.json"); done
+jq -r -s --arg seen " $seen " '
+  def pct: (. * 1000 | round / 10 | tostring) + "%";
+  [ .[] | (.scene | sub(".*/"; "") | sub("-brushes.rcbscene$"; "")) as $map
+        | .exhaustive[] | {map: $map, seen: ($seen | contains(" " + $map + " ")), structure,
+                           budget, regret: (.methods | map({(.method): .regret}) | add)} ] as $rows
+  | ($rows | map(select(.seen | not))) as $unseen
+  | ["map", "seen", "structure", "timed", "space", "advise", "model", "category", "random", "descent"],
+    ($rows[] | [.map, (if .seen then "yes" else "no" end), .structure, .budget.timed, .budget.space,
+                (.regret.advise | pct), (.regret.model // null | if . == null then "-" else pct end),
+                (.regret.category // null | if . == null then "-" else pct end),
+                (.regret.random | pct), (.regret.descent | pct)]),
+    [],
+    ["unseen (map x structure): \($unseen | length)"],
+    (["advise", "model", "category", "random", "descent"][] as $m
+      | ($unseen | map(.regret[$m] | select(. != null))) as $r
+      | ["\($m): within 5% of the optimum in \($r | map(select(. <= 0.05)) | length) of \($r | length)"]),
+    (["random", "descent"][] as $b
+      | ["advise vs \($b): better in \($unseen | map(select(.regret.advise < .regret[$b])) | length), tied in \($unseen | map(select(.regret.advise == .regret[$b])) | length), worse in \($unseen | map(select(.regret.advise > .regret[$b])) | length)"])
+  | @tsv' "${files[@]}" | tee "$dir/summary.txt"
+echo "advise_study: wrote $dir/summary.txt"

@@ -1,0 +1,167 @@
+// advise --exhaustive's budget-matched baselines on made-up cost tables: the random draw (seeded,
+// uniform, within the budget), the model-free descent (from the category's parameters, only to
+// measured improvements, stopped at the budget) and the comparison that prices every method from
+// one table; and the pure-model choice, which must be what --verify-top 0 --refine 0 advises.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <set>
+
+#include "tuner/advise.h"
+#include "tuner/advise_baselines.h"
+
+namespace rcb {
+namespace {
+
+using json = nlohmann::json;
+
+/// Two dimensions: "a" with levels 1..na, "b" with levels 1..nb.
+std::vector<SearchDimension> grid_space(int na, int nb) {
+    SearchDimension a{"a", {}}, b{"b", {}};
+    for (int i = 1; i <= na; ++i) a.levels.push_back(i);
+    for (int i = 1; i <= nb; ++i) b.levels.push_back(i);
+    return {a, b};
+}
+
+/// The cost of every configuration of `space` by `f(a, b)`.
+std::vector<double> table(const std::vector<json>& configurations, const std::function<double(int, int)>& f) {
+    std::vector<double> costs;
+    for (const json& p : configurations) costs.push_back(f(p["a"].get<int>(), p["b"].get<int>()));
+    return costs;
+}
+
+TEST(AdviseBaselines, RandomPicksAreSeededDistinctAndWithinTheBudget) {
+    const std::vector<std::size_t> a = random_picks(40, 7, 11);
+    EXPECT_EQ(a, random_picks(40, 7, 11));  // same seed, same picks
+    EXPECT_NE(a, random_picks(40, 7, 12));
+    ASSERT_EQ(a.size(), 7u);
+    EXPECT_EQ(std::set<std::size_t>(a.begin(), a.end()).size(), 7u);  // without replacement
+    for (const std::size_t i : a) EXPECT_LT(i, 40u);
+    // A budget above the space takes the space once, never more.
+    std::vector<std::size_t> all = random_picks(5, 9, 3);
+    std::sort(all.begin(), all.end());
+    EXPECT_EQ(all, (std::vector<std::size_t>{0, 1, 2, 3, 4}));
+    EXPECT_TRUE(random_picks(5, 0, 3).empty());
+}
+
+TEST(AdviseBaselines, RandomPicksAreUniformOverTheSpace) {
+    // 3 of 8 over 4000 seeds: each configuration is drawn 1500 times in expectation (sd ≈ 31).
+    std::vector<int> drawn(8, 0);
+    for (std::uint64_t seed = 1; seed <= 4000; ++seed)
+        for (const std::size_t i : random_picks(8, 3, seed)) ++drawn[i];
+    for (const int n : drawn) {
+        EXPECT_GT(n, 1350);
+        EXPECT_LT(n, 1650);
+    }
+}
+
+TEST(AdviseBaselines, TheDescentStartsAtTheCategoryAndStopsAtTheBudget) {
+    const std::vector<SearchDimension> space = grid_space(8, 1);
+    const std::vector<json> configurations = enumerate_space(space);
+    const std::vector<double> costs = table(configurations, [](int a, int) { return 10.0 - a; });  // falls with a
+    const std::vector<std::size_t> path = descent_path(space, configurations, costs, json{{"a", 2}, {"b", 1}}, 3);
+    ASSERT_EQ(path.size(), 3u);
+    EXPECT_EQ(configurations[path[0]], (json{{"a", 2}, {"b", 1}}));
+    EXPECT_EQ(configurations[path[1]], (json{{"a", 3}, {"b", 1}}));  // first improvement: one level up
+    EXPECT_EQ(configurations[path[2]], (json{{"a", 4}, {"b", 1}}));
+    // With the budget to spare it reaches the end of the line and stops there.
+    const std::vector<std::size_t> longer = descent_path(space, configurations, costs, json{{"a", 2}, {"b", 1}}, 50);
+    // a=2 … a=8, each one level up and faster; from a=8 no unmeasured neighbour is left.
+    EXPECT_EQ(longer.size(), 7u);
+    EXPECT_EQ(configurations[longer.back()]["a"], 8);
+    EXPECT_TRUE(descent_path(space, configurations, costs, json{{"a", 2}, {"b", 1}}, 0).empty());
+}
+
+TEST(AdviseBaselines, TheDescentMovesOnlyToMeasuredImprovements) {
+    const std::vector<SearchDimension> space = grid_space(6, 5);
+    const std::vector<json> configurations = enumerate_space(space);
+    // A bumpy surface: a bump at a=3 hides the valley at a=4..5 from one-level steps.
+    const std::vector<double> costs = table(configurations, [](int a, int b) {
+        const double along_a[] = {5, 4, 9, 3, 1, 8};
+        return along_a[a - 1] + 0.5 * std::abs(b - 4);
+    });
+    const std::vector<std::size_t> path = descent_path(space, configurations, costs, json{{"a", 2}, {"b", 1}}, 30);
+    ASSERT_FALSE(path.empty());
+    EXPECT_EQ(configurations[path[0]], (json{{"a", 2}, {"b", 1}}));
+    EXPECT_EQ(std::set<std::size_t>(path.begin(), path.end()).size(), path.size());  // each measured once
+    // Replaying the path: every configuration it measures is a neighbour (one or two levels in one
+    // parameter) of the fastest measured before it, which it replaces only when faster.
+    std::size_t current = path[0];
+    for (std::size_t k = 1; k < path.size(); ++k) {
+        const json& from = configurations[current];
+        const json& to = configurations[path[k]];
+        const int da = std::abs(to["a"].get<int>() - from["a"].get<int>());
+        const int db = std::abs(to["b"].get<int>() - from["b"].get<int>());
+        EXPECT_TRUE((da == 0) != (db == 0) && std::max(da, db) <= 2) << from << " -> " << to;
+        if (costs[path[k]] < costs[current]) current = path[k];
+    }
+    // It crossed the bump (two levels where one found nothing) and found the valley floor.
+    EXPECT_EQ(configurations[current], (json{{"a", 5}, {"b", 4}}));
+    // A start missing a level starts at the middle one, as the search does.
+    EXPECT_EQ(configurations[descent_path(space, configurations, costs, json{{"a", 2}}, 1)[0]],
+              (json{{"a", 2}, {"b", 3}}));
+}
+
+TEST(AdviseBaselines, EveryMethodIsPricedFromTheSameTable) {
+    MethodInputs in;
+    in.space = grid_space(4, 4);
+    in.configurations = enumerate_space(in.space);
+    in.costs = table(in.configurations, [](int a, int b) { return 1.0 + std::abs(a - 3) + std::abs(b - 2); });
+    in.advised = {{"a", 3}, {"b", 3}};
+    in.category = {{"a", 1}, {"b", 1}};
+    in.predicted_best = json{{"a", 4}, {"b", 2}};
+    in.budget = 5;
+    in.seed = 7;
+    const std::vector<MethodOutcome> m = compare_methods(in);
+    ASSERT_EQ(m.size(), 5u);
+    EXPECT_EQ(m[0].method, "advise");
+    EXPECT_EQ(m[0].timed, 5u);
+    EXPECT_DOUBLE_EQ(m[0].ms, 2.0);
+    EXPECT_DOUBLE_EQ(m[0].regret, 1.0);  // the best costs 1
+    EXPECT_EQ(m[1].method, "model");
+    EXPECT_EQ(m[1].searched, (json{{"a", 4}, {"b", 2}}));
+    EXPECT_DOUBLE_EQ(m[1].regret, 1.0);
+    EXPECT_EQ(m[2].method, "category");
+    EXPECT_DOUBLE_EQ(m[2].ms, 4.0);
+    EXPECT_EQ(m[3].method, "random");
+    EXPECT_EQ(m[3].timed, 5u);
+    double best_drawn = INFINITY;
+    for (const std::size_t i : random_picks(16, 5, 7)) best_drawn = std::min(best_drawn, in.costs[i]);
+    EXPECT_DOUBLE_EQ(m[3].ms, best_drawn);
+    EXPECT_EQ(m[4].method, "descent");
+    EXPECT_LE(m[4].timed, 5u);
+    EXPECT_DOUBLE_EQ(m[4].regret, m[4].ms - 1.0);
+    // Without a model (the category method) there is no pure-model row.
+    in.predicted_best.reset();
+    EXPECT_EQ(compare_methods(in).size(), 4u);
+}
+
+TEST(AdviseBaselines, ThePureModelChoiceIsWhatVerifyTopZeroAdvises) {
+    // Rankings with ties and with the best prediction evaluated late: the pure-model choice of
+    // advise (the first by prediction_order) is what verify_candidates with verify_top 0, then
+    // order_candidates, put first.
+    const std::vector<SearchDimension> space = grid_space(5, 1);
+    const std::vector<std::vector<double>> predictions{{3, 1, 2, 1, 5}, {5, 4, 3, 2, 1}, {2, 2, 2, 2, 2}};
+    for (const std::vector<double>& predicted : predictions) {
+        ModelRanking r;
+        for (int a = 1; a <= 5; ++a) {
+            r.search.evaluations.push_back({json{{"a", a}, {"b", 1}}, predicted[std::size_t(a - 1)]});
+            ReplayCounts counts;
+            counts.counters.n_t = std::uint64_t(a);
+            r.replays.entries.push_back({json{{"a", a}, {"b", 1}}, counts});
+        }
+        const json pure = r.search.evaluations[prediction_order(r.search.evaluations).front()].params;
+        ModelEvidence e = verify_candidates(r, space, json{{"a", 3}, {"b", 1}}, 0, [](const json& p) {
+            MeasuredCost c;
+            c.ms = 10.0 - p["a"].get<double>();  // the measurement disagrees with the model
+            return c;
+        });
+        order_candidates(e.candidates, AccuracyConstraint{});
+        EXPECT_EQ(e.candidates.front().searched, pure);
+    }
+}
+
+}  // namespace
+}  // namespace rcb
