@@ -17,7 +17,7 @@
 # experiments/tune-advise.json when RCB_TUNING is unset, else none), RCB_REPETITIONS (default 5),
 # RCB_SEED (advise --seed, the random baseline's; default the tuning's search seed).
 # Writes RCB_STUDY_DIR/MAP-brushes.rcbscene (20 frames of 1% dynamics, seed 1, kept and reused),
-# advise-MAP.json and summary.txt (tab-separated). Needs jq. Pin it to an idle core (taskset -c 0):
+# advise-MAP.json and summary.txt (tab-separated). Needs jq (scripts/setup.sh installs it). Pin it to an idle core (taskset -c 0):
 # every map measures each tuned space whole.
 set -euo pipefail
 cd "$(dirname "$0")/.."

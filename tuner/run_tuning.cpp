@@ -386,7 +386,7 @@ std::string exhaustive_md(const TuneSpec& spec, const std::vector<ExhaustiveChec
     md << "\nAt equal budgets on the same measured surface: configurations that count alike in a "
           "replay merged into one structure in effect (its cost the median of theirs); each method may "
           "evaluate a tenth of those; regret = found / optimum − 1 (the tuner: median of five seeds; "
-          "random: the exact expectation; descent: coordinate descent from the defaults):\n\n"
+          "random: the exact expectation; descent: advise's model-free descent from the defaults):\n\n"
           "| structure | configurations | in effect | budget | tuner | random | descent |\n"
           "|---|---|---|---|---|---|---|\n";
     for (const ExhaustiveCheck& ex : checks) {
@@ -413,7 +413,7 @@ std::string suite_md(const SuiteSummary& s) {
        << fixed(100 * s.median_budget_share, 0) << "%):\n\n| method | regret median | regret p90 |\n|---|---|---|\n"
        << "| tuner | " << fixed(100 * s.tuner_median, 1) << "% | " << fixed(100 * s.tuner_p90, 1) << "% |\n"
        << "| random search | " << fixed(100 * s.random_median, 1) << "% | " << fixed(100 * s.random_p90, 1) << "% |\n"
-       << "| coordinate descent | " << fixed(100 * s.descent_median, 1) << "% | " << fixed(100 * s.descent_p90, 1)
+       << "| model-free descent | " << fixed(100 * s.descent_median, 1) << "% | " << fixed(100 * s.descent_p90, 1)
        << "% |\n\nThe tuner is below random search's regret in " << fixed(100 * s.beats_random, 0)
        << "% of the problems and at or below the descent's in " << fixed(100 * s.matches_descent, 0) << "%.\n";
     return md.str();

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "analysis/statistics.h"
+#include "tuner/advise_baselines.h"
 
 namespace rcb {
 
@@ -26,64 +27,6 @@ double expected_best_of_random(std::vector<double> costs, std::size_t k) {
         if (i < n) p *= double(n - i - k + 1) / double(n - i);
     }
     return expected;
-}
-
-namespace {
-
-/// Level indices of `start` per dimension (missing or unknown: the middle level).
-std::vector<std::size_t> start_levels(const std::vector<SearchDimension>& dims, const nlohmann::json& start) {
-    std::vector<std::size_t> idx(dims.size());
-    for (std::size_t d = 0; d < dims.size(); ++d) {
-        const auto& levels = dims[d].levels;
-        idx[d] = levels.size() / 2;
-        if (start.is_object() && start.contains(dims[d].name)) {
-            auto it = std::find(levels.begin(), levels.end(), start[dims[d].name]);
-            if (it != levels.end()) idx[d] = std::size_t(it - levels.begin());
-        }
-    }
-    return idx;
-}
-
-}  // namespace
-
-SearchResult coordinate_descent(const std::vector<SearchDimension>& dims,
-                                const std::function<double(const nlohmann::json&)>& objective, std::size_t budget,
-                                const nlohmann::json& start) {
-    SearchResult r;
-    r.algorithm = "coordinate descent";
-    r.space_size = enumerate_space(dims).size();
-    std::map<std::vector<std::size_t>, std::size_t> seen;  // level indices → evaluation
-    // The cost of `idx`, evaluated once; nullopt when a new point would exceed the budget.
-    auto cost = [&](const std::vector<std::size_t>& idx) -> std::optional<double> {
-        if (auto it = seen.find(idx); it != seen.end()) return r.evaluations[it->second].cost;
-        if (r.evaluations.size() >= budget) return std::nullopt;
-        nlohmann::json p = nlohmann::json::object();
-        for (std::size_t d = 0; d < dims.size(); ++d) p[dims[d].name] = dims[d].levels[idx[d]];
-        double c = objective(p);
-        if (!std::isfinite(c)) c = std::numeric_limits<double>::max() / 4;  // failed: avoid it
-        seen.emplace(idx, r.evaluations.size());
-        r.evaluations.push_back({p, c});
-        return c;
-    };
-    std::vector<std::size_t> at = start_levels(dims, start);
-    std::optional<double> best = cost(at);
-    r.stop_reason = "budget";
-    if (!best) return r;
-    for (bool improved = true; improved;) {
-        improved = false;
-        for (std::size_t d = 0; d < dims.size(); ++d)
-            for (int step : {+1, -1}) {
-                if ((step < 0 && at[d] == 0) || (step > 0 && at[d] + 1 >= dims[d].levels.size())) continue;
-                std::vector<std::size_t> next = at;
-                next[d] = std::size_t(std::ptrdiff_t(at[d]) + step);
-                const std::optional<double> c = cost(next);
-                if (!c) return r.best = seen.at(at), r;
-                if (*c < *best) at = next, best = c, improved = true;
-            }
-    }
-    r.best = seen.at(at);
-    r.stop_reason = "converged";
-    return r;
 }
 
 BudgetComparison compare_at_equal_budget(const std::vector<SearchDimension>& dims, const std::vector<double>& costs,
@@ -109,7 +52,12 @@ BudgetComparison compare_at_equal_budget(const std::vector<SearchDimension>& dim
         out.tuner_regrets.push_back(regret(search_levels(dims, objective, out.budget, seed, start)));
     out.tuner_regret = quantile(out.tuner_regrets, 0.5);
     out.random_regret = expected_best_of_random(class_cost, out.budget) / out.optimum - 1;
-    out.descent_regret = regret(coordinate_descent(dims, objective, out.budget, start));
+    std::vector<double> config_cost;
+    for (std::size_t i = 0; i < all.size(); ++i) config_cost.push_back(class_cost[class_of[i]]);
+    double descended = INFINITY;
+    for (std::size_t i : descent_path(dims, all, config_cost, start, out.budget))
+        descended = std::min(descended, config_cost[i]);
+    out.descent_regret = descended / out.optimum - 1;
     return out;
 }
 

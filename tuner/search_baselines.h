@@ -5,9 +5,9 @@
 ///
 ///   random   k configurations drawn uniformly without replacement; its expected best is exact
 ///            (order statistics of the sorted costs), so no seed decides the comparison
-///   descent  a model-free coordinate descent on the level lattice from the same start as the
-///            tuner: each dimension in turn, one level up, then one down, moving on improvement,
-///            until a sweep improves nothing or the budget is spent
+///   descent  the model-free descent advise is judged against (tuner/advise_baselines.h:
+///            first improvement one level away in one parameter, two where none is faster), from
+///            the same start as the tuner, until no neighbour is faster or the budget is spent
 ///
 /// Configurations that are one structure in effect (equal counts in a counting replay: a hash
 /// grid of depth 0 ignores its capacity) are merged first: a class's cost is the median of its
@@ -28,12 +28,6 @@ namespace rcb {
 /// Σ_i c_(i) · C(n − i, k − 1) / C(n, k) over the costs in ascending order (i from 1). k is
 /// clamped to [1, n]; NaN for no costs.
 double expected_best_of_random(std::vector<double> costs, std::size_t k);
-
-/// The descent above; `start` as search_levels takes it (a missing level: the middle one). Every
-/// distinct configuration evaluated counts against `budget`, the start included.
-SearchResult coordinate_descent(const std::vector<SearchDimension>& dims,
-                                const std::function<double(const nlohmann::json&)>& objective, std::size_t budget,
-                                const nlohmann::json& start);
 
 /// One tuning problem (a structure's space on a category) compared at one budget.
 struct BudgetComparison {
