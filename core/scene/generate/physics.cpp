@@ -34,13 +34,14 @@ struct StaticBox {
     Vec3d centre, half;
 };
 
-/// What a kind sets up: the bodies (uid = index), static colliders, gravity, and whether bodies
+/// What a kind sets up: the bodies (uid = index), static colliders and ground, gravity, and whether bodies
 /// may fall asleep (Bullet's default thresholds) or stay awake.
 struct Setup {
     std::vector<BodySpec> bodies;
     std::vector<StaticBox> statics;
     Vec3d gravity{0, -9.81, 0};
     bool sleep = true;
+    bool ground = false;  ///< the plane y = 0 (a plane: a huge box makes resting contacts jitter)
 };
 
 /// Exactly round(share × n) bodies of each shape, chosen at random (apply_shapes' rule).
@@ -83,12 +84,6 @@ std::vector<BodySpec> lattice(std::size_t n, std::size_t side, double cell, cons
     return bodies;
 }
 
-/// A ground slab whose top is y = 0, far wider than `reach` metres around `centre`.
-StaticBox ground(const Vec3d& centre, double reach) {
-    const double half = 10 * reach + 100;
-    return {{centre.x, -5, centre.z}, {half, 5, half}};
-}
-
 /// A closed cube of inner side `side` from the origin: six walls 1 m thick.
 std::vector<StaticBox> closed_box(double side) {
     const double h = side / 2;
@@ -111,7 +106,7 @@ Setup pile_setup(std::size_t n, const std::vector<BodyShape>& shapes, Random& rn
     const std::size_t side = std::max<std::size_t>(1, std::size_t(std::ceil(std::cbrt(double(n) / 2))));
     s.bodies = lattice(n, side, 2.0, {1, 1.5, 1}, 0.3, shapes, rng);
     for (BodySpec& b : s.bodies) b.velocity = {rng.uniform(-0.5, 0.5), 0, rng.uniform(-0.5, 0.5)};
-    s.statics.push_back(ground({double(side), 0, double(side)}, 2.0 * double(side)));
+    s.ground = true;
     return s;
 }
 
@@ -120,7 +115,7 @@ Setup freefall_setup(std::size_t n, const std::vector<BodyShape>& shapes, Random
     // A wide grid four layers deep, 10 m above the ground (Broadmark's FreeFall drops a grid).
     const std::size_t side = std::max<std::size_t>(1, std::size_t(std::ceil(std::sqrt(double(n) / 4))));
     s.bodies = lattice(n, side, 2.0, {1, 10, 1}, 0.0, shapes, rng);
-    s.statics.push_back(ground({double(side), 0, double(side)}, 2.0 * double(side)));
+    s.ground = true;
     return s;
 }
 
@@ -137,7 +132,7 @@ Setup explosion_setup(std::size_t n, const std::vector<BodyShape>& shapes, Rando
         d = len > 1e-9 ? d * (1.0 / len) : rng.direction();
         b.velocity = d * rng.uniform(10, 20) + Vec3d{0, 5, 0};
     }
-    s.statics.push_back(ground(centre, 2 * radius));
+    s.ground = true;
     return s;
 }
 
@@ -166,7 +161,7 @@ Setup collapse_setup(std::size_t n, const std::vector<BodyShape>& shapes, Random
         }
         s.bodies.push_back(b);
     }
-    s.statics.push_back(ground({7.5 * double(grid), 0, 7.5 * double(grid)}, 15.0 * double(grid)));
+    s.ground = true;
     return s;
 }
 
@@ -246,7 +241,15 @@ void add_body(World& w, const BodySpec& b, bool sleep) {
     w.bodies.push_back(std::make_unique<btRigidBody>(info));
     btRigidBody* body = w.bodies.back().get();
     body->setLinearVelocity(bt(b.velocity));
-    if (!sleep) body->setActivationState(DISABLE_DEACTIVATION);
+    if (!sleep) {
+        body->setActivationState(DISABLE_DEACTIVATION);
+    } else {
+        // Without rolling resistance a sphere or capsule rolls on for ever and keeps its whole
+        // pile awake; some damping lets a settled pile reach Bullet's sleeping thresholds.
+        body->setRollingFriction(0.05f);
+        body->setSpinningFriction(0.05f);
+        body->setDamping(0.05f, 0.3f);
+    }
     w.world.addRigidBody(body);
 }
 
@@ -254,6 +257,14 @@ void add_static(World& w, const StaticBox& s) {
     w.shapes.push_back(std::make_unique<btBoxShape>(bt(s.half)));
     btRigidBody::btRigidBodyConstructionInfo info(0, nullptr, w.shapes.back().get());
     info.m_startWorldTransform.setOrigin(bt(s.centre));
+    info.m_restitution = 0.3f;
+    w.statics.push_back(std::make_unique<btRigidBody>(info));
+    w.world.addRigidBody(w.statics.back().get());
+}
+
+void add_ground(World& w) {
+    w.shapes.push_back(std::make_unique<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(0)));
+    btRigidBody::btRigidBodyConstructionInfo info(0, nullptr, w.shapes.back().get());
     info.m_restitution = 0.3f;
     w.statics.push_back(std::make_unique<btRigidBody>(info));
     w.world.addRigidBody(w.statics.back().get());
@@ -315,6 +326,7 @@ Recording generate_physics_scene(const SceneSettings& settings) {
     auto w = std::make_unique<World>();
     w->world.setGravity(bt(setup.gravity));
     for (const StaticBox& s : setup.statics) add_static(*w, s);
+    if (setup.ground) add_ground(*w);
     for (const BodySpec& b : setup.bodies) add_body(*w, b, setup.sleep);  // in uid order
     Recording r;
     nlohmann::json meta = to_json(settings);
