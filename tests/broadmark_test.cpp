@@ -177,7 +177,10 @@ TEST(Broadmark, WhatTheFormatCannotHoldIsRefused) {
     const test::TempDir dir("broadmark");
     std::ofstream(dir.file("in.aabbs"), std::ios::binary) << broadmark_file(3, 2, 2);
     const std::string bin = RCBENCH_BINARY;
-    ASSERT_EQ(::test::run_shell(bin + " scene gen --preset uni-s --frames 2 -o " + dir.file("u.rcbscene")).code, 0);
+    ASSERT_EQ(::test::run_shell(bin + " scene gen --preset uni-s --frames 2 --change-fraction 0.2 -o " +
+                                dir.file("u.rcbscene"))
+                  .code,
+              0);
     const ::test::Outcome ex = ::test::run_shell(bin + " scene export " + dir.file("u.rcbscene") +
                                                  " --format broadmark -o " + dir.file("u.aabbs"));
     EXPECT_EQ(ex.code, 2) << ex.err;
