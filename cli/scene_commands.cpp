@@ -10,6 +10,8 @@
 #include "core/scene/import/csv.h"
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
+#include "core/scene/generate/physics.h"
+#include "core/scene/import/broadmark.h"
 #include "core/scene/import/bsp.h"
 #include "core/scene/import/scene_import.h"
 #include "core/base/json_input.h"
@@ -82,6 +84,41 @@ double percentile(std::vector<double>& sorted, double p) {
     return i + 1 < sorted.size() ? sorted[i] * (1 - frac) + sorted[i + 1] * frac : sorted[i];
 }
 
+/// How much of the scene changes per frame, and how far: the share of the live objects changed
+/// (inserted, removed or moved) per frame, and each move's centre displacement over the object's
+/// longest edge before the move (moves of zero-size objects left out).
+nlohmann::json motion_stats(const Recording& r) {
+    LiveSet live(r.initial);
+    std::vector<double> shares, steps;
+    for (const Frame& f : r.frames) {
+        shares.push_back(live.size() ? double(f.change_count()) / double(live.size()) : 0.0);
+        for (const Object& o : f.moves) {
+            const Aabbd before = live.box(o.uid).as<double>();
+            const Vec3d d = o.box.as<double>().center() - before.center();
+            if (before.longest_edge() > 0)
+                steps.push_back(std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z) / before.longest_edge());
+        }
+        live.apply(f);
+    }
+    nlohmann::json j = {{"first_frames", nlohmann::json::array()}, {"last_frames", nlohmann::json::array()}};
+    for (std::size_t i = 0; i < shares.size() && i < 3; ++i) j["first_frames"].push_back(shares[i]);
+    for (std::size_t i = shares.size() > 3 ? shares.size() - 3 : 0; i < shares.size(); ++i)
+        j["last_frames"].push_back(shares[i]);
+    std::sort(shares.begin(), shares.end());
+    std::sort(steps.begin(), steps.end());
+    j["changed_share"] = {
+        {"p10", percentile(shares, 0.1)}, {"p50", percentile(shares, 0.5)}, {"p90", percentile(shares, 0.9)}};
+    j["move_over_size"] = {
+        {"median", percentile(steps, 0.5)}, {"p90", percentile(steps, 0.9)}, {"moves", steps.size()}};
+    return j;
+}
+
+std::string shares_text(const nlohmann::json& list) {
+    std::string out;
+    for (const auto& v : list) out += (out.empty() ? "" : " ") + fixed(100 * v.get<double>(), 1) + "%";
+    return out.empty() ? "none" : out;
+}
+
 /// The format version in a recording's header (read_recording has checked the file already).
 std::uint32_t file_version(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
@@ -146,6 +183,7 @@ void scene_info(const std::string& path, bool as_json) {
         {"bounds",
          {{"min", {bounds.min.x, bounds.min.y, bounds.min.z}}, {"max", {bounds.max.x, bounds.max.y, bounds.max.z}}}},
         {"longest_edge", size},
+        {"motion", motion_stats(r)},
         {"meta", meta}};
     if (as_json) {
         std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
@@ -167,6 +205,14 @@ void scene_info(const std::string& path, bool as_json) {
                                                               " / " + fixed(size["median"], 3) + " / " +
                                                               fixed(size["p90"], 3) + " / " + fixed(size["max"], 3)});
     if (!edges.empty() && edges.front() > 0) t.add({"size span (max / min)", fixed(edges.back() / edges.front(), 1)});
+    const nlohmann::json& m = j["motion"];
+    t.add({"changed per frame p10 / p50 / p90", fixed(100 * m["changed_share"]["p10"].get<double>(), 1) + "% / " +
+                                                    fixed(100 * m["changed_share"]["p50"].get<double>(), 1) + "% / " +
+                                                    fixed(100 * m["changed_share"]["p90"].get<double>(), 1) + "%"});
+    t.add({"changed per frame, first / last frames",
+           shares_text(m["first_frames"]) + " / " + shares_text(m["last_frames"])});
+    t.add({"move / longest edge median (p90)", fixed(m["move_over_size"]["median"].get<double>(), 4) + " (" +
+                                                   fixed(m["move_over_size"]["p90"].get<double>(), 4) + ")"});
     t.print(std::cout);
     std::cout << "origin  " << json_excerpt(meta, 400) << '\n';
 }
@@ -180,6 +226,7 @@ void add_gen_command(CLI::App& scene) {
         std::string out;
         DynamicsOptions dyn;
         ShapeSettings shapes;
+        double time_step = 1.0 / 60;
     };
     auto gen = std::make_shared<GenOptions>();
     CLI::App* g = scene.add_subcommand("gen", "Generate a scene recording from a preset or a kind");
@@ -188,7 +235,14 @@ void add_gen_command(CLI::App& scene) {
                   "scenes jittered-m/l and clusters-m/l (5104, 14021), clusters-xl (1M); failure modes <kind>-s/m "
                   "(1000, 10000 objects)")
         ->check(CLI::IsMember(preset_names()));
-    g->add_option("--kind", gen->kind, "Instead of a preset, with --objects")->check(CLI::IsMember(scene_kinds()));
+    g->add_option("--kind", gen->kind,
+                  "Instead of a preset, with --objects. Physics kinds (" + join(physics_kinds()) +
+                      ") are simulated by Bullet: every awake body moves each frame, sleeping ones do not; the "
+                      "--change-fraction, --insert-share, --remove-share and --move-scale options do not apply to them")
+        ->check(CLI::IsMember(scene_kinds()));
+    g->add_option("--time-step", gen->time_step, "Physics kinds: seconds simulated per frame (one Bullet step)")
+        ->capture_default_str()
+        ->check(finite_range(1e-4, 0.1));
     g->add_option("--objects", gen->objects, "Object count (overrides the preset's)")
         ->check(whole_number(1, kMaxSceneObjects));
     g->add_option("-o,--output", gen->out, "Recording file to write")->required();
@@ -225,6 +279,7 @@ void add_gen_command(CLI::App& scene) {
         s.dynamics = gen->dyn.dynamics;
         s.rays = ray_settings(gen->dyn);
         s.shapes = gen->shapes;
+        s.time_step = gen->time_step;
         check_shapes(s.shapes);
         check_output_path(gen->out, {}, "-o");
         check_scene_size(s.objects, s.frames, s.rays.per_frame, s.objects * s.dynamics.change_fraction,
@@ -239,12 +294,33 @@ struct ImportCommandOptions {
     std::string input;
     std::string out;
     DynamicsOptions dyn;
-    ImportOptions file;  // .bsp/.pk3 and model modes
+    ImportOptions file;         // .bsp/.pk3 and model modes
+    std::string motion_option;  // the first motion option given (--frames, --change-fraction, ...), if any
 };
+
+/// A Broadmark file (`.aabbs`): its frames are the motion; only rays (--rays, --ray-mix, --seed) are added.
+void run_broadmark_import(const ImportCommandOptions& imp) {
+    if (!imp.motion_option.empty())
+        throw InputError(imp.motion_option + ": a Broadmark file carries its own frames and motion (" + imp.input +
+                         ")");
+    Recording r = read_broadmark(imp.input);
+    const RaySettings rays = ray_settings(imp.dyn);
+    add_rays(r, rays, imp.dyn.seed);
+    nlohmann::json meta = nlohmann::json::parse(r.meta);
+    meta["frames"] = r.frames.size();
+    meta["seed"] = imp.dyn.seed;
+    nlohmann::json mix = nlohmann::json::array();
+    for (const RayMode& m : rays.mix) mix.push_back({{"mode", m.mode}, {"weight", m.weight}});
+    meta["rays"] = {{"per_frame", rays.per_frame}, {"mix", mix}};
+    r.meta = meta.dump();
+    write_recording(r, imp.out);
+    print_written(r, imp.out);
+}
 
 /// `scene import`'s work once the options are parsed: the file's objects, dynamics and rays.
 void run_import(const ImportCommandOptions& imp) {
     check_output_path(imp.out, {imp.input}, "-o");
+    if (importer_for(imp.input) == "broadmark") return run_broadmark_import(imp);
     nlohmann::json meta;
     std::vector<Object> objects;
     if (importer_for(imp.input) != "csv") {
@@ -270,9 +346,12 @@ void add_import_command(CLI::App& scene) {
     CLI::App* i =
         scene.add_subcommand("import",
                              "Import a static scene (CSV: uid,minx,miny,minz,maxx,maxy,maxz; Quake III/OpenArena "
-                             ".bsp/.pk3; any model assimp reads) and give it dynamics and rays");
+                             ".bsp/.pk3; any model assimp reads) and give it dynamics and rays, or a Broadmark scene "
+                             "(.aabbs) with its own frames, given rays");
     i->add_option("input", imp->input,
-                  "Boxes file (.csv), map (.bsp, or .pk3 with maps/*.bsp) or model (.obj, .gltf, .glb, .fbx, ...)")
+                  "Boxes file (.csv), map (.bsp, or .pk3 with maps/*.bsp), model (.obj, .gltf, .glb, .fbx, ...) or "
+                  "Broadmark scene (.aabbs: objects are uids 0..N-1, each later frame moves the boxes that changed; "
+                  "--frames and the change options do not apply)")
         ->required()
         ->check(input_file());
     i->add_option("-o,--output", imp->out, "Recording file to write")->required();
@@ -295,7 +374,34 @@ void add_import_command(CLI::App& scene) {
         ->capture_default_str()
         ->check(CLI::IsMember({"instances", "obbs", "triangles"}));
     add_dynamics_options(*i, imp->dyn);
-    i->callback([imp] { run_import(*imp); });
+    i->callback([imp, i] {
+        imp->motion_option.clear();
+        for (const char* o : {"--frames", "--change-fraction", "--insert-share", "--remove-share", "--move-scale"})
+            if (imp->motion_option.empty() && i->count(o) > 0) imp->motion_option = o;
+        run_import(*imp);
+    });
+}
+
+/// `scene export`: a recording in another tool's format.
+void add_export_command(CLI::App& scene) {
+    struct ExportOptions {
+        std::string input, out, format;
+    };
+    auto ex = std::make_shared<ExportOptions>();
+    CLI::App* e = scene.add_subcommand(
+        "export",
+        "Write a recording in another tool's format: broadmark (Broadmark's .aabbs: every object's box in every frame, "
+        "no rays or shapes; refused when a frame inserts or removes objects)");
+    e->add_option("scene", ex->input, "Recording file")->required()->check(input_file());
+    e->add_option("--format", ex->format, "Output format")->required()->check(CLI::IsMember({"broadmark"}));
+    e->add_option("-o,--output", ex->out, "File to write")->required();
+    e->callback([ex] {
+        check_output_path(ex->out, {ex->input}, "-o");
+        const Recording r = read_recording(ex->input);
+        write_broadmark(r, ex->out);
+        std::cout << "wrote " << ex->out << ": " << r.initial.size() << " objects, " << r.frames.size() + 1
+                  << " frames (frame 0 included), Broadmark format\n";
+    });
 }
 
 struct InfoOptions {
@@ -309,7 +415,7 @@ void add_info_command(CLI::App& scene) {
     CLI::App* n =
         scene.add_subcommand("info",
                              "Describe a recording: format version, objects per shape kind, frames, rays, bounds, size "
-                             "distribution");
+                             "distribution, share of objects changed per frame and moves relative to object size");
     n->add_option("file", info->file, "Recording file")->required()->check(input_file());
     n->add_flag("--json", info->json, "Print one JSON object");
     n->callback([info] { scene_info(info->file, info->json); });
@@ -359,6 +465,7 @@ void add_scene_commands(CLI::App& app) {
     scene->require_subcommand(1);
     add_gen_command(*scene);
     add_import_command(*scene);
+    add_export_command(*scene);
     add_info_command(*scene);
     add_features_command(*scene);
     add_maps_command(*scene);

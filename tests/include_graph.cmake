@@ -2,7 +2,8 @@
 # Inside core, folder by folder: base <- scene (generate/, import/) <- truth <- accel (common/, then
 # the families grid/, bvh/, peers/) <- sim; only accel/registry.cpp, the one list of structures,
 # includes the families. Outside libraries stay where they belong: CLI11 in cli/ only, Embree and
-# Bullet in core/accel/peers/, assimp and libzip in core/scene/import/, SQLite in runner/, Ceres and
+# Bullet's collision library in core/accel/peers/, Bullet's dynamics world in core/scene/generate/
+# (the physics scenes), assimp and libzip in core/scene/import/, SQLite in runner/, Ceres and
 # Eigen in analysis/, NLopt in tuner/.
 # Run by ctest: cmake -DSOURCE_DIR=... -P include_graph.cmake
 cmake_minimum_required(VERSION 3.25)
@@ -30,6 +31,7 @@ set(allowed_tuner "${allowed_analysis};tuner")
 set(allowed_cli "${allowed_tuner};cli")
 # Outside libraries: header prefix -> the one folder (and below) that may include it.
 set(library_homes "CLI/=cli" "embree3/=core/accel/peers" "BulletCollision/=core/accel/peers"
+    "btBulletDynamicsCommon.h=core/scene/generate" "BulletDynamics/=core/scene/generate"
     "assimp/=core/scene/import" "zip.h=core/scene/import" "sqlite3.h=runner" "ceres/=analysis"
     "Eigen/=analysis" "nlopt=tuner")
 

@@ -82,7 +82,7 @@ TEST(Experiment, ValidationNamesTheJsonPath) {
     EXPECT_EQ(error_of(R"({"scenes": [{"kind": "cubes", "objects": 50}], "structures": [{"name": "bf"}]})"),
               "exp.json: scenes[0].kind: expected one of uniform, irregular, jittered, clusters, stadium, identical, "
               "same-centroid, flat, "
-              "slivers, outlier, nested, got \"cubes\"");
+              "slivers, outlier, nested, pile, collapse, explosion, brownian, freefall, gravity, got \"cubes\"");
     EXPECT_EQ(
         error_of(
             R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frames": 3, "warmup_frames": 3})"),

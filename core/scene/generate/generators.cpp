@@ -8,6 +8,7 @@
 
 #include "core/base/error.h"
 #include "core/base/random.h"
+#include "core/scene/generate/physics.h"
 
 namespace rcb {
 namespace {
@@ -412,8 +413,10 @@ Segment segment_from(const Vec3d& p0, const Vec3d& p1) { return {p0.as<float>(),
 std::vector<std::string> ray_mode_names() { return {"center", "dense", "los", "ground", "shots", "faces", "inside"}; }
 
 std::vector<std::string> scene_kinds() {
-    return {"uniform",       "irregular", "jittered", "clusters", "stadium", "identical",
-            "same-centroid", "flat",      "slivers",  "outlier",  "nested"};
+    std::vector<std::string> kinds{"uniform",       "irregular", "jittered", "clusters", "stadium", "identical",
+                                   "same-centroid", "flat",      "slivers",  "outlier",  "nested"};
+    for (const std::string& k : physics_kinds()) kinds.push_back(k);
+    return kinds;
 }
 
 std::vector<std::string> failure_mode_kinds() {
@@ -515,7 +518,8 @@ std::vector<Object> generate_boxes(const SceneSettings& s) {
     throw InputError("unknown scene kind '" + s.kind + "' (known: " + join(scene_kinds()) + ")");
 }
 
-/// A uniformly random unit quaternion (w, x, y, z) (Shoemake 1992, "Uniform random rotations").
+}  // namespace
+
 std::array<float, 4> random_rotation(Random& rng) {
     const double u1 = rng.uniform(), u2 = 2 * std::numbers::pi * rng.uniform(),
                  u3 = 2 * std::numbers::pi * rng.uniform();
@@ -523,10 +527,13 @@ std::array<float, 4> random_rotation(Random& rng) {
     return {float(b * std::cos(u3)), float(a * std::sin(u2)), float(a * std::cos(u2)), float(b * std::sin(u3))};
 }
 
-}  // namespace
-
 std::vector<Object> generate_objects(const SceneSettings& s) {
     check_shapes(s.shapes);
+    if (is_physics_kind(s.kind)) {
+        SceneSettings still = s;
+        still.frames = 0;
+        return generate_physics_scene(still).initial;
+    }
     std::vector<Object> objects = generate_boxes(s);
     if (!s.shapes.any()) return objects;
     return apply_shapes(std::move(objects), s.shapes, s.seed);
@@ -726,9 +733,18 @@ Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dyna
     return r;
 }
 
+void add_rays(Recording& r, const RaySettings& rays, std::uint64_t seed) {
+    LiveSet live(r.initial);
+    for (std::uint32_t f = 1; f <= r.frames.size(); ++f) {
+        live.apply(r.frames[f - 1]);
+        r.frames[f - 1].rays = generate_rays(live.objects(), rays, seed, f);
+    }
+}
+
 nlohmann::json to_json(const SceneSettings& s) {
     nlohmann::json j = {{"generator", "rcbench"}, {"kind", s.kind}, {"objects", s.objects}};
     if (!s.preset.empty()) j["preset"] = s.preset;
+    if (is_physics_kind(s.kind)) j["time_step"] = s.time_step;  // only there: other scenes' bytes stay
     // Only when set, so that a box scene's meta, and so its bytes, stay as they were.
     if (s.shapes.any())
         j["shapes"] = {{"rotated_share", s.shapes.rotated_share},
@@ -738,6 +754,7 @@ nlohmann::json to_json(const SceneSettings& s) {
 }
 
 Recording generate_scene(const SceneSettings& s) {
+    if (is_physics_kind(s.kind)) return generate_physics_scene(s);
     check_dynamics(s.dynamics);
     check_shapes(s.shapes);
     check_scene_size(s.objects, s.frames, s.rays.per_frame, s.objects * s.dynamics.change_fraction, "scene");

@@ -4,6 +4,7 @@
 /// recording, byte for byte. Scene, dynamics and rays draw from separate streams derived from the
 /// seed, so e.g. changing the number of rays does not change the dynamics.
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -11,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/base/random.h"
 #include "core/scene/scene.h"
 
 namespace rcb {
@@ -60,6 +62,7 @@ struct SceneSettings {
     std::uint32_t objects = 14021;
     std::uint64_t seed = 1;
     std::uint32_t frames = 10;
+    double time_step = 1.0 / 60;  ///< physics kinds (physics.h): seconds simulated per frame
     DynamicsSettings dynamics;
     ShapeSettings shapes;
     RaySettings rays;
@@ -75,9 +78,9 @@ struct SceneSettings {
 SceneSettings preset_settings(std::string_view name);
 std::vector<std::string> preset_names();
 
-/// Every kind generate_objects knows: "uniform" and "irregular" (thesis §6.1), "jittered" and
-/// "clusters" (the peer-comparison scenes, generators.cpp says how they are drawn) and the failure
-/// modes.
+/// Every kind generate_scene knows: "uniform" and "irregular" (thesis §6.1), "jittered" and
+/// "clusters" (the peer-comparison scenes, generators.cpp says how they are drawn), the failure
+/// modes, and the physics kinds (physics.h).
 std::vector<std::string> scene_kinds();
 /// Scenes built to break a structure's assumptions: "stadium" (one huge box around a
 /// tiny dense cluster), "identical" (stacks of identical boxes), "same-centroid" (stacks with one
@@ -91,7 +94,8 @@ std::vector<std::string> failure_mode_kinds();
 std::vector<RayMode> parse_ray_mix(const std::string& text);
 std::vector<std::string> ray_mode_names();
 
-/// Frame 0's objects of a generated scene, shaped as `settings.shapes` asks.
+/// Frame 0's objects of a generated scene, shaped as `settings.shapes` asks (a physics kind's
+/// bodies at rest before its first step).
 std::vector<Object> generate_objects(const SceneSettings& settings);
 
 /// Gives exactly round(share × n) of the objects each shape (chosen at random, the rotations too,
@@ -114,10 +118,17 @@ void check_dynamics(const DynamicsSettings& dynamics);
 Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dynamics, const RaySettings& rays,
                        std::uint32_t frames, std::uint64_t seed, nlohmann::json meta);
 
+/// Replaces every frame's rays of `r` by generate_rays on the objects live after its changes
+/// (for recordings that come without rays, such as Broadmark files).
+void add_rays(Recording& r, const RaySettings& rays, std::uint64_t seed);
+
 /// The rays of one frame for the given live objects (used by add_dynamics; exposed for tests).
 std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySettings& rays, std::uint64_t seed,
                                    std::uint32_t frame);
 
 nlohmann::json to_json(const SceneSettings& settings);
+
+/// A uniformly random unit quaternion (w, x, y, z) (Shoemake 1992, "Uniform random rotations").
+std::array<float, 4> random_rotation(Random& rng);
 
 }  // namespace rcb

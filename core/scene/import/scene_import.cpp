@@ -15,6 +15,7 @@ std::string importer_for(const std::string& path) {
     for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
     if (ext == ".csv") return "csv";
     if (ext == ".bsp" || ext == ".pk3") return "bsp";
+    if (ext == ".aabbs") return "broadmark";
     if (is_model_extension(ext)) return "model";
     throw InputError(
         path + ": cannot import " + quoted_excerpt(ext) +
@@ -23,6 +24,12 @@ std::string importer_for(const std::string& path) {
 
 std::vector<Object> import_objects(const std::string& path, const ImportOptions& options, nlohmann::json* meta) {
     const std::string kind = importer_for(path);
+    if (kind == "broadmark")
+        throw InputError(path +
+                         ": a Broadmark scene carries its own motion: make a recording of it with `rcbench scene "
+                         "import " +
+                         std::filesystem::path(path).filename().string() +
+                         " -o FILE.rcbscene` and name that as a \"recording\" scene");
     nlohmann::json m = {{"importer", kind}, {"source", std::filesystem::path(path).filename().string()}};
     std::vector<Object> objects;
     if (kind == "csv") {

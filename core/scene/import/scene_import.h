@@ -21,10 +21,12 @@ struct ImportOptions {
     std::uint64_t bsp_max_triangles = kDefaultBspMaxTriangles;
 };
 
-/// "csv", "bsp" or "model"; throws InputError naming the file for an extension nothing reads.
+/// "csv", "bsp", "broadmark" (`.aabbs`, broadmark.h) or "model"; throws InputError naming the file
+/// for an extension nothing reads.
 std::string importer_for(const std::string& path);
 
-/// The file's objects (uids 0..n−1 for BSP and models, the file's for CSV). `meta` (if given)
+/// The file's objects (uids 0..n−1 for BSP and models, the file's for CSV). A Broadmark file is
+/// refused (InputError): it is a whole recording with motion, read by read_broadmark. `meta` (if given)
 /// receives what was imported and how: importer, mode, map, counts kept and skipped.
 std::vector<Object> import_objects(const std::string& path, const ImportOptions& options,
                                    nlohmann::json* meta = nullptr);

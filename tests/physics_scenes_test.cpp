@@ -1,0 +1,183 @@
+// Physics-driven scenes (core/scene/generate/physics.h): the same seed gives the same bytes for
+// every kind, each kind's motion has the character it is named for (within stated bounds), the
+// objects' shapes carry the bodies' rotations, bad settings are refused, and every structure
+// matches the ground truth on them.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/accel/registry.h"
+#include "core/base/error.h"
+#include "core/scene/generate/generators.h"
+#include "core/scene/generate/physics.h"
+#include "core/scene/recording_io.h"
+#include "tests/subprocess.h"
+#include "tests/test_scenes.h"
+
+namespace rcb {
+namespace {
+
+SceneSettings physics(const std::string& kind, std::uint32_t objects, std::uint32_t frames, std::uint64_t seed = 1) {
+    SceneSettings s;
+    s.kind = kind;
+    s.objects = objects;
+    s.frames = frames;
+    s.seed = seed;
+    s.rays.per_frame = 50;
+    s.shapes = {0.25, 0.2, 0.2};
+    return s;
+}
+
+/// The share of the live objects each frame moves.
+std::vector<double> moved_shares(const Recording& r) {
+    std::vector<double> shares;
+    for (const Frame& f : r.frames) shares.push_back(double(f.moves.size()) / double(r.initial.size()));
+    return shares;
+}
+
+/// The objects after the last frame.
+std::vector<Object> final_objects(const Recording& r) {
+    LiveSet live(r.initial);
+    for (const Frame& f : r.frames) live.apply(f);
+    std::vector<Object> objects = live.objects();
+    std::sort(objects.begin(), objects.end(), [](const Object& a, const Object& b) { return a.uid < b.uid; });
+    return objects;
+}
+
+double mean_height(const std::vector<Object>& objects) {
+    double sum = 0;
+    for (const Object& o : objects) sum += o.box.as<double>().center().y;
+    return sum / double(objects.size());
+}
+
+TEST(PhysicsScenes, EveryKindIsDeterministicForASeed) {
+    for (const std::string& kind : physics_kinds()) {
+        SCOPED_TRACE(kind);
+        const std::string a = encode_recording(generate_scene(physics(kind, 150, 12)));
+        EXPECT_EQ(a, encode_recording(generate_scene(physics(kind, 150, 12))));
+        EXPECT_NE(a, encode_recording(generate_scene(physics(kind, 150, 12, 2))));
+        const Recording r = decode_recording(a, kind);  // the reader's checks: shapes valid, boxes their bounds
+        EXPECT_EQ(r.initial.size(), 150u);
+        EXPECT_EQ(r.frames.size(), 12u);
+        for (const Frame& f : r.frames) {
+            EXPECT_TRUE(f.inserts.empty() && f.removes.empty());
+            EXPECT_EQ(f.rays.size(), 50u);
+        }
+        EXPECT_EQ(nlohmann::json::parse(r.meta)["kind"], kind);
+    }
+}
+
+TEST(PhysicsScenes, ShapeSharesAndRotationsAreKept) {
+    const Recording r = generate_scene(physics("explosion", 200, 60));
+    std::array<int, kShapeKinds> kinds{};
+    for (const Object& o : r.initial) ++kinds[int(o.shape.kind)];
+    EXPECT_EQ(kinds[int(ShapeKind::obb)], 50);  // round(0.25 x 200) rotated
+    EXPECT_EQ(kinds[int(ShapeKind::sphere)], 40);
+    EXPECT_EQ(kinds[int(ShapeKind::capsule)], 40);
+    EXPECT_EQ(kinds[int(ShapeKind::box)], 70);
+    // Flung bodies spin: axis-aligned boxes become oriented boxes, and every box is its shape's bounds.
+    std::size_t turned = 0;
+    for (const Object& o : final_objects(r)) {
+        if (o.shape.kind != ShapeKind::box) {
+            EXPECT_EQ(o.box, shape_bounds(o.shape));
+        }
+        turned += o.shape.kind == ShapeKind::obb;
+    }
+    EXPECT_GT(turned, 50u);
+}
+
+TEST(PhysicsScenes, PileSettlesAndFallsAsleep) {
+    // 10 s: the bodies land and settle, then sleep after Bullet's 2 s below its thresholds.
+    // (Piles mixing capsules with the other shapes take longer to come to rest.)
+    SceneSettings s = physics("pile", 200, 600);
+    s.shapes = {0.3, 0.3, 0};
+    const std::vector<double> shares = moved_shares(generate_scene(s));
+    EXPECT_GT(shares.front(), 0.95);  // everything falls at first
+    EXPECT_LT(shares.back(), 0.1);
+}
+
+TEST(PhysicsScenes, BrownianAndGravityMoveEveryBodyEveryFrame) {
+    for (const char* kind : {"brownian", "gravity"}) {
+        SCOPED_TRACE(kind);
+        for (double share : moved_shares(generate_scene(physics(kind, 200, 40)))) EXPECT_GE(share, 0.99);
+    }
+}
+
+TEST(PhysicsScenes, FreefallBodiesEndLower) {
+    const Recording r = generate_scene(physics("freefall", 200, 60));
+    // 1 s of free fall from 10 m is 4.9 m; the grid's lowest layer starts 10 m up.
+    EXPECT_LT(mean_height(final_objects(r)), mean_height(r.initial) - 4.0);
+}
+
+TEST(PhysicsScenes, ExplosionScattersAndCollapseKnocksWallsOver) {
+    // Explosion: 1 s at 10 to 20 m/s outward from a ball 12 m across.
+    const Recording e = generate_scene(physics("explosion", 300, 60));
+    const double before = bounds_of(e.initial).longest_edge(), after = bounds_of(final_objects(e)).longest_edge();
+    EXPECT_GT(after, 2.5 * before);
+    // Collapse: 2 walls of 100 bricks and a ball each; after 2 s the balls have punched through the
+    // lower rows and bricks above have come down (over 0.5 m lower).
+    SceneSettings c = physics("collapse", 202, 120);
+    c.shapes = {};
+    const Recording r = generate_scene(c);
+    const std::vector<Object> end = final_objects(r);
+    std::size_t fallen = 0;
+    for (std::size_t i = 0; i < end.size(); ++i)
+        fallen += end[i].box.as<double>().center().y < r.initial[i].box.as<double>().center().y - 0.5;
+    EXPECT_GE(fallen, 8u);
+}
+
+TEST(PhysicsScenes, BadSettingsAreRefused) {
+    SceneSettings s = physics("pile", 10, 2);
+    s.time_step = 0;
+    test::expect_input_error([&] { generate_scene(s); }, "time_step");
+    s.time_step = std::nan("");
+    test::expect_input_error([&] { generate_scene(s); }, "time_step");
+    s = physics("pile", 10, 2);
+    s.shapes = {0.8, 0.5, 0};
+    test::expect_input_error([&] { generate_scene(s); }, "exceeds 1");
+    const std::string bin = RCBENCH_BINARY;
+    const test::TempDir dir("physics");
+    for (const char* bad : {"--time-step 0", "--time-step 1", "--time-step nan"}) {
+        const ::test::Outcome o =
+            ::test::run_shell(bin + " scene gen --kind pile --objects 10 " + bad + " -o " + dir.file("x.rcbscene"));
+        EXPECT_EQ(o.code, 2) << bad << ": " << o.err;
+        EXPECT_NE(o.err.find("--time-step"), std::string::npos) << o.err;
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir.file("x.rcbscene")));
+}
+
+TEST(PhysicsScenes, SceneInfoShowsTheMotion) {
+    const std::string bin = RCBENCH_BINARY;
+    const test::TempDir dir("physics");
+    const std::string file = dir.file("b.rcbscene");
+    ASSERT_EQ(::test::run_shell(bin + " scene gen --kind brownian --objects 100 --frames 5 --rays 10 -o " + file).code,
+              0);
+    const ::test::Outcome info = ::test::run_shell(bin + " scene info --json " + file);
+    ASSERT_EQ(info.code, 0) << info.err;
+    const auto m = nlohmann::json::parse(info.out)["motion"];
+    EXPECT_GE(m["changed_share"]["p10"].get<double>(), 0.99);
+    EXPECT_EQ(m["first_frames"].size(), 3u);
+    EXPECT_EQ(m["last_frames"].size(), 3u);
+    // At most 4 m/s over 1/60 s: a step of at most 0.07 m, bodies 0.4 to 1 m long.
+    EXPECT_GT(m["move_over_size"]["median"].get<double>(), 0.0);
+    EXPECT_LT(m["move_over_size"]["median"].get<double>(), 0.2);
+    const ::test::Outcome table = ::test::run_shell(bin + " scene info " + file);
+    EXPECT_NE(table.out.find("changed per frame p10 / p50 / p90"), std::string::npos) << table.out;
+}
+
+TEST(PhysicsScenes, EveryStructureMatchesTheGroundTruth) {
+    for (const char* kind : {"pile", "explosion", "collapse"}) {
+        SceneSettings s = physics(kind, 150, 6);
+        s.rays.per_frame = 100;
+        s.rays.mix = parse_ray_mix("center,los,shots,inside,ground");
+        const Recording r = generate_scene(s);
+        for (const StructureInfo& info : structure_registry()) {
+            SCOPED_TRACE(std::string(kind) + " / " + info.name);
+            test::expect_matches_ground_truth(r, info.name);
+        }
+    }
+}
+
+}  // namespace
+}  // namespace rcb
