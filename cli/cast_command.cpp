@@ -17,11 +17,17 @@ void add_cast_command(CLI::App& app) {
         std::string scene;
         std::string rays;
         StructureOptions structure;
+        std::string kind = "all";
     };
     auto o = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand("cast",
                                        "Cast the segments of a CSV file (x0,y0,z0,x1,y1,z1) against a scene's frame 0; "
                                        "prints one JSON line per ray: {\"ray\": i, \"hits\": [uid, ...]}");
+    cmd->add_option("--kind", o->kind,
+                    "Query kind of every ray: all (every hit, sorted by uid), closest (the nearest hit: smallest "
+                    "entry t, then smallest uid) or any (one hit met); closest and any print at most one uid")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"all", "closest", "any"}));
     cmd->add_option("--scene", o->scene, "Recording file, or a boxes CSV (uid,minx,miny,minz,maxx,maxy,maxz)")
         ->required()
         ->check(input_file());
@@ -37,8 +43,11 @@ void add_cast_command(CLI::App& app) {
         const std::vector<Segment> rays = read_rays_csv(o->rays);
         s->build(objects);
         s->commit();
+        const auto kind = QueryKind(std::find(std::begin(kQueryKindNames), std::end(kQueryKindNames), o->kind) -
+                                    std::begin(kQueryKindNames));
+        const std::vector<QueryKind> kinds(kind == QueryKind::all ? 0 : rays.size(), kind);
         HitLists hits;
-        s->cast(rays, hits);
+        s->cast(rays, kinds, hits);
         std::vector<Uid> sorted;
         for (std::size_t i = 0; i < rays.size(); ++i) {
             auto h = hits.of(i);

@@ -31,6 +31,7 @@ struct DynamicsOptions {
     std::uint64_t seed = 1;
     std::uint32_t rays = 1000;
     std::string ray_mix = "center";
+    std::string query_mix = "all";
     DynamicsSettings dynamics;
 };
 
@@ -44,6 +45,10 @@ void add_dynamics_options(CLI::App& cmd, DynamicsOptions& o) {
     cmd.add_option("--rays", o.rays, "Rays per frame")->capture_default_str()->check(whole_number(0, 100'000'000));
     cmd.add_option("--ray-mix", o.ray_mix,
                    "Ray modes with weights, of " + join(ray_mode_names()) + " (e.g. center:0.7,los:0.3)")
+        ->capture_default_str();
+    cmd.add_option("--query-mix", o.query_mix,
+                   "Query kinds with weights, of all, closest, any (e.g. closest:0.6,any:0.3,all:0.1), drawn per "
+                   "ray from the seed's own stream; only all keeps the file's older format")
         ->capture_default_str();
     cmd.add_option("--change-fraction", o.dynamics.change_fraction, "Objects changed per frame, as a fraction")
         ->capture_default_str()
@@ -66,6 +71,11 @@ RaySettings ray_settings(const DynamicsOptions& o) {
     RaySettings r;
     r.per_frame = o.rays;
     r.mix = parse_ray_mix(o.ray_mix);
+    try {
+        r.query_mix = parse_query_mix(o.query_mix);
+    } catch (const InputError& e) {
+        throw InputError(std::string("--query-mix: ") + e.what());
+    }
     return r;
 }
 
@@ -155,8 +165,10 @@ void scene_info(const std::string& path, bool as_json) {
     for (const Object& o : r.initial) edges.push_back(o.box.longest_edge());
     std::sort(edges.begin(), edges.end());
     std::size_t rays = 0, changes = 0, inserts = 0, removes = 0, moves = 0;
+    std::array<std::size_t, kQueryKinds> query_kinds{};
     for (const Frame& f : r.frames) {
         rays += f.rays.size();
+        for (std::size_t i = 0; i < f.rays.size(); ++i) ++query_kinds[int(f.kind(i))];
         changes += f.change_count();
         inserts += f.inserts.size(), removes += f.removes.size(), moves += f.moves.size();
     }
@@ -176,6 +188,7 @@ void scene_info(const std::string& path, bool as_json) {
         {"frames", r.frames.size()},
         {"rays", rays},
         {"rays_per_frame", rays / frames},
+        {"query_kinds", {{"all", query_kinds[0]}, {"closest", query_kinds[1]}, {"any", query_kinds[2]}}},
         {"changes_per_frame", changes / frames},
         {"inserts", inserts},
         {"removes", removes},
@@ -197,6 +210,8 @@ void scene_info(const std::string& path, bool as_json) {
     if (!later_text.empty()) t.add({"shapes inserted or moved", later_text});
     t.add({"frames", std::to_string(r.frames.size())});
     t.add({"rays per frame", fixed(rays / frames, 1)});
+    t.add({"query kinds (all rays)", "all " + std::to_string(query_kinds[0]) + ", closest " +
+                                         std::to_string(query_kinds[1]) + ", any " + std::to_string(query_kinds[2])});
     t.add({"changes per frame", fixed(changes / frames, 1) + " (inserts " + std::to_string(inserts) + ", removes " +
                                     std::to_string(removes) + ", moves " + std::to_string(moves) + " in all)"});
     t.add({"bounds min", fixed(bounds.min.x, 3) + ", " + fixed(bounds.min.y, 3) + ", " + fixed(bounds.min.z, 3)});

@@ -182,7 +182,7 @@ const std::set<std::string> kSceneKeys = {
     "name",           "preset",     "kind",           "objects",      "recording",       "import",
     "import_options", "frames",     "rays_per_frame", "ray_mix",      "change_fraction", "insert_share",
     "remove_share",   "move_scale", "rotated_share",  "sphere_share", "capsule_share",   "seed",
-    "seeds"};
+    "seeds",          "query_mix"};
 
 /// A missing file. Real maps and models are never committed: one under data/maps/ or data/models/
 /// is fetched on demand, so the message names the script that fetches it.
@@ -200,8 +200,8 @@ std::string file_not_found(const std::string& file) {
 void parse_recording_scene(const json& s, const std::string& path, const std::string& base_dir,
                            std::vector<SceneSpec>& out) {
     for (const char* k :
-         {"objects", "frames", "rays_per_frame", "ray_mix", "change_fraction", "insert_share", "remove_share",
-          "move_scale", "rotated_share", "sphere_share", "capsule_share", "seed", "seeds"})
+         {"objects", "frames", "rays_per_frame", "ray_mix", "query_mix", "change_fraction", "insert_share",
+          "remove_share", "move_scale", "rotated_share", "sphere_share", "capsule_share", "seed", "seeds"})
         if (s.contains(k)) fail(at(path, k), "a recording brings its own objects, frames, rays and dynamics");
     SceneSpec spec;
     spec.source = SceneSpec::Source::recording;
@@ -276,6 +276,11 @@ std::string parse_scene_settings(const json& s, const std::string& path, const S
     } catch (const InputError& e) {
         fail(at(path, "ray_mix"), e.what());
     }
+    try {
+        base.rays.query_mix = parse_query_mix(get_string(s, "query_mix", path, "all"));
+    } catch (const InputError& e) {
+        fail(at(path, "query_mix"), e.what());
+    }
     base.dynamics.change_fraction = get_number(s, "change_fraction", path, 0, 1, base.dynamics.change_fraction);
     base.dynamics.insert_share = get_number(s, "insert_share", path, 0, 1, base.dynamics.insert_share);
     base.dynamics.remove_share = get_number(s, "remove_share", path, 0, 1, base.dynamics.remove_share);
@@ -311,6 +316,8 @@ SceneSpec concrete_scene(const SceneSource& src, const SceneSettings& base, cons
                 {"ray_mix", mix},
                 {"dynamics", dyn},
                 {"seed", seed}};
+    // Only when some ray is not `all`: an all-hits scene's key (its results' identity) stays as it was.
+    if (!asks_all_only(base.rays.query_mix)) spec.key["query_mix"] = query_mix_json(base.rays.query_mix);
     if (src.source == SceneSpec::Source::import) {
         spec.key["import"] = fs::path(src.file).filename().string();
         if (importer_for(src.file) != "csv") spec.key["import_options"] = spec.import_options = src.import_options;

@@ -302,15 +302,30 @@ bool NarrowPhase::survives(const Segment& s, const Entry& e, float* t, Tally&& t
 }
 
 template <class Tally>
-void NarrowPhase::filter(std::span<const Segment> rays, HitLists& hits, Tally&& tally) const {
-    if (shaped_ == 0) return;  // boxes only: every box hit is a hit
-    // In place: a ray's kept hits move down over the dropped ones.
+void NarrowPhase::filter(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& hits,
+                         Tally&& tally) const {
+    // In place: a ray's kept hits move down over the dropped ones; closest and any keep one.
     std::uint32_t write = 0, begin = 0;
     for (std::size_t r = 0; r < rays.size(); ++r) {
         const std::uint32_t end = hits.offsets[r + 1];
-        for (std::uint32_t i = begin; i < end; ++i) {
-            const Uid uid = hits.uids[i];
-            if (survives(rays[r], entry(uid), nullptr, tally)) hits.uids[write++] = uid;
+        const QueryKind kind = kinds.empty() ? QueryKind::all : kinds[r];
+        if (kind == QueryKind::closest) {
+            // The nearest entry into a shape: a box's entry says nothing of its shape's.
+            const SegmentSlabs slabs(rays[r]);
+            ClosestHit closest;
+            for (std::uint32_t i = begin; i < end; ++i) {
+                const Entry& e = entry(hits.uids[i]);
+                float t = 0, t_far;
+                if (slabs.clip(e.box, t, t_far) && survives(rays[r], e, &t, tally)) closest(hits.uids[i], t);
+            }
+            if (closest.found) hits.uids[write++] = closest.uid;
+        } else {
+            for (std::uint32_t i = begin; i < end; ++i) {
+                const Uid uid = hits.uids[i];
+                if (!survives(rays[r], entry(uid), nullptr, tally)) continue;
+                hits.uids[write++] = uid;
+                if (kind == QueryKind::any) break;
+            }
         }
         begin = end;
         hits.offsets[r + 1] = write;
@@ -318,14 +333,18 @@ void NarrowPhase::filter(std::span<const Segment> rays, HitLists& hits, Tally&& 
     hits.uids.resize(write);
 }
 
-void NarrowPhase::cast(std::span<const Segment> rays, HitLists& out) {
-    broad_->cast(rays, out);
-    filter(rays, out, [](bool) {});
+void NarrowPhase::cast(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out) {
+    // Boxes only: every box hit is a hit, and the structure answers each kind itself.
+    if (shaped_ == 0) return broad_->cast(rays, kinds, out);
+    broad_->cast(rays, {}, out);
+    filter(rays, kinds, out, [](bool) {});
 }
 
-void NarrowPhase::cast_counted(std::span<const Segment> rays, HitLists& out, Counters& counters) {
-    broad_->cast_counted(rays, out, counters);
-    filter(rays, out, [&](bool hit) {
+void NarrowPhase::cast_counted(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out,
+                               Counters& counters) {
+    if (shaped_ == 0) return broad_->cast_counted(rays, kinds, out, counters);
+    broad_->cast_counted(rays, {}, out, counters);
+    filter(rays, kinds, out, [&](bool hit) {
         ++counters.n_ro;
         counters.n_ro_hits += hit;
     });
@@ -335,14 +354,14 @@ std::optional<Hit> NarrowPhase::cast_closest(const Segment& segment) {
     // Every box hit, then the nearest entry into a shape: a box's entry says nothing of its shape's.
     broad_->cast(std::span<const Segment>(&segment, 1), scratch_);
     const SegmentSlabs slabs(segment);
-    std::optional<Hit> best;
+    ClosestHit closest;
     for (Uid uid : scratch_.of(0)) {
         const Entry& e = entry(uid);
         float t = 0, t_far;
-        if (!slabs.clip(e.box, t, t_far) || !survives(segment, e, &t, [](bool) {})) continue;
-        if (!best || t < best->t || (t == best->t && uid < best->uid)) best = Hit{uid, t};
+        if (slabs.clip(e.box, t, t_far) && survives(segment, e, &t, [](bool) {})) closest(uid, t);
     }
-    return best;
+    if (!closest.found) return std::nullopt;
+    return Hit{closest.uid, closest.t_limit};
 }
 
 bool NarrowPhase::cast_any(const Segment& segment) {

@@ -89,8 +89,11 @@ public:
     void remove(Uid uid) override;
     void move(const Object& object) override;
     void commit() override { broad_->commit(); }
-    void cast(std::span<const Segment> rays, HitLists& out) override;
-    void cast_counted(std::span<const Segment> rays, HitLists& out, Counters& counters) override;
+    using Structure::cast;
+    using Structure::cast_counted;
+    void cast(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out) override;
+    void cast_counted(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out,
+                      Counters& counters) override;
     std::optional<Hit> cast_closest(const Segment& segment) override;
     bool cast_any(const Segment& segment) override;
     void set_candidates_only(bool on) override { broad_->set_candidates_only(on); }
@@ -115,8 +118,9 @@ private:
     /// (`t`: the shape's entry, when given); `tally(hit)` after each shape test.
     template <class Tally>
     bool survives(const Segment& s, const Entry& e, float* t, Tally&& tally) const;
+    /// The broad phase's all hits of each ray cut to its kind's answer (query kinds: structure.h).
     template <class Tally>
-    void filter(std::span<const Segment> rays, HitLists& hits, Tally&& tally) const;
+    void filter(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& hits, Tally&& tally) const;
 
     std::unique_ptr<Structure> broad_;
     bool shapes_;

@@ -29,6 +29,7 @@
 
 #include "core/accel/cast_arena.h"
 #include "core/accel/counters.h"
+#include "core/accel/hit_policy.h"
 #include "core/base/geometry.h"
 #include "core/truth/hit_lists.h"
 #include "core/accel/params.h"
@@ -56,12 +57,20 @@ public:
     /// phase times the changes and the commit together.
     virtual void commit() {}
 
-    /// All hits of every ray (the timed batch). Queries may use the structure's scratch state, so
-    /// they are not const; one batch at a time (which may itself run on several threads: see
+    /// The timed batch: ray i asks `kinds[i]` (every ray all hits when `kinds` is empty) and its
+    /// list holds all its hits, or for closest and any at most one uid (the nearest: smallest t,
+    /// then smallest uid; any one met). Queries may use the structure's scratch state, so they are
+    /// not const; one batch at a time (which may itself run on several threads: see
     /// StructureBase).
-    virtual void cast(std::span<const Segment> rays, HitLists& out) = 0;
+    virtual void cast(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out) = 0;
     /// The same traversal with the counters on (the counting pass); adds to `counters`.
-    virtual void cast_counted(std::span<const Segment> rays, HitLists& out, Counters& counters) = 0;
+    virtual void cast_counted(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out,
+                              Counters& counters) = 0;
+    /// All hits of every ray (the thesis' workload).
+    void cast(std::span<const Segment> rays, HitLists& out) { cast(rays, {}, out); }
+    void cast_counted(std::span<const Segment> rays, HitLists& out, Counters& counters) {
+        cast_counted(rays, {}, out, counters);
+    }
     /// The hit nearest the segment's start (smallest t, then smallest uid), if any.
     virtual std::optional<Hit> cast_closest(const Segment& segment) = 0;
     /// Whether the segment hits anything; stops at the first hit.
@@ -129,46 +138,44 @@ public:
           arena_(o.arena_ ? std::make_unique<CastArena>(o.arena_->threads()) : nullptr) {}
     StructureBase& operator=(const StructureBase&) = delete;
 
-    void cast(std::span<const Segment> rays, HitLists& out) override {
+    using Structure::cast;
+    using Structure::cast_counted;
+    void cast(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out) override {
         NoCounting count;
         at_level(count, [&](auto& policy) {
             if constexpr (kScratch) {
-                if (arena_ && rays.size() >= 2 * kChunkRays) return cast_parallel(rays, out, policy);
+                if (arena_ && rays.size() >= 2 * kChunkRays) return cast_parallel(rays, kinds, out, policy);
             }
             last_chunks_ = 1;
-            cast_all(rays, out, policy);
+            cast_all(rays, kinds, out, policy);
         });
     }
-    void cast_counted(std::span<const Segment> rays, HitLists& out, Counters& counters) override {
+    void cast_counted(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out,
+                      Counters& counters) override {
         OutcomePredictor predictor;
         Counting count{&counters, &predictor};
-        at_level(count, [&](auto& policy) { cast_all(rays, out, policy); });
+        at_level(count, [&](auto& policy) { cast_all(rays, kinds, out, policy); });
         predictor.end(counters.n_th, counters.n_rb, counters.n_tp);
         counters.n_mp += predictor.mispredicted();
     }
     std::optional<Hit> cast_closest(const Segment& segment) override {
         NoCounting count;
-        std::optional<Hit> best;
+        ClosestHit closest;
         at_level(count, [&](auto& policy) {
             ready();
-            run(segment, policy, scratch_[0], [&](Uid uid, float t) {
-                if (!best || t < best->t || (t == best->t && uid < best->uid)) best = Hit{uid, t};
-                return true;
-            });
+            run(segment, policy, scratch_[0], closest);
         });
-        return best;
+        if (!closest.found) return std::nullopt;
+        return Hit{closest.uid, closest.t_limit};
     }
     bool cast_any(const Segment& segment) override {
         NoCounting count;
-        bool any = false;
+        AnyHit any;
         at_level(count, [&](auto& policy) {
             ready();
-            run(segment, policy, scratch_[0], [&](Uid, float) {
-                any = true;
-                return false;
-            });
+            run(segment, policy, scratch_[0], any);
         });
-        return any;
+        return any.found;
     }
     void set_candidates_only(bool on) override { candidates_ = on; }
 
@@ -225,29 +232,50 @@ private:
         }
     }
 
+    /// The rays' answers into `out`; `kinds` empty: all hits for every ray (the loop the thesis'
+    /// workload times, without a branch per ray).
     template <class Count>
-    void cast_range(std::span<const Segment> rays, HitLists& out, Count& count, Scratch& scratch) {
+    void cast_range(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out, Count& count,
+                    Scratch& scratch) {
         out.clear();
         out.offsets.reserve(rays.size() + 1);
-        for (const Segment& s : rays) {
-            run(s, count, scratch, [&](Uid uid, float) {
-                out.uids.push_back(uid);
-                return true;
-            });
+        auto all = [&](Uid uid, float) {
+            out.uids.push_back(uid);
+            return true;
+        };
+        if (kinds.empty()) {
+            for (const Segment& s : rays) {
+                run(s, count, scratch, all);
+                out.end_ray();
+            }
+            return;
+        }
+        for (std::size_t i = 0; i < rays.size(); ++i) {
+            if (kinds[i] == QueryKind::closest) {
+                ClosestHit closest;
+                run(rays[i], count, scratch, closest);
+                if (closest.found) out.uids.push_back(closest.uid);
+            } else if (kinds[i] == QueryKind::any) {
+                AnyHit any;
+                run(rays[i], count, scratch, any);
+                if (any.found) out.uids.push_back(any.uid);
+            } else {
+                run(rays[i], count, scratch, all);
+            }
             out.end_ray();
         }
     }
 
     template <class Count>
-    void cast_all(std::span<const Segment> rays, HitLists& out, Count& count) {
+    void cast_all(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out, Count& count) {
         ready();
-        cast_range(rays, out, count, scratch_[0]);
+        cast_range(rays, kinds, out, count, scratch_[0]);
     }
 
     /// The batch in chunks on the arena (see above). Only the timed pass comes here: a policy that
     /// counts would be shared by the chunks.
     template <class Count>
-    void cast_parallel(std::span<const Segment> rays, HitLists& out, Count& count) {
+    void cast_parallel(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out, Count& count) {
         static_assert(!Count::enabled, "the counting pass runs on one thread");
         derived().prepare();
         // Four chunks per thread even out rays of unequal cost; each at least kChunkRays long.
@@ -258,9 +286,9 @@ private:
             Scratch& scratch = scratch_[std::size_t(slot)];
             static_cast<const Derived&>(*this).fit(scratch);
             Count local = count;
-            cast_range(
-                rays.subspan(rays.size() * c / chunks, rays.size() * (c + 1) / chunks - rays.size() * c / chunks),
-                parts_[c].lists, local, scratch);
+            const std::size_t begin = rays.size() * c / chunks, n = rays.size() * (c + 1) / chunks - begin;
+            cast_range(rays.subspan(begin, n), kinds.empty() ? kinds : kinds.subspan(begin, n), parts_[c].lists, local,
+                       scratch);
         });
         out.clear();
         std::size_t hits = 0;

@@ -57,6 +57,7 @@ public:
             for (int i = 0; i < shape_floats(o.shape.kind); ++i) f32(o.shape.v[i]);
         }
     }
+    void u8(std::uint8_t v) { out_.push_back(static_cast<char>(v)); }
     void bytes(const std::string& s) { out_ += s; }
 
     /// Appends a section: tag, length, checksum, then the payload `body` wrote into its encoder.
@@ -122,6 +123,10 @@ public:
         o.box = shape_bounds(o.shape);
         return o;
     }
+    std::uint8_t u8() {
+        need(1);
+        return std::uint8_t(data_[pos_++]);
+    }
     std::string bytes(std::size_t n) {
         need(n);
         std::string s(data_ + pos_, n);
@@ -142,6 +147,13 @@ private:
     std::size_t pos_ = 0;
     std::string context_;
 };
+
+/// Version 3's byte per ray; a frame whose rays are all `all` keeps no kinds (Frame::kinds).
+void read_kinds(Decoder& p, Frame& f) {
+    f.kinds.resize(f.rays.size());
+    for (QueryKind& k : f.kinds) k = QueryKind(p.u8());
+    if (std::all_of(f.kinds.begin(), f.kinds.end(), [](QueryKind k) { return k == QueryKind::all; })) f.kinds.clear();
+}
 
 std::string frame_context(const std::string& name, std::size_t frame) {
     return name + ": frame " + std::to_string(frame);
@@ -221,6 +233,13 @@ void validate_frame(const Frame& f, std::unordered_set<Uid>& live, const std::st
         std::string problem = segment_problem(f.rays[i]);
         if (!problem.empty()) throw InputError(context + ": ray " + std::to_string(i) + ": " + problem);
     }
+    if (!f.kinds.empty() && f.kinds.size() != f.rays.size())
+        throw InputError(context + ": " + std::to_string(f.kinds.size()) + " query kinds for " +
+                         std::to_string(f.rays.size()) + " rays");
+    for (std::size_t i = 0; i < f.kinds.size(); ++i)
+        if (std::uint8_t(f.kinds[i]) >= kQueryKinds)
+            throw InputError(context + ": ray " + std::to_string(i) + ": unknown query kind " +
+                             std::to_string(int(f.kinds[i])) + " (known: 0 all, 1 closest, 2 any)");
 }
 
 std::unordered_set<Uid> validate_initial(const std::vector<Object>& objects, const std::string& name) {
@@ -246,6 +265,8 @@ std::uint32_t recording_version(const Recording& r) {
         return std::any_of(objects.begin(), objects.end(),
                            [](const Object& o) { return o.shape.kind != ShapeKind::box; });
     };
+    for (const Frame& f : r.frames)
+        if (std::any_of(f.kinds.begin(), f.kinds.end(), [](QueryKind k) { return k != QueryKind::all; })) return 3;
     if (shaped(r.initial)) return 2;
     for (const Frame& f : r.frames)
         if (shaped(f.inserts) || shaped(f.moves)) return 2;
@@ -275,6 +296,8 @@ std::string encode_recording(const Recording& r) {
             for (const Object& o : f.inserts) p.object(o, version);
             for (const Object& o : f.moves) p.object(o, version);
             for (const Segment& s : f.rays) p.vec(s.p0), p.vec(s.p1);
+            if (version >= 3)
+                for (std::size_t ray = 0; ray < f.rays.size(); ++ray) p.u8(std::uint8_t(f.kind(ray)));
         });
     }
     e.section("END ", [](Encoder&) {});
@@ -340,7 +363,8 @@ Recording decode_recording(const std::string& bytes, const std::string& name) {
                                  " (out of order)");
             std::uint32_t n_rem = p.u32(), n_ins = p.u32(), n_mov = p.u32(), n_ray = p.u32();
             const std::uint64_t objects = std::uint64_t(n_ins) + n_mov,
-                                fixed = kFrameHeaderBytes + std::uint64_t(n_rem) * 4 + std::uint64_t(n_ray) * kRayBytes;
+                                fixed = kFrameHeaderBytes + std::uint64_t(n_rem) * 4 +
+                                        std::uint64_t(n_ray) * (kRayBytes + (version >= 3 ? 1 : 0));
             const bool fits = version == 1 ? length == fixed + objects * kObjectBytes
                                            : length >= fixed + objects * kMinShapedObjectBytes;
             if (!fits) throw InputError(where + ": size does not match its counts");
@@ -353,6 +377,7 @@ Recording decode_recording(const std::string& bytes, const std::string& name) {
             for (Object& o : f.moves) o = p.object(version);
             f.rays.resize(n_ray);
             for (Segment& s : f.rays) s.p0 = p.vec(), s.p1 = p.vec();
+            if (version >= 3) read_kinds(p, f);
             if (p.remaining() != 0) throw InputError(where + ": size does not match its counts");
             validate_frame(f, live, where);
             r.frames.push_back(std::move(f));

@@ -1,8 +1,11 @@
 #pragma once
-/// The scene recording file (`.rcbscene`), versions 1 and 2. Version 2 stores shapes: each
+/// The scene recording file (`.rcbscene`), versions 1 to 3. Version 2 stores shapes: each
 /// object is u32 uid, u8 shape kind (shape.h), then f32 min[3], max[3] for a box (kind 0) or the
-/// shape's floats, its box being the shape's bounds. The writer uses version 1 when every object is
-/// a box, so a box scene's bytes (and its hash in the results) do not change; both versions read.
+/// shape's floats, its box being the shape's bounds. Version 3 is version 2 plus a query kind per
+/// ray (scene.h, QueryKind): each FRAM ends with rays × u8 kind (0 all, 1 closest, 2 any). The
+/// writer uses the lowest version that holds the recording: 1 when every object is a box and every
+/// ray asks for all hits, so a scene's bytes (and its hash in the results) do not change; every
+/// version reads.
 ///
 /// Every integer and float is little-endian whatever the host; floats are IEEE-754 binary32.
 ///
@@ -23,6 +26,7 @@
 ///                          u32 removes, u32 inserts, u32 moves, u32 rays
 ///                          removes × u32 uid, inserts × object, moves × object (uid, new box),
 ///                          rays × f32 p0[3], f32 p1[3]
+///                          version 3: rays × u8 query kind
 ///     END   once, last, empty payload: a file without it was cut short.
 ///
 /// The reader validates everything: magic, version, checksums, section order and sizes, finite
@@ -37,8 +41,9 @@
 namespace rcb {
 
 /// The newest version this reader understands (it reads every older one too).
-inline constexpr std::uint32_t kRecordingVersion = 2;
-/// The version encode_recording writes: 1 for a scene of boxes only, else 2.
+inline constexpr std::uint32_t kRecordingVersion = 3;
+/// The version encode_recording writes: 3 when some ray is not `all`, else 2 when some object has
+/// a shape, else 1.
 std::uint32_t recording_version(const Recording& recording);
 
 /// Validates first (validate_recording: a recording the reader would reject is never written; the

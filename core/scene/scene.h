@@ -30,6 +30,14 @@ struct Object {
 
 inline Object shaped_object(Uid uid, const Shape& shape) { return {uid, shape_bounds(shape), shape}; }
 
+/// What a ray asks (docs/accuracy.md, "Query kinds"): every object its segment meets (`all`, the
+/// thesis' workload: penetration, sensors), the nearest one (`closest`: shots, ground probes,
+/// cameras) or whether it meets any (`any`: line of sight, visibility).
+enum class QueryKind : std::uint8_t { all = 0, closest = 1, any = 2 };
+inline constexpr int kQueryKinds = 3;
+inline constexpr const char* kQueryKindNames[kQueryKinds] = {"all", "closest", "any"};
+inline const char* query_kind_name(QueryKind kind) { return kQueryKindNames[int(kind)]; }
+
 /// One frame's changes and rays. Changes apply in the order removes, inserts, moves; a uid appears
 /// at most once among a frame's changes.
 struct Frame {
@@ -37,7 +45,12 @@ struct Frame {
     std::vector<Uid> removes;
     std::vector<Object> moves;  // uid and its new box (and shape)
     std::vector<Segment> rays;
+    /// The query kind of each ray, or empty when every ray is `all` (then the file keeps its
+    /// older format version, recording_io.h).
+    std::vector<QueryKind> kinds;
     friend bool operator==(const Frame&, const Frame&) = default;
+
+    QueryKind kind(std::size_t ray) const { return kinds.empty() ? QueryKind::all : kinds[ray]; }
 
     std::size_t change_count() const { return inserts.size() + removes.size() + moves.size(); }
 };

@@ -97,8 +97,8 @@ nlohmann::json SimulationResult::to_json() const {
     j["raycast_ns_median"] = r.median;
     j["raycast_ns_mad"] = r.mad;
     j["clock"] = clock_name(clock);
-    nlohmann::json frame, warmup, update, raycast, update_wall, raycast_wall, rays, hits, missed, extra, duplicate,
-        returned, correct, relevant, n_t, n_th, n_mp, n_rb, n_tp, n_ro, n_ro_hits, memory, stats;
+    nlohmann::json frame, warmup, update, raycast, update_wall, raycast_wall, rays, closest, any, hits, missed, extra,
+        duplicate, returned, correct, relevant, n_t, n_th, n_mp, n_rb, n_tp, n_ro, n_ro_hits, memory, stats;
     for (const FrameResult& f : frames) {
         frame.push_back(f.frame);
         warmup.push_back(f.warmup);
@@ -107,6 +107,8 @@ nlohmann::json SimulationResult::to_json() const {
         update_wall.push_back(f.update.wall_ns);
         raycast_wall.push_back(f.raycast.wall_ns);
         rays.push_back(f.rays);
+        closest.push_back(f.closest);
+        any.push_back(f.any);
         hits.push_back(f.hits);
         missed.push_back(f.missed);
         extra.push_back(f.extra);
@@ -132,6 +134,8 @@ nlohmann::json SimulationResult::to_json() const {
     j["update_wall_ns"] = array(update_wall);
     j["raycast_wall_ns"] = array(raycast_wall);
     j["rays"] = array(rays);
+    j["rays_closest"] = array(closest);
+    j["rays_any"] = array(any);
     j["hits"] = array(hits);
     j["missed"] = array(missed);
     j["extra"] = array(extra);
@@ -197,6 +201,10 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
         fr.removes = static_cast<std::uint32_t>(frame.removes.size());
         fr.moves = static_cast<std::uint32_t>(frame.moves.size());
         fr.rays = static_cast<std::uint32_t>(frame.rays.size());
+        for (QueryKind k : frame.kinds) {
+            fr.closest += k == QueryKind::closest;
+            fr.any += k == QueryKind::any;
+        }
 
         const Stopwatch update_watch;
         for (Uid uid : frame.removes) structure->remove(uid);
@@ -210,16 +218,16 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
 
         if (options.timed_cast) {
             const Stopwatch cast_watch;
-            structure->cast(frame.rays, hits);
+            structure->cast(frame.rays, frame.kinds, hits);
             fr.raycast = cast_watch.elapsed();
             fr.raycast_ns = on_clock(fr.raycast, result.clock);
         } else {
-            structure->cast_counted(frame.rays, hits, fr.counters);  // the counting pass is the only cast
+            structure->cast_counted(frame.rays, frame.kinds, hits, fr.counters);  // the counting pass is the only cast
         }
         fr.hits = hits.uids.size();
 
         if (options.verify) {
-            const Verification v = GroundTruth(live.objects()).verify(frame.rays, hits, contract);
+            const Verification v = GroundTruth(live.objects()).verify(frame.rays, frame.kinds, hits, contract);
             fr.missed = v.missed;
             fr.extra = v.extra;
             fr.duplicate = v.duplicate;
@@ -230,7 +238,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
                 if (result.examples.size() < 20) result.examples.emplace_back(fr.frame, d);
         }
         if (options.count && options.timed_cast) {
-            structure->cast_counted(frame.rays, counted, fr.counters);
+            structure->cast_counted(frame.rays, frame.kinds, counted, fr.counters);
             // The counting policy must not change what the traversal does.
             if (counted.uids != hits.uids || counted.offsets != hits.offsets)
                 throw std::logic_error(info.name +

@@ -3,7 +3,7 @@
 ///
 ///     build (timed)
 ///     per frame:  apply the frame's changes + commit (timed: update)
-///                 cast the frame's rays as one batch (timed: ray cast)
+///                 cast the frame's rays as one batch, each with its query kind (timed: ray cast)
 ///                 verify every ray's hits against the ground truth (not timed): the
 ///                 configuration's contract (query_level.h) and its accuracy against the shapes
 ///                 the counting pass: the same rays with counters on (not timed)
@@ -42,6 +42,7 @@ struct FrameResult {
     std::uint32_t frame = 0;  ///< 1-based; frame 0 is the build
     bool warmup = false;
     std::uint32_t inserts = 0, removes = 0, moves = 0, rays = 0;
+    std::uint32_t closest = 0, any = 0;                  ///< of the rays, those asking for the closest hit and any hit
     std::uint64_t update_ns = 0;                         ///< on the result's clock
     std::uint64_t raycast_ns = 0;                        ///< on the result's clock
     Elapsed update, raycast;                             ///< both clocks (wall − CPU: time the thread waited)

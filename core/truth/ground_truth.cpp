@@ -38,13 +38,29 @@ double t_tolerance(const SegmentSlabsd& slabs, double eps) {
     return longest > 0 ? eps / longest : std::numeric_limits<double>::infinity();
 }
 
-Contact classify_prepared(const SegmentSlabsd& slabs, const Aabbd& box, double eps) {
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+/// A box contact and where the segment may enter the box under the moves of ε: no earlier than
+/// t_early (the lengthened segment into the grown box), and, for a must-hit, no later than t_late
+/// (the shortened segment into the shrunk box, plus the parameter's own move); +∞ when unknown.
+struct BoxContact {
+    Contact contact = Contact::miss;
+    double t_early = kInfinity, t_late = kInfinity;
+};
+
+BoxContact classify_box(const SegmentSlabsd& slabs, const Aabbd& box, double eps) {
     const double dt = t_tolerance(slabs, eps);
     double tn, tf;
-    if (!slabs.clip(grown(box, eps), tn, tf, -dt, 1 + dt)) return Contact::miss;
+    if (!slabs.clip(grown(box, eps), tn, tf, -dt, 1 + dt)) return {};
+    const double early = tn;
     // Shortened by dt at both ends; a segment shorter than 2ε shrinks to its midpoint.
     const double t0 = std::min(dt, 0.5), t1 = std::max(1 - dt, 0.5);
-    return slabs.clip(shrunk(box, eps), tn, tf, t0, t1) ? Contact::hit : Contact::touch;
+    if (!slabs.clip(shrunk(box, eps), tn, tf, t0, t1)) return {Contact::touch, early, kInfinity};
+    return {Contact::hit, early, tn + dt};
+}
+
+Contact classify_prepared(const SegmentSlabsd& slabs, const Aabbd& box, double eps) {
+    return classify_box(slabs, box, eps).contact;
 }
 
 constexpr std::uint32_t kNoShape = ~std::uint32_t(0);
@@ -202,72 +218,157 @@ void GroundTruth::contacts(const Segment& segment, std::vector<Contacts>& out) c
             if (!candidate[i - begin]) continue;
             const double eps = kRelativeTolerance * std::max(seg_mag, magnitude_[i]);
             const Aabbd box{{min_[0][i], min_[1][i], min_[2][i]}, {max_[0][i], max_[1][i], max_[2][i]}};
-            const Contact c = classify_prepared(slabs, box, eps);
-            if (c == Contact::miss) continue;
-            const Contact shape = shape_of_[i] == kNoShape ? c : classify_shape_eps(s, shaped_[shape_of_[i]], eps);
-            out.push_back({uids_[i], c, shape});
+            const BoxContact c = classify_box(slabs, box, eps);
+            if (c.contact == Contact::miss) continue;
+            const bool shaped = shape_of_[i] != kNoShape;
+            const Contact shape = shaped ? classify_shape_eps(s, shaped_[shape_of_[i]], eps) : c.contact;
+            out.push_back({uids_[i], c.contact, shape, shaped, c.t_early, c.t_late});
         }
     }
     std::sort(out.begin(), out.end(), [](const Contacts& a, const Contacts& b) { return a.uid < b.uid; });
 }
 
+std::optional<TrueHit> GroundTruth::closest(const Segment& segment) const {
+    const SegmentSlabsd slabs(Segmentd{segment.p0.as<double>(), segment.p1.as<double>()});
+    std::optional<TrueHit> best;
+    for (std::size_t i = 0; i < uids_.size(); ++i) {
+        double tn, tf;
+        const Aabbd box{{min_[0][i], min_[1][i], min_[2][i]}, {max_[0][i], max_[1][i], max_[2][i]}};
+        if (!slabs.clip(box, tn, tf)) continue;
+        if (!best || tn < best->t || (tn == best->t && uids_[i] < best->uid)) best = TrueHit{uids_[i], tn};
+    }
+    return best;
+}
+
+bool GroundTruth::any(const Segment& segment) const {
+    const SegmentSlabsd slabs(Segmentd{segment.p0.as<double>(), segment.p1.as<double>()});
+    for (std::size_t i = 0; i < uids_.size(); ++i)
+        if (slabs.hits(Aabbd{{min_[0][i], min_[1][i], min_[2][i]}, {max_[0][i], max_[1][i], max_[2][i]}})) return true;
+    return false;
+}
+
+namespace {
+
+Contact at_level(Contact box, Contact shape, Truth t) { return t == Truth::boxes ? box : shape; }
+
+/// One all-hits ray: `reported` sorted, duplicates counted, against the sorted contacts.
+template <class Found, class Note>
+void verify_all(const Found& found, std::vector<Uid>& reported, const Contract& contract, Verification& v,
+                Note&& note) {
+    for (std::size_t i = 1; i < reported.size(); ++i)
+        if (reported[i] == reported[i - 1]) {
+            ++v.duplicate;
+            note(reported[i], Discrepancy::duplicate);
+        }
+    reported.erase(std::unique(reported.begin(), reported.end()), reported.end());
+    v.returned += reported.size();
+    // One uid of the union at a time: reported or not, its contacts or none (a clear miss).
+    std::size_t i = 0, j = 0;
+    while (i < reported.size() || j < found.size()) {
+        const bool has_entry = j < found.size() && (i == reported.size() || found[j].uid <= reported[i]);
+        const bool is_reported = i < reported.size() && (j == found.size() || reported[i] <= found[j].uid);
+        const Uid uid = is_reported ? reported[i] : found[j].uid;
+        const Contact box = has_entry ? found[j].box : Contact::miss, shape = has_entry ? found[j].shape : box;
+        if (!is_reported && contract.lower && at_level(box, shape, *contract.lower) == Contact::hit) {
+            ++v.missed;
+            note(uid, Discrepancy::missed);
+        }
+        if (is_reported && contract.upper && at_level(box, shape, *contract.upper) == Contact::miss) {
+            ++v.extra;
+            note(uid, Discrepancy::extra);
+        }
+        if (is_reported && shape != Contact::miss) ++v.correct;
+        if (shape == Contact::hit || (is_reported && shape == Contact::touch)) ++v.relevant;
+        if (is_reported) ++i;
+        if (has_entry) ++j;
+    }
+}
+
+/// One closest or any ray (docs/accuracy.md, "Query kinds"): at most one uid; none only when
+/// nothing must be hit; the one reported not clearly missed; for closest, not clearly behind the
+/// latest entry of an object that must be hit (entries of shapes are bounded by their boxes').
+template <class Found, class Note>
+void verify_one(const Found& found, std::span<const Uid> reported, QueryKind kind, const Contract& contract,
+                Verification& v, Note&& note) {
+    for (std::size_t i = 1; i < reported.size(); ++i) {
+        ++v.extra;
+        note(reported[i], Discrepancy::extra);
+    }
+    // The must-hit object that must be entered first (for any: the first must-hit, by uid).
+    const typename Found::value_type* first = nullptr;
+    double first_late = kInfinity;
+    bool shape_hit = false;
+    for (const auto& c : found) {
+        shape_hit = shape_hit || c.shape == Contact::hit;
+        if (!contract.lower || at_level(c.box, c.shape, *contract.lower) != Contact::hit) continue;
+        const double late = *contract.lower == Truth::shapes && c.shaped ? kInfinity : c.t_late;
+        if (!first || late < first_late) first = &c, first_late = late;
+    }
+    if (reported.empty()) {
+        if (first) {
+            ++v.missed;
+            note(first->uid, Discrepancy::missed);
+        }
+        v.relevant += shape_hit;
+        return;
+    }
+    const Uid uid = reported[0];
+    auto it = std::lower_bound(found.begin(), found.end(), uid, [](const auto& c, Uid u) { return c.uid < u; });
+    const bool has_entry = it != found.end() && it->uid == uid;
+    const Contact box = has_entry ? it->box : Contact::miss, shape = has_entry ? it->shape : box;
+    ++v.returned;
+    if (contract.upper && at_level(box, shape, *contract.upper) == Contact::miss) {
+        ++v.extra;
+        note(uid, Discrepancy::extra);
+    } else if (kind == QueryKind::closest && first && contract.upper && it->t_early > first_late) {
+        ++v.missed;  // the nearest was missed: `uid` lies clearly behind it
+        note(first->uid, Discrepancy::missed);
+    }
+    if (shape != Contact::miss) ++v.correct;
+    v.relevant += shape_hit || shape == Contact::touch;
+}
+
+}  // namespace
+
 Verification GroundTruth::verify(std::span<const Segment> rays, const HitLists& hits, const Contract& contract,
                                  std::size_t max_examples) const {
+    return verify(rays, {}, hits, contract, max_examples);
+}
+
+Verification GroundTruth::verify(std::span<const Segment> rays, std::span<const QueryKind> kinds, const HitLists& hits,
+                                 const Contract& contract, std::size_t max_examples) const {
     Verification total;
     std::mutex merge;
-    auto level = [](const Contacts& c, Truth t) { return t == Truth::boxes ? c.box : c.shape; };
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, rays.size(), 8), [&](const tbb::blocked_range<std::size_t>& range) {
-            Verification local;
-            std::vector<Contacts> found;
-            std::vector<Uid> reported;
-            auto note = [&](std::size_t ray, Uid uid, Discrepancy::Kind kind) {
-                if (local.examples.size() < max_examples)
-                    local.examples.push_back({static_cast<std::uint32_t>(ray), uid, kind});
-            };
-            for (std::size_t r = range.begin(); r != range.end(); ++r) {
-                contacts(rays[r], found);
-                auto got = hits.of(r);
-                reported.assign(got.begin(), got.end());
-                std::sort(reported.begin(), reported.end());
-                // Duplicates first (adjacent after sorting), then a merge walk over the sorted sets.
-                for (std::size_t i = 1; i < reported.size(); ++i)
-                    if (reported[i] == reported[i - 1]) {
-                        ++local.duplicate;
-                        note(r, reported[i], Discrepancy::duplicate);
-                    }
-                reported.erase(std::unique(reported.begin(), reported.end()), reported.end());
-                local.returned += reported.size();
-                // One uid of the union at a time: reported or not, its contacts or none (a clear miss).
-                std::size_t i = 0, j = 0;
-                while (i < reported.size() || j < found.size()) {
-                    const bool has_entry = j < found.size() && (i == reported.size() || found[j].uid <= reported[i]);
-                    const bool is_reported = i < reported.size() && (j == found.size() || reported[i] <= found[j].uid);
-                    const Uid uid = is_reported ? reported[i] : found[j].uid;
-                    const Contacts c = has_entry ? found[j] : Contacts{uid, Contact::miss, Contact::miss};
-                    if (!is_reported && contract.lower && level(c, *contract.lower) == Contact::hit) {
-                        ++local.missed;
-                        note(r, uid, Discrepancy::missed);
-                    }
-                    if (is_reported && contract.upper && level(c, *contract.upper) == Contact::miss) {
-                        ++local.extra;
-                        note(r, uid, Discrepancy::extra);
-                    }
-                    if (is_reported && c.shape != Contact::miss) ++local.correct;
-                    if (c.shape == Contact::hit || (is_reported && c.shape == Contact::touch)) ++local.relevant;
-                    if (is_reported) ++i;
-                    if (has_entry) ++j;
-                }
-            }
-            std::lock_guard<std::mutex> lock(merge);
-            total.missed += local.missed;
-            total.extra += local.extra;
-            total.duplicate += local.duplicate;
-            total.returned += local.returned;
-            total.correct += local.correct;
-            total.relevant += local.relevant;
-            total.examples.insert(total.examples.end(), local.examples.begin(), local.examples.end());
-        });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 8),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          Verification local;
+                          std::vector<Contacts> found;
+                          std::vector<Uid> reported;
+                          for (std::size_t r = range.begin(); r != range.end(); ++r) {
+                              auto note = [&](Uid uid, Discrepancy::Kind kind) {
+                                  if (local.examples.size() < max_examples)
+                                      local.examples.push_back({static_cast<std::uint32_t>(r), uid, kind});
+                              };
+                              contacts(rays[r], found);
+                              const QueryKind kind = kinds.empty() ? QueryKind::all : kinds[r];
+                              if (kind != QueryKind::all) {
+                                  verify_one(found, hits.of(r), kind, contract, local, note);
+                                  continue;
+                              }
+                              auto got = hits.of(r);
+                              reported.assign(got.begin(), got.end());
+                              std::sort(reported.begin(), reported.end());
+                              verify_all(found, reported, contract, local, note);
+                          }
+                          std::lock_guard<std::mutex> lock(merge);
+                          total.missed += local.missed;
+                          total.extra += local.extra;
+                          total.duplicate += local.duplicate;
+                          total.returned += local.returned;
+                          total.correct += local.correct;
+                          total.relevant += local.relevant;
+                          total.examples.insert(total.examples.end(), local.examples.begin(), local.examples.end());
+                      });
     // Every chunk kept its first examples; keep the first of all, so the examples do not depend
     // on how the rays were split among threads.
     std::sort(total.examples.begin(), total.examples.end(), [](const Discrepancy& a, const Discrepancy& b) {

@@ -51,6 +51,12 @@ struct Contract {
     std::optional<Truth> upper = Truth::boxes;
 };
 
+/// A closest hit: the object and the segment parameter where the segment enters its box.
+struct TrueHit {
+    Uid uid = 0;
+    double t = 0;
+};
+
 /// One disagreement between a structure and the ground truth.
 struct Discrepancy {
     std::uint32_t ray = 0;
@@ -86,6 +92,18 @@ public:
     /// `max_examples` examples.
     Verification verify(std::span<const Segment> rays, const HitLists& hits, const Contract& contract = {},
                         std::size_t max_examples = 10) const;
+    /// The same for rays of several query kinds (`kinds[i]` for ray i; empty: all hits for every
+    /// ray). A closest or any ray's answer is at most one uid: none only when nothing must be hit,
+    /// never one clearly missed, and for closest none clearly entered after an object that must
+    /// be hit (docs/accuracy.md, "Query kinds"); a second uid counts as extra.
+    Verification verify(std::span<const Segment> rays, std::span<const QueryKind> kinds, const HitLists& hits,
+                        const Contract& contract = {}, std::size_t max_examples = 10) const;
+
+    /// The closest-hit truth in double: the object whose box the segment enters first (the
+    /// smallest entry parameter t in [0, 1], 0 when it starts inside), ties to the smallest uid.
+    std::optional<TrueHit> closest(const Segment& segment) const;
+    /// The any-hit truth in double: whether the segment meets any box.
+    bool any(const Segment& segment) const;
 
     bool has_shapes() const { return !shaped_.empty(); }
 
@@ -94,6 +112,8 @@ private:
     struct Contacts {
         Uid uid;
         Contact box, shape;
+        bool shaped;             ///< the object has a shape (a box's entry bounds the shape's from below)
+        double t_early, t_late;  ///< the box's entry under rounding (ground_truth.cpp, BoxContact)
     };
     /// Every such object of the segment, sorted by uid.
     void contacts(const Segment& segment, std::vector<Contacts>& out) const;

@@ -24,14 +24,23 @@
 /// may answer an inner node whose box the segment meets without descending into it (the LBVH scans
 /// its leaves in order when the segment meets every box below: linear_bvh.h).
 ///
+/// Closest hit (hit_policy.h): a visitor with a t_limit gets the nearer child first (the one whose
+/// centre lies earlier along the segment) and a node the segment enters after the limit is
+/// skipped. An object's box lies inside its node's box and both entries come from the same float
+/// slab computation, which is monotonic in the bound, so no object at or before the limit is ever
+/// skipped. Other visitors compile to the loop as before.
+///
 /// The stack: popping one node and pushing its two children keeps at most height + 1 entries on it
 /// (height: edges from the root to the deepest leaf), so the caller passes a buffer of at least
 /// height + 2 entries, sized when the tree changes, never per ray; nothing is ever dropped.
 
 #include <concepts>
 #include <cstdint>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
+#include "core/accel/hit_policy.h"
 #include "core/base/geometry.h"
 #include "core/scene/scene.h"
 
@@ -53,6 +62,7 @@ template <class Tree, class Count, class Visit>
 void traverse_bvh(const Tree& tree, std::uint32_t root, std::uint32_t* stack, const Segment& s, Count& count,
                   Visit&& visit) {
     if (root == kNullNode) return;
+    constexpr bool kClosest = HasTLimit<std::remove_cvref_t<Visit>>;
     const SegmentSlabs slabs(s);
     bool crowds = false;  // asked once per ray: a tree without crowds pays nothing per node
     if constexpr (HasCrowds<Tree>) crowds = tree.has_crowds();
@@ -77,6 +87,9 @@ void traverse_bvh(const Tree& tree, std::uint32_t root, std::uint32_t* stack, co
             if (!visit(tree.leaf_uid(node), t_near)) return;
         } else {
             if (!slabs.clip(tree.node_box(node), t_near, t_far)) continue;
+            if constexpr (kClosest) {
+                if (t_near > visit_limit(visit)) continue;
+            }
             if constexpr (HasCrowds<Tree> && !Count::candidates) {
                 if (crowds && tree.is_crowd(node)) {
                     const CrowdScan r = tree.scan_crowd(node, slabs, count, visit);
@@ -84,10 +97,17 @@ void traverse_bvh(const Tree& tree, std::uint32_t root, std::uint32_t* stack, co
                     if (r == CrowdScan::done) continue;
                 }
             }
-            // Child 0 on top: visited first.
+            // Child 0 on top: visited first (for closest hits, the nearer child).
             count.node_hits();
-            stack[top++] = tree.child(node, 1);
-            stack[top++] = tree.child(node, 0);
+            std::uint32_t first = tree.child(node, 0), second = tree.child(node, 1);
+            if constexpr (kClosest) {
+                auto center = [&](std::uint32_t c) {
+                    return (tree.is_leaf(c) ? tree.leaf_box(c) : tree.node_box(c)).center();
+                };
+                if (dot(center(second) - center(first), s.p1 - s.p0) < 0) std::swap(first, second);
+            }
+            stack[top++] = second;
+            stack[top++] = first;
         }
     }
 }

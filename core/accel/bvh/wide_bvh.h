@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "core/accel/params.h"
+#include "core/accel/hit_policy.h"
 #include "core/accel/structure.h"
 #include "core/accel/common/query_scratch.h"
 
@@ -182,7 +183,9 @@ private:
             } else {
                 count.node_hits(unsigned(__builtin_popcount(mask)));
                 // Highest lane first onto the stack, so lane order is visit order (Params::push).
-                if constexpr (kFixedPush) {
+                if constexpr (HasTLimit<std::remove_cvref_t<Visit>>) {
+                    push_near_first(b, mask, t_near, visit_limit(visit), stack, top);
+                } else if constexpr (kFixedPush) {
                     for (int k = kLanes - 1; k >= 0; --k) {  // fit leaves room for the unkept lanes
                         stack[top] = b.ref[k];
                         top += (mask >> k) & 1u;
@@ -221,6 +224,23 @@ private:
         Aabb bounds() const;
     };
     static_assert(sizeof(Block) == 256);
+
+    /// Closest hits (hit_policy.h): the hit lanes the segment enters no later than `limit`, the
+    /// farthest pushed first so the nearest is visited first. A lane's box holds its objects' boxes
+    /// and its entry comes from the same float slab computation (test() below), so no object at or
+    /// before the limit is skipped.
+    static void push_near_first(const Block& b, unsigned mask, const float* t_near, float limit, std::uint32_t* stack,
+                                std::uint32_t& top) {
+        int lanes[kLanes], n = 0;
+        for (; mask != 0; mask &= mask - 1) {
+            const int k = __builtin_ctz(mask);
+            if (t_near[k] > limit) continue;
+            int i = n++;  // insertion by t, farthest first
+            for (; i > 0 && t_near[lanes[i - 1]] < t_near[k]; --i) lanes[i] = lanes[i - 1];
+            lanes[i] = k;
+        }
+        for (int i = 0; i < n; ++i) stack[top++] = b.ref[lanes[i]];
+    }
 
     /// The slab test of a block's 8 lanes: bit k set when lane k is hit, t_near[k] its entry
     /// parameter. SegmentSlabs::clip exactly: the same float operations in the same order, and

@@ -165,6 +165,10 @@ void for_each_cell(const CellRange& r, F&& f) {
             for (i[0] = r.lo[0]; i[0] <= r.hi[0]; ++i[0]) f(std::as_const(i));
 }
 
+/// A closest-hit walk (hit_policy.h) stops at the first cell entered after this, given the best
+/// hit's t: a cell entered within float rounding of it may still hold a tie with a smaller uid.
+inline double closest_cutoff(float best_t) { return double(best_t) + 1e-6 * (1.0 + std::abs(double(best_t))); }
+
 /// The grids' default for the large-object guard (UniformGrid::Params::max_cells, HashGrid's too):
 /// a 3×3×3 block.
 inline constexpr int kDefaultMaxCells = 27;

@@ -132,7 +132,13 @@ void UniformGrid::traverse(const Segment& s, Count& count, Visit&& visit, StampS
             if (!visit(entries_[b.slot[lane]].uid, tn[lane])) return;
         }
     }
-    grid::walk(lat_, p0, d, lat_.cells(), start, 0.0, 1.0, [&](const std::array<int, 3>& c, double, double) {
+    grid::walk(lat_, p0, d, lat_.cells(), start, 0.0, 1.0, [&](const std::array<int, 3>& c, double t_in, double) {
+        // Closest hit: the walk is front to back, and an object entered at t is stored in the cell
+        // holding its entry point, which the walk enters no later than t (grid::kClosestSlack:
+        // the lattice's double and the slab test's float round differently).
+        if constexpr (HasTLimit<std::remove_cvref_t<Visit>>) {
+            if (t_in > grid::closest_cutoff(visit_limit(visit))) return false;
+        }
         count.traversal();
         const BlockCell& cell = cells_[cell_id(c)];
         count.box_tests(cell.size);

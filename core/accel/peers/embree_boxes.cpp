@@ -1,5 +1,6 @@
 #include "core/accel/peers/embree_boxes.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <limits>
@@ -55,9 +56,13 @@ void intersect_callback(const RTCIntersectFunctionNArguments* args) {
         if (!q.slabs->clip(q.self->box_at(args->primID), tn, tf)) return;
     }
     ++q.hits;
+    auto* rayhit = reinterpret_cast<RTCRayHit*>(args->rayhit);
     if (!q.on_hit(q.visit, q.self->uid_at(args->primID), tn)) {
-        auto* rayhit = reinterpret_cast<RTCRayHit*>(args->rayhit);
         rayhit->ray.tfar = -std::numeric_limits<float>::infinity();  // culls every remaining node
+    } else if (q.limit_of) {
+        // The padded bounds are entered before the box itself, so a box entered at or before the
+        // nearest hit is still reached (the padding's exactness argument, docs/structures.md).
+        rayhit->ray.tfar = std::min(rayhit->ray.tfar, q.limit_of(q.visit));
     }
 }
 

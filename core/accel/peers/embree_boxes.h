@@ -1,12 +1,14 @@
 #pragma once
 /// Peer: Intel Embree 3 over the objects' boxes as a user geometry (primitive id = dense slot).
 /// All hits: the intersect callback records each hit and never commits it, so Embree keeps
-/// traversing. Embree's user-geometry traversal is not robust, so the bounds it gets are padded
-/// and the callback decides with rcb's own slab test on the unpadded box: hits, t and the touching
-/// rule equal every rcb structure's. Rays Embree cannot take (zero length, non-finite, beyond its
-/// range or the padding's) go to an exact scan. `quality` and `refit` map to Embree's build
-/// qualities. Counters: N_RB = callback calls plus scan tests; N_T is not exposed (0).
-/// docs/structures.md has the exactness argument and the limits.
+/// traversing. Closest hit: rtcIntersect1's own clipping, the callback setting tfar to the
+/// nearest hit so far (entries at exactly tfar still reach it: ties go to the smaller uid); any
+/// hit: tfar set to -inf after the first, which culls every remaining node. Embree's user-geometry traversal is not
+/// robust, so the bounds it gets are padded and the callback decides with rcb's own slab test on the unpadded box:
+/// hits, t and the touching rule equal every rcb structure's. Rays Embree cannot take (zero length, non-finite, beyond
+/// its range or the padding's) go to an exact scan. `quality` and `refit` map to Embree's build qualities. Counters:
+/// N_RB = callback calls plus scan tests; N_T is not exposed (0). docs/structures.md has the exactness argument and the
+/// limits.
 
 #include <cstdint>
 #include <memory>
@@ -101,6 +103,9 @@ struct EmbreeBoxes::Query {
     void* visit;
     bool (*on_hit)(void* visit, Uid uid, float t);
     bool candidates = false;  ///< yield every primitive Embree reaches, untested (counters.h)
+    /// A closest-hit visitor's t_limit (hit_policy.h), or null: after each hit the callback clips
+    /// the ray's tfar to it, so Embree culls what lies beyond the nearest hit so far.
+    float (*limit_of)(void* visit) = nullptr;
     std::uint64_t tests = 0;
     std::uint64_t hits = 0;
 };
@@ -108,9 +113,11 @@ struct EmbreeBoxes::Query {
 template <class Count, class Visit>
 void EmbreeBoxes::traverse(const Segment& s, Count& count, Visit&& visit) {
     const SegmentSlabs slabs(s);
-    Query q{&slabs, this, &visit,
-            [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); },
+    using V = std::remove_reference_t<Visit>;
+    Query q{&slabs, this, &visit, [](void* v, Uid uid, float t) { return bool((*static_cast<V*>(v))(uid, t)); },
             Count::candidates};
+    if constexpr (HasTLimit<std::remove_cv_t<V>>)
+        q.limit_of = [](void* v) { return float(static_cast<V*>(v)->t_limit); };
     if (!embree_query(s, q)) {
         scan_boxes(slabs, std::span<const Aabb>(objects_.layout().all()), std::span<const Uid>(objects_.uids()), count,
                    visit);  // the exact fallback

@@ -18,6 +18,7 @@ constexpr std::uint64_t kObjectStream = 1;
 constexpr std::uint64_t kDynamicsStream = 1'000'000;
 constexpr std::uint64_t kRayStream = 2'000'000;  // + frame, frames ≤ 1 000 000
 constexpr std::uint64_t kShapeStream = 4'000'000;
+constexpr std::uint64_t kQueryStream = 5'000'000;  // + frame
 
 Aabb box_from(const Vec3d& min, const Vec3d& max) { return {min.as<float>(), max.as<float>()}; }
 
@@ -469,35 +470,99 @@ SceneSettings preset_settings(std::string_view name) {
     return s;
 }
 
-std::vector<RayMode> parse_ray_mix(const std::string& text) {
-    std::vector<RayMode> mix;
+namespace {
+
+/// "a,b:0.5": names with non-negative weights (1 when left out), every name one of `known`, the
+/// weights adding up to more than zero. `what` ("ray mix") and `item` ("mode") name them in errors.
+std::vector<std::pair<std::string, double>> parse_weighted(const std::string& text, const std::string& what,
+                                                           const std::string& item,
+                                                           const std::vector<std::string>& known) {
+    std::vector<std::pair<std::string, double>> mix;
     std::size_t start = 0;
-    const auto modes = ray_mode_names();
     while (start <= text.size()) {
         std::size_t comma = text.find(',', start);
-        std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-        RayMode m;
-        std::size_t colon = item.find(':');
-        m.mode = item.substr(0, colon);
+        std::string entry = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+        std::size_t colon = entry.find(':');
+        std::string name = entry.substr(0, colon);
+        double weight = 1;
         if (colon != std::string::npos) {
-            const std::string w = item.substr(colon + 1);
+            const std::string w = entry.substr(colon + 1);
             char* end = nullptr;
-            m.weight = std::strtod(w.c_str(), &end);
-            if (w.empty() || *end != '\0' || !std::isfinite(m.weight) || m.weight < 0)
-                throw InputError("ray mix '" + text + "': weight '" + w + "' of " + m.mode +
+            weight = std::strtod(w.c_str(), &end);
+            if (w.empty() || *end != '\0' || !std::isfinite(weight) || weight < 0)
+                throw InputError(what + " '" + text + "': weight '" + w + "' of " + name +
                                  " is not a non-negative number");
         }
-        if (std::find(modes.begin(), modes.end(), m.mode) == modes.end()) {
-            throw InputError("ray mix '" + text + "': unknown mode '" + m.mode + "' (known: " + join(modes) + ")");
-        }
-        mix.push_back(m);
+        if (std::find(known.begin(), known.end(), name) == known.end())
+            throw InputError(what + " '" + text + "': unknown " + item + " '" + name + "' (known: " + join(known) +
+                             ")");
+        mix.emplace_back(name, weight);
         if (comma == std::string::npos) break;
         start = comma + 1;
     }
     double total = 0;
-    for (const RayMode& m : mix) total += m.weight;
-    if (!(total > 0)) throw InputError("ray mix '" + text + "': the weights add up to zero");
+    for (const auto& m : mix) total += m.second;
+    if (!(total > 0)) throw InputError(what + " '" + text + "': the weights add up to zero");
     return mix;
+}
+
+/// `n` split by `weights` with largest remainders, so the split is exact and in a fixed order.
+std::vector<std::uint32_t> split_by_weight(std::uint32_t n, const std::vector<double>& weights) {
+    double total = 0;
+    for (double w : weights) total += w;
+    std::vector<std::uint32_t> counts;
+    std::uint32_t assigned = 0;
+    for (double w : weights) {
+        counts.push_back(static_cast<std::uint32_t>(n * (w / total)));
+        assigned += counts.back();
+    }
+    for (std::size_t i = 0; assigned < n; i = (i + 1) % counts.size())
+        if (weights[i] > 0) ++counts[i], ++assigned;
+    return counts;
+}
+
+}  // namespace
+
+std::vector<RayMode> parse_ray_mix(const std::string& text) {
+    std::vector<RayMode> mix;
+    for (auto& [mode, weight] : parse_weighted(text, "ray mix", "mode", ray_mode_names()))
+        mix.push_back({mode, weight});
+    return mix;
+}
+
+std::vector<QueryShare> parse_query_mix(const std::string& text) {
+    const std::vector<std::string> known(std::begin(kQueryKindNames), std::end(kQueryKindNames));
+    std::vector<QueryShare> mix;
+    for (auto& [name, weight] : parse_weighted(text, "query mix", "kind", known))
+        mix.push_back({QueryKind(std::find(known.begin(), known.end(), name) - known.begin()), weight});
+    return mix;
+}
+
+bool asks_all_only(const std::vector<QueryShare>& mix) {
+    return std::all_of(mix.begin(), mix.end(),
+                       [](const QueryShare& q) { return q.kind == QueryKind::all || q.weight == 0; });
+}
+
+std::vector<QueryKind> generate_kinds(std::size_t rays, const std::vector<QueryShare>& mix, std::uint64_t seed,
+                                      std::uint32_t frame) {
+    std::vector<QueryKind> kinds;
+    if (asks_all_only(mix) || rays == 0) return kinds;
+    std::vector<double> weights;
+    for (const QueryShare& q : mix) weights.push_back(q.weight);
+    const std::vector<std::uint32_t> counts = split_by_weight(std::uint32_t(rays), weights);
+    for (std::size_t m = 0; m < mix.size(); ++m) kinds.insert(kinds.end(), counts[m], mix[m].kind);
+    // Shuffled from the query stream, so kinds fall on every ray mode alike and neither the rays
+    // nor the dynamics change when a mix is added.
+    Random rng(mix_seed(seed, kQueryStream + frame));
+    rng.shuffle(kinds);
+    if (std::all_of(kinds.begin(), kinds.end(), [](QueryKind k) { return k == QueryKind::all; })) kinds.clear();
+    return kinds;
+}
+
+nlohmann::json query_mix_json(const std::vector<QueryShare>& mix) {
+    nlohmann::json j = nlohmann::json::array();
+    for (const QueryShare& q : mix) j.push_back({{"kind", query_kind_name(q.kind)}, {"weight", q.weight}});
+    return j;
 }
 
 namespace {
@@ -615,16 +680,9 @@ std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySet
     const double diagonal = std::sqrt(ext.x * ext.x + ext.y * ext.y + ext.z * ext.z);
     const double reach = std::max(0.55 * diagonal, 1e-3);  // from the centre, past every face
     // Rays per mode by largest remainder, so the mix is exact and in a fixed order.
-    double total = 0;
-    for (const RayMode& m : settings.mix) total += m.weight;
-    std::vector<std::uint32_t> counts;
-    std::uint32_t assigned = 0;
-    for (const RayMode& m : settings.mix) {
-        counts.push_back(static_cast<std::uint32_t>(settings.per_frame * (m.weight / total)));
-        assigned += counts.back();
-    }
-    for (std::size_t i = 0; assigned < settings.per_frame; i = (i + 1) % counts.size())
-        if (settings.mix[i].weight > 0) ++counts[i], ++assigned;
+    std::vector<double> weights;
+    for (const RayMode& m : settings.mix) weights.push_back(m.weight);
+    const std::vector<std::uint32_t> counts = split_by_weight(settings.per_frame, weights);
 
     const Aabbd dense = densest_region(live, bounds);
     auto random_object = [&]() -> Aabbd { return live[rng.below(live.size())].box.as<double>(); };
@@ -718,6 +776,8 @@ Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dyna
     nlohmann::json mix = nlohmann::json::array();
     for (const RayMode& m : rays.mix) mix.push_back({{"mode", m.mode}, {"weight", m.weight}});
     meta["rays"] = {{"per_frame", rays.per_frame}, {"mix", mix}};
+    // Only when some ray is not `all`, so that an all-hits scene's meta and bytes stay as they were.
+    if (!asks_all_only(rays.query_mix)) meta["rays"]["query_mix"] = query_mix_json(rays.query_mix);
     r.meta = meta.dump();
     r.initial = std::move(initial);
     LiveSet live(r.initial);
@@ -728,6 +788,7 @@ Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dyna
         Frame frame = frame_changes(live, dynamics, next_uid, rng);
         live.apply(frame);
         frame.rays = generate_rays(live.objects(), rays, seed, f);
+        frame.kinds = generate_kinds(frame.rays.size(), rays.query_mix, seed, f);
         r.frames.push_back(std::move(frame));
     }
     return r;

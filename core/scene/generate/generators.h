@@ -38,9 +38,17 @@ struct RayMode {
     double weight = 1;
 };
 
+/// A query kind (scene.h) and its weight in a frame's rays.
+struct QueryShare {
+    QueryKind kind = QueryKind::all;
+    double weight = 1;
+};
+
 struct RaySettings {
     std::uint32_t per_frame = 1000;
     std::vector<RayMode> mix{{"center", 1.0}};
+    /// Empty (or only `all`): every ray asks for all hits, the thesis' workload.
+    std::vector<QueryShare> query_mix;
 };
 
 /// Which generated objects get an exact shape inside their box (shape.h), as shares of frame 0's
@@ -93,6 +101,17 @@ std::vector<std::string> failure_mode_kinds();
 /// "center", "center:0.7,los:0.3": modes with weights. Throws InputError on unknown modes.
 std::vector<RayMode> parse_ray_mix(const std::string& text);
 std::vector<std::string> ray_mode_names();
+/// "closest:0.6,any:0.3,all:0.1": query kinds with weights. Throws InputError on unknown kinds.
+std::vector<QueryShare> parse_query_mix(const std::string& text);
+/// Whether every ray of the mix asks for all hits (an empty mix too).
+bool asks_all_only(const std::vector<QueryShare>& mix);
+/// The query kinds of one frame's `rays` rays: the mix's exact shares (largest remainder),
+/// shuffled from the seed's own stream (the rays and the dynamics do not change when a mix is
+/// added). Empty when every ray is `all`.
+std::vector<QueryKind> generate_kinds(std::size_t rays, const std::vector<QueryShare>& mix, std::uint64_t seed,
+                                      std::uint32_t frame);
+/// [{"kind": "closest", "weight": 0.6}, …], as the recording's meta stores it.
+nlohmann::json query_mix_json(const std::vector<QueryShare>& mix);
 
 /// Frame 0's objects of a generated scene, shaped as `settings.shapes` asks (a physics kind's
 /// bodies at rest before its first step).
