@@ -273,8 +273,9 @@ ValidationGroup validate_calibration_only(const std::vector<FrameObservation>& f
     std::map<std::pair<std::string, int>, std::vector<const FrameObservation*>> cells;
     for (const FrameObservation& f : frames) cells[{f.structure, f.config_group}].push_back(&f);
     for (const auto& [key, fs] : cells) {
+        const std::string& structure = key.first;  // clang 14 cannot capture a structured binding
         const auto cal = std::find_if(inputs.calibrations.begin(), inputs.calibrations.end(),
-                                      [&](const StructureCalibration& c) { return c.structure == key.first; });
+                                      [&](const StructureCalibration& c) { return c.structure == structure; });
         // ns per ray from the calibrated terms; NaN when the micro-scenes fitted none.
         const auto per_ray = [&](const FrameObservation& f) {
             if (cal == inputs.calibrations.end()) return double(NAN);

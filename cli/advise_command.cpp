@@ -151,13 +151,14 @@ void add_advise_command(CLI::App& app) {
                     "neighbour is faster (corrects what the model misranks; 0: none, and none with --verify-top 0)")
         ->capture_default_str()
         ->check(whole_number(0, 64));
-    CLI::Option* exhaustive = cmd->add_flag("--exhaustive", o->exhaustive,
-                  "Also measure every configuration of each tuned structure's space on the scene and report how far "
-                  "the advised and the category's parameters are from the scene's own best (needs --tuning); beside "
-                  "them the pure-model choice (what --verify-top 0 --refine 0 advises) and two baselines with "
-                  "advise's number of timed configurations and no model: random configurations (--seed) and a "
-                  "measured descent from the category's parameters. All are priced from the same exhaustive "
-                  "measurements, so they share its noise and the budgets match exactly");
+    CLI::Option* exhaustive = cmd->add_flag(
+        "--exhaustive", o->exhaustive,
+        "Also measure every configuration of each tuned structure's space on the scene and report how far "
+        "the advised and the category's parameters are from the scene's own best (needs --tuning); beside "
+        "them the pure-model choice (what --verify-top 0 --refine 0 advises) and two baselines with "
+        "advise's number of timed configurations and no model: random configurations (--seed) and a "
+        "measured descent from the category's parameters. All are priced from the same exhaustive "
+        "measurements, so they share its noise and the budgets match exactly");
     cmd->add_option("--seed", o->seed, "Seed of --exhaustive's random baseline (default: the tuning's search seed)")
         ->check(whole_number())
         ->needs(exhaustive);

@@ -1,5 +1,5 @@
-// The peers (Embree, Bullet's btDbvt, ODE's quadtree and hash spaces) in the same harness as our structures: differential tests
-// against ground truth on every hard scene and on generated scenes, the exact fallbacks, and
+// The peers (Embree, Bullet's btDbvt, ODE's quadtree and hash spaces) in the same harness as our structures:
+// differential tests against ground truth on every hard scene and on generated scenes, the exact fallbacks, and
 // parameter validation.
 #include <gtest/gtest.h>
 
@@ -375,14 +375,14 @@ TEST(Ode, TheQuadtreePrunesAndTheHashSpaceScansEveryGeom) {
     hash.cast_counted(std::span<const Segment>(&seg, 1), out, h);
     EXPECT_EQ(q.n_tp, 4u);
     EXPECT_EQ(h.n_tp, 4u);
-    EXPECT_LT(q.n_rb, objects.size() / 2);     // the candidates in the blocks it visits
+    EXPECT_LT(q.n_rb, objects.size() / 2);       // the candidates in the blocks it visits
     EXPECT_EQ(h.n_rb, objects.size() + h.n_tp);  // every geom's AABB, then the candidates' exact tests
 }
 
 TEST(Ode, UpdatesKeepTheSpaceExactAndTheScaleGrows) {
     for (bool use_quadtree : {true, false}) {
-        std::unique_ptr<Structure> peer = use_quadtree ? std::unique_ptr<Structure>(new OdeQuadTree)
-                                                       : std::unique_ptr<Structure>(new OdeHash);
+        std::unique_ptr<Structure> peer =
+            use_quadtree ? std::unique_ptr<Structure>(new OdeQuadTree) : std::unique_ptr<Structure>(new OdeHash);
         peer->build(grid_boxes());
         peer->commit();
         peer->insert({500, {{1000, 1000, 1000}, {1001, 1001, 1001}}});  // beyond the quadtree's root: lives in it

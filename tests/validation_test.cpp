@@ -168,7 +168,7 @@ TEST(CalibrationOnly, PricesTheRayCastFromTheCalibrationAloneAndNeverTheUpdate) 
     EXPECT_EQ(tree.structure, "tree");
     EXPECT_EQ(tree.cells, 6u);
     EXPECT_EQ(tree.unpredictable, 0u);
-    EXPECT_LT(tree.raycast.p90, 1e-12);     // the calibration's costs are the scene's
+    EXPECT_LT(tree.raycast.p90, 1e-12);          // the calibration's costs are the scene's
     EXPECT_TRUE(std::isnan(tree.frame.median));  // updates are not calibrated
     EXPECT_EQ(g.structures[1].unpredictable, 1u);
     // A calibration that misprices C_T by half shows up as the error it makes.

@@ -399,17 +399,21 @@ std::string exhaustive_md(const TuneSpec& spec, const std::vector<ExhaustiveChec
 }
 
 json comparison_json(const BudgetComparison& c) {
-    return {{"configurations", c.configurations}, {"in_effect", c.classes},
-            {"budget", c.budget},                 {"optimum_ms", c.optimum},
-            {"tuner_regrets", c.tuner_regrets},   {"tuner_regret", c.tuner_regret},
-            {"random_regret", c.random_regret},   {"descent_regret", c.descent_regret}};
+    return {{"configurations", c.configurations},
+            {"in_effect", c.classes},
+            {"budget", c.budget},
+            {"optimum_ms", c.optimum},
+            {"tuner_regrets", c.tuner_regrets},
+            {"tuner_regret", c.tuner_regret},
+            {"random_regret", c.random_regret},
+            {"descent_regret", c.descent_regret}};
 }
 
 /// The tuning's problems (category × structure) over all categories, at equal budgets.
 std::string suite_md(const SuiteSummary& s) {
     std::ostringstream md;
-    md << "\n## Every problem at equal budgets\n\n" << s.problems
-       << " problems (category × structure), each method at a tenth of the structures in effect (median "
+    md << "\n## Every problem at equal budgets\n\n"
+       << s.problems << " problems (category × structure), each method at a tenth of the structures in effect (median "
        << fixed(100 * s.median_budget_share, 0) << "%):\n\n| method | regret median | regret p90 |\n|---|---|---|\n"
        << "| tuner | " << fixed(100 * s.tuner_median, 1) << "% | " << fixed(100 * s.tuner_p90, 1) << "% |\n"
        << "| random search | " << fixed(100 * s.random_median, 1) << "% | " << fixed(100 * s.random_p90, 1) << "% |\n"

@@ -31,10 +31,10 @@ double expected_best_of_random(std::vector<double> costs, std::size_t k);
 
 /// One tuning problem (a structure's space on a category) compared at one budget.
 struct BudgetComparison {
-    std::size_t configurations = 0;  ///< in the space
-    std::size_t classes = 0;         ///< structures in effect among them
-    std::size_t budget = 0;          ///< distinct configurations each method may evaluate
-    double optimum = 0;              ///< the lowest class cost
+    std::size_t configurations = 0;     ///< in the space
+    std::size_t classes = 0;            ///< structures in effect among them
+    std::size_t budget = 0;             ///< distinct configurations each method may evaluate
+    double optimum = 0;                 ///< the lowest class cost
     std::vector<double> tuner_regrets;  ///< search_levels, one per seed: found / optimum − 1
     double tuner_regret = 0;            ///< their median
     double random_regret = 0;           ///< expected, exact
@@ -71,8 +71,8 @@ struct SuiteSummary {
     double tuner_median = 0, tuner_p90 = 0;
     double random_median = 0, random_p90 = 0;
     double descent_median = 0, descent_p90 = 0;
-    double beats_random = 0;      ///< share of problems
-    double matches_descent = 0;   ///< share of problems where the tuner is at least as good
+    double beats_random = 0;         ///< share of problems
+    double matches_descent = 0;      ///< share of problems where the tuner is at least as good
     double median_budget_share = 0;  ///< budget / classes, median over problems
 };
 SuiteSummary summarize_suite(const std::vector<BudgetComparison>& problems);

@@ -171,4 +171,11 @@ constexpr bool is_finite(const Vec3T<T>& v) {
     return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
 }
 
+/// The largest |coordinate| of a box: the scale the peers pad their library's bounds against.
+template <typename T>
+constexpr T largest_coordinate(const AabbT<T>& b) {
+    return std::max({std::abs(b.min.x), std::abs(b.min.y), std::abs(b.min.z), std::abs(b.max.x), std::abs(b.max.y),
+                     std::abs(b.max.z)});
+}
+
 }  // namespace rcb

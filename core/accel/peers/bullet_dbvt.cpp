@@ -32,11 +32,6 @@ struct ExactLeafTest : btDbvt::ICollide {
     }
 };
 
-float largest_coordinate(const Aabb& b) {
-    return std::max({std::abs(b.min.x), std::abs(b.min.y), std::abs(b.min.z), std::abs(b.max.x), std::abs(b.max.y),
-                     std::abs(b.max.z)});
-}
-
 }  // namespace
 
 BulletDbvt::BulletDbvt() : BulletDbvt(Params{}) {}

@@ -42,11 +42,6 @@ void ode_ready() {
     if (!thread) throw std::runtime_error("ODE: dAllocateODEDataForThread failed");
 }
 
-float largest_coordinate(const Aabb& b) {
-    return std::max({std::abs(b.min.x), std::abs(b.min.y), std::abs(b.min.z), std::abs(b.max.x), std::abs(b.max.y),
-                     std::abs(b.max.z)});
-}
-
 std::uint32_t slot_of(dGeomID geom) { return std::uint32_t(reinterpret_cast<std::uintptr_t>(dGeomGetData(geom))); }
 
 }  // namespace
@@ -107,9 +102,7 @@ void near_callback(void* data, dGeomID a, dGeomID b) {
 
 }  // namespace
 
-OdeSpace::OdeSpace(Kind kind, int depth) : kind_(kind), depth_(depth), ode_(std::make_unique<Ode>()) {
-    ode_ready();
-}
+OdeSpace::OdeSpace(Kind kind, int depth) : kind_(kind), depth_(depth), ode_(std::make_unique<Ode>()) { ode_ready(); }
 
 OdeSpace::~OdeSpace() = default;
 
@@ -180,7 +173,7 @@ void OdeSpace::insert(const Object& o) {
 void OdeSpace::remove(Uid uid) {
     OdeBytes bytes(ode_->bytes);
     const std::uint32_t slot = objects_.remove(uid);
-    dGeomDestroy(ode_->geoms[slot]);  // leaves its space
+    dGeomDestroy(ode_->geoms[slot]);       // leaves its space
     if (slot != ode_->geoms.size() - 1) {  // the last slot's object moved into `slot`
         ode_->geoms[slot] = ode_->geoms.back();
         dGeomSetData(ode_->geoms[slot], reinterpret_cast<void*>(std::uintptr_t(slot)));
@@ -247,8 +240,8 @@ void OdeSpace::validate(const char* who) const {
         // The geom's AABB must enclose the box with the padding (the exactness argument needs it).
         for (int a = 0; a < 3; ++a)
             if (aabb[2 * a] > double(b.min[a]) - half_pad || aabb[2 * a + 1] < double(b.max[a]) + half_pad)
-                broken_invariant(who, "geom of uid " + std::to_string(objects_.uid(i)) +
-                                          " does not enclose its padded box");
+                broken_invariant(who,
+                                 "geom of uid " + std::to_string(objects_.uid(i)) + " does not enclose its padded box");
     }
 }
 

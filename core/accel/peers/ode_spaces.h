@@ -17,8 +17,9 @@
 /// Rays ODE's AABBs cannot bound exactly (zero length, non-finite, beyond kFarFactor × the scene's
 /// scale) go to an exact scan. Counters: N_RB = the exact tests of the geoms the space reports, plus
 /// for the hash space its scan of every geom's AABB (the quadtree's own AABB tests in the blocks it
-/// visits are not exposed), plus scan tests; N_T is not exposed (0), as for Embree. Memory: rcb's arrays plus the bytes ODE allocated for this instance
-/// (counted through ODE's allocation hooks while the instance runs; one instance per thread at a time).
+/// visits are not exposed), plus scan tests; N_T is not exposed (0), as for Embree. Memory: rcb's arrays plus the bytes
+/// ODE allocated for this instance (counted through ODE's allocation hooks while the instance runs; one instance per
+/// thread at a time).
 
 #include <cstdint>
 #include <memory>
@@ -71,11 +72,10 @@ public:
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit) {
         const SegmentSlabs slabs(s);
-        Query q{&slabs, this, &visit,
-                [](void* v, Uid uid, float t) {
-                    return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t));
-                },
-                Count::candidates};
+        Query q{
+            &slabs, this, &visit,
+            [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); },
+            Count::candidates};
         if (!ode_query(s, q)) {
             scan_boxes(slabs, std::span<const Aabb>(objects_.layout().all()), std::span<const Uid>(objects_.uids()),
                        count, visit);  // the exact fallback
@@ -102,8 +102,34 @@ private:
     std::uint64_t repads_ = 0;
 };
 
+/// An ODE space as a structure: everything forwarded to the OdeSpace it holds.
+template <class Derived>
+class OdePeer : public StructureBase<Derived> {
+public:
+    void build(std::span<const Object> objects) override { space_.build(objects); }
+    void insert(const Object& object) override { space_.insert(object); }
+    void remove(Uid uid) override { space_.remove(uid); }
+    void move(const Object& object) override { space_.move(object); }
+    std::size_t size() const override { return space_.size(); }
+    std::size_t memory_bytes() const override { return space_.memory_bytes() + sizeof(Derived) - sizeof(OdeSpace); }
+    nlohmann::json stats() const override { return space_.stats(); }
+    void validate() const override { space_.validate(name_); }
+
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit) {
+        space_.traverse(s, count, std::forward<Visit>(visit));
+    }
+
+protected:
+    OdePeer(OdeSpace::Kind kind, int depth, const char* name) : space_(kind, depth), name_(name) {}
+
+private:
+    OdeSpace space_;
+    const char* name_;  ///< the registry's name, for broken_invariant
+};
+
 /// ODE's quadtree space (see above).
-class OdeQuadTree : public StructureBase<OdeQuadTree> {
+class OdeQuadTree : public OdePeer<OdeQuadTree> {
 public:
     struct Params {
         int depth = 6;
@@ -114,51 +140,17 @@ public:
         }
     };
     OdeQuadTree() : OdeQuadTree(Params{}) {}
-    explicit OdeQuadTree(const Params& p) : space_(OdeSpace::Kind::quadtree, p.depth) {}
-
-    void build(std::span<const Object> objects) override { space_.build(objects); }
-    void insert(const Object& object) override { space_.insert(object); }
-    void remove(Uid uid) override { space_.remove(uid); }
-    void move(const Object& object) override { space_.move(object); }
-    std::size_t size() const override { return space_.size(); }
-    std::size_t memory_bytes() const override { return space_.memory_bytes() + sizeof(*this); }
-    nlohmann::json stats() const override { return space_.stats(); }
-    void validate() const override { space_.validate("ode_quadtree"); }
-
-    template <class Count, class Visit>
-    void traverse(const Segment& s, Count& count, Visit&& visit) {
-        space_.traverse(s, count, std::forward<Visit>(visit));
-    }
-
-private:
-    OdeSpace space_;
+    explicit OdeQuadTree(const Params& p) : OdePeer(OdeSpace::Kind::quadtree, p.depth, "ode_quadtree") {}
 };
 
 /// ODE's hash space (see above: its segment query is a linear scan of the geoms' AABBs).
-class OdeHash : public StructureBase<OdeHash> {
+class OdeHash : public OdePeer<OdeHash> {
 public:
     struct Params {
         static constexpr auto fields() { return std::tuple{}; }
     };
     OdeHash() : OdeHash(Params{}) {}
-    explicit OdeHash(const Params&) : space_(OdeSpace::Kind::hash, 0) {}
-
-    void build(std::span<const Object> objects) override { space_.build(objects); }
-    void insert(const Object& object) override { space_.insert(object); }
-    void remove(Uid uid) override { space_.remove(uid); }
-    void move(const Object& object) override { space_.move(object); }
-    std::size_t size() const override { return space_.size(); }
-    std::size_t memory_bytes() const override { return space_.memory_bytes() + sizeof(*this); }
-    nlohmann::json stats() const override { return space_.stats(); }
-    void validate() const override { space_.validate("ode_hash"); }
-
-    template <class Count, class Visit>
-    void traverse(const Segment& s, Count& count, Visit&& visit) {
-        space_.traverse(s, count, std::forward<Visit>(visit));
-    }
-
-private:
-    OdeSpace space_;
+    explicit OdeHash(const Params&) : OdePeer(OdeSpace::Kind::hash, 0, "ode_hash") {}
 };
 
 }  // namespace rcb
