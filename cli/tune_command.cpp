@@ -1,4 +1,5 @@
 // rcbench tune: per scene category, the parameters that minimise C_update + N·C; reports and database rows.
+#include <algorithm>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -47,6 +48,18 @@ void add_tune_command(CLI::App& app) {
         TuneSpec spec = load_tune_spec(o->file);
         if (o->seed) spec.seed = *o->seed;
         set_accuracy(spec, accuracy);
+        // The space's size up front: parameters a file leaves out are searched at the registry's
+        // levels, and --exhaustive measures every configuration of every space.
+        for (const auto& [structure, dims] : spec.space) {
+            std::size_t n = 1;
+            std::string searched;
+            for (const SearchDimension& d : dims) {
+                n *= std::max<std::size_t>(1, d.levels.size());
+                if (d.levels.size() > 1) searched += (searched.empty() ? "" : ", ") + d.name;
+            }
+            std::cout << structure << ": " << n << " configurations (" << (searched.empty() ? "none" : searched) << ")"
+                      << (o->exhaustive ? ", each measured" : "") << '\n';
+        }
         TuneOptions options;
         options.file = o->file, options.db = o->db, options.out_dir = o->out_dir, options.exhaustive = o->exhaustive;
         options.derive_categories = o->derive;

@@ -64,7 +64,11 @@ TEST(SearchBaselines, TheComparisonMergesClassesAndPricesEveryMethodOnOneSurface
         costs.push_back(1.0 + 0.1 * std::abs(a - 8) + 0.001 * b);
         class_of.push_back(std::size_t(a));
     }
-    const BudgetComparison c = compare_at_equal_budget(dims, costs, class_of, {{"a", 2}, {"b", 0}}, 0.3, 1, 5);
+    // A model that ranks a = 7 first (and has a NaN it must never choose).
+    std::vector<double> predicted;
+    for (const nlohmann::json& p : all) predicted.push_back(p["a"] == 0 ? NAN : std::abs(p["a"].get<int>() - 7.0));
+    const BudgetComparison c =
+        compare_at_equal_budget(dims, all, costs, class_of, {{"a", 2}, {"b", 0}}, 0.3, 1, 5, predicted, 6);
     EXPECT_EQ(c.configurations, 40u);
     EXPECT_EQ(c.classes, 10u);
     EXPECT_EQ(c.budget, 3u);
@@ -76,6 +80,12 @@ TEST(SearchBaselines, TheComparisonMergesClassesAndPricesEveryMethodOnOneSurface
     // Three measurements of the descent from a = 2: a = 3, then a = 4, each faster (first improvement).
     EXPECT_NEAR(c.descent_regret, class_cost[4] / 1.0015 - 1, 1e-12);
     for (double r : c.tuner_regrets) EXPECT_GE(r, 0);
+    // The model's choice is priced at its class's cost, with the timed runs it was given.
+    EXPECT_NEAR(c.model_regret, class_cost[7] / 1.0015 - 1, 1e-12);
+    EXPECT_EQ(c.model_timed, 6u);
+    // Without a prediction there is no model row.
+    EXPECT_TRUE(
+        std::isnan(compare_at_equal_budget(dims, all, costs, class_of, {{"a", 2}, {"b", 0}}, 0.3, 1, 1).model_regret));
 }
 
 TEST(SearchBaselines, TheSummaryCountsWinsAndQuantiles) {
@@ -91,6 +101,12 @@ TEST(SearchBaselines, TheSummaryCountsWinsAndQuantiles) {
     EXPECT_DOUBLE_EQ(s.matches_descent, 0.75);  // 1% > 0% loses
     EXPECT_NEAR(s.tuner_median, 0.015, 1e-12);
     EXPECT_DOUBLE_EQ(s.median_budget_share, 0.1);
+    EXPECT_EQ(s.model_problems, 0u);  // no problem priced a model
+    EXPECT_TRUE(std::isnan(s.model_median));
+    problems[1].model_regret = 0.04, problems[3].model_regret = 0.0;
+    const SuiteSummary m = summarize_suite(problems);
+    EXPECT_EQ(m.model_problems, 2u);
+    EXPECT_NEAR(m.model_median, 0.02, 1e-12);
 }
 
 }  // namespace

@@ -29,10 +29,11 @@ double expected_best_of_random(std::vector<double> costs, std::size_t k) {
     return expected;
 }
 
-BudgetComparison compare_at_equal_budget(const std::vector<SearchDimension>& dims, const std::vector<double>& costs,
+BudgetComparison compare_at_equal_budget(const std::vector<SearchDimension>& dims,
+                                         const std::vector<nlohmann::json>& all, const std::vector<double>& costs,
                                          const std::vector<std::size_t>& class_of, const nlohmann::json& start,
-                                         double share, std::uint64_t first_seed, std::size_t seeds) {
-    const std::vector<nlohmann::json> all = enumerate_space(dims);
+                                         double share, std::uint64_t first_seed, std::size_t seeds,
+                                         const std::vector<double>& predicted, std::size_t model_timed) {
     BudgetComparison out;
     out.configurations = all.size();
     out.classes = class_of.empty() ? 0 : *std::max_element(class_of.begin(), class_of.end()) + 1;
@@ -58,6 +59,11 @@ BudgetComparison compare_at_equal_budget(const std::vector<SearchDimension>& dim
     for (std::size_t i : descent_path(dims, all, config_cost, start, out.budget))
         descended = std::min(descended, config_cost[i]);
     out.descent_regret = descended / out.optimum - 1;
+    // The model's choice: the lowest prediction (NaN predictions never chosen), at its class's cost.
+    std::optional<std::size_t> chosen;
+    for (std::size_t i = 0; i < predicted.size() && i < all.size(); ++i)
+        if (!std::isnan(predicted[i]) && (!chosen || predicted[i] < predicted[*chosen])) chosen = i;
+    if (chosen) out.model_regret = config_cost[*chosen] / out.optimum - 1, out.model_timed = model_timed;
     return out;
 }
 
@@ -65,7 +71,7 @@ SuiteSummary summarize_suite(const std::vector<BudgetComparison>& problems) {
     SuiteSummary s;
     s.problems = problems.size();
     if (problems.empty()) return s;
-    std::vector<double> tuner, random, descent, shares;
+    std::vector<double> tuner, random, descent, shares, model;
     std::size_t beats = 0, matches = 0;
     for (const BudgetComparison& p : problems) {
         tuner.push_back(p.tuner_regret);
@@ -74,7 +80,10 @@ SuiteSummary summarize_suite(const std::vector<BudgetComparison>& problems) {
         shares.push_back(double(p.budget) / double(std::max<std::size_t>(1, p.classes)));
         if (p.tuner_regret < p.random_regret - 1e-9) ++beats;
         if (p.tuner_regret <= p.descent_regret + 1e-9) ++matches;
+        if (!std::isnan(p.model_regret)) model.push_back(p.model_regret);
     }
+    s.model_problems = model.size();
+    if (!model.empty()) s.model_median = quantile(model, 0.5), s.model_p90 = quantile(model, 0.9);
     s.tuner_median = quantile(tuner, 0.5), s.tuner_p90 = quantile(tuner, 0.9);
     s.random_median = quantile(random, 0.5), s.random_p90 = quantile(random, 0.9);
     s.descent_median = quantile(descent, 0.5), s.descent_p90 = quantile(descent, 0.9);

@@ -16,6 +16,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -39,15 +40,22 @@ struct BudgetComparison {
     double tuner_regret = 0;            ///< their median
     double random_regret = 0;           ///< expected, exact
     double descent_regret = 0;
+    /// The cost model's choice (the lowest predicted configuration) without a timed measurement
+    /// beyond the model's calibration: NaN when no prediction was given.
+    double model_regret = std::numeric_limits<double>::quiet_NaN();
+    std::size_t model_timed = 0;  ///< configurations the model's calibration measured
 };
 
-/// The comparison on the surface `costs` (one per configuration of enumerate_space(dims), in its
-/// order; ∞ or NaN: unusable) whose configurations fall in classes `class_of` (same order, ids
-/// from 0). The budget is ceil(share × classes), at least 1; the tuner runs `seeds` seeds from
-/// `first_seed`, all methods from `start`.
-BudgetComparison compare_at_equal_budget(const std::vector<SearchDimension>& dims, const std::vector<double>& costs,
+/// The comparison on the surface `costs` (one per configuration of `all` = enumerate_space(dims),
+/// in its order; ∞ or NaN: unusable) whose configurations fall in classes `class_of` (same order,
+/// ids from 0). The budget is ceil(share × classes), at least 1; the tuner runs `seeds` seeds from
+/// `first_seed`, all methods from `start`. With `predicted` (same order), the model's choice is
+/// priced too; `model_timed` says what its calibration measured.
+BudgetComparison compare_at_equal_budget(const std::vector<SearchDimension>& dims,
+                                         const std::vector<nlohmann::json>& all, const std::vector<double>& costs,
                                          const std::vector<std::size_t>& class_of, const nlohmann::json& start,
-                                         double share, std::uint64_t first_seed, std::size_t seeds);
+                                         double share, std::uint64_t first_seed, std::size_t seeds,
+                                         const std::vector<double>& predicted = {}, std::size_t model_timed = 0);
 
 /// Class ids (from 0, in order of first appearance) of items equal under `same`.
 template <class T, class Same>
@@ -73,6 +81,8 @@ struct SuiteSummary {
     double descent_median = 0, descent_p90 = 0;
     double beats_random = 0;         ///< share of problems
     double matches_descent = 0;      ///< share of problems where the tuner is at least as good
+    std::size_t model_problems = 0;  ///< problems with a model's choice
+    double model_median = std::numeric_limits<double>::quiet_NaN(), model_p90 = model_median;
     double median_budget_share = 0;  ///< budget / classes, median over problems
 };
 SuiteSummary summarize_suite(const std::vector<BudgetComparison>& problems);

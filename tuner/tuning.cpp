@@ -656,6 +656,7 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category,
             st.measurements += predictor.measurements;
             st.prediction_model = predictor.model;
             st.predict = predictor.predict;
+            st.prediction_measurements = predictor.measurements;
             st.cost_model = predictor.coefficients;
             const auto& predict = predictor.predict;
             st.search = search_levels(dims, predict, spec.budget, spec.seed, defaults_searched);

@@ -96,6 +96,7 @@ struct StructureTuning {
     std::size_t best_candidate = 0;                        ///< lowest measured cost meeting the accuracy
     std::string prediction_model;                          ///< the calibration's chosen model, for predicted modes
     std::function<double(const nlohmann::json&)> predict;  ///< predicted modes: the model's cost of searched params
+    std::size_t prediction_measurements = 0;               ///< timed configurations its calibration measured
     /// Eq. 5.4 for this structure on this category: the predicted modes' calibration, or in the
     /// measured mode a fit to the frames the search measured (counted by an untimed replay).
     /// What advise applies to an unseen scene's counters. None when no model could be fitted.
