@@ -252,6 +252,59 @@ TEST(Embree, ScenesBeyondItsRangeTakeTheExactFallbackInsteadOfAborting) {
         }
 }
 
+// Only the any-hit visitor takes Embree's occlusion query (rtcOccluded1).
+static_assert(StopsAtFirstHit<AnyHit> && StopsAtFirstHit<AnyHit&>);
+static_assert(!StopsAtFirstHit<ClosestHit&>);
+
+/// A row of 64 unit boxes along x with unit gaps, each met by the segment along the row's axis.
+std::vector<Object> row_boxes() {
+    std::vector<Object> objects;
+    for (Uid i = 0; i < 64; ++i) objects.push_back({i, {{2.0f * float(i), 0, 0}, {2.0f * float(i) + 1, 1, 1}}});
+    return objects;
+}
+
+/// One segment's counters and answer as the query kind `kind`.
+Counters counted(Structure& s, const Segment& seg, QueryKind kind, std::vector<Uid>& answer) {
+    HitLists out;
+    Counters c;
+    s.cast_counted(std::span<const Segment>(&seg, 1), std::span<const QueryKind>(&kind, 1), out, c);
+    answer.assign(out.uids.begin(), out.uids.end());
+    return c;
+}
+
+/// On a row every candidate is a hit, so an any-hit query must stop at its first: one exact test
+/// (the hash space adds its scan of every geom's AABB, which it makes before the first callback).
+/// Closest: Embree clips its ray at each hit and tests fewer boxes than all hits need; btDbvt and
+/// ODE cannot shorten their walk (docs/structures.md), so they test as many.
+TEST(Peers, AnyHitStopsAtTheFirstExactHitAndClosestTestsNoMoreThanAll) {
+    const std::vector<Object> objects = row_boxes();
+    for (const char* name : {"embree", "bullet_dbvt", "ode_quadtree", "ode_hash"}) {
+        SCOPED_TRACE(name);
+        auto peer = find_structure(name).make(nlohmann::json::object(), "params");
+        peer->build(objects);
+        peer->commit();
+        for (const Segment& seg :
+             {Segment{{-1, 0.5f, 0.5f}, {130, 0.5f, 0.5f}}, Segment{{130, 0.5f, 0.5f}, {-1, 0.5f, 0.5f}}}) {
+            std::vector<Uid> all_hits, closest, any;
+            const Counters all = counted(*peer, seg, QueryKind::all, all_hits);
+            const Counters near = counted(*peer, seg, QueryKind::closest, closest);
+            const Counters first = counted(*peer, seg, QueryKind::any, any);
+            ASSERT_EQ(all_hits.size(), objects.size());
+            EXPECT_GE(all.n_rb, objects.size());
+            EXPECT_EQ(closest, (std::vector<Uid>{seg.p0.x < 0 ? Uid(0) : Uid(63)}));
+            ASSERT_EQ(any.size(), 1u);
+            EXPECT_EQ(first.n_tp, 1u);
+            EXPECT_EQ(first.n_rb, std::string(name) == "ode_hash" ? 1 + objects.size() : 1u);
+            EXPECT_LT(first.n_rb, all.n_rb);
+            if (std::string(name) == "embree") {
+                EXPECT_LT(near.n_rb, all.n_rb);
+            } else {
+                EXPECT_EQ(near.n_rb, all.n_rb);
+            }
+        }
+    }
+}
+
 TEST(Embree, MatchesGroundTruthOnEveryHardScene) {
     for (const nlohmann::json& params : embree_configs())
         for (const test::NamedScene& s : test::hard_scenes())

@@ -1,13 +1,16 @@
 // What several structures share (core/accel/common/, core/accel/grid/grid.h, core/accel/bvh/bvh_traversal.h): the loop
-// over a range of cells, the outlier trim, the slot tables in both layouts, and validate()'s one way to fail.
+// over a range of cells, the outlier trim, the slot tables in both layouts, the peers' exact collector, and
+// validate()'s one way to fail.
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "core/accel/structure.h"
 #include "core/accel/grid/grid.h"
+#include "core/accel/common/exact_collector.h"
 #include "core/accel/common/outlier_trim.h"
 #include "core/accel/common/slot_boxes.h"
 
@@ -95,6 +98,111 @@ TEST(SlotTables, ValidateNamesTheStructureAndTheBrokenInvariant) {
     } catch (const std::logic_error& e) {
         EXPECT_EQ(std::string(e.what()), "bf: uid 7 has min > max");
     }
+}
+
+/// Three unit boxes on the x axis at x = 0, 2, 4 (uids 10, 11, 12) and one off it (uid 13).
+SlotBoxes collector_boxes() {
+    SlotBoxes t;
+    for (Uid u = 0; u < 3; ++u) t.insert({10 + u, box_at(2.0f * float(u))});
+    t.insert({13, {{0, 5, 5}, {1, 6, 6}}});
+    return t;
+}
+
+TEST(ExactCollector, TestsTheUnpaddedBoxCountsAndRemembersAStop) {
+    const SlotBoxes boxes = collector_boxes();
+    const SegmentSlabs slabs(Segment{{-1, 0, 0}, {9, 0, 0}});
+    std::vector<std::pair<Uid, float>> seen;
+    auto all = [&](Uid u, float t) {
+        seen.emplace_back(u, t);
+        return true;
+    };
+    ExactCollector c(slabs, boxes, all, false);
+    EXPECT_FALSE(c.has_limit());
+    EXPECT_EQ(c.offer(3), ExactCollector::Offer::miss);  // uid 13: a candidate the segment misses
+    EXPECT_EQ(c.offer(1), ExactCollector::Offer::hit);
+    EXPECT_EQ(c.offer(0), ExactCollector::Offer::hit);
+    EXPECT_EQ(c.tests(), 3u);
+    EXPECT_EQ(c.hits(), 2u);
+    ASSERT_EQ(seen.size(), 2u);
+    EXPECT_EQ(seen[0].first, 11u);
+    EXPECT_FLOAT_EQ(seen[0].second, 0.25f);  // entry at x = 1.5
+    EXPECT_FALSE(c.stopped());
+
+    AnyHit any;
+    ExactCollector first(slabs, boxes, any, false);
+    EXPECT_EQ(first.offer(3), ExactCollector::Offer::miss);
+    EXPECT_EQ(first.offer(2), ExactCollector::Offer::stop);
+    EXPECT_EQ(first.offer(0), ExactCollector::Offer::stop);  // declined untested
+    EXPECT_TRUE(first.stopped());
+    EXPECT_EQ(first.tests(), 2u);
+    EXPECT_EQ(first.hits(), 1u);
+    EXPECT_EQ(any.uid, 12u);
+
+    ClosestHit closest;
+    ExactCollector near(slabs, boxes, closest, false);
+    ASSERT_TRUE(near.has_limit());
+    near.offer(2);
+    EXPECT_FLOAT_EQ(near.limit(), 0.45f);  // box 12 entered at x = 3.5
+    near.offer(0);
+    EXPECT_FLOAT_EQ(near.limit(), 0.05f);
+    EXPECT_EQ(closest.uid, 10u);
+}
+
+TEST(ExactCollector, AtTheCandidateLevelYieldsEveryOfferUntested) {
+    const SlotBoxes boxes = collector_boxes();
+    const SegmentSlabs slabs(Segment{{-1, 0, 0}, {9, 0, 0}});
+    std::vector<Uid> seen;
+    auto all = [&](Uid u, float t) {
+        EXPECT_EQ(t, 0.0f);
+        seen.push_back(u);
+        return true;
+    };
+    ExactCollector c(slabs, boxes, all, true);
+    EXPECT_EQ(c.offer(3), ExactCollector::Offer::hit);
+    c.add_tests(4);  // a library's own box tests
+    EXPECT_EQ(c.tests(), 4u);
+    EXPECT_EQ(c.hits(), 1u);
+    EXPECT_EQ(seen, (std::vector<Uid>{13}));
+}
+
+TEST(ExactCollector, WithinReachRefusesNonFiniteAndFarSegments) {
+    EXPECT_TRUE(within_reach(Segment{{-16, 0, 0}, {16, 0, 0}}, 16));
+    EXPECT_FALSE(within_reach(Segment{{-16.5f, 0, 0}, {0, 0, 0}}, 16));
+    EXPECT_FALSE(within_reach(Segment{{0, 0, 0}, {0, 0, -17}}, 16));
+    EXPECT_FALSE(within_reach(Segment{{0, std::numeric_limits<float>::quiet_NaN(), 0}, {0, 0, 0}}, 16));
+    EXPECT_FALSE(within_reach(Segment{{0, 0, 0}, {std::numeric_limits<float>::infinity(), 0, 0}}, 16));
+}
+
+/// What a library does is up to it; the frame around it counts the collector's work, or scans when
+/// the library refuses the segment, and does nothing without objects.
+TEST(ExactCollector, TraverseOrScanCountsTheLibrarysOffersOrScans) {
+    const SlotBoxes boxes = collector_boxes();
+    const Segment seg{{-1, 0, 0}, {9, 0, 0}};
+    Counters sums;
+    Counting count{&sums};
+    std::vector<Uid> seen;
+    auto all = [&](Uid u, float) {
+        seen.push_back(u);
+        return true;
+    };
+    traverse_or_scan(seg, boxes, count, all, [](ExactCollector& c) {
+        c.offer(0);
+        c.offer(3);
+        return true;
+    });
+    EXPECT_EQ(sums.n_rb, 2u);
+    EXPECT_EQ(sums.n_tp, 1u);
+    EXPECT_EQ(seen, (std::vector<Uid>{10}));
+    sums = {};
+    seen.clear();
+    traverse_or_scan(seg, boxes, count, all, [](ExactCollector&) { return false; });
+    EXPECT_EQ(sums.n_rb, 4u);  // the scan tests every box
+    EXPECT_EQ(seen, (std::vector<Uid>{10, 11, 12}));
+    sums = {};
+    bool called = false;
+    traverse_or_scan(seg, SlotBoxes{}, count, all, [&](ExactCollector&) { return called = true; });
+    EXPECT_FALSE(called);
+    EXPECT_EQ(sums, Counters{});
 }
 
 }  // namespace

@@ -15,21 +15,12 @@ struct BulletDbvt::Stack {
 
 namespace {
 
-/// The collector: every leaf btDbvt's ray test reaches is decided by rcb's exact test.
-struct ExactLeafTest : btDbvt::ICollide {
-    BulletDbvt::Query* q;
-    explicit ExactLeafTest(BulletDbvt::Query* query) : q(query) {}
-    void Process(const btDbvtNode* leaf) override {
-        if (q->stopped) return;  // btDbvt's ray test cannot be stopped early; the rest is skipped
-        const auto slot = static_cast<std::uint32_t>(leaf->dataAsInt);
-        float tn = 0, tf;
-        if (!q->candidates) {
-            ++q->tests;
-            if (!q->slabs->clip(q->self->box_at(slot), tn, tf)) return;
-        }
-        ++q->hits;
-        if (!q->on_hit(q->visit, q->self->uid_at(slot), tn)) q->stopped = true;
-    }
+/// Hands every leaf btDbvt's ray test reaches to the exact collector. rayTestInternal has no way
+/// to end its walk, so after a stop the collector declines the remaining leaves untested.
+struct OfferLeaves : btDbvt::ICollide {
+    ExactCollector* collect;
+    explicit OfferLeaves(ExactCollector* c) : collect(c) {}
+    void Process(const btDbvtNode* leaf) override { collect->offer(static_cast<std::uint32_t>(leaf->dataAsInt)); }
 };
 
 }  // namespace
@@ -99,12 +90,8 @@ void BulletDbvt::commit() {
     if (params_.optimize_passes > 0) tree_->optimizeIncremental(params_.optimize_passes);
 }
 
-bool BulletDbvt::dbvt_query(const Segment& s, Query& q, Counting* count) {
-    if (objects_.empty()) return true;
-    if (scale_ < kMinScale || !is_finite(s.p0) || !is_finite(s.p1)) return false;
-    const float far = kFarFactor * scale_;
-    for (int a = 0; a < 3; ++a)
-        if (std::abs(s.p0[a]) > far || std::abs(s.p1[a]) > far) return false;
+bool BulletDbvt::dbvt_query(const Segment& s, ExactCollector& collect, Counting* count) {
+    if (scale_ < kMinScale || !within_reach(s, kFarFactor * scale_)) return false;
     const btVector3 from(s.p0.x, s.p0.y, s.p0.z), to(s.p1.x, s.p1.y, s.p1.z);
     const btVector3 d = to - from;
     // As btDbvt::rayTest does, but unnormalised so that λ ∈ [0, 1] is the segment itself.
@@ -114,10 +101,10 @@ bool BulletDbvt::dbvt_query(const Segment& s, Query& q, Counting* count) {
         inv[a] = d[a] == btScalar(0) ? btScalar(BT_LARGE_FLOAT) : btScalar(1) / d[a];
         signs[a] = inv[a] < btScalar(0);
     }
-    ExactLeafTest collect(&q);
+    OfferLeaves leaves(&collect);
     const btVector3 zero(0, 0, 0);
     if (!count) {
-        tree_->rayTestInternal(tree_->m_root, from, to, inv, signs, btScalar(1), zero, zero, stack_->nodes, collect);
+        tree_->rayTestInternal(tree_->m_root, from, to, inv, signs, btScalar(1), zero, zero, stack_->nodes, leaves);
         return true;
     }
     // The counting pass: btDbvt::rayTestInternal's walk step for step (the same node test in the
@@ -137,7 +124,7 @@ bool BulletDbvt::dbvt_query(const Segment& s, Query& q, Counting* count) {
             stack.push_back(node->childs[0]);
             stack.push_back(node->childs[1]);
         } else {
-            collect.Process(node);
+            leaves.Process(node);
         }
     }
     return true;

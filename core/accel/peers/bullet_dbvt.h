@@ -2,10 +2,13 @@
 /// Peer: Bullet's dynamic AABB tree btDbvt used as btDbvtBroadphase uses it: a leaf per object,
 /// updates as remove and reinsert, `optimize_passes` of optimizeIncremental per commit, rays through
 /// rayTestInternal. btDbvt's float ray test can miss touching boxes, so its leaves are padded boxes
-/// and each candidate is decided by rcb's own slab test on the unpadded box: hits equal every rcb
-/// structure's. Far or non-finite segments go to an exact scan. Counters: N_RB = candidate leaves
-/// plus scan tests; N_T, N_TH and N_MP from the counting pass's replica of rayTestInternal's walk
-/// (the library's loop has no hook). docs/structures.md has the exactness argument.
+/// and each candidate is decided by rcb's own slab test on the unpadded box (exact_collector.h):
+/// hits equal every rcb structure's. Far or non-finite segments go to an exact scan. Closest and
+/// any hit: rayTestInternal takes its ray length lambda_max by value and has no exit, so its walk
+/// cannot be shortened at a hit nor stopped; an any-hit query tests no leaf after its first hit.
+/// Counters: N_RB = candidate leaves tested plus scan tests; N_T, N_TH and N_MP from the counting
+/// pass's replica of rayTestInternal's walk (the library's loop has no hook). docs/structures.md
+/// has the exactness argument.
 
 #include <cstdint>
 #include <memory>
@@ -13,7 +16,7 @@
 #include <vector>
 
 #include "core/accel/params.h"
-#include "core/accel/common/box_scan.h"
+#include "core/accel/common/exact_collector.h"
 #include "core/accel/common/slot_boxes.h"
 #include "core/accel/structure.h"
 
@@ -62,25 +65,13 @@ public:
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit);
 
-    /// The collector's view of one query (public for the policy in the .cpp).
-    struct Query {
-        const SegmentSlabs* slabs;
-        const BulletDbvt* self;
-        void* visit;
-        bool (*on_hit)(void* visit, Uid uid, float t);
-        bool candidates = false;  ///< yield every leaf btDbvt reaches, untested (counters.h)
-        std::uint64_t tests = 0;
-        std::uint64_t hits = 0;
-        bool stopped = false;
-    };
-    const Aabb& box_at(std::uint32_t slot) const { return objects_.box(slot); }
     float pad() const { return params_.robust ? kPadRelative * scale_ : 0.0f; }
-    Uid uid_at(std::uint32_t slot) const { return objects_.uid(slot); }
 
 private:
-    /// Runs btDbvt's ray test, or with `count` (the counting pass) the same walk with its node
-    /// visits counted; false when the segment needs the exact fallback.
-    bool dbvt_query(const Segment& s, Query& q, Counting* count = nullptr);
+    /// Runs btDbvt's ray test, every leaf it reaches offered to `collect`, or with `count` (the
+    /// counting pass) the same walk with its node visits counted; false when the segment needs the
+    /// exact fallback.
+    bool dbvt_query(const Segment& s, ExactCollector& collect, Counting* count = nullptr);
     void set_leaf(std::uint32_t slot);  // inserts or updates the slot's leaf with its padded box
     /// Grows the scale (and re-pads every leaf) when `box` lies beyond it.
     void cover(const Aabb& box);
@@ -98,19 +89,11 @@ private:
 
 template <class Count, class Visit>
 void BulletDbvt::traverse(const Segment& s, Count& count, Visit&& visit) {
-    const SegmentSlabs slabs(s);
-    Query q{&slabs, this, &visit,
-            [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); },
-            Count::candidates};
-    Counting* counting = nullptr;
-    if constexpr (Count::enabled) counting = &count;
-    if (!dbvt_query(s, q, counting)) {
-        scan_boxes(slabs, std::span<const Aabb>(objects_.layout().all()), std::span<const Uid>(objects_.uids()), count,
-                   visit);  // the exact fallback
-        return;
-    }
-    count.box_tests(q.tests);
-    count.hits(q.hits);
+    traverse_or_scan(s, objects_, count, visit, [&](ExactCollector& collect) {
+        Counting* counting = nullptr;
+        if constexpr (Count::enabled) counting = &count;
+        return dbvt_query(s, collect, counting);
+    });
 }
 
 }  // namespace rcb

@@ -32,7 +32,7 @@ namespace {
 
 struct QueryContext {
     RTCIntersectContext base;  // first member: Embree hands our pointer back to the callbacks
-    EmbreeBoxes::Query* query;
+    ExactCollector* collect;
 };
 
 void bounds_callback(const RTCBoundsFunctionArguments* args) {
@@ -44,26 +44,30 @@ void bounds_callback(const RTCBoundsFunctionArguments* args) {
     o->upper_x = b.max.x + pad, o->upper_y = b.max.y + pad, o->upper_z = b.max.z + pad;
 }
 
-/// Records a hit without committing it (tfar unchanged), so traversal goes on; the decision is
-/// rcb's exact SegmentSlabs test on the unpadded box.
+/// rtcIntersect1's callback (all and closest hits): records a hit without committing it, so
+/// Embree keeps traversing; the decision is the exact collector's.
 void intersect_callback(const RTCIntersectFunctionNArguments* args) {
     if (!args->valid[0]) return;
-    auto* ctx = reinterpret_cast<QueryContext*>(args->context);
-    EmbreeBoxes::Query& q = *ctx->query;
-    float tn = 0, tf;
-    if (!q.candidates) {
-        ++q.tests;
-        if (!q.slabs->clip(q.self->box_at(args->primID), tn, tf)) return;
-    }
-    ++q.hits;
-    auto* rayhit = reinterpret_cast<RTCRayHit*>(args->rayhit);
-    if (!q.on_hit(q.visit, q.self->uid_at(args->primID), tn)) {
-        rayhit->ray.tfar = -std::numeric_limits<float>::infinity();  // culls every remaining node
-    } else if (q.limit_of) {
+    ExactCollector& collect = *reinterpret_cast<QueryContext*>(args->context)->collect;
+    const ExactCollector::Offer offer = collect.offer(args->primID);
+    if (offer == ExactCollector::Offer::miss) return;
+    float& tfar = reinterpret_cast<RTCRayHit*>(args->rayhit)->ray.tfar;
+    if (offer == ExactCollector::Offer::stop) {
+        tfar = -std::numeric_limits<float>::infinity();  // culls every remaining node
+    } else if (collect.has_limit()) {
         // The padded bounds are entered before the box itself, so a box entered at or before the
         // nearest hit is still reached (the padding's exactness argument, docs/structures.md).
-        rayhit->ray.tfar = std::min(rayhit->ray.tfar, q.limit_of(q.visit));
+        tfar = std::min(tfar, collect.limit());
     }
+}
+
+/// rtcOccluded1's callback (any hit): the exact hit that ends the query marks the ray occluded
+/// (tfar = -inf), and Embree ends its traversal there.
+void occluded_callback(const RTCOccludedFunctionNArguments* args) {
+    if (!args->valid[0]) return;
+    ExactCollector& collect = *reinterpret_cast<QueryContext*>(args->context)->collect;
+    if (collect.offer(args->primID) == ExactCollector::Offer::stop)
+        reinterpret_cast<RTCRay*>(args->ray)->tfar = -std::numeric_limits<float>::infinity();
 }
 
 void error_callback(void* user, RTCError code, const char* message) {
@@ -100,6 +104,7 @@ EmbreeBoxes::EmbreeBoxes(const Params& params)
     rtcSetGeometryUserData(d.geometry, this);
     rtcSetGeometryBoundsFunction(d.geometry, bounds_callback, nullptr);
     rtcSetGeometryIntersectFunction(d.geometry, intersect_callback);
+    rtcSetGeometryOccludedFunction(d.geometry, occluded_callback);
     rtcSetGeometryBuildQuality(
         d.geometry, params_.refit ? RTC_BUILD_QUALITY_REFIT : (low ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM));
     rtcCommitGeometry(d.geometry);
@@ -152,17 +157,14 @@ void EmbreeBoxes::commit() {
     ++commits_;
 }
 
-bool EmbreeBoxes::embree_query(const Segment& s, Query& q) {
-    if (objects_.empty()) return true;
+bool EmbreeBoxes::embree_query(const Segment& s, ExactCollector& collect, bool occluded) {
     if (!in_range_) return false;
     const Vec3 d = s.delta();
     if (d.x == 0 && d.y == 0 && d.z == 0) return false;
-    if (!is_finite(s.p0) || !is_finite(s.p1)) return false;
-    for (int a = 0; a < 3; ++a)
-        if (std::abs(s.p0[a]) > far_ || std::abs(s.p1[a]) > far_) return false;
+    if (!within_reach(s, far_)) return false;
     QueryContext ctx;
     rtcInitIntersectContext(&ctx.base);
-    ctx.query = &q;
+    ctx.collect = &collect;
     RTCRayHit rh;
     rh.ray.org_x = s.p0.x, rh.ray.org_y = s.p0.y, rh.ray.org_z = s.p0.z;
     rh.ray.dir_x = d.x, rh.ray.dir_y = d.y, rh.ray.dir_z = d.z;
@@ -174,7 +176,10 @@ bool EmbreeBoxes::embree_query(const Segment& s, Query& q) {
     rh.ray.flags = 0;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(device_->scene, &ctx.base, &rh);
+    if (occluded)
+        rtcOccluded1(device_->scene, &ctx.base, &rh.ray);
+    else
+        rtcIntersect1(device_->scene, &ctx.base, &rh);
     return true;
 }
 

@@ -1,14 +1,16 @@
 #pragma once
 /// Peer: Intel Embree 3 over the objects' boxes as a user geometry (primitive id = dense slot).
-/// All hits: the intersect callback records each hit and never commits it, so Embree keeps
-/// traversing. Closest hit: rtcIntersect1's own clipping, the callback setting tfar to the
-/// nearest hit so far (entries at exactly tfar still reach it: ties go to the smaller uid); any
-/// hit: tfar set to -inf after the first, which culls every remaining node. Embree's user-geometry traversal is not
-/// robust, so the bounds it gets are padded and the callback decides with rcb's own slab test on the unpadded box:
-/// hits, t and the touching rule equal every rcb structure's. Rays Embree cannot take (zero length, non-finite, beyond
-/// its range or the padding's) go to an exact scan. `quality` and `refit` map to Embree's build qualities. Counters:
-/// N_RB = callback calls plus scan tests; N_T is not exposed (0). docs/structures.md has the exactness argument and the
-/// limits.
+/// Embree's user-geometry traversal is not robust, so the bounds it gets are padded and each
+/// candidate primitive is decided by rcb's own slab test on the unpadded box (exact_collector.h):
+/// hits, t and the touching rule equal every rcb structure's. All hits: rtcIntersect1, the
+/// intersect callback recording each hit and never committing it, so Embree keeps traversing.
+/// Closest hit: rtcIntersect1 with the callback clipping tfar to the nearest hit so far (entries
+/// at exactly tfar still reach it: ties go to the smaller uid), so Embree culls what lies beyond.
+/// Any hit: rtcOccluded1, Embree's occlusion query; the occluded callback marks the ray occluded
+/// at the first exact hit, which ends the traversal. Rays Embree cannot take (zero length,
+/// non-finite, beyond its range or the padding's) go to an exact scan. `quality` and `refit` map to
+/// Embree's build qualities. Counters: N_RB = callback calls plus scan tests; N_T is not exposed
+/// (0). docs/structures.md has the exactness argument and the limits.
 
 #include <cstdint>
 #include <memory>
@@ -17,7 +19,7 @@
 #include <vector>
 
 #include "core/accel/params.h"
-#include "core/accel/common/box_scan.h"
+#include "core/accel/common/exact_collector.h"
 #include "core/accel/common/slot_boxes.h"
 #include "core/accel/structure.h"
 
@@ -75,16 +77,15 @@ public:
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit);
 
-    /// What the intersect callback needs; public for the C callbacks in the .cpp.
-    struct Query;
     struct Device;  // RTCDevice, RTCScene, RTCGeometry and the task arena
+    /// For the bounds callback in the .cpp.
     const Aabb& box_at(std::uint32_t slot) const { return objects_.box(slot); }
-    Uid uid_at(std::uint32_t slot) const { return objects_.uid(slot); }
     float pad() const { return pad_; }
 
 private:
-    /// Runs Embree on one segment; returns false when the segment needs the fallback.
-    bool embree_query(const Segment& s, Query& q);
+    /// Runs Embree on one segment, every primitive it reaches offered to `collect`: rtcOccluded1
+    /// when `occluded` (any hit), else rtcIntersect1. False when the segment needs the fallback.
+    bool embree_query(const Segment& s, ExactCollector& collect, bool occluded);
 
     Params params_;
     Quality quality_;
@@ -97,34 +98,10 @@ private:
     std::uint64_t commits_ = 0;
 };
 
-struct EmbreeBoxes::Query {
-    const SegmentSlabs* slabs;
-    const EmbreeBoxes* self;
-    void* visit;
-    bool (*on_hit)(void* visit, Uid uid, float t);
-    bool candidates = false;  ///< yield every primitive Embree reaches, untested (counters.h)
-    /// A closest-hit visitor's t_limit (hit_policy.h), or null: after each hit the callback clips
-    /// the ray's tfar to it, so Embree culls what lies beyond the nearest hit so far.
-    float (*limit_of)(void* visit) = nullptr;
-    std::uint64_t tests = 0;
-    std::uint64_t hits = 0;
-};
-
 template <class Count, class Visit>
 void EmbreeBoxes::traverse(const Segment& s, Count& count, Visit&& visit) {
-    const SegmentSlabs slabs(s);
-    using V = std::remove_reference_t<Visit>;
-    Query q{&slabs, this, &visit, [](void* v, Uid uid, float t) { return bool((*static_cast<V*>(v))(uid, t)); },
-            Count::candidates};
-    if constexpr (HasTLimit<std::remove_cv_t<V>>)
-        q.limit_of = [](void* v) { return float(static_cast<V*>(v)->t_limit); };
-    if (!embree_query(s, q)) {
-        scan_boxes(slabs, std::span<const Aabb>(objects_.layout().all()), std::span<const Uid>(objects_.uids()), count,
-                   visit);  // the exact fallback
-        return;
-    }
-    count.box_tests(q.tests);
-    count.hits(q.hits);
+    traverse_or_scan(s, objects_, count, visit,
+                     [&](ExactCollector& collect) { return embree_query(s, collect, StopsAtFirstHit<Visit>); });
 }
 
 }  // namespace rcb

@@ -84,20 +84,11 @@ private:
     std::int64_t start_;
 };
 
-/// dSpaceCollide2's callback: the geom that is not the ray is a candidate, decided by rcb's exact
-/// test. ODE cannot be stopped mid-query, so after a stop the rest is skipped.
+/// dSpaceCollide2's callback: the geom that is not the ray is offered to the exact collector. ODE
+/// cannot be stopped mid-query, so after a stop the collector declines the rest untested.
 void near_callback(void* data, dGeomID a, dGeomID b) {
-    auto& q = *static_cast<OdeSpace::Query*>(data);
-    if (q.stopped) return;
     const dGeomID object = dGeomGetClass(a) == dRayClass ? b : a;
-    const std::uint32_t slot = slot_of(object);
-    float tn = 0, tf;
-    if (!q.candidates) {
-        ++q.tests;
-        if (!q.slabs->clip(q.self->box_at(slot), tn, tf)) return;
-    }
-    ++q.hits;
-    if (!q.on_hit(q.visit, q.self->uid_at(slot), tn)) q.stopped = true;
+    static_cast<ExactCollector*>(data)->offer(slot_of(object));
 }
 
 }  // namespace
@@ -188,12 +179,8 @@ void OdeSpace::move(const Object& o) {
     set_geom(slot);
 }
 
-bool OdeSpace::ode_query(const Segment& s, Query& q) {
-    if (objects_.empty()) return true;
-    if (!is_finite(s.p0) || !is_finite(s.p1)) return false;
-    const float far = kFarFactor * scale_;
-    for (int a = 0; a < 3; ++a)
-        if (std::abs(s.p0[a]) > far || std::abs(s.p1[a]) > far) return false;
+bool OdeSpace::ode_query(const Segment& s, ExactCollector& collect) {
+    if (!within_reach(s, kFarFactor * scale_)) return false;
     const double dx = double(s.p1.x) - double(s.p0.x), dy = double(s.p1.y) - double(s.p0.y),
                  dz = double(s.p1.z) - double(s.p0.z);
     const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
@@ -201,8 +188,8 @@ bool OdeSpace::ode_query(const Segment& s, Query& q) {
     OdeBytes bytes(ode_->bytes);  // the space's dirty geoms are re-filed here, which may allocate
     dGeomRaySet(ode_->ray, s.p0.x, s.p0.y, s.p0.z, dx, dy, dz);
     dGeomRaySetLength(ode_->ray, length);
-    dSpaceCollide2(ode_->ray, reinterpret_cast<dGeomID>(ode_->space), &q, near_callback);
-    if (kind_ == Kind::hash) q.tests += objects_.size();  // its scan of every geom's AABB (see the header)
+    dSpaceCollide2(ode_->ray, reinterpret_cast<dGeomID>(ode_->space), &collect, near_callback);
+    if (kind_ == Kind::hash) collect.add_tests(objects_.size());  // its scan of every geom's AABB (see the header)
     return true;
 }
 

@@ -14,19 +14,23 @@
 ///                 dSpaceCollide2 with a single geom scans every geom's AABB linearly (the source
 ///                 says so: "this could take advantage of the hash structure ... but it does not
 ///                 yet").
-/// Rays ODE's AABBs cannot bound exactly (zero length, non-finite, beyond kFarFactor × the scene's
-/// scale) go to an exact scan. Counters: N_RB = the exact tests of the geoms the space reports, plus
-/// for the hash space its scan of every geom's AABB (the quadtree's own AABB tests in the blocks it
-/// visits are not exposed), plus scan tests; N_T is not exposed (0), as for Embree. Memory: rcb's arrays plus the bytes
-/// ODE allocated for this instance (counted through ODE's allocation hooks while the instance runs; one instance per
-/// thread at a time).
+/// Both test against the ray's whole AABB, computed once per dSpaceCollide2 call, and the call has no
+/// exit: a closest-hit query cannot shorten the ray at a hit (the ray's ClosestHit flag is read by
+/// the trimesh collider only, collision.h), and an any-hit query only tests no geom after its
+/// first hit (exact_collector.h). Rays ODE's AABBs cannot bound exactly (zero length, non-finite,
+/// beyond kFarFactor × the scene's scale) go to an exact scan. Counters: N_RB = the exact tests of
+/// the geoms the space reports, plus for the hash space its scan of every geom's AABB (the
+/// quadtree's own AABB tests in the blocks it visits are not exposed), plus scan tests; N_T is not
+/// exposed (0), as for Embree. Memory: rcb's arrays plus the bytes ODE allocated for this instance
+/// (counted through ODE's allocation hooks while the instance runs; one instance per thread at a
+/// time).
 
 #include <cstdint>
 #include <memory>
 #include <tuple>
 #include <vector>
 
-#include "core/accel/common/box_scan.h"
+#include "core/accel/common/exact_collector.h"
 #include "core/accel/common/slot_boxes.h"
 #include "core/accel/params.h"
 #include "core/accel/structure.h"
@@ -55,41 +59,16 @@ public:
     nlohmann::json stats() const;
     void validate(const char* who) const;
 
-    /// The collector's view of one query (public for the callback in the .cpp).
-    struct Query {
-        const SegmentSlabs* slabs;
-        const OdeSpace* self;
-        void* visit;
-        bool (*on_hit)(void* visit, Uid uid, float t);
-        bool candidates = false;  ///< yield every geom ODE reports, untested (counters.h)
-        std::uint64_t tests = 0;
-        std::uint64_t hits = 0;
-        bool stopped = false;
-    };
-    const Aabb& box_at(std::uint32_t slot) const { return objects_.box(slot); }
-    Uid uid_at(std::uint32_t slot) const { return objects_.uid(slot); }
-
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit) {
-        const SegmentSlabs slabs(s);
-        Query q{
-            &slabs, this, &visit,
-            [](void* v, Uid uid, float t) { return bool((*static_cast<std::remove_reference_t<Visit>*>(v))(uid, t)); },
-            Count::candidates};
-        if (!ode_query(s, q)) {
-            scan_boxes(slabs, std::span<const Aabb>(objects_.layout().all()), std::span<const Uid>(objects_.uids()),
-                       count, visit);  // the exact fallback
-            return;
-        }
-        count.box_tests(q.tests);
-        count.hits(q.hits);
+        traverse_or_scan(s, objects_, count, visit, [&](ExactCollector& collect) { return ode_query(s, collect); });
     }
 
 private:
     struct Ode;
-    /// dSpaceCollide2 of the segment's ray against the space; false when the segment needs the
-    /// exact fallback.
-    bool ode_query(const Segment& s, Query& q);
+    /// dSpaceCollide2 of the segment's ray against the space, every geom it reports offered to
+    /// `collect`; false when the segment needs the exact fallback.
+    bool ode_query(const Segment& s, ExactCollector& collect);
     void set_geom(std::uint32_t slot);  ///< the slot's geom to its padded box
     void cover(const Aabb& box);        ///< grows the scale (re-pads every geom) when `box` lies beyond it
     float pad() const { return kPadRelative * scale_; }
