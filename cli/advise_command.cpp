@@ -72,7 +72,8 @@ void print_budget(const std::vector<ParameterChoice>& choices, std::uint32_t rep
 /// baselines of advise's budget, each priced from the exhaustive table.
 void print_methods(const std::vector<ExhaustiveAdvice>& exhaustive, std::uint64_t seed) {
     std::cout << "\nEach method's choice priced from the same exhaustive measurements (regret: its cost over the "
-                 "scene's best, minus 1; random and descent: no model, advise's timed configurations, random seed "
+                 "scene's best, minus 1; random and descent: no model, advise's timed configurations, chosen on a "
+                 "second measurement of the space, random seed "
               << seed << "):\n";
     TextTable t({"structure", "method", "configurations timed", "parameters", "ms", "regret"});
     for (const ExhaustiveAdvice& x : exhaustive)
@@ -157,8 +158,9 @@ void add_advise_command(CLI::App& app) {
         "the advised and the category's parameters are from the scene's own best (needs --tuning); beside "
         "them the pure-model choice (what --verify-top 0 --refine 0 advises) and two baselines with "
         "advise's number of timed configurations and no model: random configurations (--seed) and a "
-        "measured descent from the category's parameters. All are priced from the same exhaustive "
-        "measurements, so they share its noise and the budgets match exactly");
+        "measured descent from the category's parameters. The space is measured twice: the baselines "
+        "choose on the first table, and every method is priced on the second, so they share its noise, "
+        "none is scored by the numbers it chose on, and the budgets match exactly");
     cmd->add_option("--seed", o->seed, "Seed of --exhaustive's random baseline (default: the tuning's search seed)")
         ->check(whole_number())
         ->needs(exhaustive);

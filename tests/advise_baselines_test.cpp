@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <optional>
 #include <set>
 
 #include "tuner/advise.h"
@@ -136,6 +137,34 @@ TEST(AdviseBaselines, EveryMethodIsPricedFromTheSameTable) {
     // Without a model (the category method) there is no pure-model row.
     in.predicted_best.reset();
     EXPECT_EQ(compare_methods(in).size(), 4u);
+}
+
+TEST(AdviseBaselines, BaselinesChooseOnTheirOwnTableAndArePricedOnTheShared) {
+    // One configuration looks fastest in the baselines' table by noise; the shared table, which
+    // scores every method, prices it at what it is.
+    MethodInputs in;
+    in.space = grid_space(4, 4);
+    in.configurations = enumerate_space(in.space);
+    in.costs = table(in.configurations, [](int a, int b) { return 1.0 + std::abs(a - 3) + std::abs(b - 2); });
+    in.choice_costs = in.costs;
+    in.advised = {{"a", 3}, {"b", 2}};
+    in.category = {{"a", 1}, {"b", 1}};
+    in.budget = 16;  // random sees every configuration
+    in.seed = 3;
+    const std::optional<std::size_t> decoy = [&]() -> std::optional<std::size_t> {
+        for (std::size_t i = 0; i < in.configurations.size(); ++i)
+            if (in.configurations[i] == json{{"a", 1}, {"b", 4}}) return i;
+        return std::nullopt;
+    }();
+    ASSERT_TRUE(decoy);
+    in.choice_costs[*decoy] = 0.5;  // faster than the true best in the baselines' eyes only
+    const std::vector<MethodOutcome> m = compare_methods(in);
+    ASSERT_EQ(m.size(), 4u);
+    EXPECT_EQ(m[2].method, "random");
+    EXPECT_EQ(m[2].searched, (json{{"a", 1}, {"b", 4}}));
+    EXPECT_DOUBLE_EQ(m[2].ms, in.costs[*decoy]);  // priced on the shared table
+    EXPECT_DOUBLE_EQ(m[2].regret, in.costs[*decoy] - 1.0);
+    EXPECT_DOUBLE_EQ(m[0].regret, 0.0);  // advise found the true best
 }
 
 TEST(AdviseBaselines, ThePureModelChoiceIsWhatVerifyTopZeroAdvises) {

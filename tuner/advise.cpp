@@ -426,12 +426,14 @@ void measure_rows(RowPlan& plan, const std::vector<ParameterChoice>& choices,
 
 ExhaustiveAdvice compare_exhaustively(const ParameterChoice& pc, const std::vector<json>& configurations,
                                       const std::vector<MeasuredCost>& costs, const AccuracyConstraint& accuracy,
-                                      std::uint64_t seed) {
+                                      std::uint64_t seed, const std::vector<MeasuredCost>& choice_costs) {
     ExhaustiveAdvice ex;
     ex.structure = pc.structure;
     ex.budget = pc.budget;
-    MethodInputs in{pc.space,          configurations,  {},  pc.chosen_searched, pc.category_searched,
-                    pc.predicted_best, pc.budget.timed, seed};
+    MethodInputs in;
+    in.space = pc.space, in.configurations = configurations, in.advised = pc.chosen_searched;
+    in.category = pc.category_searched, in.predicted_best = pc.predicted_best;
+    in.budget = pc.budget.timed, in.seed = seed;
     ex.advised_searched = pc.chosen_searched;
     ex.category_searched = pc.category_searched;
     ex.best_ms = INFINITY;
@@ -444,6 +446,7 @@ ExhaustiveAdvice compare_exhaustively(const ParameterChoice& pc, const std::vect
         if (same_point(p, pc.chosen_searched, pc.space)) ex.advised_ms = ms;
         if (same_point(p, pc.category_searched, pc.space)) ex.category_ms = ms;
     }
+    for (const MeasuredCost& c : choice_costs) in.choice_costs.push_back(constrained_cost(c, accuracy));
     ex.methods = compare_methods(in);
     return ex;
 }
@@ -526,9 +529,13 @@ std::vector<ExhaustiveAdvice> check_exhaustively(const std::vector<ParameterChoi
         const std::vector<json> all = enumerate_space(pc.space);
         std::vector<json> full_params;
         for (const json& p : all) full_params.push_back(ts.with(info, p, o.tuning));
+        // Two independent tables: the baselines choose on the first, every method is priced on
+        // the second (advise_baselines.h).
+        const std::vector<MeasuredCost> seen =
+            measure_interleaved(meter.scene, pc.structure, full_params, o.warmup, o.repetitions, meter.verify());
         const std::vector<MeasuredCost> costs =
             measure_interleaved(meter.scene, pc.structure, full_params, o.warmup, o.repetitions, meter.verify());
-        out.push_back(compare_exhaustively(pc, all, costs, o.accuracy, o.seed.value_or(selection.seed)));
+        out.push_back(compare_exhaustively(pc, all, costs, o.accuracy, o.seed.value_or(selection.seed), seen));
     }
     return out;
 }

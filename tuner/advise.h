@@ -275,10 +275,11 @@ void measure_rows(RowPlan& plan, const std::vector<ParameterChoice>& choices,
 /// (`configurations` searched parameters and their `costs`): configurations that fail the
 /// accuracy priced out (constrained_cost), as tune --exhaustive does; beside it the pure model,
 /// the category's parameters and the baselines of the choice's budget (compare_methods, the
-/// random one seeded by `seed`), all priced from the same table.
+/// random one seeded by `seed`), all priced from the same table. The baselines choose by
+/// `choice_costs`, an independent measurement of the same configurations (empty: by `costs`).
 ExhaustiveAdvice compare_exhaustively(const ParameterChoice& choice, const std::vector<nlohmann::json>& configurations,
                                       const std::vector<MeasuredCost>& costs, const AccuracyConstraint& accuracy,
-                                      std::uint64_t seed = 1);
+                                      std::uint64_t seed = 1, const std::vector<MeasuredCost>& choice_costs = {});
 
 /// InputError for a missing scene, a method other than auto, category or model, --category or
 /// --exhaustive without --tuning, a tuning file that is not a

@@ -96,11 +96,13 @@ std::vector<MethodOutcome> compare_methods(const MethodInputs& in) {
     auto add = [&](const std::string& method, std::size_t timed, std::optional<std::size_t> k) {
         if (k) out.push_back({method, timed, in.configurations[*k], in.costs[*k], in.costs[*k] / best - 1});
     };
-    // The fastest of `picks` by the table (ties: the first picked).
+    // What the baselines see while choosing: their own table when there is one.
+    const std::vector<double>& seen = in.choice_costs.empty() ? in.costs : in.choice_costs;
+    // The fastest of `picks` as the baseline saw them (ties: the first picked).
     auto fastest = [&](const std::vector<std::size_t>& picks) {
         std::optional<std::size_t> k;
         for (const std::size_t i : picks)
-            if (!k || in.costs[i] < in.costs[*k]) k = i;
+            if (!k || seen[i] < seen[*k]) k = i;
         return k;
     };
     add("advise", in.budget, index_of(in.space, in.configurations, in.advised));
@@ -108,8 +110,7 @@ std::vector<MethodOutcome> compare_methods(const MethodInputs& in) {
     add("category", 0, index_of(in.space, in.configurations, in.category));
     const std::vector<std::size_t> random = random_picks(in.configurations.size(), in.budget, in.seed);
     add("random", random.size(), fastest(random));
-    const std::vector<std::size_t> descent =
-        descent_path(in.space, in.configurations, in.costs, in.category, in.budget);
+    const std::vector<std::size_t> descent = descent_path(in.space, in.configurations, seen, in.category, in.budget);
     add("descent", descent.size(), fastest(descent));
     return out;
 }

@@ -16,6 +16,9 @@
 ///
 /// All of them, advise's choice and the category's parameters take their costs from the same
 /// exhaustive measurements, so the comparison shares the noise and the budgets match exactly.
+/// The baselines choose on a second, independent table: a method that picks the fastest of the
+/// very numbers it is then scored by keeps their noise in its favour (the winner's curse), which
+/// advise, choosing on measurements of its own, cannot.
 
 #include <cstdint>
 #include <optional>
@@ -61,9 +64,10 @@ struct MethodOutcome {
 /// What compare_methods needs: the exhaustive table and each method's inputs.
 struct MethodInputs {
     std::vector<SearchDimension> space;
-    std::vector<nlohmann::json> configurations;    ///< enumerate_space(space)
-    std::vector<double> costs;                     ///< per configuration, accuracy priced in
-    nlohmann::json advised, category;              ///< searched parameters
+    std::vector<nlohmann::json> configurations;  ///< enumerate_space(space)
+    std::vector<double> costs;         ///< per configuration, accuracy priced in: what every method is priced by
+    std::vector<double> choice_costs;  ///< what the baselines choose by (an independent table; empty: `costs`)
+    nlohmann::json advised, category;  ///< searched parameters
     std::optional<nlohmann::json> predicted_best;  ///< the model method's; none for the category method
     std::size_t budget = 0;                        ///< advise's timed configurations
     std::uint64_t seed = 1;                        ///< the random baseline's
