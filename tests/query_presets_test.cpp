@@ -34,7 +34,7 @@ std::vector<Object> sparse_cubes(int side) {
     return objects;
 }
 
-bool inside_some_box(const Vec3f& p, const std::vector<Object>& objects) {
+bool inside_some_box(const Vec3T<float>& p, const std::vector<Object>& objects) {
     for (const Object& o : objects)
         if (p.x >= o.box.min.x && p.x <= o.box.max.x && p.y >= o.box.min.y && p.y <= o.box.max.y &&
             p.z >= o.box.min.z && p.z <= o.box.max.z)
@@ -71,9 +71,13 @@ TEST(QueryPresets, EachRayCarriesItsModesKindAndStartsOutsideItsAgent) {
             const QueryKind want = i < 100 ? QueryKind::closest : (i < 160 ? QueryKind::any : QueryKind::all);
             EXPECT_EQ(f.kinds[i], want) << i;
             EXPECT_FALSE(inside_some_box(f.rays[i].p0, cubes)) << i;
-            if (i < 100) EXPECT_NEAR(length(f.rays[i]), 0.25 * diagonal, 1e-3) << i;
-            if (i >= 100 && i < 160) EXPECT_FALSE(inside_some_box(f.rays[i].p1, cubes)) << i;
-            if (i >= 160) EXPECT_NEAR(length(f.rays[i]), 3.0, 1e-4) << i;  // three longest edges
+            if (i < 100) {
+                EXPECT_NEAR(length(f.rays[i]), 0.25 * diagonal, 1e-3) << i;
+            } else if (i < 160) {
+                EXPECT_FALSE(inside_some_box(f.rays[i].p1, cubes)) << i;
+            } else {
+                EXPECT_NEAR(length(f.rays[i]), 3.0, 1e-4) << i;  // three longest edges
+            }
         }
     }
     const json meta = json::parse(r.meta);
@@ -193,7 +197,7 @@ TEST(QueryPresets, ExperimentEntriesTakePresetsPhysicsKindsAndTimeSteps) {
     EXPECT_FALSE(e.scenes[1].key.contains("time_step"));  // the default keeps older keys
     EXPECT_FALSE(e.scenes[2].key.contains("queries"));
     EXPECT_EQ(experiment_error(R"({"kind": "pile", "objects": 10, "queries": "x"})"),
-              "exp.json: scenes[0].queries: unknown query preset \"x\" (known: shots, visibility, sensors, game)");
+              "exp.json: scenes[0].queries: unknown query preset 'x' (known: shots, visibility, sensors, game)");
     EXPECT_EQ(experiment_error(R"({"kind": "pile", "objects": 10, "queries": "game", "ray_mix": "los"})"),
               "exp.json: scenes[0].ray_mix: a query preset (\"queries\") sets the ray modes and their kinds");
     EXPECT_EQ(experiment_error(R"({"kind": "uniform", "objects": 10, "time_step": 0.01})"),

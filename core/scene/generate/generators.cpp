@@ -750,12 +750,19 @@ template <class Another>
 Segment agent_ray(const std::string& mode, const Aabbd& a, Another&& another, Random& rng, double diagonal) {
     const Vec3d from = a.center();
     if (mode == "sight") {
-        const Aabbd b = another();
-        const Vec3d d = b.center() - from;
+        // Another agent, not one at the same place (a few draws; a stack of identical boxes may
+        // have no other place, and its sight line is then a point just outside the agent).
+        Aabbd b = another();
+        Vec3d d = b.center() - from;
+        for (int draw = 0; draw < 8 && d.x == 0 && d.y == 0 && d.z == 0; ++draw) b = another(), d = b.center() - from;
         const double len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
         const double s0 = clearance(a), s1 = len - clearance(b);
-        if (!(len > 0) || s1 <= s0) {
-            const Vec3d mid = len > 0 ? from + d * (0.5 * (s0 + std::max(s1, 0.0)) / len) : from;
+        if (!(len > 0)) {
+            const Vec3d point = from + Vec3d{s0, 0, 0};
+            return segment_from(point, point);
+        }
+        if (s1 <= s0) {
+            const Vec3d mid = from + d * (0.5 * (s0 + std::max(s1, 0.0)) / len);
             return segment_from(mid, mid);
         }
         return segment_from(from + d * (s0 / len), from + d * (s1 / len));
