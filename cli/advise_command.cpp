@@ -103,6 +103,7 @@ void print_advice(const Advice& advice, const AdviseOptions& options, bool as_js
             throw InputError(options.scene + ": no configuration meets --accuracy " + options.accuracy.text());
         return;
     }
+    std::cout << advice.workload_text << "\n\n";
     if (advice.chosen) std::cout << "Scene " << options.scene << " -> " << advice.chosen->explanation << "\n\n";
     for (const ParameterChoice& pc : advice.parameters) std::cout << pc.summary << '\n';
     if (!advice.parameters.empty()) std::cout << '\n';

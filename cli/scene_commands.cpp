@@ -17,6 +17,7 @@
 #include "core/base/json_input.h"
 #include "core/base/output_file.h"
 #include "core/scene/recording_io.h"
+#include "core/scene/workload.h"
 #include "core/sim/scene_features.h"
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
@@ -32,6 +33,7 @@ struct DynamicsOptions {
     std::uint32_t rays = 1000;
     std::string ray_mix = "center";
     std::string query_mix = "all";
+    std::string queries;  ///< a query preset, instead of --ray-mix and --query-mix
     DynamicsSettings dynamics;
 };
 
@@ -43,13 +45,23 @@ void add_dynamics_options(CLI::App& cmd, DynamicsOptions& o) {
         ->capture_default_str()
         ->check(whole_number());
     cmd.add_option("--rays", o.rays, "Rays per frame")->capture_default_str()->check(whole_number(0, 100'000'000));
-    cmd.add_option("--ray-mix", o.ray_mix,
-                   "Ray modes with weights, of " + join(ray_mode_names()) + " (e.g. center:0.7,los:0.3)")
-        ->capture_default_str();
-    cmd.add_option("--query-mix", o.query_mix,
-                   "Query kinds with weights, of all, closest, any (e.g. closest:0.6,any:0.3,all:0.1), drawn per "
-                   "ray from the seed's own stream; only all keeps the file's older format")
-        ->capture_default_str();
+    CLI::Option* ray_mix =
+        cmd.add_option("--ray-mix", o.ray_mix,
+                       "Ray modes with weights, of " + join(ray_mode_names()) + " (e.g. center:0.7,los:0.3)")
+            ->capture_default_str();
+    CLI::Option* query_mix =
+        cmd.add_option("--query-mix", o.query_mix,
+                       "Query kinds with weights, of all, closest, any (e.g. closest:0.6,any:0.3,all:0.1), drawn per "
+                       "ray from the seed's own stream; only all keeps the file's older format")
+            ->capture_default_str();
+    cmd.add_option("--queries", o.queries,
+                   "A game query preset instead of --ray-mix and --query-mix, each ray mode with its own kind: shots "
+                   "(fire rays from agents, closest hit), visibility (sight lines between agents, any hit), sensors "
+                   "(short sensor rays around agents, all hits), game (our blend: 50% shots, 30% visibility, 20% "
+                   "sensors); agents are random live objects (docs/recording-format.md, Query presets)")
+        ->check(CLI::IsMember(query_preset_names()))
+        ->excludes(ray_mix)
+        ->excludes(query_mix);
     cmd.add_option("--change-fraction", o.dynamics.change_fraction, "Objects changed per frame, as a fraction")
         ->capture_default_str()
         ->check(finite_range(0.0, 1.0));
@@ -76,6 +88,7 @@ RaySettings ray_settings(const DynamicsOptions& o) {
     } catch (const InputError& e) {
         throw InputError(std::string("--query-mix: ") + e.what());
     }
+    if (!o.queries.empty()) r = with_query_preset(r, o.queries);
     return r;
 }
 
@@ -84,43 +97,6 @@ void print_written(const Recording& r, const std::string& path) {
     for (const Frame& f : r.frames) rays += f.rays.size();
     std::cout << "wrote " << path << ": " << r.initial.size() << " objects, " << r.frames.size() << " frames, " << rays
               << " rays\n";
-}
-
-double percentile(std::vector<double>& sorted, double p) {
-    if (sorted.empty()) return 0;
-    const double pos = p * double(sorted.size() - 1);
-    const std::size_t i = static_cast<std::size_t>(pos);
-    const double frac = pos - double(i);
-    return i + 1 < sorted.size() ? sorted[i] * (1 - frac) + sorted[i + 1] * frac : sorted[i];
-}
-
-/// How much of the scene changes per frame, and how far: the share of the live objects changed
-/// (inserted, removed or moved) per frame, and each move's centre displacement over the object's
-/// longest edge before the move (moves of zero-size objects left out).
-nlohmann::json motion_stats(const Recording& r) {
-    LiveSet live(r.initial);
-    std::vector<double> shares, steps;
-    for (const Frame& f : r.frames) {
-        shares.push_back(live.size() ? double(f.change_count()) / double(live.size()) : 0.0);
-        for (const Object& o : f.moves) {
-            const Aabbd before = live.box(o.uid).as<double>();
-            const Vec3d d = o.box.as<double>().center() - before.center();
-            if (before.longest_edge() > 0)
-                steps.push_back(std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z) / before.longest_edge());
-        }
-        live.apply(f);
-    }
-    nlohmann::json j = {{"first_frames", nlohmann::json::array()}, {"last_frames", nlohmann::json::array()}};
-    for (std::size_t i = 0; i < shares.size() && i < 3; ++i) j["first_frames"].push_back(shares[i]);
-    for (std::size_t i = shares.size() > 3 ? shares.size() - 3 : 0; i < shares.size(); ++i)
-        j["last_frames"].push_back(shares[i]);
-    std::sort(shares.begin(), shares.end());
-    std::sort(steps.begin(), steps.end());
-    j["changed_share"] = {
-        {"p10", percentile(shares, 0.1)}, {"p50", percentile(shares, 0.5)}, {"p90", percentile(shares, 0.9)}};
-    j["move_over_size"] = {
-        {"median", percentile(steps, 0.5)}, {"p90", percentile(steps, 0.9)}, {"moves", steps.size()}};
-    return j;
 }
 
 std::string shares_text(const nlohmann::json& list) {
@@ -164,19 +140,13 @@ void scene_info(const std::string& path, bool as_json) {
     edges.reserve(r.initial.size());
     for (const Object& o : r.initial) edges.push_back(o.box.longest_edge());
     std::sort(edges.begin(), edges.end());
-    std::size_t rays = 0, changes = 0, inserts = 0, removes = 0, moves = 0;
-    std::array<std::size_t, kQueryKinds> query_kinds{};
-    for (const Frame& f : r.frames) {
-        rays += f.rays.size();
-        for (std::size_t i = 0; i < f.rays.size(); ++i) ++query_kinds[int(f.kind(i))];
-        changes += f.change_count();
-        inserts += f.inserts.size(), removes += f.removes.size(), moves += f.moves.size();
-    }
-    const double frames = std::max<double>(1, r.frames.size());
+    const SceneWorkload w = scene_workload(r);
+    const std::array<std::size_t, kQueryKinds>& query_kinds = w.rays_by_kind;
+    const nlohmann::json wj = w.to_json();
     nlohmann::json size = {{"min", edges.empty() ? 0 : edges.front()},
-                           {"p10", percentile(edges, 0.1)},
-                           {"median", percentile(edges, 0.5)},
-                           {"p90", percentile(edges, 0.9)},
+                           {"p10", percentile_of(edges, 0.1)},
+                           {"median", percentile_of(edges, 0.5)},
+                           {"p90", percentile_of(edges, 0.9)},
                            {"max", edges.empty() ? 0 : edges.back()}};
     const nlohmann::json meta = parse_json_document(r.meta, path + ": META");
     nlohmann::json j = {
@@ -186,17 +156,18 @@ void scene_info(const std::string& path, bool as_json) {
         {"shapes", kinds},
         {"changed_shapes", later},
         {"frames", r.frames.size()},
-        {"rays", rays},
-        {"rays_per_frame", rays / frames},
-        {"query_kinds", {{"all", query_kinds[0]}, {"closest", query_kinds[1]}, {"any", query_kinds[2]}}},
-        {"changes_per_frame", changes / frames},
-        {"inserts", inserts},
-        {"removes", removes},
-        {"moves", moves},
+        {"rays", w.rays()},
+        {"rays_per_frame", w.rays_per_frame},
+        {"query_kinds", wj["query_kinds"]},
+        {"query_shares", wj["query_shares"]},
+        {"changes_per_frame", w.changes_per_frame},
+        {"inserts", w.inserts},
+        {"removes", w.removes},
+        {"moves", w.moves},
         {"bounds",
          {{"min", {bounds.min.x, bounds.min.y, bounds.min.z}}, {"max", {bounds.max.x, bounds.max.y, bounds.max.z}}}},
         {"longest_edge", size},
-        {"motion", motion_stats(r)},
+        {"motion", wj["motion"]},
         {"meta", meta}};
     if (as_json) {
         std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
@@ -209,11 +180,14 @@ void scene_info(const std::string& path, bool as_json) {
     t.add({"shapes (frame 0)", kinds_text.empty() ? "none" : kinds_text});
     if (!later_text.empty()) t.add({"shapes inserted or moved", later_text});
     t.add({"frames", std::to_string(r.frames.size())});
-    t.add({"rays per frame", fixed(rays / frames, 1)});
+    t.add({"rays per frame", fixed(w.rays_per_frame, 1)});
     t.add({"query kinds (all rays)", "all " + std::to_string(query_kinds[0]) + ", closest " +
                                          std::to_string(query_kinds[1]) + ", any " + std::to_string(query_kinds[2])});
-    t.add({"changes per frame", fixed(changes / frames, 1) + " (inserts " + std::to_string(inserts) + ", removes " +
-                                    std::to_string(removes) + ", moves " + std::to_string(moves) + " in all)"});
+    if (meta.contains("rays") && meta["rays"].is_object() && meta["rays"].contains("queries"))
+        t.add({"query preset", json_excerpt(meta["rays"]["queries"]) + " (" + w.kinds_text() + ")"});
+    t.add({"changes per frame", fixed(w.changes_per_frame, 1) + " (inserts " + std::to_string(w.inserts) +
+                                    ", removes " + std::to_string(w.removes) + ", moves " + std::to_string(w.moves) +
+                                    " in all)"});
     t.add({"bounds min", fixed(bounds.min.x, 3) + ", " + fixed(bounds.min.y, 3) + ", " + fixed(bounds.min.z, 3)});
     t.add({"bounds max", fixed(bounds.max.x, 3) + ", " + fixed(bounds.max.y, 3) + ", " + fixed(bounds.max.z, 3)});
     t.add({"longest edge min / p10 / median / p90 / max", fixed(size["min"], 3) + " / " + fixed(size["p10"], 3) +
@@ -324,9 +298,7 @@ void run_broadmark_import(const ImportCommandOptions& imp) {
     nlohmann::json meta = nlohmann::json::parse(r.meta);
     meta["frames"] = r.frames.size();
     meta["seed"] = imp.dyn.seed;
-    nlohmann::json mix = nlohmann::json::array();
-    for (const RayMode& m : rays.mix) mix.push_back({{"mode", m.mode}, {"weight", m.weight}});
-    meta["rays"] = {{"per_frame", rays.per_frame}, {"mix", mix}};
+    meta["rays"] = rays_json(rays);
     r.meta = meta.dump();
     write_recording(r, imp.out);
     print_written(r, imp.out);

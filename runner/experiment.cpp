@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "core/scene/import/csv.h"
+#include "core/scene/generate/physics.h"
 #include "core/scene/import/scene_import.h"
 #include "core/base/error.h"
 #include "core/base/json_input.h"
@@ -182,7 +183,7 @@ const std::set<std::string> kSceneKeys = {
     "name",           "preset",     "kind",           "objects",      "recording",       "import",
     "import_options", "frames",     "rays_per_frame", "ray_mix",      "change_fraction", "insert_share",
     "remove_share",   "move_scale", "rotated_share",  "sphere_share", "capsule_share",   "seed",
-    "seeds",          "query_mix"};
+    "seeds",          "query_mix",  "queries",        "time_step"};
 
 /// A missing file. Real maps and models are never committed: one under data/maps/ or data/models/
 /// is fetched on demand, so the message names the script that fetches it.
@@ -200,8 +201,8 @@ std::string file_not_found(const std::string& file) {
 void parse_recording_scene(const json& s, const std::string& path, const std::string& base_dir,
                            std::vector<SceneSpec>& out) {
     for (const char* k :
-         {"objects", "frames", "rays_per_frame", "ray_mix", "query_mix", "change_fraction", "insert_share",
-          "remove_share", "move_scale", "rotated_share", "sphere_share", "capsule_share", "seed", "seeds"})
+         {"objects", "frames", "rays_per_frame", "ray_mix", "query_mix", "queries", "change_fraction", "insert_share",
+          "remove_share", "move_scale", "rotated_share", "sphere_share", "capsule_share", "seed", "seeds", "time_step"})
         if (s.contains(k)) fail(at(path, k), "a recording brings its own objects, frames, rays and dynamics");
     SceneSpec spec;
     spec.source = SceneSpec::Source::recording;
@@ -266,20 +267,50 @@ SceneSource parse_scene_source(const json& s, const std::string& path, const std
     return src;
 }
 
-/// The entry's frames, rays, dynamics and shapes over the file's defaults; returns the ray mix's text.
-std::string parse_scene_settings(const json& s, const std::string& path, const SceneDefaults& d, SceneSettings& base) {
-    base.frames = static_cast<std::uint32_t>(get_uint(s, "frames", path, 1, 1'000'000, d.frames));
-    base.rays.per_frame = static_cast<std::uint32_t>(get_uint(s, "rays_per_frame", path, 0, 100'000'000, d.rays));
+/// The entry's rays: a ray mix and a query mix, or a query preset ("queries") instead of both;
+/// returns the ray mix's text (a preset's modes and weights, "fire:0.5,sight:0.3,sensor:0.2").
+std::string parse_scene_rays(const json& s, const std::string& path, const SceneDefaults& d, RaySettings& rays) {
+    rays.per_frame = static_cast<std::uint32_t>(get_uint(s, "rays_per_frame", path, 0, 100'000'000, d.rays));
+    if (s.contains("queries")) {
+        for (const char* k : {"ray_mix", "query_mix"})
+            if (s.contains(k)) fail(at(path, k), "a query preset (\"queries\") sets the ray modes and their kinds");
+        try {
+            rays = with_query_preset(rays, get_string(s, "queries", path, ""));
+        } catch (const InputError& e) {
+            fail(at(path, "queries"), e.what());
+        }
+        std::string text;
+        for (const RayMode& m : rays.mix) text += (text.empty() ? "" : ",") + m.mode + ":" + json(m.weight).dump();
+        return text;
+    }
     const std::string mix = get_string(s, "ray_mix", path, d.ray_mix);
     try {
-        base.rays.mix = parse_ray_mix(mix);
+        rays.mix = parse_ray_mix(mix);
     } catch (const InputError& e) {
         fail(at(path, "ray_mix"), e.what());
     }
     try {
-        base.rays.query_mix = parse_query_mix(get_string(s, "query_mix", path, "all"));
+        rays.query_mix = parse_query_mix(get_string(s, "query_mix", path, "all"));
     } catch (const InputError& e) {
         fail(at(path, "query_mix"), e.what());
+    }
+    return mix;
+}
+
+/// The entry's frames, rays, dynamics, shapes and time step over the file's defaults; returns the
+/// ray mix's text. A physics kind moves by its simulation: the dynamics keys do not apply to it,
+/// and only it takes a time step.
+std::string parse_scene_settings(const json& s, const std::string& path, const SceneDefaults& d, SceneSettings& base) {
+    base.frames = static_cast<std::uint32_t>(get_uint(s, "frames", path, 1, 1'000'000, d.frames));
+    const std::string mix = parse_scene_rays(s, path, d, base.rays);
+    const bool physics = is_physics_kind(base.kind) && !s.contains("import");
+    for (const char* k : {"change_fraction", "insert_share", "remove_share", "move_scale"})
+        if (physics && s.contains(k))
+            fail(at(path, k), "a physics kind (" + base.kind + ") moves by its simulation, not by " + k);
+    if (s.contains("time_step")) {
+        if (!physics)
+            fail(at(path, "time_step"), "only a physics kind (" + join(physics_kinds()) + ") takes a time step");
+        base.time_step = get_number(s, "time_step", path, 1e-4, 0.1, base.time_step);
     }
     base.dynamics.change_fraction = get_number(s, "change_fraction", path, 0, 1, base.dynamics.change_fraction);
     base.dynamics.insert_share = get_number(s, "insert_share", path, 0, 1, base.dynamics.insert_share);
@@ -318,6 +349,11 @@ SceneSpec concrete_scene(const SceneSource& src, const SceneSettings& base, cons
                 {"seed", seed}};
     // Only when some ray is not `all`: an all-hits scene's key (its results' identity) stays as it was.
     if (!asks_all_only(base.rays.query_mix)) spec.key["query_mix"] = query_mix_json(base.rays.query_mix);
+    if (!base.rays.queries.empty()) spec.key["queries"] = base.rays.queries;
+    // A physics scene's time step, only when it is not the default: older keys stay as they were.
+    if (is_physics_kind(base.kind) && src.source != SceneSpec::Source::import &&
+        base.time_step != SceneSettings{}.time_step)
+        spec.key["time_step"] = base.time_step;
     if (src.source == SceneSpec::Source::import) {
         spec.key["import"] = fs::path(src.file).filename().string();
         if (importer_for(src.file) != "csv") spec.key["import_options"] = spec.import_options = src.import_options;

@@ -356,5 +356,40 @@ TEST_F(AdviseFiles, BadOptionsAndTuningsAreOneLineErrors) {
                "records no search space");
 }
 
+TEST_F(AdviseFiles, PrintsTheScenesQueryKindsAndMotionAndWeighsByThem) {
+    // A scene of game queries whose 5% of objects change per frame: advise reports those, not the
+    // thesis' 1% and all-hits rays, and its per-frame costs are that scene's update plus ray cast.
+    SceneSettings s;
+    s.kind = "uniform";
+    s.objects = 2000;
+    s.frames = 3;
+    s.dynamics.change_fraction = 0.05;
+    s.dynamics.insert_share = s.dynamics.remove_share = 0;
+    s.rays.per_frame = 100;
+    s.rays = with_query_preset(s.rays, "game");
+    write_recording(generate_scene(s), path("game.rcbscene"));
+    AdviseOptions o;
+    o.scene = path("game.rcbscene");
+    o.repetitions = 1;
+    o.warmup = 0;
+    const Advice a = advise(o);
+    EXPECT_DOUBLE_EQ(a.workload.kind_share(QueryKind::closest), 0.5);
+    EXPECT_DOUBLE_EQ(a.workload.kind_share(QueryKind::any), 0.3);
+    EXPECT_DOUBLE_EQ(a.workload.kind_share(QueryKind::all), 0.2);
+    EXPECT_NEAR(a.workload.changed_p50, 0.05, 1e-3);
+    EXPECT_DOUBLE_EQ(a.workload.changes_per_frame, 100.0);
+    EXPECT_GT(a.workload.move_median, 0.0);
+    EXPECT_NE(a.workload_text.find("100 rays (closest 50.0%, any 30.0%, all 20.0%)"), std::string::npos)
+        << a.workload_text;
+    EXPECT_NE(a.workload_text.find("p50 5.0%"), std::string::npos) << a.workload_text;
+    const json j = advice_json(a, o);
+    EXPECT_EQ(j["workload"]["query_kinds"], json({{"all", 60}, {"closest", 150}, {"any", 90}}));
+    EXPECT_NEAR(j["workload"]["motion"]["changed_share"]["p90"].get<double>(), 0.05, 1e-3);
+    EXPECT_EQ(j["workload"]["summary"], a.workload_text);
+    // A boxes CSV has no motion or rays of its own: the summary says which it was given.
+    EXPECT_NE(workload_summary(a.workload, true).find("10 frames of 1% dynamics and 1000 centre rays"),
+              std::string::npos);
+}
+
 }  // namespace
 }  // namespace rcb

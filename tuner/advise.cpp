@@ -575,6 +575,8 @@ Advice advise(const AdviseOptions& o) {
 
     // Every structure measured at its parameters (the model method's choice measured already).
     Advice advice;
+    advice.workload = scene_workload(recording_of(scene.scenes.front()));
+    advice.workload_text = workload_summary(advice.workload, scene.scenes.front().source == SceneSpec::Source::import);
     advice.chosen = selection.chosen;
     RowPlan rows = plan_rows(plan.structures, plan.choices, o.accuracy);
     measure_rows(rows, plan.choices, meter, o.progress);
@@ -585,6 +587,20 @@ Advice advise(const AdviseOptions& o) {
     if (o.exhaustive) advice.exhaustive = check_exhaustively(plan.choices, selection, meter);
     advice.parameters = std::move(plan.choices);
     return advice;
+}
+
+std::string workload_summary(const SceneWorkload& w, bool csv) {
+    auto pct = [](double share) { return fixed(100 * share, 1) + "%"; };
+    std::string text = "Workload per frame: " + fixed(w.rays_per_frame, 0) + " rays (" + w.kinds_text() + "), " +
+                       fixed(w.changes_per_frame, 1) + " objects changed (p50 " + pct(w.changed_p50) + ", p90 " +
+                       pct(w.changed_p90) + " of the live objects), a move " + fixed(w.move_median, 3) +
+                       " of the object's longest edge (median; p90 " + fixed(w.move_p90, 3) + ").";
+    text += csv ? " A boxes CSV has no motion or rays of its own: it is given 10 frames of 1% dynamics and 1000 "
+                  "centre rays, so the advice weighs update against ray cast by those."
+                : " Every cost below is this scene's own update plus ray cast per frame, measured on these frames "
+                  "(the model method predicts it from counting replays of the same frames and rays), so update "
+                  "and ray cast weigh as these counts and kinds make them.";
+    return text;
 }
 
 std::optional<std::size_t> rank_advice(std::vector<AdviceRow>& rows, const AccuracyConstraint& accuracy) {
@@ -641,6 +657,8 @@ json advice_json(const Advice& a, const AdviseOptions& o) {
               {"category", nullptr},        {"parameters", json::array()},
               {"rows", json::array()},      {"recommended", nullptr},
               {"exhaustive", json::array()}};
+    j["workload"] = a.workload.to_json();
+    j["workload"]["summary"] = a.workload_text;
     if (a.chosen)
         j["category"] = {{"name", a.chosen->category},
                          {"distance", a.chosen->match.distance},

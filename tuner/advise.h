@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "analysis/scene_categories.h"
+#include "core/scene/workload.h"
 #include "tuner/advise_baselines.h"
 #include "tuner/tuning.h"
 
@@ -121,7 +122,17 @@ struct ExhaustiveAdvice {
     double category_gap() const { return category_ms / best_ms - 1; }
 };
 
+/// One paragraph on what the scene asks per frame (scene_workload): the rays per frame and the
+/// share of each query kind, the objects changed per frame (p50, p90) and how far a move goes
+/// relative to the object's size; and how the advice weighs them: every cost advise ranks by is
+/// the scene's own update plus ray cast per frame (measured on its frames, or predicted from
+/// counting replays of the same frames), never the thesis' 1% of objects and 1000 rays, unless
+/// the scene is a boxes CSV, which gets those (`csv`).
+std::string workload_summary(const SceneWorkload& workload, bool csv);
+
 struct Advice {
+    SceneWorkload workload;                    ///< what the scene asks per frame
+    std::string workload_text;                 ///< workload_summary's paragraph
     std::vector<AdviceRow> rows;               ///< fastest per frame first
     std::optional<std::size_t> recommended;    ///< the fastest row that meets the accuracy; none when none does
     std::optional<CategoryChoice> chosen;      ///< when the category came from the scene's features

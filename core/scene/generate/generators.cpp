@@ -411,7 +411,9 @@ Segment segment_from(const Vec3d& p0, const Vec3d& p1) { return {p0.as<float>(),
 
 }  // namespace
 
-std::vector<std::string> ray_mode_names() { return {"center", "dense", "los", "ground", "shots", "faces", "inside"}; }
+std::vector<std::string> ray_mode_names() {
+    return {"center", "dense", "los", "ground", "shots", "faces", "inside", "fire", "sight", "sensor"};
+}
 
 std::vector<std::string> scene_kinds() {
     std::vector<std::string> kinds{"uniform",       "irregular", "jittered", "clusters", "stadium", "identical",
@@ -559,6 +561,69 @@ std::vector<QueryKind> generate_kinds(std::size_t rays, const std::vector<QueryS
     return kinds;
 }
 
+std::vector<QueryKind> ray_kinds(std::size_t rays, const RaySettings& settings, std::uint64_t seed,
+                                 std::uint32_t frame) {
+    check_ray_settings(settings);
+    const bool own_kinds =
+        std::any_of(settings.mix.begin(), settings.mix.end(), [](const RayMode& m) { return m.kind.has_value(); });
+    if (!own_kinds) return generate_kinds(rays, settings.query_mix, seed, frame);
+    std::vector<QueryKind> kinds;
+    if (rays == 0) return kinds;
+    // generate_rays makes exactly these counts per mode, in the mix's order (or none at all).
+    std::vector<double> weights;
+    for (const RayMode& m : settings.mix) weights.push_back(m.weight);
+    const std::vector<std::uint32_t> counts = split_by_weight(settings.per_frame, weights);
+    for (std::size_t m = 0; m < settings.mix.size(); ++m)
+        kinds.insert(kinds.end(), counts[m], settings.mix[m].kind.value_or(QueryKind::all));
+    if (kinds.size() != rays) throw std::logic_error("ray_kinds: the rays do not follow the mix");
+    if (std::all_of(kinds.begin(), kinds.end(), [](QueryKind k) { return k == QueryKind::all; })) kinds.clear();
+    return kinds;
+}
+
+std::vector<std::string> query_preset_names() { return {"shots", "visibility", "sensors", "game"}; }
+
+std::vector<RayMode> query_preset_mix(std::string_view name) {
+    const RayMode fire{"fire", 1, QueryKind::closest}, sight{"sight", 1, QueryKind::any},
+        sensor{"sensor", 1, QueryKind::all};
+    if (name == "shots") return {fire};
+    if (name == "visibility") return {sight};
+    if (name == "sensors") return {sensor};
+    if (name == "game") {
+        std::vector<RayMode> mix{fire, sight, sensor};
+        mix[0].weight = 0.5, mix[1].weight = 0.3, mix[2].weight = 0.2;
+        return mix;
+    }
+    throw InputError("unknown query preset " + quoted_excerpt(name) + " (known: " + join(query_preset_names()) + ")");
+}
+
+RaySettings with_query_preset(RaySettings rays, std::string_view name) {
+    rays.mix = query_preset_mix(name);
+    rays.query_mix.clear();
+    rays.queries = std::string(name);
+    return rays;
+}
+
+void check_ray_settings(const RaySettings& rays) {
+    const bool own_kinds =
+        std::any_of(rays.mix.begin(), rays.mix.end(), [](const RayMode& m) { return m.kind.has_value(); });
+    if (own_kinds && !asks_all_only(rays.query_mix))
+        throw InputError("a query preset sets each ray mode's kind; it takes no query mix");
+}
+
+nlohmann::json rays_json(const RaySettings& rays) {
+    nlohmann::json mix = nlohmann::json::array();
+    for (const RayMode& m : rays.mix) {
+        nlohmann::json e = {{"mode", m.mode}, {"weight", m.weight}};
+        if (m.kind) e["kind"] = query_kind_name(*m.kind);  // only with a preset: older bytes stay
+        mix.push_back(std::move(e));
+    }
+    nlohmann::json j = {{"per_frame", rays.per_frame}, {"mix", mix}};
+    // Only when some ray is not `all`, so that an all-hits scene's meta and bytes stay as they were.
+    if (!asks_all_only(rays.query_mix)) j["query_mix"] = query_mix_json(rays.query_mix);
+    if (!rays.queries.empty()) j["queries"] = rays.queries;
+    return j;
+}
+
 nlohmann::json query_mix_json(const std::vector<QueryShare>& mix) {
     nlohmann::json j = nlohmann::json::array();
     for (const QueryShare& q : mix) j.push_back({{"kind", query_kind_name(q.kind)}, {"weight", q.weight}});
@@ -669,6 +734,47 @@ std::vector<Object> outlier_objects(const SceneSettings& s, Random& rng) {
 
 }  // namespace
 
+namespace {
+
+/// Half the box's diagonal (its bounding sphere's radius) and a little more: a point this far from
+/// the centre lies outside the box, so the query presets' rays never meet their own agent.
+double clearance(const Aabbd& box) {
+    const Vec3d e = box.extent();
+    return 0.5 * std::sqrt(e.x * e.x + e.y * e.y + e.z * e.z) * 1.01 + 1e-6 * (1 + box.longest_edge());
+}
+
+/// The query presets' rays from agent `a` (generators.h, RayMode): `fire`, `sight` (towards a second
+/// agent drawn by `another`) and `sensor`. A sight line between agents whose spheres overlap has
+/// no length left; it becomes the zero-length segment at the middle of the two clearances.
+template <class Another>
+Segment agent_ray(const std::string& mode, const Aabbd& a, Another&& another, Random& rng, double diagonal) {
+    const Vec3d from = a.center();
+    if (mode == "sight") {
+        // Another agent, not one at the same place (a few draws; a stack of identical boxes may
+        // have no other place, and its sight line is then a point just outside the agent).
+        Aabbd b = another();
+        Vec3d d = b.center() - from;
+        for (int draw = 0; draw < 8 && d.x == 0 && d.y == 0 && d.z == 0; ++draw) b = another(), d = b.center() - from;
+        const double len = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+        const double s0 = clearance(a), s1 = len - clearance(b);
+        if (!(len > 0)) {
+            const Vec3d point = from + Vec3d{s0, 0, 0};
+            return segment_from(point, point);
+        }
+        if (s1 <= s0) {
+            const Vec3d mid = from + d * (0.5 * (s0 + std::max(s1, 0.0)) / len);
+            return segment_from(mid, mid);
+        }
+        return segment_from(from + d * (s0 / len), from + d * (s1 / len));
+    }
+    const Vec3d dir = rng.direction();
+    const Vec3d start = from + dir * clearance(a);
+    const double len = mode == "fire" ? 0.25 * diagonal : 3.0 * a.longest_edge();
+    return segment_from(start, start + dir * std::max(len, 1e-6));
+}
+
+}  // namespace
+
 std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySettings& settings, std::uint64_t seed,
                                    std::uint32_t frame) {
     std::vector<Segment> rays;
@@ -742,6 +848,8 @@ std::vector<Segment> generate_rays(const std::vector<Object>& live, const RaySet
                 const double len = std::clamp(20.0 * std::max({o.extent().x, o.extent().y, o.extent().z}),
                                               0.01 * diagonal, 0.2 * diagonal);
                 rays.push_back(segment_from(o.center(), o.center() + rng.direction() * len));
+            } else {
+                rays.push_back(agent_ray(mode, random_object(), random_object, rng, diagonal));
             }
         }
     }
@@ -764,6 +872,7 @@ void check_dynamics(const DynamicsSettings& d) {
 Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dynamics, const RaySettings& rays,
                        std::uint32_t frames, std::uint64_t seed, nlohmann::json meta) {
     check_dynamics(dynamics);
+    check_ray_settings(rays);
     check_scene_size(double(initial.size()), frames, rays.per_frame, double(initial.size()) * dynamics.change_fraction,
                      "scene");
     Recording r;
@@ -773,11 +882,7 @@ Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dyna
                         {"insert_share", dynamics.insert_share},
                         {"remove_share", dynamics.remove_share},
                         {"move_scale", dynamics.move_scale}};
-    nlohmann::json mix = nlohmann::json::array();
-    for (const RayMode& m : rays.mix) mix.push_back({{"mode", m.mode}, {"weight", m.weight}});
-    meta["rays"] = {{"per_frame", rays.per_frame}, {"mix", mix}};
-    // Only when some ray is not `all`, so that an all-hits scene's meta and bytes stay as they were.
-    if (!asks_all_only(rays.query_mix)) meta["rays"]["query_mix"] = query_mix_json(rays.query_mix);
+    meta["rays"] = rays_json(rays);
     r.meta = meta.dump();
     r.initial = std::move(initial);
     LiveSet live(r.initial);
@@ -788,7 +893,7 @@ Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dyna
         Frame frame = frame_changes(live, dynamics, next_uid, rng);
         live.apply(frame);
         frame.rays = generate_rays(live.objects(), rays, seed, f);
-        frame.kinds = generate_kinds(frame.rays.size(), rays.query_mix, seed, f);
+        frame.kinds = ray_kinds(frame.rays.size(), rays, seed, f);
         r.frames.push_back(std::move(frame));
     }
     return r;
@@ -799,6 +904,7 @@ void add_rays(Recording& r, const RaySettings& rays, std::uint64_t seed) {
     for (std::uint32_t f = 1; f <= r.frames.size(); ++f) {
         live.apply(r.frames[f - 1]);
         r.frames[f - 1].rays = generate_rays(live.objects(), rays, seed, f);
+        r.frames[f - 1].kinds = ray_kinds(r.frames[f - 1].rays.size(), rays, seed, f);
     }
 }
 

@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -32,10 +33,18 @@ struct DynamicsSettings {
 /// (for stability tests: axis-parallel segments across the bounds lying in box face planes, along box edges,
 /// and in the planes of dyadic lattices over the bounds, where cells meet), and `inside` (from a
 /// random point inside a random object's box in a uniform direction, long enough to leave the
-/// scene: rays that start among a crowd).
+/// scene: rays that start among a crowd). The query presets' modes start on an agent (a random live
+/// object) just outside its bounding sphere, so an agent does not answer its own query (but for a
+/// sight line between agents whose spheres overlap, which shrinks to a point between them): `fire` (a
+/// shot: uniform direction, a quarter of the scene's diagonal long), `sight` (from one agent towards
+/// another, ending just outside the other's bounding sphere) and `sensor` (uniform direction, three
+/// times the agent's longest edge long).
 struct RayMode {
     std::string mode;
     double weight = 1;
+    /// Set by a query preset: every ray of this mode asks this kind (query_preset_mix). Unset: the
+    /// kind comes from RaySettings::query_mix, as before presets.
+    std::optional<QueryKind> kind = std::nullopt;
 };
 
 /// A query kind (scene.h) and its weight in a frame's rays.
@@ -47,9 +56,31 @@ struct QueryShare {
 struct RaySettings {
     std::uint32_t per_frame = 1000;
     std::vector<RayMode> mix{{"center", 1.0}};
-    /// Empty (or only `all`): every ray asks for all hits, the thesis' workload.
+    /// Empty (or only `all`): every ray asks for all hits, the thesis' workload. Must be empty
+    /// when a mode carries its own kind (a query preset).
     std::vector<QueryShare> query_mix;
+    std::string queries;  ///< the query preset `mix` came from (query_preset_mix), if any
 };
+
+/// Game query presets: each a mix of (ray mode, kind) that mirrors how a game asks, its name
+/// recorded in the recording's meta (docs/recording-format.md, "Query presets"):
+///   shots       `fire` rays, closest hit: what a shot from an agent hits first
+///   visibility  `sight` rays, any hit: is the line between two agents blocked
+///   sensors     `sensor` rays, all hits: what lies within a few object sizes of an agent
+///   game        our blend of the three, 50% shots, 30% visibility, 20% sensors; half the rays are
+///               closest-hit shots as in Bullet's benchmark demo (500 closest rays per frame of
+///               1000 rays here)
+std::vector<std::string> query_preset_names();
+/// The preset's modes with their kinds and weights; InputError naming the known presets otherwise.
+std::vector<RayMode> query_preset_mix(std::string_view name);
+/// `rays` with the preset `name` applied: its mix, its name recorded, no query mix.
+RaySettings with_query_preset(RaySettings rays, std::string_view name);
+/// InputError when a mode carries a kind and a query mix is given too (the kinds would conflict).
+void check_ray_settings(const RaySettings& rays);
+/// What the recording's meta says of its rays: per_frame, the modes (each with its kind when a
+/// preset set one), the query mix when some ray is not `all`, the preset when one was used.
+/// Recordings without kinds or a preset get the bytes they had before presets.
+nlohmann::json rays_json(const RaySettings& rays);
 
 /// Which generated objects get an exact shape inside their box (shape.h), as shares of frame 0's
 /// objects; the rest stay boxes. A rotated object is an oriented box with the generated box's half
@@ -110,6 +141,11 @@ bool asks_all_only(const std::vector<QueryShare>& mix);
 /// added). Empty when every ray is `all`.
 std::vector<QueryKind> generate_kinds(std::size_t rays, const std::vector<QueryShare>& mix, std::uint64_t seed,
                                       std::uint32_t frame);
+/// The query kinds of one frame's `rays` rays (generate_rays' for the same settings): by each
+/// mode's own kind when a preset set them (the rays come in the mix's order, so the kind of ray i
+/// is its mode's), else generate_kinds from the query mix. Empty when every ray is `all`.
+std::vector<QueryKind> ray_kinds(std::size_t rays, const RaySettings& settings, std::uint64_t seed,
+                                 std::uint32_t frame);
 /// [{"kind": "closest", "weight": 0.6}, …], as the recording's meta stores it.
 nlohmann::json query_mix_json(const std::vector<QueryShare>& mix);
 
@@ -137,8 +173,8 @@ void check_dynamics(const DynamicsSettings& dynamics);
 Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dynamics, const RaySettings& rays,
                        std::uint32_t frames, std::uint64_t seed, nlohmann::json meta);
 
-/// Replaces every frame's rays of `r` by generate_rays on the objects live after its changes
-/// (for recordings that come without rays, such as Broadmark files).
+/// Replaces every frame's rays of `r` by generate_rays on the objects live after its changes, and
+/// their kinds by ray_kinds (for recordings that come without rays, such as Broadmark files).
 void add_rays(Recording& r, const RaySettings& rays, std::uint64_t seed);
 
 /// The rays of one frame for the given live objects (used by add_dynamics; exposed for tests).
