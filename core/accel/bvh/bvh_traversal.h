@@ -59,7 +59,7 @@ concept HasCrowds = requires(const Tree& t, std::uint32_t n) {
 
 /// Closest hits (hit_policy.h), after madmann91/bvh v2's and Embree's single-ray traversals: a
 /// node's two children are tested when the node is taken, the segment clipped to the best hit so
-/// far (t_far starts at min(1, t_limit)); a leaf child is answered at once, the inner children
+/// far (a box entered after t_limit is missed); a leaf child is answered at once, the inner children
 /// the segment enters go onto the stack with their entry parameter, the farther first (equal
 /// entries by exit). Ordering by entry needs no child centres, which would read both children
 /// again; the ray's sign on a split axis is not stored in these trees. An entry
@@ -75,23 +75,24 @@ void traverse_bvh_nearest(const Tree& tree, std::uint32_t root, std::uint32_t* s
     const SegmentSlabs slabs(s);
     bool crowds = false;
     if constexpr (HasCrowds<Tree>) crowds = tree.has_crowds();
-    auto limit = [&] { return std::min(1.0f, visit_limit(visit)); };
     // Tests child (or root) `n` against the segment up to the limit: a leaf is answered (false:
-    // the visitor stopped), an inner node entered in time is returned through `t_near`.
+    // the visitor stopped), an inner node entered in time is returned through `t_near`. Meeting
+    // the box on [0, 1] with an entry at most the limit is meeting it on [0, min(1, limit)]; the
+    // clip keeps its default bounds, so that it inlines here as in traverse_bvh.
     auto take = [&](std::uint32_t n, float& t_near, float& t_far, bool& inner) {
         count.traversal();
         inner = false;
         if (tree.is_leaf(n)) {
             if constexpr (Count::candidates) {
-                if (!slabs.clip(tree.leaf_box(n), t_near, t_far, 0.0f, limit())) return true;
+                if (!slabs.clip(tree.leaf_box(n), t_near, t_far) || t_near > visit_limit(visit)) return true;
             } else {
                 count.box_tests();
-                if (!slabs.clip(tree.object_box(n), t_near, t_far, 0.0f, limit())) return true;
+                if (!slabs.clip(tree.object_box(n), t_near, t_far) || t_near > visit_limit(visit)) return true;
             }
             count.hits();
             return bool(visit(tree.leaf_uid(n), t_near));
         }
-        inner = slabs.clip(tree.node_box(n), t_near, t_far, 0.0f, limit());
+        inner = slabs.clip(tree.node_box(n), t_near, t_far) && t_near <= visit_limit(visit);
         return true;
     };
     float t0, t1, f0, f1;
