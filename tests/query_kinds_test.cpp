@@ -150,6 +150,44 @@ TEST(QueryKinds, EveryStructureAgreesWithTheTruthOnRandomScenes) {
     }
 }
 
+/// The BVHs prune for closest and any hits: along a row of boxes, the closest hit is the first box
+/// met and every box behind it is entered after it, so a traversal near to far that culls by the
+/// best hit reads a few nodes and objects where all hits reads them all; any hit stops at its
+/// first. Both directions, so that the order cannot come from the build's lane order alone.
+TEST(QueryKinds, TreesPruneClosestAndAnyAlongARowOfBoxes) {
+    constexpr int kBoxes = 512;
+    std::vector<Object> objects;
+    for (int i = 0; i < kBoxes; ++i) {
+        const float x = 2.0f * float(i);
+        objects.push_back(box(Uid(i), {x, -1, -1}, {x + 1, 1, 1}));
+    }
+    const float end = 2.0f * kBoxes + 1;
+    const std::vector<Segment> rays{{{-1, 0.25f, 0.5f}, {end, -0.25f, 0.0f}}, {{end, 0.5f, 0}, {-1, 0, -0.5f}}};
+    const std::vector<Uid> first{0, Uid(kBoxes - 1)};
+    for (const char* name : {"dbvh", "lbvh", "wbvh"}) {
+        std::unique_ptr<Structure> s = find_structure(name).make(nlohmann::json::object(), "params");
+        s->build(objects);
+        s->commit();
+        for (std::size_t r = 0; r < rays.size(); ++r) {
+            const std::string where = std::string(name) + " ray " + std::to_string(r);
+            const std::vector<Segment> one{rays[r]};
+            Counters all, closest, any;
+            HitLists every, nearest, some;
+            s->cast_counted(one, every, all);
+            s->cast_counted(one, std::vector<QueryKind>{QueryKind::closest}, nearest, closest);
+            s->cast_counted(one, std::vector<QueryKind>{QueryKind::any}, some, any);
+            ASSERT_EQ(every.uids.size(), std::size_t(kBoxes)) << where;
+            ASSERT_EQ(nearest.uids, std::vector<Uid>{first[r]}) << where;
+            ASSERT_EQ(some.uids.size(), 1u) << where;
+            // All hits test every box; the closest hit a few leaves' worth near the start.
+            EXPECT_EQ(all.n_rb, std::uint64_t(kBoxes)) << where;
+            EXPECT_LT(closest.n_rb * 16, all.n_rb) << where;
+            EXPECT_LT(closest.n_t * 16, all.n_t) << where;
+            EXPECT_LT(any.n_t * 16, all.n_t) << where;
+        }
+    }
+}
+
 TEST(QueryKinds, SimulatorVerifiesEveryKindOnHardScenes) {
     for (const test::NamedScene& scene : test::hard_scenes()) {
         Recording r = scene.recording;

@@ -24,16 +24,15 @@
 /// may answer an inner node whose box the segment meets without descending into it (the LBVH scans
 /// its leaves in order when the segment meets every box below: linear_bvh.h).
 ///
-/// Closest hit (hit_policy.h): a visitor with a t_limit gets the nearer child first (the one whose
-/// centre lies earlier along the segment) and a node the segment enters after the limit is
-/// skipped. An object's box lies inside its node's box and both entries come from the same float
-/// slab computation, which is monotonic in the bound, so no object at or before the limit is ever
-/// skipped. Other visitors compile to the loop as before.
+/// Closest hit (hit_policy.h): a visitor with a t_limit takes traverse_bvh_nearest below instead.
 ///
 /// The stack: popping one node and pushing its two children keeps at most height + 1 entries on it
 /// (height: edges from the root to the deepest leaf), so the caller passes a buffer of at least
-/// height + 2 entries, sized when the tree changes, never per ray; nothing is ever dropped.
+/// height + 2 entries, sized when the tree changes, never per ray; nothing is ever dropped. The
+/// closest-hit traversal keeps two words per entry: the buffer holds 2 (height + 2) words.
 
+#include <algorithm>
+#include <bit>
 #include <concepts>
 #include <cstdint>
 #include <type_traits>
@@ -58,11 +57,89 @@ concept HasCrowds = requires(const Tree& t, std::uint32_t n) {
     { t.is_crowd(n) } -> std::same_as<bool>;
 };
 
+/// Closest hits (hit_policy.h), after madmann91/bvh v2's and Embree's single-ray traversals: a
+/// node's two children are tested when the node is taken, the segment clipped to the best hit so
+/// far (a box entered after t_limit is missed); a leaf child is answered at once, the inner children
+/// the segment enters go onto the stack with their entry parameter, the farther first (equal
+/// entries by exit). Ordering by entry needs no child centres, which would read both children
+/// again; the ray's sign on a split axis is not stored in these trees. An entry
+/// popped after the limit dropped below its parameter is skipped without reading the node. A box
+/// lies inside its parent's and both entries come from the same float slab computation, monotonic
+/// in the bounds, so no object at or before the limit is skipped (ties at the limit are kept).
+/// The counters read as traverse_bvh's: every node box tested is a traversal step, every object
+/// box test an N_RB test.
+template <class Tree, class Count, class Visit>
+void traverse_bvh_nearest(const Tree& tree, std::uint32_t root, std::uint32_t* stack, const Segment& s, Count& count,
+                          Visit& visit) {
+    if (root == kNullNode) return;
+    const SegmentSlabs slabs(s);
+    bool crowds = false;
+    if constexpr (HasCrowds<Tree>) crowds = tree.has_crowds();
+    // Tests child (or root) `n` against the segment up to the limit: a leaf is answered (false:
+    // the visitor stopped), an inner node entered in time is returned through `t_near`. Meeting
+    // the box on [0, 1] with an entry at most the limit is meeting it on [0, min(1, limit)]; the
+    // clip keeps its default bounds, so that it inlines here as in traverse_bvh.
+    auto take = [&](std::uint32_t n, float& t_near, float& t_far, bool& inner) {
+        count.traversal();
+        inner = false;
+        if (tree.is_leaf(n)) {
+            if constexpr (Count::candidates) {
+                if (!slabs.clip(tree.leaf_box(n), t_near, t_far) || t_near > visit_limit(visit)) return true;
+            } else {
+                count.box_tests();
+                if (!slabs.clip(tree.object_box(n), t_near, t_far) || t_near > visit_limit(visit)) return true;
+            }
+            count.hits();
+            return bool(visit(tree.leaf_uid(n), t_near));
+        }
+        inner = slabs.clip(tree.node_box(n), t_near, t_far) && t_near <= visit_limit(visit);
+        return true;
+    };
+    float t0, t1, f0, f1;
+    bool in0, in1;
+    if (!take(root, t0, f0, in0) || !in0) return;
+    std::uint32_t top = 0;
+    stack[top++] = root;
+    stack[top++] = std::bit_cast<std::uint32_t>(t0);
+    while (top != 0) {
+        top -= 2;
+        const std::uint32_t node = stack[top];
+        if (std::bit_cast<float>(stack[top + 1]) > visit_limit(visit)) continue;
+        if constexpr (HasCrowds<Tree> && !Count::candidates) {
+            if (crowds && tree.is_crowd(node)) {
+                const CrowdScan r = tree.scan_crowd(node, slabs, count, visit);
+                if (r == CrowdScan::stop) return;
+                if (r == CrowdScan::done) continue;
+            }
+        }
+        count.node_hits();
+        std::uint32_t c0 = tree.child(node, 0), c1 = tree.child(node, 1);
+        if (!take(c0, t0, f0, in0) || !take(c1, t1, f1, in1)) return;
+        // Both entered: the farther below, so that the nearer is taken first; equal entries (the
+        // segment starts inside both) by exit, the box left first being taken first.
+        if (in0 && in1 && (t1 > t0 || (t1 == t0 && f1 > f0))) {
+            std::swap(c0, c1);
+            std::swap(t0, t1);
+        }
+        if (in0) {
+            stack[top++] = c0;
+            stack[top++] = std::bit_cast<std::uint32_t>(t0);
+        }
+        if (in1) {
+            stack[top++] = c1;
+            stack[top++] = std::bit_cast<std::uint32_t>(t1);
+        }
+    }
+}
+
 template <class Tree, class Count, class Visit>
 void traverse_bvh(const Tree& tree, std::uint32_t root, std::uint32_t* stack, const Segment& s, Count& count,
                   Visit&& visit) {
     if (root == kNullNode) return;
-    constexpr bool kClosest = HasTLimit<std::remove_cvref_t<Visit>>;
+    if constexpr (HasTLimit<std::remove_cvref_t<Visit>>) {
+        traverse_bvh_nearest(tree, root, stack, s, count, visit);
+        return;
+    }
     const SegmentSlabs slabs(s);
     bool crowds = false;  // asked once per ray: a tree without crowds pays nothing per node
     if constexpr (HasCrowds<Tree>) crowds = tree.has_crowds();
@@ -87,9 +164,6 @@ void traverse_bvh(const Tree& tree, std::uint32_t root, std::uint32_t* stack, co
             if (!visit(tree.leaf_uid(node), t_near)) return;
         } else {
             if (!slabs.clip(tree.node_box(node), t_near, t_far)) continue;
-            if constexpr (kClosest) {
-                if (t_near > visit_limit(visit)) continue;
-            }
             if constexpr (HasCrowds<Tree> && !Count::candidates) {
                 if (crowds && tree.is_crowd(node)) {
                     const CrowdScan r = tree.scan_crowd(node, slabs, count, visit);
@@ -97,17 +171,10 @@ void traverse_bvh(const Tree& tree, std::uint32_t root, std::uint32_t* stack, co
                     if (r == CrowdScan::done) continue;
                 }
             }
-            // Child 0 on top: visited first (for closest hits, the nearer child).
+            // Child 0 on top: visited first.
             count.node_hits();
-            std::uint32_t first = tree.child(node, 0), second = tree.child(node, 1);
-            if constexpr (kClosest) {
-                auto center = [&](std::uint32_t c) {
-                    return (tree.is_leaf(c) ? tree.leaf_box(c) : tree.node_box(c)).center();
-                };
-                if (dot(center(second) - center(first), s.p1 - s.p0) < 0) std::swap(first, second);
-            }
-            stack[top++] = second;
-            stack[top++] = first;
+            stack[top++] = tree.child(node, 1);
+            stack[top++] = tree.child(node, 0);
         }
     }
 }

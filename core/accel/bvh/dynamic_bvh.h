@@ -99,7 +99,7 @@ public:
         if (crowds_dirty_) find_crowds();
     }
     void fit(StackScratch& scratch) const {
-        scratch.fit(root_ == kNullNode ? 1u : std::size_t(nodes_[root_].height) + 2u);
+        scratch.fit(root_ == kNullNode ? 2u : 2 * (std::size_t(nodes_[root_].height) + 2u));
     }
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit, StackScratch& scratch) const {

@@ -104,7 +104,7 @@ public:
     void prepare() {
         if (dirty_) rebuild();
     }
-    void fit(StackScratch& scratch) const { scratch.fit(std::size_t(std::max(height(), 0)) + 2u); }
+    void fit(StackScratch& scratch) const { scratch.fit(2 * (std::size_t(std::max(height(), 0)) + 2u)); }
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit, StackScratch& scratch) const {
         traverse_bvh(*this, root(), scratch.stack(), s, count, visit);

@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cstdint>
 #include <memory>
 #include <tuple>
@@ -131,11 +132,14 @@ public:
         fixed_push_ =
             push_ == Push::fixed || (push_ == Push::automatic && blocks_.size() * sizeof(Block) <= l2_bytes());
     }
-    /// Popping one block pushes at most 8: at most 7 per inner level on the path plus one.
-    void fit(StackScratch& scratch) const { scratch.fit(7 * std::size_t(max_depth_) + 8); }
+    /// Popping one block pushes at most 8: at most 7 per inner level on the path plus one. The
+    /// closest-hit traversal keeps each entry's entry parameter beside it: two words per entry.
+    void fit(StackScratch& scratch) const { scratch.fit(2 * (7 * std::size_t(max_depth_) + 8)); }
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit, StackScratch& scratch) const {
-        if (fixed_push_)
+        if constexpr (HasTLimit<std::remove_cvref_t<Visit>>)
+            traverse_nearest(s, count, visit, scratch);
+        else if (fixed_push_)
             traverse_with<true>(s, count, visit, scratch);
         else
             traverse_with<false>(s, count, visit, scratch);
@@ -183,9 +187,7 @@ private:
             } else {
                 count.node_hits(unsigned(__builtin_popcount(mask)));
                 // Highest lane first onto the stack, so lane order is visit order (Params::push).
-                if constexpr (HasTLimit<std::remove_cvref_t<Visit>>) {
-                    push_near_first(b, mask, t_near, visit_limit(visit), stack, top);
-                } else if constexpr (kFixedPush) {
+                if constexpr (kFixedPush) {
                     for (int k = kLanes - 1; k >= 0; --k) {  // fit leaves room for the unkept lanes
                         stack[top] = b.ref[k];
                         top += (mask >> k) & 1u;
@@ -197,6 +199,54 @@ private:
                         stack[top++] = b.ref[k];
                     }
                 }
+            }
+        }
+    }
+
+    /// Closest hits (hit_policy.h): near to far, and nothing entered after the best hit so far is
+    /// read. Each stack entry keeps the entry parameter of its lane's box; an entry popped after the
+    /// limit dropped below it is skipped without reading its block, and the slab test itself clips
+    /// the lanes to the limit (t_far starts at min(1, limit)), so a lane entered later is neither
+    /// pushed nor visited. A lane's box holds its objects' boxes and both entries come from the
+    /// same float slab computation, monotonic in the bounds, so no object at or before the limit is
+    /// skipped (ties at the limit are kept). N_T counts the blocks tested, not the skipped pops.
+    template <class Count, class Visit>
+    void traverse_nearest(const Segment& s, Count& count, Visit& visit, StackScratch& scratch) const {
+        if (root_ == kNone) return;
+        const SegmentSlabs slabs(s);
+        int near[3], far[3];
+        for (int a = 0; a < 3; ++a) {
+            near[a] = (slabs.near_is_max[a] ? 24 : 0) + 8 * a;
+            far[a] = (slabs.near_is_max[a] ? 0 : 24) + 8 * a;
+        }
+        std::uint32_t* stack = scratch.stack();  // pairs: block, bits of its lane's entry parameter
+        std::uint32_t top = 0;
+        stack[top++] = root_;
+        stack[top++] = 0u;  // +0.0f: the root is entered no later than anything below it
+        alignas(32) float t_near[kLanes], t_far[kLanes];
+        while (top != 0) {
+            top -= 2;
+            if (std::bit_cast<float>(stack[top + 1]) > visit_limit(visit)) continue;
+            const Block& b = blocks_[stack[top]];
+            count.traversal();
+            const float limit = std::min(1.0f, visit_limit(visit));
+            unsigned mask;
+            if (Count::candidates && b.leaf) {  // a leaf reached through its box: all its objects
+                mask = (1u << b.count) - 1;
+                for (int k = 0; k < kLanes; ++k) t_near[k] = 0;
+            } else {
+                mask = test(b, slabs, near, far, t_near, limit, t_far);
+            }
+            if (b.leaf) {
+                count.box_tests(b.count);
+                for (; mask != 0; mask &= mask - 1) {
+                    const int k = __builtin_ctz(mask);
+                    count.hits();
+                    if (!visit(Uid(b.ref[k]), t_near[k])) return;
+                }
+            } else {
+                count.node_hits(unsigned(__builtin_popcount(mask)));
+                push_near_first(b, mask, t_near, t_far, stack, top);
             }
         }
     }
@@ -225,31 +275,38 @@ private:
     };
     static_assert(sizeof(Block) == 256);
 
-    /// Closest hits (hit_policy.h): the hit lanes the segment enters no later than `limit`, the
-    /// farthest pushed first so the nearest is visited first. A lane's box holds its objects' boxes
-    /// and its entry comes from the same float slab computation (test() below), so no object at or
-    /// before the limit is skipped.
-    static void push_near_first(const Block& b, unsigned mask, const float* t_near, float limit, std::uint32_t* stack,
-                                std::uint32_t& top) {
+    /// The hit lanes of inner block `b` onto a closest-hit stack with their entry parameters, the
+    /// farthest first so that the nearest is popped first (insertion by entry: a node has few hit
+    /// lanes). Equal entries, as where the segment starts inside several boxes, go by exit: the box
+    /// the segment leaves first is taken first, as its objects lie nearer along it.
+    static void push_near_first(const Block& b, unsigned mask, const float* t_near, const float* t_far,
+                                std::uint32_t* stack, std::uint32_t& top) {
+        auto nearer = [&](int a, int c) {
+            return t_near[a] < t_near[c] || (t_near[a] == t_near[c] && t_far[a] < t_far[c]);
+        };
         int lanes[kLanes], n = 0;
         for (; mask != 0; mask &= mask - 1) {
             const int k = __builtin_ctz(mask);
-            if (t_near[k] > limit) continue;
-            int i = n++;  // insertion by t, farthest first
-            for (; i > 0 && t_near[lanes[i - 1]] < t_near[k]; --i) lanes[i] = lanes[i - 1];
+            int i = n++;  // farthest first
+            for (; i > 0 && nearer(lanes[i - 1], k); --i) lanes[i] = lanes[i - 1];
             lanes[i] = k;
         }
-        for (int i = 0; i < n; ++i) stack[top++] = b.ref[lanes[i]];
+        for (int i = 0; i < n; ++i) {
+            stack[top++] = b.ref[lanes[i]];
+            stack[top++] = std::bit_cast<std::uint32_t>(t_near[lanes[i]]);
+        }
     }
 
     /// The slab test of a block's 8 lanes: bit k set when lane k is hit, t_near[k] its entry
     /// parameter. SegmentSlabs::clip exactly: the same float operations in the same order, and
     /// VMAXPS/VMINPS return their second operand when either is NaN, as max_ignoring_nan(lo, tn).
+    /// `t_max` (at most 1) clips the segment's far end, as SegmentSlabs::clip's; `t_far`, when
+    /// given, receives each lane's exit parameter.
     static unsigned test(const Block& b, const SegmentSlabs& s, const int near[3], const int far[3],
-                         float t_near[kLanes]) {
+                         float t_near[kLanes], float t_max = 1.0f, float* t_far = nullptr) {
 #if defined(__AVX2__)
         const float* base = &b.bound[0][0];
-        __m256 tn = _mm256_setzero_ps(), tf = _mm256_set1_ps(1.0f);
+        __m256 tn = _mm256_setzero_ps(), tf = _mm256_set1_ps(t_max);
         for (int a = 0; a < 3; ++a) {
             const __m256 o = _mm256_set1_ps(s.origin[a]), inv = _mm256_set1_ps(s.inv[a]);
             const __m256 lo = _mm256_mul_ps(_mm256_sub_ps(_mm256_load_ps(base + near[a]), o), inv);
@@ -258,13 +315,15 @@ private:
             tf = _mm256_min_ps(hi, tf);
         }
         _mm256_store_ps(t_near, tn);
+        if (t_far) _mm256_store_ps(t_far, tf);
         return unsigned(_mm256_movemask_ps(_mm256_cmp_ps(tn, tf, _CMP_LE_OQ)));
 #else
         (void)near, (void)far;
         unsigned mask = 0;
         for (int k = 0; k < kLanes; ++k) {
             float tf;
-            if (s.clip(b.box(k), t_near[k], tf)) mask |= 1u << k;
+            if (s.clip(b.box(k), t_near[k], tf, 0.0f, t_max)) mask |= 1u << k;
+            if (t_far) t_far[k] = tf;
         }
         return mask;
 #endif
