@@ -190,13 +190,17 @@ std::vector<ValidationSplit> kind_transfer_splits(const std::vector<FrameObserva
     std::vector<ValidationSplit> out;
     if (kinds.size() < 2) return out;
     const std::string all = kQueryKindNames[int(QueryKind::all)];
+    std::vector<std::string> in_order;  // QueryKind order: all, closest, any
+    for (const char* k : kQueryKindNames)
+        if (kinds.count(k)) in_order.push_back(k);
     if (kinds.count(all)) {
         std::set<std::string> others = kinds;
         others.erase(all);
-        for (const std::string& k : others) out.push_back(kinds_split(kind_frames, {all}, {k}));
+        for (const std::string& k : in_order)
+            if (k != all) out.push_back(kinds_split(kind_frames, {all}, {k}));
         out.push_back(kinds_split(kind_frames, others, {all}));
     } else {
-        for (const std::string& k : kinds) {
+        for (const std::string& k : in_order) {
             std::set<std::string> others = kinds;
             others.erase(k);
             out.push_back(kinds_split(kind_frames, {k}, others));
