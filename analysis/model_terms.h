@@ -27,6 +27,8 @@ struct FrameObservation {
     std::string structure, params, scene, category;  ///< category: "uniform", "irregular", …
     std::string ray_mix;                             ///< the scene's ray mode (spec `ray_mix`), "" where unknown
     int config_group = 0;                            ///< distinct (scene, structure, params)
+    /// "" for a whole frame; the query kind of one kind's batch (analysis/query_kinds.h)
+    std::string kind;
     double rays = 0, raycast_ns = 0, update_ns = 0;
     double n_t = 0, n_rb = 0, n_tp = 0;  ///< per ray
     double n_ro = 0;                     ///< narrow-phase shape tests per ray (0 below the shapes query level)

@@ -19,6 +19,8 @@
 #include "analysis/cost_model.h"
 #include "analysis/findings.h"
 #include "analysis/noise.h"
+#include "analysis/query_kinds.h"
+#include "analysis/statistics.h"
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/base/output_file.h"
@@ -218,6 +220,37 @@ History load_run_history(Database& db, std::int64_t run, const std::string& expe
     return h;
 }
 
+/// How much of a scene moves: per frame, the objects inserted, removed or moved over the scene's
+/// objects (the frames of its first cell in the run; every cell of a scene replays the same frames).
+struct SceneMotion {
+    std::string scene;
+    double p10 = 0, p50 = 0, p90 = 0;
+};
+
+std::vector<SceneMotion> load_scene_motion(Database& db, std::int64_t run) {
+    Statement s = db.prepare("SELECT " + std::string(kSceneLabelSql) +
+                             " AS scene, scene.objects AS objects, frame.inserts + frame.removes + frame.moves AS "
+                             "changes FROM frame JOIN cell ON cell.id = frame.cell_id JOIN scene ON scene.id = "
+                             "cell.scene_id WHERE cell.id IN (SELECT min(id) FROM cell WHERE run_id IN " +
+                             std::string(kRunGroupSql) + " GROUP BY scene_id) ORDER BY cell.id, frame.frame");
+    s.bind_all(run, run);
+    const Columns col(s);
+    std::vector<std::string> order;
+    std::map<std::string, std::vector<double>> shares;
+    while (s.step()) {
+        const std::string scene = s.text(col("scene"));
+        if (!shares.count(scene)) order.push_back(scene);
+        const double objects = s.real(col("objects"));
+        shares[scene].push_back(objects > 0 ? s.real(col("changes")) / objects : 0.0);
+    }
+    std::vector<SceneMotion> out;
+    for (const std::string& scene : order) {
+        const std::vector<double>& v = shares[scene];
+        out.push_back({scene, quantile(v, 0.1), quantile(v, 0.5), quantile(v, 0.9)});
+    }
+    return out;
+}
+
 /// Everything the report reads from the database.
 struct ReportData {
     std::vector<Entry> entries;
@@ -228,6 +261,8 @@ struct ReportData {
     NoiseFloor noise;
     std::vector<Finding> findings;
     History history;
+    std::vector<SceneMotion> motion;
+    std::vector<FrameObservation> kind_frames;  ///< per query kind; empty for a run without kinds
 };
 
 ReportData load_report_data(Database& db, std::int64_t run) {
@@ -240,6 +275,8 @@ ReportData load_report_data(Database& db, std::int64_t run) {
     d.noise = noise_floor(db, run);
     d.findings = evaluate_findings(db, run);
     d.history = load_run_history(db, run, d.head.experiment);
+    d.motion = load_scene_motion(db, run);
+    if (run_has_query_kinds(db, run)) d.kind_frames = load_kind_observations(db, run);
     return d;
 }
 
@@ -422,6 +459,63 @@ void tables_section(Html& h, const Entries& es, const std::vector<SlowCell>& slo
             std::string("Ray cast per frame (ms), with update per frame in parentheses, Table 6.2") +
                 (slow.empty() ? "" : "; * a repetition was measured on a slow machine (cell_state.slow)"));
     h.table(header, memory, "Memory after the build (bytes per object)");
+}
+
+/// One line per scene: the share of its objects inserted, removed or moved per frame.
+void motion_lines(Html& h, const std::vector<SceneMotion>& motion) {
+    for (const SceneMotion& m : motion)
+        h.paragraph("Motion on " + m.scene + ": " + fixed(100 * m.p50, 2) + "% of the objects change per frame (p10 " +
+                    fixed(100 * m.p10, 2) + "%, p90 " + fixed(100 * m.p90, 2) +
+                    "%; inserts, removes and moves over "
+                    "the scene's objects).");
+}
+
+/// Query kinds (docs/model.md, "Query kinds: one set of coefficients"): per scene with closest or
+/// any rays, configuration and kind, the time per query measured and as the run's model prices
+/// the kind's own counters, and how much faster closest and any are than all hits.
+void query_kinds_section(Html& h, const std::vector<KindCell>& all_cells) {
+    std::set<std::string> kind_scenes;  // scenes with a kind other than all
+    for (const KindCell& c : all_cells)
+        if (c.kind != kQueryKindNames[0]) kind_scenes.insert(c.scene);
+    if (kind_scenes.empty()) return;
+    h.heading("Query kinds");
+    std::vector<const KindCell*> cells;
+    for (const KindCell& c : all_cells)
+        if (kind_scenes.count(c.scene)) cells.push_back(&c);
+    const auto find = [&](const KindCell& like, const char* kind) -> const KindCell* {
+        for (const KindCell* c : cells)
+            if (c->scene == like.scene && c->structure == like.structure && c->params == like.params && c->kind == kind)
+                return c;
+        return nullptr;
+    };
+    std::map<std::string, std::set<std::string>> scene_kinds;
+    for (const KindCell* c : cells) scene_kinds[c->scene].insert(c->kind);
+    const auto us = [](double ns) { return std::isfinite(ns) ? fixed(ns / 1e3, ns < 1e3 ? 4 : 3) : "-"; };
+    std::vector<std::vector<std::string>> rows;
+    for (const KindCell* c : cells) {
+        const KindCell* all = find(*c, kQueryKindNames[0]);
+        const bool three = scene_kinds[c->scene].size() == std::size_t(kQueryKinds);
+        const bool faster = three && all && c->kind != kQueryKindNames[0] && c->ns_per_query > 0;
+        rows.push_back({c->scene, config_label(c->structure, c->params), c->kind, fixed(c->rays, 0),
+                        us(c->ns_per_query), us(c->predicted_ns_per_query),
+                        std::isfinite(c->error) ? fixed(100 * c->error, 1) + "%" : "-",
+                        faster ? fixed(all->ns_per_query / c->ns_per_query, 2) + "x" : "-"});
+    }
+    h.table({"scene", "configuration", "kind", "rays per frame", "measured us per query", "predicted us per query",
+             "error", "speed-up against all"},
+            rows,
+            "Per query kind: each kind's rays are cast as a batch of their own (medians over measured frames, "
+            "repetitions pooled). Predicted: the run's chosen ray-cast model (fitted on whole frames) on the kind's "
+            "own counters. Error: |predicted - measured| / measured of the batch per frame. Speed-up: time per "
+            "all-hits query over time per query of the kind, where the scene asks all three kinds");
+    std::vector<std::vector<std::string>> summary;
+    for (const KindError& e : kind_errors(all_cells))
+        summary.push_back({e.structure, e.kind, std::to_string(e.cells),
+                           std::isfinite(e.median_error) ? fixed(100 * e.median_error, 1) + "%" : "-"});
+    h.table({"structure", "kind", "cells", "median error"}, summary,
+            "One set of coefficients for every kind: median over (scene x configuration) cells of the error above, "
+            "per structure and kind (all: whole frames of scenes without other kinds included). A kind whose error "
+            "stands out costs per counted step what the model does not price");
 }
 
 /// Update against ray cast (thesis Figures 6.1 and 6.2), one chart per scene category.
@@ -1030,11 +1124,14 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
     Html h;
     h.paragraph("Experiment " + d.head.experiment + ", run " + std::to_string(run) + " started " + d.head.started +
                 " from commit " + d.head.commit + " on " + d.head.cpu +
-                ". Times are medians over frames (and over repetitions); a frame casts its rays as one batch.");
+                ". Times are medians over frames (and over repetitions); a frame casts its rays as one batch (one per "
+                "query kind when it asks for several).");
     tables_section(h, es, d.slow);
+    motion_lines(h, d.motion);
     update_raycast_section(h, es);
     accuracy_section(h, es);
     cost_model_section(h, d, models, breakdown);
+    if (!d.kind_frames.empty()) query_kinds_section(h, kind_cells(models, d.kind_frames));
     dbvh_section(h, breakdown);
     over_time_section(h, es);
     memory_build_section(h, es);

@@ -3,7 +3,9 @@
 /// breakdown, 6.4 DBVH incremental vs full SAH) and charts drawn by gnuplot (update against ray
 /// cast, time per frame against precision and recall with each scene's Pareto front named,
 /// predicted against measured, per-frame series, SAH cost over time, memory against time, build
-/// time against object count). One self-contained file: open it from disk, no network, no scripts.
+/// time against object count), each scene's motion (objects changed per frame) and, for a run with
+/// query kinds, the time per query of each kind measured and predicted (analysis/query_kinds.h).
+/// One self-contained file: open it from disk, no network, no scripts.
 
 #include <cstdint>
 #include <string>

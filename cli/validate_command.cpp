@@ -4,10 +4,13 @@
 #include <charconv>
 #include <filesystem>
 #include <iostream>
+#include <cmath>
 #include <memory>
+#include <optional>
 
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
+#include "analysis/query_kinds.h"
 #include "analysis/validation.h"
 #include "core/base/error.h"
 #include "runner/store.h"
@@ -85,6 +88,57 @@ void print_header(const BootstrapOptions& b) {
                  "per-configuration form never saw.\n";
 }
 
+/// The per-kind part of the nested validation (analysis/query_kinds.h): the run's model priced on
+/// each kind's counters, and the kind-transfer group (stored); `absent` says why there is none.
+struct KindValidation {
+    std::vector<KindError> check;
+    std::vector<ValidationGroup> groups;
+    std::string absent;
+};
+
+KindValidation validate_kinds(ResultStore& store, const LoadedRun& run, const BootstrapOptions& bootstrap) {
+    KindValidation out;
+    if (!run_has_query_kinds(store.db(), run.run)) {
+        out.absent = "the run has no query kinds (no frame_kind rows: every ray asked for all hits)";
+        return out;
+    }
+    const std::vector<FrameObservation> kind_frames = load_kind_observations(store.db(), run.run);
+    out.check = kind_errors(kind_cells(fit_cost_models(run.frames, run.inputs), kind_frames));
+    const std::vector<ValidationSplit> splits = kind_transfer_splits(kind_frames);
+    if (splits.empty()) {
+        out.absent = "every batch of the run asked for one query kind: nothing to transfer to";
+        return out;
+    }
+    out.groups = validate_nested(kind_frames, run.inputs, splits, bootstrap);
+    for (const ValidationGroup& g : out.groups) store_validation(store.db(), run.run, "nested", run.uuid, g, bootstrap);
+    return out;
+}
+
+nlohmann::json kinds_json(const KindValidation& k) {
+    nlohmann::json check = nlohmann::json::array();
+    for (const KindError& e : k.check)
+        check.push_back({{"structure", e.structure},
+                         {"kind", e.kind},
+                         {"cells", e.cells},
+                         {"raycast_error_median",
+                          std::isfinite(e.median_error) ? nlohmann::json(e.median_error) : nlohmann::json(nullptr)}});
+    return {{"model_per_kind", check},
+            {"kind_transfer", k.absent.empty() ? nlohmann::json("present") : nlohmann::json("absent: " + k.absent)}};
+}
+
+void print_kinds(const KindValidation& k) {
+    if (!k.check.empty()) {
+        std::cout << "\nquery kinds: the run's model (fitted on whole frames) pricing each kind's batch from its own "
+                     "counters; median over (scene x configuration) cells of |predicted - measured| / measured "
+                     "ray cast per frame\n";
+        TextTable t({"  structure", "kind", "cells", "median error"});
+        for (const KindError& e : k.check)
+            t.add({"  " + e.structure, e.kind, std::to_string(e.cells), percent(e.median_error)});
+        t.print(std::cout);
+    }
+    if (!k.absent.empty()) std::cout << "\n" << kKindTransferGroup << ": absent, " << k.absent << '\n';
+}
+
 }  // namespace
 
 void add_validate_command(CLI::App& app) {
@@ -100,7 +154,10 @@ void add_validate_command(CLI::App& app) {
         "fitted on the train run (all its scenes) predict every cell of the test run from its counters; stored in "
         "the test database (table model_validation). Without --test: the train run's nested splits (leave one "
         "scene out, one scene category out, the largest scenes out, ray-mode transfer), each split's whole model "
-        "selection redone on its train frames only; stored in the train database. Per structure: median and p90 over "
+        "selection redone on its train frames only; stored in the train database. A run with query kinds (closest, "
+        "any) adds kind transfer (a model fitted on the all-hits batches predicting the closest and any batches, and "
+        "back) and the run's model priced on each kind's counters; a run without says the group is absent. Per "
+        "structure: median and p90 over "
         "(scene x configuration) cells of the absolute relative error of time per frame and of ray-cast time per "
         "frame, with bootstrap 95% intervals over scenes. Both end with calibration alone: the predicted run's ray "
         "casts priced by its own micro-scene calibration (rcbench run's calibration pass), nothing fitted on any "
@@ -121,6 +178,7 @@ void add_validate_command(CLI::App& app) {
         std::vector<ValidationGroup> groups;
         std::vector<std::string> unpredictable;
         std::int64_t predicted_run = 0, train_run = 0;
+        std::optional<KindValidation> kinds;  // nested splits only
         if (o->test.empty()) {
             ResultStore store = naming(train_ref, [&] { return ResultStore(train_ref.path); });  // stored with the run
             const LoadedRun train = load_run(store.db(), train_ref);
@@ -129,6 +187,8 @@ void add_validate_command(CLI::App& app) {
             groups.push_back(validate_calibration_only(train.frames, train.inputs, o->bootstrap));
             for (const ValidationGroup& g : groups)
                 store_validation(store.db(), train.run, "nested", train.uuid, g, o->bootstrap);
+            kinds = validate_kinds(store, train, o->bootstrap);
+            groups.insert(groups.end() - 1, kinds->groups.begin(), kinds->groups.end());
         } else {
             const RunRef test_ref = parse_run_ref("--test", o->test);
             LoadedRun train;
@@ -158,6 +218,7 @@ void add_validate_command(CLI::App& app) {
                              {"not_predictable", unpredictable},
                              {"groups", nlohmann::json::array()}};
             for (const ValidationGroup& g : groups) j["groups"].push_back(validation_json(g, true));
+            if (kinds) j["query_kinds"] = kinds_json(*kinds);
             std::cout << j.dump(2) << '\n';
             return;
         }
@@ -168,6 +229,7 @@ void add_validate_command(CLI::App& app) {
         print_header(o->bootstrap);
         if (groups.empty()) std::cout << "no split applies: the run has one scene\n";
         for (const ValidationGroup& g : groups) print_group(g);
+        if (kinds) print_kinds(*kinds);
         if (!unpredictable.empty()) {
             std::cout << "\nnot predictable (not measured in the train run):";
             for (const std::string& s : unpredictable) std::cout << ' ' << s;

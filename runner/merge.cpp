@@ -108,7 +108,8 @@ std::optional<double> optional_real(const Statement& s, int column) {
     return s.real(column);
 }
 
-/// Copies the frames and the machine state of the input's cell `from` to the output's cell `to`.
+/// Copies the frames (with their per-kind rows) and the machine state of the input's cell `from` to the output's cell
+/// `to`.
 void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to) {
     Statement frames = in.prepare(
         "SELECT frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, duplicate, "
@@ -132,6 +133,16 @@ void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to)
         for (int c = 25; c < 27; ++c)  // NULL in frames stored before the wall times were kept
             frames.is_null(c) ? insert_frame.bind_null(c + 2) : insert_frame.bind(c + 2, frames.int64(c));
         insert_frame.run();
+    }
+    Statement kinds = in.prepare(
+        "SELECT frame, kind, rays, raycast_ns, raycast_wall_ns, hits, n_t, n_rb, n_tp, n_ro, n_ro_hits, n_th, n_mp "
+        "FROM frame_kind WHERE cell_id = ?");
+    kinds.bind(1, from);
+    Statement insert_kind = o.prepare(kFrameKindInsertSql);
+    while (kinds.step()) {
+        insert_kind.bind(1, to).bind(2, kinds.int64(0)).bind(3, kinds.text(1));
+        for (int c = 2; c < 13; ++c) insert_kind.bind(c + 2, kinds.int64(c));
+        insert_kind.run();
     }
     Statement state =
         in.prepare("SELECT load_1m, calibration_ns, slow, resampled, memory_ns FROM cell_state WHERE cell_id = ?");

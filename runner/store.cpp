@@ -331,6 +331,30 @@ CREATE TABLE model_validation (
     models              TEXT NOT NULL
 );
 )sql",
+        // 10 → 11: per query kind, a frame's rays cast as their own timed batch and counted on their
+        // own (core/sim/simulator.h KindResult): stored only for frames with a ray of another kind
+        // than all, so databases of all-hits runs do not grow. Rays, times, hits and counters sum
+        // to the frame row's.
+        R"sql(
+CREATE TABLE frame_kind (
+    cell_id         INTEGER NOT NULL REFERENCES cell(id) ON DELETE CASCADE,
+    frame           INTEGER NOT NULL,
+    kind            TEXT NOT NULL,
+    rays            INTEGER NOT NULL,
+    raycast_ns      INTEGER NOT NULL,
+    raycast_wall_ns INTEGER NOT NULL,
+    hits            INTEGER NOT NULL,
+    n_t             INTEGER NOT NULL,
+    n_rb            INTEGER NOT NULL,
+    n_tp            INTEGER NOT NULL,
+    n_ro            INTEGER NOT NULL,
+    n_ro_hits       INTEGER NOT NULL,
+    n_th            INTEGER NOT NULL,
+    n_mp            INTEGER NOT NULL,
+    PRIMARY KEY (cell_id, frame, kind),
+    FOREIGN KEY (cell_id, frame) REFERENCES frame(cell_id, frame) ON DELETE CASCADE
+);
+)sql",
     };
     return all;
 }
@@ -651,6 +675,7 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
         "duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, "
         "n_th, n_mp, update_wall_ns, raycast_wall_ns) VALUES "
         "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+    Statement kind = db_.prepare(kFrameKindInsertSql);
     for (const FrameResult& fr : res.frames) {
         std::optional<double> sah;
         if (fr.stats.contains("sah_cost") && fr.stats["sah_cost"].is_number()) sah = fr.stats["sah_cost"].get<double>();
@@ -663,6 +688,13 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
                    std::int64_t(fr.counters.n_ro), std::int64_t(fr.counters.n_ro_hits), std::int64_t(fr.counters.n_th),
                    std::int64_t(fr.counters.n_mp), std::int64_t(fr.update.wall_ns), std::int64_t(fr.raycast.wall_ns));
         f.run();
+        for (const KindResult& k : fr.kinds)
+            kind.bind_all(cell_id, std::int64_t(fr.frame), std::string(query_kind_name(k.kind)), std::int64_t(k.rays),
+                          std::int64_t(k.raycast_ns), std::int64_t(k.raycast.wall_ns), std::int64_t(k.hits),
+                          std::int64_t(k.counters.n_t), std::int64_t(k.counters.n_rb), std::int64_t(k.counters.n_tp),
+                          std::int64_t(k.counters.n_ro), std::int64_t(k.counters.n_ro_hits),
+                          std::int64_t(k.counters.n_th), std::int64_t(k.counters.n_mp))
+                .run();
     }
     t.commit();
     return true;

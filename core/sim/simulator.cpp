@@ -3,6 +3,7 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <stdexcept>
 
@@ -46,6 +47,123 @@ std::size_t median_interval_rank(std::size_t n) {
         k = j + 1;  // P(B <= k - 1) <= 0.025: x(k) may be the lower end
     }
     return std::min(k, (n + 1) / 2);
+}
+
+[[noreturn]] void different_hits(const std::string& name, std::uint32_t frame) {
+    throw std::logic_error(name + ": the counting pass reported other hits than the timed pass in frame " +
+                           std::to_string(frame));
+}
+
+/// A frame's rays split by query kind, for frames with more than one kind (simulator.h): per kind,
+/// its rays in recording order and their answers. The buffers live across frames, so a frame's
+/// split allocates only when it outgrows the frames before; the split is made before any timing.
+class KindBatches {
+public:
+    /// Splits the frame's rays; false (and nothing split) when all its rays ask for one kind.
+    bool split(const Frame& frame) {
+        if (frame.kinds.empty()) return false;
+        const QueryKind first = frame.kinds.front();
+        if (std::all_of(frame.kinds.begin(), frame.kinds.end(), [first](QueryKind k) { return k == first; }))
+            return false;
+        for (Batch& b : batches_) b.rays.clear(), b.kinds.clear();
+        for (std::size_t i = 0; i < frame.rays.size(); ++i) {
+            Batch& b = batches_[std::size_t(frame.kinds[i])];
+            b.rays.push_back(frame.rays[i]);
+            b.kinds.push_back(frame.kinds[i]);
+        }
+        kinds_ = &frame.kinds;
+        return true;
+    }
+
+    /// Each kind's batch timed on its own (or, without timing, its counting pass as the only cast);
+    /// `hits` gets the answers in recording order, `fr` the per-kind results and their sums.
+    void timed_pass(Structure& s, bool timed, TimingClock clock, FrameResult& fr, HitLists& hits) {
+        for (int k = 0; k < kQueryKinds; ++k) {
+            Batch& b = batches_[std::size_t(k)];
+            if (b.rays.empty()) continue;
+            KindResult r;
+            r.kind = QueryKind(k);
+            r.rays = static_cast<std::uint32_t>(b.rays.size());
+            if (timed) {
+                const Stopwatch watch;
+                s.cast(b.rays, b.kinds, b.hits);
+                r.raycast = watch.elapsed();
+                r.raycast_ns = on_clock(r.raycast, clock);
+            } else {
+                s.cast_counted(b.rays, b.kinds, b.hits, r.counters);
+                fr.counters += r.counters;
+            }
+            r.hits = b.hits.uids.size();
+            fr.raycast.wall_ns += r.raycast.wall_ns;
+            fr.raycast.cpu_ns += r.raycast.cpu_ns;
+            fr.raycast_ns += r.raycast_ns;
+            fr.kinds.push_back(r);
+        }
+        // Back in recording order: the i-th ray of a kind is that kind's batch's i-th answer.
+        hits.clear();
+        std::array<std::size_t, kQueryKinds> next{};
+        for (QueryKind k : *kinds_) {
+            const std::span<const Uid> answer = batches_[std::size_t(k)].hits.of(next[std::size_t(k)]++);
+            hits.uids.insert(hits.uids.end(), answer.begin(), answer.end());
+            hits.end_ray();
+        }
+    }
+
+    /// Each kind's batch through the counting pass; its hits must be its timed batch's.
+    void counting_pass(Structure& s, const std::string& name, FrameResult& fr) {
+        for (KindResult& r : fr.kinds) {
+            Batch& b = batches_[std::size_t(r.kind)];
+            s.cast_counted(b.rays, b.kinds, b.counted, r.counters);
+            if (b.counted.uids != b.hits.uids || b.counted.offsets != b.hits.offsets) different_hits(name, fr.frame);
+            fr.counters += r.counters;
+        }
+    }
+
+private:
+    struct Batch {
+        std::vector<Segment> rays;
+        std::vector<QueryKind> kinds;
+        HitLists hits, counted;
+    };
+    std::array<Batch, kQueryKinds> batches_;
+    const std::vector<QueryKind>* kinds_ = nullptr;
+};
+
+/// The per-kind block of SimulationResult::to_json: per kind, the median over measured frames of
+/// its ray-cast time and of its time per query, and per frame its results (empty for a frame of
+/// all hits).
+nlohmann::json kinds_json(const std::vector<FrameResult>& frames) {
+    nlohmann::json per_frame = nlohmann::json::array(), summary = nlohmann::json::object();
+    std::array<std::vector<double>, kQueryKinds> ns, ns_per_query;
+    std::array<std::uint64_t, kQueryKinds> rays{};
+    for (const FrameResult& f : frames) {
+        nlohmann::json here = nlohmann::json::array();
+        for (const KindResult& k : f.kinds) {
+            here.push_back({{"kind", query_kind_name(k.kind)},
+                            {"rays", k.rays},
+                            {"raycast_ns", k.raycast_ns},
+                            {"raycast_wall_ns", k.raycast.wall_ns},
+                            {"hits", k.hits},
+                            {"n_t", k.counters.n_t},
+                            {"n_th", k.counters.n_th},
+                            {"n_mp", k.counters.n_mp},
+                            {"n_rb", k.counters.n_rb},
+                            {"n_tp", k.counters.n_tp},
+                            {"n_ro", k.counters.n_ro},
+                            {"n_ro_hits", k.counters.n_ro_hits}});
+            rays[std::size_t(k.kind)] += k.rays;
+            if (f.warmup || k.rays == 0) continue;
+            ns[std::size_t(k.kind)].push_back(double(k.raycast_ns));
+            ns_per_query[std::size_t(k.kind)].push_back(double(k.raycast_ns) / k.rays);
+        }
+        per_frame.push_back(here);
+    }
+    for (int k = 0; k < kQueryKinds; ++k)
+        if (rays[std::size_t(k)] > 0)
+            summary[kQueryKindNames[k]] = {{"rays", rays[std::size_t(k)]},
+                                           {"raycast_ns_median", spread_of(ns[std::size_t(k)]).median},
+                                           {"ns_per_query_median", spread_of(ns_per_query[std::size_t(k)]).median}};
+    return {{"summary", summary}, {"frames", per_frame}};
 }
 
 }  // namespace
@@ -152,6 +270,8 @@ nlohmann::json SimulationResult::to_json() const {
     j["n_ro_hits"] = array(n_ro_hits);
     j["frame_memory_bytes"] = array(memory);
     j["stats"] = array(stats);
+    if (std::any_of(frames.begin(), frames.end(), [](const FrameResult& f) { return !f.kinds.empty(); }))
+        j["kinds"] = kinds_json(frames);
     nlohmann::json examples = nlohmann::json::array();
     static const char* kinds[] = {"missed", "extra", "duplicate"};
     for (const auto& [f, d] : this->examples)
@@ -192,6 +312,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
 
     LiveSet live(recording.initial);
     HitLists hits, counted;
+    KindBatches batches;
     for (std::size_t i = 0; i < frames; ++i) {
         const Frame& frame = recording.frames[i];
         FrameResult fr;
@@ -216,7 +337,10 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
         live.apply(frame);
         if (options.validate) validate_or_throw(*structure, info.name, fr.frame);
 
-        if (options.timed_cast) {
+        const bool per_kind = batches.split(frame);
+        if (per_kind)
+            batches.timed_pass(*structure, options.timed_cast, result.clock, fr, hits);
+        else if (options.timed_cast) {
             const Stopwatch cast_watch;
             structure->cast(frame.rays, frame.kinds, hits);
             fr.raycast = cast_watch.elapsed();
@@ -238,13 +362,16 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
                 if (result.examples.size() < 20) result.examples.emplace_back(fr.frame, d);
         }
         if (options.count && options.timed_cast) {
-            structure->cast_counted(frame.rays, frame.kinds, counted, fr.counters);
-            // The counting policy must not change what the traversal does.
-            if (counted.uids != hits.uids || counted.offsets != hits.offsets)
-                throw std::logic_error(info.name +
-                                       ": the counting pass reported other hits than the timed pass in frame " +
-                                       std::to_string(fr.frame));
+            if (per_kind)
+                batches.counting_pass(*structure, info.name, fr);
+            else {
+                structure->cast_counted(frame.rays, frame.kinds, counted, fr.counters);
+                // The counting policy must not change what the traversal does.
+                if (counted.uids != hits.uids || counted.offsets != hits.offsets) different_hits(info.name, fr.frame);
+            }
         }
+        if (!per_kind && fr.closest + fr.any > 0)  // one kind, not all: its share is the whole frame
+            fr.kinds.push_back({frame.kinds.front(), fr.rays, fr.raycast_ns, fr.raycast, fr.hits, fr.counters});
         fr.memory_bytes = structure->memory_bytes();
         fr.stats = structure->stats();
         if (on_frame) on_frame(fr);

@@ -12,6 +12,14 @@
 /// time when the configuration's work runs on one thread, so a time slice another process takes
 /// on the core is not counted as the structure's cost; with the wall time otherwise. Both are
 /// kept per frame.
+///
+/// A frame whose rays ask for more than one query kind casts them as one timed batch per kind
+/// (the rays of that kind in recording order; the batches are copied out before any timing), and
+/// counts them per kind the same way; the answers are put back in recording order for the
+/// verification. An engine issues its shots, visibility checks and sensor sweeps as separate
+/// batches, and only a batch of one kind has a time of its own: the cost model's check that its
+/// coefficients do not depend on the kind (docs/model.md) needs each kind's time beside its
+/// counters. A frame of one kind is cast exactly as a frame of all hits is: one call, one timing.
 
 #include <cstdint>
 #include <functional>
@@ -38,6 +46,17 @@ struct SimulationOptions {
     std::uint32_t warmup_frames = 0;  ///< the first frames run but are left out of the summaries
 };
 
+/// One query kind's share of a frame that has rays of another kind than `all`: its rays, their
+/// timed batch (both clocks), the hits it reported and its counting pass.
+struct KindResult {
+    QueryKind kind = QueryKind::all;
+    std::uint32_t rays = 0;
+    std::uint64_t raycast_ns = 0;  ///< on the result's clock
+    Elapsed raycast;
+    std::uint64_t hits = 0;
+    Counters counters;
+};
+
 struct FrameResult {
     std::uint32_t frame = 0;  ///< 1-based; frame 0 is the build
     bool warmup = false;
@@ -52,6 +71,9 @@ struct FrameResult {
     /// relevant, precision = correct / returned.
     std::uint64_t returned = 0, correct = 0, relevant = 0;
     Counters counters;  ///< from the counting pass, summed over the rays
+    /// Per query kind present, in kind order (all, closest, any); empty when every ray asks for all
+    /// hits. Rays, times, hits and counters sum to the frame's.
+    std::vector<KindResult> kinds;
     std::uint64_t memory_bytes = 0;
     nlohmann::json stats;  ///< Structure::stats() after the frame's commit
 

@@ -1,0 +1,212 @@
+#include "analysis/query_kinds.h"
+
+#include <algorithm>
+#include <map>
+#include <set>
+#include <tuple>
+
+#include "analysis/statistics.h"
+#include "core/scene/scene.h"
+#include "runner/store.h"
+
+namespace rcb {
+namespace {
+
+/// The rank of a kind's name in QueryKind order (all, closest, any), for sorting.
+int kind_rank(const std::string& kind) {
+    for (int k = 0; k < kQueryKinds; ++k)
+        if (kind == kQueryKindNames[k]) return k;
+    return kQueryKinds;
+}
+
+/// One frame_kind row: the kind, its rays and ray-cast time, and its counters by column name.
+struct KindRow {
+    std::string kind;
+    double rays = 0, raycast_ns = 0;
+    std::map<std::string, double> counters;
+};
+
+/// The run's frame_kind rows of measured frames by (cell, frame).
+std::map<std::pair<std::int64_t, std::int64_t>, std::vector<KindRow>> kind_rows(Database& db, std::int64_t run) {
+    static const char* const columns[] = {"n_t", "n_rb", "n_tp", "n_ro", "n_ro_hits", "n_th", "n_mp"};
+    std::string sql =
+        "SELECT frame_kind.cell_id, frame_kind.frame, frame_kind.kind, frame_kind.rays, frame_kind.raycast_ns";
+    for (const char* c : columns) sql += std::string(", frame_kind.") + c;
+    sql += std::string(
+               " FROM frame_kind JOIN frame USING (cell_id, frame) JOIN cell ON cell.id = frame_kind.cell_id "
+               "WHERE frame.warmup = 0 AND cell.run_id IN ") +
+           kRunGroupSql;
+    Statement s = db.prepare(sql);
+    s.bind_all(run, run);
+    std::map<std::pair<std::int64_t, std::int64_t>, std::vector<KindRow>> out;
+    while (s.step()) {
+        KindRow r{s.text(2), s.real(3), s.real(4), {}};
+        for (int i = 0; i < int(std::size(columns)); ++i) r.counters[columns[i]] = s.real(5 + i);
+        out[{s.int64(0), s.int64(1)}].push_back(std::move(r));
+    }
+    for (auto& [key, rows] : out)
+        std::sort(rows.begin(), rows.end(),
+                  [](const KindRow& a, const KindRow& b) { return kind_rank(a.kind) < kind_rank(b.kind); });
+    return out;
+}
+
+/// `frame` as the observation of one kind's batch: rays, time and per-ray counters of `row`.
+FrameObservation kind_observation(const FrameObservation& frame, const KindRow& row) {
+    FrameObservation o = frame;
+    o.kind = row.kind;
+    o.rays = row.rays;
+    o.raycast_ns = row.raycast_ns;
+    for (const FrameCounter& c : frame_counters()) {
+        if (c.scale != CounterScale::per_ray) continue;
+        const auto it = row.counters.find(c.alias);
+        if (it == row.counters.end()) throw std::logic_error("frame_kind has no column " + std::string(c.alias));
+        o.*(c.field) = row.rays > 0 ? it->second / row.rays : 0.0;
+    }
+    return o;
+}
+
+double relative_error(double predicted, double measured) {
+    return std::isfinite(predicted) && measured > 0 ? std::abs(predicted - measured) / measured : NAN;
+}
+
+/// The median of `v`, NaN when empty or when any value is NaN (a frame without a model).
+double median_of(const std::vector<double>& v) {
+    if (v.empty() || std::any_of(v.begin(), v.end(), [](double x) { return !std::isfinite(x); })) return NAN;
+    return quantile(v, 0.5);
+}
+
+ValidationSplit kinds_split(const std::vector<FrameObservation>& frames, const std::set<std::string>& from,
+                            const std::set<std::string>& to) {
+    const auto names = [](const std::set<std::string>& kinds) {
+        std::vector<std::string> sorted(kinds.begin(), kinds.end());
+        std::sort(sorted.begin(), sorted.end(),
+                  [](const std::string& a, const std::string& b) { return kind_rank(a) < kind_rank(b); });
+        std::string text;
+        for (const std::string& k : sorted) text += (text.empty() ? "" : "+") + k;
+        return text;
+    };
+    ValidationSplit s{kKindTransferGroup, names(from) + " -> " + names(to), {}, {}};
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+        if (from.count(frames[i].kind)) s.train.push_back(i);
+        if (to.count(frames[i].kind)) s.test.push_back(i);
+    }
+    return s;
+}
+
+}  // namespace
+
+bool run_has_query_kinds(Database& db, std::int64_t run) {
+    Statement s = db.prepare(std::string("SELECT 1 FROM frame_kind JOIN cell ON cell.id = frame_kind.cell_id "
+                                         "WHERE cell.run_id IN ") +
+                             kRunGroupSql + " LIMIT 1");
+    s.bind_all(run, run);
+    return s.step();
+}
+
+std::vector<FrameObservation> load_kind_observations(Database& db, std::int64_t run) {
+    const std::vector<FrameObservation> frames = load_observations(db, run);
+    // The frames' keys in load_observations' order (its query's WHERE and ORDER BY).
+    Statement keys = db.prepare(std::string("SELECT frame.cell_id, frame.frame FROM frame JOIN cell ON cell.id = "
+                                            "frame.cell_id WHERE cell.run_id IN ") +
+                                kRunGroupSql + " AND frame.warmup = 0 ORDER BY cell.id, frame.frame");
+    keys.bind_all(run, run);
+    const auto rows = kind_rows(db, run);
+    std::vector<FrameObservation> out;
+    std::map<std::pair<int, std::string>, int> groups;
+    for (const FrameObservation& f : frames) {
+        if (!keys.step()) throw std::logic_error("the run's frames changed while they were read");
+        const auto it = rows.find({keys.int64(0), keys.int64(1)});
+        if (it == rows.end()) {
+            out.push_back(f);
+            out.back().kind = kQueryKindNames[int(QueryKind::all)];
+        } else {
+            for (const KindRow& r : it->second) out.push_back(kind_observation(f, r));
+        }
+    }
+    for (FrameObservation& o : out)
+        o.config_group = groups.emplace(std::make_pair(o.config_group, o.kind), int(groups.size())).first->second;
+    return out;
+}
+
+std::vector<KindCell> kind_cells(const std::vector<StructureModels>& models,
+                                 const std::vector<FrameObservation>& kind_frames) {
+    std::map<std::string, const StructureModels*> by_structure;
+    for (const StructureModels& m : models) by_structure[m.structure] = &m;
+    std::vector<int> order;
+    std::map<int, std::vector<const FrameObservation*>> cells;
+    for (const FrameObservation& f : kind_frames) {
+        if (f.rays <= 0) continue;
+        auto& fs = cells[f.config_group];
+        if (fs.empty()) order.push_back(f.config_group);
+        fs.push_back(&f);
+    }
+    std::vector<KindCell> out;
+    for (int group : order) {
+        const std::vector<const FrameObservation*>& fs = cells[group];
+        const FrameObservation& first = *fs.front();
+        KindCell c{first.structure, first.params, first.scene, first.kind.empty() ? "all" : first.kind};
+        const auto m = by_structure.find(first.structure);
+        const bool model = m != by_structure.end() && m->second->predict_ray;
+        std::vector<double> rays, ns, per_query, predicted, predicted_per_query;
+        for (const FrameObservation* f : fs) {
+            rays.push_back(f->rays);
+            ns.push_back(f->raycast_ns);
+            per_query.push_back(f->raycast_ns / f->rays);
+            if (!model) continue;
+            const double per_ray = m->second->predict_ray(*f);
+            predicted_per_query.push_back(per_ray);
+            predicted.push_back(per_ray * f->rays);
+        }
+        c.rays = quantile(rays, 0.5);
+        c.raycast_ns = quantile(ns, 0.5);
+        c.ns_per_query = quantile(per_query, 0.5);
+        c.predicted_raycast_ns = median_of(predicted);
+        c.predicted_ns_per_query = median_of(predicted_per_query);
+        c.error = relative_error(c.predicted_raycast_ns, c.raycast_ns);
+        out.push_back(std::move(c));
+    }
+    return out;
+}
+
+std::vector<KindError> kind_errors(const std::vector<KindCell>& cells) {
+    std::map<std::tuple<std::string, int, std::string>, std::vector<double>> errors;
+    std::map<std::tuple<std::string, int, std::string>, std::size_t> counts;
+    for (const KindCell& c : cells) {
+        const auto key = std::make_tuple(c.structure, kind_rank(c.kind), c.kind);
+        ++counts[key];
+        if (std::isfinite(c.error)) errors[key].push_back(c.error);
+    }
+    std::vector<KindError> out;
+    for (const auto& [key, n] : counts) {
+        const auto it = errors.find(key);
+        out.push_back({std::get<0>(key), std::get<2>(key), n, it == errors.end() ? NAN : quantile(it->second, 0.5)});
+    }
+    return out;
+}
+
+std::vector<ValidationSplit> kind_transfer_splits(const std::vector<FrameObservation>& kind_frames) {
+    std::set<std::string> kinds;
+    for (const FrameObservation& f : kind_frames) kinds.insert(f.kind);
+    std::vector<ValidationSplit> out;
+    if (kinds.size() < 2) return out;
+    const std::string all = kQueryKindNames[int(QueryKind::all)];
+    std::vector<std::string> in_order;  // QueryKind order: all, closest, any
+    for (const char* k : kQueryKindNames)
+        if (kinds.count(k)) in_order.push_back(k);
+    if (kinds.count(all)) {
+        std::set<std::string> others = kinds;
+        others.erase(all);
+        for (const std::string& k : in_order)
+            if (k != all) out.push_back(kinds_split(kind_frames, {all}, {k}));
+        out.push_back(kinds_split(kind_frames, others, {all}));
+    } else {
+        for (const std::string& k : in_order) {
+            std::set<std::string> others = kinds;
+            others.erase(k);
+            out.push_back(kinds_split(kind_frames, {k}, others));
+        }
+    }
+    return out;
+}
+
+}  // namespace rcb
