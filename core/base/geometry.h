@@ -140,7 +140,8 @@ struct SegmentSlabsT {
     /// [t_min, t_max] (the segment itself: [0, 1]); the segment meets the box iff t_near <= t_far.
     /// Always inlined: it is the inner loop of every traversal, and where a file holds several
     /// traversals GCC otherwise calls it out of line.
-    [[gnu::always_inline]] constexpr bool clip(const AabbT<T>& box, T& t_near, T& t_far, T t_min = 0, T t_max = 1) const {
+    [[gnu::always_inline]] constexpr bool clip(const AabbT<T>& box, T& t_near, T& t_far, T t_min = 0,
+                                               T t_max = 1) const {
         T tn = t_min, tf = t_max;
         for (int a = 0; a < 3; ++a) {
             T lo = ((near_is_max[a] ? box.max[a] : box.min[a]) - origin[a]) * inv[a];
