@@ -57,6 +57,17 @@ concept HasCrowds = requires(const Tree& t, std::uint32_t n) {
     { t.is_crowd(n) } -> std::same_as<bool>;
 };
 
+/// A crowd node (`crowds`: the tree has any) answered by the tree's own scan; `descend` for every
+/// other node and at the candidate level, where the walk answers it.
+template <class Tree, class Count, class Visit>
+CrowdScan scan_if_crowd([[maybe_unused]] const Tree& tree, [[maybe_unused]] bool crowds,
+                        [[maybe_unused]] std::uint32_t node, [[maybe_unused]] const SegmentSlabs& slabs,
+                        [[maybe_unused]] Count& count, [[maybe_unused]] Visit& visit) {
+    if constexpr (HasCrowds<Tree> && !Count::candidates)
+        if (crowds && tree.is_crowd(node)) return tree.scan_crowd(node, slabs, count, visit);
+    return CrowdScan::descend;
+}
+
 /// Closest hits (hit_policy.h), after madmann91/bvh v2's and Embree's single-ray traversals: a
 /// node's two children are tested when the node is taken, the segment clipped to the best hit so
 /// far (a box entered after t_limit is missed); a leaf child is answered at once, the inner children
@@ -105,13 +116,9 @@ void traverse_bvh_nearest(const Tree& tree, std::uint32_t root, std::uint32_t* s
         top -= 2;
         const std::uint32_t node = stack[top];
         if (std::bit_cast<float>(stack[top + 1]) > visit_limit(visit)) continue;
-        if constexpr (HasCrowds<Tree> && !Count::candidates) {
-            if (crowds && tree.is_crowd(node)) {
-                const CrowdScan r = tree.scan_crowd(node, slabs, count, visit);
-                if (r == CrowdScan::stop) return;
-                if (r == CrowdScan::done) continue;
-            }
-        }
+        const CrowdScan r = scan_if_crowd(tree, crowds, node, slabs, count, visit);
+        if (r == CrowdScan::stop) return;
+        if (r == CrowdScan::done) continue;
         count.node_hits();
         std::uint32_t c0 = tree.child(node, 0), c1 = tree.child(node, 1);
         if (!take(c0, t0, f0, in0) || !take(c1, t1, f1, in1)) return;
@@ -164,13 +171,9 @@ void traverse_bvh(const Tree& tree, std::uint32_t root, std::uint32_t* stack, co
             if (!visit(tree.leaf_uid(node), t_near)) return;
         } else {
             if (!slabs.clip(tree.node_box(node), t_near, t_far)) continue;
-            if constexpr (HasCrowds<Tree> && !Count::candidates) {
-                if (crowds && tree.is_crowd(node)) {
-                    const CrowdScan r = tree.scan_crowd(node, slabs, count, visit);
-                    if (r == CrowdScan::stop) return;
-                    if (r == CrowdScan::done) continue;
-                }
-            }
+            const CrowdScan r = scan_if_crowd(tree, crowds, node, slabs, count, visit);
+            if (r == CrowdScan::stop) return;
+            if (r == CrowdScan::done) continue;
             // Child 0 on top: visited first.
             count.node_hits();
             stack[top++] = tree.child(node, 1);

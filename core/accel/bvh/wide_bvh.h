@@ -151,17 +151,21 @@ private:
     /// The L2 data cache of this machine (sysconf), or 1 MiB where it does not say.
     static std::size_t l2_bytes();
 
-    template <bool kFixedPush, class Count, class Visit>
-    void traverse_with(const Segment& s, Count& count, Visit& visit, StackScratch& scratch) const {
-        if (root_ == kNone) return;
-        const SegmentSlabs slabs(s);
-        // Per axis the offset of the near and far bounds in a block's `bound` array: min at
-        // 8·axis, max at 24 + 8·axis; the near side is the max when the direction is negative.
-        int near[3], far[3];
+    /// Per axis the offset of the near and far bounds in a block's `bound` array: min at 8·axis,
+    /// max at 24 + 8·axis; the near side is the max when the direction is negative.
+    static void bound_offsets(const SegmentSlabs& slabs, int near[3], int far[3]) {
         for (int a = 0; a < 3; ++a) {
             near[a] = (slabs.near_is_max[a] ? 24 : 0) + 8 * a;
             far[a] = (slabs.near_is_max[a] ? 0 : 24) + 8 * a;
         }
+    }
+
+    template <bool kFixedPush, class Count, class Visit>
+    void traverse_with(const Segment& s, Count& count, Visit& visit, StackScratch& scratch) const {
+        if (root_ == kNone) return;
+        const SegmentSlabs slabs(s);
+        int near[3], far[3];
+        bound_offsets(slabs, near, far);
         std::uint32_t* stack = scratch.stack();
         std::uint32_t top = 0;
         stack[top++] = root_;
@@ -215,10 +219,7 @@ private:
         if (root_ == kNone) return;
         const SegmentSlabs slabs(s);
         int near[3], far[3];
-        for (int a = 0; a < 3; ++a) {
-            near[a] = (slabs.near_is_max[a] ? 24 : 0) + 8 * a;
-            far[a] = (slabs.near_is_max[a] ? 0 : 24) + 8 * a;
-        }
+        bound_offsets(slabs, near, far);
         std::uint32_t* stack = scratch.stack();  // pairs: block, bits of its lane's entry parameter
         std::uint32_t top = 0;
         stack[top++] = root_;
