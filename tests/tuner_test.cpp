@@ -255,6 +255,38 @@ TEST(TuneCostModel, TheMachinesCalibrationKeepsRayWorkInAFewPointFit) {
     EXPECT_FALSE(asked);  // the calibration is not even measured where the free fit prices the rays
 }
 
+TEST(TuneCostModel, AnUnpinnedCalibrationIsTheModelWhereNoFitPricesTheRays) {
+    // The frames of the test above that hide the rays' work, and micro-scenes so noisy that no
+    // coefficient is pinned: the priors bound nothing, so the bounded fit prices no ray work
+    // either, and the model is the micro-scenes' own costs, named as such.
+    constexpr double kT = 4.0, kPrep = 30.0;
+    Random rng(11);
+    std::vector<FrameObservation> frames;
+    for (int c = 0; c < 5; ++c)
+        for (int f = 0; f < 4; ++f) {
+            FrameObservation o;
+            o.structure = "ug", o.scene = "u", o.category = "uniform";
+            o.params = "{\"density\":" + std::to_string(c) + "}";
+            o.config_group = c, o.rays = 200;
+            o.n_t = 10 + c * (1 + 0.01 * rng.normal());
+            o.raycast_ns = o.rays * (kPrep + kT * 10) * (1 + 0.05 * rng.normal());
+            frames.push_back(o);
+        }
+    std::vector<CalibrationPoint> points;  // three points, ±40%: every interval wider than ±50%
+    for (auto [n_t, noise] : {std::pair{5.0, 1.4}, std::pair{40.0, 0.6}, std::pair{80.0, 1.3}})
+        points.push_back({"micro", 512, 0.0, n_t, (kT * n_t + kPrep) * noise, 0.1});
+    ModelInputs priors;
+    priors.calibrations.push_back(fit_calibration("ug", points));
+    const CalibratedTerm* t = priors.calibrations[0].term("C_T");
+    ASSERT_NE(t, nullptr);
+    ASSERT_FALSE(t->pinned) << t->why;
+    ASSERT_GT(t->value, 0);
+    const std::optional<CostCoefficients> alone = fit_coefficients(frames, [&]() -> const ModelInputs& { return priors; });
+    ASSERT_TRUE(alone.has_value());
+    EXPECT_DOUBLE_EQ((*alone)["C_T"], t->value) << alone->to_json().dump();
+    EXPECT_NE(alone->model.find("calibration alone"), std::string::npos) << alone->model;
+}
+
 TEST(TuneCostModel, MachinePriorsCalibrateEveryBuildableStructure) {
     MachinePriors priors;
     for (const char* name : {"ug", "dbvh"}) {

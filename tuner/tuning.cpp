@@ -487,17 +487,31 @@ bool prices_ray_work(const CostCoefficients& c) {
     return false;
 }
 
+/// The machine's micro-scene costs as a model: each tuning term the calibration fitted above 0.
+CostCoefficients calibration_alone(const StructureCalibration& calibration) {
+    CostCoefficients c;
+    for (const CostTerm* t : tuning_terms())
+        if (const CalibratedTerm* k = calibration.term(t->name); k && k->value > 0) c[t->name] = k->value;
+    c.model = "the micro-scene calibration alone (the fit priced no ray work, with or without its priors)";
+    return c;
+}
+
 }  // namespace
 
 std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservation>& frames,
                                                  const std::function<const ModelInputs&()>& priors) {
     std::optional<CostCoefficients> c = chosen_coefficients(fit_cost_models(frames));
-    const bool prices_rays = c && prices_ray_work(*c);
-    if (c && !prices_rays && priors && !priors().calibrations.empty()) {
-        c = chosen_coefficients(fit_cost_models(frames, priors()));
-        if (c) c->model += " with the calibration's priors (without them the fit priced no ray work)";
+    if (!c || prices_ray_work(*c) || !priors || priors().calibrations.empty()) return c;
+    // A few noisy points can hide the rays' work; a model that prices none ranks configurations
+    // by their memory alone. First the fit again, bounded by what the micro-scenes pinned.
+    std::optional<CostCoefficients> bounded = chosen_coefficients(fit_cost_models(frames, priors()));
+    if (bounded && prices_ray_work(*bounded)) {
+        bounded->model += " with the calibration's priors (without them the fit priced no ray work)";
+        return bounded;
     }
-    return c;
+    // Then the micro-scenes' own costs, pinned or not (calibration alone, without the experiment).
+    const CostCoefficients alone = calibration_alone(priors().calibrations.front());
+    return prices_ray_work(alone) ? alone : c;
 }
 
 double predict_cost(const CostCoefficients& c, const TuneCategory& category, const std::string& structure,

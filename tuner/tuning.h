@@ -169,7 +169,8 @@ private:
 /// the micro-scenes' in-cache values (docs/model.md). But a tuning measures a few configurations
 /// of one category whose counters move together, and on a noisy machine the free fit may price
 /// every ray's work at 0 and leave a start-up cost alone, which ranks nothing; then the fit is
-/// made again with `priors()`, the structure's calibration (MachinePriors), and the model says so.
+/// made again with `priors()`, the structure's calibration (MachinePriors), and where that still
+/// prices no ray work (nothing pinned), the calibration's own costs are the model; it says which.
 std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservation>& frames,
                                                  const std::function<const ModelInputs&()>& priors = {});
 
