@@ -88,6 +88,52 @@ NoiseFloor noise_floor(Database& db, std::int64_t run) {
     return out;
 }
 
+namespace {
+
+/// Per (structure, scene hash, params): the medians over repetitions of the cells' ray-cast and
+/// update medians; `slow` counts each key's repetitions flagged slow.
+std::map<std::string, std::pair<double, double>> run_medians(Database& db, std::int64_t run,
+                                                             std::map<std::string, std::string>& structure_of,
+                                                             std::map<std::string, std::size_t>& slow) {
+    Statement s =
+        db.prepare(std::string("SELECT config.structure, scene.hash, config.params, cell.raycast_ns_median, "
+                               "cell.update_ns_median, coalesce(cell_state.slow, 0) FROM cell "
+                               "JOIN config ON config.id = cell.config_id JOIN scene ON scene.id = cell.scene_id "
+                               "LEFT JOIN cell_state ON cell_state.cell_id = cell.id WHERE cell.run_id IN ") +
+                   kRunGroupSql);
+    s.bind_all(run, run);
+    std::map<std::string, std::pair<std::vector<double>, std::vector<double>>> values;
+    while (s.step()) {
+        const std::string key = s.text(0) + '\n' + s.text(1) + '\n' + s.text(2);
+        structure_of[key] = s.text(0);
+        values[key].first.push_back(s.real(3));
+        values[key].second.push_back(s.real(4));
+        slow[key] += s.int64(5) != 0;
+    }
+    std::map<std::string, std::pair<double, double>> out;
+    for (const auto& [key, v] : values) out[key] = {spread_of(v.first).median, spread_of(v.second).median};
+    return out;
+}
+
+}  // namespace
+
+std::vector<StructureNoise> between_runs(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b) {
+    std::map<std::string, std::string> structure_of;
+    std::map<std::string, std::size_t> slow;
+    const auto in_a = run_medians(a, run_a, structure_of, slow);
+    const auto in_b = run_medians(b, run_b, structure_of, slow);
+    // Each run's median as one "repetition" of the cell: repeatability's spread of two is then the
+    // relative range of the runs.
+    std::vector<RepeatSample> samples;
+    for (const auto& [key, ma] : in_a) {
+        const auto mb = in_b.find(key);
+        if (mb == in_b.end()) continue;
+        samples.push_back({structure_of[key], key, ma.first, ma.second, slow[key] > 0, 0});
+        samples.push_back({structure_of[key], key, mb->second.first, mb->second.second, false, 1});
+    }
+    return repeatability(samples);
+}
+
 std::vector<SlowCell> slow_cells(Database& db, std::int64_t run) {
     std::vector<SlowCell> out;
     // The ratio is against the median of the cell's own run (each shard has its own machine).

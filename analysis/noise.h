@@ -58,6 +58,14 @@ struct NoiseFloor {
 /// before the machine state was recorded gives repeatability only.
 NoiseFloor noise_floor(Database& db, std::int64_t run);
 
+/// How far two independent runs of one experiment (two processes, at two times) measure the same
+/// cell, per structure: for every scene (by content) and configuration both runs hold, the
+/// relative range of the two runs' medians over their repetitions; median and 90th percentile over
+/// those cells, for ray cast and update per frame. This, not the repetitions of one run, is the
+/// floor a model's error is judged against: a model cannot be told apart from a rerun below it.
+/// `cells` counts the cells both runs hold; `slow` those with a repetition flagged slow in either.
+std::vector<StructureNoise> between_runs(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b);
+
 /// A cell measured while the machine was slow.
 struct SlowCell {
     std::string scene, structure, params;

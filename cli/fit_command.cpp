@@ -5,9 +5,11 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
+#include "cli/run_ref.h"
 #include "analysis/cost_model.h"
 #include "analysis/noise.h"
 #include "analysis/validation.h"
@@ -130,7 +132,7 @@ void print_nested_loso(Database& db, std::int64_t run, const ModelInputs& inputs
 
 void add_fit_command(CLI::App& app) {
     struct Options {
-        std::string db, experiment;
+        std::string db, experiment, repeat;
         std::int64_t run = 0;
     };
     auto o = std::make_shared<Options>();
@@ -144,8 +146,14 @@ void add_fit_command(CLI::App& app) {
     cmd->add_option("--experiment", o->experiment, "Fit the newest run of this experiment (default: the newest run)")
         ->check(non_empty());
     cmd->add_option("--run", o->run, "Fit this run id")->check(run_id());
+    cmd->add_option("--repeat", o->repeat,
+                    "DB[:RUN]: another run of the same experiment (its own process, another time); the noise "
+                    "column is then the spread between the two runs instead of between one run's repetitions")
+        ->check(non_empty());
     cmd->callback([o] {
-        open_read_only(o->db);     // an existing results database, checked (fit does not create one)
+        open_read_only(o->db);  // an existing results database, checked (fit does not create one)
+        std::optional<RunRef> repeat;
+        if (!o->repeat.empty()) repeat = parse_run_ref("--repeat", o->repeat);
         ResultStore store(o->db);  // migrates, so the fit tables exist
         const std::int64_t run = resolve_run(store.db(), o->run, o->experiment);
         const RunFit fit = fit_run(store.db(), run);
@@ -189,13 +197,27 @@ void add_fit_command(CLI::App& app) {
                      "(ray cast, 5-fold); leave-one-scene-out error, refit only (each scene predicted by the model "
                      "chosen on all scenes, its coefficients refitted on the others: time per frame = update + rays x "
                      "C, and the ray-cast part alone; optimistic, the nested figures below are the headline); beside "
-                     "them the noise floor, how far two repetitions of a cell (run at different times, in other "
-                     "orders, on fresh structures) differ in ray-cast time per frame, (max - min) / median, median and "
-                     "90th percentile over the cells (\"-\": no cell was repeated). Targets: <= 10% for rcbench's "
+                     "them the noise, how far two measurements of a cell differ in ray-cast time per frame, (max - "
+                     "min) / median, median and 90th percentile over the cells (\"-\": no cell was measured twice). "
+                     "Targets: <= 10% for rcbench's "
                      "structures, <= 15% for the peers.\n";
-        const NoiseFloor noise = noise_floor(store.db(), run);
+        NoiseFloor noise = noise_floor(store.db(), run);
+        if (repeat) {
+            const std::unique_ptr<Database> other = naming(*repeat, [&] { return open_read_only(repeat->path); });
+            const std::int64_t other_run = resolve_ref(*other, *repeat);
+            noise.structures = between_runs(store.db(), run, *other, other_run);
+            std::cout << "The noise column is the spread between this run and run " << other_run << " of "
+                      << repeat->path << " (each cell's median over its repetitions in each run, the same "
+                      << "relative range, over the cells both hold); the slow column counts those cells with a "
+                         "repetition measured slow in either run.\n";
+        } else {
+            std::cout << "The noise column is within this run: its first two repetitions of each cell (at "
+                         "different times, in other orders, on fresh structures, in one process); give --repeat "
+                         "with another run of the same experiment for the spread between independent runs, which "
+                         "is larger on a shared machine.\n";
+        }
         TextTable e({"structure", "model", "terms", "held-out (configs)", "LOSO refit frame", "LOSO refit ray cast",
-                     "noise p50 / p90", "slow cells", "status"});
+                     repeat ? "between runs p50 / p90" : "noise p50 / p90", "slow cells", "status"});
         for (const StructureModels& s : models)
             if (const CandidateModel* m = s.chosen("raycast")) {
                 std::string terms;

@@ -1,8 +1,6 @@
 // rcbench validate: the cost model predicting what it never saw. With --test, the model chosen and
 // fitted on one run prices every cell of another; without, the run's nested splits (each split's
 // whole model selection redone on its train frames only).
-#include <charconv>
-#include <filesystem>
 #include <iostream>
 #include <cmath>
 #include <memory>
@@ -10,6 +8,7 @@
 
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
+#include "cli/run_ref.h"
 #include "analysis/query_kinds.h"
 #include "analysis/validation.h"
 #include "core/base/error.h"
@@ -19,26 +18,6 @@
 namespace rcb {
 namespace {
 
-/// "A.db" or "A.db:RUN", as given to `option`.
-struct RunRef {
-    std::string option, text, path;
-    std::int64_t run = 0;  ///< 0: the newest run with cells
-};
-
-RunRef parse_run_ref(const std::string& option, const std::string& text) {
-    RunRef r{option, text, text, 0};
-    const std::size_t colon = text.rfind(':');
-    if (colon != std::string::npos && colon + 1 < text.size() &&
-        text.find_first_not_of("0123456789", colon + 1) == std::string::npos) {
-        r.path = text.substr(0, colon);
-        const auto [end, ec] = std::from_chars(text.data() + colon + 1, text.data() + text.size(), r.run);
-        if (ec != std::errc() || r.run < 1) throw InputError(option + " " + text + ": a run id is a whole number >= 1");
-    }
-    if (!std::filesystem::is_regular_file(r.path))
-        throw InputError(option + " " + text + ": no such results database " + r.path);
-    return r;
-}
-
 /// What one run gives the validation: its id, uuid, frames and (for a train run) calibration and caches.
 struct LoadedRun {
     std::int64_t run = 0;
@@ -47,26 +26,10 @@ struct LoadedRun {
     ModelInputs inputs;
 };
 
-/// `f()`, with any InputError it throws (not a database, unknown run, no frames) naming the option
-/// and its value.
-template <class F>
-auto naming(const RunRef& ref, F f) {
-    try {
-        return f();
-    } catch (const InputError& e) {
-        throw InputError(ref.option + " " + ref.text + ": " + e.what());
-    }
-}
-
 LoadedRun load_run(Database& db, const RunRef& ref) {
     return naming(ref, [&] {
         LoadedRun out;
-        if (ref.run) {
-            Statement s = db.prepare("SELECT id FROM run WHERE id = ?");
-            s.bind(1, ref.run);
-            if (!s.step()) throw InputError("no run " + std::to_string(ref.run) + " in " + ref.path);
-        }
-        out.run = resolve_run(db, ref.run, "");
+        out.run = resolve_ref(db, ref);
         out.uuid = run_uuid(db, out.run);
         out.frames = load_observations(db, out.run);
         out.inputs = load_model_inputs(db, out.run);

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <set>
 
 #include "analysis/noise.h"
@@ -147,6 +148,51 @@ TEST(NoiseFloor, RepeatabilityIsTheSpreadOfTheFirstTwoRepetitionsMedianAndP90Ove
     EXPECT_EQ(noise_text(n[1].raycast, n[1].raycast_p90), "17.8% / 24.4%");
     EXPECT_EQ(noise_text(n[0].raycast), "-");
     EXPECT_EQ(noise_text(n[0].raycast, n[0].raycast_p90), "-");
+}
+
+TEST(NoiseFloor, BetweenRunsComparesEachRunsMedianOverRepetitionsOfTheCellsBothHold) {
+    const test::TempDir temp("noise", "between");
+    const Experiment e = parse_experiment(kThree, "noise.json", temp.path().string());
+    std::vector<std::unique_ptr<ResultStore>> stores;
+    std::vector<std::int64_t> runs;
+    for (const char* name : {"a.db", "b.db"}) {
+        RunOptions o;
+        o.db = (temp.path() / name).string();
+        const RunOutcome out = run_experiment(e, "noise.json", o);
+        ASSERT_TRUE(out.finished);
+        runs.push_back(out.run);
+        stores.push_back(std::make_unique<ResultStore>(o.db));
+    }
+    Database& a = stores[0]->db();
+    Database& b = stores[1]->db();
+    // Made-up medians: a measures 100 everywhere (one repetition of bf an outlier, which the median
+    // over repetitions drops), b measures bf at 120; b lacks ug on the irregular scene.
+    const std::string bf = "(SELECT id FROM config WHERE structure = 'bf')";
+    a.exec("UPDATE cell SET raycast_ns_median = 100, update_ns_median = 50");
+    a.exec("UPDATE cell SET raycast_ns_median = 1000 WHERE repetition = 2 AND config_id = " + bf);
+    b.exec("UPDATE cell SET raycast_ns_median = 100, update_ns_median = 50");
+    b.exec("UPDATE cell SET raycast_ns_median = 120, update_ns_median = 60 WHERE config_id = " + bf);
+    b.exec(
+        "UPDATE cell_state SET slow = 1 WHERE cell_id IN (SELECT id FROM cell WHERE repetition = 0 AND "
+        "config_id = " +
+        bf + ")");
+    b.exec(
+        "DELETE FROM cell WHERE config_id = (SELECT id FROM config WHERE structure = 'ug') AND scene_id = "
+        "(SELECT id FROM scene WHERE name LIKE 'irregular%')");
+    const std::vector<StructureNoise> n = between_runs(a, runs[0], b, runs[1]);
+    ASSERT_EQ(n.size(), 2u);
+    EXPECT_EQ(n[0].structure, "bf");
+    EXPECT_EQ(n[0].cells, 2u);
+    EXPECT_EQ(n[0].slow, 2u);  // both bf cells had a slow repetition in b
+    EXPECT_NEAR(n[0].raycast, 20.0 / 110.0, 1e-12);
+    EXPECT_NEAR(n[0].raycast_p90, 20.0 / 110.0, 1e-12);
+    EXPECT_NEAR(n[0].update, 10.0 / 55.0, 1e-12);
+    EXPECT_EQ(n[1].structure, "ug");
+    EXPECT_EQ(n[1].cells, 1u);  // only the uniform scene is in both
+    EXPECT_NEAR(n[1].raycast, 0.0, 1e-12);
+    // The same run against itself: no spread at all.
+    const std::vector<StructureNoise> self = between_runs(a, runs[0], a, runs[0]);
+    for (const StructureNoise& s : self) EXPECT_NEAR(s.raycast_p90, 0.0, 1e-12) << s.structure;
 }
 
 TEST(NoiseFloor, QuantilesInterpolateBetweenOrderStatistics) {

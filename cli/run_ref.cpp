@@ -1,0 +1,36 @@
+#include "cli/run_ref.h"
+
+#include <charconv>
+#include <filesystem>
+
+#include "analysis/cost_model.h"
+#include "runner/sqlite.h"
+
+namespace rcb {
+
+RunRef parse_run_ref(const std::string& option, const std::string& text) {
+    RunRef r{option, text, text, 0};
+    const std::size_t colon = text.rfind(':');
+    if (colon != std::string::npos && colon + 1 < text.size() &&
+        text.find_first_not_of("0123456789", colon + 1) == std::string::npos) {
+        r.path = text.substr(0, colon);
+        const auto [end, ec] = std::from_chars(text.data() + colon + 1, text.data() + text.size(), r.run);
+        if (ec != std::errc() || r.run < 1) throw InputError(option + " " + text + ": a run id is a whole number >= 1");
+    }
+    if (!std::filesystem::is_regular_file(r.path))
+        throw InputError(option + " " + text + ": no such results database " + r.path);
+    return r;
+}
+
+std::int64_t resolve_ref(Database& db, const RunRef& ref) {
+    return naming(ref, [&] {
+        if (ref.run) {
+            Statement s = db.prepare("SELECT id FROM run WHERE id = ?");
+            s.bind(1, ref.run);
+            if (!s.step()) throw InputError("no run " + std::to_string(ref.run) + " in " + ref.path);
+        }
+        return resolve_run(db, ref.run, "");
+    });
+}
+
+}  // namespace rcb
