@@ -15,7 +15,8 @@
 # data/maps, when missing), RCB_CATEGORY (advise --category; default: chosen from each map's
 # features), RCB_SEEN (maps the tuning saw, space-separated; default the maps of
 # experiments/tune-advise.json when RCB_TUNING is unset, else none), RCB_REPETITIONS (default 5),
-# RCB_SEED (advise --seed, the random baseline's; default the tuning's search seed).
+# RCB_SEED (advise --seed, the random baseline's; default the tuning's search seed), RCB_ADVISE_ARGS
+# (more advise options, split at spaces, e.g. "--verify-top 1 --refine 8").
 # Writes RCB_STUDY_DIR/MAP-brushes.rcbscene (20 frames of 1% dynamics, seed 1, kept and reused),
 # advise-MAP.json and summary.txt (tab-separated). Needs jq (scripts/setup.sh installs it). Pin it to an idle core (taskset -c 0):
 # every map measures each tuned space whole.
@@ -57,6 +58,10 @@ fi
 extra=()
 [ -z "${RCB_CATEGORY:-}" ] || extra+=(--category "$RCB_CATEGORY")
 [ -z "${RCB_SEED:-}" ] || extra+=(--seed "$RCB_SEED")
+if [ -n "${RCB_ADVISE_ARGS:-}" ]; then
+  read -r -a more <<<"$RCB_ADVISE_ARGS"
+  extra+=("${more[@]}")
+fi
 for map in "${maps[@]}"; do
   pk3=${pk3_of[$map]}
   scene=$dir/$map-brushes.rcbscene
