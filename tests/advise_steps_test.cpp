@@ -5,7 +5,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <set>
 
 #include "core/accel/query_level.h"
 #include "core/accel/registry.h"
@@ -173,24 +172,20 @@ TEST(AdviseSteps, DescentNeighboursAreOneDimensionAtATimeUpThenDown) {
 
 TEST(AdviseSteps, TheDescentWalksToTheMeasuredOptimumWithinItsMeasurements) {
     const std::vector<SearchDimension> space = line_space(8);
-    auto run = [&](
-                   std::uint32_t refine, const std::function<double(int)>& ms, std::vector<int>* calls,
-                   const std::function<double(int)>& predicted = [](int) { return 0.0; }) {
+    auto run = [&](std::uint32_t refine, const std::function<double(int)>& ms, std::vector<int>* calls) {
         FakeMeasure m{ms, {}};
         ModelEvidence e;
-        e.candidates.push_back({json{{"a", 2}}, predicted(2), cost_of(ms(2)), true});
+        e.candidates.push_back({json{{"a", 2}}, 1.0, cost_of(ms(2)), true});
         e.replays.entries.push_back({json{{"a", 2}}, counts_of(2)});
         e.measured_counts.push_back(counts_of(2));
-        std::vector<int> replayed;
+        std::size_t replays = 0;
         const ReplayPrediction predict = [&](const json& p, ReplayCounts& counts) {
-            replayed.push_back(p["a"].get<int>());
-            counts = counts_of(replayed.back());
-            return predicted(replayed.back());
+            ++replays;
+            counts = counts_of(p["a"].get<int>());
+            return 0.0;
         };
         refine_by_descent(e, {space, json{{"a", 2}}, refine, AccuracyConstraint{}}, predict, m.function());
-        // Each level replayed once (the step's neighbours, to order them), every measured one first.
-        EXPECT_EQ(std::set<int>(replayed.begin(), replayed.end()).size(), replayed.size());
-        for (const int a : m.calls) EXPECT_NE(std::find(replayed.begin(), replayed.end(), a), replayed.end()) << a;
+        EXPECT_EQ(replays, m.calls.size());  // each level replayed once, before it is measured
         order_candidates(e.candidates, AccuracyConstraint{});
         if (calls) *calls = m.calls;
         EXPECT_EQ(e.refined, m.calls.size());
@@ -214,15 +209,6 @@ TEST(AdviseSteps, TheDescentWalksToTheMeasuredOptimumWithinItsMeasurements) {
     EXPECT_EQ(e.candidates.front().searched["a"], 4);
     e = run(0, valley, &calls);
     EXPECT_TRUE(calls.empty());
-    // The model orders a step's neighbours: it favours 1 over 3, so 1 is measured first (slower),
-    // then 3; with one measurement only 1 is, and the start stays the fastest.
-    const auto favours_down = [](int a) { return double(a); };
-    e = run(10, valley, &calls, favours_down);
-    EXPECT_EQ(calls, (std::vector<int>{1, 3, 4, 5, 6, 7, 8}));
-    EXPECT_EQ(e.candidates.front().searched["a"], 6);
-    e = run(1, valley, &calls, favours_down);
-    EXPECT_EQ(calls, (std::vector<int>{1}));
-    EXPECT_EQ(e.candidates.front().searched["a"], 2);
 }
 
 TEST(AdviseSteps, CandidatesAreOrderedMeasuredFirstThenByPrediction) {

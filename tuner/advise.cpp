@@ -357,31 +357,10 @@ void refine_by_descent(ModelEvidence& e, const DescentSettings& s, const ReplayP
         current = k;
         return true;
     };
-    // The model orders each step's neighbours, most promising first (replaying those it has not
-    // priced yet): measurements still decide every move, but a descent cut short by the budget
-    // has spent it where the counters point.
-    auto predicted_of = [&](const json& q) {
-        for (const ModelCandidate& c : e.candidates)
-            if (c.predicted_ms && same_point(c.searched, q, s.space)) return *c.predicted_ms;
-        ReplayCounts replayed;
-        const double ms = predict(q, replayed);
-        if (!e.replays.find(q, s.space)) e.replays.entries.push_back({q, replayed});
-        std::size_t k = 0;
-        while (k < e.candidates.size() && !same_point(e.candidates[k].searched, q, s.space)) ++k;
-        if (k == e.candidates.size())
-            e.candidates.push_back({q, ms, std::nullopt, same_point(q, s.category_searched, s.space)});
-        else
-            e.candidates[k].predicted_ms = ms;
-        return ms;
-    };
     auto step_from = [&](const json& from, std::size_t stride) {
-        const std::vector<json> next = descent_neighbours(s.space, from, stride);
-        std::vector<std::pair<double, std::size_t>> order;
-        for (std::size_t i = 0; i < next.size(); ++i) order.push_back({predicted_of(next[i]), i});
-        std::stable_sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-        for (const auto& [ms, i] : order) {
+        for (const json& q : descent_neighbours(s.space, from, stride)) {
             if (e.refined == s.refine) return false;
-            if (probe(next[i])) return true;
+            if (probe(q)) return true;
         }
         return false;
     };

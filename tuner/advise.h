@@ -259,9 +259,8 @@ struct DescentSettings {
 /// the fastest measured candidate: neighbours one level away (descent_neighbours, stride 1),
 /// where none is faster two levels away (past a bump: a map's walls can make a grid's cost rise
 /// and fall again along one parameter), moving to the first faster one, until none is or
-/// `refine` measurements are spent. Each step measures its neighbours in the order of their
-/// predicted cost (one not replayed yet is replayed first). A neighbour that counts like one
-/// measured already is that structure again and is not measured.
+/// `refine` measurements are spent. A neighbour that counts like one measured already is that
+/// structure again and is not measured; one not replayed yet is replayed first.
 void refine_by_descent(ModelEvidence& evidence, const DescentSettings& settings, const ReplayPrediction& predict,
                        const SceneMeasurement& measure);
 
