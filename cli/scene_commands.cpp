@@ -206,6 +206,32 @@ void scene_info(const std::string& path, bool as_json) {
     std::cout << "origin  " << json_excerpt(meta, 400) << '\n';
 }
 
+/// `scene gen --on-map`: the map's solid brushes in metres with y up (bsp_box_in_metres), then the
+/// pile dropped onto them; the recording's meta says which map and how it was placed.
+Recording pile_on_map(const SceneSettings& s, const std::string& file, const std::string& map) {
+    if (s.kind != "pile") throw InputError("--on-map: only --kind pile is dropped onto a map, not " + s.kind);
+    if (importer_for(file) != "bsp")
+        throw InputError("--on-map: " + file + ": expected a Quake III / OpenArena map (.bsp or .pk3)");
+    ImportOptions options;
+    options.map = map;
+    nlohmann::json imported;
+    std::vector<Aabb> boxes;
+    for (const Object& o : import_objects(file, options, &imported)) boxes.push_back(bsp_box_in_metres(o.box));
+    if (boxes.empty()) throw InputError("--on-map: " + file + ": no solid brushes");
+    Recording r;
+    try {
+        r = generate_physics_scene(s, boxes);
+    } catch (const InputError& e) {
+        throw InputError("--on-map: " + file + ": " + e.what());
+    }
+    nlohmann::json meta = nlohmann::json::parse(r.meta);
+    imported["metres_per_unit"] = kBspUnitMetres;
+    imported["axes"] = "map z up as y, map y as -z";
+    meta["on_map"] = imported;
+    r.meta = meta.dump();
+    return r;
+}
+
 /// `scene gen`: a scene from a preset or a kind.
 void add_gen_command(CLI::App& scene) {
     struct GenOptions {
@@ -216,6 +242,7 @@ void add_gen_command(CLI::App& scene) {
         DynamicsOptions dyn;
         ShapeSettings shapes;
         double time_step = 1.0 / 60;
+        std::string on_map, map;
     };
     auto gen = std::make_shared<GenOptions>();
     CLI::App* g = scene.add_subcommand("gen", "Generate a scene recording from a preset or a kind");
@@ -235,6 +262,13 @@ void add_gen_command(CLI::App& scene) {
     g->add_option("--objects", gen->objects, "Object count (overrides the preset's)")
         ->check(whole_number(1, kMaxSceneObjects));
     g->add_option("-o,--output", gen->out, "Recording file to write")->required();
+    g->add_option("--on-map", gen->on_map,
+                  "Pile only: a Quake III / OpenArena map (.bsp, or .pk3 with maps/*.bsp) whose solid brushes, in "
+                  "metres (a unit is 0.0254 m) with the map's z as y, become static boxes the bodies are dropped "
+                  "onto, each from a random free 2 m cell above them; the recording holds the bodies (uids 0..N-1) "
+                  "and then the map's boxes, which never move")
+        ->check(input_file());
+    g->add_option("--map", gen->map, "With --on-map, a .pk3 holding several maps: which one (NAME or maps/NAME.bsp)");
     add_dynamics_options(*g, gen->dyn);
     g->add_option("--rotated-share", gen->shapes.rotated_share,
                   "Share of the objects that become oriented boxes: the generated box's half extents, a random "
@@ -270,10 +304,11 @@ void add_gen_command(CLI::App& scene) {
         s.shapes = gen->shapes;
         s.time_step = gen->time_step;
         check_shapes(s.shapes);
-        check_output_path(gen->out, {}, "-o");
+        if (!gen->map.empty() && gen->on_map.empty()) throw InputError("--map: needs --on-map");
+        check_output_path(gen->out, {gen->on_map}, "-o");
         check_scene_size(s.objects, s.frames, s.rays.per_frame, s.objects * s.dynamics.change_fraction,
                          "--objects/--frames/--rays");
-        const Recording r = generate_scene(s);
+        const Recording r = gen->on_map.empty() ? generate_scene(s) : pile_on_map(s, gen->on_map, gen->map);
         write_recording(r, gen->out);
         print_written(r, gen->out);
     });

@@ -392,6 +392,61 @@ TEST(BspImport, SceneMapsListsAPk3sMapsByTheNameImportTakes) {
     EXPECT_NE(bad.err.find("list-junk.pk3: not a readable zip"), std::string::npos) << bad.err;
 }
 
+TEST(BspImport, MapBoxesInMetresWithYUp) {
+    // x stays, the map's z becomes y, its y becomes -z; 0.0254 m a unit.
+    const Aabb m = bsp_box_in_metres(box(0, 100, -10, 100, 200, 300));
+    const Aabb want = box(0, -0.254f, -5.08f, 2.54f, 7.62f, -2.54f);
+    for (int a = 0; a < 3; ++a) {
+        EXPECT_FLOAT_EQ(m.min[a], want.min[a]) << a;
+        EXPECT_FLOAT_EQ(m.max[a], want.max[a]) << a;
+    }
+}
+
+TEST(BspImport, ScenePileDropsBodiesOntoAMap) {
+    // A floor 1600 units (40.64 m) square and a post 400 units tall in one corner, so the map's
+    // bounds leave room above the floor; in a .pk3 beside another map.
+    TinyBsp floor;
+    floor.lump[0] = {'{', '}', 0};
+    floor.shader("textures/base/solid", 0x1);
+    floor.brush({0, 0, -32}, {1600, 1600, 0}, 0);
+    floor.brush({1500, 1500, 0}, {1600, 1600, 400}, 0);
+    const std::string pk3 = write_file(
+        scratch("pile.pk3"), stored_zip({{"maps/floor.bsp", floor.bytes()}, {"maps/tiny.bsp", tiny_map().bytes()}}));
+    const std::string out = scratch("pile.rcbscene").string(), bin = RCBENCH_BINARY;
+    const std::string gen = bin + " scene gen --objects 40 --frames 60 --rays 10 ";
+    const ::test::Outcome ok = ::test::run_shell(gen + "--kind pile --on-map " + pk3 + " --map floor -o " + out);
+    ASSERT_EQ(ok.code, 0) << ok.err;
+    const Recording r = read_recording(out);
+    ASSERT_EQ(r.initial.size(), 42u);
+    EXPECT_EQ(r.initial[40].box, bsp_box_in_metres(box(0, 0, -32, 1600, 1600, 0)));
+    EXPECT_EQ(r.initial[41].box, bsp_box_in_metres(box(1500, 1500, 0, 1600, 1600, 400)));
+    const nlohmann::json meta = nlohmann::json::parse(r.meta);
+    EXPECT_EQ(meta["kind"], "pile");
+    EXPECT_EQ(meta["on_map"]["map"], "maps/floor.bsp");
+    EXPECT_EQ(meta["on_map"]["metres_per_unit"], kBspUnitMetres);
+    // Bodies fall: after 1 s every body is lower than it started, none below the floor's top (y = 0).
+    LiveSet live(r.initial);
+    for (const Frame& f : r.frames) live.apply(f);
+    for (Uid u = 0; u < 40; ++u) {
+        EXPECT_LT(live.object(u).box.min.y, r.initial[u].box.min.y) << u;
+        EXPECT_GT(live.object(u).box.min.y, -0.05f) << u;
+    }
+    // Refused, exit 2, nothing written: another kind, a file that is not a map, --map alone, no room.
+    const std::string csv = write_text(scratch("pile.csv"), "0,0,0,0,1,1,1\n"),
+                      none = scratch("none.rcbscene").string();
+    const std::string tiny = write_file(scratch("pile-tiny.bsp"), tiny_map().bytes());
+    for (const auto& [args, says] : std::vector<std::pair<std::string, std::string>>{
+             {"--kind freefall --on-map " + pk3 + " --map floor", "--on-map: only --kind pile is dropped onto a map"},
+             {"--kind pile --on-map " + csv, "expected a Quake III / OpenArena map"},
+             {"--kind pile --map floor", "--map: needs --on-map"},
+             {"--kind pile --on-map " + tiny, "pile-tiny.bsp: the map has room for 0 of 40 bodies"}}) {
+        const ::test::Outcome o = ::test::run_shell(gen + args + " -o " + none);
+        EXPECT_EQ(o.code, 2) << args << ": " << o.err;
+        EXPECT_NE(o.err.find(says), std::string::npos) << args << ": " << o.err;
+    }
+    EXPECT_FALSE(fs::exists(none));
+}
+
 TEST(ModelImport, ObjInstancesAndTriangles) {
     const std::string obj = write_text(scratch("two.obj"),
                                        "o quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n"

@@ -7,8 +7,10 @@
 #include <memory>
 #include <numbers>
 #include <numeric>
+#include <set>
 
 #include "core/base/error.h"
+#include "core/base/number_text.h"
 #include "core/base/random.h"
 
 namespace rcb {
@@ -18,6 +20,9 @@ namespace {
 // shapes 4e6): body layout, and brownian's kicks per frame.
 constexpr std::uint64_t kBodyStream = 5'000'000;
 constexpr std::uint64_t kKickStream = 6'000'000;  // + frame
+
+btVector3 bt(const Vec3d& v) { return {btScalar(v.x), btScalar(v.y), btScalar(v.z)}; }
+Vec3d vec(const btVector3& v) { return {double(v.x()), double(v.y()), double(v.z())}; }
 
 enum class BodyShape { box, rotated, sphere, capsule };
 
@@ -41,7 +46,8 @@ struct Setup {
     std::vector<StaticBox> statics;
     Vec3d gravity{0, -9.81, 0};
     bool sleep = true;
-    bool ground = false;  ///< the plane y = 0 (a plane: a huge box makes resting contacts jitter)
+    bool ground = false;  ///< the plane y = ground_height (a plane: a huge box makes resting contacts jitter)
+    double ground_height = 0;
 };
 
 /// Exactly round(share × n) bodies of each shape, chosen at random (apply_shapes' rule).
@@ -107,6 +113,56 @@ Setup pile_setup(std::size_t n, const std::vector<BodyShape>& shapes, Random& rn
     s.bodies = lattice(n, side, 2.0, {1, 1.5, 1}, 0.3, shapes, rng);
     for (BodySpec& b : s.bodies) b.velocity = {rng.uniform(-0.5, 0.5), 0, rng.uniform(-0.5, 0.5)};
     s.ground = true;
+    return s;
+}
+
+/// Reports whether any leaf of a btDbvt was reached (Bullet's AABB tree over a map's boxes).
+struct AnyLeaf : btDbvt::ICollide {
+    bool hit = false;
+    void Process(const btDbvtNode*) override { hit = true; }
+};
+
+/// The pile on a map (physics.h): bodies in distinct free 2 m cells drawn at random over the map's
+/// bounds. A cell is free when the cube of ±0.9 m around its centre (a body's ball of 0.87 m, see
+/// random_half) overlaps no map box, and has a floor when a vertical ray from its centre down to
+/// the map's lowest point crosses a map box. At most 64 draws per body, so a map without room ends.
+Setup map_pile_setup(std::size_t n, const std::vector<BodyShape>& shapes, Random& rng, std::span<const Aabb> map) {
+    Aabbd bounds = Aabbd::empty();
+    for (const Aabb& b : map) bounds = merge(bounds, b.as<double>());
+    constexpr double kCell = 2.0, kMaxAcross = 1e6;
+    const Vec3d ext = bounds.extent();
+    if (!(ext.x <= kMaxAcross && ext.y <= kMaxAcross && ext.z <= kMaxAcross))
+        throw InputError("the map is " + fixed(bounds.longest_edge(), 0) +
+                         " m across; a pile is dropped onto a map at most 10^6 m across");
+    btDbvt tree;
+    for (const Aabb& b : map)
+        tree.insert(btDbvtVolume::FromMM(bt(b.min.as<double>()), bt(b.max.as<double>())), nullptr);
+    std::array<std::uint64_t, 3> dims{};
+    for (int a = 0; a < 3; ++a) dims[a] = std::max<std::uint64_t>(1, std::uint64_t(std::ceil(ext[a] / kCell)));
+    std::set<std::array<std::uint64_t, 3>> used;
+    Setup s;
+    for (std::size_t draw = 0; draw < 64 * n && s.bodies.size() < n; ++draw) {
+        const std::array<std::uint64_t, 3> c{rng.below(dims[0]), rng.below(dims[1]), rng.below(dims[2])};
+        if (used.count(c)) continue;
+        const Vec3d centre = bounds.min + Vec3d{double(c[0]) + 0.5, double(c[1]) + 0.5, double(c[2]) + 0.5} * kCell;
+        AnyLeaf inside, below;
+        tree.collideTV(tree.m_root, btDbvtVolume::FromCE(bt(centre), btVector3(0.9f, 0.9f, 0.9f)), inside);
+        if (inside.hit) continue;
+        btDbvt::rayTest(tree.m_root, bt(centre), bt(Vec3d{centre.x, bounds.min.y, centre.z}), below);
+        if (!below.hit) continue;
+        used.insert(c);
+        BodySpec b;
+        b.shape = shapes[s.bodies.size()];
+        b.half = random_half(rng);
+        b.position = centre;
+        if (b.shape == BodyShape::rotated) b.rotation = random_rotation(rng);
+        s.bodies.push_back(b);
+    }
+    if (s.bodies.size() < n)
+        throw InputError("the map has room for " + std::to_string(s.bodies.size()) + " of " + std::to_string(n) +
+                         " bodies (free 2 m cells above its boxes, found in " + std::to_string(64 * n) + " draws)");
+    s.ground = true;  // catches bodies that fall off the map's edges
+    s.ground_height = bounds.min.y;
     return s;
 }
 
@@ -177,10 +233,12 @@ Setup boxed_setup(std::size_t n, const std::vector<BodyShape>& shapes, Random& r
     return s;
 }
 
-Setup make_setup(const SceneSettings& settings) {
+Setup make_setup(const SceneSettings& settings, std::span<const Aabb> map) {
     Random rng(mix_seed(settings.seed, kBodyStream));
     const std::vector<BodyShape> shapes = shape_mix(settings.objects, settings.shapes, rng);
     const std::string& k = settings.kind;
+    if (!map.empty() && k != "pile") throw InputError("only the pile kind is dropped onto a map, not " + k);
+    if (k == "pile" && !map.empty()) return map_pile_setup(settings.objects, shapes, rng, map);
     if (k == "pile") return pile_setup(settings.objects, shapes, rng);
     if (k == "freefall") return freefall_setup(settings.objects, shapes, rng);
     if (k == "explosion") return explosion_setup(settings.objects, shapes, rng);
@@ -189,8 +247,25 @@ Setup make_setup(const SceneSettings& settings) {
     throw InputError("unknown physics kind '" + k + "' (known: " + join(physics_kinds()) + ")");
 }
 
-btVector3 bt(const Vec3d& v) { return {btScalar(v.x), btScalar(v.y), btScalar(v.z)}; }
-Vec3d vec(const btVector3& v) { return {double(v.x()), double(v.y()), double(v.z())}; }
+/// When bodies sleep (Bullet's btRigidBody::updateDeactivation and wantsSleeping, and
+/// btSimulationIslandManager::buildIslands): an island, the bodies linked by overlapping AABBs,
+/// sleeps once every body in it has stayed below its linear and angular sleeping thresholds for
+/// gDeactivationTime seconds. A settled pile lies as one island of nearly all its bodies, in which
+/// a few resting contacts pop each second (one step above 1 rad/s, then calm again): with Bullet's
+/// defaults (0.8 m/s, 1 rad/s, 2 s) one pop every 2 s among hundreds of bodies keeps the whole
+/// pile awake for ever, whatever the solver's iterations, restitution or split impulse. Higher
+/// thresholds (setSleepingThresholds) and a shorter calm time let it fall asleep within seconds.
+constexpr btScalar kLinearSleep = 1.2f, kAngularSleep = 2.0f, kCalmSeconds = 0.5f;
+
+/// Bullet's process-wide gDeactivationTime at kCalmSeconds for one generation, the caller's value
+/// put back after (an engine linking rcbench keeps its own).
+struct CalmTime {
+    btScalar saved = gDeactivationTime;
+    CalmTime() { gDeactivationTime = kCalmSeconds; }
+    CalmTime(const CalmTime&) = delete;
+    CalmTime& operator=(const CalmTime&) = delete;
+    ~CalmTime() { gDeactivationTime = saved; }
+};
 
 /// Bullet's world and everything it points to. The world goes first (declared last) while the
 /// bodies it points to still exist; it frees each body's broadphase proxy itself.
@@ -254,6 +329,7 @@ void add_body(World& w, const BodySpec& b, bool sleep) {
             body->setSpinningFriction(0.05f);
         }
         body->setDamping(0.05f, 0.3f);
+        body->setSleepingThresholds(kLinearSleep, kAngularSleep);
     }
     w.world.addRigidBody(body);
 }
@@ -267,8 +343,8 @@ void add_static(World& w, const StaticBox& s) {
     w.world.addRigidBody(w.statics.back().get());
 }
 
-void add_ground(World& w) {
-    w.shapes.push_back(std::make_unique<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(0)));
+void add_ground(World& w, double height) {
+    w.shapes.push_back(std::make_unique<btStaticPlaneShape>(btVector3(0, 1, 0), btScalar(height)));
     btRigidBody::btRigidBodyConstructionInfo info(0, nullptr, w.shapes.back().get());
     info.m_restitution = 0.3f;
     w.statics.push_back(std::make_unique<btRigidBody>(info));
@@ -323,25 +399,30 @@ void check_time_step(double seconds) {
         throw InputError("time_step: expected a number of seconds in 0.0001..0.1, got " + std::to_string(seconds));
 }
 
-Recording generate_physics_scene(const SceneSettings& settings) {
+Recording generate_physics_scene(const SceneSettings& settings, std::span<const Aabb> map) {
     check_time_step(settings.time_step);
     check_shapes(settings.shapes);
     check_ray_settings(settings.rays);
-    check_scene_size(settings.objects, settings.frames, settings.rays.per_frame, settings.objects, "scene");
-    const Setup setup = make_setup(settings);
+    check_scene_size(double(settings.objects) + double(map.size()), settings.frames, settings.rays.per_frame,
+                     settings.objects, "scene");
+    const Setup setup = make_setup(settings, map);
+    const CalmTime calm;
     auto w = std::make_unique<World>();
     w->world.setGravity(bt(setup.gravity));
     for (const StaticBox& s : setup.statics) add_static(*w, s);
-    if (setup.ground) add_ground(*w);
+    for (const Aabb& b : map) add_static(*w, {b.center().as<double>(), (b.extent() * 0.5f).as<double>()});
+    if (setup.ground) add_ground(*w, setup.ground_height);
     for (const BodySpec& b : setup.bodies) add_body(*w, b, setup.sleep);  // in uid order
     Recording r;
     nlohmann::json meta = to_json(settings);
     meta["frames"] = settings.frames;
     meta["seed"] = settings.seed;
     meta["rays"] = rays_json(settings.rays);
+    if (!map.empty()) meta["map_boxes"] = map.size();
     r.meta = meta.dump();
     for (std::size_t i = 0; i < setup.bodies.size(); ++i)
         r.initial.push_back(body_object(Uid(i), setup.bodies[i], *w->bodies[i]));
+    for (std::size_t i = 0; i < map.size(); ++i) r.initial.push_back({Uid(setup.bodies.size() + i), map[i]});
     LiveSet live(r.initial);
     const std::size_t kicks = (setup.bodies.size() + 99) / 100;  // brownian: every body once per 100 frames
     std::size_t next_kick = 0;

@@ -19,6 +19,7 @@
 /// the body's rotation (an oriented box, a capsule's axis) and its box is that shape's bounds, so
 /// the ground truth is exact. Ground and walls are static colliders, not objects.
 
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -35,6 +36,14 @@ void check_time_step(double seconds);
 
 /// A physics scene of `settings.kind` (one of physics_kinds()): objects, frames, shape shares,
 /// time step, seed and rays as `settings` says (its dynamics settings do not apply).
-Recording generate_physics_scene(const SceneSettings& settings);
+///
+/// `map` (pile only): static boxes, in metres with y up, to drop the bodies onto instead of the
+/// open ground: each body starts in its own free 2 m cell of a lattice over the map's bounds,
+/// drawn at random among the cells that overlap no map box and have one somewhere below them, so
+/// it falls onto the map's floors, ledges or roofs (a plane under the map's lowest point catches
+/// any that fall off). The recording holds the bodies (uids 0..n−1) and then the map's boxes
+/// (uids n..n+m−1) as objects that never move. InputError when the map has fewer such cells than
+/// bodies, or is more than 10^6 m across.
+Recording generate_physics_scene(const SceneSettings& settings, std::span<const Aabb> map = {});
 
 }  // namespace rcb

@@ -427,4 +427,9 @@ std::vector<Object> import_bsp(const std::string& path, const BspOptions& option
     return parse_bsp(bytes, path, options.mode, &sum, options.max_triangles);
 }
 
+Aabb bsp_box_in_metres(const Aabb& box) {
+    const Vec3d lo = box.min.as<double>() * kBspUnitMetres, hi = box.max.as<double>() * kBspUnitMetres;
+    return Aabbd{{lo.x, lo.z, -hi.y}, {hi.x, hi.z, -lo.y}}.as<float>();
+}
+
 }  // namespace rcb

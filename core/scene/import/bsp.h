@@ -69,6 +69,14 @@ std::vector<Object> import_bsp(const std::string& path, const BspOptions& option
 std::vector<Object> parse_bsp(std::span<const std::uint8_t> bytes, const std::string& name, const std::string& mode,
                               BspSummary* summary = nullptr, std::uint64_t max_triangles = kDefaultBspMaxTriangles);
 
+/// Metres per map unit when a map is placed in a physics scene (a unit taken as an inch: a player
+/// stands 56 units, 1.4 m, tall).
+inline constexpr double kBspUnitMetres = 0.0254;
+
+/// A map's box (z up, map units) in the physics scenes' frame (metres, y up): the map's x stays x,
+/// its z becomes y and its y becomes −z, a quarter turn about x that keeps handedness.
+Aabb bsp_box_in_metres(const Aabb& box);
+
 /// The maps (`maps/*.bsp` entries) inside a .pk3, sorted.
 std::vector<std::string> pk3_maps(const std::string& path);
 
