@@ -16,6 +16,7 @@
 #include "runner/merge.h"
 #include "runner/run_experiment.h"
 #include "runner/store.h"
+#include "tests/test_db.h"
 #include "tests/test_scenes.h"
 #include "tests/test_support.h"
 
@@ -24,10 +25,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::int64_t count(Database& db, const std::string& sql) {
-    Statement s = db.prepare(sql);
-    return s.step() ? s.int64(0) : -1;
-}
+using test::count;
 
 const char* kThree = R"({"name": "noise", "frames": 3, "rays_per_frame": 200, "repetitions": 3,
     "scenes": [{"kind": "uniform", "objects": 300}, {"kind": "irregular", "objects": 300}],
