@@ -110,10 +110,13 @@ TEST(NoisePlan, MaxRepetitionsBelowRepetitionsIsRefused) {
         "cap.json: max_repetitions: expected an integer in 3..1000");
 }
 
-TEST(NoiseState, TheCalibrationLoopTakesAFewMillisecondsAndTheLoadIsRead) {
+TEST(NoiseState, TheCalibrationLoopIsNotOptimisedAwayAndTheLoadIsRead) {
     const MachineState m = sample_machine_state();
-    EXPECT_GT(m.calibration_ns, 1e4);  // at least 10 µs: the loop was not optimised away
-    EXPECT_LT(m.calibration_ns, 1e8);  // well under 100 ms even on a busy machine
+    // 750,000 dependent multiply-adds take at least 10 µs on any CPU: less, and the loop was
+    // optimised away. No upper bound: the loop's wall time is the machine's load, which is what
+    // it measures (a niced test beside two busy processes waits many times its work).
+    EXPECT_GT(m.calibration_ns, 1e4);
+    EXPECT_GT(m.memory_ns, 0);
     if (fs::exists("/proc/loadavg")) {
         EXPECT_GE(m.load_1m, 0.0);
     }
