@@ -15,6 +15,7 @@
 #include "runner/merge.h"
 #include "runner/store.h"
 #include "tests/subprocess.h"
+#include "tests/test_db.h"
 #include "tests/test_scenes.h"
 #include "tuner/accuracy.h"
 #include "tuner/advise.h"
@@ -25,11 +26,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::int64_t count(Database& db, const std::string& sql) {
-    Statement s = db.prepare(sql);
-    s.step();
-    return s.int64(0);
-}
+using test::count;
 
 TEST(AccuracyColumns, FramesOfAnOlderDatabaseReadAsTheirMismatchCountsSay) {
     const test::TempDir temp("accuracy", "migrate");

@@ -11,6 +11,7 @@
 #include "core/scene/recording_io.h"
 #include "tests/subprocess.h"
 #include "tests/test_scenes.h"
+#include "tests/test_timing.h"
 #include "tuner/advise.h"
 #include "tuner/run_tuning.h"
 
@@ -58,6 +59,10 @@ protected:
         std::ofstream(path(name)) << t.dump(2);
         return path(name);
     }
+    /// Advise on the scene with made-up times from its counters (C_RB 1, C_T 20, C_PREP 50 ns).
+    /// These tests check choices among measured configurations and the model's ranking, whose
+    /// predictions include the replays' update times: timed by the clock, such a choice flips on
+    /// a loaded machine. PrintsTheScenesQueryKindsAndMotionAndWeighsByThem advises on the clock.
     AdviseOptions options(const std::string& tuning) const {
         AdviseOptions o;
         o.scene = path("scene.rcbscene");
@@ -65,6 +70,7 @@ protected:
         o.category = "c";
         o.repetitions = 1;
         o.warmup = 0;
+        o.timing = test::counted_timing(1.0, 20.0, 50.0);
         return o;
     }
     static const ParameterChoice& ug_choice(const Advice& a) {
@@ -134,8 +140,9 @@ TEST_F(AdviseFiles, MeasuresTheModelsBestBesideTheCategorysAndKeepsTheFastest) {
 
 TEST_F(AdviseFiles, AMeasuredDescentCorrectsAModelThatMisranks) {
     // A model that prices a box test a million times a cell step ranks the finest grid (1/8 of an
-    // object per cell) first; on 3000 uniform boxes a coarser grid is faster, and the descent from
-    // the verified best walks up the densities, one level at a time, within its measurements.
+    // object per cell) first; where a step costs 20 box tests (the fixture's times), on 3000
+    // uniform boxes a coarser grid is faster, and the descent from the verified best walks up the
+    // densities, one level at a time, within its measurements.
     AdviseOptions o = options(write_tuning("t.json", tuning_with(0.125, cost_model(1e4, 0.01))));
     o.verify_top = 1;
     o.refine = 4;

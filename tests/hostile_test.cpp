@@ -62,8 +62,12 @@ double mutant_scale() {
 }
 /// How many mutants of a kind to run: n at scale 1, at least one.
 int mutants(int n) { return std::max(1, int(std::lround(n * mutant_scale()))); }
-/// A case running longer than this stalled (the sanitizers slow rcbench down several times).
+/// A case using more CPU time than this stalled (the sanitizers slow rcbench down several times).
+/// CPU time: a process beside it on the core does not bring the limit closer, as it would a wall
+/// time (a niced suite beside two busy processes waits many times its work).
 double time_limit() { return kSanitized ? 30.0 : 10.0; }
+/// A case still running after this much wall time stalled too: one that waits without working.
+double wall_limit() { return 10 * time_limit(); }
 
 std::string read_bytes(const fs::path& p) {
     std::ifstream in(p, std::ios::binary);
@@ -999,7 +1003,8 @@ protected:
         argv.insert(argv.end(), c.args.begin(), c.args.end());
         test::RunOptions o;
         o.cwd = work_.string();
-        o.timeout_seconds = time_limit();
+        o.cpu_seconds = time_limit();
+        o.timeout_seconds = wall_limit();
         // Bounds a runaway allocation, so that it fails this case instead of the machine. ASan
         // reserves terabytes of address space and takes its limits as options instead.
         if (kSanitized) {
@@ -1015,15 +1020,18 @@ protected:
         ++tally[r.code == 0 ? 0 : r.code == 2 ? 1 : 2];
 
         std::vector<std::string> problems;
-        if (r.timed_out)
-            problems.push_back("stalls (killed after " + std::to_string(int(time_limit())) + " s)");
+        const bool stalled = r.timed_out || r.cpu_limited;
+        if (r.cpu_limited)
+            problems.push_back("stalls (ended after " + std::to_string(int(time_limit())) + " s of CPU time)");
+        else if (r.timed_out)
+            problems.push_back("stalls (killed after " + std::to_string(int(wall_limit())) + " s of wall time)");
         else if (r.signal)
             problems.push_back("dies by signal " + std::to_string(r.signal) + " (" + strsignal(r.signal) + ")");
         else if (r.code == 1)
             problems.push_back("exits 1");
         else if (r.code != 0 && r.code != 2)
             problems.push_back("exits " + std::to_string(r.code));
-        if (!r.timed_out && r.code == 0 && c.bad) problems.push_back("accepts bad input (exit 0)");
+        if (!stalled && r.code == 0 && c.bad) problems.push_back("accepts bad input (exit 0)");
         if (r.code == 2) {
             const bool one_line = !r.err.empty() && r.err.back() == '\n' &&
                                   std::count(r.err.begin(), r.err.end(), '\n') == 1 &&
@@ -1053,7 +1061,7 @@ protected:
                 damaged = true;
             }
         }
-        if (!r.timed_out)  // a killed process cannot clean up: the stall is its failure
+        if (!stalled)  // a killed process cannot clean up: the stall is its failure
             for (const auto& [path, e] : after)
                 if (!before.count(path) && !allowed(path, c.writes)) problems.push_back("leaves stray " + path);
 
@@ -1070,9 +1078,9 @@ protected:
 
         if (problems.empty()) return;
         for (const std::string& f : c.inputs) kept_.insert(f);
-        std::string outcome = r.timed_out ? "killed"
-                              : r.signal  ? "signal " + std::to_string(r.signal)
-                                          : "exit " + std::to_string(r.code);
+        std::string outcome = stalled    ? "killed"
+                              : r.signal ? "signal " + std::to_string(r.signal)
+                                         : "exit " + std::to_string(r.code);
         // One line per case in the report: line breaks as '|', other control characters as '?'.
         auto flat = [](std::string t) {
             for (char& ch : t)
@@ -2539,7 +2547,8 @@ TEST_F(Hostile, EdgesGridsWithTheirGuardsOffSaySo) {
         argv.insert(argv.end(), args.begin(), args.end());
         test::RunOptions o;
         o.cwd = work_.string();
-        o.timeout_seconds = time_limit();
+        o.cpu_seconds = time_limit();
+        o.timeout_seconds = wall_limit();
         const test::Outcome out = test::run_process(argv, o);
         ASSERT_EQ(out.code, 0) << out.err;
         const json j = json::parse(out.out.substr(0, out.out.find('\n')));

@@ -24,6 +24,7 @@
 #include "runner/run_experiment.h"
 #include "runner/store.h"
 #include "tests/subprocess.h"
+#include "tests/test_db.h"
 #include "tests/test_scenes.h"
 #include "tests/test_support.h"
 
@@ -147,11 +148,7 @@ TEST(KindResults, AFrameOfOneKindIsCastAndCountedAsOneBatchAsBefore) {
 // ---------------------------------------------------------------------------------------------
 // The database.
 
-std::int64_t count(Database& db, const std::string& sql) {
-    Statement s = db.prepare(sql);
-    s.step();
-    return s.int64(0);
-}
+using test::count;
 
 TEST(KindResults, FrameKindMigratesIsStoredForFramesWithKindsAndSurvivesMerge) {
     const test::TempDir temp("kinds", "store");

@@ -17,6 +17,7 @@
 #include "runner/merge.h"
 #include "runner/run_experiment.h"
 #include "runner/store.h"
+#include "tests/test_db.h"
 #include "tests/test_scenes.h"
 #include "tests/test_support.h"
 
@@ -25,10 +26,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::int64_t count(Database& db, const std::string& sql) {
-    Statement s = db.prepare(sql);
-    return s.step() ? s.int64(0) : -1;
-}
+using test::count;
 
 const char* kThree = R"({"name": "noise", "frames": 3, "rays_per_frame": 200, "repetitions": 3,
     "scenes": [{"kind": "uniform", "objects": 300}, {"kind": "irregular", "objects": 300}],
@@ -113,10 +111,13 @@ TEST(NoisePlan, MaxRepetitionsBelowRepetitionsIsRefused) {
         "cap.json: max_repetitions: expected an integer in 3..1000");
 }
 
-TEST(NoiseState, TheCalibrationLoopTakesAFewMillisecondsAndTheLoadIsRead) {
+TEST(NoiseState, TheCalibrationLoopIsNotOptimisedAwayAndTheLoadIsRead) {
     const MachineState m = sample_machine_state();
-    EXPECT_GT(m.calibration_ns, 1e4);  // at least 10 µs: the loop was not optimised away
-    EXPECT_LT(m.calibration_ns, 1e8);  // well under 100 ms even on a busy machine
+    // 750,000 dependent multiply-adds take at least 10 µs on any CPU: less, and the loop was
+    // optimised away. No upper bound: the loop's wall time is the machine's load, which is what
+    // it measures (a niced test beside two busy processes waits many times its work).
+    EXPECT_GT(m.calibration_ns, 1e4);
+    EXPECT_GT(m.memory_ns, 0);
     if (fs::exists("/proc/loadavg")) {
         EXPECT_GE(m.load_1m, 0.0);
     }

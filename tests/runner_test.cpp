@@ -8,10 +8,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <chrono>
 #include <filesystem>
 #include <fstream>
-#include <thread>
 
 #include "core/base/error.h"
 #include "core/base/random.h"
@@ -379,6 +377,29 @@ int wait_exit(pid_t pid) {
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+/// Runs `experiment` into `db` (shard `shard`, empty: the whole plan) until `cells` cells are
+/// stored, then kills the runner with SIGKILL (tests/killed_run.cpp): a run killed at a known
+/// point, whatever the machine's speed. Returns true when it died by SIGKILL.
+bool run_killed_after(const fs::path& experiment, const std::string& db, int cells, const std::string& shard,
+                      const std::string& log) {
+    std::vector<std::string> all{RCB_KILLED_RUN_BINARY, experiment.string(), db, std::to_string(cells)};
+    if (!shard.empty()) all.push_back(shard);
+    std::vector<char*> argv;
+    for (std::string& a : all) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    posix_spawn_file_actions_addopen(&actions, 2, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    pid_t pid = 0;
+    const int spawned = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    if (spawned != 0) return false;
+    int status = 0;
+    waitpid(pid, &status, 0);
+    return WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
+}
+
 std::int64_t count(const std::string& db_path, const std::string& sql) {
     if (!fs::exists(db_path)) return 0;
     try {
@@ -405,15 +426,9 @@ TEST(Store, KilledRunResumesToTheSameRowsAsAnUninterruptedRun) {
     const std::string killed = (dir / "killed.db").string(), whole = (dir / "whole.db").string();
     const std::string log = (dir / "log.txt").string();
 
-    const pid_t pid = spawn_rcbench({"run", exp.string(), "--db", killed}, log);
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-    while (count(killed, "SELECT count(*) FROM cell") < 3 && std::chrono::steady_clock::now() < deadline)
-        std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    ASSERT_EQ(kill(pid, SIGKILL), 0);
-    wait_exit(pid);
-    const std::int64_t before = count(killed, "SELECT count(*) FROM cell");
-    ASSERT_GE(before, 3);
-    ASSERT_LT(before, 16) << "the run finished before it could be killed; make the cells slower";
+    ASSERT_TRUE(run_killed_after(exp, killed, 3, "", log)) << "the run was not killed";
+    EXPECT_EQ(count(killed, "SELECT count(*) FROM cell"), 3);
+    EXPECT_EQ(count(killed, "SELECT count(*) FROM run WHERE finished_at IS NULL"), 1);
 
     ASSERT_EQ(wait_exit(spawn_rcbench({"run", exp.string(), "--db", killed}, log)), 0);
     ASSERT_EQ(wait_exit(spawn_rcbench({"run", exp.string(), "--db", whole}, log)), 0);
@@ -468,13 +483,8 @@ TEST(Store, MergingAKilledShardThenItsResumedRunCompletesTheMergedRun) {
     write_experiment(exp, 8);  // 16 cells
     const std::string shard = (dir / "shard.db").string(), out = (dir / "all.db").string(),
                       log = (dir / "log.txt").string();
-    const pid_t pid = spawn_rcbench({"run", exp.string(), "--shard", "1/1", "--db", shard}, log);
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-    while (count(shard, "SELECT count(*) FROM cell") < 3 && std::chrono::steady_clock::now() < deadline)
-        std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    ASSERT_EQ(kill(pid, SIGKILL), 0);
-    wait_exit(pid);
-    ASSERT_LT(count(shard, "SELECT count(*) FROM cell"), 16) << "the run finished before it could be killed";
+    ASSERT_TRUE(run_killed_after(exp, shard, 3, "1/1", log)) << "the run was not killed";
+    ASSERT_EQ(count(shard, "SELECT count(*) FROM cell"), 3);
     ASSERT_EQ(wait_exit(spawn_rcbench({"merge", out, shard}, log)), 0);
     EXPECT_EQ(count(out, "SELECT count(*) FROM run WHERE finished_at IS NULL"), 1);
     ASSERT_EQ(wait_exit(spawn_rcbench({"run", exp.string(), "--shard", "1/1", "--db", shard}, log)), 0);

@@ -1,7 +1,8 @@
 #pragma once
 /// Runs a program as a user would, for the command-line tests: its exit code or the signal that
 /// ended it, stdout and stderr apart, optionally in another working directory, with extra
-/// environment variables, a memory limit, and a wall-clock limit after which the whole process
+/// environment variables, a memory limit, a CPU-time limit (which another process on the core does
+/// not bring closer, unlike the wall clock), and a wall-clock limit after which the whole process
 /// group is killed (a stalled command fails its test instead of hanging the suite).
 
 #include <fcntl.h>
@@ -23,17 +24,20 @@ extern char** environ;
 namespace test {
 
 struct Outcome {
-    int code = -1;           // exit code; -1 when a signal ended the process (or it was killed)
-    int signal = 0;          // the signal that ended it, 0 when it exited
-    bool timed_out = false;  // killed after RunOptions::timeout_seconds
-    double seconds = 0;      // wall-clock time
-    std::string out;         // stdout
-    std::string err;         // stderr
+    int code = -1;             // exit code; -1 when a signal ended the process (or it was killed)
+    int signal = 0;            // the signal that ended it, 0 when it exited
+    bool timed_out = false;    // killed after RunOptions::timeout_seconds
+    bool cpu_limited = false;  // ended by the kernel past RunOptions::cpu_seconds
+    double seconds = 0;        // wall-clock time
+    double cpu_seconds = 0;    // the process's CPU time, user and system
+    std::string out;           // stdout
+    std::string err;           // stderr
 };
 
 struct RunOptions {
     std::string cwd;                  // working directory; empty: the caller's
     double timeout_seconds = 0;       // 0: wait for ever
+    double cpu_seconds = 0;           // RLIMIT_CPU (whole seconds, rounded up): SIGXCPU past it; 0: none
     std::uint64_t address_space = 0;  // RLIMIT_AS in bytes; 0: unlimited (sanitizers need it so)
     std::vector<std::string> env;     // "NAME=value" added to (or replacing in) the environment
 };
@@ -84,6 +88,11 @@ inline Outcome run_process(const std::vector<std::string>& argv, const RunOption
             const rlimit lim{o.address_space, o.address_space};
             ::setrlimit(RLIMIT_AS, &lim);
         }
+        if (o.cpu_seconds > 0) {  // the soft limit sends SIGXCPU, the hard one (a second on) SIGKILL
+            const rlim_t soft = rlim_t(o.cpu_seconds) + (o.cpu_seconds > double(rlim_t(o.cpu_seconds)) ? 1 : 0);
+            const rlimit lim{soft, soft + 1};
+            ::setrlimit(RLIMIT_CPU, &lim);
+        }
         ::execve(args[0], args.data(), envp.data());
         ::_exit(127);
     }
@@ -130,14 +139,19 @@ inline Outcome run_process(const std::vector<std::string>& argv, const RunOption
     for (pollfd& f : fds)
         if (f.fd >= 0) ::close(f.fd);
     int status = 0;
-    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    rusage usage{};
+    while (::wait4(pid, &status, 0, &usage) < 0 && errno == EINTR) {
     }
+    r.cpu_seconds = double(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+                    double(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec) / 1e6;
     if (r.timed_out) ::kill(-pid, SIGKILL);  // helpers it started, if any survived
     r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (WIFEXITED(status))
         r.code = WEXITSTATUS(status);
     else if (WIFSIGNALED(status))
         r.signal = WTERMSIG(status);
+    r.cpu_limited = o.cpu_seconds > 0 && !r.timed_out &&
+                    (r.signal == SIGXCPU || (r.signal == SIGKILL && r.cpu_seconds >= o.cpu_seconds));
     return r;
 }
 

@@ -547,7 +547,8 @@ Advice advise(const AdviseOptions& o) {
     if (o.tuning.empty() && !o.category.empty()) throw InputError("--category needs --tuning");
     if (o.tuning.empty() && o.exhaustive) throw InputError("--exhaustive needs --tuning");
     if (!std::filesystem::is_regular_file(o.scene)) throw InputError(o.scene + ": no such file");
-    const TuneCategory scene = advise_scene(o.scene);
+    TuneCategory scene = advise_scene(o.scene);
+    scene.timing = o.timing;
     const TuningSelection selection = select_tuning(o, scene);
     try {
         check_warmup(o.warmup, recording_of(scene.scenes.front()).frames.size());

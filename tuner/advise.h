@@ -67,6 +67,9 @@ struct AdviseOptions {
     /// structure at the other query levels (candidates, shapes) and verifies every measurement.
     AccuracyConstraint accuracy;
     std::function<void(const std::string& structure)> progress;  ///< called as each structure starts
+    /// Tests only: made-up times for every simulation of the scene (TuneCategory::timing); empty:
+    /// the clock's.
+    SimulationTiming timing;
 };
 
 struct AdviceRow {

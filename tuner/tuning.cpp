@@ -69,10 +69,13 @@ std::atomic<std::uint64_t> timed_simulations{0}, counting_simulations{0};
 std::vector<SimulationResult> run_simulations(const TuneCategory& category, const std::string& structure,
                                               const json& params, const SimulationOptions& options,
                                               std::uint32_t repetitions) {
+    SimulationOptions o = options;
+    if (category.timing) o.count = true;  // made-up times are priced from the counters
     std::vector<SimulationResult> out;
     for (std::uint32_t rep = 0; rep < repetitions; ++rep)
         for (const SceneSpec& scene : category.scenes) {
-            out.push_back(simulate(recording_of(scene), find_structure(structure), params, options));
+            out.push_back(simulate(recording_of(scene), find_structure(structure), params, o));
+            if (category.timing) category.timing(out.back());
             ++(options.timed_cast ? timed_simulations : counting_simulations);
         }
     return out;

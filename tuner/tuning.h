@@ -26,15 +26,26 @@
 
 #include "analysis/cost_model.h"
 #include "core/accel/counters.h"
+#include "core/sim/simulator.h"
 #include "runner/experiment.h"
 #include "tuner/accuracy.h"
 #include "tuner/search.h"
 
 namespace rcb {
 
+/// Made-up times for a simulation: replaces the build, update and ray-cast times the clock
+/// measured (from the frame's counters, say). Tests only: a verdict that depends on how fast the
+/// machine is can flip under load, so the tests of the tuner's and advise's choices give their
+/// measurements costs of their own. No file or command-line option sets one.
+using SimulationTiming = std::function<void(SimulationResult&)>;
+
 struct TuneCategory {
     std::string name;
     std::vector<SceneSpec> scenes;
+    /// Empty: the clock's times. Set: every simulation the tuner runs on the category (timed
+    /// measurements, calibrations, counting replays) also runs the counting pass, then passes its
+    /// result through `timing` before anything reads a time from it.
+    SimulationTiming timing{};
 };
 
 struct TuneSpec {
