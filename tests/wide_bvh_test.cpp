@@ -3,7 +3,8 @@
 // them); churn with validate() after every change batch and answers against brute force (the same
 // float slab test), for the whole-rebuild policy (the SAH growth it holds) and the progressive one
 // (every phase visited, the work per commit within its budget); the SAH cost after long churn at
-// the defaults against a fresh build; nested inserts into an empty tree; closest and any hit.
+// the defaults against a fresh build; the rebuild trigger's weight of small steps against jumps;
+// nested inserts into an empty tree; closest and any hit.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -288,6 +289,76 @@ TEST(WideBvh, SahCostStaysNearAFreshBuildUnderLongChurnAtTheDefaults) {
     // next in this scene (a large object moved), so single samples vary as much either way.
     EXPECT_LT(mean[0], 1.1);
     EXPECT_GT(mean[1], mean[0] + 0.1);
+}
+
+/// The rebuild trigger weighs a move by what it does to the tree's partition (Params::
+/// rebuild_after): every object stepping a twentieth of its size per commit, as the bodies of a
+/// Brownian physics scene do, adds a twentieth of a change each, so 30 such commits start no
+/// rebuild (counting every move whole started one every second commit: a whole rebuild per two
+/// frames for a tree that stays as good); the same objects jumping by their own size count whole
+/// and start one within three commits. Answers stay exact against brute force throughout.
+TEST(WideBvh, SmallStepsOfEveryObjectCountTheirShareTowardsARebuild) {
+    std::vector<Object> live;
+    for (int x = 0; x < 13; ++x)
+        for (int y = 0; y < 13; ++y)
+            for (int z = 0; z < 12; ++z) {
+                const Vec3 lo{2.0f * float(x), 2.0f * float(y), 2.0f * float(z)};
+                live.push_back({Uid(live.size()), {lo, lo + Vec3{1, 1, 1}}});
+            }
+    WideBvh tree;
+    BruteForce bf;
+    tree.build(live);
+    bf.build(live);
+    Random rng(11);
+    double expected_age = 0;  // the weighted changes, as the trigger should count them
+    auto step_all = [&](float scale) {
+        for (Object& o : live) {
+            const Aabb from = o.box;
+            const Vec3 d{float(rng.uniform(-scale, scale)), float(rng.uniform(-scale, scale)),
+                         float(rng.uniform(-scale, scale))};
+            o.box = {o.box.min + d, o.box.max + d};
+            double shift = 0, size = 0;
+            for (int a = 0; a < 3; ++a) {
+                shift = std::max({shift, std::abs(double(o.box.min[a]) - double(from.min[a])),
+                                  std::abs(double(o.box.max[a]) - double(from.max[a]))});
+                size = std::max(
+                    {size, double(from.max[a]) - double(from.min[a]), double(o.box.max[a]) - double(o.box.min[a])});
+            }
+            expected_age += std::min(1.0, shift / size);
+            tree.move(o);
+            bf.move(o);
+        }
+        tree.commit();
+        bf.commit();
+    };
+    auto expect_exact = [&](int commit) {
+        ASSERT_NO_THROW(tree.validate()) << commit;
+        for (int k = 0; k < 20; ++k) {
+            const Segment ray = test::random_segment(rng, 26);
+            ASSERT_EQ(test::sorted_hits(tree, ray), test::sorted_hits(bf, ray)) << commit;
+        }
+    };
+    for (int commit = 0; commit < 30; ++commit) {
+        step_all(0.05f);
+        expect_exact(commit);
+    }
+    nlohmann::json st = tree.stats();
+    EXPECT_EQ(st["rebuilds"].get<int>(), 0) << st.dump();
+    EXPECT_EQ(st["reinserts"].get<int>(), 0) << st.dump();  // a step this small stays in its leaf
+    EXPECT_EQ(st["rebuild_phase"].get<std::string>(), "idle");
+    EXPECT_LT(st["sah_growth"].get<double>(), 1.5);  // nor did the refits start one
+    EXPECT_NEAR(st["rebuild_age"].get<double>(), expected_age / double(live.size()), 1e-9);
+    EXPECT_GT(expected_age, 0.5 * double(live.size()));  // the steps were not negligible
+    // Jumps of up to the objects' own size: moves that leave their leaf reinsert and count one,
+    // the others their share, close to one; a rebuild starts once they sum to twice the objects.
+    for (int commit = 30; commit < 33; ++commit) {
+        step_all(1.0f);
+        expect_exact(commit);
+    }
+    st = tree.stats();
+    EXPECT_GE(st["rebuilds"].get<int>(), 1) << st.dump();
+    EXPECT_GT(st["reinserts"].get<int>(), 0) << st.dump();
+    EXPECT_LT(st["rebuild_age"].get<double>(), 2.0) << st.dump();
 }
 
 /// Boxes nested around one centre, inserted one by one into an empty tree: full leaves split and

@@ -24,6 +24,22 @@ double area(const Aabb& b) {
 /// The centre without overflow near the coordinate limit.
 Vec3 centroid(const Aabb& b) { return b.min * 0.5f + b.max * 0.5f; }
 
+/// A move's share of a change for the rebuild trigger (Params::rebuild_after): how far its
+/// farthest face moved, in units of the object's longest edge (before or after, the longer),
+/// capped at one. A step much smaller than the object leaves the tree's partition as good as it
+/// was (the refit's growth is what rebuild_ratio watches); a move by its own size or more is as
+/// stale as a removal and an insertion. In double: boxes near the coordinate limit overflow float.
+double move_share(const Aabb& from, const Aabb& to) {
+    double shift = 0, size = 0;
+    for (int a = 0; a < 3; ++a) {
+        shift = std::max({shift, std::abs(double(to.min[a]) - double(from.min[a])),
+                          std::abs(double(to.max[a]) - double(from.max[a]))});
+        size = std::max({size, double(from.max[a]) - double(from.min[a]), double(to.max[a]) - double(to.min[a])});
+    }
+    if (shift == 0) return 0.0;
+    return shift < size ? shift / size : 1.0;  // a point's (size 0) or a far jump: a whole change
+}
+
 }  // namespace
 
 void WideBvh::Block::clear(int k) {
@@ -103,7 +119,8 @@ void WideBvh::set_lane(std::uint32_t b, int k, const Aabb& box) {
 void WideBvh::build(std::span<const Object> objects) {
     // A rebuild in progress is dropped: the new contents replace everything.
     rebuild_.reset();
-    changes_ = age_ = 0;
+    changes_ = 0;
+    weighted_changes_ = age_ = 0;
     where_.clear();
     where_.reserve(objects.size() + objects.size() / 4);  // room for inserts before a rehash
     std::vector<Item>& items = builder_.items();
@@ -431,6 +448,7 @@ std::uint32_t WideBvh::choose_leaf(const Aabb& box) const {
 
 void WideBvh::insert(const Object& o) {
     ++changes_;
+    weighted_changes_ += 1;
     rebuild_.log_change(o.uid);
     insert_object(o);
 }
@@ -547,6 +565,7 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
 
 void WideBvh::remove(Uid uid) {
     ++changes_;
+    weighted_changes_ += 1;
     rebuild_.log_change(uid);
     remove_object(uid);
 }
@@ -621,12 +640,15 @@ void WideBvh::move(const Object& o) {
         if (!(box.min.x <= c.x && c.x <= box.max.x && box.min.y <= c.y && c.y <= box.max.y && box.min.z <= c.z &&
               c.z <= box.max.z)) {
             ++reinserts_;
+            weighted_changes_ += 1;  // a removal and an insertion
             remove_object(o.uid);
             insert_object(o);
             return;
         }
     }
-    blocks_[b].set(int(at % kLanes), o.box);
+    const int k = int(at % kLanes);
+    weighted_changes_ += move_share(blocks_[b].box(k), o.box);
+    blocks_[b].set(k, o.box);
     mark(b);
 }
 
@@ -658,9 +680,11 @@ void WideBvh::commit() {
         sah_largest_term_ = std::abs(sah_sum_);
     }
     const std::uint64_t changes = changes_;
+    const double weighted = weighted_changes_;
     changes_ = 0;
-    age_ += changes;
-    rebuild_.commit(*this, changes);
+    weighted_changes_ = 0;
+    age_ += weighted;
+    rebuild_.commit(*this, changes, weighted);
 }
 
 // ---- progressive rebuild ----
@@ -677,7 +701,7 @@ bool WideBvh::rebuild_due() const {
     if (root_ == kNone) return false;
     const double ratio = params_.rebuild_ratio;
     if (ratio > 0 && (ratio <= 1 || sah_growth() > ratio)) return true;
-    return params_.rebuild_after > 0 && double(age_) >= params_.rebuild_after * double(where_.size());
+    return params_.rebuild_after > 0 && age_ >= params_.rebuild_after * double(where_.size());
 }
 
 void WideBvh::ProgressiveRebuild::reset() {
@@ -687,15 +711,16 @@ void WideBvh::ProgressiveRebuild::reset() {
     log_mark_ = 0;
     gather_skip_.clear();
     replay_cursor_ = 0;
-    cycle_age_ = cycle_work_ = last_cycle_work_ = budget_ = work_ = 0;
+    cycle_age_ = 0;
+    cycle_work_ = last_cycle_work_ = budget_ = work_ = 0;
 }
 
 void WideBvh::ProgressiveRebuild::estimate(std::uint64_t build_work, std::size_t objects) {
     units_per_object_ = double(build_work) / double(std::max<std::size_t>(1, objects)) + 2;
 }
 
-void WideBvh::ProgressiveRebuild::commit(WideBvh& live, std::uint64_t changes) {
-    cycle_age_ += changes;
+void WideBvh::ProgressiveRebuild::commit(WideBvh& live, std::uint64_t changes, double weighted) {
+    cycle_age_ += weighted;
     const Params& params = live.params_;
     if (phase_ == Phase::idle && live.rebuild_due()) {
         if (params.rebuild_speed <= 0) {
@@ -730,7 +755,8 @@ void WideBvh::ProgressiveRebuild::start(const WideBvh& live) {
     log_mark_ = 0;
     gather_skip_.clear();
     replay_cursor_ = 0;
-    cycle_age_ = cycle_work_ = 0;
+    cycle_age_ = 0;
+    cycle_work_ = 0;
 }
 
 void WideBvh::ProgressiveRebuild::advance(WideBvh& live, std::uint64_t budget) {
@@ -923,6 +949,9 @@ nlohmann::json WideBvh::stats() const {
                             {"depth", depth()},       {"nodes", blocks_.size() - free_count_},
                             {"leaves", leaves_},      {"rebuilds", rebuilds_},
                             {"leaf_splits", splits_}, {"reinserts", reinserts_}};
+    // The weighted changes since the live tree's objects were gathered, per object: a rebuild
+    // starts at commit once this reaches rebuild_after.
+    stats["rebuild_age"] = where_.empty() ? 0.0 : age_ / double(where_.size());
     rebuild_.add_stats(stats);
     return stats;
 }

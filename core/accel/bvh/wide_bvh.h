@@ -7,7 +7,8 @@
 /// the object when it left its leaf's box), inserts descend to the leaf of least area growth (a full
 /// leaf splits), removes empty their lane. Quality is kept by a progressive rebuild, as PhysX's
 /// dynamic pruner and Jolt's quad tree do: once the changes since the live tree was gathered reach
-/// `rebuild_after` × the objects (or its running SAH sum grew by `rebuild_ratio`), a next tree is
+/// `rebuild_after` × the objects (a move that stays in its leaf counts its step over its size), or
+/// its running SAH sum grew by `rebuild_ratio`, a next tree is
 /// built from the live objects a budget of work per commit (`rebuild_speed` objects' share per
 /// change), the changes meanwhile are logged and replayed into it, and the trees swap; the live tree
 /// answers throughout. docs/structures.md has the details and the measurements.
@@ -55,7 +56,10 @@ public:
         /// built or swapped in (sah_growth; 0: never).
         double rebuild_ratio = 1.5;
         /// A rebuild starts at commit once the changes since the live tree's objects were gathered
-        /// for its build reach this × the object count (0: never).
+        /// for its build reach this × the object count (0: never). Inserts, removes and moves that
+        /// reinsert count one each; another move counts how far its farthest face moved in units of
+        /// its longest edge, at most one: a body stepping a fraction of its size every frame wears
+        /// the tree's partition by that fraction, not by a whole change.
         double rebuild_after = 2.0;
         /// A started rebuild advances by this many objects' share of its work per change of the
         /// commit, while the live tree answers (0: the whole rebuild in the commit that starts it).
@@ -84,7 +88,8 @@ public:
                       "every commit that follows a change)"},
                 Field{"rebuild_after", &Params::rebuild_after, 0.0, 1000.0,
                       "a rebuild starts at commit once the changes since the live tree's objects were gathered reach "
-                      "this x the object count (0: never)"},
+                      "this x the object count (0: never); a move that does not reinsert counts how far its "
+                      "farthest face moved over its longest edge, at most 1"},
                 Field{"rebuild_speed", &Params::rebuild_speed, 0.0, 1000.0,
                       "a started rebuild advances by this many objects' share of its work per change, while the "
                       "live tree answers and its changes are logged and replayed (0: the whole rebuild at once)"},
@@ -432,9 +437,11 @@ private:
         void estimate(std::uint64_t build_work, std::size_t objects);
         /// Every commit first: no budget and no work yet.
         void open_commit() { budget_ = work_ = 0; }
-        /// A commit that follows changes (`changes` of them): starts a rebuild when one is due,
-        /// and spends the budget they earn on the one in progress.
-        void commit(WideBvh& live, std::uint64_t changes);
+        /// A commit that follows changes (`changes` of them, `weighted` as the trigger counts
+        /// them): starts a rebuild when one is due, and spends the budget they earn on the one in
+        /// progress. The budget follows the changes themselves, not their weight: each of them is
+        /// logged and replayed alike, so a rebuild's length in commits stays bounded by them.
+        void commit(WideBvh& live, std::uint64_t changes, double weighted);
         /// A change to the live tree while a rebuild gathers, builds or replays: the uid is
         /// replayed into the next tree before the swap (and skipped by the gathering, if not yet
         /// gathered).
@@ -469,7 +476,7 @@ private:
         std::unordered_set<Uid> gather_skip_;  // uids changed while gathering: not gathered
         std::size_t replay_cursor_ = 0;
         std::size_t log_mark_ = 0;             // the log's size at the end of the last commit
-        std::uint64_t cycle_age_ = 0;          // changes since the rebuild in progress gathered
+        double cycle_age_ = 0;                 // weighted changes since the rebuild in progress gathered
         std::uint64_t cycle_work_ = 0;         // units of the rebuild in progress so far
         std::uint64_t last_cycle_work_ = 0;    // units of the last progressive rebuild, to its swap
         double units_per_object_ = 0;          // units of the last rebuild per object
@@ -534,7 +541,10 @@ private:
     double total_after_build_ = 0.0;  // total_sah() right after the last build or swap
     bool changed_ = false;            // changes since the last commit
     std::uint64_t changes_ = 0;       // changes since the last commit
-    std::uint64_t age_ = 0;           // changes since the live tree's objects were gathered
+    // The same weighted for the rebuild trigger: inserts, removes and reinserting moves count one,
+    // other moves their share (move_share in wide_bvh.cpp, Params::rebuild_after).
+    double weighted_changes_ = 0;
+    double age_ = 0;  // weighted changes since the live tree's objects were gathered
     // Stats.
     std::uint32_t rebuilds_ = 0, splits_ = 0, reinserts_ = 0;
 
