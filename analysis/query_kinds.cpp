@@ -184,6 +184,63 @@ std::vector<KindError> kind_errors(const std::vector<KindCell>& cells) {
     return out;
 }
 
+std::vector<KindSummary> kind_summaries(const std::vector<StructureModels>& models,
+                                        const std::vector<FrameObservation>& kind_frames) {
+    std::map<std::string, const StructureModels*> by_structure;
+    for (const StructureModels& m : models) by_structure[m.structure] = &m;
+    std::vector<KindSummary> out;
+    for (const KindError& e : kind_errors(kind_cells(models, kind_frames))) {
+        KindSummary s;
+        s.structure = e.structure, s.kind = e.kind;
+        s.cells = e.cells;
+        s.median_error = e.median_error;
+        const auto m = by_structure.find(e.structure);
+        const bool model = m != by_structure.end() && m->second->predict_ray;
+        std::vector<double> measured, predicted;
+        for (const FrameObservation& f : kind_frames) {
+            if (f.structure != e.structure || f.kind != e.kind || f.rays <= 0) continue;
+            measured.push_back(f.raycast_ns / f.rays);
+            predicted.push_back(model ? m->second->predict_ray(f) : NAN);
+        }
+        s.batches = measured.size();
+        s.ns_per_query = quantile(measured, 0.5);
+        s.predicted_ns_per_query = median_of(predicted);
+        out.push_back(std::move(s));
+    }
+    return out;
+}
+
+std::vector<ValidationGroup> validate_frozen_kinds(const std::vector<StructureModels>& models,
+                                                   const std::vector<FrameObservation>& kind_frames,
+                                                   const BootstrapOptions& options) {
+    std::map<std::string, std::string> forms;  // structure -> its chosen ray-cast form, where it has a model
+    for (const StructureModels& m : models)
+        if (const CandidateModel* c = m.chosen("raycast"); c && m.predict_ray) forms[m.structure] = c->name;
+    const std::vector<KindCell> cells = kind_cells(models, kind_frames);
+    std::vector<ValidationGroup> out;
+    for (const char* kind : kQueryKindNames) {
+        ValidationGroup g;
+        g.name = std::string(kKindGroupPrefix) + kind;
+        g.splits = {g.name};
+        for (const KindCell& k : cells) {
+            if (k.kind != kind) continue;
+            CellPrediction c;
+            c.split = g.name;
+            c.structure = k.structure, c.scene = k.scene, c.params = k.params;
+            const auto form = forms.find(k.structure);
+            if (form != forms.end()) c.raycast_model = form->second;
+            c.raycast_ns = k.raycast_ns;
+            c.predicted_raycast_ns = k.predicted_raycast_ns;
+            c.raycast_error = k.error;
+            g.cells.push_back(std::move(c));
+        }
+        if (g.cells.empty()) continue;
+        g.structures = summarize(g.cells, options);
+        out.push_back(std::move(g));
+    }
+    return out;
+}
+
 std::vector<ValidationSplit> kind_transfer_splits(const std::vector<FrameObservation>& kind_frames) {
     std::set<std::string> kinds;
     for (const FrameObservation& f : kind_frames) kinds.insert(f.kind);

@@ -55,7 +55,33 @@ struct KindError {
 };
 std::vector<KindError> kind_errors(const std::vector<KindCell>& cells);
 
+/// Per structure and kind over every batch of `kind_frames`, priced by `models` as in kind_cells:
+/// what `rcbench fit` prints beside its per-structure table.
+struct KindSummary {
+    std::string structure, kind;
+    std::size_t batches = 0;              ///< the kind's measured batches (one per frame that asks for it)
+    std::size_t cells = 0;                ///< their (scene × configuration) cells
+    double ns_per_query = NAN;            ///< median over the batches of ray-cast time / rays
+    double predicted_ns_per_query = NAN;  ///< median over the batches of predict_ray; NaN without a model
+    double median_error = NAN;            ///< KindError::median_error: the median over cells of KindCell::error
+};
+std::vector<KindSummary> kind_summaries(const std::vector<StructureModels>& models,
+                                        const std::vector<FrameObservation>& kind_frames);
+
 inline constexpr const char* kKindTransferGroup = "kind-transfer";
+/// The group of one kind's batches priced by a frozen model: "kind:closest".
+inline constexpr const char* kKindGroupPrefix = "kind:";
+
+/// A model chosen and fitted on another run's whole frames (`rcbench validate --test`) pricing the
+/// batches of each kind of `kind_frames` (the test run's, load_kind_observations) from their own
+/// counters: one group per kind present, in QueryKind order, named kKindGroupPrefix + kind, of one
+/// split. Its cells are kind_cells' (predicted against measured ray-cast time of the batch per
+/// frame), summarised per structure as every group is (median, p90, bootstrap over scenes). No
+/// frame error, as in calibration-only: a kind's frame time would be its batch plus the whole
+/// frame's update. A cell whose structure has no model in `models` is unpredictable.
+std::vector<ValidationGroup> validate_frozen_kinds(const std::vector<StructureModels>& models,
+                                                   const std::vector<FrameObservation>& kind_frames,
+                                                   const BootstrapOptions& options);
 
 /// With all-hits batches and others: "all -> closest", "all -> any" (each kind present) and
 /// "closest+any -> all"; without all-hits batches but with closest and any: each predicting the

@@ -250,7 +250,11 @@ std::vector<ValidationGroup> validate_nested(const std::vector<FrameObservation>
 
 TransferValidation validate_transfer(const std::vector<FrameObservation>& train, const ModelInputs& train_inputs,
                                      const std::vector<FrameObservation>& test, const BootstrapOptions& options) {
-    const std::vector<StructureModels> models = fit_cost_models(train, train_inputs);
+    return validate_transfer(fit_cost_models(train, train_inputs), test, options);
+}
+
+TransferValidation validate_transfer(const std::vector<StructureModels>& models,
+                                     const std::vector<FrameObservation>& test, const BootstrapOptions& options) {
     std::vector<const FrameObservation*> frames;
     for (const FrameObservation& f : test) frames.push_back(&f);
     TransferValidation out;

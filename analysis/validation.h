@@ -117,6 +117,10 @@ struct TransferValidation {
 };
 TransferValidation validate_transfer(const std::vector<FrameObservation>& train, const ModelInputs& train_inputs,
                                      const std::vector<FrameObservation>& test, const BootstrapOptions& options);
+/// The same with the train run's models already chosen and fitted (fit_cost_models on its frames),
+/// for a caller that prices more with them (the test run's query kinds) and fits once.
+TransferValidation validate_transfer(const std::vector<StructureModels>& models,
+                                     const std::vector<FrameObservation>& test, const BootstrapOptions& options);
 
 inline constexpr const char* kCalibrationGroup = "calibration-only";
 

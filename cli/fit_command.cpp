@@ -12,6 +12,7 @@
 #include "cli/run_ref.h"
 #include "analysis/cost_model.h"
 #include "analysis/noise.h"
+#include "analysis/query_kinds.h"
 #include "analysis/validation.h"
 #include "runner/store.h"
 #include "cli/validation_table.h"
@@ -128,6 +129,24 @@ void print_nested_loso(Database& db, std::int64_t run, const ModelInputs& inputs
     });
 }
 
+/// Per structure and query kind (analysis/query_kinds.h): the chosen ray-cast model pricing each
+/// kind's batches from their own counters. Nothing when the run has no kinds.
+void print_kind_table(Database& db, std::int64_t run, const std::vector<StructureModels>& models) {
+    if (!run_has_query_kinds(db, run)) return;
+    std::cout << "\nPer query kind: each kind's batches (frame_kind; a frame without kinds is one all-hits batch) "
+                 "priced by the structure's chosen ray-cast model from the batch's own counters; time per query in "
+                 "us, median over the batches; error: median over (scene x configuration) cells of |predicted - "
+                 "measured| / measured ray cast per frame (rcbench validate: intervals and kind transfer):\n";
+    TextTable t({"structure", "kind", "batches", "measured us/query", "predicted us/query", "error"});
+    const auto us = [](double ns) {  // four decimals below a microsecond, as the report's "Query kinds"
+        return std::isfinite(ns) ? fixed(ns / 1e3, ns < 1e3 ? 4 : 3) : std::string("-");
+    };
+    for (const KindSummary& k : kind_summaries(models, load_kind_observations(db, run)))
+        t.add({k.structure, k.kind, std::to_string(k.batches), us(k.ns_per_query), us(k.predicted_ns_per_query),
+               percent(k.median_error)});
+    t.print(std::cout);
+}
+
 }  // namespace
 
 void add_fit_command(CLI::App& app) {
@@ -141,7 +160,9 @@ void add_fit_command(CLI::App& app) {
         "Fit the cost model C = C_RB*N_RB + C_T*N_T + C_PREP (thesis eq. 5.4) and update costs per structure to a "
         "run's "
         "frames; choose the smallest adequate model by held-out error; store the coefficients in the database; "
-        "validate it leaving one scene out, the whole selection redone without the scene (stored too)");
+        "validate it leaving one scene out, the whole selection redone without the scene (stored too). A run with "
+        "query kinds (closest, any) adds a table per structure and kind: batches, measured and predicted time per "
+        "query, error");
     cmd->add_option("db", o->db, "Results database")->required()->check(input_file());
     cmd->add_option("--experiment", o->experiment, "Fit the newest run of this experiment (default: the newest run)")
         ->check(non_empty());
@@ -233,6 +254,7 @@ void add_fit_command(CLI::App& app) {
                       << " cells were measured while the calibration loop or memory probe ran more than 10% above its "
                          "run's median "
                          "(cell_state.slow)\n";
+        print_kind_table(store.db(), run, models);
         print_nested_loso(store.db(), run, *fit.inputs, models);
     });
 }

@@ -1,6 +1,6 @@
 // rcbench validate: the cost model predicting what it never saw. With --test, the model chosen and
-// fitted on one run prices every cell of another; without, the run's nested splits (each split's
-// whole model selection redone on its train frames only).
+// fitted on one run prices every cell of another, and each of its query kinds' batches; without,
+// the run's nested splits (each split's whole model selection redone on its train frames only).
 #include <iostream>
 #include <cmath>
 #include <memory>
@@ -102,20 +102,148 @@ void print_kinds(const KindValidation& k) {
     if (!k.absent.empty()) std::cout << "\n" << kKindTransferGroup << ": absent, " << k.absent << '\n';
 }
 
+/// The test run's kind batches priced by the train run's frozen model (analysis/query_kinds.h),
+/// stored with the test run's other groups; `absent` says why there are none.
+struct FrozenKinds {
+    std::vector<ValidationGroup> groups;
+    std::string absent;
+};
+
+FrozenKinds validate_test_kinds(Database& db, std::int64_t test_run, const std::vector<StructureModels>& models,
+                                const BootstrapOptions& bootstrap) {
+    FrozenKinds out;
+    if (!run_has_query_kinds(db, test_run)) {
+        out.absent = "the test run has no query kinds (no frame_kind rows: every ray asked for all hits)";
+        return out;
+    }
+    out.groups = validate_frozen_kinds(models, load_kind_observations(db, test_run), bootstrap);
+    return out;
+}
+
+nlohmann::json frozen_kinds_json(const FrozenKinds& k) {
+    nlohmann::json names = nlohmann::json::array();
+    for (const ValidationGroup& g : k.groups) names.push_back(g.name);
+    return {{"per_kind_groups", names},
+            {"per_kind", k.absent.empty() ? nlohmann::json("present") : nlohmann::json("absent: " + k.absent)}};
+}
+
+void print_frozen_kinds(const FrozenKinds& k) {
+    if (!k.absent.empty()) {
+        std::cout << "\nper query kind: absent, " << k.absent << '\n';
+        return;
+    }
+    std::cout << "\nper query kind (groups " << kKindGroupPrefix
+              << "KIND): the train run's model pricing each kind's batches of the test run from their own counters; "
+                 "absolute relative error of the median ray-cast time of the batch per frame per (scene x "
+                 "configuration) cell, median and p90 over cells with bootstrap 95% intervals over scenes\n";
+    kind_validation_table(k.groups, "  ").print(std::cout);
+}
+
+struct ValidateOptions {
+    std::string train, test;
+    bool json = false;
+    BootstrapOptions bootstrap;
+};
+
+/// What one validation gives to print: the groups in order and, per path, the query kinds' part.
+struct ValidateOutcome {
+    std::vector<ValidationGroup> groups;
+    std::vector<std::string> unpredictable;
+    std::int64_t predicted_run = 0, train_run = 0;
+    std::optional<KindValidation> kinds;  // nested splits only
+    std::optional<FrozenKinds> frozen;    // --test only
+};
+
+/// Without --test: the train run's nested splits, stored with it.
+ValidateOutcome validate_nested_run(const RunRef& train_ref, const BootstrapOptions& bootstrap) {
+    ValidateOutcome out;
+    ResultStore store = naming(train_ref, [&] { return ResultStore(train_ref.path); });  // stored with the run
+    const LoadedRun train = load_run(store.db(), train_ref);
+    out.predicted_run = out.train_run = train.run;
+    out.groups = validate_nested(train.frames, train.inputs, nested_splits(train.frames), bootstrap);
+    out.groups.push_back(validate_calibration_only(train.frames, train.inputs, bootstrap));
+    for (const ValidationGroup& g : out.groups)
+        store_validation(store.db(), train.run, "nested", train.uuid, g, bootstrap);
+    out.kinds = validate_kinds(store, train, bootstrap);
+    out.groups.insert(out.groups.end() - 1, out.kinds->groups.begin(), out.kinds->groups.end());
+    return out;
+}
+
+/// With --test: the train run's frozen model on every cell of the test run, and on each of its
+/// query kinds' batches; stored in the test database. The per-kind groups are printed apart
+/// (print_frozen_kinds) and join the JSON groups before calibration-only.
+ValidateOutcome validate_test_run(const RunRef& train_ref, const RunRef& test_ref, const BootstrapOptions& bootstrap) {
+    ValidateOutcome out;
+    LoadedRun train;
+    {
+        auto db = naming(train_ref, [&] { return open_read_only(train_ref.path); });
+        train = load_run(*db, train_ref);
+    }
+    ResultStore store = naming(test_ref, [&] { return ResultStore(test_ref.path); });
+    const LoadedRun test = load_run(store.db(), test_ref);
+    out.predicted_run = test.run;
+    out.train_run = train.run;
+    const std::string train_name = train_ref.path + ":" + std::to_string(train.run);
+    const std::vector<StructureModels> models = fit_cost_models(train.frames, train.inputs);
+    TransferValidation v = validate_transfer(models, test.frames, bootstrap);
+    store_validation(store.db(), test.run, train_name, train.uuid, v.group, bootstrap);
+    out.groups.push_back(std::move(v.group));
+    out.unpredictable = v.unpredictable;
+    out.frozen = validate_test_kinds(store.db(), test.run, models, bootstrap);
+    for (const ValidationGroup& g : out.frozen->groups)
+        store_validation(store.db(), test.run, train_name, train.uuid, g, bootstrap);
+    // The test run's own calibration (its machine's micro-scenes), no frames fitted.
+    out.groups.push_back(validate_calibration_only(test.frames, test.inputs, bootstrap));
+    store_validation(store.db(), test.run, "calibration", test.uuid, out.groups.back(), bootstrap);
+    return out;
+}
+
+void print_json(const ValidateOptions& o, const ValidateOutcome& r) {
+    nlohmann::json j{{"run", r.predicted_run},
+                     {"train", o.train},
+                     {"train_run", r.train_run},
+                     {"test", o.test.empty() ? nlohmann::json(nullptr) : nlohmann::json(o.test)},
+                     {"bootstrap", {{"resamples", o.bootstrap.resamples}, {"seed", o.bootstrap.seed}}},
+                     {"not_predictable", r.unpredictable},
+                     {"groups", nlohmann::json::array()}};
+    for (const ValidationGroup& g : r.groups) {
+        if (r.frozen && g.name == kCalibrationGroup)  // the per-kind groups before calibration alone
+            for (const ValidationGroup& k : r.frozen->groups) j["groups"].push_back(validation_json(k, true));
+        j["groups"].push_back(validation_json(g, true));
+    }
+    if (r.kinds) j["query_kinds"] = kinds_json(*r.kinds);
+    if (r.frozen) j["query_kinds"] = frozen_kinds_json(*r.frozen);
+    std::cout << j.dump(2) << '\n';
+}
+
+void print_text(const ValidateOptions& o, const ValidateOutcome& r) {
+    std::cout << (o.test.empty()
+                      ? "run " + std::to_string(r.predicted_run) + ": nested splits. "
+                      : "run " + std::to_string(r.predicted_run) + " of " + o.test + " predicted by the model of run " +
+                            std::to_string(r.train_run) + " of " + o.train + ". ");
+    print_header(o.bootstrap);
+    if (r.groups.empty()) std::cout << "no split applies: the run has one scene\n";
+    for (const ValidationGroup& g : r.groups) print_group(g);
+    if (r.kinds) print_kinds(*r.kinds);
+    if (r.frozen) print_frozen_kinds(*r.frozen);
+    if (!r.unpredictable.empty()) {
+        std::cout << "\nnot predictable (not measured in the train run):";
+        for (const std::string& s : r.unpredictable) std::cout << ' ' << s;
+        std::cout << '\n';
+    }
+}
+
 }  // namespace
 
 void add_validate_command(CLI::App& app) {
-    struct Options {
-        std::string train, test;
-        bool json = false;
-        BootstrapOptions bootstrap;
-    };
-    auto o = std::make_shared<Options>();
+    auto o = std::make_shared<ValidateOptions>();
     CLI::App* cmd = app.add_subcommand(
         "validate",
         "Validate the cost model on what it never saw. With --test: the model form and coefficients chosen and "
         "fitted on the train run (all its scenes) predict every cell of the test run from its counters; stored in "
-        "the test database (table model_validation). Without --test: the train run's nested splits (leave one "
+        "the test database (table model_validation); a test run with query kinds adds one group per kind (kind:all, "
+        "kind:closest, kind:any: the frozen model pricing that kind's batches from their own counters, ray-cast error "
+        "only), a test run without says they are absent. Without --test: the train run's nested splits (leave one "
         "scene out, one scene category out, the largest scenes out, ray-mode transfer), each split's whole model "
         "selection redone on its train frames only; stored in the train database. A run with query kinds (closest, "
         "any) adds kind transfer (a model fitted on the all-hits batches predicting the closest and any batches, and "
@@ -138,66 +266,13 @@ void add_validate_command(CLI::App& app) {
         ->default_val(1);
     cmd->callback([o] {
         const RunRef train_ref = parse_run_ref("--train", o->train);
-        std::vector<ValidationGroup> groups;
-        std::vector<std::string> unpredictable;
-        std::int64_t predicted_run = 0, train_run = 0;
-        std::optional<KindValidation> kinds;  // nested splits only
-        if (o->test.empty()) {
-            ResultStore store = naming(train_ref, [&] { return ResultStore(train_ref.path); });  // stored with the run
-            const LoadedRun train = load_run(store.db(), train_ref);
-            predicted_run = train_run = train.run;
-            groups = validate_nested(train.frames, train.inputs, nested_splits(train.frames), o->bootstrap);
-            groups.push_back(validate_calibration_only(train.frames, train.inputs, o->bootstrap));
-            for (const ValidationGroup& g : groups)
-                store_validation(store.db(), train.run, "nested", train.uuid, g, o->bootstrap);
-            kinds = validate_kinds(store, train, o->bootstrap);
-            groups.insert(groups.end() - 1, kinds->groups.begin(), kinds->groups.end());
-        } else {
-            const RunRef test_ref = parse_run_ref("--test", o->test);
-            LoadedRun train;
-            {
-                auto db = naming(train_ref, [&] { return open_read_only(train_ref.path); });
-                train = load_run(*db, train_ref);
-            }
-            ResultStore store = naming(test_ref, [&] { return ResultStore(test_ref.path); });
-            const LoadedRun test = load_run(store.db(), test_ref);
-            predicted_run = test.run;
-            train_run = train.run;
-            TransferValidation v = validate_transfer(train.frames, train.inputs, test.frames, o->bootstrap);
-            store_validation(store.db(), test.run, train_ref.path + ":" + std::to_string(train.run), train.uuid,
-                             v.group, o->bootstrap);
-            groups.push_back(std::move(v.group));
-            // The test run's own calibration (its machine's micro-scenes), no frames fitted.
-            groups.push_back(validate_calibration_only(test.frames, test.inputs, o->bootstrap));
-            store_validation(store.db(), test.run, "calibration", test.uuid, groups.back(), o->bootstrap);
-            unpredictable = v.unpredictable;
-        }
-        if (o->json) {
-            nlohmann::json j{{"run", predicted_run},
-                             {"train", o->train},
-                             {"train_run", train_run},
-                             {"test", o->test.empty() ? nlohmann::json(nullptr) : nlohmann::json(o->test)},
-                             {"bootstrap", {{"resamples", o->bootstrap.resamples}, {"seed", o->bootstrap.seed}}},
-                             {"not_predictable", unpredictable},
-                             {"groups", nlohmann::json::array()}};
-            for (const ValidationGroup& g : groups) j["groups"].push_back(validation_json(g, true));
-            if (kinds) j["query_kinds"] = kinds_json(*kinds);
-            std::cout << j.dump(2) << '\n';
-            return;
-        }
-        std::cout << (o->test.empty() ? "run " + std::to_string(predicted_run) + ": nested splits. "
-                                      : "run " + std::to_string(predicted_run) + " of " + o->test +
-                                            " predicted by the model of run " + std::to_string(train_run) + " of " +
-                                            o->train + ". ");
-        print_header(o->bootstrap);
-        if (groups.empty()) std::cout << "no split applies: the run has one scene\n";
-        for (const ValidationGroup& g : groups) print_group(g);
-        if (kinds) print_kinds(*kinds);
-        if (!unpredictable.empty()) {
-            std::cout << "\nnot predictable (not measured in the train run):";
-            for (const std::string& s : unpredictable) std::cout << ' ' << s;
-            std::cout << '\n';
-        }
+        const ValidateOutcome r = o->test.empty()
+                                      ? validate_nested_run(train_ref, o->bootstrap)
+                                      : validate_test_run(train_ref, parse_run_ref("--test", o->test), o->bootstrap);
+        if (o->json)
+            print_json(*o, r);
+        else
+            print_text(*o, r);
     });
 }
 

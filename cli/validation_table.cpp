@@ -1,6 +1,8 @@
 #include "cli/validation_table.h"
 
 #include <cmath>
+#include <map>
+#include <utility>
 
 namespace rcb {
 namespace {
@@ -33,6 +35,22 @@ TextTable validation_table(const ValidationGroup& group, const std::string& inde
                with_interval(s.raycast.median, s.raycast.median_low, s.raycast.median_high),
                with_interval(s.raycast.p90, s.raycast.p90_low, s.raycast.p90_high), std::to_string(s.unpredictable),
                forms_text(s.raycast_models)});
+    return t;
+}
+
+TextTable kind_validation_table(const std::vector<ValidationGroup>& groups, const std::string& indent) {
+    TextTable t({indent + "structure", "kind", "cells", "scenes", "ray cast median", "ray cast p90", "unpredictable"});
+    std::map<std::string, std::vector<std::pair<std::string, const StructureValidation*>>> rows;  // by structure
+    for (const ValidationGroup& g : groups) {
+        const std::string kind = g.name.substr(g.name.find(':') + 1);
+        for (const StructureValidation& s : g.structures) rows[s.structure].emplace_back(kind, &s);
+    }
+    for (const auto& [structure, kinds] : rows)
+        for (const auto& [kind, s] : kinds)
+            t.add({indent + structure, kind, std::to_string(s->cells), std::to_string(s->scenes),
+                   with_interval(s->raycast.median, s->raycast.median_low, s->raycast.median_high),
+                   with_interval(s->raycast.p90, s->raycast.p90_low, s->raycast.p90_high),
+                   std::to_string(s->unpredictable)});
     return t;
 }
 

@@ -3,6 +3,7 @@
 /// `validate` every split.
 
 #include <string>
+#include <vector>
 
 #include "analysis/validation.h"
 #include "cli/table.h"
@@ -16,5 +17,10 @@ std::string percent(double v);
 /// their bootstrap intervals where computed), unpredictable cells, the ray-cast forms the splits
 /// chose. `indent` prefixes the first column.
 TextTable validation_table(const ValidationGroup& group, const std::string& indent);
+
+/// Groups of ray-cast errors only, one per query kind ("kind:closest", …): one row per structure
+/// and kind with cells, scenes, median and p90 of the ray-cast error with their intervals, and
+/// unpredictable cells.
+TextTable kind_validation_table(const std::vector<ValidationGroup>& groups, const std::string& indent);
 
 }  // namespace rcb

@@ -1,11 +1,13 @@
 // Query kinds through the pipeline: the simulator's per-kind batches and counts, the database's
 // frame_kind (migration, store, merge), the cost model on each kind's counters, the kind-transfer
-// validation and the report's "Query kinds" section.
+// validation, another run's model on each kind (validate --test), fit's table per kind and the
+// report's "Query kinds" section.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -212,8 +214,13 @@ std::int64_t batch_ns(std::int64_t rays, std::int64_t n_rb, std::int64_t n_t) {
 
 /// One run of structure "tree": 4 scenes × 2 configurations × 8 frames; per frame, with `kinds`,
 /// 100 all, 200 closest and 100 any rays with their own integer counts per ray, each kind's time
-/// rays × (C_PREP + C_RB·N_RB + C_T·N_T) and the frame the sums; without, one batch of 400 rays.
-void write_hand_run(const std::string& path, bool kinds) {
+/// rays × (C_PREP + C_RB·N_RB + C_T·N_T) times the kind's `scale` (1 when absent, rounded to whole
+/// ns) and the frame the sums; without, one batch of 400 rays.
+void write_hand_run(const std::string& path, bool kinds, const std::map<std::string, double>& scale = {}) {
+    const auto measured_ns = [&](const char* kind, std::int64_t ns) {
+        const auto it = scale.find(kind);
+        return it == scale.end() ? ns : std::int64_t(std::llround(it->second * double(ns)));
+    };
     ResultStore store(path);
     Database& db = store.db();
     db.exec(
@@ -224,10 +231,12 @@ void write_hand_run(const std::string& path, bool kinds) {
     Random rng(17);
     int cell = 0;
     for (int scene = 0; scene < 4; ++scene) {
+        // Named copies, not "h" + std::to_string(scene): GCC 12 inlines that into a false -Wrestrict.
+        const std::string index = std::to_string(scene), hash = "h" + index, name = "scene" + index;
         db.prepare(
               "INSERT INTO scene(hash, name, spec, meta, objects, frames, rays_per_frame, stats) VALUES (?, ?, "
               "'{\"kind\": \"irregular\"}', '{}', 1000, 8, 400, '{}')")
-            .bind_all("h" + std::to_string(scene), "scene" + std::to_string(scene))
+            .bind_all(hash, name)
             .run();
         for (int config = 0; config < 2; ++config) {
             db.prepare("INSERT OR IGNORE INTO config(structure, params) VALUES ('tree', ?)")
@@ -250,7 +259,8 @@ void write_hand_run(const std::string& path, bool kinds) {
                         {kind, rays, rays * std::int64_t(rng.below(400) + 5), rays * std::int64_t(rng.below(300) + 5)});
                 std::int64_t rays = 0, n_rb = 0, n_t = 0, ns = 0;
                 for (const Batch& k : batches)
-                    rays += k.rays, n_rb += k.n_rb, n_t += k.n_t, ns += batch_ns(k.rays, k.n_rb, k.n_t);
+                    rays += k.rays, n_rb += k.n_rb, n_t += k.n_t,
+                        ns += measured_ns(k.kind, batch_ns(k.rays, k.n_rb, k.n_t));
                 const std::int64_t moves = 20 + frame;
                 db.prepare(
                       "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, "
@@ -262,8 +272,9 @@ void write_hand_run(const std::string& path, bool kinds) {
                     if (kinds)
                         db.prepare(kFrameKindInsertSql)
                             .bind_all(std::int64_t(cell), std::int64_t(frame), std::string(k.kind), k.rays,
-                                      batch_ns(k.rays, k.n_rb, k.n_t), batch_ns(k.rays, k.n_rb, k.n_t), std::int64_t(0),
-                                      k.n_t, k.n_rb, std::int64_t(0), std::int64_t(0), std::int64_t(0), std::int64_t(0),
+                                      measured_ns(k.kind, batch_ns(k.rays, k.n_rb, k.n_t)),
+                                      measured_ns(k.kind, batch_ns(k.rays, k.n_rb, k.n_t)), std::int64_t(0), k.n_t,
+                                      k.n_rb, std::int64_t(0), std::int64_t(0), std::int64_t(0), std::int64_t(0),
                                       std::int64_t(0))
                             .run();
             }
@@ -350,6 +361,188 @@ TEST(KindModel, KindTransferExistsWithKindsAndIsAbsentWithout) {
         Database db(temp.file(name), true);
         EXPECT_EQ(count(db, "SELECT count(*) FROM model_validation WHERE split = 'kind-transfer'"), kinds ? 1 : 0);
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// A frozen model on another run's kinds (validate --test) and the fit's table per kind.
+
+/// The test run's closest batches take 1.5 times what eq. 5.4 says and its any batches 0.8 times;
+/// a model fitted on a run that follows eq. 5.4 exactly is off by 0.5 / 1.5 and 0.2 / 0.8 on them.
+const std::map<std::string, double> kTestScale{{"all", 1.0}, {"closest", 1.5}, {"any", 0.8}};
+const std::map<std::string, double> kTestError{{"all", 0.0}, {"closest", 0.5 / 1.5}, {"any", 0.2 / 0.8}};
+
+/// ns per query of `f` by the chosen model's coefficients times its terms, by hand.
+double priced(const CandidateModel& m, const FrameObservation& f) {
+    double ns = 0;
+    for (const Coefficient& k : m.fit.coefficients) ns += k.value * term_value(find_term(k.name), f);
+    return ns;
+}
+
+TEST(KindModel, AFrozenModelPricesEachKindOfAnotherRunFromItsOwnCounters) {
+    const test::TempDir temp("kinds", "frozen");
+    write_hand_run(temp.file("a.db"), false);
+    write_hand_run(temp.file("b.db"), true, kTestScale);
+    Database a(temp.file("a.db"), true), b(temp.file("b.db"), true);
+    const std::vector<StructureModels> models = fit_cost_models(load_observations(a, 1));
+    ASSERT_EQ(models.size(), 1u);
+    const CandidateModel* chosen = models[0].chosen("raycast");
+    ASSERT_NE(chosen, nullptr);
+    const std::vector<FrameObservation> kind_frames = load_kind_observations(b, 1);
+    const std::vector<ValidationGroup> groups = validate_frozen_kinds(models, kind_frames, {200, 5});
+    ASSERT_EQ(groups.size(), 3u);
+    for (std::size_t i = 0; i < groups.size(); ++i) {
+        const ValidationGroup& g = groups[i];
+        const std::string kind = kQueryKindNames[i];
+        EXPECT_EQ(g.name, std::string(kKindGroupPrefix) + kind);
+        EXPECT_EQ(g.splits, std::vector<std::string>{g.name});
+        ASSERT_EQ(g.cells.size(), 8u) << kind;
+        std::vector<double> errors;
+        for (const CellPrediction& c : g.cells) {
+            // By hand: per frame of the cell the batch priced from its own counters, and measured.
+            std::vector<double> predicted, measured, exact;
+            for (const FrameObservation& f : kind_frames) {
+                if (f.scene != c.scene || f.params != c.params || f.kind != kind) continue;
+                predicted.push_back(priced(*chosen, f) * f.rays);
+                measured.push_back(f.raycast_ns);
+                exact.push_back(f.rays * (kPrep + kRb * f.n_rb + kT * f.n_t));
+            }
+            ASSERT_EQ(predicted.size(), 8u);
+            const double p = quantile(predicted, 0.5), m = quantile(measured, 0.5);
+            EXPECT_NEAR(m, kTestScale.at(kind) * quantile(exact, 0.5), 1.0);  // what was stored
+            EXPECT_NEAR(c.predicted_raycast_ns, p, 1e-9 * p);
+            EXPECT_DOUBLE_EQ(c.raycast_ns, m);
+            EXPECT_NEAR(c.raycast_error, std::abs(p - m) / m, 1e-9);
+            EXPECT_NEAR(c.raycast_error, kTestError.at(kind), 0.02) << kind;
+            EXPECT_TRUE(std::isnan(c.frame_error));  // a kind's batch has no frame time of its own
+            EXPECT_EQ(c.raycast_model, chosen->name);
+            errors.push_back(c.raycast_error);
+        }
+        ASSERT_EQ(g.structures.size(), 1u);
+        const StructureValidation& s = g.structures[0];
+        EXPECT_EQ(s.structure, "tree");
+        EXPECT_EQ(s.cells, 8u);
+        EXPECT_EQ(s.scenes, 4u);
+        EXPECT_EQ(s.unpredictable, 0u);
+        EXPECT_DOUBLE_EQ(s.raycast.median, quantile(errors, 0.5));
+        EXPECT_DOUBLE_EQ(s.raycast.p90, quantile(errors, 0.9));
+        EXPECT_LE(s.raycast.median_low, s.raycast.median);
+        EXPECT_GE(s.raycast.median_high, s.raycast.median);
+        EXPECT_TRUE(std::isnan(s.frame.median));
+    }
+
+    // The fit's table: per kind the batches, the medians over them of the measured and the priced
+    // time per query, and the median over cells of the error.
+    const std::vector<KindSummary> rows = kind_summaries(models, kind_frames);
+    ASSERT_EQ(rows.size(), 3u);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        const KindSummary& r = rows[i];
+        EXPECT_EQ(r.structure, "tree");
+        EXPECT_EQ(r.kind, kQueryKindNames[i]);
+        std::vector<double> measured, predicted;
+        Statement q = b.prepare("SELECT raycast_ns, rays FROM frame_kind WHERE kind = ?");
+        q.bind(1, r.kind);
+        while (q.step()) measured.push_back(q.real(0) / q.real(1));
+        for (const FrameObservation& f : kind_frames)
+            if (f.kind == r.kind) predicted.push_back(priced(*chosen, f));
+        EXPECT_EQ(r.batches, 64u);
+        EXPECT_EQ(r.cells, 8u);
+        EXPECT_DOUBLE_EQ(r.ns_per_query, quantile(measured, 0.5));
+        EXPECT_NEAR(r.predicted_ns_per_query, quantile(predicted, 0.5), 1e-9 * quantile(predicted, 0.5));
+        EXPECT_NEAR(r.median_error, kTestError.at(r.kind), 0.02) << r.kind;
+    }
+}
+
+/// The words of the first line of `text` whose first words are `start`; empty when none is.
+std::vector<std::string> row_starting(const std::string& text, const std::vector<std::string>& start) {
+    std::istringstream lines(text);
+    for (std::string line; std::getline(lines, line);) {
+        std::istringstream in(line);
+        std::vector<std::string> words;
+        for (std::string w; in >> w;) words.push_back(w);
+        if (words.size() >= start.size() && std::equal(start.begin(), start.end(), words.begin())) return words;
+    }
+    return {};
+}
+
+::test::Outcome rcbench(std::vector<std::string> args) {
+    args.insert(args.begin(), RCBENCH_BINARY);
+    return ::test::run_process(args);
+}
+
+TEST(KindCommands, ValidateTestAndFitShowEachKindAndSayWhenThereIsNone) {
+    const test::TempDir temp("kinds", "commands");
+    const std::string a = temp.file("a.db"), b = temp.file("b.db");
+    write_hand_run(a, false);
+    write_hand_run(b, true, kTestScale);
+    const std::string kind_rows = "SELECT count(*) FROM model_validation WHERE split LIKE 'kind:%'";
+
+    // The test run has kinds: one group per kind, in the JSON, the text and the test database.
+    const ::test::Outcome j = rcbench({"validate", "--train", a, "--test", b, "--json", "--resamples", "20"});
+    ASSERT_EQ(j.code, 0) << j.err;
+    const nlohmann::json out = nlohmann::json::parse(j.out);
+    std::vector<std::string> names;
+    for (const nlohmann::json& g : out["groups"]) names.push_back(g["group"].get<std::string>());
+    EXPECT_EQ(names,
+              (std::vector<std::string>{"transfer", "kind:all", "kind:closest", "kind:any", "calibration-only"}));
+    EXPECT_EQ(out["query_kinds"]["per_kind"], "present");
+    EXPECT_EQ(out["query_kinds"]["per_kind_groups"], nlohmann::json::array({"kind:all", "kind:closest", "kind:any"}));
+    const nlohmann::json& closest = out["groups"][2]["structures"][0];
+    EXPECT_EQ(closest["structure"], "tree");
+    EXPECT_EQ(closest["cells"], 8);
+    EXPECT_NEAR(closest["raycast_error"]["median"].get<double>(), kTestError.at("closest"), 0.02);
+    EXPECT_EQ(closest["raycast_error"]["median_ci95"].size(), 2u);
+    EXPECT_TRUE(closest["frame_error"]["median"].is_null());
+    EXPECT_EQ(out["groups"][2]["cells"].size(), 8u);
+    {
+        Database db(b, true);
+        EXPECT_EQ(count(db, kind_rows + " AND train = '" + a + ":1' AND train_run_uuid = 'u'"), 3);
+        Statement s = db.prepare(
+            "SELECT raycast_median, frame_median IS NULL FROM model_validation WHERE split = "
+            "'kind:any'");
+        ASSERT_TRUE(s.step());
+        EXPECT_NEAR(s.real(0), kTestError.at("any"), 0.02);
+        EXPECT_EQ(s.int64(1), 1);
+    }
+    const ::test::Outcome t = rcbench({"validate", "--train", a, "--test", b, "--resamples", "20"});
+    ASSERT_EQ(t.code, 0) << t.err;
+    EXPECT_NE(t.out.find("per query kind (groups kind:KIND)"), std::string::npos) << t.out;
+    // "33.3% [33.1, 33.5]" twice (median and p90 with intervals), then the unpredictable cells.
+    EXPECT_EQ(row_starting(t.out, {"tree", "closest", "8", "4"}).size(), 11u) << t.out;
+    EXPECT_EQ(t.out.find("absent"), std::string::npos);
+    EXPECT_EQ(count(*open_read_only(b), kind_rows), 3) << "stored again: replaced";
+
+    // The test run has none: one line says so, no table, nothing stored.
+    const ::test::Outcome n = rcbench({"validate", "--train", b, "--test", a, "--resamples", "20"});
+    ASSERT_EQ(n.code, 0) << n.err;
+    EXPECT_NE(n.out.find("\nper query kind: absent, the test run has no query kinds"), std::string::npos) << n.out;
+    EXPECT_EQ(n.out.find("groups kind:KIND"), std::string::npos);
+    EXPECT_EQ(n.out.find("kind:closest"), std::string::npos);
+    const ::test::Outcome nj = rcbench({"validate", "--train", b, "--test", a, "--json", "--resamples", "20"});
+    ASSERT_EQ(nj.code, 0) << nj.err;
+    const nlohmann::json none = nlohmann::json::parse(nj.out);
+    EXPECT_EQ(none["groups"].size(), 2u);
+    EXPECT_EQ(none["query_kinds"]["per_kind"].get<std::string>().rfind("absent: ", 0), 0u);
+    EXPECT_TRUE(none["query_kinds"]["per_kind_groups"].empty());
+    EXPECT_EQ(count(*open_read_only(a), kind_rows), 0);
+
+    // fit: the table per kind with kinds, nothing without.
+    const ::test::Outcome f = rcbench({"fit", b});
+    ASSERT_EQ(f.code, 0) << f.err;
+    EXPECT_NE(f.out.find("\nPer query kind: "), std::string::npos) << f.out;
+    std::vector<double> per_query;
+    {
+        Database db(b, true);
+        Statement q = db.prepare("SELECT raycast_ns, rays FROM frame_kind WHERE kind = 'closest'");
+        while (q.step()) per_query.push_back(q.real(0) / q.real(1));
+    }
+    const double ns = quantile(per_query, 0.5);
+    const std::vector<std::string> row = row_starting(f.out, {"tree", "closest", "64"});
+    ASSERT_EQ(row.size(), 6u) << f.out;
+    EXPECT_EQ(row[3], fixed(ns / 1e3, ns < 1e3 ? 4 : 3));
+    EXPECT_EQ(row[5].back(), '%');
+    const ::test::Outcome plain = rcbench({"fit", a});
+    ASSERT_EQ(plain.code, 0) << plain.err;
+    EXPECT_EQ(plain.out.find("Per query kind"), std::string::npos);
 }
 
 // ---------------------------------------------------------------------------------------------
