@@ -10,6 +10,7 @@
 
 #include "analysis/cost_model.h"
 #include "core/base/error.h"
+#include "core/base/number_text.h"
 #include "core/base/random.h"
 #include "core/accel/registry.h"
 #include "core/accel/query_level.h"
@@ -129,10 +130,13 @@ std::vector<json> levels_for(const ParamSpec& p) {
             return out;
         }
         case ParamKind::real:
+            // As a range's levels (runner/experiment.h, expand_values): the decimals they stand for.
             if (p.log_scale && p.lo > 0) {
-                for (double v = p.lo; v <= p.hi * (1 + 1e-9); v *= 2) out.push_back(v);
+                for (double v = p.lo; v <= p.hi * (1 + 1e-9); v *= 2)
+                    out.push_back(std::clamp(decimal_rounded(v), p.lo, p.hi));
             } else {
-                for (int i = 0; i < 8; ++i) out.push_back(p.lo + (p.hi - p.lo) * i / 7.0);
+                for (int i = 0; i < 8; ++i)
+                    out.push_back(std::clamp(decimal_rounded(p.lo + (p.hi - p.lo) * i / 7.0), p.lo, p.hi));
             }
             return out;
     }
