@@ -302,7 +302,8 @@ TEST(TuneCostModel, AnUnpinnedCalibrationIsTheModelWhereNoFitPricesTheRays) {
     ASSERT_NE(t, nullptr);
     ASSERT_FALSE(t->pinned) << t->why;
     ASSERT_GT(t->value, 0);
-    const std::optional<CostCoefficients> alone = fit_coefficients(frames, [&]() -> const ModelInputs& { return priors; });
+    const std::optional<CostCoefficients> alone =
+        fit_coefficients(frames, [&]() -> const ModelInputs& { return priors; });
     ASSERT_TRUE(alone.has_value());
     EXPECT_DOUBLE_EQ((*alone)["C_T"], t->value) << alone->to_json().dump();
     EXPECT_NE(alone->model.find("calibration alone"), std::string::npos) << alone->model;
