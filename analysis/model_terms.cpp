@@ -5,6 +5,7 @@
 
 #include "analysis/linear_fit.h"
 #include "core/base/error.h"
+#include "core/accel/counter_fields.h"
 #include "core/sim/simulator.h"
 #include "runner/calibration.h"
 
@@ -14,18 +15,12 @@ const std::vector<FrameCounter>& frame_counters() {
     using F = FrameObservation;
     using C = CalibrationPoint;
     static const std::vector<FrameCounter> counters{
-        {"N_RB", "frame.n_rb", "n_rb", CounterScale::per_ray, &F::n_rb,
-         [](const FrameResult& r) { return double(r.counters.n_rb); }, &C::n_rb},
-        {"N_T", "frame.n_t", "n_t", CounterScale::per_ray, &F::n_t,
-         [](const FrameResult& r) { return double(r.counters.n_t); }, &C::n_t},
-        {"N_TP", "frame.n_tp", "n_tp", CounterScale::per_ray, &F::n_tp,
-         [](const FrameResult& r) { return double(r.counters.n_tp); }, nullptr},
-        {"N_RO", "frame.n_ro", "n_ro", CounterScale::per_ray, &F::n_ro,
-         [](const FrameResult& r) { return double(r.counters.n_ro); }, nullptr},
-        {"N_TH", "frame.n_th", "n_th", CounterScale::per_ray, &F::n_th,
-         [](const FrameResult& r) { return double(r.counters.n_th); }, nullptr},
-        {"N_MP", "frame.n_mp", "n_mp", CounterScale::per_ray, &F::n_mp,
-         [](const FrameResult& r) { return double(r.counters.n_mp); }, &C::n_mp},
+        {"N_RB", "frame.n_rb", "n_rb", CounterScale::per_ray, &F::n_rb, nullptr, &C::n_rb},
+        {"N_T", "frame.n_t", "n_t", CounterScale::per_ray, &F::n_t, nullptr, &C::n_t},
+        {"N_TP", "frame.n_tp", "n_tp", CounterScale::per_ray, &F::n_tp, nullptr, nullptr},
+        {"N_RO", "frame.n_ro", "n_ro", CounterScale::per_ray, &F::n_ro, nullptr, nullptr},
+        {"N_TH", "frame.n_th", "n_th", CounterScale::per_ray, &F::n_th, nullptr, nullptr},
+        {"N_MP", "frame.n_mp", "n_mp", CounterScale::per_ray, &F::n_mp, nullptr, &C::n_mp},
         {"N_INS", "frame.inserts", "inserts", CounterScale::as_is, &F::inserts,
          [](const FrameResult& r) { return double(r.inserts); }, nullptr},
         {"N_REM", "frame.removes", "removes", CounterScale::as_is, &F::removes,
@@ -192,7 +187,11 @@ FrameObservation observation_of(const FrameResult& frame, double objects) {
     o.raycast_ns = double(frame.raycast_ns);
     o.update_ns = double(frame.update_ns);
     for (const FrameCounter& c : frame_counters()) {
-        const double raw = c.simulated ? c.simulated(frame) : objects;
+        double raw = objects;
+        if (const CounterField* counted = counter_field(c.alias))
+            raw = double(frame.counters.*(counted->member));
+        else if (c.simulated)
+            raw = c.simulated(frame);
         switch (c.scale) {
             case CounterScale::per_ray:
                 o.*(c.field) = frame.rays > 0 ? raw / frame.rays : 0.0;

@@ -58,8 +58,9 @@ struct FrameCounter {
     const char* alias;   ///< the query's name for it: "n_rb"
     CounterScale scale;
     double FrameObservation::*field;
-    /// What a simulated frame counted (the counting pass, changes, memory); nullptr for the scene's
-    /// objects, a property of the whole run.
+    /// What a simulated frame counted besides its Counters (changes, memory); nullptr for the
+    /// counting pass's counters, read by `alias` from core/accel/counter_fields.h, and
+    /// for the scene's objects, a property of the whole run.
     double (*simulated)(const FrameResult&);
     /// The calibration micro-scenes' per-ray count of it (runner/calibration.h), nullptr where they
     /// do not count it.

@@ -6,6 +6,7 @@
 #include <tuple>
 
 #include "analysis/statistics.h"
+#include "core/accel/counter_fields.h"
 #include "core/scene/scene.h"
 #include "runner/store.h"
 
@@ -28,10 +29,9 @@ struct KindRow {
 
 /// The run's frame_kind rows of measured frames by (cell, frame).
 std::map<std::pair<std::int64_t, std::int64_t>, std::vector<KindRow>> kind_rows(Database& db, std::int64_t run) {
-    static const char* const columns[] = {"n_t", "n_rb", "n_tp", "n_ro", "n_ro_hits", "n_th", "n_mp"};
     std::string sql =
         "SELECT frame_kind.cell_id, frame_kind.frame, frame_kind.kind, frame_kind.rays, frame_kind.raycast_ns";
-    for (const char* c : columns) sql += std::string(", frame_kind.") + c;
+    for (const CounterField& c : kCounterFields) sql += std::string(", frame_kind.") + c.name;
     sql += std::string(
                " FROM frame_kind JOIN frame USING (cell_id, frame) JOIN cell ON cell.id = frame_kind.cell_id "
                "WHERE frame.warmup = 0 AND cell.run_id IN ") +
@@ -41,7 +41,7 @@ std::map<std::pair<std::int64_t, std::int64_t>, std::vector<KindRow>> kind_rows(
     std::map<std::pair<std::int64_t, std::int64_t>, std::vector<KindRow>> out;
     while (s.step()) {
         KindRow r{s.text(2), s.real(3), s.real(4), {}};
-        for (int i = 0; i < int(std::size(columns)); ++i) r.counters[columns[i]] = s.real(5 + i);
+        for (int i = 0; i < int(kCounterFields.size()); ++i) r.counters[kCounterFields[i].name] = s.real(5 + i);
         out[{s.int64(0), s.int64(1)}].push_back(std::move(r));
     }
     for (auto& [key, rows] : out)

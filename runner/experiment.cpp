@@ -1,5 +1,6 @@
 #include "runner/experiment.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -15,6 +16,7 @@
 #include "core/scene/import/scene_import.h"
 #include "core/base/error.h"
 #include "core/base/json_input.h"
+#include "core/base/number_text.h"
 #include "core/base/random.h"
 #include "core/scene/recording_io.h"
 #include "core/accel/registry.h"
@@ -93,6 +95,13 @@ std::vector<std::uint64_t> get_uint_list(const json& obj, const std::string& key
     return out;
 }
 
+/// One level of a range: `x` as the decimal it stands for (12 significant digits, so float noise
+/// does not make a second configuration of the default), within [from, to], rounded for an integer.
+static json range_level(double x, double from, double to, bool integer) {
+    const double level = std::clamp(decimal_rounded(x), from, to);
+    return integer ? json(std::llround(level)) : json(level);
+}
+
 /// The values one parameter takes in a grid: a scalar, a list, or a range
 /// {"from": a, "to": b, "step": s} (arithmetic) / {"from": a, "to": b, "times": f} (geometric).
 std::vector<json> expand_values(const ParamSpec& spec, const json& v, const std::string& path) {
@@ -124,11 +133,10 @@ std::vector<json> expand_values(const ParamSpec& spec, const json& v, const std:
             const double step = s.get<double>();
             if (!((to - from) / step <= kMaxRangeValues))
                 fail(path, "the range takes more than " + std::to_string(kMaxRangeValues) + " steps");
-            // The last step may land a rounding past "to" (0.1 + 2 × 0.45): it is "to".
-            for (std::size_t i = 0; from + double(i) * step <= to * (1 + 1e-12) + 1e-12; ++i) {
-                const double x = std::min(from + double(i) * step, to);
-                out.push_back(integer ? json(std::llround(x)) : json(x));
-            }
+            // The last step may land a rounding past "to" (0.1 + 2 × 0.45): it is "to". Each level is
+            // the decimal it stands for (range_level): 0.1 + 2 × 0.1 is 0.3.
+            for (std::size_t i = 0; from + double(i) * step <= to * (1 + 1e-12) + 1e-12; ++i)
+                out.push_back(range_level(from + double(i) * step, from, to, integer));
         } else {
             const json& f = v["times"];
             if (!f.is_number() || !(f.get<double>() > 1))
@@ -139,9 +147,12 @@ std::vector<json> expand_values(const ParamSpec& spec, const json& v, const std:
             const double steps = std::log(to / from) / std::log(f.get<double>());
             if (!(steps <= kMaxRangeValues))
                 fail(path, "the range takes more than " + std::to_string(kMaxRangeValues) + " steps");
-            for (double x = from; x <= to * (1 + 1e-12); x *= f.get<double>()) {
-                const double level = std::min(x, to);  // 0.125 × √2^18 is a rounding above 64
-                json value = integer ? json(std::llround(level)) : json(level);
+            // from × times^k, not a running product whose roundings add up (0.125 × √2 ten times
+            // was 4.000000000000001 beside the default 4.0); 0.125 × √2^18 is a rounding above 64.
+            for (std::size_t k = 0; k <= kMaxRangeValues; ++k) {
+                const double x = from * std::pow(f.get<double>(), double(k));
+                if (!(x <= to * (1 + 1e-12))) break;
+                const json value = range_level(x, from, to, integer);
                 if (out.empty() || out.back() != value) out.push_back(value);
             }
         }

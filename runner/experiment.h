@@ -105,7 +105,9 @@ std::vector<SceneSpec> parse_scenes(const nlohmann::json& scenes, const std::str
                                     const SceneDefaults& defaults, const std::string& base_dir);
 
 /// The values one parameter takes in a grid: a value, a list, or a range {"from", "to", "step"}
-/// (arithmetic) / {"from", "to", "times"} (geometric); each checked against `spec`.
+/// (arithmetic) / {"from", "to", "times"} (geometric); each checked against `spec`. A range's
+/// levels are from + i·step and from·times^i rounded to 12 significant digits (decimal_rounded):
+/// 0.125 × √2^10 is 4.0, the default, not 4.000000000000001.
 std::vector<nlohmann::json> expand_values(const ParamSpec& spec, const nlohmann::json& value, const std::string& path);
 
 // Validation helpers for JSON files, shared by the experiment and tuning files. Every error is an

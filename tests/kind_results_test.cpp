@@ -12,10 +12,12 @@
 #include <sstream>
 
 #include "analysis/cost_model.h"
+#include "analysis/model_terms.h"
 #include "analysis/query_kinds.h"
 #include "analysis/report.h"
 #include "analysis/statistics.h"
 #include "analysis/validation.h"
+#include "core/accel/counter_fields.h"
 #include "core/accel/registry.h"
 #include "core/base/number_text.h"
 #include "core/base/random.h"
@@ -145,6 +147,35 @@ TEST(KindResults, AFrameOfOneKindIsCastAndCountedAsOneBatchAsBefore) {
     ASSERT_TRUE(j.contains("kinds"));  // the any frame's
     EXPECT_EQ(j["kinds"]["frames"][0].size(), 1u);
     EXPECT_EQ(j["kinds"]["frames"][1].size(), 0u);
+}
+
+TEST(KindResults, EveryCounterIsReadThroughTheCoreList) {
+    // core/accel/counter_fields.h (kCounterFields) names each counter once: the simulator's JSON (per
+    // frame and per kind) and the cost model's observations read it from there.
+    Recording r = test::generated_scene("uniform", 1200, 3, 4);
+    r.frames[0].kinds.assign(r.frames[0].rays.size(), QueryKind::any);
+    const SimulationResult res = simulate(r, find_structure("dbvh"), nlohmann::json::object());
+    const nlohmann::json j = res.to_json();
+    const FrameResult& f = res.frames[0];
+    ASSERT_EQ(f.kinds.size(), 1u);
+    ASSERT_GT(f.counters.n_rb, f.counters.n_tp);  // distinct values, so a swapped member shows
+    for (const CounterField& c : kCounterFields) {
+        ASSERT_TRUE(j.contains(c.name)) << c.name;
+        EXPECT_EQ(j[c.name][0], f.counters.*c.member) << c.name;
+        EXPECT_EQ(j["kinds"]["frames"][0][0][c.name], f.kinds[0].counters.*c.member) << c.name;
+    }
+    // Every per-ray counter of the cost model is a core counter: the frame's count per ray.
+    const FrameObservation o = observation_of(f, double(res.objects));
+    std::size_t per_ray = 0;
+    for (const FrameCounter& c : frame_counters()) {
+        if (c.scale != CounterScale::per_ray) continue;
+        const CounterField* counted = counter_field(c.alias);
+        ASSERT_NE(counted, nullptr) << c.alias;
+        EXPECT_DOUBLE_EQ(o.*(c.field), double(f.counters.*(counted->member)) / f.rays) << c.alias;
+        ++per_ray;
+    }
+    EXPECT_EQ(per_ray, 6u);  // N_RB, N_T, N_TP, N_RO, N_TH, N_MP
+    EXPECT_EQ(o.objects, double(res.objects));
 }
 
 // ---------------------------------------------------------------------------------------------

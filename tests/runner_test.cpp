@@ -8,10 +8,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
 #include "core/base/error.h"
+#include "core/base/number_text.h"
 #include "core/base/random.h"
 #include "core/accel/registry.h"
 #include "core/scene/recording_io.h"
@@ -120,6 +122,61 @@ TEST(Experiment, OversizedOrMalformedRangesAndPlansAreRefusedBeforeAllocation) {
     EXPECT_EQ(message.rfind("exp.json: frames: expected an integer in 1..1000000, got \"xxx", 0), 0u)
         << message.substr(0, 200);
     EXPECT_LT(message.size(), 200u);
+}
+
+TEST(NumberText, DecimalRoundedDropsFloatNoiseAndKeepsTwelveDigits) {
+    EXPECT_EQ(decimal_rounded(4.000000000000001), 4.0);
+    EXPECT_EQ(decimal_rounded(0.1 + 2 * 0.1), 0.3);
+    EXPECT_EQ(decimal_rounded(-(0.1 + 2 * 0.1)), -0.3);
+    EXPECT_EQ(decimal_rounded(0.1767766952966369), 0.176776695297);
+    EXPECT_EQ(decimal_rounded(1.23456789012345, 3), 1.23);
+    EXPECT_EQ(decimal_rounded(0.0), 0.0);
+    EXPECT_EQ(decimal_rounded(1e300 * 1.0000000000000002), 1e300);
+    EXPECT_EQ(decimal_rounded(INFINITY), INFINITY);
+    EXPECT_TRUE(std::isnan(decimal_rounded(NAN)));
+}
+
+TEST(Experiment, RangeLevelsAreTheDecimalsTheyStandFor) {
+    // 0.125 × √2 ten times by a running product was 4.000000000000001 beside ug's default 4.0: a
+    // second configuration and a second cell key for one structure in effect.
+    const Experiment g = parse_experiment(
+        R"({"scenes": [{"preset": "uni-s"}],
+            "structures": [{"name": "ug", "params": {"density": {"from": 0.125, "to": 64, "times": 1.4142135623730951}}}]})",
+        "g", ".");
+    ASSERT_EQ(g.configs.size(), 19u);
+    const nlohmann::json default_density = find_structure("ug").defaults()["density"];
+    std::size_t at_default = 0;
+    for (std::size_t k = 0; k < g.configs.size(); ++k) {
+        const nlohmann::json& level = g.configs[k].params["density"];
+        EXPECT_EQ(level.get<double>(), decimal_rounded(level.get<double>())) << level.dump();
+        EXPECT_LE(level.dump().size(), 14u) << level.dump();  // "0.176776695297": 12 digits, no noise
+        if (k % 2 == 0) {
+            EXPECT_EQ(level.get<double>(), 0.125 * double(1 << (k / 2))) << k;  // powers of two
+        }
+        at_default += level == default_density;
+    }
+    EXPECT_EQ(at_default, 1u);
+    EXPECT_EQ(g.configs[10].params["density"].dump(), "4.0");
+    // The range's level at the default is the file's that names the default: the same cell.
+    const Experiment d = parse_experiment(
+        R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "ug", "params": {"density": 4.0}}]})", "d", ".");
+    EXPECT_EQ(cell_key(g, 0, 10, 0), cell_key(d, 0, 0, 0));
+    // Arithmetic ranges: 0.1 + 2 × 0.1 is 0.3, not 0.30000000000000004.
+    const Experiment a = parse_experiment(
+        R"({"scenes": [{"preset": "uni-s"}],
+            "structures": [{"name": "dbvh", "params": {"margin": {"from": 0.1, "to": 0.5, "step": 0.1}}}]})",
+        "a", ".");
+    std::vector<std::string> margins;
+    for (const auto& c : a.configs) margins.push_back(c.params["margin"].dump());
+    EXPECT_EQ(margins, (std::vector<std::string>{"0.1", "0.2", "0.3", "0.4", "0.5"}));
+    // A first level of more digits than the rounding keeps stays as given (within the range).
+    const Experiment f = parse_experiment(
+        R"({"scenes": [{"preset": "uni-s"}],
+            "structures": [{"name": "ug", "params": {"density": {"from": 0.1234567890123456, "to": 1, "times": 2}}}]})",
+        "f", ".");
+    ASSERT_EQ(f.configs.size(), 4u);
+    EXPECT_EQ(f.configs[0].params["density"].get<double>(), 0.1234567890123456);
+    EXPECT_EQ(f.configs[1].params["density"].get<double>(), 0.246913578025);
 }
 
 TEST(Experiment, PlanRunsRepetitionROfEveryCellBeforeRepetitionROnePlusOne) {

@@ -1,18 +1,22 @@
 // The tuner's search at a tenth of the space: it reaches the exact optimum of known cost surfaces
-// for five seeds, counts its start point, is deterministic per seed; and Spearman's rank correlation.
+// for five seeds, counts its start point, is deterministic per seed; Spearman's rank correlation;
+// and the exhaustive check's one counting replay per configuration.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
 
+#include "tests/test_scenes.h"
+#include "tests/test_support.h"
 #include "tuner/run_tuning.h"
 #include "tuner/search.h"
+#include "tuner/search_baselines.h"
 #include "tuner/tuning.h"
-#include "tests/test_support.h"
 
 namespace rcb {
 namespace {
@@ -214,7 +218,14 @@ TEST(TunerExhaustiveCheck, ReplaysFiveSeedsOnTheMeasuredSurfaceAndRanksThePredic
     o.db = (dir / "t.db").string();
     o.out_dir = dir.string();
     o.exhaustive = true;
+    const SimulationTally before = simulation_tally();
     const TuneOutcome out = run_tuning(spec, o);
+    const SimulationTally after = simulation_tally();
+    // Counting replays: one per candidate the measured search timed (its counters, for the cost
+    // model), and one per configuration of the exhaustive check, which both prices it for the
+    // ranking and merges it with those that count alike (two replays each before).
+    ASSERT_EQ(out.categories.size(), 1u);
+    EXPECT_EQ(after.counting - before.counting, out.categories[0].structures[0].measurements + 7);
     const json j = json::parse(std::ifstream(out.json_path));
     const json& ex = j["categories"][0]["exhaustive"][0];
     ASSERT_EQ(ex["surface"].size(), 7u);  // densities 0.25 … 16
@@ -237,6 +248,89 @@ TEST(TunerExhaustiveCheck, ReplaysFiveSeedsOnTheMeasuredSurfaceAndRanksThePredic
     EXPECT_GE(rho, -1.0);
     EXPECT_LE(rho, 1.0);
     EXPECT_FALSE(ex["prediction_model"].get<std::string>().empty());  // calibrated although the mode is measured
+}
+
+/// A replay built by hand: one scene per entry of `updates_ns`, each frame with 100 rays of
+/// `steps` traversal steps each; `tag` is what it counted (equal tags: one structure in effect).
+CountingReplay made_replay(const std::vector<std::vector<double>>& updates_ns, double steps, std::uint64_t tag) {
+    CountingReplay r;
+    for (const std::vector<double>& scene : updates_ns) {
+        std::vector<CountingReplay::Frame>& frames = r.scenes.emplace_back();
+        for (double update : scene) {
+            CountingReplay::Frame f;
+            f.update_ns = update;
+            f.rays = 100;
+            f.observation.rays = 100;
+            f.observation.n_t = steps;
+            frames.push_back(f);
+        }
+    }
+    r.counts.counters.n_t = tag;
+    r.counts.memory_bytes = 64 * tag;
+    return r;
+}
+
+TEST(TunerExhaustiveCheck, OneReplayPerConfigurationPricesAndMergesIt) {
+    // Five configurations of x; x = 1 and 2 count alike (one structure in effect), as do 3 and 4.
+    std::vector<json> all;
+    for (int x = 0; x < 5; ++x) all.push_back({{"x", x}});
+    const auto replay_of = [](const json& p) {
+        const int x = p["x"].get<int>();
+        return made_replay({{1000.0 * (x + 1), 3000, 2000}, {500, 500}}, 2.0 * x, std::uint64_t((x + 1) / 2));
+    };
+    std::map<std::string, int> calls;
+    const auto counted = [&](const json& p) {
+        ++calls[p.dump()];
+        return replay_of(p);
+    };
+    CostCoefficients c;
+    c["C_T"] = 5;      // ns per traversal step
+    c["C_PREP"] = 20;  // ns per ray
+    const SpaceSurvey survey = survey_space(all, c, counted);
+    ASSERT_EQ(calls.size(), all.size());
+    for (const auto& [p, n] : calls) EXPECT_EQ(n, 1) << p;
+    EXPECT_EQ(survey.class_of, (std::vector<std::size_t>{0, 1, 1, 2, 2}));
+    ASSERT_EQ(survey.predicted.size(), all.size());
+    for (std::size_t i = 0; i < all.size(); ++i) {
+        // Per frame update + 100 rays × (20 + 5 × steps) ns; the median of scene 0's three frames
+        // (the update 1000·(x+1) sorts among 2000 and 3000), then the mean with scene 1's.
+        const double x = double(i), rays_ns = 100 * (20 + 5 * 2.0 * x);
+        const double median0 = std::clamp(1000 * (x + 1), 2000.0, 3000.0) + rays_ns;
+        EXPECT_NEAR(survey.predicted[i], (median0 + 500 + rays_ns) / 2 / 1e6, 1e-15) << i;
+        // The old path, a replay for the prediction and another for the counts, agrees.
+        EXPECT_DOUBLE_EQ(survey.predicted[i], replay_cost(c, replay_of(all[i]))) << i;
+    }
+    std::vector<ReplayCounts> counts;
+    for (const json& p : all) counts.push_back(replay_of(p).counts);
+    EXPECT_EQ(survey.class_of, equality_classes(counts, [](const auto& a, const auto& b) { return a == b; }));
+}
+
+TEST(TunerExhaustiveCheck, ARealSurveyReplaysEachConfigurationOnceAndMergesAsBefore) {
+    // A hash grid of depth 0 ignores its capacity: two configurations, one structure in effect.
+    const TuneCategory category{"u",
+                                {test::generated_spec("u", "uniform", 1500, 3, 150, {{"survey", 1}}),
+                                 test::generated_spec("v", "irregular", 800, 3, 150, {{"survey", 2}})}};
+    const std::vector<json> all{{{"max_depth", 0}, {"max_capacity", 8}},
+                                {{"max_depth", 0}, {"max_capacity", 32}},
+                                {{"max_depth", 2}, {"max_capacity", 1}}};
+    CostCoefficients c;
+    c["C_T"] = 1e6;  // far above the replays' update times, which are measured
+    const SimulationTally before = simulation_tally();
+    const SpaceSurvey survey =
+        survey_space(all, c, [&](const json& p) { return counting_replay(category, "hg", p, 1); });
+    const SimulationTally after = simulation_tally();
+    EXPECT_EQ(after.counting - before.counting, all.size() * category.scenes.size());
+    EXPECT_EQ(after.timed, before.timed);
+    // The classes the exhaustive check took from replays of their own (predict_cost's counts).
+    std::vector<ReplayCounts> old(all.size());
+    for (std::size_t i = 0; i < all.size(); ++i) predict_cost(CostCoefficients{}, category, "hg", all[i], 1, &old[i]);
+    EXPECT_EQ(survey.class_of, equality_classes(old, [](const auto& a, const auto& b) { return a == b; }));
+    EXPECT_EQ(survey.class_of, (std::vector<std::size_t>{0, 0, 1}));
+    // The prediction as predict_cost makes it: equal up to the replays' measured update times.
+    for (std::size_t i = 0; i < all.size(); ++i) {
+        const double again = predict_cost(c, category, "hg", all[i], 1);
+        EXPECT_NEAR(survey.predicted[i], again, 1e-3 * again) << i;
+    }
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include "analysis/linear_fit.h"
 #include "core/base/error.h"
 #include "core/base/json_input.h"
+#include "core/base/number_text.h"
 #include "core/base/random.h"
 #include "core/accel/registry.h"
 #include "tests/test_scenes.h"
@@ -132,6 +133,25 @@ TEST(TuneSpec, ValidatesWithJsonPaths) {
     ASSERT_EQ(spec.space.at("ug").size(), 1u);  // density; thesis_reset is not tunable
     EXPECT_EQ(spec.space.at("ug")[0].name, "density");
     EXPECT_GE(spec.space.at("ug")[0].levels.size(), 8u);
+}
+
+TEST(TuneSpec, GeneratedLevelsAreCleanAndMeetTheDefault) {
+    // A tuning's range through the default gives the default itself, so the search's level and the
+    // defaults' candidate are one configuration (measured once), not 4.000000000000001 beside 4.0.
+    const TuneSpec spec = parse_tune_spec(
+        R"({"structures": ["ug"], "space": {"ug": {"density": {"from": 0.125, "to": 64, "times": 1.4142135623730951}}},
+            "categories": [{"name": "c", "scenes": [{"preset": "uni-s"}]}]})",
+        "t.json", ".");
+    const std::vector<json>& levels = spec.space.at("ug")[0].levels;
+    ASSERT_EQ(levels.size(), 19u);
+    EXPECT_EQ(std::count(levels.begin(), levels.end(), find_structure("ug").defaults()["density"]), 1);
+    // The registry's levels (default_space) of every real parameter: no float noise either.
+    for (const StructureInfo& info : structure_registry())
+        for (const SearchDimension& d : default_space(info.name))
+            for (const json& level : d.levels) {
+                if (!level.is_number_float()) continue;
+                EXPECT_EQ(level.get<double>(), decimal_rounded(level.get<double>())) << info.name << "." << d.name;
+            }
 }
 
 TEST(TuneSpec, AHugeSearchSpaceIsRefusedBeforeItIsEnumerated) {

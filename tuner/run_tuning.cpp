@@ -152,6 +152,19 @@ std::vector<SurfaceReplay> replay_search_on_surface(const std::vector<SearchDime
     return out;
 }
 
+SpaceSurvey survey_space(const std::vector<json>& all, const CostCoefficients& coefficients,
+                         const std::function<CountingReplay(const json&)>& replay) {
+    SpaceSurvey out;
+    std::vector<ReplayCounts> counts;
+    for (const json& p : all) {
+        const CountingReplay r = replay(p);
+        out.predicted.push_back(replay_cost(coefficients, r));
+        counts.push_back(r.counts);
+    }
+    out.class_of = equality_classes(counts, [](const ReplayCounts& a, const ReplayCounts& b) { return a == b; });
+    return out;
+}
+
 namespace {
 
 /// The output files of a tuning, checked before any work (InputError naming the option).
@@ -298,16 +311,6 @@ struct ExhaustiveCheck {
 /// The equal-budget comparison's budget: a tenth of the structures in effect of a space.
 constexpr double kComparisonBudgetShare = 0.1;
 
-/// Which configurations are one structure in effect: equal counts in a counting replay (no timed
-/// rays) over the category's measured frames.
-std::vector<std::size_t> effect_classes(const TuneSpec& spec, const TuneCategory& category,
-                                        const std::string& structure, const std::vector<json>& all) {
-    std::vector<ReplayCounts> counts(all.size());
-    for (std::size_t i = 0; i < all.size(); ++i)
-        predict_cost(CostCoefficients{}, category, structure, all[i], spec.warmup_frames, &counts[i]);
-    return equality_classes(counts, [](const ReplayCounts& a, const ReplayCounts& b) { return a == b; });
-}
-
 ExhaustiveCheck check_exhaustively(const TuneSpec& spec, const TuneCategory& category, const StructureTuning& st,
                                    MachinePriors& priors) {
     const std::vector<SearchDimension>& dims = spec.space.at(st.structure);
@@ -345,22 +348,24 @@ ExhaustiveCheck check_exhaustively(const TuneSpec& spec, const TuneCategory& cat
     for (const SearchDimension& d : dims) defaults_searched[d.name] = defaults[d.name];
     ex.replays = replay_search_on_surface(dims, surface, spec.budget, spec.seed, 5, defaults_searched);
     // How well the predicted mode ranks the space: Spearman of prediction against measurement.
-    std::function<double(const json&)> predict = st.predict;
+    // The predicted modes priced their search with the calibration's coefficients (cost_model);
+    // the measured mode calibrates a prediction here.
+    CostCoefficients coefficients;
     ex.model = st.prediction_model;
     std::size_t model_timed = st.prediction_measurements;
-    if (!predict) {
+    if (st.predict && st.cost_model) {
+        coefficients = *st.cost_model;
+    } else {
         Predictor p = calibrate_predictor(spec, category, st.structure, &priors);
-        predict = p.predict, ex.model = p.model, model_timed = p.measurements;
+        coefficients = p.coefficients, ex.model = p.model, model_timed = p.measurements;
     }
-    std::vector<double> predicted;
-    for (std::size_t i = 0; i < all.size(); ++i) {
-        predicted.push_back(predict(all[i]));
-        ex.surface[i]["predicted_ms"] = predicted.back();
-    }
-    ex.spearman = spearman(predicted, measured);
-    ex.comparison =
-        compare_at_equal_budget(dims, all, constrained, effect_classes(spec, category, st.structure, all),
-                                defaults_searched, kComparisonBudgetShare, spec.seed, 5, predicted, model_timed);
+    const SpaceSurvey survey = survey_space(all, coefficients, [&](const json& p) {
+        return counting_replay(category, st.structure, p, spec.warmup_frames);
+    });
+    for (std::size_t i = 0; i < all.size(); ++i) ex.surface[i]["predicted_ms"] = survey.predicted[i];
+    ex.spearman = spearman(survey.predicted, measured);
+    ex.comparison = compare_at_equal_budget(dims, all, constrained, survey.class_of, defaults_searched,
+                                            kComparisonBudgetShare, spec.seed, 5, survey.predicted, model_timed);
     return ex;
 }
 

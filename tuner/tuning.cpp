@@ -10,6 +10,7 @@
 
 #include "analysis/cost_model.h"
 #include "core/base/error.h"
+#include "core/base/number_text.h"
 #include "core/base/random.h"
 #include "core/accel/registry.h"
 #include "core/accel/query_level.h"
@@ -132,10 +133,13 @@ std::vector<json> levels_for(const ParamSpec& p) {
             return out;
         }
         case ParamKind::real:
+            // As a range's levels (runner/experiment.h, expand_values): the decimals they stand for.
             if (p.log_scale && p.lo > 0) {
-                for (double v = p.lo; v <= p.hi * (1 + 1e-9); v *= 2) out.push_back(v);
+                for (double v = p.lo; v <= p.hi * (1 + 1e-9); v *= 2)
+                    out.push_back(std::clamp(decimal_rounded(v), p.lo, p.hi));
             } else {
-                for (int i = 0; i < 8; ++i) out.push_back(p.lo + (p.hi - p.lo) * i / 7.0);
+                for (int i = 0; i < 8; ++i)
+                    out.push_back(std::clamp(decimal_rounded(p.lo + (p.hi - p.lo) * i / 7.0), p.lo, p.hi));
             }
             return out;
     }
@@ -517,25 +521,40 @@ std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservat
     return prices_ray_work(alone) ? alone : c;
 }
 
-double predict_cost(const CostCoefficients& c, const TuneCategory& category, const std::string& structure,
-                    const json& searched, std::uint32_t warmup_frames, ReplayCounts* counts) {
+CountingReplay counting_replay(const TuneCategory& category, const std::string& structure, const json& searched,
+                               std::uint32_t warmup_frames) {
     SimulationOptions replay;
     replay.verify = false;
     replay.timed_cast = false;
     replay.warmup_frames = warmup_frames;
-    const auto runs = run_simulations(category, structure, complete(structure, searched), replay, 1);
-    double total = 0;
-    for (const SimulationResult& r : runs) {
-        std::vector<double> frame_ms;
+    CountingReplay out;
+    for (const SimulationResult& r : run_simulations(category, structure, complete(structure, searched), replay, 1)) {
+        std::vector<CountingReplay::Frame>& frames = out.scenes.emplace_back();
         for (const FrameResult& f : r.frames) {
             if (f.warmup || f.rays == 0) continue;
-            if (counts) counts->counters += f.counters, counts->memory_bytes += f.memory_bytes;
-            const double per_ray = c.per_ray(observation_of(f, double(r.objects)));
-            frame_ms.push_back((double(f.update_ns) + f.rays * per_ray) / 1e6);
+            out.counts.counters += f.counters, out.counts.memory_bytes += f.memory_bytes;
+            frames.push_back({double(f.update_ns), double(f.rays), observation_of(f, double(r.objects))});
         }
+    }
+    return out;
+}
+
+double replay_cost(const CostCoefficients& c, const CountingReplay& replay) {
+    double total = 0;
+    for (const std::vector<CountingReplay::Frame>& frames : replay.scenes) {
+        std::vector<double> frame_ms;
+        for (const CountingReplay::Frame& f : frames)
+            frame_ms.push_back((f.update_ns + f.rays * c.per_ray(f.observation)) / 1e6);
         total += spread_of(frame_ms).median;
     }
-    return total / double(runs.size());
+    return total / double(replay.scenes.size());
+}
+
+double predict_cost(const CostCoefficients& c, const TuneCategory& category, const std::string& structure,
+                    const json& searched, std::uint32_t warmup_frames, ReplayCounts* counts) {
+    const CountingReplay replay = counting_replay(category, structure, searched, warmup_frames);
+    if (counts) counts->counters += replay.counts.counters, counts->memory_bytes += replay.counts.memory_bytes;
+    return replay_cost(c, replay);
 }
 
 const ModelInputs& MachinePriors::of(const std::string& structure) {

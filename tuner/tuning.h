@@ -194,10 +194,27 @@ struct ReplayCounts {
     friend bool operator==(const ReplayCounts&, const ReplayCounts&) = default;
 };
 
-/// The predicted cost of a configuration (searched parameters) on `category`: the coefficients
-/// applied to the counters of an untimed replay (no timed rays, no verification), plus the
-/// replay's own update time; ms per frame, median over frames, mean over the category's scenes.
-/// `counts`, when given, receives what the replay counted.
+/// An untimed counting replay of a configuration on a category (no timed rays, no verification):
+/// what predict_cost prices. One replay serves every use of a configuration's counts (the
+/// exhaustive check prices each configuration and compares their counts from the same replay).
+struct CountingReplay {
+    /// A measured frame that cast rays: the replay's own (timed) update and the counted rays.
+    struct Frame {
+        double update_ns = 0, rays = 0;
+        FrameObservation observation;  ///< observation_of the frame: what the coefficients price
+    };
+    std::vector<std::vector<Frame>> scenes;  ///< one entry per scene of the category, in its order
+    ReplayCounts counts;                     ///< summed over every scene's measured frames
+};
+CountingReplay counting_replay(const TuneCategory& category, const std::string& structure,
+                               const nlohmann::json& searched, std::uint32_t warmup_frames);
+
+/// `coefficients` applied to a replay: per frame its update time plus rays × the per-ray cost;
+/// ms per frame, median over a scene's frames, mean over the scenes.
+double replay_cost(const CostCoefficients& coefficients, const CountingReplay& replay);
+
+/// The predicted cost of a configuration (searched parameters) on `category`: replay_cost of its
+/// counting_replay. `counts`, when given, receives what the replay counted.
 double predict_cost(const CostCoefficients& coefficients, const TuneCategory& category, const std::string& structure,
                     const nlohmann::json& searched, std::uint32_t warmup_frames, ReplayCounts* counts = nullptr);
 

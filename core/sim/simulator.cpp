@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "core/base/error.h"
+#include "core/accel/counter_fields.h"
 #include "core/accel/query_level.h"
 
 namespace rcb {
@@ -139,18 +140,13 @@ nlohmann::json kinds_json(const std::vector<FrameResult>& frames) {
     for (const FrameResult& f : frames) {
         nlohmann::json here = nlohmann::json::array();
         for (const KindResult& k : f.kinds) {
-            here.push_back({{"kind", query_kind_name(k.kind)},
-                            {"rays", k.rays},
-                            {"raycast_ns", k.raycast_ns},
-                            {"raycast_wall_ns", k.raycast.wall_ns},
-                            {"hits", k.hits},
-                            {"n_t", k.counters.n_t},
-                            {"n_th", k.counters.n_th},
-                            {"n_mp", k.counters.n_mp},
-                            {"n_rb", k.counters.n_rb},
-                            {"n_tp", k.counters.n_tp},
-                            {"n_ro", k.counters.n_ro},
-                            {"n_ro_hits", k.counters.n_ro_hits}});
+            nlohmann::json kind = {{"kind", query_kind_name(k.kind)},
+                                   {"rays", k.rays},
+                                   {"raycast_ns", k.raycast_ns},
+                                   {"raycast_wall_ns", k.raycast.wall_ns},
+                                   {"hits", k.hits}};
+            for (const CounterField& c : kCounterFields) kind[c.name] = k.counters.*c.member;
+            here.push_back(kind);
             rays[std::size_t(k.kind)] += k.rays;
             if (f.warmup || k.rays == 0) continue;
             ns[std::size_t(k.kind)].push_back(double(k.raycast_ns));
@@ -216,7 +212,8 @@ nlohmann::json SimulationResult::to_json() const {
     j["raycast_ns_mad"] = r.mad;
     j["clock"] = clock_name(clock);
     nlohmann::json frame, warmup, update, raycast, update_wall, raycast_wall, rays, closest, any, hits, missed, extra,
-        duplicate, returned, correct, relevant, n_t, n_th, n_mp, n_rb, n_tp, n_ro, n_ro_hits, memory, stats;
+        duplicate, returned, correct, relevant, memory, stats;
+    std::array<nlohmann::json, kCounterFields.size()> counted;
     for (const FrameResult& f : frames) {
         frame.push_back(f.frame);
         warmup.push_back(f.warmup);
@@ -234,13 +231,8 @@ nlohmann::json SimulationResult::to_json() const {
         returned.push_back(f.returned);
         correct.push_back(f.correct);
         relevant.push_back(f.relevant);
-        n_t.push_back(f.counters.n_t);
-        n_th.push_back(f.counters.n_th);
-        n_mp.push_back(f.counters.n_mp);
-        n_rb.push_back(f.counters.n_rb);
-        n_tp.push_back(f.counters.n_tp);
-        n_ro.push_back(f.counters.n_ro);
-        n_ro_hits.push_back(f.counters.n_ro_hits);
+        for (std::size_t c = 0; c < kCounterFields.size(); ++c)
+            counted[c].push_back(f.counters.*kCounterFields[c].member);
         memory.push_back(f.memory_bytes);
         stats.push_back(f.stats);
     }
@@ -261,13 +253,7 @@ nlohmann::json SimulationResult::to_json() const {
     j["returned"] = array(returned);
     j["correct"] = array(correct);
     j["relevant"] = array(relevant);
-    j["n_t"] = array(n_t);
-    j["n_th"] = array(n_th);
-    j["n_mp"] = array(n_mp);
-    j["n_rb"] = array(n_rb);
-    j["n_tp"] = array(n_tp);
-    j["n_ro"] = array(n_ro);
-    j["n_ro_hits"] = array(n_ro_hits);
+    for (std::size_t c = 0; c < kCounterFields.size(); ++c) j[kCounterFields[c].name] = array(counted[c]);
     j["frame_memory_bytes"] = array(memory);
     j["stats"] = array(stats);
     if (std::any_of(frames.begin(), frames.end(), [](const FrameResult& f) { return !f.kinds.empty(); }))
