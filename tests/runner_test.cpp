@@ -411,9 +411,9 @@ TEST(Store, RefusesANewerSchemaAndMigratesAnOlderOne) {
     EXPECT_THROW(open_read_only((dir / "missing.db").string()), InputError);
 }
 
-/// Runs the rcbench binary; returns its pid.
-pid_t spawn_rcbench(const std::vector<std::string>& args, const std::string& log) {
-    std::vector<std::string> all{RCBENCH_BINARY};
+/// Spawns `program` with `args`, its output appended to `log`; the pid, or 0 when it could not start.
+pid_t spawn_logged(const std::string& program, const std::vector<std::string>& args, const std::string& log) {
+    std::vector<std::string> all{program};
     all.insert(all.end(), args.begin(), args.end());
     std::vector<char*> argv;
     for (std::string& a : all) argv.push_back(a.data());
@@ -423,8 +423,15 @@ pid_t spawn_rcbench(const std::vector<std::string>& args, const std::string& log
     posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
     posix_spawn_file_actions_addopen(&actions, 2, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
     pid_t pid = 0;
-    EXPECT_EQ(posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
+    if (posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ) != 0) pid = 0;
     posix_spawn_file_actions_destroy(&actions);
+    return pid;
+}
+
+/// Runs the rcbench binary; returns its pid.
+pid_t spawn_rcbench(const std::vector<std::string>& args, const std::string& log) {
+    const pid_t pid = spawn_logged(RCBENCH_BINARY, args, log);
+    EXPECT_NE(pid, 0);
     return pid;
 }
 
@@ -439,19 +446,10 @@ int wait_exit(pid_t pid) {
 /// point, whatever the machine's speed. Returns true when it died by SIGKILL.
 bool run_killed_after(const fs::path& experiment, const std::string& db, int cells, const std::string& shard,
                       const std::string& log) {
-    std::vector<std::string> all{RCB_KILLED_RUN_BINARY, experiment.string(), db, std::to_string(cells)};
-    if (!shard.empty()) all.push_back(shard);
-    std::vector<char*> argv;
-    for (std::string& a : all) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-    posix_spawn_file_actions_addopen(&actions, 2, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-    pid_t pid = 0;
-    const int spawned = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
-    if (spawned != 0) return false;
+    std::vector<std::string> args{experiment.string(), db, std::to_string(cells)};
+    if (!shard.empty()) args.push_back(shard);
+    const pid_t pid = spawn_logged(RCB_KILLED_RUN_BINARY, args, log);
+    if (pid == 0) return false;
     int status = 0;
     waitpid(pid, &status, 0);
     return WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;

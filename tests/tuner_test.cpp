@@ -249,12 +249,9 @@ TEST(TuneRecordsForAdvise, EveryModeRecordsItsSpaceAndACostModel) {
     }
 }
 
-TEST(TuneCostModel, TheMachinesCalibrationKeepsRayWorkInAFewPointFit) {
-    // Five configurations of one scene whose counters barely move, timed by a noisy machine that
-    // hides the rays' work: the free fit prices it at 0 and leaves a start-up cost alone, which
-    // ranks nothing; fitted again with the calibration's priors, C_T stays within 3x of its value.
-    constexpr double kT = 4.0, kPrep = 30.0;
-    Random rng(11);
+/// Five configurations of one scene whose counters barely move (N_T about 10), timed at about
+/// rays × (prep + t·10) with 5% noise: frames that hide the rays' work from a fit.
+std::vector<FrameObservation> hidden_ray_work_frames(Random& rng, double t, double prep) {
     std::vector<FrameObservation> frames;
     for (int c = 0; c < 5; ++c)
         for (int f = 0; f < 4; ++f) {
@@ -263,9 +260,19 @@ TEST(TuneCostModel, TheMachinesCalibrationKeepsRayWorkInAFewPointFit) {
             o.params = "{\"density\":" + std::to_string(c) + "}";
             o.config_group = c, o.rays = 200;
             o.n_t = 10 + c * (1 + 0.01 * rng.normal());
-            o.raycast_ns = o.rays * (kPrep + kT * 10) * (1 + 0.05 * rng.normal());
+            o.raycast_ns = o.rays * (prep + t * 10) * (1 + 0.05 * rng.normal());
             frames.push_back(o);
         }
+    return frames;
+}
+
+TEST(TuneCostModel, TheMachinesCalibrationKeepsRayWorkInAFewPointFit) {
+    // Five configurations of one scene whose counters barely move, timed by a noisy machine that
+    // hides the rays' work: the free fit prices it at 0 and leaves a start-up cost alone, which
+    // ranks nothing; fitted again with the calibration's priors, C_T stays within 3x of its value.
+    constexpr double kT = 4.0, kPrep = 30.0;
+    Random rng(11);
+    std::vector<FrameObservation> frames = hidden_ray_work_frames(rng, kT, kPrep);
     const std::optional<CostCoefficients> bare = fit_coefficients(frames);
     ASSERT_TRUE(bare.has_value());
     EXPECT_EQ((*bare)["C_T"], 0.0) << bare->to_json().dump();
@@ -303,17 +310,7 @@ TEST(TuneCostModel, AnUnpinnedCalibrationIsTheModelWhereNoFitPricesTheRays) {
     // either, and the model is the micro-scenes' own costs, named as such.
     constexpr double kT = 4.0, kPrep = 30.0;
     Random rng(11);
-    std::vector<FrameObservation> frames;
-    for (int c = 0; c < 5; ++c)
-        for (int f = 0; f < 4; ++f) {
-            FrameObservation o;
-            o.structure = "ug", o.scene = "u", o.category = "uniform";
-            o.params = "{\"density\":" + std::to_string(c) + "}";
-            o.config_group = c, o.rays = 200;
-            o.n_t = 10 + c * (1 + 0.01 * rng.normal());
-            o.raycast_ns = o.rays * (kPrep + kT * 10) * (1 + 0.05 * rng.normal());
-            frames.push_back(o);
-        }
+    std::vector<FrameObservation> frames = hidden_ray_work_frames(rng, kT, kPrep);
     std::vector<CalibrationPoint> points;  // three points, ±40%: every interval wider than ±50%
     for (auto [n_t, noise] : {std::pair{5.0, 1.4}, std::pair{40.0, 0.6}, std::pair{80.0, 1.3}})
         points.push_back({"micro", 512, 0.0, n_t, (kT * n_t + kPrep) * noise, 0.1});
