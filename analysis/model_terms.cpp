@@ -14,23 +14,28 @@ namespace rcb {
 const std::vector<FrameCounter>& frame_counters() {
     using F = FrameObservation;
     using C = CalibrationPoint;
-    static const std::vector<FrameCounter> counters{
-        {"N_RB", "frame.n_rb", "n_rb", CounterScale::per_ray, &F::n_rb, nullptr, &C::n_rb},
-        {"N_T", "frame.n_t", "n_t", CounterScale::per_ray, &F::n_t, nullptr, &C::n_t},
-        {"N_TP", "frame.n_tp", "n_tp", CounterScale::per_ray, &F::n_tp, nullptr, nullptr},
-        {"N_RO", "frame.n_ro", "n_ro", CounterScale::per_ray, &F::n_ro, nullptr, nullptr},
-        {"N_TH", "frame.n_th", "n_th", CounterScale::per_ray, &F::n_th, nullptr, nullptr},
-        {"N_MP", "frame.n_mp", "n_mp", CounterScale::per_ray, &F::n_mp, nullptr, &C::n_mp},
-        {"N_INS", "frame.inserts", "inserts", CounterScale::as_is, &F::inserts,
-         [](const FrameResult& r) { return double(r.inserts); }, nullptr},
-        {"N_REM", "frame.removes", "removes", CounterScale::as_is, &F::removes,
-         [](const FrameResult& r) { return double(r.removes); }, nullptr},
-        {"N_MOV", "frame.moves", "moves", CounterScale::as_is, &F::moves,
-         [](const FrameResult& r) { return double(r.moves); }, nullptr},
-        {"N_OBJ", "cell.objects", "objects", CounterScale::as_is, &F::objects, nullptr, nullptr},
-        {"MB", "frame.memory_bytes", "memory_bytes", CounterScale::mebibytes, &F::memory_mb,
-         [](const FrameResult& r) { return double(r.memory_bytes); }, nullptr},
-    };
+    static const std::vector<FrameCounter> counters = [] {
+        std::vector<FrameCounter> table{
+            {"N_RB", "frame.n_rb", "n_rb", CounterScale::per_ray, &F::n_rb, nullptr, &C::n_rb},
+            {"N_T", "frame.n_t", "n_t", CounterScale::per_ray, &F::n_t, nullptr, &C::n_t},
+            {"N_TP", "frame.n_tp", "n_tp", CounterScale::per_ray, &F::n_tp, nullptr, nullptr},
+            {"N_RO", "frame.n_ro", "n_ro", CounterScale::per_ray, &F::n_ro, nullptr, nullptr},
+            {"N_TH", "frame.n_th", "n_th", CounterScale::per_ray, &F::n_th, nullptr, nullptr},
+            {"N_MP", "frame.n_mp", "n_mp", CounterScale::per_ray, &F::n_mp, nullptr, &C::n_mp},
+            {"N_INS", "frame.inserts", "inserts", CounterScale::as_is, &F::inserts,
+             [](const FrameResult& r) { return double(r.inserts); }, nullptr},
+            {"N_REM", "frame.removes", "removes", CounterScale::as_is, &F::removes,
+             [](const FrameResult& r) { return double(r.removes); }, nullptr},
+            {"N_MOV", "frame.moves", "moves", CounterScale::as_is, &F::moves,
+             [](const FrameResult& r) { return double(r.moves); }, nullptr},
+            {"N_OBJ", "cell.objects", "objects", CounterScale::as_is, &F::objects, nullptr, nullptr},
+            {"MB", "frame.memory_bytes", "memory_bytes", CounterScale::mebibytes, &F::memory_mb,
+             [](const FrameResult& r) { return double(r.memory_bytes); }, nullptr},
+        };
+        for (FrameCounter& c : table)
+            if (const CounterField* f = counter_field(c.alias)) c.counted = f->member;
+        return table;
+    }();
     return counters;
 }
 
@@ -187,11 +192,7 @@ FrameObservation observation_of(const FrameResult& frame, double objects) {
     o.raycast_ns = double(frame.raycast_ns);
     o.update_ns = double(frame.update_ns);
     for (const FrameCounter& c : frame_counters()) {
-        double raw = objects;
-        if (const CounterField* counted = counter_field(c.alias))
-            raw = double(frame.counters.*(counted->member));
-        else if (c.simulated)
-            raw = c.simulated(frame);
+        const double raw = c.counted ? double(frame.counters.*(c.counted)) : c.simulated ? c.simulated(frame) : objects;
         switch (c.scale) {
             case CounterScale::per_ray:
                 o.*(c.field) = frame.rays > 0 ? raw / frame.rays : 0.0;

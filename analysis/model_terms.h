@@ -19,6 +19,7 @@
 namespace rcb {
 
 struct CalibrationPoint;
+struct Counters;
 struct FrameResult;
 struct Coefficient;
 
@@ -59,12 +60,14 @@ struct FrameCounter {
     CounterScale scale;
     double FrameObservation::*field;
     /// What a simulated frame counted besides its Counters (changes, memory); nullptr for the
-    /// counting pass's counters, read by `alias` from core/accel/counter_fields.h, and
-    /// for the scene's objects, a property of the whole run.
+    /// counting pass's counters (`counted`) and for the scene's objects, a property of the whole run.
     double (*simulated)(const FrameResult&);
     /// The calibration micro-scenes' per-ray count of it (runner/calibration.h), nullptr where they
     /// do not count it.
     double CalibrationPoint::*calibrated;
+    /// The counting pass's counter of this name (core/accel/counter_fields.h, by `alias`), looked
+    /// up once when the table is made; nullptr for the others.
+    std::uint64_t Counters::*counted = nullptr;
 };
 const std::vector<FrameCounter>& frame_counters();
 
