@@ -173,8 +173,16 @@ void add_fit_command(CLI::App& app) {
         ->check(non_empty());
     cmd->callback([o] {
         open_read_only(o->db);  // an existing results database, checked (fit does not create one)
+        // The other run is found before anything is fitted or stored: a bad --repeat leaves the
+        // database as it was.
         std::optional<RunRef> repeat;
-        if (!o->repeat.empty()) repeat = parse_run_ref("--repeat", o->repeat);
+        std::unique_ptr<Database> other;
+        std::int64_t other_run = 0;
+        if (!o->repeat.empty()) {
+            repeat = parse_run_ref("--repeat", o->repeat);
+            other = naming(*repeat, [&] { return open_read_only(repeat->path); });
+            other_run = resolve_ref(*other, *repeat);
+        }
         ResultStore store(o->db);  // migrates, so the fit tables exist
         const std::int64_t run = resolve_run(store.db(), o->run, o->experiment);
         const RunFit fit = fit_run(store.db(), run);
@@ -224,8 +232,6 @@ void add_fit_command(CLI::App& app) {
                      "structures, <= 15% for the peers.\n";
         NoiseFloor noise = noise_floor(store.db(), run);
         if (repeat) {
-            const std::unique_ptr<Database> other = naming(*repeat, [&] { return open_read_only(repeat->path); });
-            const std::int64_t other_run = resolve_ref(*other, *repeat);
             noise.structures = between_runs(store.db(), run, *other, other_run);
             std::cout << "The noise column is the spread between this run and run " << other_run << " of "
                       << repeat->path << " (each cell's median over its repetitions in each run, the same "

@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <iterator>
 
 #include <nlohmann/json.hpp>
 
@@ -349,6 +351,26 @@ TEST(ValidateCommand, BadInputNamesTheOptionAndExitsTwo) {
         EXPECT_EQ(r.code, 2) << message << "\n" << r.err;
         EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
         EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    }
+    // fit --repeat: the other run is checked before the fit stores anything in the database.
+    const std::vector<std::pair<std::vector<std::string>, std::string>> repeat_cases{
+        {{a, "--repeat", dir.file("absent.db")}, "--repeat " + dir.file("absent.db") + ": no such results database"},
+        {{a, "--repeat", a + ":7"}, "--repeat " + a + ":7: no run 7 in " + a},
+        {{a, "--repeat", a + ":0"}, "--repeat " + a + ":0: a run id is a whole number >= 1"},
+    };
+    const auto bytes = [](const std::string& path) {
+        std::ifstream in(path, std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    const std::string before = bytes(a);
+    for (const auto& [args, message] : repeat_cases) {
+        std::vector<std::string> argv{"fit"};
+        argv.insert(argv.end(), args.begin(), args.end());
+        const ::test::Outcome r = rcbench(argv);
+        EXPECT_EQ(r.code, 2) << message << "\n" << r.err;
+        EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+        EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+        EXPECT_EQ(bytes(a), before) << message;
     }
     const ::test::Outcome help = rcbench({"validate", "--help"});
     EXPECT_EQ(help.code, 0);
