@@ -60,55 +60,122 @@ std::vector<Case> tie_cases() {
     };
 }
 
-TEST(QueryKinds, GroundTruthClosestBreaksTiesByUidAndStartsInsideAtZero) {
-    const GroundTruth truth(tie_objects());
-    for (const Case& c : tie_cases()) {
-        const auto got = truth.closest(c.ray);
-        ASSERT_EQ(got.has_value(), c.closest.has_value()) << c.ray.p0.x << ',' << c.ray.p0.y;
-        EXPECT_EQ(truth.any(c.ray), c.closest.has_value());
-        if (!got) continue;
-        EXPECT_EQ(got->uid, *c.closest) << c.ray.p0.x << ',' << c.ray.p0.y;
-        EXPECT_EQ(got->t, c.t) << c.ray.p0.x << ',' << c.ray.p0.y;
+/// A tie across a cell plane of the grids: the world is [0, 8]³, and the hash grid configured by
+/// plane_tie_grid() has cells of edge 4, 2, 1 and 0.5 at depths 0..3, so x = 4 is a plane at
+/// every depth. The ray (t = x / 8) meets box `a` at t = 0.5 through its y face: `a` reaches back
+/// into the cells before x = 4 that the ray crosses, so a grid finds it there and its closest-hit
+/// limit becomes 0.5 before it enters the cells beyond the plane, exactly at 0.5, where alone box
+/// `b` (entered through its x face at the same point) is stored. Whichever has the smaller uid
+/// must win, so the walk must not cut off a cell entered exactly at its limit.
+std::vector<Object> plane_tie_objects(Uid a, Uid b) {
+    std::vector<Object> objects{
+        box(a, {3.625f, 4.25f, 4}, {5, 4.5f, 4.5f}),  // entered at (4, 4.25, 4.25) through y = 4.25
+        box(b, {4, 3, 4}, {5, 5, 4.5f}),              // entered there too, through x = 4
+        box(20, {6, 4, 4}, {7, 5, 5}),                // behind both
+        box(21, {0, 0, 0}, {0.25f, 0.25f, 0.25f}),    // corners: the world is [0, 8]³
+        box(22, {7.75f, 7.75f, 7.75f}, {8, 8, 8})};
+    // Off the ray, beside the tie: crowded cells split at small capacities.
+    for (Uid u = 0; u < 11; ++u) {
+        const float x = 3.5f + 0.25f * float(u % 4), z = 5.25f + 0.5f * float(u / 4);
+        objects.push_back(box(30 + u, {x, 4, z}, {x + 0.25f, 4.5f, z + 0.25f}));
     }
+    return objects;  // 16 objects
 }
 
-/// Every registered structure (own, thesis and peers) at its defaults, with one batch per kind
-/// and with the single-ray queries, against the truth of the hand-made cases.
-TEST(QueryKinds, EveryStructureAnswersHandMadeTiesLikeTheTruth) {
-    const std::vector<Object> objects = tie_objects();
-    const GroundTruth truth(objects);
-    std::vector<Segment> rays;
-    for (const Case& c : tie_cases()) rays.push_back(c.ray);
-    for (const StructureInfo& info : structure_registry()) {
-        std::unique_ptr<Structure> s = info.make(nlohmann::json::object(), "params");
-        s->build(objects);
-        s->commit();
-        HitLists closest, any;
-        s->cast(rays, std::vector<QueryKind>(rays.size(), QueryKind::closest), closest);
-        s->cast(rays, std::vector<QueryKind>(rays.size(), QueryKind::any), any);
-        for (std::size_t i = 0; i < rays.size(); ++i) {
-            const auto want = tie_cases()[i].closest;
-            const std::string where = info.name + " ray " + std::to_string(i);
-            ASSERT_EQ(closest.of(i).size(), want ? 1u : 0u) << where;
-            if (want) {
-                EXPECT_EQ(closest.of(i)[0], *want) << where;
-            }
-            const auto one = s->cast_closest(rays[i]);
-            ASSERT_EQ(one.has_value(), want.has_value()) << where;
-            if (one) {
-                EXPECT_EQ(one->uid, *want) << where;
-            }
-            ASSERT_EQ(any.of(i).size(), want ? 1u : 0u) << where;
-            if (want) {
-                EXPECT_TRUE(truth.any(rays[i])) << where;
-            }
-            EXPECT_EQ(s->cast_any(rays[i]), want.has_value()) << where;
+std::vector<Case> plane_tie_cases(Uid winner) {
+    return {
+        {{{0, 3.75f, 4.25f}, {8, 4.75f, 4.25f}}, winner, 0.5},     // the tie across x = 4
+        {{{8, 4.25f, 4.25f}, {0, 4.25f, 4.25f}}, Uid(20), 0.125},  // backwards: 20 first at x = 7
+    };
+}
+
+/// The hash grid parameters under which plane_tie_objects() has cell planes at x = 4 at every depth:
+/// (16 objects × amp)^(1/3) = 2 top cells per axis.
+nlohmann::json plane_tie_grid() { return {{"amp", 0.5}, {"max_depth", 3}, {"max_capacity", 1}, {"subdivision", 2}}; }
+
+/// Hand-made scenes: objects and their cases.
+struct TieScene {
+    std::string name;
+    std::vector<Object> objects;
+    std::vector<Case> cases;
+};
+
+std::vector<TieScene> tie_scenes() {
+    return {{"ties", tie_objects(), tie_cases()},
+            {"plane tie, smaller uid behind the plane", plane_tie_objects(9, 3), plane_tie_cases(3)},
+            {"plane tie, smaller uid before the plane", plane_tie_objects(3, 9), plane_tie_cases(3)}};
+}
+
+/// Every registered structure (own, thesis and peers) at its defaults, then more configurations
+/// of the grids, whose closest-hit walks stop at the first cell entered after the best hit: the
+/// hash grid at depths 0..3 with small capacities, so that cells subdivide and children walks
+/// stop too, and the uniform grid with small cells.
+std::vector<std::pair<std::string, nlohmann::json>> kind_configurations() {
+    std::vector<std::pair<std::string, nlohmann::json>> out;
+    for (const StructureInfo& info : structure_registry()) out.emplace_back(info.name, nlohmann::json::object());
+    for (int depth = 0; depth <= 3; ++depth)
+        out.emplace_back("hg", nlohmann::json{{"max_depth", depth},
+                                              {"max_capacity", 1 + depth % 2},
+                                              {"subdivision", 2 + depth / 2},
+                                              {"amp", depth % 2 ? 0.5 : 4.0}});
+    out.emplace_back("hg", plane_tie_grid());
+    out.emplace_back("ug", nlohmann::json{{"density", 0.5}});
+    return out;
+}
+
+TEST(QueryKinds, GroundTruthClosestBreaksTiesByUidAndStartsInsideAtZero) {
+    for (const TieScene& scene : tie_scenes()) {
+        const GroundTruth truth(scene.objects);
+        for (const Case& c : scene.cases) {
+            const auto got = truth.closest(c.ray);
+            ASSERT_EQ(got.has_value(), c.closest.has_value()) << scene.name << ' ' << c.ray.p0.x << ',' << c.ray.p0.y;
+            EXPECT_EQ(truth.any(c.ray), c.closest.has_value());
+            if (!got) continue;
+            EXPECT_EQ(got->uid, *c.closest) << scene.name << ' ' << c.ray.p0.x << ',' << c.ray.p0.y;
+            EXPECT_EQ(got->t, c.t) << scene.name << ' ' << c.ray.p0.x << ',' << c.ray.p0.y;
         }
     }
 }
 
-/// A long batch of one kind per structure on a random scene: closest equals the truth's exact
-/// answer (random boxes and segments do not tie), any names a box the segment meets.
+/// Every configuration of kind_configurations(), with one batch per kind and with the single-ray
+/// queries, against the truth of the hand-made cases.
+TEST(QueryKinds, EveryStructureAnswersHandMadeTiesLikeTheTruth) {
+    for (const TieScene& scene : tie_scenes()) {
+        const GroundTruth truth(scene.objects);
+        std::vector<Segment> rays;
+        for (const Case& c : scene.cases) rays.push_back(c.ray);
+        for (const auto& [name, params] : kind_configurations()) {
+            std::unique_ptr<Structure> s = find_structure(name).make(params, "params");
+            s->build(scene.objects);
+            s->commit();
+            HitLists closest, any;
+            s->cast(rays, std::vector<QueryKind>(rays.size(), QueryKind::closest), closest);
+            s->cast(rays, std::vector<QueryKind>(rays.size(), QueryKind::any), any);
+            for (std::size_t i = 0; i < rays.size(); ++i) {
+                const auto want = scene.cases[i].closest;
+                const std::string where = scene.name + ": " + name + ' ' + params.dump() + " ray " + std::to_string(i);
+                ASSERT_EQ(closest.of(i).size(), want ? 1u : 0u) << where;
+                if (want) {
+                    EXPECT_EQ(closest.of(i)[0], *want) << where;
+                }
+                const auto one = s->cast_closest(rays[i]);
+                ASSERT_EQ(one.has_value(), want.has_value()) << where;
+                if (one) {
+                    EXPECT_EQ(one->uid, *want) << where;
+                }
+                ASSERT_EQ(any.of(i).size(), want ? 1u : 0u) << where;
+                if (want) {
+                    EXPECT_TRUE(truth.any(rays[i])) << where;
+                }
+                EXPECT_EQ(s->cast_any(rays[i]), want.has_value()) << where;
+            }
+        }
+    }
+}
+
+/// A long batch of one kind per configuration of kind_configurations() on a random scene: closest
+/// equals the truth's exact answer (random boxes and segments do not tie), any names a box the
+/// segment meets.
 TEST(QueryKinds, EveryStructureAgreesWithTheTruthOnRandomScenes) {
     Random rng(17);
     std::vector<Object> objects;
@@ -118,15 +185,16 @@ TEST(QueryKinds, EveryStructureAgreesWithTheTruthOnRandomScenes) {
     const GroundTruth truth(objects);
     std::vector<QueryKind> kinds;
     for (std::size_t i = 0; i < rays.size(); ++i) kinds.push_back(QueryKind(i % kQueryKinds));
-    for (const StructureInfo& info : structure_registry()) {
-        std::unique_ptr<Structure> s = info.make(nlohmann::json::object(), "params");
+    for (const auto& [name, params] : kind_configurations()) {
+        const std::string config = name + ' ' + params.dump();
+        std::unique_ptr<Structure> s = find_structure(name).make(params, "params");
         s->build(objects);
         s->commit();
         HitLists hits;
         s->cast(rays, kinds, hits);
-        EXPECT_EQ(truth.verify(rays, kinds, hits).mismatches(), 0u) << info.name;
+        EXPECT_EQ(truth.verify(rays, kinds, hits).mismatches(), 0u) << config;
         for (std::size_t i = 0; i < rays.size(); ++i) {
-            const std::string where = info.name + " ray " + std::to_string(i);
+            const std::string where = config + " ray " + std::to_string(i);
             const auto want = truth.closest(rays[i]);
             if (kinds[i] == QueryKind::closest) {
                 ASSERT_EQ(hits.of(i).size(), want ? 1u : 0u) << where;
@@ -144,9 +212,9 @@ TEST(QueryKinds, EveryStructureAgreesWithTheTruthOnRandomScenes) {
         Counters mixed, all;
         HitLists counted, every;
         s->cast_counted(rays, kinds, counted, mixed);
-        EXPECT_EQ(counted.uids, hits.uids) << info.name;
+        EXPECT_EQ(counted.uids, hits.uids) << config;
         s->cast_counted(rays, every, all);
-        EXPECT_LE(mixed.n_rb, all.n_rb) << info.name;
+        EXPECT_LE(mixed.n_rb, all.n_rb) << config;
     }
 }
 
@@ -154,16 +222,31 @@ TEST(QueryKinds, EveryStructureAgreesWithTheTruthOnRandomScenes) {
 /// met and every box behind it is entered after it, so a traversal near to far that culls by the
 /// best hit reads a few nodes and objects where all hits reads them all; any hit stops at its
 /// first. Both directions, so that the order cannot come from the build's lane order alone.
-TEST(QueryKinds, TreesPruneClosestAndAnyAlongARowOfBoxes) {
-    constexpr int kBoxes = 512;
+constexpr int kRowBoxes = 512;
+
+/// kRowBoxes unit boxes in a row along x, one every two units.
+std::vector<Object> row_of_boxes() {
     std::vector<Object> objects;
-    for (int i = 0; i < kBoxes; ++i) {
+    for (int i = 0; i < kRowBoxes; ++i) {
         const float x = 2.0f * float(i);
         objects.push_back(box(Uid(i), {x, -1, -1}, {x + 1, 1, 1}));
     }
-    const float end = 2.0f * kBoxes + 1;
-    const std::vector<Segment> rays{{{-1, 0.25f, 0.5f}, {end, -0.25f, 0.0f}}, {{end, 0.5f, 0}, {-1, 0, -0.5f}}};
-    const std::vector<Uid> first{0, Uid(kBoxes - 1)};
+    return objects;
+}
+
+/// Two segments along the whole row, one each way (not parallel to an axis), and the first box
+/// each meets.
+std::vector<Segment> row_rays() {
+    const float end = 2.0f * kRowBoxes + 1;
+    return {{{-1, 0.25f, 0.5f}, {end, -0.25f, 0.0f}}, {{end, 0.5f, 0}, {-1, 0, -0.5f}}};
+}
+const std::vector<Uid> kRowFirst{0, Uid(kRowBoxes - 1)};
+
+TEST(QueryKinds, TreesPruneClosestAndAnyAlongARowOfBoxes) {
+    constexpr int kBoxes = kRowBoxes;
+    const std::vector<Object> objects = row_of_boxes();
+    const std::vector<Segment> rays = row_rays();
+    const std::vector<Uid>& first = kRowFirst;
     for (const char* name : {"dbvh", "lbvh", "wbvh"}) {
         std::unique_ptr<Structure> s = find_structure(name).make(nlohmann::json::object(), "params");
         s->build(objects);
@@ -184,6 +267,45 @@ TEST(QueryKinds, TreesPruneClosestAndAnyAlongARowOfBoxes) {
             EXPECT_LT(closest.n_rb * 16, all.n_rb) << where;
             EXPECT_LT(closest.n_t * 16, all.n_t) << where;
             EXPECT_LT(any.n_t * 16, all.n_t) << where;
+        }
+    }
+}
+
+/// The grids' walks go front to back and stop, for the closest hit, at the first cell entered
+/// after the best hit, at every level of the hash grid; any hit stops at its first hit. Along the
+/// row the first box lies in the first cell, so closest and any read a few cells and the boxes in
+/// them where all hits reads every cell and box (counters, not time: deterministic). The hash grid
+/// at depths 0..3 with capacities small enough for the cells to subdivide down to max_depth.
+TEST(QueryKinds, GridsPruneClosestAndAnyAlongARowOfBoxes) {
+    const std::vector<Object> objects = row_of_boxes();
+    const std::vector<Segment> rays = row_rays();
+    std::vector<std::pair<std::string, nlohmann::json>> configurations{{"ug", nlohmann::json::object()}};
+    for (int depth = 0; depth <= 3; ++depth)
+        configurations.emplace_back("hg", nlohmann::json{{"max_depth", depth}, {"max_capacity", 2}});
+    for (const auto& [name, params] : configurations) {
+        std::unique_ptr<Structure> s = find_structure(name).make(params, "params");
+        s->build(objects);
+        s->commit();
+        if (name == "hg") {
+            // Every level exists: the deepest cells hold a box or two each.
+            const int depth = params["max_depth"].get<int>();
+            EXPECT_EQ(s->stats()["max_depth_used"].get<int>(), depth) << s->stats().dump();
+        }
+        for (std::size_t r = 0; r < rays.size(); ++r) {
+            const std::string where = name + ' ' + params.dump() + " ray " + std::to_string(r);
+            const std::vector<Segment> one{rays[r]};
+            Counters all, closest, any;
+            HitLists every, nearest, some;
+            s->cast_counted(one, every, all);
+            s->cast_counted(one, std::vector<QueryKind>{QueryKind::closest}, nearest, closest);
+            s->cast_counted(one, std::vector<QueryKind>{QueryKind::any}, some, any);
+            ASSERT_EQ(every.uids.size(), std::size_t(kRowBoxes)) << where;
+            ASSERT_EQ(nearest.uids, std::vector<Uid>{kRowFirst[r]}) << where;
+            ASSERT_EQ(some.uids.size(), 1u) << where;
+            EXPECT_GE(all.n_rb, std::uint64_t(kRowBoxes)) << where;
+            EXPECT_LT(closest.n_t * 4, all.n_t) << where;
+            EXPECT_LT(closest.n_rb * 4, all.n_rb) << where;
+            EXPECT_LT(any.n_t * 4, all.n_t) << where;
         }
     }
 }

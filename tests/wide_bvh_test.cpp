@@ -19,6 +19,7 @@
 #include "core/accel/registry.h"
 #include "core/accel/brute_force.h"
 #include "core/accel/bvh/wide_bvh.h"
+#include "core/truth/ground_truth.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {
@@ -359,6 +360,73 @@ TEST(WideBvh, SmallStepsOfEveryObjectCountTheirShareTowardsARebuild) {
     EXPECT_GE(st["rebuilds"].get<int>(), 1) << st.dump();
     EXPECT_GT(st["reinserts"].get<int>(), 0) << st.dump();
     EXPECT_LT(st["rebuild_age"].get<double>(), 2.0) << st.dump();
+}
+
+/// The commit's refit is one bottom-up pass: a block's box is computed at most once per commit
+/// however many of its children changed (stats "refit_blocks" at most the non-root blocks; a walk
+/// up from every changed leaf recomputed a shared ancestor once per changed child), and a parent's
+/// lane is rewritten only when the child's box changed ("refit_lanes").
+TEST(WideBvh, RefitComputesEachBlockOncePerCommit) {
+    std::vector<Object> live;  // a lattice of unit boxes: eight leaves share each parent
+    for (int x = 0; x < 12; ++x)
+        for (int y = 0; y < 12; ++y)
+            for (int z = 0; z < 12; ++z) {
+                const Vec3 lo{2.0f * float(x), 2.0f * float(y), 2.0f * float(z)};
+                live.push_back({Uid(live.size()), {lo, lo + Vec3{1, 1, 1}}});
+            }
+    // No rebuild: the refits alone keep the tree.
+    WideBvh tree(WideBvh::Params{.rebuild_ratio = 0, .rebuild_after = 0});
+    tree.build(live);
+    tree.commit();
+    auto stat = [&tree](const char* key) { return tree.stats()[key].get<std::uint64_t>(); };
+    const std::uint64_t blocks = stat("nodes");
+    ASSERT_GE(tree.depth(), 2);
+    // Every object steps a little and stays in its leaf: every block's box changes, so each
+    // non-root block is refitted exactly once and rewrites its lane once.
+    for (int step = 1; step <= 3; ++step) {
+        const Vec3 d{0.01f, -0.02f, 0.015f};
+        for (Object& o : live) {
+            o.box = {o.box.min + d, o.box.max + d};
+            tree.move(o);
+        }
+        tree.commit();
+        ASSERT_NO_THROW(tree.validate()) << step;
+        ASSERT_EQ(stat("nodes"), blocks);
+        EXPECT_EQ(stat("refit_blocks"), blocks - 1) << step;
+        EXPECT_EQ(stat("refit_lanes"), blocks - 1) << step;
+    }
+    // One object: its path; the same box again: its leaf only, no lane rewritten; no change: nothing.
+    live[100].box = {live[100].box.min + Vec3{0.1f, 0, 0}, live[100].box.max + Vec3{0.1f, 0, 0}};
+    tree.move(live[100]);
+    tree.commit();
+    EXPECT_GE(stat("refit_blocks"), 1u);
+    EXPECT_LE(stat("refit_blocks"), std::uint64_t(tree.depth()));
+    tree.move(live[100]);
+    tree.commit();
+    EXPECT_EQ(stat("refit_blocks"), 1u);
+    EXPECT_EQ(stat("refit_lanes"), 0u);
+    tree.commit();
+    EXPECT_EQ(stat("refit_blocks"), 0u);
+    // Random changes, few and many, small moves and far jumps, inserts and removes (leaves split
+    // and empty): valid, at most one refit per block, and the ground truth's answers.
+    Random rng(31);
+    Uid next = Uid(live.size());
+    for (int commit = 0; commit < 40; ++commit) {
+        const bool jumps = commit % 4 >= 2;
+        const int changes = commit % 2 == 0 ? 10 : 600;
+        for (int c = 0; c < changes; ++c) test::random_change(rng, live, next, 24, jumps, {&tree});
+        tree.commit();
+        ASSERT_NO_THROW(tree.validate()) << commit;
+        const nlohmann::json st = tree.stats();
+        EXPECT_LE(st["refit_blocks"].get<std::uint64_t>(), st["nodes"].get<std::uint64_t>() - 1) << commit;
+        EXPECT_LE(st["refit_lanes"].get<std::uint64_t>(), st["refit_blocks"].get<std::uint64_t>()) << commit;
+        std::vector<Segment> rays;
+        for (int k = 0; k < 30; ++k) rays.push_back(test::random_segment(rng, 24));
+        HitLists hits;
+        tree.cast(rays, hits);
+        const Verification v = GroundTruth(live).verify(rays, hits);
+        ASSERT_EQ(v.mismatches(), 0u) << commit;
+    }
 }
 
 /// Boxes nested around one centre, inserted one by one into an empty tree: full leaves split and

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
 
 #include <unistd.h>
 
@@ -652,26 +653,47 @@ void WideBvh::move(const Object& o) {
     mark(b);
 }
 
-/// Bottom-up refit of the marked blocks: each one's box goes into its lane in the parent, up the
-/// path while that changes the lane (above, the boxes already enclose what changed).
+/// Bottom-up refit of the marked blocks in one pass, the deepest level first: a block's box is
+/// computed once and written into its lane in the parent, and the parent joins the level above
+/// only when that lane changed (above an unchanged lane the boxes already enclose what changed).
+/// So a block is refitted at most once per commit however many of its children changed, where a
+/// walk up from every marked block recomputed a shared ancestor once per changed child. While the
+/// pass runs, a block's `dirty` flag means "queued, not refitted yet".
 void WideBvh::refit() {
-    for (const std::uint32_t d : dirty_) {
-        if (blocks_[d].count == 0) continue;  // released since it was marked
-        blocks_[d].dirty = false;
-        for (std::uint32_t c = d; c != root_;) {
-            const Block& block = blocks_[c];
-            const Aabb box = block.bounds();
-            const std::uint32_t p = block.parent;
-            if (box == blocks_[p].box(block.lane_in_parent)) break;
-            set_lane(p, block.lane_in_parent, box);
-            c = p;
-        }
-    }
+    if (dirty_.empty()) return;
+    // Every block's depth is at most max_depth_ and a child's is its parent's plus one
+    // (validate_tree checks both), so the parent of a block at `level` belongs to level − 1.
+    if (refit_levels_.size() < std::size_t(max_depth_) + 1) refit_levels_.resize(std::size_t(max_depth_) + 1);
+    for (const std::uint32_t d : dirty_)
+        if (blocks_[d].dirty) refit_levels_[blocks_[d].depth].push_back(d);  // a released block is unmarked
     dirty_.clear();
+    for (std::size_t level = refit_levels_.size(); level-- > 0;) {
+        std::vector<std::uint32_t>& queue = refit_levels_[level];
+        for (const std::uint32_t c : queue) {
+            Block& block = blocks_[c];
+            // Listed twice when released and reused after it was first marked: refitted once.
+            if (!block.dirty) continue;
+            block.dirty = false;
+            if (c == root_) continue;
+            const Aabb box = block.bounds();
+            ++refit_blocks_;
+            const std::uint32_t p = block.parent;
+            if (box == blocks_[p].box(block.lane_in_parent)) continue;
+            set_lane(p, block.lane_in_parent, box);
+            ++refit_lanes_;
+            if (!blocks_[p].dirty) {
+                blocks_[p].dirty = true;
+                refit_levels_[level - 1].push_back(p);
+            }
+        }
+        queue.clear();
+    }
 }
 
 void WideBvh::commit() {
     refit();
+    last_refit_blocks_ = std::exchange(refit_blocks_, 0);
+    last_refit_lanes_ = std::exchange(refit_lanes_, 0);
     rebuild_.open_commit();
     if (!changed_) return;
     changed_ = false;
@@ -932,7 +954,7 @@ std::size_t WideBvh::ProgressiveRebuild::memory_bytes() const {
 std::size_t WideBvh::memory_bytes() const {
     return blocks_.capacity() * sizeof(Block) + where_.bucket_count() * sizeof(void*) +
            where_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) + dirty_.capacity() * sizeof(std::uint32_t) +
-           scratch_bytes() + builder_.memory_bytes() + rebuild_.memory_bytes() + sizeof(*this);
+           refit_levels_bytes() + scratch_bytes() + builder_.memory_bytes() + rebuild_.memory_bytes() + sizeof(*this);
 }
 
 void WideBvh::ProgressiveRebuild::add_stats(nlohmann::json& stats) const {
@@ -952,6 +974,10 @@ nlohmann::json WideBvh::stats() const {
     // The weighted changes since the live tree's objects were gathered, per object: a rebuild
     // starts at commit once this reaches rebuild_after.
     stats["rebuild_age"] = where_.empty() ? 0.0 : age_ / double(where_.size());
+    // The last commit's refit: blocks whose box it computed (each at most once), and the lanes of
+    // their parents it rewrote.
+    stats["refit_blocks"] = last_refit_blocks_;
+    stats["refit_lanes"] = last_refit_lanes_;
     rebuild_.add_stats(stats);
     return stats;
 }
@@ -1037,6 +1063,7 @@ void WideBvh::validate_tree(bool refitted) const {
             const std::string name = "block " + std::to_string(b);
             if (block.count == 0 || block.count > kLanes) fail(name + " has " + std::to_string(block.count) + " lanes");
             if (block.depth > max_depth_) fail(name + " is deeper than the stack allows");
+            if (refitted && block.dirty) fail(name + " is still marked for the refit");
             for (int k = block.count; k < kLanes; ++k)
                 if (!is_unused(block, k)) fail(name + ": an unused lane holds a box that segments can meet");
             if (block.leaf) {

@@ -3,9 +3,10 @@
 /// leaves of up to 8 objects stored the same way (Wald, Benthin & Boulos 2008, "Getting rid of
 /// packets"; the BVH8 layout of Embree, Wald et al. 2014). Built top-down by binned SAH (Wald 2007)
 /// straight into wide nodes, splitting the child with the largest box until the node is full.
-/// Changes keep the tree: moves rewrite the object's lane and refit the path at commit (or reinsert
-/// the object when it left its leaf's box), inserts descend to the leaf of least area growth (a full
-/// leaf splits), removes empty their lane. Quality is kept by a progressive rebuild, as PhysX's
+/// Changes keep the tree: moves rewrite the object's lane (or reinsert the object when it left its
+/// leaf's box), inserts descend to the leaf of least area growth (a full leaf splits), removes
+/// empty their lane; commit refits the changed blocks in one bottom-up pass, each block once.
+/// Quality is kept by a progressive rebuild, as PhysX's
 /// dynamic pruner and Jolt's quad tree do: once the changes since the live tree was gathered reach
 /// `rebuild_after` × the objects (a move that stays in its leaf counts its step over its size), or
 /// its running SAH sum grew by `rebuild_ratio`, a next tree is
@@ -487,6 +488,12 @@ private:
     void release(std::uint32_t b);
     void mark(std::uint32_t b);
     void refit();
+    /// The heap memory of refit_levels_.
+    std::size_t refit_levels_bytes() const {
+        std::size_t bytes = refit_levels_.capacity() * sizeof(std::vector<std::uint32_t>);
+        for (const auto& level : refit_levels_) bytes += level.capacity() * sizeof(std::uint32_t);
+        return bytes;
+    }
     /// The whole rebuild at once: gather, build, done.
     void rebuild();
     /// Empties the tree (blocks, index, counters), keeping the build state.
@@ -530,6 +537,8 @@ private:
     /// uid → block · 8 + lane.
     std::unordered_map<Uid, std::uint32_t> where_;
     std::vector<std::uint32_t> dirty_;
+    /// The refit's queues, one per depth (empty between refits; kept for their capacity).
+    std::vector<std::vector<std::uint32_t>> refit_levels_;
     int max_depth_ = 0;        // an upper bound on every block's depth (sizes the stack)
     bool fixed_push_ = false;  // Params::push as prepare() resolved it for the tree's size
     // Running SAH: Σ over non-root blocks of area(its lane in the parent) · weight (double: areas
@@ -547,6 +556,9 @@ private:
     double age_ = 0;  // weighted changes since the live tree's objects were gathered
     // Stats.
     std::uint32_t rebuilds_ = 0, splits_ = 0, reinserts_ = 0;
+    // Blocks refitted and parent lanes rewritten since the last commit began, and by it (stats).
+    std::uint64_t refit_blocks_ = 0, refit_lanes_ = 0;
+    std::uint64_t last_refit_blocks_ = 0, last_refit_lanes_ = 0;
 
     Builder builder_;             // builds this tree
     ProgressiveRebuild rebuild_;  // builds the next one while this one answers

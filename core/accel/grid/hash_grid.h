@@ -2,7 +2,8 @@
 /// Hierarchical hash grid (thesis §4.3, after Jevans & Wyvill 1989): a top grid sized by eq. 4.2
 /// whose crowded cells split into `subdivision`³ children down to `max_depth`, only non-empty cells
 /// stored, found through one hash table keyed by (depth, cell). Rays run thesis Algorithm 2: the
-/// 3D-DDA over the top grid, recursing into subdivided cells (common/grid.h). Cells keep copies of
+/// 3D-DDA over the top grid, recursing into subdivided cells (common/grid.h); a closest-hit ray
+/// stops at the first cell, at any level, entered after its best hit. Cells keep copies of
 /// their objects' boxes in blocks of four, as in the uniform grid. Split and collapse rules derive
 /// from integer cell ranges so insert, remove and validate agree; memory, large-object and outlier
 /// guards keep it bounded on hostile scenes. docs/structures.md has the rules and the reasons.
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include "core/accel/params.h"
+#include "core/accel/hit_policy.h"
 #include "core/accel/structure.h"
 #include "core/accel/grid/grid.h"
 #include "core/accel/common/query_scratch.h"
@@ -208,6 +210,7 @@ private:
 
 template <class Count, class Visit>
 struct HashGridQuery {
+    using VisitType = Visit;
     SegmentSlabs slabs;
     Vec3d p0, d;
     std::uint32_t stamp;
@@ -218,6 +221,18 @@ struct HashGridQuery {
 
 template <class Ctx>
 bool HashGrid::visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, double t_out) const {
+    // Closest hit (hit_policy.h): a cell entered after the best hit so far, within float rounding
+    // (grid::closest_cutoff), ends the whole walk, at the top grid and in a children walk alike.
+    // Exact: an object is in the large list (tested before the walk) or, at every level it
+    // reaches, in each cell its box overlaps (in the cell's own list or in the children it
+    // overlaps), so the object entered at t sits in the cell holding its entry point at some
+    // depth; the walks go front to back, a children walk within its parent's [t_in, t_out], so
+    // that cell is entered no later than t and every cell after a cut-off one no earlier than it.
+    // A cell entered exactly at the limit is still visited: a tie there goes to the smaller uid
+    // (docs/accuracy.md, "Query kinds"). All and any hits have no limit: this compiles away.
+    if constexpr (HasTLimit<typename Ctx::VisitType>) {
+        if (t_in > grid::closest_cutoff(visit_limit(ctx.visit))) return false;
+    }
     ctx.count.traversal();
     const std::uint32_t id = table_.find(key_of(depth, c));
     if (id == CellTable::kNone) return true;
