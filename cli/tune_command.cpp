@@ -20,9 +20,13 @@ void add_tune_command(CLI::App& app) {
     };
     auto o = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand("tune",
-                                       "Search structures' tunable parameters per scene category with NLopt, "
-                                       "minimising update + rays x cost per frame "
-                                       "(thesis eq. 5.5); writes results/tuning-<name>.md/.json and database rows");
+                                       "Tune structures' parameters per scene category, minimising update + rays x "
+                                       "cost per frame (thesis eq. 5.5). Mode measured: every configuration "
+                                       "replayed untimed and ranked by the cost model (the machine's micro-scene "
+                                       "calibration, refitted on what is timed), the file's budget timing the "
+                                       "best-ranked; where no model exists, a pattern search with NLopt's DIRECT. "
+                                       "The predicted modes search the calibrated model. Writes "
+                                       "results/tuning-<name>.md/.json and database rows");
     cmd->add_option("file", o->file, "Tuning file (JSON; see experiments/README.md)")->required()->check(input_file());
     cmd->add_option("--db", o->db, "Results database for the tuning rows")->capture_default_str()->check(non_empty());
     cmd->add_option("--out-dir", o->out_dir, "Folder for tuning-<name>.md/.json/.svg")
@@ -37,8 +41,9 @@ void add_tune_command(CLI::App& app) {
     cmd->add_flag(
         "--exhaustive", o->exhaustive,
         "Also measure every configuration of each search space and report the tuner's gap to the true optimum, "
-        "and its regret beside random search and coordinate descent at the same budget (a tenth of the space's "
-        "structures in effect) on the same measurements");
+        "and its regret beside the search alone, random search and coordinate descent at the same budget (a "
+        "tenth of the space's structures in effect, every timed configuration counted; the tuner's untimed "
+        "replays reported beside it) on the same measurements");
     cmd->add_flag("--derive-categories", o->derive,
                   "Pool the file's scenes and tune per category derived from their features (k-means on "
                   "standardised scene features, k by silhouette; see docs/database.md) instead of per category "

@@ -221,11 +221,13 @@ TEST(TunerExhaustiveCheck, ReplaysFiveSeedsOnTheMeasuredSurfaceAndRanksThePredic
     const SimulationTally before = simulation_tally();
     const TuneOutcome out = run_tuning(spec, o);
     const SimulationTally after = simulation_tally();
-    // Counting replays: one per candidate the measured search timed (its counters, for the cost
-    // model), and one per configuration of the exhaustive check, which both prices it for the
-    // ranking and merges it with those that count alike (two replays each before).
+    // Counting replays: one per candidate the tuning timed (its counters, for the cost model), one
+    // per configuration its ranked method replayed (where the machine's calibration gave a model),
+    // and two per configuration of the exhaustive check: one prices it for the rankings and merges
+    // it with those that count alike, one counts its timed frames for the ranked method's refits.
     ASSERT_EQ(out.categories.size(), 1u);
-    EXPECT_EQ(after.counting - before.counting, out.categories[0].structures[0].measurements + 7);
+    const StructureTuning& st = out.categories[0].structures[0];
+    EXPECT_EQ(after.counting - before.counting, st.measurements + st.replays + 7 + 7);
     const json j = json::parse(std::ifstream(out.json_path));
     const json& ex = j["categories"][0]["exhaustive"][0];
     ASSERT_EQ(ex["surface"].size(), 7u);  // densities 0.25 … 16

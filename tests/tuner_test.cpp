@@ -225,15 +225,18 @@ TEST(TuneRecordsForAdvise, EveryModeRecordsItsSpaceAndACostModel) {
         o.out_dir = dir.string();
         const TuneOutcome out = run_tuning(spec, o);
         const json ug = json::parse(std::ifstream(out.json_path))["categories"][0]["structures"][0];
-        // Each mode measured the defaults, once, and at least one configuration besides.
+        // Each mode measured at least two configurations, the defaults at most once: the predicted
+        // modes always, the measured mode's ranked method where the model ranks them in its budget.
         ASSERT_EQ(out.categories.size(), 1u);
         ASSERT_EQ(out.categories[0].structures.size(), 1u);
         const StructureTuning& st = out.categories[0].structures[0];
         EXPECT_GE(st.candidates.size(), 2u) << mode;
-        EXPECT_EQ(
-            std::count_if(st.candidates.begin(), st.candidates.end(), [](const Candidate& c) { return c.is_default; }),
-            1)
-            << mode;
+        const auto defaults =
+            std::count_if(st.candidates.begin(), st.candidates.end(), [](const Candidate& c) { return c.is_default; });
+        if (std::string(mode) == "measured")
+            EXPECT_LE(defaults, 1) << mode;
+        else
+            EXPECT_EQ(defaults, 1) << mode;
         ASSERT_EQ(ug["space"].size(), 1u) << mode;
         EXPECT_EQ(ug["space"][0]["name"], "density");
         EXPECT_EQ(ug["space"][0]["levels"].size(), 5u);
@@ -244,7 +247,8 @@ TEST(TuneRecordsForAdvise, EveryModeRecordsItsSpaceAndACostModel) {
         // the two kinds of step apart) the unpredicted steps alone.
         const json& m = ug["cost_model"];
         EXPECT_GT(m["C_T"].get<double>() + m["C_RB"].get<double>() + m["C_MP"].get<double>(), 0) << mode << m.dump();
-        // Fitted to these frames alone: the machine's calibration (timed micro-scenes) is not asked.
+        // Fitted to these frames alone, not the machine's calibration (which the measured mode's
+        // ranking starts from).
         EXPECT_EQ(m["model"].get<std::string>().find("calibration"), std::string::npos) << mode << m.dump();
     }
 }

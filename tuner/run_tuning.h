@@ -66,8 +66,9 @@ std::vector<SurfaceReplay> replay_search_on_surface(const std::vector<SearchDime
 /// grouped into structures in effect by the same replay's counts (equal counts: one structure in
 /// effect, e.g. a hash grid of depth 0 whatever its capacity).
 struct SpaceSurvey {
-    std::vector<double> predicted;      ///< replay_cost of each configuration, in the space's order
-    std::vector<std::size_t> class_of;  ///< equality_classes of the replays' counts
+    std::vector<double> predicted;        ///< replay_cost of each configuration, in the space's order
+    std::vector<std::size_t> class_of;    ///< equality_classes of the replays' counts
+    std::vector<CountingReplay> replays;  ///< the replays themselves, for the ranked method's models
 };
 /// `replay` is counting_replay bound to a category, structure and warm-up (tests inject another);
 /// it is called once per configuration of `all`.

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <map>
 
@@ -223,6 +224,64 @@ SearchResult search_levels(const std::vector<SearchDimension>& dims,
         if (v == d.levels.front() || v == d.levels.back()) result.on_bound.push_back(d.name);
     }
     return result;
+}
+
+namespace {
+
+/// Each class's rank key: the median of its members' predictions, NaN as +∞.
+std::vector<double> class_predictions(const std::vector<std::size_t>& class_of, const std::vector<double>& predicted,
+                                      std::size_t classes) {
+    std::vector<std::vector<double>> members(classes);
+    for (std::size_t i = 0; i < class_of.size(); ++i)
+        members[class_of[i]].push_back(
+            i < predicted.size() && !std::isnan(predicted[i]) ? predicted[i] : std::numeric_limits<double>::infinity());
+    std::vector<double> out;
+    for (std::vector<double>& m : members) {
+        std::sort(m.begin(), m.end());
+        const std::size_t n = m.size();
+        out.push_back(n == 0  ? std::numeric_limits<double>::infinity()
+                      : n % 2 ? m[n / 2]
+                              : (m[n / 2 - 1] + m[n / 2]) / 2);
+    }
+    return out;
+}
+
+}  // namespace
+
+RankedResult rank_then_time(
+    const std::vector<std::size_t>& class_of, std::vector<double> predicted, std::size_t budget,
+    const std::function<double(std::size_t)>& time,
+    const std::function<std::optional<std::vector<double>>(const std::vector<std::size_t>& timed)>& refit) {
+    RankedResult out;
+    std::size_t classes = 0;
+    for (std::size_t c : class_of) classes = std::max(classes, c + 1);
+    std::vector<std::size_t> first(classes, SIZE_MAX);  // each class's first member: the one timed
+    for (std::size_t i = 0; i < class_of.size(); ++i)
+        if (first[class_of[i]] == SIZE_MAX) first[class_of[i]] = i;
+    std::vector<bool> done(classes, false);
+    std::vector<double> key = class_predictions(class_of, predicted, classes);
+    while (out.timed.size() < budget) {
+        std::size_t next = SIZE_MAX;  // the best-ranked class not timed yet (ties: the first)
+        for (std::size_t c = 0; c < classes; ++c)
+            if (!done[c] && first[c] != SIZE_MAX && (next == SIZE_MAX || key[c] < key[next])) next = c;
+        if (next == SIZE_MAX) break;
+        done[next] = true;
+        out.timed.push_back(first[next]);
+        out.predicted_when_timed.push_back(key[next]);
+        out.costs.push_back(time(first[next]));
+        if (!refit || out.timed.size() >= budget) continue;
+        if (std::optional<std::vector<double>> p = refit(out.timed)) {
+            predicted = std::move(*p);
+            key = class_predictions(class_of, predicted, classes);
+            ++out.refits;
+        }
+    }
+    // The fastest measured; failed timings (NaN, ∞) only when nothing else was timed.
+    for (std::size_t i = 1; i < out.costs.size(); ++i) {
+        const double c = out.costs[i], b = out.costs[out.best];
+        if (!std::isnan(c) && (std::isnan(b) || c < b)) out.best = i;
+    }
+    return out;
 }
 
 }  // namespace rcb

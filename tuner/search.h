@@ -24,6 +24,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -59,5 +60,29 @@ SearchResult search_levels(const std::vector<SearchDimension>& dims,
 
 /// Every configuration of the space (for exhaustive comparisons).
 std::vector<nlohmann::json> enumerate_space(const std::vector<SearchDimension>& dims);
+
+/// The tuner's measured method where a cost model exists: rank, then time the best-ranked.
+///
+/// A budget of a tenth of the space buys too few measurements for a search to find its way
+/// (the pattern search above walks from the defaults one level at a time), but a counting replay
+/// of every configuration costs no timed ray, and eq. 5.4's coefficients price the replays well
+/// enough to rank them (thesis §5.3; docs/model.md, "Ranked, then timed"). So: configurations in
+/// one class of `class_of` (one structure in effect: equal counts) are ranked as one, by the
+/// median of their members' `predicted` costs (NaN ranks last); the best-ranked class not timed
+/// yet has its first member timed, `budget` times or until every class is timed; the fastest
+/// measured is kept. After each timing `refit` (when given) may return new predictions from what
+/// has been timed so far (a fit of the timed frames), and the ranking of the classes left follows
+/// them. Never more than `budget` calls of `time`.
+struct RankedResult {
+    std::vector<std::size_t> timed;            ///< indices of the timed configurations, in order
+    std::vector<double> costs;                 ///< their measured costs (NaN or ∞: failed)
+    std::vector<double> predicted_when_timed;  ///< each one's prediction when it was chosen
+    std::size_t best = 0;                      ///< index into timed: the lowest measured cost
+    std::size_t refits = 0;                    ///< timings after which the ranking changed models
+};
+RankedResult rank_then_time(
+    const std::vector<std::size_t>& class_of, std::vector<double> predicted, std::size_t budget,
+    const std::function<double(std::size_t)>& time,
+    const std::function<std::optional<std::vector<double>>(const std::vector<std::size_t>& timed)>& refit = {});
 
 }  // namespace rcb

@@ -33,7 +33,8 @@ BudgetComparison compare_at_equal_budget(const std::vector<SearchDimension>& dim
                                          const std::vector<nlohmann::json>& all, const std::vector<double>& costs,
                                          const std::vector<std::size_t>& class_of, const nlohmann::json& start,
                                          double share, std::uint64_t first_seed, std::size_t seeds,
-                                         const std::vector<double>& predicted, std::size_t model_timed) {
+                                         const std::vector<double>& predicted, std::size_t model_timed,
+                                         const RankedInputs* ranked) {
     BudgetComparison out;
     out.configurations = all.size();
     out.classes = class_of.empty() ? 0 : *std::max_element(class_of.begin(), class_of.end()) + 1;
@@ -64,6 +65,14 @@ BudgetComparison compare_at_equal_budget(const std::vector<SearchDimension>& dim
     for (std::size_t i = 0; i < predicted.size() && i < all.size(); ++i)
         if (!std::isnan(predicted[i]) && (!chosen || predicted[i] < predicted[*chosen])) chosen = i;
     if (chosen) out.model_regret = config_cost[*chosen] / out.optimum - 1, out.model_timed = model_timed;
+    if (ranked && ranked->predicted.size() == all.size()) {
+        const auto time = [&](std::size_t i) { return config_cost[i]; };
+        const RankedResult r = rank_then_time(class_of, ranked->predicted, out.budget, time, ranked->refit);
+        out.ranked_regret = r.costs[r.best] / out.optimum - 1;
+        out.ranked_timed = r.timed.size(), out.ranked_replays = ranked->replays, out.ranked_refits = r.refits;
+        const RankedResult alone = rank_then_time(class_of, ranked->predicted, out.budget, time);
+        out.ranked_unrefitted_regret = alone.costs[alone.best] / out.optimum - 1;
+    }
     return out;
 }
 
@@ -71,8 +80,8 @@ SuiteSummary summarize_suite(const std::vector<BudgetComparison>& problems) {
     SuiteSummary s;
     s.problems = problems.size();
     if (problems.empty()) return s;
-    std::vector<double> tuner, random, descent, shares, model;
-    std::size_t beats = 0, matches = 0;
+    std::vector<double> tuner, random, descent, shares, model, running, replays;
+    std::size_t beats = 0, matches = 0, running_beats = 0, running_matches = 0;
     for (const BudgetComparison& p : problems) {
         tuner.push_back(p.tuner_regret);
         random.push_back(p.random_regret);
@@ -81,7 +90,16 @@ SuiteSummary summarize_suite(const std::vector<BudgetComparison>& problems) {
         if (p.tuner_regret < p.random_regret - 1e-9) ++beats;
         if (p.tuner_regret <= p.descent_regret + 1e-9) ++matches;
         if (!std::isnan(p.model_regret)) model.push_back(p.model_regret);
+        running.push_back(p.tuner());
+        if (p.tuner() < p.random_regret - 1e-9) ++running_beats;
+        if (p.tuner() <= p.descent_regret + 1e-9) ++running_matches;
+        if (!std::isnan(p.ranked_regret)) replays.push_back(double(p.ranked_replays));
     }
+    s.ranked_problems = replays.size();
+    if (!replays.empty()) s.median_replays = quantile(replays, 0.5);
+    s.running_median = quantile(running, 0.5), s.running_p90 = quantile(running, 0.9);
+    s.running_beats_random = double(running_beats) / double(s.problems);
+    s.running_matches_descent = double(running_matches) / double(s.problems);
     s.model_problems = model.size();
     if (!model.empty()) s.model_median = quantile(model, 0.5), s.model_p90 = quantile(model, 0.9);
     s.tuner_median = quantile(tuner, 0.5), s.tuner_p90 = quantile(tuner, 0.9);

@@ -16,6 +16,7 @@
 #include "core/accel/query_level.h"
 #include "core/sim/simulator.h"
 #include "runner/calibration.h"
+#include "tuner/search_baselines.h"
 
 namespace rcb {
 namespace {
@@ -417,6 +418,24 @@ MeasuredCost cost_of(const std::vector<SimulationResult>& runs, const TuneCatego
     return c;
 }
 
+/// The first repetition of measured `runs` (the first of each scene) as cost-model observations.
+/// The counters come from a replay of their own (deterministic, so frame for frame those of the
+/// timed run): counting between the timed frames would slow them by a few percent.
+void observe(const TuneCategory& category, const std::string& structure, const json& params,
+             std::uint32_t warmup_frames, const std::vector<SimulationResult>& runs, int group,
+             std::vector<FrameObservation>& out) {
+    SimulationOptions replay = measuring_options(warmup_frames);
+    replay.timed_cast = false;
+    replay.count = true;
+    const std::vector<SimulationResult> counted = run_simulations(category, structure, params, replay, 1);
+    for (std::size_t s = 0; s < category.scenes.size(); ++s) {
+        SimulationResult timed = runs[s];
+        for (std::size_t f = 0; f < timed.frames.size() && f < counted[s].frames.size(); ++f)
+            timed.frames[f].counters = counted[s].frames[f].counters;
+        add_observations(timed, category.scenes[s].name, category_of(category.scenes[s]), group * 100 + int(s), out);
+    }
+}
+
 }  // namespace
 
 MeasuredCost measure(const TuneCategory& category, const std::string& structure, const json& params,
@@ -424,32 +443,22 @@ MeasuredCost measure(const TuneCategory& category, const std::string& structure,
                      std::vector<FrameObservation>* observations, int group) {
     const std::vector<SimulationResult> runs = std::move(
         repeated_runs(category, structure, std::vector<json>{params}, warmup_frames, repetitions, verify).front());
-    if (observations) {
-        // The counters come from a replay of their own (deterministic, so frame for frame those of
-        // the timed run): counting between the timed frames would slow them by a few percent.
-        SimulationOptions replay = measuring_options(warmup_frames);
-        replay.timed_cast = false;
-        replay.count = true;
-        const std::vector<SimulationResult> counted = run_simulations(category, structure, params, replay, 1);
-        for (std::size_t s = 0; s < category.scenes.size(); ++s) {
-            SimulationResult timed = runs[s];
-            for (std::size_t f = 0; f < timed.frames.size() && f < counted[s].frames.size(); ++f)
-                timed.frames[f].counters = counted[s].frames[f].counters;
-            add_observations(timed, category.scenes[s].name, category_of(category.scenes[s]), group * 100 + int(s),
-                             *observations);
-        }
-    }
+    if (observations) observe(category, structure, params, warmup_frames, runs, group, *observations);
     return cost_of(runs, category, structure, params, verify);
 }
 
 std::vector<MeasuredCost> measure_interleaved(const TuneCategory& category, const std::string& structure,
                                               const std::vector<json>& params, std::uint32_t warmup_frames,
-                                              std::uint32_t repetitions, bool verify) {
+                                              std::uint32_t repetitions, bool verify,
+                                              std::vector<std::vector<FrameObservation>>* observations) {
     const std::vector<std::vector<SimulationResult>> runs =
         repeated_runs(category, structure, params, warmup_frames, repetitions, verify);
     std::vector<MeasuredCost> out;
-    for (std::size_t i = 0; i < params.size(); ++i)
+    if (observations) observations->assign(params.size(), {});
+    for (std::size_t i = 0; i < params.size(); ++i) {
         out.push_back(cost_of(runs[i], category, structure, params[i], verify));
+        if (observations) observe(category, structure, params[i], warmup_frames, runs[i], int(i), (*observations)[i]);
+    }
     return out;
 }
 
@@ -521,6 +530,14 @@ std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservat
     return prices_ray_work(alone) ? alone : c;
 }
 
+std::optional<CostCoefficients> prior_coefficients(MachinePriors* priors, const std::string& structure) {
+    if (!priors || priors->of(structure).calibrations.empty()) return std::nullopt;
+    CostCoefficients c = calibration_alone(priors->of(structure).calibrations.front());
+    if (!prices_ray_work(c)) return std::nullopt;
+    c.model = "the micro-scene calibration alone (nothing of the space timed)";
+    return c;
+}
+
 CountingReplay counting_replay(const TuneCategory& category, const std::string& structure, const json& searched,
                                std::uint32_t warmup_frames) {
     SimulationOptions replay;
@@ -579,6 +596,18 @@ std::function<const ModelInputs&()> priors_of(MachinePriors* priors, const std::
 }
 
 }  // namespace
+
+std::optional<std::vector<double>> refit_predictions(const std::vector<FrameObservation>& frames,
+                                                     std::size_t timed_configurations,
+                                                     const std::vector<CountingReplay>& replays, MachinePriors* priors,
+                                                     const std::string& structure) {
+    if (timed_configurations < kMinRefitConfigurations) return std::nullopt;
+    const std::optional<CostCoefficients> c = fit_coefficients(frames, priors_of(priors, structure));
+    if (!c || !prices_ray_work(*c)) return std::nullopt;
+    std::vector<double> out;
+    for (const CountingReplay& r : replays) out.push_back(replay_cost(*c, r));
+    return out;
+}
 
 Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category, const std::string& structure,
                               MachinePriors* priors) {
@@ -646,6 +675,87 @@ double spearman(const std::vector<double>& a, const std::vector<double>& b) {
     return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : NAN;
 }
 
+namespace {
+
+/// Configurations in a space, without listing them.
+double space_size(const std::vector<SearchDimension>& dims) {
+    double n = 1;
+    for (const SearchDimension& d : dims) n *= double(std::max<std::size_t>(1, d.levels.size()));
+    return n;
+}
+
+/// The measured mode's ranked method on one structure (rank_then_time): every configuration of
+/// the space replayed untimed and priced by `prior`, the configurations that count alike merged,
+/// the best-ranked timed through `measure` (which appends their frames to `observed`), the model
+/// refitted on those frames as they come. Returns what was timed, in order, as a search result.
+SearchResult ranked_tuning(const TuneSpec& spec, const TuneCategory& category, const std::string& structure,
+                           const CostCoefficients& prior, MachinePriors* priors,
+                           const std::function<Candidate&(const json&)>& measure,
+                           const std::vector<FrameObservation>& observed, StructureTuning& st) {
+    const std::vector<SearchDimension>& dims = spec.space.at(structure);
+    const std::vector<json> all = enumerate_space(dims);
+    std::vector<CountingReplay> replays;
+    std::vector<ReplayCounts> counts;
+    std::vector<double> predicted;
+    for (const json& p : all) {
+        replays.push_back(counting_replay(category, structure, p, spec.warmup_frames));
+        predicted.push_back(replay_cost(prior, replays.back()));
+        counts.push_back(replays.back().counts);
+    }
+    st.replays = all.size();
+    const std::vector<std::size_t> class_of =
+        equality_classes(counts, [](const ReplayCounts& a, const ReplayCounts& b) { return a == b; });
+    const RankedResult r = rank_then_time(
+        class_of, predicted, spec.budget,
+        [&](std::size_t i) { return constrained_cost(*measure(all[i]).measured, spec.accuracy); },
+        [&](const std::vector<std::size_t>& timed) {
+            return refit_predictions(observed, timed.size(), replays, priors, structure);
+        });
+    st.refits = r.refits;
+    SearchResult out;
+    out.algorithm = "ranked by the cost model, the best-ranked timed (start: " + prior.model + ")";
+    out.space_size = all.size();
+    out.stop_reason = r.timed.size() >= spec.budget ? "budget" : "enumerated";
+    for (std::size_t k = 0; k < r.timed.size(); ++k) {
+        out.evaluations.push_back({all[r.timed[k]], r.costs[k]});
+        measure(all[r.timed[k]]).predicted_ms = r.predicted_when_timed[k];  // measured already: a lookup
+    }
+    out.best = r.best;
+    for (const SearchDimension& d : dims) {
+        const json& v = out.evaluations.empty() ? json() : out.evaluations[out.best].params[d.name];
+        if (d.levels.size() >= 2 && (v == d.levels.front() || v == d.levels.back())) out.on_bound.push_back(d.name);
+    }
+    return out;
+}
+
+/// The measured mode on one structure: the ranked method where the machine's calibration gives a
+/// model and the space is small enough to replay whole, else the search from the defaults. Either
+/// way the frames measured, counted by untimed replays, fit the model advise applies.
+void tune_measured(const TuneSpec& spec, const TuneCategory& category, const std::string& structure,
+                   MachinePriors* priors, const std::function<Candidate&(const json&, bool)>& measure_candidate,
+                   const std::vector<FrameObservation>& observed, StructureTuning& st) {
+    const std::vector<SearchDimension>& dims = spec.space.at(structure);
+    json defaults_searched = json::object();
+    for (const SearchDimension& d : dims) defaults_searched[d.name] = find_structure(structure).defaults()[d.name];
+    const std::optional<CostCoefficients> prior = prior_coefficients(priors, structure);
+    if (prior && space_size(dims) <= double(kRankedSpaceLimit)) {
+        st.search = ranked_tuning(
+            spec, category, structure, *prior, priors,
+            [&](const json& p) -> Candidate& { return measure_candidate(p, p == defaults_searched); }, observed, st);
+    } else {
+        // The defaults start the search and count against the budget.
+        measure_candidate(defaults_searched, true);
+        st.search = search_levels(
+            dims, [&](const json& p) { return constrained_cost(*measure_candidate(p, false).measured, spec.accuracy); },
+            spec.budget, spec.seed, defaults_searched);
+    }
+    st.cost_model = fit_coefficients(observed, priors_of(priors, structure));
+    // Too few configurations timed to fit: the ranking's own model, the calibration alone.
+    if (!st.cost_model && prior) st.cost_model = prior;
+}
+
+}  // namespace
+
 CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category, MachinePriors* priors) {
     CategoryTuning out;
     out.category = category.name;
@@ -676,18 +786,10 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category,
         };
         json defaults_searched = json::object();
         for (const SearchDimension& d : dims) defaults_searched[d.name] = find_structure(structure).defaults()[d.name];
-        measure_candidate(defaults_searched, true);
-
         if (spec.mode == "measured") {
-            // The defaults start the search and are measured already: every measurement is one of
-            // the budget's evaluations. Their first repetitions, counted by untimed replays, fit the
-            // cost model that advise applies to unseen scenes, without a measurement of its own.
-            st.search = search_levels(
-                dims,
-                [&](const json& p) { return constrained_cost(*measure_candidate(p, false).measured, spec.accuracy); },
-                spec.budget, spec.seed, defaults_searched);
-            st.cost_model = fit_coefficients(observed, priors_of(priors, structure));
+            tune_measured(spec, category, structure, priors, measure_candidate, observed, st);
         } else {
+            measure_candidate(defaults_searched, true);
             Predictor predictor = calibrate_predictor(spec, category, structure, priors);
             st.measurements += predictor.measurements;
             st.prediction_model = predictor.model;

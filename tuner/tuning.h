@@ -4,7 +4,11 @@
 /// tunable. Tuning files are documented in experiments/README.md ("Tuning files").
 ///
 /// Modes:
-///   measured                 every evaluation runs the simulator (median over frames × repetitions)
+///   measured                 every evaluation runs the simulator (median over frames × repetitions).
+///                            Where the machine's micro-scene calibration gives the structure a cost
+///                            model, the whole space is replayed untimed and ranked by it, and the
+///                            budget times the best-ranked (rank_then_time, tuner/search.h); else the
+///                            search (search_levels) spends it
 ///   predicted                every evaluation is a cheap counting replay (no timed rays, no
 ///                            verification); C = C_RB·N_RB + C_T·N_T + C_PREP with coefficients
 ///                            fitted to a few measured calibration points of the same structure
@@ -114,6 +118,10 @@ struct StructureTuning {
     std::optional<CostCoefficients> cost_model;
     double seconds = 0;
     std::size_t measurements = 0;  ///< simulator runs of the measured kind
+    /// The ranked method's untimed counting replays, one per configuration of the space (each on
+    /// every scene of the category); 0 where the search ran instead.
+    std::size_t replays = 0;
+    std::size_t refits = 0;  ///< timings after which the ranked method refitted its model
 };
 
 struct CategoryTuning {
@@ -145,9 +153,11 @@ MeasuredCost measure(const TuneCategory& category, const std::string& structure,
 /// `rcbench run` plans: repetition r of every configuration before repetition r + 1 of any, so a
 /// burst of load on a shared machine spreads over one repetition of many configurations (which
 /// their medians absorb) instead of falling on every repetition of one. For exhaustive checks.
+/// With `observations`, entry i receives configuration i's first repetition as measure() gives it.
 std::vector<MeasuredCost> measure_interleaved(const TuneCategory& category, const std::string& structure,
                                               const std::vector<nlohmann::json>& params, std::uint32_t warmup_frames,
-                                              std::uint32_t repetitions, bool verify = false);
+                                              std::uint32_t repetitions, bool verify = false,
+                                              std::vector<std::vector<FrameObservation>>* observations = nullptr);
 
 /// How many simulations the tuner's measuring paths have run in this process, by kind, one per
 /// scene of a category: timed (their ray batches timed: measure, measure_interleaved) and
@@ -169,6 +179,8 @@ double constrained_cost(const MeasuredCost& cost, const AccuracyConstraint& accu
 class MachinePriors {
 public:
     const ModelInputs& of(const std::string& structure);
+    /// A structure's calibration given, not measured (a calibration at hand, or a test's).
+    void set(const std::string& structure, ModelInputs inputs) { measured_[structure] = std::move(inputs); }
 
 private:
     std::map<std::string, ModelInputs> measured_;
@@ -184,6 +196,19 @@ private:
 /// prices no ray work (nothing pinned), the calibration's own costs are the model; it says which.
 std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservation>& frames,
                                                  const std::function<const ModelInputs&()>& priors = {});
+
+/// The model the ranked method starts from: the micro-scene calibration of `structure` alone
+/// (`priors`, measured once per process), so nothing of the space is timed for it. nullopt without
+/// `priors`, where the micro-scenes cannot build the structure, or where its costs price no ray
+/// work: then the measured mode searches instead.
+std::optional<CostCoefficients> prior_coefficients(MachinePriors* priors, const std::string& structure);
+
+/// The largest space the ranked method replays whole; a larger one is searched (search_levels).
+inline constexpr std::size_t kRankedSpaceLimit = 1024;
+
+/// Configurations timed before the ranked method refits its model on their frames: a tuning
+/// file's smallest calibration.
+inline constexpr std::size_t kMinRefitConfigurations = 3;
 
 /// What a replay counted over its measured frames and scenes. Two configurations with equal
 /// counts are one structure in effect (a hash grid of depth 0 ignores its capacity and
@@ -212,6 +237,15 @@ CountingReplay counting_replay(const TuneCategory& category, const std::string& 
 /// `coefficients` applied to a replay: per frame its update time plus rays × the per-ray cost;
 /// ms per frame, median over a scene's frames, mean over the scenes.
 double replay_cost(const CostCoefficients& coefficients, const CountingReplay& replay);
+
+/// The ranked method's refit: eq. 5.4 fitted to the timed configurations' `frames`
+/// (fit_coefficients, with the structure's priors) and applied to every replay, in their order.
+/// nullopt while fewer than kMinRefitConfigurations are timed or where the fit prices no ray work
+/// (the ranking then keeps its model).
+std::optional<std::vector<double>> refit_predictions(const std::vector<FrameObservation>& frames,
+                                                     std::size_t timed_configurations,
+                                                     const std::vector<CountingReplay>& replays, MachinePriors* priors,
+                                                     const std::string& structure);
 
 /// The predicted cost of a configuration (searched parameters) on `category`: replay_cost of its
 /// counting_replay. `counts`, when given, receives what the replay counted.
