@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <charconv>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <map>
@@ -79,18 +80,22 @@ std::pair<std::size_t, std::size_t> parse_shard(const std::string& text) {
     return {k, n};
 }
 
-/// The thesis' layout from this run: configurations × scenes, median ray cast ms (update ms).
+/// The thesis' layout from this run: configurations × scenes, the median over repetitions of the
+/// ray cast ms with the half-width of its 95% interval between repetitions, and update ms.
 void print_summary(Database& db, std::int64_t run_id, const Experiment& e) {
     struct Cellsum {
-        std::vector<double> cast, update;
+        RepetitionInterval cast, update;
         std::int64_t mismatches = 0;
         std::size_t slow = 0;
     };
     std::map<std::pair<std::string, std::string>, Cellsum> by;  // (config label, scene) → values
+    for (const CellInterval& row : cell_intervals(db, run_id)) {
+        Cellsum& c = by[{config_label({row.structure, row.params}), row.scene}];
+        c.cast = row.raycast;
+        c.update = row.update;
+    }
     for (const CellSummary& row : cell_summaries(db, run_id)) {
         Cellsum& c = by[{config_label({row.structure, row.params}), row.scene}];
-        c.cast.push_back(row.raycast_ns_median);
-        c.update.push_back(row.update_ns_median);
         c.mismatches += row.mismatches;
         c.slow += row.slow;
     }
@@ -98,7 +103,7 @@ void print_summary(Database& db, std::int64_t run_id, const Experiment& e) {
     for (const SceneSpec& sc : e.scenes)
         if (std::find(scenes.begin(), scenes.end(), sc.name) == scenes.end()) scenes.push_back(sc.name);
     for (const ConfigSpec& c : e.configs) labels.push_back(config_label(c));
-    std::vector<std::string> header{"ray cast ms (update ms)"};
+    std::vector<std::string> header{"ray cast ms +-95% (update ms)"};
     header.insert(header.end(), scenes.begin(), scenes.end());
     TextTable t(header);
     std::int64_t mismatches = 0;
@@ -107,19 +112,24 @@ void print_summary(Database& db, std::int64_t run_id, const Experiment& e) {
         std::vector<std::string> row{label};
         for (const std::string& scene : scenes) {
             auto it = by.find({label, scene});
-            if (it == by.end()) {
+            if (it == by.end() || it->second.cast.repetitions == 0) {
                 row.push_back("-");
                 continue;
             }
-            const Spread c = spread_of(it->second.cast), u = spread_of(it->second.update);
-            row.push_back(fixed(c.median / 1e6, 3) + " (" + fixed(u.median / 1e6, 4) + ")" +
+            const RepetitionInterval& c = it->second.cast;
+            const std::string interval = c.has_interval() && std::isfinite(c.relative_half_width())
+                                             ? " +-" + fixed(100 * c.relative_half_width(), 1) + "%"
+                                             : "";
+            row.push_back(fixed(c.median / 1e6, 3) + interval + " (" + fixed(it->second.update.median / 1e6, 4) + ")" +
                           (it->second.slow ? " *" : ""));
             mismatches += it->second.mismatches;
             slow += it->second.slow;
         }
         t.add(row);
     }
-    std::cout << "run " << run_id << " of experiment " << e.name << " (medians over frames and repetitions)\n";
+    std::cout << "run " << run_id << " of experiment " << e.name
+              << " (medians over frames, then over repetitions; +-: half-width of the 95% interval between "
+                 "repetitions, as a share of the median; cell_interval)\n";
     t.print(std::cout);
     if (slow)
         std::cout << "* " << slow
@@ -191,8 +201,11 @@ void add_run_command(CLI::App& app) {
         std::cout << "run " << done.run << " of " << e.name << ": " << done.planned << " cells, " << done.done_before
                   << " done before, " << done.ran << " ran now -> " << o->db << '\n';
         if (done.added)
-            std::cout << done.added << " repetitions added where a cell's repetitions spread by more than "
-                      << fixed(100 * e.repeat_spread, 1) << "% (at most " << e.max_repetitions << " per cell)\n";
+            std::cout << done.added
+                      << " repetitions added where the 95% interval of a cell's median over its repetitions was "
+                         "wider than +-"
+                      << fixed(100 * e.repeat_interval, 1) << "% of it (at most " << e.max_repetitions
+                      << " per cell)\n";
         if (done.resampled)
             std::cout << done.resampled << " cells waited for a slow machine before they were measured\n";
         print_summary(*open_read_only(o->db), done.run, e);

@@ -568,9 +568,15 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
     const json j = parse_json_document(text, name);
     try {
         expect_object(j, "(top level)");
-        check_keys(j, "",
-                   {"name", "description", "frames", "warmup_frames", "repetitions", "max_repetitions", "repeat_spread",
-                    "rays_per_frame", "ray_mix", "seeds", "threads", "verify", "scenes", "structures"});
+        // The range criterion's key, replaced by the interval's: named, so an old file says what to write.
+        if (j.contains("repeat_spread"))
+            fail("repeat_spread",
+                 "replaced by repeat_interval (the 95% interval's half-width over repetitions as a fraction of the "
+                 "median; experiments/README.md)");
+        check_keys(
+            j, "",
+            {"name", "description", "frames", "warmup_frames", "repetitions", "max_repetitions", "repeat_interval",
+             "rays_per_frame", "ray_mix", "seeds", "threads", "verify", "scenes", "structures"});
         Experiment e;
         e.content = text;
         e.hash = stable_hash(text);
@@ -581,7 +587,7 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
         // None added unless asked: a plan's size then depends on nothing measured.
         e.max_repetitions =
             static_cast<std::uint32_t>(get_uint(j, "max_repetitions", "", e.repetitions, 1000, e.repetitions));
-        e.repeat_spread = get_number(j, "repeat_spread", "", 0, 10, e.repeat_spread);
+        e.repeat_interval = get_number(j, "repeat_interval", "", 0, 10, e.repeat_interval);
         e.warmup_frames = static_cast<std::uint32_t>(get_uint(j, "warmup_frames", "", 0, 1000, 0));
         e.threads = static_cast<std::uint32_t>(get_uint(j, "threads", "", 1, 1024, 1));
         e.verify = get_bool(j, "verify", "", true);

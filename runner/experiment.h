@@ -52,11 +52,11 @@ struct Experiment {
     std::string content;  ///< the file's text, stored with the run
     std::string hash;     ///< of the content
     std::uint32_t repetitions = 1;
-    /// Repetitions added, one round at a time, to the cells whose repetitions disagree: a cell
-    /// whose ray-cast or update medians spread by more than `repeat_spread` of their median
-    /// ((max − min) / median) gets another, up to this many in all.
+    /// Repetitions added, one round at a time, to the cells whose time is not yet pinned down: a
+    /// cell whose ray-cast or update 95% interval over its repetitions (core/base/repetition_interval.h)
+    /// has a half-width above `repeat_interval` of its median gets another, up to this many in all.
     std::uint32_t max_repetitions = 1;  ///< `repetitions` unless the file asks for more
-    double repeat_spread = 0.05;
+    double repeat_interval = 0.05;
     std::uint32_t warmup_frames = 0;
     std::uint32_t threads = 1;  ///< TBB parallelism for the run (verification, threaded structures)
     bool verify = true;

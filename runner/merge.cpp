@@ -203,6 +203,8 @@ MergeCount merge_into(ResultStore& out, Database& in) {
         while (runs.step()) {
             const std::int64_t run = merge_run(o, in, runs, count);
             merge_cells(o, in, runs.int64(0), run, count);
+            // The interval over repetitions follows the run's cells, old and new.
+            store_cell_intervals(o, run);
         }
     } catch (const SqlError& e) {
         // The output was opened and its schema checked, and the input passed the integrity check:

@@ -16,6 +16,7 @@ struct MergeCount {
 /// Copies into `out` every run of `in` (matched by run uuid) and every cell of it that `out` does
 /// not have yet, remapping ids; a run `out` holds unfinished gains the cells finished since and its
 /// finish time. So merging a shard, resuming the shard and merging it again completes the run.
+/// Each merged run's cell_interval rows are then computed again from its cells in `out`.
 /// One transaction: all of `in` or nothing. `in` is at the latest schema, as open_read_only gives
 /// any older file.
 MergeCount merge_into(ResultStore& out, Database& in);

@@ -17,6 +17,7 @@
 
 #include "core/base/error.h"
 #include "core/base/random.h"
+#include "core/base/repetition_interval.h"
 #include "core/accel/registry.h"
 #include "core/sim/simulator.h"
 #include "runner/calibration.h"
@@ -184,11 +185,17 @@ MachineState settled_machine_state(std::vector<double>& samples, std::vector<dou
 }
 
 /// Runs one list of cells, skipping those stored; shared by the planned repetitions and the rounds
-/// added where repetitions disagree.
+/// added where the interval over repetitions is wide.
 class CellRunner {
 public:
-    CellRunner(const Experiment& e, const std::string& source, ResultStore& store, RunOutcome& out)
-        : e_(e), source_(source), store_(store), out_(out), experiment_(store.experiment_id(e)) {
+    CellRunner(const Experiment& e, const std::string& source, ResultStore& store, RunOutcome& out,
+               std::function<void(SimulationResult&)> timing)
+        : e_(e),
+          source_(source),
+          store_(store),
+          out_(out),
+          experiment_(store.experiment_id(e)),
+          timing_(std::move(timing)) {
         sim_.verify = e.verify;
         sim_.warmup_frames = e.warmup_frames;
     }
@@ -214,6 +221,7 @@ public:
                 const auto start = std::chrono::steady_clock::now();
                 res = simulate(recording_, find_structure(config.structure), config.params, sim_);
                 measured_ += std::chrono::steady_clock::now() - start;
+                if (timing_) timing_(res);
             } catch (const InputError& err) {
                 throw InputError(source_ + ": scene " + scene.name + ": " + err.what());
             }
@@ -244,6 +252,7 @@ private:
     ResultStore& store_;
     RunOutcome& out_;
     std::int64_t experiment_;
+    std::function<void(SimulationResult&)> timing_;
     SimulationOptions sim_;
     std::size_t loaded_ = SIZE_MAX;
     Recording recording_;
@@ -254,11 +263,11 @@ private:
 };
 
 /// Repetition `round` of the (scene, configuration) pairs of `plan` whose first `round`
-/// repetitions are all stored and disagree: ray-cast or update medians spread by more than
-/// e.repeat_spread of their median.
-std::vector<Cell> disagreeing_cells(const Experiment& e, const std::vector<Cell>& plan,
-                                    const std::map<std::string, std::pair<double, double>>& medians,
-                                    std::uint32_t round) {
+/// repetitions are all stored and whose ray-cast or update interval over them is wide: a 95%
+/// half-width above e.repeat_interval of the median (wide_interval).
+std::vector<Cell> wide_interval_cells(const Experiment& e, const std::vector<Cell>& plan,
+                                      const std::map<std::string, std::pair<double, double>>& medians,
+                                      std::uint32_t round) {
     std::vector<std::pair<std::size_t, std::size_t>> pairs;
     for (const Cell& c : plan) {
         if (c.repetition != 0) continue;
@@ -270,13 +279,17 @@ std::vector<Cell> disagreeing_cells(const Experiment& e, const std::vector<Cell>
             update.push_back(it->second.second);
         }
         if (cast.size() != round) continue;
-        if (relative_range(cast) > e.repeat_spread || relative_range(update) > e.repeat_spread)
+        if (wide_interval(cast, e.repeat_interval) || wide_interval(update, e.repeat_interval))
             pairs.emplace_back(c.scene, c.config);
     }
     return repetition_cells(e, round, pairs);
 }
 
 }  // namespace
+
+bool wide_interval(const std::vector<double>& medians, double limit) {
+    return repetition_interval(medians).relative_half_width() > limit;
+}
 
 double relative_range(const std::vector<double>& values) {
     if (values.size() < 2) return 0;
@@ -314,11 +327,12 @@ RunOutcome run_experiment(const Experiment& e, const std::string& source, const 
         if (std::none_of(structures.begin(), structures.end(), [&](const auto& s) { return s.first == c.structure; }))
             structures.emplace_back(c.structure, c.params);
     record_machine(store.db(), out.run, structures);
-    CellRunner runner(e, source, store, out);
+    CellRunner runner(e, source, store, out, options.timing);
     runner.run(plan, done, todo, progress);
-    // Rounds of repetitions where the stored ones disagree, each judged on what is stored.
+    // Rounds of repetitions where the interval over the stored ones is wide, each judged on what
+    // is stored.
     for (std::uint32_t round = e.repetitions; round < e.max_repetitions; ++round) {
-        const std::vector<Cell> extra = disagreeing_cells(e, plan, store.cell_medians(out.run), round);
+        const std::vector<Cell> extra = wide_interval_cells(e, plan, store.cell_medians(out.run), round);
         if (extra.empty()) break;
         const std::set<std::string> now = store.finished_cells(out.run);
         std::size_t left = 0;

@@ -22,6 +22,10 @@ struct RunOptions {
     /// Called once when another runner holds the database and this one waits for it to finish
     /// (one runner per database at a time; the waiting one then resumes the run it chose).
     std::function<void()> on_wait;
+    /// For tests only (no file or option sets it): replaces each simulated cell's times before it
+    /// is stored, so a test of what the runner decides from times (which cells get another
+    /// repetition) does not depend on how fast the machine is.
+    std::function<void(SimulationResult&)> timing;
 };
 
 /// What a run did: its id, the cells of the (shard's) plan, how many were done before, how many
@@ -32,7 +36,7 @@ struct RunOutcome {
     std::uint64_t mismatches = 0;
     std::size_t slow = 0;       ///< cells of the run flagged as measured on a slow machine (store.h)
     std::size_t resampled = 0;  ///< cells measured after waiting for a slow machine (now)
-    std::size_t added = 0;      ///< repetitions added where the stored ones disagreed (now or before)
+    std::size_t added = 0;      ///< repetitions added where the interval over the stored ones was wide
     bool finished = false;
 };
 
@@ -58,9 +62,13 @@ std::string config_label(const ConfigSpec& c);
 /// (max − min) / median of a cell's repetitions; 0 for fewer than two.
 double relative_range(const std::vector<double>& values);
 
-/// Runs the cells not yet stored, then rounds of repetitions where the stored ones disagree
-/// (Experiment::max_repetitions, repeat_spread); `source` names the experiment in errors. InputError for bad input
-/// (a scene that cannot be loaded, warm-up that leaves no frame), naming the scene.
+/// Whether the 95% interval over a cell's repetitions' medians (core/base/repetition_interval.h)
+/// has a half-width above `limit` of their median; always for fewer than two repetitions.
+bool wide_interval(const std::vector<double>& medians, double limit);
+
+/// Runs the cells not yet stored, then rounds of repetitions where the interval over the stored
+/// ones is wide (Experiment::max_repetitions, repeat_interval); `source` names the experiment in errors. InputError for
+/// bad input (a scene that cannot be loaded, warm-up that leaves no frame), naming the scene.
 RunOutcome run_experiment(const Experiment& e, const std::string& source, const RunOptions& options,
                           const RunProgress& progress = {});
 

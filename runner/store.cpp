@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "core/base/error.h"
+#include "core/base/repetition_interval.h"
 #include "core/scene/recording_io.h"
 #include "runner/build_info.h"
 
@@ -355,6 +356,26 @@ CREATE TABLE frame_kind (
     FOREIGN KEY (cell_id, frame) REFERENCES frame(cell_id, frame) ON DELETE CASCADE
 );
 )sql",
+        // 11 → 12: a (scene, configuration)'s time over its repetitions in a run: the median of the
+        // repetitions' medians and its 95% interval between repetitions (core/base/repetition_interval.h;
+        // NULL bounds below two repetitions). Kept equal to the stored cells: rewritten with each
+        // cell stored and each merge, and filled for the runs a database already holds when it is
+        // migrated (apply_migrations).
+        R"sql(
+CREATE TABLE cell_interval (
+    run_id            INTEGER NOT NULL REFERENCES run(id),
+    scene_id          INTEGER NOT NULL REFERENCES scene(id),
+    config_id         INTEGER NOT NULL REFERENCES config(id),
+    repetitions       INTEGER NOT NULL,
+    raycast_ns_median REAL NOT NULL,
+    raycast_ns_low    REAL,
+    raycast_ns_high   REAL,
+    update_ns_median  REAL NOT NULL,
+    update_ns_low     REAL,
+    update_ns_high    REAL,
+    PRIMARY KEY (run_id, scene_id, config_id)
+);
+)sql",
     };
     return all;
 }
@@ -374,9 +395,19 @@ void refuse_newer(int version, const std::string& path) {
                          "); use a newer rcbench");
 }
 
-/// Brings `db` from schema `from` to `to`: the migrations in order, then the version stamp.
+/// The schema version that added cell_interval.
+constexpr int kCellIntervalVersion = 12;
+
+/// Brings `db` from schema `from` to `to`: the migrations in order, then the version stamp. The
+/// runs already stored get their cell_interval rows, which SQL alone cannot compute.
 void apply_migrations(Database& db, int from, int to) {
     for (int v = from; v < to; ++v) db.exec(migrations()[std::size_t(v)]);
+    if (from < kCellIntervalVersion && to >= kCellIntervalVersion) {
+        std::vector<std::int64_t> runs;
+        Statement s = db.prepare("SELECT id FROM run");
+        while (s.step()) runs.push_back(s.int64(0));
+        for (const std::int64_t run : runs) store_cell_intervals(db, run);
+    }
     if (to > from) db.exec("PRAGMA user_version = " + std::to_string(to));
 }
 
@@ -643,6 +674,66 @@ std::int64_t ResultStore::config_id(const std::string& structure, const nlohmann
     return s.int64(0);
 }
 
+namespace {
+
+/// Rewrites the cell_interval row of one (run, scene, configuration) from its stored cells.
+void store_cell_interval(Database& db, std::int64_t run_id, std::int64_t scene_id, std::int64_t config_id) {
+    std::vector<double> cast, update;
+    Statement s = db.prepare(
+        "SELECT raycast_ns_median, update_ns_median FROM cell WHERE run_id = ? AND scene_id = ? AND config_id = ?");
+    s.bind_all(run_id, scene_id, config_id);
+    while (s.step()) {
+        cast.push_back(s.real(0));
+        update.push_back(s.real(1));
+    }
+    if (cast.empty()) return;
+    const RepetitionInterval c = repetition_interval(cast), u = repetition_interval(update);
+    const auto bound = [](const RepetitionInterval& r, double v) {
+        return r.has_interval() ? std::optional<double>(v) : std::nullopt;
+    };
+    db.prepare(
+          "INSERT OR REPLACE INTO cell_interval(run_id, scene_id, config_id, repetitions, raycast_ns_median, "
+          "raycast_ns_low, raycast_ns_high, update_ns_median, update_ns_low, update_ns_high) VALUES "
+          "(?,?,?,?,?,?,?,?,?,?)")
+        .bind_all(run_id, scene_id, config_id, std::int64_t(c.repetitions), c.median, bound(c, c.low), bound(c, c.high),
+                  u.median, bound(u, u.low), bound(u, u.high))
+        .run();
+}
+
+}  // namespace
+
+void store_cell_intervals(Database& db, std::int64_t run_id) {
+    db.prepare("DELETE FROM cell_interval WHERE run_id = ?").bind_all(run_id).run();
+    std::vector<std::pair<std::int64_t, std::int64_t>> pairs;
+    Statement s = db.prepare("SELECT DISTINCT scene_id, config_id FROM cell WHERE run_id = ?");
+    s.bind(1, run_id);
+    while (s.step()) pairs.emplace_back(s.int64(0), s.int64(1));
+    for (const auto& pair : pairs) store_cell_interval(db, run_id, pair.first, pair.second);
+}
+
+std::vector<CellInterval> cell_intervals(Database& db, std::int64_t run_id) {
+    std::vector<CellInterval> out;
+    Statement s = db.prepare("SELECT " + std::string(kSceneLabelSql) +
+                             ", config.structure, config.params, repetitions, raycast_ns_median, raycast_ns_low, "
+                             "raycast_ns_high, update_ns_median, update_ns_low, update_ns_high FROM cell_interval "
+                             "JOIN scene ON scene.id = cell_interval.scene_id "
+                             "JOIN config ON config.id = cell_interval.config_id WHERE run_id = ?");
+    s.bind(1, run_id);
+    while (s.step()) {
+        CellInterval row{s.text(0), s.text(1), nlohmann::json::parse(s.text(2)), {}, {}};
+        for (int k = 0; k < 2; ++k) {
+            RepetitionInterval& r = k == 0 ? row.raycast : row.update;
+            const int at = 4 + 3 * k;
+            r.repetitions = std::size_t(s.int64(3));
+            r.median = s.real(at);
+            r.low = s.is_null(at + 1) ? r.median : s.real(at + 1);
+            r.high = s.is_null(at + 2) ? r.median : s.real(at + 2);
+        }
+        out.push_back(std::move(row));
+    }
+    return out;
+}
+
 bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell, const SceneSpec& spec,
                              const Recording& r, const std::string& scene_hash, const SimulationResult& res,
                              const std::optional<MachineState>& state) {
@@ -696,6 +787,7 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
                           std::int64_t(k.counters.n_th), std::int64_t(k.counters.n_mp))
                 .run();
     }
+    store_cell_interval(db_, run_id, scene, config);
     t.commit();
     return true;
 }

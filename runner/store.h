@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "core/base/repetition_interval.h"
 #include "core/sim/scene_features.h"
 #include "core/sim/simulator.h"
 #include "runner/experiment.h"
@@ -126,6 +127,21 @@ struct CellSummary {
 };
 /// The cells of a run.
 std::vector<CellSummary> cell_summaries(Database& db, std::int64_t run_id);
+
+/// A (scene, configuration)'s time over its repetitions in one run (table cell_interval): the
+/// median of the repetitions' ray-cast and update medians and the 95% interval between
+/// repetitions (core/base/repetition_interval.h). Below two repetitions low = high = median.
+struct CellInterval {
+    std::string scene, structure;
+    nlohmann::json params;
+    RepetitionInterval raycast, update;
+};
+/// The cell_interval rows of a run.
+std::vector<CellInterval> cell_intervals(Database& db, std::int64_t run_id);
+/// Rewrites the run's cell_interval rows from its stored cells, one per (scene, configuration).
+/// Runs in the caller's transaction (store_cell does this for the cell's pair; merge for each run
+/// it adds cells to).
+void store_cell_intervals(Database& db, std::int64_t run_id);
 
 /// Opens an existing database read-only; refuses a newer schema; an older one is read through a
 /// migrated copy in memory (the file is not changed); InputError if it does not exist.

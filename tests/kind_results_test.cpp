@@ -186,7 +186,7 @@ using test::count;
 TEST(KindResults, FrameKindMigratesIsStoredForFramesWithKindsAndSurvivesMerge) {
     const test::TempDir temp("kinds", "store");
     const std::string a = temp.file("a.db"), b = temp.file("b.db");
-    { ResultStore old(a, latest_schema_version() - 1); }  // the schema before frame_kind
+    { ResultStore old(a, 10); }  // the schema before frame_kind
     const Experiment e =
         parse_experiment(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "ug"}]})", "kinds", ".");
     const Recording mixed = mixed_recording();

@@ -45,7 +45,14 @@ TEST(Experiment, ValidationNamesTheJsonPath) {
     EXPECT_EQ(
         error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frame": 3})"),
         "exp.json: frame: unknown key (known: description, frames, max_repetitions, name, ray_mix, rays_per_frame, "
-        "repeat_spread, repetitions, scenes, seeds, structures, threads, verify, warmup_frames)");
+        "repeat_interval, repetitions, scenes, seeds, structures, threads, verify, warmup_frames)");
+    // The range criterion's old key is refused by name, pointing to the new one.
+    EXPECT_EQ(
+        error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "repeat_spread": 0.05})"),
+        "exp.json: repeat_spread: replaced by repeat_interval (the 95% interval's half-width over repetitions as a "
+        "fraction of the median; experiments/README.md)");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "repeat_interval": -1})"),
+              "exp.json: repeat_interval: expected a number in 0..10, got -1");
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frames": "ten"})"),
               "exp.json: frames: expected an integer in 1..1000000, got \"ten\"");
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}, {"preset": "uni-q"}], "structures": [{"name": "bf"}]})")

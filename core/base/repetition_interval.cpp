@@ -1,0 +1,59 @@
+#include "core/base/repetition_interval.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+namespace rcb {
+
+double RepetitionInterval::relative_half_width() const {
+    if (!has_interval()) return std::numeric_limits<double>::infinity();
+    const double half = (high - low) / 2;
+    if (half <= 0) return 0;
+    return median > 0 ? half / median : std::numeric_limits<double>::infinity();
+}
+
+double student_t_975(std::size_t df) {
+    // t(0.975, df) for df = 1..30, to 6 decimals.
+    static constexpr std::array<double, 30> kTable = {
+        12.706205, 4.302653, 3.182446, 2.776445, 2.570582, 2.446912, 2.364624, 2.306004, 2.262157, 2.228139,
+        2.200985,  2.178813, 2.160369, 2.144787, 2.131450, 2.119905, 2.109816, 2.100922, 2.093024, 2.085963,
+        2.079614,  2.073873, 2.068658, 2.063899, 2.059539, 2.055529, 2.051831, 2.048407, 2.045230, 2.042272};
+    if (df == 0) return std::numeric_limits<double>::infinity();
+    if (df <= kTable.size()) return kTable[df - 1];
+    // Abramowitz and Stegun 26.7.5: t ≈ z + g1/ν + g2/ν² + g3/ν³ + g4/ν⁴, z the normal quantile.
+    const double z = 1.959963984540054, v = double(df);
+    const double z2 = z * z, z3 = z2 * z, z5 = z3 * z2, z7 = z5 * z2, z9 = z7 * z2;
+    const double g1 = (z3 + z) / 4;
+    const double g2 = (5 * z5 + 16 * z3 + 3 * z) / 96;
+    const double g3 = (3 * z7 + 19 * z5 + 17 * z3 - 15 * z) / 384;
+    const double g4 = (79 * z9 + 776 * z7 + 1482 * z5 - 1920 * z3 - 945 * z) / 92160;
+    return z + g1 / v + g2 / (v * v) + g3 / (v * v * v) + g4 / (v * v * v * v);
+}
+
+RepetitionInterval repetition_interval(std::vector<double> values) {
+    RepetitionInterval r;
+    r.repetitions = values.size();
+    if (values.empty()) return r;
+    std::sort(values.begin(), values.end());
+    const std::size_t n = values.size();
+    r.median = n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+    r.low = r.high = r.median;
+    if (n < 2 || values.front() == values.back()) return r;
+    const bool logs = values.front() > 0;
+    std::vector<double> x = values;
+    if (logs)
+        for (double& v : x) v = std::log(v);
+    double mean = 0;
+    for (double v : x) mean += v;
+    mean /= double(n);
+    double squares = 0;
+    for (double v : x) squares += (v - mean) * (v - mean);
+    const double half = student_t_975(n - 1) * std::sqrt(squares / double(n - 1)) / std::sqrt(double(n));
+    r.low = logs ? std::exp(mean - half) : mean - half;
+    r.high = logs ? std::exp(mean + half) : mean + half;
+    return r;
+}
+
+}  // namespace rcb

@@ -1,0 +1,49 @@
+#pragma once
+/// A cell's time over its repetitions: the median of the per-repetition medians with a 95%
+/// interval that reflects the spread between repetitions, not between frames. Frames within one
+/// repetition run back to back and share the machine's state of that moment (the host's memory
+/// system drifts over minutes), so an interval over frames is falsely narrow; the repetitions,
+/// spread over the whole run, are the independent samples (Kalibera and Jones, "Rigorous
+/// Benchmarking in Reasonable Time", ISMM 2013: the interval belongs at the level whose variation
+/// dominates).
+///
+/// The interval is Student's t on the logarithms of the repetitions' medians, back-transformed:
+/// exp(m ± t(0.975, n−1) · s / √n) with m and s the mean and standard deviation of the logs. Times
+/// are positive and their drift multiplies, so the logs are the scale where it is symmetric. A
+/// distribution-free interval of the median (the order statistics of Conover's §3.2, which the
+/// frames' intervals use) reaches 95% only from 6 values: from 2 to 5 repetitions it is the whole
+/// range, which covers the median with probability 1 − 2^(1−n), 50% at n = 2, so a rule that adds
+/// repetitions where the interval is wide would stop at two agreeing repetitions by luck. The t
+/// interval is honest at n = 2 (t = 12.71, wide) and narrows as repetitions are added.
+///
+/// Pure arithmetic: the runner decides with it which cells get another repetition, the store keeps
+/// it per (run, scene, configuration).
+
+#include <cstddef>
+#include <vector>
+
+namespace rcb {
+
+struct RepetitionInterval {
+    std::size_t repetitions = 0;
+    double median = 0;         ///< of the values (0 when there are none)
+    double low = 0, high = 0;  ///< the 95% interval; only meaningful from two values (has_interval)
+
+    bool has_interval() const { return repetitions >= 2; }
+    /// (high − low) / 2 / median: the interval's half-width as a fraction of the median. Infinite
+    /// below two values (one repetition says nothing about the next) and where the median is 0 but
+    /// the interval is not a point; 0 where every value is equal.
+    double relative_half_width() const;
+};
+
+/// The 0.975 quantile of Student's t with `df` ≥ 1 degrees of freedom: a table to 30 (exact to the
+/// 6 decimals shown), then the Cornish–Fisher expansion about the normal quantile (Abramowitz and
+/// Stegun 26.7.5, four terms; within 1e-7 of the exact value from 30 on).
+double student_t_975(std::size_t df);
+
+/// The interval of `values` (one median per repetition). Values must be finite. When one is 0 or
+/// negative (a made-up or empty phase), the t interval is taken on the values themselves instead of
+/// their logs.
+RepetitionInterval repetition_interval(std::vector<double> values);
+
+}  // namespace rcb
