@@ -242,6 +242,20 @@ std::vector<Segment> row_rays() {
 }
 const std::vector<Uid> kRowFirst{0, Uid(kRowBoxes - 1)};
 
+/// One segment cast as all hits, closest hit and any hit: the counters and the answers of each.
+struct EachKind {
+    Counters all, closest, any;
+    HitLists every, nearest, some;
+};
+EachKind cast_each_kind(Structure& s, const Segment& ray) {
+    const std::vector<Segment> one{ray};
+    EachKind k;
+    s.cast_counted(one, k.every, k.all);
+    s.cast_counted(one, std::vector<QueryKind>{QueryKind::closest}, k.nearest, k.closest);
+    s.cast_counted(one, std::vector<QueryKind>{QueryKind::any}, k.some, k.any);
+    return k;
+}
+
 TEST(QueryKinds, TreesPruneClosestAndAnyAlongARowOfBoxes) {
     constexpr int kBoxes = kRowBoxes;
     const std::vector<Object> objects = row_of_boxes();
@@ -253,12 +267,7 @@ TEST(QueryKinds, TreesPruneClosestAndAnyAlongARowOfBoxes) {
         s->commit();
         for (std::size_t r = 0; r < rays.size(); ++r) {
             const std::string where = std::string(name) + " ray " + std::to_string(r);
-            const std::vector<Segment> one{rays[r]};
-            Counters all, closest, any;
-            HitLists every, nearest, some;
-            s->cast_counted(one, every, all);
-            s->cast_counted(one, std::vector<QueryKind>{QueryKind::closest}, nearest, closest);
-            s->cast_counted(one, std::vector<QueryKind>{QueryKind::any}, some, any);
+            const auto [all, closest, any, every, nearest, some] = cast_each_kind(*s, rays[r]);
             ASSERT_EQ(every.uids.size(), std::size_t(kBoxes)) << where;
             ASSERT_EQ(nearest.uids, std::vector<Uid>{first[r]}) << where;
             ASSERT_EQ(some.uids.size(), 1u) << where;
@@ -293,12 +302,7 @@ TEST(QueryKinds, GridsPruneClosestAndAnyAlongARowOfBoxes) {
         }
         for (std::size_t r = 0; r < rays.size(); ++r) {
             const std::string where = name + ' ' + params.dump() + " ray " + std::to_string(r);
-            const std::vector<Segment> one{rays[r]};
-            Counters all, closest, any;
-            HitLists every, nearest, some;
-            s->cast_counted(one, every, all);
-            s->cast_counted(one, std::vector<QueryKind>{QueryKind::closest}, nearest, closest);
-            s->cast_counted(one, std::vector<QueryKind>{QueryKind::any}, some, any);
+            const auto [all, closest, any, every, nearest, some] = cast_each_kind(*s, rays[r]);
             ASSERT_EQ(every.uids.size(), std::size_t(kRowBoxes)) << where;
             ASSERT_EQ(nearest.uids, std::vector<Uid>{kRowFirst[r]}) << where;
             ASSERT_EQ(some.uids.size(), 1u) << where;
