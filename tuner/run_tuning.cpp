@@ -152,19 +152,6 @@ std::vector<SurfaceReplay> replay_search_on_surface(const std::vector<SearchDime
     return out;
 }
 
-SpaceSurvey survey_space(const std::vector<json>& all, const CostCoefficients& coefficients,
-                         const std::function<CountingReplay(const json&)>& replay) {
-    SpaceSurvey out;
-    std::vector<ReplayCounts> counts;
-    for (const json& p : all) {
-        out.replays.push_back(replay(p));
-        out.predicted.push_back(replay_cost(coefficients, out.replays.back()));
-        counts.push_back(out.replays.back().counts);
-    }
-    out.class_of = equality_classes(counts, [](const ReplayCounts& a, const ReplayCounts& b) { return a == b; });
-    return out;
-}
-
 namespace {
 
 /// The output files of a tuning, checked before any work (InputError naming the option).
@@ -361,8 +348,12 @@ ExhaustiveCheck check_exhaustively(const TuneSpec& spec, const TuneCategory& cat
         Predictor p = calibrate_predictor(spec, category, st.structure, &priors);
         coefficients = p.coefficients, ex.model = p.model, model_timed = p.measurements;
     }
+    // The space is replayed once: the ranked method's replays where the tuning ran it (the same
+    // space, in its order), else one replay per configuration here.
+    const bool replayed = st.space_replays.size() == all.size();
+    std::size_t next = 0;
     const SpaceSurvey survey = survey_space(all, coefficients, [&](const json& p) {
-        return counting_replay(category, st.structure, p, spec.warmup_frames);
+        return replayed ? st.space_replays[next++] : counting_replay(category, st.structure, p, spec.warmup_frames);
     });
     for (std::size_t i = 0; i < all.size(); ++i) ex.surface[i]["predicted_ms"] = survey.predicted[i];
     ex.spearman = spearman(survey.predicted, measured);

@@ -61,20 +61,6 @@ std::vector<SurfaceReplay> replay_search_on_surface(const std::vector<SearchDime
                                                     std::uint64_t first_seed, std::size_t seeds,
                                                     const nlohmann::json& start);
 
-/// Every configuration of a space replayed once (counting, untimed) for the exhaustive check:
-/// priced by the prediction's coefficients (its ranking and the equal-budget model column), and
-/// grouped into structures in effect by the same replay's counts (equal counts: one structure in
-/// effect, e.g. a hash grid of depth 0 whatever its capacity).
-struct SpaceSurvey {
-    std::vector<double> predicted;        ///< replay_cost of each configuration, in the space's order
-    std::vector<std::size_t> class_of;    ///< equality_classes of the replays' counts
-    std::vector<CountingReplay> replays;  ///< the replays themselves, for the ranked method's models
-};
-/// `replay` is counting_replay bound to a category, structure and warm-up (tests inject another);
-/// it is called once per configuration of `all`.
-SpaceSurvey survey_space(const std::vector<nlohmann::json>& all, const CostCoefficients& coefficients,
-                         const std::function<CountingReplay(const nlohmann::json&)>& replay);
-
 /// The searched parameters of a candidate, "density=4 outlier_guard=true".
 std::string searched_parameters(const TuneSpec& spec, const Candidate& candidate);
 

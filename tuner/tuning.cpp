@@ -597,6 +597,19 @@ std::function<const ModelInputs&()> priors_of(MachinePriors* priors, const std::
 
 }  // namespace
 
+SpaceSurvey survey_space(const std::vector<json>& all, const CostCoefficients& coefficients,
+                         const std::function<CountingReplay(const json&)>& replay) {
+    SpaceSurvey out;
+    std::vector<ReplayCounts> counts;
+    for (const json& p : all) {
+        out.replays.push_back(replay(p));
+        out.predicted.push_back(replay_cost(coefficients, out.replays.back()));
+        counts.push_back(out.replays.back().counts);
+    }
+    out.class_of = equality_classes(counts, [](const ReplayCounts& a, const ReplayCounts& b) { return a == b; });
+    return out;
+}
+
 std::optional<std::vector<double>> refit_predictions(const std::vector<FrameObservation>& frames,
                                                      std::size_t timed_configurations,
                                                      const std::vector<CountingReplay>& replays, MachinePriors* priors,
@@ -694,23 +707,15 @@ SearchResult ranked_tuning(const TuneSpec& spec, const TuneCategory& category, c
                            const std::vector<FrameObservation>& observed, StructureTuning& st) {
     const std::vector<SearchDimension>& dims = spec.space.at(structure);
     const std::vector<json> all = enumerate_space(dims);
-    std::vector<CountingReplay> replays;
-    std::vector<ReplayCounts> counts;
-    std::vector<double> predicted;
-    for (const json& p : all) {
-        replays.push_back(counting_replay(category, structure, p, spec.warmup_frames));
-        predicted.push_back(replay_cost(prior, replays.back()));
-        counts.push_back(replays.back().counts);
-    }
-    st.replays = all.size();
-    const std::vector<std::size_t> class_of =
-        equality_classes(counts, [](const ReplayCounts& a, const ReplayCounts& b) { return a == b; });
+    SpaceSurvey survey = survey_space(
+        all, prior, [&](const json& p) { return counting_replay(category, structure, p, spec.warmup_frames); });
     const RankedResult r = rank_then_time(
-        class_of, predicted, spec.budget,
+        survey.class_of, survey.predicted, spec.budget,
         [&](std::size_t i) { return constrained_cost(*measure(all[i]).measured, spec.accuracy); },
         [&](const std::vector<std::size_t>& timed) {
-            return refit_predictions(observed, timed.size(), replays, priors, structure);
+            return refit_predictions(observed, timed.size(), survey.replays, priors, structure);
         });
+    st.space_replays = std::move(survey.replays);
     st.refits = r.refits;
     SearchResult out;
     out.algorithm = "ranked by the cost model, the best-ranked timed (start: " + prior.model + ")";

@@ -103,6 +103,28 @@ struct Candidate {
 // fitted on one set of scenes, they price the counters of another (what advise does with a
 // tuning's model on an unseen scene).
 
+/// What a replay counted over its measured frames and scenes. Two configurations with equal
+/// counts are one structure in effect (a hash grid of depth 0 ignores its capacity and
+/// subdivision), so measuring both tells nothing new.
+struct ReplayCounts {
+    Counters counters;  ///< summed over the measured frames of every scene
+    std::uint64_t memory_bytes = 0;
+    friend bool operator==(const ReplayCounts&, const ReplayCounts&) = default;
+};
+
+/// An untimed counting replay of a configuration on a category (no timed rays, no verification):
+/// what predict_cost prices. One replay serves every use of a configuration's counts (the
+/// exhaustive check prices each configuration and compares their counts from the same replay).
+struct CountingReplay {
+    /// A measured frame that cast rays: the replay's own (timed) update and the counted rays.
+    struct Frame {
+        double update_ns = 0, rays = 0;
+        FrameObservation observation;  ///< observation_of the frame: what the coefficients price
+    };
+    std::vector<std::vector<Frame>> scenes;  ///< one entry per scene of the category, in its order
+    ReplayCounts counts;                     ///< summed over every scene's measured frames
+};
+
 struct StructureTuning {
     std::string structure;
     std::string mode;
@@ -118,9 +140,10 @@ struct StructureTuning {
     std::optional<CostCoefficients> cost_model;
     double seconds = 0;
     std::size_t measurements = 0;  ///< simulator runs of the measured kind
-    /// The ranked method's untimed counting replays, one per configuration of the space (each on
-    /// every scene of the category); 0 where the search ran instead.
-    std::size_t replays = 0;
+    /// The ranked method's untimed counting replays, one per configuration of the space in its
+    /// order (each on every scene of the category); empty where the search ran instead. The
+    /// exhaustive check prices these rather than replaying the space again.
+    std::vector<CountingReplay> space_replays;
     std::size_t refits = 0;  ///< timings after which the ranked method refitted its model
 };
 
@@ -210,27 +233,6 @@ inline constexpr std::size_t kRankedSpaceLimit = 1024;
 /// file's smallest calibration.
 inline constexpr std::size_t kMinRefitConfigurations = 3;
 
-/// What a replay counted over its measured frames and scenes. Two configurations with equal
-/// counts are one structure in effect (a hash grid of depth 0 ignores its capacity and
-/// subdivision), so measuring both tells nothing new.
-struct ReplayCounts {
-    Counters counters;  ///< summed over the measured frames of every scene
-    std::uint64_t memory_bytes = 0;
-    friend bool operator==(const ReplayCounts&, const ReplayCounts&) = default;
-};
-
-/// An untimed counting replay of a configuration on a category (no timed rays, no verification):
-/// what predict_cost prices. One replay serves every use of a configuration's counts (the
-/// exhaustive check prices each configuration and compares their counts from the same replay).
-struct CountingReplay {
-    /// A measured frame that cast rays: the replay's own (timed) update and the counted rays.
-    struct Frame {
-        double update_ns = 0, rays = 0;
-        FrameObservation observation;  ///< observation_of the frame: what the coefficients price
-    };
-    std::vector<std::vector<Frame>> scenes;  ///< one entry per scene of the category, in its order
-    ReplayCounts counts;                     ///< summed over every scene's measured frames
-};
 CountingReplay counting_replay(const TuneCategory& category, const std::string& structure,
                                const nlohmann::json& searched, std::uint32_t warmup_frames);
 
@@ -246,6 +248,20 @@ std::optional<std::vector<double>> refit_predictions(const std::vector<FrameObse
                                                      std::size_t timed_configurations,
                                                      const std::vector<CountingReplay>& replays, MachinePriors* priors,
                                                      const std::string& structure);
+
+/// Every configuration of a space replayed once (counting, untimed): priced by `coefficients`
+/// (the ranked method's ranking; the exhaustive check's ranking and model column), and grouped
+/// into structures in effect by the same replay's counts (equal counts: one structure in effect,
+/// e.g. a hash grid of depth 0 whatever its capacity).
+struct SpaceSurvey {
+    std::vector<double> predicted;        ///< replay_cost of each configuration, in the space's order
+    std::vector<std::size_t> class_of;    ///< equality_classes of the replays' counts
+    std::vector<CountingReplay> replays;  ///< the replays themselves, for the ranked method's refits
+};
+/// `replay` is counting_replay bound to a category, structure and warm-up (tests inject another);
+/// it is called once per configuration of `all`.
+SpaceSurvey survey_space(const std::vector<nlohmann::json>& all, const CostCoefficients& coefficients,
+                         const std::function<CountingReplay(const nlohmann::json&)>& replay);
 
 /// The predicted cost of a configuration (searched parameters) on `category`: replay_cost of its
 /// counting_replay. `counts`, when given, receives what the replay counted.
