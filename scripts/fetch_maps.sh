@@ -3,6 +3,9 @@
 # maps or models):
 #   data/maps/*.pk3    OpenArena 0.8.1 maps from Debian's openarena-081-maps package (GPL-2 data)
 #   data/models/...    assimp's own test models from Debian's assimp-testmodels package
+# With the argument `unseen`, also:
+#   data/maps-unseen/z_oacmp-volume1-v3.pk3   the maps of Debian's openarena-oacmp1 package, which
+#                      no model, tuner or advice rule was designed on (experiments/tune-suite-fresh.json)
 # Uses `apt-get download` (no root needed: only the .deb is fetched, nothing is installed) and
 # `dpkg-deb -x` to unpack. Run it again to re-fetch; it skips what is already there.
 set -euo pipefail
@@ -25,3 +28,10 @@ fetch assimp-testmodels data/.debs/assimp-testmodels
 models=$(find data/.debs/assimp-testmodels -type d -path '*/models' | head -n 1)
 if [ -n "$models" ]; then cp -ru "$models"/. data/models/; fi
 echo "fetch_maps: $(find data/models -type f | wc -l) model files in data/models/"
+
+if [ "${1:-}" = unseen ]; then
+  fetch openarena-oacmp1 data/.debs/openarena-oacmp1
+  mkdir -p data/maps-unseen
+  find data/.debs/openarena-oacmp1 -name 'z_oacmp-volume1-v3.pk3' -exec cp -u {} data/maps-unseen/ \;
+  echo "fetch_maps: $(ls data/maps-unseen/*.pk3 | wc -l) pk3 files in data/maps-unseen/"
+fi
