@@ -691,9 +691,8 @@ void WideBvh::refit() {
 }
 
 void WideBvh::commit() {
+    refit_blocks_ = refit_lanes_ = 0;
     refit();
-    last_refit_blocks_ = std::exchange(refit_blocks_, 0);
-    last_refit_lanes_ = std::exchange(refit_lanes_, 0);
     rebuild_.open_commit();
     if (!changed_) return;
     changed_ = false;
@@ -975,9 +974,9 @@ nlohmann::json WideBvh::stats() const {
     // starts at commit once this reaches rebuild_after.
     stats["rebuild_age"] = where_.empty() ? 0.0 : age_ / double(where_.size());
     // The last commit's refit: blocks whose box it computed (each at most once), and the lanes of
-    // their parents it rewrote.
-    stats["refit_blocks"] = last_refit_blocks_;
-    stats["refit_lanes"] = last_refit_lanes_;
+    // their parents it rewrote (with any refit a query's prepare ran after it).
+    stats["refit_blocks"] = refit_blocks_;
+    stats["refit_lanes"] = refit_lanes_;
     rebuild_.add_stats(stats);
     return stats;
 }

@@ -556,9 +556,8 @@ private:
     double age_ = 0;  // weighted changes since the live tree's objects were gathered
     // Stats.
     std::uint32_t rebuilds_ = 0, splits_ = 0, reinserts_ = 0;
-    // Blocks refitted and parent lanes rewritten since the last commit began, and by it (stats).
+    // Blocks refitted and parent lanes rewritten since the last commit began (stats).
     std::uint64_t refit_blocks_ = 0, refit_lanes_ = 0;
-    std::uint64_t last_refit_blocks_ = 0, last_refit_lanes_ = 0;
 
     Builder builder_;             // builds this tree
     ProgressiveRebuild rebuild_;  // builds the next one while this one answers
