@@ -529,26 +529,15 @@ std::string cell_key(const Experiment& e, std::size_t scene, std::size_t config,
 
 std::vector<Cell> repetition_cells(const Experiment& e, std::uint32_t repetition,
                                    const std::vector<std::pair<std::size_t, std::size_t>>& pairs) {
-    // The scenes in a shuffled order, and within each scene its configurations in a shuffled order,
-    // drawn from the file's hash and the repetition (the same file gives the same order): a cell's
-    // place in the run, and so what ran just before it, changes from repetition to repetition
-    // (Mytkowicz et al. 2009 on measurement bias from a fixed setup).
+    // Every cell of the repetition in a shuffled order drawn from the file's hash and the
+    // repetition (the same file gives the same order), the scenes interleaved: what ran just before
+    // a cell changes from repetition to repetition (Mytkowicz et al. 2009 on measurement bias from
+    // a fixed setup), and a stretch of minutes in which the machine runs slow falls on cells of
+    // many scenes rather than on one scene's (docs/model.md, "How well two runs agree").
     Random rng(mix_seed(std::stoull(e.hash, nullptr, 16), repetition));
-    std::vector<std::size_t> scene_rank(e.scenes.size());
-    std::iota(scene_rank.begin(), scene_rank.end(), std::size_t{0});
-    rng.shuffle(scene_rank);
-    std::vector<std::vector<std::size_t>> config_rank(e.scenes.size());
-    for (auto& ranks : config_rank) {
-        ranks.resize(e.configs.size());
-        std::iota(ranks.begin(), ranks.end(), std::size_t{0});
-        rng.shuffle(ranks);
-    }
     std::vector<Cell> cells;
     for (const auto& [s, c] : pairs) cells.push_back({s, c, repetition, cell_key(e, s, c, repetition)});
-    std::sort(cells.begin(), cells.end(), [&](const Cell& a, const Cell& b) {
-        if (a.scene != b.scene) return scene_rank[a.scene] < scene_rank[b.scene];
-        return config_rank[a.scene][a.config] < config_rank[b.scene][b.config];
-    });
+    rng.shuffle(cells);
     return cells;
 }
 

@@ -62,18 +62,18 @@ struct Experiment {
     bool verify = true;
     std::vector<SceneSpec> scenes;
     std::vector<ConfigSpec> configs;
-    /// Repetition-major: repetition r of every cell (scene × configuration, scene by scene) runs
-    /// before repetition r + 1 of any, so the repetitions of one cell are spread over the whole
-    /// run and their spread measures the machine's drift (the noise floor), which then biases no
-    /// ratio. Each repetition visits the scenes, and each scene's configurations, in its own
-    /// seeded order (repetition_cells). Each scene is loaded once per repetition.
+    /// Repetition-major: repetition r of every cell (scene × configuration) runs before
+    /// repetition r + 1 of any, so the repetitions of one cell are spread over the whole run and
+    /// their spread measures the machine's drift (the noise floor), which then biases no ratio.
+    /// Each repetition visits every cell in its own seeded order, the scenes' cells interleaved
+    /// (repetition_cells); the runner loads each scene once per run and keeps it.
     std::vector<Cell> plan;
 };
 
 /// The stable key of a cell: a hash of (scene key, structure, params, repetition).
 std::string cell_key(const Experiment& e, std::size_t scene, std::size_t config, std::uint32_t repetition);
 /// Repetition `repetition` of the given (scene, configuration) pairs, in that repetition's order:
-/// scenes shuffled, and each scene's configurations shuffled, seeded by the file's hash and the
+/// every cell shuffled, the scenes' cells interleaved, seeded by the file's hash and the
 /// repetition.
 std::vector<Cell> repetition_cells(const Experiment& e, std::uint32_t repetition,
                                    const std::vector<std::pair<std::size_t, std::size_t>>& pairs);

@@ -207,7 +207,7 @@ public:
             if (done.count(c.key) || store_.cell_done(out_.run, c.key)) continue;
             const SceneSpec& scene = e_.scenes[c.scene];
             const ConfigSpec& config = e_.configs[c.config];
-            load(c.scene);
+            const LoadedScene& loaded = load(c.scene);
             if (progress)
                 progress(out_.ran, todo,
                          scene.name + "  " + config_label(config) + "  rep " + std::to_string(c.repetition));
@@ -219,7 +219,7 @@ public:
                 state = settled_machine_state(calibration_samples_, memory_samples_, measured_ / 20 - waited_);
                 waited_ += state.resampled * kResampleWait;
                 const auto start = std::chrono::steady_clock::now();
-                res = simulate(recording_, find_structure(config.structure), config.params, sim_);
+                res = simulate(loaded.recording, find_structure(config.structure), config.params, sim_);
                 measured_ += std::chrono::steady_clock::now() - start;
                 if (timing_) timing_(res);
             } catch (const InputError& err) {
@@ -227,24 +227,32 @@ public:
             }
             out_.mismatches += res.mismatches();
             out_.resampled += state.resampled > 0;
-            store_.store_cell(out_.run, experiment_, c, scene, recording_, scene_hash_, res, state);
+            store_.store_cell(out_.run, experiment_, c, scene, loaded.recording, loaded.hash, res, state);
             ++out_.ran;
         }
     }
 
 private:
-    // Consecutive cells of a scene share one load.
-    void load(std::size_t index) {
-        if (loaded_ == index) return;
+    /// A scene as loaded: generated, imported or read once per run and kept, since a repetition
+    /// visits the scenes' cells interleaved.
+    struct LoadedScene {
+        Recording recording;
+        std::string hash;
+    };
+
+    const LoadedScene& load(std::size_t index) {
+        const auto it = loaded_.find(index);
+        if (it != loaded_.end()) return it->second;
         const SceneSpec& scene = e_.scenes[index];
+        LoadedScene l;
         try {
-            recording_ = load_scene(scene);
+            l.recording = load_scene(scene);
         } catch (const InputError& err) {
             throw InputError(source_ + ": scene " + scene.name + ": " + err.what());
         }
-        scene_hash_ = recording_hash(recording_);
-        loaded_ = index;
-        check_loaded_scene(e_, index, recording_, scene_hash_, scene_by_hash_, source_);
+        l.hash = recording_hash(l.recording);
+        check_loaded_scene(e_, index, l.recording, l.hash, scene_by_hash_, source_);
+        return loaded_.emplace(index, std::move(l)).first->second;
     }
 
     const Experiment& e_;
@@ -254,9 +262,7 @@ private:
     std::int64_t experiment_;
     std::function<void(SimulationResult&)> timing_;
     SimulationOptions sim_;
-    std::size_t loaded_ = SIZE_MAX;
-    Recording recording_;
-    std::string scene_hash_;
+    std::map<std::size_t, LoadedScene> loaded_;
     std::map<std::string, std::size_t> scene_by_hash_;
     std::vector<double> calibration_samples_, memory_samples_;
     std::chrono::nanoseconds measured_{0}, waited_{0};
