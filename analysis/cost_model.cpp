@@ -744,29 +744,6 @@ std::vector<CostBreakdown> cost_breakdown(const std::vector<FrameObservation>& f
     return out;
 }
 
-std::optional<CostCoefficients> stored_raycast_coefficients(Database& db, std::int64_t run,
-                                                            const std::string& structure, const std::string& category) {
-    Statement s = db.prepare(
-        "SELECT fit.model AS model, fit_coefficient.name AS name, fit_coefficient.value AS value FROM fit JOIN "
-        "fit_coefficient ON fit_coefficient.fit_id = fit.id "
-        "WHERE fit.run_id = ? AND fit.structure = ? AND fit.target = 'raycast' AND fit.chosen = 1");
-    s.bind_all(run, structure);
-    const NamedColumns col(s);
-    std::string model;
-    std::vector<Coefficient> fitted;
-    while (s.step()) {
-        model = s.text(col["model"]);
-        Coefficient c;
-        c.name = s.text(col["name"]);
-        c.value = s.real(col["value"]);
-        fitted.push_back(c);
-    }
-    if (fitted.empty()) return std::nullopt;
-    CostCoefficients out = CostCoefficients::from_fit(fitted, category);
-    out.model = model;
-    return out;
-}
-
 BreakdownColumns breakdown_columns(const std::vector<CostBreakdown>& breakdown, const std::string& times) {
     // Which terms show: every one of kind product and value; where_priced and where_counted where
     // some row prices or counts them. Then the thesis' columns: the always-shown terms' counts (N_RB

@@ -164,11 +164,6 @@ struct RunFit {
 };
 RunFit fit_run(Database& db, std::int64_t run);
 
-/// The stored, chosen ray-cast coefficients of a structure for a run (what findings compare);
-/// from a per-category model, those of `category` ("uniform", "irregular", …).
-std::optional<CostCoefficients> stored_raycast_coefficients(Database& db, std::int64_t run,
-                                                            const std::string& structure, const std::string& category);
-
 /// "uniform", "irregular", "import", "recording": the category of a scene from its stored spec.
 std::string scene_category(const std::string& spec_json);
 /// The scene's ray mode from its stored spec ("center", "dense,los", …); "" when it names none.

@@ -47,15 +47,22 @@ bool contains(const std::vector<std::string>& names, const std::string& name) {
     return std::find(names.begin(), names.end(), name) != names.end();
 }
 
-/// One configuration on one scene, medians over repetitions.
+/// One configuration on one scene: per run the medians over its repetitions; over several runs the
+/// median of those, with the range over runs of the times (lo, hi).
 struct Config {
-    std::string scene, category, structure;
+    std::string scene, category, structure, ray_mix;
     nlohmann::json params;
     double objects = 0;
     double update_ms = 0, ray_ms = 0, bytes_per_object = 0;
     double n_t = 0, n_rb = 0, n_tp = 0;  ///< per ray, over frames that are not warm-up
-    double frame_ms() const { return update_ms + ray_ms; }
+    double frame = 0;                    ///< update + ray cast (over runs: the median of the runs' sums)
+    double frame_lo = 0, frame_hi = 0, ray_lo = 0, ray_hi = 0, update_lo = 0, update_hi = 0;
+    std::size_t runs = 1;  ///< runs that measured it
+    double frame_ms() const { return frame; }
 };
+
+/// The thesis cast dense rays (from the centre towards the densest region) for Tables 6.3 and 6.4.
+bool dense_rays(const Config& c) { return c.ray_mix.find("dense") != std::string::npos; }
 
 double median(std::vector<double> v) { return spread_of(std::move(v)).median; }
 
@@ -87,6 +94,7 @@ std::vector<Config> load_configs(Database& db, std::int64_t run) {
         Acc& a = it->second;
         a.c.scene = s.text(0);
         a.c.category = scene_category(s.text(1));
+        a.c.ray_mix = scene_ray_mix(s.text(1));
         a.c.objects = double(s.int64(2));
         a.c.structure = structure;
         a.c.params = nlohmann::json::parse(s.text(4), nullptr, false);
@@ -102,7 +110,56 @@ std::vector<Config> load_configs(Database& db, std::int64_t run) {
         Acc& a = acc.at(key);
         a.c.update_ms = median(a.update), a.c.ray_ms = median(a.ray), a.c.bytes_per_object = median(a.bytes);
         a.c.n_t = median(a.n_t), a.c.n_rb = median(a.n_rb), a.c.n_tp = median(a.n_tp);
+        a.c.frame = a.c.frame_lo = a.c.frame_hi = a.c.update_ms + a.c.ray_ms;
+        a.c.ray_lo = a.c.ray_hi = a.c.ray_ms;
+        a.c.update_lo = a.c.update_hi = a.c.update_ms;
         out.push_back(a.c);
+    }
+    return out;
+}
+
+/// A figure over runs: the median of the runs' values and their range.
+struct OverRuns {
+    double median = 0, lo = 0, hi = 0;
+    std::size_t runs = 0;
+};
+OverRuns over_runs(const std::vector<double>& v) {
+    const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+    return {median(v), *lo, *hi, v.size()};
+}
+
+/// Each configuration over the runs (one Config per scene, structure and parameters, in the order
+/// first met): the median of its per-run figures and the range of its times. A configuration that a
+/// run lacks is summarised over the runs that have it (Config::runs says how many).
+std::vector<Config> merge_runs(const std::vector<std::vector<Config>>& runs) {
+    if (runs.size() == 1) return runs.front();
+    using Key = std::tuple<std::string, std::string, std::string>;
+    std::map<Key, std::vector<const Config*>> by;
+    std::vector<Key> order;
+    for (const std::vector<Config>& run : runs)
+        for (const Config& c : run) {
+            const Key key{c.scene, c.structure, c.params.dump()};
+            auto [it, fresh] = by.try_emplace(key);
+            if (fresh) order.push_back(key);
+            it->second.push_back(&c);
+        }
+    std::vector<Config> out;
+    for (const Key& key : order) {
+        const std::vector<const Config*>& all = by.at(key);
+        auto of = [&](double Config::*field) {
+            std::vector<double> v;
+            for (const Config* c : all) v.push_back(c->*field);
+            return over_runs(v);
+        };
+        Config m = *all.front();
+        const OverRuns frame = of(&Config::frame), ray = of(&Config::ray_ms), update = of(&Config::update_ms);
+        m.frame = frame.median, m.frame_lo = frame.lo, m.frame_hi = frame.hi;
+        m.ray_ms = ray.median, m.ray_lo = ray.lo, m.ray_hi = ray.hi;
+        m.update_ms = update.median, m.update_lo = update.lo, m.update_hi = update.hi;
+        m.bytes_per_object = of(&Config::bytes_per_object).median;
+        m.n_t = of(&Config::n_t).median, m.n_rb = of(&Config::n_rb).median, m.n_tp = of(&Config::n_tp).median;
+        m.runs = all.size();
+        out.push_back(std::move(m));
     }
     return out;
 }
@@ -144,7 +201,7 @@ std::vector<Scene> scenes_of(const std::vector<Config>& configs) {
 
 /// A claim not yet decided: the verdict stays "untested" unless the run has what it needs.
 Finding claim(std::string text, std::string source) {
-    return {std::move(text), std::move(source), Finding::Verdict::untested, "", {}};
+    return {std::move(text), std::move(source), Finding::Verdict::untested, "", {}, {}};
 }
 
 /// Confirmed when it holds everywhere it was tested, partly when somewhere, refuted when nowhere.
@@ -158,6 +215,16 @@ std::string no_large_scene(const std::string& which, const std::string& with) {
 }
 
 std::string ms(double v) { return fixed(v, v < 0.1 ? 4 : 3) + " ms"; }
+/// A time over runs: "0.449 ms [0.440–0.461]", the range over the runs that measured it; one run:
+/// "0.449 ms".
+std::string ms(double v, double lo, double hi, std::size_t runs) {
+    if (runs < 2) return ms(v);
+    const int digits = v < 0.1 ? 4 : 3;
+    return ms(v) + " [" + fixed(lo, digits) + "–" + fixed(hi, digits) + "]";
+}
+std::string frame_of(const Config& c) { return ms(c.frame_ms(), c.frame_lo, c.frame_hi, c.runs); }
+std::string rays_of(const Config& c) { return ms(c.ray_ms, c.ray_lo, c.ray_hi, c.runs); }
+std::string update_of(const Config& c) { return ms(c.update_ms, c.update_lo, c.update_hi, c.runs); }
 std::string ratio(double v) { return fixed(v, v < 10 ? 2 : 1) + "x"; }
 std::string pct(double v) { return fixed(100 * v, 0) + "%"; }
 std::string counters(const Config& c) {
@@ -170,9 +237,9 @@ std::string ranking_line(const Scene& s) {
     std::string line = s.name + " (" + fixed(s.objects, 0) + " objects): ";
     for (std::size_t i = 0; i < r.size(); ++i) {
         const Config& c = *r[i];
-        line += (i ? "; " : "") + c.structure + " " + ms(c.frame_ms()) +
-                (i ? " (" + ratio(c.frame_ms() / r[0]->frame_ms()) + ")" : "") + " [update " + ms(c.update_ms) +
-                ", rays " + ms(c.ray_ms) + "; " + counters(c) + "]";
+        line += (i ? "; " : "") + c.structure + " " + frame_of(c) +
+                (i ? " (" + ratio(c.frame_ms() / r[0]->frame_ms()) + ")" : "") + " (update " + ms(c.update_ms) +
+                ", rays " + ms(c.ray_ms) + "; " + counters(c) + ")";
     }
     return line;
 }
@@ -231,10 +298,9 @@ Finding lbvh_trade(const std::vector<Scene>& scenes) {
         const bool fast = 2 * faster_rays >= int(others.size());
         const bool slow = l.update_ms > max_update;
         fast_rays += fast, slow_updates += slow;
-        std::string line =
-            s.name + ": lbvh rays " + ms(l.ray_ms) + ", update " + ms(l.update_ms) + " (" + counters(l) + ")";
+        std::string line = s.name + ": lbvh rays " + rays_of(l) + ", update " + update_of(l) + " (" + counters(l) + ")";
         for (const Config* o : others)
-            line += "; " + o->structure + " rays " + ms(o->ray_ms) + ", update " + ms(o->update_ms);
+            line += "; " + o->structure + " rays " + rays_of(*o) + ", update " + update_of(*o);
         f.evidence.push_back(line);
     }
     if (tested == 0) {
@@ -248,7 +314,8 @@ Finding lbvh_trade(const std::vector<Scene>& scenes) {
     return f;
 }
 
-Finding full_sah(const std::vector<Config>& configs) {
+/// `configs`: the dense-ray configurations where the runs have some (`dense`), else the others.
+Finding full_sah(const std::vector<Config>& configs, bool dense) {
     Finding f = claim(
         "A DBVH rebuilt with a full SAH builder visits fewer nodes and casts about 40% faster than the "
         "incrementally built one.",
@@ -267,7 +334,7 @@ Finding full_sah(const std::vector<Config>& configs) {
         if (!inc || !reb || !(inc->ray_ms > 0)) continue;
         const double gain = 1 - reb->ray_ms / inc->ray_ms;
         gains.push_back(gain);
-        f.evidence.push_back(scene + ": rays " + ms(inc->ray_ms) + " incremental, " + ms(reb->ray_ms) + " full SAH (" +
+        f.evidence.push_back(scene + ": rays " + rays_of(*inc) + " incremental, " + rays_of(*reb) + " full SAH (" +
                              (gain >= 0 ? "-" : "+") + pct(std::abs(gain)) + "); N_T " + fixed(inc->n_t, 1) +
                              " against " + fixed(reb->n_t, 1) + " per ray");
     }
@@ -278,8 +345,9 @@ Finding full_sah(const std::vector<Config>& configs) {
     const double g = median(gains);
     f.verdict = verdict(g >= 0.25 && g <= 0.55, g > 0.10);
     f.summary = "The full-SAH DBVH casts " + pct(std::abs(g)) + (g >= 0 ? " faster" : " slower") +
-                " than the incremental one (median over " + std::to_string(gains.size()) +
-                " scenes; the thesis: about 40%).";
+                " than the incremental one (median over " + std::to_string(gains.size()) + " scenes" +
+                (dense ? " with dense rays, as the thesis cast them" : ", centre rays; the thesis cast dense rays") +
+                "; the thesis: about 40%).";
     return f;
 }
 
@@ -319,34 +387,47 @@ Finding hg_memory(const std::vector<Scene>& scenes) {
     return f;
 }
 
-Finding traversal_cost(Database& db, std::int64_t run, const std::vector<Scene>& scenes) {
+/// The form the traversal costs are compared under: the thesis' eq. 5.4, fitted for every structure
+/// by `rcbench fit` beside its chosen form (a chosen form with more terms moves C_T by what the
+/// other terms take, so chosen forms are not comparable across structures).
+constexpr const char* kCommonForm = "eq5.4";
+
+/// C_T of the common form per structure, as `rcbench fit` stored it for one run (none without a fit;
+/// a fit that did not converge, or whose terms were collinear, is left out).
+std::map<std::string, double> common_form_c_t(Database& db, std::int64_t run) {
+    Statement s = db.prepare(
+        "SELECT fit.structure, fit_coefficient.value FROM fit JOIN fit_coefficient ON fit_coefficient.fit_id = fit.id "
+        "WHERE fit.run_id = ? AND fit.target = 'raycast' AND fit.model = ? AND fit.status = 'ok' AND "
+        "fit_coefficient.name = 'C_T'");
+    s.bind_all(run, std::string(kCommonForm));
+    std::map<std::string, double> out;
+    while (s.step()) out[s.text(0)] = s.real(1);
+    return out;
+}
+
+/// `scenes`: those with dense rays where the runs have some (`dense`), else the others; `stored`:
+/// the common form's C_T per structure over the runs that have a fit.
+Finding traversal_cost(const std::map<std::string, OverRuns>& stored, const std::vector<Scene>& scenes, bool dense) {
     Finding f = claim(
         "A grid's traversal step is cheaper than a BVH's (a BVH step tests boxes), so grids win where both visit "
         "as many cells as nodes.",
         "§6.4, Table 6.3");
-    std::map<std::string, double> c_t;
-    for (const std::string& s : compared_of({Family::grid, Family::bvh})) {
-        // The chosen ray-cast model of the run's fit; per-category models give one value per category,
-        // the first (irregular before uniform) is used.
-        for (const char* cat : {"irregular", "uniform", "import", "recording"}) {
-            const auto co = stored_raycast_coefficients(db, run, s, cat);
-            if (co && (*co)["C_T"] > 0) {
-                c_t[s] = (*co)["C_T"];
-                break;
-            }
-        }
-    }
+    std::map<std::string, OverRuns> c_t;
+    for (const std::string& s : compared_of({Family::grid, Family::bvh}))
+        if (stored.count(s) && stored.at(s).median > 0) c_t[s] = stored.at(s);
     auto is_grid = [](const std::string& name) { return find_structure(name).family == Family::grid; };
     const bool grids = std::any_of(c_t.begin(), c_t.end(), [&](const auto& e) { return is_grid(e.first); });
     const bool trees = std::any_of(c_t.begin(), c_t.end(), [&](const auto& e) { return !is_grid(e.first); });
     if (!grids || !trees) {
-        f.summary = "No stored fit with a positive C_T for a grid and a BVH: run `rcbench fit` on this database.";
+        f.summary = "No stored fit of eq. 5.4 with a positive C_T for a grid and a BVH: run `rcbench fit` on the run.";
         return f;
     }
     double grid_max = 0, tree_min = INFINITY;
-    std::string line = "C_T per step (chosen fit):";
-    for (const auto& [s, v] : c_t) {
-        line += " " + s + " " + fixed(v, 2) + " ns;";
+    std::string line = "C_T per step (eq. 5.4 fitted for every structure):";
+    for (const auto& [s, over] : c_t) {
+        const double v = over.median;
+        line += " " + s + " " + fixed(v, 2) + " ns" +
+                (over.runs > 1 ? " [" + fixed(over.lo, 2) + "–" + fixed(over.hi, 2) + "]" : "") + ";";
         if (is_grid(s))
             grid_max = std::max(grid_max, v);
         else
@@ -357,10 +438,10 @@ Finding traversal_cost(Database& db, std::int64_t run, const std::vector<Scene>&
     // share of a ray (C_T·N_T) on each large scene.
     for (const Scene& sc : scenes) {
         if (sc.objects < kLargeScene) continue;
-        std::string per_ray = sc.name + ", C_T·N_T per ray:";
-        for (const auto& [name, v] : c_t)
+        std::string per_ray = sc.name + (dense ? " (dense rays)" : "") + ", C_T·N_T per ray:";
+        for (const auto& [name, over] : c_t)
             if (sc.best.count(name))
-                per_ray += " " + name + " " + fixed(v * sc.best.at(name).n_t, 0) + " ns (" +
+                per_ray += " " + name + " " + fixed(over.median * sc.best.at(name).n_t, 0) + " ns (" +
                            fixed(sc.best.at(name).n_t, 1) + " steps);";
         f.evidence.push_back(per_ray);
     }
@@ -428,6 +509,77 @@ Finding most_promising(const std::vector<Scene>& scenes) {
     return f;
 }
 
+/// Every claim on one set of configurations (one run's, or the medians over runs) and C_T.
+std::vector<Finding> evaluate_on(const std::vector<Config>& configs, const std::map<std::string, OverRuns>& c_t) {
+    std::vector<Config> centre, dense;
+    for (const Config& c : configs) (dense_rays(c) ? dense : centre).push_back(c);
+    const std::vector<Scene> scenes = scenes_of(centre);
+    return {best_on(scenes, "uniform", "ug", "The uniform grid does very well on uniform scenes.", "§6.3, Table 6.2"),
+            best_on(scenes, "irregular", "hg",
+                    "The hierarchical hash grid performs best on the larger irregular scenes.", "§6.3, Table 6.2"),
+            lbvh_trade(scenes),
+            full_sah(dense.empty() ? centre : dense, !dense.empty()),
+            hg_memory(scenes),
+            traversal_cost(c_t, dense.empty() ? scenes : scenes_of(dense), !dense.empty()),
+            small_scenes(scenes),
+            most_promising(scenes)};
+}
+
+/// "bf defaults; ug density 1, 4, 16; dbvh mode incremental, rebuild": per compared structure the
+/// parameters its measured configurations set apart from its defaults.
+std::string configurations_line(const std::vector<Config>& configs) {
+    std::string out;
+    for (const std::string& name : findings_structures()) {
+        std::map<std::string, std::vector<std::string>> values;  // key -> distinct values, in order met
+        bool measured = false;
+        const nlohmann::json defaults = find_structure(name).defaults();
+        for (const Config& c : configs) {
+            if (c.structure != name || !c.params.is_object()) continue;
+            measured = true;
+            for (const auto& [key, value] : c.params.items()) {
+                std::vector<std::string>& seen = values[key];
+                const std::string text = value.is_string() ? value.get<std::string>() : value.dump();
+                if (std::find(seen.begin(), seen.end(), text) == seen.end()) seen.push_back(text);
+            }
+        }
+        if (!measured) continue;
+        std::string set;
+        for (const auto& [key, seen] : values) {
+            const bool is_default =
+                seen.size() == 1 && defaults.contains(key) &&
+                (defaults[key].is_string() ? defaults[key].get<std::string>() : defaults[key].dump()) == seen.front();
+            if (!is_default) set += (set.empty() ? "" : ", ") + key + " " + join(seen, "/");
+        }
+        out += (out.empty() ? "" : "; ") + name + " " + (set.empty() ? "defaults" : set);
+    }
+    return out;
+}
+
+/// The runs' configurations: each run's, and the medians over runs.
+struct RunsData {
+    std::vector<std::vector<Config>> per_run;
+    std::vector<std::map<std::string, OverRuns>> c_t_per_run;
+    std::vector<Config> merged;
+    std::map<std::string, OverRuns> c_t;
+};
+
+RunsData load_runs(const std::vector<FindingsRun>& runs) {
+    RunsData d;
+    std::map<std::string, std::vector<double>> c_t;
+    for (const FindingsRun& r : runs) {
+        d.per_run.push_back(load_configs(*r.db, r.run));
+        std::map<std::string, OverRuns> one;
+        for (const auto& [name, v] : common_form_c_t(*r.db, r.run)) {
+            one[name] = over_runs({v});
+            c_t[name].push_back(v);
+        }
+        d.c_t_per_run.push_back(std::move(one));
+    }
+    d.merged = merge_runs(d.per_run);
+    for (const auto& [name, v] : c_t) d.c_t[name] = over_runs(v);
+    return d;
+}
+
 }  // namespace
 
 std::vector<std::string> findings_structures() {
@@ -448,46 +600,86 @@ const char* verdict_name(Finding::Verdict v) {
     return "";
 }
 
-std::vector<Finding> evaluate_findings(Database& db, std::int64_t run) {
-    const std::vector<Config> configs = load_configs(db, run);
-    const std::vector<Scene> scenes = scenes_of(configs);
-    return {best_on(scenes, "uniform", "ug", "The uniform grid does very well on uniform scenes.", "§6.3, Table 6.2"),
-            best_on(scenes, "irregular", "hg",
-                    "The hierarchical hash grid performs best on the larger irregular scenes.", "§6.3, Table 6.2"),
-            lbvh_trade(scenes),
-            full_sah(configs),
-            hg_memory(scenes),
-            traversal_cost(db, run, scenes),
-            small_scenes(scenes),
-            most_promising(scenes)};
+std::vector<Finding> evaluate_findings(const std::vector<FindingsRun>& runs) {
+    if (runs.empty()) throw std::logic_error("evaluate_findings: no run");
+    const RunsData d = load_runs(runs);
+    std::vector<Finding> out = evaluate_on(d.merged, d.c_t);
+    for (std::size_t r = 0; r < runs.size(); ++r) {
+        const std::vector<Finding> alone = evaluate_on(d.per_run[r], d.c_t_per_run[r]);
+        for (std::size_t k = 0; k < out.size(); ++k) out[k].per_run.push_back(alone[k].verdict);
+    }
+    return out;
 }
 
-std::string findings_markdown(Database& db, std::int64_t run, const std::vector<Finding>& findings) {
+std::vector<Finding> evaluate_findings(Database& db, std::int64_t run) { return evaluate_findings({{&db, run}}); }
+
+std::string findings_markdown(const std::vector<FindingsRun>& runs, const std::vector<Finding>& findings) {
     std::ostringstream md;
-    Statement s = db.prepare(
-        "SELECT experiment.name, run.uuid, run.started_at, run.git_commit, run.cpu_model, run.compiler FROM run "
-        "JOIN experiment ON experiment.id = run.experiment_id WHERE run.id = ?");
-    s.bind_all(run);
     md << "# Findings: the thesis' conclusions against rcbench's measurements\n\n";
-    if (s.step())
-        md << "Computed by `rcbench findings` from run " << run << " of experiment `" << s.text(0) << "` (uuid "
-           << s.text(1) << ", started " << s.text(2) << ", commit " << s.text(3) << ", " << s.text(4) << ", "
-           << s.text(5) << "). Thesis: Guo & Liao (2023), see [reference.md](reference.md). To make it again: "
-           << "`rcbench run` the experiment, `rcbench fit` the database (the traversal-cost claim reads the fit), "
-           << "then `rcbench findings`.\n\n";
+    std::string experiment;
+    std::vector<std::string> provenance;
+    for (const FindingsRun& r : runs) {
+        Statement s = r.db->prepare(
+            "SELECT experiment.name, run.uuid, run.started_at, run.git_commit, run.cpu_model, run.compiler FROM run "
+            "JOIN experiment ON experiment.id = run.experiment_id WHERE run.id = ?");
+        s.bind_all(r.run);
+        if (!s.step()) continue;
+        experiment = s.text(0);
+        provenance.push_back("run " + std::to_string(r.run) + " (uuid " + s.text(1) + ", started " + s.text(2) +
+                             ", commit " + s.text(3) + ", " + s.text(4) + ", " + s.text(5) + ")");
+    }
+    const bool several = runs.size() > 1;
+    if (several) {
+        md << "Computed by `rcbench findings` from " << runs.size() << " independent runs of experiment `" << experiment
+           << "`:\n\n";
+        for (const std::string& p : provenance) md << "- " << p << "\n";
+        md << "\n";
+    } else {
+        md << "Computed by `rcbench findings` from experiment `" << experiment << "`"
+           << (provenance.empty() ? "" : ", " + provenance.front()) << ". ";
+    }
+    md << "Thesis: Guo & Liao (2023), see [reference.md](reference.md). To make it again: `rcbench run` the "
+          "experiment (once per run), `rcbench fit` each run (the traversal-cost claim reads the fit), then "
+          "`rcbench findings` with every run.\n\n";
+    const RunsData d = load_runs(runs);
     md << "Each claim is checked on rcbench's own structures (" << join(findings_structures(), ", ")
-       << "; the registry's structures that are not another library's), each at its fastest "
-          "configuration per scene; per frame = update + ray cast (thesis eq. 5.5), medians over repetitions. "
-          "Claims about winners are read on scenes of "
-       << fixed(kLargeScene, 0) << " objects or more; within " << pct(kNearBest)
-       << " of the fastest counts as partly confirmed.\n\n";
+       << "; the registry's structures that are not another library's), each at its fastest measured "
+          "configuration per scene; per frame = update + ray cast (thesis eq. 5.5). Configurations measured: "
+       << configurations_line(d.merged) << ". "
+       << (several
+               ? "Per run a figure is the median over the run's repetitions; below, the median over the runs, "
+                 "with [lowest–highest] over the runs for times, and each verdict says how many runs alone give it. "
+               : "Figures are medians over repetitions. ")
+       << "Claims about winners are read on scenes of " << fixed(kLargeScene, 0) << " objects or more; within "
+       << pct(kNearBest) << " of the fastest counts as partly confirmed. ";
+    const bool dense = std::any_of(d.merged.begin(), d.merged.end(), dense_rays);
+    md << (dense ? "Tables 6.3 and 6.4 are read on the scenes with dense rays, as the thesis cast them (§6.4); the "
+                   "other claims on the rest."
+                 : "The runs have no scene with dense rays, which the thesis cast for Tables 6.3 and 6.4 (§6.4); "
+                   "those claims are read on centre rays.")
+       << "\n\n";
     for (const Finding& f : findings) {
         md << "## " << f.claim << "\n\n"
-           << "Thesis " << f.source << ". **" << verdict_name(f.verdict) << "**: " << f.summary << "\n\n";
+           << "Thesis " << f.source << ". **" << verdict_name(f.verdict) << "**: " << f.summary;
+        if (f.per_run.size() > 1) {
+            const auto same = std::count(f.per_run.begin(), f.per_run.end(), f.verdict);
+            md << " Each run alone: " << same << " of " << f.per_run.size() << " give this verdict";
+            if (std::size_t(same) != f.per_run.size()) {
+                std::vector<std::string> names;
+                for (Finding::Verdict v : f.per_run) names.push_back(verdict_name(v));
+                md << " (" << join(names, ", ") << ")";
+            }
+            md << ".";
+        }
+        md << "\n\n";
         for (const std::string& e : f.evidence) md << "- " << e << "\n";
         if (!f.evidence.empty()) md << "\n";
     }
     return md.str();
+}
+
+std::string findings_markdown(Database& db, std::int64_t run, const std::vector<Finding>& findings) {
+    return findings_markdown({{&db, run}}, findings);
 }
 
 }  // namespace rcb

@@ -209,6 +209,25 @@ TEST_F(Cli, AnExplicitZeroOrEmptyValueIsRefusedNotReadAsTheDefault) {
     expect_bad_input(run("advise " + path("s.rcbscene") + " --category ''"), "--category: must not be empty");
 }
 
+// findings reads independent runs of one experiment: the same run twice, or runs of two experiments,
+// would pass off one measurement as two or mix unlike scenes, so each is refused in one line.
+TEST_F(Cli, FindingsReadsSeveralRunsOfOneExperimentAndRefusesTheSameRunTwice) {
+    const std::string spec =
+        R"("frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})";
+    write("a.json", R"({"name": "a", )" + spec);
+    write("b.json", R"({"name": "b", )" + spec);
+    ASSERT_EQ(run("run " + path("a.json") + " --db " + path("r.db")).code, 0);
+    ASSERT_EQ(run("run " + path("a.json") + " --db " + path("r.db") + " --new-run").code, 0);
+    ASSERT_EQ(run("run " + path("b.json") + " --db " + path("o.db")).code, 0);
+    const Outcome two = run("findings " + path("r.db") + ":1 " + path("r.db") + ":2");
+    EXPECT_EQ(two.code, 0) << two.err;
+    EXPECT_NE(two.out.find("from 2 independent runs of experiment `a`"), std::string::npos) << two.out;
+    expect_bad_input(run("findings " + path("r.db") + ":1 " + path("r.db") + ":1"), "is given twice");
+    expect_bad_input(run("findings " + path("r.db") + " " + path("o.db")), "give runs of one experiment");
+    expect_bad_input(run("findings " + path("r.db") + ":1 --run 2"), "--run 2: give one database without :RUN");
+    expect_bad_input(run("findings " + path("r.db") + ":7"), "no run 7 in");
+}
+
 TEST_F(Cli, ARunRefusedAtItsFirstSceneWritesOneLineNamingTheOptionAndTheFile) {
     ASSERT_EQ(run("scene gen --preset uni-s --frames 1 --rays 10 -o " + path("one.rcbscene")).code, 0);
     write("w.json",

@@ -36,10 +36,12 @@ public:
     std::int64_t run() const { return run_; }
 
     void cell(const std::string& scene, const std::string& kind, std::size_t objects, const std::string& structure,
-              const Measured& m, nlohmann::json params_override = nlohmann::json::object()) {
+              const Measured& m, nlohmann::json params_override = nlohmann::json::object(),
+              const std::string& ray_mix = "") {
         SceneSpec spec;
         spec.name = scene;
         spec.key = {{"kind", kind}, {"objects", objects}};
+        if (!ray_mix.empty()) spec.key["ray_mix"] = ray_mix;
         Recording r;
         r.initial.push_back(Object{1, {{0, 0, 0}, {1, 1, 1}}});
         SimulationResult res;
@@ -65,6 +67,19 @@ public:
         ASSERT_TRUE(store_.store_cell(run_, experiment_, c, spec, r, "scene-" + scene, res));
     }
     void finish() { store_.finish_run(run_); }
+    /// A stored fit of `model` for the ray cast (as `rcbench fit` stores every candidate form).
+    void fit(const std::string& structure, const std::string& model, bool chosen, double c_t) {
+        Database& db = store_.db();
+        db.prepare(
+              "INSERT INTO fit(run_id, created_at, structure, target, model, terms, observations, configurations, r2, "
+              "rmse_relative, heldout_error, condition_number, status, chosen) VALUES "
+              "(?, '2026-01-01T00:00:00Z', ?, 'raycast', ?, '[\"C_T\"]', 10, 2, 0.9, 0.1, 0.1, 1, 'ok', ?)")
+            .bind_all(run_, structure, model, std::int64_t(chosen))
+            .run();
+        db.prepare("INSERT INTO fit_coefficient(fit_id, name, value, spans_zero) VALUES (?, 'C_T', ?, 0)")
+            .bind_all(db.last_insert_id(), c_t)
+            .run();
+    }
 
 private:
     ResultStore store_;
@@ -121,6 +136,93 @@ TEST(Findings, VerdictsFollowTheMeasurements) {
     const std::string md = findings_markdown(db, run, f);
     EXPECT_NE(md.find("**partly confirmed**"), std::string::npos);
     EXPECT_NE(md.find("**not tested by this run**: No stored fit"), std::string::npos);
+}
+
+// Three runs of one experiment: figures are medians over the runs with their range, the verdict is
+// read on those medians, and each run alone is read too (the third disagrees here).
+TEST(Findings, SeveralRunsGiveMediansRangesAndEachRunsVerdict) {
+    const test::TempDir dir("findings", "runs");
+    const fs::path path = dir.path() / "f.db";
+    std::vector<std::int64_t> ids;
+    for (double ug_rays : {0.50, 0.52, 0.90}) {
+        FindingsDb db(path.string());
+        ids.push_back(db.run());
+        db.cell("uni", "uniform", 5000, "ug", {0.05, ug_rays});
+        db.cell("uni", "uniform", 5000, "hg", {0.10, 0.70});
+        db.finish();
+    }
+    Database db(path.string(), true);
+    const std::vector<FindingsRun> runs{{&db, ids[0]}, {&db, ids[1]}, {&db, ids[2]}};
+    const std::vector<Finding> f = evaluate_findings(runs);
+    const Finding& ug = by_source(f, "uniform grid does very well");
+    EXPECT_EQ(ug.verdict, Finding::Verdict::confirmed);  // median ug 0.57 ms against hg 0.80 ms
+    EXPECT_EQ(ug.per_run, (std::vector<Finding::Verdict>{Finding::Verdict::confirmed, Finding::Verdict::confirmed,
+                                                         Finding::Verdict::refuted}));
+    ASSERT_FALSE(ug.evidence.empty());
+    EXPECT_NE(ug.evidence[0].find("ug 0.570 ms [0.550–0.950]"), std::string::npos) << ug.evidence[0];
+    const std::string md = findings_markdown(runs, f);
+    EXPECT_NE(md.find("from 3 independent runs of experiment `findings`"), std::string::npos);
+    EXPECT_NE(md.find("Each run alone: 2 of 3 give this verdict (confirmed, confirmed, refuted)."), std::string::npos);
+    EXPECT_NE(md.find("Configurations measured: ug defaults; hg defaults."), std::string::npos);
+    // One run reads as before: no range, no count of runs.
+    const std::vector<Finding> one = evaluate_findings(db, ids[2]);
+    EXPECT_EQ(by_source(one, "uniform grid does very well").verdict, Finding::Verdict::refuted);
+    EXPECT_EQ(findings_markdown(db, ids[2], one).find("Each run alone"), std::string::npos);
+}
+
+// Chosen forms differ per structure (a form with more terms moves C_T by what they take), so the
+// traversal costs are compared under eq. 5.4 for all: here the chosen forms would say the opposite.
+TEST(Findings, TraversalCostsAreComparedUnderOneForm) {
+    const test::TempDir dir("findings", "form");
+    const fs::path path = dir.path() / "f.db";
+    std::int64_t run = 0;
+    {
+        FindingsDb db(path.string());
+        run = db.run();
+        db.cell("irr", "irregular", 5000, "ug", {0.05, 0.5});
+        db.cell("irr", "irregular", 5000, "dbvh", {0.05, 0.4});
+        db.fit("ug", "per-category", true, 20.0);
+        db.fit("ug", "eq5.4", false, 3.0);
+        db.fit("dbvh", "with-memory", true, 1.0);
+        db.fit("dbvh", "eq5.4", false, 5.0);
+        db.finish();
+    }
+    Database db(path.string(), true);
+    const std::vector<Finding> f = evaluate_findings(db, run);
+    const Finding& t = by_source(f, "traversal step");
+    EXPECT_EQ(t.verdict, Finding::Verdict::confirmed) << t.summary;
+    ASSERT_FALSE(t.evidence.empty());
+    EXPECT_NE(t.evidence[0].find("dbvh 5.00 ns; ug 3.00 ns;"), std::string::npos) << t.evidence[0];
+}
+
+// The thesis cast dense rays for Table 6.4: where the run has a dense-ray scene the full-SAH claim is
+// read there alone, and that scene stays out of the claims of Table 6.2.
+TEST(Findings, DenseRaysDecideTheFullSahClaimAndStayOutOfTheOthers) {
+    const test::TempDir dir("findings", "dense");
+    const fs::path path = dir.path() / "f.db";
+    std::int64_t run = 0;
+    {
+        FindingsDb db(path.string());
+        run = db.run();
+        db.cell("irr", "irregular", 5000, "hg", {0.10, 0.50});
+        db.cell("irr", "irregular", 5000, "dbvh", {0.10, 1.00}, {{"mode", "incremental"}});
+        db.cell("irr", "irregular", 5000, "dbvh", {0.10, 1.00}, {{"mode", "rebuild"}});
+        db.cell("irr-dense", "irregular", 5000, "dbvh", {0.10, 1.00}, {{"mode", "incremental"}}, "dense");
+        db.cell("irr-dense", "irregular", 5000, "dbvh", {0.10, 0.60}, {{"mode", "rebuild"}}, "dense");
+        db.cell("irr-dense", "irregular", 5000, "hg", {0.10, 2.00}, nlohmann::json::object(), "dense");
+        db.finish();
+    }
+    Database db(path.string(), true);
+    const std::vector<Finding> f = evaluate_findings(db, run);
+    const Finding& sah = by_source(f, "full SAH");
+    EXPECT_EQ(sah.verdict, Finding::Verdict::confirmed) << sah.summary;  // 40% on dense rays, 0% on centre rays
+    EXPECT_NE(sah.summary.find("with dense rays"), std::string::npos) << sah.summary;
+    ASSERT_EQ(sah.evidence.size(), 1u);
+    EXPECT_EQ(sah.evidence[0].rfind("irr-dense:", 0), 0u) << sah.evidence[0];
+    const Finding& hg = by_source(f, "larger irregular");
+    EXPECT_EQ(hg.verdict, Finding::Verdict::confirmed) << hg.summary;  // irr only; on irr-dense dbvh wins
+    const std::string md = findings_markdown(db, run, f);
+    EXPECT_NE(md.find("Configurations measured: dbvh mode incremental/rebuild; hg defaults."), std::string::npos) << md;
 }
 
 TEST(Findings, ARunWithoutTheNeededScenesTestsNothingItCannot) {
