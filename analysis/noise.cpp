@@ -90,9 +90,9 @@ NoiseFloor noise_floor(Database& db, std::int64_t run) {
 
 namespace {
 
-/// Per (structure, scene hash, params): the medians over repetitions of the cells' ray-cast and
-/// update medians; `slow` counts each key's repetitions flagged slow.
-std::map<std::string, std::pair<double, double>> run_medians(Database& db, std::int64_t run,
+/// Per (structure, scene hash, params): the median (or the fastest, `how`) over repetitions of the
+/// cells' ray-cast and update medians; `slow` counts each key's repetitions flagged slow.
+std::map<std::string, std::pair<double, double>> run_medians(Database& db, std::int64_t run, OverRepetitions how,
                                                              std::map<std::string, std::string>& structure_of,
                                                              std::map<std::string, std::size_t>& slow) {
     Statement s =
@@ -110,28 +110,47 @@ std::map<std::string, std::pair<double, double>> run_medians(Database& db, std::
         values[key].second.push_back(s.real(4));
         slow[key] += s.int64(5) != 0;
     }
+    auto of = [how](const std::vector<double>& v) {
+        return how == OverRepetitions::fastest ? *std::min_element(v.begin(), v.end()) : spread_of(v).median;
+    };
     std::map<std::string, std::pair<double, double>> out;
-    for (const auto& [key, v] : values) out[key] = {spread_of(v.first).median, spread_of(v.second).median};
+    for (const auto& [key, v] : values) out[key] = {of(v.first), of(v.second)};
     return out;
 }
 
-}  // namespace
-
-std::vector<StructureNoise> between_runs(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b) {
+/// Each run's figure of a cell as one "repetition" of it: repeatability's spread of two is then the
+/// relative range of the runs. `pooled`: every cell under the one structure "all".
+std::vector<RepeatSample> between_samples(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b,
+                                          OverRepetitions how, bool pooled) {
     std::map<std::string, std::string> structure_of;
     std::map<std::string, std::size_t> slow;
-    const auto in_a = run_medians(a, run_a, structure_of, slow);
-    const auto in_b = run_medians(b, run_b, structure_of, slow);
-    // Each run's median as one "repetition" of the cell: repeatability's spread of two is then the
-    // relative range of the runs.
+    const auto in_a = run_medians(a, run_a, how, structure_of, slow);
+    const auto in_b = run_medians(b, run_b, how, structure_of, slow);
     std::vector<RepeatSample> samples;
     for (const auto& [key, ma] : in_a) {
         const auto mb = in_b.find(key);
         if (mb == in_b.end()) continue;
-        samples.push_back({structure_of[key], key, ma.first, ma.second, slow[key] > 0, 0});
-        samples.push_back({structure_of[key], key, mb->second.first, mb->second.second, false, 1});
+        const std::string structure = pooled ? "all" : structure_of[key];
+        samples.push_back({structure, key, ma.first, ma.second, slow[key] > 0, 0});
+        samples.push_back({structure, key, mb->second.first, mb->second.second, false, 1});
     }
-    return repeatability(samples);
+    return samples;
+}
+
+}  // namespace
+
+std::vector<StructureNoise> between_runs(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b,
+                                         OverRepetitions how) {
+    return repeatability(between_samples(a, run_a, b, run_b, how, false));
+}
+
+StructureNoise between_runs_pooled(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b,
+                                   OverRepetitions how) {
+    const std::vector<StructureNoise> all = repeatability(between_samples(a, run_a, b, run_b, how, true));
+    if (!all.empty()) return all.front();
+    StructureNoise none;
+    none.structure = "all";
+    return none;
 }
 
 std::vector<SlowCell> slow_cells(Database& db, std::int64_t run) {

@@ -147,6 +147,21 @@ void print_kind_table(Database& db, std::int64_t run, const std::vector<Structur
     t.print(std::cout);
 }
 
+/// The two runs' agreement over every cell, for the two figures a run can give a cell: the median
+/// of its repetitions (the cell figure the tables show) and the fastest of them (analysis/noise.h).
+void print_between_runs(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b) {
+    std::cout << "Between the two runs, every cell both hold (relative range of the two runs' figures, p50 / p90 "
+                 "over the cells):\n";
+    TextTable t({"a run's figure of a cell", "cells", "ray cast", "update"});
+    for (const auto& [how, label] : {std::pair{OverRepetitions::median, "median of its repetitions"},
+                                     std::pair{OverRepetitions::fastest, "fastest repetition"}}) {
+        const StructureNoise n = between_runs_pooled(a, run_a, b, run_b, how);
+        t.add(
+            {label, std::to_string(n.cells), noise_text(n.raycast, n.raycast_p90), noise_text(n.update, n.update_p90)});
+    }
+    t.print(std::cout);
+}
+
 }  // namespace
 
 void add_fit_command(CLI::App& app) {
@@ -260,6 +275,7 @@ void add_fit_command(CLI::App& app) {
                       << " cells were measured while the calibration loop or memory probe ran more than 10% above its "
                          "run's median "
                          "(cell_state.slow)\n";
+        if (repeat) print_between_runs(store.db(), run, *other, other_run);
         print_kind_table(store.db(), run, models);
         print_nested_loso(store.db(), run, *fit.inputs, models);
     });

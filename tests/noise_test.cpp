@@ -228,6 +228,40 @@ TEST(NoiseFloor, BetweenRunsComparesEachRunsMedianOverRepetitionsOfTheCellsBothH
     for (const StructureNoise& s : self) EXPECT_NEAR(s.raycast_p90, 0.0, 1e-12) << s.structure;
 }
 
+// Another process only ever adds time: where a run's later repetitions of a cell were slowed, its
+// median over repetitions moves with them and its fastest repetition does not.
+TEST(NoiseFloor, BetweenRunsByTheFastestRepetitionLeavesOutRepetitionsSlowedByLoad) {
+    const test::TempDir temp("noise", "fastest");
+    const Experiment e = parse_experiment(kThree, "noise.json", temp.path().string());
+    std::vector<std::unique_ptr<ResultStore>> stores;
+    std::vector<std::int64_t> runs;
+    for (const char* name : {"a.db", "b.db"}) {
+        RunOptions o;
+        o.db = (temp.path() / name).string();
+        const RunOutcome out = run_experiment(e, "noise.json", o);
+        ASSERT_TRUE(out.finished);
+        runs.push_back(out.run);
+        stores.push_back(std::make_unique<ResultStore>(o.db));
+    }
+    Database& a = stores[0]->db();
+    Database& b = stores[1]->db();
+    a.exec("UPDATE cell SET raycast_ns_median = 100, update_ns_median = 50 WHERE repetition = 0");
+    a.exec("UPDATE cell SET raycast_ns_median = 130, update_ns_median = 80 WHERE repetition > 0");
+    b.exec("UPDATE cell SET raycast_ns_median = 100, update_ns_median = 50");
+    const StructureNoise median = between_runs_pooled(a, runs[0], b, runs[1], OverRepetitions::median);
+    EXPECT_EQ(median.structure, "all");
+    EXPECT_EQ(median.cells, 4u);  // every cell of both structures, pooled
+    EXPECT_NEAR(median.raycast_p90, 30.0 / 115.0, 1e-12);
+    EXPECT_NEAR(median.update, 30.0 / 65.0, 1e-12);
+    const StructureNoise fastest = between_runs_pooled(a, runs[0], b, runs[1], OverRepetitions::fastest);
+    EXPECT_EQ(fastest.cells, 4u);
+    EXPECT_NEAR(fastest.raycast_p90, 0.0, 1e-12);
+    EXPECT_NEAR(fastest.update_p90, 0.0, 1e-12);
+    // Per structure, the same.
+    for (const StructureNoise& s : between_runs(a, runs[0], b, runs[1], OverRepetitions::fastest))
+        EXPECT_NEAR(s.raycast_p90, 0.0, 1e-12) << s.structure;
+}
+
 TEST(NoiseFloor, QuantilesInterpolateBetweenOrderStatistics) {
     EXPECT_TRUE(std::isnan(quantile({}, 0.5)));
     EXPECT_EQ(quantile({3, 1, 2}, 0.5), 2);
