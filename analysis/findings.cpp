@@ -345,7 +345,8 @@ Finding full_sah(const std::vector<Config>& configs, bool dense) {
     const double g = median(gains);
     f.verdict = verdict(g >= 0.25 && g <= 0.55, g > 0.10);
     f.summary = "The full-SAH DBVH casts " + pct(std::abs(g)) + (g >= 0 ? " faster" : " slower") +
-                " than the incremental one (median over " + std::to_string(gains.size()) + " scenes" +
+                " than the incremental one (median over " + std::to_string(gains.size()) +
+                (gains.size() == 1 ? " scene" : " scenes") +
                 (dense ? " with dense rays, as the thesis cast them" : ", centre rays; the thesis cast dense rays") +
                 "; the thesis: about 40%).";
     return f;
