@@ -183,21 +183,31 @@ TEST(NoiseFloor, RepeatabilityIsTheSpreadOfTheFirstTwoRepetitionsMedianAndP90Ove
     EXPECT_EQ(noise_text(n[0].raycast, n[0].raycast_p90), "-");
 }
 
-TEST(NoiseFloor, BetweenRunsComparesEachRunsMedianOverRepetitionsOfTheCellsBothHold) {
-    const test::TempDir temp("noise", "between");
-    const Experiment e = parse_experiment(kThree, "noise.json", temp.path().string());
+/// kThree run twice, into a.db and b.db of `dir`: two independent runs to compare.
+struct TwoRuns {
+    explicit TwoRuns(const fs::path& dir) {
+        const Experiment e = parse_experiment(kThree, "noise.json", dir.string());
+        for (const char* name : {"a.db", "b.db"}) {
+            RunOptions o;
+            o.db = (dir / name).string();
+            const RunOutcome out = run_experiment(e, "noise.json", o);
+            finished = finished && out.finished;
+            runs.push_back(out.run);
+            stores.push_back(std::make_unique<ResultStore>(o.db));
+        }
+    }
+    bool finished = true;
     std::vector<std::unique_ptr<ResultStore>> stores;
     std::vector<std::int64_t> runs;
-    for (const char* name : {"a.db", "b.db"}) {
-        RunOptions o;
-        o.db = (temp.path() / name).string();
-        const RunOutcome out = run_experiment(e, "noise.json", o);
-        ASSERT_TRUE(out.finished);
-        runs.push_back(out.run);
-        stores.push_back(std::make_unique<ResultStore>(o.db));
-    }
-    Database& a = stores[0]->db();
-    Database& b = stores[1]->db();
+};
+
+TEST(NoiseFloor, BetweenRunsComparesEachRunsMedianOverRepetitionsOfTheCellsBothHold) {
+    const test::TempDir temp("noise", "between");
+    const TwoRuns two(temp.path());
+    ASSERT_TRUE(two.finished);
+    Database& a = two.stores[0]->db();
+    Database& b = two.stores[1]->db();
+    const std::vector<std::int64_t>& runs = two.runs;
     // Made-up medians: a measures 100 everywhere (one repetition of bf an outlier, which the median
     // over repetitions drops), b measures bf at 120; b lacks ug on the irregular scene.
     const std::string bf = "(SELECT id FROM config WHERE structure = 'bf')";
@@ -232,19 +242,11 @@ TEST(NoiseFloor, BetweenRunsComparesEachRunsMedianOverRepetitionsOfTheCellsBothH
 // median over repetitions moves with them and its fastest repetition does not.
 TEST(NoiseFloor, BetweenRunsByTheFastestRepetitionLeavesOutRepetitionsSlowedByLoad) {
     const test::TempDir temp("noise", "fastest");
-    const Experiment e = parse_experiment(kThree, "noise.json", temp.path().string());
-    std::vector<std::unique_ptr<ResultStore>> stores;
-    std::vector<std::int64_t> runs;
-    for (const char* name : {"a.db", "b.db"}) {
-        RunOptions o;
-        o.db = (temp.path() / name).string();
-        const RunOutcome out = run_experiment(e, "noise.json", o);
-        ASSERT_TRUE(out.finished);
-        runs.push_back(out.run);
-        stores.push_back(std::make_unique<ResultStore>(o.db));
-    }
-    Database& a = stores[0]->db();
-    Database& b = stores[1]->db();
+    const TwoRuns two(temp.path());
+    ASSERT_TRUE(two.finished);
+    Database& a = two.stores[0]->db();
+    Database& b = two.stores[1]->db();
+    const std::vector<std::int64_t>& runs = two.runs;
     a.exec("UPDATE cell SET raycast_ns_median = 100, update_ns_median = 50 WHERE repetition = 0");
     a.exec("UPDATE cell SET raycast_ns_median = 130, update_ns_median = 80 WHERE repetition > 0");
     b.exec("UPDATE cell SET raycast_ns_median = 100, update_ns_median = 50");
