@@ -581,6 +581,16 @@ RunsData load_runs(const std::vector<FindingsRun>& runs) {
     return d;
 }
 
+/// The claims on the medians over runs, each with its verdict on every run alone.
+std::vector<Finding> evaluate_loaded(const RunsData& d) {
+    std::vector<Finding> out = evaluate_on(d.merged, d.c_t);
+    for (std::size_t r = 0; r < d.per_run.size(); ++r) {
+        const std::vector<Finding> alone = evaluate_on(d.per_run[r], d.c_t_per_run[r]);
+        for (std::size_t k = 0; k < out.size(); ++k) out[k].per_run.push_back(alone[k].verdict);
+    }
+    return out;
+}
+
 }  // namespace
 
 std::vector<std::string> findings_structures() {
@@ -603,18 +613,15 @@ const char* verdict_name(Finding::Verdict v) {
 
 std::vector<Finding> evaluate_findings(const std::vector<FindingsRun>& runs) {
     if (runs.empty()) throw std::logic_error("evaluate_findings: no run");
-    const RunsData d = load_runs(runs);
-    std::vector<Finding> out = evaluate_on(d.merged, d.c_t);
-    for (std::size_t r = 0; r < runs.size(); ++r) {
-        const std::vector<Finding> alone = evaluate_on(d.per_run[r], d.c_t_per_run[r]);
-        for (std::size_t k = 0; k < out.size(); ++k) out[k].per_run.push_back(alone[k].verdict);
-    }
-    return out;
+    return evaluate_loaded(load_runs(runs));
 }
 
 std::vector<Finding> evaluate_findings(Database& db, std::int64_t run) { return evaluate_findings({{&db, run}}); }
 
-std::string findings_markdown(const std::vector<FindingsRun>& runs, const std::vector<Finding>& findings) {
+std::string findings_markdown(const std::vector<FindingsRun>& runs) {
+    if (runs.empty()) throw std::logic_error("findings_markdown: no run");
+    const RunsData d = load_runs(runs);
+    const std::vector<Finding> findings = evaluate_loaded(d);
     std::ostringstream md;
     md << "# Findings: the thesis' conclusions against rcbench's measurements\n\n";
     std::string experiment;
@@ -642,7 +649,6 @@ std::string findings_markdown(const std::vector<FindingsRun>& runs, const std::v
     md << "Thesis: Guo & Liao (2023), see [reference.md](reference.md). To make it again: `rcbench run` the "
           "experiment (once per run), `rcbench fit` each run (the traversal-cost claim reads the fit), then "
           "`rcbench findings` with every run.\n\n";
-    const RunsData d = load_runs(runs);
     md << "Each claim is checked on rcbench's own structures (" << join(findings_structures(), ", ")
        << "; the registry's structures that are not another library's), each at its fastest measured "
           "configuration per scene; per frame = update + ray cast (thesis eq. 5.5). Configurations measured: "
@@ -679,8 +685,6 @@ std::string findings_markdown(const std::vector<FindingsRun>& runs, const std::v
     return md.str();
 }
 
-std::string findings_markdown(Database& db, std::int64_t run, const std::vector<Finding>& findings) {
-    return findings_markdown({{&db, run}}, findings);
-}
+std::string findings_markdown(Database& db, std::int64_t run) { return findings_markdown({{&db, run}}); }
 
 }  // namespace rcb

@@ -47,9 +47,9 @@ std::vector<std::string> findings_structures();
 std::vector<Finding> evaluate_findings(const std::vector<FindingsRun>& runs);
 std::vector<Finding> evaluate_findings(Database& db, std::int64_t run);
 
-/// The findings as Markdown (the source of docs/findings.md), headed by the runs' provenance and the
-/// configurations they measured.
-std::string findings_markdown(const std::vector<FindingsRun>& runs, const std::vector<Finding>& findings);
-std::string findings_markdown(Database& db, std::int64_t run, const std::vector<Finding>& findings);
+/// The findings of `runs` (evaluate_findings) as Markdown (the source of docs/findings.md), headed by
+/// the runs' provenance and the configurations they measured; the runs are read once.
+std::string findings_markdown(const std::vector<FindingsRun>& runs);
+std::string findings_markdown(Database& db, std::int64_t run);
 
 }  // namespace rcb

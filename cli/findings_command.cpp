@@ -78,7 +78,7 @@ void add_findings_command(CLI::App& app) {
             experiment = name;
             runs.push_back({dbs.back().get(), run});
         }
-        const std::string md = findings_markdown(runs, evaluate_findings(runs));
+        const std::string md = findings_markdown(runs);
         if (o->out.empty()) {
             std::cout << md;
         } else {

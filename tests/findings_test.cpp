@@ -133,7 +133,7 @@ TEST(Findings, VerdictsFollowTheMeasurements) {
     EXPECT_EQ(by_source(f, "small scenes").verdict, Finding::Verdict::confirmed);
     EXPECT_EQ(by_source(f, "most promising").verdict, Finding::Verdict::confirmed);  // dbvh then hg
 
-    const std::string md = findings_markdown(db, run, f);
+    const std::string md = findings_markdown(db, run);
     EXPECT_NE(md.find("**partly confirmed**"), std::string::npos);
     EXPECT_NE(md.find("**not tested by this run**: No stored fit"), std::string::npos);
 }
@@ -160,14 +160,14 @@ TEST(Findings, SeveralRunsGiveMediansRangesAndEachRunsVerdict) {
                                                          Finding::Verdict::refuted}));
     ASSERT_FALSE(ug.evidence.empty());
     EXPECT_NE(ug.evidence[0].find("ug 0.570 ms [0.550–0.950]"), std::string::npos) << ug.evidence[0];
-    const std::string md = findings_markdown(runs, f);
+    const std::string md = findings_markdown(runs);
     EXPECT_NE(md.find("from 3 independent runs of experiment `findings`"), std::string::npos);
     EXPECT_NE(md.find("Each run alone: 2 of 3 give this verdict (confirmed, confirmed, refuted)."), std::string::npos);
     EXPECT_NE(md.find("Configurations measured: ug defaults; hg defaults."), std::string::npos);
     // One run reads as before: no range, no count of runs.
     const std::vector<Finding> one = evaluate_findings(db, ids[2]);
     EXPECT_EQ(by_source(one, "uniform grid does very well").verdict, Finding::Verdict::refuted);
-    EXPECT_EQ(findings_markdown(db, ids[2], one).find("Each run alone"), std::string::npos);
+    EXPECT_EQ(findings_markdown(db, ids[2]).find("Each run alone"), std::string::npos);
 }
 
 // Chosen forms differ per structure (a form with more terms moves C_T by what they take), so the
@@ -221,7 +221,7 @@ TEST(Findings, DenseRaysDecideTheFullSahClaimAndStayOutOfTheOthers) {
     EXPECT_EQ(sah.evidence[0].rfind("irr-dense:", 0), 0u) << sah.evidence[0];
     const Finding& hg = by_source(f, "larger irregular");
     EXPECT_EQ(hg.verdict, Finding::Verdict::confirmed) << hg.summary;  // irr only; on irr-dense dbvh wins
-    const std::string md = findings_markdown(db, run, f);
+    const std::string md = findings_markdown(db, run);
     EXPECT_NE(md.find("Configurations measured: dbvh mode incremental/rebuild; hg defaults."), std::string::npos) << md;
 }
 
