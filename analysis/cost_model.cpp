@@ -415,17 +415,25 @@ private:
 };
 
 /// The one query of a run's measured frames: what identifies a frame, then every counter of
-/// frame_counters() under its alias.
-std::string observations_sql() {
+/// frame_counters() under its alias. `fastest`: one row per frame of a cell, its fastest ray-cast
+/// and update time over the repetitions (analysis/repetitions.h); the counters are the same in
+/// every repetition (the same recording on a fresh structure), min() only picks one of them.
+std::string observations_sql(OverRepetitions how) {
+    const bool fastest = how == OverRepetitions::fastest;
     std::string sql =
         "SELECT config.structure AS structure, config.params AS params, cell.scene_id AS scene_id, "
-        "cell.config_id AS config_id, frame.rays AS rays, frame.raycast_ns AS raycast_ns, "
-        "frame.update_ns AS update_ns";
-    for (const FrameCounter& c : frame_counters()) sql += std::string(", ") + c.column + " AS " + c.alias;
-    return sql +
-           " FROM frame JOIN cell ON cell.id = frame.cell_id JOIN config ON config.id = cell.config_id "
-           "WHERE cell.run_id IN " +
-           kRunGroupSql + " AND frame.warmup = 0 ORDER BY cell.id, frame.frame";
+        "cell.config_id AS config_id, ";
+    sql += fastest ? "min(frame.rays) AS rays, min(frame.raycast_ns) AS raycast_ns, min(frame.update_ns) AS update_ns"
+                   : "frame.rays AS rays, frame.raycast_ns AS raycast_ns, frame.update_ns AS update_ns";
+    for (const FrameCounter& c : frame_counters())
+        sql += fastest ? std::string(", min(") + c.column + ") AS " + c.alias
+                       : std::string(", ") + c.column + " AS " + c.alias;
+    sql += std::string(
+               " FROM frame JOIN cell ON cell.id = frame.cell_id JOIN config ON config.id = cell.config_id "
+               "WHERE cell.run_id IN ") +
+           kRunGroupSql + " AND frame.warmup = 0";
+    return sql + (fastest ? " GROUP BY cell.scene_id, cell.config_id, frame.frame ORDER BY min(cell.id), frame.frame"
+                          : " ORDER BY cell.id, frame.frame");
 }
 
 /// A stored counter as the observation holds it (per-ray counts only in frames with rays).
@@ -445,10 +453,10 @@ void read_counter(const FrameCounter& c, double stored, FrameObservation& f) {
 
 }  // namespace
 
-std::vector<FrameObservation> load_observations(Database& db, std::int64_t run) {
+std::vector<FrameObservation> load_observations(Database& db, std::int64_t run, OverRepetitions how) {
     std::vector<FrameObservation> out;
     std::map<std::tuple<std::int64_t, std::int64_t>, int> groups;
-    Statement s = db.prepare(observations_sql());
+    Statement s = db.prepare(observations_sql(how));
     s.bind_all(run, run);
     const NamedColumns col(s);
     std::vector<int> counter_column;
@@ -799,10 +807,10 @@ BreakdownColumns breakdown_columns(const std::vector<CostBreakdown>& breakdown, 
     return out;
 }
 
-RunFit fit_run(Database& db, std::int64_t run) {
+RunFit fit_run(Database& db, std::int64_t run, OverRepetitions how) {
     RunFit out;
     out.run = run;
-    const std::vector<FrameObservation> frames = load_observations(db, run);
+    const std::vector<FrameObservation> frames = load_observations(db, run, how);
     out.frames = frames.size();
     out.inputs = std::make_shared<const ModelInputs>(load_model_inputs(db, run));
     out.models = fit_cost_models(frames, *out.inputs);

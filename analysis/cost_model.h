@@ -30,6 +30,7 @@
 
 #include "analysis/linear_fit.h"
 #include "analysis/model_terms.h"
+#include "analysis/repetitions.h"
 #include "runner/calibration.h"
 #include "runner/sqlite.h"
 
@@ -82,7 +83,10 @@ struct SceneError {
 
 /// Frames of one run; `run` is a run id, or 0 for the newest run (of `experiment` if given).
 std::int64_t resolve_run(Database& db, std::int64_t run, const std::string& experiment);
-std::vector<FrameObservation> load_observations(Database& db, std::int64_t run);
+/// `fastest` (the default): one observation per frame of a cell, its fastest time over the cell's
+/// repetitions; `median`: every repetition's frames.
+std::vector<FrameObservation> load_observations(Database& db, std::int64_t run,
+                                                OverRepetitions how = OverRepetitions::fastest);
 
 struct CandidateModel {
     std::string name;    ///< e.g. "eq5.4", "no-prep", "with-shapes", "per-category", "with-memory"
@@ -162,7 +166,7 @@ struct RunFit {
     std::vector<StructureModels> models;
     std::vector<CostBreakdown> breakdown;
 };
-RunFit fit_run(Database& db, std::int64_t run);
+RunFit fit_run(Database& db, std::int64_t run, OverRepetitions how = OverRepetitions::fastest);
 
 /// "uniform", "irregular", "import", "recording": the category of a scene from its stored spec.
 std::string scene_category(const std::string& spec_json);

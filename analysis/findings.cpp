@@ -47,7 +47,8 @@ bool contains(const std::vector<std::string>& names, const std::string& name) {
     return std::find(names.begin(), names.end(), name) != names.end();
 }
 
-/// One configuration on one scene: per run the medians over its repetitions; over several runs the
+/// One configuration on one scene: per run its figure over the repetitions (analysis/repetitions.h),
+/// its counters the medians over them; over several runs the
 /// median of those, with the range over runs of the times (lo, hi).
 struct Config {
     std::string scene, category, structure, ray_mix;
@@ -66,11 +67,12 @@ bool dense_rays(const Config& c) { return c.ray_mix.find("dense") != std::string
 
 double median(std::vector<double> v) { return spread_of(std::move(v)).median; }
 
-std::vector<Config> load_configs(Database& db, std::int64_t run) {
+std::vector<Config> load_configs(Database& db, std::int64_t run, OverRepetitions how) {
+    const auto figures = cell_figures(db, run, how);
     Statement s =
         db.prepare("SELECT " + std::string(kSceneLabelSql) +
-                   ", scene.spec, cell.objects, config.structure, config.params, cell.update_ns_median, "
-                   "cell.raycast_ns_median, cell.memory_bytes, "
+                   ", scene.spec, cell.objects, config.structure, config.params, cell.scene_id, "
+                   "cell.config_id, cell.memory_bytes, "
                    "(SELECT 1.0 * sum(n_t) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0), "
                    "(SELECT 1.0 * sum(n_rb) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0), "
                    "(SELECT 1.0 * sum(n_tp) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0) "
@@ -98,8 +100,9 @@ std::vector<Config> load_configs(Database& db, std::int64_t run) {
         a.c.objects = double(s.int64(2));
         a.c.structure = structure;
         a.c.params = nlohmann::json::parse(s.text(4), nullptr, false);
-        a.update.push_back(s.real(5) * 1e-6);
-        a.ray.push_back(s.real(6) * 1e-6);
+        const CellFigure& figure = figures.at({s.int64(5), s.int64(6)});
+        a.update.push_back(figure.update_ns * 1e-6);
+        a.ray.push_back(figure.raycast_ns * 1e-6);
         a.bytes.push_back(a.c.objects > 0 ? double(s.int64(7)) / a.c.objects : NAN);
         a.n_t.push_back(s.real(8));
         a.n_rb.push_back(s.real(9));
@@ -556,6 +559,15 @@ std::string configurations_line(const std::vector<Config>& configs) {
     return out;
 }
 
+/// How a run's figure of a configuration comes from its repetitions, for the page's preamble.
+std::string repetitions_sentence(OverRepetitions how) {
+    return how == OverRepetitions::fastest
+               ? "A run's time of a configuration is the median over frames of each frame's fastest time over "
+                 "the run's repetitions (another process only ever adds time). "
+               : "A run's time of a configuration is the median over the run's repetitions of each repetition's "
+                 "median over frames. ";
+}
+
 /// The runs' configurations: each run's, and the medians over runs.
 struct RunsData {
     std::vector<std::vector<Config>> per_run;
@@ -564,11 +576,11 @@ struct RunsData {
     std::map<std::string, OverRuns> c_t;
 };
 
-RunsData load_runs(const std::vector<FindingsRun>& runs) {
+RunsData load_runs(const std::vector<FindingsRun>& runs, OverRepetitions how) {
     RunsData d;
     std::map<std::string, std::vector<double>> c_t;
     for (const FindingsRun& r : runs) {
-        d.per_run.push_back(load_configs(*r.db, r.run));
+        d.per_run.push_back(load_configs(*r.db, r.run, how));
         std::map<std::string, OverRuns> one;
         for (const auto& [name, v] : common_form_c_t(*r.db, r.run)) {
             one[name] = over_runs({v});
@@ -611,16 +623,18 @@ const char* verdict_name(Finding::Verdict v) {
     return "";
 }
 
-std::vector<Finding> evaluate_findings(const std::vector<FindingsRun>& runs) {
+std::vector<Finding> evaluate_findings(const std::vector<FindingsRun>& runs, OverRepetitions how) {
     if (runs.empty()) throw std::logic_error("evaluate_findings: no run");
-    return evaluate_loaded(load_runs(runs));
+    return evaluate_loaded(load_runs(runs, how));
 }
 
-std::vector<Finding> evaluate_findings(Database& db, std::int64_t run) { return evaluate_findings({{&db, run}}); }
+std::vector<Finding> evaluate_findings(Database& db, std::int64_t run, OverRepetitions how) {
+    return evaluate_findings({{&db, run}}, how);
+}
 
-std::string findings_markdown(const std::vector<FindingsRun>& runs) {
+std::string findings_markdown(const std::vector<FindingsRun>& runs, OverRepetitions how) {
     if (runs.empty()) throw std::logic_error("findings_markdown: no run");
-    const RunsData d = load_runs(runs);
+    const RunsData d = load_runs(runs, how);
     const std::vector<Finding> findings = evaluate_loaded(d);
     std::ostringstream md;
     md << "# Findings: the thesis' conclusions against rcbench's measurements\n\n";
@@ -652,11 +666,10 @@ std::string findings_markdown(const std::vector<FindingsRun>& runs) {
     md << "Each claim is checked on rcbench's own structures (" << join(findings_structures(), ", ")
        << "; the registry's structures that are not another library's), each at its fastest measured "
           "configuration per scene; per frame = update + ray cast (thesis eq. 5.5). Configurations measured: "
-       << configurations_line(d.merged) << ". "
-       << (several
-               ? "Per run a figure is the median over the run's repetitions; below, the median over the runs, "
-                 "with [lowest–highest] over the runs for times, and each verdict says how many runs alone give it. "
-               : "Figures are medians over repetitions. ")
+       << configurations_line(d.merged) << ". " << repetitions_sentence(how)
+       << (several ? "Below, the median over the runs of each run's figure, with [lowest–highest] over the runs "
+                     "for times, and each verdict says how many runs alone give it. "
+                   : "")
        << "Claims about winners are read on scenes of " << fixed(kLargeScene, 0) << " objects or more; within "
        << pct(kNearBest) << " of the fastest counts as partly confirmed. ";
     const bool dense = std::any_of(d.merged.begin(), d.merged.end(), dense_rays);
@@ -685,6 +698,8 @@ std::string findings_markdown(const std::vector<FindingsRun>& runs) {
     return md.str();
 }
 
-std::string findings_markdown(Database& db, std::int64_t run) { return findings_markdown({{&db, run}}); }
+std::string findings_markdown(Database& db, std::int64_t run, OverRepetitions how) {
+    return findings_markdown({{&db, run}}, how);
+}
 
 }  // namespace rcb

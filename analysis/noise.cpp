@@ -90,31 +90,27 @@ NoiseFloor noise_floor(Database& db, std::int64_t run) {
 
 namespace {
 
-/// Per (structure, scene hash, params): the median (or the fastest, `how`) over repetitions of the
-/// cells' ray-cast and update medians; `slow` counts each key's repetitions flagged slow.
+/// Per (structure, scene hash, params): the run's figure of the cell (`how`); `slow` counts each
+/// key's repetitions flagged slow.
 std::map<std::string, std::pair<double, double>> run_medians(Database& db, std::int64_t run, OverRepetitions how,
                                                              std::map<std::string, std::string>& structure_of,
                                                              std::map<std::string, std::size_t>& slow) {
-    Statement s =
-        db.prepare(std::string("SELECT config.structure, scene.hash, config.params, cell.raycast_ns_median, "
-                               "cell.update_ns_median, coalesce(cell_state.slow, 0) FROM cell "
-                               "JOIN config ON config.id = cell.config_id JOIN scene ON scene.id = cell.scene_id "
-                               "LEFT JOIN cell_state ON cell_state.cell_id = cell.id WHERE cell.run_id IN ") +
-                   kRunGroupSql);
+    Statement s = db.prepare(std::string("SELECT cell.scene_id, cell.config_id, config.structure, scene.hash, "
+                                         "config.params, coalesce(cell_state.slow, 0) FROM cell "
+                                         "JOIN config ON config.id = cell.config_id JOIN scene ON scene.id = "
+                                         "cell.scene_id LEFT JOIN cell_state ON cell_state.cell_id = cell.id "
+                                         "WHERE cell.run_id IN ") +
+                             kRunGroupSql);
     s.bind_all(run, run);
-    std::map<std::string, std::pair<std::vector<double>, std::vector<double>>> values;
-    while (s.step()) {
-        const std::string key = s.text(0) + '\n' + s.text(1) + '\n' + s.text(2);
-        structure_of[key] = s.text(0);
-        values[key].first.push_back(s.real(3));
-        values[key].second.push_back(s.real(4));
-        slow[key] += s.int64(5) != 0;
-    }
-    auto of = [how](const std::vector<double>& v) {
-        return how == OverRepetitions::fastest ? *std::min_element(v.begin(), v.end()) : spread_of(v).median;
-    };
+    const auto figures = cell_figures(db, run, how);
     std::map<std::string, std::pair<double, double>> out;
-    for (const auto& [key, v] : values) out[key] = {of(v.first), of(v.second)};
+    while (s.step()) {
+        const std::string key = s.text(2) + '\n' + s.text(3) + '\n' + s.text(4);
+        structure_of[key] = s.text(2);
+        slow[key] += s.int64(5) != 0;
+        const CellFigure& f = figures.at({s.int64(0), s.int64(1)});
+        out[key] = {f.raycast_ns, f.update_ns};
+    }
     return out;
 }
 

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "analysis/repetitions.h"
 #include "analysis/statistics.h"
 #include "runner/sqlite.h"
 
@@ -58,15 +59,9 @@ struct NoiseFloor {
 /// before the machine state was recorded gives repeatability only.
 NoiseFloor noise_floor(Database& db, std::int64_t run);
 
-/// What stands for a cell's repetitions in one run: their median (what the fit, the report and the
-/// findings read), or the fastest of them. Another process on the machine only ever adds time, so
-/// the fastest repetition is the least disturbed one (Chen & Revels 2016, "Robust benchmarking in
-/// noisy environments": the minimum, not the median, is the estimator that repeats under load).
-enum class OverRepetitions { median, fastest };
-
 /// How far two independent runs of one experiment (two processes, at two times) measure the same
 /// cell, per structure: for every scene (by content) and configuration both runs hold, the
-/// relative range of the two runs' figures over their repetitions (`how`); median and 90th
+/// relative range of the two runs' figures of the cell (`how`, analysis/repetitions.h); median and 90th
 /// percentile over those cells, for ray cast and update per frame. This, not the repetitions of
 /// one run, is the floor a model's error is judged against: a model cannot be told apart from a
 /// rerun below it. `cells` counts the cells both runs hold; `slow` those with a repetition flagged

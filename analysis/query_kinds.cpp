@@ -104,7 +104,9 @@ bool run_has_query_kinds(Database& db, std::int64_t run) {
 }
 
 std::vector<FrameObservation> load_kind_observations(Database& db, std::int64_t run) {
-    const std::vector<FrameObservation> frames = load_observations(db, run);
+    // Every repetition's frames: a kind's batch is matched to its own frame row, so the frames are
+    // not collapsed to their fastest repetition here.
+    const std::vector<FrameObservation> frames = load_observations(db, run, OverRepetitions::median);
     // The frames' keys in load_observations' order (its query's WHERE and ORDER BY).
     Statement keys = db.prepare(std::string("SELECT frame.cell_id, frame.frame FROM frame JOIN cell ON cell.id = "
                                             "frame.cell_id WHERE cell.run_id IN ") +

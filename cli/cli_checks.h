@@ -12,6 +12,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "analysis/repetitions.h"
+
 namespace rcb {
 
 /// A finite number in [lo, hi].
@@ -64,6 +66,17 @@ inline CLI::Validator run_id() { return whole_number(1, std::uint64_t(std::numer
 /// A non-empty text (names, folders).
 inline CLI::Validator non_empty() {
     return CLI::Validator([](std::string& text) -> std::string { return text.empty() ? "must not be empty" : ""; }, "");
+}
+
+/// `--repetitions fastest|median`: what stands for a cell's repetitions (analysis/repetitions.h).
+inline CLI::Option* add_repetitions_option(CLI::App* cmd, OverRepetitions& how) {
+    return cmd
+        ->add_option_function<std::string>(
+            "--repetitions", [&how](const std::string& name) { how = parse_repetitions(name).value(); },
+            "What stands for a cell's repetitions: 'fastest', each frame's fastest time over them (another process "
+            "only ever adds time; the default), or 'median', every repetition as measured")
+        ->check(CLI::IsMember({repetitions_name(OverRepetitions::fastest), repetitions_name(OverRepetitions::median)}))
+        ->default_str(repetitions_name(OverRepetitions::fastest));
 }
 
 }  // namespace rcb

@@ -32,6 +32,7 @@ void add_findings_command(CLI::App& app) {
         std::vector<std::string> runs;
         std::string out, experiment;
         std::int64_t run = 0;
+        OverRepetitions repetitions = OverRepetitions::fastest;
     };
     auto o = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand(
@@ -49,6 +50,7 @@ void add_findings_command(CLI::App& app) {
                     "A database named without :RUN gives the newest run of this experiment (default: the newest run)")
         ->check(non_empty());
     cmd->add_option("--run", o->run, "This run id (one database named without :RUN only)")->check(run_id());
+    add_repetitions_option(cmd, o->repetitions);
     cmd->callback([o] {
         std::vector<RunRef> refs;
         for (const std::string& text : o->runs) refs.push_back(parse_run_ref("findings", text));
@@ -78,7 +80,7 @@ void add_findings_command(CLI::App& app) {
             experiment = name;
             runs.push_back({dbs.back().get(), run});
         }
-        const std::string md = findings_markdown(runs);
+        const std::string md = findings_markdown(runs, o->repetitions);
         if (o->out.empty()) {
             std::cout << md;
         } else {

@@ -90,9 +90,9 @@ void print_scene_table(const std::vector<StructureModels>& models, const std::ve
 /// Nested leave-one-scene-out (analysis/validation.h), the headline: each scene predicted by a
 /// model whose whole selection ran without it; stored with the run (model_validation). Then the
 /// refit-only figure of fit_cost_models, labelled as such.
-void print_nested_loso(Database& db, std::int64_t run, const ModelInputs& inputs,
+void print_nested_loso(Database& db, std::int64_t run, OverRepetitions how, const ModelInputs& inputs,
                        const std::vector<StructureModels>& models) {
-    const std::vector<FrameObservation> frames = load_observations(db, run);
+    const std::vector<FrameObservation> frames = load_observations(db, run, how);
     const BootstrapOptions no_bootstrap{0, 0};
     const std::vector<ValidationGroup> groups = validate_nested(frames, inputs, scene_out_splits(frames), no_bootstrap);
     std::cout << "\nNested leave-one-scene-out (the headline): for each scene the whole model selection (candidate "
@@ -148,13 +148,13 @@ void print_kind_table(Database& db, std::int64_t run, const std::vector<Structur
 }
 
 /// The two runs' agreement over every cell, for the two figures a run can give a cell: the median
-/// of its repetitions (the cell figure the tables show) and the fastest of them (analysis/noise.h).
+/// of its repetitions (the cell figure the tables show) and each frame's fastest (analysis/repetitions.h).
 void print_between_runs(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b) {
     std::cout << "Between the two runs, every cell both hold (relative range of the two runs' figures, p50 / p90 "
                  "over the cells):\n";
     TextTable t({"a run's figure of a cell", "cells", "ray cast", "update"});
     for (const auto& [how, label] : {std::pair{OverRepetitions::median, "median of its repetitions"},
-                                     std::pair{OverRepetitions::fastest, "fastest repetition"}}) {
+                                     std::pair{OverRepetitions::fastest, "each frame's fastest repetition"}}) {
         const StructureNoise n = between_runs_pooled(a, run_a, b, run_b, how);
         t.add(
             {label, std::to_string(n.cells), noise_text(n.raycast, n.raycast_p90), noise_text(n.update, n.update_p90)});
@@ -168,6 +168,7 @@ void add_fit_command(CLI::App& app) {
     struct Options {
         std::string db, experiment, repeat;
         std::int64_t run = 0;
+        OverRepetitions repetitions = OverRepetitions::fastest;
     };
     auto o = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand(
@@ -186,6 +187,7 @@ void add_fit_command(CLI::App& app) {
                     "DB[:RUN]: another run of the same experiment (its own process, another time); the noise "
                     "column is then the spread between the two runs instead of between one run's repetitions")
         ->check(non_empty());
+    add_repetitions_option(cmd, o->repetitions);
     cmd->callback([o] {
         open_read_only(o->db);  // an existing results database, checked (fit does not create one)
         // The other run is found before anything is fitted or stored: a bad --repeat leaves the
@@ -200,11 +202,14 @@ void add_fit_command(CLI::App& app) {
         }
         ResultStore store(o->db);  // migrates, so the fit tables exist
         const std::int64_t run = resolve_run(store.db(), o->run, o->experiment);
-        const RunFit fit = fit_run(store.db(), run);
+        const RunFit fit = fit_run(store.db(), run, o->repetitions);
         const std::vector<StructureModels>& models = fit.models;
 
-        std::cout << "run " << run << ": " << fit.frames
-                  << " frames. Ray-cast cost per ray in ns; held-out error is the mean "
+        std::cout << "run " << run << ": " << fit.frames << " frames ("
+                  << (o->repetitions == OverRepetitions::fastest
+                          ? "each frame of a cell once, at its fastest time over the cell's repetitions"
+                          : "every repetition's frames")
+                  << "). Ray-cast cost per ray in ns; held-out error is the mean "
                   << "absolute relative error on configurations left out of the fit (5-fold). A model is chosen when "
                      "its held-out "
                   << "error is within max(0.5 points, 5%) of the best: the smallest such.\n";
@@ -247,11 +252,14 @@ void add_fit_command(CLI::App& app) {
                      "structures, <= 15% for the peers.\n";
         NoiseFloor noise = noise_floor(store.db(), run);
         if (repeat) {
-            noise.structures = between_runs(store.db(), run, *other, other_run);
+            noise.structures = between_runs(store.db(), run, *other, other_run, o->repetitions);
             std::cout << "The noise column is the spread between this run and run " << other_run << " of "
-                      << repeat->path << " (each cell's median over its repetitions in each run, the same "
-                      << "relative range, over the cells both hold); the slow column counts those cells with a "
-                         "repetition measured slow in either run.\n";
+                      << repeat->path << " (each run's figure of a cell, "
+                      << (o->repetitions == OverRepetitions::fastest ? "the median over frames of each frame's fastest "
+                                                                       "time over its repetitions"
+                                                                     : "the median over its repetitions")
+                      << ", the same relative range, over the cells both hold); the slow column counts those cells "
+                         "with a repetition measured slow in either run.\n";
         } else {
             std::cout << "The noise column is within this run: its first two repetitions of each cell (at "
                          "different times, in other orders, on fresh structures, in one process); give --repeat "
@@ -277,7 +285,7 @@ void add_fit_command(CLI::App& app) {
                          "(cell_state.slow)\n";
         if (repeat) print_between_runs(store.db(), run, *other, other_run);
         print_kind_table(store.db(), run, models);
-        print_nested_loso(store.db(), run, *fit.inputs, models);
+        print_nested_loso(store.db(), run, o->repetitions, *fit.inputs, models);
     });
 }
 

@@ -26,12 +26,12 @@ struct LoadedRun {
     ModelInputs inputs;
 };
 
-LoadedRun load_run(Database& db, const RunRef& ref) {
+LoadedRun load_run(Database& db, const RunRef& ref, OverRepetitions how) {
     return naming(ref, [&] {
         LoadedRun out;
         out.run = resolve_ref(db, ref);
         out.uuid = run_uuid(db, out.run);
-        out.frames = load_observations(db, out.run);
+        out.frames = load_observations(db, out.run, how);
         out.inputs = load_model_inputs(db, out.run);
         return out;
     });
@@ -143,6 +143,7 @@ struct ValidateOptions {
     std::string train, test;
     bool json = false;
     BootstrapOptions bootstrap;
+    OverRepetitions repetitions = OverRepetitions::fastest;
 };
 
 /// What one validation gives to print: the groups in order and, per path, the query kinds' part.
@@ -155,10 +156,10 @@ struct ValidateOutcome {
 };
 
 /// Without --test: the train run's nested splits, stored with it.
-ValidateOutcome validate_nested_run(const RunRef& train_ref, const BootstrapOptions& bootstrap) {
+ValidateOutcome validate_nested_run(const RunRef& train_ref, const BootstrapOptions& bootstrap, OverRepetitions how) {
     ValidateOutcome out;
     ResultStore store = naming(train_ref, [&] { return ResultStore(train_ref.path); });  // stored with the run
-    const LoadedRun train = load_run(store.db(), train_ref);
+    const LoadedRun train = load_run(store.db(), train_ref, how);
     out.predicted_run = out.train_run = train.run;
     out.groups = validate_nested(train.frames, train.inputs, nested_splits(train.frames), bootstrap);
     out.groups.push_back(validate_calibration_only(train.frames, train.inputs, bootstrap));
@@ -172,15 +173,16 @@ ValidateOutcome validate_nested_run(const RunRef& train_ref, const BootstrapOpti
 /// With --test: the train run's frozen model on every cell of the test run, and on each of its
 /// query kinds' batches; stored in the test database. The per-kind groups are printed apart
 /// (print_frozen_kinds) and join the JSON groups before calibration-only.
-ValidateOutcome validate_test_run(const RunRef& train_ref, const RunRef& test_ref, const BootstrapOptions& bootstrap) {
+ValidateOutcome validate_test_run(const RunRef& train_ref, const RunRef& test_ref, const BootstrapOptions& bootstrap,
+                                  OverRepetitions how) {
     ValidateOutcome out;
     LoadedRun train;
     {
         auto db = naming(train_ref, [&] { return open_read_only(train_ref.path); });
-        train = load_run(*db, train_ref);
+        train = load_run(*db, train_ref, how);
     }
     ResultStore store = naming(test_ref, [&] { return ResultStore(test_ref.path); });
-    const LoadedRun test = load_run(store.db(), test_ref);
+    const LoadedRun test = load_run(store.db(), test_ref, how);
     out.predicted_run = test.run;
     out.train_run = train.run;
     const std::string train_name = train_ref.path + ":" + std::to_string(train.run);
@@ -204,6 +206,7 @@ void print_json(const ValidateOptions& o, const ValidateOutcome& r) {
                      {"train_run", r.train_run},
                      {"test", o.test.empty() ? nlohmann::json(nullptr) : nlohmann::json(o.test)},
                      {"bootstrap", {{"resamples", o.bootstrap.resamples}, {"seed", o.bootstrap.seed}}},
+                     {"repetitions", repetitions_name(o.repetitions)},
                      {"not_predictable", r.unpredictable},
                      {"groups", nlohmann::json::array()}};
     for (const ValidationGroup& g : r.groups) {
@@ -221,6 +224,7 @@ void print_text(const ValidateOptions& o, const ValidateOutcome& r) {
                       ? "run " + std::to_string(r.predicted_run) + ": nested splits. "
                       : "run " + std::to_string(r.predicted_run) + " of " + o.test + " predicted by the model of run " +
                             std::to_string(r.train_run) + " of " + o.train + ". ");
+    std::cout << "A cell's repetitions: " << repetitions_name(o.repetitions) << ". ";
     print_header(o.bootstrap);
     if (r.groups.empty()) std::cout << "no split applies: the run has one scene\n";
     for (const ValidationGroup& g : r.groups) print_group(g);
@@ -264,11 +268,12 @@ void add_validate_command(CLI::App& app) {
     cmd->add_option("--seed", o->bootstrap.seed, "Seed of the bootstrap")
         ->check(whole_number(0, std::uint64_t(std::numeric_limits<std::int64_t>::max())))
         ->default_val(1);
+    add_repetitions_option(cmd, o->repetitions);
     cmd->callback([o] {
         const RunRef train_ref = parse_run_ref("--train", o->train);
-        const ValidateOutcome r = o->test.empty()
-                                      ? validate_nested_run(train_ref, o->bootstrap)
-                                      : validate_test_run(train_ref, parse_run_ref("--test", o->test), o->bootstrap);
+        const ValidateOutcome r = o->test.empty() ? validate_nested_run(train_ref, o->bootstrap, o->repetitions)
+                                                  : validate_test_run(train_ref, parse_run_ref("--test", o->test),
+                                                                      o->bootstrap, o->repetitions);
         if (o->json)
             print_json(*o, r);
         else

@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -11,6 +12,7 @@
 #include <memory>
 #include <set>
 
+#include "analysis/cost_model.h"
 #include "analysis/noise.h"
 #include "analysis/report.h"
 #include "runner/compare.h"
@@ -238,17 +240,22 @@ TEST(NoiseFloor, BetweenRunsComparesEachRunsMedianOverRepetitionsOfTheCellsBothH
     for (const StructureNoise& s : self) EXPECT_NEAR(s.raycast_p90, 0.0, 1e-12) << s.structure;
 }
 
-// Another process only ever adds time: where a run's later repetitions of a cell were slowed, its
-// median over repetitions moves with them and its fastest repetition does not.
-TEST(NoiseFloor, BetweenRunsByTheFastestRepetitionLeavesOutRepetitionsSlowedByLoad) {
+// Another process only ever adds time. Run a's repetitions were each slowed, on different frames:
+// no repetition is undisturbed, so its median over repetitions moves, yet every frame has one
+// undisturbed measurement, which each frame's fastest keeps.
+TEST(NoiseFloor, BetweenRunsByEachFramesFastestRepetitionLeavesOutTimeAddedByLoad) {
     const test::TempDir temp("noise", "fastest");
     const TwoRuns two(temp.path());
     ASSERT_TRUE(two.finished);
     Database& a = two.stores[0]->db();
     Database& b = two.stores[1]->db();
     const std::vector<std::int64_t>& runs = two.runs;
-    a.exec("UPDATE cell SET raycast_ns_median = 100, update_ns_median = 50 WHERE repetition = 0");
-    a.exec("UPDATE cell SET raycast_ns_median = 130, update_ns_median = 80 WHERE repetition > 0");
+    for (Database* db : {&a, &b}) db->exec("UPDATE frame SET raycast_ns = 100, update_ns = 50");
+    a.exec(
+        "UPDATE frame SET raycast_ns = 130, update_ns = 80 WHERE cell_id IN (SELECT id FROM cell WHERE repetition = "
+        "2) OR (frame % 2 = 0 AND cell_id IN (SELECT id FROM cell WHERE repetition = 0)) OR (frame % 2 = 1 AND "
+        "cell_id IN (SELECT id FROM cell WHERE repetition = 1))");
+    a.exec("UPDATE cell SET raycast_ns_median = 130, update_ns_median = 80");
     b.exec("UPDATE cell SET raycast_ns_median = 100, update_ns_median = 50");
     const StructureNoise median = between_runs_pooled(a, runs[0], b, runs[1], OverRepetitions::median);
     EXPECT_EQ(median.structure, "all");
@@ -259,9 +266,25 @@ TEST(NoiseFloor, BetweenRunsByTheFastestRepetitionLeavesOutRepetitionsSlowedByLo
     EXPECT_EQ(fastest.cells, 4u);
     EXPECT_NEAR(fastest.raycast_p90, 0.0, 1e-12);
     EXPECT_NEAR(fastest.update_p90, 0.0, 1e-12);
-    // Per structure, the same.
     for (const StructureNoise& s : between_runs(a, runs[0], b, runs[1], OverRepetitions::fastest))
         EXPECT_NEAR(s.raycast_p90, 0.0, 1e-12) << s.structure;
+
+    // The fit reads the same: one observation per measured frame of a cell, at its fastest time;
+    // with `median`, every repetition's frames as measured.
+    const std::vector<FrameObservation> each = load_observations(a, runs[0], OverRepetitions::median);
+    const std::vector<FrameObservation> least = load_observations(a, runs[0]);
+    ASSERT_FALSE(least.empty());
+    EXPECT_EQ(each.size(), 3 * least.size());  // three repetitions of every cell
+    for (const FrameObservation& f : least) {
+        EXPECT_EQ(f.raycast_ns, 100);
+        EXPECT_EQ(f.update_ns, 50);
+    }
+    EXPECT_TRUE(std::any_of(each.begin(), each.end(), [](const FrameObservation& f) { return f.raycast_ns == 130; }));
+    // The counters are the repetitions' own: every repetition replays the same recording.
+    for (std::size_t i = 0; i < least.size(); ++i) {
+        EXPECT_EQ(least[i].n_t, each[i].n_t) << i;
+        EXPECT_EQ(least[i].rays, each[i].rays) << i;
+    }
 }
 
 TEST(NoiseFloor, QuantilesInterpolateBetweenOrderStatistics) {
