@@ -47,9 +47,9 @@ bool contains(const std::vector<std::string>& names, const std::string& name) {
     return std::find(names.begin(), names.end(), name) != names.end();
 }
 
-/// One configuration on one scene: per run its figure over the repetitions (analysis/repetitions.h),
-/// its counters the medians over them; over several runs the
-/// median of those, with the range over runs of the times (lo, hi).
+/// One configuration on one scene: per run its times over the repetitions (analysis/repetitions.h)
+/// and its counters' medians over them; over several runs the median of those, with the range over
+/// runs of the times (lo, hi).
 struct Config {
     std::string scene, category, structure, ray_mix;
     nlohmann::json params;
