@@ -162,6 +162,29 @@ void print_between_runs(Database& a, std::int64_t run_a, Database& b, std::int64
     t.print(std::cout);
 }
 
+/// The noise column's figures, said in a sentence: within the run (its first two repetitions), or
+/// between it and run `other_run` of `other` (`other_path`), each run's figure of a cell by `how`.
+NoiseFloor noise_column(Database& db, std::int64_t run, Database* other, std::int64_t other_run,
+                        const std::string& other_path, OverRepetitions how) {
+    NoiseFloor noise = noise_floor(db, run);
+    if (!other) {
+        std::cout << "The noise column is within this run: its first two repetitions of each cell (at different "
+                     "times, in other orders, on fresh structures, in one process); give --repeat with another run "
+                     "of the same experiment for the spread between independent runs, which is larger on a shared "
+                     "machine.\n";
+        return noise;
+    }
+    noise.structures = between_runs(db, run, *other, other_run, how);
+    std::cout << "The noise column is the spread between this run and run " << other_run << " of " << other_path
+              << " (each run's figure of a cell, "
+              << (how == OverRepetitions::fastest ? "the median over frames of each frame's fastest time over its "
+                                                    "repetitions"
+                                                  : "the median over its repetitions")
+              << ", the same relative range, over the cells both hold); the slow column counts those cells with a "
+                 "repetition measured slow in either run.\n";
+    return noise;
+}
+
 }  // namespace
 
 void add_fit_command(CLI::App& app) {
@@ -250,22 +273,8 @@ void add_fit_command(CLI::App& app) {
                      "min) / median, median and 90th percentile over the cells (\"-\": no cell was measured twice). "
                      "Targets: <= 10% for rcbench's "
                      "structures, <= 15% for the peers.\n";
-        NoiseFloor noise = noise_floor(store.db(), run);
-        if (repeat) {
-            noise.structures = between_runs(store.db(), run, *other, other_run, o->repetitions);
-            std::cout << "The noise column is the spread between this run and run " << other_run << " of "
-                      << repeat->path << " (each run's figure of a cell, "
-                      << (o->repetitions == OverRepetitions::fastest ? "the median over frames of each frame's fastest "
-                                                                       "time over its repetitions"
-                                                                     : "the median over its repetitions")
-                      << ", the same relative range, over the cells both hold); the slow column counts those cells "
-                         "with a repetition measured slow in either run.\n";
-        } else {
-            std::cout << "The noise column is within this run: its first two repetitions of each cell (at "
-                         "different times, in other orders, on fresh structures, in one process); give --repeat "
-                         "with another run of the same experiment for the spread between independent runs, which "
-                         "is larger on a shared machine.\n";
-        }
+        const NoiseFloor noise =
+            noise_column(store.db(), run, other.get(), other_run, repeat ? repeat->path : "", o->repetitions);
         TextTable e({"structure", "model", "terms", "held-out (configs)", "LOSO refit frame", "LOSO refit ray cast",
                      repeat ? "between runs p50 / p90" : "noise p50 / p90", "slow cells", "status"});
         for (const StructureModels& s : models)
