@@ -88,6 +88,15 @@ private:
     std::int64_t experiment_ = 0, run_ = 0;
 };
 
+/// A run stored in `path`, its cells (and fits) written by `fill`, then finished; its id.
+template <class Fill>
+std::int64_t stored_run(const fs::path& path, Fill fill) {
+    FindingsDb db(path.string());
+    fill(db);
+    db.finish();
+    return db.run();
+}
+
 const Finding& by_source(const std::vector<Finding>& all, const std::string& words) {
     for (const Finding& f : all)
         if (f.claim.find(words) != std::string::npos) return f;
@@ -97,10 +106,7 @@ const Finding& by_source(const std::vector<Finding>& all, const std::string& wor
 TEST(Findings, VerdictsFollowTheMeasurements) {
     const test::TempDir dir("findings", "verdicts");
     const fs::path path = dir.path() / "f.db";
-    std::int64_t run = 0;
-    {
-        FindingsDb db(path.string());
-        run = db.run();
+    const std::int64_t run = stored_run(path, [&](FindingsDb& db) {
         // A uniform scene where ug wins; an irregular one where the rebuilt dbvh wins and hg is 5% behind.
         db.cell("uni", "uniform", 5000, "bf", {0.01, 10.0});
         db.cell("uni", "uniform", 5000, "ug", {0.05, 0.50});
@@ -116,8 +122,7 @@ TEST(Findings, VerdictsFollowTheMeasurements) {
         // A small scene: the best structure barely beats brute force.
         db.cell("tiny", "uniform", 99, "bf", {0.001, 0.05});
         db.cell("tiny", "uniform", 99, "ug", {0.002, 0.04});
-        db.finish();
-    }
+    });
     Database db(path.string(), true);
     const std::vector<Finding> f = evaluate_findings(db, run);
 
@@ -140,17 +145,12 @@ TEST(Findings, VerdictsFollowTheMeasurements) {
     EXPECT_NE(md.find("**not tested by this run**: No stored fit"), std::string::npos);
 }
 
-// Three runs of one experiment: figures are medians over the runs with their range, the verdict is
-// read on those medians, and each run alone is read too (the third disagrees here).
 // Each of hg's three repetitions was slowed on some frames, but every frame has a fast measurement:
 // by each frame's fastest hg wins the irregular scene, by the median of its repetitions it does not.
 TEST(Findings, ARunsTimeOfAConfigurationIsEachFramesFastestRepetition) {
     const test::TempDir dir("findings", "fastest");
     const fs::path path = dir.path() / "f.db";
-    std::int64_t run = 0;
-    {
-        FindingsDb db(path.string());
-        run = db.run();
+    const std::int64_t run = stored_run(path, [&](FindingsDb& db) {
         db.cell("irr", "irregular", 5000, "bf", {0.01, 10.0});
         db.cell("irr", "irregular", 5000, "ug", {0.05, 2.00});
         db.cell("irr", "irregular", 5000, "dbvh", {0.10, 0.60});
@@ -161,8 +161,7 @@ TEST(Findings, ARunsTimeOfAConfigurationIsEachFramesFastestRepetition) {
             m.ray_ms_of_frame = hg[rep];
             db.cell("irr", "irregular", 5000, "hg", m, nlohmann::json::object(), "", rep);
         }
-        db.finish();
-    }
+    });
     Database db(path.string(), true);
     const Finding fastest = by_source(evaluate_findings(db, run), "larger irregular");
     EXPECT_EQ(fastest.verdict, Finding::Verdict::confirmed) << fastest.summary;  // 0.60 ms against 0.70 ms
@@ -171,6 +170,8 @@ TEST(Findings, ARunsTimeOfAConfigurationIsEachFramesFastestRepetition) {
     EXPECT_NE(findings_markdown(db, run).find("each frame's fastest time"), std::string::npos);
 }
 
+// Three runs of one experiment: figures are medians over the runs with their range, the verdict is
+// read on those medians, and each run alone is read too (the third disagrees here).
 TEST(Findings, SeveralRunsGiveMediansRangesAndEachRunsVerdict) {
     const test::TempDir dir("findings", "runs");
     const fs::path path = dir.path() / "f.db";
@@ -206,18 +207,14 @@ TEST(Findings, SeveralRunsGiveMediansRangesAndEachRunsVerdict) {
 TEST(Findings, TraversalCostsAreComparedUnderOneForm) {
     const test::TempDir dir("findings", "form");
     const fs::path path = dir.path() / "f.db";
-    std::int64_t run = 0;
-    {
-        FindingsDb db(path.string());
-        run = db.run();
+    const std::int64_t run = stored_run(path, [&](FindingsDb& db) {
         db.cell("irr", "irregular", 5000, "ug", {0.05, 0.5});
         db.cell("irr", "irregular", 5000, "dbvh", {0.05, 0.4});
         db.fit("ug", "per-category", true, 20.0);
         db.fit("ug", "eq5.4", false, 3.0);
         db.fit("dbvh", "with-memory", true, 1.0);
         db.fit("dbvh", "eq5.4", false, 5.0);
-        db.finish();
-    }
+    });
     Database db(path.string(), true);
     const std::vector<Finding> f = evaluate_findings(db, run);
     const Finding& t = by_source(f, "traversal step");
@@ -231,18 +228,14 @@ TEST(Findings, TraversalCostsAreComparedUnderOneForm) {
 TEST(Findings, DenseRaysDecideTheFullSahClaimAndStayOutOfTheOthers) {
     const test::TempDir dir("findings", "dense");
     const fs::path path = dir.path() / "f.db";
-    std::int64_t run = 0;
-    {
-        FindingsDb db(path.string());
-        run = db.run();
+    const std::int64_t run = stored_run(path, [&](FindingsDb& db) {
         db.cell("irr", "irregular", 5000, "hg", {0.10, 0.50});
         db.cell("irr", "irregular", 5000, "dbvh", {0.10, 1.00}, {{"mode", "incremental"}});
         db.cell("irr", "irregular", 5000, "dbvh", {0.10, 1.00}, {{"mode", "rebuild"}});
         db.cell("irr-dense", "irregular", 5000, "dbvh", {0.10, 1.00}, {{"mode", "incremental"}}, "dense");
         db.cell("irr-dense", "irregular", 5000, "dbvh", {0.10, 0.60}, {{"mode", "rebuild"}}, "dense");
         db.cell("irr-dense", "irregular", 5000, "hg", {0.10, 2.00}, nlohmann::json::object(), "dense");
-        db.finish();
-    }
+    });
     Database db(path.string(), true);
     const std::vector<Finding> f = evaluate_findings(db, run);
     const Finding& sah = by_source(f, "full SAH");
@@ -259,13 +252,9 @@ TEST(Findings, DenseRaysDecideTheFullSahClaimAndStayOutOfTheOthers) {
 TEST(Findings, ARunWithoutTheNeededScenesTestsNothingItCannot) {
     const test::TempDir dir("findings", "empty");
     const fs::path path = dir.path() / "f.db";
-    std::int64_t run = 0;
-    {
-        FindingsDb db(path.string());
-        run = db.run();
+    const std::int64_t run = stored_run(path, [&](FindingsDb& db) {
         db.cell("only", "irregular", 99, "bf", {0.001, 0.05});
-        db.finish();
-    }
+    });
     Database db(path.string(), true);
     for (const Finding& f : evaluate_findings(db, run)) {
         EXPECT_EQ(f.verdict, Finding::Verdict::untested) << f.claim;
