@@ -40,11 +40,12 @@ std::vector<std::string> findings_structures();
 /// The findings over independent runs of one experiment. Structures compared are
 /// findings_structures(), each at its fastest measured configuration per scene; per-frame cost =
 /// update + ray cast per frame (thesis eq. 5.5). Per run a configuration's figure is its cell figure
-/// over the run's repetitions (`how`, analysis/repetitions.h); over runs, the median of those, with their range. The
-/// verdict is read on the medians over runs, and again on each run alone (Finding::per_run). Claims of Table 6.2 read
-/// the scenes without dense rays; those of Tables 6.3 and 6.4 read the dense-ray scenes where the runs have some (the
-/// thesis cast dense rays there, §6.4). Traversal costs are compared under one form for every structure, eq. 5.4 as
-/// `rcbench fit` stored it, not each structure's chosen form.
+/// over the run's repetitions (`how`, analysis/repetitions.h); over runs, the median of those, with
+/// their range. The verdict is read on the medians over runs, and again on each run alone
+/// (Finding::per_run). Claims of Table 6.2 read the scenes without dense rays; those of Tables 6.3
+/// and 6.4 read the dense-ray scenes where the runs have some (the thesis cast dense rays there,
+/// §6.4). Traversal costs are compared under one form for every structure, eq. 5.4 as `rcbench fit`
+/// stored it, not each structure's chosen form.
 std::vector<Finding> evaluate_findings(const std::vector<FindingsRun>& runs,
                                        OverRepetitions how = OverRepetitions::fastest);
 std::vector<Finding> evaluate_findings(Database& db, std::int64_t run, OverRepetitions how = OverRepetitions::fastest);

@@ -1,6 +1,5 @@
 #include "analysis/noise.h"
 
-#include <algorithm>
 #include <cmath>
 #include <map>
 

@@ -61,8 +61,8 @@ NoiseFloor noise_floor(Database& db, std::int64_t run);
 
 /// How far two independent runs of one experiment (two processes, at two times) measure the same
 /// cell, per structure: for every scene (by content) and configuration both runs hold, the
-/// relative range of the two runs' figures of the cell (`how`, analysis/repetitions.h); median and 90th
-/// percentile over those cells, for ray cast and update per frame. This, not the repetitions of
+/// relative range of the two runs' figures of the cell (`how`, analysis/repetitions.h); median and
+/// 90th percentile over those cells, for ray cast and update per frame. This, not the repetitions of
 /// one run, is the floor a model's error is judged against: a model cannot be told apart from a
 /// rerun below it. `cells` counts the cells both runs hold; `slow` those with a repetition flagged
 /// slow in either.
