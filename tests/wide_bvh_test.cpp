@@ -4,10 +4,12 @@
 // float slab test), for the whole-rebuild policy (the SAH growth it holds) and the progressive one
 // (every phase visited, the work per commit within its budget); the SAH cost after long churn at
 // the defaults against a fresh build; the rebuild trigger's weight of small steps against jumps;
-// nested inserts into an empty tree; closest and any hit.
+// nested inserts into an empty tree; closest and any hit, the closest against brute force where
+// entries tie.
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <iostream>
 #include <map>
 #include <optional>
@@ -474,6 +476,52 @@ TEST(WideBvh, ClosestAndAnyHitStopEarly) {
     tree.cast_counted(std::span<const Segment>(&ray, 1), out, c);
     EXPECT_EQ(c.n_tp, 100u);
     EXPECT_EQ(out.uids.size(), 100u);
+}
+
+TEST(WideBvh, ClosestHitEqualsBruteForceWhereEntriesTie) {
+    // The closest-hit traversal orders a node's hit lanes by a rounded key (push_near_first); the
+    // order may only change which block is read first, never the answer. Boxes that tie: copies
+    // of one box under several uids, nested boxes around the segments' starts (entry 0, ordered
+    // by exit) and a lattice of equal cubes that axis-parallel segments enter at equal t.
+    std::vector<Object> objects;
+    Uid uid = 0;
+    for (int i = 0; i < 24; ++i) {
+        const float r = 0.5f + float(i % 6);
+        for (int copy = 0; copy < 1 + i % 3; ++copy) objects.push_back({uid++, {{-r, -r, -r}, {r, r, r}}});
+    }
+    for (int x = -6; x <= 6; ++x)
+        for (int y = -6; y <= 6; ++y)
+            for (int z = 7; z <= 9; ++z) {
+                const Vec3 lo{float(x), float(y), float(z)};
+                objects.push_back({uid++, {lo, {lo[0] + 1, lo[1] + 1, lo[2] + 1}}});
+            }
+    WideBvh tree;
+    tree.build(objects);
+    BruteForce truth;
+    truth.build(objects);
+    Random rng(5);
+    std::vector<Segment> rays;
+    for (int i = 0; i < 3000; ++i) {
+        auto coord = [&](double lo, double hi) { return float(std::floor(rng.uniform(lo, hi) * 4) / 4); };
+        const Vec3 a{coord(-7, 7), coord(-7, 7), coord(-3, 12)};
+        Vec3 b{coord(-8, 8), coord(-8, 8), coord(-4, 14)};
+        if (i % 2 == 0) b = {a[0], a[1], b[2]};  // parallel to z: equal entries into lattice cubes
+        rays.push_back({a, b});
+    }
+    for (const Segment& ray : rays) {
+        const std::optional<Hit> want = truth.cast_closest(ray), got = tree.cast_closest(ray);
+        ASSERT_EQ(got.has_value(), want.has_value());
+        if (want) {
+            EXPECT_EQ(got->uid, want->uid);
+            EXPECT_EQ(got->t, want->t);
+        }
+    }
+    const std::vector<QueryKind> kinds(rays.size(), QueryKind::closest);
+    HitLists want, got;
+    truth.cast(rays, kinds, want);
+    tree.cast(rays, kinds, got);
+    EXPECT_EQ(got.uids, want.uids);
+    EXPECT_EQ(got.offsets, want.offsets);
 }
 
 TEST(WideBvh, BothWaysOfPushingChildrenVisitTheSameNodesInTheSameOrder) {

@@ -214,10 +214,11 @@ private:
     }
 
     /// Closest hits (hit_policy.h): near to far, and nothing entered after the best hit so far is
-    /// read. Each stack entry keeps the entry parameter of its lane's box; an entry popped after the
-    /// limit dropped below it is skipped without reading its block, and the slab test itself clips
-    /// the lanes to the limit (t_far starts at min(1, limit)), so a lane entered later is neither
-    /// pushed nor visited. A lane's box holds its objects' boxes and both entries come from the
+    /// read. An inner block's nearest hit lane is read next at once, its other hit lanes go onto the
+    /// stack, nearest on top, each with the entry parameter of its box (push_near_first); an entry
+    /// popped after the limit dropped below it is skipped without reading its block. The slab test
+    /// clips the lanes to the limit (t_far starts at min(1, limit)), so a lane entered later is
+    /// neither pushed nor read. A lane's box holds its objects' boxes and both entries come from the
     /// same float slab computation, monotonic in the bounds, so no object at or before the limit is
     /// skipped (ties at the limit are kept). N_T counts the blocks tested, not the skipped pops.
     template <class Count, class Visit>
@@ -227,14 +228,10 @@ private:
         int near[3], far[3];
         bound_offsets(slabs, near, far);
         std::uint32_t* stack = scratch.stack();  // pairs: block, bits of its lane's entry parameter
-        std::uint32_t top = 0;
-        stack[top++] = root_;
-        stack[top++] = 0u;  // +0.0f: the root is entered no later than anything below it
+        std::uint32_t top = 0, node = root_;
         alignas(32) float t_near[kLanes], t_far[kLanes];
-        while (top != 0) {
-            top -= 2;
-            if (std::bit_cast<float>(stack[top + 1]) > visit_limit(visit)) continue;
-            const Block& b = blocks_[stack[top]];
+        for (;;) {
+            const Block& b = blocks_[node];
             count.traversal();
             const float limit = std::min(1.0f, visit_limit(visit));
             unsigned mask;
@@ -253,8 +250,16 @@ private:
                 }
             } else {
                 count.node_hits(unsigned(__builtin_popcount(mask)));
-                push_near_first(b, mask, t_near, t_far, stack, top);
+                if (mask != 0) {
+                    node = push_near_first(b, mask, t_near, t_far, stack, top);
+                    continue;
+                }
             }
+            do {  // the next entry not beyond the limit
+                if (top == 0) return;
+                top -= 2;
+            } while (std::bit_cast<float>(stack[top + 1]) > visit_limit(visit));
+            node = stack[top];
         }
     }
 
@@ -282,27 +287,88 @@ private:
     };
     static_assert(sizeof(Block) == 256);
 
-    /// The hit lanes of inner block `b` onto a closest-hit stack with their entry parameters, the
-    /// farthest first so that the nearest is popped first (insertion by entry: a node has few hit
-    /// lanes). Equal entries, as where the segment starts inside several boxes, go by exit: the box
-    /// the segment leaves first is taken first, as its objects lie nearer along it.
-    static void push_near_first(const Block& b, unsigned mask, const float* t_near, const float* t_far,
-                                std::uint32_t* stack, std::uint32_t& top) {
+    /// The hit lanes (`mask`, not empty) of inner block `b`: returns the nearest's block and puts
+    /// the others onto a closest-hit stack with their entry parameters, the farthest first so that
+    /// the nearest is popped first. Equal entries, as where the segment starts inside several
+    /// boxes, go by exit: the box the segment leaves first is taken first, as its objects lie
+    /// nearer along it. The order only decides which block is read first, never the answer.
+#if defined(__AVX2__)
+    /// Branch-free, as a data-dependent sort mispredicts on most nodes of incoherent rays: one
+    /// 32-bit key per lane, sorted by a bitonic network in one register (Batcher 1968); the lanes'
+    /// refs and entries permuted into that order and all 8 pairs stored, `top` then keeping the
+    /// hit ones but the nearest. The nearest comes from a shorter reduction beside the sort, as the
+    /// next block's address waits for it. The key: entries are in [0, 1], so their bits order as
+    /// integers; lanes entered at 0 take their exit's bits halved, below every positive entry's;
+    /// the low 3 bits hold the lane (unique keys; the rounding only reorders near-ties); missed
+    /// lanes have the sign bit set (last in the signed sort, never the unsigned minimum).
+    [[gnu::always_inline]] static std::uint32_t push_near_first(const Block& b, unsigned mask, const float* t_near,
+                                                                const float* t_far, std::uint32_t* stack,
+                                                                std::uint32_t& top) {
+        const __m256 tn = _mm256_load_ps(t_near), tf = _mm256_load_ps(t_far);
+        const __m256i bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        const __m256i hit = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(int(mask)), bit), bit);
+        const __m256i tn_bits = _mm256_castps_si256(tn);
+        const __m256i entered = _mm256_or_si256(tn_bits, _mm256_set1_epi32(0x40000000));
+        const __m256i inside = _mm256_srli_epi32(_mm256_castps_si256(tf), 1);
+        const __m256 at_start = _mm256_cmp_ps(tn, _mm256_setzero_ps(), _CMP_EQ_OQ);
+        __m256i key = _mm256_blendv_epi8(entered, inside, _mm256_castps_si256(at_start));
+        key =
+            _mm256_or_si256(_mm256_andnot_si256(_mm256_set1_epi32(7), key), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+        key = _mm256_or_si256(key, _mm256_andnot_si256(hit, _mm256_set1_epi32(INT32_MIN)));
+
+        __m256i least = _mm256_min_epu32(key, _mm256_shuffle_epi32(key, 0xb1));
+        least = _mm256_min_epu32(least, _mm256_shuffle_epi32(least, 0x4e));
+        least = _mm256_min_epu32(least, _mm256_permute2x128_si256(least, least, 1));
+        const std::uint32_t nearest = b.ref[_mm256_cvtsi256_si32(least) & 7];
+
+        const __m256i order = _mm256_and_si256(sort_descending(key), _mm256_set1_epi32(7));
+        const __m256i refs =
+            _mm256_permutevar8x32_epi32(_mm256_load_si256(reinterpret_cast<const __m256i*>(b.ref)), order);
+        const __m256i entries = _mm256_permutevar8x32_epi32(tn_bits, order);
+        const __m256i lo = _mm256_unpacklo_epi32(refs, entries), hi = _mm256_unpackhi_epi32(refs, entries);
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(stack + top), _mm256_permute2x128_si256(lo, hi, 0x20));
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(stack + top + 8), _mm256_permute2x128_si256(lo, hi, 0x31));
+        top += 2 * unsigned(__builtin_popcount(mask)) - 2;
+        return nearest;
+    }
+    /// The 8 keys of `v` in descending order: the bitonic network's six layers of compare-exchange,
+    /// each a shuffle, a min, a max and a blend; one layer crosses the 128-bit halves.
+    [[gnu::always_inline]] static __m256i sort_descending(__m256i v) {
+        v = exchange<0x99>(v, _mm256_shuffle_epi32(v, 0xb1));       // pairs (2i, 2i+1), alternating
+        v = exchange<0xc3>(v, _mm256_shuffle_epi32(v, 0x4e));       // bitonic 4-merges, distance 2
+        v = exchange<0xa5>(v, _mm256_shuffle_epi32(v, 0xb1));       // distance 1
+        v = exchange<0x0f>(v, _mm256_permute2x128_si256(v, v, 1));  // 8-merge, distance 4
+        v = exchange<0x33>(v, _mm256_shuffle_epi32(v, 0x4e));       // distance 2
+        v = exchange<0x55>(v, _mm256_shuffle_epi32(v, 0xb1));       // distance 1
+        return v;
+    }
+    /// One compare-exchange layer: lane i keeps max(v, partner) when bit i of kTakeMax is set,
+    /// else the min.
+    template <int kTakeMax>
+    [[gnu::always_inline]] static __m256i exchange(__m256i v, __m256i partner) {
+        return _mm256_blend_epi32(_mm256_min_epi32(v, partner), _mm256_max_epi32(v, partner), kTakeMax);
+    }
+#else
+    [[gnu::always_inline]] static std::uint32_t push_near_first(const Block& b, unsigned mask, const float* t_near,
+                                                                const float* t_far, std::uint32_t* stack,
+                                                                std::uint32_t& top) {
         auto nearer = [&](int a, int c) {
             return t_near[a] < t_near[c] || (t_near[a] == t_near[c] && t_far[a] < t_far[c]);
         };
         int lanes[kLanes], n = 0;
-        for (; mask != 0; mask &= mask - 1) {
+        for (; mask != 0; mask &= mask - 1) {  // insertion by entry: a node has few hit lanes
             const int k = __builtin_ctz(mask);
             int i = n++;  // farthest first
             for (; i > 0 && nearer(lanes[i - 1], k); --i) lanes[i] = lanes[i - 1];
             lanes[i] = k;
         }
-        for (int i = 0; i < n; ++i) {
+        for (int i = 0; i + 1 < n; ++i) {
             stack[top++] = b.ref[lanes[i]];
             stack[top++] = std::bit_cast<std::uint32_t>(t_near[lanes[i]]);
         }
+        return b.ref[lanes[n - 1]];
     }
+#endif
 
     /// The slab test of a block's 8 lanes: bit k set when lane k is hit, t_near[k] its entry
     /// parameter. SegmentSlabs::clip exactly: the same float operations in the same order, and
