@@ -35,6 +35,7 @@ struct FrameObservation {
     double n_ro = 0;                     ///< narrow-phase shape tests per ray (0 below the shapes query level)
     double n_th = 0;                     ///< node boxes hit per ray (trees; 0 where not counted)
     double n_mp = 0;                     ///< steps a history predictor missed per ray (0 where not counted)
+    double n_miss = 0;                   ///< lines a simulated private cache fetched per ray (0 where not counted)
     double inserts = 0, removes = 0, moves = 0, objects = 0;
     double memory_mb = 0;
     /// Where the structure's working set (memory_mb) sits: 0 within the first data cache, 1 within

@@ -114,13 +114,13 @@ void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to)
     Statement frames = in.prepare(
         "SELECT frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, duplicate, "
         "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, n_th, n_mp, "
-        "update_wall_ns, raycast_wall_ns FROM frame WHERE cell_id = ?");
+        "n_miss, update_wall_ns, raycast_wall_ns FROM frame WHERE cell_id = ?");
     frames.bind(1, from);
     Statement insert_frame = o.prepare(
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, "
         "missed, extra, duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, "
-        "n_ro_hits, n_th, n_mp, update_wall_ns, raycast_wall_ns) "
-        "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "n_ro_hits, n_th, n_mp, n_miss, update_wall_ns, raycast_wall_ns) "
+        "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     while (frames.step()) {
         insert_frame.bind(1, to);
         for (int c = 0; c < 16; ++c) insert_frame.bind(c + 2, frames.int64(c));
@@ -129,19 +129,19 @@ void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to)
         else
             insert_frame.bind(18, frames.real(16));
         insert_frame.bind(19, frames.text(17));
-        for (int c = 18; c < 25; ++c) insert_frame.bind(c + 2, frames.int64(c));
-        for (int c = 25; c < 27; ++c)  // NULL in frames stored before the wall times were kept
+        for (int c = 18; c < 26; ++c) insert_frame.bind(c + 2, frames.int64(c));
+        for (int c = 26; c < 28; ++c)  // NULL in frames stored before the wall times were kept
             frames.is_null(c) ? insert_frame.bind_null(c + 2) : insert_frame.bind(c + 2, frames.int64(c));
         insert_frame.run();
     }
     Statement kinds = in.prepare(
-        "SELECT frame, kind, rays, raycast_ns, raycast_wall_ns, hits, n_t, n_rb, n_tp, n_ro, n_ro_hits, n_th, n_mp "
-        "FROM frame_kind WHERE cell_id = ?");
+        "SELECT frame, kind, rays, raycast_ns, raycast_wall_ns, hits, n_t, n_rb, n_tp, n_ro, n_ro_hits, n_th, n_mp, "
+        "n_miss FROM frame_kind WHERE cell_id = ?");
     kinds.bind(1, from);
     Statement insert_kind = o.prepare(kFrameKindInsertSql);
     while (kinds.step()) {
         insert_kind.bind(1, to).bind(2, kinds.int64(0)).bind(3, kinds.text(1));
-        for (int c = 2; c < 13; ++c) insert_kind.bind(c + 2, kinds.int64(c));
+        for (int c = 2; c < 14; ++c) insert_kind.bind(c + 2, kinds.int64(c));
         insert_kind.run();
     }
     Statement state =

@@ -376,6 +376,13 @@ CREATE TABLE cell_interval (
     PRIMARY KEY (run_id, scene_id, config_id)
 );
 )sql",
+        // 12 → 13: the lines a simulated private cache fetched for a frame's batch, and for each
+        // kind's (core/accel/cache_model.h n_miss; the cost model's C_MISS). 0 where not counted:
+        // brute force, the peers, and frames stored before.
+        R"sql(
+ALTER TABLE frame ADD COLUMN n_miss INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE frame_kind ADD COLUMN n_miss INTEGER NOT NULL DEFAULT 0;
+)sql",
     };
     return all;
 }
@@ -764,8 +771,8 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, "
         "extra, "
         "duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, "
-        "n_th, n_mp, update_wall_ns, raycast_wall_ns) VALUES "
-        "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "n_th, n_mp, n_miss, update_wall_ns, raycast_wall_ns) VALUES "
+        "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     Statement kind = db_.prepare(kFrameKindInsertSql);
     for (const FrameResult& fr : res.frames) {
         std::optional<double> sah;
@@ -777,14 +784,15 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
                    std::int64_t(fr.counters.n_tp), std::int64_t(fr.memory_bytes), sah, fr.stats.dump(),
                    std::int64_t(fr.returned), std::int64_t(fr.correct), std::int64_t(fr.relevant),
                    std::int64_t(fr.counters.n_ro), std::int64_t(fr.counters.n_ro_hits), std::int64_t(fr.counters.n_th),
-                   std::int64_t(fr.counters.n_mp), std::int64_t(fr.update.wall_ns), std::int64_t(fr.raycast.wall_ns));
+                   std::int64_t(fr.counters.n_mp), std::int64_t(fr.counters.n_miss), std::int64_t(fr.update.wall_ns),
+                   std::int64_t(fr.raycast.wall_ns));
         f.run();
         for (const KindResult& k : fr.kinds)
             kind.bind_all(cell_id, std::int64_t(fr.frame), std::string(query_kind_name(k.kind)), std::int64_t(k.rays),
                           std::int64_t(k.raycast_ns), std::int64_t(k.raycast.wall_ns), std::int64_t(k.hits),
                           std::int64_t(k.counters.n_t), std::int64_t(k.counters.n_rb), std::int64_t(k.counters.n_tp),
                           std::int64_t(k.counters.n_ro), std::int64_t(k.counters.n_ro_hits),
-                          std::int64_t(k.counters.n_th), std::int64_t(k.counters.n_mp))
+                          std::int64_t(k.counters.n_th), std::int64_t(k.counters.n_mp), std::int64_t(k.counters.n_miss))
                 .run();
     }
     store_cell_interval(db_, run_id, scene, config);

@@ -19,13 +19,14 @@ struct CounterField {
     std::uint64_t Counters::*member;
 };
 
-inline constexpr std::array<CounterField, 7> kCounterFields{{{"n_t", &Counters::n_t},
+inline constexpr std::array<CounterField, 8> kCounterFields{{{"n_t", &Counters::n_t},
                                                              {"n_th", &Counters::n_th},
                                                              {"n_rb", &Counters::n_rb},
                                                              {"n_tp", &Counters::n_tp},
                                                              {"n_ro", &Counters::n_ro},
                                                              {"n_ro_hits", &Counters::n_ro_hits},
-                                                             {"n_mp", &Counters::n_mp}}};
+                                                             {"n_mp", &Counters::n_mp},
+                                                             {"n_miss", &Counters::n_miss}}};
 
 /// The counter called `name`; nullptr for none.
 constexpr const CounterField* counter_field(std::string_view name) {

@@ -10,6 +10,7 @@
 
 #include <cstdint>
 
+#include "core/accel/cache_model.h"
 #include "core/accel/outcome_predictor.h"
 
 namespace rcb {
@@ -23,6 +24,7 @@ struct Counters {
     std::uint64_t n_ro = 0;       ///< narrow-phase tests of exact shapes (thesis eq. 5.3, C_RO)
     std::uint64_t n_ro_hits = 0;  ///< of those, the shapes hit
     std::uint64_t n_mp = 0;       ///< steps whose outcome a history predictor missed (outcome_predictor.h)
+    std::uint64_t n_miss = 0;     ///< lines a simulated private cache fetched for the batch (cache_model.h)
 
     /// False positives: objects tested but not hit (thesis N_FP = N_RB − N_TP; N_TFP once shapes
     /// exist).
@@ -32,7 +34,7 @@ struct Counters {
 
     Counters& operator+=(const Counters& o) {
         n_t += o.n_t, n_th += o.n_th, n_rb += o.n_rb, n_tp += o.n_tp, n_ro += o.n_ro, n_ro_hits += o.n_ro_hits,
-            n_mp += o.n_mp;
+            n_mp += o.n_mp, n_miss += o.n_miss;
         return *this;
     }
     friend bool operator==(const Counters&, const Counters&) = default;
@@ -45,6 +47,7 @@ struct NoCounting {
     constexpr void node_hits(std::uint64_t = 1) {}
     constexpr void box_tests(std::uint64_t = 1) {}
     constexpr void hits(std::uint64_t = 1) {}
+    constexpr void reads(const void*, std::size_t) {}
 };
 
 struct Counting {
@@ -53,6 +56,8 @@ struct Counting {
     Counters* sums;
     /// Where set, each step's outcome (what the counters did since the step before) goes to it.
     OutcomePredictor* predictor = nullptr;
+    /// Where set, the cells, blocks and nodes the traversal reads go to it (cache_model.h).
+    CacheModel* cache = nullptr;
 
     void traversal(std::uint64_t n = 1) {
         if (predictor) predictor->next_step(sums->n_th, sums->n_rb, sums->n_tp);
@@ -61,6 +66,9 @@ struct Counting {
     void node_hits(std::uint64_t n = 1) { sums->n_th += n; }
     void box_tests(std::uint64_t n = 1) { sums->n_rb += n; }
     void hits(std::uint64_t n = 1) { sums->n_tp += n; }
+    void reads(const void* p, std::size_t bytes) {
+        if (cache) cache->read(p, bytes);
+    }
 };
 
 /// `Policy` at the candidate level (see the top of this file).

@@ -153,10 +153,12 @@ public:
     void cast_counted(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out,
                       Counters& counters) override {
         OutcomePredictor predictor;
-        Counting count{&counters, &predictor};
+        CacheModel cache;  // cold: what the batch fetches (cache_model.h)
+        Counting count{&counters, &predictor, &cache};
         at_level(count, [&](auto& policy) { cast_all(rays, kinds, out, policy); });
         predictor.end(counters.n_th, counters.n_rb, counters.n_tp);
         counters.n_mp += predictor.mispredicted();
+        counters.n_miss += cache.misses();
     }
     std::optional<Hit> cast_closest(const Segment& segment) override {
         NoCounting count;

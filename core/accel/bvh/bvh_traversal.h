@@ -95,14 +95,17 @@ void traverse_bvh_nearest(const Tree& tree, std::uint32_t root, std::uint32_t* s
         inner = false;
         if (tree.is_leaf(n)) {
             if constexpr (Count::candidates) {
+                count.reads(&tree.leaf_box(n), sizeof(Aabb));
                 if (!slabs.clip(tree.leaf_box(n), t_near, t_far) || t_near > visit_limit(visit)) return true;
             } else {
                 count.box_tests();
+                count.reads(&tree.object_box(n), sizeof(Aabb));
                 if (!slabs.clip(tree.object_box(n), t_near, t_far) || t_near > visit_limit(visit)) return true;
             }
             count.hits();
             return bool(visit(tree.leaf_uid(n), t_near));
         }
+        count.reads(&tree.node_box(n), sizeof(Aabb));
         inner = slabs.clip(tree.node_box(n), t_near, t_far) && t_near <= visit_limit(visit);
         return true;
     };
@@ -162,14 +165,17 @@ void traverse_bvh(const Tree& tree, std::uint32_t root, std::uint32_t* stack, co
         // stronger hint makes the leaf path cold and calls the slab test out of line.
         if (__builtin_expect_with_probability(tree.is_leaf(node), true, 0.25)) {
             if constexpr (Count::candidates) {  // the leaf's stored (for the DBVH, fat) box
+                count.reads(&tree.leaf_box(node), sizeof(Aabb));
                 if (!slabs.clip(tree.leaf_box(node), t_near, t_far)) continue;
             } else {
                 count.box_tests();
+                count.reads(&tree.object_box(node), sizeof(Aabb));
                 if (!slabs.clip(tree.object_box(node), t_near, t_far)) continue;
             }
             count.hits();
             if (!visit(tree.leaf_uid(node), t_near)) return;
         } else {
+            count.reads(&tree.node_box(node), sizeof(Aabb));
             if (!slabs.clip(tree.node_box(node), t_near, t_far)) continue;
             const CrowdScan r = scan_if_crowd(tree, crowds, node, slabs, count, visit);
             if (r == CrowdScan::stop) return;

@@ -123,11 +123,13 @@ public:
     CrowdScan scan_crowd(std::uint32_t n, const SegmentSlabs& slabs, Count& count, Visit& visit) const {
         const Crowd& c = crowds_[crowd_of_[n]];
         float t_near, t_far;
+        count.reads(&c, sizeof c);
         if (!slabs.clip(c.common, t_near, t_far)) return CrowdScan::descend;
         // Every box below holds the common box; each is still tested, for its entry parameter and
         // so that the answer never rests on this shortcut.
         count.box_tests(c.last - c.first + 1);
         for (std::uint32_t k = c.first; k <= c.last; ++k) {
+            count.reads(&packed_[k], sizeof packed_[k]);
             if (!slabs.clip(packed_[k].box, t_near, t_far)) continue;
             count.hits();
             if (!visit(packed_[k].uid, t_near)) return CrowdScan::stop;

@@ -141,12 +141,14 @@ public:
     template <class Count, class Visit>
     CrowdScan scan_crowd(std::uint32_t n, const SegmentSlabs& slabs, Count& count, Visit& visit) const {
         float t_near, t_far;
+        count.reads(&common_[n], sizeof(Aabb));
         if (!slabs.clip(common_[n], t_near, t_far)) return CrowdScan::descend;
         // Every box below holds the common box, so the segment meets all of them; each is still
         // tested, for its entry parameter and so that the answer never rests on this shortcut.
         const std::uint32_t first = leaf_base_ + ranges_[n][0], last = leaf_base_ + ranges_[n][1];
         count.box_tests(last - first + 1);
         for (std::uint32_t leaf = first; leaf <= last; ++leaf) {
+            count.reads(&nodes_[leaf].box, sizeof(Aabb));
             if (!slabs.clip(nodes_[leaf].box, t_near, t_far)) continue;
             count.hits();
             if (!visit(nodes_[leaf].child[0], t_near)) return CrowdScan::stop;

@@ -179,6 +179,7 @@ private:
         while (top != 0) {
             const Block& b = blocks_[stack[--top]];
             count.traversal();
+            count.reads(&b, sizeof b);
             unsigned mask;
             if (Count::candidates && b.leaf) {  // a leaf reached through its box: all its objects
                 mask = (1u << b.count) - 1;
@@ -233,6 +234,7 @@ private:
         for (;;) {
             const Block& b = blocks_[node];
             count.traversal();
+            count.reads(&b, sizeof b);
             const float limit = std::min(1.0f, visit_limit(visit));
             unsigned mask;
             if (Count::candidates && b.leaf) {  // a leaf reached through its box: all its objects

@@ -37,6 +37,8 @@ public:
             if (keys_[i] == kEmpty) return kNone;
         }
     }
+    /// Where a lookup of `key` starts reading (the cache model's read; nullptr when empty).
+    const std::uint64_t* home_slot(std::uint64_t key) const { return keys_.empty() ? nullptr : &keys_[home(key)]; }
     void insert(std::uint64_t key, std::uint32_t value);
     void erase(std::uint64_t key);
     void clear();
@@ -234,15 +236,19 @@ bool HashGrid::visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, doub
         if (t_in > grid::closest_cutoff(visit_limit(ctx.visit))) return false;
     }
     ctx.count.traversal();
-    const std::uint32_t id = table_.find(key_of(depth, c));
+    const std::uint64_t key = key_of(depth, c);
+    if (const std::uint64_t* slot = table_.home_slot(key)) ctx.count.reads(slot, sizeof *slot);
+    const std::uint32_t id = table_.find(key);
     if (id == CellTable::kNone) return true;
     const Cell& cell = cells_[id];
+    ctx.count.reads(&cell, sizeof cell);
     ctx.count.box_tests(cell.own.size);
     // Four boxes per slab test (box_block.h), as in the uniform grid. An object in several cells is
     // tested in each and reported once: checking the stamp only on a hit saves a hard-to-predict
     // branch per object.
     for (const BoxBlock& b : cell.own.blocks) {
         float tn[BoxBlock::kLanes];
+        ctx.count.reads(&b, sizeof b);
         for (unsigned hits = b.test_at<std::remove_reference_t<decltype(ctx.count)>>(ctx.slabs, tn); hits;
              hits &= hits - 1) {
             const int lane = __builtin_ctz(hits);
@@ -278,6 +284,7 @@ void HashGrid::traverse(const Segment& s, Count& count, Visit&& visit, StampScra
     count.box_tests(large_.size());
     for (const BoxBlock& b : large_.cell().blocks) {
         float tn[BoxBlock::kLanes];
+        count.reads(&b, sizeof b);
         for (unsigned hits = b.test_at<Count>(ctx.slabs, tn); hits; hits &= hits - 1) {
             const int lane = __builtin_ctz(hits);
             count.hits();

@@ -126,6 +126,7 @@ void UniformGrid::traverse(const Segment& s, Count& count, Visit&& visit, StampS
     count.box_tests(large_.size());
     for (const BoxBlock& b : large_.cell().blocks) {
         float tn[BoxBlock::kLanes];
+        count.reads(&b, sizeof b);
         for (unsigned hits = b.test_at<Count>(slabs, tn); hits; hits &= hits - 1) {
             const int lane = __builtin_ctz(hits);
             count.hits();
@@ -141,9 +142,11 @@ void UniformGrid::traverse(const Segment& s, Count& count, Visit&& visit, StampS
         }
         count.traversal();
         const BlockCell& cell = cells_[cell_id(c)];
+        count.reads(&cell, sizeof cell);
         count.box_tests(cell.size);
         for (const BoxBlock& b : cell.blocks) {
             float tn[BoxBlock::kLanes];
+            count.reads(&b, sizeof b);
             for (unsigned hits = b.test_at<Count>(slabs, tn); hits; hits &= hits - 1) {
                 const int lane = __builtin_ctz(hits);
                 const std::uint32_t slot = b.slot[lane];
