@@ -6,6 +6,9 @@
 # With the argument `unseen`, also:
 #   data/maps-unseen/z_oacmp-volume1-v3.pk3   the maps of Debian's openarena-oacmp1 package, which
 #                      no model, tuner or advice rule was designed on (experiments/tune-suite-fresh.json)
+# With the argument `fresh`, also:
+#   data/maps-088/pak6-patch088.pk3   the maps of Debian's openarena-088-data package, kept as a
+#                      test set that no model was designed on (experiments/maps-088.json)
 # Uses `apt-get download` (no root needed: only the .deb is fetched, nothing is installed) and
 # `dpkg-deb -x` to unpack. Run it again to re-fetch; it skips what is already there.
 set -euo pipefail
@@ -34,4 +37,11 @@ if [ "${1:-}" = unseen ]; then
   mkdir -p data/maps-unseen
   find data/.debs/openarena-oacmp1 -name 'z_oacmp-volume1-v3.pk3' -exec cp -u {} data/maps-unseen/ \;
   echo "fetch_maps: $(ls data/maps-unseen/*.pk3 | wc -l) pk3 files in data/maps-unseen/"
+fi
+
+if [ "${1:-}" = fresh ]; then
+  fetch openarena-088-data data/.debs/openarena-088-data
+  mkdir -p data/maps-088
+  find data/.debs/openarena-088-data -name 'pak6-patch088.pk3' -exec cp -u {} data/maps-088/ \;
+  echo "fetch_maps: $(ls data/maps-088/*.pk3 | wc -l) pk3 files in data/maps-088/"
 fi
