@@ -2,13 +2,11 @@
 // fetches, and the counting pass that feeds it.
 #include <gtest/gtest.h>
 
-#include <algorithm>
 #include <vector>
 
 #include "core/accel/cache_model.h"
 #include "core/accel/counters.h"
 #include "core/accel/registry.h"
-#include "core/base/random.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {
@@ -21,7 +19,7 @@ TEST(CacheModel, CountsEachItemsLinesOnceWhileItFits) {
     EXPECT_EQ(cache.misses(), 2 * data.size() / 128);
     for (std::size_t at = 0; at < data.size(); at += 128) cache.read(&data[at], 112);
     EXPECT_EQ(cache.misses(), 2 * data.size() / 128);  // 64 KiB fits: every item is held
-    cache.read(&data[1], 24);                           // another item, of one line
+    cache.read(&data[1], 24);                          // another item, of one line
     EXPECT_EQ(cache.misses(), 2 * data.size() / 128 + 1);
 }
 
@@ -45,18 +43,8 @@ TEST(CacheModel, TheCountingPassCountsTheFootprintOfEveryTraversal) {
     // One scene, two ray sets of the same size: one ray repeated, which reads its cells or nodes
     // once and then finds them cached, and rays in random directions, which each read their own.
     const std::vector<Object> objects = test::generated_scene("irregular", 20000, 1, 9).initial;
-    Aabb world = objects.front().box;
-    for (const Object& o : objects)
-        for (int a = 0; a < 3; ++a)
-            world.min[a] = std::min(world.min[a], o.box.min[a]), world.max[a] = std::max(world.max[a], o.box.max[a]);
-    const Vec3 c = world.center();
-    Random rng(4);
-    std::vector<Segment> random_rays, one_ray;
-    for (int i = 0; i < 1000; ++i) {
-        const Vec3 d = Vec3{float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1))};
-        random_rays.push_back({c, c + d * world.extent().x});
-    }
-    one_ray.assign(1000, random_rays.front());
+    const std::vector<Segment> random_rays = test::rays_from_centre(objects, 1000, 4);
+    const std::vector<Segment> one_ray(1000, random_rays.front());
     for (const char* name : {"ug", "hg", "dbvh", "lbvh", "wbvh"}) {
         const StructureInfo& info = find_structure(name);
         auto s = info.make(info.defaults(), name);

@@ -45,18 +45,8 @@ TEST(OutcomePredictor, TheCountingPassCountsCoherenceForEveryTraversal) {
     // One scene, two ray sets with the same paths in total: one ray repeated, and rays in random
     // directions. Every structure that counts steps sees the repeated ray as coherent.
     const std::vector<Object> objects = test::generated_scene("irregular", 3000, 1, 9).initial;
-    Aabb world = objects.front().box;
-    for (const Object& o : objects)
-        for (int a = 0; a < 3; ++a)
-            world.min[a] = std::min(world.min[a], o.box.min[a]), world.max[a] = std::max(world.max[a], o.box.max[a]);
-    const Vec3 c = world.center();
-    Random rng(4);
-    std::vector<Segment> random_rays, one_ray;
-    for (int i = 0; i < 400; ++i) {
-        const Vec3 d = Vec3{float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1))};
-        random_rays.push_back({c, c + d * world.extent().x});
-    }
-    one_ray.assign(400, random_rays.front());
+    const std::vector<Segment> random_rays = test::rays_from_centre(objects, 400, 4);
+    const std::vector<Segment> one_ray(400, random_rays.front());
     for (const char* name : {"ug", "hg", "dbvh", "lbvh", "wbvh", "bullet_dbvt"}) {
         const StructureInfo& info = find_structure(name);
         auto s = info.make(info.defaults(), name);

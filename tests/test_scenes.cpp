@@ -351,6 +351,21 @@ std::vector<Uid> sorted_hits(Structure& s, const Segment& ray) {
     return v;
 }
 
+std::vector<Segment> rays_from_centre(const std::vector<Object>& objects, int n, std::uint64_t seed) {
+    Aabb world = objects.front().box;
+    for (const Object& o : objects)
+        for (int a = 0; a < 3; ++a)
+            world.min[a] = std::min(world.min[a], o.box.min[a]), world.max[a] = std::max(world.max[a], o.box.max[a]);
+    const Vec3 c = world.center();
+    Random rng(seed);
+    std::vector<Segment> rays;
+    for (int i = 0; i < n; ++i) {
+        const Vec3 d = Vec3{float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1))};
+        rays.push_back({c, c + d * world.extent().x});
+    }
+    return rays;
+}
+
 Aabb random_box(Random& rng, float world) {
     const Vec3 c{float(rng.uniform(0, world)), float(rng.uniform(0, world)), float(rng.uniform(0, world))};
     const Vec3 h{float(rng.log_uniform(0.01, 2)), float(rng.log_uniform(0.01, 2)), float(rng.log_uniform(0.01, 2))};

@@ -45,6 +45,10 @@ Recording with_shapes(const Recording& r, std::uint64_t seed);
 /// The hits of one ray, sorted by uid.
 std::vector<Uid> sorted_hits(Structure& s, const Segment& ray);
 
+/// `n` segments from the centre of the objects' bounds in random directions (each axis uniform in
+/// [-1, 1]), as long as the bounds' x extent at most: incoherent rays, each on its own path.
+std::vector<Segment> rays_from_centre(const std::vector<Object>& objects, int n, std::uint64_t seed);
+
 /// A box centred uniformly in [0, world)³ with half extents log-uniform in [0.01, 2].
 Aabb random_box(Random& rng, float world);
 
