@@ -267,6 +267,8 @@ TEST(Experiment, EveryShippedExperimentAndTuningFileIsValid) {
     const bool maps_fetched = fs::exists(fs::path(RCBENCH_SOURCE_DIR) / "data" / "maps");
     // The unseen maps (tune-suite-fresh.json) come only with `scripts/fetch_maps.sh unseen`.
     const bool unseen_fetched = fs::exists(fs::path(RCBENCH_SOURCE_DIR) / "data" / "maps-unseen");
+    // The fresh map test set (maps-088.json) comes only with `scripts/fetch_maps.sh fresh`.
+    const bool fresh_fetched = fs::exists(fs::path(RCBENCH_SOURCE_DIR) / "data" / "maps-088");
     for (const auto& entry : fs::directory_iterator(fs::path(RCBENCH_SOURCE_DIR) / "experiments")) {
         if (entry.path().extension() != ".json") continue;
         const std::string file = entry.path().filename().string();
@@ -284,7 +286,8 @@ TEST(Experiment, EveryShippedExperimentAndTuningFileIsValid) {
             const bool not_found = message.find("file not found") != std::string::npos;
             const bool missing_data =
                 not_found && ((!maps_fetched && message.find("/data/") != std::string::npos) ||
-                              (!unseen_fetched && message.find("/data/maps-unseen/") != std::string::npos));
+                              (!unseen_fetched && message.find("/data/maps-unseen/") != std::string::npos) ||
+                              (!fresh_fetched && message.find("/data/maps-088/") != std::string::npos));
             EXPECT_TRUE(missing_data) << message;
         }
     }
