@@ -352,10 +352,7 @@ std::vector<Uid> sorted_hits(Structure& s, const Segment& ray) {
 }
 
 std::vector<Segment> rays_from_centre(const std::vector<Object>& objects, int n, std::uint64_t seed) {
-    Aabb world = objects.front().box;
-    for (const Object& o : objects)
-        for (int a = 0; a < 3; ++a)
-            world.min[a] = std::min(world.min[a], o.box.min[a]), world.max[a] = std::max(world.max[a], o.box.max[a]);
+    const Aabb world = bounds_of(objects);
     const Vec3 c = world.center();
     Random rng(seed);
     std::vector<Segment> rays;

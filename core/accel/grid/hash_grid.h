@@ -237,7 +237,9 @@ bool HashGrid::visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, doub
     }
     ctx.count.traversal();
     const std::uint64_t key = key_of(depth, c);
-    if (const std::uint64_t* slot = table_.home_slot(key)) ctx.count.reads(slot, sizeof *slot);
+    if constexpr (std::remove_reference_t<decltype(ctx.count)>::enabled) {  // the counting pass only
+        if (const std::uint64_t* slot = table_.home_slot(key)) ctx.count.reads(slot, sizeof *slot);
+    }
     const std::uint32_t id = table_.find(key);
     if (id == CellTable::kNone) return true;
     const Cell& cell = cells_[id];
