@@ -114,13 +114,13 @@ void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to)
     Statement frames = in.prepare(
         "SELECT frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, duplicate, "
         "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, n_th, n_mp, "
-        "n_miss, update_wall_ns, raycast_wall_ns FROM frame WHERE cell_id = ?");
+        "n_miss, update_wall_ns, raycast_wall_ns, writes FROM frame WHERE cell_id = ?");
     frames.bind(1, from);
     Statement insert_frame = o.prepare(
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, "
         "missed, extra, duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, "
-        "n_ro_hits, n_th, n_mp, n_miss, update_wall_ns, raycast_wall_ns) "
-        "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "n_ro_hits, n_th, n_mp, n_miss, update_wall_ns, raycast_wall_ns, writes) "
+        "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     while (frames.step()) {
         insert_frame.bind(1, to);
         for (int c = 0; c < 16; ++c) insert_frame.bind(c + 2, frames.int64(c));
@@ -132,6 +132,7 @@ void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to)
         for (int c = 18; c < 26; ++c) insert_frame.bind(c + 2, frames.int64(c));
         for (int c = 26; c < 28; ++c)  // NULL in frames stored before the wall times were kept
             frames.is_null(c) ? insert_frame.bind_null(c + 2) : insert_frame.bind(c + 2, frames.int64(c));
+        insert_frame.bind(30, frames.int64(28));
         insert_frame.run();
     }
     Statement kinds = in.prepare(

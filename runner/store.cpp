@@ -383,6 +383,11 @@ CREATE TABLE cell_interval (
 ALTER TABLE frame ADD COLUMN n_miss INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE frame_kind ADD COLUMN n_miss INTEGER NOT NULL DEFAULT 0;
 )sql",
+        // 13 → 14: the cells, entries and nodes a frame's update wrote (Structure::writes; the cost
+        // model's c_write). 0 where not counted: brute force, the peers, and frames stored before.
+        R"sql(
+ALTER TABLE frame ADD COLUMN writes INTEGER NOT NULL DEFAULT 0;
+)sql",
     };
     return all;
 }
@@ -771,8 +776,8 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, "
         "extra, "
         "duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, "
-        "n_th, n_mp, n_miss, update_wall_ns, raycast_wall_ns) VALUES "
-        "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "n_th, n_mp, n_miss, update_wall_ns, raycast_wall_ns, writes) VALUES "
+        "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     Statement kind = db_.prepare(kFrameKindInsertSql);
     for (const FrameResult& fr : res.frames) {
         std::optional<double> sah;
@@ -785,7 +790,7 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
                    std::int64_t(fr.returned), std::int64_t(fr.correct), std::int64_t(fr.relevant),
                    std::int64_t(fr.counters.n_ro), std::int64_t(fr.counters.n_ro_hits), std::int64_t(fr.counters.n_th),
                    std::int64_t(fr.counters.n_mp), std::int64_t(fr.counters.n_miss), std::int64_t(fr.update.wall_ns),
-                   std::int64_t(fr.raycast.wall_ns));
+                   std::int64_t(fr.raycast.wall_ns), std::int64_t(fr.writes));
         f.run();
         for (const KindResult& k : fr.kinds)
             kind.bind_all(cell_id, std::int64_t(fr.frame), std::string(query_kind_name(k.kind)), std::int64_t(k.rays),

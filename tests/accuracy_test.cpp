@@ -91,6 +91,7 @@ TEST(AccuracyColumns, ARunsFramesRoundTripThroughTheStoreAndMerge) {
         results.push_back(simulate(scene, find_structure("ug"), {{"query", level}}));
     ASSERT_GT(results[1].frames.back().counters.n_ro, 0u);
     ASSERT_GT(results[1].frames.back().counters.n_mp, 0u);  // the grid's steps' coherence is stored too
+    ASSERT_GT(results[1].frames.back().writes, 0u);         // and its update's cells written
     ASSERT_LT(results[0].frames.back().correct, results[0].frames.back().returned);
 
     const Experiment e =
@@ -115,7 +116,9 @@ TEST(AccuracyColumns, ARunsFramesRoundTripThroughTheStoreAndMerge) {
         auto db = open_read_only(path);
         for (std::size_t i = 0; i < results.size(); ++i) {
             Statement s = db->prepare(
-                "SELECT frame.frame, returned, correct, relevant, n_ro, n_ro_hits, n_th, n_mp FROM frame JOIN cell ON "
+                "SELECT frame.frame, returned, correct, relevant, n_ro, n_ro_hits, n_th, n_mp, n_miss, writes FROM "
+                "frame "
+                "JOIN cell ON "
                 "cell.id = frame.cell_id WHERE cell.cell_key LIKE '%' || ? ORDER BY frame.frame");
             s.bind(1, std::to_string(i));
             std::size_t n = 0;
@@ -129,6 +132,8 @@ TEST(AccuracyColumns, ARunsFramesRoundTripThroughTheStoreAndMerge) {
                 EXPECT_EQ(std::uint64_t(s.int64(5)), f.counters.n_ro_hits) << path;
                 EXPECT_EQ(std::uint64_t(s.int64(6)), f.counters.n_th) << path;
                 EXPECT_EQ(std::uint64_t(s.int64(7)), f.counters.n_mp) << path;
+                EXPECT_EQ(std::uint64_t(s.int64(8)), f.counters.n_miss) << path;
+                EXPECT_EQ(std::uint64_t(s.int64(9)), f.writes) << path;
             }
             EXPECT_EQ(n, results[i].frames.size()) << path;
         }

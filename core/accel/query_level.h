@@ -89,6 +89,7 @@ public:
     void remove(Uid uid) override;
     void move(const Object& object) override;
     void commit() override { broad_->commit(); }
+    std::uint64_t writes() const override { return broad_->writes(); }
     using Structure::cast;
     using Structure::cast_counted;
     void cast(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out) override;

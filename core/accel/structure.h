@@ -56,6 +56,11 @@ public:
     /// End of a frame's changes; structures that defer work (rebuild, refit) do it here. The update
     /// phase times the changes and the commit together.
     virtual void commit() {}
+    /// The update's footprint: cells, cell entries and tree nodes written by builds, changes and
+    /// commits since construction, one count beside each write (a cheap add, so the timed update
+    /// carries it). The simulator records its growth over each frame's update (FrameResult::writes).
+    /// 0 where a structure keeps none (brute force, the peers).
+    virtual std::uint64_t writes() const { return 0; }
 
     /// The timed batch: ray i asks `kinds[i]` (every ray all hits when `kinds` is empty) and its
     /// list holds all its hits, or for closest and any at most one uid (the nearest: smallest t,

@@ -211,8 +211,8 @@ nlohmann::json SimulationResult::to_json() const {
     j["raycast_ns_median"] = r.median;
     j["raycast_ns_mad"] = r.mad;
     j["clock"] = clock_name(clock);
-    nlohmann::json frame, warmup, update, raycast, update_wall, raycast_wall, rays, closest, any, hits, missed, extra,
-        duplicate, returned, correct, relevant, memory, stats;
+    nlohmann::json frame, warmup, update, raycast, update_wall, raycast_wall, writes, rays, closest, any, hits, missed,
+        extra, duplicate, returned, correct, relevant, memory, stats;
     std::array<nlohmann::json, kCounterFields.size()> counted;
     for (const FrameResult& f : frames) {
         frame.push_back(f.frame);
@@ -221,6 +221,7 @@ nlohmann::json SimulationResult::to_json() const {
         raycast.push_back(f.raycast_ns);
         update_wall.push_back(f.update.wall_ns);
         raycast_wall.push_back(f.raycast.wall_ns);
+        writes.push_back(f.writes);
         rays.push_back(f.rays);
         closest.push_back(f.closest);
         any.push_back(f.any);
@@ -243,6 +244,7 @@ nlohmann::json SimulationResult::to_json() const {
     j["raycast_ns"] = array(raycast);
     j["update_wall_ns"] = array(update_wall);
     j["raycast_wall_ns"] = array(raycast_wall);
+    j["writes"] = array(writes);
     j["rays"] = array(rays);
     j["rays_closest"] = array(closest);
     j["rays_any"] = array(any);
@@ -313,6 +315,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
             fr.any += k == QueryKind::any;
         }
 
+        const std::uint64_t writes_before = structure->writes();
         const Stopwatch update_watch;
         for (Uid uid : frame.removes) structure->remove(uid);
         for (const Object& o : frame.inserts) structure->insert(o);
@@ -320,6 +323,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
         structure->commit();
         fr.update = update_watch.elapsed();
         fr.update_ns = on_clock(fr.update, result.clock);
+        fr.writes = structure->writes() - writes_before;
         live.apply(frame);
         if (options.validate) validate_or_throw(*structure, info.name, fr.frame);
 

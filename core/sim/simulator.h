@@ -61,11 +61,12 @@ struct FrameResult {
     std::uint32_t frame = 0;  ///< 1-based; frame 0 is the build
     bool warmup = false;
     std::uint32_t inserts = 0, removes = 0, moves = 0, rays = 0;
-    std::uint32_t closest = 0, any = 0;                  ///< of the rays, those asking for the closest hit and any hit
-    std::uint64_t update_ns = 0;                         ///< on the result's clock
-    std::uint64_t raycast_ns = 0;                        ///< on the result's clock
-    Elapsed update, raycast;                             ///< both clocks (wall − CPU: time the thread waited)
-    std::uint64_t hits = 0;                              ///< reported by the timed pass, summed over the rays
+    std::uint32_t closest = 0, any = 0;  ///< of the rays, those asking for the closest hit and any hit
+    std::uint64_t writes = 0;            ///< cells, entries and nodes the update wrote (Structure::writes)
+    std::uint64_t update_ns = 0;         ///< on the result's clock
+    std::uint64_t raycast_ns = 0;        ///< on the result's clock
+    Elapsed update, raycast;             ///< both clocks (wall − CPU: time the thread waited)
+    std::uint64_t hits = 0;              ///< reported by the timed pass, summed over the rays
     std::uint64_t missed = 0, extra = 0, duplicate = 0;  ///< against the configuration's contract
     /// Accuracy against the shapes' truth (ground_truth.h, Verification): recall = correct /
     /// relevant, precision = correct / returned.

@@ -37,6 +37,7 @@ void DynamicBvh::release(std::uint32_t n) {
     nodes_[n].child[1] = kNullNode;
     free_ = n;
     ++free_count_;
+    ++writes_;
 }
 
 Aabb DynamicBvh::fat_box(const Aabb& b) const {
@@ -48,6 +49,7 @@ std::uint32_t DynamicBvh::make_leaf(const Object& o) {
     const std::uint32_t n = allocate();
     nodes_[n] = Node{fat_box(o.box), kNullNode, {o.uid, kNullNode}, 0};
     tight_[n] = o.box;
+    ++writes_;
     leaf_of_[o.uid] = n;
     return n;
 }
@@ -116,12 +118,14 @@ void DynamicBvh::move(const Object& o) {
         dirty_ = true;
     const std::uint32_t leaf = leaf_of_.at(o.uid);
     tight_[leaf] = o.box;
+    ++writes_;
     touch();  // the packed copy of the box is stale even when the tree is not
     // Inside the fat box: the tree still encloses the object, nothing else to do (Box2D's enlarged
     // AABB; the traversal tests the object's own box).
     if (nodes_[leaf].box.contains(o.box)) return;
     if (!dirty_) remove_leaf(leaf);
     nodes_[leaf].box = fat_box(o.box);
+    ++writes_;
     if (!dirty_) insert_leaf(leaf);
     ++changes_since_check_;
 }
@@ -211,7 +215,10 @@ bool DynamicBvh::walk_crowds(bool tight, std::vector<std::uint32_t>& found) {
                 done_shared = c.min.x <= c.max.x && c.min.y <= c.max.y && c.min.z <= c.max.z;
                 if (done_shared && leaves - f.first >= kCrowdLeaves) {
                     found.push_back(f.node);
-                    if (tight) crowds_.push_back({c, f.first, leaves - 1});
+                    if (tight) {
+                        crowds_.push_back({c, f.first, leaves - 1});
+                        ++writes_;
+                    }
                 }
             }
             done_first = f.first;
@@ -246,7 +253,9 @@ void DynamicBvh::find_crowds() {
         return;
     }
     crowd_of_.assign(nodes_.size(), kNullNode);
+    writes_ += crowd_of_.size();
     for (std::uint32_t k = 0; k < found.size(); ++k) crowd_of_[found[k]] = k;
+    writes_ += found.size();
     // The leaves in the same order (pre-order with child 0 first visits them as post-order does).
     packed_.clear();
     packed_.reserve(leaf_of_.size());
@@ -254,9 +263,10 @@ void DynamicBvh::find_crowds() {
     while (!stack.empty()) {
         const std::uint32_t n = stack.back();
         stack.pop_back();
-        if (nodes_[n].height == 0)
+        if (nodes_[n].height == 0) {
             packed_.push_back({tight_[n], nodes_[n].child[0]});
-        else
+            ++writes_;
+        } else
             stack.push_back(nodes_[n].child[1]), stack.push_back(nodes_[n].child[0]);
     }
 }
@@ -340,6 +350,7 @@ void DynamicBvh::insert_leaf(std::uint32_t leaf) {
     if (root_ == kNullNode) {
         root_ = leaf;
         nodes_[leaf].parent = kNullNode;
+        ++writes_;
         return;
     }
     const Aabb leaf_box = nodes_[leaf].box;
@@ -350,10 +361,13 @@ void DynamicBvh::insert_leaf(std::uint32_t leaf) {
         Node{merge(leaf_box, nodes_[sibling].box), old_parent, {sibling, leaf}, nodes_[sibling].height + 1};
     if (old_parent == kNullNode)
         root_ = new_parent;
-    else
+    else {
         nodes_[old_parent].child[nodes_[old_parent].child[0] == sibling ? 0 : 1] = new_parent;
+        ++writes_;
+    }
     nodes_[sibling].parent = new_parent;
     nodes_[leaf].parent = new_parent;
+    writes_ += 3;  // the new parent, the sibling and the leaf
     refit_from(new_parent);
 }
 
@@ -368,10 +382,13 @@ void DynamicBvh::remove_leaf(std::uint32_t leaf) {
     nodes_[sibling].parent = grand;
     if (grand == kNullNode)
         root_ = sibling;
-    else
+    else {
         nodes_[grand].child[nodes_[grand].child[0] == parent ? 0 : 1] = sibling;
+        ++writes_;
+    }
     release(parent);
     nodes_[leaf].parent = kNullNode;
+    writes_ += 2;  // the sibling and the leaf
     refit_from(grand);
 }
 
@@ -382,6 +399,7 @@ void DynamicBvh::refit_from(std::uint32_t n) {
         const Node& b = nodes_[node.child[1]];
         node.box = merge(a.box, b.box);
         node.height = 1 + std::max(a.height, b.height);
+        ++writes_;
         if (params_.rotate) rotate_nodes(n);
         n = nodes_[n].parent;
     }
@@ -403,6 +421,8 @@ void DynamicBvh::refit_from(std::uint32_t n) {
         const float cost_bf = area(merge(B.box, nodes_[g].box));
         const float cost_bg = area(merge(B.box, nodes_[f].box));
         if (base <= cost_bf && base <= cost_bg) return;
+        // The rotation writes four nodes: A, C and the two swapped ones.
+        writes_ += 4;
         if (cost_bf < cost_bg) {  // swap B and F
             A.child[0] = f, C.child[0] = ib, B.parent = ic, nodes_[f].parent = ia;
             C.box = merge(B.box, nodes_[g].box), C.height = 1 + std::max(B.height, h(g));
@@ -418,6 +438,8 @@ void DynamicBvh::refit_from(std::uint32_t n) {
         const float cost_cd = area(merge(C.box, nodes_[e].box));
         const float cost_ce = area(merge(C.box, nodes_[d].box));
         if (base <= cost_cd && base <= cost_ce) return;
+        // The rotation writes four nodes: A, B and the two swapped ones.
+        writes_ += 4;
         if (cost_cd < cost_ce) {  // swap C and D
             A.child[1] = d, B.child[0] = ic, C.parent = ib, nodes_[d].parent = ia;
             B.box = merge(C.box, nodes_[e].box), B.height = 1 + std::max(C.height, h(e));
@@ -439,6 +461,7 @@ void DynamicBvh::refit_from(std::uint32_t n) {
         float best_cost = base;
         for (int i = 0; i < 4; ++i)
             if (cost[i] < best_cost) best = i, best_cost = cost[i];
+        if (best >= 0) writes_ += 4;  // A, B or C, and the two swapped nodes
         switch (best) {
             case 0:
                 A.child[0] = f, C.child[0] = ib, B.parent = ic, nodes_[f].parent = ia;
@@ -479,7 +502,10 @@ void DynamicBvh::rebuild() {
     }
     root_ = build_items_.empty() ? kNullNode : build_range(build_items_.data(), std::uint32_t(build_items_.size()));
     if (!crowds_.empty()) crowds_dirty_ = true;  // new node ids
-    if (root_ != kNullNode) nodes_[root_].parent = kNullNode;
+    if (root_ != kNullNode) {
+        nodes_[root_].parent = kNullNode;
+        ++writes_;
+    }
     dirty_ = false;
     frames_since_build_ = 0;
     cost_after_build_ = params_.rebuild_growth > 0 ? sah_cost() : 0.0;
@@ -561,6 +587,7 @@ std::uint32_t DynamicBvh::build_range(BuildItem* items, std::uint32_t count) {
                      1 + std::max(nodes_[left].height, nodes_[right].height)};
     nodes_[left].parent = n;
     nodes_[right].parent = n;
+    writes_ += 3;  // the node and its children
     return n;
 }
 

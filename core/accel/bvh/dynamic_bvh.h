@@ -88,6 +88,7 @@ public:
     void move(const Object& object) override;
     void commit() override;
     std::size_t size() const override { return leaf_of_.size(); }
+    std::uint64_t writes() const override { return writes_; }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
     void validate() const override;
@@ -174,6 +175,9 @@ private:
     std::uint32_t free_ = kNullNode;
     std::uint32_t free_count_ = 0;
     std::unordered_map<Uid, std::uint32_t> leaf_of_;
+    /// writes(): one per node written in one step (made, freed, linked, refitted, rotated, built; a
+    /// leaf's own box counts too) and per crowd entry packed: the tree memory an update stores to.
+    std::uint64_t writes_ = 0;
     // Rebuild mode.
     bool dirty_ = false;  // leaves changed, tree to be rebuilt at commit
     std::uint32_t frames_since_build_ = 0;

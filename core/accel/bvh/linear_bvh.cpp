@@ -568,6 +568,7 @@ bool LinearBvh::resort(std::size_t chunks, Lap& lap, bool& bounds_known) {
     nodes_.resize(2 * n - 1);
     leaf_base_ = std::uint32_t(n - 1);
     resort_codes(chunks, cb);
+    writes_ += n;  // the leaf records, staged in the inner nodes' part
     lap(phases_.codes);
     Resort r(*this, chunks);
     r.split_off();
@@ -675,12 +676,14 @@ void LinearBvh::rebuild() {
         order_equal_codes();
         lap(phases_.sort);
     }
+    writes_ += n;  // the sorted codes (by the merge or the sort)
     changes_ = 0;
     centroids_moved_ = false;
     nodes_.resize(2 * n - 1);
     leaf_base_ = std::uint32_t(n - 1);
     if (n == 1) {
         nodes_[0] = Node{objects_.layout().all()[0], {objects_.uid(0), kNullNode}};
+        ++writes_;
         meta_.clear();
         common_.clear();
         ranges_.clear();
@@ -688,6 +691,7 @@ void LinearBvh::rebuild() {
         return;
     }
     build_tree(chunks, leaves_written);
+    writes_ += 2 * n - 1;  // n leaves (here or by the merge) and n − 1 inner nodes
     lap(phases_.tree);
 }
 

@@ -95,6 +95,7 @@ public:
     void move(const Object& object) override;
     void commit() override;
     std::size_t size() const override { return objects_.size(); }
+    std::uint64_t writes() const override { return writes_; }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
     void validate() const override;
@@ -220,6 +221,9 @@ private:
     // rebuilds since they last were.
     bool crowds_checked_ = false;
     std::uint32_t rebuilds_since_crowd_check_ = 0;
+    /// writes(): per rebuild, one per node of the new tree (2n − 1), per sorted Morton code (n) and,
+    /// when sorting from the last order, per leaf record staged (n). Changes only mark the tree dirty.
+    std::uint64_t writes_ = 0;
 };
 
 }  // namespace rcb

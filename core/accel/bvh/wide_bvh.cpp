@@ -84,6 +84,7 @@ std::uint32_t WideBvh::allocate() {
     block.count = 0;
     block.leaf = false;
     block.dirty = false;
+    ++writes_;
     return b;
 }
 
@@ -96,6 +97,7 @@ void WideBvh::release(std::uint32_t b) {
     block.parent = free_;
     free_ = b;
     ++free_count_;
+    ++writes_;
 }
 
 void WideBvh::mark(std::uint32_t b) {
@@ -113,6 +115,7 @@ void WideBvh::set_lane(std::uint32_t b, int k, const Aabb& box) {
         sah_largest_term_ = std::max({sah_largest_term_, before, after});
     }
     block.set(k, box);
+    ++writes_;
 }
 
 // ---- build ----
@@ -477,6 +480,7 @@ void WideBvh::insert_object(const Object& o) {
     const int k = block.count++;
     block.set(k, o.box);
     block.ref[k] = o.uid;
+    ++writes_;
     where_[o.uid] = leaf * kLanes + std::uint32_t(k);
     if (leaf != root_) {  // its weight grew by one
         const double a = area(blocks_[block.parent].box(block.lane_in_parent));
@@ -508,6 +512,7 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
         sah_largest_term_ = std::max(sah_largest_term_, a);
         blocks_[parent].clear(lane);
         blocks_[parent].ref[lane] = leaf;
+        ++writes_;
     }
     const std::uint32_t other = allocate();
     auto fill = [&](std::uint32_t b, const Item* items, std::uint32_t count) {
@@ -520,6 +525,7 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
             block.ref[i] = items[i].uid;
             where_.find(items[i].uid)->second = b * kLanes + i;
         }
+        ++writes_;  // the block, whole
     };
     fill(leaf, nine.data(), m);
     fill(other, nine.data() + m, kLanes + 1 - m);
@@ -581,10 +587,12 @@ void WideBvh::remove_object(Uid uid) {
     if (k != last) {
         block.set(k, block.box(last));
         block.ref[k] = block.ref[last];
+        ++writes_;
         where_.find(Uid(block.ref[k]))->second = b * kLanes + std::uint32_t(k);
         rebuild_.log_relocation(Uid(block.ref[k]));
     }
     block.clear(last);
+    ++writes_;
     --block.count;
     changed_ = true;
     if (b != root_) {  // its weight fell by one
@@ -624,8 +632,10 @@ void WideBvh::drop_child_lane(std::uint32_t b, int k) {
         block.set(k, block.box(last));
         block.ref[k] = block.ref[last];
         blocks_[block.ref[k]].lane_in_parent = std::uint8_t(k);
+        ++writes_;
     }
     block.clear(last);
+    ++writes_;
     --block.count;
 }
 
@@ -650,6 +660,7 @@ void WideBvh::move(const Object& o) {
     const int k = int(at % kLanes);
     weighted_changes_ += move_share(blocks_[b].box(k), o.box);
     blocks_[b].set(k, o.box);
+    ++writes_;
     mark(b);
 }
 
@@ -677,6 +688,7 @@ void WideBvh::refit() {
             if (c == root_) continue;
             const Aabb box = block.bounds();
             ++refit_blocks_;
+            ++writes_;
             const std::uint32_t p = block.parent;
             if (box == blocks_[p].box(block.lane_in_parent)) continue;
             set_lane(p, block.lane_in_parent, box);
@@ -781,6 +793,8 @@ void WideBvh::ProgressiveRebuild::start(const WideBvh& live) {
 }
 
 void WideBvh::ProgressiveRebuild::advance(WideBvh& live, std::uint64_t budget) {
+    // The next tree counts the blocks its build, replay and refit write; the live tree reports them.
+    const std::uint64_t next_writes = next_->writes_;
     while (work_ < budget && phase_ != Phase::idle) {
         std::uint64_t w = 0;
         switch (phase_) {
@@ -825,6 +839,7 @@ void WideBvh::ProgressiveRebuild::advance(WideBvh& live, std::uint64_t budget) {
         work_ += w;
         cycle_work_ += w;
     }
+    live.writes_ += next_->writes_ - next_writes;
 }
 
 std::uint64_t WideBvh::ProgressiveRebuild::gather_step(const WideBvh& live, std::uint64_t budget) {

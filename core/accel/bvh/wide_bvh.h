@@ -117,6 +117,7 @@ public:
     void move(const Object& object) override;
     void commit() override;
     std::size_t size() const override { return where_.size(); }
+    std::uint64_t writes() const override { return writes_; }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
     void validate() const override;
@@ -626,6 +627,9 @@ private:
     std::uint32_t rebuilds_ = 0, splits_ = 0, reinserts_ = 0;
     // Blocks refitted and parent lanes rewritten since the last commit began (stats).
     std::uint64_t refit_blocks_ = 0, refit_lanes_ = 0;
+    /// writes(): one per block allocated (a build writes each so), freed or refitted, per lane a change
+    /// or refit rewrites, and those of a progressive rebuild's next tree as it is built and replayed.
+    std::uint64_t writes_ = 0;
 
     Builder builder_;             // builds this tree
     ProgressiveRebuild rebuild_;  // builds the next one while this one answers

@@ -181,6 +181,7 @@ std::uint32_t HashGrid::find_or_create(int depth, const Index& i) {
     c.subdivided = false;
     c.own.clear();
     table_.insert(key, id);
+    ++writes_;
     return id;
 }
 
@@ -193,6 +194,7 @@ void HashGrid::delete_cell(std::uint32_t id) {
     c.subdivided = false;
     c.own = BlockCell{};
     free_cells_.push_back(id);
+    ++writes_;
 }
 
 std::vector<std::uint32_t> HashGrid::take_own(std::uint32_t id) {
@@ -323,6 +325,7 @@ void HashGrid::remove_from(int depth, const Index& i, std::uint32_t slot, const 
     --cells_[id].count;
     auto erase_own = [&] {
         cells_[id].own.erase(slot);
+        ++writes_;
         --entries_total_;
     };
     if (cells_[id].subdivided) {
@@ -352,6 +355,7 @@ void HashGrid::rewrite_in(int depth, const Index& i, std::uint32_t slot, const g
     const std::uint32_t id = table_.find(key_of(depth, i));
     if (!cells_[id].subdivided || covers(fine, depth, i)) {
         cells_[id].own.rewrite(slot, box);
+        ++writes_;
         return;
     }
     const grid::CellRange r = child_range(fine, depth, i);
@@ -373,6 +377,7 @@ void HashGrid::insert(const Object& o) {
     const grid::CellRange r = range_at(fine, 0);
     if (is_large(r)) {
         large_.insert(o.box, slot);
+        ++writes_;
         return;
     }
     grid::for_each_cell(r, [&](const Index& i) { insert_into(0, i, slot, fine); });
@@ -384,6 +389,7 @@ void HashGrid::remove(Uid uid) {
     slot_.erase(it);
     if (large_.contains(slot)) {
         large_.erase(slot);
+        ++writes_;
     } else {
         const grid::CellRange fine = lat_[params_.max_depth].range_of(entries_[slot].box);
         const grid::CellRange r = range_at(fine, 0);
@@ -401,6 +407,7 @@ void HashGrid::move(const Object& o) {
         entries_[slot].box = o.box;
         if (large_.contains(slot)) {
             large_.rewrite(slot, o.box);
+            ++writes_;
         } else {
             const grid::CellRange fine = fine_lat.range_of(o.box), r = range_at(fine, 0);
             grid::for_each_cell(r, [&](const Index& i) { rewrite_in(0, i, slot, fine, o.box); });

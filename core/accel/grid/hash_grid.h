@@ -121,6 +121,7 @@ public:
     void remove(Uid uid) override;
     void move(const Object& object) override;
     std::size_t size() const override { return slot_.size(); }
+    std::uint64_t writes() const override { return writes_; }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
     void validate() const override;
@@ -164,7 +165,10 @@ private:
     /// Gives `slot`'s box copy in every cell that holds it (below cell `i` at `depth`) the box `box`.
     void rewrite_in(int depth, const Index& i, std::uint32_t slot, const grid::CellRange& fine, const Aabb& box);
     /// The objects of a cell: add one, take them all out (the cell is left empty), put a list in.
-    void own_push(std::uint32_t cell, std::uint32_t slot) { cells_[cell].own.push(entries_[slot].box, slot); }
+    void own_push(std::uint32_t cell, std::uint32_t slot) {
+        cells_[cell].own.push(entries_[slot].box, slot);
+        ++writes_;
+    }
     std::vector<std::uint32_t> take_own(std::uint32_t cell);
     void set_own(std::uint32_t cell, const std::vector<std::uint32_t>& slots);
     void split(std::uint32_t cell, int depth, const Index& i);
@@ -204,6 +208,9 @@ private:
     std::size_t unguarded_overruns_ = 0;  ///< entries_guard off: its refusals and collapses that did not happen
     std::size_t ceiling_refusals_ = 0;    ///< entries_guard off: splits and descents the ceiling refused
     bool would_trim_ = false;             ///< the outlier guard is off and would have trimmed the top grid
+    /// writes(): one per cell entry pushed, erased or rewritten at any depth (a split's or collapse's
+    /// moved entries included), per cell created in or removed from the table, and per large-list change.
+    std::uint64_t writes_ = 0;
     /// The large-object guard's test, on the object's top-grid range.
     bool is_large(const grid::CellRange& top) const {
         return params_.max_cells > 0 && grid::cell_count(top) > std::size_t(params_.max_cells);
