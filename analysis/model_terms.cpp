@@ -29,6 +29,8 @@ const std::vector<FrameCounter>& frame_counters() {
              [](const FrameResult& r) { return double(r.removes); }, nullptr},
             {"N_MOV", "frame.moves", "moves", CounterScale::as_is, &F::moves,
              [](const FrameResult& r) { return double(r.moves); }, nullptr},
+            {"N_UW", "frame.writes", "writes", CounterScale::as_is, &F::writes,
+             [](const FrameResult& r) { return double(r.writes); }, nullptr},
             {"N_OBJ", "cell.objects", "objects", CounterScale::as_is, &F::objects, nullptr, nullptr},
             {"MB", "frame.memory_bytes", "memory_bytes", CounterScale::mebibytes, &F::memory_mb,
              [](const FrameResult& r) { return double(r.memory_bytes); }, nullptr},
@@ -142,6 +144,10 @@ const std::vector<CostTerm>& cost_terms() {
          .counters = {"N_INS", "N_REM", "N_MOV"},
          .unit = "ns per change",
          .when_absent = keep},
+        // The update's footprint: what a cell, entry or node written costs (Structure::writes). A
+        // long object spans many cells, a change that leaves its leaf reinserts along a path; the
+        // changes alone cannot see either.
+        {.name = "c_write", .target = update, .counters = {"N_UW"}, .unit = "ns per cell, entry or node written"},
         // A change that touches cells or nodes no longer cached.
         {.name = "c_change>L",
          .target = update,
@@ -169,10 +175,13 @@ const std::vector<ModelForm>& model_forms() {
         {"coherence-hierarchy", raycast, {"C_RB", "C_T", "C_RO", "C_PREP", "C_MP", "slow>L"}, {"C_MP"}},
         {"coherence-misses", raycast, {"C_RB", "C_T", "C_RO", "C_PREP", "C_MP", "C_MISS"}, {"C_MP", "C_MISS"}},
         {"per-category", raycast, {"C_RB", "C_T", "C_RO", "C_PREP"}, {}, Split::by_category},
-        // Update: per change, per operation, with a per-object (rebuild) cost, beyond the caches,
-        // and each configuration its own (an incremental and a rebuilding mode of one structure).
+        // Update: per change, per change and cell or node written, per operation, with a per-object
+        // (rebuild) cost, beyond the caches, and each configuration its own (an incremental and a
+        // rebuilding mode of one structure).
         {"per-change", update, {"c_change", "c_frame"}, {"c_change"}},
+        {"per-write", update, {"c_change", "c_write", "c_frame"}, {"c_change", "c_write"}},
         {"per-operation", update, {"c_insert", "c_remove", "c_move", "c_frame"}},
+        {"write-rebuild", update, {"c_change", "c_write", "c_frame", "c_object"}, {"c_change", "c_write"}},
         {"with-rebuild", update, {"c_insert", "c_remove", "c_move", "c_frame", "c_object"}},
         {"update-hierarchy", update, {"c_insert", "c_remove", "c_move", "c_frame", "c_change>L"}, {"c_change"}},
         {"per-configuration-change", update, {"c_change", "c_frame", "c_object"}, {"c_change"}, Split::by_params},

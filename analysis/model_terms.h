@@ -37,6 +37,7 @@ struct FrameObservation {
     double n_mp = 0;                     ///< steps a history predictor missed per ray (0 where not counted)
     double n_miss = 0;                   ///< lines a simulated private cache fetched per ray (0 where not counted)
     double inserts = 0, removes = 0, moves = 0, objects = 0;
+    double writes = 0;  ///< cells, entries and nodes the frame's update wrote (0 where not counted)
     double memory_mb = 0;
     /// Where the structure's working set (memory_mb) sits: 0 within the first data cache, 1 within
     /// the second, …, the number of recorded caches (at most 3) beyond the last one (memory).

@@ -299,6 +299,33 @@ TEST(ModelSelection, ChangesInOneProportionGetOnePrice) {
     EXPECT_NEAR(m->fit.coefficients.front().value, 450, 20);
 }
 
+TEST(ModelSelection, ChangesThatWriteMoreCellsOrNodesCostMore) {
+    // One proportion of operations, but some configurations' changes write many cells or nodes
+    // (long objects spanning cells, moves that leave their leaf): the changes alone cannot see it,
+    // the update's footprint can.
+    std::vector<FrameObservation> frames = synthetic_frames(0.8, 5.0, 40.0, 12, 10, 0.01);
+    for (FrameObservation& f : frames) {
+        const double changes = 20.0 * (1 + f.config_group % 4);
+        f.inserts = 0.1 * changes, f.removes = 0.1 * changes, f.moves = 0.8 * changes;
+        f.writes = changes * (2 + 6 * (f.config_group % 3));
+        f.update_ns = 300 * changes + 40 * f.writes + 1000;
+    }
+    const auto models = fit_cost_models(frames);
+    const CandidateModel* m = models[0].chosen("update");
+    ASSERT_NE(m, nullptr);
+    EXPECT_EQ(m->name, "per-write");
+    ASSERT_EQ(m->fit.status(), "ok");
+    EXPECT_NEAR(m->fit.coefficients[0].value, 300, 15);  // c_change
+    EXPECT_NEAR(m->fit.coefficients[1].value, 40, 2);    // c_write
+    const auto per_change = std::find_if(models[0].update.begin(), models[0].update.end(),
+                                         [](const CandidateModel& x) { return x.name == "per-change"; });
+    ASSERT_NE(per_change, models[0].update.end());
+    EXPECT_GT(per_change->heldout_error, 5 * m->heldout_error);
+    // Frames without the count (brute force, the peers, older databases) offer no such candidate.
+    for (FrameObservation& f : frames) f.writes = 0;
+    for (const CandidateModel& x : fit_cost_models(frames)[0].update) EXPECT_NE(x.name, "per-write");
+}
+
 TEST(ModelSelection, TermsThatAreAlwaysZeroAreLeftOut) {
     std::vector<FrameObservation> frames = synthetic_frames(0.4, 0.0, 100.0, 10, 8);
     for (FrameObservation& f : frames) f.n_t = 0;  // brute force has no traversal
