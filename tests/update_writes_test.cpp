@@ -54,17 +54,22 @@ std::vector<Object> lattice_scene() {
     return objects;
 }
 
-const char* const kOwnStructures[] = {"ug", "hg", "dbvh", "lbvh", "wbvh"};
+struct Case {
+    std::string name;
+    nlohmann::json params;
+};
+
+/// Every own structure at its defaults, and dbvh in its rebuild mode.
+std::vector<Case> own_cases() {
+    std::vector<Case> cases;
+    for (const char* name : {"ug", "hg", "dbvh", "lbvh", "wbvh"}) cases.push_back({name, nlohmann::json::object()});
+    cases.push_back({"dbvh", {{"mode", "rebuild"}}});
+    return cases;
+}
 
 TEST(UpdateWrites, AnEmptyCommitWritesNothingAndATinyMoveWrites) {
     const std::vector<Object> objects = test::generated_scene("uniform", 500, 1, 3).initial;
-    struct Case {
-        std::string name;
-        nlohmann::json params;
-    };
-    std::vector<Case> cases;
-    for (const char* name : kOwnStructures) cases.push_back({name, nlohmann::json::object()});
-    cases.push_back({"dbvh", {{"mode", "rebuild"}}});
+    const std::vector<Case> cases = own_cases();
     for (const Case& c : cases) {
         SCOPED_TRACE(c.name + " " + c.params.dump());
         auto s = built(c.name, objects, c.params);
@@ -190,13 +195,7 @@ std::vector<std::uint64_t> writes_per_frame(const Recording& r, const std::strin
 
 TEST(UpdateWrites, AReplayCountsTheSameWrites) {
     const Recording r = test::generated_scene("irregular", 400, 6, 21, 0.1);
-    struct Case {
-        std::string name;
-        nlohmann::json params;
-    };
-    std::vector<Case> cases;
-    for (const char* name : kOwnStructures) cases.push_back({name, nlohmann::json::object()});
-    cases.push_back({"dbvh", {{"mode", "rebuild"}}});
+    std::vector<Case> cases = own_cases();
     // A progressive rebuild started at every commit: its next tree's writes are reported too.
     cases.push_back({"wbvh", {{"rebuild_ratio", 0.5}}});
     for (const Case& c : cases) {
