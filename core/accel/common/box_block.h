@@ -151,6 +151,7 @@ public:
         if (index_.size() <= slot) index_.resize(std::size_t(slot) + 1, kAbsent);
         index_[slot] = cell_.size;
         cell_.push(box, slot);
+        ++writes_;
     }
     /// Removes `slot` (present); the last object takes its index.
     void erase(std::uint32_t slot) {
@@ -158,14 +159,21 @@ public:
         cell_.erase_at(i);
         index_[moved] = i;
         index_[slot] = kAbsent;
+        ++writes_;
     }
-    void rewrite(std::uint32_t slot, const Aabb& box) { cell_.set(index_[slot], box, slot); }
+    void rewrite(std::uint32_t slot, const Aabb& box) {
+        cell_.set(index_[slot], box, slot);
+        ++writes_;
+    }
     void clear() {
         cell_ = BlockCell{};
         index_.clear();
     }
     const BlockCell& cell() const { return cell_; }
     std::uint32_t size() const { return cell_.size; }
+    /// Inserts, erases and rewrites since construction (kept through clear(): the owner's
+    /// Structure::writes() adds it, and that count only grows).
+    std::uint64_t writes() const { return writes_; }
     std::size_t memory_bytes() const {
         return cell_.blocks.capacity() * sizeof(BoxBlock) + index_.capacity() * sizeof(std::uint32_t);
     }
@@ -185,6 +193,7 @@ public:
 private:
     static constexpr std::uint32_t kAbsent = ~std::uint32_t(0);
     BlockCell cell_;
+    std::uint64_t writes_ = 0;
     std::vector<std::uint32_t> index_;
 };
 

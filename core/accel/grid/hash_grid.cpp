@@ -377,7 +377,6 @@ void HashGrid::insert(const Object& o) {
     const grid::CellRange r = range_at(fine, 0);
     if (is_large(r)) {
         large_.insert(o.box, slot);
-        ++writes_;
         return;
     }
     grid::for_each_cell(r, [&](const Index& i) { insert_into(0, i, slot, fine); });
@@ -389,7 +388,6 @@ void HashGrid::remove(Uid uid) {
     slot_.erase(it);
     if (large_.contains(slot)) {
         large_.erase(slot);
-        ++writes_;
     } else {
         const grid::CellRange fine = lat_[params_.max_depth].range_of(entries_[slot].box);
         const grid::CellRange r = range_at(fine, 0);
@@ -407,7 +405,6 @@ void HashGrid::move(const Object& o) {
         entries_[slot].box = o.box;
         if (large_.contains(slot)) {
             large_.rewrite(slot, o.box);
-            ++writes_;
         } else {
             const grid::CellRange fine = fine_lat.range_of(o.box), r = range_at(fine, 0);
             grid::for_each_cell(r, [&](const Index& i) { rewrite_in(0, i, slot, fine, o.box); });

@@ -121,7 +121,7 @@ public:
     void remove(Uid uid) override;
     void move(const Object& object) override;
     std::size_t size() const override { return slot_.size(); }
-    std::uint64_t writes() const override { return writes_; }
+    std::uint64_t writes() const override { return writes_ + large_.writes(); }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
     void validate() const override;
@@ -208,8 +208,9 @@ private:
     std::size_t unguarded_overruns_ = 0;  ///< entries_guard off: its refusals and collapses that did not happen
     std::size_t ceiling_refusals_ = 0;    ///< entries_guard off: splits and descents the ceiling refused
     bool would_trim_ = false;             ///< the outlier guard is off and would have trimmed the top grid
-    /// writes(): one per cell entry pushed, erased or rewritten at any depth (a split's or collapse's
-    /// moved entries included), per cell created in or removed from the table, and per large-list change.
+    /// writes(), with the large list's own count: one per cell entry pushed, erased or rewritten at
+    /// any depth (a split's or collapse's moved entries included), per cell created in or removed
+    /// from the table.
     std::uint64_t writes_ = 0;
     /// The large-object guard's test, on the object's top-grid range.
     bool is_large(const grid::CellRange& top) const {

@@ -66,24 +66,20 @@ void UniformGrid::insert(const Object& o) {
     }
     slot_.emplace(o.uid, slot);
     const grid::CellRange r = lat_.range_of(o.box);
-    if (is_large(r)) {
+    if (is_large(r))
         large_.insert(o.box, slot);
-        ++writes_;
-    } else {
+    else
         add_to_cells(slot, r);
-    }
 }
 
 void UniformGrid::remove(Uid uid) {
     auto it = slot_.find(uid);
     const std::uint32_t slot = it->second;
     slot_.erase(it);
-    if (large_.contains(slot)) {
+    if (large_.contains(slot))
         large_.erase(slot);
-        ++writes_;
-    } else {
+    else
         remove_from_cells(slot, lat_.range_of(entries_[slot].box));
-    }
     entries_[slot].uid = 0;
     free_slots_.push_back(slot);
 }
@@ -97,21 +93,16 @@ void UniformGrid::move(const Object& o) {
     if (was_large || now_large) {
         if (was_large && now_large) {
             large_.rewrite(slot, o.box);
-            ++writes_;
             return;
         }
-        if (was_large) {
+        if (was_large)
             large_.erase(slot);
-            ++writes_;
-        } else {
+        else
             remove_from_cells(slot, before);
-        }
-        if (now_large) {
+        if (now_large)
             large_.insert(o.box, slot);
-            ++writes_;
-        } else {
+        else
             add_to_cells(slot, after);
-        }
     } else if (!(before == after)) {
         remove_from_cells(slot, before);
         add_to_cells(slot, after);

@@ -71,7 +71,7 @@ public:
     void remove(Uid uid) override;
     void move(const Object& object) override;
     std::size_t size() const override { return slot_.size(); }
-    std::uint64_t writes() const override { return writes_; }
+    std::uint64_t writes() const override { return writes_ + large_.writes(); }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
     void validate() const override;
@@ -110,8 +110,8 @@ private:
     std::vector<Entry> entries_;    // slot → object
     std::vector<std::uint32_t> free_slots_;
     std::unordered_map<Uid, std::uint32_t> slot_;  // uid → slot
-    /// writes(): one per cell an object's entry is pushed into, erased from or rewritten in, and one
-    /// per insert, erase or rewrite in the large list (what a change costs the cells it touches).
+    /// writes(), with the large list's own count: one per cell an object's entry is pushed into,
+    /// erased from or rewritten in (what a change costs the cells it touches).
     std::uint64_t writes_ = 0;
 };
 
