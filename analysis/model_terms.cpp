@@ -22,7 +22,7 @@ const std::vector<FrameCounter>& frame_counters() {
             {"N_RO", "frame.n_ro", "n_ro", CounterScale::per_ray, &F::n_ro, nullptr, nullptr},
             {"N_TH", "frame.n_th", "n_th", CounterScale::per_ray, &F::n_th, nullptr, nullptr},
             {"N_MP", "frame.n_mp", "n_mp", CounterScale::per_ray, &F::n_mp, nullptr, &C::n_mp},
-            {"N_MISS", "frame.n_miss", "n_miss", CounterScale::per_ray, &F::n_miss, nullptr, nullptr},
+            {"N_MISS", "frame.n_miss", "n_miss", CounterScale::per_ray, &F::n_miss, nullptr, &C::n_miss},
             {"N_INS", "frame.inserts", "inserts", CounterScale::as_is, &F::inserts,
              [](const FrameResult& r) { return double(r.inserts); }, nullptr},
             {"N_REM", "frame.removes", "removes", CounterScale::as_is, &F::removes,
@@ -79,11 +79,13 @@ const std::vector<CostTerm>& cost_terms() {
          .breakdown = where_priced},
         // Footprint: what a line costs that the batch fetched from beyond the core's private cache
         // (N_MISS from core/accel/cache_model.h). Rays spread over a scene pay it; rays aimed at one
-        // region find their cells and nodes cached, whatever N_RB and N_T they count.
+        // region find their cells and nodes cached, whatever N_RB and N_T they count. The large
+        // lattice of the calibration pins it.
         {.name = "C_MISS",
          .target = raycast,
          .counters = {"N_MISS"},
          .unit = "ns per line fetched",
+         .prior = true,
          .in_tuning = true,
          .optional_in_json = true,
          .traversal = true,

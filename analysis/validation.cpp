@@ -4,6 +4,7 @@
 #include <functional>
 #include <set>
 
+#include "analysis/model_terms.h"
 #include "core/base/random.h"
 #include "runner/store.h"
 
@@ -280,16 +281,20 @@ ValidationGroup validate_calibration_only(const std::vector<FrameObservation>& f
         const std::string& structure = key.first;  // clang 14 cannot capture a structured binding
         const auto cal = std::find_if(inputs.calibrations.begin(), inputs.calibrations.end(),
                                       [&](const StructureCalibration& c) { return c.structure == structure; });
-        // ns per ray from the calibrated terms; NaN when the micro-scenes fitted none.
+        // ns per ray from the calibrated terms (the table's terms with a prior, each times its
+        // counter, a constant times 1); NaN when the micro-scenes fitted none.
         const auto per_ray = [&](const FrameObservation& f) {
             if (cal == inputs.calibrations.end()) return double(NAN);
-            const std::pair<const char*, double> counters[] = {
-                {"C_PREP", 1.0}, {"C_RB", f.n_rb}, {"C_T", f.n_t}, {"C_MP", f.n_mp}};
             double ns = 0;
             bool any = false;
-            for (const auto& [name, count] : counters)
-                if (const CalibratedTerm* t = cal->term(name); t && std::isfinite(t->value))
-                    ns += t->value * count, any = true;
+            for (const CostTerm& term : cost_terms()) {
+                if (!term.prior) continue;
+                const CalibratedTerm* t = cal->term(term.name);
+                if (!t || !std::isfinite(t->value)) continue;
+                double count = term.counters.empty() ? 1.0 : 0.0;
+                for (const char* symbol : term.counters) count += f.*find_counter(symbol).field;
+                ns += t->value * count, any = true;
+            }
             return any ? ns : double(NAN);
         };
         CellPrediction c;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <random>
 
 #include "core/base/error.h"
@@ -68,16 +69,33 @@ std::vector<CacheLevel> read_cache_sizes(const std::string& dir) {
 namespace {
 
 /// A fixed generator: the micro-scenes are the same on every machine and every run.
+constexpr std::uint64_t kSeed = 0x5eedca11b7a7e5ull;
 struct Draw {
-    std::mt19937_64 rng{0x5eedca11b7a7e5ull};
+    std::mt19937_64 rng;
+    explicit Draw(std::uint64_t seed) : rng(seed) {}
     float operator()(float lo, float hi) { return lo + (hi - lo) * float(double(rng() >> 11) * 0x1.0p-53); }
 };
 
+constexpr int kRays = 512;
+
+/// A micro-scene: fixed objects, and rays of one kind drawn anew for every batch. Each timed repeat
+/// casts new rays, as a run's frames do: a batch cast again and again would let the branch
+/// predictor learn its outcomes and keep its lines cached, and price steps too low.
 struct MicroScene {
     std::string name;
     std::vector<Object> objects;
-    std::vector<Segment> rays;
+    std::function<Segment(Draw&, int)> ray;  ///< the r-th ray of a batch
+    int rays = kRays;
 };
+
+/// Batch `b` of the `index`-th micro-scene: its own generator, so any batch is the same bytes on
+/// every run whatever was drawn before it.
+std::vector<Segment> batch_of(const MicroScene& scene, std::size_t index, int b) {
+    Draw draw(kSeed + 0x9e3779b97f4a7c15ull * (std::uint64_t(index) * 256 + std::uint64_t(b) + 1));
+    std::vector<Segment> out;
+    for (int r = 0; r < scene.rays; ++r) out.push_back(scene.ray(draw, r));
+    return out;
+}
 
 Aabb cube(Vec3 c, float half) { return {{c.x - half, c.y - half, c.z - half}, {c.x + half, c.y + half, c.z + half}}; }
 
@@ -91,65 +109,95 @@ std::vector<Object> lattice(int n) {
     return out;
 }
 
-std::vector<MicroScene> micro_scenes() {
-    Draw draw;
-    std::vector<MicroScene> out;
-    const int kRays = 512;
-    for (int n : {6, 10}) {
-        const float w = 10.f * float(n);
-        // Rays beside the world: start-up only.
-        MicroScene outside{"outside-" + std::to_string(n), lattice(n), {}};
-        for (int r = 0; r < kRays; ++r) {
-            const Vec3 p0{w + 20 + draw(0, w), draw(0, w), draw(0, w)};
-            outside.rays.push_back({p0, {p0.x + draw(5, w), p0.y + draw(-5, 5), p0.z + draw(-5, 5)}});
-        }
-        out.push_back(std::move(outside));
-        // Along the gaps between lattice rows: the whole width, no box met.
-        MicroScene gaps{"gaps-" + std::to_string(n), lattice(n), {}};
-        for (int r = 0; r < kRays; ++r) {
-            const float y = 10.f * float(1 + r % (n - 1)) + draw(-1, 1),
-                        z = 10.f * float(1 + (r / 7) % (n - 1)) + draw(-1, 1);
-            gaps.rays.push_back({{-5, y, z}, {w + 5, y, z}});
-        }
-        out.push_back(std::move(gaps));
-        // Along the rows: every ray meets the n boxes of its row.
-        MicroScene rows{"rows-" + std::to_string(n), lattice(n), {}};
-        for (int r = 0; r < kRays; ++r) {
-            const float y = 10.f * float(r % n) + 5 + draw(-0.5f, 0.5f),
-                        z = 10.f * float((r / 7) % n) + 5 + draw(-0.5f, 0.5f);
-            rows.rays.push_back({{-5, y, z}, {w + 5, y, z}});
-        }
-        out.push_back(std::move(rows));
-    }
-    // Random segments across the larger lattice: steps and tests in paths no ray before prepared
-    // (many unpredicted steps, beside the rows' predictable ones).
-    MicroScene scatter{"scatter-10", lattice(10), {}};
-    for (int r = 0; r < kRays; ++r)
-        scatter.rays.push_back(
-            {{draw(0, 100), draw(0, 100), draw(0, 100)}, {draw(0, 100), draw(0, 100), draw(0, 100)}});
-    out.push_back(std::move(scatter));
-    // A hollow shell of boxes on the faces of [0, 100]^3, rays inside it: steps through empty space.
-    MicroScene shell{"shell", {}, {}};
+/// A hollow shell of boxes on the faces of [0, 100]^3.
+std::vector<Object> shell() {
+    std::vector<Object> out;
     for (int face = 0; face < 6; ++face)
         for (int a = 0; a < 13; ++a)
             for (int b = 0; b < 13; ++b) {
                 const float u = 2 + 8.f * float(a), v = 2 + 8.f * float(b), f = face % 2 ? 99.f : 1.f;
                 const Vec3 c = face / 2 == 0 ? Vec3{f, u, v} : face / 2 == 1 ? Vec3{u, f, v} : Vec3{u, v, f};
-                shell.objects.push_back({Uid(shell.objects.size() + 1), cube(c, 1)});
+                out.push_back({Uid(out.size() + 1), cube(c, 1)});
             }
-    for (int r = 0; r < kRays; ++r)
-        shell.rays.push_back({{draw(15, 85), draw(15, 85), draw(15, 85)}, {draw(15, 85), draw(15, 85), draw(15, 85)}});
+    return out;
+}
+
+std::vector<MicroScene> micro_scenes() {
+    std::vector<MicroScene> out;
+    for (int n : {6, 10}) {
+        const float w = 10.f * float(n);
+        // Rays beside the world: start-up only.
+        out.push_back({"outside-" + std::to_string(n), lattice(n), [w](Draw& draw, int) {
+                           const Vec3 p0{w + 20 + draw(0, w), draw(0, w), draw(0, w)};
+                           return Segment{p0, {p0.x + draw(5, w), p0.y + draw(-5, 5), p0.z + draw(-5, 5)}};
+                       }});
+        // Along the gaps between lattice rows: the whole width, no box met.
+        out.push_back({"gaps-" + std::to_string(n), lattice(n), [n, w](Draw& draw, int r) {
+                           const float y = 10.f * float(1 + r % (n - 1)) + draw(-1, 1),
+                                       z = 10.f * float(1 + (r / 7) % (n - 1)) + draw(-1, 1);
+                           return Segment{{-5, y, z}, {w + 5, y, z}};
+                       }});
+        // Along the rows: every ray meets the n boxes of its row.
+        out.push_back({"rows-" + std::to_string(n), lattice(n), [n, w](Draw& draw, int r) {
+                           const float y = 10.f * float(r % n) + 5 + draw(-0.5f, 0.5f),
+                                       z = 10.f * float((r / 7) % n) + 5 + draw(-0.5f, 0.5f);
+                           return Segment{{-5, y, z}, {w + 5, y, z}};
+                       }});
+    }
+    // Random segments across the larger lattice: steps and tests in paths no ray before prepared
+    // (many unpredicted steps, beside the rows' predictable ones).
+    out.push_back(
+        {"scatter-10", lattice(10), [](Draw& draw, int) {
+             return Segment{{draw(0, 100), draw(0, 100), draw(0, 100)}, {draw(0, 100), draw(0, 100), draw(0, 100)}};
+         }});
+    // Rays inside the hollow shell: steps through empty space.
+    out.push_back(
+        {"shell", shell(), [](Draw& draw, int) {
+             return Segment{{draw(15, 85), draw(15, 85), draw(15, 85)}, {draw(15, 85), draw(15, 85), draw(15, 85)}};
+         }});
     // The same shell crossed kRays times by one long ray: steps like the random rays' above, but
     // each one predicted from the ray before (N_MP near 0), which pins C_MP against them.
-    MicroScene coherent{"shell-coherent", shell.objects, std::vector<Segment>(kRays, {{16, 20, 30}, {84, 80, 70}})};
-    out.push_back(std::move(shell));
-    out.push_back(std::move(coherent));
+    out.push_back({"shell-coherent", shell(), [](Draw&, int) { return Segment{{16, 20, 30}, {84, 80, 70}}; }});
     // A stack of identical boxes every ray crosses: box tests.
-    MicroScene stack{"stack", {}, {}};
-    for (int i = 0; i < 256; ++i) stack.objects.push_back({Uid(i + 1), cube({50, 50, 50}, 5)});
-    for (int r = 0; r < kRays / 4; ++r)
-        stack.rays.push_back({{draw(30, 40), draw(46, 54), draw(46, 54)}, {draw(60, 70), draw(46, 54), draw(46, 54)}});
-    out.push_back(std::move(stack));
+    std::vector<Object> stack;
+    for (int i = 0; i < 256; ++i) stack.push_back({Uid(i + 1), cube({50, 50, 50}, 5)});
+    out.push_back(
+        {"stack", std::move(stack),
+         [](Draw& draw, int) {
+             return Segment{{draw(30, 40), draw(46, 54), draw(46, 54)}, {draw(60, 70), draw(46, 54), draw(46, 54)}};
+         },
+         kRays / 4});
+    // Segments of up to 104 across a lattice of 32768 boxes: its nodes and cells outgrow a core's
+    // private cache (and the simulated one of N_MISS), so new rays fetch lines where the small
+    // scenes find theirs cached: C_MISS against the same steps and tests in cache.
+    // Short ones (up to 21) fetch the few lines of a path's lower levels, in another proportion to
+    // their steps.
+    for (const float reach : {60.f, 12.f})
+        out.push_back({reach > 20 ? "scatter-32" : "short-32", lattice(32), [reach](Draw& draw, int) {
+                           const Vec3 p0{draw(0, 320), draw(0, 320), draw(0, 320)};
+                           return Segment{
+                               p0,
+                               {p0.x + draw(-reach, reach), p0.y + draw(-reach, reach), p0.z + draw(-reach, reach)}};
+                       }});
+    return out;
+}
+
+/// What batch `rays` counts when cast right after `before`, as the timed cast met it: the counts of
+/// both cast as one batch less those of `before` alone (the simulated cache and the predictor
+/// start cold in each counted batch, and `before` leaves them as the timed cast before it did).
+Counters counted_after(Structure& s, const std::vector<Segment>& before, const std::vector<Segment>& rays,
+                       HitLists& hits) {
+    Counters alone, both;
+    s.cast_counted(before, hits, alone);
+    std::vector<Segment> joined = before;
+    joined.insert(joined.end(), rays.begin(), rays.end());
+    s.cast_counted(joined, hits, both);
+    const auto less = [](std::uint64_t a, std::uint64_t b) { return a > b ? a - b : 0; };
+    Counters out;
+    out.n_t = less(both.n_t, alone.n_t), out.n_th = less(both.n_th, alone.n_th);
+    out.n_rb = less(both.n_rb, alone.n_rb), out.n_tp = less(both.n_tp, alone.n_tp);
+    out.n_ro = less(both.n_ro, alone.n_ro), out.n_ro_hits = less(both.n_ro_hits, alone.n_ro_hits);
+    out.n_mp = less(both.n_mp, alone.n_mp), out.n_miss = less(both.n_miss, alone.n_miss);
     return out;
 }
 
@@ -166,29 +214,37 @@ std::vector<CalibrationPoint> calibrate_if_buildable(const std::string& name, co
 std::vector<CalibrationPoint> calibrate_structure(const StructureInfo& info, const nlohmann::json& params,
                                                   int repeats) {
     std::vector<CalibrationPoint> out;
-    for (const MicroScene& scene : micro_scenes()) {
+    const std::vector<MicroScene> scenes = micro_scenes();
+    for (std::size_t i = 0; i < scenes.size(); ++i) {
+        const MicroScene& scene = scenes[i];
         std::unique_ptr<Structure> s = info.make(params, "calibration of " + info.name);
         s->build(scene.objects);
         s->commit();
+        std::vector<std::vector<Segment>> batches;
+        for (int b = 0; b <= repeats; ++b) batches.push_back(batch_of(scene, i, b));
         HitLists hits;
-        Counters counters;
-        s->cast_counted(scene.rays, hits, counters);
-        s->cast(scene.rays, hits);  // warm the caches and branch predictors
+        s->cast(batches[0], hits);  // warm the caches and branch predictors with rays of the kind
         std::vector<double> ns;
-        for (int r = 0; r < repeats; ++r) {
+        for (int b = 1; b <= repeats; ++b) {
             const auto t0 = std::chrono::steady_clock::now();
-            s->cast(scene.rays, hits);
+            s->cast(batches[std::size_t(b)], hits);
             const auto t1 = std::chrono::steady_clock::now();
             ns.push_back(double(std::chrono::duration_cast<std::chrono::nanoseconds>(t1 - t0).count()) /
-                         double(scene.rays.size()));
+                         double(scene.rays));
         }
+        // Counted after every timed cast, so that counting does not change what they found cached.
+        Counters counters;
+        for (int b = 1; b <= repeats; ++b)
+            counters += counted_after(*s, batches[std::size_t(b) - 1], batches[std::size_t(b)], hits);
         const Spread spread = spread_of(ns);
+        const double rays = double(scene.rays) * double(repeats);
         CalibrationPoint p;
         p.scene = scene.name;
-        p.rays = std::uint32_t(scene.rays.size());
-        p.n_rb = double(counters.n_rb) / double(p.rays);
-        p.n_t = double(counters.n_t) / double(p.rays);
-        p.n_mp = double(counters.n_mp) / double(p.rays);
+        p.rays = std::uint32_t(scene.rays);
+        p.n_rb = double(counters.n_rb) / rays;
+        p.n_t = double(counters.n_t) / rays;
+        p.n_mp = double(counters.n_mp) / rays;
+        p.n_miss = double(counters.n_miss) / rays;
         p.ns_per_ray = spread.median;
         p.mad = spread.mad;
         out.push_back(p);
@@ -224,10 +280,10 @@ void record_machine(Database& db, std::int64_t run,
     for (const Measured& m : measured)
         for (const CalibrationPoint& p : m.points)
             db.prepare(
-                  "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp) "
-                  "VALUES (?,?,?,?,?,?,?,?,?,?)")
+                  "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, "
+                  "n_miss) VALUES (?,?,?,?,?,?,?,?,?,?,?)")
                 .bind_all(run, m.name, m.params.dump(), p.scene, std::int64_t(p.rays), p.n_rb, p.n_t, p.ns_per_ray,
-                          p.mad, p.n_mp)
+                          p.mad, p.n_mp, p.n_miss)
                 .run();
     t.commit();
 }
@@ -243,11 +299,13 @@ std::vector<CacheLevel> load_cache_sizes(Database& db, std::int64_t run) {
 std::vector<CalibrationPoint> load_calibration(Database& db, std::int64_t run, const std::string& structure) {
     std::vector<CalibrationPoint> out;
     Statement s = db.prepare(
-        "SELECT scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp FROM calibration WHERE run_id = ? AND structure = ? "
+        "SELECT scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss FROM calibration WHERE run_id = ? AND "
+        "structure = ? "
         "ORDER BY rowid");
     s.bind_all(run, structure);
     while (s.step())
-        out.push_back({s.text(0), std::uint32_t(s.int64(1)), s.real(2), s.real(3), s.real(4), s.real(5), s.real(6)});
+        out.push_back(
+            {s.text(0), std::uint32_t(s.int64(1)), s.real(2), s.real(3), s.real(4), s.real(5), s.real(6), s.real(7)});
     return out;
 }
 

@@ -9,9 +9,11 @@
 /// the same shell crossed again and again by one ray (the same steps, each predicted from the ray
 /// before: C_MP, the extra cost of an unpredicted step), a stack of identical boxes every ray
 /// crosses (box tests with few steps in a grid, the whole tree in a BVH: C_RB), and rays along the
-/// gaps and rows of a lattice and random segments across it (mixes). The scenes are small, so
-/// the coefficients they give are in-cache costs. The analysis stage fits them (the priors of the
-/// run's fit); this stage only measures and stores.
+/// gaps and rows of a lattice and random segments across it (mixes). All but two are small, so the
+/// coefficients they give are in-cache costs; long and short random segments across a lattice of
+/// 32768 boxes, whose nodes and cells outgrow a core's private cache, fetch lines (N_MISS: C_MISS). Each timed repeat
+/// casts new rays of the scene's kind, as a run's frames do. The analysis stage fits them (the
+/// priors of the run's fit); this stage only measures and stores.
 
 #include <cstdint>
 #include <string>
@@ -46,10 +48,14 @@ struct CalibrationPoint {
     double ns_per_ray = 0;     ///< median over the repeats
     double mad = 0;            ///< median absolute deviation over the repeats
     double n_mp = 0;           ///< steps the history predictor missed, per ray (core/accel/outcome_predictor.h)
+    /// Lines the simulated private cache fetched, per ray (core/accel/cache_model.h), for each timed
+    /// batch as it met the cache: after the batch before it.
+    double n_miss = 0;
 };
 
-/// Builds `info` with `params` on every micro-scene and times its ray batches (`repeats` times);
-/// deterministic scenes and rays. Takes well under a second per structure.
+/// Builds `info` with `params` on every micro-scene and times `repeats` batches of new rays after a
+/// warm-up batch; the counters are the timed batches' mean. Deterministic scenes and rays. Takes
+/// about a second per structure (brute force: a few).
 std::vector<CalibrationPoint> calibrate_structure(const StructureInfo& info, const nlohmann::json& params,
                                                   int repeats = 7);
 

@@ -388,6 +388,11 @@ ALTER TABLE frame_kind ADD COLUMN n_miss INTEGER NOT NULL DEFAULT 0;
         R"sql(
 ALTER TABLE frame ADD COLUMN writes INTEGER NOT NULL DEFAULT 0;
 )sql",
+        // 14 → 15: the lines each calibration micro-scene's rays fetched per ray (CalibrationPoint::n_miss;
+        // the prior of the cost model's C_MISS). 0 in calibrations stored before.
+        R"sql(
+ALTER TABLE calibration ADD COLUMN n_miss REAL NOT NULL DEFAULT 0;
+)sql",
     };
     return all;
 }

@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 
 #include <cmath>
 
@@ -66,7 +67,7 @@ TEST(Calibration, MicroScenesVaryTheCountersIndependently) {
     for (const char* name : {"bf", "ug", "dbvh", "lbvh"}) {
         const StructureInfo& info = find_structure(name);
         const std::vector<CalibrationPoint> points = calibrate_structure(info, info.defaults(), 1);
-        ASSERT_EQ(points.size(), 10u) << name;
+        ASSERT_EQ(points.size(), 12u) << name;
         auto at = [&](const std::string& scene) {
             for (const CalibrationPoint& p : points)
                 if (p.scene == scene) return p;
@@ -90,6 +91,37 @@ TEST(Calibration, MicroScenesVaryTheCountersIndependently) {
     }
 }
 
+TEST(Calibration, OnlyTheLargeLatticeFetchesLines) {
+    // Each timed batch is counted as it met the cache, after the batch before: a small scene's
+    // structure stays cached, so its new rays fetch almost nothing, while the large lattice's
+    // outgrow the simulated cache and fetch lines on every ray (C_MISS's design).
+    for (const char* name : {"ug", "hg", "dbvh", "lbvh", "wbvh"}) {
+        const StructureInfo& info = find_structure(name);
+        const std::vector<CalibrationPoint> points = calibrate_structure(info, info.defaults(), 2);
+        std::map<std::string, CalibrationPoint> at;
+        for (const CalibrationPoint& p : points) at[p.scene] = p;
+        ASSERT_EQ(at.count("scatter-32"), 1u) << name;
+        EXPECT_GT(at["scatter-32"].n_miss, 2) << name;
+        EXPECT_GT(at["short-32"].n_miss, 0.2) << name;
+        for (const char* small : {"rows-10", "scatter-10", "shell", "stack"})
+            EXPECT_LT(at[small].n_miss, 0.1 * at["scatter-32"].n_miss) << name << " " << small;
+    }
+}
+
+TEST(Calibration, SameRaysAndCountsOnEveryRun) {
+    // New rays per batch, but drawn from fixed seeds: two calibrations count alike.
+    const StructureInfo& info = find_structure("lbvh");
+    const std::vector<CalibrationPoint> a = calibrate_structure(info, info.defaults(), 2);
+    const std::vector<CalibrationPoint> b = calibrate_structure(info, info.defaults(), 2);
+    ASSERT_EQ(a.size(), b.size());
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        EXPECT_EQ(a[i].n_rb, b[i].n_rb) << a[i].scene;
+        EXPECT_EQ(a[i].n_t, b[i].n_t) << a[i].scene;
+        EXPECT_EQ(a[i].n_mp, b[i].n_mp) << a[i].scene;
+        EXPECT_EQ(a[i].n_miss, b[i].n_miss) << a[i].scene;
+    }
+}
+
 TEST(Calibration, StoredOncePerRun) {
     const test::TempDir temp("calibration", "run");
     const fs::path& dir = temp.path();
@@ -106,13 +138,13 @@ TEST(Calibration, StoredOncePerRun) {
         s.step();
         return s.int64(0);
     };
-    EXPECT_EQ(load_calibration(store.db(), first.run, "bf").size(), 10u);
-    EXPECT_EQ(load_calibration(store.db(), first.run, "dbvh").size(), 10u);  // one structure, one calibration
-    EXPECT_EQ(count("calibration"), 20);
+    EXPECT_EQ(load_calibration(store.db(), first.run, "bf").size(), 12u);
+    EXPECT_EQ(load_calibration(store.db(), first.run, "dbvh").size(), 12u);  // one structure, one calibration
+    EXPECT_EQ(count("calibration"), 24);
     EXPECT_EQ(std::size_t(count("run_cache")), read_cache_sizes().size());
     // Recording again (a resumed run) keeps what the run began with.
     record_machine(store.db(), first.run, {{"bf", find_structure("bf").defaults()}});
-    EXPECT_EQ(count("calibration"), 20);
+    EXPECT_EQ(count("calibration"), 24);
     // A merged run keeps its machine, so the merged database is fitted with the same priors.
     {
         ResultStore merged((dir / "merged.db").string());
@@ -123,6 +155,7 @@ TEST(Calibration, StoredOncePerRun) {
         for (std::size_t i = 0; i < a.size(); ++i) {
             EXPECT_EQ(a[i].scene, b[i].scene);
             EXPECT_EQ(a[i].ns_per_ray, b[i].ns_per_ray);
+            EXPECT_EQ(a[i].n_miss, b[i].n_miss);
         }
         EXPECT_EQ(load_cache_sizes(merged.db(), 1).size(), read_cache_sizes().size());
     }
@@ -142,7 +175,7 @@ TEST(Calibration, TheRunsFitUsesItAndStoresLeaveOneSceneOut) {
     ASSERT_EQ(fit.models.size(), 1u);
     const StructureModels& m = fit.models[0];
     ASSERT_NE(m.calibration, nullptr);
-    EXPECT_EQ(m.calibration->points.size(), 10u);
+    EXPECT_EQ(m.calibration->points.size(), 12u);
     EXPECT_EQ(m.loso.size(), 3u);  // every scene predicted from the two others
     const CandidateModel* chosen = m.chosen("raycast");
     ASSERT_NE(chosen, nullptr);

@@ -161,14 +161,16 @@ TEST(CellInterval, TheTableFollowsTheCellsThroughMergeAndMigration) {
         merge_into(m, *open_read_only(o.db));
         EXPECT_EQ(interval_rows(m.db()), want);
     }
-    // A database from before the table (schema 11, without the later n_miss and writes columns): migrating fills
-    // it from the stored cells.
+    // A database from before the table (schema 11, without the later n_miss and writes columns and calibration.n_miss):
+    // migrating fills it from the stored cells.
     const std::string old = temp.file("old.db");
     fs::copy_file(o.db, old);
     {
         Database d(old, false);
         d.exec("DROP TABLE cell_interval; ALTER TABLE frame DROP COLUMN n_miss; ALTER TABLE frame DROP COLUMN writes;");
-        d.exec("ALTER TABLE frame_kind DROP COLUMN n_miss; PRAGMA user_version = 11");
+        d.exec(
+            "ALTER TABLE frame_kind DROP COLUMN n_miss; ALTER TABLE calibration DROP COLUMN n_miss; "
+            "PRAGMA user_version = 11");
     }
     EXPECT_EQ(interval_rows(*open_read_only(old)), want);  // read through a migrated copy
     ResultStore migrated(old);
