@@ -8,8 +8,8 @@
 #                      no model, tuner or advice rule was designed on (experiments/tune-suite-fresh.json)
 # With the argument `fresh`, also:
 #   data/maps-088/pak6-patch088.pk3   the maps of Debian's openarena-088-data package, kept as a
-#                      test set that no model was designed on (experiments/maps-088.json and
-#                      maps-088b.json, six maps each)
+#                      test set that no model was designed on (experiments/maps-088.json,
+#                      maps-088b.json and maps-088c.json, six maps each)
 # Uses `apt-get download` (no root needed: only the .deb is fetched, nothing is installed) and
 # `dpkg-deb -x` to unpack. Run it again to re-fetch; it skips what is already there.
 set -euo pipefail
