@@ -303,10 +303,17 @@ const CalibratedTerm* StructureCalibration::term(const std::string& name) const 
     return nullptr;
 }
 
-StructureCalibration fit_calibration(const std::string& structure, const std::vector<CalibrationPoint>& points) {
+StructureCalibration fit_calibration(const std::string& structure, const std::vector<CalibrationPoint>& all) {
     StructureCalibration out;
     out.structure = structure;
-    out.points = points;
+    // A structure that counts no line fetched (brute force reads in order, the peers cannot be
+    // observed) would charge the large lattice's fetches to its box tests and steps: its in-cache
+    // costs come from the small scenes alone.
+    const bool counts_lines =
+        std::any_of(all.begin(), all.end(), [](const CalibrationPoint& q) { return q.n_miss > 0; });
+    for (const CalibrationPoint& q : all)
+        if (counts_lines || !outgrows_cache(q.scene)) out.points.push_back(q);
+    const std::vector<CalibrationPoint>& points = out.points;
     if (points.empty()) return out;
     // The table's terms with a prior: those the micro-scenes count (where any point counted them),
     // then the constants.

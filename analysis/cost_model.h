@@ -44,7 +44,7 @@ int memory_tier_of(double bytes, const std::vector<CacheLevel>& caches);
 /// fit of eq. 5.4. `pinned` when the micro-scenes determine it (positive, interval within ±50%);
 /// otherwise `why` says what was wrong and the term gets no prior.
 struct CalibratedTerm {
-    std::string name;  ///< "C_RB", "C_T", "C_MP", "C_PREP"
+    std::string name;  ///< a term with a prior in the table (model_terms.h): "C_RB", "C_T", "C_MP", …
     double value = NAN, ci_low = NAN, ci_high = NAN;
     bool pinned = false;
     std::string why;
@@ -56,7 +56,10 @@ struct StructureCalibration {
     double condition_number = NAN;
     const CalibratedTerm* term(const std::string& name) const;
 };
-StructureCalibration fit_calibration(const std::string& structure, const std::vector<CalibrationPoint>& points);
+/// Eq. 5.4 fitted to the micro-scenes, each term with a prior that some point counts, and the
+/// constants; a structure that counts no N_MISS is fitted without the scenes that outgrow the cache
+/// (`points` holds those fitted).
+StructureCalibration fit_calibration(const std::string& structure, const std::vector<CalibrationPoint>& all);
 
 /// What the fit knows about the run beyond its frames: the calibration per structure (may be empty:
 /// then no priors) and the machine's caches (may be empty: then no memory-hierarchy model).

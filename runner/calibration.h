@@ -53,9 +53,15 @@ struct CalibrationPoint {
     double n_miss = 0;
 };
 
-/// Builds `info` with `params` on every micro-scene and times `repeats` batches of new rays after a
-/// warm-up batch; the counters are the timed batches' mean. Deterministic scenes and rays. Takes
-/// about a second per structure (brute force: a few).
+/// Whether `scene` is a micro-scene whose structure outgrows a core's private cache (the lattice of
+/// 32768 boxes): its time includes the lines fetched, which only a structure that counts N_MISS can
+/// tell apart from its box tests and steps.
+bool outgrows_cache(const std::string& scene);
+
+/// Builds `info` with `params` on every micro-scene and times `repeats` (1 to 255) batches of new
+/// rays after a warm-up batch; the counters are the timed batches' mean. Deterministic scenes and
+/// rays. A structure that cannot be built on the large lattice (a user's, with limits of its own)
+/// goes without those points. Takes about a second per structure (brute force: a few).
 std::vector<CalibrationPoint> calibrate_structure(const StructureInfo& info, const nlohmann::json& params,
                                                   int repeats = 7);
 

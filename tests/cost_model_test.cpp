@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <tuple>
 
 #include "analysis/cost_model.h"
 #include "analysis/linear_fit.h"
@@ -51,6 +52,26 @@ std::vector<CalibrationPoint> calibration_points(double scale_rb, double scale_t
         out.push_back({"micro", 512, d[0], d[1],
                        (scale_rb * kRb * d[0] + scale_t * kT * d[1] + kPrep) * (1 + 0.01 * rng.normal()), 0.1});
     return out;
+}
+
+TEST(Identifiability, LinesFetchedOnTheLargeLatticeGoToCMissOrAreLeftOut) {
+    // The small scenes at the true in-cache costs; the two on the large lattice also fetch lines at
+    // 25 ns each. Counted, they pin C_MISS; not counted (a structure that cannot count them), they
+    // are left out rather than charged to C_RB and C_T.
+    std::vector<CalibrationPoint> points = calibration_points(1, 1, 5);
+    for (std::size_t i = 0; i < points.size(); ++i) points[i].scene = "micro-" + std::to_string(i);
+    for (const auto& [scene, rb, t, miss] : {std::tuple{"scatter-32", 2.0, 45.0, 9.0}, {"short-32", 0.5, 24.0, 4.5}})
+        points.push_back({scene, 512, rb, t, kRb * rb + kT * t + kPrep + 25.0 * miss, 0.1, 0, miss});
+    const StructureCalibration counted = fit_calibration("tree", points);
+    EXPECT_EQ(counted.points.size(), points.size());
+    ASSERT_NE(counted.term("C_MISS"), nullptr);
+    EXPECT_NEAR(counted.term("C_MISS")->value, 25.0, 2.5);
+    for (CalibrationPoint& p : points) p.n_miss = 0;
+    const StructureCalibration uncounted = fit_calibration("peer", points);
+    EXPECT_EQ(uncounted.points.size(), points.size() - 2);
+    EXPECT_EQ(uncounted.term("C_MISS"), nullptr);
+    ASSERT_NE(uncounted.term("C_T"), nullptr);
+    EXPECT_NEAR(uncounted.term("C_T")->value, kT, 0.05 * kT);
 }
 
 TEST(Identifiability, CollinearCountersAreReportedWithoutPriors) {

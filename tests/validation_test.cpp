@@ -177,6 +177,14 @@ TEST(CalibrationOnly, PricesTheRayCastFromTheCalibrationAloneAndNeverTheUpdate) 
     inputs.calibrations[0].terms[1].value = kT / 2;
     g = validate_calibration_only(frames, inputs, {50, 1});
     EXPECT_GT(g.structures[0].raycast.median, 0.05);
+    // Lines fetched: priced where the micro-scenes fitted C_MISS, as every term with a prior.
+    inputs.calibrations[0].terms[1].value = kT;
+    for (FrameObservation& f : frames) f.n_miss = 30, f.raycast_ns += f.rays * 30 * 20.0;
+    g = validate_calibration_only(frames, inputs, {50, 1});
+    EXPECT_GT(g.structures[0].raycast.median, 0.05);
+    inputs.calibrations[0].terms.push_back({"C_MISS", 20.0, 20.0, 20.0, true, ""});
+    g = validate_calibration_only(frames, inputs, {50, 1});
+    EXPECT_LT(g.structures[0].raycast.p90, 1e-12);
 }
 
 TEST(Bootstrap, TheIntervalNarrowsAsScenesGrow) {

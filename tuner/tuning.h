@@ -10,7 +10,7 @@
 ///                            budget times the best-ranked (rank_then_time, tuner/search.h); else the
 ///                            search (search_levels) spends it
 ///   predicted                every evaluation is a cheap counting replay (no timed rays, no
-///                            verification); C = C_RB·N_RB + C_T·N_T + C_PREP with coefficients
+///                            verification); C = C_RB·N_RB + C_T·N_T + … (eq. 5.4) with coefficients
 ///                            fitted to a few measured calibration points of the same structure
 ///                            and category; the update is the replay's own (timed) update
 ///   predicted-then-verified  search on the prediction, then measure the best few candidates and
