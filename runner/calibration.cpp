@@ -8,6 +8,7 @@
 #include <functional>
 #include <random>
 
+#include "core/accel/counter_fields.h"
 #include "core/base/error.h"
 #include "core/truth/hit_lists.h"
 #include "core/sim/simulator.h"
@@ -77,6 +78,13 @@ struct Draw {
 };
 
 constexpr int kRays = 512;
+
+/// The micro-scenes on the lattice of 32768 boxes, and how far their segments reach on each axis.
+struct LargeScene {
+    const char* name;
+    float reach;
+};
+constexpr LargeScene kLargeScenes[] = {{"scatter-32", 60.f}, {"short-32", 12.f}};
 
 /// A micro-scene: fixed objects, and rays of one kind drawn anew for every batch. Each timed repeat
 /// casts new rays, as a run's frames do: a batch cast again and again would let the branch
@@ -172,8 +180,8 @@ std::vector<MicroScene> micro_scenes() {
     // scenes find theirs cached: C_MISS against the same steps and tests in cache.
     // Short ones (up to 21) fetch the few lines of a path's lower levels, in another proportion to
     // their steps.
-    for (const float reach : {60.f, 12.f})
-        out.push_back({reach > 20 ? "scatter-32" : "short-32", lattice(32), [reach](Draw& draw, int) {
+    for (const LargeScene& large : kLargeScenes)
+        out.push_back({large.name, lattice(32), [reach = large.reach](Draw& draw, int) {
                            const Vec3 p0{draw(0, 320), draw(0, 320), draw(0, 320)};
                            return Segment{
                                p0,
@@ -192,12 +200,11 @@ Counters counted_after(Structure& s, const std::vector<Segment>& before, const s
     std::vector<Segment> joined = before;
     joined.insert(joined.end(), rays.begin(), rays.end());
     s.cast_counted(joined, hits, both);
-    const auto less = [](std::uint64_t a, std::uint64_t b) { return a > b ? a - b : 0; };
     Counters out;
-    out.n_t = less(both.n_t, alone.n_t), out.n_th = less(both.n_th, alone.n_th);
-    out.n_rb = less(both.n_rb, alone.n_rb), out.n_tp = less(both.n_tp, alone.n_tp);
-    out.n_ro = less(both.n_ro, alone.n_ro), out.n_ro_hits = less(both.n_ro_hits, alone.n_ro_hits);
-    out.n_mp = less(both.n_mp, alone.n_mp), out.n_miss = less(both.n_miss, alone.n_miss);
+    for (const CounterField& f : kCounterFields) {
+        const std::uint64_t a = both.*f.member, b = alone.*f.member;
+        out.*f.member = a > b ? a - b : 0;
+    }
     return out;
 }
 
@@ -211,7 +218,10 @@ std::vector<CalibrationPoint> calibrate_if_buildable(const std::string& name, co
     }
 }
 
-bool outgrows_cache(const std::string& scene) { return scene == "scatter-32" || scene == "short-32"; }
+bool outgrows_cache(const std::string& scene) {
+    return std::any_of(std::begin(kLargeScenes), std::end(kLargeScenes),
+                       [&](const LargeScene& large) { return scene == large.name; });
+}
 
 namespace {
 
@@ -314,9 +324,8 @@ std::vector<CacheLevel> load_cache_sizes(Database& db, std::int64_t run) {
 std::vector<CalibrationPoint> load_calibration(Database& db, std::int64_t run, const std::string& structure) {
     std::vector<CalibrationPoint> out;
     Statement s = db.prepare(
-        "SELECT scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss FROM calibration WHERE run_id = ? AND "
-        "structure = ? "
-        "ORDER BY rowid");
+        "SELECT scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss FROM calibration "
+        "WHERE run_id = ? AND structure = ? ORDER BY rowid");
     s.bind_all(run, structure);
     while (s.step())
         out.push_back(
