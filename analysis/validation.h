@@ -125,8 +125,8 @@ TransferValidation validate_transfer(const std::vector<StructureModels>& models,
 inline constexpr const char* kCalibrationGroup = "calibration-only";
 
 /// Calibration alone: each cell's ray cast per frame priced by its run's micro-scene calibration
-/// (runner/calibration.h: rays × (C_PREP + C_RB·N_RB + C_T·N_T + C_MP·N_MP + C_MISS·N_MISS), the terms the
-/// micro-scenes fitted), nothing fitted on any experiment's frames. The calibration does not
+/// (runner/calibration.h: rays × (C_PREP + C_RB·N_RB + C_T·N_T + C_MP·N_MP + C_MISS·N_MISS), the
+/// terms the micro-scenes fitted), nothing fitted on any experiment's frames. The calibration does not
 /// measure updates, so the frame error is NaN; a structure without calibrated terms is
 /// unpredictable.
 ValidationGroup validate_calibration_only(const std::vector<FrameObservation>& frames, const ModelInputs& inputs,

@@ -11,9 +11,9 @@
 /// crosses (box tests with few steps in a grid, the whole tree in a BVH: C_RB), and rays along the
 /// gaps and rows of a lattice and random segments across it (mixes). All but two are small, so the
 /// coefficients they give are in-cache costs; long and short random segments across a lattice of
-/// 32768 boxes, whose nodes and cells outgrow a core's private cache, fetch lines (N_MISS: C_MISS). Each timed repeat
-/// casts new rays of the scene's kind, as a run's frames do. The analysis stage fits them (the
-/// priors of the run's fit); this stage only measures and stores.
+/// 32768 boxes, whose nodes and cells outgrow a core's private cache, fetch lines (N_MISS:
+/// C_MISS). Each timed repeat casts new rays of the scene's kind, as a run's frames do. The
+/// analysis stage fits them (the priors of the run's fit); this stage only measures and stores.
 
 #include <cstdint>
 #include <string>

@@ -71,9 +71,8 @@ std::int64_t merge_run(Database& o, Database& in, Statement& runs, MergeCount& c
             .bind_all(run, caches.int64(0), caches.text(1), caches.int64(2))
             .run();
     Statement cal = in.prepare(
-        "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss FROM calibration WHERE run_id "
-        "= "
-        "?");
+        "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss FROM calibration "
+        "WHERE run_id = ?");
     cal.bind_all(runs.int64(0));
     while (cal.step())
         o.prepare(
