@@ -41,6 +41,31 @@ TEST(OutcomePredictor, LearnsARepeatedPathAndMissesRandomOnes) {
     EXPECT_EQ(misses_of(random), incoherent);  // deterministic
 }
 
+TEST(OutcomePredictor, ABranchBeyondTheCountsIsPartOfTheOutcome) {
+    // Steps with the same counts (a grid's empty cells) told apart only by the way out each took:
+    // one order repeated is learnt, orders drawn at random are not; without the branches every
+    // step looks alike.
+    Random rng(5);
+    std::vector<std::uint32_t> path;
+    for (int i = 0; i < 12; ++i) path.push_back(1 + std::uint32_t(rng.below(6)));
+    auto misses = [](auto&& way_out, int steps) {
+        OutcomePredictor p;
+        for (int i = 0; i < steps; ++i) {
+            p.next_step(0, 0, 0);
+            if (const std::uint32_t bits = way_out(i)) p.branch(bits);
+        }
+        p.end(0, 0, 0);
+        return p.mispredicted();
+    };
+    const int steps = 12 * 300;
+    const std::uint64_t repeated = misses([&](int i) { return path[std::size_t(i % 12)]; }, steps);
+    const std::uint64_t random = misses([&](int) { return 1 + std::uint32_t(rng.below(6)); }, steps);
+    const std::uint64_t none = misses([](int) { return 0u; }, steps);
+    EXPECT_LT(repeated, 4 * path.size());
+    EXPECT_GT(random, std::uint64_t(steps) / 2);
+    EXPECT_EQ(none, 0u);
+}
+
 TEST(OutcomePredictor, TheCountingPassCountsCoherenceForEveryTraversal) {
     // One scene, two ray sets with the same paths in total: one ray repeated, and rays in random
     // directions. Every structure that counts steps sees the repeated ray as coherent.

@@ -48,6 +48,7 @@ struct NoCounting {
     constexpr void box_tests(std::uint64_t = 1) {}
     constexpr void hits(std::uint64_t = 1) {}
     constexpr void reads(const void*, std::size_t) {}
+    constexpr void branch(std::uint32_t) {}
 };
 
 struct Counting {
@@ -68,6 +69,10 @@ struct Counting {
     void hits(std::uint64_t n = 1) { sums->n_tp += n; }
     void reads(const void* p, std::size_t bytes) {
         if (cache) cache->read(p, bytes);
+    }
+    /// A branch the step takes beyond what the counters show (OutcomePredictor::branch).
+    void branch(std::uint32_t bits) {
+        if (predictor) predictor->branch(bits);
     }
 };
 

@@ -6,7 +6,8 @@
 /// same outcomes, and a history-based branch predictor (TAGE, Seznec & Michaud 2006) learns them,
 /// while rays in random directions do not. The same rays also find the same nodes in the L1 cache.
 /// The counting pass feeds each step's outcome (node boxes hit, object boxes tested and hit since
-/// the last step) to a small tagged predictor with four global-history lengths, and counts the
+/// the last step; for a grid also the plane its 3D-DDA leaves the cell through) to a small tagged
+/// predictor with four global-history lengths, and counts the
 /// outcomes it fails to predict: N_MP, a machine-independent count of what a ray cannot reuse from
 /// the ray before it. Deterministic; the cost model prices it (C_MP, docs/model.md).
 
@@ -26,12 +27,18 @@ public:
         end(n_th, n_rb, n_tp);
         at_ = {n_th, n_rb, n_tp}, open_ = true;
     }
+    /// A branch the open step takes that its counts do not show (a grid's 3D-DDA: the plane it
+    /// leaves the cell through, or the segment's end), `bits` in 1..7; part of the step's outcome.
+    void branch(std::uint32_t bits) {
+        if (open_) extra_ = (extra_ << 3 | bits) & 0xffffu;
+    }
     /// The batch ends: the open step's outcome is known.
     void end(std::uint64_t n_th, std::uint64_t n_rb, std::uint64_t n_tp) {
         if (!open_) return;
         auto cap = [](std::uint64_t v, std::uint64_t most) { return std::uint32_t(v < most ? v : most); };
-        step(cap(n_th - at_[0], 15) | cap(n_rb - at_[1], 63) << 4 | cap(n_tp - at_[2], 63) << 10);
+        step(cap(n_th - at_[0], 15) | cap(n_rb - at_[1], 63) << 4 | cap(n_tp - at_[2], 63) << 10 | extra_ << 16);
         open_ = false;
+        extra_ = 0;
     }
     std::uint64_t mispredicted() const { return mispredicted_; }
 
@@ -80,7 +87,7 @@ private:
     std::vector<Entry> tables_;
     std::array<std::uint32_t, kHistory> history_{};
     int head_ = 0;
-    std::uint32_t last_outcome_ = 0;
+    std::uint32_t last_outcome_ = 0, extra_ = 0;
     std::uint64_t mispredicted_ = 0;
     std::array<std::uint64_t, 3> at_{};
     bool open_ = false;

@@ -67,10 +67,12 @@ struct Lattice {
 /// `cell(idx, t_in, t_out) -> bool` for every cell the segment crosses, in order; returns false as
 /// soon as `cell` does. Plane crossings are computed afresh from the plane's index in double
 /// precision (no accumulated t increments), and there is no plane beyond the lattice's border
-/// (border cells are unbounded). Zero direction components never step.
-template <class Cell>
+/// (border cells are unbounded). Zero direction components never step. Each cell's way out (the
+/// axis and side of the plane crossed, or the segment's end) goes to `count.branch`: a ray in its
+/// own direction takes them in an order the branch predictor has not seen (counters.h).
+template <class Count, class Cell>
 bool walk(const Lattice& lat, const Vec3d& p0, const Vec3d& d, const CellRange& range, std::array<int, 3> cur,
-          double t0, double t1, Cell&& cell) {
+          double t0, double t1, Count& count, Cell&& cell) {
     constexpr double inf = std::numeric_limits<double>::infinity();
     int step[3];
     double next[3], inv[3];
@@ -95,7 +97,11 @@ bool walk(const Lattice& lat, const Vec3d& p0, const Vec3d& d, const CellRange& 
         a = next[2] < next[a] ? 2 : a;
         const double t_cross = next[a];
         if (!cell(cur, t_in, std::min(t_cross, t1))) return false;
-        if (!(t_cross <= t1)) return true;  // the segment ends in this cell
+        if (!(t_cross <= t1)) {  // the segment ends in this cell
+            count.branch(7);
+            return true;
+        }
+        count.branch(std::uint32_t(1 + a + 3 * (step[a] > 0)));
         cur[a] += step[a];
         if (cur[a] < range.lo[a] || cur[a] > range.hi[a]) return true;
         t_in = std::max(t_in, t_cross);

@@ -277,7 +277,7 @@ bool HashGrid::visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, doub
     const grid::Lattice& lat = lat_[child];
     Index start;
     for (int a = 0; a < 3; ++a) start[a] = std::clamp(lat.index(a, ctx.p0[a] + t_in * ctx.d[a]), r.lo[a], r.hi[a]);
-    return grid::walk(lat, ctx.p0, ctx.d, r, start, t_in, t_out,
+    return grid::walk(lat, ctx.p0, ctx.d, r, start, t_in, t_out, ctx.count,
                       [&](const Index& ci, double ti, double to) { return visit_cell(ctx, child, ci, ti, to); });
 }
 
@@ -305,7 +305,7 @@ void HashGrid::traverse(const Segment& s, Count& count, Visit&& visit, StampScra
     const grid::CellRange all{{0, 0, 0}, {top.res[0] - 1, top.res[1] - 1, top.res[2] - 1}};
     Index start;
     for (int a = 0; a < 3; ++a) start[a] = top.index(a, ctx.p0[a]);
-    grid::walk(top, ctx.p0, ctx.d, all, start, 0.0, 1.0,
+    grid::walk(top, ctx.p0, ctx.d, all, start, 0.0, 1.0, count,
                [&](const Index& c, double ti, double to) { return visit_cell(ctx, 0, c, ti, to); });
 }
 
