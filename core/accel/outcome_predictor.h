@@ -7,9 +7,9 @@
 /// while rays in random directions do not. The same rays also find the same nodes in the L1 cache.
 /// The counting pass feeds each step's outcome (node boxes hit, object boxes tested and hit since
 /// the last step; for a grid also the plane its 3D-DDA leaves the cell through) to a small tagged
-/// predictor with four global-history lengths, and counts the
-/// outcomes it fails to predict: N_MP, a machine-independent count of what a ray cannot reuse from
-/// the ray before it. Deterministic; the cost model prices it (C_MP, docs/model.md).
+/// predictor with four global-history lengths, and counts the outcomes it fails to predict: N_MP,
+/// a machine-independent count of what a ray cannot reuse from the ray before it. Deterministic;
+/// the cost model prices it (C_MP, docs/model.md).
 
 #include <array>
 #include <cstdint>
