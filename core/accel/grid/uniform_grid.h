@@ -137,39 +137,39 @@ void UniformGrid::traverse(const Segment& s, Count& count, Visit&& visit, StampS
             if (!visit(entries_[b.slot[lane]].uid, tn[lane])) return;
         }
     }
-    grid::walk(lat_, p0, d, lat_.cells(), start, 0.0, 1.0, count,
-               [&](const std::array<int, 3>& c, double t_in, double) {
-                   // Closest hit: the walk is front to back, and an object entered at t is stored in the cell
-                   // holding its entry point, which the walk enters no later than t (grid::kClosestSlack:
-                   // the lattice's double and the slab test's float round differently).
-                   if constexpr (HasTLimit<std::remove_cvref_t<Visit>>) {
-                       if (t_in > grid::closest_cutoff(visit_limit(visit))) return false;
-                   }
-                   count.traversal();
-                   const BlockCell& cell = cells_[cell_id(c)];
-                   count.reads(&cell, sizeof cell);
-                   count.box_tests(cell.size);
-                   for (const BoxBlock& b : cell.blocks) {
-                       float tn[BoxBlock::kLanes];
-                       count.reads(&b, sizeof b);
-                       for (unsigned hits = b.test_at<Count>(slabs, tn); hits; hits &= hits - 1) {
-                           const int lane = __builtin_ctz(hits);
-                           const std::uint32_t slot = b.slot[lane];
-                           // An object in several cells is tested in each (cheaper than a branch per object
-                           // to skip it) and reported once.
-                           if (reset) {
-                               if (tested[slot]) continue;
-                               tested[slot] = 1;
-                           } else {
-                               if (stamps[slot] == stamp) continue;
-                               stamps[slot] = stamp;
-                           }
-                           count.hits();
-                           if (!visit(entries_[slot].uid, tn[lane])) return false;
-                       }
-                   }
-                   return true;
-               });
+    const auto visit_cell = [&](const std::array<int, 3>& c, double t_in, double) {
+        // Closest hit: the walk is front to back, and an object entered at t is stored in the cell
+        // holding its entry point, which the walk enters no later than t (grid::kClosestSlack:
+        // the lattice's double and the slab test's float round differently).
+        if constexpr (HasTLimit<std::remove_cvref_t<Visit>>) {
+            if (t_in > grid::closest_cutoff(visit_limit(visit))) return false;
+        }
+        count.traversal();
+        const BlockCell& cell = cells_[cell_id(c)];
+        count.reads(&cell, sizeof cell);
+        count.box_tests(cell.size);
+        for (const BoxBlock& b : cell.blocks) {
+            float tn[BoxBlock::kLanes];
+            count.reads(&b, sizeof b);
+            for (unsigned hits = b.test_at<Count>(slabs, tn); hits; hits &= hits - 1) {
+                const int lane = __builtin_ctz(hits);
+                const std::uint32_t slot = b.slot[lane];
+                // An object in several cells is tested in each (cheaper than a branch per object
+                // to skip it) and reported once.
+                if (reset) {
+                    if (tested[slot]) continue;
+                    tested[slot] = 1;
+                } else {
+                    if (stamps[slot] == stamp) continue;
+                    stamps[slot] = stamp;
+                }
+                count.hits();
+                if (!visit(entries_[slot].uid, tn[lane])) return false;
+            }
+        }
+        return true;
+    };
+    grid::walk(lat_, p0, d, lat_.cells(), start, 0.0, 1.0, count, visit_cell);
 }
 
 }  // namespace rcb
