@@ -303,38 +303,34 @@ const CalibratedTerm* StructureCalibration::term(const std::string& name) const 
     return nullptr;
 }
 
-StructureCalibration fit_calibration(const std::string& structure, const std::vector<CalibrationPoint>& all) {
+namespace {
+
+/// Eq. 5.4 on `points`: the table's terms with a prior that some point counts (C_HIT only where
+/// `hits`), then the constants, each pinned or told why not.
+StructureCalibration fit_points(const std::string& structure, std::vector<CalibrationPoint> points, bool hits) {
     StructureCalibration out;
     out.structure = structure;
-    // A structure that counts no line fetched (brute force reads in order, the peers cannot be
-    // observed) would charge the large lattice's fetches to its box tests and steps: its in-cache
-    // costs come from the small scenes alone.
-    const bool counts_lines =
-        std::any_of(all.begin(), all.end(), [](const CalibrationPoint& q) { return q.n_miss > 0; });
-    for (const CalibrationPoint& q : all)
-        if (counts_lines || !outgrows_cache(q.scene)) out.points.push_back(q);
-    const std::vector<CalibrationPoint>& points = out.points;
-    if (points.empty()) return out;
-    // The table's terms with a prior: those the micro-scenes count (where any point counted them),
-    // then the constants.
+    out.points = std::move(points);
+    const std::vector<CalibrationPoint>& pts = out.points;
+    if (pts.empty()) return out;
     std::vector<double CalibrationPoint::*> counted;  // per term; nullptr: a constant
     LinearProblem p;
     for (const bool constant : {false, true})
         for (const CostTerm& t : cost_terms()) {
-            if (!t.prior || t.counters.empty() != constant) continue;
+            if (!t.prior || t.counters.empty() != constant || (!hits && std::string_view(t.name) == "C_HIT")) continue;
             double CalibrationPoint::*counter = constant ? nullptr : find_counter(t.counters.front()).calibrated;
-            if (!constant && (!counter || !std::any_of(points.begin(), points.end(),
+            if (!constant && (!counter || !std::any_of(pts.begin(), pts.end(),
                                                        [&](const CalibrationPoint& q) { return q.*counter > 0; })))
                 continue;
             p.terms.push_back(t.name);
             counted.push_back(counter);
         }
-    for (std::size_t i = 0; i < points.size(); ++i) {
-        if (!(points[i].ns_per_ray > 0)) continue;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+        if (!(pts[i].ns_per_ray > 0)) continue;
         std::vector<double> row;
-        for (double CalibrationPoint::*counter : counted) row.push_back(counter ? points[i].*counter : 1.0);
+        for (double CalibrationPoint::*counter : counted) row.push_back(counter ? pts[i].*counter : 1.0);
         p.x.push_back(row);
-        p.y.push_back(points[i].ns_per_ray);
+        p.y.push_back(pts[i].ns_per_ray);
         p.group.push_back(int(i));
     }
     const LinearFit fit = fit_linear(p, 1.0);
@@ -354,6 +350,32 @@ StructureCalibration fit_calibration(const std::string& structure, const std::ve
         out.terms.push_back(t);
     }
     return out;
+}
+
+}  // namespace
+
+StructureCalibration fit_calibration(const std::string& structure, const std::vector<CalibrationPoint>& all) {
+    // A structure that counts no line fetched (brute force reads in order, the peers cannot be
+    // observed) would charge the large lattice's fetches to its box tests and steps: its in-cache
+    // costs come from the small scenes alone.
+    const bool counts_lines =
+        std::any_of(all.begin(), all.end(), [](const CalibrationPoint& q) { return q.n_miss > 0; });
+    std::vector<CalibrationPoint> points, without_hits;
+    for (const CalibrationPoint& q : all)
+        if (counts_lines || !outgrows_cache(q.scene)) {
+            points.push_back(q);
+            if (!prices_hits(q.scene)) without_hits.push_back(q);
+        }
+    // C_HIT where the micro-scenes price it: pinned, and every term pinned without it still
+    // pinned. Elsewhere (a peer, whose candidates are its hits; a tree, whose tests beside the
+    // cluster are too few to tell a test from a hit) the fit and its scenes are as before C_HIT.
+    StructureCalibration with = fit_points(structure, points, true);
+    StructureCalibration before = fit_points(structure, without_hits, false);
+    const CalibratedTerm* hit = with.term("C_HIT");
+    bool priced = hit && hit->pinned;
+    for (const CalibratedTerm& t : before.terms)
+        if (t.pinned && !(with.term(t.name) && with.term(t.name)->pinned)) priced = false;
+    return priced ? with : before;
 }
 
 std::vector<SceneSplit> scene_splits(const std::vector<const FrameObservation*>& frames) {

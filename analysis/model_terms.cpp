@@ -18,7 +18,7 @@ const std::vector<FrameCounter>& frame_counters() {
         std::vector<FrameCounter> table{
             {"N_RB", "frame.n_rb", "n_rb", CounterScale::per_ray, &F::n_rb, nullptr, &C::n_rb},
             {"N_T", "frame.n_t", "n_t", CounterScale::per_ray, &F::n_t, nullptr, &C::n_t},
-            {"N_TP", "frame.n_tp", "n_tp", CounterScale::per_ray, &F::n_tp, nullptr, nullptr},
+            {"N_TP", "frame.n_tp", "n_tp", CounterScale::per_ray, &F::n_tp, nullptr, &C::n_tp},
             {"N_RO", "frame.n_ro", "n_ro", CounterScale::per_ray, &F::n_ro, nullptr, nullptr},
             {"N_TH", "frame.n_th", "n_th", CounterScale::per_ray, &F::n_th, nullptr, nullptr},
             {"N_MP", "frame.n_mp", "n_mp", CounterScale::per_ray, &F::n_mp, nullptr, &C::n_mp},
@@ -113,11 +113,13 @@ const std::vector<CostTerm>& cost_terms() {
          .in_tuning = true,
          .traversal = true},
         // What a reported hit costs beyond its box test (recording it in the ray's list); eq. 5.3
-        // prices true and false positives alike.
+        // prices true and false positives alike. The calibration's stack (every test a hit) and
+        // cluster (tests that seldom hit) pin it apart from C_RB.
         {.name = "C_HIT",
          .target = raycast,
          .counters = {"N_TP"},
          .unit = "ns per reported hit",
+         .prior = true,
          .in_tuning = true,
          .optional_in_json = true},
         {.name = "C_MEM",

@@ -85,6 +85,8 @@ struct LargeScene {
     float reach;
 };
 constexpr LargeScene kLargeScenes[] = {{"scatter-32", 60.f}, {"short-32", 12.f}};
+/// The micro-scene that prices a reported hit apart from a box test.
+constexpr const char* kHitsScene = "cluster";
 
 /// A micro-scene: fixed objects, and rays of one kind drawn anew for every batch. Each timed repeat
 /// casts new rays, as a run's frames do: a batch cast again and again would let the branch
@@ -127,6 +129,19 @@ std::vector<Object> shell() {
                 const Vec3 c = face / 2 == 0 ? Vec3{f, u, v} : face / 2 == 1 ? Vec3{u, f, v} : Vec3{u, v, f};
                 out.push_back({Uid(out.size() + 1), cube(c, 1)});
             }
+    return out;
+}
+
+/// Boxes of edge 0.5 at random in [40, 60]^3, and eight boxes at the corners of [0, 100]^3 that
+/// set the world's bounds: at one object per cell a grid's cells are about 17 wide, so the cluster
+/// falls in a few cells of some thirty boxes each.
+std::vector<Object> cluster() {
+    std::vector<Object> out;
+    for (int c = 0; c < 8; ++c)
+        out.push_back({Uid(out.size() + 1), cube({c & 1 ? 99.f : 1.f, c & 2 ? 99.f : 1.f, c & 4 ? 99.f : 1.f}, 1)});
+    Draw draw(kSeed ^ 0xc1u);
+    while (out.size() < 256)
+        out.push_back({Uid(out.size() + 1), cube({draw(40, 60), draw(40, 60), draw(40, 60)}, 0.25f)});
     return out;
 }
 
@@ -175,6 +190,12 @@ std::vector<MicroScene> micro_scenes() {
              return Segment{{draw(30, 40), draw(46, 54), draw(46, 54)}, {draw(60, 70), draw(46, 54), draw(46, 54)}};
          },
          kRays / 4});
+    // Rays across the cluster that seldom hit one of its boxes: the many tests per cell of a
+    // scene's dense region, nearly all missed, where the stack's tests all hit (C_HIT apart from
+    // C_RB). A tree's tight bounds leave it a few tests per ray.
+    out.push_back({kHitsScene, cluster(), [](Draw& draw, int) {
+                       return Segment{{draw(38, 62), draw(38, 62), 30}, {draw(38, 62), draw(38, 62), 70}};
+                   }});
     // Segments of up to 104 across a lattice of 32768 boxes: its nodes and cells outgrow a core's
     // private cache (and the simulated one of N_MISS), so new rays fetch lines where the small
     // scenes find theirs cached: C_MISS against the same steps and tests in cache.
@@ -218,6 +239,8 @@ std::vector<CalibrationPoint> calibrate_if_buildable(const std::string& name, co
     }
 }
 
+bool prices_hits(const std::string& scene) { return scene == kHitsScene; }
+
 bool outgrows_cache(const std::string& scene) {
     return std::any_of(std::begin(kLargeScenes), std::end(kLargeScenes),
                        [&](const LargeScene& large) { return scene == large.name; });
@@ -255,6 +278,7 @@ CalibrationPoint calibrate_on(const StructureInfo& info, const nlohmann::json& p
     p.n_t = double(counters.n_t) / rays;
     p.n_mp = double(counters.n_mp) / rays;
     p.n_miss = double(counters.n_miss) / rays;
+    p.n_tp = double(counters.n_tp) / rays;
     p.ns_per_ray = spread.median;
     p.mad = spread.mad;
     return p;
@@ -306,9 +330,9 @@ void record_machine(Database& db, std::int64_t run,
         for (const CalibrationPoint& p : m.points)
             db.prepare(
                   "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, "
-                  "n_miss) VALUES (?,?,?,?,?,?,?,?,?,?,?)")
+                  "n_miss, n_tp) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)")
                 .bind_all(run, m.name, m.params.dump(), p.scene, std::int64_t(p.rays), p.n_rb, p.n_t, p.ns_per_ray,
-                          p.mad, p.n_mp, p.n_miss)
+                          p.mad, p.n_mp, p.n_miss, p.n_tp)
                 .run();
     t.commit();
 }
@@ -324,12 +348,12 @@ std::vector<CacheLevel> load_cache_sizes(Database& db, std::int64_t run) {
 std::vector<CalibrationPoint> load_calibration(Database& db, std::int64_t run, const std::string& structure) {
     std::vector<CalibrationPoint> out;
     Statement s = db.prepare(
-        "SELECT scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss FROM calibration "
+        "SELECT scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, n_tp FROM calibration "
         "WHERE run_id = ? AND structure = ? ORDER BY rowid");
     s.bind_all(run, structure);
     while (s.step())
-        out.push_back(
-            {s.text(0), std::uint32_t(s.int64(1)), s.real(2), s.real(3), s.real(4), s.real(5), s.real(6), s.real(7)});
+        out.push_back({s.text(0), std::uint32_t(s.int64(1)), s.real(2), s.real(3), s.real(4), s.real(5), s.real(6),
+                       s.real(7), s.real(8)});
     return out;
 }
 

@@ -8,7 +8,9 @@
 /// C_PREP), rays through the empty inside of a hollow shell (traversal steps with few tests: C_T),
 /// the same shell crossed again and again by one ray (the same steps, each predicted from the ray
 /// before: C_MP, the extra cost of an unpredicted step), a stack of identical boxes every ray
-/// crosses (box tests with few steps in a grid, the whole tree in a BVH: C_RB), and rays along the
+/// crosses (box tests that all hit, with few steps in a grid, the whole tree in a BVH), a cluster of
+/// small boxes that rays cross and seldom hit (a grid's cells there hold some thirty boxes each, as
+/// in a scene's dense region: C_RB apart from C_HIT, what reporting a hit costs), and rays along the
 /// gaps and rows of a lattice and random segments across it (mixes). All but two are small, so the
 /// coefficients they give are in-cache costs; long and short random segments across a lattice of
 /// 32768 boxes, whose nodes and cells outgrow a core's private cache, fetch lines (N_MISS:
@@ -51,12 +53,17 @@ struct CalibrationPoint {
     /// Lines the simulated private cache fetched, per ray (core/accel/cache_model.h), for each timed
     /// batch as it met the cache: after the batch before it.
     double n_miss = 0;
+    double n_tp = 0;  ///< objects reported per ray: prices C_HIT apart from C_RB
 };
 
 /// Whether `scene` is a micro-scene whose structure outgrows a core's private cache (the lattice of
 /// 32768 boxes): its time includes the lines fetched, which only a structure that counts N_MISS can
 /// tell apart from its box tests and steps.
 bool outgrows_cache(const std::string& scene);
+
+/// Whether `scene` is the micro-scene that prices a reported hit apart from a box test (the
+/// cluster): a fit without C_HIT leaves it out.
+bool prices_hits(const std::string& scene);
 
 /// Builds `info` with `params` on every micro-scene and times `repeats` (1 to 255) batches of new
 /// rays after a warm-up batch; the counters are the timed batches' mean. Deterministic scenes and

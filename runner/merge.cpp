@@ -71,15 +71,15 @@ std::int64_t merge_run(Database& o, Database& in, Statement& runs, MergeCount& c
             .bind_all(run, caches.int64(0), caches.text(1), caches.int64(2))
             .run();
     Statement cal = in.prepare(
-        "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss FROM calibration "
+        "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, n_tp FROM calibration "
         "WHERE run_id = ?");
     cal.bind_all(runs.int64(0));
     while (cal.step())
         o.prepare(
              "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, "
-             "n_miss) VALUES (?,?,?,?,?,?,?,?,?,?,?)")
+             "n_miss, n_tp) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)")
             .bind_all(run, cal.text(0), cal.text(1), cal.text(2), cal.int64(3), cal.real(4), cal.real(5), cal.real(6),
-                      cal.real(7), cal.real(8), cal.real(9))
+                      cal.real(7), cal.real(8), cal.real(9), cal.real(10))
             .run();
     return run;
 }

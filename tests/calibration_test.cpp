@@ -67,14 +67,20 @@ TEST(Calibration, MicroScenesVaryTheCountersIndependently) {
     for (const char* name : {"bf", "ug", "dbvh", "lbvh"}) {
         const StructureInfo& info = find_structure(name);
         const std::vector<CalibrationPoint> points = calibrate_structure(info, info.defaults(), 1);
-        ASSERT_EQ(points.size(), 12u) << name;
+        ASSERT_EQ(points.size(), 13u) << name;
         auto at = [&](const std::string& scene) {
             for (const CalibrationPoint& p : points)
                 if (p.scene == scene) return p;
             ADD_FAILURE() << name << ": no micro-scene " << scene;
             return CalibrationPoint{};
         };
-        EXPECT_EQ(at("stack").n_rb, 256) << name;  // every ray tests every box of the stack
+        EXPECT_EQ(at("stack").n_rb, 256) << name;  // every ray tests every box of the stack …
+        EXPECT_EQ(at("stack").n_tp, 256) << name;  // … and reports it
+        // The cluster: tests that seldom hit (C_RB apart from C_HIT); a grid's cells hold many.
+        EXPECT_LT(at("cluster").n_tp, 0.1 * at("cluster").n_rb) << name;
+        if (std::string(name) == "ug") {
+            EXPECT_GT(at("cluster").n_rb, 20);
+        }
         for (const CalibrationPoint& p : points) EXPECT_GT(p.ns_per_ray, 0) << name << " " << p.scene;
         if (std::string(name) == "bf") continue;  // brute force tests every box whatever the ray
         // Rays beside the world: a tree tests nothing (the grid keeps a few objects outside its cells).
@@ -118,6 +124,7 @@ TEST(Calibration, SameRaysAndCountsOnEveryRun) {
         EXPECT_EQ(a[i].n_t, b[i].n_t) << a[i].scene;
         EXPECT_EQ(a[i].n_mp, b[i].n_mp) << a[i].scene;
         EXPECT_EQ(a[i].n_miss, b[i].n_miss) << a[i].scene;
+        EXPECT_EQ(a[i].n_tp, b[i].n_tp) << a[i].scene;
     }
 }
 
@@ -137,13 +144,13 @@ TEST(Calibration, StoredOncePerRun) {
         s.step();
         return s.int64(0);
     };
-    EXPECT_EQ(load_calibration(store.db(), first.run, "bf").size(), 12u);
-    EXPECT_EQ(load_calibration(store.db(), first.run, "dbvh").size(), 12u);  // one structure, one calibration
-    EXPECT_EQ(count("calibration"), 24);
+    EXPECT_EQ(load_calibration(store.db(), first.run, "bf").size(), 13u);
+    EXPECT_EQ(load_calibration(store.db(), first.run, "dbvh").size(), 13u);  // one structure, one calibration
+    EXPECT_EQ(count("calibration"), 26);
     EXPECT_EQ(std::size_t(count("run_cache")), read_cache_sizes().size());
     // Recording again (a resumed run) keeps what the run began with.
     record_machine(store.db(), first.run, {{"bf", find_structure("bf").defaults()}});
-    EXPECT_EQ(count("calibration"), 24);
+    EXPECT_EQ(count("calibration"), 26);
     // A merged run keeps its machine, so the merged database is fitted with the same priors.
     {
         ResultStore merged((dir / "merged.db").string());
@@ -155,6 +162,7 @@ TEST(Calibration, StoredOncePerRun) {
             EXPECT_EQ(a[i].scene, b[i].scene);
             EXPECT_EQ(a[i].ns_per_ray, b[i].ns_per_ray);
             EXPECT_EQ(a[i].n_miss, b[i].n_miss);
+            EXPECT_EQ(a[i].n_tp, b[i].n_tp);
         }
         EXPECT_EQ(load_cache_sizes(merged.db(), 1).size(), read_cache_sizes().size());
     }
@@ -174,7 +182,8 @@ TEST(Calibration, TheRunsFitUsesItAndStoresLeaveOneSceneOut) {
     ASSERT_EQ(fit.models.size(), 1u);
     const StructureModels& m = fit.models[0];
     ASSERT_NE(m.calibration, nullptr);
-    EXPECT_EQ(m.calibration->points.size(), 12u);
+    // Every micro-scene, but the cluster only where the calibration prices C_HIT with it.
+    EXPECT_EQ(m.calibration->points.size(), m.calibration->term("C_HIT") ? 13u : 12u);
     EXPECT_EQ(m.loso.size(), 3u);  // every scene predicted from the two others
     const CandidateModel* chosen = m.chosen("raycast");
     ASSERT_NE(chosen, nullptr);

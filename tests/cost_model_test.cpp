@@ -74,6 +74,37 @@ TEST(Identifiability, LinesFetchedOnTheLargeLatticeGoToCMissOrAreLeftOut) {
     EXPECT_NEAR(uncounted.term("C_T")->value, kT, 0.05 * kT);
 }
 
+TEST(Identifiability, HitsPricedApartFromTestsWhereTheMicroScenesSeparateThem) {
+    // Tests at kRb, each reported hit 1.2 ns more. With every test a hit on the stack and few in
+    // the cluster, the fit pins both; without C_HIT it would charge the stack's hits to C_RB.
+    constexpr double kHit = 1.2;
+    std::vector<CalibrationPoint> points = calibration_points(1, 1, 7);
+    const double hits[] = {0, 0, 12, 0, 256, 2, 0, 256};
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        points[i].n_tp = hits[i];
+        points[i].ns_per_ray += kHit * hits[i];
+    }
+    CalibrationPoint cluster{"cluster", 512, 90, 12, kRb * 90 + kT * 12 + kPrep + kHit * 0.4, 0.1};
+    cluster.n_tp = 0.4;
+    points.push_back(cluster);
+    const StructureCalibration c = fit_calibration("grid", points);
+    ASSERT_NE(c.term("C_HIT"), nullptr);
+    EXPECT_NEAR(c.term("C_HIT")->value, kHit, 0.15 * kHit);
+    EXPECT_NEAR(c.term("C_RB")->value, kRb, 0.15 * kRb);
+    EXPECT_TRUE(c.term("C_RB")->pinned);
+
+    EXPECT_EQ(c.points.size(), points.size());
+
+    // A peer names its hits as its candidates: N_TP equals N_RB, so C_HIT cannot be priced apart
+    // and the calibration is fitted as before C_HIT, without the cluster.
+    for (CalibrationPoint& p : points) p.n_tp = p.n_rb;
+    const StructureCalibration peer = fit_calibration("peer", points);
+    EXPECT_EQ(peer.term("C_HIT"), nullptr);
+    EXPECT_EQ(peer.points.size(), points.size() - 1);
+    ASSERT_NE(peer.term("C_RB"), nullptr);
+    EXPECT_TRUE(peer.term("C_RB")->pinned) << peer.term("C_RB")->why;
+}
+
 TEST(Identifiability, CollinearCountersAreReportedWithoutPriors) {
     const std::vector<FrameObservation> frames = collinear_frames(1);
     LinearProblem p;
