@@ -187,13 +187,18 @@ TEST(Calibration, TheRunsFitUsesItAndStoresLeaveOneSceneOut) {
     EXPECT_EQ(m.loso.size(), 3u);  // every scene predicted from the two others
     const CandidateModel* chosen = m.chosen("raycast");
     ASSERT_NE(chosen, nullptr);
+    int priors = 0;
     for (const Coefficient& c : chosen->fit.coefficients) {
         EXPECT_GT(c.value, 0) << c.name;  // no chosen coefficient at 0
-        if (std::isfinite(c.prior)) {     // and a calibrated one within 3× of its calibration
-            EXPECT_LE(c.value, kPriorRange * c.prior * (1 + 1e-9)) << c.name;
-            EXPECT_GE(c.value, c.prior / kPriorRange * (1 - 1e-9)) << c.name;
+        if (std::isfinite(c.prior)) {     // a prior is the calibration's pinned value of its term
+            const CalibratedTerm* t = m.calibration->term(c.name);
+            ASSERT_NE(t, nullptr) << c.name;
+            EXPECT_TRUE(t->pinned) << c.name;
+            EXPECT_DOUBLE_EQ(c.prior, t->value) << c.name;
+            ++priors;
         }
     }
+    EXPECT_GT(priors, 0);  // the fit used the calibration
     Statement s = store.db().prepare(
         "SELECT loso_error FROM fit WHERE run_id = ? AND target = 'raycast' AND chosen = 1 AND loso_error IS NOT NULL");
     s.bind(1, outcome.run);
