@@ -367,15 +367,15 @@ StructureCalibration fit_calibration(const std::string& structure, const std::ve
             if (!prices_hits(q.scene)) without_hits.push_back(q);
         }
     // C_HIT where the micro-scenes price it: pinned, and every term pinned without it still
-    // pinned. Elsewhere (a peer, whose candidates are its hits; a tree, whose tests beside the
-    // cluster are too few to tell a test from a hit) the fit and its scenes are as before C_HIT.
+    // pinned. Elsewhere (a peer, whose candidates are its hits; a tree, whose tight bounds leave it
+    // a few tests per ray in the cluster) the calibration goes without C_HIT and the cluster.
     StructureCalibration with = fit_points(structure, points, true);
-    StructureCalibration before = fit_points(structure, without_hits, false);
+    StructureCalibration without = fit_points(structure, without_hits, false);
     const CalibratedTerm* hit = with.term("C_HIT");
     bool priced = hit && hit->pinned;
-    for (const CalibratedTerm& t : before.terms)
+    for (const CalibratedTerm& t : without.terms)
         if (t.pinned && !(with.term(t.name) && with.term(t.name)->pinned)) priced = false;
-    return priced ? with : before;
+    return priced ? with : without;
 }
 
 std::vector<SceneSplit> scene_splits(const std::vector<const FrameObservation*>& frames) {

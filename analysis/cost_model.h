@@ -57,9 +57,9 @@ struct StructureCalibration {
     const CalibratedTerm* term(const std::string& name) const;
 };
 /// Eq. 5.4 fitted to the micro-scenes, each term with a prior that some point counts, and the
-/// constants; a structure that counts no N_MISS is fitted without the scenes that outgrow the cache,
-/// one whose C_HIT the micro-scenes do not pin without C_HIT and the scene that prices it (`points`
-/// holds those fitted).
+/// constants. A structure that counts no N_MISS is fitted without the scenes that outgrow the
+/// cache; one whose C_HIT the micro-scenes cannot pin, without C_HIT and the scene that prices it
+/// (`points` holds those fitted).
 StructureCalibration fit_calibration(const std::string& structure, const std::vector<CalibrationPoint>& all);
 
 /// What the fit knows about the run beyond its frames: the calibration per structure (may be empty:

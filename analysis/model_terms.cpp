@@ -114,7 +114,7 @@ const std::vector<CostTerm>& cost_terms() {
          .traversal = true},
         // What a reported hit costs beyond its box test (recording it in the ray's list); eq. 5.3
         // prices true and false positives alike. The calibration's stack (every test a hit) and
-        // cluster (tests that seldom hit) pin it apart from C_RB.
+        // cluster (tests that seldom hit) pin it apart from C_RB where they can (fit_calibration).
         {.name = "C_HIT",
          .target = raycast,
          .counters = {"N_TP"},
