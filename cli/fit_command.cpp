@@ -63,8 +63,11 @@ void print_calibration(const StructureModels& s) {
         std::cout << "  no calibration stored with the run (made before calibration existed): no priors\n";
         return;
     }
-    std::cout << "  calibration on " << s.calibration->points.size() << " micro-scenes (condition "
-              << fixed(s.calibration->condition_number, 1) << "):";
+    const std::vector<CalibrationPoint>& points = s.calibration->points;
+    const int passes = points.empty() ? 0 : points.front().passes;
+    std::cout << "  calibration on " << points.size() << " micro-scenes"
+              << (passes > 1 ? ", each its fastest of " + std::to_string(passes) + " passes" : std::string())
+              << " (condition " << fixed(s.calibration->condition_number, 1) << "):";
     for (const CalibratedTerm& t : s.calibration->terms) {
         std::cout << "  " << t.name << " = " << fixed(t.value, 3);
         if (std::isfinite(t.ci_low)) std::cout << " [" << fixed(t.ci_low, 3) << ", " << fixed(t.ci_high, 3) << "]";

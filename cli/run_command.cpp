@@ -208,6 +208,9 @@ void add_run_command(CLI::App& app) {
                       << " per cell)\n";
         if (done.resampled)
             std::cout << done.resampled << " cells waited for a slow machine before they were measured\n";
+        if (done.calibrations > 1)
+            std::cout << "calibrated every structure " << done.calibrations << " times, at least "
+                      << run.calibration_spacing.count() << " s apart; the fit reads each micro-scene's fastest pass\n";
         print_summary(*open_read_only(o->db), done.run, e);
         if (done.mismatches)
             throw std::runtime_error(std::to_string(done.mismatches) +

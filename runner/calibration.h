@@ -54,6 +54,7 @@ struct CalibrationPoint {
     /// batch as it met the cache: after the batch before it.
     double n_miss = 0;
     double n_tp = 0;  ///< objects reported per ray: prices C_HIT apart from C_RB
+    int passes = 1;   ///< calibration passes of the run this point is the fastest of (load_calibration)
 };
 
 /// Whether `scene` is a micro-scene whose structure outgrows a core's private cache (the lattice of
@@ -77,15 +78,26 @@ std::vector<CalibrationPoint> calibrate_structure(const StructureInfo& info, con
 /// and say so.
 std::vector<CalibrationPoint> calibrate_if_buildable(const std::string& name, const nlohmann::json& params);
 
-/// Stores the caches and each structure's calibration with the run (tables run_cache and
-/// calibration, docs/database.md), unless the run has them already (a resumed run keeps its own).
-/// `structures` are (name, complete params) pairs, one per structure.
-void record_machine(Database& db, std::int64_t run,
-                    const std::vector<std::pair<std::string, nlohmann::json>>& structures,
+/// (name, complete params) pairs, one per structure of an experiment.
+using CalibratedStructures = std::vector<std::pair<std::string, nlohmann::json>>;
+
+/// Stores the caches and each structure's first calibration pass with the run (tables run_cache
+/// and calibration, docs/database.md), unless the run has them already (a resumed run keeps its
+/// own). Returns whether it measured.
+bool record_machine(Database& db, std::int64_t run, const CalibratedStructures& structures,
                     const std::string& cache_dir = "/sys/devices/system/cpu/cpu0/cache");
 
-/// The stored caches and calibration points of a run (empty for runs made before they were stored).
+/// Measures and stores another calibration pass of every structure (the run's next pass number).
+/// A pass takes seconds and the host's slow stretches last about a minute (docs/model.md, "Where
+/// the spread comes from"), so one pass can fall in one whole; passes minutes apart seldom all do,
+/// and each micro-scene's fastest pass is what a quiet machine measures.
+void add_calibration_pass(Database& db, std::int64_t run, const CalibratedStructures& structures);
+
+/// The stored caches of a run (empty for runs made before they were stored).
 std::vector<CacheLevel> load_cache_sizes(Database& db, std::int64_t run);
+
+/// A structure's calibration in a run: per micro-scene (in the order first stored) its fastest
+/// pass, with `passes` the number of passes; empty for runs made before calibrations were stored.
 std::vector<CalibrationPoint> load_calibration(Database& db, std::int64_t run, const std::string& structure);
 
 }  // namespace rcb

@@ -28,9 +28,29 @@ void check_integrity(Database& in) {
     if (first != "ok") throw InputError(in.path() + ": damaged results database (integrity check: " + first + ")");
 }
 
+/// The calibration passes of the input's run `from` that the output's run `to` lacks (a run merged
+/// before it finished gains the passes made since).
+void merge_calibration(Database& o, Database& in, std::int64_t from, std::int64_t to) {
+    Statement cal = in.prepare(
+        "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, n_tp, pass FROM calibration "
+        "WHERE run_id = ? ORDER BY rowid");
+    cal.bind_all(from);
+    Statement insert = o.prepare(
+        "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, "
+        "n_tp, pass) SELECT ?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12,?13 WHERE NOT EXISTS (SELECT 1 FROM calibration "
+        "WHERE run_id = ?1 AND structure = ?2 AND scene = ?4 AND pass = ?13)");
+    while (cal.step()) {
+        insert.reset();
+        insert
+            .bind_all(to, cal.text(0), cal.text(1), cal.text(2), cal.int64(3), cal.real(4), cal.real(5), cal.real(6),
+                      cal.real(7), cal.real(8), cal.real(9), cal.real(10), cal.int64(11))
+            .run();
+    }
+}
+
 /// The output's id of the input's run `runs` (a row of the run query below): the run with the same
-/// uuid, its finish time brought over; or a new run with the input's experiment, machine and
-/// calibration. Counts a new run.
+/// uuid, its finish time and calibration passes brought over; or a new run with the input's
+/// experiment, machine and calibration. Counts a new run.
 std::int64_t merge_run(Database& o, Database& in, Statement& runs, MergeCount& count) {
     {
         Statement existing = o.prepare("SELECT id FROM run WHERE uuid = ?");
@@ -41,6 +61,7 @@ std::int64_t merge_run(Database& o, Database& in, Statement& runs, MergeCount& c
                 o.prepare("UPDATE run SET finished_at = ? WHERE id = ? AND finished_at IS NULL")
                     .bind_all(runs.text(7), run)
                     .run();
+            merge_calibration(o, in, runs.int64(0), run);
             return run;
         }
     }
@@ -70,17 +91,7 @@ std::int64_t merge_run(Database& o, Database& in, Statement& runs, MergeCount& c
         o.prepare("INSERT INTO run_cache(run_id, level, type, size_bytes) VALUES (?,?,?,?)")
             .bind_all(run, caches.int64(0), caches.text(1), caches.int64(2))
             .run();
-    Statement cal = in.prepare(
-        "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, n_tp FROM calibration "
-        "WHERE run_id = ?");
-    cal.bind_all(runs.int64(0));
-    while (cal.step())
-        o.prepare(
-             "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, "
-             "n_miss, n_tp) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)")
-            .bind_all(run, cal.text(0), cal.text(1), cal.text(2), cal.int64(3), cal.real(4), cal.real(5), cal.real(6),
-                      cal.real(7), cal.real(8), cal.real(9), cal.real(10))
-            .run();
+    merge_calibration(o, in, runs.int64(0), run);
     return run;
 }
 

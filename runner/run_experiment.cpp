@@ -189,13 +189,14 @@ MachineState settled_machine_state(std::vector<double>& samples, std::vector<dou
 class CellRunner {
 public:
     CellRunner(const Experiment& e, const std::string& source, ResultStore& store, RunOutcome& out,
-               std::function<void(SimulationResult&)> timing)
+               std::function<void(SimulationResult&)> timing, std::function<void()> after_cell)
         : e_(e),
           source_(source),
           store_(store),
           out_(out),
           experiment_(store.experiment_id(e)),
-          timing_(std::move(timing)) {
+          timing_(std::move(timing)),
+          after_cell_(std::move(after_cell)) {
         sim_.verify = e.verify;
         sim_.warmup_frames = e.warmup_frames;
     }
@@ -229,6 +230,7 @@ public:
             out_.resampled += state.resampled > 0;
             store_.store_cell(out_.run, experiment_, c, scene, loaded.recording, loaded.hash, res, state);
             ++out_.ran;
+            after_cell_();
         }
     }
 
@@ -261,6 +263,7 @@ private:
     RunOutcome& out_;
     std::int64_t experiment_;
     std::function<void(SimulationResult&)> timing_;
+    std::function<void()> after_cell_;
     SimulationOptions sim_;
     std::map<std::size_t, LoadedScene> loaded_;
     std::map<std::string, std::size_t> scene_by_hash_;
@@ -327,13 +330,21 @@ RunOutcome run_experiment(const Experiment& e, const std::string& source, const 
 
     tbb::global_control threads(tbb::global_control::max_allowed_parallelism, e.threads);
     // The run's machine: cache sizes and each structure's calibration (at its first configuration,
-    // with the run's threads), measured once per run before its first cell.
-    std::vector<std::pair<std::string, nlohmann::json>> structures;
+    // with the run's threads), measured before the run's first cell and again every
+    // calibration_spacing between cells.
+    CalibratedStructures structures;
     for (const ConfigSpec& c : e.configs)
         if (std::none_of(structures.begin(), structures.end(), [&](const auto& s) { return s.first == c.structure; }))
             structures.emplace_back(c.structure, c.params);
-    record_machine(store.db(), out.run, structures);
-    CellRunner runner(e, source, store, out, options.timing);
+    out.calibrations += record_machine(store.db(), out.run, structures);
+    auto last_pass = std::chrono::steady_clock::now();
+    const auto recalibrate = [&] {
+        if (std::chrono::steady_clock::now() - last_pass < options.calibration_spacing) return;
+        add_calibration_pass(store.db(), out.run, structures);
+        ++out.calibrations;
+        last_pass = std::chrono::steady_clock::now();
+    };
+    CellRunner runner(e, source, store, out, options.timing, recalibrate);
     runner.run(plan, done, todo, progress);
     // Rounds of repetitions where the interval over the stored ones is wide, each judged on what
     // is stored.

@@ -3,6 +3,7 @@
 /// database, resuming an unfinished run. The command line and other programs call this one entry
 /// point; it prints nothing.
 
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -26,6 +27,10 @@ struct RunOptions {
     /// is stored, so a test of what the runner decides from times (which cells get another
     /// repetition) does not depend on how fast the machine is.
     std::function<void(SimulationResult&)> timing;
+    /// Another calibration pass of every structure follows the first cell that ends at least this
+    /// long after the last pass (runner/calibration.h add_calibration_pass): a run of minutes is
+    /// calibrated several times, minutes apart. Tests set it to 0 (a pass after every cell).
+    std::chrono::seconds calibration_spacing{120};
 };
 
 /// What a run did: its id, the cells of the (shard's) plan, how many were done before, how many
@@ -34,9 +39,10 @@ struct RunOutcome {
     std::int64_t run = 0;
     std::size_t planned = 0, done_before = 0, ran = 0;
     std::uint64_t mismatches = 0;
-    std::size_t slow = 0;       ///< cells of the run flagged as measured on a slow machine (store.h)
-    std::size_t resampled = 0;  ///< cells measured after waiting for a slow machine (now)
-    std::size_t added = 0;      ///< repetitions added where the interval over the stored ones was wide
+    std::size_t slow = 0;          ///< cells of the run flagged as measured on a slow machine (store.h)
+    std::size_t resampled = 0;     ///< cells measured after waiting for a slow machine (now)
+    std::size_t added = 0;         ///< repetitions added where the interval over the stored ones was wide
+    std::size_t calibrations = 0;  ///< calibration passes made now (the first included)
     bool finished = false;
 };
 

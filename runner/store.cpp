@@ -398,6 +398,11 @@ ALTER TABLE calibration ADD COLUMN n_miss REAL NOT NULL DEFAULT 0;
         R"sql(
 ALTER TABLE calibration ADD COLUMN n_tp REAL NOT NULL DEFAULT 0;
 )sql",
+        // 16 → 17: calibration passes spread over a run (runner/calibration.h add_calibration_pass);
+        // the fit reads each micro-scene's fastest. Calibrations stored before are pass 0.
+        R"sql(
+ALTER TABLE calibration ADD COLUMN pass INTEGER NOT NULL DEFAULT 0;
+)sql",
     };
     return all;
 }

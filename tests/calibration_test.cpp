@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -149,7 +150,7 @@ TEST(Calibration, StoredOncePerRun) {
     EXPECT_EQ(count("calibration"), 26);
     EXPECT_EQ(std::size_t(count("run_cache")), read_cache_sizes().size());
     // Recording again (a resumed run) keeps what the run began with.
-    record_machine(store.db(), first.run, {{"bf", find_structure("bf").defaults()}});
+    EXPECT_FALSE(record_machine(store.db(), first.run, {{"bf", find_structure("bf").defaults()}}));
     EXPECT_EQ(count("calibration"), 26);
     // A merged run keeps its machine, so the merged database is fitted with the same priors.
     {
@@ -165,6 +166,67 @@ TEST(Calibration, StoredOncePerRun) {
             EXPECT_EQ(a[i].n_tp, b[i].n_tp);
         }
         EXPECT_EQ(load_cache_sizes(merged.db(), 1).size(), read_cache_sizes().size());
+    }
+}
+
+// A pass can fall in one of the host's slow stretches; passes spread over the run seldom all do, and
+// the fit reads each micro-scene's fastest.
+TEST(Calibration, PassesSpreadOverTheRunAndTheFastestIsRead) {
+    const test::TempDir temp("calibration", "passes");
+    const Experiment e = parse_experiment(
+        R"({"frames": 2, "rays_per_frame": 50, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "ug", "params": {"density": [1, 2]}}]})",
+        "exp.json", ".");
+    RunOptions o;
+    o.db = temp.file("r.db");
+    o.calibration_spacing = std::chrono::seconds(0);  // a pass after every cell
+    const RunOutcome out = run_experiment(e, "exp.json", o);
+    EXPECT_EQ(out.calibrations, 3u);  // before the first cell and after each of the two
+    std::vector<CalibrationPoint> before;
+    {
+        ResultStore store(o.db);
+        auto count = [&](const std::string& sql) {
+            Statement s = store.db().prepare(sql);
+            s.step();
+            return s.int64(0);
+        };
+        EXPECT_EQ(count("SELECT count(DISTINCT pass) FROM calibration"), 3);
+        EXPECT_EQ(count("SELECT count(*) FROM calibration"), 3 * 13);
+        // The counters repeat between passes (fixed scenes and rays); only the times differ.
+        EXPECT_EQ(count("SELECT count(*) FROM (SELECT scene FROM calibration GROUP BY scene "
+                        "HAVING count(DISTINCT n_rb) > 1 OR count(DISTINCT n_t) > 1 OR count(DISTINCT n_tp) > 1)"),
+                  0);
+        before = load_calibration(store.db(), out.run, "ug");
+        ASSERT_EQ(before.size(), 13u);
+        for (const CalibrationPoint& p : before) {
+            EXPECT_EQ(p.passes, 3) << p.scene;
+            Statement fastest = store.db().prepare("SELECT min(ns_per_ray) FROM calibration WHERE scene = ?");
+            fastest.bind(1, p.scene);
+            fastest.step();
+            EXPECT_EQ(p.ns_per_ray, fastest.real(0)) << p.scene;
+        }
+        // Made the stack's fastest in the middle pass, it is read from there; the order stays the
+        // first pass's.
+        store.db().exec("UPDATE calibration SET ns_per_ray = 0.25 WHERE pass = 1 AND scene = 'stack'");
+        const std::vector<CalibrationPoint> after = load_calibration(store.db(), out.run, "ug");
+        ASSERT_EQ(after.size(), before.size());
+        for (std::size_t i = 0; i < after.size(); ++i) {
+            EXPECT_EQ(after[i].scene, before[i].scene);
+            EXPECT_EQ(after[i].ns_per_ray, after[i].scene == "stack" ? 0.25 : before[i].ns_per_ray);
+        }
+    }
+    // Merging carries every pass; a run merged before its last pass gains it when merged again.
+    const std::string part = temp.file("part.db");
+    fs::copy_file(o.db, part);
+    ResultStore(part).db().exec("DELETE FROM calibration WHERE pass = 2");
+    ResultStore merged(temp.file("merged.db"));
+    merge_into(merged, *open_read_only(part));
+    EXPECT_EQ(load_calibration(merged.db(), 1, "ug").front().passes, 2);
+    merge_into(merged, *open_read_only(o.db));
+    const std::vector<CalibrationPoint> copied = load_calibration(merged.db(), 1, "ug");
+    ASSERT_EQ(copied.size(), before.size());
+    for (std::size_t i = 0; i < copied.size(); ++i) {
+        EXPECT_EQ(copied[i].ns_per_ray, copied[i].scene == "stack" ? 0.25 : before[i].ns_per_ray) << copied[i].scene;
+        EXPECT_EQ(copied[i].passes, 3) << copied[i].scene;
     }
 }
 

@@ -162,7 +162,7 @@ TEST(CellInterval, TheTableFollowsTheCellsThroughMergeAndMigration) {
         EXPECT_EQ(interval_rows(m.db()), want);
     }
     // A database from before the table (schema 11, without the later n_miss and writes columns and
-    // calibration.n_miss and n_tp):
+    // calibration.n_miss, n_tp and pass):
     // migrating fills it from the stored cells.
     const std::string old = temp.file("old.db");
     fs::copy_file(o.db, old);
@@ -171,7 +171,8 @@ TEST(CellInterval, TheTableFollowsTheCellsThroughMergeAndMigration) {
         d.exec("DROP TABLE cell_interval; ALTER TABLE frame DROP COLUMN n_miss; ALTER TABLE frame DROP COLUMN writes;");
         d.exec(
             "ALTER TABLE frame_kind DROP COLUMN n_miss; ALTER TABLE calibration DROP COLUMN n_miss; "
-            "ALTER TABLE calibration DROP COLUMN n_tp; PRAGMA user_version = 11");
+            "ALTER TABLE calibration DROP COLUMN n_tp; ALTER TABLE calibration DROP COLUMN pass; "
+            "PRAGMA user_version = 11");
     }
     EXPECT_EQ(interval_rows(*open_read_only(old)), want);  // read through a migrated copy
     ResultStore migrated(old);
