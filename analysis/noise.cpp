@@ -18,15 +18,16 @@ std::vector<StructureNoise> repeatability(const std::vector<RepeatSample>& sampl
     for (const auto& [structure, cells] : by) {
         StructureNoise n;
         n.structure = structure;
-        std::vector<double> cast, update;
+        std::vector<double> cast, update, frame;
         for (const auto& [cell, reps] : cells) {
             for (const RepeatSample* r : reps) n.slow += r->slow;
             if (reps.size() < 2) continue;
             ++n.cells;
             n.repetitions += reps.size();
-            std::vector<double> c, u;
+            std::vector<double> c, u, f;
             for (const RepeatSample* r : reps)
-                if (r->repetition < 2) c.push_back(r->raycast_ns), u.push_back(r->update_ns);
+                if (r->repetition < 2)
+                    c.push_back(r->raycast_ns), u.push_back(r->update_ns), f.push_back(r->raycast_ns + r->update_ns);
             if (c.size() < 2) continue;
             // Only finite spreads count: a damaged database can hold anything.
             auto add = [](std::vector<double>& to, const std::vector<double>& values) {
@@ -35,11 +36,14 @@ std::vector<StructureNoise> repeatability(const std::vector<RepeatSample>& sampl
             };
             add(cast, c);
             add(update, u);
+            add(frame, f);
         }
         n.raycast = quantile(cast, 0.5);
         n.raycast_p90 = quantile(cast, 0.9);
         n.update = quantile(update, 0.5);
         n.update_p90 = quantile(update, 0.9);
+        n.frame = quantile(frame, 0.5);
+        n.frame_p90 = quantile(frame, 0.9);
         out.push_back(n);
     }
     return out;

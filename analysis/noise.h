@@ -39,6 +39,8 @@ struct StructureNoise {
     double raycast_p90 = NAN;     ///< its 90th percentile
     double update = NAN;          ///< the same of update time per frame (NaN when no update time)
     double update_p90 = NAN;
+    /// The same of update + ray-cast time per frame: the time the model's frame error is judged on.
+    double frame = NAN, frame_p90 = NAN;
     std::size_t slow = 0;  ///< repetitions (of any cell) flagged slow
 };
 
@@ -62,10 +64,9 @@ NoiseFloor noise_floor(Database& db, std::int64_t run);
 /// How far two independent runs of one experiment (two processes, at two times) measure the same
 /// cell, per structure: for every scene (by content) and configuration both runs hold, the
 /// relative range of the two runs' figures of the cell (`how`, analysis/repetitions.h); median and
-/// 90th percentile over those cells, for ray cast and update per frame. This, not the repetitions of
-/// one run, is the floor a model's error is judged against: a model cannot be told apart from a
-/// rerun below it. `cells` counts the cells both runs hold; `slow` those with a repetition flagged
-/// slow in either.
+/// 90th percentile over those cells, for the frame (update + ray cast), ray cast and update. This, not the repetitions
+/// of one run, is the floor a model's error is judged against: a model cannot be told apart from a rerun below it.
+/// `cells` counts the cells both runs hold; `slow` those with a repetition flagged slow in either.
 std::vector<StructureNoise> between_runs(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b,
                                          OverRepetitions how = OverRepetitions::median);
 /// The same over every cell of every structure, as one entry (structure "all").

@@ -155,12 +155,12 @@ void print_kind_table(Database& db, std::int64_t run, const std::vector<Structur
 void print_between_runs(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b) {
     std::cout << "Between the two runs, every cell both hold (relative range of the two runs' figures, p50 / p90 "
                  "over the cells):\n";
-    TextTable t({"a run's figure of a cell", "cells", "ray cast", "update"});
+    TextTable t({"a run's figure of a cell", "cells", "frame", "ray cast", "update"});
     for (const auto& [how, label] : {std::pair{OverRepetitions::median, "median of its repetitions"},
                                      std::pair{OverRepetitions::fastest, "each frame's fastest repetition"}}) {
         const StructureNoise n = between_runs_pooled(a, run_a, b, run_b, how);
-        t.add(
-            {label, std::to_string(n.cells), noise_text(n.raycast, n.raycast_p90), noise_text(n.update, n.update_p90)});
+        t.add({label, std::to_string(n.cells), noise_text(n.frame, n.frame_p90), noise_text(n.raycast, n.raycast_p90),
+               noise_text(n.update, n.update_p90)});
     }
     t.print(std::cout);
 }
@@ -272,22 +272,25 @@ void add_fit_command(CLI::App& app) {
                      "(ray cast, 5-fold); leave-one-scene-out error, refit only (each scene predicted by the model "
                      "chosen on all scenes, its coefficients refitted on the others: time per frame = update + rays x "
                      "C, and the ray-cast part alone; optimistic, the nested figures below are the headline); beside "
-                     "them the noise, how far two measurements of a cell differ in ray-cast time per frame, (max - "
-                     "min) / median, median and 90th percentile over the cells (\"-\": no cell was measured twice). "
+                     "them the noise, how far two measurements of a cell differ in time per frame and in ray-cast time "
+                     "per frame, (max - min) / median, median and 90th percentile over the cells (\"-\": no cell was "
+                     "measured twice). "
                      "Targets: <= 10% for rcbench's "
                      "structures, <= 15% for the peers.\n";
         const NoiseFloor noise =
             noise_column(store.db(), run, other.get(), other_run, repeat ? repeat->path : "", o->repetitions);
         TextTable e({"structure", "model", "terms", "held-out (configs)", "LOSO refit frame", "LOSO refit ray cast",
-                     repeat ? "between runs p50 / p90" : "noise p50 / p90", "slow cells", "status"});
+                     repeat ? "between runs frame" : "noise frame", repeat ? "between runs ray cast" : "noise ray cast",
+                     "slow cells", "status"});
         for (const StructureModels& s : models)
             if (const CandidateModel* m = s.chosen("raycast")) {
                 std::string terms;
                 for (const std::string& t : m->problem.terms) terms += (terms.empty() ? "" : " ") + t;
                 const StructureNoise* n = noise.find(s.structure);
                 e.add({s.structure, m->name, terms, percent(m->heldout_error), percent(s.loso_error),
-                       percent(s.loso_raycast_error), n ? noise_text(n->raycast, n->raycast_p90) : "-",
-                       n ? std::to_string(n->slow) : "0", m->fit.status()});
+                       percent(s.loso_raycast_error), n ? noise_text(n->frame, n->frame_p90) : "-",
+                       n ? noise_text(n->raycast, n->raycast_p90) : "-", n ? std::to_string(n->slow) : "0",
+                       m->fit.status()});
             }
         e.print(std::cout);
         if (noise.slow)

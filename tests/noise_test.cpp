@@ -179,6 +179,10 @@ TEST(NoiseFloor, RepeatabilityIsTheSpreadOfTheFirstTwoRepetitionsMedianAndP90Ove
     EXPECT_NEAR(n[1].raycast, (a + b) / 2, 1e-12);
     EXPECT_NEAR(n[1].raycast_p90, a + 0.9 * (b - a), 1e-12);
     EXPECT_NEAR(n[1].update, 0.0, 1e-12);  // a's update repeats exactly; b has none
+    // The frame is update + ray cast: a (120 − 110) / 115, b as the ray cast (no update).
+    const double fa = 10.0 / 115.0;
+    EXPECT_NEAR(n[1].frame, (fa + b) / 2, 1e-12);
+    EXPECT_NEAR(n[1].frame_p90, fa + 0.9 * (b - fa), 1e-12);
     EXPECT_EQ(noise_text(n[1].raycast), "17.8%");
     EXPECT_EQ(noise_text(n[1].raycast, n[1].raycast_p90), "17.8% / 24.4%");
     EXPECT_EQ(noise_text(n[0].raycast), "-");
