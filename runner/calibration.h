@@ -88,9 +88,9 @@ bool record_machine(Database& db, std::int64_t run, const CalibratedStructures& 
                     const std::string& cache_dir = "/sys/devices/system/cpu/cpu0/cache");
 
 /// Measures and stores another calibration pass of every structure (the run's next pass number).
-/// A pass takes seconds and the host's slow stretches last about a minute (docs/model.md, "Where
-/// the spread comes from"), so one pass can fall in one whole; passes minutes apart seldom all do,
-/// and each micro-scene's fastest pass is what a quiet machine measures.
+/// A pass takes seconds and the host's slow stretches last about a minute (docs/model.md, "Hits
+/// apart from tests, judged on maps-oacmp2"), so one pass can fall in one whole; passes minutes
+/// apart seldom all do, and each micro-scene's fastest pass is what a quiet machine measures.
 void add_calibration_pass(Database& db, std::int64_t run, const CalibratedStructures& structures);
 
 /// The stored caches of a run (empty for runs made before they were stored).

@@ -18,6 +18,7 @@
 #include "runner/merge.h"
 #include "runner/run_experiment.h"
 #include "runner/store.h"
+#include "tests/test_db.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {
@@ -184,17 +185,14 @@ TEST(Calibration, PassesSpreadOverTheRunAndTheFastestIsRead) {
     std::vector<CalibrationPoint> before;
     {
         ResultStore store(o.db);
-        auto count = [&](const std::string& sql) {
-            Statement s = store.db().prepare(sql);
-            s.step();
-            return s.int64(0);
-        };
-        EXPECT_EQ(count("SELECT count(DISTINCT pass) FROM calibration"), 3);
-        EXPECT_EQ(count("SELECT count(*) FROM calibration"), 3 * 13);
+        EXPECT_EQ(test::count(store.db(), "SELECT count(DISTINCT pass) FROM calibration"), 3);
+        EXPECT_EQ(test::count(store.db(), "SELECT count(*) FROM calibration"), 3 * 13);
         // The counters repeat between passes (fixed scenes and rays); only the times differ.
-        EXPECT_EQ(count("SELECT count(*) FROM (SELECT scene FROM calibration GROUP BY scene "
+        EXPECT_EQ(
+            test::count(store.db(),
+                        "SELECT count(*) FROM (SELECT scene FROM calibration GROUP BY scene "
                         "HAVING count(DISTINCT n_rb) > 1 OR count(DISTINCT n_t) > 1 OR count(DISTINCT n_tp) > 1)"),
-                  0);
+            0);
         before = load_calibration(store.db(), out.run, "ug");
         ASSERT_EQ(before.size(), 13u);
         for (const CalibrationPoint& p : before) {
