@@ -7,6 +7,7 @@
 #include <ctime>
 #include <functional>
 #include <map>
+#include <numeric>
 #include <set>
 #include <tuple>
 
@@ -190,15 +191,45 @@ LinearProblem build_problem(const std::vector<const FrameObservation*>& frames, 
     return p;
 }
 
+/// Whether the scenes mix the kinds of change in proportions that tell `ops` (two or more
+/// operation terms) apart, with any one scene left out. Per scene, each kind's share of its
+/// changes; without each scene in turn, the other scenes' shares (a row each, columns scaled to
+/// unit norm) must have a condition number below kMixConditionLimit. Where only one scene mixes
+/// the kinds otherwise, or only the rounding of a scene's counts does (5 inserts of 51 changes
+/// where the others insert exactly 10%), the kinds' prices rest on that scene: a fit may put an
+/// insert's cost on the removes, and a scene of a third mix meets it at its full error. Forms that
+/// price every change alike (per-change, per-write) serve there instead.
+bool operations_told_apart(const std::vector<const FrameObservation*>& frames, const std::vector<Term>& ops) {
+    std::map<std::string, std::vector<double>> shares;  // per scene, each kind's changes, then share
+    for (const FrameObservation* f : frames) {
+        std::vector<double>& sum = shares[f->scene];
+        sum.resize(ops.size());
+        for (std::size_t j = 0; j < ops.size(); ++j) sum[j] += ops[j].value(*f);
+    }
+    std::vector<std::vector<double>> rows;
+    for (auto& [scene, sum] : shares)
+        if (const double total = std::accumulate(sum.begin(), sum.end(), 0.0); total > 0) {
+            for (double& v : sum) v /= total;
+            rows.push_back(sum);
+        }
+    for (std::size_t skip = 0; skip < rows.size(); ++skip) {
+        std::vector<std::vector<double>> others = rows;
+        others.erase(others.begin() + std::ptrdiff_t(skip));
+        if (!(condition_number(others) < kMixConditionLimit)) return false;
+    }
+    return !rows.empty();
+}
+
 /// The columns of `form` over `frames` (its target's), or none where the form does not apply: a
 /// required term that never occurs, a per-tier term without a tier beyond the smallest, a split
-/// into fewer than two groups. A term that is 0 in every frame is left out unless the table keeps it.
+/// into fewer than two groups, operation terms the scenes' mixes do not tell apart. A term that is 0 in every frame is
+/// left out unless the table keeps it.
 std::optional<std::vector<Column>> form_columns(const ModelForm& form,
                                                 const std::vector<const FrameObservation*>& frames,
                                                 const Priors& priors, const std::string& structure) {
     for (const char* name : form.required)
         if (!occurs(frames, term_of(find_term(name)))) return std::nullopt;
-    std::vector<Term> terms;
+    std::vector<Term> terms, ops;
     for (const char* name : form.terms) {
         const CostTerm& t = find_term(name);
         if (t.per_tier) {
@@ -206,9 +237,11 @@ std::optional<std::vector<Column>> form_columns(const ModelForm& form,
             if (tiers.empty()) return std::nullopt;
             terms.insert(terms.end(), tiers.begin(), tiers.end());
         } else if (Term term = term_of(t); t.when_absent == WhenAbsent::keep || occurs(frames, term)) {
+            if (t.operation) ops.push_back(term);
             terms.push_back(std::move(term));
         }
     }
+    if (ops.size() >= 2 && !operations_told_apart(frames, ops)) return std::nullopt;
     if (form.split == Split::none) return columns_of(terms);
     std::set<std::string> groups;
     for (const FrameObservation* f : frames) groups.insert(form.split == Split::by_params ? f->params : f->category);

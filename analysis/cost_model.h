@@ -118,6 +118,11 @@ struct StructureModels {
     const CandidateModel* chosen(const std::string& target) const;
 };
 
+/// A form prices the kinds of change apart only where, with any one scene left out, the scenes'
+/// shares of each kind have a condition number below this (cost_model.cpp). Three different mixes
+/// give under 10; what the rounding of one scene's counts separates gives hundreds.
+inline constexpr double kMixConditionLimit = 100;
+
 /// Held-out errors within max(0.5 points, 5% of the best) count as "as good as the best".
 inline constexpr double kSelectionTolerance = 0.05;
 inline constexpr double kSelectionFloor = 0.005;

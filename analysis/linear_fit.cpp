@@ -283,6 +283,22 @@ LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
     return fit;
 }
 
+double condition_number(const std::vector<std::vector<double>>& rows) {
+    const std::size_t k = rows.empty() ? 0 : rows.front().size();
+    if (k == 0 || rows.size() < k) return INFINITY;
+    Eigen::MatrixXd a(Eigen::Index(rows.size()), Eigen::Index(k));
+    for (std::size_t i = 0; i < rows.size(); ++i)
+        for (std::size_t j = 0; j < k; ++j) a(Eigen::Index(i), Eigen::Index(j)) = rows[i][j];
+    for (Eigen::Index j = 0; j < a.cols(); ++j) {
+        const double norm = a.col(j).norm();
+        if (norm == 0) return INFINITY;
+        a.col(j) /= norm;
+    }
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(a);
+    const auto& s = svd.singularValues();
+    return s(s.size() - 1) > 0 ? s(0) / s(s.size() - 1) : INFINITY;
+}
+
 double cross_validated_error(const LinearProblem& p, int k) {
     std::vector<int> groups(p.group.begin(), p.group.end());
     std::sort(groups.begin(), groups.end());

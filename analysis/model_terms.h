@@ -114,6 +114,9 @@ struct CostTerm {
     /// A cost of the traversal's steps and tests: a tuner's fit that prices none of these prices
     /// no ray work and ranks nothing (fit_coefficients, tuner/tuning.h).
     bool traversal = false;
+    /// The cost of one kind of change (insert, remove, move): priced apart from the other kinds
+    /// only where the scenes mix the kinds in proportions that tell them apart (cost_model.cpp).
+    bool operation = false;
     BreakdownShow breakdown = BreakdownShow::none;
 };
 /// Every term, ray-cast ones first; find_term throws std::logic_error for an unknown name.
@@ -124,8 +127,8 @@ const FrameCounter& find_counter(std::string_view symbol);
 double term_value(const CostTerm& term, const FrameObservation& f);
 
 /// A candidate model as data: its terms in column order. A form is fitted only where each of
-/// `required` occurs in some frame, each per-tier term has a tier beyond the smallest, and a split
-/// has at least two groups.
+/// `required` occurs in some frame, each per-tier term has a tier beyond the smallest, a split
+/// has at least two groups, and its operation terms are told apart by the scenes' mixes.
 enum class Split {
     none,
     by_category,  ///< each scene category its own copy of every term ("C_RB[uniform]")

@@ -3,6 +3,8 @@
 // them; leave-one-scene-out never fits a scene it then predicts; the memory tiers follow the caches.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <tuple>
 
@@ -268,6 +270,70 @@ TEST(MemoryHierarchy, ChosenOnlyWhereTheWorkingSetLeavesTheCache) {
     ASSERT_NE(m, nullptr);
     EXPECT_EQ(m->name, "memory-hierarchy");
     EXPECT_LT(m->heldout_error, 0.05);
+}
+
+}  // namespace
+}  // namespace rcb
+
+namespace rcb {
+namespace {
+
+/// Update frames of one structure per scene: `mixes[s]` is scene s's share of inserts, removes and
+/// moves; an insert costs 1000 ns, a remove 100, a move 400, plus 2 µs a frame.
+std::vector<FrameObservation> update_frames(const std::vector<std::array<double, 3>>& mixes, std::uint64_t seed) {
+    Random rng(seed);
+    std::vector<FrameObservation> frames;
+    for (std::size_t s = 0; s < mixes.size(); ++s) {
+        const double changes = 100.0 * double(s + 1);
+        for (int f = 0; f < 10; ++f) {
+            FrameObservation o;
+            o.structure = "grid";
+            o.scene = "scene" + std::to_string(s);
+            o.config_group = int(s);
+            o.inserts = std::round(changes * mixes[s][0]);
+            o.removes = std::round(changes * mixes[s][1]);
+            o.moves = std::round(changes * mixes[s][2]);
+            o.update_ns = (1000 * o.inserts + 100 * o.removes + 400 * o.moves + 2000) * (1 + 0.01 * rng.normal());
+            frames.push_back(o);
+        }
+    }
+    return frames;
+}
+
+const CandidateModel* update_form(const StructureModels& m, const std::string& name) {
+    for (const CandidateModel& c : m.update)
+        if (c.name == name) return &c;
+    return nullptr;
+}
+
+TEST(ModelSelection, OperationsPricedApartOnlyWhereMoreThanOneSceneMixesThemOtherwise) {
+    // Five scenes mix the operations 10/10/80, one 5/40/55. Only that scene tells a remove from
+    // an insert: held out, the others would price removes by whatever the solver left, so no form
+    // prices the operations apart and every change is priced alike.
+    const std::array<double, 3> usual{0.1, 0.1, 0.8}, other{0.05, 0.4, 0.55}, third{0.3, 0.1, 0.6};
+    const std::vector<StructureModels> one =
+        fit_cost_models(update_frames({usual, usual, usual, usual, usual, other}, 1));
+    EXPECT_EQ(update_form(one.at(0), "per-operation"), nullptr);
+    EXPECT_NE(update_form(one.at(0), "per-change"), nullptr);
+    // Rounding alone (5 inserts of 51 changes) does not count as another mix either.
+    const std::vector<StructureModels> rounded =
+        fit_cost_models(update_frames({usual, usual, usual, {5.0 / 51, 5.0 / 51, 41.0 / 51}, usual, other, third}, 2));
+    EXPECT_EQ(update_form(rounded.at(0), "per-operation"), nullptr);
+
+    // Three mixes, each in two scenes: any one scene out, the rest still tell the operations
+    // apart, and the per-operation form recovers their costs.
+    const std::vector<StructureModels> apart =
+        fit_cost_models(update_frames({usual, other, third, usual, other, third}, 3));
+    const CandidateModel* ops = update_form(apart.at(0), "per-operation");
+    ASSERT_NE(ops, nullptr);
+    const double truth[] = {1000, 100, 400};
+    const char* names[] = {"c_insert", "c_remove", "c_move"};
+    for (int j = 0; j < 3; ++j) {
+        const auto it = std::find_if(ops->fit.coefficients.begin(), ops->fit.coefficients.end(),
+                                     [&](const Coefficient& c) { return c.name == names[j]; });
+        ASSERT_NE(it, ops->fit.coefficients.end()) << names[j];
+        EXPECT_NEAR(it->value, truth[j], 0.15 * truth[j]) << names[j];
+    }
 }
 
 }  // namespace
