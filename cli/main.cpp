@@ -30,7 +30,7 @@ std::string one_line(std::string_view message) {
 
 int main(int argc, char** argv) {
     CLI::App app{
-        "rcbench: acceleration structures for all-hits ray casting in dynamic physics scenes.\n"
+        "rcbench: acceleration structures for ray casting (all, closest and any hit) in dynamic physics scenes.\n"
         "Generate or import scenes, simulate structures against brute-force ground truth, run experiment files\n"
         "into a SQLite database, compare runs, cast your own rays.",
         "rcbench"};
