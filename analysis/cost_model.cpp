@@ -657,6 +657,44 @@ void leave_one_scene_out(StructureModels& m, const std::vector<const FrameObserv
     if (raycast_n) m.loso_raycast_error = raycast_sum / raycast_n;
 }
 
+/// The counters whose range a model records (TrainedRange), each read from a frame.
+struct RangeCounter {
+    const char* name;
+    bool per_ray;  ///< read only from frames with rays
+    double (*value)(const FrameObservation&);
+};
+const std::vector<RangeCounter>& range_counters() {
+    static const std::vector<RangeCounter> counters{
+        {"changes per frame", false, [](const FrameObservation& f) { return f.inserts + f.removes + f.moves; }},
+        {"objects", false, [](const FrameObservation& f) { return f.objects; }},
+        {"N_RB per ray", true, [](const FrameObservation& f) { return f.n_rb; }},
+        {"N_T per ray", true, [](const FrameObservation& f) { return f.n_t; }},
+    };
+    return counters;
+}
+
+/// A cell's median of `c` over its frames (NaN: no frame to read it from).
+double cell_median(const std::vector<const FrameObservation*>& cell, const RangeCounter& c) {
+    std::vector<double> v;
+    for (const FrameObservation* f : cell)
+        if (!c.per_ray || f->rays > 0) v.push_back(c.value(*f));
+    return v.empty() ? NAN : median_of(v);
+}
+
+std::vector<TrainedRange> trained_ranges(const std::vector<const FrameObservation*>& fs) {
+    std::map<int, std::vector<const FrameObservation*>> cells;
+    for (const FrameObservation* f : fs) cells[f->config_group].push_back(f);
+    std::vector<TrainedRange> out;
+    for (const RangeCounter& c : range_counters()) {
+        TrainedRange r{c.name, INFINITY, -INFINITY};
+        for (const auto& [group, cell] : cells)
+            if (const double v = cell_median(cell, c); std::isfinite(v))
+                r.low = std::min(r.low, v), r.high = std::max(r.high, v);
+        if (r.low <= r.high) out.push_back(r);
+    }
+    return out;
+}
+
 /// One structure's candidates (model_forms()), chosen models and leave-one-scene-out.
 StructureModels fit_structure(const std::string& structure, const std::vector<const FrameObservation*>& fs,
                               const ModelInputs& inputs) {
@@ -665,6 +703,7 @@ StructureModels fit_structure(const std::string& structure, const std::vector<co
     for (const StructureCalibration& c : inputs.calibrations)
         if (c.structure == structure) m.calibration = &c;
     const Priors priors = priors_of(m.calibration);
+    m.trained = trained_ranges(fs);
     std::vector<const FrameObservation*> with_rays;
     for (const FrameObservation* f : fs)
         if (f->rays > 0) with_rays.push_back(f);
@@ -683,6 +722,20 @@ StructureModels fit_structure(const std::string& structure, const std::vector<co
 }
 
 }  // namespace
+
+std::string outside_trained_range(const StructureModels& m, const std::vector<const FrameObservation*>& cell) {
+    const auto text = [](double v) { return fixed(v, v >= 100 ? 0 : v >= 10 ? 1 : 2); };
+    std::string out;
+    for (const TrainedRange& r : m.trained) {
+        const auto c = std::find_if(range_counters().begin(), range_counters().end(),
+                                    [&](const RangeCounter& x) { return r.counter == x.name; });
+        const double v = cell_median(cell, *c);
+        if (!std::isfinite(v) || (v <= r.high * kRangeMargin && v * kRangeMargin >= r.low)) continue;
+        out += (out.empty() ? "" : "; ") + r.counter + " " + text(v) + " (fitted on " + text(r.low) + "–" +
+               text(r.high) + ")";
+    }
+    return out;
+}
 
 std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>& frames, const ModelInputs& inputs) {
     std::map<std::string, std::vector<const FrameObservation*>> by_structure;

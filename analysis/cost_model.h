@@ -102,6 +102,16 @@ struct CandidateModel {
     std::vector<std::string> dropped;  ///< terms left out of this model, each with why
 };
 
+/// What a structure's model was fitted on, per counter: the least and the most of its cells'
+/// medians (changes per frame, objects, N_RB and N_T per ray). A cell beyond it by more than
+/// kRangeMargin is priced by extrapolation: a physics frame moving all 10^4 bodies, priced from
+/// thesis frames of at most a few hundred changes, missed by 5–10× (docs/model.md).
+struct TrainedRange {
+    std::string counter;
+    double low = 0, high = 0;
+};
+inline constexpr double kRangeMargin = 2.0;
+
 struct StructureModels {
     std::string structure;
     std::vector<std::string> unused_terms;  ///< terms that are always 0 for this structure (e.g. N_T of bf)
@@ -110,6 +120,7 @@ struct StructureModels {
     double loso_error = NAN;       ///< mean frame_error over the scenes that could be predicted
     double loso_raycast_error = NAN;
     const StructureCalibration* calibration = nullptr;  ///< into the ModelInputs given, if any
+    std::vector<TrainedRange> trained;                  ///< the ranges of the frames fitted
     /// The chosen models frozen, form and coefficients as fitted here: ns per ray and ns of update of
     /// any frame (another scene's, another run's) from its counters; NaN where a per-category or
     /// per-configuration form has no column for the frame's category or configuration. Empty
@@ -122,6 +133,10 @@ struct StructureModels {
 /// shares of each kind have a condition number below this (cost_model.cpp). Three different mixes
 /// give under 10; what the rounding of one scene's counts separates gives hundreds.
 inline constexpr double kMixConditionLimit = 100;
+
+/// The counters of a cell (its frames) beyond `m.trained` by more than kRangeMargin, as
+/// "changes per frame 10000 (fitted on 20.0–448)", joined by "; "; "" within.
+std::string outside_trained_range(const StructureModels& m, const std::vector<const FrameObservation*>& cell);
 
 /// Held-out errors within max(0.5 points, 5% of the best) count as "as good as the best".
 inline constexpr double kSelectionTolerance = 0.05;

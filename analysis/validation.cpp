@@ -70,6 +70,7 @@ CellPrediction predict_cell(const std::vector<const FrameObservation*>& fs, cons
     if (model) {
         c.raycast_model = m->chosen("raycast")->name;
         c.update_model = m->chosen("update")->name;
+        c.outside = outside_trained_range(*m, fs);
     }
     std::vector<double> frame, predicted_frame, raycast, predicted_raycast;
     for (const FrameObservation* f : fs) {
@@ -221,6 +222,7 @@ std::vector<StructureValidation> summarize(const std::vector<CellPrediction>& ce
         for (const CellPrediction* c : cs) {
             if (!c->predictable()) ++v.unpredictable;
             if (!c->predictable()) continue;
+            v.outside += !c->outside.empty();
             scenes.insert(c->scene);
             if (!splits.insert(c->split).second) continue;  // forms counted once per split
             ++v.raycast_models[c->raycast_model];
@@ -348,7 +350,8 @@ void store_validation(Database& db, std::int64_t run, const std::string& train, 
             "INSERT INTO model_validation(run_id, created_at, train, train_run_uuid, split, splits, structure, cells, "
             "unpredictable, scenes, frame_median, frame_median_low, frame_median_high, frame_p90, frame_p90_low, "
             "frame_p90_high, raycast_median, raycast_median_low, raycast_median_high, raycast_p90, raycast_p90_low, "
-            "raycast_p90_high, resamples, seed, models) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+            "raycast_p90_high, resamples, seed, models, outside_range) VALUES "
+            "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
         ins.bind_all(run, utc_now(), train, train_uuid, group.name, nlohmann::json(group.splits).dump(), s.structure,
                      std::int64_t(s.cells), std::int64_t(s.unpredictable), std::int64_t(s.scenes));
         int k = 11;
@@ -357,7 +360,8 @@ void store_validation(Database& db, std::int64_t run, const std::string& train, 
                 ins.bind(k++, value(v));
         ins.bind(k++, std::int64_t(options.resamples));
         ins.bind(k++, std::int64_t(options.seed));
-        ins.bind(k, nlohmann::json{{"raycast", s.raycast_models}, {"update", s.update_models}}.dump());
+        ins.bind(k++, nlohmann::json{{"raycast", s.raycast_models}, {"update", s.update_models}}.dump());
+        ins.bind(k, std::int64_t(s.outside));
         ins.run();
     }
     t.commit();
@@ -369,6 +373,7 @@ nlohmann::json validation_json(const ValidationGroup& group, bool with_cells) {
         j["structures"].push_back({{"structure", s.structure},
                                    {"cells", s.cells},
                                    {"unpredictable_cells", s.unpredictable},
+                                   {"outside_range_cells", s.outside},
                                    {"scenes", s.scenes},
                                    {"frame_error", error_json(s.frame)},
                                    {"raycast_error", error_json(s.raycast)},
@@ -388,7 +393,8 @@ nlohmann::json validation_json(const ValidationGroup& group, bool with_cells) {
                               {"raycast_ns", number(c.raycast_ns)},
                               {"predicted_raycast_ns", number(c.predicted_raycast_ns)},
                               {"frame_error", number(c.frame_error)},
-                              {"raycast_error", number(c.raycast_error)}});
+                              {"raycast_error", number(c.raycast_error)},
+                              {"outside", c.outside.empty() ? nlohmann::json(nullptr) : nlohmann::json(c.outside)}});
     return j;
 }
 

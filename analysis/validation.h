@@ -60,6 +60,9 @@ struct CellPrediction {
     double frame_ns = NAN, predicted_frame_ns = NAN;
     double raycast_ns = NAN, predicted_raycast_ns = NAN;  ///< ray cast per frame (NaN: no rays)
     double frame_error = NAN, raycast_error = NAN;        ///< |predicted − measured| / measured
+    /// The cell's counters beyond the range its model was fitted on (outside_trained_range,
+    /// analysis/cost_model.h): "" within, or where nothing was fitted.
+    std::string outside;
     /// The structure had a model and the model a column for the cell's category and configuration.
     /// (calibration alone prices the ray cast only: its frame error is NaN)
     bool predictable() const { return std::isfinite(predicted_frame_ns) || std::isfinite(predicted_raycast_ns); }
@@ -89,6 +92,7 @@ struct ErrorSummary {
 struct StructureValidation {
     std::string structure;
     std::size_t cells = 0, unpredictable = 0, scenes = 0;
+    std::size_t outside = 0;  ///< predictable cells priced beyond the range their model was fitted on
     ErrorSummary frame, raycast;
     /// How many splits chose each form ("eq5.4" → 5).
     std::map<std::string, int> raycast_models, update_models;

@@ -102,7 +102,9 @@ void print_nested_loso(Database& db, std::int64_t run, OverRepetitions how, cons
                  "form, dropped terms, cache tiers, category columns) is redone on the other scenes' frames and the "
                  "scene predicted by the model so chosen. Absolute relative error per (scene x configuration) cell "
                  "of the median time per frame (update + rays x C) and of the median ray-cast time per frame; "
-                 "median and p90 over cells (rcbench validate: bootstrap intervals and the other splits):\n";
+                 "median and p90 over cells; outside range: cells whose changes per frame, objects, N_RB or N_T per "
+                 "ray lie beyond twice (or below half) the range the model was fitted on (rcbench validate: bootstrap "
+                 "intervals and the other splits):\n";
     std::map<std::pair<std::string, std::string>, double> per_scene;
     if (!groups.empty()) {
         store_validation(db, run, "nested", run_uuid(db, run), groups.front(), no_bootstrap);

@@ -48,7 +48,9 @@ void print_header(const BootstrapOptions& b) {
                  "in brackets the bootstrap 95% interval over scenes ("
               << b.resamples << " resamples, seed " << b.seed
               << "). Unpredictable: cells of a category or configuration the chosen per-category or "
-                 "per-configuration form never saw.\n";
+                 "per-configuration form never saw. Outside range: predicted cells whose changes per frame, objects, "
+                 "N_RB or N_T per ray lie beyond twice (or below half) the range of the cells the model was fitted "
+                 "on: priced by extrapolation (--json names the counters).\n";
 }
 
 /// The per-kind part of the nested validation (analysis/query_kinds.h): the run's model priced on

@@ -27,14 +27,14 @@ std::string percent(double v) { return std::isfinite(v) ? fixed(100 * v, 1) + "%
 
 TextTable validation_table(const ValidationGroup& group, const std::string& indent) {
     TextTable t({indent + "structure", "cells", "scenes", "frame median", "frame p90", "ray cast median",
-                 "ray cast p90", "unpredictable", "ray-cast forms chosen"});
+                 "ray cast p90", "unpredictable", "outside range", "ray-cast forms chosen"});
     for (const StructureValidation& s : group.structures)
         t.add({indent + s.structure, std::to_string(s.cells), std::to_string(s.scenes),
                with_interval(s.frame.median, s.frame.median_low, s.frame.median_high),
                with_interval(s.frame.p90, s.frame.p90_low, s.frame.p90_high),
                with_interval(s.raycast.median, s.raycast.median_low, s.raycast.median_high),
                with_interval(s.raycast.p90, s.raycast.p90_low, s.raycast.p90_high), std::to_string(s.unpredictable),
-               forms_text(s.raycast_models)});
+               std::to_string(s.outside), forms_text(s.raycast_models)});
     return t;
 }
 

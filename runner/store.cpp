@@ -403,6 +403,11 @@ ALTER TABLE calibration ADD COLUMN n_tp REAL NOT NULL DEFAULT 0;
         R"sql(
 ALTER TABLE calibration ADD COLUMN pass INTEGER NOT NULL DEFAULT 0;
 )sql",
+        // 17 → 18: the cells a validation priced beyond the counters' range its model was fitted
+        // on (analysis/cost_model.h outside_trained_range). 0 in validations stored before.
+        R"sql(
+ALTER TABLE model_validation ADD COLUMN outside_range INTEGER NOT NULL DEFAULT 0;
+)sql",
     };
     return all;
 }

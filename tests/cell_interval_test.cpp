@@ -161,8 +161,8 @@ TEST(CellInterval, TheTableFollowsTheCellsThroughMergeAndMigration) {
         merge_into(m, *open_read_only(o.db));
         EXPECT_EQ(interval_rows(m.db()), want);
     }
-    // A database from before the table (schema 11, without the later n_miss and writes columns and
-    // calibration.n_miss, n_tp and pass):
+    // A database from before the table (schema 11, without the later n_miss and writes columns,
+    // calibration.n_miss, n_tp and pass, and model_validation.outside_range):
     // migrating fills it from the stored cells.
     const std::string old = temp.file("old.db");
     fs::copy_file(o.db, old);
@@ -172,7 +172,7 @@ TEST(CellInterval, TheTableFollowsTheCellsThroughMergeAndMigration) {
         d.exec(
             "ALTER TABLE frame_kind DROP COLUMN n_miss; ALTER TABLE calibration DROP COLUMN n_miss; "
             "ALTER TABLE calibration DROP COLUMN n_tp; ALTER TABLE calibration DROP COLUMN pass; "
-            "PRAGMA user_version = 11");
+            "ALTER TABLE model_validation DROP COLUMN outside_range; PRAGMA user_version = 11");
     }
     EXPECT_EQ(interval_rows(*open_read_only(old)), want);  // read through a migrated copy
     ResultStore migrated(old);

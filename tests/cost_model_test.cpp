@@ -336,5 +336,23 @@ TEST(ModelSelection, OperationsPricedApartOnlyWhereMoreThanOneSceneMixesThemOthe
     }
 }
 
+TEST(ModelSelection, ACellBeyondTheFittedRangeIsNamed) {
+    // Fitted on 100 to 600 changes per frame: 1000 is within twice that, 10000 is not, and the
+    // counter is named with the value and the range.
+    const std::array<double, 3> usual{0.1, 0.1, 0.8};
+    const std::vector<StructureModels> models =
+        fit_cost_models(update_frames({usual, usual, usual, usual, usual, usual}, 5));
+    const StructureModels& m = models.at(0);
+    std::vector<FrameObservation> frames = update_frames({usual}, 6);
+    std::vector<const FrameObservation*> cell;
+    for (FrameObservation& f : frames) {
+        f.moves = 800;
+        cell.push_back(&f);
+    }
+    EXPECT_EQ(outside_trained_range(m, cell), "");
+    for (FrameObservation& f : frames) f.moves = 9980;
+    EXPECT_EQ(outside_trained_range(m, cell), "changes per frame 10000 (fitted on 100–600)");
+}
+
 }  // namespace
 }  // namespace rcb

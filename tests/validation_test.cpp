@@ -308,6 +308,9 @@ TEST(ValidateCommand, StoresTransferInTheTestDatabaseAndNestedInTheTrainOne) {
     EXPECT_LT(j["groups"][0]["structures"][0]["raycast_error"]["median"].get<double>(), 0.03);
     EXPECT_EQ(count(b, "SELECT count(*) FROM model_validation WHERE train_run_uuid = 'ua' AND seed = 1"), 1);
     EXPECT_EQ(count(b, "SELECT resamples FROM model_validation"), 50);
+    // The cells priced beyond the train run's range are stored as printed.
+    EXPECT_EQ(count(b, "SELECT outside_range FROM model_validation WHERE split = 'transfer'"),
+              j["groups"][0]["structures"][0]["outside_range_cells"].get<std::int64_t>());
     // Stored again: replaced, not added; the file still passes the schema check of every reader.
     ASSERT_EQ(rcbench({"validate", "--train", a, "--test", b + ":1"}).code, 0);
     EXPECT_EQ(count(b, "SELECT count(*) FROM model_validation"), 2);  // the transfer and calibration alone
