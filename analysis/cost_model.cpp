@@ -222,8 +222,8 @@ bool operations_told_apart(const std::vector<const FrameObservation*>& frames, c
 
 /// The columns of `form` over `frames` (its target's), or none where the form does not apply: a
 /// required term that never occurs, a per-tier term without a tier beyond the smallest, a split
-/// into fewer than two groups, operation terms the scenes' mixes do not tell apart. A term that is 0 in every frame is
-/// left out unless the table keeps it.
+/// into fewer than two groups, operation terms the scenes' mixes do not tell apart. A term that is
+/// 0 in every frame is left out unless the table keeps it.
 std::optional<std::vector<Column>> form_columns(const ModelForm& form,
                                                 const std::vector<const FrameObservation*>& frames,
                                                 const Priors& priors, const std::string& structure) {
