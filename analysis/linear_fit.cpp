@@ -7,6 +7,7 @@
 #include <cmath>
 #include <map>
 #include <set>
+#include <utility>
 
 namespace rcb {
 namespace {
@@ -52,6 +53,20 @@ private:
     double mu_, sigma_;
 };
 
+/// The condition number of `a` with its columns scaled to unit norm, so that units (ns against
+/// counts) do not count as ill-conditioning; infinite where a column is 0 (a term that never
+/// occurs cannot be fitted).
+double column_scaled_condition(Eigen::MatrixXd a) {
+    for (Eigen::Index j = 0; j < a.cols(); ++j) {
+        const double norm = a.col(j).norm();
+        if (norm == 0) return INFINITY;
+        a.col(j) /= norm;
+    }
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(a);
+    const auto& s = svd.singularValues();
+    return s(s.size() - 1) > 0 ? s(0) / s(s.size() - 1) : INFINITY;
+}
+
 double condition_number_of(const LinearProblem& p) {
     const std::size_t n = p.x.size(), k = p.terms.size();
     if (n == 0 || k == 0) return INFINITY;
@@ -63,15 +78,7 @@ double condition_number_of(const LinearProblem& p) {
     // The prior rows, in the units of the data rows (a relative residual per row).
     for (std::size_t j = 0, r = n; j < k; ++j)
         if (p.has_prior(j)) a(Eigen::Index(r++), Eigen::Index(j)) = 1 / (p.prior[j] * p.prior_sigma);
-    // Scale columns to unit norm so that units (ns vs counts) do not count as ill-conditioning.
-    for (Eigen::Index j = 0; j < a.cols(); ++j) {
-        const double norm = a.col(j).norm();
-        if (norm == 0) return INFINITY;  // a term that never occurs cannot be fitted
-        a.col(j) /= norm;
-    }
-    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(a);
-    const auto& s = svd.singularValues();
-    return s(s.size() - 1) > 0 ? s(0) / s(s.size() - 1) : INFINITY;
+    return column_scaled_condition(std::move(a));
 }
 
 double median_of(std::vector<double> v) {
@@ -289,14 +296,7 @@ double condition_number(const std::vector<std::vector<double>>& rows) {
     Eigen::MatrixXd a(Eigen::Index(rows.size()), Eigen::Index(k));
     for (std::size_t i = 0; i < rows.size(); ++i)
         for (std::size_t j = 0; j < k; ++j) a(Eigen::Index(i), Eigen::Index(j)) = rows[i][j];
-    for (Eigen::Index j = 0; j < a.cols(); ++j) {
-        const double norm = a.col(j).norm();
-        if (norm == 0) return INFINITY;
-        a.col(j) /= norm;
-    }
-    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(a);
-    const auto& s = svd.singularValues();
-    return s(s.size() - 1) > 0 ? s(0) / s(s.size() - 1) : INFINITY;
+    return column_scaled_condition(std::move(a));
 }
 
 double cross_validated_error(const LinearProblem& p, int k) {
