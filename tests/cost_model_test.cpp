@@ -272,12 +272,6 @@ TEST(MemoryHierarchy, ChosenOnlyWhereTheWorkingSetLeavesTheCache) {
     EXPECT_LT(m->heldout_error, 0.05);
 }
 
-}  // namespace
-}  // namespace rcb
-
-namespace rcb {
-namespace {
-
 /// Update frames of one structure per scene: `mixes[s]` is scene s's share of inserts, removes and
 /// moves; an insert costs 1000 ns, a remove 100, a move 400, plus 2 µs a frame.
 std::vector<FrameObservation> update_frames(const std::vector<std::array<double, 3>>& mixes, std::uint64_t seed) {
