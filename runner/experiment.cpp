@@ -195,13 +195,16 @@ const std::set<std::string> kSceneKeys = {
     "remove_share",   "move_scale", "rotated_share",  "sphere_share", "capsule_share",   "seed",
     "seeds",          "query_mix",  "queries",        "time_step"};
 
-/// A missing file. Real maps and models are never committed: one under data/maps/ or data/models/
-/// is fetched on demand, so the message names the script that fetches it.
+/// A missing file. Real maps and models are never committed: one under a data/ directory that
+/// scripts/fetch_maps.sh fills is fetched on demand, so the message names the command that does.
 std::string file_not_found(const std::string& file) {
+    static const std::map<std::string, std::string> kFetchedBy = {
+        {"maps", ""}, {"models", ""}, {"maps-unseen", " unseen"}, {"maps-088", " fresh"}, {"maps-nexuiz", " nexuiz"}};
     bool data = false;
     for (const fs::path& part : fs::path(file)) {
-        if (data && (part == "maps" || part == "models"))
-            return "file not found: " + file + " (scripts/fetch_maps.sh fetches it)";
+        if (data)
+            if (const auto it = kFetchedBy.find(part.string()); it != kFetchedBy.end())
+                return "file not found: " + file + " (scripts/fetch_maps.sh" + it->second + " fetches it)";
         data = part == "data";
     }
     return "file not found: " + file;

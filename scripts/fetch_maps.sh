@@ -10,6 +10,10 @@
 #   data/maps-088/pak6-patch088.pk3   the maps of Debian's openarena-088-data package, kept as a
 #                      test set that no model was designed on (experiments/maps-088.json,
 #                      maps-088b.json and maps-088c.json, six maps each)
+# With the argument `nexuiz`, also:
+#   data/maps-nexuiz/data.pk3   the maps of Debian's nexuiz-data package (Nexuiz 2.5.2, GPL-2
+#                      data; a 267 MB download), another game's maps that no part of rcbench was
+#                      designed, tuned or judged on before (experiments/maps-nexuiz.json)
 # Uses `apt-get download` (no root needed: only the .deb is fetched, nothing is installed) and
 # `dpkg-deb -x` to unpack. Run it again to re-fetch; it skips what is already there.
 set -euo pipefail
@@ -45,4 +49,11 @@ if [ "${1:-}" = fresh ]; then
   mkdir -p data/maps-088
   find data/.debs/openarena-088-data -name 'pak6-patch088.pk3' -exec cp -u {} data/maps-088/ \;
   echo "fetch_maps: $(ls data/maps-088/*.pk3 | wc -l) pk3 files in data/maps-088/"
+fi
+
+if [ "${1:-}" = nexuiz ]; then
+  fetch nexuiz-data data/.debs/nexuiz-data
+  mkdir -p data/maps-nexuiz
+  find data/.debs/nexuiz-data -name 'data.pk3' -exec cp -u {} data/maps-nexuiz/ \;
+  echo "fetch_maps: $(ls data/maps-nexuiz/*.pk3 | wc -l) pk3 files in data/maps-nexuiz/"
 fi

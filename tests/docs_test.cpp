@@ -163,7 +163,7 @@ TEST(Docs, UsingItCommandsTakeTheirOptionsAndFilesExist) {
 }
 
 /// Maps and models are fetched on demand, never committed: an experiment naming one that is not
-/// there says which script fetches it; any other missing file does not.
+/// there says which command fetches it; any other missing file does not.
 TEST(Docs, MissingFetchedDataNamesTheScript) {
     const fs::path dir = fs::temp_directory_path() / ("rcb_docs_" + std::to_string(::getpid()));
     fs::create_directories(dir);
@@ -181,6 +181,10 @@ TEST(Docs, MissingFetchedDataNamesTheScript) {
         << fetched.err;
     EXPECT_NE(fetched.err.find("scripts/fetch_maps.sh"), std::string::npos) << fetched.err;
     EXPECT_EQ(std::count(fetched.err.begin(), fetched.err.end(), '\n'), 1) << fetched.err;
+    // A set fetched by an argument of the script names the argument.
+    const test::Outcome nexuiz = run_with("data/maps-nexuiz/absent.pk3");
+    EXPECT_EQ(nexuiz.code, 2);
+    EXPECT_NE(nexuiz.err.find("(scripts/fetch_maps.sh nexuiz fetches it)"), std::string::npos) << nexuiz.err;
     const test::Outcome own = run_with("levels/absent.csv");
     EXPECT_EQ(own.code, 2);
     EXPECT_NE(own.err.find("file not found: levels/absent.csv"), std::string::npos) << own.err;
