@@ -13,7 +13,8 @@
 # With the argument `nexuiz`, also:
 #   data/maps-nexuiz/data.pk3   the maps of Debian's nexuiz-data package (Nexuiz 2.5.2, GPL-2
 #                      data; a 267 MB download), another game's maps that no part of rcbench was
-#                      designed, tuned or judged on before (experiments/maps-nexuiz.json)
+#                      designed, tuned or judged on before (experiments/maps-nexuiz.json,
+#                      tune-suite-nexuiz.json)
 # Uses `apt-get download` (no root needed: only the .deb is fetched, nothing is installed) and
 # `dpkg-deb -x` to unpack. Run it again to re-fetch; it skips what is already there.
 set -euo pipefail
