@@ -279,6 +279,7 @@ CalibrationPoint calibrate_on(const StructureInfo& info, const nlohmann::json& p
     p.n_mp = double(counters.n_mp) / rays;
     p.n_miss = double(counters.n_miss) / rays;
     p.n_tp = double(counters.n_tp) / rays;
+    p.n_dup = double(counters.n_dup) / rays;
     p.ns_per_ray = spread.median;
     p.mad = spread.mad;
     return p;
@@ -319,13 +320,13 @@ std::vector<MeasuredPass> measure_pass(const CalibratedStructures& structures) {
 void store_pass(Database& db, std::int64_t run, std::int64_t pass, const std::vector<MeasuredPass>& measured) {
     Statement insert = db.prepare(
         "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, "
-        "n_tp, pass) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "n_tp, pass, n_dup) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     for (const MeasuredPass& m : measured)
         for (const CalibrationPoint& p : m.points) {
             insert.reset();
             insert
                 .bind_all(run, m.name, m.params.dump(), p.scene, std::int64_t(p.rays), p.n_rb, p.n_t, p.ns_per_ray,
-                          p.mad, p.n_mp, p.n_miss, p.n_tp, pass)
+                          p.mad, p.n_mp, p.n_miss, p.n_tp, pass, p.n_dup)
                 .run();
         }
 }
@@ -375,13 +376,15 @@ std::vector<CacheLevel> load_cache_sizes(Database& db, std::int64_t run) {
 std::vector<CalibrationPoint> load_calibration(Database& db, std::int64_t run, const std::string& structure) {
     std::vector<CalibrationPoint> out;
     Statement s = db.prepare(
-        "SELECT scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, n_tp FROM calibration "
+        "SELECT scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, n_tp, n_dup FROM calibration "
         "WHERE run_id = ? AND structure = ? ORDER BY rowid");
     s.bind_all(run, structure);
     while (s.step()) {
-        const CalibrationPoint p{
-            s.text(0), std::uint32_t(s.int64(1)), s.real(2), s.real(3), s.real(4), s.real(5), s.real(6), s.real(7),
-            s.real(8)};
+        const CalibrationPoint p{s.text(0), std::uint32_t(s.int64(1)),
+                                 s.real(2), s.real(3),
+                                 s.real(4), s.real(5),
+                                 s.real(6), s.real(7),
+                                 s.real(8), s.real(9)};
         const auto seen = std::find_if(out.begin(), out.end(), [&](const auto& q) { return q.scene == p.scene; });
         if (seen == out.end()) {
             out.push_back(p);

@@ -53,8 +53,9 @@ struct CalibrationPoint {
     /// Lines the simulated private cache fetched, per ray (core/accel/cache_model.h), for each timed
     /// batch as it met the cache: after the batch before it.
     double n_miss = 0;
-    double n_tp = 0;  ///< objects reported per ray: prices C_HIT apart from C_RB
-    int passes = 1;   ///< calibration passes of the run this point is the fastest of (load_calibration)
+    double n_tp = 0;   ///< objects reported per ray: prices C_HIT apart from C_RB
+    double n_dup = 0;  ///< box hits a grid dropped as already reported, per ray (with n_tp, C_HIT's count)
+    int passes = 1;    ///< calibration passes of the run this point is the fastest of (load_calibration)
 };
 
 /// Whether `scene` is a micro-scene whose structure outgrows a core's private cache (the lattice of

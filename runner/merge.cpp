@@ -32,18 +32,20 @@ void check_integrity(Database& in) {
 /// before it finished gains the passes made since).
 void merge_calibration(Database& o, Database& in, std::int64_t from, std::int64_t to) {
     Statement cal = in.prepare(
-        "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, n_tp, pass FROM calibration "
+        "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, n_tp, pass, n_dup "
+        "FROM calibration "
         "WHERE run_id = ? ORDER BY rowid");
     cal.bind_all(from);
     Statement insert = o.prepare(
         "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, "
-        "n_tp, pass) SELECT ?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12,?13 WHERE NOT EXISTS (SELECT 1 FROM calibration "
+        "n_tp, pass, n_dup) SELECT ?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12,?13,?14 WHERE NOT EXISTS (SELECT 1 FROM "
+        "calibration "
         "WHERE run_id = ?1 AND structure = ?2 AND scene = ?4 AND pass = ?13)");
     while (cal.step()) {
         insert.reset();
         insert
             .bind_all(to, cal.text(0), cal.text(1), cal.text(2), cal.int64(3), cal.real(4), cal.real(5), cal.real(6),
-                      cal.real(7), cal.real(8), cal.real(9), cal.real(10), cal.int64(11))
+                      cal.real(7), cal.real(8), cal.real(9), cal.real(10), cal.int64(11), cal.real(12))
             .run();
     }
 }
@@ -126,13 +128,13 @@ void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to)
     Statement frames = in.prepare(
         "SELECT frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, duplicate, "
         "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, n_th, n_mp, "
-        "n_miss, update_wall_ns, raycast_wall_ns, writes FROM frame WHERE cell_id = ?");
+        "n_miss, update_wall_ns, raycast_wall_ns, writes, n_dup FROM frame WHERE cell_id = ?");
     frames.bind(1, from);
     Statement insert_frame = o.prepare(
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, "
         "missed, extra, duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, "
-        "n_ro_hits, n_th, n_mp, n_miss, update_wall_ns, raycast_wall_ns, writes) "
-        "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "n_ro_hits, n_th, n_mp, n_miss, update_wall_ns, raycast_wall_ns, writes, n_dup) "
+        "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     while (frames.step()) {
         insert_frame.bind(1, to);
         for (int c = 0; c < 16; ++c) insert_frame.bind(c + 2, frames.int64(c));
@@ -145,16 +147,17 @@ void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to)
         for (int c = 26; c < 28; ++c)  // NULL in frames stored before the wall times were kept
             frames.is_null(c) ? insert_frame.bind_null(c + 2) : insert_frame.bind(c + 2, frames.int64(c));
         insert_frame.bind(30, frames.int64(28));
+        insert_frame.bind(31, frames.int64(29));
         insert_frame.run();
     }
     Statement kinds = in.prepare(
         "SELECT frame, kind, rays, raycast_ns, raycast_wall_ns, hits, n_t, n_rb, n_tp, n_ro, n_ro_hits, n_th, n_mp, "
-        "n_miss FROM frame_kind WHERE cell_id = ?");
+        "n_miss, n_dup FROM frame_kind WHERE cell_id = ?");
     kinds.bind(1, from);
     Statement insert_kind = o.prepare(kFrameKindInsertSql);
     while (kinds.step()) {
         insert_kind.bind(1, to).bind(2, kinds.int64(0)).bind(3, kinds.text(1));
-        for (int c = 2; c < 14; ++c) insert_kind.bind(c + 2, kinds.int64(c));
+        for (int c = 2; c < 15; ++c) insert_kind.bind(c + 2, kinds.int64(c));
         insert_kind.run();
     }
     Statement state =

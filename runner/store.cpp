@@ -408,6 +408,15 @@ ALTER TABLE calibration ADD COLUMN pass INTEGER NOT NULL DEFAULT 0;
         R"sql(
 ALTER TABLE model_validation ADD COLUMN outside_range INTEGER NOT NULL DEFAULT 0;
 )sql",
+        // 18 → 19: the box hits a grid dropped because the ray had already reported the object in
+        // another cell (Counters::n_dup), per frame, per kind's batch and per calibration micro-scene
+        // ray; with N_TP, the cost model's C_HIT. 0 where not counted: every structure but the grids,
+        // and everything stored before.
+        R"sql(
+ALTER TABLE frame ADD COLUMN n_dup INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE frame_kind ADD COLUMN n_dup INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE calibration ADD COLUMN n_dup REAL NOT NULL DEFAULT 0;
+)sql",
     };
     return all;
 }
@@ -796,8 +805,8 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, "
         "extra, "
         "duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, "
-        "n_th, n_mp, n_miss, update_wall_ns, raycast_wall_ns, writes) VALUES "
-        "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "n_th, n_mp, n_miss, update_wall_ns, raycast_wall_ns, writes, n_dup) VALUES "
+        "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     Statement kind = db_.prepare(kFrameKindInsertSql);
     for (const FrameResult& fr : res.frames) {
         std::optional<double> sah;
@@ -810,14 +819,15 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
                    std::int64_t(fr.returned), std::int64_t(fr.correct), std::int64_t(fr.relevant),
                    std::int64_t(fr.counters.n_ro), std::int64_t(fr.counters.n_ro_hits), std::int64_t(fr.counters.n_th),
                    std::int64_t(fr.counters.n_mp), std::int64_t(fr.counters.n_miss), std::int64_t(fr.update.wall_ns),
-                   std::int64_t(fr.raycast.wall_ns), std::int64_t(fr.writes));
+                   std::int64_t(fr.raycast.wall_ns), std::int64_t(fr.writes), std::int64_t(fr.counters.n_dup));
         f.run();
         for (const KindResult& k : fr.kinds)
             kind.bind_all(cell_id, std::int64_t(fr.frame), std::string(query_kind_name(k.kind)), std::int64_t(k.rays),
                           std::int64_t(k.raycast_ns), std::int64_t(k.raycast.wall_ns), std::int64_t(k.hits),
                           std::int64_t(k.counters.n_t), std::int64_t(k.counters.n_rb), std::int64_t(k.counters.n_tp),
                           std::int64_t(k.counters.n_ro), std::int64_t(k.counters.n_ro_hits),
-                          std::int64_t(k.counters.n_th), std::int64_t(k.counters.n_mp), std::int64_t(k.counters.n_miss))
+                          std::int64_t(k.counters.n_th), std::int64_t(k.counters.n_mp), std::int64_t(k.counters.n_miss),
+                          std::int64_t(k.counters.n_dup))
                 .run();
     }
     store_cell_interval(db_, run_id, scene, config);

@@ -98,7 +98,7 @@ private:
 /// A frame_kind row (docs/database.md) in column order: what store_cell and merge write.
 inline constexpr const char* kFrameKindInsertSql =
     "INSERT INTO frame_kind(cell_id, frame, kind, rays, raycast_ns, raycast_wall_ns, hits, n_t, n_rb, n_tp, n_ro, "
-    "n_ro_hits, n_th, n_mp, n_miss) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)";
+    "n_ro_hits, n_th, n_mp, n_miss, n_dup) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)";
 
 /// The runs whose cells make up run R's plan, as SQL for `cell.run_id IN <this>` with R bound to
 /// both of its two parameters: R itself and, when R is shard K/N, the newest run of every other

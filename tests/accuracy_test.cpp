@@ -90,8 +90,9 @@ TEST(AccuracyColumns, ARunsFramesRoundTripThroughTheStoreAndMerge) {
     for (const char* level : {"candidates", "shapes"})
         results.push_back(simulate(scene, find_structure("ug"), {{"query", level}}));
     ASSERT_GT(results[1].frames.back().counters.n_ro, 0u);
-    ASSERT_GT(results[1].frames.back().counters.n_mp, 0u);  // the grid's steps' coherence is stored too
-    ASSERT_GT(results[1].frames.back().writes, 0u);         // and its update's cells written
+    ASSERT_GT(results[1].frames.back().counters.n_mp, 0u);   // the grid's steps' coherence is stored too
+    ASSERT_GT(results[1].frames.back().writes, 0u);          // and its update's cells written
+    ASSERT_GT(results[1].frames.back().counters.n_dup, 0u);  // and the box hits its cells dropped
     ASSERT_LT(results[0].frames.back().correct, results[0].frames.back().returned);
 
     const Experiment e =
@@ -116,7 +117,8 @@ TEST(AccuracyColumns, ARunsFramesRoundTripThroughTheStoreAndMerge) {
         auto db = open_read_only(path);
         for (std::size_t i = 0; i < results.size(); ++i) {
             Statement s = db->prepare(
-                "SELECT frame.frame, returned, correct, relevant, n_ro, n_ro_hits, n_th, n_mp, n_miss, writes FROM "
+                "SELECT frame.frame, returned, correct, relevant, n_ro, n_ro_hits, n_th, n_mp, n_miss, writes, n_dup "
+                "FROM "
                 "frame "
                 "JOIN cell ON "
                 "cell.id = frame.cell_id WHERE cell.cell_key LIKE '%' || ? ORDER BY frame.frame");
@@ -134,6 +136,7 @@ TEST(AccuracyColumns, ARunsFramesRoundTripThroughTheStoreAndMerge) {
                 EXPECT_EQ(std::uint64_t(s.int64(7)), f.counters.n_mp) << path;
                 EXPECT_EQ(std::uint64_t(s.int64(8)), f.counters.n_miss) << path;
                 EXPECT_EQ(std::uint64_t(s.int64(9)), f.writes) << path;
+                EXPECT_EQ(std::uint64_t(s.int64(10)), f.counters.n_dup) << path;
             }
             EXPECT_EQ(n, results[i].frames.size()) << path;
         }

@@ -7,9 +7,11 @@
 
 #include "core/base/error.h"
 #include "core/base/random.h"
+#include "core/accel/counters.h"
 #include "core/accel/registry.h"
 #include "core/accel/grid/hash_grid.h"
 #include "core/accel/grid/uniform_grid.h"
+#include "core/truth/hit_lists.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {
@@ -156,6 +158,41 @@ TEST(Grids, MoveInsideTheSameCellsKeepsStructureAndCounters) {
         EXPECT_FALSE(g->cast_any({{-499.5f, 300.5f, 0}, {-499.5f, 300.5f, 100}})) << name;
         EXPECT_EQ(g->size(), 63u);
     }
+}
+
+/// A grid meets an object again in every cell of it a ray crosses: it reports it once (N_TP) and
+/// counts the others as dropped box hits (N_DUP, a part of C_HIT's count, docs/model.md), with the
+/// per-query stamps and with the thesis' reset alike. A tree meets each object once.
+TEST(Grids, AnObjectMetInSeveralCellsIsReportedOnceAndTheRestCounted) {
+    std::vector<Object> objs;
+    Uid uid = 0;
+    for (int x = 0; x < 10; ++x)
+        for (int y = 0; y < 10; ++y)
+            for (int z = 0; z < 10; ++z) {
+                const Vec3 lo{10.f * float(x), 10.f * float(y), 10.f * float(z)};
+                objs.push_back({uid++, {lo, {lo.x + 1, lo.y + 1, lo.z + 1}}});
+            }
+    const Uid rod = uid;  // 40 long on x: several cells of every grid configuration below
+    objs.push_back({rod, {{2, 55.2f, 55.2f}, {42, 55.8f, 55.8f}}});
+    // Along the rod, in the gap between the lattice's rows: the rod is the only box met.
+    const std::vector<Segment> rays{{{0, 55.5f, 55.5f}, {50, 55.5f, 55.5f}}};
+    const auto counted = [&](const char* name, const nlohmann::json& params) {
+        auto s = find_structure(name).make(params, "params");
+        s->build(objs);
+        s->commit();
+        HitLists hits;
+        Counters c;
+        s->cast_counted(rays, hits, c);
+        EXPECT_EQ(std::vector<Uid>(hits.of(0).begin(), hits.of(0).end()), std::vector<Uid>{rod}) << name;
+        EXPECT_EQ(c.n_tp, 1u) << name;
+        return c.n_dup;
+    };
+    const std::uint64_t ug = counted("ug", {{"density", 16}});
+    EXPECT_GE(ug, 1u);
+    EXPECT_EQ(counted("ug", {{"density", 16}, {"thesis_reset", true}}), ug);
+    EXPECT_GE(counted("hg", {{"max_depth", 0}}), 1u);
+    for (const char* tree : {"bf", "dbvh", "lbvh", "wbvh"})
+        EXPECT_EQ(counted(tree, nlohmann::json::object()), 0u) << tree;
 }
 
 /// The large-object guard: an object joins the list when its cell range grows past max_cells cells

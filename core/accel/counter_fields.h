@@ -19,10 +19,11 @@ struct CounterField {
     std::uint64_t Counters::*member;
 };
 
-inline constexpr std::array<CounterField, 8> kCounterFields{{{"n_t", &Counters::n_t},
+inline constexpr std::array<CounterField, 9> kCounterFields{{{"n_t", &Counters::n_t},
                                                              {"n_th", &Counters::n_th},
                                                              {"n_rb", &Counters::n_rb},
                                                              {"n_tp", &Counters::n_tp},
+                                                             {"n_dup", &Counters::n_dup},
                                                              {"n_ro", &Counters::n_ro},
                                                              {"n_ro_hits", &Counters::n_ro_hits},
                                                              {"n_mp", &Counters::n_mp},

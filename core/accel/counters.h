@@ -21,6 +21,7 @@ struct Counters {
     std::uint64_t n_th = 0;       ///< of a tree's steps, node boxes hit: children pushed (0 for grids)
     std::uint64_t n_rb = 0;       ///< ray–box tests against objects' boxes
     std::uint64_t n_tp = 0;       ///< objects the traversal reported (box tests that hit, or candidates)
+    std::uint64_t n_dup = 0;      ///< box tests that hit an object already reported (a grid's other cells)
     std::uint64_t n_ro = 0;       ///< narrow-phase tests of exact shapes (thesis eq. 5.3, C_RO)
     std::uint64_t n_ro_hits = 0;  ///< of those, the shapes hit
     std::uint64_t n_mp = 0;       ///< steps whose outcome a history predictor missed (outcome_predictor.h)
@@ -33,8 +34,8 @@ struct Counters {
     std::uint64_t n_bfp() const { return n_ro - n_ro_hits; }
 
     Counters& operator+=(const Counters& o) {
-        n_t += o.n_t, n_th += o.n_th, n_rb += o.n_rb, n_tp += o.n_tp, n_ro += o.n_ro, n_ro_hits += o.n_ro_hits,
-            n_mp += o.n_mp, n_miss += o.n_miss;
+        n_t += o.n_t, n_th += o.n_th, n_rb += o.n_rb, n_tp += o.n_tp, n_dup += o.n_dup, n_ro += o.n_ro,
+            n_ro_hits += o.n_ro_hits, n_mp += o.n_mp, n_miss += o.n_miss;
         return *this;
     }
     friend bool operator==(const Counters&, const Counters&) = default;
@@ -47,6 +48,7 @@ struct NoCounting {
     constexpr void node_hits(std::uint64_t = 1) {}
     constexpr void box_tests(std::uint64_t = 1) {}
     constexpr void hits(std::uint64_t = 1) {}
+    constexpr void duplicates(std::uint64_t = 1) {}
     constexpr void reads(const void*, std::size_t) {}
     constexpr void branch(std::uint32_t) {}
 };
@@ -67,6 +69,8 @@ struct Counting {
     void node_hits(std::uint64_t n = 1) { sums->n_th += n; }
     void box_tests(std::uint64_t n = 1) { sums->n_rb += n; }
     void hits(std::uint64_t n = 1) { sums->n_tp += n; }
+    /// A box hit whose object this ray already reported: dropped, but its lane, slot and stamp read.
+    void duplicates(std::uint64_t n = 1) { sums->n_dup += n; }
     void reads(const void* p, std::size_t bytes) {
         if (cache) cache->read(p, bytes);
     }

@@ -263,7 +263,10 @@ bool HashGrid::visit_cell(Ctx& ctx, int depth, const Index& c, double t_in, doub
              hits &= hits - 1) {
             const int lane = __builtin_ctz(hits);
             const std::uint32_t slot = b.slot[lane];
-            if (ctx.stamps[slot] == ctx.stamp) continue;
+            if (ctx.stamps[slot] == ctx.stamp) {
+                ctx.count.duplicates();
+                continue;
+            }
             ctx.stamps[slot] = ctx.stamp;
             ctx.count.hits();
             if (!ctx.visit(entries_[slot].uid, tn[lane])) return false;

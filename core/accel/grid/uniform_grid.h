@@ -157,10 +157,16 @@ void UniformGrid::traverse(const Segment& s, Count& count, Visit&& visit, StampS
                 // An object in several cells is tested in each (cheaper than a branch per object
                 // to skip it) and reported once.
                 if (reset) {
-                    if (tested[slot]) continue;
+                    if (tested[slot]) {
+                        count.duplicates();
+                        continue;
+                    }
                     tested[slot] = 1;
                 } else {
-                    if (stamps[slot] == stamp) continue;
+                    if (stamps[slot] == stamp) {
+                        count.duplicates();
+                        continue;
+                    }
                     stamps[slot] = stamp;
                 }
                 count.hits();
