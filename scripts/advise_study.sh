@@ -16,8 +16,9 @@
 # features), RCB_SEEN (maps the tuning saw, space-separated; default the maps of
 # experiments/tune-advise.json when RCB_TUNING is unset, else none), RCB_REPETITIONS (default 5),
 # RCB_SEED (advise --seed, the random baseline's; default the tuning's search seed), RCB_ADVISE_ARGS
-# (more advise options, split at spaces, e.g. "--verify-top 1 --refine 8").
-# Writes RCB_STUDY_DIR/MAP-brushes.rcbscene (20 frames of 1% dynamics, seed 1, kept and reused),
+# (more advise options, split at spaces, e.g. "--verify-top 1 --refine 8"), RCB_BSP_MODE (how each
+# map is imported: brushes, the default, or triangles).
+# Writes RCB_STUDY_DIR/MAP-MODE.rcbscene (20 frames of 1% dynamics, seed 1, kept and reused),
 # advise-MAP.json and summary.txt (tab-separated). Needs jq (scripts/setup.sh installs it). Pin it to an idle core (taskset -c 0):
 # every map measures each tuned space whole.
 set -euo pipefail
@@ -25,11 +26,13 @@ cd "$(dirname "$0")/.."
 rcbench=${RCBENCH:-build/rcbench}
 dir=${RCB_STUDY_DIR:-results/advise-study}
 reps=${RCB_REPETITIONS:-5}
+mode=${RCB_BSP_MODE:-brushes}
 fail() {
   echo "advise_study: $*" >&2
   exit 2
 }
 command -v jq >/dev/null || fail "needs jq (Debian package jq) to read advise's JSON"
+[ "$mode" = brushes ] || [ "$mode" = triangles ] || fail "RCB_BSP_MODE=$mode: not brushes or triangles"
 [ -x "$rcbench" ] || fail "$rcbench is not an executable; build it or set RCBENCH"
 shopt -s nullglob
 pk3s=("${RCB_MAPS_DIR:-data/maps}"/*.pk3)
@@ -64,8 +67,8 @@ if [ -n "${RCB_ADVISE_ARGS:-}" ]; then
 fi
 for map in "${maps[@]}"; do
   pk3=${pk3_of[$map]}
-  scene=$dir/$map-brushes.rcbscene
-  [ -f "$scene" ] || "$rcbench" scene import "$pk3" --map "$map" --bsp-mode brushes --frames 20 -o "$scene" >/dev/null
+  scene=$dir/$map-$mode.rcbscene
+  [ -f "$scene" ] || "$rcbench" scene import "$pk3" --map "$map" --bsp-mode "$mode" --frames 20 -o "$scene" >/dev/null
   "$rcbench" advise "$scene" --tuning "$tuning" --exhaustive --json --warmup 2 --repetitions "$reps" \
     "${extra[@]}" >"$dir/advise-$map.json"
 done
@@ -73,9 +76,9 @@ done
 # One line per map and tuned structure, then the unseen maps' totals.
 files=()
 for map in "${maps[@]}"; do files+=("$dir/advise-$map.json"); done
-jq -r -s --arg seen " $seen " '
+jq -r -s --arg seen " $seen " --arg mode "$mode" '
   def pct: (. * 1000 | round / 10 | tostring) + "%";
-  [ .[] | (.scene | sub(".*/"; "") | sub("-brushes.rcbscene$"; "")) as $map
+  [ .[] | (.scene | sub(".*/"; "") | sub("-" + $mode + ".rcbscene$"; "")) as $map
         | .exhaustive[] | {map: $map, seen: ($seen | contains(" " + $map + " ")), structure,
                            budget, regret: (.methods | map({(.method): .regret}) | add)} ] as $rows
   | ($rows | map(select(.seen | not))) as $unseen
