@@ -346,31 +346,22 @@ StructureCalibration fit_points(const std::string& structure, std::vector<Calibr
     out.points = std::move(points);
     const std::vector<CalibrationPoint>& pts = out.points;
     if (pts.empty()) return out;
-    // Per term, the micro-scenes' counters it multiplies (summed, as in the frames); none: a constant.
-    std::vector<std::vector<double CalibrationPoint::*>> counted;
-    const auto count = [](const std::vector<double CalibrationPoint::*>& of, const CalibrationPoint& q) {
-        if (of.empty()) return 1.0;
-        double n = 0;
-        for (double CalibrationPoint::*c : of) n += q.*c;
-        return n;
-    };
+    std::vector<double CalibrationPoint::*> counted;  // per term; nullptr: a constant
     LinearProblem p;
     for (const bool constant : {false, true})
         for (const CostTerm& t : cost_terms()) {
             if (!t.prior || t.counters.empty() != constant || (!hits && std::string_view(t.name) == "C_HIT")) continue;
-            std::vector<double CalibrationPoint::*> of;
-            for (const char* symbol : t.counters)
-                if (double CalibrationPoint::*c = find_counter(symbol).calibrated) of.push_back(c);
-            if (!constant && (of.empty() || !std::any_of(pts.begin(), pts.end(),
-                                                         [&](const CalibrationPoint& q) { return count(of, q) > 0; })))
+            double CalibrationPoint::*counter = constant ? nullptr : find_counter(t.counters.front()).calibrated;
+            if (!constant && (!counter || !std::any_of(pts.begin(), pts.end(),
+                                                       [&](const CalibrationPoint& q) { return q.*counter > 0; })))
                 continue;
             p.terms.push_back(t.name);
-            counted.push_back(std::move(of));
+            counted.push_back(counter);
         }
     for (std::size_t i = 0; i < pts.size(); ++i) {
         if (!(pts[i].ns_per_ray > 0)) continue;
         std::vector<double> row;
-        for (const auto& of : counted) row.push_back(count(of, pts[i]));
+        for (double CalibrationPoint::*counter : counted) row.push_back(counter ? pts[i].*counter : 1.0);
         p.x.push_back(row);
         p.y.push_back(pts[i].ns_per_ray);
         p.group.push_back(int(i));

@@ -113,16 +113,14 @@ const std::vector<CostTerm>& cost_terms() {
          .unit = "ns per node box hit",
          .in_tuning = true,
          .traversal = true},
-        // What a box hit costs beyond its test: the lane picked out, the object's slot and stamp
-        // read, and, if the ray has not reported it yet, the entry in its list. A grid meets an
-        // object again in every cell of it the ray crosses and drops it there (N_DUP); a map's long
-        // triangles make that as common as a reported hit. Eq. 5.3 prices true and false
-        // positives alike. The calibration's stack (every test a hit) and cluster (tests that
-        // seldom hit) pin it apart from C_RB where they can (fit_calibration).
+        // What a reported hit costs beyond its box test (recording it in the ray's list); eq. 5.3
+        // prices true and false positives alike. The calibration's stack (every test a hit) and
+        // cluster (tests that seldom hit) pin it apart from C_RB where they can (fit_calibration).
+        // A grid's dropped hits (N_DUP) are not priced: counting them did not help (docs/model.md).
         {.name = "C_HIT",
          .target = raycast,
-         .counters = {"N_TP", "N_DUP"},
-         .unit = "ns per box hit",
+         .counters = {"N_TP"},
+         .unit = "ns per reported hit",
          .prior = true,
          .in_tuning = true,
          .optional_in_json = true},

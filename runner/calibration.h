@@ -54,7 +54,7 @@ struct CalibrationPoint {
     /// batch as it met the cache: after the batch before it.
     double n_miss = 0;
     double n_tp = 0;   ///< objects reported per ray: prices C_HIT apart from C_RB
-    double n_dup = 0;  ///< box hits a grid dropped as already reported, per ray (with n_tp, C_HIT's count)
+    double n_dup = 0;  ///< box hits a grid dropped as already reported, per ray
     int passes = 1;    ///< calibration passes of the run this point is the fastest of (load_calibration)
 };
 

@@ -410,8 +410,8 @@ ALTER TABLE model_validation ADD COLUMN outside_range INTEGER NOT NULL DEFAULT 0
 )sql",
         // 18 → 19: the box hits a grid dropped because the ray had already reported the object in
         // another cell (Counters::n_dup), per frame, per kind's batch and per calibration micro-scene
-        // ray; with N_TP, the cost model's C_HIT. 0 where not counted: every structure but the grids,
-        // and everything stored before.
+        // ray (docs/model.md, "Hits"). 0 where not counted: every structure but the grids, and
+        // everything stored before.
         R"sql(
 ALTER TABLE frame ADD COLUMN n_dup INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE frame_kind ADD COLUMN n_dup INTEGER NOT NULL DEFAULT 0;

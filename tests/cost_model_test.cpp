@@ -107,26 +107,6 @@ TEST(Identifiability, HitsPricedApartFromTestsWhereTheMicroScenesSeparateThem) {
     EXPECT_TRUE(peer.term("C_RB")->pinned) << peer.term("C_RB")->why;
 }
 
-TEST(Identifiability, HitsPricedOverReportedAndDroppedHitsAlike) {
-    // A grid drops the box hits of an object it has reported in an earlier cell (N_DUP); each
-    // costs what a reported hit does. With the stack's hits mostly dropped ones, the calibration
-    // still finds C_HIT from N_TP + N_DUP; from N_TP alone it could not.
-    constexpr double kHit = 1.2;
-    std::vector<CalibrationPoint> points = calibration_points(1, 1, 7);
-    const double reported[] = {0, 0, 6, 0, 16, 1, 0, 64}, dropped[] = {0, 0, 6, 0, 240, 1, 0, 192};
-    for (std::size_t i = 0; i < points.size(); ++i) {
-        points[i].n_tp = reported[i], points[i].n_dup = dropped[i];
-        points[i].ns_per_ray += kHit * (reported[i] + dropped[i]);
-    }
-    CalibrationPoint cluster{"cluster", 512, 90, 12, kRb * 90 + kT * 12 + kPrep + kHit * 0.5, 0.1};
-    cluster.n_tp = 0.4, cluster.n_dup = 0.1;
-    points.push_back(cluster);
-    const StructureCalibration c = fit_calibration("grid", points);
-    ASSERT_NE(c.term("C_HIT"), nullptr);
-    EXPECT_NEAR(c.term("C_HIT")->value, kHit, 0.15 * kHit);
-    EXPECT_NEAR(c.term("C_RB")->value, kRb, 0.15 * kRb);
-}
-
 TEST(Identifiability, CollinearCountersAreReportedWithoutPriors) {
     const std::vector<FrameObservation> frames = collinear_frames(1);
     LinearProblem p;
