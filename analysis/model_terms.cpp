@@ -113,10 +113,9 @@ const std::vector<CostTerm>& cost_terms() {
          .unit = "ns per node box hit",
          .in_tuning = true,
          .traversal = true},
-        // What a reported hit costs beyond its box test (recording it in the ray's list); eq. 5.3
-        // prices true and false positives alike. The calibration's stack (every test a hit) and
-        // cluster (tests that seldom hit) pin it apart from C_RB where they can (fit_calibration).
-        // A grid's dropped hits (N_DUP) are not priced: counting them did not help (docs/model.md).
+        // What a reported hit costs beyond its box test (its entry in the ray's list; a grid's dropped
+        // hits, N_DUP, are left out: docs/model.md). Eq. 5.3 prices true and false positives alike;
+        // the calibration's stack and cluster pin it apart from C_RB where they can (fit_calibration).
         {.name = "C_HIT",
          .target = raycast,
          .counters = {"N_TP"},
