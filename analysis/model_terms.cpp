@@ -19,7 +19,6 @@ const std::vector<FrameCounter>& frame_counters() {
             {"N_RB", "frame.n_rb", "n_rb", CounterScale::per_ray, &F::n_rb, nullptr, &C::n_rb},
             {"N_T", "frame.n_t", "n_t", CounterScale::per_ray, &F::n_t, nullptr, &C::n_t},
             {"N_TP", "frame.n_tp", "n_tp", CounterScale::per_ray, &F::n_tp, nullptr, &C::n_tp},
-            {"N_DUP", "frame.n_dup", "n_dup", CounterScale::per_ray, &F::n_dup, nullptr, &C::n_dup},
             {"N_RO", "frame.n_ro", "n_ro", CounterScale::per_ray, &F::n_ro, nullptr, nullptr},
             {"N_TH", "frame.n_th", "n_th", CounterScale::per_ray, &F::n_th, nullptr, nullptr},
             {"N_MP", "frame.n_mp", "n_mp", CounterScale::per_ray, &F::n_mp, nullptr, &C::n_mp},

@@ -36,7 +36,6 @@ struct FrameObservation {
     double n_th = 0;                     ///< node boxes hit per ray (trees; 0 where not counted)
     double n_mp = 0;                     ///< steps a history predictor missed per ray (0 where not counted)
     double n_miss = 0;                   ///< lines a simulated private cache fetched per ray (0 where not counted)
-    double n_dup = 0;                    ///< box hits a grid dropped as already reported, per ray (0 elsewhere)
     double inserts = 0, removes = 0, moves = 0, objects = 0;
     double writes = 0;  ///< cells, entries and nodes the frame's update wrote (0 where not counted)
     double memory_mb = 0;

@@ -161,7 +161,7 @@ TEST(Grids, MoveInsideTheSameCellsKeepsStructureAndCounters) {
 }
 
 /// A grid meets an object again in every cell of it a ray crosses: it reports it once (N_TP) and
-/// counts the others as dropped box hits (N_DUP, a part of C_HIT's count, docs/model.md), with the
+/// counts the others as dropped box hits (N_DUP, stored but not priced: docs/model.md), with the
 /// per-query stamps and with the thesis' reset alike. A tree meets each object once.
 TEST(Grids, AnObjectMetInSeveralCellsIsReportedOnceAndTheRestCounted) {
     std::vector<Object> objs;

@@ -174,7 +174,7 @@ TEST(KindResults, EveryCounterIsReadThroughTheCoreList) {
         EXPECT_DOUBLE_EQ(o.*(c.field), double(f.counters.*(counted->member)) / f.rays) << c.alias;
         ++per_ray;
     }
-    EXPECT_EQ(per_ray, 8u);  // N_RB, N_T, N_TP, N_DUP, N_RO, N_TH, N_MP, N_MISS
+    EXPECT_EQ(per_ray, 7u);  // N_RB, N_T, N_TP, N_RO, N_TH, N_MP, N_MISS
     EXPECT_EQ(o.objects, double(res.objects));
 }
 
