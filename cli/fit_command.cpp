@@ -230,6 +230,10 @@ void add_fit_command(CLI::App& app) {
         }
         ResultStore store(o->db);  // migrates, so the fit tables exist
         const std::int64_t run = resolve_run(store.db(), o->run, o->experiment);
+        if (repeat)
+            note_cache_difference(run_cache(store.db(), run), o->db + ":" + std::to_string(run),
+                                  run_cache(*other, other_run), repeat->path + ":" + std::to_string(other_run),
+                                  std::cerr);
         const RunFit fit = fit_run(store.db(), run, o->repetitions);
         const std::vector<StructureModels>& models = fit.models;
 

@@ -3,6 +3,8 @@
 #include <charconv>
 #include <filesystem>
 
+#include <nlohmann/json.hpp>
+
 #include "analysis/cost_model.h"
 #include "runner/sqlite.h"
 
@@ -31,6 +33,21 @@ std::int64_t resolve_ref(Database& db, const RunRef& ref) {
         }
         return resolve_run(db, ref.run, "");
     });
+}
+
+std::string run_cache(Database& db, std::int64_t run) {
+    Statement s = db.prepare("SELECT experiment_content FROM run WHERE id = ?");
+    s.bind(1, run);
+    if (!s.step()) return "warm";
+    const nlohmann::json j = nlohmann::json::parse(s.text(0), nullptr, false);
+    return j.is_object() && j.value("cache", "") == "cold" ? "cold" : "warm";
+}
+
+void note_cache_difference(const std::string& cache_a, const std::string& name_a, const std::string& cache_b,
+                           const std::string& name_b, std::ostream& err) {
+    if (cache_a == cache_b) return;
+    err << "note: " << name_a << " ran with a " << cache_a << " cache and " << name_b << " with a " << cache_b
+        << " one (the experiment's \"cache\"): their update times measure different states\n";
 }
 
 }  // namespace rcb

@@ -2,6 +2,7 @@
 // A run named on the command line as "A.db" or "A.db:RUN" (validate's --train and --test, fit's
 // --repeat), and its checks.
 #include <cstdint>
+#include <ostream>
 #include <string>
 
 #include "core/base/error.h"
@@ -33,5 +34,14 @@ auto naming(const RunRef& ref, F f) {
 /// The run id `ref` names in `db` (its newest run with cells when it names none); InputError naming
 /// the option when `db` has no such run.
 std::int64_t resolve_ref(Database& db, const RunRef& ref);
+
+/// The cache a run's updates met: "cold" when its experiment file says "cache": "cold"
+/// (core/sim/cache_sweep.h), else "warm".
+std::string run_cache(Database& db, std::int64_t run);
+
+/// One line on `err` when two runs met different caches (run_cache): their times, the update's
+/// most, measure different states, so an error between them is neither a model's nor a machine's.
+void note_cache_difference(const std::string& cache_a, const std::string& name_a, const std::string& cache_b,
+                           const std::string& name_b, std::ostream& err);
 
 }  // namespace rcb

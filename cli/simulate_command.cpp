@@ -11,6 +11,7 @@
 #include "core/base/error.h"
 #include "core/base/output_file.h"
 #include "cli/table.h"
+#include "runner/calibration.h"
 
 namespace rcb {
 namespace {
@@ -93,6 +94,7 @@ void add_simulate_command(CLI::App& app) {
         bool no_count = false;
         bool json = false;
         std::string json_out;
+        std::string cache = "warm";
     };
     auto o = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand("simulate",
@@ -115,6 +117,12 @@ void add_simulate_command(CLI::App& app) {
     cmd->add_flag("--no-verify", o->no_verify, "Skip the ground-truth comparison (faster on huge scenes)");
     cmd->add_flag("--no-count", o->no_count, "Skip the counting pass (N_T, N_RB, N_TP)");
     cmd->add_flag("--validate", o->sim.validate, "Check the structure's invariants after every frame");
+    cmd->add_option("--cache", o->cache,
+                    "warm: each phase meets the caches as the last left them (the thesis' loop); cold: before each "
+                    "frame's update, read a buffer twice the largest cache, so update and ray cast start cold "
+                    "(docs/model.md, \"A cold cache before each update\")")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"warm", "cold"}));
     cmd->add_flag("--json", o->json, "Print one JSON object per run (one line each) instead of tables");
     cmd->add_option("--json-out", o->json_out, "Also write one JSON object per run (one line each) to this file");
     cmd->callback([o] {
@@ -123,6 +131,7 @@ void add_simulate_command(CLI::App& app) {
                              ")");
         o->sim.verify = !o->no_verify;
         o->sim.count = !o->no_count;
+        if (o->cache == "cold") o->sim.cold_cache_bytes = cold_sweep_bytes(read_cache_sizes());
         nlohmann::json params = nlohmann::json::object();
         for (const std::string& kv : o->params_text) {
             auto [key, value] = parse_key_value(kv);

@@ -179,12 +179,16 @@ ValidateOutcome validate_test_run(const RunRef& train_ref, const RunRef& test_re
                                   OverRepetitions how) {
     ValidateOutcome out;
     LoadedRun train;
+    std::string train_cache;
     {
         auto db = naming(train_ref, [&] { return open_read_only(train_ref.path); });
         train = load_run(*db, train_ref, how);
+        train_cache = run_cache(*db, train.run);
     }
     ResultStore store = naming(test_ref, [&] { return ResultStore(test_ref.path); });
     const LoadedRun test = load_run(store.db(), test_ref, how);
+    note_cache_difference(train_cache, train_ref.path + ":" + std::to_string(train.run),
+                          run_cache(store.db(), test.run), test_ref.path + ":" + std::to_string(test.run), std::cerr);
     out.predicted_run = test.run;
     out.train_run = train.run;
     const std::string train_name = train_ref.path + ":" + std::to_string(train.run);

@@ -67,6 +67,12 @@ std::vector<CacheLevel> read_cache_sizes(const std::string& dir) {
     return out;
 }
 
+std::uint64_t cold_sweep_bytes(const std::vector<CacheLevel>& caches) {
+    std::uint64_t largest = 0;
+    for (const CacheLevel& c : caches) largest = std::max(largest, c.bytes);
+    return largest ? 2 * largest : std::uint64_t(64) << 20;
+}
+
 namespace {
 
 /// A fixed generator: the micro-scenes are the same on every machine and every run.

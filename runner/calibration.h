@@ -42,6 +42,11 @@ std::uint64_t parse_cache_size(const std::string& text, const std::string& where
 /// gives none (a machine without sysfs); a malformed entry is an InputError naming its file.
 std::vector<CacheLevel> read_cache_sizes(const std::string& dir = "/sys/devices/system/cpu/cpu0/cache");
 
+/// The buffer a cold-cache run reads before each update (core/sim/cache_sweep.h): twice the
+/// largest of `caches`, so no line of a smaller working set survives a sweep whatever the
+/// replacement policy; 64 MiB when the machine reports no cache.
+std::uint64_t cold_sweep_bytes(const std::vector<CacheLevel>& caches);
+
 /// One micro-scene measured: mean counters per ray and the median time per ray over repeats.
 struct CalibrationPoint {
     std::string scene;

@@ -567,7 +567,7 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
         check_keys(
             j, "",
             {"name", "description", "frames", "warmup_frames", "repetitions", "max_repetitions", "repeat_interval",
-             "rays_per_frame", "ray_mix", "seeds", "threads", "verify", "scenes", "structures"});
+             "rays_per_frame", "ray_mix", "seeds", "threads", "verify", "cache", "scenes", "structures"});
         Experiment e;
         e.content = text;
         e.hash = stable_hash(text);
@@ -582,6 +582,10 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
         e.warmup_frames = static_cast<std::uint32_t>(get_uint(j, "warmup_frames", "", 0, 1000, 0));
         e.threads = static_cast<std::uint32_t>(get_uint(j, "threads", "", 1, 1024, 1));
         e.verify = get_bool(j, "verify", "", true);
+        const std::string cache = get_string(j, "cache", "", "warm");
+        if (cache != "warm" && cache != "cold")
+            fail("cache", "expected \"warm\" or \"cold\", got " + json_excerpt(j["cache"]));
+        e.cold_cache = cache == "cold";
         SceneDefaults d;
         d.frames = static_cast<std::uint32_t>(get_uint(j, "frames", "", 1, 1'000'000, d.frames));
         d.rays = static_cast<std::uint32_t>(get_uint(j, "rays_per_frame", "", 0, 100'000'000, d.rays));

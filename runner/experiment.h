@@ -60,6 +60,9 @@ struct Experiment {
     std::uint32_t warmup_frames = 0;
     std::uint32_t threads = 1;  ///< TBB parallelism for the run (verification, threaded structures)
     bool verify = true;
+    /// "cache": "cold": every frame's update starts from caches swept of the structure
+    /// (core/sim/cache_sweep.h); "warm", the default, is the thesis' loop.
+    bool cold_cache = false;
     std::vector<SceneSpec> scenes;
     std::vector<ConfigSpec> configs;
     /// Repetition-major: repetition r of every cell (scene × configuration) runs before

@@ -51,6 +51,10 @@ TEST(CacheSizes, ParseFromASysfsFolder) {
     EXPECT_EQ(caches[2].level, 3);
     EXPECT_EQ(caches[2].bytes, 96u << 20);
 
+    // A cold-cache run reads twice the largest cache before each update; 64 MiB when none is known.
+    EXPECT_EQ(cold_sweep_bytes(caches), std::uint64_t(192) << 20);
+    EXPECT_EQ(cold_sweep_bytes({}), std::uint64_t(64) << 20);
+
     EXPECT_TRUE(read_cache_sizes((dir / "absent").string()).empty());
     write_cache(dir, 4, "4", "Unified", "lots");
     test::expect_input_error([&] { read_cache_sizes(dir.string()); }, "index4/size");

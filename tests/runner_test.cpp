@@ -44,8 +44,10 @@ TEST(Experiment, ValidationNamesTheJsonPath) {
     EXPECT_EQ(error_of("{").find("exp.json: not valid JSON"), 0u);
     EXPECT_EQ(
         error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frame": 3})"),
-        "exp.json: frame: unknown key (known: description, frames, max_repetitions, name, ray_mix, rays_per_frame, "
-        "repeat_interval, repetitions, scenes, seeds, structures, threads, verify, warmup_frames)");
+        "exp.json: frame: unknown key (known: cache, description, frames, max_repetitions, name, ray_mix, "
+        "rays_per_frame, repeat_interval, repetitions, scenes, seeds, structures, threads, verify, warmup_frames)");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "cache": "hot"})"),
+              "exp.json: cache: expected \"warm\" or \"cold\", got \"hot\"");
     // The range criterion's old key is refused by name, pointing to the new one.
     EXPECT_EQ(
         error_of(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "repeat_spread": 0.05})"),
@@ -94,6 +96,14 @@ TEST(Experiment, ValidationNamesTheJsonPath) {
         error_of(
             R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frames": 3, "warmup_frames": 3})"),
         "exp.json: warmup_frames: leaves no measured frame in scene uni-s");
+}
+
+TEST(Experiment, TheCacheIsWarmUnlessTheFileAsksForCold) {
+    EXPECT_FALSE(parse_experiment(kMinimal, "exp.json", ".").cold_cache);
+    EXPECT_TRUE(
+        parse_experiment(R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "cache": "cold"})",
+                         "exp.json", ".")
+            .cold_cache);
 }
 
 TEST(Experiment, OversizedOrMalformedRangesAndPlansAreRefusedBeforeAllocation) {

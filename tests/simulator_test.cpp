@@ -3,6 +3,7 @@
 #include <tbb/global_control.h>
 
 #include "core/accel/registry.h"
+#include "core/sim/cache_sweep.h"
 #include "core/sim/simulator.h"
 #include "core/accel/brute_force.h"
 #include "tests/test_scenes.h"
@@ -119,6 +120,31 @@ TEST(Simulator, OneThreadedConfigurationsAreTimedOnTheThreadsCpuClockAndKeepTheW
     const SimulationResult two = simulate(r, find_structure("bf"), {{"cast_threads", 2}}, o);
     EXPECT_EQ(two.clock, TimingClock::wall);
     for (const FrameResult& f : two.frames) EXPECT_EQ(f.raycast_ns, f.raycast.wall_ns);
+}
+
+TEST(Simulator, AColdCacheChangesNoAnswerOrCounterAndIsReported) {
+    const Recording r = test::generated_scene("uniform", 300, 4, 2);
+    SimulationOptions warm, cold;
+    cold.cold_cache_bytes = std::uint64_t(1) << 20;
+    for (const char* name : {"bf", "ug", "wbvh"}) {
+        const SimulationResult a = simulate(r, find_structure(name), {}, warm);
+        const SimulationResult b = simulate(r, find_structure(name), {}, cold);
+        EXPECT_EQ(a.mismatches() + b.mismatches(), 0u) << name;
+        ASSERT_EQ(a.frames.size(), b.frames.size());
+        for (std::size_t i = 0; i < a.frames.size(); ++i) {
+            EXPECT_EQ(a.frames[i].hits, b.frames[i].hits) << name;
+            EXPECT_EQ(a.frames[i].writes, b.frames[i].writes) << name;
+            EXPECT_EQ(a.frames[i].counters.n_t, b.frames[i].counters.n_t) << name;
+            EXPECT_EQ(a.frames[i].counters.n_rb, b.frames[i].counters.n_rb) << name;
+        }
+        EXPECT_EQ(a.to_json()["cache"], "warm");
+        EXPECT_FALSE(a.to_json().contains("cache_sweep_bytes"));
+        EXPECT_EQ(b.to_json()["cache"], "cold");
+        EXPECT_EQ(b.to_json()["cache_sweep_bytes"], std::uint64_t(1) << 20);
+    }
+    // Whole lines only: a sweep reads one word of each.
+    EXPECT_EQ(CacheSweep(100).bytes(), 64u);
+    EXPECT_EQ(CacheSweep(0).bytes(), 0u);
 }
 
 }  // namespace

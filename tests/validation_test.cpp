@@ -339,6 +339,23 @@ TEST(ValidateCommand, AnOlderDatabaseIsMigratedAndGainsTheTable) {
     EXPECT_NO_THROW(ResultStore{old});  // the writers' schema check accepts it too
 }
 
+TEST(ValidateCommand, RunsThatMetDifferentCachesAreNoted) {
+    const test::TempDir dir("validation");
+    const std::string a = dir.file("a.db"), b = dir.file("b.db");
+    write_run(a, known_run(5, 2, 2, 50, 2000, 0.02), "ua");
+    write_run(b, known_run(5, 2, 2, 50, 2000, 0.02), "ub");
+    const std::string note = "with a warm cache and " + b + ":1 with a cold one";
+    EXPECT_EQ(rcbench({"validate", "--train", a, "--test", b, "--resamples", "10"}).err.find("note:"),
+              std::string::npos);
+    ResultStore(b).db().exec(R"(UPDATE run SET experiment_content = '{"cache": "cold"}')");
+    for (const std::vector<std::string>& argv : std::vector<std::vector<std::string>>{
+             {"validate", "--train", a, "--test", b, "--resamples", "10"}, {"fit", a, "--repeat", b}}) {
+        const ::test::Outcome r = rcbench(argv);
+        EXPECT_EQ(r.code, 0) << r.err;
+        EXPECT_NE(r.err.find(note), std::string::npos) << argv[0] << ": " << r.err;
+    }
+}
+
 TEST(ValidateCommand, BadInputNamesTheOptionAndExitsTwo) {
     const test::TempDir dir("validation");
     const std::string a = dir.file("a.db"), empty = dir.file("empty.db");

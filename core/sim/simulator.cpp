@@ -10,6 +10,7 @@
 #include "core/base/error.h"
 #include "core/accel/counter_fields.h"
 #include "core/accel/query_level.h"
+#include "core/sim/cache_sweep.h"
 
 namespace rcb {
 namespace {
@@ -211,6 +212,8 @@ nlohmann::json SimulationResult::to_json() const {
     j["raycast_ns_median"] = r.median;
     j["raycast_ns_mad"] = r.mad;
     j["clock"] = clock_name(clock);
+    j["cache"] = cold_cache_bytes ? "cold" : "warm";
+    if (cold_cache_bytes) j["cache_sweep_bytes"] = cold_cache_bytes;
     nlohmann::json frame, warmup, update, raycast, update_wall, raycast_wall, writes, rays, closest, any, hits, missed,
         extra, duplicate, returned, correct, relevant, memory, stats;
     std::array<nlohmann::json, kCounterFields.size()> counted;
@@ -290,6 +293,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
     const Contract contract = contract_of(result.params);
 
     result.clock = timing_clock(result.params);
+    result.cold_cache_bytes = options.cold_cache_bytes;
     const Stopwatch build_watch;
     structure->build(recording.initial);
     structure->commit();
@@ -299,6 +303,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
     if (options.validate) validate_or_throw(*structure, info.name, 0);
 
     LiveSet live(recording.initial);
+    CacheSweep cold(options.cold_cache_bytes);
     HitLists hits, counted;
     KindBatches batches;
     for (std::size_t i = 0; i < frames; ++i) {
@@ -316,6 +321,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
         }
 
         const std::uint64_t writes_before = structure->writes();
+        cold.sweep();
         const Stopwatch update_watch;
         for (Uid uid : frame.removes) structure->remove(uid);
         for (const Object& o : frame.inserts) structure->insert(o);

@@ -2,7 +2,8 @@
 /// The simulator (thesis §5.2.2): replays a recording against one structure.
 ///
 ///     build (timed)
-///     per frame:  apply the frame's changes + commit (timed: update)
+///     per frame:  with a cold cache, read a buffer larger than every cache (cache_sweep.h)
+///                 apply the frame's changes + commit (timed: update)
 ///                 cast the frame's rays as one batch, each with its query kind (timed: ray cast)
 ///                 verify every ray's hits against the ground truth (not timed): the
 ///                 configuration's contract (query_level.h) and its accuracy against the shapes
@@ -44,6 +45,9 @@ struct SimulationOptions {
     bool validate = false;            ///< call Structure::validate() after the build and every commit
     std::uint32_t max_frames = 0;     ///< replay at most this many frames (0: all)
     std::uint32_t warmup_frames = 0;  ///< the first frames run but are left out of the summaries
+    /// 0: warm, the thesis' loop (each phase meets the cache as the last left it). Otherwise every
+    /// frame's update starts cold: a buffer of this many bytes is read first (cache_sweep.h).
+    std::uint64_t cold_cache_bytes = 0;
 };
 
 /// One query kind's share of a frame that has rays of another kind than `all`: its rays, their
@@ -101,6 +105,7 @@ struct SimulationResult {
     nlohmann::json params;  ///< complete: defaults filled in
     std::size_t objects = 0;
     TimingClock clock = TimingClock::wall;  ///< what build_ns, update_ns and raycast_ns measure
+    std::uint64_t cold_cache_bytes = 0;     ///< SimulationOptions' (0: warm)
     std::uint64_t build_ns = 0;
     std::uint64_t memory_bytes = 0;  ///< after the build
     std::vector<FrameResult> frames;
