@@ -212,9 +212,15 @@ TEST(KindResults, FrameKindMigratesIsStoredForFramesWithKindsAndSurvivesMerge) {
     }
     const std::string sums =
         "SELECT count(*) FROM frame JOIN cell ON cell.id = frame.cell_id WHERE cell.cell_key LIKE '%mixed' AND "
-        "frame.frame != 3 AND (rays, raycast_ns, raycast_wall_ns, hits, n_t, n_rb, n_tp, n_th, n_mp) = (SELECT "
+        "frame.frame != 3 AND (rays, raycast_ns, raycast_wall_ns, hits, n_t, n_rb, n_tp, n_th, n_mp, n_dup) = (SELECT "
         "sum(k.rays), sum(k.raycast_ns), sum(k.raycast_wall_ns), sum(k.hits), sum(k.n_t), sum(k.n_rb), sum(k.n_tp), "
-        "sum(k.n_th), sum(k.n_mp) FROM frame_kind AS k WHERE k.cell_id = frame.cell_id AND k.frame = frame.frame)";
+        "sum(k.n_th), sum(k.n_mp), sum(k.n_dup) FROM frame_kind AS k WHERE k.cell_id = frame.cell_id AND k.frame = "
+        "frame.frame)";
+    // The grid drops hits it met again in a later cell: a kind's n_dup must survive the merge too.
+    std::uint64_t dropped = 0;
+    for (const FrameResult& f : with.frames)
+        for (const KindResult& k : f.kinds) dropped += k.counters.n_dup;
+    ASSERT_GT(dropped, 0u);
     for (const std::string& path : {a, b}) {
         auto db = open_read_only(path);
         // Frame 1 has one kind (one row), frame 3 none, the other four frames three each.
