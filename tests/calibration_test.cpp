@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -229,7 +230,9 @@ TEST(Calibration, PassesSpreadOverTheRunAndTheFastestIsRead) {
     for (std::size_t i = 0; i < copied.size(); ++i) {
         EXPECT_EQ(copied[i].ns_per_ray, copied[i].scene == "stack" ? 0.25 : before[i].ns_per_ray) << copied[i].scene;
         EXPECT_EQ(copied[i].passes, 3) << copied[i].scene;
+        EXPECT_EQ(copied[i].n_dup, before[i].n_dup) << copied[i].scene;  // the grid's dropped hits too
     }
+    EXPECT_TRUE(std::any_of(before.begin(), before.end(), [](const CalibrationPoint& p) { return p.n_dup > 0; }));
 }
 
 TEST(Calibration, TheRunsFitUsesItAndStoresLeaveOneSceneOut) {
