@@ -4,8 +4,8 @@
 ///
 /// Without it, how much of a structure's update-side memory (index, cells, nodes) is still cached
 /// when the next frame's update starts depends on what else used the shared last-level cache
-/// meanwhile: the other core, other tenants of the host. That changes from minute to minute and
-/// moves a whole run's small updates at once (docs/model.md, "A cold cache before each update").
+/// meanwhile: the other core, other tenants of the host. That changes from minute to minute, and
+/// small updates move with it (docs/model.md, "A cold cache before each update").
 /// Mytkowicz et al. 2009 name such state among the causes of wrong data; where it cannot be
 /// randomised over, fixing it is the remedy. Cold is also what an engine's broad phase meets: the
 /// rest of its frame runs between two updates.
