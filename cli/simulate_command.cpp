@@ -131,7 +131,7 @@ void add_simulate_command(CLI::App& app) {
                              ")");
         o->sim.verify = !o->no_verify;
         o->sim.count = !o->no_count;
-        if (o->cache == "cold") o->sim.cold_cache_bytes = cold_sweep_bytes(read_cache_sizes());
+        if (o->cache == "cold") o->sim.cold_cache = std::make_shared<const CacheSweep>(cold_sweep_bytes());
         nlohmann::json params = nlohmann::json::object();
         for (const std::string& kv : o->params_text) {
             auto [key, value] = parse_key_value(kv);

@@ -45,7 +45,7 @@ std::vector<CacheLevel> read_cache_sizes(const std::string& dir = "/sys/devices/
 /// The buffer a cold-cache run reads before each update (core/sim/cache_sweep.h): twice the
 /// largest of `caches`, so no line of a smaller working set survives a sweep whatever the
 /// replacement policy; 64 MiB when the machine reports no cache.
-std::uint64_t cold_sweep_bytes(const std::vector<CacheLevel>& caches);
+std::uint64_t cold_sweep_bytes(const std::vector<CacheLevel>& caches = read_cache_sizes());
 
 /// One micro-scene measured: mean counters per ray and the median time per ray over repeats.
 struct CalibrationPoint {

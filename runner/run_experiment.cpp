@@ -11,6 +11,7 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <numeric>
 #include <set>
 #include <thread>
@@ -199,7 +200,7 @@ public:
           after_cell_(std::move(after_cell)) {
         sim_.verify = e.verify;
         sim_.warmup_frames = e.warmup_frames;
-        if (e.cold_cache) sim_.cold_cache_bytes = cold_sweep_bytes(read_cache_sizes());
+        if (e.cold_cache) sim_.cold_cache = std::make_shared<const CacheSweep>(cold_sweep_bytes());
     }
 
     void run(const std::vector<Cell>& cells, const std::set<std::string>& done, std::size_t todo,

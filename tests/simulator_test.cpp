@@ -125,7 +125,7 @@ TEST(Simulator, OneThreadedConfigurationsAreTimedOnTheThreadsCpuClockAndKeepTheW
 TEST(Simulator, AColdCacheChangesNoAnswerOrCounterAndIsReported) {
     const Recording r = test::generated_scene("uniform", 300, 4, 2);
     SimulationOptions warm, cold;
-    cold.cold_cache_bytes = std::uint64_t(1) << 20;
+    cold.cold_cache = std::make_shared<const CacheSweep>(std::uint64_t(1) << 20);
     for (const char* name : {"bf", "ug", "wbvh"}) {
         const SimulationResult a = simulate(r, find_structure(name), {}, warm);
         const SimulationResult b = simulate(r, find_structure(name), {}, cold);

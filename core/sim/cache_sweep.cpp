@@ -11,11 +11,12 @@ CacheSweep::CacheSweep(std::uint64_t bytes) : buffer_(bytes / 64 * kWordsPerLine
     for (std::size_t i = 0; i < buffer_.size(); ++i) buffer_[i] = i;
 }
 
-void CacheSweep::sweep() {
+void CacheSweep::sweep() const {
     std::uint64_t sum = 0;
     for (std::size_t i = 0; i < buffer_.size(); i += kWordsPerLine) sum += buffer_[i];
     // A volatile store of the sum: the reads have an effect the compiler must keep.
-    *static_cast<volatile std::uint64_t*>(&sink_) = sum;
+    volatile std::uint64_t sink = sum;
+    (void)sink;
 }
 
 }  // namespace rcb

@@ -20,12 +20,11 @@ public:
     /// `bytes` of buffer, rounded down to whole 64-byte lines; 0 sweeps nothing.
     explicit CacheSweep(std::uint64_t bytes = 0);
     /// Reads one word of every line of the buffer (a read leaves no dirty line to write back later).
-    void sweep();
+    void sweep() const;
     std::uint64_t bytes() const { return buffer_.size() * sizeof(std::uint64_t); }
 
 private:
     std::vector<std::uint64_t> buffer_;
-    std::uint64_t sink_ = 0;  ///< the reads' sum, kept so the loop is not optimised away
 };
 
 }  // namespace rcb

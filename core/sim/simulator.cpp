@@ -293,7 +293,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
     const Contract contract = contract_of(result.params);
 
     result.clock = timing_clock(result.params);
-    result.cold_cache_bytes = options.cold_cache_bytes;
+    result.cold_cache_bytes = options.cold_cache ? options.cold_cache->bytes() : 0;
     const Stopwatch build_watch;
     structure->build(recording.initial);
     structure->commit();
@@ -303,7 +303,6 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
     if (options.validate) validate_or_throw(*structure, info.name, 0);
 
     LiveSet live(recording.initial);
-    CacheSweep cold(options.cold_cache_bytes);
     HitLists hits, counted;
     KindBatches batches;
     for (std::size_t i = 0; i < frames; ++i) {
@@ -321,7 +320,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
         }
 
         const std::uint64_t writes_before = structure->writes();
-        cold.sweep();
+        if (options.cold_cache) options.cold_cache->sweep();
         const Stopwatch update_watch;
         for (Uid uid : frame.removes) structure->remove(uid);
         for (const Object& o : frame.inserts) structure->insert(o);

@@ -24,6 +24,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,7 @@
 
 #include "core/accel/counters.h"
 #include "core/base/stopwatch.h"
+#include "core/sim/cache_sweep.h"
 #include "core/truth/ground_truth.h"
 #include "core/accel/registry.h"
 #include "core/scene/scene.h"
@@ -45,9 +47,10 @@ struct SimulationOptions {
     bool validate = false;            ///< call Structure::validate() after the build and every commit
     std::uint32_t max_frames = 0;     ///< replay at most this many frames (0: all)
     std::uint32_t warmup_frames = 0;  ///< the first frames run but are left out of the summaries
-    /// 0: warm, the thesis' loop (each phase meets the cache as the last left it). Otherwise every
-    /// frame's update starts cold: a buffer of this many bytes is read first (cache_sweep.h).
-    std::uint64_t cold_cache_bytes = 0;
+    /// nullptr: warm, the thesis' loop (each phase meets the cache as the last left it). Otherwise
+    /// every frame's update starts cold: this buffer is read first (cache_sweep.h). Shared, so a
+    /// run makes and touches it once, not once per cell.
+    std::shared_ptr<const CacheSweep> cold_cache;
 };
 
 /// One query kind's share of a frame that has rays of another kind than `all`: its rays, their
