@@ -477,14 +477,15 @@ private:
 };
 
 /// The one query of a run's measured frames: what identifies a frame, then every counter of
-/// frame_counters() under its alias. `fastest`: one row per frame of a cell, its fastest ray-cast
-/// and update time over the repetitions (analysis/repetitions.h); the counters are the same in
-/// every repetition (the same recording on a fresh structure), min() only picks one of them.
+/// frame_counters() under its alias. `fastest` and `fastest_cast`: one row per frame of a cell, its
+/// fastest ray-cast and update time over the repetitions (analysis/repetitions.h; load_observations
+/// puts the median update in place for `fastest_cast`); the counters are the same in every
+/// repetition (the same recording on a fresh structure), min() only picks one of them.
 std::string observations_sql(OverRepetitions how) {
-    const bool fastest = how == OverRepetitions::fastest;
+    const bool fastest = how != OverRepetitions::median;
     std::string sql =
         "SELECT config.structure AS structure, config.params AS params, cell.scene_id AS scene_id, "
-        "cell.config_id AS config_id, ";
+        "cell.config_id AS config_id, frame.frame AS frame, ";
     sql += fastest ? "min(frame.rays) AS rays, min(frame.raycast_ns) AS raycast_ns, min(frame.update_ns) AS update_ns"
                    : "frame.rays AS rays, frame.raycast_ns AS raycast_ns, frame.update_ns AS update_ns";
     for (const FrameCounter& c : frame_counters())
@@ -518,6 +519,8 @@ void read_counter(const FrameCounter& c, double stored, FrameObservation& f) {
 std::vector<FrameObservation> load_observations(Database& db, std::int64_t run, OverRepetitions how) {
     std::vector<FrameObservation> out;
     std::map<std::tuple<std::int64_t, std::int64_t>, int> groups;
+    const std::map<FrameKey, double> update_median =
+        how == OverRepetitions::fastest_cast ? median_update_per_frame(db, run) : std::map<FrameKey, double>{};
     Statement s = db.prepare(observations_sql(how));
     s.bind_all(run, run);
     const NamedColumns col(s);
@@ -542,7 +545,9 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run, 
         f.config_group = groups.emplace(key, int(groups.size())).first->second;
         f.rays = s.real(col["rays"]);
         f.raycast_ns = s.real(col["raycast_ns"]);
-        f.update_ns = s.real(col["update_ns"]);
+        f.update_ns = how == OverRepetitions::fastest_cast
+                          ? update_median.at({scene_id, std::get<1>(key), s.int64(col["frame"])})
+                          : s.real(col["update_ns"]);
         for (std::size_t i = 0; i < counter_column.size(); ++i)
             read_counter(frame_counters()[i], s.real(counter_column[i]), f);
         out.push_back(f);

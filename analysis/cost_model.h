@@ -87,10 +87,11 @@ struct SceneError {
 
 /// Frames of one run; `run` is a run id, or 0 for the newest run (of `experiment` if given).
 std::int64_t resolve_run(Database& db, std::int64_t run, const std::string& experiment);
-/// `fastest` (the default): one observation per frame of a cell, its fastest time over the cell's
-/// repetitions; `median`: every repetition's frames.
+/// `fastest_cast` (the default): one observation per frame of a cell, its fastest ray cast and
+/// median update over the cell's repetitions; `fastest`: one per frame, its fastest of both;
+/// `median`: every repetition's frames.
 std::vector<FrameObservation> load_observations(Database& db, std::int64_t run,
-                                                OverRepetitions how = OverRepetitions::fastest);
+                                                OverRepetitions how = OverRepetitions::fastest_cast);
 
 struct CandidateModel {
     std::string name;    ///< e.g. "eq5.4", "no-prep", "with-shapes", "per-category", "with-memory"
@@ -190,7 +191,7 @@ struct RunFit {
     std::vector<StructureModels> models;
     std::vector<CostBreakdown> breakdown;
 };
-RunFit fit_run(Database& db, std::int64_t run, OverRepetitions how = OverRepetitions::fastest);
+RunFit fit_run(Database& db, std::int64_t run, OverRepetitions how = OverRepetitions::fastest_cast);
 
 /// "uniform", "irregular", "import", "recording": the category of a scene from its stored spec.
 std::string scene_category(const std::string& spec_json);

@@ -561,11 +561,7 @@ std::string configurations_line(const std::vector<Config>& configs) {
 
 /// How a run's figure of a configuration comes from its repetitions, for the page's preamble.
 std::string repetitions_sentence(OverRepetitions how) {
-    return how == OverRepetitions::fastest
-               ? "A run's time of a configuration is the median over frames of each frame's fastest time over "
-                 "the run's repetitions (another process only ever adds time). "
-               : "A run's time of a configuration is the median over the run's repetitions of each repetition's "
-                 "median over frames. ";
+    return std::string("A run's time of a configuration is ") + repetitions_phrase(how) + ". ";
 }
 
 /// The runs' configurations: each run's, and the medians over runs.

@@ -47,12 +47,14 @@ std::vector<std::string> findings_structures();
 /// §6.4). Traversal costs are compared under one form for every structure, eq. 5.4 as `rcbench fit`
 /// stored it, not each structure's chosen form.
 std::vector<Finding> evaluate_findings(const std::vector<FindingsRun>& runs,
-                                       OverRepetitions how = OverRepetitions::fastest);
-std::vector<Finding> evaluate_findings(Database& db, std::int64_t run, OverRepetitions how = OverRepetitions::fastest);
+                                       OverRepetitions how = OverRepetitions::fastest_cast);
+std::vector<Finding> evaluate_findings(Database& db, std::int64_t run,
+                                       OverRepetitions how = OverRepetitions::fastest_cast);
 
 /// The findings of `runs` (evaluate_findings) as Markdown (the source of docs/findings.md), headed by
 /// the runs' provenance and the configurations they measured; the runs are read once.
-std::string findings_markdown(const std::vector<FindingsRun>& runs, OverRepetitions how = OverRepetitions::fastest);
-std::string findings_markdown(Database& db, std::int64_t run, OverRepetitions how = OverRepetitions::fastest);
+std::string findings_markdown(const std::vector<FindingsRun>& runs,
+                              OverRepetitions how = OverRepetitions::fastest_cast);
+std::string findings_markdown(Database& db, std::int64_t run, OverRepetitions how = OverRepetitions::fastest_cast);
 
 }  // namespace rcb

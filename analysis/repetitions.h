@@ -11,6 +11,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <utility>
 
 #include "runner/sqlite.h"
@@ -19,11 +20,18 @@ namespace rcb {
 
 /// `median`: each repetition's median over its frames, then the median over the repetitions (the
 /// figure the cell table stores). `fastest`: each frame's fastest time over the repetitions, ray
-/// cast and update each on its own, then the median over the frames.
-enum class OverRepetitions { median, fastest };
+/// cast and update each on its own, then the median over the frames. `fastest_cast`: each frame's
+/// fastest ray cast and its median update over the repetitions, then the median over the frames.
+/// The update bends the minimum's premise: how much of its memory the shared last-level cache still
+/// holds when it starts depends on the other core and the host, so that state subtracts time as
+/// well as adding it, and the fastest repetition is the luckiest state, not the least disturbed
+/// (docs/model.md, "How well two runs agree").
+enum class OverRepetitions { median, fastest, fastest_cast };
 
-/// "median" or "fastest".
+/// "median", "fastest" or "fastest-cast".
 const char* repetitions_name(OverRepetitions how);
+/// What `how` takes from the repetitions, in a phrase ("each frame's fastest time over its repetitions").
+const char* repetitions_phrase(OverRepetitions how);
 /// The value of a name `repetitions_name` gives; nothing for any other text.
 std::optional<OverRepetitions> parse_repetitions(const std::string& name);
 
@@ -35,5 +43,11 @@ struct CellFigure {
 /// Per (scene id, config id): the figure of every cell of run `run` and its sibling shards.
 std::map<std::pair<std::int64_t, std::int64_t>, CellFigure> cell_figures(Database& db, std::int64_t run,
                                                                          OverRepetitions how);
+
+/// (scene id, config id, frame) of a measured frame.
+using FrameKey = std::tuple<std::int64_t, std::int64_t, std::int64_t>;
+/// Per measured (non-warm-up) frame of run `run` and its sibling shards: the median of its update
+/// times over the cell's repetitions.
+std::map<FrameKey, double> median_update_per_frame(Database& db, std::int64_t run);
 
 }  // namespace rcb

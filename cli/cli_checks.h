@@ -68,15 +68,18 @@ inline CLI::Validator non_empty() {
     return CLI::Validator([](std::string& text) -> std::string { return text.empty() ? "must not be empty" : ""; }, "");
 }
 
-/// `--repetitions fastest|median`: what stands for a cell's repetitions (analysis/repetitions.h).
+/// `--repetitions fastest-cast|fastest|median`: what stands for a cell's repetitions (analysis/repetitions.h).
 inline CLI::Option* add_repetitions_option(CLI::App* cmd, OverRepetitions& how) {
     return cmd
         ->add_option_function<std::string>(
             "--repetitions", [&how](const std::string& name) { how = parse_repetitions(name).value(); },
-            "What stands for a cell's repetitions: 'fastest', each frame's fastest time over them (another process "
-            "only ever adds time; the default), or 'median', every repetition as measured")
-        ->check(CLI::IsMember({repetitions_name(OverRepetitions::fastest), repetitions_name(OverRepetitions::median)}))
-        ->default_str(repetitions_name(OverRepetitions::fastest));
+            "What stands for a cell's repetitions: 'fastest-cast' (the default), each frame's fastest ray cast "
+            "(another process only ever adds time) and its median update over them (the cache state an update "
+            "starts in also takes time away); 'fastest', each frame's fastest of both; or 'median', every "
+            "repetition as measured")
+        ->check(CLI::IsMember({repetitions_name(OverRepetitions::fastest), repetitions_name(OverRepetitions::median),
+                               repetitions_name(OverRepetitions::fastest_cast)}))
+        ->default_str(repetitions_name(OverRepetitions::fastest_cast));
 }
 
 }  // namespace rcb

@@ -32,7 +32,7 @@ void add_findings_command(CLI::App& app) {
         std::vector<std::string> runs;
         std::string out, experiment;
         std::int64_t run = 0;
-        OverRepetitions repetitions = OverRepetitions::fastest;
+        OverRepetitions repetitions = OverRepetitions::fastest_cast;
     };
     auto o = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand(

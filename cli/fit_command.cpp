@@ -159,7 +159,8 @@ void print_between_runs(Database& a, std::int64_t run_a, Database& b, std::int64
                  "over the cells):\n";
     TextTable t({"a run's figure of a cell", "cells", "frame", "ray cast", "update"});
     for (const auto& [how, label] : {std::pair{OverRepetitions::median, "median of its repetitions"},
-                                     std::pair{OverRepetitions::fastest, "each frame's fastest repetition"}}) {
+                                     std::pair{OverRepetitions::fastest, "each frame's fastest repetition"},
+                                     std::pair{OverRepetitions::fastest_cast, "fastest ray cast, median update"}}) {
         const StructureNoise n = between_runs_pooled(a, run_a, b, run_b, how);
         t.add({label, std::to_string(n.cells), noise_text(n.frame, n.frame_p90), noise_text(n.raycast, n.raycast_p90),
                noise_text(n.update, n.update_p90)});
@@ -181,10 +182,7 @@ NoiseFloor noise_column(Database& db, std::int64_t run, Database* other, std::in
     }
     noise.structures = between_runs(db, run, *other, other_run, how);
     std::cout << "The noise column is the spread between this run and run " << other_run << " of " << other_path
-              << " (each run's figure of a cell, "
-              << (how == OverRepetitions::fastest ? "the median over frames of each frame's fastest time over its "
-                                                    "repetitions"
-                                                  : "the median over its repetitions")
+              << " (each run's figure of a cell, " << repetitions_phrase(how)
               << ", the same relative range, over the cells both hold); the slow column counts those cells with a "
                  "repetition measured slow in either run.\n";
     return noise;
@@ -196,7 +194,7 @@ void add_fit_command(CLI::App& app) {
     struct Options {
         std::string db, experiment, repeat;
         std::int64_t run = 0;
-        OverRepetitions repetitions = OverRepetitions::fastest;
+        OverRepetitions repetitions = OverRepetitions::fastest_cast;
     };
     auto o = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand(
@@ -238,9 +236,11 @@ void add_fit_command(CLI::App& app) {
         const std::vector<StructureModels>& models = fit.models;
 
         std::cout << "run " << run << ": " << fit.frames << " frames ("
-                  << (o->repetitions == OverRepetitions::fastest
+                  << (o->repetitions == OverRepetitions::median ? "every repetition's frames"
+                      : o->repetitions == OverRepetitions::fastest
                           ? "each frame of a cell once, at its fastest time over the cell's repetitions"
-                          : "every repetition's frames")
+                          : "each frame of a cell once, at its fastest ray cast and median update over the "
+                            "cell's repetitions")
                   << "). Ray-cast cost per ray in ns; held-out error is the mean "
                   << "absolute relative error on configurations left out of the fit (5-fold). A model is chosen when "
                      "its held-out "

@@ -145,7 +145,7 @@ struct ValidateOptions {
     std::string train, test;
     bool json = false;
     BootstrapOptions bootstrap;
-    OverRepetitions repetitions = OverRepetitions::fastest;
+    OverRepetitions repetitions = OverRepetitions::fastest_cast;
 };
 
 /// What one validation gives to print: the groups in order and, per path, the query kinds' part.

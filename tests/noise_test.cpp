@@ -276,7 +276,7 @@ TEST(NoiseFloor, BetweenRunsByEachFramesFastestRepetitionLeavesOutTimeAddedByLoa
     // The fit reads the same: one observation per measured frame of a cell, at its fastest time;
     // with `median`, every repetition's frames as measured.
     const std::vector<FrameObservation> each = load_observations(a, runs[0], OverRepetitions::median);
-    const std::vector<FrameObservation> least = load_observations(a, runs[0]);
+    const std::vector<FrameObservation> least = load_observations(a, runs[0], OverRepetitions::fastest);
     ASSERT_FALSE(least.empty());
     EXPECT_EQ(each.size(), 3 * least.size());  // three repetitions of every cell
     for (const FrameObservation& f : least) {
@@ -289,6 +289,47 @@ TEST(NoiseFloor, BetweenRunsByEachFramesFastestRepetitionLeavesOutTimeAddedByLoa
         EXPECT_EQ(least[i].n_t, each[i].n_t) << i;
         EXPECT_EQ(least[i].rays, each[i].rays) << i;
     }
+}
+
+// The cache state an update starts in can take time away: a repetition that found its lines
+// still cached updates fast on every frame. Each frame's fastest takes that lucky repetition;
+// fastest-cast keeps the fastest ray cast (only load adds time to it) and the frame's median update.
+TEST(NoiseFloor, FastestCastReadsEachFramesFastestRayCastAndMedianUpdate) {
+    const test::TempDir temp("noise", "fastest_cast");
+    const TwoRuns two(temp.path());
+    ASSERT_TRUE(two.finished);
+    Database& a = two.stores[0]->db();
+    Database& b = two.stores[1]->db();
+    const std::vector<std::int64_t>& runs = two.runs;
+    for (Database* db : {&a, &b}) db->exec("UPDATE frame SET raycast_ns = 100, update_ns = 50");
+    const auto repetition = [](int r) {
+        return "cell_id IN (SELECT id FROM cell WHERE repetition = " + std::to_string(r) + ")";
+    };
+    // a: repetition 0 lucky on the update, repetition 1 slow on its even frames, repetition 2 slow
+    // on the ray cast; each frame's median update stays 50.
+    a.exec("UPDATE frame SET update_ns = 20 WHERE " + repetition(0));
+    a.exec("UPDATE frame SET update_ns = 80 WHERE frame % 2 = 0 AND " + repetition(1));
+    a.exec("UPDATE frame SET raycast_ns = 130 WHERE " + repetition(2));
+    const StructureNoise fastest = between_runs_pooled(a, runs[0], b, runs[1], OverRepetitions::fastest);
+    EXPECT_NEAR(fastest.update_p90, 30.0 / 35.0, 1e-12);
+    EXPECT_NEAR(fastest.raycast_p90, 0.0, 1e-12);
+    const StructureNoise mixed = between_runs_pooled(a, runs[0], b, runs[1], OverRepetitions::fastest_cast);
+    EXPECT_EQ(mixed.cells, 4u);
+    EXPECT_NEAR(mixed.update_p90, 0.0, 1e-12);
+    EXPECT_NEAR(mixed.raycast_p90, 0.0, 1e-12);
+
+    const std::vector<FrameObservation> least = load_observations(a, runs[0], OverRepetitions::fastest);
+    const std::vector<FrameObservation> frames = load_observations(a, runs[0]);  // the default
+    ASSERT_EQ(frames.size(), least.size());  // one observation per measured frame of a cell
+    ASSERT_FALSE(frames.empty());
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+        EXPECT_EQ(least[i].update_ns, 20) << i;
+        EXPECT_EQ(frames[i].update_ns, 50) << i;
+        EXPECT_EQ(frames[i].raycast_ns, 100) << i;
+        EXPECT_EQ(frames[i].n_t, least[i].n_t) << i;
+    }
+    EXPECT_EQ(parse_repetitions("fastest-cast"), OverRepetitions::fastest_cast);
+    EXPECT_FALSE(parse_repetitions("fastest_cast").has_value());
 }
 
 TEST(NoiseFloor, QuantilesInterpolateBetweenOrderStatistics) {
