@@ -207,13 +207,19 @@ struct TwoRuns {
     std::vector<std::int64_t> runs;
 };
 
-TEST(NoiseFloor, BetweenRunsComparesEachRunsMedianOverRepetitionsOfTheCellsBothHold) {
-    const test::TempDir temp("noise", "between");
-    const TwoRuns two(temp.path());
-    ASSERT_TRUE(two.finished);
-    Database& a = two.stores[0]->db();
-    Database& b = two.stores[1]->db();
-    const std::vector<std::int64_t>& runs = two.runs;
+/// Two finished runs, in a folder named after the test: databases `a` and `b`, run ids `runs`.
+class BetweenRuns : public ::testing::Test {
+protected:
+    void SetUp() override { ASSERT_TRUE(two_.finished); }
+
+    const test::TempDir temp_{"noise", ::testing::UnitTest::GetInstance()->current_test_info()->name()};
+    const TwoRuns two_{temp_.path()};
+    Database& a = two_.stores[0]->db();
+    Database& b = two_.stores[1]->db();
+    const std::vector<std::int64_t>& runs = two_.runs;
+};
+
+TEST_F(BetweenRuns, BetweenRunsComparesEachRunsMedianOverRepetitionsOfTheCellsBothHold) {
     // Made-up medians: a measures 100 everywhere (one repetition of bf an outlier, which the median
     // over repetitions drops), b measures bf at 120; b lacks ug on the irregular scene.
     const std::string bf = "(SELECT id FROM config WHERE structure = 'bf')";
@@ -247,13 +253,7 @@ TEST(NoiseFloor, BetweenRunsComparesEachRunsMedianOverRepetitionsOfTheCellsBothH
 // Another process only ever adds time. Run a's repetitions were each slowed, on different frames:
 // no repetition is undisturbed, so its median over repetitions moves, yet every frame has one
 // undisturbed measurement, which each frame's fastest keeps.
-TEST(NoiseFloor, BetweenRunsByEachFramesFastestRepetitionLeavesOutTimeAddedByLoad) {
-    const test::TempDir temp("noise", "fastest");
-    const TwoRuns two(temp.path());
-    ASSERT_TRUE(two.finished);
-    Database& a = two.stores[0]->db();
-    Database& b = two.stores[1]->db();
-    const std::vector<std::int64_t>& runs = two.runs;
+TEST_F(BetweenRuns, BetweenRunsByEachFramesFastestRepetitionLeavesOutTimeAddedByLoad) {
     for (Database* db : {&a, &b}) db->exec("UPDATE frame SET raycast_ns = 100, update_ns = 50");
     a.exec(
         "UPDATE frame SET raycast_ns = 130, update_ns = 80 WHERE cell_id IN (SELECT id FROM cell WHERE repetition = "
@@ -294,13 +294,7 @@ TEST(NoiseFloor, BetweenRunsByEachFramesFastestRepetitionLeavesOutTimeAddedByLoa
 // The cache state an update starts in can take time away: a repetition that found its lines
 // still cached updates fast on every frame. Each frame's fastest takes that lucky repetition;
 // fastest-cast keeps the fastest ray cast (only load adds time to it) and the frame's median update.
-TEST(NoiseFloor, FastestCastReadsEachFramesFastestRayCastAndMedianUpdate) {
-    const test::TempDir temp("noise", "fastest_cast");
-    const TwoRuns two(temp.path());
-    ASSERT_TRUE(two.finished);
-    Database& a = two.stores[0]->db();
-    Database& b = two.stores[1]->db();
-    const std::vector<std::int64_t>& runs = two.runs;
+TEST_F(BetweenRuns, FastestCastReadsEachFramesFastestRayCastAndMedianUpdate) {
     for (Database* db : {&a, &b}) db->exec("UPDATE frame SET raycast_ns = 100, update_ns = 50");
     const auto repetition = [](int r) {
         return "cell_id IN (SELECT id FROM cell WHERE repetition = " + std::to_string(r) + ")";
