@@ -1,5 +1,6 @@
 #include "analysis/repetitions.h"
 
+#include <stdexcept>
 #include <vector>
 
 #include "core/sim/simulator.h"
@@ -8,36 +9,41 @@
 namespace rcb {
 
 namespace {
-constexpr OverRepetitions kAll[] = {OverRepetitions::median, OverRepetitions::fastest, OverRepetitions::fastest_cast};
+
+/// Every reading: its name (the option's value) and what it takes, in a phrase.
+struct Reading {
+    OverRepetitions how;
+    const char* name;
+    const char* phrase;
+};
+constexpr Reading kReadings[] = {
+    {OverRepetitions::median, "median", "the median over its repetitions of each repetition's median over frames"},
+    {OverRepetitions::fastest, "fastest", "the median over frames of each frame's fastest time over its repetitions"},
+    {OverRepetitions::fastest_cast, "fastest-cast",
+     "the median over frames of each frame's fastest ray cast and median update over its repetitions"},
+};
+
+const Reading& reading(OverRepetitions how) {
+    for (const Reading& r : kReadings)
+        if (r.how == how) return r;
+    throw std::logic_error("a reading of repetitions without a name");
 }
 
-const char* repetitions_name(OverRepetitions how) {
-    switch (how) {
-        case OverRepetitions::median:
-            return "median";
-        case OverRepetitions::fastest:
-            return "fastest";
-        case OverRepetitions::fastest_cast:
-            return "fastest-cast";
-    }
-    return "";
-}
+}  // namespace
 
-const char* repetitions_phrase(OverRepetitions how) {
-    switch (how) {
-        case OverRepetitions::median:
-            return "the median over its repetitions of each repetition's median over frames";
-        case OverRepetitions::fastest:
-            return "the median over frames of each frame's fastest time over its repetitions";
-        case OverRepetitions::fastest_cast:
-            return "the median over frames of each frame's fastest ray cast and median update over its repetitions";
-    }
-    return "";
+const char* repetitions_name(OverRepetitions how) { return reading(how).name; }
+
+const char* repetitions_phrase(OverRepetitions how) { return reading(how).phrase; }
+
+std::vector<std::string> repetitions_names() {
+    std::vector<std::string> out;
+    for (const Reading& r : kReadings) out.emplace_back(r.name);
+    return out;
 }
 
 std::optional<OverRepetitions> parse_repetitions(const std::string& name) {
-    for (OverRepetitions how : kAll)
-        if (name == repetitions_name(how)) return how;
+    for (const Reading& r : kReadings)
+        if (name == r.name) return r.how;
     return std::nullopt;
 }
 

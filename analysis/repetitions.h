@@ -13,6 +13,7 @@
 #include <string>
 #include <tuple>
 #include <utility>
+#include <vector>
 
 #include "runner/sqlite.h"
 
@@ -32,6 +33,8 @@ enum class OverRepetitions { median, fastest, fastest_cast };
 const char* repetitions_name(OverRepetitions how);
 /// What `how` takes from the repetitions, in a phrase ("each frame's fastest time over its repetitions").
 const char* repetitions_phrase(OverRepetitions how);
+/// Every name `repetitions_name` gives, in the enum's order.
+std::vector<std::string> repetitions_names();
 /// The value of a name `repetitions_name` gives; nothing for any other text.
 std::optional<OverRepetitions> parse_repetitions(const std::string& name);
 

@@ -77,8 +77,7 @@ inline CLI::Option* add_repetitions_option(CLI::App* cmd, OverRepetitions& how) 
             "(another process only ever adds time) and its median update over them (the cache state an update "
             "starts in also takes time away); 'fastest', each frame's fastest of both; or 'median', every "
             "repetition as measured")
-        ->check(CLI::IsMember({repetitions_name(OverRepetitions::fastest), repetitions_name(OverRepetitions::median),
-                               repetitions_name(OverRepetitions::fastest_cast)}))
+        ->check(CLI::IsMember(repetitions_names()))
         ->default_str(repetitions_name(OverRepetitions::fastest_cast));
 }
 
