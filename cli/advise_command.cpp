@@ -68,12 +68,13 @@ void print_budget(const std::vector<ParameterChoice>& choices, std::uint32_t rep
     t.print(std::cout);
 }
 
-/// --exhaustive, per structure: advise, the pure model, the category's parameters and the
-/// baselines of advise's budget, each priced from the exhaustive table.
+/// --exhaustive, per structure: advise (as measured, and its steps on the baselines' table), the
+/// pure model, the category's parameters and the baselines of advise's budget, each priced from
+/// the exhaustive table.
 void print_methods(const std::vector<ExhaustiveAdvice>& exhaustive, std::uint64_t seed) {
     std::cout << "\nEach method's choice priced from the same exhaustive measurements (regret: its cost over the "
                  "scene's best, minus 1; random and descent: no model, advise's timed configurations, chosen on a "
-                 "second measurement of the space, random seed "
+                 "second measurement of the space, as advise-table takes advise's steps on it; random seed "
               << seed << "):\n";
     TextTable t({"structure", "method", "configurations timed", "parameters", "ms", "regret"});
     for (const ExhaustiveAdvice& x : exhaustive)
@@ -161,7 +162,9 @@ void add_advise_command(CLI::App& app) {
         "advise's number of timed configurations and no model: random configurations (--seed) and a "
         "measured descent from the category's parameters. The space is measured twice: the baselines "
         "choose on the first table, and every method is priced on the second, so they share its noise, "
-        "none is scored by the numbers it chose on, and the budgets match exactly");
+        "none is scored by the numbers it chose on, and the budgets match exactly. advise's own "
+        "measurements come minutes before the tables, so its steps are also taken again on the first table "
+        "(row advise-table), choosing on the very numbers the baselines choose on");
     cmd->add_option("--seed", o->seed, "Seed of --exhaustive's random baseline (default: the tuning's search seed)")
         ->check(whole_number())
         ->needs(exhaustive);

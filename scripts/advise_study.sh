@@ -2,9 +2,10 @@
 # advise against its budget-matched baselines on every OpenArena map (docs/model.md, "The budget"):
 # runs `rcbench advise MAP --tuning T --exhaustive --json` on each map of data/maps/*.pk3 and
 # summarises, per map and tuned structure, the regret (cost / the map's exhaustive best − 1) of
-# advise, the pure-model choice, the category's parameters and the random and descent baselines,
-# all priced from the map's one exhaustive table; then, over the maps the tuning did not see, how
-# often each is within 5 % of the optimum and how often advise beats each baseline.
+# advise, advise's steps taken on the baselines' table (advise-table), the pure-model choice, the
+# category's parameters and the random and descent baselines, all priced from the map's one
+# exhaustive table; then, over the maps the tuning did not see, how often each is within 5 % of
+# the optimum and how often advise (either way) beats each baseline.
 #
 #   scripts/advise_study.sh [MAP ...]
 #     default maps: every map of every data/maps/*.pk3 (as `rcbench scene maps` lists them)
@@ -82,17 +83,19 @@ jq -r -s --arg seen " $seen " --arg mode "$mode" '
         | .exhaustive[] | {map: $map, seen: ($seen | contains(" " + $map + " ")), structure,
                            budget, regret: (.methods | map({(.method): .regret}) | add)} ] as $rows
   | ($rows | map(select(.seen | not))) as $unseen
-  | ["map", "seen", "structure", "timed", "space", "advise", "model", "category", "random", "descent"],
+  | def opt: if . == null then "-" else pct end;
+    ["map", "seen", "structure", "timed", "space", "advise", "advise-table", "model", "category", "random",
+     "descent"],
     ($rows[] | [.map, (if .seen then "yes" else "no" end), .structure, .budget.timed, .budget.space,
-                (.regret.advise | pct), (.regret.model // null | if . == null then "-" else pct end),
-                (.regret.category // null | if . == null then "-" else pct end),
-                (.regret.random | pct), (.regret.descent | pct)]),
+                (.regret.advise | pct), (.regret["advise-table"] | opt), (.regret.model | opt),
+                (.regret.category | opt), (.regret.random | pct), (.regret.descent | pct)]),
     [],
     ["unseen (map x structure): \($unseen | length)"],
-    (["advise", "model", "category", "random", "descent"][] as $m
+    (["advise", "advise-table", "model", "category", "random", "descent"][] as $m
       | ($unseen | map(.regret[$m] | select(. != null))) as $r
       | ["\($m): within 5% of the optimum in \($r | map(select(. <= 0.05)) | length) of \($r | length)"]),
-    (["random", "descent"][] as $b
-      | ["advise vs \($b): better in \($unseen | map(select(.regret.advise < .regret[$b])) | length), tied in \($unseen | map(select(.regret.advise == .regret[$b])) | length), worse in \($unseen | map(select(.regret.advise > .regret[$b])) | length)"])
+    (["advise", "advise-table"][] as $a | ["random", "descent"][] as $b
+      | ($unseen | map(select(.regret[$a] != null))) as $u
+      | ["\($a) vs \($b): better in \($u | map(select(.regret[$a] < .regret[$b])) | length), tied in \($u | map(select(.regret[$a] == .regret[$b])) | length), worse in \($u | map(select(.regret[$a] > .regret[$b])) | length)"])
   | @tsv' "${files[@]}" | tee "$dir/summary.txt"
 echo "advise_study: wrote $dir/summary.txt"

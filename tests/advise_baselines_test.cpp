@@ -1,7 +1,8 @@
 // advise --exhaustive's budget-matched baselines on made-up cost tables: the random draw (seeded,
 // uniform, within the budget), the model-free descent (from the category's parameters, only to
 // measured improvements, stopped at the budget) and the comparison that prices every method from
-// one table; and the pure-model choice, which must be what --verify-top 0 --refine 0 advises.
+// one table; the pure-model choice, which must be what --verify-top 0 --refine 0 advises; and
+// advise's own steps taken on the baselines' table (advise-table).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -190,6 +191,82 @@ TEST(AdviseBaselines, ThePureModelChoiceIsWhatVerifyTopZeroAdvises) {
         order_candidates(e.candidates, AccuracyConstraint{});
         EXPECT_EQ(e.candidates.front().searched, pure);
     }
+}
+
+/// A ranking of "a" = 1..5 (b = 1) with these predictions, each level counting differently.
+ModelRanking ranking_of(const std::vector<double>& predicted) {
+    ModelRanking r;
+    for (int a = 1; a <= int(predicted.size()); ++a) {
+        r.search.evaluations.push_back({json{{"a", a}, {"b", 1}}, predicted[std::size_t(a - 1)]});
+        ReplayCounts counts;
+        counts.counters.n_t = std::uint64_t(a);
+        r.replays.entries.push_back({json{{"a", a}, {"b", 1}}, counts});
+    }
+    return r;
+}
+
+/// A table of MeasuredCost over `configurations` by "a".
+std::vector<MeasuredCost> measured_table(const std::vector<json>& configurations, const std::vector<double>& by_a) {
+    std::vector<MeasuredCost> out;
+    for (const json& p : configurations) {
+        MeasuredCost c;
+        c.ms = by_a[std::size_t(p["a"].get<int>() - 1)];
+        out.push_back(c);
+    }
+    return out;
+}
+
+TEST(AdviseBaselines, AdviseOnTheTableTakesItsOwnStepsOnTheTablesNumbers) {
+    const std::vector<SearchDimension> space = grid_space(5, 1);
+    const std::vector<json> configurations = enumerate_space(space);
+    const ModelRanking r = ranking_of({4, 1, 3, 2, 5});  // the model ranks a = 2 first
+    const DescentSettings settings{space, json{{"a", 1}, {"b", 1}}, 6, AccuracyConstraint{}};
+    int replays = 0;
+    const ReplayPrediction predict = [&](const json&, ReplayCounts&) { return double(++replays); };
+    // Table: the optimum at a = 3, one level above the model's best. advise verifies a = 2 and the
+    // category's a = 1, then descends to a = 3 and finds nothing faster one or two levels away.
+    std::optional<TableChoice> c =
+        advise_on_table(r, settings, 1, configurations, measured_table(configurations, {5, 3, 2, 4, 6}), predict);
+    ASSERT_TRUE(c);
+    EXPECT_EQ(c->searched, (json{{"a", 3}, {"b", 1}}));
+    EXPECT_EQ(c->timed, 5u);  // a = 2, 1, 3, 4, 5: each read once
+    EXPECT_EQ(replays, 0);    // every level was replayed by the ranking already
+    // The same steps on another table choose by its numbers: here the model's best stands.
+    c = advise_on_table(r, settings, 1, configurations, measured_table(configurations, {5, 1, 2, 4, 6}), predict);
+    ASSERT_TRUE(c);
+    EXPECT_EQ(c->searched, (json{{"a", 2}, {"b", 1}}));
+    EXPECT_EQ(c->timed, 4u);  // a = 2, 1, 3, then 4 (two levels up); 0 does not exist
+    // Without refinement the two verified are all it reads.
+    c = advise_on_table(r, {space, json{{"a", 1}, {"b", 1}}, 0, AccuracyConstraint{}}, 1, configurations,
+                        measured_table(configurations, {5, 3, 2, 4, 6}), predict);
+    ASSERT_TRUE(c);
+    EXPECT_EQ(c->searched, (json{{"a", 2}, {"b", 1}}));
+    EXPECT_EQ(c->timed, 2u);
+    // A category level the table lacks cannot be priced: no choice.
+    EXPECT_FALSE(advise_on_table(r, {space, json{{"a", 9}, {"b", 1}}, 6, AccuracyConstraint{}}, 1, configurations,
+                                 measured_table(configurations, {5, 3, 2, 4, 6}), predict));
+}
+
+TEST(AdviseBaselines, AdviseOnTheTableIsPricedOnTheSharedTableBesideAdvise) {
+    MethodInputs in;
+    in.space = grid_space(4, 4);
+    in.configurations = enumerate_space(in.space);
+    in.costs = table(in.configurations, [](int a, int b) { return 1.0 + std::abs(a - 3) + std::abs(b - 2); });
+    in.advised = {{"a", 1}, {"b", 1}};
+    in.advised_on_table = json{{"a", 3}, {"b", 3}};
+    in.advised_on_table_timed = 4;
+    in.category = {{"a", 1}, {"b", 1}};
+    in.budget = 5;
+    const std::vector<MethodOutcome> m = compare_methods(in);
+    ASSERT_EQ(m.size(), 5u);  // advise, advise-table, category, random, descent
+    EXPECT_EQ(m[0].method, "advise");
+    EXPECT_DOUBLE_EQ(m[0].regret, 3.0);
+    EXPECT_EQ(m[1].method, "advise-table");
+    EXPECT_EQ(m[1].timed, 4u);
+    EXPECT_EQ(m[1].searched, (json{{"a", 3}, {"b", 3}}));
+    EXPECT_DOUBLE_EQ(m[1].ms, 2.0);
+    EXPECT_DOUBLE_EQ(m[1].regret, 1.0);
+    EXPECT_EQ(m[2].method, "category");
 }
 
 }  // namespace

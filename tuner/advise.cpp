@@ -378,6 +378,30 @@ void order_candidates(std::vector<ModelCandidate>& candidates, const AccuracyCon
     });
 }
 
+std::optional<TableChoice> advise_on_table(const ModelRanking& ranking, const DescentSettings& settings,
+                                           std::uint32_t verify_top, const std::vector<json>& configurations,
+                                           const std::vector<MeasuredCost>& table, const ReplayPrediction& predict) {
+    std::vector<json> read;
+    bool missing = false;
+    const SceneMeasurement from_table = [&](const json& searched) {
+        for (std::size_t i = 0; i < configurations.size(); ++i)
+            if (same_point(configurations[i], searched, settings.space)) {
+                if (std::find(read.begin(), read.end(), configurations[i]) == read.end())
+                    read.push_back(configurations[i]);
+                return table[i];
+            }
+        missing = true;
+        MeasuredCost none;
+        none.ms = INFINITY;
+        return none;
+    };
+    ModelEvidence e = verify_candidates(ranking, settings.space, settings.category_searched, verify_top, from_table);
+    if (verify_top > 0) refine_by_descent(e, settings, predict, from_table);
+    order_candidates(e.candidates, settings.accuracy);
+    if (missing || e.candidates.empty()) return std::nullopt;
+    return TableChoice{e.candidates.front().searched, read.size()};
+}
+
 RowPlan plan_rows(const std::vector<StructurePlan>& structures, const std::vector<ParameterChoice>& choices,
                   const AccuracyConstraint& accuracy) {
     RowPlan plan;
@@ -426,7 +450,8 @@ void measure_rows(RowPlan& plan, const std::vector<ParameterChoice>& choices,
 
 ExhaustiveAdvice compare_exhaustively(const ParameterChoice& pc, const std::vector<json>& configurations,
                                       const std::vector<MeasuredCost>& costs, const AccuracyConstraint& accuracy,
-                                      std::uint64_t seed, const std::vector<MeasuredCost>& choice_costs) {
+                                      std::uint64_t seed, const std::vector<MeasuredCost>& choice_costs,
+                                      const std::optional<TableChoice>& on_table) {
     ExhaustiveAdvice ex;
     ex.structure = pc.structure;
     ex.budget = pc.budget;
@@ -434,6 +459,7 @@ ExhaustiveAdvice compare_exhaustively(const ParameterChoice& pc, const std::vect
     in.space = pc.space, in.configurations = configurations, in.advised = pc.chosen_searched;
     in.category = pc.category_searched, in.predicted_best = pc.predicted_best;
     in.budget = pc.budget.timed, in.seed = seed;
+    if (on_table) in.advised_on_table = on_table->searched, in.advised_on_table_timed = on_table->timed;
     ex.advised_searched = pc.chosen_searched;
     ex.category_searched = pc.category_searched;
     ex.best_ms = INFINITY;
@@ -500,8 +526,9 @@ void advise_by_model(ParameterChoice& pc, const TunedStructure& ts, StructurePla
     const SceneMeasurement measure_at = [&](const json& searched) {
         return meter(pc.structure, ts.with(info, searched, o.tuning));
     };
-    const ModelRanking ranking =
-        rank_by_model(pc.space, pc.category_searched, selection.budget, selection.seed, predict);
+    pc.ranking = std::make_shared<const ModelRanking>(
+        rank_by_model(pc.space, pc.category_searched, selection.budget, selection.seed, predict));
+    const ModelRanking& ranking = *pc.ranking;
     pc.replays = ranking.search.evaluations.size();
     pc.space_size = ranking.search.space_size;
     if (!ranking.search.evaluations.empty())
@@ -535,7 +562,19 @@ std::vector<ExhaustiveAdvice> check_exhaustively(const std::vector<ParameterChoi
             measure_interleaved(meter.scene, pc.structure, full_params, o.warmup, o.repetitions, meter.verify());
         const std::vector<MeasuredCost> costs =
             measure_interleaved(meter.scene, pc.structure, full_params, o.warmup, o.repetitions, meter.verify());
-        out.push_back(compare_exhaustively(pc, all, costs, o.accuracy, o.seed.value_or(selection.seed), seen));
+        // advise's own steps again, on the baselines' table: the same ranking, each timing read
+        // from `seen`; a neighbour the first pass did not replay is replayed (untimed) here.
+        std::optional<TableChoice> on_table;
+        if (pc.ranking && o.verify_top > 0) {
+            const CostCoefficients& model = *ts.model;
+            const ReplayPrediction predict = [&](const json& searched, ReplayCounts& counts) {
+                return predict_cost(model, meter.scene, pc.structure, searched, o.warmup, &counts);
+            };
+            on_table = advise_on_table(*pc.ranking, {pc.space, pc.category_searched, o.refine, o.accuracy},
+                                       o.verify_top, all, seen, predict);
+        }
+        out.push_back(
+            compare_exhaustively(pc, all, costs, o.accuracy, o.seed.value_or(selection.seed), seen, on_table));
     }
     return out;
 }

@@ -22,6 +22,7 @@
 #include <functional>
 #include <iosfwd>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -95,6 +96,8 @@ struct ModelCandidate {
     bool is_category = false;  ///< the category's tuned parameters
 };
 
+struct ModelRanking;
+
 /// How a tuned structure's parameters were chosen for the scene, and why.
 struct ParameterChoice {
     std::string structure;
@@ -111,6 +114,9 @@ struct ParameterChoice {
     std::vector<ModelCandidate>
         candidates;       ///< model method: measured ones first, fastest first; then the rest by prediction
     std::string summary;  ///< one paragraph for the terminal
+    /// Model method: the replays' ranking its measured steps started from (advise_on_table takes
+    /// them again for --exhaustive).
+    std::shared_ptr<const ModelRanking> ranking;
 };
 
 /// Every configuration of a tuned structure's space measured on the scene: where the advice stands.
@@ -270,6 +276,20 @@ void refine_by_descent(ModelEvidence& evidence, const DescentSettings& settings,
 /// Measured first, fastest (meeting the accuracy) first; then the rest by prediction; stable.
 void order_candidates(std::vector<ModelCandidate>& candidates, const AccuracyConstraint& accuracy);
 
+/// advise's measured steps taken again from the same ranking (verify_candidates with
+/// `verify_top`, refine_by_descent, order_candidates), each timing read from `table` (per
+/// configuration of `configurations`) instead of measured: the choice advise makes on the
+/// measurements the --exhaustive baselines choose by, so it meets the same noise as theirs
+/// (advise_baselines.h). `timed` counts the distinct configurations it read. None when a step
+/// asks for a configuration the table lacks (a category level the space does not hold).
+struct TableChoice {
+    nlohmann::json searched;
+    std::size_t timed = 0;
+};
+std::optional<TableChoice> advise_on_table(const ModelRanking& ranking, const DescentSettings& settings,
+                                           std::uint32_t verify_top, const std::vector<nlohmann::json>& configurations,
+                                           const std::vector<MeasuredCost>& table, const ReplayPrediction& predict);
+
 /// The rows to measure: every structure at its parameters; when `accuracy` allows inexact answers,
 /// each one at the boxes level also at the candidates and shapes levels.
 struct RowPlan {
@@ -290,10 +310,12 @@ void measure_rows(RowPlan& plan, const std::vector<ParameterChoice>& choices,
 /// accuracy priced out (constrained_cost), as tune --exhaustive does; beside it the pure model,
 /// the category's parameters and the baselines of the choice's budget (compare_methods, the
 /// random one seeded by `seed`), all priced from the same table. The baselines choose by
-/// `choice_costs`, an independent measurement of the same configurations (empty: by `costs`).
+/// `choice_costs`, an independent measurement of the same configurations (empty: by `costs`);
+/// `on_table` is advise's choice made on that table (advise_on_table), priced like the others.
 ExhaustiveAdvice compare_exhaustively(const ParameterChoice& choice, const std::vector<nlohmann::json>& configurations,
                                       const std::vector<MeasuredCost>& costs, const AccuracyConstraint& accuracy,
-                                      std::uint64_t seed = 1, const std::vector<MeasuredCost>& choice_costs = {});
+                                      std::uint64_t seed = 1, const std::vector<MeasuredCost>& choice_costs = {},
+                                      const std::optional<TableChoice>& on_table = std::nullopt);
 
 /// InputError for a missing scene, a method other than auto, category or model, --category or
 /// --exhaustive without --tuning, a tuning file that is not a

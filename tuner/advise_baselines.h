@@ -18,7 +18,12 @@
 /// exhaustive measurements, so the comparison shares the noise and the budgets match exactly.
 /// The baselines choose on a second, independent table: a method that picks the fastest of the
 /// very numbers it is then scored by keeps their noise in its favour (the winner's curse), which
-/// advise, choosing on measurements of its own, cannot.
+/// advise, choosing on measurements of its own, cannot. Those own measurements, though, were
+/// taken before both tables, while the two tables are measured back to back; on a host whose speed
+/// moves in stretches of minutes, the baselines' table agrees with the scoring one better than
+/// advise's measurements do. So `advise-table` takes advise's steps again on the baselines' table
+/// (advise_on_table, tuner/advise.h): every method in that row's company chooses on the same
+/// numbers and is scored on the others.
 
 #include <cstdint>
 #include <optional>
@@ -68,14 +73,20 @@ struct MethodInputs {
     std::vector<double> costs;         ///< per configuration, accuracy priced in: what every method is priced by
     std::vector<double> choice_costs;  ///< what the baselines choose by (an independent table; empty: `costs`)
     nlohmann::json advised, category;  ///< searched parameters
+    /// advise's steps taken on `choice_costs` (advise_on_table, tuner/advise.h) and the
+    /// configurations they read; none where advise measured nothing (the category method,
+    /// --verify-top 0) or a step needed a configuration the table lacks.
+    std::optional<nlohmann::json> advised_on_table;
+    std::size_t advised_on_table_timed = 0;
     std::optional<nlohmann::json> predicted_best;  ///< the model method's; none for the category method
     std::size_t budget = 0;                        ///< advise's timed configurations
     std::uint64_t seed = 1;                        ///< the random baseline's
 };
 
-/// advise, the pure model (when there is one), the category's parameters, random and descent, in
-/// that order; a method whose configuration is not in the table (a category level the space
-/// lacks) or that measured nothing (a budget of 0) has no row.
+/// advise, advise on the baselines' table (`advise-table`, when given), the pure model (when
+/// there is one), the category's parameters, random and descent, in that order; a method whose
+/// configuration is not in the table (a category level the space lacks) or that measured nothing
+/// (a budget of 0) has no row.
 std::vector<MethodOutcome> compare_methods(const MethodInputs& inputs);
 
 }  // namespace rcb
