@@ -34,6 +34,17 @@ std::vector<double> table(const std::vector<json>& configurations, const std::fu
     return costs;
 }
 
+/// A 4 x 4 space whose costs rise by 1 per level away from its best, a = 3 and b = 2 (cost 1);
+/// the category's parameters at a = 1, b = 1.
+MethodInputs bowl() {
+    MethodInputs in;
+    in.space = grid_space(4, 4);
+    in.configurations = enumerate_space(in.space);
+    in.costs = table(in.configurations, [](int a, int b) { return 1.0 + std::abs(a - 3) + std::abs(b - 2); });
+    in.category = {{"a", 1}, {"b", 1}};
+    return in;
+}
+
 TEST(AdviseBaselines, RandomPicksAreSeededDistinctAndWithinTheBudget) {
     const std::vector<std::size_t> a = random_picks(40, 7, 11);
     EXPECT_EQ(a, random_picks(40, 7, 11));  // same seed, same picks
@@ -107,12 +118,8 @@ TEST(AdviseBaselines, TheDescentMovesOnlyToMeasuredImprovements) {
 }
 
 TEST(AdviseBaselines, EveryMethodIsPricedFromTheSameTable) {
-    MethodInputs in;
-    in.space = grid_space(4, 4);
-    in.configurations = enumerate_space(in.space);
-    in.costs = table(in.configurations, [](int a, int b) { return 1.0 + std::abs(a - 3) + std::abs(b - 2); });
+    MethodInputs in = bowl();
     in.advised = {{"a", 3}, {"b", 3}};
-    in.category = {{"a", 1}, {"b", 1}};
     in.predicted_best = json{{"a", 4}, {"b", 2}};
     in.budget = 5;
     in.seed = 7;
@@ -143,13 +150,9 @@ TEST(AdviseBaselines, EveryMethodIsPricedFromTheSameTable) {
 TEST(AdviseBaselines, BaselinesChooseOnTheirOwnTableAndArePricedOnTheShared) {
     // One configuration looks fastest in the baselines' table by noise; the shared table, which
     // scores every method, prices it at what it is.
-    MethodInputs in;
-    in.space = grid_space(4, 4);
-    in.configurations = enumerate_space(in.space);
-    in.costs = table(in.configurations, [](int a, int b) { return 1.0 + std::abs(a - 3) + std::abs(b - 2); });
+    MethodInputs in = bowl();
     in.choice_costs = in.costs;
     in.advised = {{"a", 3}, {"b", 2}};
-    in.category = {{"a", 1}, {"b", 1}};
     in.budget = 16;  // random sees every configuration
     in.seed = 3;
     const std::optional<std::size_t> decoy = [&]() -> std::optional<std::size_t> {
@@ -248,14 +251,10 @@ TEST(AdviseBaselines, AdviseOnTheTableTakesItsOwnStepsOnTheTablesNumbers) {
 }
 
 TEST(AdviseBaselines, AdviseOnTheTableIsPricedOnTheSharedTableBesideAdvise) {
-    MethodInputs in;
-    in.space = grid_space(4, 4);
-    in.configurations = enumerate_space(in.space);
-    in.costs = table(in.configurations, [](int a, int b) { return 1.0 + std::abs(a - 3) + std::abs(b - 2); });
+    MethodInputs in = bowl();
     in.advised = {{"a", 1}, {"b", 1}};
     in.advised_on_table = json{{"a", 3}, {"b", 3}};
     in.advised_on_table_timed = 4;
-    in.category = {{"a", 1}, {"b", 1}};
     in.budget = 5;
     const std::vector<MethodOutcome> m = compare_methods(in);
     ASSERT_EQ(m.size(), 5u);  // advise, advise-table, category, random, descent
