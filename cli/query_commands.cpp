@@ -127,7 +127,10 @@ void add_query_commands(CLI::App& app) {
     };
     auto m = std::make_shared<MergeOptions>();
     CLI::App* merge = app.add_subcommand(
-        "merge", "Combine results databases (e.g. shards) into one; runs already present are skipped");
+        "merge",
+        "Combine results databases (e.g. shards) into one; runs already present are skipped. Measurements "
+        "are copied; fits, validations, tunings and derived categories are not (they describe the input's "
+        "cells alone): fit the merged runs again");
     merge->add_option("out", m->out, "Database to merge into (created if missing)")->required();
     merge->add_option("in", m->in, "Databases to merge from")->required()->check(input_file());
     merge->callback([m] {
@@ -140,7 +143,13 @@ void add_query_commands(CLI::App& app) {
         ResultStore out(m->out);
         for (std::size_t i = 0; i < inputs.size(); ++i) {
             const MergeCount n = merge_into(out, *inputs[i]);
-            std::cout << m->in[i] << ": " << n.runs << " new runs, " << n.cells << " new cells merged\n";
+            std::cout << m->in[i] << ": " << n.runs << " new runs, " << n.cells << " new cells merged";
+            if (n.analyses > 0)
+                std::cout << "; its " << n.analyses
+                          << " fits, validations and derived categories are not copied (they describe its cells "
+                             "alone): rcbench fit "
+                          << m->out << " --run ID for each merged run";
+            std::cout << '\n';
         }
     });
 }

@@ -128,7 +128,7 @@ void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to)
     Statement frames = in.prepare(
         "SELECT frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, duplicate, "
         "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, n_th, n_mp, "
-        "n_miss, update_wall_ns, raycast_wall_ns, writes, n_dup FROM frame WHERE cell_id = ?");
+        "n_miss, update_wall_ns, raycast_wall_ns, writes, n_dup FROM frame WHERE cell_id = ? ORDER BY frame");
     frames.bind(1, from);
     Statement insert_frame = o.prepare(
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, "
@@ -172,6 +172,14 @@ void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to)
 }
 
 /// Copies the cells of the input's run `in_run` that the output's run `run` does not have.
+/// The input run's analyses a merge leaves behind (MergeCount::analyses).
+std::size_t analyses_of(Database& in, std::int64_t in_run) {
+    std::size_t n = 0;
+    for (const char* table : {"fit", "model_validation", "derived_category", "scene_clustering"})
+        n += std::size_t(id_of(in, std::string("SELECT count(*) FROM ") + table + " WHERE run_id = ?", in_run));
+    return n;
+}
+
 void merge_cells(Database& o, Database& in, std::int64_t in_run, std::int64_t run, MergeCount& count) {
     Statement cells = in.prepare(
         "SELECT cell.id, cell_key, scene.id, scene.hash, scene.name, scene.spec, scene.meta, scene.objects, "
@@ -179,7 +187,7 @@ void merge_cells(Database& o, Database& in, std::int64_t in_run, std::int64_t ru
         "finished_at, cell.objects, build_ns, memory_bytes, verified, mismatches, cell.frames, update_ns_median, "
         "update_ns_mad, raycast_ns_median, raycast_ns_mad, clock, update_ns_ci_low, update_ns_ci_high, "
         "raycast_ns_ci_low, raycast_ns_ci_high FROM cell JOIN scene ON scene.id = cell.scene_id "
-        "JOIN config ON config.id = cell.config_id WHERE run_id = ?");
+        "JOIN config ON config.id = cell.config_id WHERE run_id = ? ORDER BY cell.id");
     cells.bind(1, in_run);
     while (cells.step()) {
         {
@@ -219,6 +227,7 @@ MergeCount merge_into(ResultStore& out, Database& in) {
         while (runs.step()) {
             const std::int64_t run = merge_run(o, in, runs, count);
             merge_cells(o, in, runs.int64(0), run, count);
+            count.analyses += analyses_of(in, runs.int64(0));
             // The interval over repetitions follows the run's cells, old and new.
             store_cell_intervals(o, run);
         }

@@ -763,6 +763,57 @@ TEST(Store, ADamagedInputIsRefusedNamingItAndTheOutputIsLeftAsItWas) {
     fs::remove_all(dir);
 }
 
+TEST(Store, MergeKeepsTheOrderCellsWereMeasuredIn) {
+    // Cells are stored in the shuffled order they were measured in, and whatever reads them by id
+    // (findings, the report) lists them so: a merged run reads as the run it came from.
+    const test::TempDir temp("runner", "merge_order");
+    const fs::path exp = temp.path() / "order.json";
+    write_experiment(exp, 3);
+    const std::string in = temp.file("in.db");
+    ASSERT_EQ(wait_exit(spawn_rcbench({"run", exp.string(), "--db", in}, temp.file("log.txt"))), 0);
+    {
+        ResultStore store(temp.file("out.db"));
+        merge_into(store, *open_read_only(in));
+    }
+    auto keys = [](const std::string& db) {
+        Database d(db, true);
+        Statement s = d.prepare(
+            "SELECT cell_key || '/' || scene.name || '/' || repetition FROM cell JOIN scene ON scene.id = "
+            "cell.scene_id ORDER BY cell.id");
+        std::vector<std::string> out;
+        while (s.step()) out.push_back(s.text(0));
+        return out;
+    };
+    EXPECT_EQ(keys(temp.file("out.db")), keys(in));
+}
+
+TEST(Store, MergeLeavesFitsBehindAndSaysSo) {
+    // A fit describes the cells it was fitted on: a shard's is a part of its run. The merge copies
+    // the measurements, counts what it left, and the command says how to fit the merged run.
+    const test::TempDir temp("runner", "merge_fits");
+    const std::string in = small_database(temp.path(), "in");
+    Database(in, false).exec(
+        "INSERT INTO fit(run_id, created_at, structure, target, model, terms, observations, configurations, r2, "
+        "rmse_relative, heldout_error, condition_number, status, chosen) VALUES (1, 'now', 'bf', 'raycast', "
+        "'eq5.4', 'C_RB', 8, 1, 1, 0, 0, 1, 'ok', 1)");
+    {
+        ResultStore store(temp.file("lib.db"));
+        const MergeCount n = merge_into(store, *open_read_only(in));
+        EXPECT_EQ(n.runs, 1u);
+        EXPECT_EQ(n.analyses, 1u);
+    }
+    EXPECT_EQ(count(temp.file("lib.db"), "SELECT count(*) FROM fit"), 0);
+    EXPECT_EQ(count(temp.file("lib.db"), "SELECT count(*) FROM cell"), count(in, "SELECT count(*) FROM cell"));
+    const std::string out = temp.file("out.db"), log = temp.file("merge.txt");
+    ASSERT_EQ(wait_exit(spawn_rcbench({"merge", out, in}, log)), 0);
+    EXPECT_NE(file_bytes(log).find(in + ": 1 new runs, " + std::to_string(count(in, "SELECT count(*) FROM cell")) +
+                                   " new cells merged; its 1 fits, validations and derived categories are not "
+                                   "copied (they describe its cells alone): rcbench fit " +
+                                   out + " --run ID for each merged run"),
+              std::string::npos)
+        << file_bytes(log);
+}
+
 TEST(Store, TwoRunnersOfOnePlanMeasureEachCellOnce) {
     const fs::path dir = test::temp_dir("runner", "one_runner");
     const fs::path exp = dir / "resume.json";
