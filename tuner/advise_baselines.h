@@ -20,7 +20,7 @@
 /// very numbers it is then scored by keeps their noise in its favour (the winner's curse), which
 /// advise, choosing on measurements of its own, cannot. Those own measurements, though, were
 /// taken before both tables, while the two tables are measured back to back; on a host whose speed
-/// moves in stretches of minutes, the baselines' table agrees with the scoring one better than
+/// moves in stretches of minutes, the baselines' table can agree with the scoring one better than
 /// advise's measurements do. So `advise-table` takes advise's steps again on the baselines' table
 /// (advise_on_table, tuner/advise.h): every method in that row's company chooses on the same
 /// numbers and is scored on the others.
