@@ -171,7 +171,6 @@ void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to)
             .run();
 }
 
-/// Copies the cells of the input's run `in_run` that the output's run `run` does not have.
 /// The input run's analyses a merge leaves behind (MergeCount::analyses).
 std::size_t analyses_of(Database& in, std::int64_t in_run) {
     std::size_t n = 0;
@@ -180,6 +179,7 @@ std::size_t analyses_of(Database& in, std::int64_t in_run) {
     return n;
 }
 
+/// Copies the cells of the input's run `in_run` that the output's run `run` does not have.
 void merge_cells(Database& o, Database& in, std::int64_t in_run, std::int64_t run, MergeCount& count) {
     Statement cells = in.prepare(
         "SELECT cell.id, cell_key, scene.id, scene.hash, scene.name, scene.spec, scene.meta, scene.objects, "
