@@ -171,31 +171,6 @@ TEST(AdviseBaselines, BaselinesChooseOnTheirOwnTableAndArePricedOnTheShared) {
     EXPECT_DOUBLE_EQ(m[0].regret, 0.0);  // advise found the true best
 }
 
-TEST(AdviseBaselines, ThePureModelChoiceIsWhatVerifyTopZeroAdvises) {
-    // Rankings with ties and with the best prediction evaluated late: the pure-model choice of
-    // advise (the first by prediction_order) is what verify_candidates with verify_top 0, then
-    // order_candidates, put first.
-    const std::vector<SearchDimension> space = grid_space(5, 1);
-    const std::vector<std::vector<double>> predictions{{3, 1, 2, 1, 5}, {5, 4, 3, 2, 1}, {2, 2, 2, 2, 2}};
-    for (const std::vector<double>& predicted : predictions) {
-        ModelRanking r;
-        for (int a = 1; a <= 5; ++a) {
-            r.search.evaluations.push_back({json{{"a", a}, {"b", 1}}, predicted[std::size_t(a - 1)]});
-            ReplayCounts counts;
-            counts.counters.n_t = std::uint64_t(a);
-            r.replays.entries.push_back({json{{"a", a}, {"b", 1}}, counts});
-        }
-        const json pure = r.search.evaluations[prediction_order(r.search.evaluations).front()].params;
-        ModelEvidence e = verify_candidates(r, space, json{{"a", 3}, {"b", 1}}, 0, [](const json& p) {
-            MeasuredCost c;
-            c.ms = 10.0 - p["a"].get<double>();  // the measurement disagrees with the model
-            return c;
-        });
-        order_candidates(e.candidates, AccuracyConstraint{});
-        EXPECT_EQ(e.candidates.front().searched, pure);
-    }
-}
-
 /// A ranking of "a" = 1..5 (b = 1) with these predictions, each level counting differently.
 ModelRanking ranking_of(const std::vector<double>& predicted) {
     ModelRanking r;
@@ -206,6 +181,25 @@ ModelRanking ranking_of(const std::vector<double>& predicted) {
         r.replays.entries.push_back({json{{"a", a}, {"b", 1}}, counts});
     }
     return r;
+}
+
+TEST(AdviseBaselines, ThePureModelChoiceIsWhatVerifyTopZeroAdvises) {
+    // Rankings with ties and with the best prediction evaluated late: the pure-model choice of
+    // advise (the first by prediction_order) is what verify_candidates with verify_top 0, then
+    // order_candidates, put first.
+    const std::vector<SearchDimension> space = grid_space(5, 1);
+    const std::vector<std::vector<double>> predictions{{3, 1, 2, 1, 5}, {5, 4, 3, 2, 1}, {2, 2, 2, 2, 2}};
+    for (const std::vector<double>& predicted : predictions) {
+        const ModelRanking r = ranking_of(predicted);
+        const json pure = r.search.evaluations[prediction_order(r.search.evaluations).front()].params;
+        ModelEvidence e = verify_candidates(r, space, json{{"a", 3}, {"b", 1}}, 0, [](const json& p) {
+            MeasuredCost c;
+            c.ms = 10.0 - p["a"].get<double>();  // the measurement disagrees with the model
+            return c;
+        });
+        order_candidates(e.candidates, AccuracyConstraint{});
+        EXPECT_EQ(e.candidates.front().searched, pure);
+    }
 }
 
 /// A table of MeasuredCost over `configurations` by "a".
@@ -253,8 +247,7 @@ TEST(AdviseBaselines, AdviseOnTheTableTakesItsOwnStepsOnTheTablesNumbers) {
 TEST(AdviseBaselines, AdviseOnTheTableIsPricedOnTheSharedTableBesideAdvise) {
     MethodInputs in = bowl();
     in.advised = {{"a", 1}, {"b", 1}};
-    in.advised_on_table = json{{"a", 3}, {"b", 3}};
-    in.advised_on_table_timed = 4;
+    in.advised_on_table = TableChoice{json{{"a", 3}, {"b", 3}}, 4};
     in.budget = 5;
     const std::vector<MethodOutcome> m = compare_methods(in);
     ASSERT_EQ(m.size(), 5u);  // advise, advise-table, category, random, descent

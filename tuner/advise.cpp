@@ -381,13 +381,12 @@ void order_candidates(std::vector<ModelCandidate>& candidates, const AccuracyCon
 std::optional<TableChoice> advise_on_table(const ModelRanking& ranking, const DescentSettings& settings,
                                            std::uint32_t verify_top, const std::vector<json>& configurations,
                                            const std::vector<MeasuredCost>& table, const ReplayPrediction& predict) {
-    std::vector<json> read;
+    std::vector<bool> read(configurations.size(), false);
     bool missing = false;
     const SceneMeasurement from_table = [&](const json& searched) {
         for (std::size_t i = 0; i < configurations.size(); ++i)
             if (same_point(configurations[i], searched, settings.space)) {
-                if (std::find(read.begin(), read.end(), configurations[i]) == read.end())
-                    read.push_back(configurations[i]);
+                read[i] = true;
                 return table[i];
             }
         missing = true;
@@ -399,7 +398,7 @@ std::optional<TableChoice> advise_on_table(const ModelRanking& ranking, const De
     if (verify_top > 0) refine_by_descent(e, settings, predict, from_table);
     order_candidates(e.candidates, settings.accuracy);
     if (missing || e.candidates.empty()) return std::nullopt;
-    return TableChoice{e.candidates.front().searched, read.size()};
+    return TableChoice{e.candidates.front().searched, std::size_t(std::count(read.begin(), read.end(), true))};
 }
 
 RowPlan plan_rows(const std::vector<StructurePlan>& structures, const std::vector<ParameterChoice>& choices,
@@ -459,7 +458,7 @@ ExhaustiveAdvice compare_exhaustively(const ParameterChoice& pc, const std::vect
     in.space = pc.space, in.configurations = configurations, in.advised = pc.chosen_searched;
     in.category = pc.category_searched, in.predicted_best = pc.predicted_best;
     in.budget = pc.budget.timed, in.seed = seed;
-    if (on_table) in.advised_on_table = on_table->searched, in.advised_on_table_timed = on_table->timed;
+    in.advised_on_table = on_table;
     ex.advised_searched = pc.chosen_searched;
     ex.category_searched = pc.category_searched;
     ex.best_ms = INFINITY;

@@ -282,10 +282,6 @@ void order_candidates(std::vector<ModelCandidate>& candidates, const AccuracyCon
 /// measurements the --exhaustive baselines choose by, so it meets the same noise as theirs
 /// (advise_baselines.h). `timed` counts the distinct configurations it read. None when a step
 /// asks for a configuration the table lacks (a category level the space does not hold).
-struct TableChoice {
-    nlohmann::json searched;
-    std::size_t timed = 0;
-};
 std::optional<TableChoice> advise_on_table(const ModelRanking& ranking, const DescentSettings& settings,
                                            std::uint32_t verify_top, const std::vector<nlohmann::json>& configurations,
                                            const std::vector<MeasuredCost>& table, const ReplayPrediction& predict);

@@ -107,7 +107,8 @@ std::vector<MethodOutcome> compare_methods(const MethodInputs& in) {
     };
     add("advise", in.budget, index_of(in.space, in.configurations, in.advised));
     if (in.advised_on_table)
-        add("advise-table", in.advised_on_table_timed, index_of(in.space, in.configurations, *in.advised_on_table));
+        add("advise-table", in.advised_on_table->timed,
+            index_of(in.space, in.configurations, in.advised_on_table->searched));
     if (in.predicted_best) add("model", 0, index_of(in.space, in.configurations, *in.predicted_best));
     add("category", 0, index_of(in.space, in.configurations, in.category));
     const std::vector<std::size_t> random = random_picks(in.configurations.size(), in.budget, in.seed);

@@ -66,6 +66,13 @@ struct MethodOutcome {
     double regret = 0;  ///< ms / the scene's best − 1
 };
 
+/// advise's choice made on a table (advise_on_table, tuner/advise.h): its searched parameters and
+/// the distinct configurations it read.
+struct TableChoice {
+    nlohmann::json searched;
+    std::size_t timed = 0;
+};
+
 /// What compare_methods needs: the exhaustive table and each method's inputs.
 struct MethodInputs {
     std::vector<SearchDimension> space;
@@ -73,11 +80,9 @@ struct MethodInputs {
     std::vector<double> costs;         ///< per configuration, accuracy priced in: what every method is priced by
     std::vector<double> choice_costs;  ///< what the baselines choose by (an independent table; empty: `costs`)
     nlohmann::json advised, category;  ///< searched parameters
-    /// advise's steps taken on `choice_costs` (advise_on_table, tuner/advise.h) and the
-    /// configurations they read; none where advise measured nothing (the category method,
-    /// --verify-top 0) or a step needed a configuration the table lacks.
-    std::optional<nlohmann::json> advised_on_table;
-    std::size_t advised_on_table_timed = 0;
+    /// advise's steps taken on `choice_costs`; none where advise measured nothing (the category
+    /// method, --verify-top 0) or a step needed a configuration the table lacks.
+    std::optional<TableChoice> advised_on_table;
     std::optional<nlohmann::json> predicted_best;  ///< the model method's; none for the category method
     std::size_t budget = 0;                        ///< advise's timed configurations
     std::uint64_t seed = 1;                        ///< the random baseline's
