@@ -5,6 +5,7 @@
 #include <map>
 #include <optional>
 #include <sstream>
+#include <tuple>
 
 #include <nlohmann/json.hpp>
 
@@ -118,6 +119,14 @@ std::vector<Config> load_configs(Database& db, std::int64_t run, OverRepetitions
         a.c.update_lo = a.c.update_hi = a.c.update_ms;
         out.push_back(a.c);
     }
+    // Smallest scene first, then by name; each scene's structures as findings_structures lists
+    // them: an order of the experiment's contents, not of the shuffled order they were measured in.
+    auto rank = [&](const Config& c) {
+        const auto at = std::find(compared.begin(), compared.end(), c.structure) - compared.begin();
+        return std::tuple<double, const std::string&, std::ptrdiff_t, std::string>(c.objects, c.scene, at,
+                                                                                   c.params.dump());
+    };
+    std::stable_sort(out.begin(), out.end(), [&](const Config& a, const Config& b) { return rank(a) < rank(b); });
     return out;
 }
 

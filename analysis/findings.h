@@ -4,6 +4,8 @@
 /// refute it on the runs' scenes, with the figures and counters that say why, and whether every run
 /// alone gives the same verdict. Every verdict and sentence is computed from the data; a claim the
 /// runs cannot test (no uniform scene, no full-SAH DBVH, no fit) says what is missing.
+/// Scenes are listed smallest first, each scene's structures as findings_structures() lists them,
+/// whatever order the run measured its cells in.
 
 #include <cstdint>
 #include <string>

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <tuple>
 
 #include "analysis/findings.h"
 #include "core/accel/registry.h"
@@ -205,6 +206,32 @@ TEST(Findings, SeveralRunsGiveMediansRangesAndEachRunsVerdict) {
     const std::vector<Finding> one = evaluate_findings(db, ids[2]);
     EXPECT_EQ(by_source(one, "uniform grid does very well").verdict, Finding::Verdict::refuted);
     EXPECT_EQ(findings_markdown(db, ids[2]).find("Each run alone"), std::string::npos);
+}
+
+// Cells are measured in a shuffled order; the findings list scenes smallest first and each scene's
+// structures in one fixed order, so two runs measured in different orders read alike.
+TEST(Findings, ScenesAndStructuresAreListedInOneOrderWhateverTheMeasuringOrder) {
+    const test::TempDir dir("findings", "order");
+    const fs::path path = dir.path() / "f.db";
+    using Stored = std::tuple<std::string, std::size_t, std::string>;
+    auto run_in = [&](const std::vector<Stored>& order) {
+        return stored_run(path, [&](FindingsDb& db) {
+            for (const auto& [scene, objects, structure] : order)
+                db.cell(scene, "uniform", objects, structure, {structure == "ug" ? 0.05 : 0.10, 0.5});
+        });
+    };
+    const std::int64_t a =
+        run_in({{"uni-l", 14000, "hg"}, {"uni-l", 14000, "ug"}, {"uni-m", 5000, "hg"}, {"uni-m", 5000, "ug"}});
+    const std::int64_t b =
+        run_in({{"uni-m", 5000, "ug"}, {"uni-l", 14000, "ug"}, {"uni-m", 5000, "hg"}, {"uni-l", 14000, "hg"}});
+    Database db(path.string(), true);
+    const std::vector<Finding> fa = evaluate_findings(db, a), fb = evaluate_findings(db, b);
+    const Finding& memory_a = by_source(fa, "far more memory");
+    const Finding& memory_b = by_source(fb, "far more memory");
+    ASSERT_EQ(memory_a.evidence.size(), 2u);
+    EXPECT_EQ(memory_a.evidence, memory_b.evidence);
+    EXPECT_EQ(memory_a.evidence[0].rfind("uni-m, bytes per object: hg 100, ug 100", 0), 0u) << memory_a.evidence[0];
+    EXPECT_NE(findings_markdown(db, b).find("Configurations measured: ug defaults; hg defaults."), std::string::npos);
 }
 
 // Chosen forms differ per structure (a form with more terms moves C_T by what they take), so the
