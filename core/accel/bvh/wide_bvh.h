@@ -232,11 +232,13 @@ private:
         std::uint32_t* stack = scratch.stack();  // pairs: block, bits of its lane's entry parameter
         std::uint32_t top = 0, node = root_;
         alignas(32) float t_near[kLanes], t_far[kLanes];
+        // The limit as a local, read again only after a leaf's visits: the stack's vector stores
+        // may alias the visitor, which would otherwise reload it on every block's path.
+        float limit = std::min(1.0f, visit_limit(visit));
         for (;;) {
             const Block& b = blocks_[node];
             count.traversal();
             count.reads(&b, sizeof b);
-            const float limit = std::min(1.0f, visit_limit(visit));
             unsigned mask;
             if (Count::candidates && b.leaf) {  // a leaf reached through its box: all its objects
                 mask = (1u << b.count) - 1;
@@ -251,17 +253,19 @@ private:
                     count.hits();
                     if (!visit(Uid(b.ref[k]), t_near[k])) return;
                 }
+                limit = std::min(1.0f, visit_limit(visit));
             } else {
                 count.node_hits(unsigned(__builtin_popcount(mask)));
-                if (mask != 0) {
-                    node = push_near_first(b, mask, t_near, t_far, stack, top);
+                if (mask != 0) {  // a single hit lane is read next: nothing to order
+                    node = (mask & (mask - 1)) == 0 ? b.ref[__builtin_ctz(mask)]
+                                                    : push_near_first(b, mask, t_near, t_far, stack, top);
                     continue;
                 }
             }
             do {  // the next entry not beyond the limit
                 if (top == 0) return;
                 top -= 2;
-            } while (std::bit_cast<float>(stack[top + 1]) > visit_limit(visit));
+            } while (std::bit_cast<float>(stack[top + 1]) > limit);
             node = stack[top];
         }
     }
@@ -290,11 +294,13 @@ private:
     };
     static_assert(sizeof(Block) == 256);
 
-    /// The hit lanes (`mask`, not empty) of inner block `b`: returns the nearest's block and puts
-    /// the others onto a closest-hit stack with their entry parameters, the farthest first so that
-    /// the nearest is popped first. Equal entries, as where the segment starts inside several
-    /// boxes, go by exit: the box the segment leaves first is taken first, as its objects lie
-    /// nearer along it. The order only decides which block is read first, never the answer.
+    /// The hit lanes (`mask`; the caller reads a single one next itself) of inner block `b`, with
+    /// test()'s `t_near` and `t_far` of it (the AVX2 path compares them again for the lanes):
+    /// returns the nearest's block and puts the others onto a closest-hit stack with their entry
+    /// parameters, the farthest first so that the nearest is popped first. Equal entries, as where
+    /// the segment starts inside several boxes, go by exit: the box the segment leaves first is
+    /// taken first, as its objects lie nearer along it. The order only decides which block is read
+    /// first, never the answer.
 #if defined(__AVX2__)
     /// Branch-free, as a data-dependent sort mispredicts on most nodes of incoherent rays: one
     /// 32-bit key per lane, sorted by a bitonic network in one register (Batcher 1968); the lanes'
@@ -308,8 +314,9 @@ private:
                                                                 const float* t_far, std::uint32_t* stack,
                                                                 std::uint32_t& top) {
         const __m256 tn = _mm256_load_ps(t_near), tf = _mm256_load_ps(t_far);
-        const __m256i bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-        const __m256i hit = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(int(mask)), bit), bit);
+        // The hit lanes as the slab test's own comparison, which the compiler shares with it: the
+        // keys need not wait for the mask to go to a general register and back.
+        const __m256i hit = _mm256_castps_si256(_mm256_cmp_ps(tn, tf, _CMP_LE_OQ));
         const __m256i tn_bits = _mm256_castps_si256(tn);
         const __m256i entered = _mm256_or_si256(tn_bits, _mm256_set1_epi32(0x40000000));
         const __m256i inside = _mm256_srli_epi32(_mm256_castps_si256(tf), 1);
