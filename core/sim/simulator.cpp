@@ -15,16 +15,16 @@
 namespace rcb {
 namespace {
 
-/// The clock of a configuration's timings (core/base/stopwatch.h): the thread's CPU time when all
-/// its work runs on the calling thread (TBB allows one thread, or every thread parameter is 1),
-/// else the wall time.
+/// The clock of a configuration's timings (core/base/stopwatch.h): the thread's own time (the
+/// lesser of its wall and CPU spans) when all its work runs on the calling thread (TBB allows one
+/// thread, or every thread parameter is 1), else the wall time.
 TimingClock timing_clock(const nlohmann::json& params) {
     if (tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism) <= 1)
-        return TimingClock::thread_cpu;
+        return TimingClock::thread;
     for (const char* key : {"threads", "cast_threads"})
         if (params.contains(key) && params[key].is_number_integer() && params[key].get<std::int64_t>() > 1)
             return TimingClock::wall;
-    return TimingClock::thread_cpu;
+    return TimingClock::thread;
 }
 
 void validate_or_throw(const Structure& s, const std::string& name, std::uint32_t frame) {
