@@ -4,6 +4,7 @@
 #include <cmath>
 #include <map>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <tuple>
 
@@ -68,6 +69,20 @@ bool dense_rays(const Config& c) { return c.ray_mix.find("dense") != std::string
 
 double median(std::vector<double> v) { return spread_of(std::move(v)).median; }
 
+/// Smallest scene first, then by name; each scene's structures as findings_structures lists them,
+/// each structure's configurations by their parameters' values (numbers as numbers): an order of
+/// the experiment's contents, not of the shuffled order the cells were measured in.
+void sort_for_listing(std::vector<Config>& configs) {
+    const std::vector<std::string> compared = findings_structures();
+    auto rank = [&](const Config& c) {
+        const auto at = std::find(compared.begin(), compared.end(), c.structure) - compared.begin();
+        return std::tuple<double, const std::string&, std::ptrdiff_t, const nlohmann::json&>(c.objects, c.scene, at,
+                                                                                             c.params);
+    };
+    std::stable_sort(configs.begin(), configs.end(),
+                     [&](const Config& a, const Config& b) { return rank(a) < rank(b); });
+}
+
 std::vector<Config> load_configs(Database& db, std::int64_t run, OverRepetitions how) {
     const auto figures = cell_figures(db, run, how);
     Statement s =
@@ -119,14 +134,7 @@ std::vector<Config> load_configs(Database& db, std::int64_t run, OverRepetitions
         a.c.update_lo = a.c.update_hi = a.c.update_ms;
         out.push_back(a.c);
     }
-    // Smallest scene first, then by name; each scene's structures as findings_structures lists
-    // them: an order of the experiment's contents, not of the shuffled order they were measured in.
-    auto rank = [&](const Config& c) {
-        const auto at = std::find(compared.begin(), compared.end(), c.structure) - compared.begin();
-        return std::tuple<double, const std::string&, std::ptrdiff_t, std::string>(c.objects, c.scene, at,
-                                                                                   c.params.dump());
-    };
-    std::stable_sort(out.begin(), out.end(), [&](const Config& a, const Config& b) { return rank(a) < rank(b); });
+    sort_for_listing(out);
     return out;
 }
 
@@ -141,8 +149,9 @@ OverRuns over_runs(const std::vector<double>& v) {
 }
 
 /// Each configuration over the runs (one Config per scene, structure and parameters, in the order
-/// first met): the median of its per-run figures and the range of its times. A configuration that a
-/// run lacks is summarised over the runs that have it (Config::runs says how many).
+/// of sort_for_listing): the median of its per-run figures and the range of its times. A
+/// configuration that a run lacks is summarised over the runs that have it (Config::runs says how
+/// many).
 std::vector<Config> merge_runs(const std::vector<std::vector<Config>>& runs) {
     if (runs.size() == 1) return runs.front();
     using Key = std::tuple<std::string, std::string, std::string>;
@@ -173,6 +182,7 @@ std::vector<Config> merge_runs(const std::vector<std::vector<Config>>& runs) {
         m.runs = all.size();
         out.push_back(std::move(m));
     }
+    sort_for_listing(out);  // a configuration only a later run has goes where its scene belongs
     return out;
 }
 
@@ -334,15 +344,17 @@ Finding full_sah(const std::vector<Config>& configs, bool dense) {
         "§6.4.2, Table 6.4");
     std::vector<double> gains;
     std::map<std::string, std::pair<const Config*, const Config*>> by_scene;  // (incremental, rebuild)
+    std::vector<std::string> scenes;  // in the configurations' order: smallest first
     for (const Config& c : configs) {
         if (c.structure != "dbvh" || !c.params.is_object()) continue;
         const std::string mode = c.params.value("mode", "incremental");
+        if (!by_scene.count(c.scene)) scenes.push_back(c.scene);
         auto& [inc, reb] = by_scene[c.scene];
         const Config*& slot = mode == "rebuild" ? reb : inc;
         if (!slot || c.ray_ms < slot->ray_ms) slot = &c;
     }
-    for (const auto& [scene, pair] : by_scene) {
-        const auto [inc, reb] = pair;
+    for (const std::string& scene : scenes) {
+        const auto [inc, reb] = by_scene.at(scene);
         if (!inc || !reb || !(inc->ray_ms > 0)) continue;
         const double gain = 1 - reb->ray_ms / inc->ray_ms;
         gains.push_back(gain);
@@ -538,26 +550,25 @@ std::vector<Finding> evaluate_on(const std::vector<Config>& configs, const std::
             most_promising(scenes)};
 }
 
-/// "bf defaults; ug density 1, 4, 16; dbvh mode incremental, rebuild": per compared structure the
-/// parameters its measured configurations set apart from its defaults.
+/// "bf defaults; ug density 1.0/4.0/16.0; dbvh mode incremental/rebuild": per compared structure
+/// the parameters its measured configurations set apart from its defaults, each one's values in
+/// order (numbers as numbers).
 std::string configurations_line(const std::vector<Config>& configs) {
     std::string out;
     for (const std::string& name : findings_structures()) {
-        std::map<std::string, std::vector<std::string>> values;  // key -> distinct values, in order met
+        std::map<std::string, std::set<nlohmann::json>> values;  // key -> distinct values, numbers as numbers
         bool measured = false;
         const nlohmann::json defaults = find_structure(name).defaults();
         for (const Config& c : configs) {
             if (c.structure != name || !c.params.is_object()) continue;
             measured = true;
-            for (const auto& [key, value] : c.params.items()) {
-                std::vector<std::string>& seen = values[key];
-                const std::string text = value.is_string() ? value.get<std::string>() : value.dump();
-                if (std::find(seen.begin(), seen.end(), text) == seen.end()) seen.push_back(text);
-            }
+            for (const auto& [key, value] : c.params.items()) values[key].insert(value);
         }
         if (!measured) continue;
         std::string set;
-        for (const auto& [key, seen] : values) {
+        for (const auto& [key, distinct] : values) {
+            std::vector<std::string> seen;
+            for (const nlohmann::json& v : distinct) seen.push_back(v.is_string() ? v.get<std::string>() : v.dump());
             const bool is_default =
                 seen.size() == 1 && defaults.contains(key) &&
                 (defaults[key].is_string() ? defaults[key].get<std::string>() : defaults[key].dump()) == seen.front();

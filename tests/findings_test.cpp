@@ -234,6 +234,32 @@ TEST(Findings, ScenesAndStructuresAreListedInOneOrderWhateverTheMeasuringOrder) 
     EXPECT_NE(findings_markdown(db, b).find("Configurations measured: ug defaults; hg defaults."), std::string::npos);
 }
 
+// Over several runs, a scene only a later run measured goes where its size puts it, not last; a
+// structure's configurations go by their parameters' values, numbers as numbers.
+TEST(Findings, MergedRunsAndParameterValuesKeepTheListingOrder) {
+    const test::TempDir dir("findings", "merged-order");
+    const fs::path path = dir.path() / "f.db";
+    auto scenes = [](FindingsDb& db, bool with_smaller) {
+        for (const char* structure : {"hg", "ug"}) {
+            db.cell("uni-l", "uniform", 14000, structure, {0.10, 0.5});
+            if (with_smaller) db.cell("uni-m", "uniform", 5000, structure, {0.10, 0.5});
+        }
+        for (double density : {16.0, 1.0})
+            db.cell("uni-l", "uniform", 14000, "ug", {0.10, 0.5}, {{"density", density}});
+    };
+    const std::int64_t a = stored_run(path, [&](FindingsDb& db) { scenes(db, false); });
+    const std::int64_t b = stored_run(path, [&](FindingsDb& db) { scenes(db, true); });
+    Database db(path.string(), true);
+    const std::vector<FindingsRun> runs{{&db, a}, {&db, b}};
+    const std::vector<Finding> findings = evaluate_findings(runs);
+    const Finding& memory = by_source(findings, "far more memory");
+    ASSERT_EQ(memory.evidence.size(), 2u);
+    EXPECT_EQ(memory.evidence[0].rfind("uni-m,", 0), 0u) << memory.evidence[0];
+    EXPECT_EQ(memory.evidence[1].rfind("uni-l,", 0), 0u) << memory.evidence[1];
+    const std::string md = findings_markdown(runs);
+    EXPECT_NE(md.find("ug density 1.0/4.0/16.0"), std::string::npos) << md;  // 4.0: the defaults
+}
+
 // Chosen forms differ per structure (a form with more terms moves C_T by what they take), so the
 // traversal costs are compared under eq. 5.4 for all: here the chosen forms would say the opposite.
 TEST(Findings, TraversalCostsAreComparedUnderOneForm) {
