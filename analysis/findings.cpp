@@ -156,17 +156,10 @@ std::vector<Config> merge_runs(const std::vector<std::vector<Config>>& runs) {
     if (runs.size() == 1) return runs.front();
     using Key = std::tuple<std::string, std::string, std::string>;
     std::map<Key, std::vector<const Config*>> by;
-    std::vector<Key> order;
     for (const std::vector<Config>& run : runs)
-        for (const Config& c : run) {
-            const Key key{c.scene, c.structure, c.params.dump()};
-            auto [it, fresh] = by.try_emplace(key);
-            if (fresh) order.push_back(key);
-            it->second.push_back(&c);
-        }
+        for (const Config& c : run) by[Key{c.scene, c.structure, c.params.dump()}].push_back(&c);
     std::vector<Config> out;
-    for (const Key& key : order) {
-        const std::vector<const Config*>& all = by.at(key);
+    for (const auto& [key, all] : by) {
         auto of = [&](double Config::*field) {
             std::vector<double> v;
             for (const Config* c : all) v.push_back(c->*field);
@@ -182,7 +175,7 @@ std::vector<Config> merge_runs(const std::vector<std::vector<Config>>& runs) {
         m.runs = all.size();
         out.push_back(std::move(m));
     }
-    sort_for_listing(out);  // a configuration only a later run has goes where its scene belongs
+    sort_for_listing(out);  // a configuration only a later run has goes where its scene belongs, too
     return out;
 }
 
@@ -565,13 +558,12 @@ std::string configurations_line(const std::vector<Config>& configs) {
             for (const auto& [key, value] : c.params.items()) values[key].insert(value);
         }
         if (!measured) continue;
+        auto text = [](const nlohmann::json& v) { return v.is_string() ? v.get<std::string>() : v.dump(); };
         std::string set;
         for (const auto& [key, distinct] : values) {
             std::vector<std::string> seen;
-            for (const nlohmann::json& v : distinct) seen.push_back(v.is_string() ? v.get<std::string>() : v.dump());
-            const bool is_default =
-                seen.size() == 1 && defaults.contains(key) &&
-                (defaults[key].is_string() ? defaults[key].get<std::string>() : defaults[key].dump()) == seen.front();
+            for (const nlohmann::json& v : distinct) seen.push_back(text(v));
+            const bool is_default = seen.size() == 1 && defaults.contains(key) && text(defaults[key]) == seen.front();
             if (!is_default) set += (set.empty() ? "" : ", ") + key + " " + join(seen, "/");
         }
         out += (out.empty() ? "" : "; ") + name + " " + (set.empty() ? "defaults" : set);
