@@ -159,7 +159,8 @@ std::vector<Config> merge_runs(const std::vector<std::vector<Config>>& runs) {
     for (const std::vector<Config>& run : runs)
         for (const Config& c : run) by[Key{c.scene, c.structure, c.params.dump()}].push_back(&c);
     std::vector<Config> out;
-    for (const auto& [key, all] : by) {
+    for (const auto& entry : by) {
+        const std::vector<const Config*>& all = entry.second;  // clang 14 cannot capture a structured binding
         auto of = [&](double Config::*field) {
             std::vector<double> v;
             for (const Config* c : all) v.push_back(c->*field);
