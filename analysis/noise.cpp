@@ -1,6 +1,8 @@
 #include "analysis/noise.h"
 
+#include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <map>
 
 #include "core/base/number_text.h"
@@ -150,6 +152,30 @@ StructureNoise between_runs_pooled(Database& a, std::int64_t run_a, Database& b,
     StructureNoise none;
     none.structure = "all";
     return none;
+}
+
+std::vector<UpdateBand> between_runs_by_update(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b,
+                                               OverRepetitions how) {
+    const double edges[] = {0, 10e3, 30e3, 100e3, INFINITY};
+    constexpr std::size_t kBands = std::size(edges) - 1;
+    std::vector<double> range[kBands], share[kBands];
+    // between_samples gives each cell both runs hold as two samples in a row, run a's first.
+    const std::vector<RepeatSample> samples = between_samples(a, run_a, b, run_b, how, true);
+    for (std::size_t i = 0; i + 1 < samples.size(); i += 2) {
+        const RepeatSample &x = samples[i], &y = samples[i + 1];
+        const double values[] = {x.update_ns, y.update_ns, x.raycast_ns, y.raycast_ns};
+        if (!std::all_of(std::begin(values), std::end(values), [](double v) { return std::isfinite(v) && v > 0; }))
+            continue;
+        const double size = std::sqrt(x.update_ns * y.update_ns);
+        const std::size_t band = std::size_t(std::upper_bound(std::begin(edges), std::end(edges), size) - edges) - 1;
+        range[band].push_back(relative_range({x.update_ns, y.update_ns}));
+        share[band].push_back((x.update_ns + y.update_ns) / (x.update_ns + y.update_ns + x.raycast_ns + y.raycast_ns));
+    }
+    std::vector<UpdateBand> out;
+    for (std::size_t k = 0; k < kBands; ++k)
+        out.push_back({edges[k], edges[k + 1], range[k].size(), quantile(range[k], 0.5), quantile(range[k], 0.9),
+                       quantile(share[k], 0.5)});
+    return out;
 }
 
 std::vector<SlowCell> slow_cells(Database& db, std::int64_t run) {

@@ -73,6 +73,22 @@ std::vector<StructureNoise> between_runs(Database& a, std::int64_t run_a, Databa
 StructureNoise between_runs_pooled(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b,
                                    OverRepetitions how = OverRepetitions::median);
 
+/// The update between two runs, by its size. A small update's time is mostly the state its
+/// structure's lines are in when it starts (which the other core and the host's other tenants
+/// set, differently in two runs: docs/model.md, "Where the update's spread lives"), a large one's
+/// the work; one p90 over every cell hides which figures repeat. A cell's size is the geometric
+/// mean of the two runs' update per frame; `share` says how much of the frame the band's updates are.
+struct UpdateBand {
+    double from_ns = 0, below_ns = INFINITY;  ///< the band: from_ns <= size < below_ns
+    std::size_t cells = 0;                    ///< cells both runs hold with an update in the band
+    double update = NAN, update_p90 = NAN;    ///< relative range of the two runs' update: median, p90
+    double share = NAN;                       ///< median over the cells of update / (update + ray cast)
+};
+/// The bands under 10 us, 10-30, 30-100 and from 100 us, in that order (every band, empty ones too),
+/// over every cell of every structure both runs hold, each run's figure of a cell by `how`.
+std::vector<UpdateBand> between_runs_by_update(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b,
+                                               OverRepetitions how = OverRepetitions::fastest_cast);
+
 /// A cell measured while the machine was slow.
 struct SlowCell {
     std::string scene, structure, params;

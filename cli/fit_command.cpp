@@ -154,7 +154,7 @@ void print_kind_table(Database& db, std::int64_t run, const std::vector<Structur
 
 /// The two runs' agreement over every cell, for the two figures a run can give a cell: the median
 /// of its repetitions (the cell figure the tables show) and each frame's fastest (analysis/repetitions.h).
-void print_between_runs(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b) {
+void print_between_runs(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b, OverRepetitions reading) {
     std::cout << "Between the two runs, every cell both hold (relative range of the two runs' figures, p50 / p90 "
                  "over the cells):\n";
     TextTable t({"a run's figure of a cell", "cells", "frame", "ray cast", "update"});
@@ -166,6 +166,19 @@ void print_between_runs(Database& a, std::int64_t run_a, Database& b, std::int64
                noise_text(n.update, n.update_p90)});
     }
     t.print(std::cout);
+    std::cout << "The update between the two runs by its size (" << repetitions_phrase(reading)
+              << "; a cell's size: the geometric mean of the two runs' update per frame; share: the update's part of "
+                 "the frame, median over the band's cells):\n";
+    TextTable u({"update per frame", "cells", "update p50 / p90", "share of the frame"});
+    for (const UpdateBand& band : between_runs_by_update(a, run_a, b, run_b, reading)) {
+        const std::string from = fixed(band.from_ns / 1e3, 0), below = fixed(band.below_ns / 1e3, 0);
+        u.add({band.from_ns == 0           ? "under " + below + " us"
+               : std::isinf(band.below_ns) ? from + " us and over"
+                                           : from + "-" + below + " us",
+               std::to_string(band.cells), noise_text(band.update, band.update_p90),
+               std::isfinite(band.share) ? percent(band.share) : "-"});
+    }
+    u.print(std::cout);
 }
 
 /// The noise column's figures, said in a sentence: within the run (its first two repetitions), or
@@ -186,6 +199,19 @@ NoiseFloor noise_column(Database& db, std::int64_t run, Database* other, std::in
               << ", the same relative range, over the cells both hold); the slow column counts those cells with a "
                  "repetition measured slow in either run.\n";
     return noise;
+}
+
+/// What the fit read of run `run` and how a model is chosen.
+void print_fit_heading(std::int64_t run, std::size_t frames, OverRepetitions how) {
+    std::cout << "run " << run << ": " << frames << " frames ("
+              << (how == OverRepetitions::median    ? "every repetition's frames"
+                  : how == OverRepetitions::fastest ? "each frame of a cell once, at its fastest time over the cell's "
+                                                      "repetitions"
+                                                    : "each frame of a cell once, at its fastest ray cast and median "
+                                                      "update over the cell's repetitions")
+              << "). Ray-cast cost per ray in ns; held-out error is the mean absolute relative error on configurations "
+                 "left out of the fit (5-fold). A model is chosen when its held-out error is within max(0.5 points, "
+                 "5%) of the best: the smallest such.\n";
 }
 
 }  // namespace
@@ -209,9 +235,11 @@ void add_fit_command(CLI::App& app) {
     cmd->add_option("--experiment", o->experiment, "Fit the newest run of this experiment (default: the newest run)")
         ->check(non_empty());
     cmd->add_option("--run", o->run, "Fit this run id")->check(run_id());
-    cmd->add_option("--repeat", o->repeat,
-                    "DB[:RUN]: another run of the same experiment (its own process, another time); the noise "
-                    "column is then the spread between the two runs instead of between one run's repetitions")
+    cmd->add_option(
+           "--repeat", o->repeat,
+           "DB[:RUN]: another run of the same experiment (its own process, another time); the noise "
+           "column is then the spread between the two runs instead of between one run's repetitions, followed by "
+           "the two runs' agreement over every cell and the update's by its size")
         ->check(non_empty());
     add_repetitions_option(cmd, o->repetitions);
     cmd->callback([o] {
@@ -235,16 +263,7 @@ void add_fit_command(CLI::App& app) {
         const RunFit fit = fit_run(store.db(), run, o->repetitions);
         const std::vector<StructureModels>& models = fit.models;
 
-        std::cout << "run " << run << ": " << fit.frames << " frames ("
-                  << (o->repetitions == OverRepetitions::median ? "every repetition's frames"
-                      : o->repetitions == OverRepetitions::fastest
-                          ? "each frame of a cell once, at its fastest time over the cell's repetitions"
-                          : "each frame of a cell once, at its fastest ray cast and median update over the "
-                            "cell's repetitions")
-                  << "). Ray-cast cost per ray in ns; held-out error is the mean "
-                  << "absolute relative error on configurations left out of the fit (5-fold). A model is chosen when "
-                     "its held-out "
-                  << "error is within max(0.5 points, 5%) of the best: the smallest such.\n";
+        print_fit_heading(run, fit.frames, o->repetitions);
         for (const StructureModels& s : models) {
             std::cout << '\n' << s.structure;
             if (!s.unused_terms.empty()) {
@@ -304,7 +323,7 @@ void add_fit_command(CLI::App& app) {
                       << " cells were measured while the calibration loop or memory probe ran more than 10% above its "
                          "run's median "
                          "(cell_state.slow)\n";
-        if (repeat) print_between_runs(store.db(), run, *other, other_run);
+        if (repeat) print_between_runs(store.db(), run, *other, other_run, o->repetitions);
         print_kind_table(store.db(), run, models);
         print_nested_loso(store.db(), run, o->repetitions, *fit.inputs, models);
     });

@@ -326,6 +326,42 @@ TEST_F(BetweenRuns, FastestCastReadsEachFramesFastestRayCastAndMedianUpdate) {
     EXPECT_FALSE(parse_repetitions("fastest_cast").has_value());
 }
 
+// A small update moves with the cache state it starts in, a large one repeats: the bands keep them
+// apart. bf's cells update in 5 us in a and 8 us in b, ug's in 200 and 204 us; the ray cast is 100
+// us everywhere. With the cells' figures put in the frames, every reading gives the same bands.
+TEST_F(BetweenRuns, TheUpdateIsComparedBandByBandOfItsSize) {
+    const std::string bf =
+        "cell_id IN (SELECT cell.id FROM cell JOIN config ON config.id = cell.config_id WHERE "
+        "config.structure = 'bf')";
+    for (Database* db : {&a, &b}) db->exec("UPDATE frame SET raycast_ns = 100e3, update_ns = 200e3");
+    a.exec("UPDATE frame SET update_ns = 5e3 WHERE " + bf);
+    b.exec("UPDATE frame SET update_ns = 204e3 WHERE NOT " + bf);
+    b.exec("UPDATE frame SET update_ns = 8e3 WHERE " + bf);
+    for (Database* db : {&a, &b})
+        db->exec(
+            "UPDATE cell SET raycast_ns_median = 100e3, update_ns_median = (SELECT max(update_ns) FROM frame "
+            "WHERE frame.cell_id = cell.id)");
+    for (const OverRepetitions how :
+         {OverRepetitions::median, OverRepetitions::fastest, OverRepetitions::fastest_cast}) {
+        const std::vector<UpdateBand> bands = between_runs_by_update(a, runs[0], b, runs[1], how);
+        ASSERT_EQ(bands.size(), 4u);
+        EXPECT_EQ(bands[0].from_ns, 0);
+        EXPECT_EQ(bands[0].below_ns, 10e3);
+        EXPECT_EQ(bands[3].from_ns, 100e3);
+        EXPECT_TRUE(std::isinf(bands[3].below_ns));
+        EXPECT_EQ(bands[0].cells, 2u);  // bf on both scenes: sqrt(5 * 8) = 6.3 us
+        EXPECT_NEAR(bands[0].update_p90, 3.0 / 6.5, 1e-12);
+        EXPECT_NEAR(bands[0].share, 13.0 / 213.0, 1e-12);
+        for (const std::size_t empty : {1, 2}) {
+            EXPECT_EQ(bands[empty].cells, 0u);
+            EXPECT_TRUE(std::isnan(bands[empty].update_p90));
+        }
+        EXPECT_EQ(bands[3].cells, 2u);
+        EXPECT_NEAR(bands[3].update, 4.0 / 202.0, 1e-12);
+        EXPECT_NEAR(bands[3].share, 404.0 / 604.0, 1e-12);
+    }
+}
+
 TEST(NoiseFloor, QuantilesInterpolateBetweenOrderStatistics) {
     EXPECT_TRUE(std::isnan(quantile({}, 0.5)));
     EXPECT_EQ(quantile({3, 1, 2}, 0.5), 2);

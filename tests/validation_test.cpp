@@ -354,6 +354,10 @@ TEST(ValidateCommand, RunsThatMetDifferentCachesAreNoted) {
         EXPECT_EQ(r.code, 0) << r.err;
         EXPECT_NE(r.err.find(note), std::string::npos) << argv[0] << ": " << r.err;
     }
+    // fit --repeat gives the update's agreement band by band of its size, every band named.
+    const std::string out = rcbench({"fit", a, "--repeat", b}).out;
+    for (const char* band : {"under 10 us", "10-30 us", "30-100 us", "100 us and over"})
+        EXPECT_NE(out.find(band), std::string::npos) << band << "\n" << out;
 }
 
 TEST(ValidateCommand, BadInputNamesTheOptionAndExitsTwo) {
