@@ -152,8 +152,9 @@ void print_kind_table(Database& db, std::int64_t run, const std::vector<Structur
     t.print(std::cout);
 }
 
-/// The two runs' agreement over every cell, for the two figures a run can give a cell: the median
-/// of its repetitions (the cell figure the tables show) and each frame's fastest (analysis/repetitions.h).
+/// The two runs' agreement over every cell, for each figure a run can give a cell (the median of its
+/// repetitions, the figure the tables show; each frame's fastest; fastest ray cast and median
+/// update: analysis/repetitions.h), then the update's band by band of its size, in `reading`.
 void print_between_runs(Database& a, std::int64_t run_a, Database& b, std::int64_t run_b, OverRepetitions reading) {
     std::cout << "Between the two runs, every cell both hold (relative range of the two runs' figures, p50 / p90 "
                  "over the cells):\n";
