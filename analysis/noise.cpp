@@ -12,6 +12,15 @@
 
 namespace rcb {
 
+namespace {
+
+/// Every value a time that can be compared: a damaged database can hold anything.
+bool all_finite_positive(const std::vector<double>& values) {
+    return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v) && v > 0; });
+}
+
+}  // namespace
+
 std::vector<StructureNoise> repeatability(const std::vector<RepeatSample>& samples) {
     // structure → cell → repetitions
     std::map<std::string, std::map<std::string, std::vector<const RepeatSample*>>> by;
@@ -31,10 +40,9 @@ std::vector<StructureNoise> repeatability(const std::vector<RepeatSample>& sampl
                 if (r->repetition < 2)
                     c.push_back(r->raycast_ns), u.push_back(r->update_ns), f.push_back(r->raycast_ns + r->update_ns);
             if (c.size() < 2) continue;
-            // Only finite spreads count: a damaged database can hold anything.
+            // Only finite spreads count.
             auto add = [](std::vector<double>& to, const std::vector<double>& values) {
-                if (std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v) && v > 0; }))
-                    to.push_back(relative_range(values));
+                if (all_finite_positive(values)) to.push_back(relative_range(values));
             };
             add(cast, c);
             add(update, u);
@@ -163,9 +171,7 @@ std::vector<UpdateBand> between_runs_by_update(Database& a, std::int64_t run_a, 
     const std::vector<RepeatSample> samples = between_samples(a, run_a, b, run_b, how, true);
     for (std::size_t i = 0; i + 1 < samples.size(); i += 2) {
         const RepeatSample &x = samples[i], &y = samples[i + 1];
-        const double values[] = {x.update_ns, y.update_ns, x.raycast_ns, y.raycast_ns};
-        if (!std::all_of(std::begin(values), std::end(values), [](double v) { return std::isfinite(v) && v > 0; }))
-            continue;
+        if (!all_finite_positive({x.update_ns, y.update_ns, x.raycast_ns, y.raycast_ns})) continue;
         const double size = std::sqrt(x.update_ns * y.update_ns);
         const std::size_t band = std::size_t(std::upper_bound(std::begin(edges), std::end(edges), size) - edges) - 1;
         range[band].push_back(relative_range({x.update_ns, y.update_ns}));
