@@ -26,9 +26,9 @@
 #include "core/base/output_file.h"
 #include "core/accel/registry.h"
 #include "core/sim/simulator.h"
-#include "runner/store.h"
 #include "core/base/number_text.h"
 #include "runner/history.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 namespace {
@@ -88,49 +88,7 @@ struct Entry {
 };
 
 // ---------------------------------------------------------------------------------------------
-// Loading: every query the report makes, in one place; rows are read by column name.
-
-/// A statement's columns by name (the SQL names each with AS), so a row is read by what it holds.
-class Columns {
-public:
-    explicit Columns(const Statement& s) {
-        for (int i = 0; i < s.columns(); ++i) index_[s.column_name(i)] = i;
-    }
-    int operator()(const std::string& name) const {
-        const auto it = index_.find(name);
-        if (it == index_.end()) throw std::logic_error("report: the query has no column '" + name + "'");
-        return it->second;
-    }
-
-private:
-    std::map<std::string, int> index_;
-};
-
-/// One cell of the run: its configuration, its medians and its frames' sums.
-constexpr const char* kCellColumns =
-    "cell.id AS id, scene.spec AS spec, config.structure AS structure, config.params AS params, "
-    "cell.objects AS objects, cell.build_ns AS build_ns, cell.update_ns_median AS update_ns, "
-    "cell.raycast_ns_median AS raycast_ns, cell.memory_bytes AS memory_bytes, cell.repetition AS repetition, "
-    "(SELECT sum(hits) FROM frame WHERE cell_id = cell.id AND warmup = 0) AS hits, "
-    "(SELECT sum(missed) FROM frame WHERE cell_id = cell.id) AS missed, "
-    "(SELECT sum(extra) FROM frame WHERE cell_id = cell.id) AS extra, "
-    "(SELECT sum(duplicate) FROM frame WHERE cell_id = cell.id) AS duplicate, "
-    "(SELECT sum(returned) FROM frame WHERE cell_id = cell.id AND warmup = 0) AS returned, "
-    "(SELECT sum(correct) FROM frame WHERE cell_id = cell.id AND warmup = 0) AS correct, "
-    "(SELECT sum(relevant) FROM frame WHERE cell_id = cell.id AND warmup = 0) AS relevant, "
-    "cell.verified AS verified ";
-
-/// Repetition 0's per-frame ray-cast times and SAH costs of one cell.
-void load_frame_series(Database& db, std::int64_t cell, Entry& e) {
-    Statement f =
-        db.prepare("SELECT raycast_ns AS raycast_ns, sah_cost AS sah_cost FROM frame WHERE cell_id = ? ORDER BY frame");
-    f.bind(1, cell);
-    const Columns col(f);
-    while (f.step()) {
-        e.frame_raycast_ms.push_back(f.real(col("raycast_ns")) / 1e6);
-        e.frame_sah.push_back(f.is_null(col("sah_cost")) ? NAN : f.real(col("sah_cost")));
-    }
-}
+// Loading: the results reader's rows (runner/results_reader.h) gathered per section.
 
 std::vector<Entry> load_entries(Database& db, std::int64_t run) {
     struct Acc {
@@ -139,34 +97,31 @@ std::vector<Entry> load_entries(Database& db, std::int64_t run) {
     };
     std::map<std::pair<std::string, std::string>, Acc> acc;  // (scene, label)
     std::vector<std::pair<std::string, std::string>> order;
-    Statement s = db.prepare("SELECT " + std::string(kSceneLabelSql) + " AS scene, " + kCellColumns +
-                             "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = "
-                             "cell.config_id WHERE cell.run_id IN " +
-                             std::string(kRunGroupSql) + " ORDER BY cell.id");
-    s.bind_all(run, run);
-    const Columns col(s);
-    auto real = [&](const char* name) { return s.real(col(name)); };
-    while (s.step()) {
-        const std::string label = config_label(s.text(col("structure")), s.text(col("params")));
-        const auto key = std::make_pair(s.text(col("scene")), label);
+    for (const CellTotalsRow& r : read_cell_totals(db, run)) {
+        const std::string label = config_label(r.structure, r.params);
+        const auto key = std::make_pair(r.scene, label);
         auto [it, fresh] = acc.try_emplace(key);
         if (fresh) order.push_back(key);
         Acc& a = it->second;
         Entry& e = a.e;
-        e.scene = s.text(col("scene"));
-        e.category = scene_category(s.text(col("spec")));
-        e.structure = s.text(col("structure"));
-        e.params = s.text(col("params"));
+        e.scene = r.scene;
+        e.category = scene_category(r.spec);
+        e.structure = r.structure;
+        e.params = r.params;
         e.label = label;
-        e.objects = real("objects");
-        a.build.push_back(real("build_ns") / 1e6);
-        a.update.push_back(real("update_ns") / 1e6);
-        a.raycast.push_back(real("raycast_ns") / 1e6);
-        a.memory.push_back(e.objects > 0 ? real("memory_bytes") / e.objects : 0);
-        e.hits += real("hits"), e.missed += real("missed"), e.extra += real("extra"), e.duplicate += real("duplicate");
-        e.returned += real("returned"), e.correct += real("correct"), e.relevant += real("relevant");
-        e.verified = e.verified && s.int64(col("verified")) != 0;
-        if (s.int64(col("repetition")) == 0) load_frame_series(db, s.int64(col("id")), e);
+        e.objects = r.objects;
+        a.build.push_back(r.build_ns / 1e6);
+        a.update.push_back(r.update_ns / 1e6);
+        a.raycast.push_back(r.raycast_ns / 1e6);
+        a.memory.push_back(e.objects > 0 ? r.memory_bytes / e.objects : 0);
+        e.hits += r.hits, e.missed += r.missed, e.extra += r.extra, e.duplicate += r.duplicate;
+        e.returned += r.returned, e.correct += r.correct, e.relevant += r.relevant;
+        e.verified = e.verified && r.verified;
+        if (r.repetition == 0)
+            for (const FrameSeriesRow& f : read_frame_series(db, r.id)) {
+                e.frame_raycast_ms.push_back(f.raycast_ns / 1e6);
+                e.frame_sah.push_back(f.sah_cost);
+            }
     }
     std::vector<Entry> out;
     for (const auto& key : order) {
@@ -187,16 +142,9 @@ struct RunHead {
 };
 
 RunHead load_run_head(Database& db, std::int64_t run) {
-    Statement s = db.prepare(
-        "SELECT experiment.name AS experiment, run.git_commit AS git_commit, run.cpu_model AS cpu_model, "
-        "run.started_at AS started_at, run.cores AS cores FROM run JOIN experiment ON experiment.id = "
-        "run.experiment_id WHERE run.id = ?");
-    s.bind(1, run);
-    if (!s.step()) throw InputError("no run " + std::to_string(run));
-    const Columns col(s);
-    return {s.text(col("experiment")), s.text(col("git_commit")),
-            s.text(col("cpu_model")) + " (" + std::to_string(s.int64(col("cores"))) + " cores)",
-            s.text(col("started_at"))};
+    const std::optional<StoredRun> r = read_stored_run(db, run);
+    if (!r) throw InputError("no run " + std::to_string(run));
+    return {r->experiment, r->git_commit, r->cpu_model + " (" + std::to_string(r->cores) + " cores)", r->started_at};
 }
 
 /// The ray-cast and update series of the experiment's runs up to this one (runner/history.h).
@@ -228,20 +176,11 @@ struct SceneMotion {
 };
 
 std::vector<SceneMotion> load_scene_motion(Database& db, std::int64_t run) {
-    Statement s = db.prepare("SELECT " + std::string(kSceneLabelSql) +
-                             " AS scene, scene.objects AS objects, frame.inserts + frame.removes + frame.moves AS "
-                             "changes FROM frame JOIN cell ON cell.id = frame.cell_id JOIN scene ON scene.id = "
-                             "cell.scene_id WHERE cell.id IN (SELECT min(id) FROM cell WHERE run_id IN " +
-                             std::string(kRunGroupSql) + " GROUP BY scene_id) ORDER BY cell.id, frame.frame");
-    s.bind_all(run, run);
-    const Columns col(s);
     std::vector<std::string> order;
     std::map<std::string, std::vector<double>> shares;
-    while (s.step()) {
-        const std::string scene = s.text(col("scene"));
-        if (!shares.count(scene)) order.push_back(scene);
-        const double objects = s.real(col("objects"));
-        shares[scene].push_back(objects > 0 ? s.real(col("changes")) / objects : 0.0);
+    for (const FrameChangesRow& r : read_scene_changes(db, run)) {
+        if (!shares.count(r.scene)) order.push_back(r.scene);
+        shares[r.scene].push_back(r.objects > 0 ? r.changes / r.objects : 0.0);
     }
     std::vector<SceneMotion> out;
     for (const std::string& scene : order) {

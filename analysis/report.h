@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <string>
 
-#include "runner/sqlite.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 
