@@ -16,6 +16,8 @@
 #include "core/base/error.h"
 #include "core/base/number_text.h"
 #include "core/sim/simulator.h"
+#include "runner/results_reader.h"
+#include "runner/results_writer.h"
 #include "runner/run_experiment.h"
 #include "runner/store.h"
 
@@ -439,65 +441,18 @@ const CandidateModel* StructureModels::chosen(const std::string& target) const {
 
 std::int64_t resolve_run(Database& db, std::int64_t run, const std::string& experiment) {
     if (run) {
-        Statement s = db.prepare("SELECT id FROM run WHERE id = ?");
-        s.bind(1, run);
-        if (!s.step()) throw InputError("--run " + std::to_string(run) + ": no such run in " + db.path());
+        if (!run_exists(db, run)) throw InputError("--run " + std::to_string(run) + ": no such run in " + db.path());
         return run;
     }
-    Statement s = db.prepare(
-        experiment.empty()
-            ? "SELECT run.id FROM run WHERE EXISTS (SELECT 1 FROM cell WHERE cell.run_id = run.id) ORDER BY run.id "
-              "DESC LIMIT 1"
-            : "SELECT run.id FROM run JOIN experiment ON experiment.id = run.experiment_id WHERE experiment.name = ? "
-              "AND EXISTS (SELECT 1 FROM cell WHERE cell.run_id = run.id) ORDER BY run.id DESC LIMIT 1");
-    if (!experiment.empty()) s.bind(1, experiment);
-    if (!s.step())
+    const std::optional<std::int64_t> latest = latest_measured_run(db, experiment);
+    if (!latest)
         throw InputError(experiment.empty()
                              ? db.path() + ": the database has no measured run"
                              : "--experiment " + experiment + ": no measured run of that experiment in " + db.path());
-    return s.int64(0);
+    return *latest;
 }
 
 namespace {
-
-/// A query's columns by name (its `AS` aliases), so reads name what they read.
-class NamedColumns {
-public:
-    explicit NamedColumns(const Statement& s) {
-        for (int i = 0; i < s.columns(); ++i) index_[s.column_name(i)] = i;
-    }
-    int operator[](const std::string& name) const {
-        const auto it = index_.find(name);
-        if (it == index_.end()) throw std::logic_error("the query has no column " + name);
-        return it->second;
-    }
-
-private:
-    std::map<std::string, int> index_;
-};
-
-/// The one query of a run's measured frames: what identifies a frame, then every counter of
-/// frame_counters() under its alias. `fastest` and `fastest_cast`: one row per frame of a cell, its
-/// fastest ray-cast and update time over the repetitions (analysis/repetitions.h; load_observations
-/// puts the median update in place for `fastest_cast`); the counters are the same in every
-/// repetition (the same recording on a fresh structure), min() only picks one of them.
-std::string observations_sql(OverRepetitions how) {
-    const bool fastest = how != OverRepetitions::median;
-    std::string sql =
-        "SELECT config.structure AS structure, config.params AS params, cell.scene_id AS scene_id, "
-        "cell.config_id AS config_id, frame.frame AS frame, ";
-    sql += fastest ? "min(frame.rays) AS rays, min(frame.raycast_ns) AS raycast_ns, min(frame.update_ns) AS update_ns"
-                   : "frame.rays AS rays, frame.raycast_ns AS raycast_ns, frame.update_ns AS update_ns";
-    for (const FrameCounter& c : frame_counters())
-        sql += fastest ? std::string(", min(") + c.column + ") AS " + c.alias
-                       : std::string(", ") + c.column + " AS " + c.alias;
-    sql += std::string(
-               " FROM frame JOIN cell ON cell.id = frame.cell_id JOIN config ON config.id = cell.config_id "
-               "WHERE cell.run_id IN ") +
-           kRunGroupSql + " AND frame.warmup = 0";
-    return sql + (fastest ? " GROUP BY cell.scene_id, cell.config_id, frame.frame ORDER BY min(cell.id), frame.frame"
-                          : " ORDER BY cell.id, frame.frame");
-}
 
 /// A stored counter as the observation holds it (per-ray counts only in frames with rays).
 void read_counter(const FrameCounter& c, double stored, FrameObservation& f) {
@@ -521,35 +476,29 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run, 
     std::map<std::tuple<std::int64_t, std::int64_t>, int> groups;
     const std::map<FrameKey, double> update_median =
         how == OverRepetitions::fastest_cast ? median_update_per_frame(db, run) : std::map<FrameKey, double>{};
-    Statement s = db.prepare(observations_sql(how));
-    s.bind_all(run, run);
-    const NamedColumns col(s);
-    std::vector<int> counter_column;
-    for (const FrameCounter& c : frame_counters()) counter_column.push_back(col[c.alias]);
+    // One row per frame of a cell, or with `fastest` and `fastest_cast` per frame of a (scene,
+    // configuration), its fastest ray-cast and update time over the repetitions
+    // (analysis/repetitions.h); `fastest_cast` puts the median update in place below.
+    std::vector<std::string> columns;
+    for (const FrameCounter& c : frame_counters()) columns.push_back(c.column);
     // Each scene's label, category and ray mode once, not per frame (a name or spec may be large).
     std::map<std::int64_t, std::array<std::string, 3>> scenes;
-    Statement scene = db.prepare("SELECT " + std::string(kSceneLabelSql) + ", scene.spec FROM scene WHERE id = ?");
-    while (s.step()) {
+    for (const FrameCountersRow& r : read_frame_counters(db, run, how != OverRepetitions::median, columns)) {
         FrameObservation f;
-        f.structure = s.text(col["structure"]);
-        f.params = s.text(col["params"]);
-        const std::int64_t scene_id = s.int64(col["scene_id"]);
-        auto [it, fresh] = scenes.try_emplace(scene_id);
-        if (fresh) {
-            scene.reset();
-            scene.bind(1, scene_id);
-            if (scene.step()) it->second = {scene.text(0), scene_category(scene.text(1)), scene_ray_mix(scene.text(1))};
-        }
+        f.structure = r.structure;
+        f.params = r.params;
+        auto [it, fresh] = scenes.try_emplace(r.scene_id);
+        if (fresh)
+            if (const auto scene = read_scene_label(db, r.scene_id))
+                it->second = {scene->first, scene_category(scene->second), scene_ray_mix(scene->second)};
         std::tie(f.scene, f.category, f.ray_mix) = std::tie(it->second[0], it->second[1], it->second[2]);
-        const auto key = std::make_tuple(scene_id, s.int64(col["config_id"]));
+        const auto key = std::make_tuple(r.scene_id, r.config_id);
         f.config_group = groups.emplace(key, int(groups.size())).first->second;
-        f.rays = s.real(col["rays"]);
-        f.raycast_ns = s.real(col["raycast_ns"]);
-        f.update_ns = how == OverRepetitions::fastest_cast
-                          ? update_median.at({scene_id, std::get<1>(key), s.int64(col["frame"])})
-                          : s.real(col["update_ns"]);
-        for (std::size_t i = 0; i < counter_column.size(); ++i)
-            read_counter(frame_counters()[i], s.real(counter_column[i]), f);
+        f.rays = r.rays;
+        f.raycast_ns = r.raycast_ns;
+        f.update_ns =
+            how == OverRepetitions::fastest_cast ? update_median.at({r.scene_id, r.config_id, r.frame}) : r.update_ns;
+        for (std::size_t i = 0; i < columns.size(); ++i) read_counter(frame_counters()[i], r.counters[i], f);
         out.push_back(f);
     }
     if (out.empty()) throw InputError("run " + std::to_string(run) + " has no measured frames to fit");
@@ -753,55 +702,42 @@ std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>
 ModelInputs load_model_inputs(Database& db, std::int64_t run) {
     ModelInputs in;
     in.caches = load_cache_sizes(db, run);
-    Statement s = db.prepare("SELECT DISTINCT structure FROM calibration WHERE run_id = ? ORDER BY structure");
-    s.bind(1, run);
-    std::vector<std::string> structures;
-    while (s.step()) structures.push_back(s.text(0));
+    const std::vector<std::string> structures = read_calibrated_structures(db, run);
     for (const std::string& name : structures)
         in.calibrations.push_back(fit_calibration(name, load_calibration(db, run, name)));
     return in;
 }
 
 void store_fits(Database& db, std::int64_t run, const std::vector<StructureModels>& models) {
-    Transaction t(db);
-    db.prepare("DELETE FROM fit WHERE run_id = ?").bind(1, run).run();
+    const auto finite = [](double v) { return std::isfinite(v) ? std::optional<double>(v) : std::nullopt; };
+    std::vector<StoredFit> fits;
     for (const StructureModels& s : models)
         for (const auto* list : {&s.raycast, &s.update})
             for (const CandidateModel& m : *list) {
-                db.prepare(
-                      "INSERT INTO fit(run_id, created_at, structure, target, model, terms, observations, "
-                      "configurations, r2, "
-                      "rmse_relative, heldout_error, condition_number, status, chosen) VALUES "
-                      "(?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
-                    .bind_all(run, utc_now(), s.structure, m.target, m.name, nlohmann::json(m.problem.terms).dump(),
-                              std::int64_t(m.fit.observations), std::int64_t(m.fit.groups), m.fit.r2,
-                              m.fit.rmse_relative, std::isfinite(m.heldout_error) ? m.heldout_error : -1.0,
-                              std::isfinite(m.fit.condition_number) ? m.fit.condition_number : 1e300, m.fit.status(),
-                              std::int64_t(m.chosen))
-                    .run();
-                const std::int64_t fit = db.last_insert_id();
+                StoredFit f{s.structure,
+                            m.target,
+                            m.name,
+                            nlohmann::json(m.problem.terms).dump(),
+                            std::int64_t(m.fit.observations),
+                            std::int64_t(m.fit.groups),
+                            m.fit.r2,
+                            m.fit.rmse_relative,
+                            std::isfinite(m.heldout_error) ? m.heldout_error : -1.0,
+                            std::isfinite(m.fit.condition_number) ? m.fit.condition_number : 1e300,
+                            m.fit.status(),
+                            m.chosen,
+                            std::nullopt,
+                            "",
+                            {}};
                 // Leave-one-scene-out belongs to the chosen ray-cast model (it predicts the whole frame
                 // with the chosen update model); notes: the terms dropped and why.
-                std::string notes;
-                for (const std::string& d : m.dropped) notes += (notes.empty() ? "" : "; ") + d;
-                const bool loso = m.chosen && m.target == "raycast" && std::isfinite(s.loso_error);
-                db.prepare("UPDATE fit SET loso_error = ?, notes = ? WHERE id = ?")
-                    .bind(1, loso ? std::optional<double>(s.loso_error) : std::nullopt)
-                    .bind(2, notes)
-                    .bind(3, fit)
-                    .run();
-                for (const Coefficient& c : m.fit.coefficients) {
-                    Statement ins = db.prepare(
-                        "INSERT INTO fit_coefficient(fit_id, name, value, ci_low, ci_high, spans_zero) VALUES "
-                        "(?,?,?,?,?,?)");
-                    ins.bind_all(fit, c.name, c.value);
-                    ins.bind(4, std::isfinite(c.ci_low) ? std::optional<double>(c.ci_low) : std::nullopt);
-                    ins.bind(5, std::isfinite(c.ci_high) ? std::optional<double>(c.ci_high) : std::nullopt);
-                    ins.bind(6, std::int64_t(c.spans_zero));
-                    ins.run();
-                }
+                for (const std::string& d : m.dropped) f.notes += (f.notes.empty() ? "" : "; ") + d;
+                if (m.chosen && m.target == "raycast" && std::isfinite(s.loso_error)) f.loso_error = s.loso_error;
+                for (const Coefficient& c : m.fit.coefficients)
+                    f.coefficients.push_back({c.name, c.value, finite(c.ci_low), finite(c.ci_high), c.spans_zero});
+                fits.push_back(std::move(f));
             }
-    t.commit();
+    write_fits(db, run, fits);
 }
 
 const TermShare& CostBreakdown::term(const std::string& name) const {

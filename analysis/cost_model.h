@@ -32,7 +32,7 @@
 #include "analysis/model_terms.h"
 #include "analysis/repetitions.h"
 #include "runner/calibration.h"
-#include "runner/sqlite.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 

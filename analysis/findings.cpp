@@ -14,7 +14,7 @@
 #include "core/accel/registry.h"
 #include "core/base/number_text.h"
 #include "core/sim/simulator.h"
-#include "runner/store.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 
@@ -85,17 +85,6 @@ void sort_for_listing(std::vector<Config>& configs) {
 
 std::vector<Config> load_configs(Database& db, std::int64_t run, OverRepetitions how) {
     const auto figures = cell_figures(db, run, how);
-    Statement s =
-        db.prepare("SELECT " + std::string(kSceneLabelSql) +
-                   ", scene.spec, cell.objects, config.structure, config.params, cell.scene_id, "
-                   "cell.config_id, cell.memory_bytes, "
-                   "(SELECT 1.0 * sum(n_t) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0), "
-                   "(SELECT 1.0 * sum(n_rb) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0), "
-                   "(SELECT 1.0 * sum(n_tp) / max(sum(rays), 1) FROM frame WHERE cell_id = cell.id AND warmup = 0) "
-                   "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id "
-                   "WHERE cell.run_id IN " +
-                   std::string(kRunGroupSql) + " ORDER BY cell.id");
-    s.bind_all(run, run);
     struct Acc {
         Config c;
         std::vector<double> update, ray, bytes, n_t, n_rb, n_tp;
@@ -103,26 +92,25 @@ std::vector<Config> load_configs(Database& db, std::int64_t run, OverRepetitions
     std::map<std::tuple<std::string, std::string, std::string>, Acc> acc;
     std::vector<std::tuple<std::string, std::string, std::string>> order;
     const std::vector<std::string> compared = findings_structures();
-    while (s.step()) {
-        const std::string structure = s.text(3);
-        if (!contains(compared, structure)) continue;
-        const auto key = std::make_tuple(s.text(0), structure, s.text(4));
+    for (const CellCountsRow& r : read_cell_counts(db, run)) {
+        if (!contains(compared, r.structure)) continue;
+        const auto key = std::make_tuple(r.scene, r.structure, r.params);
         auto [it, fresh] = acc.try_emplace(key);
         if (fresh) order.push_back(key);
         Acc& a = it->second;
-        a.c.scene = s.text(0);
-        a.c.category = scene_category(s.text(1));
-        a.c.ray_mix = scene_ray_mix(s.text(1));
-        a.c.objects = double(s.int64(2));
-        a.c.structure = structure;
-        a.c.params = nlohmann::json::parse(s.text(4), nullptr, false);
-        const CellFigure& figure = figures.at({s.int64(5), s.int64(6)});
+        a.c.scene = r.scene;
+        a.c.category = scene_category(r.spec);
+        a.c.ray_mix = scene_ray_mix(r.spec);
+        a.c.objects = double(r.objects);
+        a.c.structure = r.structure;
+        a.c.params = nlohmann::json::parse(r.params, nullptr, false);
+        const CellFigure& figure = figures.at({r.scene_id, r.config_id});
         a.update.push_back(figure.update_ns * 1e-6);
         a.ray.push_back(figure.raycast_ns * 1e-6);
-        a.bytes.push_back(a.c.objects > 0 ? double(s.int64(7)) / a.c.objects : NAN);
-        a.n_t.push_back(s.real(8));
-        a.n_rb.push_back(s.real(9));
-        a.n_tp.push_back(s.real(10));
+        a.bytes.push_back(a.c.objects > 0 ? double(r.memory_bytes) / a.c.objects : NAN);
+        a.n_t.push_back(r.n_t);
+        a.n_rb.push_back(r.n_rb);
+        a.n_tp.push_back(r.n_tp);
     }
     std::vector<Config> out;
     for (const auto& key : order) {
@@ -414,14 +402,7 @@ constexpr const char* kCommonForm = "eq5.4";
 /// C_T of the common form per structure, as `rcbench fit` stored it for one run (none without a fit;
 /// a fit that did not converge, or whose terms were collinear, is left out).
 std::map<std::string, double> common_form_c_t(Database& db, std::int64_t run) {
-    Statement s = db.prepare(
-        "SELECT fit.structure, fit_coefficient.value FROM fit JOIN fit_coefficient ON fit_coefficient.fit_id = fit.id "
-        "WHERE fit.run_id = ? AND fit.target = 'raycast' AND fit.model = ? AND fit.status = 'ok' AND "
-        "fit_coefficient.name = 'C_T'");
-    s.bind_all(run, std::string(kCommonForm));
-    std::map<std::string, double> out;
-    while (s.step()) out[s.text(0)] = s.real(1);
-    return out;
+    return read_fit_coefficients(db, run, "raycast", kCommonForm, "C_T");
 }
 
 /// `scenes`: those with dense rays where the runs have some (`dense`), else the others; `stored`:
@@ -650,14 +631,11 @@ std::string findings_markdown(const std::vector<FindingsRun>& runs, OverRepetiti
     std::string experiment;
     std::vector<std::string> provenance;
     for (const FindingsRun& r : runs) {
-        Statement s = r.db->prepare(
-            "SELECT experiment.name, run.uuid, run.started_at, run.git_commit, run.cpu_model, run.compiler FROM run "
-            "JOIN experiment ON experiment.id = run.experiment_id WHERE run.id = ?");
-        s.bind_all(r.run);
-        if (!s.step()) continue;
-        experiment = s.text(0);
-        provenance.push_back("run " + std::to_string(r.run) + " (uuid " + s.text(1) + ", started " + s.text(2) +
-                             ", commit " + s.text(3) + ", " + s.text(4) + ", " + s.text(5) + ")");
+        const std::optional<StoredRun> info = read_stored_run(*r.db, r.run);
+        if (!info) continue;
+        experiment = info->experiment;
+        provenance.push_back("run " + std::to_string(r.run) + " (uuid " + info->uuid + ", started " + info->started_at +
+                             ", commit " + info->git_commit + ", " + info->cpu_model + ", " + info->compiler + ")");
     }
     const bool several = runs.size() > 1;
     if (several) {

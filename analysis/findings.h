@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "analysis/repetitions.h"
-#include "runner/sqlite.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 

@@ -8,7 +8,7 @@
 #include "core/base/number_text.h"
 #include "core/sim/simulator.h"
 #include "runner/run_experiment.h"
-#include "runner/store.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 
@@ -66,32 +66,23 @@ const StructureNoise* NoiseFloor::find(const std::string& structure) const {
 }
 
 NoiseFloor noise_floor(Database& db, std::int64_t run) {
-    // Cells of runs made before the machine state have no cell_state row: NULL.
-    Statement s =
-        db.prepare(std::string("SELECT config.structure, cell.scene_id, cell.config_id, cell.raycast_ns_median, "
-                               "cell.update_ns_median, cell_state.slow, cell_state.load_1m, cell_state.calibration_ns, "
-                               "cell.repetition "
-                               "FROM cell JOIN config ON config.id = cell.config_id "
-                               "LEFT JOIN cell_state ON cell_state.cell_id = cell.id WHERE cell.run_id IN ") +
-                   kRunGroupSql);
-    s.bind_all(run, run);
     NoiseFloor out;
     std::vector<RepeatSample> samples;
     std::vector<double> load, calibration;
-    while (s.step()) {
+    for (const CellStateRow& c : read_cell_states(db, run)) {
         RepeatSample r;
-        r.structure = s.text(0);
-        r.cell = std::to_string(s.int64(1)) + ":" + std::to_string(s.int64(2));
-        r.raycast_ns = s.real(3);
-        r.update_ns = s.real(4);
-        r.repetition = s.int64(8);
+        r.structure = c.structure;
+        r.cell = std::to_string(c.scene_id) + ":" + std::to_string(c.config_id);
+        r.raycast_ns = c.raycast_ns_median;
+        r.update_ns = c.update_ns_median;
+        r.repetition = c.repetition;
         ++out.cells;
-        if (!s.is_null(5)) {
-            r.slow = s.int64(5) != 0;
+        if (c.has_state) {  // cells of runs made before the machine state have none
+            r.slow = c.slow;
             out.slow += r.slow;
             ++out.with_state;
-            if (s.real(6) >= 0 && std::isfinite(s.real(6))) load.push_back(s.real(6));
-            if (std::isfinite(s.real(7))) calibration.push_back(s.real(7));
+            if (c.load_1m >= 0 && std::isfinite(c.load_1m)) load.push_back(c.load_1m);
+            if (std::isfinite(c.calibration_ns)) calibration.push_back(c.calibration_ns);
         }
         samples.push_back(std::move(r));
     }
@@ -108,20 +99,14 @@ namespace {
 std::map<std::string, std::pair<double, double>> run_medians(Database& db, std::int64_t run, OverRepetitions how,
                                                              std::map<std::string, std::string>& structure_of,
                                                              std::map<std::string, std::size_t>& slow) {
-    Statement s = db.prepare(std::string("SELECT cell.scene_id, cell.config_id, config.structure, scene.hash, "
-                                         "config.params, coalesce(cell_state.slow, 0) FROM cell "
-                                         "JOIN config ON config.id = cell.config_id JOIN scene ON scene.id = "
-                                         "cell.scene_id LEFT JOIN cell_state ON cell_state.cell_id = cell.id "
-                                         "WHERE cell.run_id IN ") +
-                             kRunGroupSql);
-    s.bind_all(run, run);
+    const std::vector<CellIdentityRow> cells = read_cell_identities(db, run);
     const auto figures = cell_figures(db, run, how);
     std::map<std::string, std::pair<double, double>> out;
-    while (s.step()) {
-        const std::string key = s.text(2) + '\n' + s.text(3) + '\n' + s.text(4);
-        structure_of[key] = s.text(2);
-        slow[key] += s.int64(5) != 0;
-        const CellFigure& f = figures.at({s.int64(0), s.int64(1)});
+    for (const CellIdentityRow& c : cells) {
+        const std::string key = c.structure + '\n' + c.scene_hash + '\n' + c.params;
+        structure_of[key] = c.structure;
+        slow[key] += c.slow;
+        const CellFigure& f = figures.at({c.scene_id, c.config_id});
         out[key] = {f.raycast_ns, f.update_ns};
     }
     return out;
@@ -189,26 +174,14 @@ std::vector<SlowCell> slow_cells(Database& db, std::int64_t run) {
     // The ratio is against the median of the cell's own run (each shard has its own machine).
     std::map<std::int64_t, double> medians;
     {
-        Statement s = db.prepare(
-            "SELECT cell.run_id, cell_state.calibration_ns FROM cell JOIN cell_state ON cell_state.cell_id = cell.id "
-            "WHERE cell.run_id IN " +
-            std::string(kRunGroupSql));
-        s.bind_all(run, run);
         std::map<std::int64_t, std::vector<double>> times;
-        while (s.step()) times[s.int64(0)].push_back(s.real(1));
+        for (const CellCalibrationRow& c : read_cell_calibrations(db, run)) times[c.run_id].push_back(c.calibration_ns);
         for (auto& [r, t] : times) medians[r] = spread_of(t).median;
     }
-    Statement s =
-        db.prepare("SELECT " + std::string(kSceneLabelSql) +
-                   ", config.structure, config.params, cell.repetition, cell_state.load_1m, "
-                   "cell_state.calibration_ns, cell.run_id FROM cell JOIN cell_state ON cell_state.cell_id = cell.id "
-                   "JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id "
-                   "WHERE cell_state.slow = 1 AND cell.run_id IN " +
-                   std::string(kRunGroupSql) + " ORDER BY cell.id");
-    s.bind_all(run, run);
-    while (s.step()) {
-        const double median = medians[s.int64(6)];
-        out.push_back({s.text(0), s.text(1), s.text(2), s.int64(3), s.real(4), median > 0 ? s.real(5) / median : NAN});
+    for (const SlowCellRow& c : read_slow_cells(db, run)) {
+        const double median = medians[c.run_id];
+        out.push_back(
+            {c.scene, c.structure, c.params, c.repetition, c.load_1m, median > 0 ? c.calibration_ns / median : NAN});
     }
     return out;
 }

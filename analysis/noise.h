@@ -18,7 +18,7 @@
 
 #include "analysis/repetitions.h"
 #include "analysis/statistics.h"
-#include "runner/sqlite.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 

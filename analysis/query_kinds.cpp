@@ -8,7 +8,7 @@
 #include "analysis/statistics.h"
 #include "core/accel/counter_fields.h"
 #include "core/scene/scene.h"
-#include "runner/store.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 namespace {
@@ -29,20 +29,11 @@ struct KindRow {
 
 /// The run's frame_kind rows of measured frames by (cell, frame).
 std::map<std::pair<std::int64_t, std::int64_t>, std::vector<KindRow>> kind_rows(Database& db, std::int64_t run) {
-    std::string sql =
-        "SELECT frame_kind.cell_id, frame_kind.frame, frame_kind.kind, frame_kind.rays, frame_kind.raycast_ns";
-    for (const CounterField& c : kCounterFields) sql += std::string(", frame_kind.") + c.name;
-    sql += std::string(
-               " FROM frame_kind JOIN frame USING (cell_id, frame) JOIN cell ON cell.id = frame_kind.cell_id "
-               "WHERE frame.warmup = 0 AND cell.run_id IN ") +
-           kRunGroupSql;
-    Statement s = db.prepare(sql);
-    s.bind_all(run, run);
     std::map<std::pair<std::int64_t, std::int64_t>, std::vector<KindRow>> out;
-    while (s.step()) {
-        KindRow r{s.text(2), s.real(3), s.real(4), {}};
-        for (int i = 0; i < int(kCounterFields.size()); ++i) r.counters[kCounterFields[i].name] = s.real(5 + i);
-        out[{s.int64(0), s.int64(1)}].push_back(std::move(r));
+    for (FrameKindRow& row : read_frame_kinds(db, run)) {
+        KindRow r{std::move(row.kind), row.rays, row.raycast_ns, {}};
+        for (std::size_t i = 0; i < kCounterFields.size(); ++i) r.counters[kCounterFields[i].name] = row.counters[i];
+        out[{row.cell_id, row.frame}].push_back(std::move(r));
     }
     for (auto& [key, rows] : out)
         std::sort(rows.begin(), rows.end(),
@@ -95,29 +86,21 @@ ValidationSplit kinds_split(const std::vector<FrameObservation>& frames, const s
 
 }  // namespace
 
-bool run_has_query_kinds(Database& db, std::int64_t run) {
-    Statement s = db.prepare(std::string("SELECT 1 FROM frame_kind JOIN cell ON cell.id = frame_kind.cell_id "
-                                         "WHERE cell.run_id IN ") +
-                             kRunGroupSql + " LIMIT 1");
-    s.bind_all(run, run);
-    return s.step();
-}
+bool run_has_query_kinds(Database& db, std::int64_t run) { return run_has_frame_kinds(db, run); }
 
 std::vector<FrameObservation> load_kind_observations(Database& db, std::int64_t run) {
     // Every repetition's frames: a kind's batch is matched to its own frame row, so the frames are
     // not collapsed to their fastest repetition here.
     const std::vector<FrameObservation> frames = load_observations(db, run, OverRepetitions::median);
     // The frames' keys in load_observations' order (its query's WHERE and ORDER BY).
-    Statement keys = db.prepare(std::string("SELECT frame.cell_id, frame.frame FROM frame JOIN cell ON cell.id = "
-                                            "frame.cell_id WHERE cell.run_id IN ") +
-                                kRunGroupSql + " AND frame.warmup = 0 ORDER BY cell.id, frame.frame");
-    keys.bind_all(run, run);
+    const std::vector<std::pair<std::int64_t, std::int64_t>> keys = read_measured_frame_keys(db, run);
     const auto rows = kind_rows(db, run);
     std::vector<FrameObservation> out;
     std::map<std::pair<int, std::string>, int> groups;
-    for (const FrameObservation& f : frames) {
-        if (!keys.step()) throw std::logic_error("the run's frames changed while they were read");
-        const auto it = rows.find({keys.int64(0), keys.int64(1)});
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+        const FrameObservation& f = frames[i];
+        if (i >= keys.size()) throw std::logic_error("the run's frames changed while they were read");
+        const auto it = rows.find(keys[i]);
         if (it == rows.end()) {
             out.push_back(f);
             out.back().kind = kQueryKindNames[int(QueryKind::all)];

@@ -20,7 +20,7 @@
 
 #include "analysis/cost_model.h"
 #include "analysis/validation.h"
-#include "runner/sqlite.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 

@@ -4,7 +4,7 @@
 #include <vector>
 
 #include "core/sim/simulator.h"
-#include "runner/store.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 
@@ -50,12 +50,8 @@ std::optional<OverRepetitions> parse_repetitions(const std::string& name) {
 std::map<FrameKey, double> median_update_per_frame(Database& db, std::int64_t run) {
     std::map<FrameKey, std::vector<double>> times;
     // Warm-up frames are left out, as in the cell's own median (core/sim/simulator.h).
-    Statement s = db.prepare(std::string("SELECT cell.scene_id, cell.config_id, frame.frame, frame.update_ns FROM "
-                                         "frame JOIN cell ON cell.id = frame.cell_id WHERE frame.warmup = 0 AND "
-                                         "cell.run_id IN ") +
-                             kRunGroupSql);
-    s.bind_all(run, run);
-    while (s.step()) times[{s.int64(0), s.int64(1), s.int64(2)}].push_back(s.real(3));
+    for (const FrameTimeRow& r : read_frame_times(db, run))
+        times[{r.scene_id, r.config_id, r.frame}].push_back(r.update_ns);
     std::map<FrameKey, double> out;
     for (const auto& [key, v] : times) out.emplace_hint(out.end(), key, spread_of(v).median);
     return out;
@@ -65,30 +61,19 @@ std::map<std::pair<std::int64_t, std::int64_t>, CellFigure> cell_figures(Databas
                                                                          OverRepetitions how) {
     using Key = std::pair<std::int64_t, std::int64_t>;
     std::map<Key, std::pair<std::vector<double>, std::vector<double>>> medians, per_frame;
-    {
-        Statement s = db.prepare(std::string("SELECT scene_id, config_id, raycast_ns_median, update_ns_median FROM "
-                                             "cell WHERE run_id IN ") +
-                                 kRunGroupSql);
-        s.bind_all(run, run);
-        while (s.step()) {
-            auto& v = medians[{s.int64(0), s.int64(1)}];
-            v.first.push_back(s.real(2));
-            v.second.push_back(s.real(3));
-        }
+    for (const CellMediansRow& r : read_cell_medians(db, run)) {
+        auto& v = medians[{r.scene_id, r.config_id}];
+        v.first.push_back(r.raycast_ns_median);
+        v.second.push_back(r.update_ns_median);
     }
     if (how != OverRepetitions::median) {
         const std::map<FrameKey, double> update_median =
             how == OverRepetitions::fastest_cast ? median_update_per_frame(db, run) : std::map<FrameKey, double>{};
-        Statement s = db.prepare(std::string("SELECT cell.scene_id, cell.config_id, frame.frame, "
-                                             "min(frame.raycast_ns), min(frame.update_ns) FROM frame JOIN cell ON "
-                                             "cell.id = frame.cell_id WHERE frame.warmup = 0 AND cell.run_id IN ") +
-                                 kRunGroupSql + " GROUP BY cell.scene_id, cell.config_id, frame.frame");
-        s.bind_all(run, run);
-        while (s.step()) {
-            const FrameKey frame{s.int64(0), s.int64(1), s.int64(2)};
-            auto& v = per_frame[{s.int64(0), s.int64(1)}];
-            v.first.push_back(s.real(3));
-            v.second.push_back(how == OverRepetitions::fastest ? s.real(4) : update_median.at(frame));
+        for (const FrameTimeRow& r : read_fastest_frame_times(db, run)) {
+            const FrameKey frame{r.scene_id, r.config_id, r.frame};
+            auto& v = per_frame[{r.scene_id, r.config_id}];
+            v.first.push_back(r.raycast_ns);
+            v.second.push_back(how == OverRepetitions::fastest ? r.update_ns : update_median.at(frame));
         }
     }
     // A cell without measured frames (every frame a warm-up) keeps its stored medians.

@@ -15,7 +15,7 @@
 #include <utility>
 #include <vector>
 
-#include "runner/sqlite.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 

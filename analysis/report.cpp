@@ -20,18 +20,21 @@
 #include "analysis/findings.h"
 #include "analysis/noise.h"
 #include "analysis/query_kinds.h"
+#include "analysis/report_data.h"
 #include "analysis/statistics.h"
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/base/output_file.h"
 #include "core/accel/registry.h"
 #include "core/sim/simulator.h"
-#include "runner/store.h"
 #include "core/base/number_text.h"
 #include "runner/history.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 namespace {
+
+using namespace report;
 
 std::string html_escape(const std::string& s) {
     std::string out;
@@ -54,346 +57,6 @@ std::string html_escape(const std::string& s) {
         }
     }
     return out;
-}
-
-/// Structure plus the parameters that differ from its defaults: "dbvh mode=rebuild".
-std::string config_label(const std::string& structure, const std::string& params_text) {
-    const nlohmann::json params = nlohmann::json::parse(params_text, nullptr, false);
-    std::string changed;
-    try {
-        const nlohmann::json defaults = find_structure(structure).defaults();
-        for (const auto& [k, v] : params.items())
-            if (!defaults.contains(k) || defaults[k] != v)
-                changed += (changed.empty() ? "" : ",") + k + "=" + (v.is_string() ? v.get<std::string>() : v.dump());
-    } catch (const InputError&) {
-        changed = params.dump();  // a structure this binary does not know: show everything
-    }
-    return changed.empty() ? structure : structure + " " + changed;
-}
-
-/// One (scene, configuration) of the run, medians over its repetitions.
-struct Entry {
-    std::string scene, category, structure, params, label;
-    double objects = 0;
-    double build_ms = 0, update_ms = 0, raycast_ms = 0, memory_per_object = 0;
-    double hits = 0, missed = 0, extra = 0, duplicate = 0;
-    /// Against the shapes' truth, summed over the measured frames of every repetition.
-    double returned = 0, correct = 0, relevant = 0;
-    bool verified = true;                             ///< every repetition was checked against the truth
-    std::vector<double> frame_raycast_ms, frame_sah;  ///< repetition 0's frames
-    double total_ms() const { return update_ms + raycast_ms; }
-    double precision() const { return returned > 0 ? correct / returned : 1.0; }
-    double recall() const { return relevant > 0 ? correct / relevant : 1.0; }
-    bool exact() const { return missed + extra + duplicate == 0 && precision() == 1 && recall() == 1; }
-};
-
-// ---------------------------------------------------------------------------------------------
-// Loading: every query the report makes, in one place; rows are read by column name.
-
-/// A statement's columns by name (the SQL names each with AS), so a row is read by what it holds.
-class Columns {
-public:
-    explicit Columns(const Statement& s) {
-        for (int i = 0; i < s.columns(); ++i) index_[s.column_name(i)] = i;
-    }
-    int operator()(const std::string& name) const {
-        const auto it = index_.find(name);
-        if (it == index_.end()) throw std::logic_error("report: the query has no column '" + name + "'");
-        return it->second;
-    }
-
-private:
-    std::map<std::string, int> index_;
-};
-
-/// One cell of the run: its configuration, its medians and its frames' sums.
-constexpr const char* kCellColumns =
-    "cell.id AS id, scene.spec AS spec, config.structure AS structure, config.params AS params, "
-    "cell.objects AS objects, cell.build_ns AS build_ns, cell.update_ns_median AS update_ns, "
-    "cell.raycast_ns_median AS raycast_ns, cell.memory_bytes AS memory_bytes, cell.repetition AS repetition, "
-    "(SELECT sum(hits) FROM frame WHERE cell_id = cell.id AND warmup = 0) AS hits, "
-    "(SELECT sum(missed) FROM frame WHERE cell_id = cell.id) AS missed, "
-    "(SELECT sum(extra) FROM frame WHERE cell_id = cell.id) AS extra, "
-    "(SELECT sum(duplicate) FROM frame WHERE cell_id = cell.id) AS duplicate, "
-    "(SELECT sum(returned) FROM frame WHERE cell_id = cell.id AND warmup = 0) AS returned, "
-    "(SELECT sum(correct) FROM frame WHERE cell_id = cell.id AND warmup = 0) AS correct, "
-    "(SELECT sum(relevant) FROM frame WHERE cell_id = cell.id AND warmup = 0) AS relevant, "
-    "cell.verified AS verified ";
-
-/// Repetition 0's per-frame ray-cast times and SAH costs of one cell.
-void load_frame_series(Database& db, std::int64_t cell, Entry& e) {
-    Statement f =
-        db.prepare("SELECT raycast_ns AS raycast_ns, sah_cost AS sah_cost FROM frame WHERE cell_id = ? ORDER BY frame");
-    f.bind(1, cell);
-    const Columns col(f);
-    while (f.step()) {
-        e.frame_raycast_ms.push_back(f.real(col("raycast_ns")) / 1e6);
-        e.frame_sah.push_back(f.is_null(col("sah_cost")) ? NAN : f.real(col("sah_cost")));
-    }
-}
-
-std::vector<Entry> load_entries(Database& db, std::int64_t run) {
-    struct Acc {
-        Entry e;
-        std::vector<double> build, update, raycast, memory;
-    };
-    std::map<std::pair<std::string, std::string>, Acc> acc;  // (scene, label)
-    std::vector<std::pair<std::string, std::string>> order;
-    Statement s = db.prepare("SELECT " + std::string(kSceneLabelSql) + " AS scene, " + kCellColumns +
-                             "FROM cell JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = "
-                             "cell.config_id WHERE cell.run_id IN " +
-                             std::string(kRunGroupSql) + " ORDER BY cell.id");
-    s.bind_all(run, run);
-    const Columns col(s);
-    auto real = [&](const char* name) { return s.real(col(name)); };
-    while (s.step()) {
-        const std::string label = config_label(s.text(col("structure")), s.text(col("params")));
-        const auto key = std::make_pair(s.text(col("scene")), label);
-        auto [it, fresh] = acc.try_emplace(key);
-        if (fresh) order.push_back(key);
-        Acc& a = it->second;
-        Entry& e = a.e;
-        e.scene = s.text(col("scene"));
-        e.category = scene_category(s.text(col("spec")));
-        e.structure = s.text(col("structure"));
-        e.params = s.text(col("params"));
-        e.label = label;
-        e.objects = real("objects");
-        a.build.push_back(real("build_ns") / 1e6);
-        a.update.push_back(real("update_ns") / 1e6);
-        a.raycast.push_back(real("raycast_ns") / 1e6);
-        a.memory.push_back(e.objects > 0 ? real("memory_bytes") / e.objects : 0);
-        e.hits += real("hits"), e.missed += real("missed"), e.extra += real("extra"), e.duplicate += real("duplicate");
-        e.returned += real("returned"), e.correct += real("correct"), e.relevant += real("relevant");
-        e.verified = e.verified && s.int64(col("verified")) != 0;
-        if (s.int64(col("repetition")) == 0) load_frame_series(db, s.int64(col("id")), e);
-    }
-    std::vector<Entry> out;
-    for (const auto& key : order) {
-        Acc& a = acc[key];
-        a.e.build_ms = spread_of(a.build).median;
-        a.e.update_ms = spread_of(a.update).median;
-        a.e.raycast_ms = spread_of(a.raycast).median;
-        a.e.memory_per_object = spread_of(a.memory).median;
-        out.push_back(a.e);
-    }
-    if (out.empty()) throw InputError("run " + std::to_string(run) + " has no measured cells to report");
-    return out;
-}
-
-/// The run's provenance, the report's first paragraph.
-struct RunHead {
-    std::string experiment, commit, cpu, started;
-};
-
-RunHead load_run_head(Database& db, std::int64_t run) {
-    Statement s = db.prepare(
-        "SELECT experiment.name AS experiment, run.git_commit AS git_commit, run.cpu_model AS cpu_model, "
-        "run.started_at AS started_at, run.cores AS cores FROM run JOIN experiment ON experiment.id = "
-        "run.experiment_id WHERE run.id = ?");
-    s.bind(1, run);
-    if (!s.step()) throw InputError("no run " + std::to_string(run));
-    const Columns col(s);
-    return {s.text(col("experiment")), s.text(col("git_commit")),
-            s.text(col("cpu_model")) + " (" + std::to_string(s.int64(col("cores"))) + " cores)",
-            s.text(col("started_at"))};
-}
-
-/// The ray-cast and update series of the experiment's runs up to this one (runner/history.h).
-struct History {
-    HistoryQuery query;  ///< the step options its reading quotes
-    std::vector<HistorySeries> cast, update;
-};
-
-History load_run_history(Database& db, std::int64_t run, const std::string& experiment) {
-    History h;
-    h.query.experiment = experiment;
-    h.query.up_to_run = run;
-    try {
-        h.cast = load_history(db, h.query);
-        HistoryQuery update = h.query;
-        update.metric = "update";
-        h.update = load_history(db, update);
-    } catch (const InputError&) {
-        h.cast.clear(), h.update.clear();  // no frame measured outside warm-up: no history to draw
-    }
-    return h;
-}
-
-/// How much of a scene moves: per frame, the objects inserted, removed or moved over the scene's
-/// objects (the frames of its first cell in the run; every cell of a scene replays the same frames).
-struct SceneMotion {
-    std::string scene;
-    double p10 = 0, p50 = 0, p90 = 0;
-};
-
-std::vector<SceneMotion> load_scene_motion(Database& db, std::int64_t run) {
-    Statement s = db.prepare("SELECT " + std::string(kSceneLabelSql) +
-                             " AS scene, scene.objects AS objects, frame.inserts + frame.removes + frame.moves AS "
-                             "changes FROM frame JOIN cell ON cell.id = frame.cell_id JOIN scene ON scene.id = "
-                             "cell.scene_id WHERE cell.id IN (SELECT min(id) FROM cell WHERE run_id IN " +
-                             std::string(kRunGroupSql) + " GROUP BY scene_id) ORDER BY cell.id, frame.frame");
-    s.bind_all(run, run);
-    const Columns col(s);
-    std::vector<std::string> order;
-    std::map<std::string, std::vector<double>> shares;
-    while (s.step()) {
-        const std::string scene = s.text(col("scene"));
-        if (!shares.count(scene)) order.push_back(scene);
-        const double objects = s.real(col("objects"));
-        shares[scene].push_back(objects > 0 ? s.real(col("changes")) / objects : 0.0);
-    }
-    std::vector<SceneMotion> out;
-    for (const std::string& scene : order) {
-        const std::vector<double>& v = shares[scene];
-        out.push_back({scene, quantile(v, 0.1), quantile(v, 0.5), quantile(v, 0.9)});
-    }
-    return out;
-}
-
-/// Everything the report reads from the database.
-struct ReportData {
-    std::vector<Entry> entries;
-    RunHead head;
-    std::vector<SlowCell> slow;
-    std::vector<FrameObservation> frames;
-    ModelInputs model_inputs;
-    NoiseFloor noise;
-    std::vector<Finding> findings;
-    History history;
-    std::vector<SceneMotion> motion;
-    std::vector<FrameObservation> kind_frames;  ///< per query kind; empty for a run without kinds
-};
-
-ReportData load_report_data(Database& db, std::int64_t run) {
-    ReportData d;
-    d.entries = load_entries(db, run);
-    d.head = load_run_head(db, run);
-    d.slow = slow_cells(db, run);
-    d.frames = load_observations(db, run);
-    d.model_inputs = load_model_inputs(db, run);
-    d.noise = noise_floor(db, run);
-    d.findings = evaluate_findings(db, run);
-    d.history = load_run_history(db, run, d.head.experiment);
-    d.motion = load_scene_motion(db, run);
-    if (run_has_query_kinds(db, run)) d.kind_frames = load_kind_observations(db, run);
-    return d;
-}
-
-// ---------------------------------------------------------------------------------------------
-// Statistics over the loaded data: no HTML.
-
-template <typename T>
-std::vector<std::string> unique_in_order(const std::vector<Entry>& entries, T field) {
-    std::vector<std::string> out;
-    for (const Entry& e : entries)
-        if (std::find(out.begin(), out.end(), field(e)) == out.end()) out.push_back(field(e));
-    return out;
-}
-
-/// The entries with what every section asks of them.
-struct Entries {
-    explicit Entries(const std::vector<Entry>& entries)
-        : all(entries),
-          scenes(unique_in_order(entries, [](const Entry& e) { return e.scene; })),
-          labels(unique_in_order(entries, [](const Entry& e) { return e.label; })),
-          largest(scenes.front()) {
-        double most_objects = -1;
-        for (const Entry& e : all)
-            if (e.objects > most_objects) most_objects = e.objects, largest = e.scene;
-    }
-    /// A configuration keeps its colour and marker in every chart.
-    int style_of(const std::string& label) const {
-        return int(std::find(labels.begin(), labels.end(), label) - labels.begin()) + 1;
-    }
-    const Entry* find(const std::string& scene, const std::string& label) const {
-        for (const Entry& e : all)
-            if (e.scene == scene && e.label == label) return &e;
-        return nullptr;
-    }
-
-    const std::vector<Entry>& all;
-    std::vector<std::string> scenes, labels;  ///< in order of first appearance
-    std::string largest;                      ///< the scene with the most objects
-};
-
-/// The largest scene of `category`, and on it the configuration with the lowest update + ray cast
-/// (configurations in label order; the first of equal ones).
-std::pair<std::string, const Entry*> best_on_largest(const Entries& es, const std::string& category) {
-    std::string scene;
-    double most_objects = -1;
-    for (const Entry& e : es.all)
-        if (e.category == category && e.objects > most_objects) most_objects = e.objects, scene = e.scene;
-    const Entry* best = nullptr;
-    for (const std::string& l : es.labels)
-        for (const Entry& e : es.all)
-            if (e.category == category && e.label == l && e.scene == scene &&
-                (!best || e.total_ms() < best->total_ms()))
-                best = &e;
-    return {scene, best};
-}
-
-/// The configuration whose ray cast changed most from the first to the last quarter of its frames.
-std::pair<std::string, double> largest_drift(const Entries& es) {
-    double worst_drift = 0;
-    std::string worst;
-    for (const Entry& e : es.all) {
-        if (e.scene != es.largest || e.frame_raycast_ms.empty()) continue;
-        const std::size_t q = std::max<std::size_t>(1, e.frame_raycast_ms.size() / 4);
-        const double first =
-            spread_of({e.frame_raycast_ms.begin(), e.frame_raycast_ms.begin() + std::ptrdiff_t(q)}).median;
-        const double last = spread_of({e.frame_raycast_ms.end() - std::ptrdiff_t(q), e.frame_raycast_ms.end()}).median;
-        if (first > 0 && std::abs(last / first - 1) > std::abs(worst_drift))
-            worst_drift = last / first - 1, worst = e.label;
-    }
-    return {worst, worst_drift};
-}
-
-/// The scene category with the most distinct object counts (more than one), or "".
-std::string growth_category(const std::vector<Entry>& entries) {
-    std::map<std::string, std::vector<double>> counts;
-    for (const Entry& e : entries) {
-        std::vector<double>& v = counts[e.category];
-        if (std::find(v.begin(), v.end(), e.objects) == v.end()) v.push_back(e.objects);
-    }
-    std::string category;
-    std::size_t most_counts = 1;
-    for (const auto& [c, v] : counts)
-        if (v.size() > most_counts) most_counts = v.size(), category = c;
-    return category;
-}
-
-/// Brute force on `scene`, the baseline the thesis measures speed-ups against (§4.1; the registry's
-/// family scan): its first configuration, or only its configuration at the defaults.
-const Entry* baseline_on(const std::vector<Entry>& entries, const std::string& scene, bool default_params_only) {
-    for (const Entry& e : entries) {
-        const StructureInfo* info = registered_structure(e.structure);
-        if (e.scene != scene || !info || info->family != Family::scan) continue;
-        if (!default_params_only || e.label == e.structure) return &e;
-    }
-    return nullptr;
-}
-
-/// One failure-mode cell against brute force and the benign scene of the same size.
-struct FailureCell {
-    double mismatches = 0;
-    double vs_bf = NAN, vs_benign = NAN;  ///< cost ratios; NaN without the other cell or its time
-};
-
-FailureCell failure_cell(const std::vector<Entry>& entries, const Entry& e) {
-    FailureCell c;
-    c.mismatches = e.missed + e.extra + e.duplicate;
-    const Entry* bf = baseline_on(entries, e.scene, false);
-    if (bf && bf->total_ms() > 0) c.vs_bf = e.total_ms() / bf->total_ms();
-    // The benign scene of a failure scene: generated irregular (else uniform) with as many objects.
-    for (const char* kind : {"irregular", "uniform"}) {
-        for (const Entry& b : entries)
-            if (b.category == kind && b.label == e.label && b.objects == e.objects) {
-                if (b.total_ms() > 0) c.vs_benign = e.total_ms() / b.total_ms();
-                return c;
-            }
-    }
-    return c;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -518,7 +181,19 @@ void query_kinds_section(Html& h, const std::vector<KindCell>& all_cells) {
             "stands out costs per counted step what the model does not price");
 }
 
-/// Update against ray cast (thesis Figures 6.1 and 6.2), one chart per scene category.
+/// Whether no other configuration on `e`'s scene has both less update and less ray cast per frame
+/// (one of them strictly): `e` is on its scene's front, the choices worth naming.
+bool on_scene_front(const Entries& es, const Entry& e) {
+    for (const Entry& f : es.all)
+        if (&f != &e && f.scene == e.scene && f.update_ms <= e.update_ms && f.raycast_ms <= e.raycast_ms &&
+            (f.update_ms < e.update_ms || f.raycast_ms < e.raycast_ms))
+            return false;
+    return true;
+}
+
+/// Update against ray cast (thesis Figures 6.1 and 6.2), one chart per scene category. A point's
+/// colour and marker name its configuration (the legend); only the points on their scene's front
+/// carry the scene's name, so a chart of many configurations and scenes stays readable.
 void update_raycast_section(Html& h, const Entries& es) {
     h.heading("Update against ray cast (thesis Figures 6.1 and 6.2)");
     for (const std::string& category : unique_in_order(es.all, [](const Entry& e) { return e.category; })) {
@@ -533,7 +208,7 @@ void update_raycast_section(Html& h, const Entries& es) {
                 if (e.category == category && e.label == l) {
                     s.x.push_back(std::max(e.update_ms, 1e-5));
                     s.y.push_back(e.raycast_ms);
-                    s.labels.push_back(e.scene);
+                    s.labels.push_back(on_scene_front(es, e) ? e.scene : "");
                 }
             c.series.push_back(s);
         }
@@ -544,7 +219,8 @@ void update_raycast_section(Html& h, const Entries& es) {
                                (bf && best != bf
                                     ? ", " + fixed(bf->total_ms() / best->total_ms(), 1) + "x less than brute force"
                                     : "") +
-                               "."
+                               ". Named points: each scene's front (no other configuration on the scene "
+                               "has both less update and less ray cast)."
                          : "No data.";
         h.chart(c);
     }
@@ -817,27 +493,6 @@ void dbvh_section(Html& h, const std::vector<CostBreakdown>& breakdown) {
         h.table({"scene", "configuration", "C_total (ns/ray)", "N_TP", "N_FP", "N_T"}, rows,
                 "DBVH incremental insertion against full binned-SAH rebuilds");
     }
-}
-
-/// The SAH cost's change from the first to the last frame of each tree on the largest scene.
-struct SahChange {
-    std::string label;
-    double change = 0;
-    Series series;
-};
-
-std::vector<SahChange> sah_changes(const Entries& es) {
-    std::vector<SahChange> out;
-    for (const Entry& e : es.all) {
-        if (e.scene != es.largest) continue;
-        Series s{e.label, {}, {}, {}, true, es.style_of(e.label)};
-        for (std::size_t f = 0; f < e.frame_sah.size(); ++f)
-            if (std::isfinite(e.frame_sah[f])) s.x.push_back(double(f + 1)), s.y.push_back(e.frame_sah[f]);
-        if (s.x.empty()) continue;
-        const double change = s.y.front() > 0 ? s.y.back() / s.y.front() - 1 : 0;
-        out.push_back({e.label, change, s});
-    }
-    return out;
 }
 
 /// Per-frame series on the largest scene: ray cast, and the trees' SAH cost.

@@ -6,11 +6,13 @@
 /// time against object count), each scene's motion (objects changed per frame) and, for a run with
 /// query kinds, the time per query of each kind measured and predicted (analysis/query_kinds.h).
 /// One self-contained file: open it from disk, no network, no scripts.
+/// What each section shows is loaded and computed in analysis/report_data.h; report.cpp only
+/// renders it (HTML, CSS, gnuplot charts).
 
 #include <cstdint>
 #include <string>
 
-#include "runner/sqlite.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 

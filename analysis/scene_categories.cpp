@@ -10,6 +10,8 @@
 #include "core/base/error.h"
 #include "core/base/number_text.h"
 #include "core/base/random.h"
+#include "runner/results_reader.h"
+#include "runner/results_writer.h"
 #include "runner/store.h"
 
 namespace rcb {
@@ -398,20 +400,15 @@ RunCategories derive_run_categories(Database& db, std::int64_t run, std::uint64_
     out.run = run;
     std::vector<SceneFeatures> features;
     std::vector<std::string> fixed_categories;
-    Statement s = db.prepare(std::string("SELECT DISTINCT scene.id, " + std::string(kSceneLabelSql) +
-                                         ", scene.spec FROM cell JOIN scene ON "
-                                         "scene.id = cell.scene_id WHERE cell.run_id IN ") +
-                             kRunGroupSql + " ORDER BY scene.id");
-    s.bind_all(run, run);
-    while (s.step()) {
-        const std::optional<SceneFeatures> f = stored_scene_features(db, s.int64(0));
+    for (const RunSceneRow& scene : read_run_scenes(db, run)) {
+        const std::optional<SceneFeatures> f = stored_scene_features(db, scene.id);
         if (!f)
-            throw InputError(db.path() + ": scene \"" + s.text(1) + "\" of run " + std::to_string(run) +
+            throw InputError(db.path() + ": scene \"" + scene.label + "\" of run " + std::to_string(run) +
                              " has no stored features (stored by an older rcbench); run the experiment again");
-        out.scene_ids.push_back(s.int64(0));
-        out.scene_names.push_back(s.text(1));
+        out.scene_ids.push_back(scene.id);
+        out.scene_names.push_back(scene.label);
         features.push_back(*f);
-        fixed_categories.push_back(scene_category(s.text(2)));
+        fixed_categories.push_back(scene_category(scene.spec));
     }
     if (features.empty()) throw InputError(db.path() + ": run " + std::to_string(run) + " has no scenes");
     out.clustering = cluster_scenes(features, fixed_categories, seed, max_k);
@@ -419,26 +416,20 @@ RunCategories derive_run_categories(Database& db, std::int64_t run, std::uint64_
 }
 
 void store_run_categories(Database& db, const RunCategories& rc) {
-    Transaction t(db);
-    for (const char* table : {"derived_category_scene", "derived_category", "scene_clustering"})
-        db.prepare(std::string("DELETE FROM ") + table + " WHERE run_id = ?").bind_all(rc.run).run();
     const SceneClustering& c = rc.clustering;
-    Statement ins = db.prepare(
-        "INSERT INTO scene_clustering(run_id, created_at, seed, k, silhouette, clustering) VALUES (?,?,?,?,?,?)");
-    ins.bind_all(rc.run, utc_now(), std::int64_t(c.seed), std::int64_t(c.categories.size()));
-    ins.bind(5, std::isfinite(c.silhouette) ? std::optional<double>(c.silhouette) : std::nullopt);
-    ins.bind(6, c.to_json().dump());
-    ins.run();
-    for (std::size_t i = 0; i < c.categories.size(); ++i)
-        db.prepare("INSERT INTO derived_category(run_id, category, name, scenes, centroid) VALUES (?,?,?,?,?)")
-            .bind_all(rc.run, std::int64_t(i), c.categories[i].name, std::int64_t(c.categories[i].members.size()),
-                      values_json(c.categories[i].centroid).dump())
-            .run();
+    StoredClustering out{rc.run,
+                         std::int64_t(c.seed),
+                         std::int64_t(c.categories.size()),
+                         std::isfinite(c.silhouette) ? std::optional<double>(c.silhouette) : std::nullopt,
+                         c.to_json().dump(),
+                         {},
+                         {}};
+    for (const auto& category : c.categories)
+        out.categories.push_back(
+            {category.name, std::int64_t(category.members.size()), values_json(category.centroid).dump()});
     for (std::size_t i = 0; i < rc.scene_ids.size(); ++i)
-        db.prepare("INSERT INTO derived_category_scene(run_id, scene_id, category) VALUES (?,?,?)")
-            .bind_all(rc.run, rc.scene_ids[i], std::int64_t(c.assignment[i]))
-            .run();
-    t.commit();
+        out.scene_category.emplace_back(rc.scene_ids[i], std::int64_t(c.assignment[i]));
+    write_clustering(db, out);
 }
 
 }  // namespace rcb

@@ -23,7 +23,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/sim/scene_features.h"
-#include "runner/sqlite.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 

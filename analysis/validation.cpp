@@ -6,7 +6,8 @@
 
 #include "analysis/model_terms.h"
 #include "core/base/random.h"
-#include "runner/store.h"
+#include "runner/results_reader.h"
+#include "runner/results_writer.h"
 
 namespace rcb {
 namespace {
@@ -333,38 +334,31 @@ std::map<std::pair<std::string, std::string>, double> scene_frame_errors(const s
 }
 
 std::string run_uuid(Database& db, std::int64_t run) {
-    Statement s = db.prepare("SELECT uuid FROM run WHERE id = ?");
-    s.bind(1, run);
-    return s.step() ? s.text(0) : "";
+    const std::optional<StoredRun> info = read_stored_run(db, run);
+    return info ? info->uuid : "";
 }
 
 void store_validation(Database& db, std::int64_t run, const std::string& train, const std::string& train_uuid,
                       const ValidationGroup& group, const BootstrapOptions& options) {
-    Transaction t(db);
-    db.prepare("DELETE FROM model_validation WHERE run_id = ? AND train_run_uuid = ? AND split = ?")
-        .bind_all(run, train_uuid, group.name)
-        .run();
     const auto value = [](double v) { return std::isfinite(v) ? std::optional<double>(v) : std::nullopt; };
+    std::vector<StoredValidation> rows;
     for (const StructureValidation& s : group.structures) {
-        Statement ins = db.prepare(
-            "INSERT INTO model_validation(run_id, created_at, train, train_run_uuid, split, splits, structure, cells, "
-            "unpredictable, scenes, frame_median, frame_median_low, frame_median_high, frame_p90, frame_p90_low, "
-            "frame_p90_high, raycast_median, raycast_median_low, raycast_median_high, raycast_p90, raycast_p90_low, "
-            "raycast_p90_high, resamples, seed, models, outside_range) VALUES "
-            "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
-        ins.bind_all(run, utc_now(), train, train_uuid, group.name, nlohmann::json(group.splits).dump(), s.structure,
-                     std::int64_t(s.cells), std::int64_t(s.unpredictable), std::int64_t(s.scenes));
-        int k = 11;
+        StoredValidation r{s.structure,
+                           std::int64_t(s.cells),
+                           std::int64_t(s.unpredictable),
+                           std::int64_t(s.scenes),
+                           std::int64_t(s.outside),
+                           {},
+                           nlohmann::json{{"raycast", s.raycast_models}, {"update", s.update_models}}.dump()};
         for (const ErrorSummary* e : {&s.frame, &s.raycast})
             for (double v : {e->median, e->median_low, e->median_high, e->p90, e->p90_low, e->p90_high})
-                ins.bind(k++, value(v));
-        ins.bind(k++, std::int64_t(options.resamples));
-        ins.bind(k++, std::int64_t(options.seed));
-        ins.bind(k++, nlohmann::json{{"raycast", s.raycast_models}, {"update", s.update_models}}.dump());
-        ins.bind(k, std::int64_t(s.outside));
-        ins.run();
+                r.errors.push_back(value(v));
+        rows.push_back(std::move(r));
     }
-    t.commit();
+    write_validation(db,
+                     {run, train, train_uuid, group.name, nlohmann::json(group.splits).dump(),
+                      std::int64_t(options.resamples), std::int64_t(options.seed)},
+                     rows);
 }
 
 nlohmann::json validation_json(const ValidationGroup& group, bool with_cells) {

@@ -26,7 +26,7 @@
 
 #include "analysis/cost_model.h"
 #include "analysis/statistics.h"
-#include "runner/sqlite.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 

@@ -10,6 +10,7 @@
 #include "analysis/cost_model.h"
 #include "analysis/findings.h"
 #include "core/base/output_file.h"
+#include "runner/results_reader.h"
 #include "runner/store.h"
 
 namespace rcb {
@@ -18,11 +19,8 @@ namespace {
 
 /// The experiment a run belongs to (its name), for the check that all runs are of one experiment.
 std::string experiment_of(Database& db, std::int64_t run) {
-    Statement s = db.prepare(
-        "SELECT experiment.name FROM run JOIN experiment ON experiment.id = run.experiment_id "
-        "WHERE run.id = ?");
-    s.bind_all(run);
-    return s.step() ? s.text(0) : "";
+    const std::optional<StoredRun> info = read_stored_run(db, run);
+    return info ? info->experiment : "";
 }
 
 }  // namespace

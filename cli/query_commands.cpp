@@ -71,8 +71,7 @@ void add_query_commands(CLI::App& app) {
     CLI::App* query =
         app.add_subcommand("query", "Run a read-only SQL statement on a results database (schema: docs/database.md)");
     query->add_option("db", q->db, "Results database")->required()->check(input_file());
-    query->add_option("sql", q->sql, "SQL, e.g. \"SELECT scene, structure, raycast_ns_median FROM cell_summary\"")
-        ->required();
+    query->add_option("sql", q->sql, "SQL, e.g. \"" + std::string(kQueryExample) + "\"")->required();
     query->add_flag("--csv", q->csv, "Print CSV instead of a table");
     query->callback([q] { run_query(q->db, q->sql, q->csv); });
 

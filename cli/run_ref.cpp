@@ -6,7 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/cost_model.h"
-#include "runner/sqlite.h"
+#include "runner/results_reader.h"
 
 namespace rcb {
 
@@ -27,19 +27,16 @@ RunRef parse_run_ref(const std::string& option, const std::string& text) {
 std::int64_t resolve_ref(Database& db, const RunRef& ref) {
     return naming(ref, [&] {
         if (ref.run) {
-            Statement s = db.prepare("SELECT id FROM run WHERE id = ?");
-            s.bind(1, ref.run);
-            if (!s.step()) throw InputError("no run " + std::to_string(ref.run) + " in " + ref.path);
+            if (!run_exists(db, ref.run)) throw InputError("no run " + std::to_string(ref.run) + " in " + ref.path);
         }
         return resolve_run(db, ref.run, "");
     });
 }
 
 std::string run_cache(Database& db, std::int64_t run) {
-    Statement s = db.prepare("SELECT experiment_content FROM run WHERE id = ?");
-    s.bind(1, run);
-    if (!s.step()) return "warm";
-    const nlohmann::json j = nlohmann::json::parse(s.text(0), nullptr, false);
+    const std::optional<std::string> content = read_experiment_content(db, run);
+    if (!content) return "warm";
+    const nlohmann::json j = nlohmann::json::parse(*content, nullptr, false);
     return j.is_object() && j.value("cache", "") == "cold" ? "cold" : "warm";
 }
 

@@ -13,6 +13,9 @@ struct QueryResult {
     std::vector<std::vector<std::string>> rows;  ///< NULL as ""
 };
 
+/// A statement to show users as an example of `rcbench query`.
+inline constexpr const char* kQueryExample = "SELECT scene, structure, raycast_ns_median FROM cell_summary";
+
 /// Runs one statement; InputError "query: ..." when it is not valid SQL or would write (only
 /// SELECT, WITH and PRAGMA reads are allowed).
 QueryResult read_only_query(Database& db, const std::string& sql);

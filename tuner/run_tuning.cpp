@@ -12,6 +12,7 @@
 #include "core/accel/registry.h"
 #include "core/sim/simulator.h"
 #include "runner/build_info.h"
+#include "runner/results_writer.h"
 #include "runner/store.h"
 #include "tuner/search_baselines.h"
 
@@ -69,39 +70,29 @@ std::string convergence_chart(const CategoryTuning& ct, const TuneSpec& spec) {
 }
 
 void store_tuning(ResultStore& store, const TuneSpec& spec, const CategoryTuning& ct) {
-    Database& db = store.db();
-    Transaction t(db);
-    db.prepare("DELETE FROM tuning WHERE name = ? AND category = ?").bind_all(spec.name, ct.category).run();
+    std::vector<StoredTuning> rows;
     for (const StructureTuning& st : ct.structures) {
         const Candidate& best = st.candidates[st.best_candidate];
         const Candidate* def = nullptr;
         for (const Candidate& c : st.candidates)
             if (c.is_default) def = &c;
-        json bound = st.search.on_bound;
-        Statement ins = db.prepare(
-            "INSERT INTO tuning(name, category, structure, mode, algorithm, created_at, git_commit, spec, evaluations, "
-            "measurements, "
-            "seconds, stop_reason, on_bound, best_params, best_measured_ms, best_measured_mad, best_predicted_ms, "
-            "default_params, "
-            "default_measured_ms, chosen, accuracy) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
-        ins.bind_all(spec.name, ct.category, st.structure, st.mode, st.search.algorithm, utc_now(),
-                     std::string(kGitCommit), spec.content, std::int64_t(st.search.evaluations.size()),
-                     std::int64_t(st.measurements), st.seconds, st.search.stop_reason, bound.dump(), best.params.dump(),
-                     best.measured->ms, best.measured->mad);
-        ins.bind(17, best.predicted_ms);
-        ins.bind(18, def ? def->params.dump() : std::string("{}"));
-        ins.bind(19, def ? std::optional<double>(def->measured->ms) : std::nullopt);
-        ins.bind(20, std::int64_t(ct.chosen.structure == st.structure && ct.chosen.params == best.params));
-        ins.bind(21, spec.accuracy.text());
-        ins.run();
-        const std::int64_t id = db.last_insert_id();
-        for (std::size_t i = 0; i < st.search.evaluations.size(); ++i)
-            db.prepare("INSERT INTO tuning_evaluation(tuning_id, i, params, cost_ms, kind) VALUES (?,?,?,?,?)")
-                .bind_all(id, std::int64_t(i), st.search.evaluations[i].params.dump(), st.search.evaluations[i].cost,
-                          std::string(st.mode == "measured" ? "measured" : "predicted"))
-                .run();
+        StoredTuning r;
+        r.structure = st.structure, r.mode = st.mode, r.algorithm = st.search.algorithm;
+        r.git_commit = kGitCommit, r.spec = spec.content;
+        r.evaluations = std::int64_t(st.search.evaluations.size()), r.measurements = std::int64_t(st.measurements);
+        r.seconds = st.seconds, r.stop_reason = st.search.stop_reason, r.on_bound = json(st.search.on_bound).dump();
+        r.best_params = best.params.dump();
+        r.best_measured_ms = best.measured->ms, r.best_measured_mad = best.measured->mad;
+        r.best_predicted_ms = best.predicted_ms;
+        r.default_params = def ? def->params.dump() : std::string("{}");
+        r.default_measured_ms = def ? std::optional<double>(def->measured->ms) : std::nullopt;
+        r.chosen = ct.chosen.structure == st.structure && ct.chosen.params == best.params;
+        r.accuracy = spec.accuracy.text();
+        for (const auto& e : st.search.evaluations) r.evaluation.push_back({e.params.dump(), e.cost});
+        r.evaluation_kind = st.mode == "measured" ? "measured" : "predicted";
+        rows.push_back(std::move(r));
     }
-    t.commit();
+    write_tuning(store.db(), spec.name, ct.category, rows);
 }
 
 }  // namespace
