@@ -144,8 +144,9 @@ void add_advise_command(CLI::App& app) {
     CLI::App* cmd =
         app.add_subcommand("advise",
                            "Measure every registered structure on a scene (recording or boxes CSV) at its tuned or "
-                           "default parameters, and recommend the one to ship; prints what choosing the tuned "
-                           "parameters measured (timed configurations, counting replays) beside the space's size");
+                           "default parameters, and recommend the one to ship (--verify-top 0: predict them by the "
+                           "tuning's cost model instead, timing nothing); prints what choosing the tuned parameters "
+                           "spent (timed configurations, counting replays) beside the space's size");
     cmd->add_option("scene", o->scene,
                     "Recording (.rcbscene) or boxes CSV (given 10 frames of 1% dynamics and 1000 centre rays)")
         ->required()
