@@ -41,7 +41,9 @@ void print_rows(const Advice& advice, const AdviseOptions& options) {
                                      ms_or_dash(r.cost.raycast_ms),
                                      per_frame_text(r),
                                      std::isfinite(r.cost.memory_bytes) ? bytes_text(r.cost.memory_bytes) : "-",
-                                     std::string(r.tuned ? "tuned" : "defaults") + (r.meets ? "" : ", fails")};
+                                     std::string(r.tuned ? "tuned" : "defaults") + (!r.priced() ? ", not ranked"
+                                                                                    : r.meets   ? ""
+                                                                                                : ", fails")};
         if (verified) row.insert(row.end(), {fixed(r.cost.accuracy.precision, 3), fixed(r.cost.accuracy.recall, 3)});
         t.add(row);
     }
