@@ -22,7 +22,8 @@ void add_tune_command(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand("tune",
                                        "Tune structures' parameters per scene category, minimising update + rays x "
                                        "cost per frame (thesis eq. 5.5). Mode measured: every configuration "
-                                       "replayed untimed and ranked by the cost model (the machine's micro-scene "
+                                       "replayed (rays counted, not timed; the update timed) and ranked by the "
+                                       "cost model (the machine's micro-scene "
                                        "calibration, refitted on what is timed), the file's budget timing the "
                                        "best-ranked; where no model exists, a pattern search with NLopt's DIRECT. "
                                        "The predicted modes search the calibrated model. Writes "
@@ -40,10 +41,12 @@ void add_tune_command(CLI::App& app) {
         ->capture_default_str();
     cmd->add_flag(
         "--exhaustive", o->exhaustive,
-        "Also measure every configuration of each search space and report the tuner's gap to the true optimum, "
-        "and its regret beside the search alone, random search and coordinate descent at the same budget (a "
-        "tenth of the space's structures in effect, every timed configuration counted; the tuner's untimed "
-        "replays reported beside it) on the same measurements");
+        "Also measure every configuration of each search space twice and report the tuner's gap to the "
+        "optimum, and its regret beside the search alone, random search and coordinate descent at the same "
+        "budget (a tenth of the space's structures in effect timed, every timed configuration counted, and for "
+        "each method the replays of the whole space that merge configurations counting alike). Every method "
+        "and the optimum are chosen on the first measurement and scored on the second, taken after it, so no "
+        "choice is priced by the numbers it chose on");
     cmd->add_flag("--derive-categories", o->derive,
                   "Pool the file's scenes and tune per category derived from their features (k-means on "
                   "standardised scene features, k by silhouette; see docs/database.md) instead of per category "

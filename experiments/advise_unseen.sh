@@ -3,7 +3,8 @@
 # experiments/tune-advise.json (synthetic scenes and six OpenArena maps, as in real.json), imports
 # OpenArena maps that are in neither, and advises each from that tuning with --exhaustive, which
 # also measures every configuration of the tuned spaces on the map: each structure's line gives the
-# map's own best, the advised configuration's gap to it and the category's parameters' gap.
+# map's own best (in that table, and re-measured after the choices), and the advised
+# configuration's and the category's parameters' gaps to it, both on the re-measurement.
 #
 #   experiments/advise_unseen.sh [MAP ...]
 #     default maps: oa_dm2 delta oa_dm3 oa_dm5 oa_dm6 oa_dm7 hydronex q3dm6ish (pak1-maps.pk3, brushes)

@@ -1,11 +1,15 @@
 #!/usr/bin/env bash
 # advise against its budget-matched baselines on every OpenArena map (docs/model.md, "The budget"):
 # runs `rcbench advise MAP --tuning T --exhaustive --json` on each map of data/maps/*.pk3 and
-# summarises, per map and tuned structure, the regret (cost / the map's exhaustive best − 1) of
-# advise, advise's steps taken on the baselines' table (advise-table), the pure-model choice, the
-# category's parameters and the random and descent baselines, all priced from the map's one
-# exhaustive table; then, over the maps the tuning did not see, how often each is within 5 % of
-# the optimum and how often advise (either way) beats each baseline.
+# summarises, per map and tuned structure, each method's budget (configurations timed / counting
+# replays) and its regret: advise, advise's steps taken on the map's table (advise-table), the
+# pure-model choice, the category's parameters and the random and descent baselines (advise's
+# timed configurations and replays). Every method and the map's optimum are chosen on one
+# exhaustive table and scored on a re-measurement taken after it (regret: the choice's re-measured
+# cost / the optimum's re-measured cost − 1), so none is priced by the numbers it chose on. The
+# pure model is pure only where its replays timed no update ("update timed" 0: the tuning holds the
+# update's prices). Then, over the maps the tuning did not see, how often each is within 5 % of the
+# re-measured optimum and how often advise (either way) beats each baseline.
 #
 #   scripts/advise_study.sh [MAP ...]
 #     default maps: every map of every data/maps/*.pk3 (as `rcbench scene maps` lists them)
@@ -81,14 +85,17 @@ jq -r -s --arg seen " $seen " --arg mode "$mode" '
   def pct: (. * 1000 | round / 10 | tostring) + "%";
   [ .[] | (.scene | sub(".*/"; "") | sub("-" + $mode + ".rcbscene$"; "")) as $map
         | .exhaustive[] | {map: $map, seen: ($seen | contains(" " + $map + " ")), structure,
-                           budget, regret: (.methods | map({(.method): .regret}) | add)} ] as $rows
+                           budget, regret: (.methods | map({(.method): .regret}) | add),
+                           spent: (.methods | map({(.method): "\(.timed)/\(.replays)"}) | add)} ] as $rows
   | ($rows | map(select(.seen | not))) as $unseen
   | def opt: if . == null then "-" else pct end;
-    ["map", "seen", "structure", "timed", "space", "advise", "advise-table", "model", "category", "random",
-     "descent"],
-    ($rows[] | [.map, (if .seen then "yes" else "no" end), .structure, .budget.timed, .budget.space,
+    ["map", "seen", "structure", "timed/replays", "update timed", "space", "advise", "advise-table", "model",
+     "category", "random", "descent", "random timed/replays", "descent timed/replays"],
+    ($rows[] | [.map, (if .seen then "yes" else "no" end), .structure,
+                "\(.budget.timed)/\(.budget.replays)", .budget.replays_update_timed, .budget.space,
                 (.regret.advise | pct), (.regret["advise-table"] | opt), (.regret.model | opt),
-                (.regret.category | opt), (.regret.random | pct), (.regret.descent | pct)]),
+                (.regret.category | opt), (.regret.random | pct), (.regret.descent | pct),
+                .spent.random, .spent.descent]),
     [],
     ["unseen (map x structure): \($unseen | length)"],
     (["advise", "advise-table", "model", "category", "random", "descent"][] as $m

@@ -1,8 +1,9 @@
 // advise --exhaustive's budget-matched baselines on made-up cost tables: the random draw (seeded,
-// uniform, within the budget), the model-free descent (from the category's parameters, only to
-// measured improvements, stopped at the budget) and the comparison that prices every method from
-// one table; the pure-model choice, which must be what --verify-top 0 --refine 0 advises; and
-// advise's own steps taken on the baselines' table (advise-table).
+// uniform, within the budget; with replays, one per structure in effect), the model-free descent
+// (from the category's parameters, only to measured improvements, stopped at the budget; with
+// replays, past twins of what it measured) and the comparison that chooses every method on one
+// table and scores it on a re-measurement; the pure-model choice, which must be what --verify-top 0
+// advises; and advise's own steps taken on the table (advise-table).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -40,9 +41,25 @@ MethodInputs bowl() {
     MethodInputs in;
     in.space = grid_space(4, 4);
     in.configurations = enumerate_space(in.space);
-    in.costs = table(in.configurations, [](int a, int b) { return 1.0 + std::abs(a - 3) + std::abs(b - 2); });
+    in.table = table(in.configurations, [](int a, int b) { return 1.0 + std::abs(a - 3) + std::abs(b - 2); });
     in.category = {{"a", 1}, {"b", 1}};
     return in;
+}
+
+/// compare_methods with a scoring pass that reads `rescored` (per configuration), and the indices
+/// it was asked for in `asked`.
+MethodComparison scored_on(const MethodInputs& in, const std::vector<double>& rescored,
+                           std::vector<std::size_t>* asked = nullptr) {
+    int calls = 0;
+    MethodComparison m = compare_methods(in, [&](const std::vector<std::size_t>& indices) {
+        ++calls;
+        if (asked) *asked = indices;
+        std::vector<double> out;
+        for (const std::size_t i : indices) out.push_back(rescored.at(i));
+        return out;
+    });
+    EXPECT_EQ(calls, 1);  // one scoring pass, after every choice
+    return m;
 }
 
 TEST(AdviseBaselines, RandomPicksAreSeededDistinctAndWithinTheBudget) {
@@ -117,14 +134,22 @@ TEST(AdviseBaselines, TheDescentMovesOnlyToMeasuredImprovements) {
               (json{{"a", 2}, {"b", 3}}));
 }
 
-TEST(AdviseBaselines, EveryMethodIsPricedFromTheSameTable) {
+TEST(AdviseBaselines, EveryMethodIsChosenOnTheTableAndScoredOnOneRemeasurement) {
     MethodInputs in = bowl();
     in.advised = {{"a", 3}, {"b", 3}};
     in.predicted_best = json{{"a", 4}, {"b", 2}};
     in.budget = 5;
     in.seed = 7;
-    const std::vector<MethodOutcome> m = compare_methods(in);
+    std::vector<std::size_t> asked;
+    const MethodComparison c = scored_on(in, in.table, &asked);
+    const std::vector<MethodOutcome>& m = c.methods;
     ASSERT_EQ(m.size(), 5u);
+    // The scoring pass re-measures the table's best first, then each choice once, nothing else.
+    ASSERT_FALSE(asked.empty());
+    EXPECT_EQ(in.configurations[asked[0]], (json{{"a", 3}, {"b", 2}}));
+    EXPECT_EQ(std::set<std::size_t>(asked.begin(), asked.end()).size(), asked.size());
+    for (const MethodOutcome& o : m) EXPECT_NE(std::find(asked.begin(), asked.end(), o.index), asked.end());
+    EXPECT_LE(asked.size(), m.size() + 1);
     EXPECT_EQ(m[0].method, "advise");
     EXPECT_EQ(m[0].timed, 5u);
     EXPECT_DOUBLE_EQ(m[0].ms, 2.0);
@@ -137,38 +162,83 @@ TEST(AdviseBaselines, EveryMethodIsPricedFromTheSameTable) {
     EXPECT_EQ(m[3].method, "random");
     EXPECT_EQ(m[3].timed, 5u);
     double best_drawn = INFINITY;
-    for (const std::size_t i : random_picks(16, 5, 7)) best_drawn = std::min(best_drawn, in.costs[i]);
+    for (const std::size_t i : random_picks(16, 5, 7)) best_drawn = std::min(best_drawn, in.table[i]);
     EXPECT_DOUBLE_EQ(m[3].ms, best_drawn);
     EXPECT_EQ(m[4].method, "descent");
     EXPECT_LE(m[4].timed, 5u);
     EXPECT_DOUBLE_EQ(m[4].regret, m[4].ms - 1.0);
     // Without a model (the category method) there is no pure-model row.
     in.predicted_best.reset();
-    EXPECT_EQ(compare_methods(in).size(), 4u);
+    EXPECT_EQ(scored_on(in, in.table).methods.size(), 4u);
 }
 
-TEST(AdviseBaselines, BaselinesChooseOnTheirOwnTableAndArePricedOnTheShared) {
-    // One configuration looks fastest in the baselines' table by noise; the shared table, which
-    // scores every method, prices it at what it is.
+TEST(AdviseBaselines, ALuckyOptimumInTheTableIsScoredOnItsRemeasurement) {
+    // The winner's curse: one configuration looks fastest in the table by noise, so the table
+    // calls it the optimum and random search, timing every configuration, picks it. Scored on the
+    // table, random would have regret 0 and advise, at the true best, +100%. Scored on the
+    // re-measurement, the lucky draw costs what it does and advise's choice is the better one.
     MethodInputs in = bowl();
-    in.choice_costs = in.costs;
-    in.advised = {{"a", 3}, {"b", 2}};
-    in.budget = 16;  // random sees every configuration
+    const std::vector<double> truth = in.table;
+    in.advised = {{"a", 3}, {"b", 2}};  // the true best, cost 1
+    in.budget = 16;                     // random times every configuration
     in.seed = 3;
-    const std::optional<std::size_t> decoy = [&]() -> std::optional<std::size_t> {
-        for (std::size_t i = 0; i < in.configurations.size(); ++i)
-            if (in.configurations[i] == json{{"a", 1}, {"b", 4}}) return i;
-        return std::nullopt;
-    }();
-    ASSERT_TRUE(decoy);
-    in.choice_costs[*decoy] = 0.5;  // faster than the true best in the baselines' eyes only
-    const std::vector<MethodOutcome> m = compare_methods(in);
+    std::size_t decoy = 0;
+    while (in.configurations[decoy] != json{{"a", 1}, {"b", 4}}) ++decoy;
+    in.table[decoy] = 0.5;  // truly 5, in the table's eyes only faster than the best
+    const MethodComparison c = scored_on(in, truth);
+    EXPECT_EQ(c.optimum, decoy);  // the optimum is the table's best, never the re-measurement's
+    EXPECT_DOUBLE_EQ(c.optimum_table_ms, 0.5);
+    EXPECT_DOUBLE_EQ(c.optimum_ms, 5.0);
+    const std::vector<MethodOutcome>& m = c.methods;
     ASSERT_EQ(m.size(), 4u);
+    EXPECT_EQ(m[0].method, "advise");
+    EXPECT_DOUBLE_EQ(m[0].table_ms, 1.0);
+    EXPECT_DOUBLE_EQ(m[0].ms, 1.0);
+    EXPECT_DOUBLE_EQ(m[0].regret, 1.0 / 5.0 - 1);  // not 1.0 / 0.5 - 1: the lucky draw is not the yardstick
     EXPECT_EQ(m[2].method, "random");
     EXPECT_EQ(m[2].searched, (json{{"a", 1}, {"b", 4}}));
-    EXPECT_DOUBLE_EQ(m[2].ms, in.costs[*decoy]);  // priced on the shared table
-    EXPECT_DOUBLE_EQ(m[2].regret, in.costs[*decoy] - 1.0);
-    EXPECT_DOUBLE_EQ(m[0].regret, 0.0);  // advise found the true best
+    EXPECT_DOUBLE_EQ(m[2].table_ms, 0.5);
+    EXPECT_DOUBLE_EQ(m[2].ms, 5.0);  // scored on the re-measurement
+    EXPECT_DOUBLE_EQ(m[2].regret, 0.0);
+    EXPECT_LT(m[0].regret, m[2].regret);  // on the table's numbers random would have won
+}
+
+TEST(AdviseBaselines, TheBaselinesGetAdvisesReplaysAndSkipTwinsWithThem) {
+    // Pairs of configurations that count alike (b = 1 and b = 2, b = 3 and b = 4): one structure
+    // in effect each. With replays, random times one of each pair it draws and the descent passes
+    // a twin of what it timed; both report the replays they spent.
+    MethodInputs in = bowl();
+    in.advised = {{"a", 3}, {"b", 2}};
+    in.budget = 4;
+    in.seed = 5;
+    for (const json& p : in.configurations)
+        in.class_of.push_back(std::size_t(p["a"].get<int>() - 1) * 2 + std::size_t(p["b"].get<int>() - 1) / 2);
+    in.replays = 16;
+    const std::vector<std::size_t> picks = random_timed(16, in.budget, in.replays, in.class_of, in.seed);
+    ASSERT_EQ(picks.size(), 4u);
+    std::set<std::size_t> classes;
+    for (const std::size_t i : picks) classes.insert(in.class_of[i]);
+    EXPECT_EQ(classes.size(), picks.size());  // no structure timed twice
+    // Without replays: the first four drawn, twins or not.
+    EXPECT_EQ(random_timed(16, 4, 0, in.class_of, in.seed), random_picks(16, 4, in.seed));
+    std::size_t replayed = 0;
+    const std::vector<std::size_t> path =
+        descent_path(in.space, in.configurations, in.table, in.category, 8, in.class_of, 3, &replayed);
+    EXPECT_EQ(replayed, 3u);  // at most the replays given
+    std::set<std::size_t> timed_classes;
+    for (std::size_t k = 0; k < path.size() && k < 3; ++k) timed_classes.insert(in.class_of[path[k]]);
+    EXPECT_EQ(timed_classes.size(), std::min<std::size_t>(3, path.size()));
+    const MethodComparison c = scored_on(in, in.table);
+    ASSERT_EQ(c.methods.size(), 4u);
+    EXPECT_EQ(c.methods[0].replays, 16u);  // advise
+    EXPECT_EQ(c.methods[1].method, "category");
+    EXPECT_EQ(c.methods[1].replays, 0u);
+    EXPECT_EQ(c.methods[2].method, "random");
+    EXPECT_EQ(c.methods[2].replays, 16u);
+    EXPECT_EQ(c.methods[2].timed, 4u);
+    EXPECT_EQ(c.methods[3].method, "descent");
+    EXPECT_LE(c.methods[3].replays, 16u);
+    EXPECT_LE(c.methods[3].timed, 4u);
 }
 
 /// A ranking of "a" = 1..5 (b = 1) with these predictions, each level counting differently.
@@ -186,19 +256,24 @@ ModelRanking ranking_of(const std::vector<double>& predicted) {
 TEST(AdviseBaselines, ThePureModelChoiceIsWhatVerifyTopZeroAdvises) {
     // Rankings with ties and with the best prediction evaluated late: the pure-model choice of
     // advise (the first by prediction_order) is what verify_candidates with verify_top 0, then
-    // order_candidates, put first.
+    // order_candidates, put first; and it measures nothing to get there.
     const std::vector<SearchDimension> space = grid_space(5, 1);
     const std::vector<std::vector<double>> predictions{{3, 1, 2, 1, 5}, {5, 4, 3, 2, 1}, {2, 2, 2, 2, 2}};
     for (const std::vector<double>& predicted : predictions) {
         const ModelRanking r = ranking_of(predicted);
         const json pure = r.search.evaluations[prediction_order(r.search.evaluations).front()].params;
-        ModelEvidence e = verify_candidates(r, space, json{{"a", 3}, {"b", 1}}, 0, [](const json& p) {
+        int measured = 0;
+        ModelEvidence e = verify_candidates(r, space, json{{"a", 3}, {"b", 1}}, 0, [&](const json& p) {
+            ++measured;
             MeasuredCost c;
             c.ms = 10.0 - p["a"].get<double>();  // the measurement disagrees with the model
             return c;
         });
         order_candidates(e.candidates, AccuracyConstraint{});
         EXPECT_EQ(e.candidates.front().searched, pure);
+        EXPECT_EQ(measured, 0);
+        EXPECT_TRUE(std::none_of(e.candidates.begin(), e.candidates.end(),
+                                 [](const ModelCandidate& c) { return c.measured.has_value(); }));
     }
 }
 
@@ -244,17 +319,19 @@ TEST(AdviseBaselines, AdviseOnTheTableTakesItsOwnStepsOnTheTablesNumbers) {
                                  measured_table(configurations, {5, 3, 2, 4, 6}), predict));
 }
 
-TEST(AdviseBaselines, AdviseOnTheTableIsPricedOnTheSharedTableBesideAdvise) {
+TEST(AdviseBaselines, AdviseOnTheTableIsScoredBesideAdvise) {
     MethodInputs in = bowl();
     in.advised = {{"a", 1}, {"b", 1}};
-    in.advised_on_table = TableChoice{json{{"a", 3}, {"b", 3}}, 4};
+    in.advised_on_table = TableChoice{json{{"a", 3}, {"b", 3}}, 4, 7};
     in.budget = 5;
-    const std::vector<MethodOutcome> m = compare_methods(in);
+    const MethodComparison c = scored_on(in, in.table);
+    const std::vector<MethodOutcome>& m = c.methods;
     ASSERT_EQ(m.size(), 5u);  // advise, advise-table, category, random, descent
     EXPECT_EQ(m[0].method, "advise");
     EXPECT_DOUBLE_EQ(m[0].regret, 3.0);
     EXPECT_EQ(m[1].method, "advise-table");
     EXPECT_EQ(m[1].timed, 4u);
+    EXPECT_EQ(m[1].replays, 7u);
     EXPECT_EQ(m[1].searched, (json{{"a", 3}, {"b", 3}}));
     EXPECT_DOUBLE_EQ(m[1].ms, 2.0);
     EXPECT_DOUBLE_EQ(m[1].regret, 1.0);

@@ -145,10 +145,10 @@ TEST(AdviseSteps, TheBestPredictionsAreVerifiedOncePerStructureInEffect) {
     EXPECT_TRUE(e.candidates[3].is_category);
     EXPECT_EQ(e.measured_counts.size(), 3u);
 
-    // --verify-top 0: the predicted best alone, the category's not measured.
+    // --verify-top 0, the pure model: nothing measured, the category's neither.
     m.calls.clear();
     e = verify_candidates(r, space, json{{"a", 1}}, 0, m.function());
-    EXPECT_EQ(m.calls, (std::vector<int>{2}));
+    EXPECT_TRUE(m.calls.empty());
     // The category's parameters, not replayed by the search, join without a prediction.
     m.calls.clear();
     e = verify_candidates(r, space, json{{"a", 5}}, 1, m.function());
@@ -270,14 +270,29 @@ TEST(AdviseSteps, TheExhaustiveComparisonPricesOutWhatFailsTheAccuracy) {
     pc.category_searched = {{"a", 3}};
     MeasuredCost fast_but_inexact = cost_of(0.1);
     fast_but_inexact.accuracy.exact_level = false;
-    const ExhaustiveAdvice e =
-        compare_exhaustively(pc, {json{{"a", 1}}, json{{"a", 2}}, json{{"a", 3}}},
-                             {fast_but_inexact, cost_of(2.0), cost_of(4.0)}, AccuracyConstraint{});
+    const std::vector<MeasuredCost> table{fast_but_inexact, cost_of(2.0), cost_of(4.0)};
+    // The re-measurement: every choice and the table's best again, each 10% slower.
+    std::vector<std::size_t> asked;
+    const Rescore rescore = [&](const std::vector<std::size_t>& indices) {
+        asked = indices;
+        std::vector<MeasuredCost> out;
+        for (const std::size_t i : indices) {
+            MeasuredCost c = table[i];
+            c.ms *= 1.1;
+            out.push_back(c);
+        }
+        return out;
+    };
+    const ExhaustiveAdvice e = compare_exhaustively(pc, {json{{"a", 1}}, json{{"a", 2}}, json{{"a", 3}}}, table,
+                                                    AccuracyConstraint{}, rescore);
     EXPECT_EQ(e.configurations, 3u);
     EXPECT_EQ(e.best_searched, (json{{"a", 2}}));
-    EXPECT_EQ(e.best_ms, 2.0);
-    EXPECT_EQ(e.advised_gap(), 0.0);
-    EXPECT_EQ(e.category_gap(), 1.0);
+    EXPECT_EQ(e.best_table_ms, 2.0);
+    EXPECT_DOUBLE_EQ(e.best_ms, 2.2);  // re-measured
+    EXPECT_EQ(asked.front(), 1u);      // the table's best first
+    EXPECT_EQ(e.rescored, asked.size());
+    EXPECT_DOUBLE_EQ(e.advised_gap(), 0.0);
+    EXPECT_DOUBLE_EQ(e.category_gap(), 1.0);
 }
 
 }  // namespace

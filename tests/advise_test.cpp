@@ -101,10 +101,11 @@ TEST_F(AdviseFiles, TheModelMethodFollowsTheCostOfAStepAgainstATest) {
         EXPECT_GE(d, previous) << "C_T/C_RB " << ratio;
         previous = d;
         chosen.push_back(d);
-        // The row advised for ug is the model's choice, measured.
+        // The row advised for ug is the model's choice, predicted (the pure model times nothing).
         for (const AdviceRow& r : a.rows) {
             if (r.structure == "ug") {
                 EXPECT_EQ(json::parse(r.params)["density"].get<double>(), d);
+                EXPECT_TRUE(r.predicted);
             }
         }
     }
@@ -247,10 +248,14 @@ TEST_F(AdviseFiles, TheBudgetCountsExactlyWhatWasTimedAndReplayed) {
             EXPECT_EQ(b.timed, 1u);  // the category's parameters, measured for their row
             EXPECT_EQ(b.replays, 0u);
         }
+        // A tuning without update prices: every replay timed the scene's update, and says so.
+        EXPECT_EQ(b.replays_update_timed, b.replays) << method;
+        EXPECT_EQ(after.counting_update_timed - before.counting_update_timed, b.replays) << method;
         const json j = advice_json(a, o)["parameters"][0]["budget"];
         EXPECT_EQ(j, (json{{"timed", b.timed},
                            {"timed_measurements", b.timed_measurements},
                            {"replays", b.replays},
+                           {"replays_update_timed", b.replays_update_timed},
                            {"space", b.space}}));
     }
 }
@@ -277,10 +282,20 @@ TEST_F(AdviseFiles, ExhaustiveReportsThePureModelAndBaselinesOfTheSameBudget) {
     EXPECT_LE(e.methods[1].timed, kDensities.size());
     EXPECT_EQ(e.methods[2].searched, *pc.predicted_best);
     EXPECT_DOUBLE_EQ(e.methods[3].regret, e.category_gap());
-    EXPECT_EQ(e.methods[4].timed, std::min(pc.budget.timed, kDensities.size()));  // the same budget
+    // The same budget: advise's timed configurations and replays (random times one configuration
+    // per structure in effect among those it replayed).
+    EXPECT_LE(e.methods[4].timed, pc.budget.timed);
+    EXPECT_GT(e.methods[4].timed, 0u);
+    EXPECT_EQ(e.methods[4].replays, std::min(pc.budget.replays, kDensities.size()));
     EXPECT_LE(e.methods[5].timed, pc.budget.timed);
     EXPECT_GT(e.methods[5].timed, 0u);
-    for (const MethodOutcome& m : e.methods) EXPECT_GE(m.regret, 0.0) << m.method;  // none beats the table's best
+    EXPECT_LE(e.methods[5].replays, pc.budget.replays);
+    EXPECT_EQ(e.methods[0].replays, pc.budget.replays);
+    EXPECT_EQ(e.methods[2].timed, 0u);  // the pure model
+    EXPECT_EQ(e.methods[2].replays, pc.budget.replays);
+    // Made-up times repeat exactly, so the re-measurement equals the table: none beats its best.
+    EXPECT_DOUBLE_EQ(e.best_ms, e.best_table_ms);
+    for (const MethodOutcome& m : e.methods) EXPECT_GE(m.regret, 0.0) << m.method;
     const json j = advice_json(full, o);
     EXPECT_EQ(j["baseline_seed"], 5);
     EXPECT_EQ(j["exhaustive"][0]["methods"].size(), 6u);
@@ -294,7 +309,44 @@ TEST_F(AdviseFiles, ExhaustiveReportsThePureModelAndBaselinesOfTheSameBudget) {
     const ParameterChoice& pure = ug_choice(pure_advice);
     EXPECT_EQ(pure.chosen_searched, *pc.predicted_best);
     EXPECT_EQ(pure.chosen_searched, *pure.predicted_best);
-    EXPECT_EQ(pure.budget.timed, 1u);  // the predicted best alone, measured for its row
+    EXPECT_EQ(pure.budget.timed, 0u);  // the pure model: its row is the prediction
+}
+
+TEST_F(AdviseFiles, ThePureModelTimesNothingOnTheScene) {
+    // --verify-top 0 with a tuning that holds the update's prices: the replays predict the update,
+    // no candidate and no row is measured, so the simulator times no build, update or ray batch.
+    json t = tuning_with(1.0, cost_model(2.0, 20.0));
+    t["categories"][0]["structures"][0]["update_model"] = {
+        {"model", "by hand"}, {"terms", {{"c_change", 100.0}, {"c_write", 5.0}, {"c_frame", 1000.0}}}};
+    AdviseOptions o = options(write_tuning("t.json", t));
+    o.method = "model";
+    o.verify_top = 0;
+    const std::uint64_t phases = timed_phases();
+    const SimulationTally before = simulation_tally();
+    const Advice a = advise(o);
+    const SimulationTally after = simulation_tally();
+    EXPECT_EQ(timed_phases(), phases);  // nothing timed on the scene, the update included
+    EXPECT_EQ(after.timed, before.timed);
+    EXPECT_EQ(after.counting_update_timed, before.counting_update_timed);
+    const ParameterChoice& pc = ug_choice(a);
+    EXPECT_EQ(pc.budget.timed, 0u);
+    EXPECT_EQ(pc.budget.timed_measurements, 0u);
+    EXPECT_EQ(pc.budget.replays_update_timed, 0u);
+    EXPECT_EQ(after.counting - before.counting, pc.budget.replays);
+    EXPECT_NE(pc.summary.find("nothing timed"), std::string::npos) << pc.summary;
+    // The advised row is the prediction; every other structure, without a model, is unpriced and
+    // never recommended.
+    ASSERT_TRUE(a.recommended.has_value());
+    EXPECT_EQ(a.rows[*a.recommended].structure, "ug");
+    for (const AdviceRow& r : a.rows) {
+        EXPECT_EQ(r.predicted, r.structure == "ug") << r.structure;
+        EXPECT_EQ(r.priced(), r.structure == "ug") << r.structure;
+    }
+    const json j = advice_json(a, o);
+    EXPECT_EQ(j["parameters"][0]["budget"]["timed"], 0);
+    // An inexact --accuracy needs verifying, which the pure model cannot do.
+    o.accuracy = parse_accuracy("recall>=0.9");
+    EXPECT_THROW(advise(o), InputError);
 }
 
 TEST(AdviseCounts, ConfigurationsThatAreOneStructureInEffectCountAlike) {

@@ -88,6 +88,49 @@ TEST(SearchBaselines, TheComparisonMergesClassesAndPricesEveryMethodOnOneSurface
         std::isnan(compare_at_equal_budget(dims, all, costs, class_of, {{"a", 2}, {"b", 0}}, 0.3, 1, 1).model_regret));
 }
 
+TEST(SearchBaselines, RegretIsScoredOnASecondTableNotTheOneChosenFrom) {
+    // One level of `a`, the table's optimum, is a lucky draw there: 0.5, truly 1.6. Every method
+    // that finds it would score regret 0 on the table (and so beat random by construction); on the
+    // second table the optimum costs what it does, and each choice is priced there too.
+    const std::vector<SearchDimension> dims = {{"a", levels(6)}};
+    const std::vector<nlohmann::json> all = enumerate_space(dims);
+    std::vector<double> truth, table;
+    std::vector<std::size_t> class_of;
+    for (const nlohmann::json& p : all) {
+        const int a = p["a"].get<int>();
+        truth.push_back(1.0 + 0.2 * std::abs(a - 2));  // truly best at a = 2
+        class_of.push_back(std::size_t(a));
+    }
+    table = truth;
+    table[5] = 0.5;                                   // a = 5: truly 1.6
+    std::vector<double> predicted{5, 4, 3, 2, 1, 0};  // a model that ranks a = 5 first
+    const BudgetComparison c =
+        compare_at_equal_budget(dims, all, table, class_of, {{"a", 0}}, 0.5, 1, 1, predicted, 0, nullptr, truth);
+    EXPECT_DOUBLE_EQ(c.optimum_table, 0.5);
+    EXPECT_DOUBLE_EQ(c.optimum, 1.6);         // the optimum's re-measurement
+    EXPECT_NEAR(c.model_regret, 0.0, 1e-12);  // it chose the table's optimum: no better, no worse
+    // Random's expectation weighs each class by its chance of being the table's fastest drawn,
+    // and takes its re-measured cost.
+    std::vector<double> class_table(table.begin(), table.end()), class_truth(truth.begin(), truth.end());
+    EXPECT_NEAR(c.random_regret, expected_score_of_random(class_table, class_truth, c.budget) / 1.6 - 1, 1e-12);
+    // The descent from a = 0 walks down to a = 2 (truly the best) and is scored below 0 against
+    // the lucky optimum; on the table it would have scored 1.0 / 0.5 - 1 = +100%.
+    EXPECT_NEAR(c.descent_regret, 1.0 / 1.6 - 1, 1e-12);
+    // Scored on the table itself (no second table), the same choices keep the curse.
+    const BudgetComparison cursed =
+        compare_at_equal_budget(dims, all, table, class_of, {{"a", 0}}, 0.5, 1, 1, predicted, 0, nullptr);
+    EXPECT_NEAR(cursed.descent_regret, 1.0 / 0.5 - 1, 1e-12);
+}
+
+TEST(SearchBaselines, TheExpectedScoreOfRandomWeighsTheTablesOrder) {
+    // k = 1: every configuration equally likely, the mean score; k = n: the table's best's score.
+    EXPECT_DOUBLE_EQ(expected_score_of_random({3, 1, 2}, {30, 10, 20}, 1), 20.0);
+    EXPECT_DOUBLE_EQ(expected_score_of_random({3, 1, 2}, {30, 7, 20}, 3), 7.0);
+    // k = 2 of 3: the table's best is drawn with probability 2/3, the second best otherwise.
+    EXPECT_NEAR(expected_score_of_random({3, 1, 2}, {30, 10, 20}, 2), 2.0 / 3 * 10 + 1.0 / 3 * 20, 1e-12);
+    EXPECT_DOUBLE_EQ(expected_score_of_random({4, 2, 3, 1}, {4, 2, 3, 1}, 2), expected_best_of_random({4, 2, 3, 1}, 2));
+}
+
 TEST(SearchBaselines, TheSummaryCountsWinsAndQuantiles) {
     std::vector<BudgetComparison> problems(4);
     const double tuner[] = {0.0, 0.01, 0.05, 0.02}, random[] = {0.1, 0.01, 0.2, 0.3}, descent[] = {0, 0, 0.1, 0.5};

@@ -65,6 +65,32 @@ TEST(Simulator, ReportsEveryFramePhaseAndCounter) {
     EXPECT_EQ(j["update_ns"].size(), 6u);
 }
 
+TEST(Simulator, AnUntimedReplayCountsTheSameWorkAndTimesNothing) {
+    const Recording r = test::generated_scene("irregular", 500, 5, 3);
+    const nlohmann::json params = {{"density", 2.0}};
+    const std::uint64_t before = timed_phases();
+    const SimulationResult untimed = simulate(r, find_structure("ug"), params, untimed_replay(1));
+    EXPECT_EQ(timed_phases(), before);  // no build, update or ray batch timed
+    EXPECT_EQ(untimed.build_ns, 0u);
+    SimulationOptions timed;
+    timed.warmup_frames = 1;
+    const SimulationResult measured = simulate(r, find_structure("ug"), params, timed);
+    // A timed run times the build, and per frame its update and each query kind's ray batch.
+    std::uint64_t phases = 1;
+    for (const FrameResult& f : measured.frames) phases += 1 + std::max<std::size_t>(1, f.kinds.size());
+    EXPECT_EQ(timed_phases() - before, phases);
+    ASSERT_EQ(untimed.frames.size(), measured.frames.size());
+    for (std::size_t i = 0; i < untimed.frames.size(); ++i) {
+        const FrameResult &u = untimed.frames[i], &m = measured.frames[i];
+        EXPECT_EQ(u.update_ns, 0u);
+        EXPECT_EQ(u.raycast_ns, 0u);
+        EXPECT_EQ(u.counters, m.counters);  // the same work counted
+        EXPECT_EQ(u.hits, m.hits);
+        EXPECT_EQ(u.writes, m.writes);
+        EXPECT_EQ(u.memory_bytes, m.memory_bytes);
+    }
+}
+
 TEST(Simulator, VerificationCatchesAStructureThatDropsHits) {
     const Recording r = test::generated_scene("irregular", 1500, 3, 6);
     StructureInfo broken = describe_structure<ForgetfulBruteForce>("forgetful", "drops hits");

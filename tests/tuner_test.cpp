@@ -250,6 +250,42 @@ TEST(TuneRecordsForAdvise, EveryModeRecordsItsSpaceAndACostModel) {
         // Fitted to these frames alone, not the machine's calibration (which the measured mode's
         // ranking starts from).
         EXPECT_EQ(m["model"].get<std::string>().find("calibration"), std::string::npos) << mode << m.dump();
+        // Beside it, the update's prices, read back as advise reads them: an untimed replay priced
+        // by them predicts the update the frames were timed at (1 µs + 200 ns per change), and
+        // times nothing.
+        ASSERT_TRUE(ug.contains("update_model")) << mode;
+        const UpdatePrices prices = UpdatePrices::from_json(ug["update_model"], "rec");
+        EXPECT_FALSE(prices.terms.empty()) << mode;
+        const std::uint64_t phases = timed_phases();
+        const CountingReplay replay = counting_replay(spec.categories[0], "ug", json{{"density", 2}}, 1, &prices);
+        EXPECT_EQ(timed_phases(), phases) << mode;
+        EXPECT_FALSE(replay.update_timed);
+        ASSERT_FALSE(replay.scenes.empty());
+        ASSERT_FALSE(replay.scenes[0].empty());
+        for (const CountingReplay::Frame& f : replay.scenes[0]) {
+            const FrameObservation& o = f.observation;
+            const double timed_at = 1000 + 200 * (o.inserts + o.removes + o.moves);
+            EXPECT_NEAR(f.update_ns, timed_at, 0.1 * timed_at) << mode << " " << prices.to_json().dump();
+        }
+    }
+}
+
+TEST(TuneRecordsForAdvise, UpdatePricesRefuseWhatIsNotAPlainUpdateTerm) {
+    const json good = {{"model", "m"}, {"terms", {{"c_change", 10.0}, {"c_frame", 100.0}}}};
+    const UpdatePrices p = UpdatePrices::from_json(good, "t.json");
+    FrameObservation o;
+    o.moves = 3, o.inserts = 1;
+    EXPECT_DOUBLE_EQ(p.per_frame_ns(o), 10.0 * 4 + 100.0);
+    EXPECT_EQ(UpdatePrices::from_json(p.to_json(), "t.json").terms, p.terms);
+    for (const json& bad :
+         {json{{"terms", {{"C_RB", 1.0}}}}, json{{"terms", {{"c_change>L2", 1.0}}}},
+          json{{"terms", {{"c_change", -1.0}}}}, json{{"terms", {{"c_change", "x"}}}}, json{{"model", "m"}}, json(3)}) {
+        try {
+            UpdatePrices::from_json(bad, "t.json: s");
+            ADD_FAILURE() << bad.dump();
+        } catch (const InputError& e) {
+            EXPECT_EQ(std::string(e.what()).rfind("t.json: s.update_model", 0), 0u) << e.what();
+        }
     }
 }
 

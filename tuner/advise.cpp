@@ -102,6 +102,7 @@ std::map<std::string, TunedStructure> read_category(const json& t, const std::st
                 for (const auto& [k, v] : s.at("best").at("params").items()) ts.params[k] = v;
                 if (s.contains("space")) ts.space = read_space(s["space"], info, where);
                 if (s.contains("cost_model")) ts.model = CostCoefficients::from_json(s["cost_model"], where);
+                if (s.contains("update_model")) ts.update = UpdatePrices::from_json(s["update_model"], where);
                 tuned[name] = std::move(ts);
             }
         }
@@ -159,15 +160,22 @@ std::string model_summary(const ParameterChoice& pc, const std::string& category
                          (c.predicted_ms ? " (predicted " + ms_text(*c.predicted_ms) + ")" : "") +
                          (c.is_category ? " [category's]" : "");
     }
+    const std::string update = pc.budget.replays_update_timed > 0
+                                   ? "each replay timed the scene's update (the tuning holds no update prices)"
+                                   : "the update predicted from each frame's changes and writes, nothing timed";
     return pc.structure + ": " + searched_text(pc.chosen_searched) + " by the cost model of category " + category +
            ", " + pc.model + ", on this scene's counters (" + pc.why + "): " + std::to_string(pc.replays) + " of " +
-           std::to_string(pc.space_size) + " configurations replayed (" + algorithm + "); measured " + measured_text +
-           (pc.refined > 0 ? "; " + std::to_string(pc.refined) + " of them by the measured descent" : "") +
-           (verify_top > 0 ? "; the fastest measured is advised."
-                           : "; the predicted best is advised (--verify-top 0).");
+           std::to_string(pc.space_size) + " configurations replayed (" + algorithm + "; " + update + "); " +
+           (verify_top > 0
+                ? "measured " + measured_text +
+                      (pc.refined > 0 ? "; " + std::to_string(pc.refined) + " of them by the measured descent" : "") +
+                      "; the fastest measured is advised."
+                : "the predicted best is advised, measured on nothing (--verify-top 0, the pure model).");
 }
 
 }  // namespace
+
+bool AdviceRow::priced() const { return std::isfinite(cost.ms); }
 
 json TunedStructure::with(const StructureInfo& info, const json& searched, const std::string& where) const {
     json p = params;
@@ -275,7 +283,7 @@ ModelEvidence verify_candidates(const ModelRanking& ranking, const std::vector<S
     const std::vector<Evaluation>& evaluations = ranking.search.evaluations;
     // The best predictions are measured, one per structure in effect: a configuration that
     // counts exactly as one measured already is the same structure and tells nothing new.
-    const std::size_t to_measure = std::max<std::size_t>(1, verify_top);
+    const std::size_t to_measure = verify_top;
     for (const std::size_t k : prediction_order(evaluations)) {
         ModelCandidate c{evaluations[k].params, evaluations[k].cost, std::nullopt, false};
         c.is_category = same_point(c.searched, category_searched, space);
@@ -398,7 +406,8 @@ std::optional<TableChoice> advise_on_table(const ModelRanking& ranking, const De
     if (verify_top > 0) refine_by_descent(e, settings, predict, from_table);
     order_candidates(e.candidates, settings.accuracy);
     if (missing || e.candidates.empty()) return std::nullopt;
-    return TableChoice{e.candidates.front().searched, std::size_t(std::count(read.begin(), read.end(), true))};
+    return TableChoice{e.candidates.front().searched, std::size_t(std::count(read.begin(), read.end(), true)),
+                       e.replays.entries.size()};
 }
 
 RowPlan plan_rows(const std::vector<StructurePlan>& structures, const std::vector<ParameterChoice>& choices,
@@ -447,9 +456,32 @@ void measure_rows(RowPlan& plan, const std::vector<ParameterChoice>& choices,
     }
 }
 
+void predict_rows(RowPlan& plan, const std::vector<ParameterChoice>& choices) {
+    std::map<std::string, std::string> first_params;  // structure → its first row's params (the advised)
+    for (const AdviceRow& r : plan.rows) first_params.emplace(r.structure, r.params);
+    for (std::size_t i = 0; i < plan.rows.size(); ++i) {
+        AdviceRow& row = plan.rows[i];
+        row.cost = MeasuredCost{};
+        row.cost.ms = INFINITY;  // unpriced, unless the model predicted this configuration
+        row.cost.update_ms = row.cost.raycast_ms = row.cost.mad = row.cost.memory_bytes = NAN;
+        row.cost.accuracy.exact_level = query_level_of(plan.params[i]) != QueryLevel::candidates;
+        if (first_params.at(row.structure) != row.params) continue;
+        for (const ParameterChoice& pc : choices) {
+            if (pc.structure != row.structure || pc.method != ParameterMethod::model) continue;
+            for (const ModelCandidate& c : pc.candidates)
+                if (c.predicted_ms && same_point(c.searched, pc.chosen_searched, pc.space)) {
+                    row.cost.ms = *c.predicted_ms;
+                    row.predicted = true;
+                    break;
+                }
+        }
+    }
+}
+
 ExhaustiveAdvice compare_exhaustively(const ParameterChoice& pc, const std::vector<json>& configurations,
-                                      const std::vector<MeasuredCost>& costs, const AccuracyConstraint& accuracy,
-                                      std::uint64_t seed, const std::vector<MeasuredCost>& choice_costs,
+                                      const std::vector<MeasuredCost>& table, const AccuracyConstraint& accuracy,
+                                      const Rescore& rescore, std::uint64_t seed,
+                                      const std::vector<std::size_t>& class_of,
                                       const std::optional<TableChoice>& on_table) {
     ExhaustiveAdvice ex;
     ex.structure = pc.structure;
@@ -457,22 +489,27 @@ ExhaustiveAdvice compare_exhaustively(const ParameterChoice& pc, const std::vect
     MethodInputs in;
     in.space = pc.space, in.configurations = configurations, in.advised = pc.chosen_searched;
     in.category = pc.category_searched, in.predicted_best = pc.predicted_best;
-    in.budget = pc.budget.timed, in.seed = seed;
+    in.budget = pc.budget.timed, in.replays = pc.budget.replays, in.seed = seed;
     in.advised_on_table = on_table;
+    in.class_of = class_of;
+    for (const MeasuredCost& c : table) in.table.push_back(constrained_cost(c, accuracy));
     ex.advised_searched = pc.chosen_searched;
     ex.category_searched = pc.category_searched;
-    ex.best_ms = INFINITY;
     ex.configurations = configurations.size();
-    for (std::size_t i = 0; i < configurations.size(); ++i) {
-        const json& p = configurations[i];
-        const double ms = constrained_cost(costs[i], accuracy);
-        in.costs.push_back(ms);
-        if (ms < ex.best_ms) ex.best_ms = ms, ex.best_searched = p;
-        if (same_point(p, pc.chosen_searched, pc.space)) ex.advised_ms = ms;
-        if (same_point(p, pc.category_searched, pc.space)) ex.category_ms = ms;
+    const MethodComparison m = compare_methods(in, [&](const std::vector<std::size_t>& indices) {
+        std::vector<double> out;
+        for (const MeasuredCost& c : rescore(indices)) out.push_back(constrained_cost(c, accuracy));
+        ex.rescored = indices.size();
+        return out;
+    });
+    ex.methods = m.methods;
+    ex.best_searched = configurations.empty() ? json() : configurations[m.optimum];
+    ex.best_table_ms = m.optimum_table_ms, ex.best_ms = m.optimum_ms;
+    ex.advised_ms = ex.category_ms = NAN;  // a configuration the space lacks has no row
+    for (const MethodOutcome& o : ex.methods) {
+        if (o.method == "advise") ex.advised_ms = o.ms;
+        if (o.method == "category") ex.category_ms = o.ms;
     }
-    for (const MeasuredCost& c : choice_costs) in.choice_costs.push_back(constrained_cost(c, accuracy));
-    ex.methods = compare_methods(in);
     return ex;
 }
 
@@ -499,6 +536,7 @@ struct SceneMeter {
 AdviseBudget budget_of(const ParameterChoice& pc, const MeasurementLog& log, std::uint32_t repetitions) {
     AdviseBudget b;
     b.replays = pc.budget.replays;
+    b.replays_update_timed = pc.budget.replays_update_timed;
     b.space = pc.space.empty() ? 0 : 1;
     for (const SearchDimension& d : pc.space) b.space *= d.levels.size();
     const auto it = log.find(pc.structure);
@@ -518,9 +556,11 @@ void advise_by_model(ParameterChoice& pc, const TunedStructure& ts, StructurePla
     const AdviseOptions& o = meter.options;
     const StructureInfo& info = *plan.info;
     const CostCoefficients& model = *ts.model;
+    const UpdatePrices* update = ts.update ? &*ts.update : nullptr;  // none: the replays time the update
     const ReplayPrediction predict = [&](const json& searched, ReplayCounts& counts) {
         ++pc.budget.replays;
-        return predict_cost(model, meter.scene, pc.structure, searched, o.warmup, &counts);
+        if (!update) ++pc.budget.replays_update_timed;
+        return predict_cost(model, meter.scene, pc.structure, searched, o.warmup, &counts, update);
     };
     const SceneMeasurement measure_at = [&](const json& searched) {
         return meter(pc.structure, ts.with(info, searched, o.tuning));
@@ -555,25 +595,39 @@ std::vector<ExhaustiveAdvice> check_exhaustively(const std::vector<ParameterChoi
         const std::vector<json> all = enumerate_space(pc.space);
         std::vector<json> full_params;
         for (const json& p : all) full_params.push_back(ts.with(info, p, o.tuning));
-        // Two independent tables: the baselines choose on the first, every method is priced on
-        // the second (advise_baselines.h).
-        const std::vector<MeasuredCost> seen =
+        // The table the baselines and advise-table choose on, whose best is the scene's optimum.
+        const std::vector<MeasuredCost> table =
             measure_interleaved(meter.scene, pc.structure, full_params, o.warmup, o.repetitions, meter.verify());
-        const std::vector<MeasuredCost> costs =
-            measure_interleaved(meter.scene, pc.structure, full_params, o.warmup, o.repetitions, meter.verify());
-        // advise's own steps again, on the baselines' table: the same ranking, each timing read
-        // from `seen`; a neighbour the first pass did not replay is replayed (untimed) here.
+        // advise replayed the scene: the baselines get as many replays, which tell them the
+        // structures in effect; the space is replayed once here (untimed with the update's prices)
+        // to know every configuration's counts, and advise-table's steps read their predictions.
+        std::vector<std::size_t> class_of;
         std::optional<TableChoice> on_table;
-        if (pc.ranking && o.verify_top > 0) {
+        if (pc.ranking) {
             const CostCoefficients& model = *ts.model;
+            const SpaceSurvey survey = survey_space(all, model, [&](const json& p) {
+                return counting_replay(meter.scene, pc.structure, p, o.warmup, ts.update ? &*ts.update : nullptr);
+            });
+            class_of = survey.class_of;
+            // advise's own steps again, on the table: the same ranking, each timing read from it.
             const ReplayPrediction predict = [&](const json& searched, ReplayCounts& counts) {
-                return predict_cost(model, meter.scene, pc.structure, searched, o.warmup, &counts);
+                const std::size_t i = std::size_t(std::find(all.begin(), all.end(), searched) - all.begin());
+                if (i == all.size()) return predict_cost(model, meter.scene, pc.structure, searched, o.warmup, &counts);
+                counts = survey.replays[i].counts;
+                return survey.predicted[i];
             };
-            on_table = advise_on_table(*pc.ranking, {pc.space, pc.category_searched, o.refine, o.accuracy},
-                                       o.verify_top, all, seen, predict);
+            if (o.verify_top > 0)
+                on_table = advise_on_table(*pc.ranking, {pc.space, pc.category_searched, o.refine, o.accuracy},
+                                           o.verify_top, all, table, predict);
         }
-        out.push_back(
-            compare_exhaustively(pc, all, costs, o.accuracy, o.seed.value_or(selection.seed), seen, on_table));
+        // The scoring pass, after every choice: each method's choice and the optimum re-measured.
+        const Rescore rescore = [&](const std::vector<std::size_t>& indices) {
+            std::vector<json> params;
+            for (const std::size_t i : indices) params.push_back(full_params[i]);
+            return measure_interleaved(meter.scene, pc.structure, params, o.warmup, o.repetitions, meter.verify());
+        };
+        out.push_back(compare_exhaustively(pc, all, table, o.accuracy, rescore, o.seed.value_or(selection.seed),
+                                           class_of, on_table));
     }
     return out;
 }
@@ -584,6 +638,13 @@ Advice advise(const AdviseOptions& o) {
     const AdviseMethod method = parse_advise_method(o.method);
     if (o.tuning.empty() && !o.category.empty()) throw InputError("--category needs --tuning");
     if (o.tuning.empty() && o.exhaustive) throw InputError("--exhaustive needs --tuning");
+    // The pure model times nothing on the scene, so nothing can verify an inexact answer.
+    const bool pure = o.verify_top == 0;
+    if (pure && o.accuracy.needs_verification())
+        throw InputError(
+            "--verify-top 0 (the pure model) times and verifies nothing on the scene, so it cannot "
+            "judge --accuracy " +
+            o.accuracy.text() + "; use --accuracy exact");
     if (!std::filesystem::is_regular_file(o.scene)) throw InputError(o.scene + ": no such file");
     TuneCategory scene = advise_scene(o.scene);
     scene.timing = o.timing;
@@ -618,7 +679,10 @@ Advice advise(const AdviseOptions& o) {
     advice.workload_text = workload_summary(advice.workload, scene.scenes.front().source == SceneSpec::Source::import);
     advice.chosen = selection.chosen;
     RowPlan rows = plan_rows(plan.structures, plan.choices, o.accuracy);
-    measure_rows(rows, plan.choices, meter, o.progress);
+    if (pure)
+        predict_rows(rows, plan.choices);
+    else
+        measure_rows(rows, plan.choices, meter, o.progress);
     for (ParameterChoice& pc : plan.choices) pc.budget = budget_of(pc, log, o.repetitions);
     advice.baseline_seed = o.seed.value_or(selection.seed);
     advice.rows = std::move(rows.rows);
@@ -647,7 +711,7 @@ std::optional<std::size_t> rank_advice(std::vector<AdviceRow>& rows, const Accur
                      [](const AdviceRow& a, const AdviceRow& b) { return a.cost.ms < b.cost.ms; });
     std::optional<std::size_t> best;
     for (std::size_t i = 0; i < rows.size(); ++i) {
-        rows[i].meets = accuracy.met_by(rows[i].cost.accuracy);
+        rows[i].meets = rows[i].priced() && accuracy.met_by(rows[i].cost.accuracy);
         if (rows[i].meets && !best) best = i;
     }
     return best;
@@ -656,19 +720,29 @@ std::optional<std::size_t> rank_advice(std::vector<AdviceRow>& rows, const Accur
 namespace {
 
 json budget_json(const AdviseBudget& b) {
-    return {
-        {"timed", b.timed}, {"timed_measurements", b.timed_measurements}, {"replays", b.replays}, {"space", b.space}};
+    return {{"timed", b.timed},
+            {"timed_measurements", b.timed_measurements},
+            {"replays", b.replays},
+            {"replays_update_timed", b.replays_update_timed},
+            {"space", b.space}};
 }
 
 json exhaustive_json(const ExhaustiveAdvice& e) {
     json methods = json::array();
     for (const MethodOutcome& m : e.methods)
-        methods.push_back(
-            {{"method", m.method}, {"timed", m.timed}, {"params", m.searched}, {"ms", m.ms}, {"regret", m.regret}});
+        methods.push_back({{"method", m.method},
+                           {"timed", m.timed},
+                           {"replays", m.replays},
+                           {"params", m.searched},
+                           {"table_ms", m.table_ms},
+                           {"ms", m.ms},
+                           {"regret", m.regret}});
     return {{"structure", e.structure},
             {"configurations", e.configurations},
             {"best_params", e.best_searched},
+            {"best_table_ms", e.best_table_ms},
             {"best_ms", e.best_ms},
+            {"rescored", e.rescored},
             {"advised_params", e.advised_searched},
             {"advised_ms", e.advised_ms},
             {"advised_gap", e.advised_gap()},
@@ -727,11 +801,9 @@ json advice_json(const Advice& a, const AdviseOptions& o) {
         j["parameters"].push_back(pj);
     }
     for (const AdviceRow& r : a.rows) {
-        json rj = {{"structure", r.structure},
-                   {"params", json::parse(r.params)},
-                   {"tuned", r.tuned},
-                   {"meets", r.meets},
-                   {"cost", cost_json(r.cost)}};
+        json rj = {{"structure", r.structure}, {"params", json::parse(r.params)},
+                   {"tuned", r.tuned},         {"meets", r.meets},
+                   {"predicted", r.predicted}, {"cost", r.priced() ? cost_json(r.cost) : json(nullptr)}};
         j["rows"].push_back(rj);
     }
     if (a.recommended)

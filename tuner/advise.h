@@ -15,8 +15,13 @@
 ///             descent (one level of one parameter at a time, two where one finds nothing; at
 ///             most `refine` measurements)
 ///             corrects the model's misranked neighbours, and the fastest measured is advised
-///             (verify_top 0: the predicted best alone)
 /// `auto` takes the model where the tuning holds one for the structure, else the category.
+///
+/// verify_top 0 is the pure model: nothing is timed on the scene. The replays are untimed where
+/// the tuning holds the update's prices (UpdatePrices: the update predicted from each frame's
+/// changes and writes; with a tuning without them the replays time the update, and the budget
+/// says so), the predicted best is advised unmeasured, and every row is the model's prediction (a
+/// structure without a cost model is listed unpriced and never recommended).
 
 #include <cstdint>
 #include <functional>
@@ -54,13 +59,15 @@ inline bool operator==(ParameterMethod method, std::string_view name) { return m
 std::ostream& operator<<(std::ostream& out, ParameterMethod method);
 
 struct AdviseOptions {
-    std::string scene;             ///< a recording, or a boxes CSV (given 10 frames of 1% dynamics, 1000 centre rays)
-    std::string tuning;            ///< a tuning result (tuning-<name>.json), or empty: defaults
-    std::string category;          ///< its category; empty: the one nearest the scene's features
-    std::string method = "auto";   ///< how tuned parameters are chosen: auto, category, model (parse_advise_method)
-    std::uint32_t verify_top = 3;  ///< model method: its best configurations measured beside the category's
-    std::uint32_t refine = 6;      ///< model method: measurements of the descent from the fastest verified
-    bool exhaustive = false;       ///< also measure every configuration of each tuned structure's space
+    std::string scene;            ///< a recording, or a boxes CSV (given 10 frames of 1% dynamics, 1000 centre rays)
+    std::string tuning;           ///< a tuning result (tuning-<name>.json), or empty: defaults
+    std::string category;         ///< its category; empty: the one nearest the scene's features
+    std::string method = "auto";  ///< how tuned parameters are chosen: auto, category, model (parse_advise_method)
+    /// Model method: its best configurations measured beside the category's (0: the pure model,
+    /// nothing timed on the scene)
+    std::uint32_t verify_top = 3;
+    std::uint32_t refine = 6;           ///< model method: measurements of the descent from the fastest verified
+    bool exhaustive = false;            ///< also measure every configuration of each tuned structure's space
     std::optional<std::uint64_t> seed;  ///< --exhaustive's random baseline; none: the tuning's search seed
     std::uint32_t repetitions = 3;      ///< measurements per structure
     std::uint32_t warmup = 1;           ///< frames left out of the medians
@@ -75,9 +82,13 @@ struct AdviseOptions {
 
 struct AdviceRow {
     std::string structure, params;  ///< params as compact JSON
+    /// Measured; or with `predicted`, its ms the model's prediction (update and ray cast not apart,
+    /// NaN); ms ∞ where the pure model has no price for the structure (unpriced).
     MeasuredCost cost;
     bool tuned = false;
     bool meets = true;  ///< meets the accuracy constraint
+    bool predicted = false;
+    bool priced() const;
 };
 
 /// Which of a tuning's categories a scene resembles, and why.
@@ -120,11 +131,15 @@ struct ParameterChoice {
 };
 
 /// Every configuration of a tuned structure's space measured on the scene: where the advice stands.
+/// The scene's best is the table's; every cost here is its re-measurement after the choices
+/// (advise_baselines.h: independent scoring).
 struct ExhaustiveAdvice {
     std::string structure;
     std::size_t configurations = 0;
     nlohmann::json best_searched, advised_searched, category_searched;
-    double best_ms = 0, advised_ms = 0, category_ms = 0;  ///< from the same measurements
+    double best_table_ms = 0;                             ///< the scene's best in the table it was found in
+    double best_ms = 0, advised_ms = 0, category_ms = 0;  ///< re-measured after the choice
+    std::size_t rescored = 0;                             ///< configurations the scoring pass re-measured
     AdviseBudget budget;                                  ///< advise's, which the baselines match
     std::vector<MethodOutcome> methods;  ///< advise, the pure model, the category's, the baselines (compare_methods)
     double advised_gap() const { return advised_ms / best_ms - 1; }
@@ -169,6 +184,7 @@ struct TunedStructure {
     nlohmann::json params;                  ///< the category's best, every parameter
     std::vector<SearchDimension> space;     ///< empty: a tuning written before spaces were recorded
     std::optional<CostCoefficients> model;  ///< none: no model could be fitted, or an older tuning
+    std::optional<UpdatePrices> update;     ///< none: the replays time the update (an older tuning)
 
     /// The category's parameters with `searched` put in, completed (InputError naming `where`).
     nlohmann::json with(const StructureInfo& info, const nlohmann::json& searched, const std::string& where) const;
@@ -240,10 +256,10 @@ struct ModelEvidence {
     std::size_t refined = 0;                                   ///< measurements the descent added
 };
 
-/// Every replayed configuration as a candidate, by prediction; the `verify_top` best (at least
-/// one) measured, skipping those that count like one measured already (the same structure in
-/// effect); then, unless verify_top is 0, the category's parameters measured too (added when the
-/// search did not replay them).
+/// Every replayed configuration as a candidate, by prediction; the `verify_top` best measured,
+/// skipping those that count like one measured already (the same structure in effect); then,
+/// unless verify_top is 0 (the pure model: nothing measured), the category's parameters measured
+/// too (added when the search did not replay them).
 ModelEvidence verify_candidates(const ModelRanking& ranking, const std::vector<SearchDimension>& space,
                                 const nlohmann::json& category_searched, std::uint32_t verify_top,
                                 const SceneMeasurement& measure);
@@ -297,20 +313,30 @@ RowPlan plan_rows(const std::vector<StructurePlan>& structures, const std::vecto
 
 /// Measures each row (`measure(structure, params)`) unless the model method measured its
 /// configuration already (that measurement is reused); `progress` as each measurement starts.
+/// The pure model (advise with verify_top 0) measures none: predict_rows.
 void measure_rows(RowPlan& plan, const std::vector<ParameterChoice>& choices,
                   const std::function<MeasuredCost(const std::string&, const nlohmann::json&)>& measure,
                   const std::function<void(const std::string&)>& progress);
 
+/// The pure model's rows: a model-method structure's row at its advised configuration priced by
+/// that configuration's prediction; every other row unpriced (AdviceRow). Nothing is measured.
+void predict_rows(RowPlan& plan, const std::vector<ParameterChoice>& choices);
+
+/// The scoring pass: the re-measurement of configurations (indices into the space's), in order.
+using Rescore = std::function<std::vector<MeasuredCost>(const std::vector<std::size_t>& indices)>;
+
 /// Where the advice stands among every configuration of the space measured on the scene
-/// (`configurations` searched parameters and their `costs`): configurations that fail the
-/// accuracy priced out (constrained_cost), as tune --exhaustive does; beside it the pure model,
-/// the category's parameters and the baselines of the choice's budget (compare_methods, the
-/// random one seeded by `seed`), all priced from the same table. The baselines choose by
-/// `choice_costs`, an independent measurement of the same configurations (empty: by `costs`);
-/// `on_table` is advise's choice made on that table (advise_on_table), priced like the others.
+/// (`configurations` searched parameters and their `table`): configurations that fail the
+/// accuracy priced out (constrained_cost), as tune --exhaustive does. Beside advise: the pure
+/// model, the category's parameters and the baselines of the choice's budget (compare_methods, the
+/// random one seeded by `seed`, their replays told by `class_of`), which choose on `table`, as
+/// `on_table` (advise's steps taken on it, advise_on_table) did; the scene's best is the table's.
+/// Then `rescore` re-measures every choice and the best once, after all of them are made, and
+/// each is scored on that (advise_baselines.h).
 ExhaustiveAdvice compare_exhaustively(const ParameterChoice& choice, const std::vector<nlohmann::json>& configurations,
-                                      const std::vector<MeasuredCost>& costs, const AccuracyConstraint& accuracy,
-                                      std::uint64_t seed = 1, const std::vector<MeasuredCost>& choice_costs = {},
+                                      const std::vector<MeasuredCost>& table, const AccuracyConstraint& accuracy,
+                                      const Rescore& rescore, std::uint64_t seed = 1,
+                                      const std::vector<std::size_t>& class_of = {},
                                       const std::optional<TableChoice>& on_table = std::nullopt);
 
 /// InputError for a missing scene, a method other than auto, category or model, --category or

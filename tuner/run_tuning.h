@@ -2,6 +2,7 @@
 /// A whole tuning as one call: every category of a tuning file searched (tuning.h), the results
 /// stored in the database and written as tuning-<name>.md/.json with convergence charts.
 
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -49,8 +50,9 @@ SceneClustering categorize_tuning_scenes(TuneSpec& spec, bool derive);
 struct SurfaceReplay {
     std::uint64_t seed = 0;
     std::size_t evaluations = 0;  ///< distinct configurations the search evaluated
-    double best_ms = 0;           ///< the best it found
+    double best_ms = 0;           ///< the best it found, on the surface it searched
     nlohmann::json best_params;
+    double scored_ms = NAN;  ///< that configuration re-measured (tune --exhaustive's scoring pass)
 };
 
 /// search_levels on `surface` (searched parameters' compact JSON → cost) with `seeds` seeds from

@@ -10,12 +10,20 @@
 ///            the same start as the tuner, until no neighbour is faster or the budget is spent
 ///
 ///   ranked   the tuner's method where a model exists (rank_then_time, tuner/search.h): every
-///            configuration replayed untimed and ranked by the model, the best-ranked classes
-///            timed within the same budget, the model refitted on what has been timed
+///            configuration replayed (its rays counted, not timed; its update timed) and ranked by the model, the
+///            best-ranked classes timed within the same budget, the model refitted on what has been timed
 ///
 /// Configurations that are one structure in effect (equal counts in a counting replay: a hash
 /// grid of depth 0 ignores its capacity) are merged first: a class's cost is the median of its
 /// members' measurements, the budget is a share of the classes, and random search draws classes.
+/// So every method has the same budget: that many timed structures in effect, and the replays of
+/// the whole space (the ranked method ranks by them, the others draw or walk by their classes).
+///
+/// Every method chooses on one measurement of the space (the table), whose best class is the
+/// optimum; each is scored on a second, independent measurement taken after the first (the
+/// scores): its choice's cost there over the optimum's there, minus 1. Scored on the table it
+/// chose from, a method that finds the table's best has regret 0 however lucky that draw was (the
+/// winner's curse), and so beats random by construction.
 
 #include <cmath>
 #include <cstddef>
@@ -35,13 +43,18 @@ namespace rcb {
 /// Σ_i c_(i) · C(n − i, k − 1) / C(n, k) over the costs in ascending order (i from 1). k is
 /// clamped to [1, n]; NaN for no costs.
 double expected_best_of_random(std::vector<double> costs, std::size_t k);
+/// The expected score (`scores`, same order) of the configuration with the lowest cost among `k`
+/// drawn as above: the same weights, each on the score of the i-th lowest cost. Ties in `costs`
+/// are taken in their order. NaN for no costs.
+double expected_score_of_random(const std::vector<double>& costs, const std::vector<double>& scores, std::size_t k);
 
 /// The ranked method's inputs: its predictions before any timing (the micro-scene calibration
 /// alone, so nothing of the space timed) and its refit (rank_then_time), one per configuration.
 struct RankedInputs {
     std::vector<double> predicted;
     std::function<std::optional<std::vector<double>>(const std::vector<std::size_t>& timed)> refit;
-    std::size_t replays = 0;  ///< configurations replayed untimed to rank them (each once per scene)
+    std::size_t replays =
+        0;  ///< configurations replayed to rank them (each once per scene; rays counted, the update timed)
 };
 
 /// One tuning problem (a structure's space on a category) compared at one budget.
@@ -49,8 +62,9 @@ struct BudgetComparison {
     std::size_t configurations = 0;     ///< in the space
     std::size_t classes = 0;            ///< structures in effect among them
     std::size_t budget = 0;             ///< distinct configurations each method may evaluate
-    double optimum = 0;                 ///< the lowest class cost
-    std::vector<double> tuner_regrets;  ///< search_levels, one per seed: found / optimum − 1
+    double optimum_table = 0;           ///< the lowest class cost in the table
+    double optimum = 0;                 ///< that class's score (its cost re-measured)
+    std::vector<double> tuner_regrets;  ///< search_levels, one per seed: found's score / optimum − 1
     double tuner_regret = 0;            ///< their median
     double random_regret = 0;           ///< expected, exact
     double descent_regret = 0;
@@ -72,13 +86,14 @@ struct BudgetComparison {
 /// ids from 0). The budget is ceil(share × classes), at least 1; the tuner runs `seeds` seeds from
 /// `first_seed`, all methods from `start`. With `predicted` (same order), the model's choice is
 /// priced too; `model_timed` says what its calibration measured. With `ranked`, the ranked method
-/// runs at the same budget, its timings read from the surface.
+/// runs at the same budget, its timings read from the surface. Every choice is scored on `scores`
+/// (same order: the space measured again); empty: on `costs`, the table chosen from.
 BudgetComparison compare_at_equal_budget(const std::vector<SearchDimension>& dims,
                                          const std::vector<nlohmann::json>& all, const std::vector<double>& costs,
                                          const std::vector<std::size_t>& class_of, const nlohmann::json& start,
                                          double share, std::uint64_t first_seed, std::size_t seeds,
                                          const std::vector<double>& predicted = {}, std::size_t model_timed = 0,
-                                         const RankedInputs* ranked = nullptr);
+                                         const RankedInputs* ranked = nullptr, const std::vector<double>& scores = {});
 
 /// Class ids (from 0, in order of first appearance) of items equal under `same`.
 template <class T, class Same>
@@ -111,7 +126,7 @@ struct SuiteSummary {
     std::size_t ranked_problems = 0;             ///< problems the ranked method ran on
     double running_median = 0, running_p90 = 0;  ///< the tuner as it runs
     double running_beats_random = 0, running_matches_descent = 0;
-    double median_replays = 0;  ///< the ranked method's untimed replays, median over its problems
+    double median_replays = 0;  ///< the ranked method's replays, median over its problems
 };
 SuiteSummary summarize_suite(const std::vector<BudgetComparison>& problems);
 

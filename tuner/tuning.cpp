@@ -66,7 +66,7 @@ void add_observations(const SimulationResult& r, const std::string& scene, const
     }
 }
 
-std::atomic<std::uint64_t> timed_simulations{0}, counting_simulations{0};
+std::atomic<std::uint64_t> timed_simulations{0}, counting_simulations{0}, counting_update_timed{0};
 
 std::vector<SimulationResult> run_simulations(const TuneCategory& category, const std::string& structure,
                                               const json& params, const SimulationOptions& options,
@@ -79,6 +79,7 @@ std::vector<SimulationResult> run_simulations(const TuneCategory& category, cons
             out.push_back(simulate(recording_of(scene), find_structure(structure), params, o));
             if (category.timing) category.timing(out.back());
             ++(options.timed_cast ? timed_simulations : counting_simulations);
+            if (!options.timed_cast && options.timed_update) ++counting_update_timed;
         }
     return out;
 }
@@ -149,7 +150,9 @@ std::vector<json> levels_for(const ParamSpec& p) {
 
 }  // namespace
 
-SimulationTally simulation_tally() { return {timed_simulations.load(), counting_simulations.load()}; }
+SimulationTally simulation_tally() {
+    return {timed_simulations.load(), counting_simulations.load(), counting_update_timed.load()};
+}
 
 std::size_t simplest_within(const std::vector<const Candidate*>& all, double tolerance) {
     double fastest = INFINITY;
@@ -515,8 +518,12 @@ CostCoefficients calibration_alone(const StructureCalibration& calibration) {
 }  // namespace
 
 std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservation>& frames,
-                                                 const std::function<const ModelInputs&()>& priors) {
-    std::optional<CostCoefficients> c = chosen_coefficients(fit_cost_models(frames));
+                                                 const std::function<const ModelInputs&()>& priors,
+                                                 std::optional<UpdatePrices>* update) {
+    const std::vector<StructureModels> models = fit_cost_models(frames);
+    // The update's fit takes no priors (cost_model.h): this fit's is the one.
+    if (update) *update = models.empty() ? std::nullopt : update_prices(models.front());
+    std::optional<CostCoefficients> c = chosen_coefficients(models);
     if (!c || prices_ray_work(*c) || !priors || priors().calibrations.empty()) return c;
     // A few noisy points can hide the rays' work; a model that prices none ranks configurations
     // by their memory alone. First the fit again, bounded by what the micro-scenes pinned.
@@ -538,19 +545,74 @@ std::optional<CostCoefficients> prior_coefficients(MachinePriors* priors, const 
     return c;
 }
 
+double UpdatePrices::per_frame_ns(const FrameObservation& f) const {
+    double ns = 0;
+    for (const auto& [name, value] : terms) ns += value * term_value(find_term(name), f);
+    return ns;
+}
+
+json UpdatePrices::to_json() const {
+    json j = {{"model", model}, {"terms", json::object()}};
+    for (const auto& [name, value] : terms) j["terms"][name] = value;
+    return j;
+}
+
+namespace {
+
+/// A term an UpdatePrices may carry: an update term of the table with columns of its own.
+bool plain_update_term(const std::string& name) {
+    const auto& all = cost_terms();
+    const auto t = std::find_if(all.begin(), all.end(), [&](const CostTerm& c) { return c.name == name; });
+    return t != all.end() && t->target == Target::update && !t->per_tier;
+}
+
+}  // namespace
+
+UpdatePrices UpdatePrices::from_json(const json& j, const std::string& where) {
+    if (!j.is_object() || !j.contains("terms") || !j["terms"].is_object())
+        throw InputError(where + ".update_model: expected {\"model\": TEXT, \"terms\": {TERM: ns, …}}");
+    UpdatePrices p;
+    if (j.contains("model") && j["model"].is_string()) p.model = j["model"].get<std::string>();
+    for (const auto& [name, value] : j["terms"].items()) {
+        const std::string at = where + ".update_model.terms." + name;
+        if (!plain_update_term(name)) throw InputError(at + ": not an update term of the cost model");
+        if (!value.is_number() || !std::isfinite(value.get<double>()) || value.get<double>() < 0)
+            throw InputError(at + ": expected a finite number >= 0, got " + json_excerpt(value));
+        p.terms.emplace_back(name, value.get<double>());
+    }
+    return p;
+}
+
+std::optional<UpdatePrices> update_prices(const StructureModels& m) {
+    const CandidateModel* best = nullptr;
+    for (const CandidateModel& c : m.update) {
+        if (c.fit.coefficients.empty() || !std::all_of(c.fit.coefficients.begin(), c.fit.coefficients.end(),
+                                                       [](const Coefficient& k) { return plain_update_term(k.name); }))
+            continue;
+        // The chosen form where it is plain, else the plain form with the lowest held-out error.
+        if (!best || (c.chosen && !best->chosen) || (!best->chosen && c.heldout_error < best->heldout_error)) best = &c;
+    }
+    if (!best) return std::nullopt;
+    UpdatePrices p;
+    for (const Coefficient& k : best->fit.coefficients) p.terms.emplace_back(k.name, k.value);
+    p.model = best->name + " (held-out error " + std::to_string(int(std::lround(100 * best->heldout_error))) + "%" +
+              (best->chosen ? "" : "; the chosen form is not plain") + ")";
+    return p;
+}
+
 CountingReplay counting_replay(const TuneCategory& category, const std::string& structure, const json& searched,
-                               std::uint32_t warmup_frames) {
-    SimulationOptions replay;
-    replay.verify = false;
-    replay.timed_cast = false;
-    replay.warmup_frames = warmup_frames;
+                               std::uint32_t warmup_frames, const UpdatePrices* update) {
+    SimulationOptions replay = untimed_replay(warmup_frames);
+    replay.timed_update = update == nullptr;  // no prices: the update is timed, as it runs
     CountingReplay out;
+    out.update_timed = replay.timed_update;
     for (const SimulationResult& r : run_simulations(category, structure, complete(structure, searched), replay, 1)) {
         std::vector<CountingReplay::Frame>& frames = out.scenes.emplace_back();
         for (const FrameResult& f : r.frames) {
             if (f.warmup || f.rays == 0) continue;
             out.counts.counters += f.counters, out.counts.memory_bytes += f.memory_bytes;
-            frames.push_back({double(f.update_ns), double(f.rays), observation_of(f, double(r.objects))});
+            const FrameObservation o = observation_of(f, double(r.objects));
+            frames.push_back({update ? update->per_frame_ns(o) : double(f.update_ns), double(f.rays), o});
         }
     }
     return out;
@@ -568,8 +630,9 @@ double replay_cost(const CostCoefficients& c, const CountingReplay& replay) {
 }
 
 double predict_cost(const CostCoefficients& c, const TuneCategory& category, const std::string& structure,
-                    const json& searched, std::uint32_t warmup_frames, ReplayCounts* counts) {
-    const CountingReplay replay = counting_replay(category, structure, searched, warmup_frames);
+                    const json& searched, std::uint32_t warmup_frames, ReplayCounts* counts,
+                    const UpdatePrices* update) {
+    const CountingReplay replay = counting_replay(category, structure, searched, warmup_frames, update);
     if (counts) counts->counters += replay.counts.counters, counts->memory_bytes += replay.counts.memory_bytes;
     return replay_cost(c, replay);
 }
@@ -650,7 +713,7 @@ Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category
         ++group;
         ++out.measurements;
     }
-    const std::optional<CostCoefficients> fitted = fit_coefficients(frames, priors_of(priors, structure));
+    const std::optional<CostCoefficients> fitted = fit_coefficients(frames, priors_of(priors, structure), &out.update);
     if (!fitted)
         throw std::runtime_error("tune: the calibration of " + structure + " on " + category.name +
                                  " gave no cost model");
@@ -698,9 +761,9 @@ double space_size(const std::vector<SearchDimension>& dims) {
 }
 
 /// The measured mode's ranked method on one structure (rank_then_time): every configuration of
-/// the space replayed untimed and priced by `prior`, the configurations that count alike merged,
-/// the best-ranked timed through `measure` (which appends their frames to `observed`), the model
-/// refitted on those frames as they come. Returns what was timed, in order, as a search result.
+/// the space replayed (rays counted, the update timed) and priced by `prior`, the configurations that count alike
+/// merged, the best-ranked timed through `measure` (which appends their frames to `observed`), the model refitted on
+/// those frames as they come. Returns what was timed, in order, as a search result.
 SearchResult ranked_tuning(const TuneSpec& spec, const TuneCategory& category, const std::string& structure,
                            const CostCoefficients& prior, MachinePriors* priors,
                            const std::function<Candidate&(const json&)>& measure,
@@ -754,7 +817,7 @@ void tune_measured(const TuneSpec& spec, const TuneCategory& category, const std
             dims, [&](const json& p) { return constrained_cost(*measure_candidate(p, false).measured, spec.accuracy); },
             spec.budget, spec.seed, defaults_searched);
     }
-    st.cost_model = fit_coefficients(observed, priors_of(priors, structure));
+    st.cost_model = fit_coefficients(observed, priors_of(priors, structure), &st.update_model);
     // Too few configurations timed to fit: the ranking's own model, the calibration alone.
     if (!st.cost_model && prior) st.cost_model = prior;
 }
@@ -801,6 +864,7 @@ CategoryTuning tune_category(const TuneSpec& spec, const TuneCategory& category,
             st.predict = predictor.predict;
             st.prediction_measurements = predictor.measurements;
             st.cost_model = predictor.coefficients;
+            st.update_model = predictor.update;
             const auto& predict = predictor.predict;
             st.search = search_levels(dims, predict, spec.budget, spec.seed, defaults_searched);
             // Verify: measure the best predicted candidates (the defaults are measured already).

@@ -6,9 +6,9 @@
 /// Modes:
 ///   measured                 every evaluation runs the simulator (median over frames × repetitions).
 ///                            Where the machine's micro-scene calibration gives the structure a cost
-///                            model, the whole space is replayed untimed and ranked by it, and the
-///                            budget times the best-ranked (rank_then_time, tuner/search.h); else the
-///                            search (search_levels) spends it
+///                            model, the whole space is replayed (rays counted, the update timed) and ranked by it, and
+///                            the budget times the best-ranked (rank_then_time, tuner/search.h); else the search
+///                            (search_levels) spends it
 ///   predicted                every evaluation is a cheap counting replay (no timed rays, no
 ///                            verification); C = C_RB·N_RB + C_T·N_T + … (eq. 5.4) with coefficients
 ///                            fitted to a few measured calibration points of the same structure
@@ -112,17 +112,39 @@ struct ReplayCounts {
     friend bool operator==(const ReplayCounts&, const ReplayCounts&) = default;
 };
 
-/// An untimed counting replay of a configuration on a category (no timed rays, no verification):
-/// what predict_cost prices. One replay serves every use of a configuration's counts (the
-/// exhaustive check prices each configuration and compares their counts from the same replay).
+/// The update's cost per frame (eq. 5.5's U) as a fit of measured frames prices it from a frame's
+/// changes, writes and objects: what a prediction adds to the rays' cost instead of timing the
+/// scene's update. Only a form whose every column is a plain term of the table (model_terms.h; no
+/// per-tier or per-configuration copy) prices another scene's configurations from their counters
+/// alone: the fit's chosen update form where it is one, else the plain form with the lowest
+/// held-out error.
+struct UpdatePrices {
+    std::vector<std::pair<std::string, double>> terms;  ///< (an update term of cost_terms(), ns per its count)
+    std::string model;                                  ///< the form and its held-out error
+
+    double per_frame_ns(const FrameObservation& f) const;
+    nlohmann::json to_json() const;
+    /// InputError "<where>: …" for a term that is not a plain update term or a value that is not a
+    /// finite number ≥ 0.
+    static UpdatePrices from_json(const nlohmann::json& j, const std::string& where);
+};
+/// The prices of `models`' update fit (see UpdatePrices); none where no plain form was fitted.
+std::optional<UpdatePrices> update_prices(const StructureModels& models);
+
+/// A counting replay of a configuration on a category (no timed rays, no verification): what
+/// predict_cost prices. One replay serves every use of a configuration's counts (the exhaustive
+/// check prices each configuration and compares their counts from the same replay). Given update
+/// prices it is untimed (untimed_replay, core/sim/simulator.h): each frame's update is predicted
+/// from its counts. Without, the replay times its update and says so (`update_timed`).
 struct CountingReplay {
-    /// A measured frame that cast rays: the replay's own (timed) update and the counted rays.
+    /// A measured frame that cast rays: its update (predicted, or timed) and the counted rays.
     struct Frame {
         double update_ns = 0, rays = 0;
         FrameObservation observation;  ///< observation_of the frame: what the coefficients price
     };
     std::vector<std::vector<Frame>> scenes;  ///< one entry per scene of the category, in its order
     ReplayCounts counts;                     ///< summed over every scene's measured frames
+    bool update_timed = false;               ///< the replay timed each frame's update (no update prices)
 };
 
 struct StructureTuning {
@@ -138,9 +160,12 @@ struct StructureTuning {
     /// measured mode a fit to the frames the search measured (counted by an untimed replay).
     /// What advise applies to an unseen scene's counters. None when no model could be fitted.
     std::optional<CostCoefficients> cost_model;
+    /// The update's prices fitted beside it (UpdatePrices): what lets advise replay an unseen scene
+    /// without timing its update. None where no plain update form was fitted.
+    std::optional<UpdatePrices> update_model;
     double seconds = 0;
     std::size_t measurements = 0;  ///< simulator runs of the measured kind
-    /// The ranked method's untimed counting replays, one per configuration of the space in its
+    /// The ranked method's counting replays (the update timed), one per configuration of the space in its
     /// order (each on every scene of the category); empty where the search ran instead. The
     /// exhaustive check prices these rather than replaying the space again.
     std::vector<CountingReplay> space_replays;
@@ -184,10 +209,11 @@ std::vector<MeasuredCost> measure_interleaved(const TuneCategory& category, cons
 
 /// How many simulations the tuner's measuring paths have run in this process, by kind, one per
 /// scene of a category: timed (their ray batches timed: measure, measure_interleaved) and
-/// counting replays (untimed: predict_cost, the counters of an observed measurement). advise
-/// reports its budget from its own calls; tests check it against these.
+/// counting replays (no ray timed: predict_cost, the counters of an observed measurement), and of
+/// those the replays that timed their update (no update prices). advise reports its budget from
+/// its own calls; tests check it against these.
 struct SimulationTally {
-    std::uint64_t timed = 0, counting = 0;
+    std::uint64_t timed = 0, counting = 0, counting_update_timed = 0;
 };
 SimulationTally simulation_tally();
 
@@ -217,8 +243,10 @@ private:
 /// every ray's work at 0 and leave a start-up cost alone, which ranks nothing; then the fit is
 /// made again with `priors()`, the structure's calibration (MachinePriors), and where that still
 /// prices no ray work (nothing pinned), the calibration's own costs are the model; it says which.
+/// With `update`, it receives the update's prices from the same fit (update_prices).
 std::optional<CostCoefficients> fit_coefficients(const std::vector<FrameObservation>& frames,
-                                                 const std::function<const ModelInputs&()>& priors = {});
+                                                 const std::function<const ModelInputs&()>& priors = {},
+                                                 std::optional<UpdatePrices>* update = nullptr);
 
 /// The model the ranked method starts from: the micro-scene calibration of `structure` alone
 /// (`priors`, measured once per process), so nothing of the space is timed for it. nullopt without
@@ -233,8 +261,10 @@ inline constexpr std::size_t kRankedSpaceLimit = 1024;
 /// file's smallest calibration.
 inline constexpr std::size_t kMinRefitConfigurations = 3;
 
+/// Untimed where `update` prices the update; else the replay times it (CountingReplay).
 CountingReplay counting_replay(const TuneCategory& category, const std::string& structure,
-                               const nlohmann::json& searched, std::uint32_t warmup_frames);
+                               const nlohmann::json& searched, std::uint32_t warmup_frames,
+                               const UpdatePrices* update = nullptr);
 
 /// `coefficients` applied to a replay: per frame its update time plus rays × the per-ray cost;
 /// ms per frame, median over a scene's frames, mean over the scenes.
@@ -249,7 +279,7 @@ std::optional<std::vector<double>> refit_predictions(const std::vector<FrameObse
                                                      const std::vector<CountingReplay>& replays, MachinePriors* priors,
                                                      const std::string& structure);
 
-/// Every configuration of a space replayed once (counting, untimed): priced by `coefficients`
+/// Every configuration of a space replayed once (counting_replay): priced by `coefficients`
 /// (the ranked method's ranking; the exhaustive check's ranking and model column), and grouped
 /// into structures in effect by the same replay's counts (equal counts: one structure in effect,
 /// e.g. a hash grid of depth 0 whatever its capacity).
@@ -265,8 +295,10 @@ SpaceSurvey survey_space(const std::vector<nlohmann::json>& all, const CostCoeff
 
 /// The predicted cost of a configuration (searched parameters) on `category`: replay_cost of its
 /// counting_replay. `counts`, when given, receives what the replay counted.
+/// `update`: as counting_replay's.
 double predict_cost(const CostCoefficients& coefficients, const TuneCategory& category, const std::string& structure,
-                    const nlohmann::json& searched, std::uint32_t warmup_frames, ReplayCounts* counts = nullptr);
+                    const nlohmann::json& searched, std::uint32_t warmup_frames, ReplayCounts* counts = nullptr,
+                    const UpdatePrices* update = nullptr);
 
 /// The predicted mode's cost: eq. 5.4 fitted to `spec.calibration` measured points (the defaults
 /// and seeded random points of the space), applied by predict_cost. `predict` refers to
@@ -274,8 +306,9 @@ double predict_cost(const CostCoefficients& coefficients, const TuneCategory& ca
 struct Predictor {
     std::function<double(const nlohmann::json&)> predict;  ///< searched parameters → ms per frame
     CostCoefficients coefficients;
-    std::string model;             ///< the chosen model and its held-out error
-    std::size_t measurements = 0;  ///< measured calibration points
+    std::optional<UpdatePrices> update;  ///< fitted beside the coefficients, where a plain form was
+    std::string model;                   ///< the chosen model and its held-out error
+    std::size_t measurements = 0;        ///< measured calibration points
 };
 Predictor calibrate_predictor(const TuneSpec& spec, const TuneCategory& category, const std::string& structure,
                               MachinePriors* priors = nullptr);

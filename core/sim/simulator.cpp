@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <stdexcept>
 
@@ -14,6 +15,8 @@
 
 namespace rcb {
 namespace {
+
+std::atomic<std::uint64_t> timed_phase_count{0};
 
 /// The clock of a configuration's timings (core/base/stopwatch.h): the thread's own time (the
 /// lesser of its wall and CPU spans) when all its work runs on the calling thread (TBB allows one
@@ -87,6 +90,7 @@ public:
             r.kind = QueryKind(k);
             r.rays = static_cast<std::uint32_t>(b.rays.size());
             if (timed) {
+                ++timed_phase_count;
                 const Stopwatch watch;
                 s.cast(b.rays, b.kinds, b.hits);
                 r.raycast = watch.elapsed();
@@ -271,6 +275,17 @@ nlohmann::json SimulationResult::to_json() const {
     return j;
 }
 
+SimulationOptions untimed_replay(std::uint32_t warmup_frames) {
+    SimulationOptions o;
+    o.verify = false;
+    o.timed_cast = false;
+    o.timed_update = false;
+    o.warmup_frames = warmup_frames;
+    return o;
+}
+
+std::uint64_t timed_phases() { return timed_phase_count.load(); }
+
 void check_warmup(std::size_t warmup_frames, std::size_t frames) {
     // Warm-up frames are left out of every median: with none left there is nothing to report
     // (a summary of zero frames would read as 0 ns).
@@ -297,7 +312,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
     const Stopwatch build_watch;
     structure->build(recording.initial);
     structure->commit();
-    result.build_ns = build_watch.ns(result.clock);
+    if (options.timed_update) result.build_ns = build_watch.ns(result.clock), ++timed_phase_count;
     result.objects = recording.initial.size();
     result.memory_bytes = structure->memory_bytes();
     if (options.validate) validate_or_throw(*structure, info.name, 0);
@@ -326,8 +341,11 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
         for (const Object& o : frame.inserts) structure->insert(o);
         for (const Object& o : frame.moves) structure->move(o);
         structure->commit();
-        fr.update = update_watch.elapsed();
-        fr.update_ns = on_clock(fr.update, result.clock);
+        if (options.timed_update) {
+            fr.update = update_watch.elapsed();
+            fr.update_ns = on_clock(fr.update, result.clock);
+            ++timed_phase_count;
+        }
         fr.writes = structure->writes() - writes_before;
         live.apply(frame);
         if (options.validate) validate_or_throw(*structure, info.name, fr.frame);
@@ -336,6 +354,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
         if (per_kind)
             batches.timed_pass(*structure, options.timed_cast, result.clock, fr, hits);
         else if (options.timed_cast) {
+            ++timed_phase_count;
             const Stopwatch cast_watch;
             structure->cast(frame.rays, frame.kinds, hits);
             fr.raycast = cast_watch.elapsed();

@@ -44,6 +44,9 @@ struct SimulationOptions {
     bool count = true;   ///< run the counting pass
     bool timed_cast =
         true;  ///< time the ray batch; false: only the counting pass casts (the tuner's cheap prediction runs)
+    /// Time the build and every frame's update; false: neither is timed (their times read 0). With
+    /// timed_cast false too the run is an untimed replay: it counts and times nothing (untimed_replay).
+    bool timed_update = true;
     bool validate = false;            ///< call Structure::validate() after the build and every commit
     std::uint32_t max_frames = 0;     ///< replay at most this many frames (0: all)
     std::uint32_t warmup_frames = 0;  ///< the first frames run but are left out of the summaries
@@ -121,6 +124,14 @@ struct SimulationResult {
     Spread raycast_ns() const;
     nlohmann::json to_json() const;
 };
+
+/// The options of an untimed counting replay: the counting pass is the only cast and nothing (build,
+/// update, rays) is timed, so a prediction from its counters spends no timed run on the scene.
+SimulationOptions untimed_replay(std::uint32_t warmup_frames);
+
+/// How many phases simulate() has timed in this process (a build, a frame's update, a ray batch):
+/// what tests read to check that a replay called untimed times nothing.
+std::uint64_t timed_phases();
 
 /// Called after each frame (for progress reports); may be empty.
 using FrameCallback = std::function<void(const FrameResult&)>;
