@@ -319,16 +319,19 @@ struct ImportCommandOptions {
     std::string out;
     DynamicsOptions dyn;
     ImportOptions file;         // .bsp/.pk3 and model modes
-    std::string motion_option;  // the first motion option given (--frames, --change-fraction, ...), if any
+    std::string motion_option;  // the first change option given (--change-fraction, ...), if any
+    bool frames_given = false;  // --frames
+    std::uint32_t objects = 0;  // --objects: Broadmark files only
 };
 
-/// A Broadmark file (`.aabbs`): its frames are the motion; only rays (--rays, --ray-mix, --seed) are added.
+/// A Broadmark file (`.aabbs`): its frames are the motion, of which --frames and --objects take the
+/// first; only rays (--rays, --ray-mix, --seed) are added.
 void run_broadmark_import(const ImportCommandOptions& imp) {
     if (!imp.motion_option.empty())
-        throw InputError(imp.motion_option + ": a Broadmark file carries its own frames and motion (" + imp.input +
-                         ")");
-    Recording r = read_broadmark(imp.input);
+        throw InputError(imp.motion_option + ": a Broadmark file carries its own motion (" + imp.input + ")");
     const RaySettings rays = ray_settings(imp.dyn);
+    Recording r = read_broadmark(
+        imp.input, {imp.frames_given ? std::optional(imp.dyn.frames) : std::nullopt, imp.objects, rays.per_frame});
     add_rays(r, rays, imp.dyn.seed);
     nlohmann::json meta = nlohmann::json::parse(r.meta);
     meta["frames"] = r.frames.size();
@@ -343,6 +346,7 @@ void run_broadmark_import(const ImportCommandOptions& imp) {
 void run_import(const ImportCommandOptions& imp) {
     check_output_path(imp.out, {imp.input}, "-o");
     if (importer_for(imp.input) == "broadmark") return run_broadmark_import(imp);
+    if (imp.objects) throw InputError("--objects: only for a Broadmark scene file (.aabbs), not " + imp.input);
     nlohmann::json meta;
     std::vector<Object> objects;
     if (importer_for(imp.input) != "csv") {
@@ -373,7 +377,7 @@ void add_import_command(CLI::App& scene) {
     i->add_option("input", imp->input,
                   "Boxes file (.csv), map (.bsp, or .pk3 with maps/*.bsp), model (.obj, .gltf, .glb, .fbx, ...) or "
                   "Broadmark scene (.aabbs: objects are uids 0..N-1, each later frame moves the boxes that changed; "
-                  "--frames and the change options do not apply)")
+                  "--frames takes its first frames, the change options do not apply)")
         ->required()
         ->check(input_file());
     i->add_option("-o,--output", imp->out, "Recording file to write")->required();
@@ -395,10 +399,15 @@ void add_import_command(CLI::App& scene) {
                   "box of its mesh's bounds (obbs), or one triangle object per triangle in world space (triangles)")
         ->capture_default_str()
         ->check(CLI::IsMember({"instances", "obbs", "triangles"}));
+    i->add_option("--objects", imp->objects,
+                  "Broadmark scene files: take the first N objects (uids 0..N-1) of every frame, e.g. to stay under "
+                  "the memory budget (default all)")
+        ->check(whole_number(1, kMaxSceneObjects));
     add_dynamics_options(*i, imp->dyn);
     i->callback([imp, i] {
         imp->motion_option.clear();
-        for (const char* o : {"--frames", "--change-fraction", "--insert-share", "--remove-share", "--move-scale"})
+        imp->frames_given = i->count("--frames") > 0;
+        for (const char* o : {"--change-fraction", "--insert-share", "--remove-share", "--move-scale"})
             if (imp->motion_option.empty() && i->count(o) > 0) imp->motion_option = o;
         run_import(*imp);
     });
@@ -412,8 +421,9 @@ void add_export_command(CLI::App& scene) {
     auto ex = std::make_shared<ExportOptions>();
     CLI::App* e = scene.add_subcommand(
         "export",
-        "Write a recording in another tool's format: broadmark (Broadmark's .aabbs: every object's box in every frame, "
-        "no rays or shapes; refused when a frame inserts or removes objects)");
+        "Write a recording in another tool's format: broadmark (Broadmark's .aabbs: every object's box in frame 0 and "
+        "every later frame, the header counting the later frames; no rays or shapes; refused when a frame inserts or "
+        "removes objects or the recording has only frame 0)");
     e->add_option("scene", ex->input, "Recording file")->required()->check(input_file());
     e->add_option("--format", ex->format, "Output format")->required()->check(CLI::IsMember({"broadmark"}));
     e->add_option("-o,--output", ex->out, "File to write")->required();
@@ -421,8 +431,8 @@ void add_export_command(CLI::App& scene) {
         check_output_path(ex->out, {ex->input}, "-o");
         const Recording r = read_recording(ex->input);
         write_broadmark(r, ex->out);
-        std::cout << "wrote " << ex->out << ": " << r.initial.size() << " objects, " << r.frames.size() + 1
-                  << " frames (frame 0 included), Broadmark format\n";
+        std::cout << "wrote " << ex->out << ": " << r.initial.size() << " objects, frame 0 and " << r.frames.size()
+                  << " frames after it, Broadmark format\n";
     });
 }
 
