@@ -241,7 +241,9 @@ void add_gen_command(CLI::App& scene) {
         std::string out;
         DynamicsOptions dyn;
         ShapeSettings shapes;
-        double time_step = 1.0 / 60;
+        double time_step = 0;  // the kind's default
+        std::string shape_set;
+        double fill = 0;
         std::string on_map, map;
     };
     auto gen = std::make_shared<GenOptions>();
@@ -256,9 +258,19 @@ void add_gen_command(CLI::App& scene) {
                       ") are simulated by Bullet: every awake body moves each frame, sleeping ones do not; the "
                       "--change-fraction, --insert-share, --remove-share and --move-scale options do not apply to them")
         ->check(CLI::IsMember(scene_kinds()));
-    g->add_option("--time-step", gen->time_step, "Physics kinds: seconds simulated per frame (one Bullet step)")
-        ->capture_default_str()
+    g->add_option("--time-step", gen->time_step,
+                  "Physics kinds: seconds simulated per frame (default 1/60 in one Bullet step; Broadmark's "
+                  "brownian, freefall and gravity 1/30 in 4 substeps, its generator's)")
         ->check(finite_range(1e-4, 0.1));
+    g->add_option(
+         "--shape-set", gen->shape_set,
+         "Broadmark's kinds (brownian, freefall, gravity): its object set, cubes (unit cubes), spheres "
+         "(diameter 1) or assorted (cubes, bars and slabs of 38:1, planks up to 57:1, random boxes; default cubes)")
+        ->check(CLI::IsMember(broadmark_shape_sets()));
+    g->add_option("--fill", gen->fill,
+                  "Broadmark's kinds: share of the arena the objects' unit volumes fill, which sizes the arena "
+                  "(default 0.1, its generator's ObjectDensity; its shipped wizard sets 0.01)")
+        ->check(finite_range(1e-6, 0.5));
     g->add_option("--objects", gen->objects, "Object count (overrides the preset's)")
         ->check(whole_number(1, kMaxSceneObjects));
     g->add_option("-o,--output", gen->out, "Recording file to write")->required();
@@ -303,6 +315,8 @@ void add_gen_command(CLI::App& scene) {
         s.rays = ray_settings(gen->dyn);
         s.shapes = gen->shapes;
         s.time_step = gen->time_step;
+        s.shape_set = gen->shape_set;
+        s.fill = gen->fill;
         check_shapes(s.shapes);
         if (!gen->map.empty() && gen->on_map.empty()) throw InputError("--map: needs --on-map");
         check_output_path(gen->out, {gen->on_map}, "-o");

@@ -193,7 +193,7 @@ const std::set<std::string> kSceneKeys = {
     "name",           "preset",     "kind",           "objects",      "recording",       "import",
     "import_options", "frames",     "rays_per_frame", "ray_mix",      "change_fraction", "insert_share",
     "remove_share",   "move_scale", "rotated_share",  "sphere_share", "capsule_share",   "seed",
-    "seeds",          "query_mix",  "queries",        "time_step"};
+    "seeds",          "query_mix",  "queries",        "time_step",    "shape_set",       "fill"};
 
 /// A missing file. Real maps and models are never committed: one under a data/ directory that
 /// scripts/fetch_maps.sh fills is fetched on demand, so the message names the command that does.
@@ -213,9 +213,9 @@ std::string file_not_found(const std::string& file) {
 /// A recording entry: the file brings its objects, frames, rays and dynamics.
 void parse_recording_scene(const json& s, const std::string& path, const std::string& base_dir,
                            std::vector<SceneSpec>& out) {
-    for (const char* k :
-         {"objects", "frames", "rays_per_frame", "ray_mix", "query_mix", "queries", "change_fraction", "insert_share",
-          "remove_share", "move_scale", "rotated_share", "sphere_share", "capsule_share", "seed", "seeds", "time_step"})
+    for (const char* k : {"objects", "frames", "rays_per_frame", "ray_mix", "query_mix", "queries", "change_fraction",
+                          "insert_share", "remove_share", "move_scale", "rotated_share", "sphere_share",
+                          "capsule_share", "seed", "seeds", "time_step", "shape_set", "fill"})
         if (s.contains(k)) fail(at(path, k), "a recording brings its own objects, frames, rays and dynamics");
     SceneSpec spec;
     spec.source = SceneSpec::Source::recording;
@@ -325,6 +325,14 @@ std::string parse_scene_settings(const json& s, const std::string& path, const S
             fail(at(path, "time_step"), "only a physics kind (" + join(physics_kinds()) + ") takes a time step");
         base.time_step = get_number(s, "time_step", path, 1e-4, 0.1, base.time_step);
     }
+    for (const char* k : {"shape_set", "fill"})
+        if (s.contains(k) && !(physics && is_broadmark_kind(base.kind)))
+            fail(at(path, k), "only Broadmark's kinds (brownian, freefall, gravity) take " + std::string(k));
+    base.shape_set = get_string(s, "shape_set", path, base.shape_set);
+    if (const auto sets = broadmark_shape_sets();
+        !base.shape_set.empty() && std::find(sets.begin(), sets.end(), base.shape_set) == sets.end())
+        fail(at(path, "shape_set"), "unknown set '" + base.shape_set + "' (known: " + join(sets) + ")");
+    base.fill = get_number(s, "fill", path, 1e-6, 0.5, base.fill);
     base.dynamics.change_fraction = get_number(s, "change_fraction", path, 0, 1, base.dynamics.change_fraction);
     base.dynamics.insert_share = get_number(s, "insert_share", path, 0, 1, base.dynamics.insert_share);
     base.dynamics.remove_share = get_number(s, "remove_share", path, 0, 1, base.dynamics.remove_share);
@@ -367,6 +375,9 @@ SceneSpec concrete_scene(const SceneSource& src, const SceneSettings& base, cons
     if (is_physics_kind(base.kind) && src.source != SceneSpec::Source::import &&
         base.time_step != SceneSettings{}.time_step)
         spec.key["time_step"] = base.time_step;
+    // Broadmark's shape set and fill, only when given: older keys stay as they were.
+    if (!base.shape_set.empty()) spec.key["shape_set"] = base.shape_set;
+    if (base.fill != 0) spec.key["fill"] = base.fill;
     if (src.source == SceneSpec::Source::import) {
         spec.key["import"] = fs::path(src.file).filename().string();
         if (importer_for(src.file) != "csv") spec.key["import_options"] = spec.import_options = src.import_options;
