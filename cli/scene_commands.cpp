@@ -12,6 +12,7 @@
 #include "core/scene/generate/generators.h"
 #include "core/scene/generate/physics.h"
 #include "core/scene/import/broadmark.h"
+#include "core/scene/phases.h"
 #include "core/scene/import/bsp.h"
 #include "core/scene/import/scene_import.h"
 #include "core/base/json_input.h"
@@ -169,6 +170,18 @@ void scene_info(const std::string& path, bool as_json) {
         {"longest_edge", size},
         {"motion", wj["motion"]},
         {"meta", meta}};
+    std::string phases_text;
+    for (const MotionPhase& p : motion_phases(r)) {
+        j["motion"]["phases"].push_back({{"name", p.name},
+                                         {"first", p.first},
+                                         {"last", p.last},
+                                         {"frames", p.frames()},
+                                         {"moving_share", p.moving_share}});
+        phases_text += (phases_text.empty() ? "" : ", ") + p.name + " " +
+                       (p.empty() ? "none"
+                                  : std::to_string(p.first) + "-" + std::to_string(p.last) + " " +
+                                        fixed(100 * p.moving_share, 1) + "%");
+    }
     if (as_json) {
         std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
         return;
@@ -200,6 +213,7 @@ void scene_info(const std::string& path, bool as_json) {
                                                     fixed(100 * m["changed_share"]["p90"].get<double>(), 1) + "%"});
     t.add({"changed per frame, first / last frames",
            shares_text(m["first_frames"]) + " / " + shares_text(m["last_frames"])});
+    t.add({"moving per phase (frames, share)", phases_text});
     t.add({"move / longest edge median (p90)", fixed(m["move_over_size"]["median"].get<double>(), 4) + " (" +
                                                    fixed(m["move_over_size"]["p90"].get<double>(), 4) + ")"});
     t.print(std::cout);
@@ -458,10 +472,11 @@ struct InfoOptions {
 /// `scene info`: what a recording holds.
 void add_info_command(CLI::App& scene) {
     auto info = std::make_shared<InfoOptions>();
-    CLI::App* n =
-        scene.add_subcommand("info",
-                             "Describe a recording: format version, objects per shape kind, frames, rays, bounds, size "
-                             "distribution, share of objects changed per frame and moves relative to object size");
+    CLI::App* n = scene.add_subcommand(
+        "info",
+        "Describe a recording: format version, objects per shape kind, frames, rays, bounds, size "
+        "distribution, share of objects changed per frame and per motion phase (falling, impact, settling, asleep), "
+        "and moves relative to object size");
     n->add_option("file", info->file, "Recording file")->required()->check(input_file());
     n->add_flag("--json", info->json, "Print one JSON object");
     n->callback([info] { scene_info(info->file, info->json); });

@@ -11,7 +11,9 @@
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/scene/generate/physics.h"
+#include "core/scene/phases.h"
 #include "core/scene/recording_io.h"
+#include "core/sim/simulator.h"
 #include "runner/experiment.h"
 #include "tests/subprocess.h"
 #include "tests/test_scenes.h"
@@ -349,6 +351,81 @@ TEST(PhysicsScenes, ExperimentEntriesTakeShapeSetAndFill) {
               std::string::npos);
 }
 
+TEST(PhysicsScenes, MotionPhasesSplitTheFrames) {
+    // A pile of 200 over 10 s: it falls, lands, settles and sleeps; the phases cover every frame
+    // once, in order, and sleeping bodies are no changes (the asleep phase moves under 10%).
+    SceneSettings s = physics("pile", 200, 600);
+    s.shapes = {0.3, 0.3, 0};
+    s.rays.per_frame = 0;
+    const Recording r = generate_scene(s);
+    const std::vector<MotionPhase> phases = motion_phases(r);
+    ASSERT_EQ(phases.size(), 4u);
+    std::uint32_t next = 1;
+    for (std::size_t i = 0; i < phases.size(); ++i) {
+        EXPECT_EQ(phases[i].name, motion_phase_names()[i]);
+        EXPECT_EQ(phases[i].first, next) << phases[i].name;
+        next = phases[i].last + 1;
+        EXPECT_FALSE(phases[i].empty()) << phases[i].name;
+    }
+    EXPECT_EQ(next, 601u);
+    EXPECT_GT(phases[0].moving_share, 0.9);  // everything falls
+    EXPECT_LT(phases[3].moving_share, kAsleepShare);
+    // Brownian never sleeps: its bodies are re-kicked, so no asleep phase.
+    const std::vector<MotionPhase> b = motion_phases(generate_scene(broadmark("brownian", "cubes", 200, 60)));
+    EXPECT_TRUE(b[3].empty());
+    EXPECT_EQ(b[0].first, 1u);
+    EXPECT_EQ(b[2].last, 60u);
+}
+
+TEST(PhysicsScenes, ExperimentsMeasureAWindowOfFrames) {
+    const Experiment e = parse_experiment(
+        R"({"scenes": [{"kind": "pile", "objects": 120, "frames": 600, "rays_per_frame": 20,
+                        "phases": ["falling", "asleep"], "stride": 2},
+                       {"kind": "pile", "objects": 120, "frames": 600, "rays_per_frame": 20, "start_frame": 250,
+                        "stride": 10},
+                       {"kind": "brownian", "objects": 100, "frames": 20, "phases": "asleep"}],
+            "structures": [{"name": "bf"}]})",
+        "exp.json", ".");
+    ASSERT_EQ(e.scenes.size(), 4u);
+    EXPECT_EQ(e.scenes[0].name, "pile-falling");
+    EXPECT_EQ(e.scenes[1].name, "pile-asleep");
+    EXPECT_EQ(e.scenes[1].key["measure"], nlohmann::json({{"phase", "asleep"}, {"stride", 2}}));
+    EXPECT_EQ(e.scenes[2].key["measure"], nlohmann::json({{"start_frame", 250}, {"stride", 10}}));
+    // Every frame replays; only the window's are measured, the others count as warm-up.
+    for (std::size_t i : {1u, 2u}) {
+        SCOPED_TRACE(e.scenes[i].name);
+        const Recording r = load_scene(e.scenes[i]);
+        const FrameWindow w = measured_window(r, "scene");
+        if (i == 1) {
+            const MotionPhase asleep = motion_phases(r)[3];
+            EXPECT_EQ(w.first, asleep.first);
+            EXPECT_EQ(w.last, asleep.last);
+        } else {
+            EXPECT_EQ(w.first, 250u);
+            EXPECT_EQ(w.last, 600u);
+        }
+        const SimulationResult res = simulate(r, find_structure("bf"), nlohmann::json::object());
+        ASSERT_EQ(res.frames.size(), 600u);
+        for (const FrameResult& f : res.frames)
+            EXPECT_EQ(f.warmup, !(f.frame >= w.first && f.frame <= w.last && (f.frame - w.first) % w.stride == 0))
+                << f.frame;
+        EXPECT_EQ(res.mismatches(), 0u);
+    }
+    // A phase the recording never reaches stops the run, naming the phases it has.
+    test::expect_input_error([&] { load_scene(e.scenes[3]); },
+                             "scenes[2]: scene brownian-asleep: its recording has "
+                             "no asleep phase (its phases: falling 1..");
+    const auto error = [](const std::string& scene) {
+        return test::input_error_of([&] {
+            parse_experiment(R"({"scenes": [)" + scene + R"(], "structures": [{"name": "bf"}]})", "exp.json", ".");
+        });
+    };
+    EXPECT_EQ(error(R"({"kind": "pile", "objects": 10, "phases": "resting"})"),
+              "exp.json: scenes[0].phases: expected one of falling, impact, settling, asleep, got \"resting\"");
+    EXPECT_EQ(error(R"({"kind": "pile", "objects": 10, "phases": ["asleep"], "start_frame": 3})"),
+              "exp.json: scenes[0].start_frame: give \"start_frame\" or \"phases\", not both");
+}
+
 TEST(PhysicsScenes, SceneInfoShowsTheMotion) {
     const std::string bin = RCBENCH_BINARY;
     const test::TempDir dir("physics");
@@ -365,8 +442,14 @@ TEST(PhysicsScenes, SceneInfoShowsTheMotion) {
     // most 0.25 of a cube, collisions aside.
     EXPECT_GT(m["move_over_size"]["median"].get<double>(), 0.02);
     EXPECT_LT(m["move_over_size"]["median"].get<double>(), 0.35);
+    ASSERT_EQ(m["phases"].size(), 4u);
+    EXPECT_EQ(m["phases"][0]["name"], "falling");
+    EXPECT_EQ(m["phases"][0]["first"], 1);
+    EXPECT_EQ(m["phases"][3]["frames"], 0);  // brownian never sleeps
     const ::test::Outcome table = ::test::run_shell(bin + " scene info " + file);
     EXPECT_NE(table.out.find("changed per frame p10 / p50 / p90"), std::string::npos) << table.out;
+    EXPECT_NE(table.out.find("moving per phase (frames, share)"), std::string::npos) << table.out;
+    EXPECT_NE(table.out.find("asleep none"), std::string::npos) << table.out;
 }
 
 TEST(PhysicsScenes, EveryStructureMatchesTheGroundTruth) {
