@@ -12,6 +12,7 @@
 #include "core/scene/generate/generators.h"
 #include "core/scene/generate/physics.h"
 #include "core/scene/import/broadmark.h"
+#include "core/scene/phases.h"
 #include "core/scene/import/bsp.h"
 #include "core/scene/import/scene_import.h"
 #include "core/base/json_input.h"
@@ -169,6 +170,18 @@ void scene_info(const std::string& path, bool as_json) {
         {"longest_edge", size},
         {"motion", wj["motion"]},
         {"meta", meta}};
+    std::string phases_text;
+    for (const MotionPhase& p : motion_phases(r)) {
+        j["motion"]["phases"].push_back({{"name", p.name},
+                                         {"first", p.first},
+                                         {"last", p.last},
+                                         {"frames", p.frames()},
+                                         {"moving_share", p.moving_share}});
+        phases_text += (phases_text.empty() ? "" : ", ") + p.name + " " +
+                       (p.empty() ? "none"
+                                  : std::to_string(p.first) + "-" + std::to_string(p.last) + " " +
+                                        fixed(100 * p.moving_share, 1) + "%");
+    }
     if (as_json) {
         std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << '\n';
         return;
@@ -200,6 +213,7 @@ void scene_info(const std::string& path, bool as_json) {
                                                     fixed(100 * m["changed_share"]["p90"].get<double>(), 1) + "%"});
     t.add({"changed per frame, first / last frames",
            shares_text(m["first_frames"]) + " / " + shares_text(m["last_frames"])});
+    t.add({"moving per phase (frames, share)", phases_text});
     t.add({"move / longest edge median (p90)", fixed(m["move_over_size"]["median"].get<double>(), 4) + " (" +
                                                    fixed(m["move_over_size"]["p90"].get<double>(), 4) + ")"});
     t.print(std::cout);
@@ -241,7 +255,9 @@ void add_gen_command(CLI::App& scene) {
         std::string out;
         DynamicsOptions dyn;
         ShapeSettings shapes;
-        double time_step = 1.0 / 60;
+        double time_step = 0;  // the kind's default
+        std::string shape_set;
+        double fill = 0;
         std::string on_map, map;
     };
     auto gen = std::make_shared<GenOptions>();
@@ -256,9 +272,19 @@ void add_gen_command(CLI::App& scene) {
                       ") are simulated by Bullet: every awake body moves each frame, sleeping ones do not; the "
                       "--change-fraction, --insert-share, --remove-share and --move-scale options do not apply to them")
         ->check(CLI::IsMember(scene_kinds()));
-    g->add_option("--time-step", gen->time_step, "Physics kinds: seconds simulated per frame (one Bullet step)")
-        ->capture_default_str()
+    g->add_option("--time-step", gen->time_step,
+                  "Physics kinds: seconds simulated per frame (default 1/60 in one Bullet step; Broadmark's "
+                  "brownian, freefall and gravity 1/30 in 4 substeps, its generator's)")
         ->check(finite_range(1e-4, 0.1));
+    g->add_option(
+         "--shape-set", gen->shape_set,
+         "Broadmark's kinds (brownian, freefall, gravity): its object set, cubes (unit cubes), spheres "
+         "(diameter 1) or assorted (cubes, bars and slabs of 38:1, planks up to 57:1, random boxes; default cubes)")
+        ->check(CLI::IsMember(broadmark_shape_sets()));
+    g->add_option("--fill", gen->fill,
+                  "Broadmark's kinds: share of the arena the objects' unit volumes fill, which sizes the arena "
+                  "(default 0.1, its generator's ObjectDensity; its shipped wizard sets 0.01)")
+        ->check(finite_range(1e-6, 0.5));
     g->add_option("--objects", gen->objects, "Object count (overrides the preset's)")
         ->check(whole_number(1, kMaxSceneObjects));
     g->add_option("-o,--output", gen->out, "Recording file to write")->required();
@@ -303,6 +329,8 @@ void add_gen_command(CLI::App& scene) {
         s.rays = ray_settings(gen->dyn);
         s.shapes = gen->shapes;
         s.time_step = gen->time_step;
+        s.shape_set = gen->shape_set;
+        s.fill = gen->fill;
         check_shapes(s.shapes);
         if (!gen->map.empty() && gen->on_map.empty()) throw InputError("--map: needs --on-map");
         check_output_path(gen->out, {gen->on_map}, "-o");
@@ -319,16 +347,19 @@ struct ImportCommandOptions {
     std::string out;
     DynamicsOptions dyn;
     ImportOptions file;         // .bsp/.pk3 and model modes
-    std::string motion_option;  // the first motion option given (--frames, --change-fraction, ...), if any
+    std::string motion_option;  // the first change option given (--change-fraction, ...), if any
+    bool frames_given = false;  // --frames
+    std::uint32_t objects = 0;  // --objects: Broadmark files only
 };
 
-/// A Broadmark file (`.aabbs`): its frames are the motion; only rays (--rays, --ray-mix, --seed) are added.
+/// A Broadmark file (`.aabbs`): its frames are the motion, of which --frames and --objects take the
+/// first; only rays (--rays, --ray-mix, --seed) are added.
 void run_broadmark_import(const ImportCommandOptions& imp) {
     if (!imp.motion_option.empty())
-        throw InputError(imp.motion_option + ": a Broadmark file carries its own frames and motion (" + imp.input +
-                         ")");
-    Recording r = read_broadmark(imp.input);
+        throw InputError(imp.motion_option + ": a Broadmark file carries its own motion (" + imp.input + ")");
     const RaySettings rays = ray_settings(imp.dyn);
+    Recording r = read_broadmark(
+        imp.input, {imp.frames_given ? std::optional(imp.dyn.frames) : std::nullopt, imp.objects, rays.per_frame});
     add_rays(r, rays, imp.dyn.seed);
     nlohmann::json meta = nlohmann::json::parse(r.meta);
     meta["frames"] = r.frames.size();
@@ -343,6 +374,7 @@ void run_broadmark_import(const ImportCommandOptions& imp) {
 void run_import(const ImportCommandOptions& imp) {
     check_output_path(imp.out, {imp.input}, "-o");
     if (importer_for(imp.input) == "broadmark") return run_broadmark_import(imp);
+    if (imp.objects) throw InputError("--objects: only for a Broadmark scene file (.aabbs), not " + imp.input);
     nlohmann::json meta;
     std::vector<Object> objects;
     if (importer_for(imp.input) != "csv") {
@@ -373,7 +405,7 @@ void add_import_command(CLI::App& scene) {
     i->add_option("input", imp->input,
                   "Boxes file (.csv), map (.bsp, or .pk3 with maps/*.bsp), model (.obj, .gltf, .glb, .fbx, ...) or "
                   "Broadmark scene (.aabbs: objects are uids 0..N-1, each later frame moves the boxes that changed; "
-                  "--frames and the change options do not apply)")
+                  "--frames takes its first frames, the change options do not apply)")
         ->required()
         ->check(input_file());
     i->add_option("-o,--output", imp->out, "Recording file to write")->required();
@@ -395,10 +427,15 @@ void add_import_command(CLI::App& scene) {
                   "box of its mesh's bounds (obbs), or one triangle object per triangle in world space (triangles)")
         ->capture_default_str()
         ->check(CLI::IsMember({"instances", "obbs", "triangles"}));
+    i->add_option("--objects", imp->objects,
+                  "Broadmark scene files: take the first N objects (uids 0..N-1) of every frame, e.g. to stay under "
+                  "the memory budget (default all)")
+        ->check(whole_number(1, kMaxSceneObjects));
     add_dynamics_options(*i, imp->dyn);
     i->callback([imp, i] {
         imp->motion_option.clear();
-        for (const char* o : {"--frames", "--change-fraction", "--insert-share", "--remove-share", "--move-scale"})
+        imp->frames_given = i->count("--frames") > 0;
+        for (const char* o : {"--change-fraction", "--insert-share", "--remove-share", "--move-scale"})
             if (imp->motion_option.empty() && i->count(o) > 0) imp->motion_option = o;
         run_import(*imp);
     });
@@ -412,8 +449,9 @@ void add_export_command(CLI::App& scene) {
     auto ex = std::make_shared<ExportOptions>();
     CLI::App* e = scene.add_subcommand(
         "export",
-        "Write a recording in another tool's format: broadmark (Broadmark's .aabbs: every object's box in every frame, "
-        "no rays or shapes; refused when a frame inserts or removes objects)");
+        "Write a recording in another tool's format: broadmark (Broadmark's .aabbs: every object's box in frame 0 and "
+        "every later frame, the header counting the later frames; no rays or shapes; refused when a frame inserts or "
+        "removes objects or the recording has only frame 0)");
     e->add_option("scene", ex->input, "Recording file")->required()->check(input_file());
     e->add_option("--format", ex->format, "Output format")->required()->check(CLI::IsMember({"broadmark"}));
     e->add_option("-o,--output", ex->out, "File to write")->required();
@@ -421,8 +459,8 @@ void add_export_command(CLI::App& scene) {
         check_output_path(ex->out, {ex->input}, "-o");
         const Recording r = read_recording(ex->input);
         write_broadmark(r, ex->out);
-        std::cout << "wrote " << ex->out << ": " << r.initial.size() << " objects, " << r.frames.size() + 1
-                  << " frames (frame 0 included), Broadmark format\n";
+        std::cout << "wrote " << ex->out << ": " << r.initial.size() << " objects, frame 0 and " << r.frames.size()
+                  << " frames after it, Broadmark format\n";
     });
 }
 
@@ -434,10 +472,11 @@ struct InfoOptions {
 /// `scene info`: what a recording holds.
 void add_info_command(CLI::App& scene) {
     auto info = std::make_shared<InfoOptions>();
-    CLI::App* n =
-        scene.add_subcommand("info",
-                             "Describe a recording: format version, objects per shape kind, frames, rays, bounds, size "
-                             "distribution, share of objects changed per frame and moves relative to object size");
+    CLI::App* n = scene.add_subcommand(
+        "info",
+        "Describe a recording: format version, objects per shape kind, frames, rays, bounds, size "
+        "distribution, share of objects changed per frame and per motion phase (falling, impact, settling, asleep), "
+        "and moves relative to object size");
     n->add_option("file", info->file, "Recording file")->required()->check(input_file());
     n->add_flag("--json", info->json, "Print one JSON object");
     n->callback([info] { scene_info(info->file, info->json); });

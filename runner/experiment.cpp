@@ -12,6 +12,7 @@
 
 #include "core/scene/import/csv.h"
 #include "core/scene/generate/physics.h"
+#include "core/scene/phases.h"
 #include "core/scene/import/scene_import.h"
 #include "core/base/error.h"
 #include "core/base/json_input.h"
@@ -193,7 +194,8 @@ const std::set<std::string> kSceneKeys = {
     "name",           "preset",     "kind",           "objects",      "recording",       "import",
     "import_options", "frames",     "rays_per_frame", "ray_mix",      "change_fraction", "insert_share",
     "remove_share",   "move_scale", "rotated_share",  "sphere_share", "capsule_share",   "seed",
-    "seeds",          "query_mix",  "queries",        "time_step"};
+    "seeds",          "query_mix",  "queries",        "time_step",    "shape_set",       "fill",
+    "start_frame",    "stride",     "phases"};
 
 /// A missing file. Real maps and models are never committed: one under a data/ directory that
 /// scripts/fetch_maps.sh fills is fetched on demand, so the message names the command that does.
@@ -210,12 +212,45 @@ std::string file_not_found(const std::string& file) {
     return "file not found: " + file;
 }
 
+/// The frames an entry measures: one window per phase of "phases" (a name or a list of them), or
+/// one from "start_frame" (default 1), each every "stride"-th frame (default 1); [null] when none
+/// is given (every frame, and the key as it was).
+std::vector<json> parse_measured_frames(const json& s, const std::string& path) {
+    if (!s.contains("phases") && !s.contains("start_frame") && !s.contains("stride")) return {json()};
+    const auto stride = get_uint(s, "stride", path, 1, 1'000'000, 1);
+    if (!s.contains("phases"))
+        return {{{"start_frame", get_uint(s, "start_frame", path, 1, 1'000'000, 1)}, {"stride", stride}}};
+    if (s.contains("start_frame")) fail(at(path, "start_frame"), "give \"start_frame\" or \"phases\", not both");
+    const json& given = s["phases"];
+    const json list = given.is_array() ? given : json::array({given});
+    if (list.empty()) fail(at(path, "phases"), "expected a phase or a non-empty list of phases");
+    const std::vector<std::string> names = motion_phase_names();
+    std::vector<json> windows;
+    for (std::size_t i = 0; i < list.size(); ++i) {
+        const std::string where = given.is_array() ? at(at(path, "phases"), i) : at(path, "phases");
+        if (!list[i].is_string() || std::find(names.begin(), names.end(), list[i].get<std::string>()) == names.end())
+            fail(where, "expected one of " + join(names) + ", got " + json_excerpt(list[i]));
+        windows.push_back({{"phase", list[i]}, {"stride", stride}});
+    }
+    return windows;
+}
+
+/// One scene per window (parse_measured_frames), each keyed and named by it ("-settling").
+void add_windows(const SceneSpec& spec, const std::vector<json>& windows, std::vector<SceneSpec>& out) {
+    for (const json& window : windows) {
+        out.push_back(spec);
+        if (window.is_null()) continue;
+        out.back().key["measure"] = window;
+        if (window.contains("phase")) out.back().name.append("-").append(window["phase"].get<std::string>());
+    }
+}
+
 /// A recording entry: the file brings its objects, frames, rays and dynamics.
 void parse_recording_scene(const json& s, const std::string& path, const std::string& base_dir,
                            std::vector<SceneSpec>& out) {
-    for (const char* k :
-         {"objects", "frames", "rays_per_frame", "ray_mix", "query_mix", "queries", "change_fraction", "insert_share",
-          "remove_share", "move_scale", "rotated_share", "sphere_share", "capsule_share", "seed", "seeds", "time_step"})
+    for (const char* k : {"objects", "frames", "rays_per_frame", "ray_mix", "query_mix", "queries", "change_fraction",
+                          "insert_share", "remove_share", "move_scale", "rotated_share", "sphere_share",
+                          "capsule_share", "seed", "seeds", "time_step", "shape_set", "fill"})
         if (s.contains(k)) fail(at(path, k), "a recording brings its own objects, frames, rays and dynamics");
     SceneSpec spec;
     spec.source = SceneSpec::Source::recording;
@@ -225,7 +260,7 @@ void parse_recording_scene(const json& s, const std::string& path, const std::st
     if (!fs::is_regular_file(spec.path)) fail(at(path, "recording"), file_not_found(spec.path));
     spec.name = get_string(s, "name", path, fs::path(file).stem().string());
     spec.key = {{"recording", fs::path(file).filename().string()}, {"name", spec.name}};
-    out.push_back(std::move(spec));
+    add_windows(spec, parse_measured_frames(s, path), out);
 }
 
 /// Where a generated or imported entry's objects come from: a preset, a kind, or a file to import.
@@ -325,6 +360,14 @@ std::string parse_scene_settings(const json& s, const std::string& path, const S
             fail(at(path, "time_step"), "only a physics kind (" + join(physics_kinds()) + ") takes a time step");
         base.time_step = get_number(s, "time_step", path, 1e-4, 0.1, base.time_step);
     }
+    for (const char* k : {"shape_set", "fill"})
+        if (s.contains(k) && !(physics && is_broadmark_kind(base.kind)))
+            fail(at(path, k), "only Broadmark's kinds (brownian, freefall, gravity) take " + std::string(k));
+    base.shape_set = get_string(s, "shape_set", path, base.shape_set);
+    if (const auto sets = broadmark_shape_sets();
+        !base.shape_set.empty() && std::find(sets.begin(), sets.end(), base.shape_set) == sets.end())
+        fail(at(path, "shape_set"), "unknown set '" + base.shape_set + "' (known: " + join(sets) + ")");
+    base.fill = get_number(s, "fill", path, 1e-6, 0.5, base.fill);
     base.dynamics.change_fraction = get_number(s, "change_fraction", path, 0, 1, base.dynamics.change_fraction);
     base.dynamics.insert_share = get_number(s, "insert_share", path, 0, 1, base.dynamics.insert_share);
     base.dynamics.remove_share = get_number(s, "remove_share", path, 0, 1, base.dynamics.remove_share);
@@ -367,6 +410,9 @@ SceneSpec concrete_scene(const SceneSource& src, const SceneSettings& base, cons
     if (is_physics_kind(base.kind) && src.source != SceneSpec::Source::import &&
         base.time_step != SceneSettings{}.time_step)
         spec.key["time_step"] = base.time_step;
+    // Broadmark's shape set and fill, only when given: older keys stay as they were.
+    if (!base.shape_set.empty()) spec.key["shape_set"] = base.shape_set;
+    if (base.fill != 0) spec.key["fill"] = base.fill;
     if (src.source == SceneSpec::Source::import) {
         spec.key["import"] = fs::path(src.file).filename().string();
         if (importer_for(src.file) != "csv") spec.key["import_options"] = spec.import_options = src.import_options;
@@ -399,10 +445,12 @@ void parse_scene(const json& s, const std::string& path, const SceneDefaults& d,
     if (s.contains("seed")) seeds = {get_uint(s, "seed", path, 0, UINT64_MAX, 1)};
     if (s.contains("seeds")) seeds = get_uint_list(s, "seeds", path, 0, UINT64_MAX, d.seeds);
     const std::string mix = parse_scene_settings(s, path, d, src.base);
+    const std::vector<json> windows = parse_measured_frames(s, path);
     for (std::uint64_t count : objects)
         for (std::uint64_t seed : seeds) {
-            out.push_back(concrete_scene(src, src.base, mix, count, seed, objects.size() > 1, seeds.size() > 1));
-            out.back().where = path;
+            SceneSpec spec = concrete_scene(src, src.base, mix, count, seed, objects.size() > 1, seeds.size() > 1);
+            spec.where = path;
+            add_windows(spec, windows, out);
         }
 }
 
@@ -417,7 +465,10 @@ void refuse_duplicate_scenes(const std::vector<SceneSpec>& scenes) {
         if (!first && s.source == SceneSpec::Source::recording) {
             std::error_code ec;
             const fs::path file = fs::weakly_canonical(s.path, ec);
-            if (auto [it, added] = by_file.emplace(ec ? s.path : file.string(), i); !added) first = it->second;
+            // One file measured in several windows is several scenes.
+            const std::string window = s.key.contains("measure") ? s.key["measure"].dump() : "";
+            if (auto [it, added] = by_file.emplace((ec ? s.path : file.string()) + window, i); !added)
+                first = it->second;
         }
         if (!first) continue;
         const SceneSpec& f = scenes[*first];
@@ -625,7 +676,46 @@ Experiment load_experiment(const std::string& path) {
     return parse_experiment(read_text_file(path), path, fs::path(path).parent_path().string());
 }
 
-Recording load_scene(const SceneSpec& s) {
+namespace {
+
+/// Marks in the recording's META the frames the scene's "measure" asks for (core/scene/phases.h):
+/// a phase's frames, or from a start frame to the end, every stride-th. InputError naming the
+/// scene when the recording has no such frames.
+void mark_measured_frames(const SceneSpec& s, Recording& r) {
+    if (!s.key.contains("measure")) return;
+    const json& m = s.key["measure"];
+    json meta = json::parse(r.meta, nullptr, false);
+    if (!meta.is_object()) meta = json::object();
+    const auto frames = std::uint32_t(r.frames.size());
+    json window = m;
+    if (m.contains("phase")) {
+        const std::vector<MotionPhase> phases = motion_phases(r);
+        std::string found;
+        for (const MotionPhase& p : phases) {
+            found += (found.empty() ? "" : ", ") + p.name + " " +
+                     (p.empty() ? "none" : std::to_string(p.first) + ".." + std::to_string(p.last));
+            if (p.name != m["phase"]) continue;
+            window["first"] = p.first, window["last"] = p.last;
+        }
+        if (window["first"].get<std::uint32_t>() > window["last"].get<std::uint32_t>())
+            throw InputError(s.where + ": scene " + s.name + ": its recording has no " + m["phase"].get<std::string>() +
+                             " phase (its phases: " + found + ")");
+    } else {
+        window["first"] = m["start_frame"], window["last"] = frames;
+        if (m["start_frame"].get<std::uint32_t>() > frames)
+            throw InputError(s.where + ".start_frame: " + m["start_frame"].dump() + " is past the scene's " +
+                             std::to_string(frames) + " frames (scene " + s.name + ")");
+    }
+    meta["measure"] = window;
+    r.meta = meta.dump();
+}
+
+}  // namespace
+
+namespace {
+
+/// The scene's recording as generated, imported or read, every frame.
+Recording load_scene_frames(const SceneSpec& s) {
     switch (s.source) {
         case SceneSpec::Source::recording:
             return read_recording(s.path);
@@ -649,6 +739,14 @@ Recording load_scene(const SceneSpec& s) {
             return generate_scene(s.settings);
     }
     return {};
+}
+
+}  // namespace
+
+Recording load_scene(const SceneSpec& s) {
+    Recording r = load_scene_frames(s);
+    mark_measured_frames(s, r);
+    return r;
 }
 
 }  // namespace rcb

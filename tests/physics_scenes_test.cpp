@@ -11,7 +11,10 @@
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/scene/generate/physics.h"
+#include "core/scene/phases.h"
 #include "core/scene/recording_io.h"
+#include "core/sim/simulator.h"
+#include "runner/experiment.h"
 #include "tests/subprocess.h"
 #include "tests/test_scenes.h"
 
@@ -25,7 +28,14 @@ SceneSettings physics(const std::string& kind, std::uint32_t objects, std::uint3
     s.frames = frames;
     s.seed = seed;
     s.rays.per_frame = 50;
-    s.shapes = {0.25, 0.2, 0.2};
+    if (!is_broadmark_kind(kind)) s.shapes = {0.25, 0.2, 0.2};  // Broadmark's kinds take a shape set
+    return s;
+}
+
+SceneSettings broadmark(const std::string& kind, const std::string& set, std::uint32_t objects, std::uint32_t frames) {
+    SceneSettings s = physics(kind, objects, frames);
+    s.shape_set = set;
+    s.rays.per_frame = 0;
     return s;
 }
 
@@ -154,16 +164,111 @@ TEST(PhysicsScenes, PileOnAMapLandsOnItsBoxes) {
 }
 
 TEST(PhysicsScenes, BrownianAndGravityMoveEveryBodyEveryFrame) {
+    // Gravity's bodies never sleep; a brownian body that collisions slowed below the sleeping
+    // thresholds rests until its next kick, a few of 200.
     for (const char* kind : {"brownian", "gravity"}) {
         SCOPED_TRACE(kind);
-        for (double share : moved_shares(generate_scene(physics(kind, 200, 40)))) EXPECT_GE(share, 0.99);
+        const double least = std::string(kind) == "gravity" ? 0.99 : 0.95;
+        for (double share : moved_shares(generate_scene(physics(kind, 200, 40)))) EXPECT_GE(share, least);
     }
 }
 
-TEST(PhysicsScenes, FreefallBodiesEndLower) {
-    const Recording r = generate_scene(physics("freefall", 200, 60));
-    // 1 s of free fall from 10 m is 4.9 m; the grid's lowest layer starts 10 m up.
-    EXPECT_LT(mean_height(final_objects(r)), mean_height(r.initial) - 4.0);
+double mean_x(const std::vector<Object>& objects) {
+    double sum = 0;
+    for (const Object& o : objects) sum += o.box.as<double>().center().x;
+    return sum / double(objects.size());
+}
+
+TEST(PhysicsScenes, BroadmarkScenesFollowItsGenerator) {
+    // Broadmark's parameters (physics.cpp cites SimulationGenerator/Assets/Scripts): 500 unit cubes
+    // fill 0.1 of an arena of side L = (500 / 0.1)^(1/3), spawned in a ball of radius 0.45 L, at
+    // most 0.75 L/s, one frame 1/30 s; no body leaves the closed arena in 90 frames (3 s).
+    for (const char* kind : {"brownian", "freefall", "gravity"}) {
+        SCOPED_TRACE(kind);
+        const Recording r = generate_scene(broadmark(kind, "cubes", 500, 90));
+        const auto meta = nlohmann::json::parse(r.meta);
+        const double side = std::cbrt(500 / 0.1), dt = 1.0 / 30;
+        EXPECT_DOUBLE_EQ(meta["arena"].get<double>(), side);
+        EXPECT_DOUBLE_EQ(meta["time_step"].get<double>(), dt);
+        EXPECT_EQ(meta["shape_set"], "cubes");
+        double volume = 0, widest = 0;
+        for (const Object& o : r.initial) {
+            const Aabbd b = o.box.as<double>();
+            volume += b.extent().x * b.extent().y * b.extent().z;
+            const Vec3d c = b.center();
+            widest = std::max(widest, std::sqrt(c.x * c.x + c.y * c.y + c.z * c.z));
+        }
+        EXPECT_NEAR(volume / (side * side * side), 0.1, 1e-5);
+        EXPECT_LE(widest, 0.45 * side + 1e-4);
+        EXPECT_GT(widest, 0.4 * side);  // the ball, not a smaller one
+        LiveSet live(r.initial);
+        double fastest = 0;
+        for (std::size_t f = 0; f < r.frames.size(); ++f) {
+            for (const Object& o : r.frames[f].moves) {
+                const Vec3d a = live.box(o.uid).as<double>().center(), c = o.box.as<double>().center();
+                const Vec3d d = c - a;
+                if (f > 0) fastest = std::max(fastest, std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z) / dt);
+                ASSERT_TRUE(std::abs(c.x) <= side / 2 && std::abs(c.y) <= side / 2 && std::abs(c.z) <= side / 2)
+                    << "frame " << f + 1 << " uid " << o.uid << " left the arena";
+            }
+            live.apply(r.frames[f]);
+        }
+        EXPECT_LT(fastest, 1.5 * 0.75 * side) << "speeds beyond 0.75 L/s by more than collisions add";
+    }
+    // Freefall falls (0.0981 L/s² down) and gravity's pull starts along +x (0.3924 L/s²): after
+    // 0.5 s their bodies' mean lies 0.012 L lower and 0.049 L further along x than brownian's, which
+    // spawns the same bodies with the same velocities (the same seed) without gravity.
+    const double side = std::cbrt(500 / 0.1);
+    const std::vector<Object> still = final_objects(generate_scene(broadmark("brownian", "cubes", 500, 15)));
+    const std::vector<Object> fell = final_objects(generate_scene(broadmark("freefall", "cubes", 500, 15)));
+    const std::vector<Object> pulled = final_objects(generate_scene(broadmark("gravity", "cubes", 500, 15)));
+    EXPECT_NEAR(mean_height(fell) - mean_height(still), -0.0123 * side, 0.004 * side);
+    EXPECT_NEAR(mean_x(fell) - mean_x(still), 0, 0.004 * side);
+    EXPECT_NEAR(mean_x(pulled) - mean_x(still), 0.049 * side, 0.01 * side);
+    EXPECT_NEAR(mean_height(pulled) - mean_height(still), 0, 0.01 * side);
+}
+
+TEST(PhysicsScenes, BroadmarkShapeSets) {
+    // Spheres of diameter 1; the Assorted set by body index mod 80 (Simulation.cs,
+    // GenerateAssortedSize): cubes, bars and slabs of 38:1, planks of 57:1 and 19:1, and random
+    // boxes of 0.803 x 0.1..1.9 per axis. Frame 0 is axis-aligned, so each box is the body.
+    const Recording sp = generate_scene(broadmark("brownian", "spheres", 160, 2));
+    for (const Object& o : sp.initial) {
+        ASSERT_EQ(o.shape.kind, ShapeKind::sphere);
+        EXPECT_NEAR(o.box.as<double>().extent().x, 1.0, 1e-5);
+    }
+    const Recording as = generate_scene(broadmark("freefall", "assorted", 160, 2));
+    EXPECT_EQ(nlohmann::json::parse(as.meta)["shape_set"], "assorted");
+    for (const Object& o : as.initial) {
+        const Vec3d e = o.box.as<double>().extent();
+        const double longest = std::max({e.x, e.y, e.z}), shortest = std::min({e.x, e.y, e.z});
+        const std::size_t k = o.uid % 80;
+        SCOPED_TRACE(k);
+        // The expected aspect ratio by index (0 for the random boxes, bounded per edge instead).
+        const double ratio = k < 8 ? 1 : k < 13 ? 38 : k < 15 ? 57 : k < 16 ? 19 : k < 19 ? 38 : 0;
+        if (ratio > 0) {
+            EXPECT_NEAR(longest / shortest, ratio, 1e-3);
+        } else {
+            EXPECT_TRUE(shortest >= 0.0803 - 1e-4 && longest <= 1.5257 + 1e-4) << shortest << " " << longest;
+        }
+    }
+    // The same seed gives the same bytes for every set; another seed other bytes.
+    for (const char* set : {"cubes", "spheres", "assorted"}) {
+        SCOPED_TRACE(set);
+        const std::string a = encode_recording(generate_scene(broadmark("gravity", set, 120, 6)));
+        EXPECT_EQ(a, encode_recording(generate_scene(broadmark("gravity", set, 120, 6))));
+        SceneSettings other = broadmark("gravity", set, 120, 6);
+        other.seed = 2;
+        EXPECT_NE(a, encode_recording(generate_scene(other)));
+    }
+}
+
+TEST(PhysicsScenes, FreefallSettlesOnTheArenaFloor) {
+    // 10 s under 0.0981 L/s²: the bodies lie in the lower part of the arena and most are asleep.
+    const Recording r = generate_scene(broadmark("freefall", "cubes", 300, 300));
+    const double side = std::cbrt(300 / 0.1);
+    EXPECT_LT(mean_height(final_objects(r)), -0.3 * side);
+    EXPECT_LT(moved_shares(r).back(), 0.2);
 }
 
 TEST(PhysicsScenes, ExplosionScattersAndCollapseKnocksWallsOver) {
@@ -184,8 +289,19 @@ TEST(PhysicsScenes, ExplosionScattersAndCollapseKnocksWallsOver) {
 }
 
 TEST(PhysicsScenes, BadSettingsAreRefused) {
+    SceneSettings b = broadmark("brownian", "cubes", 10, 2);
+    b.shapes = {0, 0.5, 0};
+    test::expect_input_error([&] { generate_scene(b); }, "shapes: brownian is Broadmark's scene");
+    b = broadmark("brownian", "cones", 10, 2);
+    test::expect_input_error([&] { generate_scene(b); }, "shape_set: unknown set 'cones'");
+    b = broadmark("brownian", "", 10, 2);
+    b.fill = 0.9;
+    test::expect_input_error([&] { generate_scene(b); }, "fill: expected a share of the arena in (0, 0.5]");
+    b = physics("pile", 10, 2);
+    b.shape_set = "cubes";
+    test::expect_input_error([&] { generate_scene(b); }, "shape_set: only Broadmark's kinds");
     SceneSettings s = physics("pile", 10, 2);
-    s.time_step = 0;
+    s.time_step = -0.01;  // 0 takes the kind's default
     test::expect_input_error([&] { generate_scene(s); }, "time_step");
     s.time_step = std::nan("");
     test::expect_input_error([&] { generate_scene(s); }, "time_step");
@@ -200,7 +316,114 @@ TEST(PhysicsScenes, BadSettingsAreRefused) {
         EXPECT_EQ(o.code, 2) << bad << ": " << o.err;
         EXPECT_NE(o.err.find("--time-step"), std::string::npos) << o.err;
     }
+    for (const char* bad : {"--kind brownian --shape-set cones", "--kind gravity --fill 0.9",
+                            "--kind pile --shape-set cubes", "--kind freefall --sphere-share 0.5"}) {
+        const ::test::Outcome o =
+            ::test::run_shell(bin + " scene gen --objects 10 " + std::string(bad) + " -o " + dir.file("x.rcbscene"));
+        EXPECT_EQ(o.code, 2) << bad << ": " << o.err;
+    }
     EXPECT_FALSE(std::filesystem::exists(dir.file("x.rcbscene")));
+}
+
+TEST(PhysicsScenes, ExperimentEntriesTakeShapeSetAndFill) {
+    const Experiment e = parse_experiment(
+        R"({"scenes": [{"kind": "gravity", "objects": 100, "shape_set": "assorted", "fill": 0.01},
+                       {"kind": "freefall", "objects": 100}],
+            "structures": [{"name": "bf"}]})",
+        "exp.json", ".");
+    ASSERT_EQ(e.scenes.size(), 2u);
+    EXPECT_EQ(e.scenes[0].settings.shape_set, "assorted");
+    EXPECT_EQ(e.scenes[0].settings.fill, 0.01);
+    EXPECT_EQ(e.scenes[0].key["shape_set"], "assorted");
+    EXPECT_EQ(e.scenes[0].key["fill"], 0.01);
+    EXPECT_FALSE(e.scenes[1].key.contains("shape_set"));  // older keys stay as they were
+    EXPECT_FALSE(e.scenes[1].key.contains("fill"));
+    const auto error = [](const std::string& scene) {
+        return test::input_error_of([&] {
+            parse_experiment(R"({"scenes": [)" + scene + R"(], "structures": [{"name": "bf"}]})", "exp.json", ".");
+        });
+    };
+    EXPECT_EQ(error(R"({"kind": "pile", "objects": 10, "shape_set": "cubes"})"),
+              "exp.json: scenes[0].shape_set: only Broadmark's kinds (brownian, freefall, gravity) take shape_set");
+    EXPECT_EQ(error(R"({"kind": "brownian", "objects": 10, "shape_set": "cones"})"),
+              "exp.json: scenes[0].shape_set: unknown set 'cones' (known: cubes, spheres, assorted)");
+    EXPECT_NE(error(R"({"kind": "brownian", "objects": 10, "fill": 2})").find("exp.json: scenes[0].fill: expected"),
+              std::string::npos);
+}
+
+TEST(PhysicsScenes, MotionPhasesSplitTheFrames) {
+    // A pile of 200 over 10 s: it falls, lands, settles and sleeps; the phases cover every frame
+    // once, in order, and sleeping bodies are no changes (the asleep phase moves under 10%).
+    SceneSettings s = physics("pile", 200, 600);
+    s.shapes = {0.3, 0.3, 0};
+    s.rays.per_frame = 0;
+    const Recording r = generate_scene(s);
+    const std::vector<MotionPhase> phases = motion_phases(r);
+    ASSERT_EQ(phases.size(), 4u);
+    std::uint32_t next = 1;
+    for (std::size_t i = 0; i < phases.size(); ++i) {
+        EXPECT_EQ(phases[i].name, motion_phase_names()[i]);
+        EXPECT_EQ(phases[i].first, next) << phases[i].name;
+        next = phases[i].last + 1;
+        EXPECT_FALSE(phases[i].empty()) << phases[i].name;
+    }
+    EXPECT_EQ(next, 601u);
+    EXPECT_GT(phases[0].moving_share, 0.9);  // everything falls
+    EXPECT_LT(phases[3].moving_share, kAsleepShare);
+    // Brownian never sleeps: its bodies are re-kicked, so no asleep phase.
+    const std::vector<MotionPhase> b = motion_phases(generate_scene(broadmark("brownian", "cubes", 200, 60)));
+    EXPECT_TRUE(b[3].empty());
+    EXPECT_EQ(b[0].first, 1u);
+    EXPECT_EQ(b[2].last, 60u);
+}
+
+TEST(PhysicsScenes, ExperimentsMeasureAWindowOfFrames) {
+    const Experiment e = parse_experiment(
+        R"({"scenes": [{"kind": "pile", "objects": 120, "frames": 600, "rays_per_frame": 20,
+                        "phases": ["falling", "asleep"], "stride": 2},
+                       {"kind": "pile", "objects": 120, "frames": 600, "rays_per_frame": 20, "start_frame": 250,
+                        "stride": 10},
+                       {"kind": "brownian", "objects": 100, "frames": 20, "phases": "asleep"}],
+            "structures": [{"name": "bf"}]})",
+        "exp.json", ".");
+    ASSERT_EQ(e.scenes.size(), 4u);
+    EXPECT_EQ(e.scenes[0].name, "pile-falling");
+    EXPECT_EQ(e.scenes[1].name, "pile-asleep");
+    EXPECT_EQ(e.scenes[1].key["measure"], nlohmann::json({{"phase", "asleep"}, {"stride", 2}}));
+    EXPECT_EQ(e.scenes[2].key["measure"], nlohmann::json({{"start_frame", 250}, {"stride", 10}}));
+    // Every frame replays; only the window's are measured, the others count as warm-up.
+    for (std::size_t i : {1u, 2u}) {
+        SCOPED_TRACE(e.scenes[i].name);
+        const Recording r = load_scene(e.scenes[i]);
+        const FrameWindow w = measured_window(r, "scene");
+        if (i == 1) {
+            const MotionPhase asleep = motion_phases(r)[3];
+            EXPECT_EQ(w.first, asleep.first);
+            EXPECT_EQ(w.last, asleep.last);
+        } else {
+            EXPECT_EQ(w.first, 250u);
+            EXPECT_EQ(w.last, 600u);
+        }
+        const SimulationResult res = simulate(r, find_structure("bf"), nlohmann::json::object());
+        ASSERT_EQ(res.frames.size(), 600u);
+        for (const FrameResult& f : res.frames)
+            EXPECT_EQ(f.warmup, !(f.frame >= w.first && f.frame <= w.last && (f.frame - w.first) % w.stride == 0))
+                << f.frame;
+        EXPECT_EQ(res.mismatches(), 0u);
+    }
+    // A phase the recording never reaches stops the run, naming the phases it has.
+    test::expect_input_error([&] { load_scene(e.scenes[3]); },
+                             "scenes[2]: scene brownian-asleep: its recording has "
+                             "no asleep phase (its phases: falling 1..");
+    const auto error = [](const std::string& scene) {
+        return test::input_error_of([&] {
+            parse_experiment(R"({"scenes": [)" + scene + R"(], "structures": [{"name": "bf"}]})", "exp.json", ".");
+        });
+    };
+    EXPECT_EQ(error(R"({"kind": "pile", "objects": 10, "phases": "resting"})"),
+              "exp.json: scenes[0].phases: expected one of falling, impact, settling, asleep, got \"resting\"");
+    EXPECT_EQ(error(R"({"kind": "pile", "objects": 10, "phases": ["asleep"], "start_frame": 3})"),
+              "exp.json: scenes[0].start_frame: give \"start_frame\" or \"phases\", not both");
 }
 
 TEST(PhysicsScenes, SceneInfoShowsTheMotion) {
@@ -215,16 +438,24 @@ TEST(PhysicsScenes, SceneInfoShowsTheMotion) {
     EXPECT_GE(m["changed_share"]["p10"].get<double>(), 0.99);
     EXPECT_EQ(m["first_frames"].size(), 3u);
     EXPECT_EQ(m["last_frames"].size(), 3u);
-    // At most 4 m/s over 1/60 s: a step of at most 0.07 m, bodies 0.4 to 1 m long.
-    EXPECT_GT(m["move_over_size"]["median"].get<double>(), 0.0);
-    EXPECT_LT(m["move_over_size"]["median"].get<double>(), 0.2);
+    // Broadmark's speeds, at most 0.75 L/s (L = 10 for 100 unit cubes) over 1/30 s: a step of at
+    // most 0.25 of a cube, collisions aside.
+    EXPECT_GT(m["move_over_size"]["median"].get<double>(), 0.02);
+    EXPECT_LT(m["move_over_size"]["median"].get<double>(), 0.35);
+    ASSERT_EQ(m["phases"].size(), 4u);
+    EXPECT_EQ(m["phases"][0]["name"], "falling");
+    EXPECT_EQ(m["phases"][0]["first"], 1);
+    EXPECT_EQ(m["phases"][3]["frames"], 0);  // brownian never sleeps
     const ::test::Outcome table = ::test::run_shell(bin + " scene info " + file);
     EXPECT_NE(table.out.find("changed per frame p10 / p50 / p90"), std::string::npos) << table.out;
+    EXPECT_NE(table.out.find("moving per phase (frames, share)"), std::string::npos) << table.out;
+    EXPECT_NE(table.out.find("asleep none"), std::string::npos) << table.out;
 }
 
 TEST(PhysicsScenes, EveryStructureMatchesTheGroundTruth) {
-    for (const char* kind : {"pile", "explosion", "collapse"}) {
+    for (const char* kind : {"pile", "explosion", "collapse", "brownian", "gravity"}) {
         SceneSettings s = physics(kind, 150, 6);
+        s.shape_set = std::string(kind) == "gravity" ? "assorted" : std::string(kind) == "brownian" ? "spheres" : "";
         s.rays.per_frame = 100;
         s.rays.mix = parse_ray_mix("center,los,shots,inside,ground");
         const Recording r = generate_scene(s);

@@ -12,6 +12,7 @@
 #include "core/accel/counter_fields.h"
 #include "core/accel/query_level.h"
 #include "core/sim/cache_sweep.h"
+#include "core/scene/phases.h"
 
 namespace rcb {
 namespace {
@@ -300,6 +301,14 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
     const std::size_t frames = options.max_frames ? std::min<std::size_t>(options.max_frames, recording.frames.size())
                                                   : recording.frames.size();
     check_warmup(options.warmup_frames, frames);
+    // The window an experiment measures (core/scene/phases.h): other frames run like warm-up ones.
+    const FrameWindow window = measured_window(recording, "scene");
+    std::size_t measured = 0;
+    for (std::size_t i = options.warmup_frames; i < frames; ++i) measured += window.contains(std::uint32_t(i + 1));
+    if (measured == 0 && frames > 0)
+        throw InputError("the measured frames " + std::to_string(window.first) + ".." + std::to_string(window.last) +
+                         " (every " + std::to_string(window.stride) + ") leave none of the scene's " +
+                         std::to_string(frames) + " frames after warm-up to measure");
     SimulationResult result;
     result.structure = info.name;
     result.params = info.complete(params, params_path);
@@ -324,7 +333,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
         const Frame& frame = recording.frames[i];
         FrameResult fr;
         fr.frame = static_cast<std::uint32_t>(i + 1);
-        fr.warmup = i < options.warmup_frames;
+        fr.warmup = i < options.warmup_frames || !window.contains(std::uint32_t(i + 1));
         fr.inserts = static_cast<std::uint32_t>(frame.inserts.size());
         fr.removes = static_cast<std::uint32_t>(frame.removes.size());
         fr.moves = static_cast<std::uint32_t>(frame.moves.size());

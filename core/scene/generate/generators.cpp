@@ -911,7 +911,12 @@ void add_rays(Recording& r, const RaySettings& rays, std::uint64_t seed) {
 nlohmann::json to_json(const SceneSettings& s) {
     nlohmann::json j = {{"generator", "rcbench"}, {"kind", s.kind}, {"objects", s.objects}};
     if (!s.preset.empty()) j["preset"] = s.preset;
-    if (is_physics_kind(s.kind)) j["time_step"] = s.time_step;  // only there: other scenes' bytes stay
+    if (is_physics_kind(s.kind)) j["time_step"] = physics_time_step(s);  // only there: other scenes' bytes stay
+    if (is_broadmark_kind(s.kind)) {
+        j["shape_set"] = s.shape_set.empty() ? "cubes" : s.shape_set;
+        j["fill"] = s.fill > 0 ? s.fill : 0.1;
+        j["arena"] = broadmark_arena_side(s.objects, s.fill);
+    }
     // Only when set, so that a box scene's meta, and so its bytes, stay as they were.
     if (s.shapes.any())
         j["shapes"] = {{"rotated_share", s.shapes.rotated_share},

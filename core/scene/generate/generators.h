@@ -101,7 +101,14 @@ struct SceneSettings {
     std::uint32_t objects = 14021;
     std::uint64_t seed = 1;
     std::uint32_t frames = 10;
-    double time_step = 1.0 / 60;  ///< physics kinds (physics.h): seconds simulated per frame
+    /// Physics kinds (physics.h): seconds simulated per frame; 0 takes the kind's default
+    /// (physics_time_step: 1/60 for rcbench's kinds, Broadmark's 1/30 for its three).
+    double time_step = 0;
+    /// Broadmark's kinds (brownian, freefall, gravity; physics.h): its object set, "cubes",
+    /// "spheres" or "assorted" (empty: cubes), and the share of the arena's volume the objects'
+    /// nominal unit volumes fill (0: Broadmark's 0.1).
+    std::string shape_set;
+    double fill = 0;
     DynamicsSettings dynamics;
     ShapeSettings shapes;
     RaySettings rays;

@@ -48,6 +48,10 @@ struct Setup {
     bool sleep = true;
     bool ground = false;  ///< the plane y = ground_height (a plane: a huge box makes resting contacts jitter)
     double ground_height = 0;
+    // Broadmark's kinds: its bodies' material, the substeps per frame and the arena's side.
+    bool broadmark = false;
+    int substeps = 1;
+    double arena = 0;
 };
 
 /// Exactly round(share × n) bodies of each shape, chosen at random (apply_shapes' rule).
@@ -88,20 +92,6 @@ std::vector<BodySpec> lattice(std::size_t n, std::size_t side, double cell, cons
         if (b.shape == BodyShape::rotated) b.rotation = random_rotation(rng);
     }
     return bodies;
-}
-
-/// A closed cube of inner side `side` from the origin: six walls 1 m thick.
-std::vector<StaticBox> closed_box(double side) {
-    const double h = side / 2;
-    std::vector<StaticBox> walls;
-    for (int a = 0; a < 3; ++a)
-        for (double s : {-1.0, 1.0}) {
-            Vec3d c{h, h, h}, half{h + 1, h + 1, h + 1};
-            c[a] = h + s * (h + 0.5);
-            half[a] = 0.5;
-            walls.push_back({c, half});
-        }
-    return walls;
 }
 
 std::size_t cube_side(std::size_t n) { return std::max<std::size_t>(1, std::size_t(std::ceil(std::cbrt(double(n))))); }
@@ -166,15 +156,6 @@ Setup map_pile_setup(std::size_t n, const std::vector<BodyShape>& shapes, Random
     return s;
 }
 
-Setup freefall_setup(std::size_t n, const std::vector<BodyShape>& shapes, Random& rng) {
-    Setup s;
-    // A wide grid four layers deep, 10 m above the ground (Broadmark's FreeFall drops a grid).
-    const std::size_t side = std::max<std::size_t>(1, std::size_t(std::ceil(std::sqrt(double(n) / 4))));
-    s.bodies = lattice(n, side, 2.0, {1, 10, 1}, 0.0, shapes, rng);
-    s.ground = true;
-    return s;
-}
-
 Setup explosion_setup(std::size_t n, const std::vector<BodyShape>& shapes, Random& rng) {
     Setup s;
     const std::size_t side = cube_side(n);
@@ -221,17 +202,105 @@ Setup collapse_setup(std::size_t n, const std::vector<BodyShape>& shapes, Random
     return s;
 }
 
-Setup boxed_setup(std::size_t n, const std::vector<BodyShape>& shapes, Random& rng, bool brownian) {
+// Broadmark's scene generator (ppgia-unifor/Broadmark, SimulationGenerator/Assets/Scripts; the
+// values are SimulationParameters.cs's defaults, which its StartupPrefab.prefab Template repeats,
+// except ObjectDensity: see kBroadmarkFill).
+constexpr double kBroadmarkFill = 0.1;           // SimulationParameters.cs:33 ObjectDensity (the prefab: 0.01)
+constexpr double kBroadmarkSpawn = 0.90 / 2;     // SimulationParameters.cs:35,52 MaxInitialPosition = 0.45 L
+constexpr double kBroadmarkSpeed = 0.75;         // SimulationParameters.cs:36,54 MaxInitialVelocity = 0.75 L/s
+constexpr double kBroadmarkGravity = 0.0981;     // SimulationParameters.cs:37,56 Gravity = 0.0981 L/s²
+constexpr double kBroadmarkTimeStep = 1.0 / 30;  // SimulationParameters.cs:24 FixedTimestep
+constexpr int kBroadmarkSubsteps = 4;            // SimulationParameters.cs:25 SubSteps
+constexpr double kBrownianCycle = 100;           // Brownian.cs:16 CyclePeriod: frames to kick every body once
+constexpr double kGravityScale = 4;              // Gravity.cs:14 GravityScale
+constexpr double kGravityPeriod = 6.2;           // Gravity.cs:13 GravityFrequency (seconds of a turn)
+
+/// A point uniform in the unit ball (Unity's Random.insideUnitSphere, as Simulation.cs:164,171 and
+/// Brownian.cs:30 draw positions and velocities).
+Vec3d inside_unit_ball(Random& rng) { return rng.direction() * std::cbrt(rng.uniform()); }
+
+/// Full edge lengths of body i of Broadmark's Assorted set (Simulation.cs:177-215,
+/// GenerateAssortedSize; ObjectScale 1): by i mod 80, 4 small cubes (0.5), 4 large (1.9), 5 bars
+/// (15.2 × 0.4 × 0.4 along x, x, x, y, z), 3 planks (1.9 × 5.7 × 0.1, 1.9 × 0.1 × 5.7,
+/// 0.1 × 1.9 × 0.3), 3 square slabs (3.8 × 3.8 × 0.1 in each orientation), and 61 random boxes
+/// of 0.803 × U(0.1, 1.9) per axis.
+Vec3d assorted_size(std::size_t i, Random& rng) {
+    constexpr double lo = 0.1, hi = 1.9;
+    const std::size_t k = i % 80;
+    if (k < 4) return Vec3d{1, 1, 1} * (5 * lo);
+    if (k < 8) return Vec3d{1, 1, 1} * hi;
+    if (k < 11) return {hi * 8, lo * 4, lo * 4};
+    if (k < 12) return {lo * 4, hi * 8, lo * 4};
+    if (k < 13) return {lo * 4, lo * 4, hi * 8};
+    if (k < 14) return {hi, hi * 3, lo};
+    if (k < 15) return {hi, lo, hi * 3};
+    if (k < 16) return {lo, hi, lo * 3};
+    if (k < 17) return {hi * 2, hi * 2, lo};
+    if (k < 18) return {hi * 2, lo, hi * 2};
+    if (k < 19) return {lo, hi * 2, hi * 2};
+    const double x = rng.uniform(), y = rng.uniform(), z = rng.uniform();
+    return (Vec3d{x, y, z} * (hi - lo) + Vec3d{lo, lo, lo}) * 0.803;
+}
+
+/// The closed arena around the cube [−L/2, L/2]³ (Simulation.cs:107-151, GenerateDefaultWorld):
+/// six walls 0.5 L thick, those of x reaching past the others to close the edges.
+std::vector<StaticBox> broadmark_walls(double side) {
+    std::vector<StaticBox> walls;
+    for (int a = 0; a < 3; ++a)
+        for (double sign : {-1.0, 1.0}) {
+            Vec3d c{0, 0, 0}, size{1, 1, 1};
+            c[a] = sign * 0.75;
+            size[a] = 0.5;
+            for (int b = a + 1; b < 3; ++b) size[b] += 1.0;  // bc1..bc4's "+= doubleMargin"
+            walls.push_back({c * side, size * (0.5 * side)});
+        }
+    return walls;
+}
+
+/// Broadmark's Start (Simulation.cs:29-37, 153-175): N bodies of the set, identity rotation, mass
+/// 1, at insideUnitSphere × 0.45 L from the arena's centre (they may overlap: the engine pushes them
+/// apart) with velocity insideUnitSphere × 0.75 L/s; gravity as the kind sets it.
+Setup broadmark_setup(const SceneSettings& settings, Random& rng) {
     Setup s;
-    // Broadmark's Brownian and Gravity: a closed box a quarter full of bodies, which never sleep.
-    const std::size_t side = cube_side(n);
-    s.bodies = lattice(n, side, 2.0, {1, 1, 1}, 0.0, shapes, rng);
-    for (BodySpec& b : s.bodies) b.velocity = rng.direction() * rng.uniform(0, 4);
-    s.statics = closed_box(2.0 * double(side));
-    s.gravity = brownian ? Vec3d{0, 0, 0} : Vec3d{0, -19.62, 0};
-    s.sleep = false;
+    const std::size_t n = settings.objects;
+    const double side = broadmark_arena_side(settings.objects, settings.fill);
+    const std::string set = settings.shape_set.empty() ? "cubes" : settings.shape_set;
+    s.bodies.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        BodySpec& b = s.bodies[i];
+        b.shape = set == "spheres" ? BodyShape::sphere : BodyShape::box;
+        b.half = set == "assorted" ? assorted_size(i, rng) * 0.5 : Vec3d{0.5, 0.5, 0.5};
+        b.position = inside_unit_ball(rng) * (kBroadmarkSpawn * side);
+        b.velocity = inside_unit_ball(rng) * (kBroadmarkSpeed * side);
+    }
+    s.statics = broadmark_walls(side);
+    s.broadmark = true;
+    s.substeps = kBroadmarkSubsteps;
+    s.arena = side;
+    if (settings.kind == "brownian") s.gravity = {0, 0, 0};                          // Brownian.cs:26
+    if (settings.kind == "freefall") s.gravity = {0, -kBroadmarkGravity * side, 0};  // PhysxEngine.cs:14
+    if (settings.kind == "gravity") {
+        s.gravity = Vec3d{kBroadmarkGravity * kGravityScale * side, 0, 0};  // Gravity.cs:24-29, along +x
+        s.sleep = false;  // rcbench's choice: the pull never rests, and Bullet's setGravity skips sleeping bodies
+    }
     return s;
 }
+
+/// Gravity.cs:32-40 (Step, after the frame's simulation): axis2 turns about z, then the pull
+/// (axis3) about axis2, each by 360° × time step / 6.2 s (Gravity.cs:27).
+struct TurningPull {
+    Vec3d axis2{0, 1, 0}, axis3{1, 0, 0};
+    static Vec3d turn(const Vec3d& v, const Vec3d& k, double radians) {  // Rodrigues' rotation formula
+        const Vec3d kxv{k.y * v.z - k.z * v.y, k.z * v.x - k.x * v.z, k.x * v.y - k.y * v.x};
+        const double kv = k.x * v.x + k.y * v.y + k.z * v.z;
+        return v * std::cos(radians) + kxv * std::sin(radians) + k * (kv * (1 - std::cos(radians)));
+    }
+    void advance(double time_step) {
+        const double a = 2 * std::numbers::pi * time_step / kGravityPeriod;
+        axis2 = turn(axis2, {0, 0, 1}, a);
+        axis3 = turn(axis3, axis2, a);
+    }
+};
 
 Setup make_setup(const SceneSettings& settings, std::span<const Aabb> map) {
     Random rng(mix_seed(settings.seed, kBodyStream));
@@ -240,10 +309,9 @@ Setup make_setup(const SceneSettings& settings, std::span<const Aabb> map) {
     if (!map.empty() && k != "pile") throw InputError("only the pile kind is dropped onto a map, not " + k);
     if (k == "pile" && !map.empty()) return map_pile_setup(settings.objects, shapes, rng, map);
     if (k == "pile") return pile_setup(settings.objects, shapes, rng);
-    if (k == "freefall") return freefall_setup(settings.objects, shapes, rng);
     if (k == "explosion") return explosion_setup(settings.objects, shapes, rng);
     if (k == "collapse") return collapse_setup(settings.objects, shapes, rng);
-    if (k == "brownian" || k == "gravity") return boxed_setup(settings.objects, shapes, rng, k == "brownian");
+    if (is_broadmark_kind(k)) return broadmark_setup(settings, rng);
     throw InputError("unknown physics kind '" + k + "' (known: " + join(physics_kinds()) + ")");
 }
 
@@ -303,22 +371,31 @@ std::unique_ptr<btCollisionShape> collision_shape(const BodySpec& b) {
     }
 }
 
-void add_body(World& w, const BodySpec& b, bool sleep) {
+/// A body's material and damping: rcbench's kinds have density 1 and restitution 0.3; Broadmark's
+/// have mass 1 each (SimulationParameters.cs:34 ObjectMass), no damping but Unity's Rigidbody
+/// default angular drag of 0.05, and Unity's default physic material (friction 0.6, bounciness 0:
+/// ProjectSettings/DynamicsManager.asset names no default material).
+void add_body(World& w, const BodySpec& b, const Setup& setup) {
     w.shapes.push_back(collision_shape(b));
     btCollisionShape* shape = w.shapes.back().get();
-    const btScalar mass = btScalar(8 * b.half.x * b.half.y * b.half.z);  // density 1
+    const btScalar mass = setup.broadmark ? 1.0f : btScalar(8 * b.half.x * b.half.y * b.half.z);
     btVector3 inertia(0, 0, 0);
     shape->calculateLocalInertia(mass, inertia);
     btRigidBody::btRigidBodyConstructionInfo info(mass, nullptr, shape, inertia);
     info.m_startWorldTransform.setOrigin(bt(b.position));
     info.m_startWorldTransform.setRotation(btQuaternion(b.rotation[1], b.rotation[2], b.rotation[3], b.rotation[0]));
-    info.m_restitution = 0.3f;
+    info.m_restitution = setup.broadmark ? 0.0f : 0.3f;
+    if (setup.broadmark) info.m_friction = 0.6f;
     w.bodies.push_back(std::make_unique<btRigidBody>(info));
     btRigidBody* body = w.bodies.back().get();
     body->setLinearVelocity(bt(b.velocity));
-    if (!sleep) {
+    if (setup.broadmark) {
+        body->setDamping(0.0f, 0.05f);
+        body->setSleepingThresholds(kLinearSleep, kAngularSleep);
+    }
+    if (!setup.sleep) {
         body->setActivationState(DISABLE_DEACTIVATION);
-    } else {
+    } else if (!setup.broadmark) {
         // Without rolling resistance a sphere or capsule rolls on for ever and keeps its whole
         // pile awake; some damping lets a settled pile reach Bullet's sleeping thresholds. Only
         // round bodies get it: a box lies on faces and does not roll, and each contact with
@@ -334,11 +411,12 @@ void add_body(World& w, const BodySpec& b, bool sleep) {
     w.world.addRigidBody(body);
 }
 
-void add_static(World& w, const StaticBox& s) {
+void add_static(World& w, const StaticBox& s, bool broadmark) {
     w.shapes.push_back(std::make_unique<btBoxShape>(bt(s.half)));
     btRigidBody::btRigidBodyConstructionInfo info(0, nullptr, w.shapes.back().get());
     info.m_startWorldTransform.setOrigin(bt(s.centre));
-    info.m_restitution = 0.3f;
+    info.m_restitution = broadmark ? 0.0f : 0.3f;
+    if (broadmark) info.m_friction = 0.6f;
     w.statics.push_back(std::make_unique<btRigidBody>(info));
     w.world.addRigidBody(w.statics.back().get());
 }
@@ -376,13 +454,6 @@ Object body_object(Uid uid, const BodySpec& spec, const btRigidBody& body) {
     }
 }
 
-/// Gravity's direction in the "gravity" kind at time t: turning around z with period 6.2 s
-/// (Broadmark's GravityFrequency) while that circle itself turns around y at half the rate.
-Vec3d turning_gravity(double t) {
-    const double a = 2 * std::numbers::pi * t / 6.2, b = a / 2;
-    return Vec3d{std::sin(a) * std::cos(b), -std::cos(a), std::sin(a) * std::sin(b)} * 19.62;
-}
-
 }  // namespace
 
 std::vector<std::string> physics_kinds() {
@@ -394,14 +465,91 @@ bool is_physics_kind(std::string_view kind) {
     return std::find(kinds.begin(), kinds.end(), kind) != kinds.end();
 }
 
+bool is_broadmark_kind(std::string_view kind) { return kind == "brownian" || kind == "freefall" || kind == "gravity"; }
+
+std::vector<std::string> broadmark_shape_sets() { return {"cubes", "spheres", "assorted"}; }
+
 void check_time_step(double seconds) {
     if (!(seconds >= 1e-4 && seconds <= 0.1))  // NaN fails too
         throw InputError("time_step: expected a number of seconds in 0.0001..0.1, got " + std::to_string(seconds));
 }
 
+double physics_time_step(const SceneSettings& settings) {
+    if (settings.time_step != 0) return settings.time_step;
+    return is_broadmark_kind(settings.kind) ? kBroadmarkTimeStep : 1.0 / 60;
+}
+
+double broadmark_arena_side(std::uint32_t objects, double fill) {
+    return std::cbrt(double(objects) / (fill > 0 ? fill : kBroadmarkFill));
+}
+
+namespace {
+
+/// InputError for settings a kind does not take: shape shares for Broadmark's kinds (their set
+/// gives the shapes), a shape set or fill for rcbench's, an unknown set, a fill outside (0, 0.5].
+void check_kind_settings(const SceneSettings& s) {
+    if (is_broadmark_kind(s.kind)) {
+        if (s.shapes.any())
+            throw InputError("shapes: " + s.kind +
+                             " is Broadmark's scene, whose shape set (cubes, spheres, assorted) gives the shapes; the "
+                             "rotated, sphere and capsule shares are for rcbench's kinds");
+        const auto sets = broadmark_shape_sets();
+        if (!s.shape_set.empty() && std::find(sets.begin(), sets.end(), s.shape_set) == sets.end())
+            throw InputError("shape_set: unknown set '" + s.shape_set + "' (known: " + join(sets) + ")");
+        if (s.fill != 0 && !(s.fill > 0 && s.fill <= 0.5))
+            throw InputError("fill: expected a share of the arena in (0, 0.5], got " + std::to_string(s.fill));
+    } else if (!s.shape_set.empty() || s.fill != 0) {
+        throw InputError(std::string(s.shape_set.empty() ? "fill" : "shape_set") +
+                         ": only Broadmark's kinds (brownian, freefall, gravity) take it, not " + s.kind);
+    }
+}
+
+/// What a Broadmark kind does after each frame's simulation (Simulation.cs:64-82, Step, and the
+/// scenes' Step overrides, which call it first): bodies whose centre left the world box are made
+/// static (Simulation.cs:69-76); Brownian gives the next ceil(N/100) bodies in turn a new velocity
+/// insideUnitSphere × 0.75 L/s (Brownian.cs:24,30,40-43; a new velocity wakes a sleeping body, as
+/// PhysX does); Gravity turns its pull (Gravity.cs:32-40).
+struct BroadmarkStep {
+    const SceneSettings& settings;
+    const Setup& setup;
+    double time_step;
+    std::size_t next_kick = 0;
+    TurningPull pull;
+
+    void after_frame(World& w, std::uint32_t frame) {
+        const double half = setup.arena / 2;
+        for (auto& body : w.bodies) {
+            const btVector3 c = body->getWorldTransform().getOrigin();
+            if (std::abs(c.x()) > half || std::abs(c.y()) > half || std::abs(c.z()) > half) {
+                body->setLinearVelocity(btVector3(0, 0, 0));
+                body->setAngularVelocity(btVector3(0, 0, 0));
+                body->forceActivationState(DISABLE_SIMULATION);
+            }
+        }
+        if (settings.kind == "brownian") {
+            const std::size_t n = w.bodies.size(), kicks = std::size_t(std::ceil(double(n) / kBrownianCycle));
+            Random rng(mix_seed(settings.seed, kKickStream + frame));
+            for (std::size_t k = 0; k < kicks; ++k, next_kick = (next_kick + 1) % n) {
+                btRigidBody& body = *w.bodies[next_kick];
+                if (body.getActivationState() == DISABLE_SIMULATION) continue;
+                body.setLinearVelocity(bt(inside_unit_ball(rng) * (kBroadmarkSpeed * setup.arena)));
+                body.activate(true);
+            }
+        }
+        if (settings.kind == "gravity") {
+            pull.advance(time_step);
+            w.world.setGravity(bt(pull.axis3 * (kBroadmarkGravity * kGravityScale * setup.arena)));
+        }
+    }
+};
+
+}  // namespace
+
 Recording generate_physics_scene(const SceneSettings& settings, std::span<const Aabb> map) {
-    check_time_step(settings.time_step);
+    const double time_step = physics_time_step(settings);
+    check_time_step(time_step);
     check_shapes(settings.shapes);
+    check_kind_settings(settings);
     check_ray_settings(settings.rays);
     check_scene_size(double(settings.objects) + double(map.size()), settings.frames, settings.rays.per_frame,
                      settings.objects, "scene");
@@ -409,10 +557,10 @@ Recording generate_physics_scene(const SceneSettings& settings, std::span<const 
     const CalmTime calm;
     auto w = std::make_unique<World>();
     w->world.setGravity(bt(setup.gravity));
-    for (const StaticBox& s : setup.statics) add_static(*w, s);
-    for (const Aabb& b : map) add_static(*w, {b.center().as<double>(), (b.extent() * 0.5f).as<double>()});
+    for (const StaticBox& s : setup.statics) add_static(*w, s, setup.broadmark);
+    for (const Aabb& b : map) add_static(*w, {b.center().as<double>(), (b.extent() * 0.5f).as<double>()}, false);
     if (setup.ground) add_ground(*w, setup.ground_height);
-    for (const BodySpec& b : setup.bodies) add_body(*w, b, setup.sleep);  // in uid order
+    for (const BodySpec& b : setup.bodies) add_body(*w, b, setup);  // in uid order
     Recording r;
     nlohmann::json meta = to_json(settings);
     meta["frames"] = settings.frames;
@@ -424,16 +572,13 @@ Recording generate_physics_scene(const SceneSettings& settings, std::span<const 
         r.initial.push_back(body_object(Uid(i), setup.bodies[i], *w->bodies[i]));
     for (std::size_t i = 0; i < map.size(); ++i) r.initial.push_back({Uid(setup.bodies.size() + i), map[i]});
     LiveSet live(r.initial);
-    const std::size_t kicks = (setup.bodies.size() + 99) / 100;  // brownian: every body once per 100 frames
-    std::size_t next_kick = 0;
+    BroadmarkStep broadmark{settings, setup, time_step, 0, TurningPull{}};
+    const btScalar substep = btScalar(time_step / setup.substeps);
     for (std::uint32_t f = 1; f <= settings.frames; ++f) {
-        if (settings.kind == "gravity") w->world.setGravity(bt(turning_gravity(f * settings.time_step)));
-        if (settings.kind == "brownian") {
-            Random rng(mix_seed(settings.seed, kKickStream + f));
-            for (std::size_t k = 0; k < kicks; ++k, next_kick = (next_kick + 1) % setup.bodies.size())
-                w->bodies[next_kick]->setLinearVelocity(bt(rng.direction() * rng.uniform(0, 4)));
-        }
-        w->world.stepSimulation(btScalar(settings.time_step), 0);  // one step of exactly time_step
+        // One step of exactly time_step, or Broadmark's substeps (PhysicsEngine.cs:17-26, Step;
+        // BulletEngine.cs:99-101 steps Bullet by each substep with no interpolation).
+        for (int k = 0; k < setup.substeps; ++k) w->world.stepSimulation(substep, 0);
+        if (setup.broadmark) broadmark.after_frame(*w, f);
         Frame frame;
         for (std::size_t i = 0; i < setup.bodies.size(); ++i) {
             const Object o = body_object(Uid(i), setup.bodies[i], *w->bodies[i]);

@@ -1,6 +1,8 @@
 #include "core/scene/import/broadmark.h"
 
 #include <bit>
+#include <cctype>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -34,7 +36,7 @@ void put_f32(std::string& out, float v) { put_u32(out, std::bit_cast<std::uint32
 
 struct Header {
     std::string scene_name, object_type;
-    std::uint32_t objects = 0, frames = 0, blocks = 0;
+    std::uint32_t objects = 0, frames = 0;
     Aabb world;
 };
 
@@ -49,15 +51,26 @@ Aabb box_at(const std::string& b, std::size_t at, const std::string& where) {
     return box;
 }
 
-/// The string of a 128-byte field: up to its NUL, which must come within the field.
+/// The string of a 128-byte field as Broadmark's reader checks it (Core/Scene.h,
+/// Scene::ValidateString over the first 127 bytes): at least one printable character, then a NUL
+/// and only NULs up to byte 127. Byte 128 must be a NUL too (rcbench's rule: the string ends
+/// inside its field).
 std::string name_at(const std::string& b, std::size_t at, const std::string& where) {
     const void* nul = std::memchr(b.data() + at, 0, kNameBytes);
     if (!nul) throw InputError(where + ": no NUL within its 128 bytes (not a Broadmark scene file?)");
-    return b.substr(at, static_cast<const char*>(nul) - (b.data() + at));
+    const std::size_t len = static_cast<const char*>(nul) - (b.data() + at);
+    if (len == 0) throw InputError(where + ": empty (Broadmark's reader needs at least one character)");
+    for (std::size_t i = 0; i < kNameBytes; ++i) {
+        const auto c = static_cast<unsigned char>(b[at + i]);
+        if (i < len && !std::isprint(c))
+            throw InputError(where + ": byte " + std::to_string(i) + " is not a printable character");
+        if (i > len && c != 0) throw InputError(where + ": byte " + std::to_string(i) + " after the NUL is not 0");
+    }
+    return b.substr(at, len);
 }
 
-/// Parses and checks the header against the file's size: the data must be whole frames of N boxes,
-/// as many as the header's frame count or one more (the initial frame besides the counted steps).
+/// Parses and checks the header against the file's size as Broadmark's reader does (Core/Scene.h,
+/// Scene::Scene): the data must be exactly 1 + frames blocks of N boxes.
 Header parse_header(const std::string& b, std::uint64_t file_size, const std::string& name) {
     if (b.size() < kBroadmarkHeaderBytes)
         throw InputError(name + ": " + std::to_string(b.size()) + " bytes, shorter than a Broadmark header (304)");
@@ -75,52 +88,94 @@ Header parse_header(const std::string& b, std::uint64_t file_size, const std::st
         throw InputError(name + ": Broadmark header: the two padding integers are not 0");
     h.objects = std::uint32_t(n), h.frames = std::uint32_t(frames);
     h.world = box_at(b, 272, name + ": Broadmark header: world box");
-    const std::uint64_t frame_bytes = std::uint64_t(n) * kBoxBytes, data = file_size - kBroadmarkHeaderBytes;
-    const std::uint64_t blocks = data / frame_bytes;
-    if (data % frame_bytes != 0 || (blocks != h.frames && blocks != std::uint64_t(h.frames) + 1))
-        throw InputError(name + ": " + std::to_string(data) + " bytes after the header are not " +
-                         std::to_string(h.frames) + " or " + std::to_string(h.frames + 1ull) + " frames of " +
-                         std::to_string(n) + " boxes (" + std::to_string(frame_bytes) + " bytes each)");
-    h.blocks = std::uint32_t(blocks);
-    check_scene_size(n, double(blocks) - 1, 0, n, name);
+    const std::uint64_t frame_bytes = std::uint64_t(n) * kBoxBytes;
+    const std::uint64_t expected = kBroadmarkHeaderBytes + frame_bytes * (1 + std::uint64_t(h.frames));
+    if (file_size != expected)
+        throw InputError(name + ": " + std::to_string(file_size) + " bytes, but a header of " + std::to_string(n) +
+                         " objects and " + std::to_string(frames) + " frames needs 304 + 32 x " + std::to_string(n) +
+                         " x (1 + " + std::to_string(frames) + ") = " + std::to_string(expected) +
+                         " (frame 0 and every counted frame)");
     return h;
+}
+
+/// The frames and objects a read takes: the limits, checked against the header and the memory
+/// budget (kMaxRecordingBytes: every object once, and per frame every object moved plus the rays).
+std::pair<std::uint32_t, std::uint32_t> taken(const Header& h, const BroadmarkLimits& limits, const std::string& name) {
+    if (limits.frames && *limits.frames > h.frames)
+        throw InputError(name + ": --frames " + std::to_string(*limits.frames) + ": the file has " +
+                         std::to_string(h.frames) + " frames after frame 0");
+    if (limits.objects > h.objects)
+        throw InputError(name + ": --objects " + std::to_string(limits.objects) + ": the file has " +
+                         std::to_string(h.objects) + " objects");
+    const std::uint32_t frames = limits.frames.value_or(h.frames);
+    const std::uint32_t objects = limits.objects ? limits.objects : h.objects;
+    const double rays = limits.rays_per_frame, budget = double(kMaxRecordingBytes);
+    const double bytes = recording_bytes(objects, frames, rays, objects);
+    if (bytes > budget) {
+        // The largest part that fits: frames at this object count, objects at this frame count.
+        const double per_frame = recording_bytes(0, 1, rays, objects), all_rays = recording_bytes(0, frames, rays, 0);
+        const auto max_frames = std::uint64_t(std::max(0.0, (budget - recording_bytes(objects, 0, 0, 0)) / per_frame));
+        const auto max_objects = std::uint64_t(std::max(0.0, (budget - all_rays) / recording_bytes(1, frames, 0, 1)));
+        char text[200];
+        std::snprintf(text, sizeof text,
+                      "%u objects and %u frames (every object moving, %u rays a frame) would take %.3g GB, over the "
+                      "memory budget of %.3g GB; to stay under it take",
+                      objects, frames, limits.rays_per_frame, bytes / 1e9, budget / 1e9);
+        std::string how = " --frames " + std::to_string(max_frames) + " or fewer";
+        if (max_objects >= 1) how += ", or --objects " + std::to_string(max_objects) + " or fewer";
+        if (rays > 0) how += ", or fewer --rays";
+        throw InputError(name + ": " + text + how);
+    }
+    return {frames, objects};
 }
 
 nlohmann::json point(const Vec3& p) { return {p.x, p.y, p.z}; }
 
-}  // namespace
-
-Recording decode_broadmark(const std::string& bytes, const std::string& name) {
-    const Header h = parse_header(bytes, bytes.size(), name);
+/// The recording of a parsed file: `block(f, count)` gives the bytes of the first `count` boxes of
+/// block f (0 = frame 0).
+template <class Block>
+Recording decode(const Header& h, const BroadmarkLimits& limits, const std::string& name, Block block) {
+    const auto [frames, objects] = taken(h, limits, name);
     Recording r;
     nlohmann::json meta = {{"generator", "rcbench import"},
                            {"importer", "broadmark"},
                            {"source", std::filesystem::path(name).filename().string()},
-                           {"objects", h.objects},
+                           {"objects", objects},
                            {"broadmark",
                             {{"scene_name", h.scene_name},
                              {"object_type", h.object_type},
+                             {"objects", h.objects},
                              {"frames", h.frames},
                              {"world", {{"min", point(h.world.min)}, {"max", point(h.world.max)}}}}}};
     r.meta = meta.dump();
-    std::size_t at = kBroadmarkHeaderBytes;
-    std::vector<Aabb> current(h.objects);
-    for (std::uint32_t i = 0; i < h.objects; ++i, at += kBoxBytes) {
-        current[i] = box_at(bytes, at, name + ": frame 0: object " + std::to_string(i));
-        r.initial.push_back({Uid(i), current[i]});
-    }
-    for (std::uint32_t f = 1; f < h.blocks; ++f) {
+    std::vector<Aabb> current(objects);
+    for (std::uint32_t f = 0; f <= frames; ++f) {
+        const std::string bytes = block(f, objects);
         Frame frame;
-        for (std::uint32_t i = 0; i < h.objects; ++i, at += kBoxBytes) {
-            const Aabb box = box_at(bytes, at, name + ": frame " + std::to_string(f) + ": object " + std::to_string(i));
-            if (std::memcmp(&box, &current[i], sizeof box) != 0) frame.moves.push_back({Uid(i), current[i] = box});
+        for (std::uint32_t i = 0; i < objects; ++i) {
+            const Aabb box = box_at(bytes, std::size_t(i) * kBoxBytes,
+                                    name + ": frame " + std::to_string(f) + ": object " + std::to_string(i));
+            if (f == 0)
+                r.initial.push_back({Uid(i), current[i] = box});
+            else if (std::memcmp(&box, &current[i], sizeof box) != 0)
+                frame.moves.push_back({Uid(i), current[i] = box});
         }
-        r.frames.push_back(std::move(frame));
+        if (f > 0) r.frames.push_back(std::move(frame));
     }
     return r;
 }
 
-Recording read_broadmark(const std::string& path) {
+}  // namespace
+
+Recording decode_broadmark(const std::string& bytes, const std::string& name, const BroadmarkLimits& limits) {
+    const Header h = parse_header(bytes, bytes.size(), name);
+    const std::size_t block_bytes = std::size_t(h.objects) * kBoxBytes;
+    return decode(h, limits, name, [&](std::uint32_t f, std::uint32_t count) {
+        return bytes.substr(kBroadmarkHeaderBytes + std::size_t(f) * block_bytes, std::size_t(count) * kBoxBytes);
+    });
+}
+
+Recording read_broadmark(const std::string& path, const BroadmarkLimits& limits) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(path + ": cannot open");
     std::error_code ec;
@@ -128,12 +183,16 @@ Recording read_broadmark(const std::string& path) {
     if (ec) throw InputError(path + ": cannot read its size");
     std::string header(std::min<std::uint64_t>(size, kBroadmarkHeaderBytes), '\0');
     in.read(header.data(), std::streamsize(header.size()));
-    parse_header(header, size, path);  // every size check before the whole file is read
-    std::string bytes = header;
-    bytes.resize(size);
-    in.read(bytes.data() + header.size(), std::streamsize(size - header.size()));
-    if (std::uint64_t(in.gcount()) != size - header.size()) throw InputError(path + ": could not read the whole file");
-    return decode_broadmark(bytes, path);
+    const Header h = parse_header(header, size, path);  // every size check before any box is read
+    const std::uint64_t block_bytes = std::uint64_t(h.objects) * kBoxBytes;
+    return decode(h, limits, path, [&](std::uint32_t f, std::uint32_t count) {
+        std::string bytes(std::size_t(count) * kBoxBytes, '\0');
+        in.seekg(std::streamoff(kBroadmarkHeaderBytes + std::uint64_t(f) * block_bytes));
+        in.read(bytes.data(), std::streamsize(bytes.size()));
+        if (std::uint64_t(in.gcount()) != bytes.size())
+            throw InputError(path + ": could not read frame " + std::to_string(f));
+        return bytes;
+    });
 }
 
 namespace {
@@ -145,10 +204,16 @@ nlohmann::json broadmark_meta(const Recording& r) {
     return nullptr;
 }
 
-/// A header string: what the meta says, else `fallback`, cut at a NUL and to 127 bytes.
-void put_name(std::string& out, const nlohmann::json& bm, const char* key, std::string text) {
+/// A header string: what the meta says, else `fallback`, cut at a NUL and to 127 bytes, each
+/// byte that is not printable written as '?' and an empty one as `fallback`, so Broadmark's
+/// reader (Scene::ValidateString) accepts it.
+void put_name(std::string& out, const nlohmann::json& bm, const char* key, const std::string& fallback) {
+    std::string text = fallback;
     if (bm.is_object() && bm.contains(key) && bm[key].is_string()) text = bm[key].get<std::string>();
     text = text.substr(0, std::min(text.find('\0'), kNameBytes - 1));
+    if (text.empty()) text = fallback;
+    for (char& c : text)
+        if (!std::isprint(static_cast<unsigned char>(c))) c = '?';
     out += text;
     out.append(kNameBytes - text.size(), '\0');
 }
@@ -172,6 +237,10 @@ void world_from_meta(const nlohmann::json& bm, Aabb& world) {
 
 std::string encode_broadmark(const Recording& r, const std::string& name) {
     if (r.initial.empty()) throw InputError(name + ": no objects (a Broadmark file holds at least one)");
+    if (r.frames.empty())
+        throw InputError(name +
+                         ": the recording has only frame 0; a Broadmark file needs at least one frame after "
+                         "it (its reader requires frames > 0)");
     const nlohmann::json bm = broadmark_meta(r);
     const std::uint32_t blocks = std::uint32_t(r.frames.size() + 1);
     std::unordered_map<Uid, std::size_t> column;
@@ -184,11 +253,7 @@ std::string encode_broadmark(const Recording& r, const std::string& name) {
                              " inserts or removes objects, which a Broadmark file (N fixed objects) cannot hold");
         for (const Object& o : r.frames[f].moves) world = merge(world, o.box);
     }
-    std::uint32_t frames = blocks;
-    if (bm.is_object() && bm.contains("frames") && bm["frames"].is_number_unsigned()) {
-        const auto given = bm["frames"].get<std::uint64_t>();
-        if (given == blocks || given + 1 == blocks) frames = std::uint32_t(given);
-    }
+    const std::uint32_t frames = blocks - 1;  // Broadmark counts the frames after the initial one
     if (bm.is_object()) world_from_meta(bm, world);
     std::string out;
     out.reserve(kBroadmarkHeaderBytes + std::size_t(blocks) * current.size() * kBoxBytes);
