@@ -128,8 +128,8 @@ void print_summary(Database& db, std::int64_t run_id, const Experiment& e) {
         t.add(row);
     }
     std::cout << "run " << run_id << " of experiment " << e.name
-              << " (medians over frames, then over repetitions; +-: half-width of the 95% interval between "
-                 "repetitions, as a share of the median; cell_interval)\n";
+              << " (medians over frames, then over repetitions; +-: half-width of the 95% interval between the "
+              << e.repetitions << " planned repetitions, as a share of the median; cell_interval)\n";
     t.print(std::cout);
     if (slow)
         std::cout << "* " << slow
@@ -205,7 +205,8 @@ void add_run_command(CLI::App& app) {
                       << " repetitions added where the 95% interval of a cell's median over its repetitions was "
                          "wider than +-"
                       << fixed(100 * e.repeat_interval, 1) << "% of it (at most " << e.max_repetitions
-                      << " per cell)\n";
+                      << " per cell); they count in the median, the interval rests on the " << e.repetitions
+                      << " planned\n";
         if (done.resampled)
             std::cout << done.resampled << " cells waited for a slow machine before they were measured\n";
         if (done.calibrations > 1)

@@ -349,7 +349,9 @@ RunOutcome run_experiment(const Experiment& e, const std::string& source, const 
     CellRunner runner(e, source, store, out, options.timing, recalibrate);
     runner.run(plan, done, todo, progress);
     // Rounds of repetitions where the interval over the stored ones is wide, each judged on what
-    // is stored.
+    // is stored. They sharpen the cell's median and its fastest frames, not its stated interval,
+    // which rests on the planned repetitions (store_cell_interval): stopping where two repetitions
+    // happen to agree would make that interval cover less than 95%.
     for (std::uint32_t round = e.repetitions; round < e.max_repetitions; ++round) {
         const std::vector<Cell> extra = wide_interval_cells(e, plan, store.cell_medians(out.run), round);
         if (extra.empty()) break;

@@ -68,8 +68,10 @@ std::string config_label(const ConfigSpec& c);
 /// (max − min) / median of a cell's repetitions; 0 for fewer than two.
 double relative_range(const std::vector<double>& values);
 
-/// Whether the 95% interval over a cell's repetitions' medians (core/base/repetition_interval.h)
-/// has a half-width above `limit` of their median; always for fewer than two repetitions.
+/// Whether the 95% interval over all of a cell's repetitions' medians stored so far
+/// (core/base/repetition_interval.h) has a half-width above `limit` of their median; always for
+/// fewer than two repetitions. It decides where a repetition is added, to sharpen the cell's median;
+/// the interval the cell states rests on its planned repetitions alone.
 bool wide_interval(const std::vector<double>& medians, double limit);
 
 /// Runs the cells not yet stored, then rounds of repetitions where the interval over the stored

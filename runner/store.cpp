@@ -357,8 +357,8 @@ CREATE TABLE frame_kind (
 );
 )sql",
         // 11 → 12: a (scene, configuration)'s time over its repetitions in a run: the median of the
-        // repetitions' medians and its 95% interval between repetitions (core/base/repetition_interval.h;
-        // NULL bounds below two repetitions). Kept equal to the stored cells: rewritten with each
+        // repetitions' medians and its 95% interval between the planned ones (repetition_interval.h;
+        // NULL bounds below two planned repetitions). Kept equal to the stored cells: rewritten with each
         // cell stored and each merge, and filled for the runs a database already holds when it is
         // migrated (apply_migrations).
         R"sql(
@@ -717,18 +717,22 @@ std::int64_t ResultStore::config_id(const std::string& structure, const nlohmann
 
 namespace {
 
-/// Rewrites the cell_interval row of one (run, scene, configuration) from its stored cells.
-void store_cell_interval(Database& db, std::int64_t run_id, std::int64_t scene_id, std::int64_t config_id) {
-    std::vector<double> cast, update;
+/// Rewrites the cell_interval row of one (run, scene, configuration) from its stored cells: the
+/// interval from the planned repetitions, the median over all (core/base/repetition_interval.h).
+void store_cell_interval(Database& db, std::int64_t run_id, std::int64_t scene_id, std::int64_t config_id,
+                         std::int64_t planned) {
+    std::vector<double> cast[2], update[2];  // [0]: planned repetitions, [1]: added ones
     Statement s = db.prepare(
-        "SELECT raycast_ns_median, update_ns_median FROM cell WHERE run_id = ? AND scene_id = ? AND config_id = ?");
+        "SELECT repetition, raycast_ns_median, update_ns_median FROM cell WHERE run_id = ? AND scene_id = ? AND "
+        "config_id = ? ORDER BY repetition");
     s.bind_all(run_id, scene_id, config_id);
     while (s.step()) {
-        cast.push_back(s.real(0));
-        update.push_back(s.real(1));
+        const int added = s.int64(0) >= planned ? 1 : 0;
+        cast[added].push_back(s.real(1));
+        update[added].push_back(s.real(2));
     }
-    if (cast.empty()) return;
-    const RepetitionInterval c = repetition_interval(cast), u = repetition_interval(update);
+    if (cast[0].empty() && cast[1].empty()) return;
+    const RepetitionInterval c = repetition_interval(cast[0], cast[1]), u = repetition_interval(update[0], update[1]);
     const auto bound = [](const RepetitionInterval& r, double v) {
         return r.has_interval() ? std::optional<double>(v) : std::nullopt;
     };
@@ -743,29 +747,44 @@ void store_cell_interval(Database& db, std::int64_t run_id, std::int64_t scene_i
 
 }  // namespace
 
+std::int64_t planned_repetitions(Database& db, std::int64_t run_id) {
+    Statement s = db.prepare("SELECT experiment_content FROM run WHERE id = ?");
+    s.bind(1, run_id);
+    if (!s.step()) return 1;
+    const nlohmann::json j = nlohmann::json::parse(s.text(0), nullptr, false);
+    const auto it = j.is_object() ? j.find("repetitions") : j.end();
+    return j.is_object() && it != j.end() && it->is_number_unsigned() && it->get<std::int64_t>() >= 1
+               ? it->get<std::int64_t>()
+               : 1;
+}
+
 void store_cell_intervals(Database& db, std::int64_t run_id) {
     db.prepare("DELETE FROM cell_interval WHERE run_id = ?").bind_all(run_id).run();
     std::vector<std::pair<std::int64_t, std::int64_t>> pairs;
     Statement s = db.prepare("SELECT DISTINCT scene_id, config_id FROM cell WHERE run_id = ?");
     s.bind(1, run_id);
     while (s.step()) pairs.emplace_back(s.int64(0), s.int64(1));
-    for (const auto& pair : pairs) store_cell_interval(db, run_id, pair.first, pair.second);
+    const std::int64_t planned = planned_repetitions(db, run_id);
+    for (const auto& pair : pairs) store_cell_interval(db, run_id, pair.first, pair.second, planned);
 }
 
 std::vector<CellInterval> cell_intervals(Database& db, std::int64_t run_id) {
     std::vector<CellInterval> out;
     Statement s = db.prepare("SELECT " + std::string(kSceneLabelSql) +
                              ", config.structure, config.params, repetitions, raycast_ns_median, raycast_ns_low, "
-                             "raycast_ns_high, update_ns_median, update_ns_low, update_ns_high FROM cell_interval "
+                             "raycast_ns_high, update_ns_median, update_ns_low, update_ns_high, (SELECT count(*) FROM "
+                             "cell WHERE cell.run_id = cell_interval.run_id AND cell.scene_id = cell_interval.scene_id "
+                             "AND cell.config_id = cell_interval.config_id AND cell.repetition < ?) FROM cell_interval "
                              "JOIN scene ON scene.id = cell_interval.scene_id "
                              "JOIN config ON config.id = cell_interval.config_id WHERE run_id = ?");
-    s.bind(1, run_id);
+    s.bind_all(planned_repetitions(db, run_id), run_id);
     while (s.step()) {
         CellInterval row{s.text(0), s.text(1), nlohmann::json::parse(s.text(2)), {}, {}};
         for (int k = 0; k < 2; ++k) {
             RepetitionInterval& r = k == 0 ? row.raycast : row.update;
             const int at = 4 + 3 * k;
             r.repetitions = std::size_t(s.int64(3));
+            r.planned = std::size_t(s.int64(10));
             r.median = s.real(at);
             r.low = s.is_null(at + 1) ? r.median : s.real(at + 1);
             r.high = s.is_null(at + 2) ? r.median : s.real(at + 2);
@@ -830,7 +849,7 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
                           std::int64_t(k.counters.n_dup))
                 .run();
     }
-    store_cell_interval(db_, run_id, scene, config);
+    store_cell_interval(db_, run_id, scene, config, planned_repetitions(db_, run_id));
     t.commit();
     return true;
 }

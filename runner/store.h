@@ -129,13 +129,17 @@ struct CellSummary {
 std::vector<CellSummary> cell_summaries(Database& db, std::int64_t run_id);
 
 /// A (scene, configuration)'s time over its repetitions in one run (table cell_interval): the
-/// median of the repetitions' ray-cast and update medians and the 95% interval between
-/// repetitions (core/base/repetition_interval.h). Below two repetitions low = high = median.
+/// median of the repetitions' ray-cast and update medians and the 95% interval between the
+/// repetitions planned before the run (core/base/repetition_interval.h). Below two planned
+/// repetitions low = high = median.
 struct CellInterval {
     std::string scene, structure;
     nlohmann::json params;
     RepetitionInterval raycast, update;
 };
+/// The repetitions run `run_id`'s experiment file planned (its "repetitions"; 1 when it names none):
+/// those of a cell's repetitions whose index is below this are the ones its interval rests on.
+std::int64_t planned_repetitions(Database& db, std::int64_t run_id);
 /// The cell_interval rows of a run.
 std::vector<CellInterval> cell_intervals(Database& db, std::int64_t run_id);
 /// Rewrites the run's cell_interval rows from its stored cells, one per (scene, configuration).

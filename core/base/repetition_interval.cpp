@@ -32,17 +32,26 @@ double student_t_975(std::size_t df) {
     return z + g1 / v + g2 / (v * v) + g3 / (v * v * v) + g4 / (v * v * v * v);
 }
 
-RepetitionInterval repetition_interval(std::vector<double> values) {
+RepetitionInterval repetition_interval(const std::vector<double>& planned, const std::vector<double>& added) {
     RepetitionInterval r;
-    r.repetitions = values.size();
-    if (values.empty()) return r;
-    std::sort(values.begin(), values.end());
-    const std::size_t n = values.size();
-    r.median = n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+    r.planned = planned.size();
+    r.repetitions = planned.size() + added.size();
+    if (r.repetitions == 0) return r;
+    std::vector<double> all = planned;
+    all.insert(all.end(), added.begin(), added.end());
+    std::sort(all.begin(), all.end());
+    const std::size_t m = all.size();
+    r.median = m % 2 ? all[m / 2] : 0.5 * (all[m / 2 - 1] + all[m / 2]);
     r.low = r.high = r.median;
-    if (n < 2 || values.front() == values.back()) return r;
-    const bool logs = values.front() > 0;
-    std::vector<double> x = values;
+    const std::size_t n = planned.size();
+    if (n < 2) return r;
+    const auto [lo, hi] = std::minmax_element(planned.begin(), planned.end());
+    if (*lo == *hi) {
+        r.low = r.high = *lo;
+        return r;
+    }
+    const bool logs = *lo > 0;
+    std::vector<double> x = planned;
     if (logs)
         for (double& v : x) v = std::log(v);
     double mean = 0;

@@ -12,9 +12,14 @@
 /// are positive and their drift multiplies, so the logs are the scale where it is symmetric. A
 /// distribution-free interval of the median (the order statistics of Conover's §3.2, which the
 /// frames' intervals use) reaches 95% only from 6 values: from 2 to 5 repetitions it is the whole
-/// range, which covers the median with probability 1 − 2^(1−n), 50% at n = 2, so a rule that adds
-/// repetitions where the interval is wide would stop at two agreeing repetitions by luck. The t
-/// interval is honest at n = 2 (t = 12.71, wide) and narrows as repetitions are added.
+/// range, which covers the median with probability 1 − 2^(1−n), 50% at n = 2. The t interval is
+/// honest at n = 2 (t = 12.71, wide) and narrows with n.
+///
+/// The interval rests on the repetitions planned before the run (the experiment's `repetitions`)
+/// alone. The runner adds repetitions where the interval over those stored so far is wide; an
+/// interval over them all would be optional stopping (a cell stops when two repetitions happen to
+/// agree), which covers less than it states (tests/repetition_interval_test.cpp simulates both). The
+/// added repetitions still count in the median, where more values only help.
 ///
 /// Pure arithmetic: the runner decides with it which cells get another repetition, the store keeps
 /// it per (run, scene, configuration).
@@ -25,11 +30,12 @@
 namespace rcb {
 
 struct RepetitionInterval {
-    std::size_t repetitions = 0;
-    double median = 0;         ///< of the values (0 when there are none)
-    double low = 0, high = 0;  ///< the 95% interval; only meaningful from two values (has_interval)
+    std::size_t repetitions = 0;  ///< every value: the planned ones and those added
+    std::size_t planned = 0;      ///< the values the interval rests on
+    double median = 0;            ///< of every value (0 when there are none)
+    double low = 0, high = 0;     ///< the 95% interval; only meaningful from two planned values (has_interval)
 
-    bool has_interval() const { return repetitions >= 2; }
+    bool has_interval() const { return planned >= 2; }
     /// (high − low) / 2 / median: the interval's half-width as a fraction of the median. Infinite
     /// below two values (one repetition says nothing about the next) and where the median is 0 but
     /// the interval is not a point; 0 where every value is equal.
@@ -41,9 +47,10 @@ struct RepetitionInterval {
 /// Stegun 26.7.5, four terms; within 1e-7 of the exact value from 30 on).
 double student_t_975(std::size_t df);
 
-/// The interval of `values` (one median per repetition). Values must be finite. When one is 0 or
+/// The interval of the `planned` values (one median per repetition planned before the run), and the
+/// median of those and the `added` ones together. Values must be finite. When a planned one is 0 or
 /// negative (a made-up or empty phase), the t interval is taken on the values themselves instead of
 /// their logs.
-RepetitionInterval repetition_interval(std::vector<double> values);
+RepetitionInterval repetition_interval(const std::vector<double>& planned, const std::vector<double>& added = {});
 
 }  // namespace rcb

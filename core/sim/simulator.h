@@ -97,8 +97,8 @@ struct FrameResult {
 /// Median and median absolute deviation of a series, and a distribution-free 95% interval of the
 /// median: the order statistics x(k) and x(n+1-k) with the largest k for which a Binomial(n, 1/2)
 /// falls below k with probability at most 2.5% (Conover, "Practical Nonparametric Statistics",
-/// §3.2). It narrows as values are added; below 6 values no such k exists and the interval is the
-/// whole range. Over a cell's frames it is wide where frames differ in work, not only in noise.
+/// §3.2), narrowing as values are added. Below 6 values no such k exists: ci_low, ci_high are then
+/// the range (least, greatest), not a 95% interval. Wide over frames that differ in work, not noise.
 struct Spread {
     double median = 0;
     double mad = 0;
