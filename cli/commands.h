@@ -22,5 +22,6 @@ void add_findings_command(CLI::App& app);
 void add_tune_command(CLI::App& app);
 void add_advise_command(CLI::App& app);
 void add_categories_command(CLI::App& app);
+void add_archive_command(CLI::App& app);
 
 }  // namespace rcb

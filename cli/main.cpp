@@ -51,6 +51,7 @@ int main(int argc, char** argv) {
     rcb::add_tune_command(app);
     rcb::add_advise_command(app);
     rcb::add_categories_command(app);
+    rcb::add_archive_command(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

@@ -9,7 +9,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-packages=(cmake make g++ git pkg-config libgtest-dev nlohmann-json3-dev libcli11-dev libtbb-dev zlib1g-dev libsqlite3-dev libceres-dev libeigen3-dev gnuplot-nox libnlopt-cxx-dev libembree-dev libbullet-dev libassimp-dev libzip-dev libode-dev jq)
+packages=(cmake make g++ git pkg-config libgtest-dev nlohmann-json3-dev libcli11-dev libtbb-dev zlib1g-dev liblzma-dev libsqlite3-dev libceres-dev libeigen3-dev gnuplot-nox libnlopt-cxx-dev libembree-dev libbullet-dev libassimp-dev libzip-dev libode-dev jq)
 
 deps_only=0
 for arg in "$@"; do
