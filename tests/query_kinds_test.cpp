@@ -320,8 +320,8 @@ TEST(QueryKinds, SimulatorVerifiesEveryKindOnHardScenes) {
         std::uint32_t f = 0;
         for (Frame& frame : r.frames)
             frame.kinds = generate_kinds(frame.rays.size(), parse_query_mix("closest:2,any,all"), 5, ++f);
-        for (const char* name :
-             {"bf", "ug", "hg", "dbvh", "lbvh", "wbvh", "embree", "bullet_dbvt", "ode_quadtree", "ode_hash"}) {
+        for (const char* name : {"bf", "ug", "hg", "dbvh", "lbvh", "wbvh", "embree", "bullet_dbvt", "ode_quadtree",
+                                 "ode_hash", "ode_sap"}) {
             const SimulationResult res =
                 test::expect_matches_ground_truth(r, name, nlohmann::json::object(), scene.name);
             std::uint64_t closest = 0, rays = 0;

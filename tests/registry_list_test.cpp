@@ -49,13 +49,13 @@ std::vector<std::string> names_where(Family f) {
 TEST(RegistryList, EveryEntryCarriesItsOriginAndFamily) {
     EXPECT_EQ(names_where(Origin::thesis), (std::vector<std::string>{"bf", "dbvh", "lbvh", "ug", "hg"}));
     EXPECT_EQ(names_where(Origin::peer),
-              (std::vector<std::string>{"embree", "bullet_dbvt", "ode_quadtree", "ode_hash"}));
+              (std::vector<std::string>{"embree", "bullet_dbvt", "ode_quadtree", "ode_hash", "ode_sap"}));
     EXPECT_TRUE(has(names_where(Origin::own), "wbvh"));
     EXPECT_EQ(names_where(Family::scan), (std::vector<std::string>{"bf"}));
     EXPECT_EQ(names_where(Family::grid), (std::vector<std::string>{"ug", "hg"}));
     EXPECT_EQ(names_where(Family::bvh), (std::vector<std::string>{"dbvh", "lbvh", "wbvh"}));
     EXPECT_EQ(names_where(Family::peer),
-              (std::vector<std::string>{"embree", "bullet_dbvt", "ode_quadtree", "ode_hash"}));
+              (std::vector<std::string>{"embree", "bullet_dbvt", "ode_quadtree", "ode_hash", "ode_sap"}));
     EXPECT_STREQ(origin_name(find_structure("wbvh").origin), "own");
     EXPECT_STREQ(family_name(find_structure("bullet_dbvt").family), "peer");
     // Unfiltered, the names are the registry in order.

@@ -50,20 +50,27 @@ std::deque<StructureInfo>& registry() {
             1),
         describe_structure<EmbreeBoxes>("embree",
                                         "peer: Intel Embree 3 user geometry of boxes, all hits recorded in the "
-                                        "intersect callback, rebuilt (Morton or binned SAH) or refitted at commit",
+                                        "intersect callback, rebuilt (Morton or binned SAH) or refitted at commit "
+                                        "(dynamic scene, a rebuild-versus-refit policy)",
                                         Origin::peer, Family::peer),
         describe_structure<BulletDbvt>("bullet_dbvt",
-                                       "peer: Bullet's btDbvt, incremental insert/update/remove, optimizeIncremental "
-                                       "passes per frame, rayTestInternal with exact leaf tests",
+                                       "peer: Bullet's btDbvt as btDbvtBroadphase runs it (dynamic and fixed trees, "
+                                       "moves inside a leaf's fat volume skipped, optimizeIncremental passes per "
+                                       "frame) or raw, rayTestInternal with exact leaf tests",
                                        Origin::peer, Family::peer),
         describe_structure<OdeQuadTree>("ode_quadtree",
-                                        "peer: ODE's dQuadTreeSpace of box geoms, the segment a ray geom through "
-                                        "dSpaceCollide2 (prunes blocks by the ray's AABB) with exact leaf tests",
+                                        "peer: ODE's dQuadTreeSpace of box geoms over the scene's ground plane, the "
+                                        "segment a ray geom through dSpaceCollide2 (prunes blocks by the ray's AABB) "
+                                        "with exact leaf tests",
                                         Origin::peer, Family::peer),
         describe_structure<OdeHash>("ode_hash",
                                     "peer: ODE's dHashSpace of box geoms, the segment a ray geom through "
                                     "dSpaceCollide2 (which scans every geom's AABB) with exact leaf tests",
                                     Origin::peer, Family::peer),
+        describe_structure<OdeSap>("ode_sap",
+                                   "peer: ODE's dSweepAndPruneSpace of box geoms, the segment a ray geom through "
+                                   "dSpaceCollide2 (which scans every geom's AABB) with exact leaf tests",
+                                   Origin::peer, Family::peer),
     };
     return all;
 }

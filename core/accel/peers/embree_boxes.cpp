@@ -16,6 +16,7 @@ struct EmbreeBoxes::Device {
     RTCDevice device = nullptr;
     RTCScene scene = nullptr;
     RTCGeometry geometry = nullptr;
+    unsigned geometry_id = 0;  // 0 or 1: a policy rebuild attaches a fresh geometry under the other
     std::unique_ptr<tbb::task_arena> arena;
     /// Bytes Embree holds, from its memory monitor callback.
     std::atomic<std::int64_t> bytes{0};
@@ -80,6 +81,19 @@ bool memory_callback(void* user, ssize_t bytes, bool) {
     return true;
 }
 
+/// A user geometry of no primitives yet with the peer's callbacks, committed.
+RTCGeometry new_user_geometry(RTCDevice device, EmbreeBoxes* self, RTCBuildQuality quality) {
+    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
+    rtcSetGeometryUserPrimitiveCount(g, 0);
+    rtcSetGeometryUserData(g, self);
+    rtcSetGeometryBoundsFunction(g, bounds_callback, nullptr);
+    rtcSetGeometryIntersectFunction(g, intersect_callback);
+    rtcSetGeometryOccludedFunction(g, occluded_callback);
+    rtcSetGeometryBuildQuality(g, quality);
+    rtcCommitGeometry(g);
+    return g;
+}
+
 }  // namespace
 
 EmbreeBoxes::EmbreeBoxes() : EmbreeBoxes(Params{}) {}
@@ -99,23 +113,19 @@ EmbreeBoxes::EmbreeBoxes(const Params& params)
     const bool low = quality_ == Quality::low;
     rtcSetSceneBuildQuality(d.scene, low || params_.refit ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM);
     if (params_.refit) rtcSetSceneFlags(d.scene, RTC_SCENE_FLAG_DYNAMIC);
-    d.geometry = rtcNewGeometry(d.device, RTC_GEOMETRY_TYPE_USER);
-    rtcSetGeometryUserPrimitiveCount(d.geometry, 0);
-    rtcSetGeometryUserData(d.geometry, this);
-    rtcSetGeometryBoundsFunction(d.geometry, bounds_callback, nullptr);
-    rtcSetGeometryIntersectFunction(d.geometry, intersect_callback);
-    rtcSetGeometryOccludedFunction(d.geometry, occluded_callback);
-    rtcSetGeometryBuildQuality(
-        d.geometry, params_.refit ? RTC_BUILD_QUALITY_REFIT : (low ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM));
-    rtcCommitGeometry(d.geometry);
-    rtcAttachGeometry(d.scene, d.geometry);
+    d.geometry = new_user_geometry(
+        d.device, this,
+        params_.refit ? RTC_BUILD_QUALITY_REFIT : (low ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM));
+    rtcAttachGeometryByID(d.scene, d.geometry, d.geometry_id);
     d.arena = std::make_unique<tbb::task_arena>(params_.threads);
     if (!d.error.empty()) throw std::runtime_error("embree: " + d.error);
+    set_cast_threads(params_.cast_threads);
 }
 
 EmbreeBoxes::~EmbreeBoxes() = default;
 
 void EmbreeBoxes::build(std::span<const Object> objects) {
+    if (params_.refit && commits_ > 0) fresh_geometry();  // built anew, not refitted from the old contents
     objects_.clear();
     objects_.reserve(objects.size());
     for (const Object& o : objects) insert(o);
@@ -125,12 +135,12 @@ void EmbreeBoxes::build(std::span<const Object> objects) {
 
 void EmbreeBoxes::insert(const Object& o) {
     objects_.insert(o);
-    dirty_ = true;
+    dirty_ = topology_changed_ = true;
 }
 
 void EmbreeBoxes::remove(Uid uid) {
     objects_.remove(uid);
-    dirty_ = true;
+    dirty_ = topology_changed_ = true;
 }
 
 void EmbreeBoxes::move(const Object& o) {
@@ -149,7 +159,23 @@ void EmbreeBoxes::commit() {
     in_range_ = m >= kEmbreeMinScale && m + pad_ <= kEmbreeRange;
     far_ = in_range_ ? std::min(kFarFactor * m, kEmbreeRange / 2) : 0.0f;
     Device& d = *device_;
-    rtcSetGeometryUserPrimitiveCount(d.geometry, in_range_ ? static_cast<unsigned>(objects_.size()) : 0u);
+    const unsigned count = in_range_ ? static_cast<unsigned>(objects_.size()) : 0u;
+    // Without refit Embree rebuilds at every commit; with it, it rebuilds when the primitive count
+    // changed, and the policy (see the header) forces a rebuild by a fresh geometry otherwise.
+    bool rebuild = !params_.refit || commits_ == 0 || count != committed_count_;
+    ++since_rebuild_;
+    if (!rebuild && ((params_.rebuild_on_inserts && topology_changed_) ||
+                     (params_.rebuild_every > 0 && since_rebuild_ >= std::uint64_t(params_.rebuild_every)))) {
+        fresh_geometry();
+        rebuild = true;
+    }
+    if (rebuild) {
+        ++rebuilds_;
+        since_rebuild_ = 0;
+    }
+    topology_changed_ = false;
+    committed_count_ = count;
+    rtcSetGeometryUserPrimitiveCount(d.geometry, count);
     rtcCommitGeometry(d.geometry);  // the bounds changed: Embree calls bounds_callback again
     d.arena->execute([&] { rtcCommitScene(d.scene); });
     if (!d.error.empty()) throw std::runtime_error("embree: " + d.error);
@@ -157,7 +183,18 @@ void EmbreeBoxes::commit() {
     ++commits_;
 }
 
-bool EmbreeBoxes::embree_query(const Segment& s, ExactCollector& collect, bool occluded) {
+void EmbreeBoxes::fresh_geometry() {
+    Device& d = *device_;
+    RTCGeometry fresh = new_user_geometry(d.device, this, RTC_BUILD_QUALITY_REFIT);
+    const unsigned id = 1 - d.geometry_id;
+    rtcAttachGeometryByID(d.scene, fresh, id);
+    rtcDetachGeometry(d.scene, d.geometry_id);
+    rtcReleaseGeometry(d.geometry);
+    d.geometry = fresh;
+    d.geometry_id = id;
+}
+
+bool EmbreeBoxes::embree_query(const Segment& s, ExactCollector& collect, bool occluded) const {
     if (!in_range_) return false;
     const Vec3 d = s.delta();
     if (d.x == 0 && d.y == 0 && d.z == 0) return false;
@@ -184,13 +221,17 @@ bool EmbreeBoxes::embree_query(const Segment& s, ExactCollector& collect, bool o
 }
 
 std::size_t EmbreeBoxes::memory_bytes() const {
-    const std::size_t bytes = objects_.memory_bytes();
+    const std::size_t bytes = objects_.memory_bytes() + scratch_bytes();
     const std::int64_t embree = device_->bytes.load();
     return bytes + sizeof(*this) + std::size_t(std::max<std::int64_t>(0, embree));
 }
 
 nlohmann::json EmbreeBoxes::stats() const {
-    return {{"commits", commits_}, {"pad", pad_}, {"embree_bytes", device_->bytes.load()}, {"in_range", in_range_}};
+    return {{"commits", commits_},
+            {"rebuilds", rebuilds_},
+            {"pad", pad_},
+            {"embree_bytes", device_->bytes.load()},
+            {"in_range", in_range_}};
 }
 
 void EmbreeBoxes::validate() const {

@@ -8,9 +8,20 @@
 /// at exactly tfar still reach it: ties go to the smaller uid), so Embree culls what lies beyond.
 /// Any hit: rtcOccluded1, Embree's occlusion query; the occluded callback marks the ray occluded
 /// at the first exact hit, which ends the traversal. Rays Embree cannot take (zero length,
-/// non-finite, beyond its range or the padding's) go to an exact scan. `quality` and `refit` map to
-/// Embree's build qualities. Counters: N_RB = callback calls plus scan tests; N_T is not exposed
-/// (0). docs/structures.md has the exactness argument and the limits.
+/// non-finite, beyond its range or the padding's) go to an exact scan. Builds: `quality` is the
+/// scene's build quality when rebuilt every commit (low: Morton, medium: binned SAH). With `refit`
+/// the scene is RTC_SCENE_FLAG_DYNAMIC at RTC_BUILD_QUALITY_LOW (Embree's two-level builder,
+/// scene.cpp createUserGeometryAccel) and the geometry RTC_BUILD_QUALITY_REFIT: Embree builds its
+/// BVH with binned SAH once and then only refits it while the primitive count stays
+/// (bvh_refit.cpp BVHNRefitT::build: a user geometry's topology is its primitive count). On top,
+/// the rebuild-versus-refit policy: a commit rebuilds when its frame inserted or removed objects
+/// (`rebuild_on_inserts`) or every `rebuild_every` commits; the rebuild attaches a fresh geometry
+/// under the other geometry ID, which Embree's two-level builder builds anew
+/// (bvh_builder_twolevel.cpp setupLargeBuildRefBuilder: a new mesh), while the old one is
+/// detached. Counters: N_RB = callback calls plus scan tests; N_T is not exposed
+/// (0). `cast_threads` runs the timed batch on a task arena, every thread calling rtcIntersect1 /
+/// rtcOccluded1 on the one committed scene, as Embree allows. docs/structures.md has the exactness
+/// argument and the limits.
 
 #include <cstdint>
 #include <memory>
@@ -25,7 +36,13 @@
 
 namespace rcb {
 
-class EmbreeBoxes : public StructureBase<EmbreeBoxes> {
+/// An Embree query keeps its state on the calling thread's stack (rtcIntersect1 and rtcOccluded1
+/// are safe to call from many threads on a committed scene): nothing per thread to hold.
+struct EmbreeScratch {
+    std::size_t memory_bytes() const { return 0; }
+};
+
+class EmbreeBoxes : public StructureBase<EmbreeBoxes, EmbreeScratch> {
 public:
     /// Params::quality, parsed once by the constructor; the enumerators follow kQualityChoices.
     enum class Quality : std::uint8_t { low, medium };
@@ -36,17 +53,28 @@ public:
         bool refit = false;
         int threads = 1;
         bool robust = true;
+        int rebuild_every = 0;
+        bool rebuild_on_inserts = true;
+        int cast_threads = 1;
         static constexpr auto fields() {
             return std::tuple{
                 Field{"quality", &Params::quality, 0, 0,
                       "Embree build quality: low (Morton, two-level) or medium (binned SAH)", choices(kQualityChoices)},
                 Field{"refit", &Params::refit, 0, 1,
-                      "refit the BVH at commit (RTC_BUILD_QUALITY_REFIT) instead of rebuilding"},
+                      "refit the BVH at commit (RTC_SCENE_FLAG_DYNAMIC, RTC_BUILD_QUALITY_REFIT) instead of "
+                      "rebuilding"},
+                Field{"rebuild_every", &Params::rebuild_every, 0, 1024,
+                      "with refit: rebuild every this many commits that change the scene (0: only as the policy's "
+                      "other rule and Embree's own, a changed object count, decide)"},
+                Field{"rebuild_on_inserts", &Params::rebuild_on_inserts, 0, 1,
+                      "with refit: rebuild at a commit whose frame inserted or removed objects (false: refit unless "
+                      "the object count changed)"},
                 Field{"threads", &Params::threads, 1, 64, "commit (build) threads, a TBB task arena", kNotTuned},
                 Field{"robust", &Params::robust, 0, 1,
                       "pad the bounds Embree gets (false: Embree as shipped, unpadded: it may lose touching hits; "
                       "the result then promises no hit)",
-                      kNotTuned}};
+                      kNotTuned},
+                cast_threads_field<Params>()};
         }
     };
 
@@ -74,8 +102,11 @@ public:
     nlohmann::json stats() const override;
     void validate() const override;
 
+    /// StructureBase's hooks: the commit did the work; a scratch holds nothing.
+    void prepare() {}
+    void fit(EmbreeScratch&) const {}
     template <class Count, class Visit>
-    void traverse(const Segment& s, Count& count, Visit&& visit);
+    void traverse(const Segment& s, Count& count, Visit&& visit, EmbreeScratch&) const;
 
     struct Device;  // RTCDevice, RTCScene, RTCGeometry and the task arena
     /// For the bounds callback in the .cpp.
@@ -85,7 +116,7 @@ public:
 private:
     /// Runs Embree on one segment, every primitive it reaches offered to `collect`: rtcOccluded1
     /// when `occluded` (any hit), else rtcIntersect1. False when the segment needs the fallback.
-    bool embree_query(const Segment& s, ExactCollector& collect, bool occluded);
+    bool embree_query(const Segment& s, ExactCollector& collect, bool occluded) const;
 
     Params params_;
     Quality quality_;
@@ -94,12 +125,19 @@ private:
     float pad_ = 0;         // padding of the bounds given to Embree at the last commit
     float far_ = 0;         // min(kFarFactor · M, kEmbreeRange / 2) at the last commit
     bool in_range_ = true;  // kEmbreeMinScale <= M and the padded boxes within kEmbreeRange: Embree holds them
+    /// Replaces the geometry by a fresh one under the other geometry ID (the policy's rebuild).
+    void fresh_geometry();
+
     bool dirty_ = true;
+    bool topology_changed_ = true;  // inserts or removes since the last commit
     std::uint64_t commits_ = 0;
+    std::uint64_t rebuilds_ = 0;       // commits that rebuilt (every commit without refit)
+    std::uint64_t since_rebuild_ = 0;  // commits since the last rebuild
+    unsigned committed_count_ = 0;     // Embree's primitive count at the last commit
 };
 
 template <class Count, class Visit>
-void EmbreeBoxes::traverse(const Segment& s, Count& count, Visit&& visit) {
+void EmbreeBoxes::traverse(const Segment& s, Count& count, Visit&& visit, EmbreeScratch&) const {
     traverse_or_scan(s, objects_, count, visit,
                      [&](ExactCollector& collect) { return embree_query(s, collect, StopsAtFirstHit<Visit>); });
 }

@@ -93,7 +93,12 @@ void near_callback(void* data, dGeomID a, dGeomID b) {
 
 }  // namespace
 
-OdeSpace::OdeSpace(Kind kind, int depth) : kind_(kind), depth_(depth), ode_(std::make_unique<Ode>()) { ode_ready(); }
+OdeSpace::OdeSpace(Kind kind, int depth, int up, double root_margin)
+    : kind_(kind), depth_(depth), root_margin_(root_margin), ode_(std::make_unique<Ode>()) {
+    // ODE's z is the scene's `up`; its x and y the other two in order (a cyclic permutation).
+    for (int a = 0; a < 3; ++a) perm_[a] = (up + 1 + a) % 3;
+    ode_ready();
+}
 
 OdeSpace::~OdeSpace() = default;
 
@@ -109,18 +114,21 @@ void OdeSpace::build(std::span<const Object> objects) {
     }
     scale_ = std::max(scale_, std::numeric_limits<float>::min());
     if (kind_ == Kind::quadtree) {
-        // The root block: the build's x-y bounds (ODE's quadtree ignores z); later objects beyond
-        // it live in the root.
+        // The root block: the build's bounds in ODE's x-y plane (the quadtree ignores z) grown by
+        // root_margin of their size on each side; later objects beyond it live in the root.
         for (int a = 0; a < 2; ++a) {
             const bool any = !objects.empty();
-            ode_->center[a] = any ? 0.5 * (double(bounds.min[a]) + double(bounds.max[a])) : 0.0;
-            ode_->extents[a] = any ? std::max(0.5 * (double(bounds.max[a]) - double(bounds.min[a])), 1e-30) : 1.0;
+            const double size = any ? hi(bounds, a) - lo(bounds, a) : 0.0;
+            ode_->center[a] = any ? 0.5 * (lo(bounds, a) + hi(bounds, a)) : 0.0;
+            ode_->extents[a] = any ? std::max((0.5 + root_margin_) * size, 1e-30) : 1.0;
         }
         dVector3 center = {ode_->center[0], ode_->center[1], 0, 0};
         dVector3 extents = {ode_->extents[0], ode_->extents[1], 1, 0};
         ode_->space = dQuadTreeSpaceCreate(nullptr, center, extents, depth_);
-    } else {
+    } else if (kind_ == Kind::hash) {
         ode_->space = dHashSpaceCreate(nullptr);
+    } else {
+        ode_->space = dSweepAndPruneSpaceCreate(nullptr, dSAP_AXES_XZY);
     }
     ode_->ray = dCreateRay(nullptr, 1);
     objects_.reserve(objects.size());
@@ -131,16 +139,18 @@ void OdeSpace::build(std::span<const Object> objects) {
 void OdeSpace::set_geom(std::uint32_t slot) {
     const Aabb& b = objects_.box(slot);
     const double pad = this->pad();
-    const double lx = double(b.max.x) - double(b.min.x) + 2 * pad, ly = double(b.max.y) - double(b.min.y) + 2 * pad,
-                 lz = double(b.max.z) - double(b.min.z) + 2 * pad;
+    double length[3], center[3];
+    for (int a = 0; a < 3; ++a) {
+        length[a] = hi(b, a) - lo(b, a) + 2 * pad;
+        center[a] = 0.5 * (lo(b, a) + hi(b, a));
+    }
     dGeomID& geom = ode_->geoms[slot];
     if (!geom) {
-        geom = dCreateBox(ode_->space, lx, ly, lz);
+        geom = dCreateBox(ode_->space, length[0], length[1], length[2]);
     } else {
-        dGeomBoxSetLengths(geom, lx, ly, lz);
+        dGeomBoxSetLengths(geom, length[0], length[1], length[2]);
     }
-    dGeomSetPosition(geom, 0.5 * (double(b.min.x) + double(b.max.x)), 0.5 * (double(b.min.y) + double(b.max.y)),
-                     0.5 * (double(b.min.z) + double(b.max.z)));
+    dGeomSetPosition(geom, center[0], center[1], center[2]);
     dGeomSetData(geom, reinterpret_cast<void*>(std::uintptr_t(slot)));
 }
 
@@ -179,17 +189,27 @@ void OdeSpace::move(const Object& o) {
     set_geom(slot);
 }
 
+void OdeSpace::commit() {
+    if (!ode_->space) return;
+    OdeBytes bytes(ode_->bytes);  // re-filing may grow the space's lists
+    dSpaceClean(ode_->space);
+}
+
 bool OdeSpace::ode_query(const Segment& s, ExactCollector& collect) {
     if (!within_reach(s, kFarFactor * scale_)) return false;
-    const double dx = double(s.p1.x) - double(s.p0.x), dy = double(s.p1.y) - double(s.p0.y),
-                 dz = double(s.p1.z) - double(s.p0.z);
-    const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
+    double origin[3], d[3];
+    for (int a = 0; a < 3; ++a) {
+        origin[a] = double(s.p0[perm_[a]]);
+        d[a] = double(s.p1[perm_[a]]) - origin[a];
+    }
+    const double length = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
     if (!(length > 0)) return false;
-    OdeBytes bytes(ode_->bytes);  // the space's dirty geoms are re-filed here, which may allocate
-    dGeomRaySet(ode_->ray, s.p0.x, s.p0.y, s.p0.z, dx, dy, dz);
+    OdeBytes bytes(ode_->bytes);
+    dGeomRaySet(ode_->ray, origin[0], origin[1], origin[2], d[0], d[1], d[2]);
     dGeomRaySetLength(ode_->ray, length);
     dSpaceCollide2(ode_->ray, reinterpret_cast<dGeomID>(ode_->space), &collect, near_callback);
-    if (kind_ == Kind::hash) collect.add_tests(objects_.size());  // its scan of every geom's AABB (see the header)
+    // The hash and sweep-and-prune spaces scan every geom's AABB (see the header).
+    if (kind_ != Kind::quadtree) collect.add_tests(objects_.size());
     return true;
 }
 
@@ -202,6 +222,7 @@ nlohmann::json OdeSpace::stats() const {
     nlohmann::json out = {{"pad", pad()}, {"repads", repads_}, {"ode_bytes", ode_->bytes}};
     if (kind_ == Kind::quadtree) {
         out["depth"] = depth_;
+        out["up"] = std::string(1, "xyz"[perm_[2]]);
         out["root_center"] = {ode_->center[0], ode_->center[1]};
         out["root_extents"] = {ode_->extents[0], ode_->extents[1]};
     }
@@ -226,7 +247,7 @@ void OdeSpace::validate(const char* who) const {
         const Aabb& b = objects_.box(i);
         // The geom's AABB must enclose the box with the padding (the exactness argument needs it).
         for (int a = 0; a < 3; ++a)
-            if (aabb[2 * a] > double(b.min[a]) - half_pad || aabb[2 * a + 1] < double(b.max[a]) + half_pad)
+            if (aabb[2 * a] > lo(b, a) - half_pad || aabb[2 * a + 1] < hi(b, a) + half_pad)
                 broken_invariant(who,
                                  "geom of uid " + std::to_string(objects_.uid(i)) + " does not enclose its padded box");
     }

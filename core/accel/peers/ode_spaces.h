@@ -6,20 +6,32 @@
 /// rcb's exact slab test on the unpadded box, so hits, t and the touching rule equal every rcb
 /// structure's (the padding covers ODE's double-precision AABB arithmetic). What the sources do
 /// for this query:
-///   ode_quadtree  dQuadTreeSpace: a fixed quadtree over x and y (ODE's z-up plane) of `depth`
-///                 levels, its root the build's bounds; an object lives in the smallest block that
-///                 holds its AABB (the root when none does). dSpaceCollide2 prunes blocks by the
-///                 ray's AABB against the block's x–y rectangle, then tests each geom's AABB.
+///   ode_quadtree  dQuadTreeSpace: a fixed quadtree of `depth` levels over ODE's x and y, its
+///                 z the up axis (collision_quadtreespace.cpp: AXIS0 0, AXIS1 1, UP 2); the scene's
+///                 `up` axis is mapped to ODE's z by a permutation of coordinates (exact: no
+///                 arithmetic), so the quadtree divides the ground plane. Its root is the build's
+///                 bounds in that plane grown by `root_margin` of their size on each side; an object
+///                 lives in the smallest block that holds its AABB (the root when none does).
+///                 dSpaceCollide2 prunes blocks by the ray's AABB against the block's rectangle,
+///                 then tests each geom's AABB.
 ///   ode_hash      dHashSpace: its multi-resolution hash serves space-wide collide() only;
 ///                 dSpaceCollide2 with a single geom scans every geom's AABB linearly (the source
 ///                 says so: "this could take advantage of the hash structure ... but it does not
 ///                 yet").
-/// Both test against the ray's whole AABB, computed once per dSpaceCollide2 call, and the call has no
-/// exit: a closest-hit query cannot shorten the ray at a hit (the ray's ClosestHit flag is read by
+///   ode_sap       dSweepAndPruneSpace: its sorted axes serve space-wide collide() only;
+///                 dSpaceCollide2 with a single geom scans every geom's AABB linearly, as the hash
+///                 space does (collision_sapspace.cpp, dxSAPSpace::collide2: "just a simple N^2
+///                 implementation").
+/// Every space files moved geoms lazily: a move marks the geom dirty, and the space re-files its
+/// dirty geoms (recomputes their AABBs, moves them between blocks or lists) in cleanGeoms, which
+/// the next collide or collide2 calls. commit() calls it, dSpaceClean, as an ODE program's step
+/// does through dSpaceCollide before its queries, so the work lands in the update, not in the first
+/// ray. All three test against the ray's whole AABB, computed once per dSpaceCollide2 call, and
+/// the call has no exit: a closest-hit query cannot shorten the ray at a hit (the ray's ClosestHit flag is read by
 /// the trimesh collider only, collision.h), and an any-hit query only tests no geom after its
 /// first hit (exact_collector.h). Rays ODE's AABBs cannot bound exactly (zero length, non-finite,
 /// beyond kFarFactor × the scene's scale) go to an exact scan. Counters: N_RB = the exact tests of
-/// the geoms the space reports, plus for the hash space its scan of every geom's AABB (the
+/// the geoms the space reports, plus for the hash and sweep-and-prune spaces their scan of every geom's AABB (the
 /// quadtree's own AABB tests in the blocks it visits are not exposed), plus scan tests; N_T is not
 /// exposed (0), as for Embree. Memory: rcb's arrays plus the bytes ODE allocated for this instance
 /// (counted through ODE's allocation hooks while the instance runs; one instance per thread at a
@@ -27,6 +39,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <tuple>
 #include <vector>
 
@@ -40,12 +53,14 @@ namespace rcb {
 /// What both ODE peers share: the space, its geoms (slot-indexed like the table) and the query.
 class OdeSpace {
 public:
-    enum class Kind : std::uint8_t { quadtree, hash };
+    enum class Kind : std::uint8_t { quadtree, hash, sap };
 
     static constexpr float kFarFactor = 16.0f;
     static constexpr float kPadRelative = 1e-6f;
 
-    OdeSpace(Kind kind, int depth);
+    /// `up`: the scene axis mapped to ODE's z (the quadtree's up axis); `root_margin`: the
+    /// quadtree root's growth beyond the build's bounds, in their size, on each side.
+    OdeSpace(Kind kind, int depth, int up = 2, double root_margin = 0);
     ~OdeSpace();
     OdeSpace(const OdeSpace&) = delete;
     OdeSpace& operator=(const OdeSpace&) = delete;
@@ -54,6 +69,7 @@ public:
     void insert(const Object& object);
     void remove(Uid uid);
     void move(const Object& object);
+    void commit();  ///< dSpaceClean: the dirty geoms re-filed now
     std::size_t size() const { return objects_.size(); }
     std::size_t memory_bytes() const;
     nlohmann::json stats() const;
@@ -72,9 +88,14 @@ private:
     void set_geom(std::uint32_t slot);  ///< the slot's geom to its padded box
     void cover(const Aabb& box);        ///< grows the scale (re-pads every geom) when `box` lies beyond it
     float pad() const { return kPadRelative * scale_; }
+    /// The box's bounds on ODE's axis `a` (the scene's axis perm_[a]).
+    double lo(const Aabb& b, int a) const { return double(b.min[perm_[a]]); }
+    double hi(const Aabb& b, int a) const { return double(b.max[perm_[a]]); }
 
     Kind kind_;
     int depth_;
+    int perm_[3] = {0, 1, 2};  ///< ODE's axis a is the scene's axis perm_[a]
+    double root_margin_;
     std::unique_ptr<Ode> ode_;
     SlotBoxes objects_;
     float scale_ = 0;
@@ -89,6 +110,7 @@ public:
     void insert(const Object& object) override { space_.insert(object); }
     void remove(Uid uid) override { space_.remove(uid); }
     void move(const Object& object) override { space_.move(object); }
+    void commit() override { space_.commit(); }
     std::size_t size() const override { return space_.size(); }
     std::size_t memory_bytes() const override { return space_.memory_bytes() + sizeof(Derived) - sizeof(OdeSpace); }
     nlohmann::json stats() const override { return space_.stats(); }
@@ -100,7 +122,8 @@ public:
     }
 
 protected:
-    OdePeer(OdeSpace::Kind kind, int depth, const char* name) : space_(kind, depth), name_(name) {}
+    OdePeer(OdeSpace::Kind kind, int depth, const char* name, int up = 2, double root_margin = 0)
+        : space_(kind, depth, up, root_margin), name_(name) {}
 
 private:
     OdeSpace space_;
@@ -110,19 +133,34 @@ private:
 /// ODE's quadtree space (see above).
 class OdeQuadTree : public OdePeer<OdeQuadTree> {
 public:
+    /// Params::up's choices, in the order of the scene's axis they name.
+    static constexpr const char* kUpChoices = "x,y,z";
+    enum class Up : std::uint8_t { x, y, z };
     struct Params {
         int depth = 6;
+        std::string up = "y";
+        double root_margin = 0.5;
         static constexpr auto fields() {
-            return std::tuple{Field{"depth", &Params::depth, 1, 9,
-                                    "levels of dQuadTreeSpace's block tree below its root (4^depth leaf blocks over "
-                                    "the build's x-y bounds)"}};
+            return std::tuple{
+                Field{"depth", &Params::depth, 1, 9,
+                      "levels of dQuadTreeSpace's block tree below its root (4^depth leaf blocks over the root)"},
+                Field{"up", &Params::up, 0, 0,
+                      "the scene's up axis, mapped to ODE's z so that the quadtree divides the other two (rcbench's "
+                      "physics scenes are y-up; Quake maps z-up)",
+                      choices(kUpChoices)},
+                Field{"root_margin", &Params::root_margin, 0, 4,
+                      "the root block extends the build's bounds by this share of their size on each side (objects "
+                      "beyond it live in the root block)"}};
         }
     };
     OdeQuadTree() : OdeQuadTree(Params{}) {}
-    explicit OdeQuadTree(const Params& p) : OdePeer(OdeSpace::Kind::quadtree, p.depth, "ode_quadtree") {}
+    explicit OdeQuadTree(const Params& p)
+        : OdePeer(OdeSpace::Kind::quadtree, p.depth, "ode_quadtree",
+                  int(parse_choice<Up>(kUpChoices, p.up, "ode_quadtree up")), p.root_margin) {}
 };
 
-/// ODE's hash space (see above: its segment query is a linear scan of the geoms' AABBs).
+/// ODE's hash space (see above: its segment query is a linear scan of the geoms' AABBs; its
+/// levels, dHashSpaceSetLevels, serve collide() only).
 class OdeHash : public OdePeer<OdeHash> {
 public:
     struct Params {
@@ -130,6 +168,17 @@ public:
     };
     OdeHash() : OdeHash(Params{}) {}
     explicit OdeHash(const Params&) : OdePeer(OdeSpace::Kind::hash, 0, "ode_hash") {}
+};
+
+/// ODE's sweep-and-prune space (see above: its segment query is a linear scan of the geoms'
+/// AABBs; its axis order serves collide() only).
+class OdeSap : public OdePeer<OdeSap> {
+public:
+    struct Params {
+        static constexpr auto fields() { return std::tuple{}; }
+    };
+    OdeSap() : OdeSap(Params{}) {}
+    explicit OdeSap(const Params&) : OdePeer(OdeSpace::Kind::sap, 0, "ode_sap") {}
 };
 
 }  // namespace rcb
