@@ -237,7 +237,9 @@ TEST(ModelSelection, UnpredictedStepsAndFetchedLinesGetTheirOwnCost) {
         EXPECT_GT(eq54->heldout_error, 3 * m->heldout_error) << k.term;
         // What the term buys, as fit prints it: the held-out error without it is the larger.
         for (const TermWorth& w : term_worth(*m))
-            if (w.term == k.term) EXPECT_GT(w.without, 2 * m->heldout_error) << k.term;
+            if (w.term == k.term) {
+                EXPECT_GT(w.without, 2 * m->heldout_error) << k.term;
+            }
     }
     // Frames without the counters (brute force's and Embree's N_MP, older databases) offer no
     // such candidate.
