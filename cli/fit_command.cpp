@@ -295,8 +295,7 @@ void add_fit_command(CLI::App& app) {
             print_models(s.raycast, "ray-cast");
             if (const CandidateModel* m = s.chosen("raycast")) print_coefficients(*m, "ns per unit per ray");
             print_models(s.update, "update");
-            if (const CandidateModel* m = s.chosen("update"))
-                print_coefficients(*m, "ns per change / object / frame");
+            if (const CandidateModel* m = s.chosen("update")) print_coefficients(*m, "ns per change / object / frame");
         }
 
         std::cout << "\nThesis Table 6.3 analog (ns per ray; the C terms from each structure's chosen model):\n";
