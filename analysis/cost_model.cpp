@@ -88,53 +88,14 @@ Priors priors_of(const StructureCalibration* calibration) {
     return p;
 }
 
-/// A per-tier term's columns: one per cache tier the frames' working sets reach beyond the
-/// smallest, named the term + the tier, worth Σ w_k·(term k) in a frame whose working set has left
-/// the cache of level `tier` (and every smaller one), 0 elsewhere. None when every working set sits
-/// in one tier (the base costs already are its costs). w_k is the term's prior (the calibration's
-/// in-cache cost; the coefficient is then the extra fraction of it a test or step pays beyond the
-/// cache), 1 without one, 0 where the frames lack the term.
-std::vector<Term> tier_columns(const CostTerm& tiered, const std::vector<const FrameObservation*>& frames,
-                               const Priors& priors) {
-    std::set<int> tiers;
-    for (const FrameObservation* f : frames) tiers.insert(f->memory_tier);
-    std::vector<Term> out;
-    if (tiers.size() < 2) return out;
-    std::vector<std::pair<double, Term>> weighted;
-    for (const char* name : tiered.weighted_by) {
-        const Term t = term_of(find_term(name));
-        const auto prior = priors.value.find(name);
-        weighted.push_back({!occurs(frames, t) ? 0.0 : prior != priors.value.end() ? prior->second : 1.0, t});
-    }
-    const auto value = [weighted](const FrameObservation& f) {
-        double sum = 0;
-        for (const auto& [w, t] : weighted) sum += w * t.value(f);
-        return sum;
-    };
-    for (auto it = std::next(tiers.begin()); it != tiers.end(); ++it) {
-        const int tier = *it;
-        out.push_back({tiered.name + std::to_string(tier),
-                       [=](const FrameObservation& f) { return f.memory_tier >= tier ? value(f) : 0.0; }});
-    }
-    return out;
-}
-
-/// A column of a model: a term, restricted to one scene category when `category` is set.
-/// With `by_params`, `category` holds a configuration's parameters instead (one cost per
-/// configuration: a rebuilding and an incremental mode of one structure update differently).
+/// A column of a model: a term, restricted to one configuration when `params` is set (one cost
+/// per configuration: a rebuilding and an incremental mode of one structure update differently).
 struct Column {
     Term term;
-    std::string category;
-    bool by_params = false;
-    std::string label;  ///< with `by_params`: the parameters that differ from the defaults
-    std::string name() const {
-        return category.empty() ? term.name
-               : by_params      ? term.name + " {" + label + "}"
-                                : term.name + "[" + category + "]";
-    }
-    double value(const FrameObservation& f) const {
-        return category.empty() || category == (by_params ? f.params : f.category) ? term.value(f) : 0.0;
-    }
+    std::string params;
+    std::string label;  ///< with `params`: the parameters that differ from the defaults
+    std::string name() const { return params.empty() ? term.name : term.name + " {" + label + "}"; }
+    double value(const FrameObservation& f) const { return params.empty() || params == f.params ? term.value(f) : 0.0; }
 };
 
 /// "margin=0,mode="rebuild"" for a registered structure's parameters, "defaults" when none differ;
@@ -150,13 +111,14 @@ std::string params_label(const std::string& structure, const std::string& params
     }
 }
 
-std::vector<Column> columns_of(const std::vector<Term>& terms, const std::vector<std::string>& categories = {},
-                               bool by_params = false, const std::string& structure = "") {
+/// The terms' columns, one copy per configuration of `params` (none: one shared copy).
+std::vector<Column> columns_of(const std::vector<Term>& terms, const std::vector<std::string>& params = {},
+                               const std::string& structure = "") {
     std::vector<Column> out;
-    const std::vector<std::string> cats = categories.empty() ? std::vector<std::string>{""} : categories;
-    for (const std::string& c : cats) {
-        const std::string label = by_params ? params_label(structure, c) : "";
-        for (const Term& t : terms) out.push_back({t, c, by_params, label});
+    const std::vector<std::string> each = params.empty() ? std::vector<std::string>{""} : params;
+    for (const std::string& c : each) {
+        const std::string label = c.empty() ? "" : params_label(structure, c);
+        for (const Term& t : terms) out.push_back({t, c, label});
     }
     return out;
 }
@@ -172,7 +134,7 @@ std::vector<double> row_of(const FrameObservation& f, const std::vector<Column>&
 }
 
 /// The problem of `columns` over `frames`; `rows` receives the index of each row's frame. Priors
-/// (calibration values by term name) apply to every category's copy of a term.
+/// (calibration values by term name) apply to every configuration's copy of a term.
 LinearProblem build_problem(const std::vector<const FrameObservation*>& frames, const std::vector<Column>& columns,
                             const std::string& target, const std::map<std::string, double>& priors,
                             std::vector<std::size_t>* rows = nullptr) {
@@ -182,73 +144,40 @@ LinearProblem build_problem(const std::vector<const FrameObservation*>& frames, 
         const auto it = priors.find(c.term.name);
         p.prior.push_back(it == priors.end() ? NAN : it->second);
     }
+    std::map<std::string, int> family_of_scene, family_index;  // the k-fold's unit (linear_fit.h)
     for (std::size_t i = 0; i < frames.size(); ++i) {
         const double y = target_of(*frames[i], target);
         if (!(y > 0)) continue;  // a zero time (timer resolution) carries no relative information
         p.x.push_back(row_of(*frames[i], columns));
         p.y.push_back(y);
         p.group.push_back(frames[i]->config_group);
+        auto [it, fresh] = family_of_scene.try_emplace(frames[i]->scene, 0);
+        if (fresh)
+            it->second = family_index.emplace(scene_family(frames[i]->scene), int(family_index.size())).first->second;
+        p.family.push_back(it->second);
         if (rows) rows->push_back(i);
     }
     return p;
 }
 
-/// Whether the scenes mix the kinds of change in proportions that tell `ops` (two or more
-/// operation terms) apart, with any one scene left out. Per scene, each kind's share of its
-/// changes; without each scene in turn, the other scenes' shares (a row each, columns scaled to
-/// unit norm) must have a condition number below kMixConditionLimit. Where only one scene mixes
-/// the kinds otherwise, or only the rounding of a scene's counts does (5 inserts of 51 changes
-/// where the others insert exactly 10%), the kinds' prices rest on that scene: a fit may put an
-/// insert's cost on the removes, and a scene of a third mix meets it at its full error. Forms that
-/// price every change alike (per-change, per-write) serve there instead.
-bool operations_told_apart(const std::vector<const FrameObservation*>& frames, const std::vector<Term>& ops) {
-    std::map<std::string, std::vector<double>> shares;  // per scene, each kind's changes, then share
-    for (const FrameObservation* f : frames) {
-        std::vector<double>& sum = shares[f->scene];
-        sum.resize(ops.size());
-        for (std::size_t j = 0; j < ops.size(); ++j) sum[j] += ops[j].value(*f);
-    }
-    std::vector<std::vector<double>> rows;
-    for (auto& [scene, sum] : shares)
-        if (const double total = std::accumulate(sum.begin(), sum.end(), 0.0); total > 0) {
-            for (double& v : sum) v /= total;
-            rows.push_back(sum);
-        }
-    for (std::size_t skip = 0; skip < rows.size(); ++skip) {
-        std::vector<std::vector<double>> others = rows;
-        others.erase(others.begin() + std::ptrdiff_t(skip));
-        if (!(condition_number(others) < kMixConditionLimit)) return false;
-    }
-    return !rows.empty();
-}
-
 /// The columns of `form` over `frames` (its target's), or none where the form does not apply: a
-/// required term that never occurs, a per-tier term without a tier beyond the smallest, a split
-/// into fewer than two groups, operation terms the scenes' mixes do not tell apart. A term that is
-/// 0 in every frame is left out unless the table keeps it.
+/// required term that never occurs, a split into fewer than two configurations. A term that is 0
+/// in every frame is left out unless the table keeps it.
 std::optional<std::vector<Column>> form_columns(const ModelForm& form,
                                                 const std::vector<const FrameObservation*>& frames,
-                                                const Priors& priors, const std::string& structure) {
+                                                const std::string& structure) {
     for (const char* name : form.required)
         if (!occurs(frames, term_of(find_term(name)))) return std::nullopt;
-    std::vector<Term> terms, ops;
-    for (const char* name : form.terms) {
-        const CostTerm& t = find_term(name);
-        if (t.per_tier) {
-            const std::vector<Term> tiers = tier_columns(t, frames, priors);
-            if (tiers.empty()) return std::nullopt;
-            terms.insert(terms.end(), tiers.begin(), tiers.end());
-        } else if (Term term = term_of(t); t.when_absent == WhenAbsent::keep || occurs(frames, term)) {
-            if (t.operation) ops.push_back(term);
+    std::vector<Term> terms;
+    for (const char* name : form.terms)
+        if (Term term = term_of(find_term(name));
+            find_term(name).when_absent == WhenAbsent::keep || occurs(frames, term))
             terms.push_back(std::move(term));
-        }
-    }
-    if (ops.size() >= 2 && !operations_told_apart(frames, ops)) return std::nullopt;
     if (form.split == Split::none) return columns_of(terms);
-    std::set<std::string> groups;
-    for (const FrameObservation* f : frames) groups.insert(form.split == Split::by_params ? f->params : f->category);
-    if (groups.size() < 2) return std::nullopt;
-    return columns_of(terms, {groups.begin(), groups.end()}, form.split == Split::by_params, structure);
+    std::set<std::string> params;
+    for (const FrameObservation* f : frames) params.insert(f->params);
+    if (params.size() < 2) return std::nullopt;
+    return columns_of(terms, {params.begin(), params.end()}, structure);
 }
 
 /// The table's terms of `target` that never occur in `frames` and that it names when absent.
@@ -414,22 +343,23 @@ StructureCalibration fit_calibration(const std::string& structure, const std::ve
 }
 
 std::vector<SceneSplit> scene_splits(const std::vector<const FrameObservation*>& frames) {
-    // Each frame's scene as an index, compared once per frame (frames of a cell come together, and
-    // names may be long).
+    // Each frame's family as an index, worked out once per scene (frames of a cell come together,
+    // and names may be long).
     std::vector<SceneSplit> out;
-    std::map<std::string, std::size_t> index;
-    std::vector<std::size_t> scene_of(frames.size());
+    std::map<std::string, std::size_t> index, of_scene;
+    std::vector<std::size_t> family_of(frames.size());
     for (std::size_t i = 0; i < frames.size(); ++i) {
-        if (i > 0 && frames[i]->scene == frames[i - 1]->scene) {
-            scene_of[i] = scene_of[i - 1];
-            continue;
+        auto [known, fresh] = of_scene.try_emplace(frames[i]->scene, 0);
+        if (fresh) {
+            const std::string family = scene_family(frames[i]->scene);
+            const auto [it, added] = index.emplace(family, out.size());
+            if (added) out.push_back({family, {}, {}});
+            known->second = it->second;
         }
-        const auto [it, added] = index.emplace(frames[i]->scene, out.size());
-        if (added) out.push_back({frames[i]->scene, {}, {}});
-        scene_of[i] = it->second;
+        family_of[i] = known->second;
     }
     for (std::size_t s = 0; s < out.size(); ++s)
-        for (std::size_t i = 0; i < frames.size(); ++i) (scene_of[i] == s ? out[s].test : out[s].train).push_back(i);
+        for (std::size_t i = 0; i < frames.size(); ++i) (family_of[i] == s ? out[s].test : out[s].train).push_back(i);
     return out;
 }
 
@@ -515,7 +445,7 @@ std::vector<Built> fit_forms(Target target, const std::vector<const FrameObserva
     std::vector<Built> out;
     for (const ModelForm& form : model_forms()) {
         if (form.target != target) continue;
-        if (std::optional<std::vector<Column>> columns = form_columns(form, frames, priors, structure))
+        if (std::optional<std::vector<Column>> columns = form_columns(form, frames, structure))
             out.push_back(candidate(form.name, target_name(target), frames, std::move(*columns), priors));
     }
     return out;
@@ -576,7 +506,7 @@ SceneError predict_scene(const SceneSplit& split, const std::vector<const FrameO
 }
 
 /// A chosen model frozen: its columns and fitted coefficients as a function of a frame; NaN for a
-/// frame of a category (or configuration) that a split form has no column for.
+/// frame of a configuration that a per-configuration form has no column for.
 std::function<double(const FrameObservation&)> frozen(const Built& b) {
     std::vector<double> beta;
     for (const Coefficient& c : b.model.fit.coefficients) beta.push_back(c.value);
@@ -584,12 +514,9 @@ std::function<double(const FrameObservation&)> frozen(const Built& b) {
         double y = 0;
         bool split = false, covered = false;
         for (std::size_t j = 0; j < columns.size(); ++j) {
-            const Column& c = columns[j];
-            if (!c.category.empty()) {
-                split = true;
-                covered = covered || c.category == (c.by_params ? f.params : f.category);
-            }
-            y += beta[j] * c.value(f);
+            split = split || !columns[j].params.empty();
+            covered = covered || columns[j].params == f.params;
+            y += beta[j] * columns[j].value(f);
         }
         return !split || covered ? y : NAN;
     };
@@ -691,6 +618,14 @@ std::string outside_trained_range(const StructureModels& m, const std::vector<co
     return out;
 }
 
+std::vector<TermWorth> term_worth(const CandidateModel& m) {
+    std::vector<TermWorth> out;
+    for (std::size_t j = 0; j < m.problem.terms.size(); ++j)
+        out.push_back({m.problem.terms[j],
+                       m.problem.terms.size() > 1 ? cross_validated_error(m.problem.without(j)) : double(NAN)});
+    return out;
+}
+
 std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>& frames, const ModelInputs& inputs) {
     std::map<std::string, std::vector<const FrameObservation*>> by_structure;
     for (const FrameObservation& f : frames) by_structure[f.structure].push_back(&f);
@@ -759,7 +694,7 @@ std::vector<const CostTerm*> breakdown_terms() {
 bool counts_box_tests(const CostTerm& t) { return t.counters.size() == 1 && std::string(t.counters[0]) == "N_RB"; }
 
 /// One (scene, configuration)'s row: the measured cost, the counts' means and, from the structure's
-/// chosen ray-cast model (its per-category copies: the scene's category), each term's share.
+/// chosen ray-cast model, each term's share.
 CostBreakdown breakdown_row(const std::vector<const FrameObservation*>& fs,
                             const std::vector<StructureModels>& models) {
     CostBreakdown b;

@@ -8,14 +8,12 @@
 ///
 /// Observations are the frames of a run (not warm-up): the timed batch's time over its rays
 /// against the counting pass's mean counters. Nested candidate models are compared by held-out
-/// error (k-fold over configurations) and the smallest within the tolerance of the best is kept:
+/// error (k-fold over scene families) and the smallest within the tolerance of the best is kept:
 /// model no more than the data needs. The ray-cast coefficients are drawn towards the calibration
 /// pass's values (runner/calibration.h) and kept within 3× of them; a term without a calibration
 /// value that the run's data put at 0 is dropped and the model says why. Where a structure ran
-/// shape tests (N_RO > 0 in some frame) the with-shapes candidate adds C_RO·N_RO (eq. 5.3), chosen
-/// like any other only when the held-out error needs it. The memory-hierarchy
-/// candidate adds per-test and per-step costs for a working set beyond each cache level. Every
-/// structure is also validated leaving one scene out.
+/// shape tests (N_RO > 0 in some frame) every form carries C_RO·N_RO (eq. 5.3). Every structure is
+/// also validated leaving one scene family out.
 ///
 /// The terms, their counters and the candidate forms are one table (analysis/model_terms.h): the
 /// fit, the breakdown, the stored coefficients and the tuner read it.
@@ -63,23 +61,23 @@ struct StructureCalibration {
 StructureCalibration fit_calibration(const std::string& structure, const std::vector<CalibrationPoint>& all);
 
 /// What the fit knows about the run beyond its frames: the calibration per structure (may be empty:
-/// then no priors) and the machine's caches (may be empty: then no memory-hierarchy model).
+/// then no priors) and the machine's caches (may be empty).
 struct ModelInputs {
     std::vector<StructureCalibration> calibrations;
     std::vector<CacheLevel> caches;
 };
 
-/// Leave-one-scene-out: for each scene, the frames of the fit (every other scene's) and the frames
-/// predicted (the scene's own), as indices into `frames`.
+/// Leave one scene family out (scene_family, model_terms.h): for each family, the frames of the fit
+/// (every other family's) and the frames predicted (the family's own), as indices into `frames`.
 struct SceneSplit {
-    std::string scene;
+    std::string scene;  ///< the family left out
     std::vector<std::size_t> train, test;
 };
 std::vector<SceneSplit> scene_splits(const std::vector<const FrameObservation*>& frames);
 
-/// One scene predicted from a fit on every other scene: mean over its configurations of the
+/// One scene family predicted from a fit on every other family: mean over its cells of the
 /// relative error of the median predicted time per frame (update + rays × C) against the median
-/// measured; NaN when no other scene measured the structure.
+/// measured; NaN when no other family measured the structure. `scene` names the family.
 struct SceneError {
     std::string scene;
     double frame_error = NAN, raycast_error = NAN;
@@ -94,7 +92,7 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run,
                                                 OverRepetitions how = OverRepetitions::fastest_cast);
 
 struct CandidateModel {
-    std::string name;    ///< e.g. "eq5.4", "no-prep", "with-shapes", "per-category", "with-memory"
+    std::string name;    ///< a form of model_forms(): "eq5.4", "with-coherence", …
     std::string target;  ///< "raycast" or "update"
     LinearProblem problem;
     LinearFit fit;
@@ -117,23 +115,20 @@ struct StructureModels {
     std::string structure;
     std::vector<std::string> unused_terms;  ///< terms that are always 0 for this structure (e.g. N_T of bf)
     std::vector<CandidateModel> raycast, update;
-    std::vector<SceneError> loso;  ///< leave-one-scene-out, with the chosen models' terms
-    double loso_error = NAN;       ///< mean frame_error over the scenes that could be predicted
+    /// Leave one family out, refitting only the chosen models' coefficients (the left-out family
+    /// helped choose the form: optimistic; analysis/validation.h redoes the whole selection).
+    std::vector<SceneError> loso;
+    double loso_error = NAN;  ///< mean frame_error over the families that could be predicted
     double loso_raycast_error = NAN;
     const StructureCalibration* calibration = nullptr;  ///< into the ModelInputs given, if any
     std::vector<TrainedRange> trained;                  ///< the ranges of the frames fitted
     /// The chosen models frozen, form and coefficients as fitted here: ns per ray and ns of update of
-    /// any frame (another scene's, another run's) from its counters; NaN where a per-category or
-    /// per-configuration form has no column for the frame's category or configuration. Empty
+    /// any frame (another scene's, another run's) from its counters; NaN where a
+    /// per-configuration form has no column for the frame's configuration. Empty
     /// unless both targets have a chosen model (analysis/validation.h).
     std::function<double(const FrameObservation&)> predict_ray, predict_update;
     const CandidateModel* chosen(const std::string& target) const;
 };
-
-/// A form prices the kinds of change apart only where, with any one scene left out, the scenes'
-/// shares of each kind have a condition number below this (cost_model.cpp). Three different mixes
-/// give under 10; what the rounding of one scene's counts separates gives hundreds.
-inline constexpr double kMixConditionLimit = 100;
 
 /// The counters of a cell (its frames) beyond `m.trained` by more than kRangeMargin, as
 /// "changes per frame 10000 (fitted on 20.0–448)", joined by "; "; "" within.
@@ -143,7 +138,16 @@ std::string outside_trained_range(const StructureModels& m, const std::vector<co
 inline constexpr double kSelectionTolerance = 0.05;
 inline constexpr double kSelectionFloor = 0.005;
 
-/// `inputs` (kept alive by the caller while the result is used) gives priors and cache tiers.
+/// What a term of a model buys: the model's held-out error (cross_validated_error, k-fold over scene
+/// families) refitted without the term, beside `m.heldout_error` with it. One per term, in the
+/// model's order; NaN where the model without it cannot be validated (a single term, too few families).
+struct TermWorth {
+    std::string term;
+    double without = NAN;
+};
+std::vector<TermWorth> term_worth(const CandidateModel& m);
+
+/// `inputs` (kept alive by the caller while the result is used) gives the priors.
 std::vector<StructureModels> fit_cost_models(const std::vector<FrameObservation>& frames,
                                              const ModelInputs& inputs = {});
 /// The run's stored calibration and caches (empty for runs made before they were stored).

@@ -98,7 +98,16 @@ LinearProblem LinearProblem::subset(const std::vector<std::size_t>& rows) const 
         out.x.push_back(x[i]);
         out.y.push_back(y[i]);
         out.group.push_back(group[i]);
+        if (!family.empty()) out.family.push_back(family[i]);
     }
+    return out;
+}
+
+LinearProblem LinearProblem::without(std::size_t column) const {
+    LinearProblem out = *this;
+    out.terms.erase(out.terms.begin() + std::ptrdiff_t(column));
+    if (column < out.prior.size()) out.prior.erase(out.prior.begin() + std::ptrdiff_t(column));
+    for (std::vector<double>& row : out.x) row.erase(row.begin() + std::ptrdiff_t(column));
     return out;
 }
 
@@ -299,19 +308,29 @@ double condition_number(const std::vector<std::vector<double>>& rows) {
     return column_scaled_condition(std::move(a));
 }
 
-double cross_validated_error(const LinearProblem& p, int k) {
-    std::vector<int> groups(p.group.begin(), p.group.end());
-    std::sort(groups.begin(), groups.end());
-    groups.erase(std::unique(groups.begin(), groups.end()), groups.end());
-    const int folds = std::min<int>(k, int(groups.size()));
-    if (folds < 2) return NAN;
+std::vector<int> fold_of_rows(const LinearProblem& p, int k) {
+    const std::vector<int>& unit = p.family.empty() ? p.group : p.family;
+    std::vector<int> families(unit.begin(), unit.end());
+    std::sort(families.begin(), families.end());
+    families.erase(std::unique(families.begin(), families.end()), families.end());
+    const int folds = std::min<int>(k, int(families.size()));
+    std::vector<int> out(unit.size(), -1);
+    if (folds < 2) return out;
     std::map<int, int> fold_of;
-    for (std::size_t i = 0; i < groups.size(); ++i) fold_of[groups[i]] = int(i % std::size_t(folds));
+    for (std::size_t i = 0; i < families.size(); ++i) fold_of[families[i]] = int(i % std::size_t(folds));
+    for (std::size_t i = 0; i < unit.size(); ++i) out[i] = fold_of[unit[i]];
+    return out;
+}
+
+double cross_validated_error(const LinearProblem& p, int k) {
+    const std::vector<int> fold = fold_of_rows(p, k);
+    const int folds = fold.empty() ? 0 : *std::max_element(fold.begin(), fold.end()) + 1;
+    if (folds < 2) return NAN;
     double error = 0;
     std::size_t count = 0;
     for (int f = 0; f < folds; ++f) {
         std::vector<std::size_t> test, rows;
-        for (std::size_t i = 0; i < p.y.size(); ++i) (fold_of[p.group[i]] == f ? test : rows).push_back(i);
+        for (std::size_t i = 0; i < p.y.size(); ++i) (fold[i] == f ? test : rows).push_back(i);
         const LinearFit fit = fit_linear(p.subset(rows));
         // Per held-out configuration: its median frame, measured against predicted. Medians keep
         // a few frames disturbed by other processes from standing in for the model's error.

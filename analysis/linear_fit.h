@@ -24,13 +24,18 @@ struct LinearProblem {
     std::vector<std::string> terms;      ///< one name per column
     std::vector<std::vector<double>> x;  ///< rows of the design matrix
     std::vector<double> y;               ///< observations, > 0
-    std::vector<int> group;              ///< the configuration each row came from (for k-fold)
-    std::vector<double> prior;           ///< per term: calibration value (> 0), or NaN; empty: none
-    double prior_sigma = 0.5;            ///< relative uncertainty of a prior
+    std::vector<int> group;              ///< the configuration each row came from (its error's unit)
+    /// The scene family each row came from (scene_family, model_terms.h): the k-fold's unit, so a
+    /// family's twins are always held out together. Empty: each configuration is its own family.
+    std::vector<int> family;
+    std::vector<double> prior;  ///< per term: calibration value (> 0), or NaN; empty: none
+    double prior_sigma = 0.5;   ///< relative uncertainty of a prior
 
     bool has_prior(std::size_t j) const { return j < prior.size() && prior[j] > 0; }
     /// The rows at `rows`, with the same terms and priors.
     LinearProblem subset(const std::vector<std::size_t>& rows) const;
+    /// The same rows without column `column` (its term and prior).
+    LinearProblem without(std::size_t column) const;
 };
 
 /// A prior bounds its coefficient to [μ/kPriorRange, kPriorRange·μ].
@@ -70,12 +75,16 @@ LinearFit fit_linear(const LinearProblem& p, double huber_delta = 0.1);
 /// is built for the baseline in this file only: see analysis/CMakeLists.txt.)
 double condition_number(const std::vector<std::vector<double>>& rows);
 
-/// Held-out error by k-fold over configurations (groups, not frames of one configuration): for
-/// each configuration left out of the fit, the relative error of its predicted median frame against
+/// Held-out error by k-fold over scene families (never over cells or frames: a configuration's
+/// twin cell in a sibling scene would otherwise be in the fit that predicts it): for each
+/// configuration of a held-out family, the relative error of its predicted median frame against
 /// its measured median frame; the mean over configurations. (Medians, because on a shared machine
 /// a few frames disturbed by other processes would otherwise stand in for the model's error.)
-/// k is capped by the number of groups; groups are dealt to folds in a fixed order, so the result
-/// is deterministic.
+/// k is capped by the number of families, so with k or fewer it is leave-one-family-out; NaN with
+/// fewer than two. Families are dealt to folds in a fixed order, so the result is deterministic.
 double cross_validated_error(const LinearProblem& p, int k = 5);
+/// The fold of each row in cross_validated_error: families (configurations where the problem has
+/// none) dealt to min(k, families) folds in ascending order; every row -1 with fewer than two.
+std::vector<int> fold_of_rows(const LinearProblem& p, int k = 5);
 
 }  // namespace rcb

@@ -6,8 +6,8 @@
 /// database column).
 ///
 /// The thesis' model (§5.1, eq. 5.4) per ray: C = C_RB·(N_TP + N_FP) + C_T·N_T + C_PREP; rcbench
-/// adds the narrow phase's C_RO·N_RO (eq. 5.3), hits, node hits, unpredicted steps, memory and
-/// the cache tiers (docs/model.md). Updates per frame: per operation, per change, per object.
+/// adds the narrow phase's C_RO·N_RO (eq. 5.3), unpredicted steps and lines fetched; C_HIT is a
+/// term of the calibration only (docs/model.md). Updates per frame: per change, per object.
 
 #include <cstdint>
 #include <string>
@@ -45,6 +45,18 @@ struct FrameObservation {
 
     double frame_ns() const { return update_ns + raycast_ns; }
 };
+
+/// The family of a scene: the scenes that share its objects and differ only in how rays are cast
+/// at them or how they are represented. A held-out test leaves a family out whole, in the outer
+/// and the inner loop alike (analysis/validation.h, linear_fit.h): a twin left in the training set
+/// would let a model be judged on a scene it has in effect seen. From the scene's name, split at
+/// '-': a map's "-brushes" or "-triangles" suffix is dropped (one map, two representations), every
+/// segment that names a ray mode ("center", "dense", …) is dropped ("irregular-center-2000" and
+/// "irregular-2000", "irreg-l-dense" and "irreg-l": one generator, other rays), and so is a
+/// seed's "-s<N>" (another draw of the same generator's settings). Object counts stay: the
+/// 2000- and 40000-object scenes of one generator are two families. A name that is all ray modes
+/// is its own family.
+std::string scene_family(const std::string& scene);
 
 /// How a stored or simulated count becomes a FrameObservation field.
 enum class CounterScale {
@@ -93,7 +105,7 @@ enum class BreakdownShow {
 
 struct CostTerm {
     /// The coefficient's name: its fit column, its fit_coefficient.name, its JSON key in a tuning's
-    /// cost_model. A per-tier term's columns append the tier: "slow>L2".
+    /// cost_model.
     const char* name = "";
     Target target = Target::raycast;
     /// The counters it multiplies, summed (frame_counters() symbols); none: a constant 1.
@@ -102,11 +114,6 @@ struct CostTerm {
     WhenAbsent when_absent = WhenAbsent::drop;
     /// The calibration pass measures it: its pinned value is the fit's prior (linear_fit.h).
     bool prior = false;
-    /// One column per cache tier beyond the smallest the frames reach (docs/model.md); its value is
-    /// Σ w_k·(term k) over `weighted_by`, w_k the term's prior (1 without one, 0 where the
-    /// structure lacks the term). `counters` is then empty.
-    bool per_tier = false;
-    std::vector<const char*> weighted_by = {};
     /// A tuning's cost_model carries it (the tuner's predict_cost and advise apply it).
     bool in_tuning = false;
     /// In a tuning's JSON, absent reads as 0: tunings written before the term existed lack it.
@@ -114,25 +121,20 @@ struct CostTerm {
     /// A cost of the traversal's steps and tests: a tuner's fit that prices none of these prices
     /// no ray work and ranks nothing (fit_coefficients, tuner/tuning.h).
     bool traversal = false;
-    /// The cost of one kind of change (insert, remove, move): priced apart from the other kinds
-    /// only where the scenes mix the kinds in proportions that tell them apart (cost_model.cpp).
-    bool operation = false;
     BreakdownShow breakdown = BreakdownShow::none;
 };
 /// Every term, ray-cast ones first; find_term throws std::logic_error for an unknown name.
 const std::vector<CostTerm>& cost_terms();
 const CostTerm& find_term(std::string_view name);
 const FrameCounter& find_counter(std::string_view symbol);
-/// The term's value in a frame (not for per-tier terms): its counters' sum, or 1 for a constant.
+/// The term's value in a frame: its counters' sum, or 1 for a constant.
 double term_value(const CostTerm& term, const FrameObservation& f);
 
 /// A candidate model as data: its terms in column order. A form is fitted only where each of
-/// `required` occurs in some frame, each per-tier term has a tier beyond the smallest, a split
-/// has at least two groups, and its operation terms are told apart by the scenes' mixes.
+/// `required` occurs in some frame and a split has at least two groups.
 enum class Split {
     none,
-    by_category,  ///< each scene category its own copy of every term ("C_RB[uniform]")
-    by_params,    ///< each configuration its own copy ("c_object {mode=\"rebuild\"}")
+    by_params,  ///< each configuration its own copy ("c_object {mode=\"rebuild\"}")
 };
 struct ModelForm {
     const char* name;

@@ -93,17 +93,29 @@ CellPrediction predict_cell(const std::vector<const FrameObservation*>& fs, cons
     return c;
 }
 
+/// One measured quantity of a cell, its prediction and its error.
+struct Measure {
+    double CellPrediction::*measured;
+    double CellPrediction::*predicted;
+    double CellPrediction::*error;
+};
+
 /// Median and p90 of one error over the cells, with the bootstrap over scenes: each resample
-/// draws as many scenes as there are, with replacement, and pools their cells.
-ErrorSummary summarize_error(const std::vector<const CellPrediction*>& cells, double CellPrediction::*error,
+/// draws as many scenes as there are, with replacement, and pools their cells. A cell measured
+/// but not priced (its structure had no model, or the model no column for it) is a miss, an
+/// infinite error: it counts in the median and p90 as a cell beyond any bound, not left out. A
+/// cell without the quantity (no rays) does not count.
+ErrorSummary summarize_error(const std::vector<const CellPrediction*>& cells, Measure m,
                              const BootstrapOptions& options, std::uint64_t stream) {
     std::map<std::string, std::vector<double>> by_scene;
     std::vector<double> all;
-    for (const CellPrediction* c : cells)
-        if (std::isfinite(c->*error)) {
-            by_scene[c->scene].push_back(c->*error);
-            all.push_back(c->*error);
-        }
+    for (const CellPrediction* c : cells) {
+        const bool miss = c->*m.measured > 0 && !std::isfinite(c->*m.predicted);
+        const double e = miss ? INFINITY : c->*m.error;
+        if (std::isnan(e)) continue;
+        by_scene[c->scene].push_back(e);
+        all.push_back(e);
+    }
     ErrorSummary out;
     out.median = quantile(all, 0.5);
     out.p90 = quantile(all, 0.9);
@@ -128,17 +140,25 @@ ErrorSummary summarize_error(const std::vector<const CellPrediction*>& cells, do
 
 nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
+/// A summary's figure: its value, "miss" where it falls on the misses, null where there is none.
+nlohmann::json error_number(double v) { return std::isinf(v) ? nlohmann::json("miss") : number(v); }
+
 nlohmann::json error_json(const ErrorSummary& e) {
-    return {{"median", number(e.median)},
-            {"median_ci95", {number(e.median_low), number(e.median_high)}},
-            {"p90", number(e.p90)},
-            {"p90_ci95", {number(e.p90_low), number(e.p90_high)}}};
+    return {{"median", error_number(e.median)},
+            {"median_ci95", {error_number(e.median_low), error_number(e.median_high)}},
+            {"p90", error_number(e.p90)},
+            {"p90_ci95", {error_number(e.p90_low), error_number(e.p90_high)}}};
 }
 
 }  // namespace
 
-std::vector<ValidationSplit> scene_out_splits(const std::vector<FrameObservation>& frames) {
-    return leave_each_out(frames, kSceneOutGroup, [](const FrameObservation& f) { return f.scene; });
+std::vector<ValidationSplit> family_out_splits(const std::vector<FrameObservation>& frames) {
+    std::map<std::string, std::string> family;  // per scene, worked out once
+    return leave_each_out(frames, kFamilyOutGroup, [&](const FrameObservation& f) {
+        auto [it, fresh] = family.try_emplace(f.scene);
+        if (fresh) it->second = scene_family(f.scene);
+        return it->second;
+    });
 }
 
 std::vector<ValidationSplit> generator_out_splits(const std::vector<FrameObservation>& frames) {
@@ -150,9 +170,12 @@ std::vector<ValidationSplit> largest_out_splits(const std::vector<FrameObservati
     for (const FrameObservation& f : frames) objects[f.scene] = std::max(objects[f.scene], f.objects);
     double most = 0;
     for (const auto& [scene, n] : objects) most = std::max(most, n);
-    std::set<std::string> largest;
+    // The largest scenes' families leave together: a map's brushes and triangles differ in count.
+    std::set<std::string> largest, families;
     for (const auto& [scene, n] : objects)
-        if (n == most) largest.insert(scene);
+        if (n == most) families.insert(scene_family(scene));
+    for (const auto& [scene, n] : objects)
+        if (families.count(scene_family(scene))) largest.insert(scene);
     if (largest.size() == objects.size()) return {};
     ValidationSplit s{"leave-the-largest-out", "", {}, {}};
     for (const std::string& scene : largest) s.name += (s.name.empty() ? "" : "+") + scene;
@@ -178,7 +201,7 @@ std::vector<ValidationSplit> ray_mode_splits(const std::vector<FrameObservation>
 
 std::vector<ValidationSplit> nested_splits(const std::vector<FrameObservation>& frames) {
     std::vector<ValidationSplit> out;
-    for (const auto& make : {scene_out_splits, generator_out_splits, largest_out_splits, ray_mode_splits}) {
+    for (const auto& make : {family_out_splits, generator_out_splits, largest_out_splits, ray_mode_splits}) {
         std::vector<ValidationSplit> more = make(frames);
         out.insert(out.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
     }
@@ -210,7 +233,8 @@ std::vector<CellPrediction> run_split(const std::vector<FrameObservation>& frame
     return predict_cells(fit_cost_models(train, inputs), test, split.name);
 }
 
-std::vector<StructureValidation> summarize(const std::vector<CellPrediction>& cells, const BootstrapOptions& options) {
+std::vector<StructureValidation> summarize(const std::vector<CellPrediction>& cells, const BootstrapOptions& options,
+                                           bool frames_priced) {
     std::map<std::string, std::vector<const CellPrediction*>> by_structure;
     for (const CellPrediction& c : cells) by_structure[c.structure].push_back(&c);
     std::vector<StructureValidation> out;
@@ -230,8 +254,18 @@ std::vector<StructureValidation> summarize(const std::vector<CellPrediction>& ce
             ++v.update_models[c->update_model];
         }
         v.scenes = scenes.size();
-        v.frame = summarize_error(cs, &CellPrediction::frame_error, options, stream++);
-        v.raycast = summarize_error(cs, &CellPrediction::raycast_error, options, stream++);
+        for (const CellPrediction* c : cs)
+            v.misses += !c->predictable() ||
+                        (frames_priced && c->frame_ns > 0 && !std::isfinite(c->predicted_frame_ns)) ||
+                        (c->raycast_ns > 0 && !std::isfinite(c->predicted_raycast_ns));
+        if (frames_priced)
+            v.frame = summarize_error(
+                cs, {&CellPrediction::frame_ns, &CellPrediction::predicted_frame_ns, &CellPrediction::frame_error},
+                options, stream);
+        ++stream;
+        v.raycast = summarize_error(
+            cs, {&CellPrediction::raycast_ns, &CellPrediction::predicted_raycast_ns, &CellPrediction::raycast_error},
+            options, stream++);
         out.push_back(std::move(v));
     }
     return out;
@@ -317,7 +351,7 @@ ValidationGroup validate_calibration_only(const std::vector<FrameObservation>& f
         c.raycast_error = relative_error(c.predicted_raycast_ns, c.raycast_ns);
         g.cells.push_back(std::move(c));
     }
-    g.structures = summarize(g.cells, options);
+    g.structures = summarize(g.cells, options, false);
     return g;
 }
 
@@ -367,6 +401,7 @@ nlohmann::json validation_json(const ValidationGroup& group, bool with_cells) {
         j["structures"].push_back({{"structure", s.structure},
                                    {"cells", s.cells},
                                    {"unpredictable_cells", s.unpredictable},
+                                   {"miss_cells", s.misses},
                                    {"outside_range_cells", s.outside},
                                    {"scenes", s.scenes},
                                    {"frame_error", error_json(s.frame)},

@@ -3,18 +3,20 @@
 /// predicts frames it never saw, with nothing about them used to choose or fit it.
 ///
 /// Nested splits: a split is data, a name and the frames to fit and to predict. In each split the
-/// whole selection of analysis/cost_model.h (candidate form, dropped terms, cache tiers, category
+/// whole selection of analysis/cost_model.h (candidate form, dropped terms, configuration
 /// columns, coefficients) runs on the train frames only, and the test frames are priced by the
-/// model so chosen: leave one scene out, leave one generator (scene category) out, leave the
-/// largest scenes out, and ray-mode transfer. The leave-one-scene-out of `fit_cost_models` refits
-/// only the coefficients of a model chosen on all scenes: the held-out scene helped choose it.
+/// model so chosen: leave one scene family out, leave one generator (scene category) out, leave
+/// the largest scenes out, and ray-mode transfer. Inside each split the selection's own k-fold
+/// holds families out too (linear_fit.h). The leave-one-family-out of `fit_cost_models` refits
+/// only the coefficients of a model chosen on all families: the held-out family helped choose it.
 ///
 /// Transfer: a model chosen and fitted on one run (all its scenes) prices every cell of another
 /// run from that run's counters.
 ///
 /// Errors are per (scene × configuration) cell: |median predicted − median measured| / measured,
 /// of the time per frame and of the ray-cast time per frame, summarised per structure by their
-/// median and 90th percentile with bootstrap 95% intervals over scenes.
+/// median and 90th percentile with bootstrap 95% intervals over scenes. A cell the model cannot
+/// price is a miss: an infinite error in the median and p90, and its share is reported.
 
 #include <cmath>
 #include <cstdint>
@@ -38,19 +40,23 @@ struct ValidationSplit {
     std::vector<std::size_t> train, test;
 };
 
-/// Each scene left out in turn.
-std::vector<ValidationSplit> scene_out_splits(const std::vector<FrameObservation>& frames);
+/// Each scene family (scene_family, model_terms.h: a map's brushes and triangles, a generator's
+/// ray-mode variants) left out in turn; none with one family.
+std::vector<ValidationSplit> family_out_splits(const std::vector<FrameObservation>& frames);
 /// Each scene category (generator kind, "import", "recording") left out in turn; none with one category.
 std::vector<ValidationSplit> generator_out_splits(const std::vector<FrameObservation>& frames);
-/// The scenes of the most objects predicted from the others; none when every scene has as many.
+/// The scenes of the most objects, with their families, predicted from the others; none when
+/// every scene is among them.
 std::vector<ValidationSplit> largest_out_splits(const std::vector<FrameObservation>& frames);
 /// Per ray mode: fitted on it, the other modes predicted, and back (with two modes, the two
-/// directions); none with one mode.
+/// directions); none with one mode. This split keeps a family's other ray modes in the fit on
+/// purpose: it asks whether a model moves to other rays on known objects, not to new scenes
+/// (leave-one-family-out asks that).
 std::vector<ValidationSplit> ray_mode_splits(const std::vector<FrameObservation>& frames);
 /// All of the above, in that order.
 std::vector<ValidationSplit> nested_splits(const std::vector<FrameObservation>& frames);
 
-inline constexpr const char* kSceneOutGroup = "leave-one-scene-out";
+inline constexpr const char* kFamilyOutGroup = "leave-one-family-out";
 inline constexpr const char* kTransferGroup = "transfer";
 
 /// One (scene, configuration) cell predicted: medians over its frames (repetitions pooled).
@@ -92,14 +98,20 @@ struct ErrorSummary {
 struct StructureValidation {
     std::string structure;
     std::size_t cells = 0, unpredictable = 0, scenes = 0;
+    /// Cells counted as misses: the unpredictable ones and those measured in a quantity (frame,
+    /// ray cast) their model did not price. Their share is misses / cells.
+    std::size_t misses = 0;
     std::size_t outside = 0;  ///< predictable cells priced beyond the range their model was fitted on
     ErrorSummary frame, raycast;
     /// How many splits chose each form ("eq5.4" → 5).
     std::map<std::string, int> raycast_models, update_models;
 };
 
-/// Per structure over `cells` (one group's), in structure order.
-std::vector<StructureValidation> summarize(const std::vector<CellPrediction>& cells, const BootstrapOptions& options);
+/// Per structure over `cells` (one group's), in structure order. A cell measured but not priced
+/// counts as a miss (an infinite error) in the median and p90. `frames_priced` false: the method
+/// prices the ray cast only (calibration alone), the frame error is NaN and no frame a miss.
+std::vector<StructureValidation> summarize(const std::vector<CellPrediction>& cells, const BootstrapOptions& options,
+                                           bool frames_priced = true);
 
 /// One group's cells and their summaries.
 struct ValidationGroup {

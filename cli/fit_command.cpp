@@ -55,6 +55,16 @@ void print_coefficients(const CandidateModel& m, const char* unit) {
         std::cout << '\n';
     }
     for (const std::string& d : m.dropped) std::cout << "    dropped " << d << '\n';
+    // What each term buys: the held-out error (k-fold over scene families) refitted without it.
+    std::cout << "    held-out error " << percent(m.heldout_error) << " with every term; without";
+    for (const TermWorth& w : term_worth(m)) {
+        std::cout << ' ' << w.term << ' ' << percent(w.without);
+        if (std::isfinite(w.without) && std::isfinite(m.heldout_error))
+            std::cout << " (" << (w.without >= m.heldout_error ? "+" : "")
+                      << fixed(100 * (w.without - m.heldout_error), 1) << " points)";
+        std::cout << ';';
+    }
+    std::cout << '\n';
 }
 
 /// The calibration pass's coefficients (micro-scenes, runner/calibration.h) and whether they are pinned.
@@ -90,17 +100,19 @@ void print_scene_table(const std::vector<StructureModels>& models, const std::ve
     l.print(std::cout);
 }
 
-/// Nested leave-one-scene-out (analysis/validation.h), the headline: each scene predicted by a
-/// model whose whole selection ran without it; stored with the run (model_validation). Then the
-/// refit-only figure of fit_cost_models, labelled as such.
+/// Nested leave-one-family-out (analysis/validation.h), the headline: each scene family predicted
+/// by a model whose whole selection ran without it; stored with the run (model_validation). Then
+/// the refit-only figure of fit_cost_models, labelled as such.
 void print_nested_loso(Database& db, std::int64_t run, OverRepetitions how, const ModelInputs& inputs,
                        const std::vector<StructureModels>& models) {
     const std::vector<FrameObservation> frames = load_observations(db, run, how);
     const BootstrapOptions no_bootstrap{0, 0};
-    const std::vector<ValidationGroup> groups = validate_nested(frames, inputs, scene_out_splits(frames), no_bootstrap);
-    std::cout << "\nNested leave-one-scene-out (the headline): for each scene the whole model selection (candidate "
-                 "form, dropped terms, cache tiers, category columns) is redone on the other scenes' frames and the "
-                 "scene predicted by the model so chosen. Absolute relative error per (scene x configuration) cell "
+    const std::vector<ValidationGroup> groups =
+        validate_nested(frames, inputs, family_out_splits(frames), no_bootstrap);
+    std::cout << "\nNested leave-one-family-out (the headline): for each scene family the whole model selection "
+                 "(candidate form, dropped terms) is redone on the other families' frames, its inner k-fold over "
+                 "families too, and the family predicted by the model so chosen; a cell it cannot price is a miss. "
+                 "Absolute relative error per (scene x configuration) cell "
                  "of the median time per frame (update + rays x C) and of the median ray-cast time per frame; "
                  "median and p90 over cells; outside range: cells whose changes per frame, objects, N_RB or N_T per "
                  "ray lie beyond twice (or below half) the range the model was fitted on (rcbench validate: bootstrap "
@@ -111,22 +123,24 @@ void print_nested_loso(Database& db, std::int64_t run, OverRepetitions how, cons
         per_scene = scene_frame_errors(groups.front().cells);
         validation_table(groups.front(), "").print(std::cout);
     } else {
-        std::cout << "(one scene: none to leave out)\n";
+        std::cout << "(one scene family: none to leave out)\n";
     }
-    std::vector<std::string> scenes;
+    std::vector<std::string> scenes, families;
+    for (const FrameObservation& f : frames)
+        if (std::find(scenes.begin(), scenes.end(), f.scene) == scenes.end()) scenes.push_back(f.scene);
     for (const StructureModels& s : models)
         for (const SceneError& x : s.loso)
-            if (std::find(scenes.begin(), scenes.end(), x.scene) == scenes.end()) scenes.push_back(x.scene);
-    std::cout << "\nNested leave-one-scene-out error per scene (time per frame, mean over the scene's "
+            if (std::find(families.begin(), families.end(), x.scene) == families.end()) families.push_back(x.scene);
+    std::cout << "\nNested leave-one-family-out error per scene (time per frame, mean over the scene's "
                  "configurations; '-': not predictable):\n";
     print_scene_table(models, scenes, [&](const StructureModels& s, const std::string& scene) {
         const auto it = per_scene.find({s.structure, scene});
         return it == per_scene.end() ? std::string("-") : percent(it->second);
     });
-    std::cout << "\nLeave-one-scene-out error per scene, refit only (time per frame; the model chosen on all "
-                 "scenes, only its coefficients refitted without the scene: optimistic, the scene helped choose "
-                 "the model; '-': no other scene measured the structure):\n";
-    print_scene_table(models, scenes, [](const StructureModels& s, const std::string& scene) {
+    std::cout << "\nLeave-one-family-out error per family, refit only (time per frame; the model chosen on all "
+                 "families, only its coefficients refitted without the family: optimistic, the family helped choose "
+                 "the model; '-': no other family measured the structure):\n";
+    print_scene_table(models, families, [](const StructureModels& s, const std::string& scene) {
         std::string cell = "";
         for (const SceneError& x : s.loso)
             if (x.scene == scene) cell = percent(x.frame_error);
@@ -210,8 +224,11 @@ void print_fit_heading(std::int64_t run, std::size_t frames, OverRepetitions how
                                                       "repetitions"
                                                     : "each frame of a cell once, at its fastest ray cast and median "
                                                       "update over the cell's repetitions")
-              << "). Ray-cast cost per ray in ns; held-out error is the mean absolute relative error on configurations "
-                 "left out of the fit (5-fold). A model is chosen when its held-out error is within max(0.5 points, "
+              << "). Ray-cast cost per ray in ns; held-out error is the mean absolute relative error on the "
+                 "configurations of scene families left out of the fit (5-fold over families, leave-one-family-out "
+                 "with fewer; a map's brushes and triangles, a generator's ray-mode variants are one family). Under "
+                 "each chosen model, the held-out error without each of its terms. A model is chosen when its held-out "
+                 "error is within max(0.5 points, "
                  "5%) of the best: the smallest such.\n";
 }
 
@@ -229,7 +246,8 @@ void add_fit_command(CLI::App& app) {
         "Fit the cost model C = C_RB*N_RB + C_T*N_T + C_PREP (thesis eq. 5.4) and update costs per structure to a "
         "run's "
         "frames; choose the smallest adequate model by held-out error; store the coefficients in the database; "
-        "validate it leaving one scene out, the whole selection redone without the scene (stored too). A run with "
+        "validate it leaving one scene family out, the whole selection redone without the family (stored too); "
+        "show what each kept term buys in held-out error. A run with "
         "query kinds (closest, any) adds a table per structure and kind: batches, measured and predicted time per "
         "query, error");
     cmd->add_option("db", o->db, "Results database")->required()->check(input_file());
@@ -277,8 +295,7 @@ void add_fit_command(CLI::App& app) {
             print_models(s.raycast, "ray-cast");
             if (const CandidateModel* m = s.chosen("raycast")) print_coefficients(*m, "ns per unit per ray");
             print_models(s.update, "update");
-            if (const CandidateModel* m = s.chosen("update"))
-                print_coefficients(*m, "ns per operation / object / frame");
+            if (const CandidateModel* m = s.chosen("update")) print_coefficients(*m, "ns per change / object / frame");
         }
 
         std::cout << "\nThesis Table 6.3 analog (ns per ray; the C terms from each structure's chosen model):\n";
@@ -295,8 +312,9 @@ void add_fit_command(CLI::App& app) {
         t.print(std::cout);
 
         std::cout << "\nPer structure: the chosen ray-cast model and its terms; held-out error over configurations "
-                     "(ray cast, 5-fold); leave-one-scene-out error, refit only (each scene predicted by the model "
-                     "chosen on all scenes, its coefficients refitted on the others: time per frame = update + rays x "
+                     "(ray cast, 5-fold over scene families); leave-one-family-out error, refit only (each family "
+                     "predicted by the model chosen on all families, its coefficients refitted on the others: time per "
+                     "frame = update + rays x "
                      "C, and the ray-cast part alone; optimistic, the nested figures below are the headline); beside "
                      "them the noise, how far two measurements of a cell differ in time per frame and in ray-cast time "
                      "per frame, (max - min) / median, median and 90th percentile over the cells (\"-\": no cell was "
@@ -305,7 +323,7 @@ void add_fit_command(CLI::App& app) {
                      "structures, <= 15% for the peers.\n";
         const NoiseFloor noise =
             noise_column(store.db(), run, other.get(), other_run, repeat ? repeat->path : "", o->repetitions);
-        TextTable e({"structure", "model", "terms", "held-out (configs)", "LOSO refit frame", "LOSO refit ray cast",
+        TextTable e({"structure", "model", "terms", "held-out (families)", "LOFO refit frame", "LOFO refit ray cast",
                      repeat ? "between runs frame" : "noise frame", repeat ? "between runs ray cast" : "noise ray cast",
                      "slow cells", "status"});
         for (const StructureModels& s : models)

@@ -9,6 +9,7 @@
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "cli/run_ref.h"
+#include "analysis/noise.h"
 #include "analysis/query_kinds.h"
 #include "analysis/validation.h"
 #include "core/base/error.h"
@@ -47,8 +48,12 @@ void print_header(const BootstrapOptions& b) {
                  "rays x C) and of the median ray-cast time per frame; median and p90 over cells per structure, "
                  "in brackets the bootstrap 95% interval over scenes ("
               << b.resamples << " resamples, seed " << b.seed
-              << "). Unpredictable: cells of a category or configuration the chosen per-category or "
-                 "per-configuration form never saw. Outside range: predicted cells whose changes per frame, objects, "
+              << "). Misses: cells measured but not priced (a structure without a model in the split, or a "
+                 "model without a column for the cell); each counts as an error beyond any bound in the median and "
+                 "p90 (\"miss\" where a quantile falls on them), and their share of the cells is given. Scenes are "
+                 "held out by family (a map's brushes and triangles, a generator's ray-mode variants: docs/model.md), "
+                 "in the outer splits and in each split's own model selection. Outside range: predicted cells whose "
+                 "changes per frame, objects, "
                  "N_RB or N_T per ray lie beyond twice (or below half) the range of the cells the model was fitted "
                  "on: priced by extrapolation (--json names the counters).\n";
 }
@@ -142,7 +147,7 @@ void print_frozen_kinds(const FrozenKinds& k) {
 }
 
 struct ValidateOptions {
-    std::string train, test;
+    std::string train, test, repeat;
     bool json = false;
     BootstrapOptions bootstrap;
     OverRepetitions repetitions = OverRepetitions::fastest_cast;
@@ -155,10 +160,29 @@ struct ValidateOutcome {
     std::int64_t predicted_run = 0, train_run = 0;
     std::optional<KindValidation> kinds;  // nested splits only
     std::optional<FrozenKinds> frozen;    // --test only
+    std::vector<StructureNoise> spread;   // --repeat only: between the predicted run and the repeat
 };
 
+/// The run --repeat names: opened and found before anything is computed or stored.
+struct RepeatRun {
+    std::unique_ptr<Database> db;
+    std::int64_t run = 0;
+    std::string name;  ///< "B.db:2"
+};
+
+/// The predicted run's spread against the repeat, per structure (analysis/noise.h): each run's
+/// figure of a cell read as the validation reads it.
+std::vector<StructureNoise> spread_against(Database& db, std::int64_t run, const RepeatRun* repeat,
+                                           OverRepetitions how) {
+    if (!repeat) return {};
+    note_cache_difference(run_cache(db, run), db.path() + ":" + std::to_string(run),
+                          run_cache(*repeat->db, repeat->run), repeat->name, std::cerr);
+    return between_runs(db, run, *repeat->db, repeat->run, how);
+}
+
 /// Without --test: the train run's nested splits, stored with it.
-ValidateOutcome validate_nested_run(const RunRef& train_ref, const BootstrapOptions& bootstrap, OverRepetitions how) {
+ValidateOutcome validate_nested_run(const RunRef& train_ref, const BootstrapOptions& bootstrap, OverRepetitions how,
+                                    const RepeatRun* repeat) {
     ValidateOutcome out;
     ResultStore store = naming(train_ref, [&] { return ResultStore(train_ref.path); });  // stored with the run
     const LoadedRun train = load_run(store.db(), train_ref, how);
@@ -169,6 +193,7 @@ ValidateOutcome validate_nested_run(const RunRef& train_ref, const BootstrapOpti
         store_validation(store.db(), train.run, "nested", train.uuid, g, bootstrap);
     out.kinds = validate_kinds(store, train, bootstrap);
     out.groups.insert(out.groups.end() - 1, out.kinds->groups.begin(), out.kinds->groups.end());
+    out.spread = spread_against(store.db(), train.run, repeat, how);
     return out;
 }
 
@@ -176,7 +201,7 @@ ValidateOutcome validate_nested_run(const RunRef& train_ref, const BootstrapOpti
 /// query kinds' batches; stored in the test database. The per-kind groups are printed apart
 /// (print_frozen_kinds) and join the JSON groups before calibration-only.
 ValidateOutcome validate_test_run(const RunRef& train_ref, const RunRef& test_ref, const BootstrapOptions& bootstrap,
-                                  OverRepetitions how) {
+                                  OverRepetitions how, const RepeatRun* repeat) {
     ValidateOutcome out;
     LoadedRun train;
     std::string train_cache;
@@ -203,6 +228,7 @@ ValidateOutcome validate_test_run(const RunRef& train_ref, const RunRef& test_re
     // The test run's own calibration (its machine's micro-scenes), no frames fitted.
     out.groups.push_back(validate_calibration_only(test.frames, test.inputs, bootstrap));
     store_validation(store.db(), test.run, "calibration", test.uuid, out.groups.back(), bootstrap);
+    out.spread = spread_against(store.db(), test.run, repeat, how);
     return out;
 }
 
@@ -220,6 +246,16 @@ void print_json(const ValidateOptions& o, const ValidateOutcome& r) {
             for (const ValidationGroup& k : r.frozen->groups) j["groups"].push_back(validation_json(k, true));
         j["groups"].push_back(validation_json(g, true));
     }
+    if (!o.repeat.empty()) {
+        j["repeat"] = o.repeat;
+        j["between_runs"] = nlohmann::json::array();
+        for (const StructureNoise& n : r.spread)
+            j["between_runs"].push_back(
+                {{"structure", n.structure},
+                 {"cells", n.cells},
+                 {"frame_median", std::isfinite(n.frame) ? nlohmann::json(n.frame) : nullptr},
+                 {"frame_p90", std::isfinite(n.frame_p90) ? nlohmann::json(n.frame_p90) : nullptr}});
+    }
     if (r.kinds) j["query_kinds"] = kinds_json(*r.kinds);
     if (r.frozen) j["query_kinds"] = frozen_kinds_json(*r.frozen);
     std::cout << j.dump(2) << '\n';
@@ -234,6 +270,15 @@ void print_text(const ValidateOptions& o, const ValidateOutcome& r) {
     print_header(o.bootstrap);
     if (r.groups.empty()) std::cout << "no split applies: the run has one scene\n";
     for (const ValidationGroup& g : r.groups) print_group(g);
+    if (!o.repeat.empty() && !r.groups.empty()) {
+        std::cout << "\n"
+                  << r.groups.front().name << " beside the spread between run " << r.predicted_run << " and the repeat "
+                  << o.repeat
+                  << ": the frame error (above) and how far the two runs measure the same cell, (max - min) / median "
+                     "of the two runs' time per frame, median and p90 over the cells both hold; ratio: error over "
+                     "spread (at most 1: the model is as close as a rerun)\n";
+        spread_table(r.groups.front(), r.spread, "  ").print(std::cout);
+    }
     if (r.kinds) print_kinds(*r.kinds);
     if (r.frozen) print_frozen_kinds(*r.frozen);
     if (!r.unpredictable.empty()) {
@@ -254,7 +299,8 @@ void add_validate_command(CLI::App& app) {
         "the test database (table model_validation); a test run with query kinds adds one group per kind (kind:all, "
         "kind:closest, kind:any: the frozen model pricing that kind's batches from their own counters, ray-cast error "
         "only), a test run without says they are absent. Without --test: the train run's nested splits (leave one "
-        "scene out, one scene category out, the largest scenes out, ray-mode transfer), each split's whole model "
+        "scene family out, one scene category out, the largest scenes out, ray-mode transfer), each split's whole "
+        "model "
         "selection redone on its train frames only; stored in the train database. A run with query kinds (closest, "
         "any) adds kind transfer (a model fitted on the all-hits batches predicting the closest and any batches, and "
         "back) and the run's model priced on each kind's counters; a run without says the group is absent. Per "
@@ -267,6 +313,11 @@ void add_validate_command(CLI::App& app) {
                     "DB[:RUN]: the run the model is chosen and fitted on (default: its newest run with cells)")
         ->required();
     cmd->add_option("--test", o->test, "DB[:RUN]: the run predicted (default: its newest run with cells)");
+    cmd->add_option("--repeat", o->repeat,
+                    "DB[:RUN]: another run of the same experiment on the same machine and day; the first group's "
+                    "held-out frame error is printed beside the spread between it and the predicted run (the train "
+                    "run, or the test run with --test) over the cells both hold")
+        ->check(non_empty());
     cmd->add_flag("--json", o->json, "Print JSON (summaries and every cell's prediction) instead of tables");
     cmd->add_option("--resamples", o->bootstrap.resamples, "Bootstrap resamples over scenes")
         ->check(whole_number(1, 1000000))
@@ -277,9 +328,18 @@ void add_validate_command(CLI::App& app) {
     add_repetitions_option(cmd, o->repetitions);
     cmd->callback([o] {
         const RunRef train_ref = parse_run_ref("--train", o->train);
-        const ValidateOutcome r = o->test.empty() ? validate_nested_run(train_ref, o->bootstrap, o->repetitions)
+        std::optional<RepeatRun> repeat;
+        if (!o->repeat.empty()) {
+            const RunRef ref = parse_run_ref("--repeat", o->repeat);
+            repeat.emplace();
+            repeat->db = naming(ref, [&] { return open_read_only(ref.path); });
+            repeat->run = resolve_ref(*repeat->db, ref);
+            repeat->name = ref.path + ":" + std::to_string(repeat->run);
+        }
+        const RepeatRun* r_ptr = repeat ? &*repeat : nullptr;
+        const ValidateOutcome r = o->test.empty() ? validate_nested_run(train_ref, o->bootstrap, o->repetitions, r_ptr)
                                                   : validate_test_run(train_ref, parse_run_ref("--test", o->test),
-                                                                      o->bootstrap, o->repetitions);
+                                                                      o->bootstrap, o->repetitions, r_ptr);
         if (o->json)
             print_json(*o, r);
         else

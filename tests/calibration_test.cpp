@@ -261,8 +261,7 @@ TEST(Calibration, TheRunsFitUsesItAndStoresLeaveOneSceneOut) {
     for (const CandidateModel& candidate : m.raycast)
         for (const Coefficient& c : candidate.fit.coefficients) {
             if (!std::isfinite(c.prior)) continue;
-            // A per-category form's columns ("C_RB[irregular]") take their term's prior.
-            const CalibratedTerm* t = m.calibration->term(c.name.substr(0, c.name.find('[')));
+            const CalibratedTerm* t = m.calibration->term(c.name);
             ASSERT_NE(t, nullptr) << candidate.name << " " << c.name;
             EXPECT_TRUE(t->pinned) << candidate.name << " " << c.name;
             EXPECT_DOUBLE_EQ(c.prior, t->value) << candidate.name << " " << c.name;

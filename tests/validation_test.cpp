@@ -8,6 +8,8 @@
 #include <cmath>
 #include <fstream>
 #include <iterator>
+#include <set>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -65,35 +67,35 @@ const ValidationSplit& split_named(const std::vector<ValidationSplit>& splits, c
     return *it;
 }
 
-TEST(NestedValidation, AHeldOutSceneCannotChooseItsOwnModel) {
-    // Five scenes priced without a per-ray constant, large enough that a constant would hardly show;
-    // scene "x" of few tests per ray with a 500 ns constant: with it, eq. 5.4's C_PREP wins.
+TEST(NestedValidation, OneFamilyCannotChooseAFormForItself) {
+    // Every scene counts unpredicted steps (N_MP), but only in the family of "x" (x and its
+    // centre-ray twin) do they cost anything (20 ns each). The inner k-fold holds the twins out
+    // together, so no fold learns C_MP from one twin and is scored on the other: the family alone
+    // cannot make with-coherence win, and eq. 5.4 is kept.
     Random rng(11);
     std::vector<FrameObservation> frames;
     int group = 0;
-    for (int s = 0; s < 5; ++s)
+    for (const std::string scene : {"scene0", "scene1", "scene2", "scene3", "scene4", "x", "x-center"})
         for (int c = 0; c < 4; ++c, ++group)
-            add_cell(frames, "tree", "scene" + std::to_string(s), group, rng.log_uniform(2000, 20000),
-                     rng.log_uniform(2000, 20000), 0.0, 0.01, rng);
-    for (int c = 0; c < 4; ++c, ++group)
-        add_cell(frames, "tree", "x", group, rng.log_uniform(5, 20), rng.log_uniform(5, 20), 500.0, 0.01, rng);
-
+            add_cell(frames, "tree", scene, group, rng.log_uniform(100, 2000), rng.log_uniform(100, 2000), kPrep, 0.01,
+                     rng);
+    for (FrameObservation& f : frames) {
+        f.n_mp = (0.2 + 0.1 * (f.config_group % 4)) * f.n_t;
+        if (f.scene[0] == 'x') f.raycast_ns += f.rays * 20.0 * f.n_mp;
+    }
     const std::vector<StructureModels> all = fit_cost_models(frames);
     ASSERT_NE(all.at(0).chosen("raycast"), nullptr);
-    EXPECT_EQ(all.at(0).chosen("raycast")->name, "eq5.4");  // chosen with x among the scenes
+    EXPECT_EQ(all.at(0).chosen("raycast")->name, "eq5.4");
 
-    const std::vector<ValidationSplit> splits = scene_out_splits(frames);
+    const std::vector<ValidationSplit> splits = family_out_splits(frames);
     ASSERT_EQ(splits.size(), 6u);
     const std::vector<CellPrediction> x = run_split(frames, split_named(splits, "x"), {});
-    ASSERT_EQ(x.size(), 4u);
+    ASSERT_EQ(x.size(), 8u);  // both twins held out
     for (const CellPrediction& c : x) {
-        EXPECT_EQ(c.scene, "x");
-        EXPECT_EQ(c.raycast_model, "no-prep");  // chosen without x: x did not pick its own model
-        EXPECT_GT(c.raycast_error, 0.5);        // and the constant it needs is missing
-    }
-    // Another scene's fold still has x to choose from.
-    for (const CellPrediction& c : run_split(frames, split_named(splits, "scene0"), {}))
+        EXPECT_EQ(c.scene[0], 'x');
         EXPECT_EQ(c.raycast_model, "eq5.4");
+        EXPECT_GT(c.raycast_error, 0.3);  // the cost it needs is missing
+    }
 }
 
 TEST(NestedValidation, SplitsAreDataAndNeverLeakTheTestFrames) {
@@ -111,7 +113,7 @@ TEST(NestedValidation, SplitsAreDataAndNeverLeakTheTestFrames) {
         EXPECT_FALSE(s.test.empty()) << s.name;
         for (std::size_t i : s.test) EXPECT_EQ(std::count(s.train.begin(), s.train.end(), i), 0) << s.name;
     }
-    EXPECT_EQ(groups[kSceneOutGroup], 4);
+    EXPECT_EQ(groups[kFamilyOutGroup], 4);
     EXPECT_EQ(groups["leave-one-generator-out"], 2);
     EXPECT_EQ(groups["leave-the-largest-out"], 1);
     EXPECT_EQ(groups["ray modes center -> dense"], 1);
@@ -149,8 +151,9 @@ TEST(TransferValidation, AFrozenModelPredictsAnotherRunWithinItsNoise) {
     EXPECT_LT(tree.raycast.p90, 0.04);
     EXPECT_LE(tree.raycast.median_low, tree.raycast.median);
     EXPECT_GE(tree.raycast.median_high, tree.raycast.median);
-    EXPECT_EQ(unknown.unpredictable, 2u);  // listed, never priced
-    EXPECT_TRUE(std::isnan(unknown.frame.median));
+    EXPECT_EQ(unknown.unpredictable, 2u);  // listed, never priced: misses
+    EXPECT_EQ(unknown.misses, 2u);
+    EXPECT_TRUE(std::isinf(unknown.frame.median));
 }
 
 TEST(CalibrationOnly, PricesTheRayCastFromTheCalibrationAloneAndNeverTheUpdate) {
@@ -228,10 +231,127 @@ TEST(Bootstrap, QuantilesInterpolateAndTheSeedRepeats) {
     EXPECT_EQ(one.frame.p90_high, two.frame.p90_high);
 }
 
+TEST(SceneFamily, TwinsShareAFamilyAndOtherScenesDoNot) {
+    EXPECT_EQ(scene_family("oa_dm4-brushes"), "oa_dm4");
+    EXPECT_EQ(scene_family("oa_dm4-triangles"), "oa_dm4");
+    EXPECT_EQ(scene_family("irregular-center-2000"), "irregular-2000");
+    EXPECT_EQ(scene_family("irregular-2000"), "irregular-2000");
+    EXPECT_EQ(scene_family("irreg-l-dense"), "irreg-l");
+    EXPECT_EQ(scene_family("uniform-center"), "uniform");
+    EXPECT_EQ(scene_family("irregular-2000-s3"), "irregular-2000");
+    EXPECT_EQ(scene_family("uni-l"), "uni-l");
+    EXPECT_EQ(scene_family("center"), "center");  // all ray modes: its own family
+    EXPECT_NE(scene_family("irregular-40000"), scene_family("irregular-2000"));
+    EXPECT_NE(scene_family("oa_dm1-brushes"), scene_family("oa_dm4-brushes"));
+}
+
+/// Frames of twins and loners: a map's brushes and triangles, a generator's ray-mode variants, a
+/// scene of its own; each scene 3 configurations.
+std::vector<FrameObservation> twin_run() {
+    Random rng(17);
+    std::vector<FrameObservation> frames;
+    int group = 0;
+    for (const char* scene :
+         {"m-brushes", "m-triangles", "gen-2000", "gen-center-2000", "other", "gen-40000", "q-brushes", "q-triangles"})
+        for (int c = 0; c < 3; ++c, ++group)
+            add_cell(frames, "tree", scene, group, rng.log_uniform(50, 2000), rng.log_uniform(50, 2000), kPrep, 0.02,
+                     rng);
+    return frames;
+}
+
+TEST(NestedValidation, ATwinIsNeverInTheFitThatPredictsItsTwinInEitherLoop) {
+    const std::vector<FrameObservation> frames = twin_run();
+    const std::vector<std::pair<std::string, std::string>> twins{
+        {"m-brushes", "m-triangles"}, {"gen-2000", "gen-center-2000"}, {"q-brushes", "q-triangles"}};
+    // Outer: every split holds both twins out or neither.
+    std::vector<ValidationSplit> splits = family_out_splits(frames);
+    EXPECT_EQ(splits.size(), 5u);  // m, gen-2000, other, gen-40000, q
+    for (const ValidationSplit& s : nested_splits(frames)) {
+        if (s.group.rfind("ray modes", 0) == 0) continue;  // transfers rays on known objects, by design
+        std::set<std::string> test;
+        for (std::size_t i : s.test) test.insert(frames[i].scene);
+        for (const auto& [a, b] : twins) EXPECT_EQ(test.count(a), test.count(b)) << s.name << ": " << a;
+    }
+    // Inner: every candidate's k-fold puts the twins' rows in one fold, in each outer split's fit
+    // as in the fit on everything.
+    const auto check_inner = [&](const std::vector<const FrameObservation*>& fitted) {
+        for (const StructureModels& m : fit_cost_models([&] {
+                 std::vector<FrameObservation> v;
+                 for (const FrameObservation* f : fitted) v.push_back(*f);
+                 return v;
+             }()))
+            for (const auto* list : {&m.raycast, &m.update})
+                for (const CandidateModel& c : *list) {
+                    const std::vector<int> fold = fold_of_rows(c.problem);
+                    ASSERT_EQ(fold.size(), fitted.size()) << c.name;  // a row per frame, in order
+                    std::map<std::string, std::set<int>> folds_of;
+                    for (std::size_t i = 0; i < fold.size(); ++i) folds_of[fitted[i]->scene].insert(fold[i]);
+                    for (const auto& [a, b] : twins) {
+                        if (!folds_of.count(a) || !folds_of.count(b)) continue;
+                        EXPECT_EQ(folds_of[a].size(), 1u) << c.name;
+                        EXPECT_EQ(folds_of[a], folds_of[b]) << c.name << ": " << a << " and " << b;
+                    }
+                }
+    };
+    std::vector<const FrameObservation*> all;
+    for (const FrameObservation& f : frames) all.push_back(&f);
+    check_inner(all);
+    for (const ValidationSplit& s : splits) {
+        std::vector<const FrameObservation*> train;
+        for (std::size_t i : s.train) train.push_back(&frames[i]);
+        check_inner(train);
+    }
+}
+
+TEST(NestedValidation, TheInnerFoldsDealFamiliesNotCells) {
+    // Six configurations in three families: with k = 5 there are three folds, one per family.
+    LinearProblem p;
+    p.terms = {"a"};
+    for (int row = 0; row < 12; ++row) {
+        p.x.push_back({1.0 + row});
+        p.y.push_back(2.0 + 2 * row);
+        p.group.push_back(row / 2);
+        p.family.push_back(row / 4);
+    }
+    const std::vector<int> fold = fold_of_rows(p);
+    for (int row = 0; row < 12; ++row) EXPECT_EQ(fold[std::size_t(row)], row / 4) << row;
+    p.family.assign(12, 7);  // one family: nothing to hold out
+    EXPECT_TRUE(std::isnan(cross_validated_error(p)));
+    p.family.clear();  // without families, each configuration is its own
+    EXPECT_NEAR(cross_validated_error(p), 0.0, 1e-6);
+}
+
+TEST(ValidationSummary, AnUnpredictableCellRaisesTheReportedErrorAndIsCounted) {
+    std::vector<CellPrediction> cells;
+    for (int s = 0; s < 4; ++s) {
+        CellPrediction p;
+        p.structure = "tree", p.scene = "s" + std::to_string(s), p.split = p.scene;
+        p.frame_ns = 100, p.predicted_frame_ns = 100 * (1 + 0.01 * (s + 1));
+        p.frame_error = 0.01 * (s + 1);
+        cells.push_back(p);
+    }
+    const StructureValidation before = summarize(cells, {0, 1}).at(0);
+    EXPECT_EQ(before.misses, 0u);
+    CellPrediction unpriced;
+    unpriced.structure = "tree", unpriced.scene = "s4", unpriced.split = "s4", unpriced.frame_ns = 100;
+    ASSERT_FALSE(unpriced.predictable());
+    cells.push_back(unpriced);
+    const StructureValidation after = summarize(cells, {200, 1}).at(0);
+    EXPECT_EQ(after.unpredictable, 1u);
+    EXPECT_EQ(after.misses, 1u);
+    EXPECT_GT(after.frame.median, before.frame.median);  // 0.03 of five cells, not 0.025 of four
+    EXPECT_NEAR(after.frame.median, 0.03, 1e-12);
+    EXPECT_TRUE(std::isinf(after.frame.p90));  // the p90 falls on the miss
+    EXPECT_FALSE(std::isnan(after.frame.p90_low));
+    EXPECT_DOUBLE_EQ(quantile({1, 2, INFINITY}, 0.5), 2);  // never inf − inf or 0·inf
+    EXPECT_TRUE(std::isinf(quantile({1, INFINITY, INFINITY}, 0.9)));
+}
+
 /// A results database with one run of `frames` (their scenes, configurations and counters), as
 /// `rcbench run` stores them.
 void write_run(const std::string& path, const std::vector<FrameObservation>& frames, const std::string& uuid,
-               int version = latest_schema_version()) {
+               int version = latest_schema_version(), const std::string& scenes = "") {
+    const std::string hash = scenes.empty() ? uuid : scenes;  // the scenes' content, by hash
     ResultStore store(path, version);
     Database& db = store.db();
     db.exec("INSERT OR IGNORE INTO experiment(name) VALUES ('synthetic')");
@@ -250,7 +370,7 @@ void write_run(const std::string& path, const std::vector<FrameObservation>& fra
             db.prepare(
                   "INSERT OR IGNORE INTO scene(hash, name, spec, meta, objects, frames, rays_per_frame, stats) "
                   "VALUES (?, ?, ?, '{}', ?, 8, 1000, '{}')")
-                .bind_all(uuid + f.scene, f.scene, spec, std::int64_t(f.objects))
+                .bind_all(hash + f.scene, f.scene, spec, std::int64_t(f.objects))
                 .run();
             db.prepare("INSERT OR IGNORE INTO config(structure, params) VALUES (?, ?)")
                 .bind_all(f.structure, "{\"g\":" + std::to_string(f.config_group) + "}")
@@ -260,7 +380,7 @@ void write_run(const std::string& path, const std::vector<FrameObservation>& fra
                   "build_ns, memory_bytes, verified, mismatches, frames, update_ns_median, update_ns_mad, "
                   "raycast_ns_median, raycast_ns_mad) VALUES (?, ?, (SELECT id FROM scene WHERE hash = ?), "
                   "(SELECT id FROM config WHERE structure = ? AND params = ?), 0, 't', ?, 1, 0, 0, 0, 8, 0, 0, 0, 0)")
-                .bind_all(run, std::to_string(f.config_group), uuid + f.scene, f.structure,
+                .bind_all(run, std::to_string(f.config_group), hash + f.scene, f.structure,
                           "{\"g\":" + std::to_string(f.config_group) + "}", std::int64_t(f.objects))
                 .run();
             cells[f.config_group] = db.last_insert_id();
@@ -319,11 +439,47 @@ TEST(ValidateCommand, StoresTransferInTheTestDatabaseAndNestedInTheTrainOne) {
 
     const ::test::Outcome n = rcbench({"validate", "--train", a, "--resamples", "20"});
     ASSERT_EQ(n.code, 0) << n.err;
-    EXPECT_NE(n.out.find("leave-one-scene-out (4 splits)"), std::string::npos) << n.out;
+    EXPECT_NE(n.out.find("leave-one-family-out (4 splits)"), std::string::npos) << n.out;
     EXPECT_EQ(count(a,
                     "SELECT count(*) FROM model_validation WHERE train = 'nested' AND split = "
-                    "'leave-one-scene-out' AND train_run_uuid = 'ua'"),
+                    "'leave-one-family-out' AND train_run_uuid = 'ua'"),
               1);
+}
+
+TEST(ValidateCommand, RepeatPrintsTheHeldOutErrorBesideTheSpreadBetweenRuns) {
+    const test::TempDir dir("validation");
+    const std::string a = dir.file("a.db"), b = dir.file("b.db");
+    // The same scenes and configurations measured twice, with other noise.
+    write_run(a, known_run(5, 4, 2, 50, 2000, 0.02), "ua", latest_schema_version(), "same");
+    std::vector<FrameObservation> again = known_run(5, 4, 2, 50, 2000, 0.02);
+    for (FrameObservation& f : again) f.raycast_ns *= 1.1, f.update_ns *= 1.1;  // every cell 10% slower
+    write_run(b, again, "ub", latest_schema_version(), "same");
+    const ::test::Outcome r = rcbench({"validate", "--train", a, "--repeat", b, "--resamples", "20"});
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("leave-one-family-out beside the spread between run 1 and the repeat " + b), std::string::npos)
+        << r.out;
+    // tree: its frame error, the runs' spread of about 10% at the median, and the cells both hold.
+    // The spread table's row is the last line that starts with the structure.
+    std::vector<std::string> row;
+    std::istringstream lines(r.out);
+    for (std::string line; std::getline(lines, line);) {
+        std::istringstream in(line);
+        std::vector<std::string> words;
+        for (std::string w; in >> w;) words.push_back(w);
+        if (!words.empty() && words[0] == "tree") row = words;
+    }
+    ASSERT_EQ(row.size(), 8u) << r.out;
+    EXPECT_EQ(row[2], "9.5%");  // (1.1 − 1) / 1.05: the relative range of two figures
+    EXPECT_EQ(row.back(), "8");
+    const ::test::Outcome j = rcbench({"validate", "--train", a, "--repeat", b, "--json", "--resamples", "20"});
+    ASSERT_EQ(j.code, 0) << j.err;
+    const nlohmann::json parsed = nlohmann::json::parse(j.out);
+    ASSERT_EQ(parsed["between_runs"].size(), 1u);
+    EXPECT_NEAR(parsed["between_runs"][0]["frame_median"].get<double>(), 0.1 / 1.05, 1e-3);
+    // A bad --repeat names itself and stores nothing.
+    const ::test::Outcome bad = rcbench({"validate", "--train", a, "--repeat", a + ":9"});
+    EXPECT_EQ(bad.code, 2);
+    EXPECT_NE(bad.err.find("--repeat " + a + ":9: no run 9 in " + a), std::string::npos) << bad.err;
 }
 
 TEST(ValidateCommand, AnOlderDatabaseIsMigratedAndGainsTheTable) {
@@ -334,7 +490,7 @@ TEST(ValidateCommand, AnOlderDatabaseIsMigratedAndGainsTheTable) {
     const ::test::Outcome r = rcbench({"validate", "--train", old, "--resamples", "10"});
     ASSERT_EQ(r.code, 0) << r.err;
     EXPECT_EQ(count(old, "PRAGMA user_version"), latest_schema_version());
-    EXPECT_EQ(count(old, "SELECT count(*) FROM model_validation WHERE split = 'leave-one-scene-out'"), 1);
+    EXPECT_EQ(count(old, "SELECT count(*) FROM model_validation WHERE split = 'leave-one-family-out'"), 1);
     EXPECT_NO_THROW(open_read_only(old));
     EXPECT_NO_THROW(ResultStore{old});  // the writers' schema check accepts it too
 }
@@ -406,7 +562,7 @@ TEST(ValidateCommand, BadInputNamesTheOptionAndExitsTwo) {
     }
     const ::test::Outcome help = rcbench({"validate", "--help"});
     EXPECT_EQ(help.code, 0);
-    for (const char* option : {"--train", "--test", "--json", "--resamples", "--seed"})
+    for (const char* option : {"--train", "--test", "--repeat", "--json", "--resamples", "--seed"})
         EXPECT_NE(help.out.find(option), std::string::npos) << option;
 }
 
