@@ -559,11 +559,11 @@ json UpdatePrices::to_json() const {
 
 namespace {
 
-/// A term an UpdatePrices may carry: an update term of the table with columns of its own.
+/// A term an UpdatePrices may carry: an update term of the table (a per-configuration column is not).
 bool plain_update_term(const std::string& name) {
     const auto& all = cost_terms();
     const auto t = std::find_if(all.begin(), all.end(), [&](const CostTerm& c) { return c.name == name; });
-    return t != all.end() && t->target == Target::update && !t->per_tier;
+    return t != all.end() && t->target == Target::update;
 }
 
 }  // namespace
