@@ -317,7 +317,7 @@ TEST_F(AdviseFiles, ThePureModelTimesNothingOnTheScene) {
     // no candidate and no row is measured, so the simulator times no build, update or ray batch.
     json t = tuning_with(1.0, cost_model(2.0, 20.0));
     t["categories"][0]["structures"][0]["update_model"] = {
-        {"model", "by hand"}, {"terms", {{"c_change", 100.0}, {"c_write", 5.0}, {"c_frame", 1000.0}}}};
+        {"model", "by hand"}, {"terms", {{"c_change", 100.0}, {"c_object", 5.0}, {"c_frame", 1000.0}}}};
     AdviseOptions o = options(write_tuning("t.json", t));
     o.method = "model";
     o.verify_top = 0;
