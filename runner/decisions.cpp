@@ -9,8 +9,8 @@
 
 #include "core/base/error.h"
 #include "core/sim/simulator.h"
+#include "runner/results_reader.h"
 #include "runner/run_experiment.h"
-#include "runner/store.h"
 
 namespace rcb {
 
@@ -31,19 +31,19 @@ RunCells read_cells(Database& db, std::int64_t run) {
         double cast = std::numeric_limits<double>::infinity();
         std::vector<double> update;
     };
-    std::map<CellKey, std::map<std::int64_t, Frame>> frames;
     RunCells out;
-    Statement s = db.prepare("SELECT scene.hash, " + std::string(kSceneLabelSql) +
-                             ", config.structure, config.params, frame.frame, frame.raycast_ns, frame.update_ns "
-                             "FROM frame JOIN cell ON cell.id = frame.cell_id JOIN scene ON scene.id = cell.scene_id "
-                             "JOIN config ON config.id = cell.config_id WHERE frame.warmup = 0 AND cell.run_id IN " +
-                             std::string(kRunGroupSql));
-    s.bind_all(run, run);
-    while (s.step()) {
-        out.scene_label.emplace(s.text(0), s.text(1));
-        Frame& f = frames[{s.text(0), s.text(2), s.text(3)}][s.int64(4)];
-        f.cast = std::min(f.cast, s.real(5));
-        f.update.push_back(s.real(6));
+    std::map<std::int64_t, std::string> label_of;  // by scene id
+    for (const RunSceneRow& r : read_run_scenes(db, run)) label_of.emplace(r.id, r.label);
+    std::map<std::pair<std::int64_t, std::int64_t>, CellKey> key_of;  // by (scene id, config id)
+    for (const CellIdentityRow& c : read_cell_identities(db, run)) {
+        key_of.emplace(std::pair{c.scene_id, c.config_id}, CellKey{c.scene_hash, c.structure, c.params});
+        out.scene_label.emplace(c.scene_hash, label_of.at(c.scene_id));
+    }
+    std::map<CellKey, std::map<std::int64_t, Frame>> frames;
+    for (const FrameTimeRow& r : read_frame_times(db, run)) {
+        Frame& f = frames[key_of.at({r.scene_id, r.config_id})][r.frame];
+        f.cast = std::min(f.cast, r.raycast_ns);
+        f.update.push_back(r.update_ns);
     }
     for (const auto& [key, by_frame] : frames) {
         std::vector<double> cast, update;
