@@ -15,6 +15,9 @@
 #                      data; a 267 MB download), another game's maps that no part of rcbench was
 #                      designed, tuned or judged on before (experiments/maps-nexuiz.json,
 #                      tune-suite-nexuiz.json)
+# With the argument `085`, also:
+#   data/maps-085/pak6-patch085.pk3   the maps of Debian's openarena-085-data package; the seven
+#                      no earlier experiment named are the fresh test set of experiments/maps-085.json
 # Uses `apt-get download` (no root needed: only the .deb is fetched, nothing is installed) and
 # `dpkg-deb -x` to unpack. Run it again to re-fetch; it skips what is already there.
 set -euo pipefail
@@ -50,6 +53,13 @@ if [ "${1:-}" = fresh ]; then
   mkdir -p data/maps-088
   find data/.debs/openarena-088-data -name 'pak6-patch088.pk3' -exec cp -u {} data/maps-088/ \;
   echo "fetch_maps: $(ls data/maps-088/*.pk3 | wc -l) pk3 files in data/maps-088/"
+fi
+
+if [ "${1:-}" = 085 ]; then
+  fetch openarena-085-data data/.debs/openarena-085-data
+  mkdir -p data/maps-085
+  find data/.debs/openarena-085-data -name 'pak6-patch085.pk3' -exec cp -u {} data/maps-085/ \;
+  echo "fetch_maps: $(ls data/maps-085/*.pk3 | wc -l) pk3 files in data/maps-085/"
 fi
 
 if [ "${1:-}" = nexuiz ]; then
