@@ -13,6 +13,9 @@
 #
 #   scripts/advise_study.sh [MAP ...]
 #     default maps: every map of every data/maps/*.pk3 (as `rcbench scene maps` lists them)
+#   scripts/advise_study.sh --summarize DIR [DIR ...]
+#     times nothing: the summary of the advise-*.json a study left in each DIR, every map named with
+#     its import mode (an archived study's figure, docs/figures.json)
 #
 # Environment: RCBENCH (default build/rcbench), RCB_MAPS_DIR (default data/maps), RCB_STUDY_DIR
 # (default results/advise-study), RCB_TUNING (a tuning result; default
@@ -27,16 +30,62 @@
 # advise-MAP.json and summary.txt (tab-separated). Needs jq (scripts/setup.sh installs it). Pin it to an idle core (taskset -c 0):
 # every map measures each tuned space whole.
 set -euo pipefail
-cd "$(dirname "$0")/.."
-rcbench=${RCBENCH:-build/rcbench}
-dir=${RCB_STUDY_DIR:-results/advise-study}
-reps=${RCB_REPETITIONS:-5}
-mode=${RCB_BSP_MODE:-brushes}
 fail() {
   echo "advise_study: $*" >&2
   exit 2
 }
 command -v jq >/dev/null || fail "needs jq (Debian package jq) to read advise's JSON"
+
+# summarize SEEN MODE FILE...: one line per map and tuned structure, then the unseen maps' totals.
+# MODE is stripped from the map names (empty: the names keep it).
+summarize() {
+  local seen=$1 mode=$2
+  shift 2
+  jq -r -s --arg seen " $seen " --arg mode "$mode" '
+  def pct: (. * 1000 | round / 10 | tostring) + "%";
+  [ .[] | (.scene | sub(".*/"; "") | if $mode == "" then sub(".rcbscene$"; "") else sub("-" + $mode + ".rcbscene$"; "") end) as $map
+        | .exhaustive[] | {map: $map, seen: ($seen | contains(" " + $map + " ")), structure,
+                           budget, regret: (.methods | map({(.method): .regret}) | add),
+                           spent: (.methods | map({(.method): "\(.timed)/\(.replays)"}) | add)} ] as $rows
+  | ($rows | map(select(.seen | not))) as $unseen
+  | def opt: if . == null then "-" else pct end;
+    ["map", "seen", "structure", "timed/replays", "update timed", "space", "advise", "advise-table", "model",
+     "category", "random", "descent", "random timed/replays", "descent timed/replays"],
+    ($rows[] | [.map, (if .seen then "yes" else "no" end), .structure,
+                "\(.budget.timed)/\(.budget.replays)", .budget.replays_update_timed, .budget.space,
+                (.regret.advise | pct), (.regret["advise-table"] | opt), (.regret.model | opt),
+                (.regret.category | opt), (.regret.random | pct), (.regret.descent | pct),
+                .spent.random, .spent.descent]),
+    [],
+    ["unseen (map x structure): \($unseen | length)"],
+    (["advise", "advise-table", "model", "category", "random", "descent"][] as $m
+      | ($unseen | map(.regret[$m] | select(. != null))) as $r
+      | ["\($m): within 5% of the optimum in \($r | map(select(. <= 0.05)) | length) of \($r | length)"]),
+    (["advise", "advise-table"][] as $a | ["random", "descent"][] as $b
+      | ($unseen | map(select(.regret[$a] != null))) as $u
+      | ["\($a) vs \($b): better in \($u | map(select(.regret[$a] < .regret[$b])) | length), tied in \($u | map(select(.regret[$a] == .regret[$b])) | length), worse in \($u | map(select(.regret[$a] > .regret[$b])) | length)"])
+  | @tsv' "$@"
+}
+
+if [ "${1:-}" = --summarize ]; then
+  shift
+  (($# > 0)) || fail "--summarize needs the study folders"
+  files=()
+  for d in "$@"; do
+    [ -d "$d" ] || fail "--summarize $d: no such folder"
+    found=("$d"/advise-*.json)
+    [ -e "${found[0]}" ] || fail "--summarize $d: no advise-*.json in it"
+    files+=("${found[@]}")
+  done
+  summarize "" "" "${files[@]}"
+  exit 0
+fi
+
+cd "$(dirname "$0")/.."
+rcbench=${RCBENCH:-build/rcbench}
+dir=${RCB_STUDY_DIR:-results/advise-study}
+reps=${RCB_REPETITIONS:-5}
+mode=${RCB_BSP_MODE:-brushes}
 [ "$mode" = brushes ] || [ "$mode" = triangles ] || fail "RCB_BSP_MODE=$mode: not brushes or triangles"
 [ -x "$rcbench" ] || fail "$rcbench is not an executable; build it or set RCBENCH"
 shopt -s nullglob
@@ -78,31 +127,7 @@ for map in "${maps[@]}"; do
     "${extra[@]}" >"$dir/advise-$map.json"
 done
 
-# One line per map and tuned structure, then the unseen maps' totals.
 files=()
 for map in "${maps[@]}"; do files+=("$dir/advise-$map.json"); done
-jq -r -s --arg seen " $seen " --arg mode "$mode" '
-  def pct: (. * 1000 | round / 10 | tostring) + "%";
-  [ .[] | (.scene | sub(".*/"; "") | sub("-" + $mode + ".rcbscene$"; "")) as $map
-        | .exhaustive[] | {map: $map, seen: ($seen | contains(" " + $map + " ")), structure,
-                           budget, regret: (.methods | map({(.method): .regret}) | add),
-                           spent: (.methods | map({(.method): "\(.timed)/\(.replays)"}) | add)} ] as $rows
-  | ($rows | map(select(.seen | not))) as $unseen
-  | def opt: if . == null then "-" else pct end;
-    ["map", "seen", "structure", "timed/replays", "update timed", "space", "advise", "advise-table", "model",
-     "category", "random", "descent", "random timed/replays", "descent timed/replays"],
-    ($rows[] | [.map, (if .seen then "yes" else "no" end), .structure,
-                "\(.budget.timed)/\(.budget.replays)", .budget.replays_update_timed, .budget.space,
-                (.regret.advise | pct), (.regret["advise-table"] | opt), (.regret.model | opt),
-                (.regret.category | opt), (.regret.random | pct), (.regret.descent | pct),
-                .spent.random, .spent.descent]),
-    [],
-    ["unseen (map x structure): \($unseen | length)"],
-    (["advise", "advise-table", "model", "category", "random", "descent"][] as $m
-      | ($unseen | map(.regret[$m] | select(. != null))) as $r
-      | ["\($m): within 5% of the optimum in \($r | map(select(. <= 0.05)) | length) of \($r | length)"]),
-    (["advise", "advise-table"][] as $a | ["random", "descent"][] as $b
-      | ($unseen | map(select(.regret[$a] != null))) as $u
-      | ["\($a) vs \($b): better in \($u | map(select(.regret[$a] < .regret[$b])) | length), tied in \($u | map(select(.regret[$a] == .regret[$b])) | length), worse in \($u | map(select(.regret[$a] > .regret[$b])) | length)"])
-  | @tsv' "${files[@]}" | tee "$dir/summary.txt"
+summarize "$seen" "$mode" "${files[@]}" | tee "$dir/summary.txt"
 echo "advise_study: wrote $dir/summary.txt"

@@ -4,8 +4,10 @@
 #   scripts/reproduce.sh [--check] [--root DIR] [--rcbench BIN] [FIGURE...]
 #
 # docs/figures.json is the registry: each figure's name, the doc that shows it, the archived exports
-# it reads (results/archive/NAME.db.xz), the rcbench commands that make it (a word {NAME} stands
-# for that export, unpacked) and its format (markdown as printed, or text in a code block). The
+# it reads (results/archive/NAME.db.xz), optionally the archived file sets it reads
+# (results/archive/files/NAME.tar.xz, outputs that are not a results database, such as advise's
+# JSON), the commands that make it (a word {NAME} stands for that export, unpacked, or that file
+# set's folder) and its format (markdown as printed, or text in a code block). The
 # figure is the last command's standard output; earlier commands prepare (e.g. `fit` before
 # `findings`). Each figure gets fresh copies of its exports, so figures do not depend on each
 # other's order. Only reading and analysing commands may run: nothing here times anything.
@@ -57,6 +59,7 @@ for i in "${!names[@]}"; do
   jq -e --argjson i "$i" '.figures[$i] | (.name | type == "string" and test("^[A-Za-z0-9][A-Za-z0-9._-]*$"))
       and (.doc | type == "string") and (.format == "markdown" or .format == "text")
       and (.exports | type == "array" and all(type == "string"))
+      and ((.files // []) | type == "array" and all(type == "string"))
       and (.commands | type == "array" and length > 0 and all(type == "array" and length > 0 and all(type == "string")))' \
       "$registry" >/dev/null || die "$registry: figures[$i]: needs name, doc, format (markdown or text), exports and commands"
 done
@@ -71,6 +74,17 @@ if ! verify_out="$("$rcbench" archive verify "$archive" 2>&1)"; then
   echo "$verify_out" >&2
   exit 1
 fi
+
+# The file sets must be as archived: each NAME.tar.xz has the SHA-256 its manifest NAME.json records.
+files_dir="$archive/files"
+while IFS= read -r f; do
+  [[ -f "$files_dir/$f.tar.xz" && -f "$files_dir/$f.json" ]] ||
+    { echo "reproduce.sh: file set $f: needs results/archive/files/$f.tar.xz and its manifest $f.json" >&2; exit 1; }
+  want="$(jq -r '.sha256 // empty' "$files_dir/$f.json")"
+  have="$(sha256sum "$files_dir/$f.tar.xz" | cut -d' ' -f1)"
+  [[ "$want" == "$have" ]] ||
+    { echo "reproduce.sh: file set $f: results/archive/files/$f.tar.xz does not have the SHA-256 its manifest records" >&2; exit 1; }
+done < <(jq -r '[.figures[] | (.files // [])[]] | unique[]' "$registry")
 
 # Every marker in the docs names a registered figure in the doc the registry gives it.
 docs=()
@@ -107,19 +121,30 @@ regenerate() {
       return 1
     }
   done < <(jq -r --argjson i "$i" '.figures[$i].exports[]' "$registry")
+  while IFS= read -r e; do
+    mkdir "$dir/$e" && tar -xJf "$files_dir/$e.tar.xz" -C "$dir/$e" || {
+      echo "reproduce.sh: figure $name: cannot unpack file set $e" >&2
+      return 1
+    }
+  done < <(jq -r --argjson i "$i" '(.figures[$i].files // [])[]' "$registry")
   n="$(jq --argjson i "$i" '.figures[$i].commands | length' "$registry")"
   for ((c = 0; c < n; c++)); do
     local words=()
     mapfile -d '' words < <(jq -j --argjson i "$i" --argjson c "$c" '.figures[$i].commands[$c][] | . + "\u0000"' "$registry")
+    local run=("$rcbench")
     case "${words[0]}" in
       fit|validate|findings|compare|query|history|categories|report) ;;
-      *) die "figure $name: rcbench ${words[0]} is not a reading command (fit, validate, findings, compare, query, history, categories, report)" ;;
+      advise-summary) run=("$root/scripts/advise_study.sh" --summarize); words=("${words[@]:1}") ;;
+      *) die "figure $name: ${words[0]} is not a reading command (rcbench fit, validate, findings, compare, query, history, categories, report; advise-summary)" ;;
     esac
     while IFS= read -r e; do
       for w in "${!words[@]}"; do words[w]="${words[w]//\{$e\}/$e.db}"; done
     done < <(jq -r --argjson i "$i" '.figures[$i].exports[]' "$registry")
-    if ! (cd "$dir" && "$rcbench" "${words[@]}") >"$dir/out" 2>"$dir/err"; then
-      echo "reproduce.sh: figure $name: rcbench ${words[*]} failed:" >&2
+    while IFS= read -r e; do
+      for w in "${!words[@]}"; do words[w]="${words[w]//\{$e\}/$e}"; done
+    done < <(jq -r --argjson i "$i" '(.figures[$i].files // [])[]' "$registry")
+    if ! (cd "$dir" && "${run[@]}" "${words[@]}") >"$dir/out" 2>"$dir/err"; then
+      echo "reproduce.sh: figure $name: ${run[*]} ${words[*]} failed:" >&2
       cat "$dir/err" >&2
       return 1
     fi
