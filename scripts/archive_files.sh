@@ -40,6 +40,7 @@ mapfile -t files < <(cd "$dir" && find . -maxdepth 1 -type f ! -name '*.rcbscene
 ((${#files[@]} > 0)) || die "DIR $dir: no file to archive"
 tmp=$(mktemp "$out/.$name.XXXXXX")
 trap 'rm -f "$tmp"' EXIT
+chmod 644 "$tmp"
 tar -C "$dir" --owner=0 --group=0 --numeric-owner --mtime=@0 -cf - "${files[@]}" | xz -9 >"$tmp"
 sums=$(cd "$dir" && sha256sum "${files[@]}" | jq -R -s 'split("\n") | map(select(length > 0) | split("  ") | {(.[1]): .[0]}) | add')
 jq -n --arg name "$name" --arg command "$command" --arg commit "$commit" --arg note "$note" \
