@@ -145,6 +145,7 @@ void add_advise_command(CLI::App& app) {
     auto o = std::make_shared<AdviseOptions>();
     CLI::App* cmd =
         app.add_subcommand("advise",
+                           "Recommend the structure and parameters to ship for a scene, measured or predicted\n"
                            "Measure every registered structure on a scene (recording or boxes CSV) at its tuned or "
                            "default parameters, and recommend the one to ship (--verify-top 0: predict them by the "
                            "tuning's cost model instead, timing nothing); prints what choosing the tuned parameters "

@@ -69,6 +69,7 @@ void print_verified(const std::vector<nlohmann::json>& manifests, const std::fil
 void add_archive_command(CLI::App& app) {
     CLI::App* archive = app.add_subcommand(
         "archive",
+        "The results archive behind the docs' figures: add, unpack, verify (results/README.md)\n"
         "The results archive behind the docs' figures: add a database as a compressed export with its manifest, "
         "unpack one, verify all (results/README.md)");
     archive->require_subcommand(1);

@@ -20,9 +20,11 @@ void add_cast_command(CLI::App& app) {
         std::string kind = "all";
     };
     auto o = std::make_shared<Options>();
-    CLI::App* cmd = app.add_subcommand("cast",
-                                       "Cast the segments of a CSV file (x0,y0,z0,x1,y1,z1) against a scene's frame 0; "
-                                       "prints one JSON line per ray: {\"ray\": i, \"hits\": [uid, ...]}");
+    CLI::App* cmd =
+        app.add_subcommand("cast",
+                           "Cast your own segments (CSV) against a scene's frame 0: one JSON line of hits per ray\n"
+                           "Cast the segments of a CSV file (x0,y0,z0,x1,y1,z1) against a scene's frame 0; "
+                           "prints one JSON line per ray: {\"ray\": i, \"hits\": [uid, ...]}");
     cmd->add_option("--kind", o->kind,
                     "Query kind of every ray: all (every hit, sorted by uid), closest (the nearest hit: smallest "
                     "entry t, then smallest uid) or any (one hit met); closest and any print at most one uid")

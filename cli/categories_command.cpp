@@ -22,6 +22,7 @@ void add_categories_command(CLI::App& app) {
     auto o = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand(
         "categories",
+        "Derive scene categories from the features of a run's scenes and store them\n"
         "Derive scene categories from the features of a run's scenes (k-means on standardised features, k by "
         "silhouette) and store them with the run");
     cmd->add_option("db", o->db, "Results database")->required()->check(input_file());

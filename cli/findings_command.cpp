@@ -35,6 +35,7 @@ void add_findings_command(CLI::App& app) {
     auto o = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand(
         "findings",
+        "Check the thesis' conclusions on one or several runs of one experiment (Markdown)\n"
         "Check the thesis' conclusions (UG on uniform scenes, HG on irregular ones, LBVH's trade, the full-SAH DBVH, "
         "HG's memory, traversal costs, small scenes) against one run or several independent runs of one experiment, "
         "as Markdown with the figures and counters behind each verdict, their range over the runs and how many runs "

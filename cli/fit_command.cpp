@@ -243,6 +243,7 @@ void add_fit_command(CLI::App& app) {
     auto o = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand(
         "fit",
+        "Fit the cost model (thesis eq. 5.4) and update costs per structure to a run's frames\n"
         "Fit the cost model C = C_RB*N_RB + C_T*N_T + C_PREP (thesis eq. 5.4) and update costs per structure to a "
         "run's "
         "frames; choose the smallest adequate model by held-out error; store the coefficients in the database; "

@@ -97,9 +97,11 @@ void print_history(const HistoryOptions& o) {
 
 void add_history_command(CLI::App& app) {
     auto o = std::make_shared<HistoryOptions>();
-    CLI::App* history = app.add_subcommand("history",
-                                           "Per scene and configuration, the median frame time of every run in run "
-                                           "order, and the steps beyond the runs' noise");
+    CLI::App* history =
+        app.add_subcommand("history",
+                           "Every run's median frame time per scene and configuration, and the steps between runs\n"
+                           "Per scene and configuration, the median frame time of every run in run "
+                           "order, and the steps beyond the runs' noise");
     history->add_option("db", o->db, "Results database")->required()->check(input_file());
     history->add_option("--experiment", o->query.experiment, "Only this experiment (default: every experiment)")
         ->check(non_empty());

@@ -1,5 +1,7 @@
 // rcbench: find, tune and explain the best acceleration structure for ray casting in dynamic scenes.
 #include <iostream>
+#include <memory>
+#include <sstream>
 #include <string>
 #include <string_view>
 
@@ -26,13 +28,29 @@ std::string one_line(std::string_view message) {
     return out;
 }
 
+/// `rcbench --help` lists each subcommand on one line, its description's first line: a newcomer scans
+/// the list; the subcommand's own --help prints the whole description. CLI11 (App.hpp, App's constructor)
+/// gives every subcommand its parent's formatter when it is added, so one set on the top app after
+/// the subcommands changes this list alone.
+class SummaryFormatter : public CLI::Formatter {
+public:
+    std::string make_subcommand(const CLI::App* sub) const override {
+        const std::string& description = sub->get_description();
+        std::ostringstream out;
+        CLI::detail::format_help(out, sub->get_display_name(true), description.substr(0, description.find('\n')),
+                                 column_width_);
+        return out.str();
+    }
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
     CLI::App app{
-        "rcbench: acceleration structures for ray casting (all, closest and any hit) in dynamic physics scenes.\n"
-        "Generate or import scenes, simulate structures against brute-force ground truth, run experiment files\n"
-        "into a SQLite database, compare runs, cast your own rays.",
+        "rcbench: acceleration structures for ray casting (all, closest and any hit) in dynamic physics\n"
+        "scenes. Generate or import scenes, simulate structures against brute-force ground truth, run\n"
+        "experiment files into a SQLite database, compare runs, cast your own rays.\n"
+        "Each subcommand's --help tells its options and what it does in full.",
         "rcbench"};
     app.set_version_flag("--version", std::string("rcbench 0.1.0"));
     app.require_subcommand(1);
@@ -52,6 +70,9 @@ int main(int argc, char** argv) {
     rcb::add_advise_command(app);
     rcb::add_categories_command(app);
     rcb::add_archive_command(app);
+    auto summaries = std::make_shared<SummaryFormatter>();
+    summaries->column_width(14);  // the longest name, "categories", and its indent fit
+    app.formatter(summaries);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

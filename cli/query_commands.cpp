@@ -165,6 +165,7 @@ void add_compare_command(CLI::App& app) {
     auto c = std::make_shared<CompareOptions>();
     CLI::App* compare = app.add_subcommand(
         "compare",
+        "Compare two runs per scene and configuration, or (--decisions) the choices they make\n"
         "Compare two runs per scene and configuration: ratio of median frame times, Mann-Whitney U p-value, verdict; "
         "or, with --decisions, whether two runs pick the same best structure per scene and the same best "
         "configuration per (scene, structure)");
@@ -251,6 +252,7 @@ void add_query_commands(CLI::App& app) {
     auto m = std::make_shared<MergeOptions>();
     CLI::App* merge = app.add_subcommand(
         "merge",
+        "Combine results databases (e.g. shards) into one\n"
         "Combine results databases (e.g. shards) into one; runs already present are skipped. Measurements "
         "are copied; fits, validations, tunings and derived categories are not (they describe the input's "
         "cells alone): fit the merged runs again");

@@ -151,9 +151,11 @@ void add_run_command(CLI::App& app) {
         bool dry_run = false;
     };
     auto o = std::make_shared<Options>();
-    CLI::App* cmd = app.add_subcommand("run",
-                                       "Run an experiment file (structures x scenes x parameters x repetitions) into a "
-                                       "SQLite database; running it again resumes an unfinished run");
+    CLI::App* cmd =
+        app.add_subcommand("run",
+                           "Run an experiment file into a SQLite results database, or resume an unfinished run\n"
+                           "Run an experiment file (structures x scenes x parameters x repetitions) into a "
+                           "SQLite database; running it again resumes an unfinished run");
     cmd->add_option("experiment", o->experiment, "Experiment file (JSON; see experiments/README.md)")
         ->required()
         ->check(input_file());

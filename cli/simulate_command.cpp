@@ -97,11 +97,13 @@ void add_simulate_command(CLI::App& app) {
         std::string cache = "warm";
     };
     auto o = std::make_shared<Options>();
-    CLI::App* cmd = app.add_subcommand("simulate",
-                                       "Replay recordings against structures: build, update and ray-cast times per "
-                                       "frame, verified against brute-force "
-                                       "ground truth. One scene and one structure: a per-frame table; several: the "
-                                       "thesis' Tables 6.1/6.2 (structures x scenes)");
+    CLI::App* cmd =
+        app.add_subcommand("simulate",
+                           "Replay recordings against structures: times per frame, checked against ground truth\n"
+                           "Replay recordings against structures: build, update and ray-cast times per "
+                           "frame, verified against brute-force "
+                           "ground truth. One scene and one structure: a per-frame table; several: the "
+                           "thesis' Tables 6.1/6.2 (structures x scenes)");
     cmd->add_option("--scene", o->scenes, "Recording file (from rcbench scene gen/import); repeatable")
         ->required()
         ->check(input_file());

@@ -19,15 +19,17 @@ void add_tune_command(CLI::App& app) {
         std::string accuracy = "exact";
     };
     auto o = std::make_shared<Options>();
-    CLI::App* cmd = app.add_subcommand("tune",
-                                       "Tune structures' parameters per scene category, minimising update + rays x "
-                                       "cost per frame (thesis eq. 5.5). Mode measured: every configuration "
-                                       "replayed (rays counted, not timed; the update timed) and ranked by the "
-                                       "cost model (the machine's micro-scene "
-                                       "calibration, refitted on what is timed), the file's budget timing the "
-                                       "best-ranked; where no model exists, a pattern search with NLopt's DIRECT. "
-                                       "The predicted modes search the calibrated model. Writes "
-                                       "results/tuning-<name>.md/.json and database rows");
+    CLI::App* cmd =
+        app.add_subcommand("tune",
+                           "Tune structures' parameters per scene category (thesis eq. 5.5: update + rays a frame)\n"
+                           "Tune structures' parameters per scene category, minimising update + rays x "
+                           "cost per frame (thesis eq. 5.5). Mode measured: every configuration "
+                           "replayed (rays counted, not timed; the update timed) and ranked by the "
+                           "cost model (the machine's micro-scene "
+                           "calibration, refitted on what is timed), the file's budget timing the "
+                           "best-ranked; where no model exists, a pattern search with NLopt's DIRECT. "
+                           "The predicted modes search the calibrated model. Writes "
+                           "results/tuning-<name>.md/.json and database rows");
     cmd->add_option("file", o->file, "Tuning file (JSON; see experiments/README.md)")->required()->check(input_file());
     cmd->add_option("--db", o->db, "Results database for the tuning rows")->capture_default_str()->check(non_empty());
     cmd->add_option("--out-dir", o->out_dir, "Folder for tuning-<name>.md/.json/.svg")

@@ -294,6 +294,7 @@ void add_validate_command(CLI::App& app) {
     auto o = std::make_shared<ValidateOptions>();
     CLI::App* cmd = app.add_subcommand(
         "validate",
+        "Validate the cost model on scenes it never saw, beside the spread between two runs\n"
         "Validate the cost model on what it never saw. With --test: the model form and coefficients chosen and "
         "fitted on the train run (all its scenes) predict every cell of the test run from its counters; stored in "
         "the test database (table model_validation); a test run with query kinds adds one group per kind (kind:all, "

@@ -19,7 +19,8 @@
 # Without --check the script writes each figure there; with --check it writes nothing and fails
 # (exit 1) naming every figure whose text differs from its regenerated output. Either way it fails
 # when a doc marks a figure the registry does not have (a figure without archived data leaves the
-# docs), when a registered figure has no markers, or when an export does not match its manifest.
+# docs), when a registered figure has no markers, when a table of measured numbers stands outside
+# a figure (below), or when an export does not match its manifest.
 # --root: the checkout whose docs/, README.md and results/ are used (default: this script's);
 # --rcbench: the binary (default ROOT/build/rcbench). Exit 2 for bad arguments or registry.
 set -euo pipefail
@@ -104,6 +105,38 @@ for d in "${docs[@]}"; do
       bad=1
     fi
   done < <(sed -n 's/^<!-- figure: \(.*\) -->$/\1/p' "$d")
+done
+
+# A table of measured numbers outside a figure has no archived data behind it: in the docs the
+# registry checks (docs/*.md, README.md, results/README.md), a markdown table (lines starting with
+# `|`, outside code blocks and figures) fails, naming its first such line, when a cell holds a
+# number followed by a time unit (ns, us, µs, ms), a percent sign or a ratio sign (× or x), or when
+# its header names such a unit, ÷ or "ratio" and a later row holds a decimal number. A table of
+# constants (parameters, defaults, formats) takes the line `<!-- not-a-figure -->` just before it.
+tables=()
+for d in "$root/README.md" "$root/results/README.md" "$root"/docs/*.md; do [[ -f "$d" ]] && tables+=("$d"); done
+for d in "${tables[@]}"; do
+  LC_ALL=C awk -v rel="${d#"$root"/}" '
+    /^<!-- figure: .* -->$/ { fig = 1; next }
+    fig && $0 == "<!-- /figure -->" { fig = 0; next }
+    fig { next }
+    /^ *(```|~~~)/ { fence = !fence; row = 0; last = "```"; next }
+    fence { next }
+    /^ *\|/ {
+      if (!row) {
+        row = 1; exempt = (last == "<!-- not-a-figure -->"); told = 0
+        unit_head = match($0, /(^|[^A-Za-z])(ns|us|\302\265s|ms|ratio)([^A-Za-z]|$)|%|\303\227|\303\267/)
+      } else if (unit_head && match($0, /[0-9]\.[0-9]/)) measured = 1
+      if (match($0, /[0-9](( ?(ns|us|\302\265s|ms|%))|\303\227|x)([^A-Za-z0-9]|$)/)) measured = 1
+      if (!exempt && !told && measured) {
+        printf "reproduce.sh: %s:%d: a table of measured numbers outside a figure (archive its data and register it in docs/figures.json, or mark a table of constants <!-- not-a-figure -->)\n", rel, NR
+        told = 1; bad = 1
+      }
+      measured = 0; last = "|"; next
+    }
+    { row = 0 }
+    NF { last = $0; sub(/^[ \t]+/, "", last) }
+    END { exit bad }' "$d" >&2 || bad=1
 done
 ((bad == 0)) || exit 1
 

@@ -265,6 +265,41 @@ TEST(Archive, ReproduceRefusesAFigureWithoutArchivedDataAndAnEditedExport) {
     EXPECT_NE(r.err.find("mini.db.xz: SHA-256 differs"), std::string::npos) << r.err;
 }
 
+TEST(Archive, ATableOfMeasuredNumbersOutsideAFigureFailsTheCheckNamingItsLine) {
+    test::TempDir dir("archive");
+    const MiniCheckout c(dir);
+    ASSERT_EQ(c.reproduce({}).code, 0);
+    const fs::path page = c.root / "docs" / "page.md";
+    const std::string figure = read_bytes(page);
+    // Tables of constants and formats pass: no unit, a code block, or the marker before a table
+    // whose numbers are settings.
+    const std::string constants =
+        "\n| parameter | default |\n|---|---|\n| `density` | 4.0 |\n\n"
+        "```text\n| rays | 1.5 ms |\n```\n\n"
+        "<!-- not-a-figure -->\n| key | meaning |\n|---|---|\n| `change_fraction` | 1% of the objects per frame |\n";
+    write_bytes(page, figure + constants);
+    ::test::Outcome r = c.reproduce({"--check"});
+    EXPECT_EQ(r.code, 0) << r.err;
+
+    // A time with its unit, outside any figure: the check names the line of that row.
+    write_bytes(page, figure + constants + "\n| structure | rays |\n|---|---|\n| wbvh | 0.41 ms |\n");
+    const std::size_t wbvh_line = 1 + std::size_t(std::count(figure.begin(), figure.end(), '\n')) +
+                                  std::size_t(std::count(constants.begin(), constants.end(), '\n')) + 3;
+    r = c.reproduce({"--check"});
+    EXPECT_EQ(r.code, 1) << r.err;
+    EXPECT_NE(
+        r.err.find("docs/page.md:" + std::to_string(wbvh_line) + ": a table of measured numbers outside a figure"),
+        std::string::npos)
+        << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+
+    // Ratios under a header that names them, without a unit in the cells, fail too.
+    write_bytes(page, figure + "\n| scene | all ÷ closest |\n|---|---|\n| oa_dm4 | 1.15 |\n");
+    r = c.reproduce({"--check"});
+    EXPECT_EQ(r.code, 1) << r.err;
+    EXPECT_NE(r.err.find("docs/page.md:"), std::string::npos) << r.err;
+}
+
 TEST(Archive, TheCommandRefusesAnArchivedNameWithExitTwo) {
     test::TempDir dir("archive");
     make_results(dir.path() / "run.db", "0123456789ab");

@@ -4,6 +4,9 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <regex>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -121,6 +124,51 @@ TEST_F(Cli, HelpTellsTheSubcommands) {
     const Outcome structures = run("structures --json");
     EXPECT_EQ(structures.code, 0);
     EXPECT_EQ(nlohmann::json::parse(structures.out)[0]["name"], "bf");
+}
+
+/// Characters in a line of UTF-8 (continuation bytes are not characters).
+std::size_t characters(const std::string& line) {
+    return std::size_t(
+        std::count_if(line.begin(), line.end(), [](char c) { return (static_cast<unsigned char>(c) & 0xC0) != 0x80; }));
+}
+
+TEST_F(Cli, HelpListsEachSubcommandOnOneShortLineAndItsOwnHelpHoldsTheWholeDescription) {
+    const Outcome help = run("--help");
+    ASSERT_EQ(help.code, 0) << help.err;
+    std::map<std::string, std::string> summary;  // subcommand -> its line in rcbench --help
+    std::istringstream lines(help.out);
+    const std::regex entry(R"(  ([a-z]+) +(\S.*))");
+    bool listing = false;
+    for (std::string line; std::getline(lines, line);) {
+        EXPECT_LE(characters(line), 100u) << line;
+        if (line.empty()) continue;
+        std::smatch m;
+        if (line == "Subcommands:")
+            listing = true;
+        else if (listing && std::regex_match(line, m, entry))
+            summary[m[1]] = m[2];
+        else if (listing)
+            ADD_FAILURE() << "not one line per subcommand: " << line;
+    }
+    EXPECT_GE(summary.size(), 17u) << help.out;
+    // The paragraphs rcbench --help printed before: each now in its own subcommand's help alone.
+    const std::map<std::string, std::string> paragraph{
+        {"validate", "predict every cell of the test run from its counters"},
+        {"fit", "choose the smallest adequate model by held-out error"},
+        {"tune", "a pattern search with NLopt's DIRECT"},
+        {"merge", "fit the merged runs again"},
+        {"compare", "Mann-Whitney U p-value"},
+        {"advise", "timing nothing"}};
+    for (const auto& [sub, words] : paragraph) {
+        EXPECT_EQ(help.out.find(words), std::string::npos) << sub;
+        const Outcome own = run(sub + " --help");
+        EXPECT_NE(own.out.substr(0, own.out.find("Usage:")).find(words), std::string::npos) << sub << own.out;
+    }
+    for (const auto& [sub, line] : summary) {
+        const Outcome own = run(sub + " --help");
+        EXPECT_EQ(own.code, 0) << sub << own.err;
+        EXPECT_EQ(own.out.rfind(line + "\n", 0), 0u) << sub << ": its help starts with its line\n" << own.out;
+    }
 }
 
 /// The file's bytes, to check a failed command left it as it was.
