@@ -75,7 +75,7 @@ StructureNoise between_runs_pooled(Database& a, std::int64_t run_a, Database& b,
 
 /// The update between two runs, by its size. A small update's time is mostly the state its
 /// structure's lines are in when it starts (which the other core and the host's other tenants
-/// set, differently in two runs: docs/model.md, "Where the update's spread lives"), a large one's
+/// set, differently in two runs: docs/model.md as of commit f3b2207, "Where the update's spread lives"), a large one's
 /// the work; one p90 over every cell hides which figures repeat. A cell's size is the geometric
 /// mean of the two runs' update per frame; `share` says how much of the frame the band's updates are.
 struct UpdateBand {

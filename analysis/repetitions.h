@@ -26,7 +26,7 @@ namespace rcb {
 /// The update bends the minimum's premise: how much of its memory the shared last-level cache still
 /// holds when it starts depends on the other core and the host, so that state subtracts time as
 /// well as adding it, and the fastest repetition is the luckiest state, not the least disturbed
-/// (docs/model.md, "How well two runs agree").
+/// (docs/model.md as of commit f3b2207, "How well two runs agree").
 enum class OverRepetitions { median, fastest, fastest_cast };
 
 /// "median", "fastest" or "fastest-cast".

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Advice for scenes the tuning never saw (docs/model.md, "Advice for unseen scenes"): tunes
+# Advice for scenes the tuning never saw (docs/model.md as of commit f3b2207, "Advice for unseen scenes"): tunes
 # experiments/tune-advise.json (synthetic scenes and six OpenArena maps, as in real.json), imports
 # OpenArena maps that are in neither, and advises each from that tuning with --exhaustive, which
 # also measures every configuration of the tuned spaces on the map: each structure's line gives the

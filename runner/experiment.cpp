@@ -586,7 +586,7 @@ std::vector<Cell> repetition_cells(const Experiment& e, std::uint32_t repetition
     // repetition (the same file gives the same order), the scenes interleaved: what ran just before
     // a cell changes from repetition to repetition (Mytkowicz et al. 2009 on measurement bias from
     // a fixed setup), and a stretch of minutes in which the machine runs slow falls on cells of
-    // many scenes rather than on one scene's (docs/model.md, "How well two runs agree").
+    // many scenes rather than on one scene's (docs/model.md as of commit f3b2207, "How well two runs agree").
     Random rng(mix_seed(std::stoull(e.hash, nullptr, 16), repetition));
     std::vector<Cell> cells;
     for (const auto& [s, c] : pairs) cells.push_back({s, c, repetition, cell_key(e, s, c, repetition)});

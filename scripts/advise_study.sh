@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# advise against its budget-matched baselines on every OpenArena map (docs/model.md, "The budget"):
+# advise against its budget-matched baselines on every OpenArena map (docs/model.md, "Advice and its budgets"):
 # runs `rcbench advise MAP --tuning T --exhaustive --json` on each map of data/maps/*.pk3 and
 # summarises, per map and tuned structure, each method's budget (configurations timed / counting
 # replays) and its regret: advise, advise's steps taken on the map's table (advise-table), the

@@ -66,7 +66,7 @@ std::vector<nlohmann::json> enumerate_space(const std::vector<SearchDimension>& 
 /// A budget of a tenth of the space buys too few measurements for a search to find its way
 /// (the pattern search above walks from the defaults one level at a time), but a counting replay
 /// of every configuration costs no timed ray, and eq. 5.4's coefficients price the replays well
-/// enough to rank them (thesis §5.3; docs/model.md, "Ranked, then timed"). So: configurations in
+/// enough to rank them (thesis §5.3; docs/model.md as of commit f3b2207, "Ranked, then timed"). So: configurations in
 /// one class of `class_of` (one structure in effect: equal counts) are ranked as one, by the
 /// median of their members' `predicted` costs (NaN ranks last); the best-ranked class not timed
 /// yet has its first member timed, `budget` times or until every class is timed; the fastest

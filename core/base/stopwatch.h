@@ -7,7 +7,7 @@
 /// now and then, and a median over frames of unequal work can jump between them). The CPU clock
 /// leaves that out, but reading it is a system call, whose cost varies with what ran before it and
 /// with the host, and part of two such calls lies inside every CPU span: a measurable share of a
-/// small update (docs/model.md, "The CPU clock's own cost"). The wall span encloses no system call
+/// small update (docs/model.md as of commit f3b2207, "The CPU clock's own cost"). The wall span encloses no system call
 /// (the CPU clock is read outside it; the wall clock is read in user space), so each span is at
 /// least the work, and the lesser of the two is the section's own time: the wall span when the
 /// thread ran throughout, the CPU span when it waited (`TimingClock::thread`). Work spread over

@@ -5,7 +5,7 @@
 /// Without it, how much of a structure's update-side memory (index, cells, nodes) is still cached
 /// when the next frame's update starts depends on what else used the shared last-level cache
 /// meanwhile: the other core, other tenants of the host. That changes from minute to minute, and
-/// small updates move with it (docs/model.md, "A cold cache before each update").
+/// small updates move with it (docs/model.md as of commit f3b2207, "A cold cache before each update").
 /// Mytkowicz et al. 2009 name such state among the causes of wrong data; where it cannot be
 /// randomised over, fixing it is the remedy. Cold is also what an engine's broad phase meets: the
 /// rest of its frame runs between two updates.
