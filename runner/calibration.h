@@ -94,7 +94,7 @@ bool record_machine(Database& db, std::int64_t run, const CalibratedStructures& 
                     const std::string& cache_dir = "/sys/devices/system/cpu/cpu0/cache");
 
 /// Measures and stores another calibration pass of every structure (the run's next pass number).
-/// A pass takes seconds and the host's slow stretches last about a minute (docs/model.md, "Hits
+/// A pass takes seconds and the host's slow stretches last about a minute (docs/model.md as of commit f3b2207, "Hits
 /// apart from tests, judged on maps-oacmp2"), so one pass can fall in one whole; passes minutes
 /// apart seldom all do, and each micro-scene's fastest pass is what a quiet machine measures.
 void add_calibration_pass(Database& db, std::int64_t run, const CalibratedStructures& structures);

@@ -8,6 +8,7 @@
 #include <cctype>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -193,3 +194,64 @@ TEST(Docs, MissingFetchedDataNamesTheScript) {
 }
 
 }  // namespace
+
+namespace {
+
+/// The headings (without the #s) and bold paragraph leads (**Lead.**, without the stars and the
+/// final stop) of a markdown file: what a citation `docs/NAME.md, "Section"` may name.
+std::set<std::string> sections_of(const std::string& text) {
+    std::set<std::string> out;
+    std::istringstream in(text);
+    const std::regex heading(R"(^#+\s+(.*\S)\s*$)"), lead(R"(^\*\*([^*]+?)\.?\*\*)");
+    for (std::string line; std::getline(in, line);) {
+        std::smatch m;
+        if (std::regex_search(line, m, heading) || std::regex_search(line, m, lead)) out.insert(m[1]);
+    }
+    return out;
+}
+
+}  // namespace
+
+// A comment or doc that cites `docs/NAME.md, "Section"` (or `[NAME.md](NAME.md), "Section"`)
+// sends the reader to a section that exists, unless it names the commit it cites ("as of commit
+// ..."), where git keeps the text. Sections move and leave; a citation that outlives them misleads.
+TEST(Docs, EverySectionTheSourcesCiteExists) {
+    const std::regex cite(R"re((?:docs/|\[)([a-z0-9_-]+)\.md(?:\]\([a-z0-9_-]+\.md\))?, "([^"]+)")re");
+    std::vector<std::string> missing;
+    std::map<std::string, std::set<std::string>> sections;
+    const fs::path root(RCBENCH_SOURCE_DIR);
+    for (const char* dir :
+         {"analysis", "cli", "core", "runner", "tuner", "bench", "docs", "experiments", "scripts", "tests"}) {
+        for (const auto& e : fs::recursive_directory_iterator(root / dir)) {
+            if (!e.is_regular_file()) continue;
+            const std::string ext = e.path().extension().string();
+            if (ext != ".h" && ext != ".cpp" && ext != ".md" && ext != ".sh" && ext != ".json") continue;
+            if (e.path().filename() == "docs_test.cpp") continue;
+            std::ifstream in(e.path());
+            const std::string text(std::istreambuf_iterator<char>(in), {});
+            for (std::sregex_iterator it(text.begin(), text.end(), cite), end; it != end; ++it) {
+                const std::string doc = (*it)[1];
+                // A citation wrapped over comment lines: one space for the break and the markers.
+                const std::string section =
+                    std::regex_replace(std::string((*it)[2]), std::regex(R"(\s*\n\s*(///|//|#)?\s*)"), " ");
+                if (!fs::exists(root / "docs" / (doc + ".md"))) continue;  // another file of that name
+                if (!sections.count(doc)) sections[doc] = sections_of(read_source("docs/" + doc + ".md"));
+                // The citation names a heading or lead, or the start of one ("Query kinds" for
+                // "Query kinds: all, closest, any").
+                const auto& known = sections[doc];
+                const bool found = std::any_of(known.begin(), known.end(), [&](const std::string& h) {
+                    return h.rfind(section, 0) == 0 &&
+                           (h.size() == section.size() || !std::isalnum(static_cast<unsigned char>(h[section.size()])));
+                });
+                if (!found)
+                    missing.push_back(fs::relative(e.path(), root).string() + ": docs/" + doc + ".md, \"" + section +
+                                      "\"");
+            }
+        }
+    }
+    EXPECT_TRUE(missing.empty()) << [&] {
+        std::string s;
+        for (const std::string& m : missing) s += m + "\n";
+        return s;
+    }();
+}
