@@ -1,6 +1,7 @@
 # The headers core/ had before it was split into stages (base, scene, truth, accel, sim), installed
 # as forwarding headers that include the new place, so an engine that includes an old path still
-# builds against this release. They go with the next one: include the new paths.
+# builds against this release. They go with the next one: include the new paths. Brute force moved
+# once more, from accel/ into accel/scan/ (accel/ itself no longer includes accel/common/).
 set(RCB_MOVED_HEADERS
   core/error.h=core/base/error.h
   core/geometry.h=core/base/geometry.h
@@ -27,7 +28,8 @@ set(RCB_MOVED_HEADERS
   core/outcome_predictor.h=core/accel/outcome_predictor.h
   core/cast_arena.h=core/accel/cast_arena.h
   core/query_level.h=core/accel/query_level.h
-  core/structures/brute_force.h=core/accel/brute_force.h
+  core/structures/brute_force.h=core/accel/scan/brute_force.h
+  core/accel/brute_force.h=core/accel/scan/brute_force.h
   core/structures/common/box_block.h=core/accel/common/box_block.h
   core/structures/common/box_scan.h=core/accel/common/box_scan.h
   core/structures/common/outlier_trim.h=core/accel/common/outlier_trim.h

@@ -5,7 +5,7 @@
 #include "core/truth/ground_truth.h"
 #include "core/base/random.h"
 #include "core/accel/registry.h"
-#include "core/accel/brute_force.h"
+#include "core/accel/scan/brute_force.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

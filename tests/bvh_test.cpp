@@ -12,7 +12,7 @@
 #include "core/scene/generate/generators.h"
 #include "core/base/random.h"
 #include "core/accel/registry.h"
-#include "core/accel/brute_force.h"
+#include "core/accel/scan/brute_force.h"
 #include "core/accel/bvh/dynamic_bvh.h"
 #include "core/accel/bvh/linear_bvh.h"
 #include "tests/test_scenes.h"

@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "core/accel/brute_force.h"
+#include "core/accel/scan/brute_force.h"
 #include "core/accel/bvh/dynamic_bvh.h"
 #include "core/accel/grid/hash_grid.h"
 #include "core/accel/bvh/linear_bvh.h"

@@ -7,7 +7,7 @@
 #include "core/accel/registry.h"
 #include "core/sim/cache_sweep.h"
 #include "core/sim/simulator.h"
-#include "core/accel/brute_force.h"
+#include "core/accel/scan/brute_force.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

@@ -19,7 +19,7 @@
 #include "core/scene/generate/generators.h"
 #include "core/base/random.h"
 #include "core/accel/registry.h"
-#include "core/accel/brute_force.h"
+#include "core/accel/scan/brute_force.h"
 #include "core/accel/bvh/wide_bvh.h"
 #include "core/truth/ground_truth.h"
 #include "tests/test_scenes.h"

@@ -4,7 +4,7 @@
 #include "core/accel/query_level.h"
 #include "core/accel/peers/embree_boxes.h"
 #include "core/accel/peers/ode_spaces.h"
-#include "core/accel/brute_force.h"
+#include "core/accel/scan/brute_force.h"
 #include "core/accel/bvh/dynamic_bvh.h"
 #include "core/accel/bvh/linear_bvh.h"
 #include "core/accel/grid/hash_grid.h"

@@ -511,71 +511,26 @@ void DynamicBvh::rebuild() {
     cost_after_build_ = params_.rebuild_growth > 0 ? sah_cost() : 0.0;
 }
 
-/// Builds the subtree over items[0, count): binned SAH over the centroids (Wald 2007), all three
-/// axes binned in one pass, one leaf per object; a median split when the centroids coincide.
-std::uint32_t DynamicBvh::build_range(BuildItem* items, std::uint32_t count) {
-    if (count == 1) return items[0].node;
-    Aabb cbounds = Aabb::empty();
-    for (std::uint32_t i = 0; i < count; ++i)
-        cbounds.min = rcb::min(cbounds.min, items[i].centroid), cbounds.max = rcb::max(cbounds.max, items[i].centroid);
-    const int bins = params_.bins;
+/// Builds the subtree over items[0, count): binned SAH over the centroids (binned_sah.h, Wald 2007)
+/// in float, all three axes binned in one pass, one leaf per object, std::partition of the whole
+/// range; split by size at the median when no border splits (the centroids coincide).
+std::uint32_t DynamicBvh::build_range(SahItem* items, std::uint32_t count) {
+    if (count == 1) return items[0].id;
     std::uint32_t mid = count / 2;
     if (count > 2) {
-        // Per-axis bins in a member scratch array (a local array of 3 × 256 bins would be
-        // initialised at every node and dominate the build).
-        bins_.resize(3 * std::size_t(bins));
-        auto bin = [&](int axis) { return bins_.data() + std::size_t(axis) * std::size_t(bins); };
-        std::array<float, 256> right_cost;
-        Vec3 scale;
-        bool any = false;
-        for (int axis = 0; axis < 3; ++axis) {
-            const float ext = cbounds.max[axis] - cbounds.min[axis];
-            scale[axis] = ext > 0 ? float(bins) / ext : 0.0f;
-            any = any || ext > 0;
-            for (int b = 0; b < bins; ++b) bin(axis)[b] = Bin{Aabb::empty(), 0};
+        const Aabb cbounds = grow_centroid_bounds(Aabb::empty(), items, items + count);
+        // The bins live in the member sah_ (a local array of 3 × 256 bins would be initialised at
+        // every node and dominate the build).
+        SahSplit split;
+        if (sah_.begin(cbounds, params_.bins)) {
+            sah_.add(items, items + count);
+            split = sah_.choose(count);
         }
-        int best_axis = -1, best_split = 0;
-        if (any) {
-            for (std::uint32_t i = 0; i < count; ++i)
-                for (int axis = 0; axis < 3; ++axis) {
-                    const int b = std::min(bins - 1, int((items[i].centroid[axis] - cbounds.min[axis]) * scale[axis]));
-                    bin(axis)[b].box = merge(bin(axis)[b].box, items[i].box);
-                    ++bin(axis)[b].n;
-                }
-            float best_cost = std::numeric_limits<float>::max();
-            for (int axis = 0; axis < 3; ++axis) {
-                if (scale[axis] == 0.0f) continue;
-                Aabb acc = Aabb::empty();
-                std::uint32_t n = 0;
-                for (int b = bins - 1; b > 0; --b) {
-                    acc = merge(acc, bin(axis)[b].box), n += bin(axis)[b].n;
-                    right_cost[b] = n ? area(acc) * float(n) : 0.0f;
-                }
-                acc = Aabb::empty(), n = 0;
-                for (int b = 0; b < bins - 1; ++b) {
-                    acc = merge(acc, bin(axis)[b].box), n += bin(axis)[b].n;
-                    if (n == 0 || n == count) continue;
-                    const float cost = area(acc) * float(n) + right_cost[b + 1];
-                    if (cost < best_cost) best_cost = cost, best_axis = axis, best_split = b + 1;
-                }
-            }
-        }
-        if (best_axis >= 0) {
-            const float lo = cbounds.min[best_axis], sc = scale[best_axis];
-            BuildItem* split = std::partition(items, items + count, [&](const BuildItem& it) {
-                return std::min(bins - 1, int((it.centroid[best_axis] - lo) * sc)) < best_split;
-            });
-            mid = std::uint32_t(split - items);
+        if (split.found()) {
+            mid = std::uint32_t(sah_partition(sah_, split, items, items + count) - items);
             if (mid == 0 || mid == count) mid = count / 2;  // cannot happen with the same binning; be safe
         } else {
-            // Every centroid in one bin (one point: boxes nested around one centre): split by size
-            // at the median, smallest half first, ties by node, so each subtree holds boxes of
-            // similar size (a subtree of large boxes then shares a large common box, see crowds)
-            // instead of an arbitrary half of all sizes.
-            std::nth_element(items, items + mid, items + count, [](const BuildItem& a, const BuildItem& b) {
-                const float sa = a.box.half_area(), sb = b.box.half_area();
-                return sa < sb || (sa == sb && a.node < b.node);
-            });
+            split_by_size<float>(items, count);
         }
     }
     const std::uint32_t left = build_range(items, mid);
@@ -604,8 +559,8 @@ double DynamicBvh::sah_cost() const {
 
 std::size_t DynamicBvh::memory_bytes() const {
     return nodes_.capacity() * sizeof(Node) + tight_.capacity() * sizeof(Aabb) + scratch_bytes() +
-           build_items_.capacity() * sizeof(BuildItem) + bins_.capacity() * sizeof(Bin) +
-           leaf_of_.bucket_count() * sizeof(void*) + leaf_of_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) +
+           build_items_.capacity() * sizeof(SahItem) + sah_.memory_bytes() + leaf_of_.bucket_count() * sizeof(void*) +
+           leaf_of_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) +
            crowd_of_.capacity() * sizeof(std::uint32_t) + crowds_.capacity() * sizeof(Crowd) +
            packed_.capacity() * sizeof(PackedLeaf) + sizeof(*this);
 }

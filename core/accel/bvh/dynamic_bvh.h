@@ -15,6 +15,7 @@
 
 #include "core/accel/params.h"
 #include "core/accel/structure.h"
+#include "core/accel/bvh/binned_sah.h"
 #include "core/accel/bvh/bvh_traversal.h"
 #include "core/accel/common/query_scratch.h"
 
@@ -157,14 +158,9 @@ private:
     void refit_from(std::uint32_t n);
     void rotate_nodes(std::uint32_t a);
     void rebuild();
-    /// A leaf during a top-down build: its fat box and centroid copied out of the node array, so
-    /// that binning and partitioning read memory in order.
-    struct BuildItem {
-        Aabb box;
-        Vec3 centroid;
-        std::uint32_t node;
-    };
-    std::uint32_t build_range(BuildItem* items, std::uint32_t count);
+    /// The top-down build over leaves: their fat boxes, centres and node ids copied out of the node
+    /// array (SahItem::id is the node), so that binning and partitioning read memory in order.
+    std::uint32_t build_range(SahItem* items, std::uint32_t count);
     bool deferring() const { return dirty_; }
 
     Params params_;
@@ -182,12 +178,8 @@ private:
     bool dirty_ = false;  // leaves changed, tree to be rebuilt at commit
     std::uint32_t frames_since_build_ = 0;
     double cost_after_build_ = 0.0;
-    std::vector<BuildItem> build_items_;
-    struct Bin {
-        Aabb box;
-        std::uint32_t n;
-    };
-    std::vector<Bin> bins_;
+    std::vector<SahItem> build_items_;
+    BinnedSah<float> sah_;
     // SAH guard (incremental mode).
     std::size_t changes_since_check_ = 0;
     double guard_baseline_ = 0.0;

@@ -13,20 +13,23 @@
 /// built from the live objects a budget of work per commit (`rebuild_speed` objects' share per
 /// change), the changes meanwhile are logged and replayed into it, and the trees swap; the live tree
 /// answers throughout. docs/structures.md has the details and the measurements.
+///
+/// This header holds the tree, its changes and its queries; the builder is in wide_bvh_build.h, the
+/// progressive rebuild in wide_bvh_rebuild.h (both friends of the tree, which they build).
 
 #include <algorithm>
 #include <array>
 #include <bit>
 #include <cstdint>
-#include <memory>
 #include <tuple>
 #include <unordered_map>
-#include <unordered_set>
 #include <vector>
 
 #include "core/accel/params.h"
 #include "core/accel/hit_policy.h"
 #include "core/accel/structure.h"
+#include "core/accel/bvh/wide_bvh_build.h"
+#include "core/accel/bvh/wide_bvh_rebuild.h"
 #include "core/accel/common/query_scratch.h"
 
 #if defined(__AVX2__)
@@ -106,7 +109,7 @@ public:
         }
     };
 
-    static constexpr int kLanes = 8;
+    static constexpr int kLanes = kWideLanes;
 
     WideBvh();
     explicit WideBvh(const Params& p);
@@ -153,6 +156,8 @@ public:
     }
 
 private:
+    friend class WideBvhBuilder;
+    friend class WideBvhRebuild;
     static constexpr std::uint32_t kNone = 0xffffffffu;
 
     /// The L2 data cache of this machine (sysconf), or 1 MiB where it does not say.
@@ -412,154 +417,6 @@ private:
 #endif
     }
 
-    /// An object during a build: its box, centroid and uid.
-    struct Item {
-        Aabb box;
-        Vec3 centroid;
-        Uid uid;
-    };
-    /// Items [begin, begin + n) of items_ and their box (the union of the items' boxes).
-    struct Range {
-        std::uint32_t begin = 0, n = 0;
-        Aabb box = Aabb::empty();
-    };
-    /// A block still to build: a range below lane `lane` of `parent` (kNone: the root).
-    struct Pending {
-        Range range;
-        std::uint32_t parent = kNone;
-        std::uint16_t depth = 0;
-        std::uint8_t lane = 0;
-    };
-    struct Bin {
-        Aabb box;
-        std::uint32_t n;
-    };
-    /// Where a progressive rebuild is: gathering the live objects, building the next tree from
-    /// them, replaying the changes logged since the gathering began, or freeing the replaced tree.
-    enum class Phase : std::uint8_t { idle, gather, build, replay, dispose };
-    // Work units (the build's: an item binned, bounded or partitioned, an object written to a leaf)
-    // of a replayed uid (two lookups, then a lane write, an insert or a remove in the next tree) and
-    // of an index entry freed, from their times against the build's.
-    static constexpr std::uint64_t kReplayUnits = 16, kDisposeUnits = 4;
-
-    /// The top-down binned SAH build of one tree, resumable, so that a rebuild can be spread over
-    /// commits: step() does at most about `budget` units of work (one unit: an item binned, bounded
-    /// or partitioned, an object written to a leaf) and returns what it did; build() and rebuild()
-    /// run it without a limit, a progressive rebuild a share per commit. Depth first: pending_
-    /// holds the blocks still to build, and the node being opened keeps its parts and the split in
-    /// progress between steps. The tree passed to each call is the one it builds (its owner).
-    class Builder {
-    public:
-        /// The objects to build from: filled before begin(), freed by end().
-        std::vector<Item>& items() { return items_; }
-        const std::vector<Item>& items() const { return items_; }
-        /// Empties `t` and starts a build of items().
-        void begin(WideBvh& t);
-        std::uint64_t step(WideBvh& t, std::uint64_t budget);
-        bool done() const { return pending_.empty() && !opening_; }
-        void end(WideBvh& t);
-        /// Units of the build so far.
-        std::uint64_t work() const { return build_work_; }
-        /// Splits items [0, n) in two (binned SAH; by size or the median when that cannot split)
-        /// and returns the size of the first part, in 1..n-1. For the nine objects of a leaf split;
-        /// no build is in progress then (builds run to their end, or in the next tree).
-        std::uint32_t split(const Params& p, Item* items, std::uint32_t n);
-        std::size_t memory_bytes() const;
-
-    private:
-        /// The stage of the split of parts_[splitting_].
-        enum class Stage : std::uint8_t { centroid_bounds, binning, partition };
-        /// One step of the split of parts_[splitting_]: centroid bounds, binning, then the
-        /// partition.
-        std::uint64_t split_step(const Params& p, std::uint64_t budget);
-        /// Chooses the binned-SAH split of the part from the bins; false when none splits it.
-        bool choose_split(int bins, std::uint32_t n);
-        /// The fallbacks when binning cannot split `part`: by size when its centroids coincide,
-        /// else at the median of the widest axis. Done whole (these parts are rare, and small in
-        /// practice).
-        void split_by_size(int part);
-        /// The node being opened is complete: its block, its lanes, its parts pending as children.
-        void finish_node(WideBvh& t);
-        void make_leaf(WideBvh& t, const Pending& p);
-
-        std::vector<Item> items_;
-        std::vector<Pending> pending_;
-        bool opening_ = false;  // a node is being opened: open_, parts_, splitting_ hold it
-        Pending open_;          // the node being opened
-        std::array<Range, kLanes> parts_;
-        int nparts_ = 0;
-        int splitting_ = -1;  // the part being split, or -1
-        Stage stage_ = Stage::centroid_bounds;
-        std::uint32_t cursor_ = 0, right_ = 0;  // the next item of the stage; the partition's right-side scan
-        Aabb cbox_;                             // the centroid bounds of the part being split
-        double scale_[3] = {0, 0, 0};           // bins per unit of centroid, per axis (0: the axis is not binned)
-        int axis_ = 0, split_bin_ = 0;          // the chosen split: items of bins below split_bin_ on axis_ go left
-        std::uint32_t left_n_ = 0;
-        std::uint64_t build_work_ = 0;  // units of the build so far
-        std::vector<Bin> bin_scratch_;
-        std::vector<double> right_cost_;
-    };
-
-    /// The progressive rebuild of a live tree (the top of this file, and "progressive rebuild" in
-    /// wide_bvh.cpp): the next tree, the log of changes to replay into it, and the work per commit.
-    /// The tree passed to each call is the live one (its owner).
-    class ProgressiveRebuild {
-    public:
-        Phase phase() const { return phase_; }
-        /// Drops a rebuild in progress (build(): new contents replace everything).
-        void reset();
-        /// After a build of the live tree from `objects` objects in `build_work` units: until a
-        /// rebuild has measured it, the build's units plus about one per object for the gathering
-        /// and one for the replay.
-        void estimate(std::uint64_t build_work, std::size_t objects);
-        /// Every commit first: no budget and no work yet.
-        void open_commit() { budget_ = work_ = 0; }
-        /// A commit that follows changes (`changes` of them, `weighted` as the trigger counts
-        /// them): starts a rebuild when one is due, and spends the budget they earn on the one in
-        /// progress. The budget follows the changes themselves, not their weight: each of them is
-        /// logged and replayed alike, so a rebuild's length in commits stays bounded by them.
-        void commit(WideBvh& live, std::uint64_t changes, double weighted);
-        /// A change to the live tree while a rebuild gathers, builds or replays: the uid is
-        /// replayed into the next tree before the swap (and skipped by the gathering, if not yet
-        /// gathered).
-        void log_change(Uid uid) {
-            if (phase_ == Phase::idle || phase_ == Phase::dispose) return;
-            log_.push_back(uid);
-            if (phase_ == Phase::gather) gather_skip_.insert(uid);
-        }
-        /// An object of the live tree moved to another lane (a leaf split, a remove filling its
-        /// hole): only the gathering cares, which could see it twice or not at all.
-        void log_relocation(Uid uid) {
-            if (phase_ == Phase::gather) log_change(uid);
-        }
-        void add_stats(nlohmann::json& stats) const;
-        std::size_t memory_bytes() const;
-        /// The rebuild's invariants against the live tree (validate()).
-        void validate(const WideBvh& live) const;
-
-    private:
-        void start(const WideBvh& live);
-        /// Advances the rebuild by about `budget` units; swaps the trees when the replay is done.
-        void advance(WideBvh& live, std::uint64_t budget);
-        std::uint64_t gather_step(const WideBvh& live, std::uint64_t budget);
-        /// Makes the next tree hold `uid` as the live tree does now (present or not, same box).
-        void replay(const WideBvh& live, Uid uid);
-        void swap_trees(WideBvh& live);
-
-        Phase phase_ = Phase::idle;
-        std::unique_ptr<WideBvh> next_;        // the tree being built (then the replaced one, disposed)
-        std::uint32_t gather_cursor_ = 0;      // the next block to gather
-        std::vector<Uid> log_;                 // uids changed since the gathering began
-        std::unordered_set<Uid> gather_skip_;  // uids changed while gathering: not gathered
-        std::size_t replay_cursor_ = 0;
-        std::size_t log_mark_ = 0;             // the log's size at the end of the last commit
-        double cycle_age_ = 0;                 // weighted changes since the rebuild in progress gathered
-        std::uint64_t cycle_work_ = 0;         // units of the rebuild in progress so far
-        std::uint64_t last_cycle_work_ = 0;    // units of the last progressive rebuild, to its swap
-        double units_per_object_ = 0;          // units of the last rebuild per object
-        std::uint64_t budget_ = 0, work_ = 0;  // of the last commit
-    };
-
     std::uint32_t allocate();
     void release(std::uint32_t b);
     void mark(std::uint32_t b);
@@ -638,8 +495,8 @@ private:
     /// or refit rewrites, and those of a progressive rebuild's next tree as it is built and replayed.
     std::uint64_t writes_ = 0;
 
-    Builder builder_;             // builds this tree
-    ProgressiveRebuild rebuild_;  // builds the next one while this one answers
+    WideBvhBuilder builder_;  // builds this tree
+    WideBvhRebuild rebuild_;  // builds the next one while this one answers
 };
 
 }  // namespace rcb

@@ -1,4 +1,4 @@
-#include "core/accel/brute_force.h"
+#include "core/accel/scan/brute_force.h"
 
 #include <algorithm>
 
