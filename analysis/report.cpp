@@ -181,6 +181,90 @@ void query_kinds_section(Html& h, const std::vector<KindCell>& all_cells) {
             "stands out costs per counted step what the model does not price");
 }
 
+/// The rays a physics comparison times: the whole frame or one query kind's batch.
+std::string rays_name(const std::string& kind) { return kind.empty() ? "whole frame" : kind + " batch"; }
+
+/// Physics scenes (analysis/report_data.h, PeerSection): per scene window and configuration the
+/// time per frame, whole and per query kind.
+void physics_times(Html& h, const PeerSection& p) {
+    std::vector<std::string> header{"scene", "window", "configuration", "update", "ray cast", "per frame"};
+    for (const std::string& k : p.kinds) header.push_back("per frame, " + rays_name(k));
+    std::vector<std::vector<std::string>> rows;
+    for (const Entry* e : p.entries) {
+        std::vector<std::string> row{e->recording,     e->window,         e->label,
+                                     ms(e->update_ms), ms(e->raycast_ms), ms(e->total_ms())};
+        for (const std::string& k : p.kinds) row.push_back(std::isfinite(e->frame_ms(k)) ? ms(e->frame_ms(k)) : "-");
+        rows.push_back(std::move(row));
+    }
+    h.table(header, rows,
+            "Time per frame (ms) = update + ray cast: medians over the repetitions of each cell's median over the "
+            "window's measured frames (every frame replays; only the window's are measured, core/scene/phases.h)" +
+                std::string(p.kinds.empty() ? ""
+                                            : ". Per kind: the frame's update plus that kind's batch of rays, "
+                                              "cast on its own"));
+}
+
+/// Per scene and rays: the best own configuration against each peer's best, named.
+void peer_comparisons(Html& h, const PeerSection& p) {
+    std::vector<std::string> peers;  // every peer structure measured, in the comparisons' order
+    for (const PeerComparison& c : p.comparisons)
+        for (const PeerBest& b : c.peers)
+            if (std::find(peers.begin(), peers.end(), b.structure) == peers.end()) peers.push_back(b.structure);
+    if (peers.empty()) {
+        h.paragraph("No peer structure was measured on these scenes: nothing to compare against.");
+        return;
+    }
+    std::vector<std::string> header{"scene", "window", "rays", "best own", "ms"};
+    for (const std::string& peer : peers) header.insert(header.end(), {"best " + peer, "ms"});
+    header.insert(header.end(), {"best peer", "own / best peer"});
+    std::vector<std::vector<std::string>> rows;
+    std::vector<std::pair<std::string, std::vector<double>>> ratios;  // per rays: whole frame, then each kind
+    for (const PeerComparison& c : p.comparisons) {
+        std::vector<std::string> row{c.scene->recording, c.scene->window, rays_name(c.kind), c.own ? c.own->label : "-",
+                                     c.own ? ms(c.own_ms) : "-"};
+        for (const std::string& peer : peers) {
+            const auto b =
+                std::find_if(c.peers.begin(), c.peers.end(), [&](const PeerBest& x) { return x.structure == peer; });
+            row.push_back(b == c.peers.end() ? "-" : b->entry->label);
+            row.push_back(b == c.peers.end() ? "-" : ms(b->ms));
+        }
+        const bool paired = std::isfinite(c.ratio());
+        row.push_back(c.peers.empty() ? "-" : c.peers[c.best_peer].entry->label);
+        row.push_back(paired ? fixed(c.ratio(), 2) + "x" : "-");
+        rows.push_back(std::move(row));
+        const auto of_rays =
+            std::find_if(ratios.begin(), ratios.end(), [&](const auto& r) { return r.first == rays_name(c.kind); });
+        if (!paired) continue;
+        if (of_rays == ratios.end())
+            ratios.push_back({rays_name(c.kind), {c.ratio()}});
+        else
+            of_rays->second.push_back(c.ratio());
+    }
+    h.table(header, rows,
+            "Per scene window and rays: rcbench's fastest configuration against each peer's fastest configuration on "
+            "that window (its parameters named), per frame = update + ray cast of the whole frame or of one kind's "
+            "batch (ms); own / best peer below 1: rcbench's is faster");
+    for (const auto& [rays, r] : ratios)
+        h.paragraph("Best own over best peer, " + rays + ": median " + fixed(quantile(r, 0.5), 2) + "x over " +
+                    std::to_string(r.size()) + (r.size() == 1 ? " scene window" : " scene windows") + " (from " +
+                    fixed(*std::min_element(r.begin(), r.end()), 2) + "x to " +
+                    fixed(*std::max_element(r.begin(), r.end()), 2) + "x).");
+}
+
+/// The physics section, then the other scenes' comparisons against the peers (their times are in
+/// Table 6.2); each nothing for a run without such scenes.
+void peer_sections(Html& h, const Entries& es) {
+    if (const PeerSection p = physics_section(es); !p.entries.empty()) {
+        h.heading("Physics scenes: per frame, per phase, against the peers");
+        physics_times(h, p);
+        peer_comparisons(h, p);
+    }
+    if (const PeerSection p = peer_section(es); !p.entries.empty()) {
+        h.heading("Against the peers");
+        peer_comparisons(h, p);
+    }
+}
+
 /// Whether no other configuration on `e`'s scene has both less update and less ray cast per frame
 /// (one of them strictly): `e` is on its scene's front, the choices worth naming.
 bool on_scene_front(const Entries& es, const Entry& e) {
@@ -787,6 +871,7 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
     accuracy_section(h, es);
     cost_model_section(h, d, models, breakdown);
     if (!d.kind_frames.empty()) query_kinds_section(h, kind_cells(models, d.kind_frames));
+    peer_sections(h, es);
     dbvh_section(h, breakdown);
     over_time_section(h, es);
     memory_build_section(h, es);

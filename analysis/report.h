@@ -4,7 +4,9 @@
 /// cast, time per frame against precision and recall with each scene's Pareto front named,
 /// predicted against measured, per-frame series, SAH cost over time, memory against time, build
 /// time against object count), each scene's motion (objects changed per frame) and, for a run with
-/// query kinds, the time per query of each kind measured and predicted (analysis/query_kinds.h).
+/// query kinds, the time per query of each kind measured and predicted (analysis/query_kinds.h),
+/// and on physics scenes, per phase and query kind, per frame of every configuration with the best
+/// own against each peer's best configuration, named (as on every other scene with a peer).
 /// One self-contained file: open it from disk, no network, no scripts.
 /// What each section shows is loaded and computed in analysis/report_data.h; report.cpp only
 /// renders it (HTML, CSS, gnuplot charts).

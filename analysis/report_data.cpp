@@ -1,7 +1,10 @@
 #include "analysis/report_data.h"
 
 #include <algorithm>
+#include <functional>
 #include <map>
+#include <set>
+#include <tuple>
 
 #include <nlohmann/json.hpp>
 
@@ -9,16 +12,55 @@
 #include "analysis/statistics.h"
 #include "core/accel/registry.h"
 #include "core/base/error.h"
+#include "core/scene/generate/physics.h"
+#include "core/scene/phases.h"
 #include "core/sim/simulator.h"
 
 namespace rcb::report {
 namespace {
 
+/// The scene's recording and window from its spec's "measure" (runner/experiment.h, SceneSpec::key):
+/// a phase's scene is named after its entry with "-<phase>" appended.
+void read_window(Entry& e, const std::string& spec) {
+    const std::vector<std::string> phases = motion_phase_names();
+    e.recording = e.scene;
+    e.window = "every frame";
+    e.window_order = int(phases.size()) + 1;
+    const nlohmann::json j = nlohmann::json::parse(spec, nullptr, false);
+    if (!j.is_object() || !j.contains("measure") || !j["measure"].is_object()) return;
+    const nlohmann::json& m = j["measure"];
+    const std::int64_t stride =
+        m.contains("stride") && m["stride"].is_number_integer() ? m["stride"].get<std::int64_t>() : 1;
+    const std::string every = stride > 1 ? ", every " + std::to_string(stride) + " frames" : "";
+    if (m.contains("phase") && m["phase"].is_string()) {
+        const std::string phase = m["phase"].get<std::string>();
+        e.window = phase + every;
+        e.window_order = int(std::find(phases.begin(), phases.end(), phase) - phases.begin());
+        const std::string suffix = "-" + phase;
+        if (e.scene.size() > suffix.size() &&
+            e.scene.compare(e.scene.size() - suffix.size(), suffix.size(), suffix) == 0)
+            e.recording = e.scene.substr(0, e.scene.size() - suffix.size());
+    } else if (m.contains("start_frame")) {
+        e.window = "from frame " + m["start_frame"].dump() + every;
+        e.window_order = int(phases.size());
+    }
+}
+
+/// Per cell, per query kind: the batch times (ns) of its measured frames; empty for a run without kinds.
+std::map<std::int64_t, std::map<std::string, std::vector<double>>> kind_batch_times(Database& db, std::int64_t run) {
+    std::map<std::int64_t, std::map<std::string, std::vector<double>>> out;
+    if (!run_has_frame_kinds(db, run)) return out;
+    for (const FrameKindRow& r : read_frame_kinds(db, run)) out[r.cell_id][r.kind].push_back(r.raycast_ns);
+    return out;
+}
+
 std::vector<Entry> load_entries(Database& db, std::int64_t run) {
     struct Acc {
         Entry e;
         std::vector<double> build, update, raycast, memory;
+        std::map<std::string, std::vector<double>> kinds;  ///< per kind, each repetition's median batch (ms)
     };
+    const auto kind_times = kind_batch_times(db, run);
     std::map<std::pair<std::string, std::string>, Acc> acc;  // (scene, label)
     std::vector<std::pair<std::string, std::string>> order;
     for (const CellTotalsRow& r : read_cell_totals(db, run)) {
@@ -34,6 +76,9 @@ std::vector<Entry> load_entries(Database& db, std::int64_t run) {
         e.params = r.params;
         e.label = label;
         e.objects = r.objects;
+        read_window(e, r.spec);
+        if (const auto k = kind_times.find(r.id); k != kind_times.end())
+            for (const auto& [kind, ns] : k->second) a.kinds[kind].push_back(spread_of(ns).median / 1e6);
         a.build.push_back(r.build_ns / 1e6);
         a.update.push_back(r.update_ns / 1e6);
         a.raycast.push_back(r.raycast_ns / 1e6);
@@ -54,6 +99,7 @@ std::vector<Entry> load_entries(Database& db, std::int64_t run) {
         a.e.update_ms = spread_of(a.update).median;
         a.e.raycast_ms = spread_of(a.raycast).median;
         a.e.memory_per_object = spread_of(a.memory).median;
+        for (const auto& [kind, ms] : a.kinds) a.e.kind_raycast_ms[kind] = spread_of(ms).median;
         out.push_back(a.e);
     }
     if (out.empty()) throw InputError("run " + std::to_string(run) + " has no measured cells to report");
@@ -176,6 +222,79 @@ const Entry* baseline_on(const std::vector<Entry>& entries, const std::string& s
         if (!default_params_only || e.label == e.structure) return &e;
     }
     return nullptr;
+}
+
+namespace {
+
+/// The fastest own configuration on `here` (one scene's entries) and each peer structure's fastest,
+/// per frame for every ray (`kind` empty) or for one kind's batch.
+PeerComparison compare_on(const std::vector<const Entry*>& here, const std::string& kind) {
+    PeerComparison c;
+    c.scene = here.front();
+    c.kind = kind;
+    for (const Entry* e : here) {
+        const double ms = e->frame_ms(kind);
+        if (!std::isfinite(ms)) continue;
+        const StructureInfo* info = registered_structure(e->structure);
+        if (!info || info->origin != Origin::peer) {
+            if (!c.own || ms < c.own_ms) c.own = e, c.own_ms = ms;
+            continue;
+        }
+        const auto peer = std::find_if(c.peers.begin(), c.peers.end(),
+                                       [&](const PeerBest& p) { return p.structure == e->structure; });
+        if (peer == c.peers.end())
+            c.peers.push_back({e->structure, e, ms});
+        else if (ms < peer->ms)
+            *peer = {e->structure, e, ms};
+    }
+    for (std::size_t i = 1; i < c.peers.size(); ++i)
+        if (c.peers[i].ms < c.peers[c.best_peer].ms) c.best_peer = i;
+    return c;
+}
+
+/// The comparisons on the scenes of `es` that `keep` accepts.
+PeerSection comparisons_on(const Entries& es, const std::function<bool(const Entry&)>& keep) {
+    PeerSection p;
+    for (const Entry& e : es.all)
+        if (keep(e)) p.entries.push_back(&e);
+    const std::vector<std::string> kinds = physics_kinds(), structures = structure_names();
+    const auto rank = [](const std::vector<std::string>& list, const std::string& name) {
+        return std::find(list.begin(), list.end(), name) - list.begin();
+    };
+    std::stable_sort(p.entries.begin(), p.entries.end(), [&](const Entry* a, const Entry* b) {
+        return std::make_tuple(rank(kinds, a->category), a->objects, a->recording, a->window_order, a->window, a->scene,
+                               rank(structures, a->structure), a->label) <
+               std::make_tuple(rank(kinds, b->category), b->objects, b->recording, b->window_order, b->window, b->scene,
+                               rank(structures, b->structure), b->label);
+    });
+    for (const char* kind : kQueryKindNames)
+        if (std::any_of(p.entries.begin(), p.entries.end(),
+                        [&](const Entry* e) { return e->kind_raycast_ms.count(kind) != 0; }))
+            p.kinds.push_back(kind);
+    for (std::size_t first = 0; first < p.entries.size();) {
+        std::size_t end = first;
+        while (end < p.entries.size() && p.entries[end]->scene == p.entries[first]->scene) ++end;
+        const std::vector<const Entry*> here(p.entries.begin() + std::ptrdiff_t(first),
+                                             p.entries.begin() + std::ptrdiff_t(end));
+        p.comparisons.push_back(compare_on(here, ""));
+        for (const std::string& kind : p.kinds) p.comparisons.push_back(compare_on(here, kind));
+        first = end;
+    }
+    return p;
+}
+
+}  // namespace
+
+PeerSection physics_section(const Entries& es) {
+    return comparisons_on(es, [](const Entry& e) { return is_physics_kind(e.category); });
+}
+
+PeerSection peer_section(const Entries& es) {
+    std::set<std::string> with_peer;
+    for (const Entry& e : es.all)
+        if (const StructureInfo* info = registered_structure(e.structure); info && info->origin == Origin::peer)
+            with_peer.insert(e.scene);
+    return comparisons_on(es, [&](const Entry& e) { return !is_physics_kind(e.category) && with_peer.count(e.scene); });
 }
 
 FailureCell failure_cell(const std::vector<Entry>& entries, const Entry& e) {

@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -31,7 +32,22 @@ struct Entry {
     double returned = 0, correct = 0, relevant = 0;
     bool verified = true;                             ///< every repetition was checked against the truth
     std::vector<double> frame_raycast_ms, frame_sah;  ///< repetition 0's frames
+    /// The scene's recording and the frames it measures (runner/experiment.h, "measure"): the scene
+    /// without its window ("brownian-10k" of "brownian-10k-settling") and the window as read
+    /// ("settling", "frames 5.. every 2nd", or "every frame").
+    std::string recording, window;
+    int window_order = 0;  ///< phases in core/scene/phases.h order, then start frames, then none
+    /// Per query kind of a run with kinds: the kind's batch per frame, the median over repetitions
+    /// of each cell's median over its measured frames (frame_kind.raycast_ns).
+    std::map<std::string, double> kind_raycast_ms;
     double total_ms() const { return update_ms + raycast_ms; }
+    /// Per frame = update + ray cast, of every ray of the frame (`kind` empty) or of one kind's
+    /// batch; NaN when the kind was not measured.
+    double frame_ms(const std::string& kind) const {
+        if (kind.empty()) return total_ms();
+        const auto it = kind_raycast_ms.find(kind);
+        return it == kind_raycast_ms.end() ? NAN : update_ms + it->second;
+    }
     double precision() const { return returned > 0 ? correct / returned : 1.0; }
     double recall() const { return relevant > 0 ? correct / relevant : 1.0; }
     bool exact() const { return missed + extra + duplicate == 0 && precision() == 1 && recall() == 1; }
@@ -124,6 +140,37 @@ std::string growth_category(const std::vector<Entry>& entries);
 /// Brute force on `scene`, the baseline the thesis measures speed-ups against (§4.1; the registry's
 /// family scan): its first configuration, or only its configuration at the defaults.
 const Entry* baseline_on(const std::vector<Entry>& entries, const std::string& scene, bool default_params_only);
+
+/// Comparisons against the peers: the physics section (scenes of a physics kind,
+/// core/scene/generate/physics.h, each window of a recording, a phase or from a start frame, a
+/// scene of its own) and, for every other scene where a peer was measured, the same comparison.
+struct PeerBest {
+    std::string structure;
+    const Entry* entry = nullptr;  ///< the peer's fastest configuration on the scene
+    double ms = NAN;
+};
+/// On one scene, for every ray of the frame or one query kind: the fastest own configuration
+/// (rcbench's, every structure not Origin::peer) against each peer structure's fastest.
+struct PeerComparison {
+    const Entry* scene = nullptr;  ///< any entry of the scene, for its names
+    std::string kind;              ///< "" for every ray of the frame
+    const Entry* own = nullptr;
+    double own_ms = NAN;
+    std::vector<PeerBest> peers;  ///< per peer structure measured there, in registry order
+    std::size_t best_peer = 0;    ///< index into peers (the first of equal ones)
+    /// Best own over best peer per frame; NaN without a peer or an own configuration.
+    double ratio() const { return own && !peers.empty() ? own_ms / peers[best_peer].ms : NAN; }
+};
+struct PeerSection {
+    std::vector<const Entry*> entries;        ///< by scene kind, objects, recording, window, then registry order
+    std::vector<std::string> kinds;           ///< query kinds measured on them, in QueryKind order
+    std::vector<PeerComparison> comparisons;  ///< per scene in entries' order: every ray, then each kind
+};
+/// The physics scenes of `es` (no entries without any). Time per frame is Entry::frame_ms: the
+/// medians over repetitions of the cells' medians, update plus ray cast.
+PeerSection physics_section(const Entries& es);
+/// The same for the other scenes of `es` on which a peer was measured.
+PeerSection peer_section(const Entries& es);
 
 /// One failure-mode cell against brute force and the benign scene of the same size.
 struct FailureCell {

@@ -10,7 +10,6 @@
 #include <set>
 #include <sstream>
 
-#include "core/scene/import/csv.h"
 #include "core/scene/generate/physics.h"
 #include "core/scene/phases.h"
 #include "core/scene/import/scene_import.h"
@@ -18,8 +17,8 @@
 #include "core/base/json_input.h"
 #include "core/base/number_text.h"
 #include "core/base/random.h"
-#include "core/scene/recording_io.h"
 #include "core/accel/registry.h"
+#include "runner/scene_windows.h"
 
 namespace rcb {
 namespace fs = std::filesystem;
@@ -676,76 +675,9 @@ Experiment load_experiment(const std::string& path) {
     return parse_experiment(read_text_file(path), path, fs::path(path).parent_path().string());
 }
 
-namespace {
-
-/// Marks in the recording's META the frames the scene's "measure" asks for (core/scene/phases.h):
-/// a phase's frames, or from a start frame to the end, every stride-th. InputError naming the
-/// scene when the recording has no such frames.
-void mark_measured_frames(const SceneSpec& s, Recording& r) {
-    if (!s.key.contains("measure")) return;
-    const json& m = s.key["measure"];
-    json meta = json::parse(r.meta, nullptr, false);
-    if (!meta.is_object()) meta = json::object();
-    const auto frames = std::uint32_t(r.frames.size());
-    json window = m;
-    if (m.contains("phase")) {
-        const std::vector<MotionPhase> phases = motion_phases(r);
-        std::string found;
-        for (const MotionPhase& p : phases) {
-            found += (found.empty() ? "" : ", ") + p.name + " " +
-                     (p.empty() ? "none" : std::to_string(p.first) + ".." + std::to_string(p.last));
-            if (p.name != m["phase"]) continue;
-            window["first"] = p.first, window["last"] = p.last;
-        }
-        if (window["first"].get<std::uint32_t>() > window["last"].get<std::uint32_t>())
-            throw InputError(s.where + ": scene " + s.name + ": its recording has no " + m["phase"].get<std::string>() +
-                             " phase (its phases: " + found + ")");
-    } else {
-        window["first"] = m["start_frame"], window["last"] = frames;
-        if (m["start_frame"].get<std::uint32_t>() > frames)
-            throw InputError(s.where + ".start_frame: " + m["start_frame"].dump() + " is past the scene's " +
-                             std::to_string(frames) + " frames (scene " + s.name + ")");
-    }
-    meta["measure"] = window;
-    r.meta = meta.dump();
-}
-
-}  // namespace
-
-namespace {
-
-/// The scene's recording as generated, imported or read, every frame.
-Recording load_scene_frames(const SceneSpec& s) {
-    switch (s.source) {
-        case SceneSpec::Source::recording:
-            return read_recording(s.path);
-        case SceneSpec::Source::import: {
-            if (importer_for(s.path) != "csv") {
-                json meta;
-                std::vector<Object> objects =
-                    import_objects(s.path, import_options_from_json(s.import_options, s.path), &meta);
-                if (objects.empty()) throw InputError(s.path + ": no objects to import");
-                meta["generator"] = "rcbench import";
-                return add_dynamics(std::move(objects), s.settings.dynamics, s.settings.rays, s.settings.frames,
-                                    s.settings.seed, meta);
-            }
-            std::vector<Object> objects = read_boxes_csv(s.path);
-            if (objects.empty()) throw InputError(s.path + ": no boxes to import");
-            const json meta = {{"generator", "rcbench import"}, {"source", fs::path(s.path).filename().string()}};
-            return add_dynamics(std::move(objects), s.settings.dynamics, s.settings.rays, s.settings.frames,
-                                s.settings.seed, meta);
-        }
-        case SceneSpec::Source::generated:
-            return generate_scene(s.settings);
-    }
-    return {};
-}
-
-}  // namespace
-
 Recording load_scene(const SceneSpec& s) {
     Recording r = load_scene_frames(s);
-    mark_measured_frames(s, r);
+    r.meta = measured_meta(s, r);
     return r;
 }
 

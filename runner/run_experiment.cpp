@@ -22,6 +22,7 @@
 #include "core/accel/registry.h"
 #include "core/sim/simulator.h"
 #include "runner/calibration.h"
+#include "runner/scene_windows.h"
 #include "runner/store.h"
 
 namespace rcb {
@@ -222,7 +223,7 @@ public:
                 state = settled_machine_state(calibration_samples_, memory_samples_, measured_ / 20 - waited_);
                 waited_ += state.resampled * kResampleWait;
                 const auto start = std::chrono::steady_clock::now();
-                res = simulate(loaded.recording, find_structure(config.structure), config.params, sim_);
+                res = simulate(loaded.recording(), find_structure(config.structure), config.params, sim_);
                 measured_ += std::chrono::steady_clock::now() - start;
                 if (timing_) timing_(res);
             } catch (const InputError& err) {
@@ -230,7 +231,7 @@ public:
             }
             out_.mismatches += res.mismatches();
             out_.resampled += state.resampled > 0;
-            store_.store_cell(out_.run, experiment_, c, scene, loaded.recording, loaded.hash, res, state);
+            store_.store_cell(out_.run, experiment_, c, scene, loaded.recording(), loaded.hash, res, state);
             ++out_.ran;
             after_cell_();
         }
@@ -238,10 +239,23 @@ public:
 
 private:
     /// A scene as loaded: generated, imported or read once per run and kept, since a repetition
-    /// visits the scenes' cells interleaved.
+    /// visits the scenes' cells interleaved. The scenes of one recording (the phases of one entry,
+    /// recording_key) share it: generated once and held once. Each scene keeps its own META (its
+    /// window) and hash, as if loaded alone.
     struct LoadedScene {
-        Recording recording;
-        std::string hash;
+        std::shared_ptr<Recording> shared;
+        std::string meta;  ///< the scene's META: the recording's with its window marked
+        std::string hash;  ///< recording_hash of the recording with `meta`
+        /// The recording with this scene's window; valid until another scene's is asked for.
+        const Recording& recording() const {
+            shared->meta = meta;
+            return *shared;
+        }
+    };
+    /// A recording shared by scenes, with its META as generated (no window).
+    struct SharedRecording {
+        std::shared_ptr<Recording> recording;
+        std::string meta;
     };
 
     const LoadedScene& load(std::size_t index) {
@@ -250,12 +264,22 @@ private:
         const SceneSpec& scene = e_.scenes[index];
         LoadedScene l;
         try {
-            l.recording = load_scene(scene);
+            const std::string key = recording_key(scene);
+            auto shared = recordings_.find(key);
+            if (shared == recordings_.end()) {
+                auto recording = std::make_shared<Recording>(load_scene_frames(scene));
+                std::string meta = recording->meta;
+                shared = recordings_.emplace(key, SharedRecording{std::move(recording), std::move(meta)}).first;
+                ++out_.recordings;
+            }
+            l.shared = shared->second.recording;
+            l.shared->meta = shared->second.meta;
+            l.meta = measured_meta(scene, *l.shared);
         } catch (const InputError& err) {
             throw InputError(source_ + ": scene " + scene.name + ": " + err.what());
         }
-        l.hash = recording_hash(l.recording);
-        check_loaded_scene(e_, index, l.recording, l.hash, scene_by_hash_, source_);
+        l.hash = recording_hash(l.recording());
+        check_loaded_scene(e_, index, l.recording(), l.hash, scene_by_hash_, source_);
         return loaded_.emplace(index, std::move(l)).first->second;
     }
 
@@ -268,6 +292,7 @@ private:
     std::function<void()> after_cell_;
     SimulationOptions sim_;
     std::map<std::size_t, LoadedScene> loaded_;
+    std::map<std::string, SharedRecording> recordings_;  ///< by recording_key
     std::map<std::string, std::size_t> scene_by_hash_;
     std::vector<double> calibration_samples_, memory_samples_;
     std::chrono::nanoseconds measured_{0}, waited_{0};

@@ -43,6 +43,8 @@ struct RunOutcome {
     std::size_t resampled = 0;     ///< cells measured after waiting for a slow machine (now)
     std::size_t added = 0;         ///< repetitions added where the interval over the stored ones was wide
     std::size_t calibrations = 0;  ///< calibration passes made now (the first included)
+    /// Recordings generated, imported or read now: one per recording_key, shared by its windows.
+    std::size_t recordings = 0;
     bool finished = false;
 };
 
