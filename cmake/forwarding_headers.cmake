@@ -1,6 +1,7 @@
 # The headers core/ had before it was split into stages (base, scene, truth, accel, sim), installed
 # as forwarding headers that include the new place, so an engine that includes an old path still
-# builds against this release. They go with the next one: include the new paths.
+# builds against this release. They go with the next one: include the new paths. The repetition
+# interval joined the one statistics header (median, quantiles, intervals).
 set(RCB_MOVED_HEADERS
   core/error.h=core/base/error.h
   core/geometry.h=core/base/geometry.h
@@ -44,6 +45,7 @@ set(RCB_MOVED_HEADERS
   core/peers/embree_boxes.h=core/accel/peers/embree_boxes.h
   core/simulator.h=core/sim/simulator.h
   core/scene_features.h=core/sim/scene_features.h
+  core/base/repetition_interval.h=core/base/statistics.h
 )
 foreach(move IN LISTS RCB_MOVED_HEADERS)
   string(REPLACE "=" ";" move "${move}")

@@ -54,7 +54,7 @@ struct Experiment {
     std::uint32_t repetitions = 1;
     /// Repetitions added, one round at a time, to the cells whose time is not yet pinned down: a
     /// cell whose ray-cast or update 95% interval over its repetitions so far
-    /// (core/base/repetition_interval.h) has a half-width above `repeat_interval` of its median gets
+    /// (core/base/statistics.h) has a half-width above `repeat_interval` of its median gets
     /// another, up to this many in all. The added ones count in the cell's median and fastest
     /// frames; its stated interval rests on the `repetitions` planned before the run.
     std::uint32_t max_repetitions = 1;  ///< `repetitions` unless the file asks for more

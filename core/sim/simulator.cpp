@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <cmath>
 #include <stdexcept>
 
 #include "core/base/error.h"
@@ -37,22 +36,6 @@ void validate_or_throw(const Structure& s, const std::string& name, std::uint32_
     } catch (const std::logic_error& e) {
         throw std::logic_error(name + ": invariant broken after frame " + std::to_string(frame) + ": " + e.what());
     }
-}
-
-/// The 1-based rank k of the lower end of the 95% interval of a median of n values: the largest k
-/// with P(Binomial(n, 1/2) <= k - 1) <= 0.025, at least 1.
-std::size_t median_interval_rank(std::size_t n) {
-    // P(B <= j) summed term by term in logs (n may be in the thousands).
-    double cumulative = 0;
-    std::size_t k = 1;
-    for (std::size_t j = 0; j < n; ++j) {
-        const double log_term = std::lgamma(double(n) + 1) - std::lgamma(double(j) + 1) -
-                                std::lgamma(double(n - j) + 1) - double(n) * std::log(2.0);
-        cumulative += std::exp(log_term);
-        if (cumulative > 0.025) break;
-        k = j + 1;  // P(B <= k - 1) <= 0.025: x(k) may be the lower end
-    }
-    return std::min(k, (n + 1) / 2);
 }
 
 [[noreturn]] void different_hits(const std::string& name, std::uint32_t frame) {
@@ -169,23 +152,6 @@ nlohmann::json kinds_json(const std::vector<FrameResult>& frames) {
 }
 
 }  // namespace
-
-Spread spread_of(std::vector<double> v) {
-    if (v.empty()) return {};
-    auto median = [](std::vector<double>& x) {
-        std::sort(x.begin(), x.end());
-        const std::size_t n = x.size();
-        return n % 2 ? x[n / 2] : 0.5 * (x[n / 2 - 1] + x[n / 2]);
-    };
-    Spread s;
-    s.median = median(v);
-    const std::size_t k = median_interval_rank(v.size());
-    s.ci_low = v[k - 1];
-    s.ci_high = v[v.size() - k];
-    for (double& x : v) x = std::abs(x - s.median);
-    s.mad = median(v);
-    return s;
-}
 
 std::uint64_t SimulationResult::mismatches() const {
     std::uint64_t total = 0;
