@@ -71,7 +71,8 @@ struct Experiment {
     /// repetition r + 1 of any, so the repetitions of one cell are spread over the whole run and
     /// their spread measures the machine's drift (the noise floor), which then biases no ratio.
     /// Each repetition visits every cell in its own seeded order, the scenes' cells interleaved
-    /// (repetition_cells); the runner loads each scene once per run and keeps it.
+    /// (repetition_cells; the planner, runner/repetition_plan.h); the runner loads each scene once
+    /// per run and keeps it.
     std::vector<Cell> plan;
 };
 
