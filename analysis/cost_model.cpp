@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/base/statistics.h"
 #include "core/base/error.h"
 #include "core/base/number_text.h"
 #include "core/sim/simulator.h"
@@ -249,8 +250,6 @@ Built candidate(const std::string& name, const std::string& target, const std::v
     b.columns = std::move(columns);
     return b;
 }
-
-double median_of(std::vector<double> v) { return spread_of(std::move(v)).median; }
 
 }  // namespace
 
@@ -493,11 +492,11 @@ SceneError predict_scene(const SceneSplit& split, const std::vector<const FrameO
     double fe = 0, re = 0;
     int fn = 0, rn = 0;
     for (const auto& [g, v] : by_config) {
-        const double measured = median_of(v[0]);
-        if (measured > 0) fe += std::abs(median_of(v[1]) - measured) / measured, ++fn;
+        const double measured = median(v[0]);
+        if (measured > 0) fe += std::abs(median(v[1]) - measured) / measured, ++fn;
         if (!v[2].empty()) {
-            const double ray = median_of(v[2]);
-            re += std::abs(median_of(v[3]) - ray) / ray, ++rn;
+            const double ray = median(v[2]);
+            re += std::abs(median(v[3]) - ray) / ray, ++rn;
         }
     }
     if (fn) e.frame_error = fe / fn;
@@ -559,7 +558,7 @@ double cell_median(const std::vector<const FrameObservation*>& cell, const Range
     std::vector<double> v;
     for (const FrameObservation* f : cell)
         if (!c.per_ray || f->rays > 0) v.push_back(c.value(*f));
-    return v.empty() ? NAN : median_of(v);
+    return v.empty() ? NAN : median(v);
 }
 
 std::vector<TrainedRange> trained_ranges(const std::vector<const FrameObservation*>& fs) {

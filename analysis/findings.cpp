@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/base/statistics.h"
 #include "analysis/cost_model.h"
 #include "core/accel/registry.h"
 #include "core/base/number_text.h"
@@ -66,8 +67,6 @@ struct Config {
 
 /// The thesis cast dense rays (from the centre towards the densest region) for Tables 6.3 and 6.4.
 bool dense_rays(const Config& c) { return c.ray_mix.find("dense") != std::string::npos; }
-
-double median(std::vector<double> v) { return spread_of(std::move(v)).median; }
 
 /// Smallest scene first, then by name; each scene's structures as findings_structures lists them,
 /// each structure's configurations by their parameters' values (numbers as numbers): an order of
@@ -218,12 +217,12 @@ std::string no_large_scene(const std::string& which, const std::string& with) {
     return "The run has no " + which + "scene of " + fixed(kLargeScene, 0) + " objects or more with " + with + ".";
 }
 
-std::string ms(double v) { return fixed(v, v < 0.1 ? 4 : 3) + " ms"; }
+std::string ms(double v) { return format_ms(v) + " ms"; }
 /// A time over runs: "0.449 ms [0.440–0.461]", the range over the runs that measured it; one run:
 /// "0.449 ms".
 std::string ms(double v, double lo, double hi, std::size_t runs) {
     if (runs < 2) return ms(v);
-    const int digits = v < 0.1 ? 4 : 3;
+    const int digits = ms_decimals(v);
     return ms(v) + " [" + fixed(lo, digits) + "–" + fixed(hi, digits) + "]";
 }
 std::string frame_of(const Config& c) { return ms(c.frame_ms(), c.frame_lo, c.frame_hi, c.runs); }

@@ -9,6 +9,8 @@
 #include <set>
 #include <utility>
 
+#include "core/base/statistics.h"
+
 namespace rcb {
 namespace {
 
@@ -79,12 +81,6 @@ double condition_number_of(const LinearProblem& p) {
     for (std::size_t j = 0, r = n; j < k; ++j)
         if (p.has_prior(j)) a(Eigen::Index(r++), Eigen::Index(j)) = 1 / (p.prior[j] * p.prior_sigma);
     return column_scaled_condition(std::move(a));
-}
-
-double median_of(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    const std::size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 }  // namespace
@@ -340,7 +336,7 @@ double cross_validated_error(const LinearProblem& p, int k) {
             by_group[p.group[i]].second.push_back(fit.predict(p.x[i]));
         }
         for (auto& [g, v] : by_group) {
-            const double measured = median_of(v.first), predicted = median_of(v.second);
+            const double measured = median(v.first), predicted = median(v.second);
             error += std::abs(predicted - measured) / measured;
             ++count;
         }

@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "analysis/repetitions.h"
-#include "analysis/statistics.h"
+#include "core/base/statistics.h"
 #include "runner/results_reader.h"
 
 namespace rcb {

@@ -5,7 +5,7 @@
 #include <set>
 #include <tuple>
 
-#include "analysis/statistics.h"
+#include "core/base/statistics.h"
 #include "core/accel/counter_fields.h"
 #include "core/scene/scene.h"
 #include "runner/results_reader.h"
@@ -58,12 +58,6 @@ FrameObservation kind_observation(const FrameObservation& frame, const KindRow& 
 
 double relative_error(double predicted, double measured) {
     return std::isfinite(predicted) && measured > 0 ? std::abs(predicted - measured) / measured : NAN;
-}
-
-/// The median of `v`, NaN when empty or when any value is NaN (a frame without a model).
-double median_of(const std::vector<double>& v) {
-    if (v.empty() || std::any_of(v.begin(), v.end(), [](double x) { return !std::isfinite(x); })) return NAN;
-    return quantile(v, 0.5);
 }
 
 ValidationSplit kinds_split(const std::vector<FrameObservation>& frames, const std::set<std::string>& from,
@@ -145,8 +139,8 @@ std::vector<KindCell> kind_cells(const std::vector<StructureModels>& models,
         c.rays = quantile(rays, 0.5);
         c.raycast_ns = quantile(ns, 0.5);
         c.ns_per_query = quantile(per_query, 0.5);
-        c.predicted_raycast_ns = median_of(predicted);
-        c.predicted_ns_per_query = median_of(predicted_per_query);
+        c.predicted_raycast_ns = quantile_or_nan(predicted, 0.5);
+        c.predicted_ns_per_query = quantile_or_nan(predicted_per_query, 0.5);
         c.error = relative_error(c.predicted_raycast_ns, c.raycast_ns);
         out.push_back(std::move(c));
     }
@@ -189,7 +183,7 @@ std::vector<KindSummary> kind_summaries(const std::vector<StructureModels>& mode
         }
         s.batches = measured.size();
         s.ns_per_query = quantile(measured, 0.5);
-        s.predicted_ns_per_query = median_of(predicted);
+        s.predicted_ns_per_query = quantile_or_nan(predicted, 0.5);
         out.push_back(std::move(s));
     }
     return out;

@@ -21,7 +21,7 @@
 #include "analysis/noise.h"
 #include "analysis/query_kinds.h"
 #include "analysis/report_data.h"
-#include "analysis/statistics.h"
+#include "core/base/statistics.h"
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/base/output_file.h"
@@ -96,8 +96,6 @@ private:
     std::size_t charts_ = 0, tables_ = 0;
 };
 
-std::string ms(double v) { return fixed(v, v < 0.1 ? 4 : 3); }
-
 /// Thesis Tables 6.1 and 6.2, and memory: configurations × scenes.
 void tables_section(Html& h, const Entries& es, const std::vector<SlowCell>& slow_cells) {
     h.heading("Build and execution (thesis Tables 6.1 and 6.2)");
@@ -110,8 +108,9 @@ void tables_section(Html& h, const Entries& es, const std::vector<SlowCell>& slo
         std::vector<std::string> b{l}, c{l}, m{l};
         for (const std::string& sc : es.scenes) {
             const Entry* e = es.find(sc, l);
-            b.push_back(e ? ms(e->build_ms) : "-");
-            c.push_back(e ? ms(e->raycast_ms) + " (" + ms(e->update_ms) + ")" + (slow.count({sc, l}) ? " *" : "")
+            b.push_back(e ? format_ms(e->build_ms) : "-");
+            c.push_back(e ? format_ms(e->raycast_ms) + " (" + format_ms(e->update_ms) + ")" +
+                                (slow.count({sc, l}) ? " *" : "")
                           : "-");
             m.push_back(e ? fixed(e->memory_per_object, 0) : "-");
         }
@@ -153,14 +152,13 @@ void query_kinds_section(Html& h, const std::vector<KindCell>& all_cells) {
     };
     std::map<std::string, std::set<std::string>> scene_kinds;
     for (const KindCell* c : cells) scene_kinds[c->scene].insert(c->kind);
-    const auto us = [](double ns) { return std::isfinite(ns) ? fixed(ns / 1e3, ns < 1e3 ? 4 : 3) : "-"; };
     std::vector<std::vector<std::string>> rows;
     for (const KindCell* c : cells) {
         const KindCell* all = find(*c, kQueryKindNames[0]);
         const bool three = scene_kinds[c->scene].size() == std::size_t(kQueryKinds);
         const bool faster = three && all && c->kind != kQueryKindNames[0] && c->ns_per_query > 0;
         rows.push_back({c->scene, config_label(c->structure, c->params), c->kind, fixed(c->rays, 0),
-                        us(c->ns_per_query), us(c->predicted_ns_per_query),
+                        format_us(c->ns_per_query / 1e3), format_us(c->predicted_ns_per_query / 1e3),
                         std::isfinite(c->error) ? fixed(100 * c->error, 1) + "%" : "-",
                         faster ? fixed(all->ns_per_query / c->ns_per_query, 2) + "x" : "-"});
     }
@@ -299,7 +297,7 @@ void update_raycast_section(Html& h, const Entries& es) {
         const auto [best_scene, best] = best_on_largest(es, category);
         const Entry* bf = baseline_on(es.all, best_scene, true);
         c.reading = best ? "Lower left is better. On " + best_scene + ", the lowest update + ray cast per frame is " +
-                               best->label + " at " + ms(best->total_ms()) + " ms" +
+                               best->label + " at " + format_ms(best->total_ms()) + " ms" +
                                (bf && best != bf
                                     ? ", " + fixed(bf->total_ms() / best->total_ms(), 1) + "x less than brute force"
                                     : "") +

@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/query_kinds.h"
-#include "analysis/statistics.h"
+#include "core/base/statistics.h"
 #include "core/accel/registry.h"
 #include "core/base/error.h"
 #include "core/scene/generate/physics.h"

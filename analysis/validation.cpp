@@ -59,10 +59,6 @@ double relative_error(double predicted, double measured) {
     return std::isfinite(predicted) && measured > 0 ? std::abs(predicted - measured) / measured : NAN;
 }
 
-double median_or_nan(const std::vector<double>& v) {
-    return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); }) ? quantile(v, 0.5) : NAN;
-}
-
 /// One cell's frames priced by `m` (null: no model).
 CellPrediction predict_cell(const std::vector<const FrameObservation*>& fs, const StructureModels* m) {
     CellPrediction c;
@@ -85,8 +81,8 @@ CellPrediction predict_cell(const std::vector<const FrameObservation*>& fs, cons
     c.frame_ns = quantile(frame, 0.5);
     c.raycast_ns = quantile(raycast, 0.5);
     if (model) {
-        c.predicted_frame_ns = median_or_nan(predicted_frame);
-        c.predicted_raycast_ns = c.predictable() ? median_or_nan(predicted_raycast) : NAN;
+        c.predicted_frame_ns = quantile_or_nan(predicted_frame, 0.5);
+        c.predicted_raycast_ns = c.predictable() ? quantile_or_nan(predicted_raycast, 0.5) : NAN;
     }
     c.frame_error = relative_error(c.predicted_frame_ns, c.frame_ns);
     c.raycast_error = relative_error(c.predicted_raycast_ns, c.raycast_ns);
@@ -347,7 +343,7 @@ ValidationGroup validate_calibration_only(const std::vector<FrameObservation>& f
         }
         c.frame_ns = quantile(frame, 0.5);
         c.raycast_ns = quantile(raycast, 0.5);
-        c.predicted_raycast_ns = median_or_nan(predicted);
+        c.predicted_raycast_ns = quantile_or_nan(predicted, 0.5);
         c.raycast_error = relative_error(c.predicted_raycast_ns, c.raycast_ns);
         g.cells.push_back(std::move(c));
     }

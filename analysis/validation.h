@@ -27,7 +27,7 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/cost_model.h"
-#include "analysis/statistics.h"
+#include "core/base/statistics.h"
 #include "runner/results_reader.h"
 
 namespace rcb {

@@ -1,6 +1,6 @@
 #pragma once
-/// What the micro-benchmarks share: wall-clock milliseconds and the median of repeats (the
-/// benchmarks report medians and ranges, never single runs).
+/// What the micro-benchmarks share: wall-clock milliseconds and argument checks. They report
+/// medians and ranges of repeats, never single runs (the median: core/base/statistics.h).
 
 #include <algorithm>
 #include <charconv>
@@ -12,15 +12,11 @@
 #include <vector>
 
 #include "core/base/error.h"
+#include "core/base/statistics.h"
 
 namespace rcb::bench {
 
 using Clock = std::chrono::steady_clock;
-
-inline double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-}
 
 inline double ms_since(Clock::time_point t0) {
     return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();

@@ -23,7 +23,6 @@
 namespace {
 
 using namespace rcb;
-using bench::median;
 
 /// The boxes per axis, padded to a multiple of eight with empty boxes (min > max: never hit).
 struct SoaScene {

@@ -24,7 +24,6 @@ namespace {
 
 using namespace rcb;
 using bench::Clock;
-using bench::median;
 using bench::ms_since;
 
 struct Series {

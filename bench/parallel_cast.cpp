@@ -21,7 +21,6 @@ namespace {
 
 using namespace rcb;
 using bench::Clock;
-using bench::median;
 using bench::ms_since;
 
 void print(const char* what, const std::vector<double>& t) {

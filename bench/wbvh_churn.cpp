@@ -30,7 +30,6 @@ namespace {
 
 using namespace rcb;
 using bench::Clock;
-using bench::median;
 using bench::ms_since;
 
 /// This thread's CPU time in milliseconds: unlike the wall clock, it leaves out the time the thread
@@ -39,11 +38,6 @@ double cpu_ms() {
     timespec t{};
     clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
     return double(t.tv_sec) * 1e3 + double(t.tv_nsec) * 1e-6;
-}
-
-double quantile(std::vector<double> v, double q) {
-    std::sort(v.begin(), v.end());
-    return v[std::min(v.size() - 1, std::size_t(q * double(v.size())))];
 }
 
 int run(int argc, char** argv) {

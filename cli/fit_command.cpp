@@ -157,12 +157,9 @@ void print_kind_table(Database& db, std::int64_t run, const std::vector<Structur
                  "us, median over the batches; error: median over (scene x configuration) cells of |predicted - "
                  "measured| / measured ray cast per frame (rcbench validate: intervals and kind transfer):\n";
     TextTable t({"structure", "kind", "batches", "measured us/query", "predicted us/query", "error"});
-    const auto us = [](double ns) {  // four decimals below a microsecond, as the report's "Query kinds"
-        return std::isfinite(ns) ? fixed(ns / 1e3, ns < 1e3 ? 4 : 3) : std::string("-");
-    };
     for (const KindSummary& k : kind_summaries(models, load_kind_observations(db, run)))
-        t.add({k.structure, k.kind, std::to_string(k.batches), us(k.ns_per_query), us(k.predicted_ns_per_query),
-               percent(k.median_error)});
+        t.add({k.structure, k.kind, std::to_string(k.batches), format_us(k.ns_per_query / 1e3),
+               format_us(k.predicted_ns_per_query / 1e3), percent(k.median_error)});
     t.print(std::cout);
 }
 

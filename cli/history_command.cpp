@@ -17,8 +17,6 @@
 namespace rcb {
 namespace {
 
-std::string ms(double ns) { return fixed(ns / 1e6, ns < 1e5 ? 4 : 3); }
-
 std::string p_text(double p) { return p < 1e-4 ? "p<0.0001" : "p=" + fixed(p, 4); }
 
 /// "step at run 7 (abc1234): +12.3%, p=0.001" for every step of the series, or "none".
@@ -74,7 +72,7 @@ void print_history(const HistoryOptions& o) {
         for (std::size_t r = first; r < runs.size(); ++r) {
             std::string cell = "-";
             for (const HistoryPoint& p : s.points)
-                if (p.run == runs[r].first) cell = ms(p.median_ns) + " (" + short_commit(p.commit) + ")";
+                if (p.run == runs[r].first) cell = format_ms(p.median_ns / 1e6) + " (" + short_commit(p.commit) + ")";
             row.push_back(cell);
         }
         row.push_back(steps_text(s));

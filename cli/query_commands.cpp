@@ -11,7 +11,7 @@
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "cli/run_ref.h"
-#include "analysis/statistics.h"
+#include "core/base/statistics.h"
 #include "runner/compare.h"
 #include "runner/decisions.h"
 #include "runner/merge.h"

@@ -17,6 +17,7 @@
 #include "core/scene/import/scene_import.h"
 #include "core/base/json_input.h"
 #include "core/base/output_file.h"
+#include "core/base/statistics.h"
 #include "core/scene/recording_io.h"
 #include "core/scene/workload.h"
 #include "core/sim/scene_features.h"
@@ -141,13 +142,14 @@ void scene_info(const std::string& path, bool as_json) {
     edges.reserve(r.initial.size());
     for (const Object& o : r.initial) edges.push_back(o.box.longest_edge());
     std::sort(edges.begin(), edges.end());
+    const auto q = [&](double p) { return edges.empty() ? 0.0 : quantile(edges, p); };
     const SceneWorkload w = scene_workload(r);
     const std::array<std::size_t, kQueryKinds>& query_kinds = w.rays_by_kind;
     const nlohmann::json wj = w.to_json();
     nlohmann::json size = {{"min", edges.empty() ? 0 : edges.front()},
-                           {"p10", percentile_of(edges, 0.1)},
-                           {"median", percentile_of(edges, 0.5)},
-                           {"p90", percentile_of(edges, 0.9)},
+                           {"p10", q(0.1)},
+                           {"median", q(0.5)},
+                           {"p90", q(0.9)},
                            {"max", edges.empty() ? 0 : edges.back()}};
     const nlohmann::json meta = parse_json_document(r.meta, path + ": META");
     nlohmann::json j = {

@@ -1,7 +1,8 @@
 # The headers core/ had before it was split into stages (base, scene, truth, accel, sim), installed
 # as forwarding headers that include the new place, so an engine that includes an old path still
 # builds against this release. They go with the next one: include the new paths. Brute force moved
-# once more, from accel/ into accel/scan/ (accel/ itself no longer includes accel/common/).
+# once more, from accel/ into accel/scan/ (accel/ itself no longer includes accel/common/), and the
+# repetition interval joined the one statistics header (median, quantiles, intervals).
 set(RCB_MOVED_HEADERS
   core/error.h=core/base/error.h
   core/geometry.h=core/base/geometry.h
@@ -46,6 +47,7 @@ set(RCB_MOVED_HEADERS
   core/peers/embree_boxes.h=core/accel/peers/embree_boxes.h
   core/simulator.h=core/sim/simulator.h
   core/scene_features.h=core/sim/scene_features.h
+  core/base/repetition_interval.h=core/base/statistics.h
 )
 foreach(move IN LISTS RCB_MOVED_HEADERS)
   string(REPLACE "=" ";" move "${move}")

@@ -10,6 +10,7 @@
 #include <memory>
 #include <regex>
 
+#include "core/base/statistics.h"
 #include "core/base/error.h"
 #include "runner/build_info.h"
 #include "runner/sqlite.h"
@@ -191,13 +192,6 @@ bool dirty_commit(const std::string& commit) {
            (commit.size() >= 6 && commit.compare(commit.size() - 6, 6, "-dirty") == 0);
 }
 
-double median_of(std::vector<double> v) {
-    if (v.empty()) return -1;
-    std::sort(v.begin(), v.end());
-    const std::size_t m = v.size() / 2;
-    return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-}
-
 /// One run's provenance: the binary's commit and build, the machine, when, and the load it ran under.
 nlohmann::json describe_run(Database& db, Statement& r) {
     const std::int64_t id = r.int64(0);
@@ -229,7 +223,7 @@ nlohmann::json describe_run(Database& db, Statement& r) {
         if (state.real(0) >= 0) load.push_back(state.real(0));
         slow += state.int64(1);
     }
-    run["load_1m"] = {{"median", median_of(load)},
+    run["load_1m"] = {{"median", load.empty() ? -1.0 : median(load)},
                       {"max", load.empty() ? -1.0 : *std::max_element(load.begin(), load.end())}};
     run["slow_cells"] = slow;
     return run;

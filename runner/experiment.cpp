@@ -16,8 +16,8 @@
 #include "core/base/error.h"
 #include "core/base/json_input.h"
 #include "core/base/number_text.h"
-#include "core/base/random.h"
 #include "core/accel/registry.h"
+#include "runner/repetition_plan.h"
 #include "runner/scene_windows.h"
 
 namespace rcb {
@@ -579,17 +579,29 @@ std::string cell_key(const Experiment& e, std::size_t scene, std::size_t config,
     return stable_hash(key.dump());
 }
 
+namespace {
+
+/// The seed of the plan's order: the file's hash (stable_hash, hexadecimal).
+std::uint64_t plan_seed(const Experiment& e) { return std::stoull(e.hash, nullptr, 16); }
+
+/// The cell of a planned run whose item indexes `pairs` (scene, configuration).
+Cell cell_of(const Experiment& e, const std::vector<std::pair<std::size_t, std::size_t>>& pairs, PlannedRun run) {
+    const auto [s, c] = pairs[run.item];
+    return {s, c, run.repetition, cell_key(e, s, c, run.repetition)};
+}
+
+}  // namespace
+
 std::vector<Cell> repetition_cells(const Experiment& e, std::uint32_t repetition,
                                    const std::vector<std::pair<std::size_t, std::size_t>>& pairs) {
-    // Every cell of the repetition in a shuffled order drawn from the file's hash and the
-    // repetition (the same file gives the same order), the scenes interleaved: what ran just before
-    // a cell changes from repetition to repetition (Mytkowicz et al. 2009 on measurement bias from
-    // a fixed setup), and a stretch of minutes in which the machine runs slow falls on cells of
-    // many scenes rather than on one scene's (docs/model.md as of commit f3b2207, "How well two runs agree").
-    Random rng(mix_seed(std::stoull(e.hash, nullptr, 16), repetition));
+    // Every cell of the repetition in the planner's order shuffled by the file's hash and the
+    // repetition (runner/repetition_plan.h; the same file gives the same order), the scenes
+    // interleaved: a stretch of minutes in which the machine runs slow falls on cells of many
+    // scenes rather than on one scene's (docs/model.md as of commit
+    // f3b2207, "How well two runs agree").
     std::vector<Cell> cells;
-    for (const auto& [s, c] : pairs) cells.push_back({s, c, repetition, cell_key(e, s, c, repetition)});
-    rng.shuffle(cells);
+    for (std::size_t i : repetition_order(pairs.size(), repetition, plan_seed(e)))
+        cells.push_back(cell_of(e, pairs, {repetition, i}));
     return cells;
 }
 
@@ -660,10 +672,9 @@ Experiment parse_experiment(const std::string& text, const std::string& name, co
                                     " repetitions), more than the limit of " + std::to_string(kMaxPlanCells) +
                                     "; split it into several experiment files");
         e.plan.reserve(std::size_t(cells));
-        for (std::uint32_t r = 0; r < e.repetitions; ++r) {
-            const std::vector<Cell> round = repetition_cells(e, r, all_pairs(e));
-            e.plan.insert(e.plan.end(), round.begin(), round.end());
-        }
+        const std::vector<std::pair<std::size_t, std::size_t>> pairs = all_pairs(e);
+        for (const PlannedRun& p : repetition_plan(pairs.size(), e.repetitions, plan_seed(e)))
+            e.plan.push_back(cell_of(e, pairs, p));
         return e;
     } catch (const InputError& err) {
         throw InputError(name + ": " + err.what());

@@ -54,7 +54,7 @@ struct Experiment {
     std::uint32_t repetitions = 1;
     /// Repetitions added, one round at a time, to the cells whose time is not yet pinned down: a
     /// cell whose ray-cast or update 95% interval over its repetitions so far
-    /// (core/base/repetition_interval.h) has a half-width above `repeat_interval` of its median gets
+    /// (core/base/statistics.h) has a half-width above `repeat_interval` of its median gets
     /// another, up to this many in all. The added ones count in the cell's median and fastest
     /// frames; its stated interval rests on the `repetitions` planned before the run.
     std::uint32_t max_repetitions = 1;  ///< `repetitions` unless the file asks for more
@@ -71,7 +71,8 @@ struct Experiment {
     /// repetition r + 1 of any, so the repetitions of one cell are spread over the whole run and
     /// their spread measures the machine's drift (the noise floor), which then biases no ratio.
     /// Each repetition visits every cell in its own seeded order, the scenes' cells interleaved
-    /// (repetition_cells); the runner loads each scene once per run and keeps it.
+    /// (repetition_cells; the planner, runner/repetition_plan.h); the runner loads each scene once
+    /// per run and keeps it.
     std::vector<Cell> plan;
 };
 

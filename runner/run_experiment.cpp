@@ -18,7 +18,7 @@
 
 #include "core/base/error.h"
 #include "core/base/random.h"
-#include "core/base/repetition_interval.h"
+#include "core/base/statistics.h"
 #include "core/accel/registry.h"
 #include "core/sim/simulator.h"
 #include "runner/calibration.h"
@@ -54,7 +54,7 @@ double median_of_three_passes(Pass pass) {
         ns.push_back(double(
             std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start).count()));
     }
-    return spread_of(ns).median;
+    return median(ns);
 }
 
 }  // namespace
@@ -171,7 +171,6 @@ MachineState settled_machine_state(std::vector<double>& samples, std::vector<dou
     constexpr int kResampleLimit = 5;
     constexpr std::size_t kSamplesBeforeJudging = 5;
     MachineState state = sample_machine_state();
-    const auto median = [](const std::vector<double>& v) { return spread_of(v).median; };
     while (samples.size() >= kSamplesBeforeJudging && state.resampled < kResampleLimit && allowance >= kResampleWait &&
            (state.calibration_ns > (1 + kSlowCalibration) * median(samples) ||
             state.memory_ns > (1 + kSlowCalibration) * median(memory))) {

@@ -71,7 +71,7 @@ std::string config_label(const ConfigSpec& c);
 double relative_range(const std::vector<double>& values);
 
 /// Whether the 95% interval over all of a cell's repetitions' medians stored so far
-/// (core/base/repetition_interval.h) has a half-width above `limit` of their median; always for
+/// (core/base/statistics.h) has a half-width above `limit` of their median; always for
 /// fewer than two repetitions. It decides where a repetition is added, to sharpen the cell's median;
 /// the interval the cell states rests on its planned repetitions alone.
 bool wide_interval(const std::vector<double>& medians, double limit);

@@ -12,7 +12,7 @@
 #include <thread>
 
 #include "core/base/error.h"
-#include "core/base/repetition_interval.h"
+#include "core/base/statistics.h"
 #include "core/scene/recording_io.h"
 #include "runner/build_info.h"
 
@@ -515,10 +515,10 @@ std::string random_uuid() {
 
 nlohmann::json scene_stats(const Recording& r) {
     const Aabb b = bounds_of(r.initial);
-    std::vector<float> edges;
+    std::vector<double> edges;
     for (const Object& o : r.initial) edges.push_back(o.box.longest_edge());
     std::sort(edges.begin(), edges.end());
-    auto q = [&](double p) { return edges.empty() ? 0.0 : double(edges[std::size_t(p * double(edges.size() - 1))]); };
+    auto q = [&](double p) { return order_statistic(edges, p); };
     return {{"bounds", {{b.min.x, b.min.y, b.min.z}, {b.max.x, b.max.y, b.max.z}}},
             {"longest_edge", {{"min", q(0)}, {"p10", q(0.1)}, {"median", q(0.5)}, {"p90", q(0.9)}, {"max", q(1)}}}};
 }
@@ -718,7 +718,7 @@ std::int64_t ResultStore::config_id(const std::string& structure, const nlohmann
 namespace {
 
 /// Rewrites the cell_interval row of one (run, scene, configuration) from its stored cells: the
-/// interval from the planned repetitions, the median over all (core/base/repetition_interval.h).
+/// interval from the planned repetitions, the median over all (core/base/statistics.h).
 void store_cell_interval(Database& db, std::int64_t run_id, std::int64_t scene_id, std::int64_t config_id,
                          std::int64_t planned) {
     std::vector<double> cast[2], update[2];  // [0]: planned repetitions, [1]: added ones

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "core/base/repetition_interval.h"
+#include "core/base/statistics.h"
 #include "core/sim/scene_features.h"
 #include "core/sim/simulator.h"
 #include "runner/experiment.h"
@@ -130,7 +130,7 @@ std::vector<CellSummary> cell_summaries(Database& db, std::int64_t run_id);
 
 /// A (scene, configuration)'s time over its repetitions in one run (table cell_interval): the
 /// median of the repetitions' ray-cast and update medians and the 95% interval between the
-/// repetitions planned before the run (core/base/repetition_interval.h). Below two planned
+/// repetitions planned before the run (core/base/statistics.h). Below two planned
 /// repetitions low = high = median.
 struct CellInterval {
     std::string scene, structure;

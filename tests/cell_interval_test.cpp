@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "core/base/repetition_interval.h"
+#include "core/base/statistics.h"
 #include "runner/experiment.h"
 #include "runner/merge.h"
 #include "runner/run_experiment.h"

@@ -15,7 +15,7 @@
 #include "analysis/model_terms.h"
 #include "analysis/query_kinds.h"
 #include "analysis/report.h"
-#include "analysis/statistics.h"
+#include "core/base/statistics.h"
 #include "analysis/validation.h"
 #include "core/accel/counter_fields.h"
 #include "core/accel/registry.h"

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "core/base/random.h"
-#include "core/base/repetition_interval.h"
+#include "core/base/statistics.h"
 #include "runner/run_experiment.h"
 
 namespace rcb {

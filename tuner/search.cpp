@@ -8,6 +8,7 @@
 #include <limits>
 #include <map>
 
+#include "core/base/statistics.h"
 #include "core/base/random.h"
 
 namespace rcb {
@@ -236,13 +237,8 @@ std::vector<double> class_predictions(const std::vector<std::size_t>& class_of, 
         members[class_of[i]].push_back(
             i < predicted.size() && !std::isnan(predicted[i]) ? predicted[i] : std::numeric_limits<double>::infinity());
     std::vector<double> out;
-    for (std::vector<double>& m : members) {
-        std::sort(m.begin(), m.end());
-        const std::size_t n = m.size();
-        out.push_back(n == 0  ? std::numeric_limits<double>::infinity()
-                      : n % 2 ? m[n / 2]
-                              : (m[n / 2 - 1] + m[n / 2]) / 2);
-    }
+    for (const std::vector<double>& m : members)
+        out.push_back(m.empty() ? std::numeric_limits<double>::infinity() : median(m));
     return out;
 }
 

@@ -7,7 +7,7 @@
 #include <optional>
 #include <string>
 
-#include "analysis/statistics.h"
+#include "core/base/statistics.h"
 #include "tuner/advise_baselines.h"
 
 namespace rcb {

@@ -16,6 +16,7 @@
 #include "core/accel/query_level.h"
 #include "core/sim/simulator.h"
 #include "runner/calibration.h"
+#include "runner/repetition_plan.h"
 #include "tuner/search_baselines.h"
 
 namespace rcb {
@@ -74,13 +75,12 @@ std::vector<SimulationResult> run_simulations(const TuneCategory& category, cons
     SimulationOptions o = options;
     if (category.timing) o.count = true;  // made-up times are priced from the counters
     std::vector<SimulationResult> out;
-    for (std::uint32_t rep = 0; rep < repetitions; ++rep)
-        for (const SceneSpec& scene : category.scenes) {
-            out.push_back(simulate(recording_of(scene), find_structure(structure), params, o));
-            if (category.timing) category.timing(out.back());
-            ++(options.timed_cast ? timed_simulations : counting_simulations);
-            if (!options.timed_cast && options.timed_update) ++counting_update_timed;
-        }
+    for (const PlannedRun& p : repetition_plan(category.scenes.size(), repetitions, std::nullopt)) {
+        out.push_back(simulate(recording_of(category.scenes[p.item]), find_structure(structure), params, o));
+        if (category.timing) category.timing(out.back());
+        ++(options.timed_cast ? timed_simulations : counting_simulations);
+        if (!options.timed_cast && options.timed_update) ++counting_update_timed;
+    }
     return out;
 }
 
@@ -384,18 +384,18 @@ std::vector<SimulationResult> one_repetition(const TuneCategory& category, const
     return run_simulations(category, structure, params, o, 1);
 }
 
-/// `repetitions` of every configuration of `params`, repetition-major (repetition r of every
-/// configuration before repetition r + 1 of any); the first verified when `verify`.
+/// `repetitions` of every configuration of `params` in the planner's order (runner/repetition_plan.h:
+/// repetition-major, the configurations in their order, as advise's too); the first verified when
+/// `verify`.
 std::vector<std::vector<SimulationResult>> repeated_runs(const TuneCategory& category, const std::string& structure,
                                                          const std::vector<json>& params, std::uint32_t warmup_frames,
                                                          std::uint32_t repetitions, bool verify) {
     std::vector<std::vector<SimulationResult>> runs(params.size());
-    for (std::uint32_t rep = 0; rep < repetitions; ++rep)
-        for (std::size_t i = 0; i < params.size(); ++i) {
-            std::vector<SimulationResult> r =
-                one_repetition(category, structure, params[i], warmup_frames, verify && rep == 0);
-            runs[i].insert(runs[i].end(), std::make_move_iterator(r.begin()), std::make_move_iterator(r.end()));
-        }
+    for (const PlannedRun& p : repetition_plan(params.size(), repetitions, std::nullopt)) {
+        std::vector<SimulationResult> r =
+            one_repetition(category, structure, params[p.item], warmup_frames, verify && p.repetition == 0);
+        runs[p.item].insert(runs[p.item].end(), std::make_move_iterator(r.begin()), std::make_move_iterator(r.end()));
+    }
     return runs;
 }
 

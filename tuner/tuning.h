@@ -197,11 +197,12 @@ MeasuredCost measure(const TuneCategory& category, const std::string& structure,
                      std::uint32_t warmup_frames, std::uint32_t repetitions, bool verify = false,
                      std::vector<FrameObservation>* observations = nullptr, int group = 0);
 
-/// Every configuration of `params` (complete) measured as measure() does, but repetition-major as
-/// `rcbench run` plans: repetition r of every configuration before repetition r + 1 of any, so a
-/// burst of load on a shared machine spreads over one repetition of many configurations (which
-/// their medians absorb) instead of falling on every repetition of one. For exhaustive checks.
-/// With `observations`, entry i receives configuration i's first repetition as measure() gives it.
+/// Every configuration of `params` (complete) measured as measure() does, but repetition-major
+/// by the planner `rcbench run` uses (runner/repetition_plan.h): repetition r of every
+/// configuration before repetition r + 1 of any, so a burst of load on a shared machine spreads
+/// over one repetition of many configurations (which their medians absorb) instead of falling on
+/// every repetition of one. For exhaustive checks. With `observations`, entry i receives
+/// configuration i's first repetition as measure() gives it.
 std::vector<MeasuredCost> measure_interleaved(const TuneCategory& category, const std::string& structure,
                                               const std::vector<nlohmann::json>& params, std::uint32_t warmup_frames,
                                               std::uint32_t repetitions, bool verify = false,

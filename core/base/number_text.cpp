@@ -14,6 +14,12 @@ std::string fixed(double value, int digits) {
     return s.str();
 }
 
+int ms_decimals(double ms) { return ms < 0.1 ? 4 : 3; }
+
+std::string format_ms(double ms) { return std::isfinite(ms) ? fixed(ms, ms_decimals(ms)) : "-"; }
+
+std::string format_us(double us) { return std::isfinite(us) ? fixed(us, us < 1 ? 4 : 3) : "-"; }
+
 std::string bytes_text(double bytes) {
     const char* units[] = {"B", "KB", "MB", "GB", "TB"};
     int u = 0;

@@ -1,5 +1,6 @@
 #pragma once
-/// Numbers as text for tables, reports and tuning files.
+/// Numbers as text for tables, reports and tuning files. A time's function names its unit: the
+/// caller converts to it (format_ms(ns / 1e6)), so no table mixes milliseconds and nanoseconds.
 
 #include <string>
 
@@ -7,6 +8,14 @@ namespace rcb {
 
 /// Fixed-point with `digits` decimals.
 std::string fixed(double value, int digits);
+/// A time in milliseconds, without the unit: four decimals below 0.1 ms, else three ("0.0421",
+/// "1.250"), so a fast phase keeps its digits; "-" when not finite.
+std::string format_ms(double ms);
+/// The decimals format_ms gives `ms` (4 below 0.1 ms, else 3): for a range printed beside it.
+int ms_decimals(double ms);
+/// A time in microseconds, without the unit: four decimals below 1 us, else three; "-" when not
+/// finite.
+std::string format_us(double us);
 /// "1.2 MB", "340 KB", "512 B" (binary units).
 std::string bytes_text(double bytes);
 

@@ -6,15 +6,9 @@
 #include <string>
 #include <utility>
 
-namespace rcb {
+#include "core/base/statistics.h"
 
-double percentile_of(const std::vector<double>& sorted, double p) {
-    if (sorted.empty()) return 0;
-    const double pos = p * double(sorted.size() - 1);
-    const std::size_t i = static_cast<std::size_t>(pos);
-    const double frac = pos - double(i);
-    return i + 1 < sorted.size() ? sorted[i] * (1 - frac) + sorted[i + 1] * frac : sorted[i];
-}
+namespace rcb {
 
 double SceneWorkload::kind_share(QueryKind kind) const {
     const std::size_t n = rays();
@@ -82,11 +76,10 @@ SceneWorkload scene_workload(const Recording& r) {
     for (std::size_t i = 0; i < shares.size() && i < 3; ++i) w.first_frames.push_back(shares[i]);
     for (std::size_t i = shares.size() > 3 ? shares.size() - 3 : 0; i < shares.size(); ++i)
         w.last_frames.push_back(shares[i]);
-    std::sort(shares.begin(), shares.end());
-    std::sort(steps.begin(), steps.end());
-    w.changed_p10 = percentile_of(shares, 0.1), w.changed_p50 = percentile_of(shares, 0.5);
-    w.changed_p90 = percentile_of(shares, 0.9);
-    w.move_median = percentile_of(steps, 0.5), w.move_p90 = percentile_of(steps, 0.9);
+    // A scene without frames or moves reads 0, not NaN.
+    const auto q = [](const std::vector<double>& v, double p) { return v.empty() ? 0.0 : quantile(v, p); };
+    w.changed_p10 = q(shares, 0.1), w.changed_p50 = q(shares, 0.5), w.changed_p90 = q(shares, 0.9);
+    w.move_median = q(steps, 0.5), w.move_p90 = q(steps, 0.9);
     w.measured_moves = steps.size();
     return w;
 }

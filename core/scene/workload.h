@@ -38,9 +38,6 @@ struct SceneWorkload {
     std::string kinds_text() const;
 };
 
-/// Linear interpolation between order statistics of an ascending `sorted` (0 when empty).
-double percentile_of(const std::vector<double>& sorted, double p);
-
 SceneWorkload scene_workload(const Recording& r);
 
 }  // namespace rcb

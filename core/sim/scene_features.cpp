@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/base/statistics.h"
 #include "core/base/error.h"
 #include "core/truth/ground_truth.h"
 
@@ -87,10 +88,6 @@ struct Lattice {
     }
 };
 
-double quantile(const std::vector<double>& sorted, double p) {
-    return sorted.empty() ? 0.0 : sorted[std::size_t(p * double(sorted.size() - 1))];
-}
-
 double length(const Vec3d& v) { return std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z); }
 
 }  // namespace
@@ -110,8 +107,8 @@ SceneFeatures compute_scene_features(const Recording& r) {
     for (std::size_t i = 0; i < n; ++i)
         sizes[i] = std::log10(std::max(double(r.initial[i].box.longest_edge()) / std::max(longest, 1e-30), 1e-7));
     std::sort(sizes.begin(), sizes.end());
-    v[1] = quantile(sizes, 0.5);
-    v[2] = quantile(sizes, 0.9) - quantile(sizes, 0.1);
+    v[1] = order_statistic(sizes, 0.5);
+    v[2] = order_statistic(sizes, 0.9) - order_statistic(sizes, 0.1);
     const Vec3d e = bounds.extent();
     v[3] = longest > 0 ? std::max(std::log10(std::max(std::min({e.x, e.y, e.z}) / longest, 1e-6)), -6.0) : 0.0;
 
@@ -155,7 +152,7 @@ SceneFeatures compute_scene_features(const Recording& r) {
         }
         v[7] = std::log10(1 + cells / double(rays.size()));
         std::sort(lengths.begin(), lengths.end());
-        v[8] = quantile(lengths, 0.5);
+        v[8] = order_statistic(lengths, 0.5);
     }
     double changes = 0;
     for (const Frame& fr : r.frames) changes += double(fr.change_count());

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <cmath>
 #include <stdexcept>
 
 #include "core/base/error.h"
@@ -39,100 +38,118 @@ void validate_or_throw(const Structure& s, const std::string& name, std::uint32_
     }
 }
 
-/// The 1-based rank k of the lower end of the 95% interval of a median of n values: the largest k
-/// with P(Binomial(n, 1/2) <= k - 1) <= 0.025, at least 1.
-std::size_t median_interval_rank(std::size_t n) {
-    // P(B <= j) summed term by term in logs (n may be in the thousands).
-    double cumulative = 0;
-    std::size_t k = 1;
-    for (std::size_t j = 0; j < n; ++j) {
-        const double log_term = std::lgamma(double(n) + 1) - std::lgamma(double(j) + 1) -
-                                std::lgamma(double(n - j) + 1) - double(n) * std::log(2.0);
-        cumulative += std::exp(log_term);
-        if (cumulative > 0.025) break;
-        k = j + 1;  // P(B <= k - 1) <= 0.025: x(k) may be the lower end
-    }
-    return std::min(k, (n + 1) / 2);
-}
-
 [[noreturn]] void different_hits(const std::string& name, std::uint32_t frame) {
     throw std::logic_error(name + ": the counting pass reported other hits than the timed pass in frame " +
                            std::to_string(frame));
 }
 
-/// A frame's rays split by query kind, for frames with more than one kind (simulator.h): per kind,
-/// its rays in recording order and their answers. The buffers live across frames, so a frame's
-/// split allocates only when it outgrows the frames before; the split is made before any timing.
-class KindBatches {
+/// A frame's rays as the batches the simulator casts (simulator.h): the whole frame as one batch
+/// when its rays ask for one query kind (cast from the frame itself, nothing copied), else one
+/// batch per kind present, its rays in recording order, copied out before any timing. Every batch
+/// goes through the same timed pass and the same counting pass. The buffers live across frames,
+/// so a frame allocates only when it outgrows the frames before.
+class FrameBatches {
 public:
-    /// Splits the frame's rays; false (and nothing split) when all its rays ask for one kind.
-    bool split(const Frame& frame) {
-        if (frame.kinds.empty()) return false;
-        const QueryKind first = frame.kinds.front();
-        if (std::all_of(frame.kinds.begin(), frame.kinds.end(), [first](QueryKind k) { return k == first; }))
-            return false;
-        for (Batch& b : batches_) b.rays.clear(), b.kinds.clear();
-        for (std::size_t i = 0; i < frame.rays.size(); ++i) {
-            Batch& b = batches_[std::size_t(frame.kinds[i])];
-            b.rays.push_back(frame.rays[i]);
-            b.kinds.push_back(frame.kinds[i]);
-        }
+    void split(const Frame& frame) {
+        batches_.clear();
         kinds_ = &frame.kinds;
-        return true;
+        const QueryKind first = frame.kinds.empty() ? QueryKind::all : frame.kinds.front();
+        if (std::all_of(frame.kinds.begin(), frame.kinds.end(), [first](QueryKind k) { return k == first; })) {
+            whole_.rays = frame.rays, whole_.kinds = frame.kinds;
+            whole_.result = fresh_result(first, frame.rays.size());
+            batches_.push_back(&whole_);
+            return;
+        }
+        for (KindCopy& c : copies_) c.rays.clear(), c.kinds.clear();
+        for (std::size_t i = 0; i < frame.rays.size(); ++i) {
+            KindCopy& c = copies_[std::size_t(frame.kinds[i])];
+            c.rays.push_back(frame.rays[i]);
+            c.kinds.push_back(frame.kinds[i]);
+        }
+        for (int k = 0; k < kQueryKinds; ++k) {
+            KindCopy& c = copies_[std::size_t(k)];
+            if (c.rays.empty()) continue;
+            c.batch.rays = c.rays, c.batch.kinds = c.kinds;
+            c.batch.result = fresh_result(QueryKind(k), c.rays.size());
+            batches_.push_back(&c.batch);
+        }
     }
 
-    /// Each kind's batch timed on its own (or, without timing, its counting pass as the only cast);
-    /// `hits` gets the answers in recording order, `fr` the per-kind results and their sums.
-    void timed_pass(Structure& s, bool timed, TimingClock clock, FrameResult& fr, HitLists& hits) {
-        for (int k = 0; k < kQueryKinds; ++k) {
-            Batch& b = batches_[std::size_t(k)];
-            if (b.rays.empty()) continue;
-            KindResult r;
-            r.kind = QueryKind(k);
-            r.rays = static_cast<std::uint32_t>(b.rays.size());
+    /// Each batch cast as one timed call (or, without timing, through the counting pass as the
+    /// only cast, which then leaves its counters).
+    void timed_pass(Structure& s, bool timed, TimingClock clock) {
+        for (Batch* b : batches_) {
+            KindResult& r = b->result;
             if (timed) {
                 ++timed_phase_count;
                 const Stopwatch watch;
-                s.cast(b.rays, b.kinds, b.hits);
+                s.cast(b->rays, b->kinds, b->hits);
                 r.raycast = watch.elapsed();
                 r.raycast_ns = on_clock(r.raycast, clock);
             } else {
-                s.cast_counted(b.rays, b.kinds, b.hits, r.counters);
-                fr.counters += r.counters;
+                s.cast_counted(b->rays, b->kinds, b->hits, r.counters);
             }
-            r.hits = b.hits.uids.size();
-            fr.raycast.wall_ns += r.raycast.wall_ns;
-            fr.raycast.cpu_ns += r.raycast.cpu_ns;
-            fr.raycast_ns += r.raycast_ns;
-            fr.kinds.push_back(r);
+            r.hits = b->hits.uids.size();
         }
+        if (!per_kind()) return;
         // Back in recording order: the i-th ray of a kind is that kind's batch's i-th answer.
-        hits.clear();
+        merged_.clear();
         std::array<std::size_t, kQueryKinds> next{};
         for (QueryKind k : *kinds_) {
-            const std::span<const Uid> answer = batches_[std::size_t(k)].hits.of(next[std::size_t(k)]++);
-            hits.uids.insert(hits.uids.end(), answer.begin(), answer.end());
-            hits.end_ray();
+            const std::span<const Uid> answer = copies_[std::size_t(k)].batch.hits.of(next[std::size_t(k)]++);
+            merged_.uids.insert(merged_.uids.end(), answer.begin(), answer.end());
+            merged_.end_ray();
         }
     }
 
-    /// Each kind's batch through the counting pass; its hits must be its timed batch's.
-    void counting_pass(Structure& s, const std::string& name, FrameResult& fr) {
-        for (KindResult& r : fr.kinds) {
-            Batch& b = batches_[std::size_t(r.kind)];
-            s.cast_counted(b.rays, b.kinds, b.counted, r.counters);
-            if (b.counted.uids != b.hits.uids || b.counted.offsets != b.hits.offsets) different_hits(name, fr.frame);
-            fr.counters += r.counters;
+    /// The frame's answers in recording order, from the last timed pass.
+    const HitLists& hits() const { return per_kind() ? merged_ : whole_.hits; }
+
+    /// Each batch again with counters on; its hits must be its timed pass's (the counting policy
+    /// must not change what the traversal does).
+    void counting_pass(Structure& s, const std::string& name, std::uint32_t frame) {
+        for (Batch* b : batches_) {
+            s.cast_counted(b->rays, b->kinds, b->counted, b->result.counters);
+            if (b->counted.uids != b->hits.uids || b->counted.offsets != b->hits.offsets) different_hits(name, frame);
+        }
+    }
+
+    /// The batches' times, hits' counters summed into the frame, and their per-kind results (none
+    /// for a frame whose rays all ask for all hits).
+    void add_to(FrameResult& fr) const {
+        for (const Batch* b : batches_) {
+            fr.raycast.wall_ns += b->result.raycast.wall_ns;
+            fr.raycast.cpu_ns += b->result.raycast.cpu_ns;
+            fr.raycast_ns += b->result.raycast_ns;
+            fr.counters += b->result.counters;
+            if (per_kind() || b->result.kind != QueryKind::all) fr.kinds.push_back(b->result);
         }
     }
 
 private:
     struct Batch {
+        std::span<const Segment> rays;
+        std::span<const QueryKind> kinds;
+        HitLists hits, counted;
+        KindResult result;
+    };
+    struct KindCopy {
         std::vector<Segment> rays;
         std::vector<QueryKind> kinds;
-        HitLists hits, counted;
+        Batch batch;
     };
-    std::array<Batch, kQueryKinds> batches_;
+    bool per_kind() const { return batches_.empty() || batches_.front() != &whole_; }
+    static KindResult fresh_result(QueryKind kind, std::size_t rays) {
+        KindResult r;
+        r.kind = kind;
+        r.rays = static_cast<std::uint32_t>(rays);
+        return r;
+    }
+
+    Batch whole_;
+    std::array<KindCopy, kQueryKinds> copies_;
+    std::vector<Batch*> batches_;
+    HitLists merged_;
     const std::vector<QueryKind>* kinds_ = nullptr;
 };
 
@@ -169,23 +186,6 @@ nlohmann::json kinds_json(const std::vector<FrameResult>& frames) {
 }
 
 }  // namespace
-
-Spread spread_of(std::vector<double> v) {
-    if (v.empty()) return {};
-    auto median = [](std::vector<double>& x) {
-        std::sort(x.begin(), x.end());
-        const std::size_t n = x.size();
-        return n % 2 ? x[n / 2] : 0.5 * (x[n / 2 - 1] + x[n / 2]);
-    };
-    Spread s;
-    s.median = median(v);
-    const std::size_t k = median_interval_rank(v.size());
-    s.ci_low = v[k - 1];
-    s.ci_high = v[v.size() - k];
-    for (double& x : v) x = std::abs(x - s.median);
-    s.mad = median(v);
-    return s;
-}
 
 std::uint64_t SimulationResult::mismatches() const {
     std::uint64_t total = 0;
@@ -327,8 +327,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
     if (options.validate) validate_or_throw(*structure, info.name, 0);
 
     LiveSet live(recording.initial);
-    HitLists hits, counted;
-    KindBatches batches;
+    FrameBatches batches;
     for (std::size_t i = 0; i < frames; ++i) {
         const Frame& frame = recording.frames[i];
         FrameResult fr;
@@ -359,18 +358,9 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
         live.apply(frame);
         if (options.validate) validate_or_throw(*structure, info.name, fr.frame);
 
-        const bool per_kind = batches.split(frame);
-        if (per_kind)
-            batches.timed_pass(*structure, options.timed_cast, result.clock, fr, hits);
-        else if (options.timed_cast) {
-            ++timed_phase_count;
-            const Stopwatch cast_watch;
-            structure->cast(frame.rays, frame.kinds, hits);
-            fr.raycast = cast_watch.elapsed();
-            fr.raycast_ns = on_clock(fr.raycast, result.clock);
-        } else {
-            structure->cast_counted(frame.rays, frame.kinds, hits, fr.counters);  // the counting pass is the only cast
-        }
+        batches.split(frame);
+        batches.timed_pass(*structure, options.timed_cast, result.clock);
+        const HitLists& hits = batches.hits();
         fr.hits = hits.uids.size();
 
         if (options.verify) {
@@ -384,17 +374,8 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
             for (const Discrepancy& d : v.examples)
                 if (result.examples.size() < 20) result.examples.emplace_back(fr.frame, d);
         }
-        if (options.count && options.timed_cast) {
-            if (per_kind)
-                batches.counting_pass(*structure, info.name, fr);
-            else {
-                structure->cast_counted(frame.rays, frame.kinds, counted, fr.counters);
-                // The counting policy must not change what the traversal does.
-                if (counted.uids != hits.uids || counted.offsets != hits.offsets) different_hits(info.name, fr.frame);
-            }
-        }
-        if (!per_kind && fr.closest + fr.any > 0)  // one kind, not all: its share is the whole frame
-            fr.kinds.push_back({frame.kinds.front(), fr.rays, fr.raycast_ns, fr.raycast, fr.hits, fr.counters});
+        if (options.count && options.timed_cast) batches.counting_pass(*structure, info.name, fr.frame);
+        batches.add_to(fr);
         fr.memory_bytes = structure->memory_bytes();
         fr.stats = structure->stats();
         if (on_frame) on_frame(fr);

@@ -31,6 +31,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/accel/counters.h"
+#include "core/base/statistics.h"
 #include "core/base/stopwatch.h"
 #include "core/sim/cache_sweep.h"
 #include "core/truth/ground_truth.h"
@@ -93,18 +94,6 @@ struct FrameResult {
     double recall() const { return relevant ? double(correct) / double(relevant) : 1.0; }
     double precision() const { return returned ? double(correct) / double(returned) : 1.0; }
 };
-
-/// Median and median absolute deviation of a series, and a distribution-free 95% interval of the
-/// median: the order statistics x(k) and x(n+1-k) with the largest k for which a Binomial(n, 1/2)
-/// falls below k with probability at most 2.5% (Conover, "Practical Nonparametric Statistics",
-/// §3.2), narrowing as values are added. Below 6 values no such k exists: ci_low, ci_high are then
-/// the range (least, greatest), not a 95% interval. Wide over frames that differ in work, not noise.
-struct Spread {
-    double median = 0;
-    double mad = 0;
-    double ci_low = 0, ci_high = 0;
-};
-Spread spread_of(std::vector<double> values);
 
 struct SimulationResult {
     std::string structure;

@@ -1,4 +1,49 @@
 #pragma once
+/// The order statistics and intervals every stage summarises with: the median, quantiles, a
+/// median's distribution-free interval over frames, and a cell's interval over its repetitions.
+/// Pure arithmetic on copies of the values; nothing here reads a clock or a database.
+///
+/// Quantiles are linear between order statistics (Hyndman and Fan, "Sample Quantiles in
+/// Statistical Packages", 1996: type 7, R's and NumPy's default), as docs/model.md states. The
+/// median of an even count is the mean of the two middle values, (x(n/2) + x(n/2+1)) / 2: the
+/// same value as quantile(v, 0.5), computed the way the stored medians always were (the two
+/// formulas can round differently in the last bit).
+
+#include <cstddef>
+#include <vector>
+
+namespace rcb {
+
+/// The median of `values`: the middle value, or the mean of the two middle ones; NaN when empty.
+double median(std::vector<double> values);
+
+/// The q-quantile (0..1) of `values`, linear between order statistics (type 7 above); NaN when
+/// empty. An infinite value is larger than every finite one: a quantile that reaches it is
+/// infinite.
+double quantile(std::vector<double> values, double q);
+
+/// quantile(values, q) when every value is finite, else NaN: a frame the model could not price
+/// leaves its cell without a predicted median rather than with a biased one.
+double quantile_or_nan(const std::vector<double>& values, double q);
+
+/// The order statistic at rank ⌊q·(n−1)⌋ (0-based) of `sorted` (ascending), without interpolation;
+/// 0 when empty. What the scene features and a scene's stored edge percentiles use (one of the
+/// boxes' own sizes, never a size between two boxes).
+double order_statistic(const std::vector<double>& sorted, double q);
+
+/// Median and median absolute deviation of a series, and a distribution-free 95% interval of the
+/// median: the order statistics x(k) and x(n+1-k) with the largest k for which a Binomial(n, 1/2)
+/// falls below k with probability at most 2.5% (Conover, "Practical Nonparametric Statistics",
+/// §3.2), narrowing as values are added. Below 6 values no such k exists: ci_low, ci_high are then
+/// the range (least, greatest), not a 95% interval. Wide over frames that differ in work, not noise.
+struct Spread {
+    double median = 0;
+    double mad = 0;
+    double ci_low = 0, ci_high = 0;
+};
+/// All zero when `values` is empty.
+Spread spread_of(std::vector<double> values);
+
 /// A cell's time over its repetitions: the median of the per-repetition medians with a 95%
 /// interval that reflects the spread between repetitions, not between frames. Frames within one
 /// repetition run back to back and share the machine's state of that moment (the host's memory
@@ -23,12 +68,6 @@
 ///
 /// Pure arithmetic: the runner decides with it which cells get another repetition, the store keeps
 /// it per (run, scene, configuration).
-
-#include <cstddef>
-#include <vector>
-
-namespace rcb {
-
 struct RepetitionInterval {
     std::size_t repetitions = 0;  ///< every value: the planned ones and those added
     std::size_t planned = 0;      ///< the values the interval rests on
