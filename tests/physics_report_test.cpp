@@ -13,7 +13,7 @@
 
 #include "analysis/report.h"
 #include "analysis/report_data.h"
-#include "analysis/statistics.h"
+#include "core/base/statistics.h"
 #include "core/accel/registry.h"
 #include "core/base/number_text.h"
 #include "core/sim/simulator.h"
