@@ -189,9 +189,14 @@ void physics_times(Html& h, const PeerSection& p) {
     for (const std::string& k : p.kinds) header.push_back("per frame, " + rays_name(k));
     std::vector<std::vector<std::string>> rows;
     for (const Entry* e : p.entries) {
-        std::vector<std::string> row{e->recording,     e->window,         e->label,
-                                     ms(e->update_ms), ms(e->raycast_ms), ms(e->total_ms())};
-        for (const std::string& k : p.kinds) row.push_back(std::isfinite(e->frame_ms(k)) ? ms(e->frame_ms(k)) : "-");
+        std::vector<std::string> row{e->recording,
+                                     e->window,
+                                     e->label,
+                                     format_ms(e->update_ms),
+                                     format_ms(e->raycast_ms),
+                                     format_ms(e->total_ms())};
+        for (const std::string& k : p.kinds)
+            row.push_back(std::isfinite(e->frame_ms(k)) ? format_ms(e->frame_ms(k)) : "-");
         rows.push_back(std::move(row));
     }
     h.table(header, rows,
@@ -219,12 +224,12 @@ void peer_comparisons(Html& h, const PeerSection& p) {
     std::vector<std::pair<std::string, std::vector<double>>> ratios;  // per rays: whole frame, then each kind
     for (const PeerComparison& c : p.comparisons) {
         std::vector<std::string> row{c.scene->recording, c.scene->window, rays_name(c.kind), c.own ? c.own->label : "-",
-                                     c.own ? ms(c.own_ms) : "-"};
+                                     c.own ? format_ms(c.own_ms) : "-"};
         for (const std::string& peer : peers) {
             const auto b =
                 std::find_if(c.peers.begin(), c.peers.end(), [&](const PeerBest& x) { return x.structure == peer; });
             row.push_back(b == c.peers.end() ? "-" : b->entry->label);
-            row.push_back(b == c.peers.end() ? "-" : ms(b->ms));
+            row.push_back(b == c.peers.end() ? "-" : format_ms(b->ms));
         }
         const bool paired = std::isfinite(c.ratio());
         row.push_back(c.peers.empty() ? "-" : c.peers[c.best_peer].entry->label);
