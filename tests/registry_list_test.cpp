@@ -19,7 +19,7 @@
 #include "core/sim/simulator.h"
 #include "runner/experiment.h"
 #include "runner/run_experiment.h"
-#include "tests/fuzz/differential_settings.h"
+#include "testing/differential_settings.h"
 #include "tests/test_support.h"
 #include "tuner/tuning.h"
 

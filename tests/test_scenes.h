@@ -1,5 +1,6 @@
 #pragma once
-/// Scenes every structure must get right, and the differential check against brute force.
+/// Scenes and rays for the suites, and the differential check against brute force (the hard
+/// scenes themselves are the conformance suite's: testing/conformance.h).
 ///
 /// `expect_matches_ground_truth` replays a recording through the simulator with verification,
 /// the counting pass and Structure::validate() after every frame, and fails on any mismatch,
@@ -17,26 +18,10 @@
 #include "core/sim/simulator.h"
 #include "core/accel/structure.h"
 #include "runner/experiment.h"
+#include "testing/conformance.h"
 #include "tests/test_support.h"
 
 namespace rcb::test {
-
-struct NamedScene {
-    std::string name;
-    Recording recording;
-};
-
-/// Small generated presets (uniform, irregular) plus hand-made hard cases: an empty scene, one
-/// object, identical boxes, identical centroids with different sizes, flat and zero-volume boxes,
-/// one huge object around a dense cluster, a crowd of boxes nested around one centre with rays
-/// starting inside all of them, axis-parallel rays along box faces, rays starting
-/// inside, on and outside the bounds, zero-length rays, inserts far outside the initial bounds,
-/// and churn (many inserts, removes, moves). Each has several frames.
-std::vector<NamedScene> hard_scenes();
-
-/// A generated scene of `kind` ("uniform"/"irregular") with `objects`, `frames`, all ray modes.
-Recording generated_scene(const std::string& kind, std::uint32_t objects, std::uint32_t frames, std::uint64_t seed,
-                          double change_fraction = 0.05);
 
 /// `r` with its objects given shapes inside their boxes, by uid (the same kind and rotation for an
 /// object all along): boxes, triangles spanning the box, rotated boxes, spheres and capsules.

@@ -1,6 +1,5 @@
 #pragma once
-/// Helpers every suite shares: the message of an InputError, temporary folders, parameter sets
-/// drawn at random from a registered structure's ParamSpecs, and a toy structure to register.
+/// Helpers every suite shares: the message of an InputError, temporary folders, and a toy structure to register.
 
 #include <algorithm>
 #include <filesystem>
@@ -18,13 +17,9 @@
 #include "core/accel/structure.h"
 #include "core/base/geometry.h"
 #include "core/base/random.h"
+#include "testing/conformance.h"
 
 namespace rcb::test {
-
-/// The message of the InputError `f` throws, "" when it returns. Any other exception goes through
-/// (gtest fails the test with it). The one place the suites catch an InputError: a test states
-/// what the message must be (whole, prefix, substrings) on the string this returns.
-std::string input_error_of(const std::function<void()>& f);
 
 /// Expects `f` to throw an InputError whose message contains `substring`; a failure is reported at
 /// the caller's line, with the message `f` threw or that it threw none. (__builtin_FILE and
@@ -53,16 +48,6 @@ public:
 private:
     std::filesystem::path path_;
 };
-
-/// One parameter object for `info`, drawn from its ParamSpecs: each parameter is left at its default
-/// one time in four, else drawn from its spec. Booleans and choices uniformly; integers and reals
-/// at an end of their range one time in four, otherwise uniformly, or log-uniformly when the range
-/// spans orders of magnitude (log_scale, or hi at least 32 times max(lo, 1); integers from
-/// max(lo, 1), reals from hi / 10^4 when lo is 0), so "0: off" ends and small values both come up
-/// in ranges as wide as 0..10^6. Combinations the structure refuses (an InputError from
-/// `make`, e.g. query=candidates with a leaf volume) are drawn again. The parameters named in
-/// `keep_default` stay at their defaults.
-nlohmann::json random_params(const StructureInfo& info, Random& rng, const std::set<std::string>& keep_default = {});
 
 /// A toy structure as a program outside rcbench would write it, for the tests that register one:
 /// the objects in a list, tested in blocks of `block` per ray, front to back or back to front.

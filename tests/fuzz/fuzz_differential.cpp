@@ -19,7 +19,7 @@
 #include "core/scene/recording_io.h"
 #include "core/accel/registry.h"
 #include "core/sim/simulator.h"
-#include "tests/fuzz/differential_settings.h"
+#include "testing/differential_settings.h"
 
 namespace {
 
