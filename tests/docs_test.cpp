@@ -255,3 +255,41 @@ TEST(Docs, EverySectionTheSourcesCiteExists) {
         return s;
     }();
 }
+
+// docs/architecture.md's layout table names every folder a newcomer meets: each top-level folder
+// holds (but the hidden ones, build trees, cmake/ and fetched data/) and every folder under core/, so a folder that
+// appears is described where the layout is read.
+TEST(Docs, TheLayoutTableNamesEveryFolder) {
+    const std::string doc = read_source("docs/architecture.md");
+    std::set<std::string> named;
+    std::istringstream in(doc);
+    const std::regex row(R"(^\| `([a-z_/]+/)` \|)");
+    for (std::string line; std::getline(in, line);) {
+        std::smatch m;
+        if (std::regex_search(line, m, row)) named.insert(m[1]);
+    }
+    const fs::path root(RCBENCH_SOURCE_DIR);
+    std::vector<std::string> missing;
+    const auto check = [&](const fs::path& dir) {
+        const std::string rel = fs::relative(dir, root).generic_string() + "/";
+        if (!named.count(rel)) missing.push_back(rel);
+    };
+    // core/ is described folder by folder below; data/ holds fetched maps (git-ignored).
+    const std::set<std::string> skipped{"cmake", "core", "data"};
+    for (const auto& e : fs::directory_iterator(root)) {
+        const std::string name = e.path().filename().string();
+        if (!e.is_directory() || name.front() == '.' || name.rfind("build", 0) == 0 || skipped.count(name)) continue;
+        check(e.path());
+    }
+    for (const auto& e : fs::recursive_directory_iterator(root / "core")) {
+        if (!e.is_directory()) continue;
+        const std::string name = e.path().filename().string();
+        if (name == "CMakeFiles") continue;
+        check(e.path());
+    }
+    EXPECT_TRUE(missing.empty()) << [&] {
+        std::string s = "folders docs/architecture.md's layout table does not name:";
+        for (const std::string& m : missing) s += " " + m;
+        return s;
+    }();
+}
