@@ -193,30 +193,33 @@ TEST(Docs, MissingFetchedDataNamesTheScript) {
     fs::remove_all(dir);
 }
 
-}  // namespace
-
-namespace {
-
-/// The headings (without the #s) and bold paragraph leads (**Lead.**, without the stars and the
-/// final stop) of a markdown file: what a citation `docs/NAME.md, "Section"` may name.
-std::set<std::string> sections_of(const std::string& text) {
+/// The first group of every line of `text` that one of `patterns` matches (the first that does).
+std::set<std::string> first_groups(const std::string& text, const std::vector<std::regex>& patterns) {
     std::set<std::string> out;
     std::istringstream in(text);
-    const std::regex heading(R"(^#+\s+(.*\S)\s*$)"), lead(R"(^\*\*([^*]+?)\.?\*\*)");
     for (std::string line; std::getline(in, line);) {
         std::smatch m;
-        if (std::regex_search(line, m, heading) || std::regex_search(line, m, lead)) out.insert(m[1]);
+        for (const std::regex& p : patterns)
+            if (std::regex_search(line, m, p)) {
+                out.insert(m[1]);
+                break;
+            }
     }
     return out;
 }
 
-}  // namespace
+/// The headings (without the #s) and bold paragraph leads (**Lead.**, without the stars and the
+/// final stop) of a markdown file: what a citation `docs/NAME.md, "Section"` may name.
+std::set<std::string> sections_of(const std::string& text) {
+    return first_groups(text, {std::regex(R"(^#+\s+(.*\S)\s*$)"), std::regex(R"(^\*\*([^*]+?)\.?\*\*)")});
+}
 
 // A comment or doc that cites `docs/NAME.md, "Section"` (or `[NAME.md](NAME.md), "Section"`)
 // sends the reader to a section that exists, unless it names the commit it cites ("as of commit
 // ..."), where git keeps the text. Sections move and leave; a citation that outlives them misleads.
 TEST(Docs, EverySectionTheSourcesCiteExists) {
     const std::regex cite(R"re((?:docs/|\[)([a-z0-9_-]+)\.md(?:\]\([a-z0-9_-]+\.md\))?, "([^"]+)")re");
+    const std::regex line_break(R"(\s*\n\s*(///|//|#)?\s*)");
     std::vector<std::string> missing;
     std::map<std::string, std::set<std::string>> sections;
     const fs::path root(RCBENCH_SOURCE_DIR);
@@ -232,8 +235,7 @@ TEST(Docs, EverySectionTheSourcesCiteExists) {
             for (std::sregex_iterator it(text.begin(), text.end(), cite), end; it != end; ++it) {
                 const std::string doc = (*it)[1];
                 // A citation wrapped over comment lines: one space for the break and the markers.
-                const std::string section =
-                    std::regex_replace(std::string((*it)[2]), std::regex(R"(\s*\n\s*(///|//|#)?\s*)"), " ");
+                const std::string section = std::regex_replace(std::string((*it)[2]), line_break, " ");
                 if (!fs::exists(root / "docs" / (doc + ".md"))) continue;  // another file of that name
                 if (!sections.count(doc)) sections[doc] = sections_of(read_source("docs/" + doc + ".md"));
                 // The citation names a heading or lead, or the start of one ("Query kinds" for
@@ -257,17 +259,11 @@ TEST(Docs, EverySectionTheSourcesCiteExists) {
 }
 
 // docs/architecture.md's layout table names every folder a newcomer meets: each top-level folder
-// holds (but the hidden ones, build trees, cmake/ and fetched data/) and every folder under core/, so a folder that
-// appears is described where the layout is read.
+// (but the hidden ones, build trees, cmake/ and fetched data/) and every folder under core/, so a
+// folder that appears is described where the layout is read.
 TEST(Docs, TheLayoutTableNamesEveryFolder) {
-    const std::string doc = read_source("docs/architecture.md");
-    std::set<std::string> named;
-    std::istringstream in(doc);
-    const std::regex row(R"(^\| `([a-z_/]+/)` \|)");
-    for (std::string line; std::getline(in, line);) {
-        std::smatch m;
-        if (std::regex_search(line, m, row)) named.insert(m[1]);
-    }
+    const std::set<std::string> named =
+        first_groups(read_source("docs/architecture.md"), {std::regex(R"(^\| `([a-z_/]+/)` \|)")});
     const fs::path root(RCBENCH_SOURCE_DIR);
     std::vector<std::string> missing;
     const auto check = [&](const fs::path& dir) {
@@ -293,3 +289,5 @@ TEST(Docs, TheLayoutTableNamesEveryFolder) {
         return s;
     }();
 }
+
+}  // namespace
