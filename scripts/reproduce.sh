@@ -107,15 +107,13 @@ for d in "${docs[@]}"; do
   done < <(sed -n 's/^<!-- figure: \(.*\) -->$/\1/p' "$d")
 done
 
-# A table of measured numbers outside a figure has no archived data behind it: in the docs the
-# registry checks (docs/*.md, README.md, results/README.md), a markdown table (lines starting with
+# A table of measured numbers outside a figure has no archived data behind it: in the same docs as
+# the markers (docs/**/*.md, README.md, results/README.md), a markdown table (lines starting with
 # `|`, outside code blocks and figures) fails, naming its first such line, when a cell holds a
 # number followed by a time unit (ns, us, µs, ms), a percent sign or a ratio sign (× or x), or when
 # its header names such a unit, ÷ or "ratio" and a later row holds a decimal number. A table of
 # constants (parameters, defaults, formats) takes the line `<!-- not-a-figure -->` just before it.
-tables=()
-for d in "$root/README.md" "$root/results/README.md" "$root"/docs/*.md; do [[ -f "$d" ]] && tables+=("$d"); done
-for d in "${tables[@]}"; do
+for d in "${docs[@]}"; do
   LC_ALL=C awk -v rel="${d#"$root"/}" '
     /^<!-- figure: .* -->$/ { fig = 1; next }
     fig && $0 == "<!-- /figure -->" { fig = 0; next }
