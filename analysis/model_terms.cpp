@@ -24,7 +24,8 @@ std::string scene_family(const std::string& scene) {
         const bool mode = std::find(modes.begin(), modes.end(), segment) != modes.end();
         const bool seed = last && segment.size() > 1 && segment[0] == 's' &&
                           segment.find_first_not_of("0123456789", 1) == std::string::npos;
-        const bool representation = last && (segment == "brushes" || segment == "triangles");
+        const bool representation =
+            last && (segment == "brushes" || segment == "triangles" || segment == "instances" || segment == "obbs");
         if (!mode && !seed && !representation) kept.push_back(segment);
         if (last) break;
         start = dash + 1;

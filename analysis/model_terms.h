@@ -50,12 +50,13 @@ struct FrameObservation {
 /// at them or how they are represented. A held-out test leaves a family out whole, in the outer
 /// and the inner loop alike (analysis/validation.h, linear_fit.h): a twin left in the training set
 /// would let a model be judged on a scene it has in effect seen. From the scene's name, split at
-/// '-': a map's "-brushes" or "-triangles" suffix is dropped (one map, two representations), every
-/// segment that names a ray mode ("center", "dense", …) is dropped ("irregular-center-2000" and
-/// "irregular-2000", "irreg-l-dense" and "irreg-l": one generator, other rays), and so is a
-/// seed's "-s<N>" (another draw of the same generator's settings). Object counts stay: the
-/// 2000- and 40000-object scenes of one generator are two families. A name that is all ray modes
-/// is its own family.
+/// '-': a map's "-brushes" or "-triangles" suffix, and a model's "-instances", "-obbs" or
+/// "-triangles" (scene import's --model-mode), are dropped (one map or model, several
+/// representations), every segment that names a ray mode ("center", "dense", …) is dropped
+/// ("irregular-center-2000" and "irregular-2000", "irreg-l-dense" and "irreg-l": one generator,
+/// other rays), and so is a seed's "-s<N>" (another draw of the same generator's settings).
+/// Object counts stay: the 2000- and 40000-object scenes of one generator are two families. A
+/// name that is all ray modes is its own family.
 std::string scene_family(const std::string& scene);
 
 /// How a stored or simulated count becomes a FrameObservation field.

@@ -199,8 +199,13 @@ const std::set<std::string> kSceneKeys = {
 /// A missing file. Real maps and models are never committed: one under a data/ directory that
 /// scripts/fetch_maps.sh fills is fetched on demand, so the message names the command that does.
 std::string file_not_found(const std::string& file) {
-    static const std::map<std::string, std::string> kFetchedBy = {
-        {"maps", ""}, {"models", ""}, {"maps-unseen", " unseen"}, {"maps-088", " fresh"}, {"maps-nexuiz", " nexuiz"}};
+    static const std::map<std::string, std::string> kFetchedBy = {{"maps", ""},
+                                                                  {"models", ""},
+                                                                  {"maps-unseen", " unseen"},
+                                                                  {"maps-088", " fresh"},
+                                                                  {"maps-085", " 085"},
+                                                                  {"maps-nexuiz", " nexuiz"},
+                                                                  {"tracks-torcs", " torcs"}};
     bool data = false;
     for (const fs::path& part : fs::path(file)) {
         if (data)

@@ -18,6 +18,10 @@
 # With the argument `085`, also:
 #   data/maps-085/pak6-patch085.pk3   the maps of Debian's openarena-085-data package; the seven
 #                      no earlier experiment named are the fresh test set of experiments/maps-085.json
+# With the argument `torcs`, also:
+#   data/tracks-torcs/*.ac, *.acc   the race tracks of Debian's torcs-data package (TORCS 1.3.7,
+#                      GPL-2 data; a 333 MB download), each track's own AC3D mesh (the -relief
+#                      helper meshes left out): the fresh test set of experiments/tracks-torcs.json
 # Uses `apt-get download` (no root needed: only the .deb is fetched, nothing is installed) and
 # `dpkg-deb -x` to unpack. Run it again to re-fetch; it skips what is already there.
 set -euo pipefail
@@ -60,6 +64,14 @@ if [ "${1:-}" = 085 ]; then
   mkdir -p data/maps-085
   find data/.debs/openarena-085-data -name 'pak6-patch085.pk3' -exec cp -u {} data/maps-085/ \;
   echo "fetch_maps: $(ls data/maps-085/*.pk3 | wc -l) pk3 files in data/maps-085/"
+fi
+
+if [ "${1:-}" = torcs ]; then
+  fetch torcs-data data/.debs/torcs-data
+  mkdir -p data/tracks-torcs
+  find data/.debs/torcs-data -path '*/games/torcs/tracks/*' \( -name '*.ac' -o -name '*.acc' \) \
+    ! -name '*-relief.ac' -exec cp -u {} data/tracks-torcs/ \;
+  echo "fetch_maps: $(ls data/tracks-torcs/*.ac* | wc -l) track meshes in data/tracks-torcs/"
 fi
 
 if [ "${1:-}" = nexuiz ]; then

@@ -186,6 +186,9 @@ TEST(Docs, MissingFetchedDataNamesTheScript) {
     const test::Outcome nexuiz = run_with("data/maps-nexuiz/absent.pk3");
     EXPECT_EQ(nexuiz.code, 2);
     EXPECT_NE(nexuiz.err.find("(scripts/fetch_maps.sh nexuiz fetches it)"), std::string::npos) << nexuiz.err;
+    const test::Outcome tracks = run_with("data/tracks-torcs/absent.acc");
+    EXPECT_EQ(tracks.code, 2);
+    EXPECT_NE(tracks.err.find("(scripts/fetch_maps.sh torcs fetches it)"), std::string::npos) << tracks.err;
     const test::Outcome own = run_with("levels/absent.csv");
     EXPECT_EQ(own.code, 2);
     EXPECT_NE(own.err.find("file not found: levels/absent.csv"), std::string::npos) << own.err;

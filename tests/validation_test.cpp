@@ -234,6 +234,11 @@ TEST(Bootstrap, QuantilesInterpolateAndTheSeedRepeats) {
 TEST(SceneFamily, TwinsShareAFamilyAndOtherScenesDoNot) {
     EXPECT_EQ(scene_family("oa_dm4-brushes"), "oa_dm4");
     EXPECT_EQ(scene_family("oa_dm4-triangles"), "oa_dm4");
+    // A model's representations (scene import --model-mode) are one family too.
+    EXPECT_EQ(scene_family("2CylinderEngine-instances"), "2CylinderEngine");
+    EXPECT_EQ(scene_family("2CylinderEngine-obbs"), "2CylinderEngine");
+    EXPECT_EQ(scene_family("g-track-2-triangles"), "g-track-2");
+    EXPECT_EQ(scene_family("instances-2000"), "instances-2000");  // only as the last segment
     EXPECT_EQ(scene_family("irregular-center-2000"), "irregular-2000");
     EXPECT_EQ(scene_family("irregular-2000"), "irregular-2000");
     EXPECT_EQ(scene_family("irreg-l-dense"), "irreg-l");
