@@ -30,6 +30,13 @@ std::string file_bytes(const std::string& path) {
     return s.str();
 }
 
+/// A generated scene of `preset` with `frames` frames.
+Recording preset_scene(const char* preset, std::uint32_t frames) {
+    SceneSettings s = preset_settings(preset);
+    s.frames = frames;
+    return generate_scene(s);
+}
+
 /// Bytes of the END section, which encode_recording ends with and the writer adds in finish().
 constexpr std::size_t kEndBytes = 16;
 
@@ -148,9 +155,7 @@ TEST(RecordingStream, APhysicsRunRecordsEachFrameAsGenerationDoes) {
 
 TEST(RecordingStream, TheReaderReadsOneFrameAtATimeWithTheSameChecks) {
     const test::TempDir dir("stream");
-    SceneSettings s = preset_settings("irreg-s");
-    s.frames = 4;
-    const Recording r = generate_scene(s);
+    const Recording r = preset_scene("irreg-s", 4);
     const std::string path = dir.file("r.rcbscene");
     write_recording(r, path);
     RecordingReader reader(path);
@@ -164,8 +169,8 @@ TEST(RecordingStream, TheReaderReadsOneFrameAtATimeWithTheSameChecks) {
     EXPECT_FALSE(reader.next(f));
     // A file cut inside frame 3 reads frames 1 and 2, then fails naming frame 3.
     const std::string bytes = encode_recording(r);
-    const std::size_t cut = encode_recording(Recording{r.meta, r.initial, {r.frames[0], r.frames[1]}}).size() -
-                            kEndBytes + 30;
+    const std::size_t cut =
+        encode_recording(Recording{r.meta, r.initial, {r.frames[0], r.frames[1]}}).size() - kEndBytes + 30;
     std::ofstream(dir.file("cut.rcbscene"), std::ios::binary) << bytes.substr(0, cut);
     RecordingReader cut_reader(dir.file("cut.rcbscene"));
     ASSERT_TRUE(cut_reader.next(f));
@@ -175,9 +180,7 @@ TEST(RecordingStream, TheReaderReadsOneFrameAtATimeWithTheSameChecks) {
 
 TEST(RecordingStream, AnUnfinishedOrRefusedWriterLeavesNoFile) {
     const test::TempDir dir("stream");
-    SceneSettings s = preset_settings("uni-s");
-    s.frames = 3;
-    const Recording r = generate_scene(s);
+    const Recording r = preset_scene("uni-s", 3);
     const std::string path = dir.file("keep.rcbscene");
     std::ofstream(path) << "an existing file";
     {
@@ -194,7 +197,8 @@ TEST(RecordingStream, AnUnfinishedOrRefusedWriterLeavesNoFile) {
     w.frame(r.frames[0]);
     Frame bad;
     bad.removes.push_back(999999);
-    test::expect_input_error([&] { w.frame(bad); }, "keep.rcbscene (not written): frame 2: remove of unknown uid 999999");
+    test::expect_input_error([&] { w.frame(bad); },
+                             "keep.rcbscene (not written): frame 2: remove of unknown uid 999999");
     EXPECT_FALSE(fs::exists(w.temporary_path()));
     test::expect_input_error([&] { w.finish(); }, "after an error");
     EXPECT_EQ(file_bytes(path), "an existing file");

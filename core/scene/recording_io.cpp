@@ -519,6 +519,20 @@ bool RecordingReader::next(Frame& frame) {
     return false;
 }
 
+namespace {
+
+/// Every frame of `reader` kept: the whole recording in memory.
+Recording read_all(RecordingReader& reader) {
+    Recording r;
+    r.meta = reader.meta();
+    r.initial = reader.take_initial();
+    Frame f;
+    while (reader.next(f)) r.frames.push_back(std::move(f));
+    return r;
+}
+
+}  // namespace
+
 Recording decode_recording(const std::string& bytes, const std::string& name) {
     auto state = std::make_unique<RecordingReader::State>();
     state->memory.str(bytes);
@@ -526,12 +540,7 @@ Recording decode_recording(const std::string& bytes, const std::string& name) {
     state->size = bytes.size();
     state->name = name;
     RecordingReader reader(std::move(state));
-    Recording r;
-    r.meta = reader.meta();
-    r.initial = reader.take_initial();
-    Frame f;
-    while (reader.next(f)) r.frames.push_back(std::move(f));
-    return r;
+    return read_all(reader);
 }
 
 void write_recording(const Recording& r, const std::string& path) {
@@ -554,12 +563,7 @@ void write_recording(const Recording& r, const std::string& path) {
 
 Recording read_recording(const std::string& path) {
     RecordingReader reader(path);
-    Recording r;
-    r.meta = reader.meta();
-    r.initial = reader.take_initial();
-    Frame f;
-    while (reader.next(f)) r.frames.push_back(std::move(f));
-    return r;
+    return read_all(reader);
 }
 
 RecordingWriter::RecordingWriter(std::string path) : path_(std::move(path)), tmp_(path_ + ".tmp") {}
