@@ -114,9 +114,10 @@ struct Part {
 void print(const char* what, const Part& p) {
     if (p.wall.empty()) return;
     const double n = double(p.wall.size());
-    std::printf("  %-7s wall median %9.2f ms  mean %9.2f ms (min %.2f, max %.2f)   cpu median %9.2f ms  mean %9.2f ms\n",
-                what, median(p.wall), p.total() / n, *std::min_element(p.wall.begin(), p.wall.end()),
-                *std::max_element(p.wall.begin(), p.wall.end()), median(p.cpu), p.cpu_total() / n);
+    std::printf(
+        "  %-7s wall median %9.2f ms  mean %9.2f ms (min %.2f, max %.2f)   cpu median %9.2f ms  mean %9.2f ms\n", what,
+        median(p.wall), p.total() / n, *std::min_element(p.wall.begin(), p.wall.end()),
+        *std::max_element(p.wall.begin(), p.wall.end()), median(p.cpu), p.cpu_total() / n);
 }
 
 int run(int argc, char** argv) {
