@@ -11,6 +11,7 @@
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/scene/generate/physics.h"
+#include "core/scene/generate/stream.h"
 #include "core/scene/import/broadmark.h"
 #include "core/scene/phases.h"
 #include "core/scene/import/bsp.h"
@@ -222,9 +223,26 @@ void scene_info(const std::string& path, bool as_json) {
     std::cout << "origin  " << json_excerpt(meta, 400) << '\n';
 }
 
+/// A sink that adds the map's description to the meta of the scene it passes on (`--on-map`).
+class OnMapSink final : public SceneSink {
+public:
+    OnMapSink(SceneSink& next, nlohmann::json imported) : next_(next), imported_(std::move(imported)) {}
+    void begin(const std::string& meta_text, const std::vector<Object>& initial) override {
+        nlohmann::json meta = nlohmann::json::parse(meta_text);
+        meta["on_map"] = imported_;
+        next_.begin(meta.dump(), initial);
+    }
+    void frame(const Frame& frame) override { next_.frame(frame); }
+
+private:
+    SceneSink& next_;
+    nlohmann::json imported_;
+};
+
 /// `scene gen --on-map`: the map's solid brushes in metres with y up (bsp_box_in_metres), then the
-/// pile dropped onto them; the recording's meta says which map and how it was placed.
-Recording pile_on_map(const SceneSettings& s, const std::string& file, const std::string& map) {
+/// pile dropped onto them, streamed into `sink`; the recording's meta says which map and how it was
+/// placed.
+void pile_on_map(const SceneSettings& s, const std::string& file, const std::string& map, SceneSink& sink) {
     if (s.kind != "pile") throw InputError("--on-map: only --kind pile is dropped onto a map, not " + s.kind);
     if (importer_for(file) != "bsp")
         throw InputError("--on-map: " + file + ": expected a Quake III / OpenArena map (.bsp or .pk3)");
@@ -234,18 +252,14 @@ Recording pile_on_map(const SceneSettings& s, const std::string& file, const std
     std::vector<Aabb> boxes;
     for (const Object& o : import_objects(file, options, &imported)) boxes.push_back(bsp_box_in_metres(o.box));
     if (boxes.empty()) throw InputError("--on-map: " + file + ": no solid brushes");
-    Recording r;
+    imported["metres_per_unit"] = kBspUnitMetres;
+    imported["axes"] = "map z up as y, map y as -z";
+    OnMapSink on_map(sink, imported);
     try {
-        r = generate_physics_scene(s, boxes);
+        stream_physics_scene(s, on_map, boxes);
     } catch (const InputError& e) {
         throw InputError("--on-map: " + file + ": " + e.what());
     }
-    nlohmann::json meta = nlohmann::json::parse(r.meta);
-    imported["metres_per_unit"] = kBspUnitMetres;
-    imported["axes"] = "map z up as y, map y as -z";
-    meta["on_map"] = imported;
-    r.meta = meta.dump();
-    return r;
 }
 
 /// `scene gen`: a scene from a preset or a kind.
@@ -336,11 +350,19 @@ void add_gen_command(CLI::App& scene) {
         check_shapes(s.shapes);
         if (!gen->map.empty() && gen->on_map.empty()) throw InputError("--map: needs --on-map");
         check_output_path(gen->out, {gen->on_map}, "-o");
-        check_scene_size(s.objects, s.frames, s.rays.per_frame, s.objects * s.dynamics.change_fraction,
-                         "--objects/--frames/--rays");
-        const Recording r = gen->on_map.empty() ? generate_scene(s) : pile_on_map(s, gen->on_map, gen->map);
-        write_recording(r, gen->out);
-        print_written(r, gen->out);
+        // A physics scene may move every body in every frame.
+        const double changes = is_physics_kind(s.kind) ? s.objects : s.objects * s.dynamics.change_fraction;
+        check_streamed_scene_size(s.objects, s.frames, s.rays.per_frame, changes, "--objects/--frames/--rays");
+        // Each frame is written as it is made (RecordingWriter): the file's bytes are those of
+        // write_recording, in the memory of one frame; an error leaves no file at -o.
+        RecordingWriter writer(gen->out);
+        if (gen->on_map.empty())
+            stream_scene(s, writer);
+        else
+            pile_on_map(s, gen->on_map, gen->map, writer);
+        writer.finish();
+        std::cout << "wrote " << gen->out << ": " << writer.objects() << " objects, " << writer.frames() << " frames, "
+                  << writer.rays() << " rays\n";
     });
 }
 

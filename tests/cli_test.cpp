@@ -212,7 +212,8 @@ TEST_F(Cli, NumbersOutsideTheirRangeAreRefusedByName) {
                      "--move-scale: expected a number in 0..1000, got nan");
     expect_bad_input(run("scene gen --preset uni-s --objects 100000000" + out),
                      "--objects: expected a whole number in 1..67108864");
-    expect_bad_input(run("scene gen --preset uni-s --rays 100000000" + out), "the scene would take 24 GB");
+    expect_bad_input(run("scene gen --preset uni-s --rays 100000000 --frames 100" + out),
+                     "the recording could take 250 GB on disk");
     EXPECT_FALSE(fs::exists(path("x.rcbscene")));
     write("ok.json",
           R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}]})");

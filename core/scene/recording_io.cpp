@@ -13,6 +13,7 @@
 #include <unordered_set>
 
 #include "core/base/error.h"
+#include "core/scene/recording_stream.h"
 
 namespace rcb {
 namespace {
@@ -260,139 +261,286 @@ void validate_recording(const Recording& r, const std::string& name) {
     for (std::size_t i = 0; i < r.frames.size(); ++i) validate_frame(r.frames[i], live, frame_context(name, i + 1));
 }
 
-std::uint32_t recording_version(const Recording& r) {
-    auto shaped = [](const std::vector<Object>& objects) {
-        return std::any_of(objects.begin(), objects.end(),
-                           [](const Object& o) { return o.shape.kind != ShapeKind::box; });
-    };
-    for (const Frame& f : r.frames)
-        if (std::any_of(f.kinds.begin(), f.kinds.end(), [](QueryKind k) { return k != QueryKind::all; })) return 3;
-    if (shaped(r.initial)) return 2;
-    for (const Frame& f : r.frames)
-        if (shaped(f.inserts) || shaped(f.moves)) return 2;
-    return 1;
+namespace {
+
+bool any_shaped(const std::vector<Object>& objects) {
+    return std::any_of(objects.begin(), objects.end(), [](const Object& o) { return o.shape.kind != ShapeKind::box; });
 }
 
-std::string encode_recording(const Recording& r) {
-    const std::uint32_t version = recording_version(r);
+/// The lowest version that holds frame 0's objects: 2 when one has a shape.
+std::uint32_t objects_version(const std::vector<Object>& objects) { return any_shaped(objects) ? 2 : 1; }
+
+/// The lowest version that holds one frame: 3 for a query kind other than `all`, 2 for a shape.
+std::uint32_t frame_version(const Frame& f) {
+    if (std::any_of(f.kinds.begin(), f.kinds.end(), [](QueryKind k) { return k != QueryKind::all; })) return 3;
+    return any_shaped(f.inserts) || any_shaped(f.moves) ? 2 : 1;
+}
+
+// The file's pieces, each encoded alone: encode_recording joins them, RecordingWriter appends them
+// one at a time, so both write the same bytes.
+std::string header_bytes(std::uint32_t version) {
     Encoder e;
     e.bytes(std::string(kMagic, sizeof kMagic));
     e.u32(version);
     e.u32(kByteOrderMark);
-    e.section("META", [&](Encoder& p) { p.bytes(r.meta); });
+    return e.take();
+}
+
+std::string meta_section(const std::string& meta) {
+    Encoder e;
+    e.section("META", [&](Encoder& p) { p.bytes(meta); });
+    return e.take();
+}
+
+std::string objects_section(const std::vector<Object>& objects, std::uint32_t version) {
+    Encoder e;
     e.section("OBJS", [&](Encoder& p) {
-        p.u32(static_cast<std::uint32_t>(r.initial.size()));
-        for (const Object& o : r.initial) p.object(o, version);
+        p.u32(static_cast<std::uint32_t>(objects.size()));
+        for (const Object& o : objects) p.object(o, version);
     });
-    for (std::size_t i = 0; i < r.frames.size(); ++i) {
-        const Frame& f = r.frames[i];
-        e.section("FRAM", [&](Encoder& p) {
-            p.u32(static_cast<std::uint32_t>(i + 1));
-            p.u32(static_cast<std::uint32_t>(f.removes.size()));
-            p.u32(static_cast<std::uint32_t>(f.inserts.size()));
-            p.u32(static_cast<std::uint32_t>(f.moves.size()));
-            p.u32(static_cast<std::uint32_t>(f.rays.size()));
-            for (Uid uid : f.removes) p.u32(uid);
-            for (const Object& o : f.inserts) p.object(o, version);
-            for (const Object& o : f.moves) p.object(o, version);
-            for (const Segment& s : f.rays) p.vec(s.p0), p.vec(s.p1);
-            if (version >= 3)
-                for (std::size_t ray = 0; ray < f.rays.size(); ++ray) p.u8(std::uint8_t(f.kind(ray)));
-        });
-    }
+    return e.take();
+}
+
+std::string frame_section(const Frame& f, std::size_t number, std::uint32_t version) {
+    Encoder e;
+    e.section("FRAM", [&](Encoder& p) {
+        p.u32(static_cast<std::uint32_t>(number));
+        p.u32(static_cast<std::uint32_t>(f.removes.size()));
+        p.u32(static_cast<std::uint32_t>(f.inserts.size()));
+        p.u32(static_cast<std::uint32_t>(f.moves.size()));
+        p.u32(static_cast<std::uint32_t>(f.rays.size()));
+        for (Uid uid : f.removes) p.u32(uid);
+        for (const Object& o : f.inserts) p.object(o, version);
+        for (const Object& o : f.moves) p.object(o, version);
+        for (const Segment& s : f.rays) p.vec(s.p0), p.vec(s.p1);
+        if (version >= 3)
+            for (std::size_t ray = 0; ray < f.rays.size(); ++ray) p.u8(std::uint8_t(f.kind(ray)));
+    });
+    return e.take();
+}
+
+std::string end_section() {
+    Encoder e;
     e.section("END ", [](Encoder&) {});
     return e.take();
 }
 
-Recording decode_recording(const std::string& bytes, const std::string& name) {
-    Decoder header(bytes.data(), bytes.size(), name + ": header");
-    if (bytes.size() < sizeof kMagic || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
+}  // namespace
+
+std::uint32_t recording_version(const Recording& r) {
+    std::uint32_t version = objects_version(r.initial);
+    for (const Frame& f : r.frames) version = std::max(version, frame_version(f));
+    return version;
+}
+
+std::string encode_recording(const Recording& r) {
+    const std::uint32_t version = recording_version(r);
+    std::string out = header_bytes(version) + meta_section(r.meta) + objects_section(r.initial, version);
+    for (std::size_t i = 0; i < r.frames.size(); ++i) out += frame_section(r.frames[i], i + 1, version);
+    return out + end_section();
+}
+
+/// The reading side of RecordingReader: sections pulled one at a time from a file or from bytes in
+/// memory, checked as they come. `unterminated` accepts a file that stops after a whole frame
+/// without END: RecordingWriter's temporary file, read back to raise its version.
+struct RecordingReader::State {
+    std::ifstream file;
+    std::istringstream memory;
+    std::istream* in = nullptr;
+    std::uint64_t size = 0, pos = 0;
+    std::string name;
+    bool unterminated = false;
+
+    std::uint32_t version = 0;
+    std::string meta;
+    std::vector<Object> initial;
+    std::unordered_set<Uid> live;
+    std::size_t frames_seen = 0;
+    enum class Expect { meta, objs, frames, done } expect = Expect::meta;
+
+    /// Up to n bytes from the current position (fewer at the end of the input).
+    std::string take(std::uint64_t n) {
+        const std::uint64_t count = std::min(n, size - pos);
+        std::string out(count, '\0');
+        in->read(out.data(), static_cast<std::streamsize>(count));
+        if (std::uint64_t(in->gcount()) != count)
+            throw InputError(name + ": truncated (cannot read " + std::to_string(count) + " bytes at offset " +
+                             std::to_string(pos) + ")");
+        pos += count;
+        return out;
+    }
+    void read_header();
+    /// Reads one section; true when it was a frame (put in `frame`), false for META, OBJS and END.
+    bool section(Frame* frame);
+    void read_objects(Decoder& p, const std::string& where);
+    void read_frame(Decoder& p, std::uint64_t length, const std::string& where, Frame& f);
+};
+
+void RecordingReader::State::read_header() {
+    const std::string head = take(sizeof kMagic + 8);
+    Decoder header(head.data(), head.size(), name + ": header");
+    if (head.size() < sizeof kMagic || std::memcmp(head.data(), kMagic, sizeof kMagic) != 0)
         throw InputError(name + ": not an rcbench scene recording (bad magic; expected \"RCBSCENE\")");
     header.bytes(sizeof kMagic);
-    std::uint32_t version = header.u32();
+    version = header.u32();
     std::uint32_t bom = header.u32();
     if (bom != kByteOrderMark) throw InputError(name + ": unknown byte-order mark (corrupt header)");
     if (version < 1 || version > kRecordingVersion)
         throw InputError(name + ": format version " + std::to_string(version) +
                          " is not supported (this rcbench reads versions 1 to " + std::to_string(kRecordingVersion) +
                          ")");
+}
 
-    Recording r;
-    std::unordered_set<Uid> live;
-    std::size_t pos = header.position();
-    std::size_t frames_seen = 0;
-    enum class Expect { meta, objs, frames } expect = Expect::meta;
-    for (;;) {
-        Decoder sh(bytes.data() + pos, bytes.size() - pos, name + ": section header at offset " + std::to_string(pos));
-        if (sh.remaining() == 0) throw InputError(name + ": truncated (file ends before the END section)");
-        std::string tag = sh.bytes(4);
-        std::uint64_t length = sh.u64();
-        std::uint32_t crc = sh.u32();
-        // Errors name the frame for frame sections, else the section.
-        std::string where =
-            tag == "FRAM" ? frame_context(name, frames_seen + 1) : name + ": section " + quoted_excerpt(tag);
-        if (length > sh.remaining())
-            throw InputError(where + ": truncated (section of " + std::to_string(length) + " bytes, " +
-                             std::to_string(sh.remaining()) + " left in the file)");
-        const char* payload = bytes.data() + pos + kSectionHeaderBytes;
-        if (crc32_of(payload, length) != crc) throw InputError(where + ": checksum mismatch (corrupt file)");
-        pos += kSectionHeaderBytes + length;
-        Decoder p(payload, length, where);
+void RecordingReader::State::read_objects(Decoder& p, const std::string& where) {
+    std::uint32_t n = p.u32();
+    const bool fits = version == 1 ? p.remaining() == std::uint64_t(n) * kObjectBytes
+                                   : p.remaining() >= std::uint64_t(n) * kMinShapedObjectBytes;
+    if (!fits) throw InputError(where + ": size does not match its count of " + std::to_string(n) + " objects");
+    initial.resize(n);
+    for (Object& o : initial) o = p.object(version);
+    if (p.remaining() != 0)
+        throw InputError(where + ": size does not match its count of " + std::to_string(n) + " objects");
+    live = validate_initial(initial, name);
+}
 
-        if (tag == "META") {
-            if (expect != Expect::meta) throw InputError(where + ": unexpected META section");
-            r.meta = p.bytes(length);
-            expect = Expect::objs;
-        } else if (tag == "OBJS") {
-            if (expect != Expect::objs) throw InputError(where + ": unexpected OBJS section");
-            std::uint32_t n = p.u32();
-            const bool fits = version == 1 ? p.remaining() == std::uint64_t(n) * kObjectBytes
-                                           : p.remaining() >= std::uint64_t(n) * kMinShapedObjectBytes;
-            if (!fits) throw InputError(where + ": size does not match its count of " + std::to_string(n) + " objects");
-            r.initial.resize(n);
-            for (Object& o : r.initial) o = p.object(version);
-            if (p.remaining() != 0)
-                throw InputError(where + ": size does not match its count of " + std::to_string(n) + " objects");
-            live = validate_initial(r.initial, name);
-            expect = Expect::frames;
-        } else if (tag == "FRAM") {
-            if (expect != Expect::frames) throw InputError(where + ": frame section before the objects");
-            std::uint32_t number = p.u32();
-            if (number != frames_seen + 1)
-                throw InputError(where + ": section carries frame number " + std::to_string(number) +
-                                 " (out of order)");
-            std::uint32_t n_rem = p.u32(), n_ins = p.u32(), n_mov = p.u32(), n_ray = p.u32();
-            const std::uint64_t objects = std::uint64_t(n_ins) + n_mov,
-                                fixed = kFrameHeaderBytes + std::uint64_t(n_rem) * 4 +
-                                        std::uint64_t(n_ray) * (kRayBytes + (version >= 3 ? 1 : 0));
-            const bool fits = version == 1 ? length == fixed + objects * kObjectBytes
-                                           : length >= fixed + objects * kMinShapedObjectBytes;
-            if (!fits) throw InputError(where + ": size does not match its counts");
-            Frame f;
-            f.removes.resize(n_rem);
-            for (Uid& uid : f.removes) uid = p.u32();
-            f.inserts.resize(n_ins);
-            for (Object& o : f.inserts) o = p.object(version);
-            f.moves.resize(n_mov);
-            for (Object& o : f.moves) o = p.object(version);
-            f.rays.resize(n_ray);
-            for (Segment& s : f.rays) s.p0 = p.vec(), s.p1 = p.vec();
-            if (version >= 3) read_kinds(p, f);
-            if (p.remaining() != 0) throw InputError(where + ": size does not match its counts");
-            validate_frame(f, live, where);
-            r.frames.push_back(std::move(f));
-            ++frames_seen;
-        } else if (tag == "END ") {
-            if (expect != Expect::frames) throw InputError(where + ": END before the objects");
-            if (length != 0) throw InputError(where + ": END section is not empty");
-            if (pos != bytes.size())
-                throw InputError(name + ": " + std::to_string(bytes.size() - pos) + " bytes after the END section");
-            return r;
-        } else {
-            throw InputError(name + ": unknown section tag " + quoted_excerpt(tag) + " at offset " +
-                             std::to_string(pos - kSectionHeaderBytes - length) + " (corrupt file)");
+void RecordingReader::State::read_frame(Decoder& p, std::uint64_t length, const std::string& where, Frame& f) {
+    std::uint32_t number = p.u32();
+    if (number != frames_seen + 1)
+        throw InputError(where + ": section carries frame number " + std::to_string(number) + " (out of order)");
+    std::uint32_t n_rem = p.u32(), n_ins = p.u32(), n_mov = p.u32(), n_ray = p.u32();
+    const std::uint64_t objects = std::uint64_t(n_ins) + n_mov,
+                        fixed = kFrameHeaderBytes + std::uint64_t(n_rem) * 4 +
+                                std::uint64_t(n_ray) * (kRayBytes + (version >= 3 ? 1 : 0));
+    const bool fits =
+        version == 1 ? length == fixed + objects * kObjectBytes : length >= fixed + objects * kMinShapedObjectBytes;
+    if (!fits) throw InputError(where + ": size does not match its counts");
+    f = Frame{};
+    f.removes.resize(n_rem);
+    for (Uid& uid : f.removes) uid = p.u32();
+    f.inserts.resize(n_ins);
+    for (Object& o : f.inserts) o = p.object(version);
+    f.moves.resize(n_mov);
+    for (Object& o : f.moves) o = p.object(version);
+    f.rays.resize(n_ray);
+    for (Segment& s : f.rays) s.p0 = p.vec(), s.p1 = p.vec();
+    if (version >= 3) read_kinds(p, f);
+    if (p.remaining() != 0) throw InputError(where + ": size does not match its counts");
+    validate_frame(f, live, where);
+    ++frames_seen;
+}
+
+bool RecordingReader::State::section(Frame* frame) {
+    const std::uint64_t start = pos;
+    if (start == size) {
+        if (unterminated && expect == Expect::frames) {
+            expect = Expect::done;
+            return false;
         }
+        throw InputError(name + ": truncated (file ends before the END section)");
     }
+    const std::string head = take(kSectionHeaderBytes);
+    Decoder sh(head.data(), head.size(), name + ": section header at offset " + std::to_string(start));
+    std::string tag = sh.bytes(4);
+    std::uint64_t length = sh.u64();
+    std::uint32_t crc = sh.u32();
+    // Errors name the frame for frame sections, else the section.
+    std::string where =
+        tag == "FRAM" ? frame_context(name, frames_seen + 1) : name + ": section " + quoted_excerpt(tag);
+    if (length > size - pos)
+        throw InputError(where + ": truncated (section of " + std::to_string(length) + " bytes, " +
+                         std::to_string(size - pos) + " left in the file)");
+    const std::string payload = take(length);
+    if (crc32_of(payload.data(), length) != crc) throw InputError(where + ": checksum mismatch (corrupt file)");
+    Decoder p(payload.data(), length, where);
+    if (tag == "META") {
+        if (expect != Expect::meta) throw InputError(where + ": unexpected META section");
+        meta = p.bytes(length);
+        expect = Expect::objs;
+    } else if (tag == "OBJS") {
+        if (expect != Expect::objs) throw InputError(where + ": unexpected OBJS section");
+        read_objects(p, where);
+        expect = Expect::frames;
+    } else if (tag == "FRAM") {
+        if (expect != Expect::frames) throw InputError(where + ": frame section before the objects");
+        read_frame(p, length, where, *frame);
+        return true;
+    } else if (tag == "END ") {
+        if (expect != Expect::frames) throw InputError(where + ": END before the objects");
+        if (length != 0) throw InputError(where + ": END section is not empty");
+        if (pos != size) throw InputError(name + ": " + std::to_string(size - pos) + " bytes after the END section");
+        expect = Expect::done;
+    } else {
+        throw InputError(name + ": unknown section tag " + quoted_excerpt(tag) + " at offset " + std::to_string(start) +
+                         " (corrupt file)");
+    }
+    return false;
+}
+
+namespace {
+
+/// A reader state over the file at `path`, its header, META and OBJS read.
+std::unique_ptr<RecordingReader::State> open_reader(const std::string& path, bool unterminated) {
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec)) throw InputError(path + ": is a directory, not a scene recording");
+    auto state = std::make_unique<RecordingReader::State>();
+    state->file.open(path, std::ios::binary);
+    if (!state->file) throw InputError(path + ": cannot open (" + std::strerror(errno) + ")");
+    state->file.seekg(0, std::ios::end);
+    state->size = std::uint64_t(state->file.tellg());
+    state->file.seekg(0);
+    state->in = &state->file;
+    state->name = path;
+    state->unterminated = unterminated;
+    return state;
+}
+
+/// Reads the header, META and OBJS.
+void read_prologue(RecordingReader::State& s) {
+    s.read_header();
+    while (s.expect != RecordingReader::State::Expect::frames) s.section(nullptr);
+}
+
+}  // namespace
+
+RecordingReader::RecordingReader(const std::string& path) : state_(open_reader(path, false)) { read_prologue(*state_); }
+
+RecordingReader::RecordingReader(std::unique_ptr<State> state) : state_(std::move(state)) { read_prologue(*state_); }
+
+RecordingReader::~RecordingReader() = default;
+
+std::uint32_t RecordingReader::version() const { return state_->version; }
+const std::string& RecordingReader::meta() const { return state_->meta; }
+const std::vector<Object>& RecordingReader::initial() const { return state_->initial; }
+std::vector<Object> RecordingReader::take_initial() { return std::move(state_->initial); }
+
+bool RecordingReader::next(Frame& frame) {
+    while (state_->expect == State::Expect::frames)
+        if (state_->section(&frame)) return true;
+    return false;
+}
+
+namespace {
+
+/// Every frame of `reader` kept: the whole recording in memory.
+Recording read_all(RecordingReader& reader) {
+    Recording r;
+    r.meta = reader.meta();
+    r.initial = reader.take_initial();
+    Frame f;
+    while (reader.next(f)) r.frames.push_back(std::move(f));
+    return r;
+}
+
+}  // namespace
+
+Recording decode_recording(const std::string& bytes, const std::string& name) {
+    auto state = std::make_unique<RecordingReader::State>();
+    state->memory.str(bytes);
+    state->in = &state->memory;
+    state->size = bytes.size();
+    state->name = name;
+    RecordingReader reader(std::move(state));
+    return read_all(reader);
 }
 
 void write_recording(const Recording& r, const std::string& path) {
@@ -414,13 +562,116 @@ void write_recording(const Recording& r, const std::string& path) {
 }
 
 Recording read_recording(const std::string& path) {
+    RecordingReader reader(path);
+    return read_all(reader);
+}
+
+RecordingWriter::RecordingWriter(std::string path) : path_(std::move(path)), tmp_(path_ + ".tmp") {}
+
+RecordingWriter::~RecordingWriter() {
+    if (!finished_) discard();
+}
+
+void RecordingWriter::discard() noexcept {
+    if (out_.is_open()) out_.close();
     std::error_code ec;
-    if (std::filesystem::is_directory(path, ec)) throw InputError(path + ": is a directory, not a scene recording");
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw InputError(path + ": cannot open (" + std::strerror(errno) + ")");
-    std::ostringstream buffer;
-    buffer << in.rdbuf();
-    return decode_recording(buffer.str(), path);
+    if (begun_) std::filesystem::remove(tmp_, ec);
+    failed_ = true;
+}
+
+void RecordingWriter::put(const std::string& bytes, bool flush) {
+    out_.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    if (flush) out_.flush();
+    if (!out_) {
+        const std::string why = std::strerror(errno);
+        discard();
+        throw std::runtime_error(path_ + ": write failed (" + why + "); nothing written");
+    }
+    bytes_ += bytes.size();
+}
+
+void RecordingWriter::begin(const std::string& meta, const std::vector<Object>& initial) {
+    if (begun_ || failed_ || finished_) throw InputError(path_ + ": the recording was begun already");
+    live_ = validate_initial(initial, path_ + " (not written)");
+    out_.open(tmp_, std::ios::binary | std::ios::trunc);
+    if (!out_) throw InputError(path_ + ": cannot open for writing");
+    begun_ = true;
+    version_ = objects_version(initial);
+    objects_ = initial.size();
+    put(header_bytes(version_) + meta_section(meta) + objects_section(initial, version_), true);
+}
+
+void RecordingWriter::frame(const Frame& f) {
+    if (!begun_ || failed_ || finished_)
+        throw InputError(path_ + ": a frame given " + (begun_ ? "after an error or finish()" : "before begin()"));
+    try {
+        validate_frame(f, live_, frame_context(path_ + " (not written)", frames_ + 1));
+    } catch (...) {
+        discard();
+        throw;
+    }
+    if (const std::uint32_t needed = frame_version(f); needed > version_) upgrade(needed);
+    // Flushed per frame: the file holds every whole frame given so far, and the writer keeps none.
+    put(frame_section(f, frames_ + 1, version_), true);
+    ++frames_;
+    rays_ += f.rays.size();
+}
+
+/// Re-encodes the temporary file at `version`: read back section by section (one frame at a
+/// time) into a second temporary file, which replaces it.
+void RecordingWriter::upgrade(std::uint32_t version) {
+    out_.close();
+    const std::string next = tmp_ + ".v" + std::to_string(version);
+    try {
+        auto state = open_reader(tmp_, true);
+        RecordingReader::State& in = *state;
+        read_prologue(in);
+        std::ofstream out(next, std::ios::binary | std::ios::trunc);
+        std::string bytes = header_bytes(version) + meta_section(in.meta) + objects_section(in.initial, version);
+        out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+        std::uint64_t total = bytes.size();
+        for (Frame f; in.section(&f);) {
+            bytes = frame_section(f, in.frames_seen, version);
+            out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+            total += bytes.size();
+        }
+        out.flush();
+        if (!out) throw std::runtime_error(std::strerror(errno));
+        out.close();
+        std::filesystem::rename(next, tmp_);
+        bytes_ = total;
+    } catch (const std::exception& e) {
+        std::error_code ec;
+        std::filesystem::remove(next, ec);
+        discard();
+        throw std::runtime_error(path_ + ": cannot rewrite the recording at version " + std::to_string(version) + " (" +
+                                 e.what() + "); nothing written");
+    }
+    version_ = version;
+    out_.open(tmp_, std::ios::binary | std::ios::app);
+    if (!out_) {
+        discard();
+        throw std::runtime_error(path_ + ": cannot reopen the temporary file; nothing written");
+    }
+}
+
+void RecordingWriter::finish() {
+    if (!begun_ || failed_ || finished_)
+        throw InputError(path_ + ": finish() " + (begun_ ? "after an error or a finish()" : "before begin()"));
+    put(end_section());
+    out_.flush();
+    out_.close();
+    if (!out_) {
+        discard();
+        throw std::runtime_error(path_ + ": write failed; nothing written");
+    }
+    std::error_code ec;
+    std::filesystem::rename(tmp_, path_, ec);
+    if (ec) {
+        discard();
+        throw std::runtime_error(path_ + ": cannot rename the temporary file into place: " + ec.message());
+    }
+    finished_ = true;
 }
 
 }  // namespace rcb

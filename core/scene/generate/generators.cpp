@@ -9,6 +9,7 @@
 #include "core/base/error.h"
 #include "core/base/random.h"
 #include "core/scene/generate/physics.h"
+#include "core/scene/generate/stream.h"
 
 namespace rcb {
 namespace {
@@ -869,13 +870,12 @@ void check_dynamics(const DynamicsSettings& d) {
     if (d.insert_share + d.remove_share > 1) throw InputError("insert_share + remove_share exceeds 1");
 }
 
-Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dynamics, const RaySettings& rays,
-                       std::uint32_t frames, std::uint64_t seed, nlohmann::json meta) {
+void stream_dynamics(std::vector<Object> initial, const DynamicsSettings& dynamics, const RaySettings& rays,
+                     std::uint32_t frames, std::uint64_t seed, nlohmann::json meta, SceneSink& sink) {
     check_dynamics(dynamics);
     check_ray_settings(rays);
-    check_scene_size(double(initial.size()), frames, rays.per_frame, double(initial.size()) * dynamics.change_fraction,
-                     "scene");
-    Recording r;
+    check_streamed_scene_size(double(initial.size()), frames, rays.per_frame,
+                              double(initial.size()) * dynamics.change_fraction, "scene");
     meta["frames"] = frames;
     meta["seed"] = seed;
     meta["dynamics"] = {{"change_fraction", dynamics.change_fraction},
@@ -883,20 +883,30 @@ Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dyna
                         {"remove_share", dynamics.remove_share},
                         {"move_scale", dynamics.move_scale}};
     meta["rays"] = rays_json(rays);
-    r.meta = meta.dump();
-    r.initial = std::move(initial);
-    LiveSet live(r.initial);
+    sink.begin(meta.dump(), initial);
+    LiveSet live(initial);
     Uid next_uid = 0;
-    for (const Object& o : r.initial) next_uid = std::max(next_uid, o.uid + 1);
+    for (const Object& o : initial) next_uid = std::max(next_uid, o.uid + 1);
+    initial = {};  // the live set holds them now
     for (std::uint32_t f = 1; f <= frames; ++f) {
         Random rng(mix_seed(seed, kDynamicsStream + f));
         Frame frame = frame_changes(live, dynamics, next_uid, rng);
         live.apply(frame);
         frame.rays = generate_rays(live.objects(), rays, seed, f);
         frame.kinds = ray_kinds(frame.rays.size(), rays, seed, f);
-        r.frames.push_back(std::move(frame));
+        sink.frame(frame);
     }
-    return r;
+}
+
+Recording add_dynamics(std::vector<Object> initial, const DynamicsSettings& dynamics, const RaySettings& rays,
+                       std::uint32_t frames, std::uint64_t seed, nlohmann::json meta) {
+    check_dynamics(dynamics);
+    check_ray_settings(rays);
+    check_scene_size(double(initial.size()), frames, rays.per_frame, double(initial.size()) * dynamics.change_fraction,
+                     "scene");
+    RecordingCollector collector;
+    stream_dynamics(std::move(initial), dynamics, rays, frames, seed, std::move(meta), collector);
+    return std::move(collector.recording);
 }
 
 void add_rays(Recording& r, const RaySettings& rays, std::uint64_t seed) {
@@ -923,6 +933,14 @@ nlohmann::json to_json(const SceneSettings& s) {
                        {"sphere_share", s.shapes.sphere_share},
                        {"capsule_share", s.shapes.capsule_share}};
     return j;
+}
+
+void stream_scene(const SceneSettings& s, SceneSink& sink) {
+    if (is_physics_kind(s.kind)) return stream_physics_scene(s, sink);
+    check_dynamics(s.dynamics);
+    check_shapes(s.shapes);
+    check_streamed_scene_size(s.objects, s.frames, s.rays.per_frame, s.objects * s.dynamics.change_fraction, "scene");
+    stream_dynamics(generate_objects(s), s.dynamics, s.rays, s.frames, s.seed, to_json(s), sink);
 }
 
 Recording generate_scene(const SceneSettings& s) {

@@ -1,5 +1,6 @@
 #include "core/scene/generate/physics.h"
 
+#include <BulletDynamics/ConstraintSolver/btNNCGConstraintSolver.h>
 #include <btBulletDynamicsCommon.h>
 
 #include <algorithm>
@@ -12,6 +13,7 @@
 #include "core/base/error.h"
 #include "core/base/number_text.h"
 #include "core/base/random.h"
+#include "core/scene/recording_stream.h"
 
 namespace rcb {
 namespace {
@@ -341,10 +343,20 @@ struct World {
     btDefaultCollisionConfiguration config;
     btCollisionDispatcher dispatcher{&config};
     btDbvtBroadphase broadphase;
-    btSequentialImpulseConstraintSolver solver;
+    std::unique_ptr<btSequentialImpulseConstraintSolver> solver;
     std::vector<std::unique_ptr<btCollisionShape>> shapes;
     std::vector<std::unique_ptr<btRigidBody>> statics, bodies;
-    btDiscreteDynamicsWorld world{&dispatcher, &broadphase, &solver, &config};
+    btDiscreteDynamicsWorld world;
+
+    explicit World(const BulletConfig& c)
+        : solver(c.nncg_solver ? std::make_unique<btNNCGConstraintSolver>()
+                               : std::make_unique<btSequentialImpulseConstraintSolver>()),
+          world(&dispatcher, &broadphase, solver.get(), &config) {
+        broadphase.m_deferedcollide = c.deferred_collide;
+        world.getSolverInfo().m_numIterations = c.solver_iterations;
+    }
+    World(const World&) = delete;
+    World& operator=(const World&) = delete;
 
     /// Empties the pair cache pair by pair (a hash lookup each) first: freeing a proxy otherwise
     /// scans every pair, and removing bodies one by one scans the body list, both quadratic in
@@ -545,51 +557,104 @@ struct BroadmarkStep {
 
 }  // namespace
 
-Recording generate_physics_scene(const SceneSettings& settings, std::span<const Aabb> map) {
+/// A physics scene in the middle of its simulation (physics.h, PhysicsRun). Declared in the order it
+/// is built: the settings and setup that BroadmarkStep points to, the calm time, then the world.
+struct PhysicsRun::State {
+    SceneSettings settings;
+    double time_step;
+    Setup setup;
+    CalmTime calm;
+    std::unique_ptr<World> w;
+    BroadmarkStep broadmark{settings, setup, time_step, 0, TurningPull{}};
+    btScalar substep = btScalar(time_step / setup.substeps);
+    std::string meta;
+    std::vector<Object> initial;
+    LiveSet live;
+    std::uint32_t frame = 0;
+
+    State(const SceneSettings& s, double step, std::span<const Aabb> map, const BulletConfig& config)
+        : settings(s), time_step(step), setup(make_setup(s, map)), w(std::make_unique<World>(config)) {}
+};
+
+PhysicsRun::PhysicsRun(const SceneSettings& settings, std::span<const Aabb> map, const BulletConfig& config) {
     const double time_step = physics_time_step(settings);
     check_time_step(time_step);
     check_shapes(settings.shapes);
     check_kind_settings(settings);
     check_ray_settings(settings.rays);
-    check_scene_size(double(settings.objects) + double(map.size()), settings.frames, settings.rays.per_frame,
-                     settings.objects, "scene");
-    const Setup setup = make_setup(settings, map);
-    const CalmTime calm;
-    auto w = std::make_unique<World>();
-    w->world.setGravity(bt(setup.gravity));
-    for (const StaticBox& s : setup.statics) add_static(*w, s, setup.broadmark);
-    for (const Aabb& b : map) add_static(*w, {b.center().as<double>(), (b.extent() * 0.5f).as<double>()}, false);
-    if (setup.ground) add_ground(*w, setup.ground_height);
-    for (const BodySpec& b : setup.bodies) add_body(*w, b, setup);  // in uid order
-    Recording r;
+    check_streamed_scene_size(double(settings.objects) + double(map.size()), settings.frames, settings.rays.per_frame,
+                              settings.objects, "scene");
+    if (!(config.solver_iterations >= 1 && config.solver_iterations <= 1000))
+        throw InputError("solver iterations: expected 1..1000, got " + std::to_string(config.solver_iterations));
+    state_ = std::make_unique<State>(settings, time_step, map, config);
+    State& s = *state_;
+    World& w = *s.w;
+    w.world.setGravity(bt(s.setup.gravity));
+    for (const StaticBox& b : s.setup.statics) add_static(w, b, s.setup.broadmark);
+    for (const Aabb& b : map) add_static(w, {b.center().as<double>(), (b.extent() * 0.5f).as<double>()}, false);
+    if (s.setup.ground) add_ground(w, s.setup.ground_height);
+    for (const BodySpec& b : s.setup.bodies) add_body(w, b, s.setup);  // in uid order
     nlohmann::json meta = to_json(settings);
     meta["frames"] = settings.frames;
     meta["seed"] = settings.seed;
     meta["rays"] = rays_json(settings.rays);
     if (!map.empty()) meta["map_boxes"] = map.size();
-    r.meta = meta.dump();
-    for (std::size_t i = 0; i < setup.bodies.size(); ++i)
-        r.initial.push_back(body_object(Uid(i), setup.bodies[i], *w->bodies[i]));
-    for (std::size_t i = 0; i < map.size(); ++i) r.initial.push_back({Uid(setup.bodies.size() + i), map[i]});
-    LiveSet live(r.initial);
-    BroadmarkStep broadmark{settings, setup, time_step, 0, TurningPull{}};
-    const btScalar substep = btScalar(time_step / setup.substeps);
-    for (std::uint32_t f = 1; f <= settings.frames; ++f) {
-        // One step of exactly time_step, or Broadmark's substeps (PhysicsEngine.cs:17-26, Step;
-        // BulletEngine.cs:99-101 steps Bullet by each substep with no interpolation).
-        for (int k = 0; k < setup.substeps; ++k) w->world.stepSimulation(substep, 0);
-        if (setup.broadmark) broadmark.after_frame(*w, f);
-        Frame frame;
-        for (std::size_t i = 0; i < setup.bodies.size(); ++i) {
-            const Object o = body_object(Uid(i), setup.bodies[i], *w->bodies[i]);
-            if (!(o == live.object(o.uid))) frame.moves.push_back(o);
-        }
-        live.apply(frame);
-        frame.rays = generate_rays(live.objects(), settings.rays, settings.seed, f);
-        frame.kinds = ray_kinds(frame.rays.size(), settings.rays, settings.seed, f);
-        r.frames.push_back(std::move(frame));
+    s.meta = meta.dump();
+    for (std::size_t i = 0; i < s.setup.bodies.size(); ++i)
+        s.initial.push_back(body_object(Uid(i), s.setup.bodies[i], *w.bodies[i]));
+    for (std::size_t i = 0; i < map.size(); ++i) s.initial.push_back({Uid(s.setup.bodies.size() + i), map[i]});
+    s.live = LiveSet(s.initial);
+}
+
+PhysicsRun::~PhysicsRun() = default;
+
+const std::string& PhysicsRun::meta() const { return state_->meta; }
+const std::vector<Object>& PhysicsRun::initial() const { return state_->initial; }
+std::uint32_t PhysicsRun::frame() const { return state_->frame; }
+
+std::size_t PhysicsRun::awake_bodies() const {
+    std::size_t awake = 0;
+    for (const auto& body : state_->w->bodies) awake += body->isActive() ? 1 : 0;
+    return awake;
+}
+
+void PhysicsRun::step() {
+    State& s = *state_;
+    ++s.frame;
+    // One step of exactly time_step, or Broadmark's substeps (PhysicsEngine.cs:17-26, Step;
+    // BulletEngine.cs:99-101 steps Bullet by each substep with no interpolation).
+    for (int k = 0; k < s.setup.substeps; ++k) s.w->world.stepSimulation(s.substep, 0);
+    if (s.setup.broadmark) s.broadmark.after_frame(*s.w, s.frame);
+}
+
+Frame PhysicsRun::record() {
+    State& s = *state_;
+    Frame frame;
+    for (std::size_t i = 0; i < s.setup.bodies.size(); ++i) {
+        const Object o = body_object(Uid(i), s.setup.bodies[i], *s.w->bodies[i]);
+        if (!(o == s.live.object(o.uid))) frame.moves.push_back(o);
     }
-    return r;
+    s.live.apply(frame);
+    frame.rays = generate_rays(s.live.objects(), s.settings.rays, s.settings.seed, s.frame);
+    frame.kinds = ray_kinds(frame.rays.size(), s.settings.rays, s.settings.seed, s.frame);
+    return frame;
+}
+
+void stream_physics_scene(const SceneSettings& settings, SceneSink& sink, std::span<const Aabb> map) {
+    PhysicsRun run(settings, map);
+    sink.begin(run.meta(), run.initial());
+    for (std::uint32_t f = 1; f <= settings.frames; ++f) {
+        run.step();
+        sink.frame(run.record());
+    }
+}
+
+Recording generate_physics_scene(const SceneSettings& settings, std::span<const Aabb> map) {
+    check_scene_size(double(settings.objects) + double(map.size()), settings.frames, settings.rays.per_frame,
+                     settings.objects, "scene");
+    RecordingCollector collector;
+    stream_physics_scene(settings, collector, map);
+    return std::move(collector.recording);
 }
 
 }  // namespace rcb

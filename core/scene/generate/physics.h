@@ -26,12 +26,14 @@
 /// axis) and its box is that shape's bounds, so the ground truth is exact. Ground and walls are
 /// static colliders, not objects.
 
+#include <memory>
 #include <span>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "core/scene/generate/generators.h"
+#include "core/scene/recording_stream.h"
 
 namespace rcb {
 
@@ -66,6 +68,63 @@ double broadmark_arena_side(std::uint32_t objects, double fill);
 /// any that fall off). The recording holds the bodies (uids 0..n−1) and then the map's boxes
 /// (uids n..n+m−1) as objects that never move. InputError when the map has fewer such cells than
 /// bodies, or is more than 10^6 m across.
+/// Refuses first (check_scene_size) a recording too big to hold in memory.
 Recording generate_physics_scene(const SceneSettings& settings, std::span<const Aabb> map = {});
+
+/// The same scene, each frame given to `sink` as soon as it is simulated (the frames bounded by the
+/// file's size only: check_streamed_scene_size), so that `scene gen` writes it with RecordingWriter in the memory of
+/// one frame. Same settings, same frames as generate_physics_scene.
+void stream_physics_scene(const SceneSettings& settings, SceneSink& sink, std::span<const Aabb> map = {});
+
+/// How the Bullet world is configured. The defaults are Bullet's own and what every scene is
+/// generated with (`scene gen`, generate_physics_scene); the alternatives are the settings of
+/// Broadmark's Bullet engine (ppgia-unifor/Broadmark, SimulationGenerator/Assets/Scripts/Engines/
+/// Bullet/BulletEngine.cs, Initialize) and of its default engine, PhysX, so that
+/// bench/physics_step can time what they would change. Anything but the defaults changes the
+/// scene's bytes.
+struct BulletConfig {
+    /// btDbvtBroadphase::m_deferedcollide: false (Bullet's default, btDbvtBroadphase's constructor)
+    /// collides each moved proxy against both trees inside setAabb; true (BulletEngine.cs:26-28)
+    /// collides the trees once per step in btDbvtBroadphase::collide.
+    bool deferred_collide = false;
+    /// btNNCGConstraintSolver (BulletEngine.cs:32) instead of btSequentialImpulseConstraintSolver.
+    bool nncg_solver = false;
+    /// btContactSolverInfo::m_numIterations: Bullet's default 10, which Broadmark's Bullet engine
+    /// keeps; its PhysX engine runs SolverIterations = 6 (SimulationParameters.cs:22,
+    /// PhysxEngine.cs:12).
+    int solver_iterations = 10;
+};
+
+/// One physics scene being simulated, a frame at a time: the settings checked and the Bullet world
+/// built by the constructor, then step() and record() per frame. stream_physics_scene is this loop;
+/// apart, it lets a benchmark time Bullet's step alone and rcbench's recording of the frame
+/// (bench/physics_step.cpp). Holds the world, the live objects and Bullet's gDeactivationTime for
+/// its lifetime: one run at a time per process.
+class PhysicsRun {
+public:
+    explicit PhysicsRun(const SceneSettings& settings, std::span<const Aabb> map = {}, const BulletConfig& config = {});
+    ~PhysicsRun();
+    PhysicsRun(const PhysicsRun&) = delete;
+    PhysicsRun& operator=(const PhysicsRun&) = delete;
+
+    /// The recording's META text and frame 0's objects.
+    const std::string& meta() const;
+    const std::vector<Object>& initial() const;
+    /// Simulates the next frame: Bullet's step (Broadmark's kinds: 4 substeps) and what a Broadmark
+    /// kind does after each frame (kicks, the turning pull, bodies leaving the arena).
+    void step();
+    /// The frame last simulated as the recording keeps it: a move for each body whose object (box,
+    /// shape, rotation) changed since the last record(), then the frame's rays and query kinds.
+    Frame record();
+    /// Frames simulated so far.
+    std::uint32_t frame() const;
+    /// Bodies Bullet simulates now (not asleep, not left the arena).
+    std::size_t awake_bodies() const;
+
+    struct State;
+
+private:
+    std::unique_ptr<State> state_;
+};
 
 }  // namespace rcb
