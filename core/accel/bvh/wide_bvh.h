@@ -22,13 +22,13 @@
 #include <bit>
 #include <cstdint>
 #include <tuple>
-#include <unordered_map>
 #include <vector>
 
 #include "core/accel/params.h"
 #include "core/accel/hit_policy.h"
 #include "core/accel/structure.h"
 #include "core/accel/bvh/wide_bvh_build.h"
+#include "core/accel/bvh/wide_bvh_index.h"
 #include "core/accel/bvh/wide_bvh_rebuild.h"
 #include "core/accel/common/query_scratch.h"
 
@@ -65,6 +65,11 @@ public:
         /// its longest edge, at most one: a body stepping a fraction of its size every frame wears
         /// the tree's partition by that fraction, not by a whole change.
         double rebuild_after = 2.0;
+        /// A rebuild starts at the commit that ends this many commits with changes since the live
+        /// tree's objects were gathered, whatever changed (0: never): Embree's policy for scenes
+        /// that only move, a refit per frame (RTC_BUILD_QUALITY_REFIT) and a full build every so
+        /// many frames, with the reinsertions turned off (`reinsert`) for a pure refit.
+        int rebuild_every = 0;
         /// A started rebuild advances by this many objects' share of its work per change of the
         /// commit, while the live tree answers (0: the whole rebuild in the commit that starts it).
         double rebuild_speed = 4.0;
@@ -94,6 +99,9 @@ public:
                       "a rebuild starts at commit once the changes since the live tree's objects were gathered reach "
                       "this x the object count (0: never); a move that does not reinsert counts how far its "
                       "farthest face moved over its longest edge, at most 1"},
+                Field{"rebuild_every", &Params::rebuild_every, 0, 100000,
+                      "a rebuild starts once this many commits with changes passed since the live tree's objects "
+                      "were gathered (0: never); with reinsert=false, Embree's refit and periodic rebuild"},
                 Field{"rebuild_speed", &Params::rebuild_speed, 0.0, 1000.0,
                       "a started rebuild advances by this many objects' share of its work per change, while the "
                       "live tree answers and its changes are logged and replayed (0: the whole rebuild at once)"},
@@ -134,6 +142,12 @@ public:
     double sah_growth() const;
     /// Inner levels above the deepest leaf (0: the root is a leaf; -1: empty).
     int depth() const;
+    /// What the updates did since the tree was made, summed (bench/wbvh_update.cpp reads them
+    /// around each phase of a frame).
+    struct UpdateCounts {
+        std::uint64_t reinserts = 0, splits = 0, refit_blocks = 0, refit_lanes = 0, rebuild_work = 0, rebuilds = 0;
+    };
+    const UpdateCounts& update_counts() const { return counts_; }
 
     // The traversal interface of StructureBase: the deferred refit, then const traversals with a
     // stack per thread.
@@ -437,6 +451,9 @@ private:
     /// The leaf a new box goes to: the child of least area growth at every level.
     std::uint32_t choose_leaf(const Aabb& box) const;
     void insert_object(const Object& o);
+    /// A move whose centre left its leaf's box (Params::reinsert): a remove and an insert. Apart
+    /// from move(), which stays a lane's write for the moves that keep their leaf.
+    [[gnu::noinline]] void reinsert(const Object& o);
     void remove_object(Uid uid);
     /// Adds `o` to the full leaf `leaf`: the nine objects split in two leaves, side by side in the
     /// parent when it has a free lane, else below a new inner node in the leaf's place.
@@ -467,8 +484,8 @@ private:
     std::uint32_t free_ = kNone;
     std::uint32_t free_count_ = 0;
     std::uint32_t leaves_ = 0;
-    /// uid → block · 8 + lane.
-    std::unordered_map<Uid, std::uint32_t> where_;
+    /// uid → block · 8 + lane (wide_bvh_index.h).
+    WideBvhIndex where_;
     std::vector<std::uint32_t> dirty_;
     /// The refit's queues, one per depth (empty between refits; kept for their capacity).
     std::vector<std::vector<std::uint32_t>> refit_levels_;
@@ -485,8 +502,11 @@ private:
     std::uint64_t changes_ = 0;       // changes since the last commit
     // The same weighted for the rebuild trigger: inserts, removes and reinserting moves count one,
     // other moves their share (move_share in wide_bvh.cpp, Params::rebuild_after).
+    // Moves are weighed only while rebuild_after > 0 (nothing else reads the weight).
     double weighted_changes_ = 0;
-    double age_ = 0;  // weighted changes since the live tree's objects were gathered
+    double age_ = 0;             // weighted changes since the live tree's objects were gathered
+    std::uint32_t commits_ = 0;  // commits with changes since the live tree's objects were gathered
+    UpdateCounts counts_;        // summed since construction
     // Stats.
     std::uint32_t rebuilds_ = 0, splits_ = 0, reinserts_ = 0;
     // Blocks refitted and parent lanes rewritten since the last commit began (stats).
