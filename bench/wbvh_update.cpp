@@ -5,9 +5,11 @@
 //   lookup    the uid → slot lookups of the frame's moves, timed on a copy of the index in the
 //             tree's own layout beside a hash map's, in the moves' order (the tree's lookup is
 //             inside its move, so the copy stands for it; the map is what the index replaced)
-//   moves     the frame's move() calls: lookup, lane rewrite, and the reinsertions with their
-//             leaf splits; with timed_moves=1 each move is timed apart (TSC cycles) and its
-//             cycles go to `rewrite` or to `reinsert` by whether it reinserted
+//   moves     the frame's move() calls (each checks its uid and queues the move) and the queue's
+//             application: lookup, lane rewrite, and the reinsertions with their leaf splits;
+//             with timed_moves=1 each move is applied at once and timed apart (TSC cycles), its
+//             cycles going to `rewrite` or to `reinsert` by whether it reinserted (without the
+//             queue's prefetching)
 //   refit     the bottom-up refit of the changed blocks (prepare(), which commit would run)
 //   rebuild   the rest of commit(): the rebuild trigger and the progressive rebuild's step
 //
@@ -129,11 +131,13 @@ FrameRow apply(WideBvh& tree, const Frame& frame, bool timed_moves) {
             const std::uint64_t reinserts = tree.update_counts().reinserts;
             const std::uint64_t t = __rdtsc();
             tree.move(o);
+            tree.flush_moves();
             const double cycles = double(__rdtsc() - t);
             (tree.update_counts().reinserts != reinserts ? row.reinsert_cycles : row.rewrite_cycles) += cycles;
         }
     } else {
         for (const Object& o : frame.moves) tree.move(o);
+        tree.flush_moves();
     }
     row.moves = cpu_ms() - c0;
     c0 = cpu_ms();

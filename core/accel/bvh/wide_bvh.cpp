@@ -97,7 +97,10 @@ Aabb WideBvh::Block::bounds() const {
 
 WideBvh::WideBvh() : WideBvh(Params{}) {}
 
-WideBvh::WideBvh(const Params& p) : params_(p), push_(parse_choice<Push>(kPushChoices, p.push, "wbvh push")) {
+WideBvh::WideBvh(const Params& p)
+    : params_(p),
+      push_(parse_choice<Push>(kPushChoices, p.push, "wbvh push")),
+      queue_mode_(parse_choice<Queue>(kQueueChoices, p.queue_moves, "wbvh queue_moves")) {
     set_cast_threads(p.cast_threads);
 }
 
@@ -156,8 +159,9 @@ void WideBvh::set_lane(std::uint32_t b, int k, const Aabb& box) {
 // ---- build ----
 
 void WideBvh::build(std::span<const Object> objects) {
-    // A rebuild in progress is dropped: the new contents replace everything.
+    // A rebuild in progress is dropped, and queued moves: the new contents replace everything.
     rebuild_.reset();
+    pending_.clear();
     changes_ = 0;
     weighted_changes_ = age_ = 0;
     commits_ = 0;
@@ -176,6 +180,7 @@ void WideBvh::build(std::span<const Object> objects) {
     builder_.step(*this, std::numeric_limits<std::uint64_t>::max());
     builder_.end(*this);
     rebuild_.estimate(builder_.work(), objects.size());
+    resolve_queue();
 }
 
 void WideBvh::rebuild() {
@@ -238,6 +243,7 @@ std::uint32_t WideBvh::choose_leaf(const Aabb& box) const {
 }
 
 void WideBvh::insert(const Object& o) {
+    if (!pending_.empty()) apply_moves();
     ++changes_;
     weighted_changes_ += 1;
     rebuild_.log_change(o.uid);
@@ -359,6 +365,7 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
 }
 
 void WideBvh::remove(Uid uid) {
+    if (!pending_.empty()) apply_moves();
     ++changes_;
     weighted_changes_ += 1;
     rebuild_.log_change(uid);
@@ -428,34 +435,57 @@ void WideBvh::drop_child_lane(std::uint32_t b, int k) {
     --block.count;
 }
 
-void WideBvh::reinsert(const Object& o) {
+void WideBvh::reinsert(Uid uid, const Aabb& box) {
     ++reinserts_;
     ++counts_.reinserts;
     weighted_changes_ += 1;  // a removal and an insertion
-    remove_object(o.uid);
-    insert_object(o);
+    remove_object(uid);
+    insert_object(Object(uid, box));
 }
 
 void WideBvh::move(const Object& o) {
-    ++changes_;
-    rebuild_.log_change(o.uid);
     const std::uint32_t at = where_.find(o.uid);
     if (at == WideBvhIndex::kAbsent) absent_uid("move", o.uid);
+    ++changes_;
+    rebuild_.log_change(o.uid);
+    if (queue_)
+        pending_.push_back({o.uid, o.box});
+    else
+        apply_move(at, o.uid, o.box);
+}
+
+void WideBvh::apply_moves() {
+    constexpr std::size_t kAhead = 8;  // moves in flight: a few hundred instructions' window
+    const std::size_t n = pending_.size();
+    for (std::size_t i = 0; i < n; ++i) {
+        if (i + kAhead < n) {
+            const std::uint32_t at = where_.find(pending_[i + kAhead].uid);
+            if (at != WideBvhIndex::kAbsent) {  // the 256-byte leaf, for writing
+                const char* leaf = reinterpret_cast<const char*>(&blocks_[at / kLanes]);
+                for (int line = 0; line < int(sizeof(Block)); line += 64) __builtin_prefetch(leaf + line, 1);
+            }
+        }
+        apply_move(where_.find(pending_[i].uid), pending_[i].uid, pending_[i].box);
+    }
+    pending_.clear();
+}
+
+void WideBvh::apply_move(std::uint32_t at, Uid uid, const Aabb& box) {
     const std::uint32_t b = at / kLanes;
     if (params_.reinsert && b != root_) {
         const Block& leaf = blocks_[b];
-        const Aabb box = blocks_[leaf.parent].box(leaf.lane_in_parent);
-        const Vec3 c = centroid(o.box);
-        if (!(box.min.x <= c.x && c.x <= box.max.x && box.min.y <= c.y && c.y <= box.max.y && box.min.z <= c.z &&
-              c.z <= box.max.z)) {
-            reinsert(o);
+        const Aabb lane = blocks_[leaf.parent].box(leaf.lane_in_parent);
+        const Vec3 c = centroid(box);
+        if (!(lane.min.x <= c.x && c.x <= lane.max.x && lane.min.y <= c.y && c.y <= lane.max.y && lane.min.z <= c.z &&
+              c.z <= lane.max.z)) {
+            reinsert(uid, box);
             return;
         }
     }
     const int k = int(at % kLanes);
     // Only rebuild_after reads the weight: without it a move is the lane's write alone.
-    if (params_.rebuild_after > 0) weighted_changes_ += move_share(blocks_[b].box(k), o.box);
-    blocks_[b].set(k, o.box);
+    if (params_.rebuild_after > 0) weighted_changes_ += move_share(blocks_[b].box(k), box);
+    blocks_[b].set(k, box);
     ++writes_;
     mark(b);
 }
@@ -510,8 +540,10 @@ void WideBvh::refit() {
 }
 
 void WideBvh::commit() {
+    if (!pending_.empty()) apply_moves();
     refit_blocks_ = refit_lanes_ = 0;
     refit();
+    resolve_queue();
     rebuild_.open_commit();
     if (!changed_) return;
     changed_ = false;
@@ -588,7 +620,8 @@ std::size_t WideBvh::l2_bytes() {
 
 std::size_t WideBvh::memory_bytes() const {
     return blocks_.capacity() * sizeof(Block) + where_.memory_bytes() + dirty_.capacity() * sizeof(std::uint32_t) +
-           refit_levels_bytes() + scratch_bytes() + builder_.memory_bytes() + rebuild_.memory_bytes() + sizeof(*this);
+           pending_.capacity() * sizeof(PendingMove) + refit_levels_bytes() + scratch_bytes() +
+           builder_.memory_bytes() + rebuild_.memory_bytes() + sizeof(*this);
 }
 
 nlohmann::json WideBvh::stats() const {
@@ -619,6 +652,7 @@ void WideBvh::validate_tree(bool refitted) const {
         broken_invariant("wbvh", (refitted ? "" : "next tree: ") + what);
     };
     if (refitted && !dirty_.empty()) fail("blocks not refitted after changes (commit missing)");
+    if (!pending_.empty()) fail("moves not applied (commit missing)");
     const auto total = std::uint32_t(blocks_.size());
     std::uint32_t free_seen = 0;
     for (std::uint32_t b = free_; b != kNone; b = blocks_[b].parent) {

@@ -104,6 +104,7 @@ void WideBvhRebuild::advance(WideBvh& live, std::uint64_t budget) {
                     replay(live, log_[replay_cursor_++]);
                     w += kReplayUnits;
                 }
+                next_->apply_moves();  // the next tree holds what was replayed (validate())
                 if (replay_cursor_ == log_.size()) {
                     work_ += w, cycle_work_ += w, w = 0;
                     swap_trees(live);
