@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 #include <string>
 #include <utility>
 
@@ -26,14 +27,36 @@ Vec3 centroid(const Aabb& b) { return WideBvhBuilder::centroid(b); }
 /// was (the refit's growth is what rebuild_ratio watches); a move by its own size or more is as
 /// stale as a removal and an insertion. In double: boxes near the coordinate limit overflow float.
 double move_share(const Aabb& from, const Aabb& to) {
+#if defined(__AVX2__)
+    // The three axes at once, in double as below (one move each frame for every moving body: the
+    // scalar loop was half of a move's instructions). The fourth lane repeats z. Exact: the
+    // differences and maxima are the scalar ones, for boxes without NaN.
+    auto wide = [](const Vec3& v) { return _mm256_cvtps_pd(_mm_setr_ps(v.x, v.y, v.z, v.z)); };
+    const __m256d f_lo = wide(from.min), f_hi = wide(from.max), t_lo = wide(to.min), t_hi = wide(to.max);
+    const __m256d sign = _mm256_set1_pd(-0.0);
+    __m256d m = _mm256_max_pd(_mm256_andnot_pd(sign, _mm256_sub_pd(t_lo, f_lo)),
+                              _mm256_andnot_pd(sign, _mm256_sub_pd(t_hi, f_hi)));
+    __m256d e = _mm256_max_pd(_mm256_sub_pd(f_hi, f_lo), _mm256_sub_pd(t_hi, t_lo));
+    m = _mm256_max_pd(m, _mm256_permute2f128_pd(m, m, 1));
+    e = _mm256_max_pd(e, _mm256_permute2f128_pd(e, e, 1));
+    const double shift = _mm256_cvtsd_f64(_mm256_max_pd(m, _mm256_permute_pd(m, 5)));
+    const double size = std::max(0.0, _mm256_cvtsd_f64(_mm256_max_pd(e, _mm256_permute_pd(e, 5))));
+#else
     double shift = 0, size = 0;
     for (int a = 0; a < 3; ++a) {
         shift = std::max({shift, std::abs(double(to.min[a]) - double(from.min[a])),
                           std::abs(double(to.max[a]) - double(from.max[a]))});
         size = std::max({size, double(from.max[a]) - double(from.min[a]), double(to.max[a]) - double(to.min[a])});
     }
+#endif
     if (shift == 0) return 0.0;
     return shift < size ? shift / size : 1.0;  // a point's (size 0) or a far jump: a whole change
+}
+
+/// A move or remove of a uid the tree does not hold: the caller's error, as std::out_of_range (as
+/// the map's at() threw before the flat index).
+[[noreturn, gnu::cold, gnu::noinline]] void absent_uid(const char* what, Uid uid) {
+    throw std::out_of_range(std::string("wbvh: ") + what + " of uid " + std::to_string(uid) + ", not in the tree");
 }
 
 }  // namespace
@@ -47,17 +70,37 @@ void WideBvh::Block::clear(int k) {
 Aabb WideBvh::Block::bounds() const {
     // All 8 lanes, branch-free: unused lanes hold the empty box, the identity of the union.
     Aabb b;
+#if defined(__AVX2__)
+    // Each row's 8 lanes reduced in three steps (halves, pairs of pairs, pairs): min and max are
+    // exact, so this is the scalar loop's answer for boxes without NaN (which no box holds).
+    auto reduce = [](__m256 v, auto op) {
+        v = op(v, _mm256_permute2f128_ps(v, v, 1));
+        v = op(v, _mm256_shuffle_ps(v, v, 0x4e));
+        v = op(v, _mm256_shuffle_ps(v, v, 0xb1));
+        return _mm256_cvtss_f32(v);
+    };
+    auto lo = [](__m256 x, __m256 y) { return _mm256_min_ps(x, y); };
+    auto hi = [](__m256 x, __m256 y) { return _mm256_max_ps(x, y); };
+    for (int a = 0; a < 3; ++a) {
+        b.min[a] = reduce(_mm256_load_ps(bound[a]), lo);
+        b.max[a] = reduce(_mm256_load_ps(bound[3 + a]), hi);
+    }
+#else
     for (int a = 0; a < 3; ++a) {
         float lo = bound[a][0], hi = bound[3 + a][0];
         for (int k = 1; k < kLanes; ++k) lo = std::min(lo, bound[a][k]), hi = std::max(hi, bound[3 + a][k]);
         b.min[a] = lo, b.max[a] = hi;
     }
+#endif
     return b;
 }
 
 WideBvh::WideBvh() : WideBvh(Params{}) {}
 
-WideBvh::WideBvh(const Params& p) : params_(p), push_(parse_choice<Push>(kPushChoices, p.push, "wbvh push")) {
+WideBvh::WideBvh(const Params& p)
+    : params_(p),
+      push_(parse_choice<Push>(kPushChoices, p.push, "wbvh push")),
+      queue_mode_(parse_choice<Queue>(kQueueChoices, p.queue_moves, "wbvh queue_moves")) {
     set_cast_threads(p.cast_threads);
 }
 
@@ -116,21 +159,28 @@ void WideBvh::set_lane(std::uint32_t b, int k, const Aabb& box) {
 // ---- build ----
 
 void WideBvh::build(std::span<const Object> objects) {
-    // A rebuild in progress is dropped: the new contents replace everything.
+    // A rebuild in progress is dropped, and queued moves: the new contents replace everything.
     rebuild_.reset();
+    pending_.clear();
     changes_ = 0;
     weighted_changes_ = age_ = 0;
-    where_.clear();
-    where_.reserve(objects.size() + objects.size() / 4);  // room for inserts before a rehash
+    commits_ = 0;
     std::vector<SahItem>& items = builder_.items();
     items.clear();
     items.reserve(objects.size());
-    for (const Object& o : objects) items.push_back({o.box, centroid(o.box), o.uid});
+    Uid max_uid = 0;
+    for (const Object& o : objects) {
+        items.push_back({o.box, centroid(o.box), o.uid});
+        max_uid = std::max(max_uid, o.uid);
+    }
+    where_.clear();
+    where_.reserve(objects.size(), max_uid);
     rebuilds_ = splits_ = reinserts_ = 0;
     builder_.begin(*this);
     builder_.step(*this, std::numeric_limits<std::uint64_t>::max());
     builder_.end(*this);
     rebuild_.estimate(builder_.work(), objects.size());
+    resolve_queue();
 }
 
 void WideBvh::rebuild() {
@@ -144,7 +194,10 @@ void WideBvh::rebuild() {
     builder_.step(*this, std::numeric_limits<std::uint64_t>::max());
     builder_.end(*this);
     ++rebuilds_;
+    ++counts_.rebuilds;
+    counts_.rebuild_work += builder_.work();
     age_ = 0;
+    commits_ = 0;
 }
 
 void WideBvh::clear_tree() {
@@ -190,6 +243,7 @@ std::uint32_t WideBvh::choose_leaf(const Aabb& box) const {
 }
 
 void WideBvh::insert(const Object& o) {
+    if (!pending_.empty()) apply_moves();
     ++changes_;
     weighted_changes_ += 1;
     rebuild_.log_change(o.uid);
@@ -206,7 +260,7 @@ void WideBvh::insert_object(const Object& o) {
         block.set(0, o.box);
         block.ref[0] = o.uid;
         ++leaves_;
-        where_[o.uid] = root_ * kLanes;
+        where_.set(o.uid, root_ * kLanes);
         grow_stack(0);
         return;
     }
@@ -220,7 +274,7 @@ void WideBvh::insert_object(const Object& o) {
     block.set(k, o.box);
     block.ref[k] = o.uid;
     ++writes_;
-    where_[o.uid] = leaf * kLanes + std::uint32_t(k);
+    where_.set(o.uid, leaf * kLanes + std::uint32_t(k));
     if (leaf != root_) {  // its weight grew by one
         const double a = area(blocks_[block.parent].box(block.lane_in_parent));
         sah_sum_ += a;
@@ -231,6 +285,7 @@ void WideBvh::insert_object(const Object& o) {
 
 void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
     ++splits_;
+    ++counts_.splits;
     std::array<SahItem, kLanes + 1> nine;
     {
         const Block& block = blocks_[leaf];
@@ -240,7 +295,7 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
         }
     }
     nine[kLanes] = {o.box, centroid(o.box), o.uid};
-    where_[o.uid] = 0;
+    where_.set(o.uid, 0);
     const std::uint32_t m = builder_.split(params_.bins, nine.data(), kLanes + 1);
     // Take the leaf's term out of the running sum; set_lane below adds the new ones.
     const std::uint32_t parent = blocks_[leaf].parent;
@@ -262,7 +317,7 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
         for (std::uint32_t i = 0; i < count; ++i) {
             block.set(int(i), items[i].box);
             block.ref[i] = items[i].id;
-            where_.find(items[i].id)->second = b * kLanes + i;
+            where_.set(items[i].id, b * kLanes + i);
         }
         ++writes_;  // the block, whole
     };
@@ -310,6 +365,7 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
 }
 
 void WideBvh::remove(Uid uid) {
+    if (!pending_.empty()) apply_moves();
     ++changes_;
     weighted_changes_ += 1;
     rebuild_.log_change(uid);
@@ -317,17 +373,18 @@ void WideBvh::remove(Uid uid) {
 }
 
 void WideBvh::remove_object(Uid uid) {
-    auto it = where_.find(uid);
-    const std::uint32_t b = it->second / kLanes;
-    const int k = int(it->second % kLanes);
-    where_.erase(it);
+    const std::uint32_t at = where_.find(uid);
+    if (at == WideBvhIndex::kAbsent) absent_uid("remove", uid);
+    const std::uint32_t b = at / kLanes;
+    const int k = int(at % kLanes);
+    where_.erase(uid);
     Block& block = blocks_[b];
     const int last = block.count - 1;
     if (k != last) {
         block.set(k, block.box(last));
         block.ref[k] = block.ref[last];
         ++writes_;
-        where_.find(Uid(block.ref[k]))->second = b * kLanes + std::uint32_t(k);
+        where_.set(Uid(block.ref[k]), b * kLanes + std::uint32_t(k));
         rebuild_.log_relocation(Uid(block.ref[k]));
     }
     block.clear(last);
@@ -378,27 +435,57 @@ void WideBvh::drop_child_lane(std::uint32_t b, int k) {
     --block.count;
 }
 
+void WideBvh::reinsert(Uid uid, const Aabb& box) {
+    ++reinserts_;
+    ++counts_.reinserts;
+    weighted_changes_ += 1;  // a removal and an insertion
+    remove_object(uid);
+    insert_object(Object(uid, box));
+}
+
 void WideBvh::move(const Object& o) {
+    const std::uint32_t at = where_.find(o.uid);
+    if (at == WideBvhIndex::kAbsent) absent_uid("move", o.uid);
     ++changes_;
     rebuild_.log_change(o.uid);
-    const std::uint32_t at = where_.at(o.uid);
+    if (queue_)
+        pending_.push_back({o.uid, o.box});
+    else
+        apply_move(at, o.uid, o.box);
+}
+
+void WideBvh::apply_moves() {
+    constexpr std::size_t kAhead = 8;  // moves in flight: a few hundred instructions' window
+    const std::size_t n = pending_.size();
+    for (std::size_t i = 0; i < n; ++i) {
+        if (i + kAhead < n) {
+            const std::uint32_t at = where_.find(pending_[i + kAhead].uid);
+            if (at != WideBvhIndex::kAbsent) {  // the 256-byte leaf, for writing
+                const char* leaf = reinterpret_cast<const char*>(&blocks_[at / kLanes]);
+                for (int line = 0; line < int(sizeof(Block)); line += 64) __builtin_prefetch(leaf + line, 1);
+            }
+        }
+        apply_move(where_.find(pending_[i].uid), pending_[i].uid, pending_[i].box);
+    }
+    pending_.clear();
+}
+
+void WideBvh::apply_move(std::uint32_t at, Uid uid, const Aabb& box) {
     const std::uint32_t b = at / kLanes;
     if (params_.reinsert && b != root_) {
         const Block& leaf = blocks_[b];
-        const Aabb box = blocks_[leaf.parent].box(leaf.lane_in_parent);
-        const Vec3 c = centroid(o.box);
-        if (!(box.min.x <= c.x && c.x <= box.max.x && box.min.y <= c.y && c.y <= box.max.y && box.min.z <= c.z &&
-              c.z <= box.max.z)) {
-            ++reinserts_;
-            weighted_changes_ += 1;  // a removal and an insertion
-            remove_object(o.uid);
-            insert_object(o);
+        const Aabb lane = blocks_[leaf.parent].box(leaf.lane_in_parent);
+        const Vec3 c = centroid(box);
+        if (!(lane.min.x <= c.x && c.x <= lane.max.x && lane.min.y <= c.y && c.y <= lane.max.y && lane.min.z <= c.z &&
+              c.z <= lane.max.z)) {
+            reinsert(uid, box);
             return;
         }
     }
     const int k = int(at % kLanes);
-    weighted_changes_ += move_share(blocks_[b].box(k), o.box);
-    blocks_[b].set(k, o.box);
+    // Only rebuild_after reads the weight: without it a move is the lane's write alone.
+    if (params_.rebuild_after > 0) weighted_changes_ += move_share(blocks_[b].box(k), box);
+    blocks_[b].set(k, box);
     ++writes_;
     mark(b);
 }
@@ -427,11 +514,22 @@ void WideBvh::refit() {
             if (c == root_) continue;
             const Aabb box = block.bounds();
             ++refit_blocks_;
+            ++counts_.refit_blocks;
             ++writes_;
             const std::uint32_t p = block.parent;
-            if (box == blocks_[p].box(block.lane_in_parent)) continue;
-            set_lane(p, block.lane_in_parent, box);
+            const int lane = block.lane_in_parent;
+            Block& parent = blocks_[p];
+            const Aabb old = parent.box(lane);
+            if (box == old) continue;
+            // set_lane's work, inlined: both boxes are in use (never empty), and the weight is
+            // this block's.
+            const double w = weight(c), before = area(old) * w, after = area(box) * w;
+            sah_sum_ += after - before;
+            sah_largest_term_ = std::max({sah_largest_term_, before, after});
+            parent.set(lane, box);
+            ++writes_;
             ++refit_lanes_;
+            ++counts_.refit_lanes;
             if (!blocks_[p].dirty) {
                 blocks_[p].dirty = true;
                 refit_levels_[level - 1].push_back(p);
@@ -442,8 +540,10 @@ void WideBvh::refit() {
 }
 
 void WideBvh::commit() {
+    if (!pending_.empty()) apply_moves();
     refit_blocks_ = refit_lanes_ = 0;
     refit();
+    resolve_queue();
     rebuild_.open_commit();
     if (!changed_) return;
     changed_ = false;
@@ -456,7 +556,9 @@ void WideBvh::commit() {
     changes_ = 0;
     weighted_changes_ = 0;
     age_ += weighted;
+    ++commits_;
     rebuild_.commit(*this, changes, weighted);
+    counts_.rebuild_work += rebuild_.work();
 }
 
 // ---- rebuild trigger (the rebuild itself: wide_bvh_rebuild.cpp) ----
@@ -465,6 +567,7 @@ bool WideBvh::rebuild_due() const {
     if (root_ == kNone) return false;
     const double ratio = params_.rebuild_ratio;
     if (ratio > 0 && (ratio <= 1 || sah_growth() > ratio)) return true;
+    if (params_.rebuild_every > 0 && commits_ >= std::uint32_t(params_.rebuild_every)) return true;
     return params_.rebuild_after > 0 && age_ >= params_.rebuild_after * double(where_.size());
 }
 
@@ -516,9 +619,9 @@ std::size_t WideBvh::l2_bytes() {
 }
 
 std::size_t WideBvh::memory_bytes() const {
-    return blocks_.capacity() * sizeof(Block) + where_.bucket_count() * sizeof(void*) +
-           where_.size() * (sizeof(void*) + 2 * sizeof(std::uint32_t)) + dirty_.capacity() * sizeof(std::uint32_t) +
-           refit_levels_bytes() + scratch_bytes() + builder_.memory_bytes() + rebuild_.memory_bytes() + sizeof(*this);
+    return blocks_.capacity() * sizeof(Block) + where_.memory_bytes() + dirty_.capacity() * sizeof(std::uint32_t) +
+           pending_.capacity() * sizeof(PendingMove) + refit_levels_bytes() + scratch_bytes() +
+           builder_.memory_bytes() + rebuild_.memory_bytes() + sizeof(*this);
 }
 
 nlohmann::json WideBvh::stats() const {
@@ -529,6 +632,7 @@ nlohmann::json WideBvh::stats() const {
     // The weighted changes since the live tree's objects were gathered, per object: a rebuild
     // starts at commit once this reaches rebuild_after.
     stats["rebuild_age"] = where_.empty() ? 0.0 : age_ / double(where_.size());
+    stats["rebuild_commits"] = commits_;  // commits with changes since then (Params::rebuild_every)
     // The last commit's refit: blocks whose box it computed (each at most once), and the lanes of
     // their parents it rewrote (with any refit a query's prepare ran after it).
     stats["refit_blocks"] = refit_blocks_;
@@ -548,6 +652,7 @@ void WideBvh::validate_tree(bool refitted) const {
         broken_invariant("wbvh", (refitted ? "" : "next tree: ") + what);
     };
     if (refitted && !dirty_.empty()) fail("blocks not refitted after changes (commit missing)");
+    if (!pending_.empty()) fail("moves not applied (commit missing)");
     const auto total = std::uint32_t(blocks_.size());
     std::uint32_t free_seen = 0;
     for (std::uint32_t b = free_; b != kNone; b = blocks_[b].parent) {
@@ -585,8 +690,7 @@ void WideBvh::validate_tree(bool refitted) const {
                 for (int k = 0; k < block.count; ++k) {
                     ++objects;
                     const Uid uid = block.ref[k];
-                    auto it = where_.find(uid);
-                    if (it == where_.end() || it->second != b * kLanes + std::uint32_t(k))
+                    if (where_.find(uid) != b * kLanes + std::uint32_t(k))
                         fail("uid " + std::to_string(uid) + " in " + name + " is not where the uid index says");
                     const Aabb box = block.box(k);
                     if (!(box.min.x <= box.max.x && box.min.y <= box.max.y && box.min.z <= box.max.z))

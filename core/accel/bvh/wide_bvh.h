@@ -22,13 +22,13 @@
 #include <bit>
 #include <cstdint>
 #include <tuple>
-#include <unordered_map>
 #include <vector>
 
 #include "core/accel/params.h"
 #include "core/accel/hit_policy.h"
 #include "core/accel/structure.h"
 #include "core/accel/bvh/wide_bvh_build.h"
+#include "core/accel/bvh/wide_bvh_index.h"
 #include "core/accel/bvh/wide_bvh_rebuild.h"
 #include "core/accel/common/query_scratch.h"
 
@@ -46,6 +46,13 @@ public:
     /// The field options of `push`: the tuner searches it; complete parameters leave it out at its
     /// default.
     static constexpr FieldOptions kPushOptions{.choices = kPushChoices, .recorded_when_default = false};
+    /// `rebuild_every`: complete parameters leave it out at its default (off), so that
+    /// configurations recorded before it existed keep their identity.
+    static constexpr FieldOptions kRebuildEveryOptions{.recorded_when_default = false};
+    /// Params::queue_moves, parsed once by the constructor; the enumerators follow kQueueChoices.
+    enum class Queue : std::uint8_t { automatic, on, off };
+    static constexpr const char* kQueueChoices = "auto,on,off";
+    static constexpr FieldOptions kQueueOptions{.choices = kQueueChoices, .recorded_when_default = false};
 
     struct Params {
         /// Children per inner node at build time (the lanes of a node are 8 either way). 8 measured
@@ -65,6 +72,11 @@ public:
         /// its longest edge, at most one: a body stepping a fraction of its size every frame wears
         /// the tree's partition by that fraction, not by a whole change.
         double rebuild_after = 2.0;
+        /// A rebuild starts at the commit that ends this many commits with changes since the live
+        /// tree's objects were gathered, whatever changed (0: never): Embree's policy for scenes
+        /// that only move, a refit per frame (RTC_BUILD_QUALITY_REFIT) and a full build every so
+        /// many frames, with the reinsertions turned off (`reinsert`) for a pure refit.
+        int rebuild_every = 0;
         /// A started rebuild advances by this many objects' share of its work per change of the
         /// commit, while the live tree answers (0: the whole rebuild in the commit that starts it).
         double rebuild_speed = 4.0;
@@ -78,6 +90,12 @@ public:
         /// fixed 6-8% faster rays at 14 k objects, 1.5 MB; 3% slower at 6.7 MB, 13-34% slower at
         /// 22-110 MB). `auto`: fixed while the blocks fit in the L2 cache.
         std::string push = "auto";
+        /// Whether move() queues the move for one pass at commit that prefetches the leaves of
+        /// the moves ahead (`on`), or rewrites the lane at once (`off`). Queued, the cache misses
+        /// of consecutive moves overlap once the blocks outgrow the cache; while they fit, the
+        /// queue's copy costs more than it saves. `auto`: queued while the blocks exceed the L2
+        /// cache (as `push`). The tree and its answers are the same either way.
+        std::string queue_moves = "auto";
         int cast_threads = 1;
 
         static constexpr auto fields() {
@@ -94,6 +112,10 @@ public:
                       "a rebuild starts at commit once the changes since the live tree's objects were gathered reach "
                       "this x the object count (0: never); a move that does not reinsert counts how far its "
                       "farthest face moved over its longest edge, at most 1"},
+                Field{"rebuild_every", &Params::rebuild_every, 0, 100000,
+                      "a rebuild starts once this many commits with changes passed since the live tree's objects "
+                      "were gathered (0: never); with reinsert=false, Embree's refit and periodic rebuild",
+                      kRebuildEveryOptions},
                 Field{"rebuild_speed", &Params::rebuild_speed, 0.0, 1000.0,
                       "a started rebuild advances by this many objects' share of its work per change, while the "
                       "live tree answers and its changes are logged and replayed (0: the whole rebuild at once)"},
@@ -105,6 +127,10 @@ public:
                       "runs ahead through cache misses), fixed (eight branch-free steps; no mispredicted loop exit), "
                       "auto (fixed while the tree's blocks fit in the L2 cache)",
                       kPushOptions},
+                Field{"queue_moves", &Params::queue_moves, 0, 0,
+                      "moves queued and applied at commit in one pass that prefetches the leaves ahead (on), "
+                      "applied at once (off), or auto (queued while the tree's blocks exceed the L2 cache)",
+                      kQueueOptions},
                 cast_threads_field<Params>()};
         }
     };
@@ -134,10 +160,22 @@ public:
     double sah_growth() const;
     /// Inner levels above the deepest leaf (0: the root is a leaf; -1: empty).
     int depth() const;
+    /// What the updates did since the tree was made, summed (bench/wbvh_update.cpp reads them
+    /// around each phase of a frame).
+    struct UpdateCounts {
+        std::uint64_t reinserts = 0, splits = 0, refit_blocks = 0, refit_lanes = 0, rebuild_work = 0, rebuilds = 0;
+    };
+    const UpdateCounts& update_counts() const { return counts_; }
+    /// Applies the queued moves now (commit, insert, remove and queries do it first): for
+    /// bench/wbvh_update.cpp, which times them apart from the refit.
+    void flush_moves() {
+        if (!pending_.empty()) apply_moves();
+    }
 
     // The traversal interface of StructureBase: the deferred refit, then const traversals with a
     // stack per thread.
     void prepare() {
+        if (!pending_.empty()) apply_moves();
         if (!dirty_.empty()) refit();
         fixed_push_ =
             push_ == Push::fixed || (push_ == Push::automatic && blocks_.size() * sizeof(Block) <= l2_bytes());
@@ -417,6 +455,25 @@ private:
 #endif
     }
 
+    /// A move not yet applied: move() only checks the uid and queues it, and the queue is applied
+    /// in order before anything else reads or changes the tree (commit, insert, remove, a query).
+    struct PendingMove {
+        Uid uid;
+        Aabb box;
+    };
+    /// Applies the queued moves in their order, prefetching the leaf of the move kAhead places on:
+    /// a physics frame moves nearly every object in uid order, so consecutive moves land in
+    /// scattered leaves, and once the blocks outgrow the cache each move waited for its leaf in
+    /// turn. Prefetched, the misses of several moves overlap (as Embree's refit and PhysX's
+    /// batched updates walk their arrays, where a call per object leaves no look-ahead).
+    void apply_moves();
+    /// One move (the former move()): rewrites the object's lane, or reinserts it (Params::reinsert).
+    void apply_move(std::uint32_t at, Uid uid, const Aabb& box);
+    /// Params::queue_moves as resolved for the tree's size (at build and at every commit).
+    void resolve_queue() {
+        queue_ = queue_mode_ == Queue::on ||
+                 (queue_mode_ == Queue::automatic && blocks_.size() * sizeof(Block) > l2_bytes());
+    }
     std::uint32_t allocate();
     void release(std::uint32_t b);
     void mark(std::uint32_t b);
@@ -437,6 +494,9 @@ private:
     /// The leaf a new box goes to: the child of least area growth at every level.
     std::uint32_t choose_leaf(const Aabb& box) const;
     void insert_object(const Object& o);
+    /// A move whose centre left its leaf's box (Params::reinsert): a remove and an insert. Apart
+    /// from move(), which stays a lane's write for the moves that keep their leaf.
+    [[gnu::noinline]] void reinsert(Uid uid, const Aabb& box);
     void remove_object(Uid uid);
     /// Adds `o` to the full leaf `leaf`: the nine objects split in two leaves, side by side in the
     /// parent when it has a free lane, else below a new inner node in the leaf's place.
@@ -462,14 +522,17 @@ private:
 
     Params params_;
     Push push_;
+    Queue queue_mode_;
+    bool queue_ = false;  // move() queues (Params::queue_moves, resolved by resolve_queue())
     std::vector<Block> blocks_;
     std::uint32_t root_ = kNone;
     std::uint32_t free_ = kNone;
     std::uint32_t free_count_ = 0;
     std::uint32_t leaves_ = 0;
-    /// uid → block · 8 + lane.
-    std::unordered_map<Uid, std::uint32_t> where_;
+    /// uid → block · 8 + lane (wide_bvh_index.h).
+    WideBvhIndex where_;
     std::vector<std::uint32_t> dirty_;
+    std::vector<PendingMove> pending_;  // moves queued since the last apply_moves()
     /// The refit's queues, one per depth (empty between refits; kept for their capacity).
     std::vector<std::vector<std::uint32_t>> refit_levels_;
     int max_depth_ = 0;        // an upper bound on every block's depth (sizes the stack)
@@ -485,8 +548,11 @@ private:
     std::uint64_t changes_ = 0;       // changes since the last commit
     // The same weighted for the rebuild trigger: inserts, removes and reinserting moves count one,
     // other moves their share (move_share in wide_bvh.cpp, Params::rebuild_after).
+    // Moves are weighed only while rebuild_after > 0 (nothing else reads the weight).
     double weighted_changes_ = 0;
-    double age_ = 0;  // weighted changes since the live tree's objects were gathered
+    double age_ = 0;             // weighted changes since the live tree's objects were gathered
+    std::uint32_t commits_ = 0;  // commits with changes since the live tree's objects were gathered
+    UpdateCounts counts_;        // summed since construction
     // Stats.
     std::uint32_t rebuilds_ = 0, splits_ = 0, reinserts_ = 0;
     // Blocks refitted and parent lanes rewritten since the last commit began (stats).

@@ -160,7 +160,7 @@ void WideBvhBuilder::make_leaf(WideBvh& t, const Pending& p) {
         const SahItem& it = items_[p.range.begin + i];
         block.set(int(i), it.box);
         block.ref[i] = it.id;
-        t.where_[it.id] = b * WideBvh::kLanes + i;
+        t.where_.set(it.id, b * WideBvh::kLanes + i);
     }
     t.max_depth_ = std::max(t.max_depth_, int(p.depth));
     t.link(b, p.parent, p.lane);

@@ -32,6 +32,7 @@ void WideBvhRebuild::reset() {
     gather_skip_.clear();
     replay_cursor_ = 0;
     cycle_age_ = 0;
+    cycle_commits_ = 0;
     cycle_work_ = last_cycle_work_ = budget_ = work_ = 0;
 }
 
@@ -41,6 +42,7 @@ void WideBvhRebuild::estimate(std::uint64_t build_work, std::size_t objects) {
 
 void WideBvhRebuild::commit(WideBvh& live, std::uint64_t changes, double weighted) {
     cycle_age_ += weighted;
+    ++cycle_commits_;
     const WideBvh::Params& params = live.params_;
     if (phase_ == Phase::idle && live.rebuild_due()) {
         if (params.rebuild_speed <= 0) {
@@ -62,13 +64,14 @@ void WideBvhRebuild::start(const WideBvh& live) {
     if (!next_) {
         WideBvh::Params p = live.params_;
         p.rebuild_ratio = p.rebuild_after = p.rebuild_speed = 0;
+        p.rebuild_every = 0;
         p.cast_threads = 1;
         next_ = std::make_unique<WideBvh>(p);
     }
     const std::size_t n = live.where_.size();
     next_->builder_.items().clear();
     next_->builder_.items().reserve(n);
-    next_->where_.reserve(n + n / 4);  // room for inserts before a rehash
+    next_->where_.reserve_like(live.where_);
     phase_ = Phase::gather;
     gather_cursor_ = 0;
     log_.clear();
@@ -76,6 +79,7 @@ void WideBvhRebuild::start(const WideBvh& live) {
     gather_skip_.clear();
     replay_cursor_ = 0;
     cycle_age_ = 0;
+    cycle_commits_ = 0;
     cycle_work_ = 0;
 }
 
@@ -100,22 +104,22 @@ void WideBvhRebuild::advance(WideBvh& live, std::uint64_t budget) {
                     replay(live, log_[replay_cursor_++]);
                     w += kReplayUnits;
                 }
+                next_->apply_moves();  // the next tree holds what was replayed (validate())
                 if (replay_cursor_ == log_.size()) {
                     work_ += w, cycle_work_ += w, w = 0;
                     swap_trees(live);
                 }
                 break;
             case Phase::dispose: {
-                auto& index = next_->where_;
-                while (work_ + w < budget && !index.empty()) {
-                    index.erase(index.begin());
-                    w += kDisposeUnits;
-                }
-                if (index.empty()) {  // the rest is a few arrays, freed at once
+                // The index's map entries one by one (its flat array is one allocation).
+                WideBvhIndex& index = next_->where_;
+                const std::uint64_t left = (budget - work_ + kDisposeUnits - 1) / kDisposeUnits;
+                w += index.drop_some(std::size_t(left)) * kDisposeUnits;
+                if (index.map_empty()) {  // the rest is a few arrays, freed at once
                     next_->clear_tree();
                     std::vector<WideBvh::Block>().swap(next_->blocks_);
                     std::vector<std::uint32_t>().swap(next_->dirty_);
-                    std::unordered_map<Uid, std::uint32_t>().swap(index);
+                    index.release();
                     phase_ = Phase::idle;
                 }
                 break;
@@ -156,16 +160,16 @@ std::uint64_t WideBvhRebuild::gather_step(const WideBvh& live, std::uint64_t bud
 
 void WideBvhRebuild::replay(const WideBvh& live, Uid uid) {
     WideBvh& next = *next_;
-    const auto in_live = live.where_.find(uid);
-    const auto in_next = next.where_.find(uid);
-    if (in_live == live.where_.end()) {
-        if (in_next != next.where_.end()) next.remove(uid);
+    constexpr std::uint32_t kAbsent = WideBvhIndex::kAbsent;
+    const std::uint32_t in_live = live.where_.find(uid), in_next = next.where_.find(uid);
+    if (in_live == kAbsent) {
+        if (in_next != kAbsent) next.remove(uid);
         return;
     }
-    const Aabb box = live.blocks_[in_live->second / kLanes].box(int(in_live->second % kLanes));
-    if (in_next == next.where_.end())
+    const Aabb box = live.blocks_[in_live / kLanes].box(int(in_live % kLanes));
+    if (in_next == kAbsent)
         next.insert(Object(uid, box));
-    else if (!(next.blocks_[in_next->second / kLanes].box(int(in_next->second % kLanes)) == box))
+    else if (!(next.blocks_[in_next / kLanes].box(int(in_next % kLanes)) == box))
         next.move(Object(uid, box));
 }
 
@@ -184,6 +188,8 @@ void WideBvhRebuild::swap_trees(WideBvh& live) {
     std::swap(live.sah_largest_term_, next.sah_largest_term_);
     live.total_after_build_ = live.total_sah();
     live.age_ = cycle_age_;
+    live.commits_ = cycle_commits_;
+    ++live.counts_.rebuilds;
     last_cycle_work_ = cycle_work_;
     units_per_object_ = double(cycle_work_) / double(std::max<std::size_t>(1, live.where_.size()));
     ++live.rebuilds_;
@@ -225,17 +231,19 @@ void WideBvhRebuild::validate(const WideBvh& live) const {
     // gathered and built) holds every live uid with its live box, except uids still to replay.
     const std::unordered_set<Uid> to_replay(log_.begin() + std::ptrdiff_t(replay_cursor_), log_.end());
     auto live_box = [&](Uid uid, const Aabb& box) {
-        const auto it = live.where_.find(uid);
-        return it != live.where_.end() && live.blocks_[it->second / kLanes].box(int(it->second % kLanes)) == box;
+        const std::uint32_t at = live.where_.find(uid);
+        return at != WideBvhIndex::kAbsent && live.blocks_[at / kLanes].box(int(at % kLanes)) == box;
     };
     if (phase_ == Phase::replay) {
         next_->validate_tree(false);
-        for (const auto& [uid, at] : next_->where_)
+        next_->where_.for_each([&](Uid uid, std::uint32_t at) {
             if (to_replay.count(uid) == 0 && !live_box(uid, next_->blocks_[at / kLanes].box(int(at % kLanes))))
                 fail("uid " + std::to_string(uid) + " of the next tree is not live with that box, and not logged");
-        for (const auto& [uid, at] : live.where_)
-            if (to_replay.count(uid) == 0 && next_->where_.count(uid) == 0)
+        });
+        live.where_.for_each([&](Uid uid, std::uint32_t) {
+            if (to_replay.count(uid) == 0 && !next_->where_.contains(uid))
                 fail("live uid " + std::to_string(uid) + " is not in the next tree, and not logged");
+        });
         return;
     }
     std::unordered_set<Uid> gathered;
@@ -245,9 +253,10 @@ void WideBvhRebuild::validate(const WideBvh& live) const {
             fail("uid " + std::to_string(it.id) + " gathered with a box it no longer has, and not logged");
     }
     if (phase_ == Phase::build)
-        for (const auto& [uid, at] : live.where_)
+        live.where_.for_each([&](Uid uid, std::uint32_t) {
             if (to_replay.count(uid) == 0 && gathered.count(uid) == 0)
                 fail("live uid " + std::to_string(uid) + " was not gathered, and not logged");
+        });
 }
 
 }  // namespace rcb

@@ -34,6 +34,8 @@ public:
     ~WideBvhRebuild();  // where WideBvh is complete (the next tree)
 
     Phase phase() const { return phase_; }
+    /// Work units of the last commit.
+    std::uint64_t work() const { return work_; }
     /// Drops a rebuild in progress (build(): new contents replace everything).
     void reset();
     /// After a build of the live tree from `objects` objects in `build_work` units: until a
@@ -82,6 +84,7 @@ private:
     std::size_t replay_cursor_ = 0;
     std::size_t log_mark_ = 0;             // the log's size at the end of the last commit
     double cycle_age_ = 0;                 // weighted changes since the rebuild in progress gathered
+    std::uint32_t cycle_commits_ = 0;      // commits with changes since then
     std::uint64_t cycle_work_ = 0;         // units of the rebuild in progress so far
     std::uint64_t last_cycle_work_ = 0;    // units of the last progressive rebuild, to its swap
     double units_per_object_ = 0;          // units of the last rebuild per object
