@@ -108,7 +108,8 @@ constexpr auto cast_threads_field() {
                  &P::cast_threads,
                  1,
                  64,
-                 "threads of the timed ray batch (TBB task arena; the hits are the same for every count)",
+                 "threads of the timed ray batch, every query kind (TBB task arena, chunks of rays taken one at "
+                 "a time; the hits and counters are the same for every count)",
                  kNotTunedDefaultUnrecorded};
 }
 
@@ -128,10 +129,11 @@ struct NoScratch {
 ///     template <class Count, class Visit>
 ///     void traverse(const Segment&, Count&, Visit&&, Scratch&) const;
 ///
-/// Then `set_cast_threads(n)` with n > 1 lets the timed batch (`cast`) run in chunks of rays on a
-/// task arena of n threads, one scratch per arena slot; each chunk writes its own hit lists, joined
-/// in ray order, so the result is the single-thread one. The counting pass and the single-ray
-/// queries stay on the calling thread (scratch 0).
+/// Then `set_cast_threads(n)` with n > 1 lets the timed batch (`cast`), whatever its rays' query
+/// kinds (all, closest, any), run in chunks of rays on a task arena of n threads, one scratch per
+/// arena slot; the threads take the chunks one at a time, and the answers are joined in ray order,
+/// so the result is the single-thread one (cast_arena.h: RayChunks). The counting pass and the
+/// single-ray queries (cast_closest, cast_any) stay on the calling thread (scratch 0).
 template <class Derived, class Scratch = NoScratch>
 class StructureBase : public Structure {
 public:
@@ -149,9 +151,10 @@ public:
         NoCounting count;
         at_level(count, [&](auto& policy) {
             if constexpr (kScratch) {
-                if (arena_ && rays.size() >= 2 * kChunkRays) return cast_parallel(rays, kinds, out, policy);
+                if (arena_ && rays.size() >= kParallelRays) return cast_parallel(rays, kinds, out, policy);
             }
             last_chunks_ = 1;
+            last_rays_ = rays.size();
             cast_all(rays, kinds, out, policy);
         });
     }
@@ -190,11 +193,15 @@ public:
     int cast_threads() const { return arena_ ? arena_->threads() : 1; }
     /// Chunks the last timed batch ran in (1: on the calling thread; for tests).
     std::size_t last_cast_chunks() const { return last_chunks_; }
+    /// Per arena slot, the rays it cast in the last timed batch (for tests: how the work was shared).
+    std::vector<std::size_t> last_cast_rays_per_slot() const {
+        return last_chunks_ > 1 ? chunks_.rays_per_slot() : std::vector<std::size_t>{last_rays_};
+    }
+
+    /// A batch of fewer rays runs on the calling thread: entering the arena would cost more.
+    static constexpr std::size_t kParallelRays = 32;
 
 protected:
-    /// Rays per chunk at least: below twice this a batch runs on the calling thread.
-    static constexpr std::size_t kChunkRays = 16;
-
     /// Called by a structure's constructor with its `cast_threads` parameter.
     void set_cast_threads(int threads) {
         static_assert(kScratch, "a parallel batch needs the traversal's scratch (see above)");
@@ -203,7 +210,7 @@ protected:
     }
     /// Bytes held by the scratches (capacity), for memory_bytes().
     std::size_t scratch_bytes() const {
-        std::size_t bytes = scratch_.capacity() * sizeof(Scratch);
+        std::size_t bytes = scratch_.capacity() * sizeof(Scratch) + (arena_ ? chunks_.memory_bytes() : 0);
         for (const Scratch& s : scratch_) bytes += s.memory_bytes();
         return bytes;
     }
@@ -244,8 +251,6 @@ private:
     template <class Count>
     void cast_range(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out, Count& count,
                     Scratch& scratch) {
-        out.clear();
-        out.offsets.reserve(rays.size() + 1);
         auto all = [&](Uid uid, float) {
             out.uids.push_back(uid);
             return true;
@@ -276,50 +281,35 @@ private:
     template <class Count>
     void cast_all(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out, Count& count) {
         ready();
+        out.clear();
+        out.offsets.reserve(rays.size() + 1);
         cast_range(rays, kinds, out, count, scratch_[0]);
     }
 
-    /// The batch in chunks on the arena (see above). Only the timed pass comes here: a policy that
-    /// counts would be shared by the chunks.
+    /// The batch in chunks on the arena (see above and RayChunks in cast_arena.h). Only the timed
+    /// pass comes here: a policy that counts would be shared by the chunks.
     template <class Count>
     void cast_parallel(std::span<const Segment> rays, std::span<const QueryKind> kinds, HitLists& out, Count& count) {
         static_assert(!Count::enabled, "the counting pass runs on one thread");
         derived().prepare();
-        // Four chunks per thread even out rays of unequal cost; each at least kChunkRays long.
-        const std::size_t chunks = std::min(rays.size() / kChunkRays, 4 * std::size_t(arena_->threads()));
-        if (parts_.size() < chunks) parts_.resize(chunks);
-        last_chunks_ = chunks;
-        arena_->run(chunks, [&](std::size_t c, int slot) {
+        chunks_.plan(rays.size(), arena_->threads());
+        last_chunks_ = chunks_.chunks();
+        arena_->run(chunks_.chunks(), [&](std::size_t c, int slot) {
             Scratch& scratch = scratch_[std::size_t(slot)];
             static_cast<const Derived&>(*this).fit(scratch);
             Count local = count;
-            const std::size_t begin = rays.size() * c / chunks, n = rays.size() * (c + 1) / chunks - begin;
-            cast_range(rays.subspan(begin, n), kinds.empty() ? kinds : kinds.subspan(begin, n), parts_[c].lists, local,
-                       scratch);
+            const std::size_t begin = chunks_.begin(c), n = chunks_.size(c);
+            cast_range(rays.subspan(begin, n), kinds.empty() ? kinds : kinds.subspan(begin, n), chunks_.start(c, slot),
+                       local, scratch);
         });
-        out.clear();
-        std::size_t hits = 0;
-        for (std::size_t c = 0; c < chunks; ++c) hits += parts_[c].lists.uids.size();
-        out.uids.reserve(hits);
-        out.offsets.reserve(rays.size() + 1);
-        for (std::size_t c = 0; c < chunks; ++c) {
-            const HitLists& part = parts_[c].lists;
-            const auto base = std::uint32_t(out.uids.size());
-            out.uids.insert(out.uids.end(), part.uids.begin(), part.uids.end());
-            for (std::size_t r = 1; r < part.offsets.size(); ++r) out.offsets.push_back(base + part.offsets[r]);
-        }
+        chunks_.join(out);
     }
 
     bool candidates_ = false;
     std::vector<Scratch> scratch_ = std::vector<Scratch>(1);  // one per arena slot; 0: the caller's
     std::unique_ptr<CastArena> arena_;                        // null: one thread
-    /// A chunk's hit lists on a cache line of its own: two threads appending to neighbouring lists
-    /// would write the same line at every hit.
-    struct alignas(64) Part {
-        HitLists lists;
-    };
-    std::vector<Part> parts_;  // per chunk of a parallel batch
-    std::size_t last_chunks_ = 0;
+    RayChunks chunks_;                                        // the last parallel batch's cut and answers
+    std::size_t last_chunks_ = 0, last_rays_ = 0;
 };
 
 }  // namespace rcb

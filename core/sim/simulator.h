@@ -21,6 +21,9 @@
 /// batches, and only a batch of one kind has a time of its own: the cost model's check that its
 /// coefficients do not depend on the kind (docs/model.md) needs each kind's time beside its
 /// counters. A frame of one kind is cast exactly as a frame of all hits is: one call, one timing.
+/// With `cast_threads` > 1 every timed batch, of whatever kind, runs on the structure's threads
+/// (structure.h, StructureBase); the counting pass runs on the calling thread, so a frame's hits
+/// and counters do not depend on the thread count.
 
 #include <cstdint>
 #include <functional>

@@ -26,8 +26,10 @@
 /// so its walk cannot be shortened at a hit nor stopped; an any-hit query tests no leaf after its
 /// first hit. Counters: N_RB = candidate leaves tested plus scan tests; N_T, N_TH and N_MP from
 /// the counting pass's replica of rayTestInternal's walk (the library's loop has no hook).
-/// `cast_threads` runs the timed batch on a task arena, each thread with its own ray stack, as
-/// btDbvtBroadphase::rayTest does under BT_THREADSAFE (rayTestInternal is const on the trees).
+/// `cast_threads` runs the timed batch, every query kind, on a task arena, each thread with its own
+/// ray stack, as btDbvtBroadphase::rayTest does under BT_THREADSAFE (one stack per thread,
+/// m_rayTestStacks): btDbvt::rayTestInternal is const on the tree and takes the caller's stack
+/// ("uses a persistent stack", btDbvt.h), so threads share the trees read-only.
 /// docs/structures.md has the exactness argument and the defaults' sources.
 
 #include <cstdint>

@@ -19,9 +19,13 @@
 /// under the other geometry ID, which Embree's two-level builder builds anew
 /// (bvh_builder_twolevel.cpp setupLargeBuildRefBuilder: a new mesh), while the old one is
 /// detached. Counters: N_RB = callback calls plus scan tests; N_T is not exposed
-/// (0). `cast_threads` runs the timed batch on a task arena, every thread calling rtcIntersect1 /
-/// rtcOccluded1 on the one committed scene, as Embree allows. docs/structures.md has the exactness
-/// argument and the limits.
+/// (0). `cast_threads` runs the timed batch, every query kind, on a task arena, every thread
+/// calling rtcIntersect1 / rtcOccluded1 on the one committed scene with its own RTCIntersectContext
+/// on its stack (Embree 3's per-call query context; Embree 4 passes it as RTCRayQueryContext in
+/// RTCIntersectArguments). Embree allows it: "performing ray queries in a scene is thread-safe"
+/// (Embree 3 API manual, doc/src/api.md, Embree API), once rtcCommitScene has returned and until
+/// the next change (rtcCommitScene(3): modification, commit and tracing happen in sequence).
+/// docs/structures.md has the exactness argument and the limits.
 
 #include <cstdint>
 #include <memory>
@@ -36,8 +40,9 @@
 
 namespace rcb {
 
-/// An Embree query keeps its state on the calling thread's stack (rtcIntersect1 and rtcOccluded1
-/// are safe to call from many threads on a committed scene): nothing per thread to hold.
+/// An Embree query keeps its state (ray, query context, exact collector) on the calling thread's
+/// stack (rtcIntersect1 and rtcOccluded1 are safe to call from many threads on a committed scene):
+/// nothing per thread to hold.
 struct EmbreeScratch {
     std::size_t memory_bytes() const { return 0; }
 };

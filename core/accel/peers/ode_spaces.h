@@ -35,7 +35,13 @@
 /// quadtree's own AABB tests in the blocks it visits are not exposed), plus scan tests; N_T is not
 /// exposed (0), as for Embree. Memory: rcb's arrays plus the bytes ODE allocated for this instance
 /// (counted through ODE's allocation hooks while the instance runs; one instance per thread at a
-/// time).
+/// time). Rays are cast on one thread: these peers take no `cast_threads`. ODE runs collision
+/// detection on several threads only "for separate spaces" (CHANGELOG.txt; CMakeLists.txt,
+/// ODE_WITH_OU); every collide2 of one space writes to it (dxSpace::lock_count++ and cleanGeoms,
+/// collision_space.cpp dxHashSpace::collide2, collision_quadtreespace.cpp
+/// dxQuadTreeSpace::collide2, collision_sapspace.cpp dxSAPSpace::collide2; lock_count is a plain
+/// int, collision_kernel.h), and the ray geom is one object whose position and length each query
+/// sets.
 
 #include <cstdint>
 #include <memory>
