@@ -87,7 +87,7 @@ TEST(BinaryIdentity, ARunResumesOnlyInTheProgramThatBeganIt) {
     engine.binary = "engine_bench";
     const std::int64_t first = store.resume_or_begin_run(e, engine, false);  // left unfinished
     const std::int64_t mine = store.resume_or_begin_run(e, RunInfo::current(1, "", e), false);
-    EXPECT_NE(mine, first);                                          // rcb_tests does not take the engine's run
+    EXPECT_NE(mine, first);                                         // rcb_tests does not take the engine's run
     EXPECT_EQ(store.resume_or_begin_run(e, engine, false), first);  // the engine resumes its own
     EXPECT_EQ(store.resume_or_begin_run(e, RunInfo::current(1, "", e), false), mine);
     // Named with --run, another program's run is refused in one line.
