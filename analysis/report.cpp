@@ -865,7 +865,7 @@ ReportSummary write_report(Database& db, std::int64_t run, const std::string& pa
 
     Html h;
     h.paragraph("Experiment " + d.head.experiment + ", run " + std::to_string(run) + " started " + d.head.started +
-                " from commit " + d.head.commit + " on " + d.head.cpu +
+                " from commit " + d.head.commit + " by " + d.head.binary + " on " + d.head.cpu +
                 ". Times are medians over frames (and over repetitions); a frame casts its rays as one batch (one per "
                 "query kind when it asks for several).");
     tables_section(h, es, d.slow);

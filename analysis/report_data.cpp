@@ -109,12 +109,16 @@ std::vector<Entry> load_entries(Database& db, std::int64_t run) {
 RunHead load_run_head(Database& db, std::int64_t run) {
     const std::optional<StoredRun> r = read_stored_run(db, run);
     if (!r) throw InputError("no run " + std::to_string(run));
-    return {r->experiment, r->git_commit, r->cpu_model + " (" + std::to_string(r->cores) + " cores)", r->started_at};
+    return {r->experiment, r->git_commit, r->cpu_model + " (" + std::to_string(r->cores) + " cores)", r->started_at,
+            r->binary + (r->binary_id.empty() ? "" : " (build " + r->binary_id.substr(0, 12) + ")")};
 }
 
 History load_run_history(Database& db, std::int64_t run, const std::string& experiment) {
     History h;
     h.query.experiment = experiment;
+    // The runs of the program that made this one: another program's (its own structures, its own
+    // build) are another history.
+    if (const std::optional<StoredRun> r = read_stored_run(db, run)) h.query.binary = r->binary;
     h.query.up_to_run = run;
     try {
         h.cast = load_history(db, h.query);

@@ -56,6 +56,7 @@ struct Entry {
 /// The run's provenance, the report's first paragraph.
 struct RunHead {
     std::string experiment, commit, cpu, started;
+    std::string binary;  ///< the program that made the run, and its build id when recorded
 };
 
 /// The ray-cast and update series of the experiment's runs up to this one (runner/history.h).

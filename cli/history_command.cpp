@@ -46,9 +46,10 @@ void print_history(const HistoryOptions& o) {
     // Columns: every run any series has, in run order (series list their points in that order).
     std::vector<std::pair<std::int64_t, std::string>> runs;  // (id, started_at)
     std::set<std::int64_t> seen;
-    std::set<std::string> experiments;
+    std::set<std::string> experiments, binaries;
     for (const HistorySeries& s : series) {
         experiments.insert(s.experiment);
+        binaries.insert(s.binary);
         for (const HistoryPoint& p : s.points)
             if (seen.insert(p.run).second) runs.emplace_back(p.run, p.started_at);
     }
@@ -57,9 +58,12 @@ void print_history(const HistoryOptions& o) {
     });
     const std::size_t first = o.last > 0 && runs.size() > o.last ? runs.size() - o.last : 0;
     const bool several = experiments.size() > 1;
+    // The runs of each program are series of their own (runner/history.h): named when there are several.
+    const bool programs = binaries.size() > 1;
 
     std::vector<std::string> header;
     if (several) header.push_back("experiment");
+    if (programs) header.push_back("binary");
     header.insert(header.end(), {"scene", "structure", "params"});
     for (std::size_t r = first; r < runs.size(); ++r) header.push_back("run " + std::to_string(runs[r].first));
     header.push_back("steps");
@@ -68,6 +72,7 @@ void print_history(const HistoryOptions& o) {
     for (const HistorySeries& s : series) {
         std::vector<std::string> row;
         if (several) row.push_back(s.experiment);
+        if (programs) row.push_back(s.binary);
         row.insert(row.end(), {s.scene, s.structure, s.params});
         for (std::size_t r = first; r < runs.size(); ++r) {
             std::string cell = "-";
@@ -105,6 +110,10 @@ void add_history_command(CLI::App& app) {
         ->check(non_empty());
     history->add_option("--scene", o->query.scene, "Only this scene (its name in the experiment)")->check(non_empty());
     history->add_option("--structure", o->query.structure, "Only this structure (e.g. dbvh)")->check(non_empty());
+    history
+        ->add_option("--binary", o->query.binary,
+                     "Only the runs of this program (run.binary: rcbench, or a program linking rcbench::cli)")
+        ->check(non_empty());
     history->add_option("--metric", o->query.metric, "raycast or update")
         ->capture_default_str()
         ->check(CLI::IsMember({"raycast", "update"}));

@@ -208,6 +208,13 @@ void add_compare_command(CLI::App& app) {
                                  " is required (or compare two runs' decisions: --decisions A.db B.db)");
         auto db = open_read_only(c->db);
         const std::vector<Comparison> rows = compare_runs(*db, c->baseline, c->candidate, c->metric, c->alpha);
+        // Runs of two programs (rcbench and one linking rcbench::cli with its own structures): the
+        // rows are the structures both ran, each built into both programs.
+        const std::vector<std::string> base_by = run_binaries(*db, c->baseline),
+                                       cand_by = run_binaries(*db, c->candidate);
+        if (base_by != cand_by)
+            std::cout << "Baseline by " << join(base_by) << ", candidate by " << join(cand_by)
+                      << ": the rows are the configurations both measured.\n";
         TextTable t({"scene", "structure", "params", "metric", "baseline ms", "candidate ms", "ratio", "p", "verdict",
                      "slow cells"});
         std::size_t regressions = 0;

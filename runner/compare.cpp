@@ -65,6 +65,17 @@ std::vector<std::int64_t> select_runs(Database& db, const std::string& selector)
     return runs;
 }
 
+std::vector<std::string> run_binaries(Database& db, const std::string& selector) {
+    std::vector<std::string> out;
+    Statement s = db.prepare("SELECT binary FROM run WHERE id = ?");
+    for (const std::int64_t run : select_runs(db, selector)) {
+        s.reset();
+        s.bind(1, run);
+        if (s.step() && std::find(out.begin(), out.end(), s.text(0)) == out.end()) out.push_back(s.text(0));
+    }
+    return out;
+}
+
 namespace {
 
 using Key = std::tuple<std::string, std::string, std::string>;  // scene hash, structure, params

@@ -34,4 +34,8 @@ std::vector<Comparison> compare_runs(Database& db, const std::string& baseline, 
 /// Run ids a selector names; InputError when none.
 std::vector<std::int64_t> select_runs(Database& db, const std::string& selector);
 
+/// The programs that made the runs a selector names (run.binary, runner/binary_identity.h),
+/// distinct, in run order: compare says when its two sides come from different programs.
+std::vector<std::string> run_binaries(Database& db, const std::string& selector);
+
 }  // namespace rcb

@@ -143,19 +143,22 @@ std::vector<HistorySeries> load_history(Database& db, const HistoryQuery& q) {
         "SELECT cell.id, run.id, run.git_commit, run.started_at, experiment.name, " + std::string(kSceneLabelSql) +
         ", scene.hash, "
         "config.structure, "
-        "config.params FROM cell JOIN run ON run.id = cell.run_id JOIN experiment ON experiment.id = run.experiment_id "
+        "config.params, run.binary FROM cell JOIN run ON run.id = cell.run_id JOIN experiment ON experiment.id = "
+        "run.experiment_id "
         "JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id "
         "WHERE (?1 = '' OR experiment.name = ?1) AND (?2 = '' OR scene.name = ?2) AND (?3 = '' OR config.structure = "
         "?3) "
-        "AND (?4 = 0 OR run.started_at < ?5 OR (run.started_at = ?5 AND run.id <= ?6)) "
+        "AND (?4 = 0 OR run.started_at < ?5 OR (run.started_at = ?5 AND run.id <= ?6)) AND (?7 = '' OR run.binary = "
+        "?7) "
         "ORDER BY run.started_at, run.id, cell.id");
     cells.bind_all(q.experiment, q.scene, q.structure, std::int64_t(q.up_to_run ? 1 : 0), up_to_started,
-                   q.up_to_run.value_or(0));
+                   q.up_to_run.value_or(0), q.binary);
     // The metric picks one of two fixed column names; every user value is bound.
     Statement frame = db.prepare(std::string("SELECT ") + (q.metric == "raycast" ? "raycast_ns" : "update_ns") +
                                  " FROM frame WHERE cell_id = ? AND warmup = 0 ORDER BY frame");
 
-    using Key = std::tuple<std::string, std::string, std::string, std::string>;  // experiment, scene, structure, params
+    // experiment, binary, scene, structure, params: a program's runs and rcbench's are series apart
+    using Key = std::tuple<std::string, std::string, std::string, std::string, std::string>;
     std::map<Key, std::size_t> index;
     std::vector<HistorySeries> series;
     std::vector<std::vector<std::vector<double>>> frames;  // per series, per point
@@ -165,10 +168,11 @@ std::vector<HistorySeries> load_history(Database& db, const HistoryQuery& q) {
         frame.bind(1, cells.int64(0));
         while (frame.step()) values.push_back(frame.real(0));
         if (values.empty()) continue;  // nothing measured outside warm-up
-        const Key key{cells.text(4), cells.text(5), cells.text(7), cells.text(8)};
+        const Key key{cells.text(4), cells.text(9), cells.text(5), cells.text(7), cells.text(8)};
         auto [it, fresh] = index.try_emplace(key, series.size());
         if (fresh) {
-            series.push_back({std::get<0>(key), std::get<1>(key), std::get<2>(key), std::get<3>(key), {}, {}});
+            series.push_back(
+                {std::get<0>(key), std::get<2>(key), std::get<3>(key), std::get<4>(key), std::get<1>(key), {}, {}});
             frames.emplace_back();
         }
         HistorySeries& h = series[it->second];
@@ -190,6 +194,7 @@ std::vector<HistorySeries> load_history(Database& db, const HistoryQuery& q) {
         if (!q.experiment.empty()) filters.push_back("experiment " + quoted_excerpt(q.experiment));
         if (!q.scene.empty()) filters.push_back("scene " + quoted_excerpt(q.scene));
         if (!q.structure.empty()) filters.push_back("structure " + quoted_excerpt(q.structure));
+        if (!q.binary.empty()) filters.push_back("binary " + quoted_excerpt(q.binary));
         if (q.up_to_run) filters.push_back("up to run " + std::to_string(*q.up_to_run));
         throw InputError(db.path() + ": no measured cells" +
                          (filters.empty() ? std::string() : " for " + join(filters)));

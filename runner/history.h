@@ -50,6 +50,7 @@ struct HistoryQuery {
     std::string experiment;                 ///< empty: every experiment
     std::string scene;                      ///< scene name; empty: every scene
     std::string structure;                  ///< structure name; empty: every structure
+    std::string binary;                     ///< only the runs of this program (run.binary); empty: every one
     std::string metric = "raycast";         ///< "raycast" or "update"
     std::optional<std::int64_t> up_to_run;  ///< only runs ordered up to and including this one
     StepOptions steps;
@@ -64,9 +65,12 @@ struct HistoryPoint {
     double median_ns = 0, mad_ns = 0;
 };
 
-/// One experiment × scene × configuration over the runs that measured it.
+/// One experiment × scene × configuration over the runs of one program that measured it.
 struct HistorySeries {
     std::string experiment, scene, structure, params;
+    /// The program whose runs these are (run.binary, runner/binary_identity.h): rcbench's runs and
+    /// those of a program linking rcbench::cli are separate series, each with its own steps.
+    std::string binary;
     std::vector<HistoryPoint> points;  ///< run order: started_at, then run id
     std::vector<Step> steps;           ///< Step::at indexes `points`
 };

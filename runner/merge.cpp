@@ -73,8 +73,8 @@ std::int64_t merge_run(Database& o, Database& in, Statement& runs, MergeCount& c
     const std::int64_t experiment = id_of(o, "SELECT id FROM experiment WHERE name = ?", runs.text(2));
     Statement insert_run = o.prepare(
         "INSERT INTO run(uuid, experiment_id, experiment_hash, experiment_content, started_at, finished_at, "
-        "git_commit, compiler, flags, cpu_model, cores, governor, hostname, threads, shard) VALUES "
-        "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "git_commit, compiler, flags, cpu_model, cores, governor, hostname, threads, shard, binary, binary_id) VALUES "
+        "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     insert_run.bind_all(runs.text(1), experiment, runs.text(4), runs.text(5), runs.text(6));
     if (runs.is_null(7))
         insert_run.bind_null(6);
@@ -82,7 +82,7 @@ std::int64_t merge_run(Database& o, Database& in, Statement& runs, MergeCount& c
         insert_run.bind(6, runs.text(7));
     insert_run.bind(7, runs.text(8)).bind(8, runs.text(9)).bind(9, runs.text(10)).bind(10, runs.text(11));
     insert_run.bind(11, runs.int64(12)).bind(12, runs.text(13)).bind(13, runs.text(14)).bind(14, runs.int64(15));
-    insert_run.bind(15, runs.text(16));
+    insert_run.bind(15, runs.text(16)).bind(16, runs.text(17)).bind(17, runs.text(18));
     insert_run.run();
     const std::int64_t run = o.last_insert_id();
     ++count.runs;
@@ -223,7 +223,7 @@ MergeCount merge_into(ResultStore& out, Database& in) {
         Statement runs = in.prepare(
             "SELECT run.id, run.uuid, experiment.name, experiment.description, experiment_hash, experiment_content, "
             "started_at, finished_at, git_commit, compiler, flags, cpu_model, cores, governor, hostname, threads, "
-            "shard FROM run JOIN experiment ON experiment.id = run.experiment_id ORDER BY run.id");
+            "shard, binary, binary_id FROM run JOIN experiment ON experiment.id = run.experiment_id ORDER BY run.id");
         while (runs.step()) {
             const std::int64_t run = merge_run(o, in, runs, count);
             merge_cells(o, in, runs.int64(0), run, count);

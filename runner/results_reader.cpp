@@ -27,11 +27,12 @@ std::string run_group() { return kRunGroupSql; }
 
 std::optional<StoredRun> read_stored_run(Database& db, std::int64_t run) {
     Statement s = db.prepare(
-        "SELECT experiment.name, run.uuid, run.started_at, run.git_commit, run.cpu_model, run.compiler, run.cores "
-        "FROM run JOIN experiment ON experiment.id = run.experiment_id WHERE run.id = ?");
+        "SELECT experiment.name, run.uuid, run.started_at, run.git_commit, run.cpu_model, run.compiler, run.cores, "
+        "run.binary, run.binary_id FROM run JOIN experiment ON experiment.id = run.experiment_id WHERE run.id = ?");
     s.bind(1, run);
     if (!s.step()) return std::nullopt;
-    return StoredRun{s.text(0), s.text(1), s.text(2), s.text(3), s.text(4), s.text(5), s.int64(6)};
+    return StoredRun{s.text(0), s.text(1),  s.text(2), s.text(3), s.text(4),
+                     s.text(5), s.int64(6), s.text(7), s.text(8)};
 }
 
 bool run_exists(Database& db, std::int64_t run) {

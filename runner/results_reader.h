@@ -26,6 +26,7 @@ class Database;
 struct StoredRun {
     std::string experiment, uuid, started_at, git_commit, cpu_model, compiler;
     std::int64_t cores = 0;
+    std::string binary, binary_id;  ///< the program that made it (runner/binary_identity.h)
 };
 
 /// Run `run`'s provenance; nullopt when there is no such run.

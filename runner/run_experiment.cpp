@@ -23,6 +23,7 @@
 #include "core/sim/simulator.h"
 #include "runner/calibration.h"
 #include "runner/scene_windows.h"
+#include "runner/binary_identity.h"
 #include "runner/store.h"
 
 namespace rcb {
@@ -342,8 +343,11 @@ RunOutcome run_experiment(const Experiment& e, const std::string& source, const 
     RunOutcome out;
     out.planned = plan.size();
     if (options.run_id) {
-        if (!store.run_exists(options.run_id))
-            throw InputError("--run " + std::to_string(options.run_id) + ": no such run in " + options.db);
+        const std::optional<std::string> binary = store.run_binary(options.run_id);
+        if (!binary) throw InputError("--run " + std::to_string(options.run_id) + ": no such run in " + options.db);
+        if (*binary != this_binary().name)
+            throw InputError("--run " + std::to_string(options.run_id) + ": a run of " + *binary + ", not of " +
+                             this_binary().name + " (a run is resumed by the program that began it)");
         out.run = options.run_id;
     } else {
         out.run = store.resume_or_begin_run(e, RunInfo::current(e.threads, shard, e), options.new_run);

@@ -14,6 +14,7 @@
 #include "core/base/error.h"
 #include "core/base/statistics.h"
 #include "core/scene/recording_io.h"
+#include "runner/binary_identity.h"
 #include "runner/build_info.h"
 
 namespace rcb {
@@ -417,6 +418,15 @@ ALTER TABLE frame ADD COLUMN n_dup INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE frame_kind ADD COLUMN n_dup INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE calibration ADD COLUMN n_dup REAL NOT NULL DEFAULT 0;
 )sql",
+        // 19 → 20: the program that made a run (runner/binary_identity.h): its executable's name and
+        // build id, so that the runs of a program linking rcbench::cli with its own structures stay
+        // apart from rcbench's. Runs stored before were made by the rcbench executable (no other
+        // program could link the runner then; the test programs' databases are temporary); their
+        // build id was not recorded ('').
+        R"sql(
+ALTER TABLE run ADD COLUMN binary TEXT NOT NULL DEFAULT 'rcbench';
+ALTER TABLE run ADD COLUMN binary_id TEXT NOT NULL DEFAULT '';
+)sql",
     };
     return all;
 }
@@ -534,6 +544,8 @@ RunInfo RunInfo::current(std::uint32_t threads, const std::string& shard, const 
     r.git_commit = kGitCommit;
     r.compiler = kCompiler;
     r.flags = kCompileFlags;
+    r.binary = this_binary().name;
+    r.binary_id = this_binary().build_id;
     r.cpu_model = read_cpu_model();
     r.cores = std::thread::hardware_concurrency();
     r.governor = first_line_of("/sys/devices/system/cpu/cpu0/cpufreq/scaling_governor");
@@ -633,11 +645,11 @@ std::int64_t ResultStore::experiment_id(const Experiment& e) {
 }
 
 std::optional<std::int64_t> ResultStore::unfinished_run(std::int64_t experiment_id, const std::string& hash,
-                                                        const std::string& shard) {
+                                                        const std::string& shard, const std::string& binary) {
     Statement s = db_.prepare(
-        "SELECT id FROM run WHERE experiment_id = ? AND experiment_hash = ? AND shard = ? AND finished_at IS NULL "
-        "ORDER BY id DESC LIMIT 1");
-    s.bind_all(experiment_id, hash, shard);
+        "SELECT id FROM run WHERE experiment_id = ? AND experiment_hash = ? AND shard = ? AND binary = ? AND "
+        "finished_at IS NULL ORDER BY id DESC LIMIT 1");
+    s.bind_all(experiment_id, hash, shard, binary);
     if (s.step()) return s.int64(0);
     return std::nullopt;
 }
@@ -645,11 +657,11 @@ std::optional<std::int64_t> ResultStore::unfinished_run(std::int64_t experiment_
 std::int64_t ResultStore::begin_run(std::int64_t experiment_id, const RunInfo& r) {
     db_.prepare(
            "INSERT INTO run(uuid, experiment_id, experiment_hash, experiment_content, started_at, git_commit, "
-           "compiler, "
-           "flags, cpu_model, cores, governor, hostname, threads, shard) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
+           "compiler, flags, cpu_model, cores, governor, hostname, threads, shard, binary, binary_id) VALUES "
+           "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)")
         .bind_all(r.uuid, experiment_id, r.experiment_hash, r.experiment_content, r.started_at, r.git_commit,
                   r.compiler, r.flags, r.cpu_model, std::int64_t(r.cores), r.governor, r.hostname,
-                  std::int64_t(r.threads), r.shard)
+                  std::int64_t(r.threads), r.shard, r.binary, r.binary_id)
         .run();
     return db_.last_insert_id();
 }
@@ -658,16 +670,17 @@ std::int64_t ResultStore::resume_or_begin_run(const Experiment& e, const RunInfo
     Transaction t(db_);
     const std::int64_t experiment = experiment_id(e);
     std::optional<std::int64_t> run;
-    if (!new_run) run = unfinished_run(experiment, e.hash, info.shard);
+    if (!new_run) run = unfinished_run(experiment, e.hash, info.shard, info.binary);
     if (!run) run = begin_run(experiment, info);
     t.commit();
     return *run;
 }
 
-bool ResultStore::run_exists(std::int64_t run_id) {
-    Statement s = db_.prepare("SELECT 1 FROM run WHERE id = ?");
+std::optional<std::string> ResultStore::run_binary(std::int64_t run_id) {
+    Statement s = db_.prepare("SELECT binary FROM run WHERE id = ?");
     s.bind(1, run_id);
-    return s.step();
+    if (!s.step()) return std::nullopt;
+    return s.text(0);
 }
 
 std::set<std::string> ResultStore::finished_cells(std::int64_t run_id) {

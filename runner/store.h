@@ -33,6 +33,8 @@ struct RunInfo {
     std::uint32_t cores = 0;
     std::uint32_t threads = 1;
     std::string shard;  ///< "K/N", or empty for the whole plan
+    /// The program that made the run, its executable's name and build id (runner/binary_identity.h).
+    std::string binary, binary_id;
     std::string experiment_hash;
     std::string experiment_content;
 
@@ -63,15 +65,20 @@ public:
     Database& db() { return db_; }
 
     std::int64_t experiment_id(const Experiment& e);
-    /// The newest unfinished run of the experiment with the same file content and shard, if any.
+    /// The newest unfinished run of the experiment with the same file content and shard that the
+    /// program named `binary` began, if any: another program's run (rcbench's, or one with other
+    /// structures registered) is not resumed, so every cell of a run comes from the program it
+    /// names. A rebuild of the same program resumes its run, which keeps the build id and git commit
+    /// it began with.
     std::optional<std::int64_t> unfinished_run(std::int64_t experiment_id, const std::string& experiment_hash,
-                                               const std::string& shard);
+                                               const std::string& shard, const std::string& binary);
     std::int64_t begin_run(std::int64_t experiment_id, const RunInfo& info);
-    /// The run a runner of `e` works on: the newest unfinished run of the same file content and
-    /// shard, or a new one (always new with `new_run`). One transaction, so runners started
+    /// The run a runner of `e` works on: the newest unfinished run of the same file content, shard
+    /// and binary name, or a new one (always new with `new_run`). One transaction, so runners started
     /// together on one database agree on one run instead of each starting its own.
     std::int64_t resume_or_begin_run(const Experiment& e, const RunInfo& info, bool new_run);
-    bool run_exists(std::int64_t run_id);
+    /// The name of the program that made the run (run.binary), or nullopt when there is no such run.
+    std::optional<std::string> run_binary(std::int64_t run_id);
     std::set<std::string> finished_cells(std::int64_t run_id);
     bool cell_done(std::int64_t run_id, const std::string& cell_key);
     /// Stores a finished cell with its frames in one transaction. Returns false (and stores nothing)

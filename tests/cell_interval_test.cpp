@@ -187,7 +187,8 @@ TEST(CellInterval, TheTableFollowsTheCellsThroughMergeAndMigration) {
         d.exec(
             "ALTER TABLE frame_kind DROP COLUMN n_miss; ALTER TABLE calibration DROP COLUMN n_miss; "
             "ALTER TABLE calibration DROP COLUMN n_tp; ALTER TABLE calibration DROP COLUMN pass; "
-            "ALTER TABLE model_validation DROP COLUMN outside_range; PRAGMA user_version = 11");
+            "ALTER TABLE model_validation DROP COLUMN outside_range; ALTER TABLE run DROP COLUMN binary; "
+            "ALTER TABLE run DROP COLUMN binary_id; PRAGMA user_version = 11");
     }
     EXPECT_EQ(interval_rows(*open_read_only(old)), want);  // read through a migrated copy
     ResultStore migrated(old);

@@ -297,6 +297,93 @@ TEST_F(Cli, TheSecondOfTwoNamesForOneSceneIsRefusedBeforeAnythingRuns) {
     EXPECT_FALSE(fs::exists(path("r.db")));
 }
 
+/// A program that registers its own structure (toy_list) and calls rcb::cli::main
+/// (tests/cli_user_main.cpp), run as a user runs it.
+Outcome run_user(const std::string& args) { return test::run_shell(std::string(RCB_CLI_USER_BINARY) + " " + args); }
+
+TEST_F(Cli, AProgramLinkingTheCliGivesTheExecutablesErrors) {
+    // The same bad input, the same one line and exit 2; only the list of known structures also
+    // names the program's own.
+    write("unknown.json", R"({"frames": 2, "rays_per_frame": 10, "scenes": [{"preset": "uni-s"}],
+        "structures": [{"name": "bf"}, {"name": "sweepx"}]})");
+    const Outcome mine = run_user("run " + path("unknown.json") + " --db " + path("r.db"));
+    const Outcome rcbench = run("run " + path("unknown.json") + " --db " + path("r.db"));
+    expect_bad_input(mine, "structures[1].name: unknown structure 'sweepx' (known: bf, ");
+    expect_bad_input(rcbench, "structures[1].name: unknown structure 'sweepx' (known: bf, ");
+    std::string expected = rcbench.err;
+    expected.insert(expected.rfind(')'), ", toy_list");
+    EXPECT_EQ(mine.err, expected);
+    EXPECT_FALSE(fs::exists(path("r.db")));
+    for (const std::string& args :
+         {std::string("nosuch"), std::string("run"), std::string("history --last 0 x.db"), "fit " + path("none.db")}) {
+        const Outcome a = run_user(args), b = run(args);
+        EXPECT_EQ(a.code, 2) << args;
+        EXPECT_EQ(a.err, b.err) << args;
+    }
+}
+
+TEST_F(Cli, AProgramLinkingTheCliRunsItsStructureAndItsRunsStayApart) {
+    write("mine.json", R"({"name": "mine", "frames": 3, "rays_per_frame": 50,
+        "scenes": [{"kind": "uniform", "objects": 150}], "structures": [{"name": "toy_list"}, {"name": "bf"}]})");
+    const Outcome ran = run_user("run " + path("mine.json") + " --db " + path("r.db"));
+    ASSERT_EQ(ran.code, 0) << ran.err;
+    EXPECT_NE(ran.out.find("toy_list"), std::string::npos) << ran.out;  // in the run's table
+    // rcbench itself does not know the program's structure.
+    expect_bad_input(run("run " + path("mine.json") + " --db " + path("r.db")),
+                     "structures[0].name: unknown structure 'toy_list'");
+    write("theirs.json", R"({"name": "theirs", "frames": 3, "rays_per_frame": 50,
+        "scenes": [{"kind": "uniform", "objects": 150}], "structures": [{"name": "bf"}]})");
+    ASSERT_EQ(run("run " + path("theirs.json") + " --db " + path("r.db")).code, 0);
+    // Each run names its program: the executable's name and a build id of 40 hex digits.
+    const Outcome runs =
+        run("query --csv " + path("r.db") + " \"SELECT id, binary, length(binary_id) FROM run ORDER BY id\"");
+    ASSERT_EQ(runs.code, 0) << runs.err;
+    EXPECT_EQ(runs.out, "id,binary,length(binary_id)\n1,rcb_cli_user,40\n2,rcbench,40\n");
+    // compare says when its sides come from two programs; the rows are what both measured.
+    const Outcome c = run_user("compare " + path("r.db") + " --baseline 1 --candidate 2");
+    ASSERT_EQ(c.code, 0) << c.err;
+    EXPECT_EQ(c.out.rfind("Baseline by rcb_cli_user, candidate by rcbench: the rows are the configurations both "
+                          "measured.\n",
+                          0),
+              0u)
+        << c.out;
+    EXPECT_EQ(c.out.find("toy_list"), std::string::npos) << c.out;
+    const Outcome h = run_user("history " + path("r.db"));
+    ASSERT_EQ(h.code, 0) << h.err;
+    EXPECT_NE(h.out.find("rcb_cli_user"), std::string::npos) << h.out;  // the binary column
+    const Outcome only = run_user("history " + path("r.db") + " --binary rcb_cli_user --structure toy_list");
+    ASSERT_EQ(only.code, 0) << only.err;
+    EXPECT_NE(only.out.find("1 series over 1 runs"), std::string::npos) << only.out;
+    // The fit and the report take the program's structure as one of rcbench's.
+    const Outcome fit = run_user("fit " + path("r.db") + " --run 1");
+    ASSERT_EQ(fit.code, 0) << fit.err;
+    EXPECT_NE(fit.out.find("toy_list"), std::string::npos) << fit.out;
+    const Outcome report = run_user("report " + path("r.db") + " --run 1 -o " + path("report.html"));
+    ASSERT_EQ(report.code, 0) << report.err;
+    const std::string html = bytes_of(path("report.html"));
+    EXPECT_NE(html.find("toy_list"), std::string::npos);
+    EXPECT_NE(html.find("by rcb_cli_user (build "), std::string::npos);
+}
+
+TEST_F(Cli, AProgramLinkingTheCliTunesAndAdvisesItsStructureOverItsParamSpecs) {
+    write("tune.json", R"({"name": "toy", "structures": ["toy_list"], "mode": "measured", "budget": 3,
+        "frames": 3, "warmup_frames": 1, "rays_per_frame": 50, "repetitions": 1,
+        "space": {"toy_list": {"block": [2, 8, 32]}},
+        "categories": [{"name": "small", "scenes": [{"kind": "uniform", "objects": 150}]}]})");
+    const Outcome tuned = run_user("tune " + path("tune.json") + " --db " + path("t.db") + " --out-dir " + path("out"));
+    ASSERT_EQ(tuned.code, 0) << tuned.err;
+    const auto tuning = nlohmann::json::parse(bytes_of(path("out/tuning-toy.json")));
+    EXPECT_NE(tuning.dump().find("toy_list"), std::string::npos);
+    ASSERT_EQ(run("scene gen --preset uni-s --frames 3 --rays 50 -o " + path("s.rcbscene")).code, 0);
+    const Outcome advice = run_user("advise " + path("s.rcbscene") + " --tuning " + path("out/tuning-toy.json") +
+                                    " --method category --json");
+    ASSERT_EQ(advice.code, 0) << advice.err;
+    EXPECT_NE(advice.out.find("toy_list"), std::string::npos) << advice.out;
+    // rcbench itself cannot tune what it does not know: the tuning file is refused in one line.
+    expect_bad_input(run("tune " + path("tune.json") + " --db " + path("t2.db") + " --out-dir " + path("out2")),
+                     "unknown structure 'toy_list'");
+}
+
 TEST_F(Cli, CompareEndsWithThePerCellDifferenceBetweenTheTwoRuns) {
     write("e.json", R"({"name": "twice", "frames": 3, "rays_per_frame": 100,
         "scenes": [{"kind": "uniform", "objects": 200}, {"kind": "irregular", "objects": 200}],

@@ -49,8 +49,10 @@ class SyntheticDb {
 public:
     explicit SyntheticDb(const std::string& path) : store_(path) {}
 
-    /// Starts a run of `experiment` made from `commit` at `started_at`; returns its id.
-    std::int64_t begin(const std::string& experiment, const std::string& commit, const std::string& started_at) {
+    /// Starts a run of `experiment` made from `commit` at `started_at` by the program `binary` (this
+    /// one when empty); returns its id.
+    std::int64_t begin(const std::string& experiment, const std::string& commit, const std::string& started_at,
+                       const std::string& binary = "") {
         Experiment e;
         e.name = experiment;
         e.content = "{}";
@@ -59,6 +61,7 @@ public:
         RunInfo info = RunInfo::current(1, "", e);
         info.git_commit = commit;
         info.started_at = started_at;
+        if (!binary.empty()) info.binary = binary;
         run_ = store_.begin_run(experiment_, info);
         return run_;
     }
@@ -287,6 +290,42 @@ TEST(History, FiltersSelectExperimentSceneStructureAndMetric) {
     EXPECT_EQ(early[0].points.size(), 4u);
     EXPECT_EQ(early[0].points.back().run, 4);
     EXPECT_TRUE(early[0].steps.empty());
+}
+
+TEST(History, EachProgramsRunsAreASeriesOfTheirOwn) {
+    // rcbench's runs, alternating with those of a program linking rcbench::cli whose build of bf is
+    // 30% slower: one series mixing them would jump by 30% at every run; two series hold one level each.
+    const test::TempDir dir("history", "programs");
+    {
+        SyntheticDb db(dir.file("h.db"));
+        std::mt19937_64 rng(8);
+        for (int d = 1; d <= 8; ++d) {
+            const bool engine = d % 2 == 0;
+            db.begin("hist", "c0ffee", day(d), engine ? "engine_bench" : "rcbench");
+            const std::vector<double> update = noisy_frames(rng, 1e4, 30),
+                                      raycast = noisy_frames(rng, engine ? 1.3e6 : 1e6, 30);
+            db.cell("small", "bf", raycast, update);
+            db.finish();
+        }
+    }
+    Database db(dir.file("h.db"), true);
+    const auto series = load_history(db, {});
+    ASSERT_EQ(series.size(), 2u);
+    for (const HistorySeries& s : series) {
+        EXPECT_EQ(s.points.size(), 4u) << s.binary;
+        EXPECT_TRUE(s.steps.empty()) << s.binary;
+    }
+    EXPECT_EQ(series[0].binary, "rcbench");
+    EXPECT_EQ(series[1].binary, "engine_bench");
+    HistoryQuery q;
+    q.binary = "engine_bench";
+    const auto engine = load_history(db, q);
+    ASSERT_EQ(engine.size(), 1u);
+    EXPECT_EQ(engine[0].binary, "engine_bench");
+    EXPECT_EQ(engine[0].points.front().run, 2);
+    q.binary = "other";
+    EXPECT_NE(test::input_error_of([&] { load_history(db, q); }).find("no measured cells for binary 'other'"),
+              std::string::npos);
 }
 
 TEST(History, RunOrderIsWhenTheRunsStartedNotTheirIds) {

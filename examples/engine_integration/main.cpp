@@ -131,8 +131,7 @@ int main(int argc, char** argv) {
             argc == 2 ? argv[1] : (std::filesystem::temp_directory_path() / "engine_integration.rcbscene").string();
         record_engine(path, 120);
 
-        rcb::register_structure<SweepList>("sweep",
-                                           "the engine's sweep list: sorted by min x, running max x, slab tests");
+        rcb::register_structure<SweepList>("sweep", engine::kSweepListSummary);
         const rcb::Recording recording = rcb::read_recording(path);
 
         struct Run {

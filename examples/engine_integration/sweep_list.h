@@ -1,6 +1,7 @@
 #pragma once
 // The engine's own acceleration structure, shared by the example's main.cpp (recorded and replayed
-// beside rcbench's structures) and sweep_list_conformance.cpp (rcbench's conformance suite).
+// beside rcbench's structures), rcbench_main.cpp (the engine's rcbench: every command on it) and
+// sweep_list_conformance.cpp (rcbench's conformance suite).
 
 #include <algorithm>
 #include <cstddef>
@@ -19,6 +20,9 @@ using rcb::Aabb;
 using rcb::Object;
 using rcb::Segment;
 using rcb::Uid;
+
+/// SweepList's line in the registry (`rcbench structures`), for every program that registers it.
+inline constexpr const char* kSweepListSummary = "the engine's sweep list: sorted by min x, running max x, slab tests";
 
 // (b) The engine's structure: objects sorted by their box's min x (a one-axis sweep list, as in
 // sweep-and-prune broad phases), with the running maximum of max x along that order. A ray whose
