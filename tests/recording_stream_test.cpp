@@ -212,6 +212,9 @@ TEST(RecordingStream, StreamedScenesAreBoundedByOneFrameAndTheFile) {
                              "--rays: one frame would take 4.81 GB in memory");
     test::expect_input_error([] { check_streamed_scene_size(1e6, 2000, 100, 1e6, "--frames"); },
                              "--frames: the recording could take 90.1 GB on disk");
+    // Ten frames of 10^8 rays fit the file's bound but not the rays' own.
+    test::expect_input_error([] { check_streamed_scene_size(1000, 11, 1e8, 10, "--rays"); },
+                             "--rays: the recording's rays could take 27.5 GB (11 frames of 100000000 rays)");
     test::expect_input_error([] { check_streamed_scene_size(1e9, 1, 1, 1, "--objects"); },
                              "more than the limit of 67108864 per scene");
 }

@@ -41,7 +41,8 @@ public:
 /// The bounds for a scene streamed frame by frame (SceneSink, RecordingWriter), which holds one
 /// frame, not the recording: the object count; one frame in memory (the live objects, its changes
 /// and rays) within kMaxRecordingBytes; and the file, at the largest encoding of an object (an
-/// oriented box, 45 bytes) and a ray (25), within kMaxStreamedFileBytes.
+/// oriented box, 45 bytes) and a ray (25), within kMaxStreamedFileBytes; and the rays alone within
+/// kMaxRecordingBytes, the in-memory bound.
 void check_streamed_scene_size(double objects, double frames, double rays_per_frame, double changes_per_frame,
                                const std::string& where);
 /// 16 times the in-memory bound: 10^6 bodies moving in each of 1000 frames fit.

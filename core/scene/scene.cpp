@@ -57,6 +57,16 @@ void check_streamed_scene_size(double objects, double frames, double rays_per_fr
                       file / 1e9, objects, frames, rays_per_frame, double(kMaxStreamedFileBytes) / 1e9);
         throw InputError(where + ": " + text + "; use fewer frames, rays or objects");
     }
+    // Streaming lifts the bound for moving objects, not for rays: a recording's rays stay within
+    // the in-memory bound, as before, so that an absurd --rays is refused instead of generated.
+    const double rays = streamed_file_bytes(0, frames, rays_per_frame, 0);
+    if (!(rays <= double(kMaxRecordingBytes))) {
+        std::snprintf(text, sizeof text,
+                      "the recording's rays could take %.3g GB (%.0f frames of %.0f rays), more than the limit of "
+                      "%.3g GB",
+                      rays / 1e9, frames, rays_per_frame, double(kMaxRecordingBytes) / 1e9);
+        throw InputError(where + ": " + text + "; use fewer rays or frames");
+    }
 }
 
 LiveSet::LiveSet(const std::vector<Object>& objects) {
