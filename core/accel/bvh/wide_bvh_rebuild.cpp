@@ -27,13 +27,18 @@ WideBvhRebuild::~WideBvhRebuild() = default;
 void WideBvhRebuild::reset() {
     phase_ = Phase::idle;
     next_.reset();
+    begin_cycle();
+    last_cycle_work_ = budget_ = work_ = 0;
+}
+
+void WideBvhRebuild::begin_cycle() {
     log_.clear();
     log_mark_ = 0;
     gather_skip_.clear();
     replay_cursor_ = 0;
     cycle_age_ = 0;
     cycle_commits_ = 0;
-    cycle_work_ = last_cycle_work_ = budget_ = work_ = 0;
+    cycle_work_ = 0;
 }
 
 void WideBvhRebuild::estimate(std::uint64_t build_work, std::size_t objects) {
@@ -74,13 +79,7 @@ void WideBvhRebuild::start(const WideBvh& live) {
     next_->where_.reserve_like(live.where_);
     phase_ = Phase::gather;
     gather_cursor_ = 0;
-    log_.clear();
-    log_mark_ = 0;
-    gather_skip_.clear();
-    replay_cursor_ = 0;
-    cycle_age_ = 0;
-    cycle_commits_ = 0;
-    cycle_work_ = 0;
+    begin_cycle();
 }
 
 void WideBvhRebuild::advance(WideBvh& live, std::uint64_t budget) {

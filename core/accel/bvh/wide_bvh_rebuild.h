@@ -69,6 +69,9 @@ public:
 
 private:
     void start(const WideBvh& live);
+    /// Empties what one rebuild cycle accumulates: the log, the skipped gathers, the cursors and the
+    /// cycle's age, commits and work.
+    void begin_cycle();
     /// Advances the rebuild by about `budget` units; swaps the trees when the replay is done.
     void advance(WideBvh& live, std::uint64_t budget);
     std::uint64_t gather_step(const WideBvh& live, std::uint64_t budget);
