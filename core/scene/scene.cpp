@@ -13,11 +13,18 @@ double recording_bytes(double objects, double frames, double rays_per_frame, dou
     return objects * object_bytes + frames * (changes_per_frame * object_bytes + rays_per_frame * ray_bytes);
 }
 
-void check_scene_size(double objects, double frames, double rays_per_frame, double changes_per_frame,
-                      const std::string& where) {
+namespace {
+/// The one bound both size checks share: at most kMaxSceneObjects objects.
+void check_object_count(double objects, const std::string& where) {
     if (!(objects <= double(kMaxSceneObjects)))
         throw InputError(where + ": " + std::to_string(std::uint64_t(std::min(objects, 1e19))) +
                          " objects, more than the limit of " + std::to_string(kMaxSceneObjects) + " per scene");
+}
+}  // namespace
+
+void check_scene_size(double objects, double frames, double rays_per_frame, double changes_per_frame,
+                      const std::string& where) {
+    check_object_count(objects, where);
     const double bytes = recording_bytes(objects, frames, rays_per_frame, changes_per_frame);
     if (!(bytes <= double(kMaxRecordingBytes))) {
         char text[160];
@@ -37,9 +44,7 @@ double streamed_file_bytes(double objects, double frames, double rays_per_frame,
 
 void check_streamed_scene_size(double objects, double frames, double rays_per_frame, double changes_per_frame,
                                const std::string& where) {
-    if (!(objects <= double(kMaxSceneObjects)))
-        throw InputError(where + ": " + std::to_string(std::uint64_t(std::min(objects, 1e19))) +
-                         " objects, more than the limit of " + std::to_string(kMaxSceneObjects) + " per scene");
+    check_object_count(objects, where);
     char text[200];
     const double frame = recording_bytes(objects, 1, rays_per_frame, changes_per_frame);
     if (!(frame <= double(kMaxRecordingBytes))) {
