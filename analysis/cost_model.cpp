@@ -16,7 +16,7 @@
 #include "core/base/statistics.h"
 #include "core/base/error.h"
 #include "core/base/number_text.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "runner/results_reader.h"
 #include "runner/results_writer.h"
 #include "runner/run_experiment.h"

@@ -12,9 +12,9 @@
 
 #include "core/base/statistics.h"
 #include "analysis/cost_model.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "core/base/number_text.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "runner/results_reader.h"
 
 namespace rcb {

@@ -6,9 +6,9 @@
 
 #include "analysis/linear_fit.h"
 #include "core/base/error.h"
-#include "core/accel/counter_fields.h"
+#include "accel/model/counter_fields.h"
 #include "core/scene/generate/generators.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "runner/calibration.h"
 
 namespace rcb {
@@ -92,7 +92,7 @@ const std::vector<CostTerm>& cost_terms() {
          .traversal = true,
          .breakdown = product},
         // Coherence: what a step costs beyond a predicted one when the ray before took another path
-        // (branches guessed wrong, nodes not in L1); N_MP from core/accel/outcome_predictor.h.
+        // (branches guessed wrong, nodes not in L1); N_MP from accel/model/outcome_predictor.h.
         {.name = "C_MP",
          .target = raycast,
          .counters = {"N_MP"},
@@ -103,7 +103,7 @@ const std::vector<CostTerm>& cost_terms() {
          .traversal = true,
          .breakdown = where_priced},
         // Footprint: what a line costs that the batch fetched from beyond the core's private cache
-        // (N_MISS from core/accel/cache_model.h). Rays spread over a scene pay it; rays aimed at one
+        // (N_MISS from accel/model/cache_model.h). Rays spread over a scene pay it; rays aimed at one
         // region find their cells and nodes cached, whatever N_RB and N_T they count. The large
         // lattice of the calibration pins it.
         {.name = "C_MISS",

@@ -80,7 +80,7 @@ struct FrameCounter {
     /// The calibration micro-scenes' per-ray count of it (runner/calibration.h), nullptr where they
     /// do not count it.
     double CalibrationPoint::*calibrated;
-    /// The counting pass's counter of this name (core/accel/counter_fields.h, by `alias`), looked
+    /// The counting pass's counter of this name (accel/model/counter_fields.h, by `alias`), looked
     /// up once when the table is made; nullptr for the others.
     std::uint64_t Counters::*counted = nullptr;
 };

@@ -6,7 +6,7 @@
 #include <map>
 
 #include "core/base/number_text.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "runner/run_experiment.h"
 #include "runner/results_reader.h"
 

@@ -6,7 +6,7 @@
 #include <tuple>
 
 #include "core/base/statistics.h"
-#include "core/accel/counter_fields.h"
+#include "accel/model/counter_fields.h"
 #include "core/scene/scene.h"
 #include "runner/results_reader.h"
 

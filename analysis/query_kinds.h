@@ -5,7 +5,7 @@
 /// ray–box test, C_T per traversal step. A closest-hit or any-hit query does less work than an
 /// all-hits one, but the work it does should cost the same: its time should follow from its own
 /// counters with the coefficients fitted on the run. A frame with rays of several kinds casts and
-/// counts each kind as a batch of its own (core/sim/simulator.h; database table frame_kind), so
+/// counts each kind as a batch of its own (sim/simulator.h; database table frame_kind), so
 /// each kind has a time and counters to check that against.
 ///
 /// The check: the run's chosen models (fitted on whole frames) price each kind's batch from its

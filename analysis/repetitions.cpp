@@ -3,7 +3,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "runner/results_reader.h"
 
 namespace rcb {
@@ -49,7 +49,7 @@ std::optional<OverRepetitions> parse_repetitions(const std::string& name) {
 
 std::map<FrameKey, double> median_update_per_frame(Database& db, std::int64_t run) {
     std::map<FrameKey, std::vector<double>> times;
-    // Warm-up frames are left out, as in the cell's own median (core/sim/simulator.h).
+    // Warm-up frames are left out, as in the cell's own median (sim/simulator.h).
     for (const FrameTimeRow& r : read_frame_times(db, run))
         times[{r.scene_id, r.config_id, r.frame}].push_back(r.update_ns);
     std::map<FrameKey, double> out;

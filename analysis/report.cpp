@@ -25,8 +25,8 @@
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/base/output_file.h"
-#include "core/accel/registry.h"
-#include "core/sim/simulator.h"
+#include "accel/registry.h"
+#include "sim/simulator.h"
 #include "core/base/number_text.h"
 #include "runner/history.h"
 #include "runner/results_reader.h"
@@ -353,7 +353,7 @@ void tradeoff_charts(Html& h, const Entries& es, const std::string& sc, const st
 }
 
 /// Speed against accuracy: per scene, time per frame against precision and against recall of
-/// every configuration (query levels included: candidates, boxes, shapes; core/accel/query_level.h),
+/// every configuration (query levels included: candidates, boxes, shapes; accel/narrow/narrow_phase.h),
 /// with the Pareto front named. A scene where every configuration is exact gets one line.
 void accuracy_section(Html& h, const Entries& es) {
     h.heading("Speed against accuracy");

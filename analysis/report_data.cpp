@@ -10,11 +10,11 @@
 
 #include "analysis/query_kinds.h"
 #include "core/base/statistics.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "core/base/error.h"
 #include "core/scene/generate/physics.h"
 #include "core/scene/phases.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 
 namespace rcb::report {
 namespace {

@@ -1,6 +1,6 @@
 #pragma once
 /// Scene categories derived from the scenes themselves (the thesis' future work, §7.2): the
-/// features of core/sim/scene_features.h, standardised over the scenes at hand (z-scores, with each
+/// features of sim/scene_features.h, standardised over the scenes at hand (z-scores, with each
 /// standard deviation floored at the feature's "noticeable difference", so noise between seeds of
 /// one generator is not magnified), grouped by k-means with seeded k-means++ starts. k is the one
 /// with the highest mean silhouette over k = 2 … min(8, scenes − 1) among those whose centroids
@@ -22,7 +22,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/sim/scene_features.h"
+#include "sim/scene_features.h"
 #include "runner/results_reader.h"
 
 namespace rcb {

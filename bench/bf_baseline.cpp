@@ -18,7 +18,7 @@
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/scene/recording_io.h"
-#include "core/accel/scan/brute_force.h"
+#include "accel/scan/brute_force.h"
 
 namespace {
 

@@ -18,7 +18,7 @@
 #include "bench/bench_util.h"
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
-#include "core/accel/bvh/linear_bvh.h"
+#include "accel/bvh/linear_bvh.h"
 
 namespace {
 

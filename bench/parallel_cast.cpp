@@ -15,7 +15,7 @@
 #include "bench/bench_util.h"
 #include "core/base/error.h"
 #include "core/scene/recording_io.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 
 namespace {
 

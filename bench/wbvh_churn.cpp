@@ -23,8 +23,8 @@
 #include "bench/bench_util.h"
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
-#include "core/accel/params.h"
-#include "core/accel/bvh/wide_bvh.h"
+#include "accel/interface/params.h"
+#include "accel/bvh/wide_bvh.h"
 
 namespace {
 

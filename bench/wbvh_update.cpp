@@ -34,8 +34,8 @@
 #include <x86intrin.h>
 
 #include "bench/bench_util.h"
-#include "core/accel/bvh/wide_bvh.h"
-#include "core/accel/params.h"
+#include "accel/bvh/wide_bvh.h"
+#include "accel/interface/params.h"
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/scene/recording_io.h"

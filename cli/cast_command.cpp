@@ -5,7 +5,7 @@
 
 #include "core/scene/import/csv.h"
 #include "core/scene/recording_io.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "cli/structure_options.h"

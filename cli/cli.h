@@ -1,7 +1,7 @@
 #pragma once
 /// The whole rcbench command line as a library (rcbench::cli), as Google Benchmark's
 /// benchmark_main and GoogleTest's gtest_main make the harness a library: a program registers its
-/// own structures (core/accel/registry.h register_structure) and hands its arguments to
+/// own structures (accel/registry.h register_structure) and hands its arguments to
 /// rcb::cli::main, and every subcommand (run, fit, tune, advise, report, compare, history, ...)
 /// knows them as it knows rcbench's own. The rcbench executable is this call alone (cli/main.cpp).
 ///

@@ -12,7 +12,7 @@
 
 #include "core/base/error.h"
 #include "core/base/output_file.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "runner/experiment.h"

@@ -36,7 +36,7 @@ auto naming(const RunRef& ref, F f) {
 std::int64_t resolve_ref(Database& db, const RunRef& ref);
 
 /// The cache a run's updates met: "cold" when its experiment file says "cache": "cold"
-/// (core/sim/cache_sweep.h), else "warm".
+/// (sim/cache_sweep.h), else "warm".
 std::string run_cache(Database& db, std::int64_t run);
 
 /// One line on `err` when two runs met different caches (run_cache): their times, the update's

@@ -21,7 +21,7 @@
 #include "core/base/statistics.h"
 #include "core/scene/recording_io.h"
 #include "core/scene/workload.h"
-#include "core/sim/scene_features.h"
+#include "sim/scene_features.h"
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "cli/table.h"

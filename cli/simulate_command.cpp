@@ -5,7 +5,7 @@
 #include <memory>
 
 #include "core/scene/recording_io.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "cli/cli_checks.h"
 #include "cli/commands.h"
 #include "core/base/error.h"

@@ -7,7 +7,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include "core/accel/params.h"
+#include "accel/interface/params.h"
 
 namespace rcb {
 

@@ -2,7 +2,7 @@
 #include <iostream>
 #include <memory>
 
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "cli/commands.h"
 #include "cli/table.h"
 

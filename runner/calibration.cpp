@@ -8,10 +8,10 @@
 #include <functional>
 #include <random>
 
-#include "core/accel/counter_fields.h"
+#include "accel/model/counter_fields.h"
 #include "core/base/error.h"
 #include "core/truth/hit_lists.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "runner/store.h"
 
 namespace rcb {

@@ -23,7 +23,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "runner/sqlite.h"
 
 namespace rcb {
@@ -42,7 +42,7 @@ std::uint64_t parse_cache_size(const std::string& text, const std::string& where
 /// gives none (a machine without sysfs); a malformed entry is an InputError naming its file.
 std::vector<CacheLevel> read_cache_sizes(const std::string& dir = "/sys/devices/system/cpu/cpu0/cache");
 
-/// The buffer a cold-cache run reads before each update (core/sim/cache_sweep.h): twice the
+/// The buffer a cold-cache run reads before each update (sim/cache_sweep.h): twice the
 /// largest of `caches`, so no line of a smaller working set survives a sweep whatever the
 /// replacement policy; 64 MiB when the machine reports no cache.
 std::uint64_t cold_sweep_bytes(const std::vector<CacheLevel>& caches = read_cache_sizes());
@@ -54,8 +54,8 @@ struct CalibrationPoint {
     double n_rb = 0, n_t = 0;  ///< per ray
     double ns_per_ray = 0;     ///< median over the repeats
     double mad = 0;            ///< median absolute deviation over the repeats
-    double n_mp = 0;           ///< steps the history predictor missed, per ray (core/accel/outcome_predictor.h)
-    /// Lines the simulated private cache fetched, per ray (core/accel/cache_model.h), for each timed
+    double n_mp = 0;           ///< steps the history predictor missed, per ray (accel/model/outcome_predictor.h)
+    /// Lines the simulated private cache fetched, per ray (accel/model/cache_model.h), for each timed
     /// batch as it met the cache: after the batch before it.
     double n_miss = 0;
     double n_tp = 0;   ///< objects reported per ray: prices C_HIT apart from C_RB

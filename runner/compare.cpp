@@ -9,7 +9,7 @@
 #include <tuple>
 
 #include "core/base/error.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "runner/store.h"
 
 namespace rcb {

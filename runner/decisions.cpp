@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/base/error.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "runner/results_reader.h"
 #include "runner/run_experiment.h"
 

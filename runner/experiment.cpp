@@ -16,7 +16,7 @@
 #include "core/base/error.h"
 #include "core/base/json_input.h"
 #include "core/base/number_text.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "runner/repetition_plan.h"
 #include "runner/scene_windows.h"
 

@@ -12,7 +12,7 @@
 
 #include "core/scene/generate/generators.h"
 #include "core/base/json_input.h"
-#include "core/accel/params.h"
+#include "accel/interface/params.h"
 #include "core/scene/scene.h"
 
 namespace rcb {
@@ -63,7 +63,7 @@ struct Experiment {
     std::uint32_t threads = 1;  ///< TBB parallelism for the run (verification, threaded structures)
     bool verify = true;
     /// "cache": "cold": every frame's update starts from caches swept of the structure
-    /// (core/sim/cache_sweep.h); "warm", the default, is the thesis' loop.
+    /// (sim/cache_sweep.h); "warm", the default, is the thesis' loop.
     bool cold_cache = false;
     std::vector<SceneSpec> scenes;
     std::vector<ConfigSpec> configs;

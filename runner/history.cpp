@@ -8,7 +8,7 @@
 #include <tuple>
 
 #include "core/base/error.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "runner/compare.h"
 #include "runner/store.h"
 

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "core/accel/counter_fields.h"
+#include "accel/model/counter_fields.h"
 #include "runner/sqlite.h"
 #include "runner/store.h"
 
@@ -201,7 +201,7 @@ std::vector<FrameSeriesRow> read_frame_series(Database& db, std::int64_t cell) {
 }
 
 std::vector<FrameTimeRow> read_frame_times(Database& db, std::int64_t run) {
-    // Warm-up frames are left out, as in the cell's own median (core/sim/simulator.h).
+    // Warm-up frames are left out, as in the cell's own median (sim/simulator.h).
     Statement s = prepare_for_run(db,
                                   "SELECT cell.scene_id, cell.config_id, frame.frame, frame.raycast_ns, "
                                   "frame.update_ns FROM frame JOIN cell ON cell.id = frame.cell_id WHERE "

@@ -202,7 +202,7 @@ CREATE VIEW cell_summary AS
               JOIN scene ON scene.id = cell.scene_id JOIN config ON config.id = cell.config_id
               LEFT JOIN cell_state ON cell_state.cell_id = cell.id;
 )sql",
-        // 4 → 5: scene features (core/sim/scene_features.h) and the categories derived from them by
+        // 4 → 5: scene features (sim/scene_features.h) and the categories derived from them by
         // clustering a run's scenes (analysis/scene_categories.h; thesis §7.2).
         R"sql(
 CREATE TABLE scene_feature (
@@ -259,7 +259,7 @@ ALTER TABLE fit ADD COLUMN loso_error REAL;
 ALTER TABLE fit ADD COLUMN notes TEXT NOT NULL DEFAULT '';
 )sql",
         // 6 → 7: accuracy against the shapes' truth and the narrow phase's counters per frame
-        // (core/sim/simulator.h FrameResult; thesis eq. 5.3). Frames stored before this version are of
+        // (sim/simulator.h FrameResult; thesis eq. 5.3). Frames stored before this version are of
         // box-only scenes at the box level, where the shapes' truth is the boxes' truth: their
         // accuracy follows from the mismatch counts they have (returned: distinct objects
         // reported; correct: those not clearly missed; relevant: those plus the missed ones), and
@@ -275,13 +275,13 @@ ALTER TABLE tuning ADD COLUMN accuracy TEXT NOT NULL DEFAULT 'exact';
 UPDATE frame SET returned = max(hits - duplicate, 0), correct = max(hits - duplicate - extra, 0),
                  relevant = max(hits - duplicate - extra, 0) + missed;
 )sql",
-        // 7 → 8: the node boxes a tree's traversal hit per frame (core/accel/counters.h n_th; the cost
+        // 7 → 8: the node boxes a tree's traversal hit per frame (accel/model/counters.h n_th; the cost
         // model's C_TH). 0 where not counted: grids, peers, and frames stored before.
         R"sql(
 ALTER TABLE frame ADD COLUMN n_th INTEGER NOT NULL DEFAULT 0;
 )sql",
         // 8 → 9: the traversal steps whose outcome a history predictor missed, per frame and per
-        // calibration micro-scene (core/accel/outcome_predictor.h n_mp; the cost model's C_MP). 0 where
+        // calibration micro-scene (accel/model/outcome_predictor.h n_mp; the cost model's C_MP). 0 where
         // not counted: brute force, Embree, and frames stored before.
         R"sql(
 ALTER TABLE frame ADD COLUMN n_mp INTEGER NOT NULL DEFAULT 0;
@@ -334,7 +334,7 @@ CREATE TABLE model_validation (
 );
 )sql",
         // 10 → 11: per query kind, a frame's rays cast as their own timed batch and counted on their
-        // own (core/sim/simulator.h KindResult): stored only for frames with a ray of another kind
+        // own (sim/simulator.h KindResult): stored only for frames with a ray of another kind
         // than all, so databases of all-hits runs do not grow. Rays, times, hits and counters sum
         // to the frame row's.
         R"sql(
@@ -378,7 +378,7 @@ CREATE TABLE cell_interval (
 );
 )sql",
         // 12 → 13: the lines a simulated private cache fetched for a frame's batch, and for each
-        // kind's (core/accel/cache_model.h n_miss; the cost model's C_MISS). 0 where not counted:
+        // kind's (accel/model/cache_model.h n_miss; the cost model's C_MISS). 0 where not counted:
         // brute force, the peers, and frames stored before.
         R"sql(
 ALTER TABLE frame ADD COLUMN n_miss INTEGER NOT NULL DEFAULT 0;

@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "core/base/statistics.h"
-#include "core/sim/scene_features.h"
-#include "core/sim/simulator.h"
+#include "sim/scene_features.h"
+#include "sim/simulator.h"
 #include "runner/experiment.h"
 #include "runner/sqlite.h"
 

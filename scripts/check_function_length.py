@@ -17,7 +17,7 @@ import sys
 import clang.cindex as ci
 
 ci.Config.set_library_file("/usr/lib/llvm-14/lib/libclang.so.1")
-FOLDERS = ("core/", "runner/", "analysis/", "tuner/", "cli/", "bench/")
+FOLDERS = ("core/", "accel/", "sim/", "runner/", "analysis/", "tuner/", "cli/", "bench/")
 EXEMPT = {("runner/store.cpp", "migrations")}  # the schema migrations: SQL text as data
 KINDS = {ci.CursorKind.FUNCTION_DECL, ci.CursorKind.CXX_METHOD, ci.CursorKind.CONSTRUCTOR,
          ci.CursorKind.DESTRUCTOR, ci.CursorKind.FUNCTION_TEMPLATE, ci.CursorKind.LAMBDA_EXPR,

@@ -10,7 +10,7 @@
 #include <sstream>
 
 #include "core/base/error.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "testing/differential_settings.h"
 
 namespace rcb::test {

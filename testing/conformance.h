@@ -28,10 +28,10 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "core/base/random.h"
 #include "core/scene/scene.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 
 namespace rcb::test {
 

@@ -11,7 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 
 namespace rcb::fuzz {
 

@@ -8,9 +8,9 @@
 
 #include "analysis/charts.h"
 #include "core/base/error.h"
-#include "core/accel/query_level.h"
+#include "accel/narrow/narrow_phase.h"
 #include "core/scene/recording_io.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "runner/experiment.h"
 #include "runner/merge.h"
 #include "runner/store.h"

@@ -6,8 +6,8 @@
 
 #include <cmath>
 
-#include "core/accel/query_level.h"
-#include "core/accel/registry.h"
+#include "accel/narrow/narrow_phase.h"
+#include "accel/registry.h"
 #include "core/base/error.h"
 #include "tuner/advise.h"
 

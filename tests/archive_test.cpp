@@ -9,7 +9,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "core/base/random.h"
 #include "runner/archive.h"
 #include "runner/store.h"

@@ -9,7 +9,7 @@
 #include <limits>
 #include <vector>
 
-#include "core/accel/bvh/binned_sah.h"
+#include "accel/bvh/binned_sah.h"
 #include "core/base/random.h"
 
 namespace rcb {

@@ -4,8 +4,8 @@
 
 #include "core/truth/ground_truth.h"
 #include "core/base/random.h"
-#include "core/accel/registry.h"
-#include "core/accel/scan/brute_force.h"
+#include "accel/registry.h"
+#include "accel/scan/brute_force.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

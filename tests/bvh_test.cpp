@@ -11,10 +11,10 @@
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/base/random.h"
-#include "core/accel/registry.h"
-#include "core/accel/scan/brute_force.h"
-#include "core/accel/bvh/dynamic_bvh.h"
-#include "core/accel/bvh/linear_bvh.h"
+#include "accel/registry.h"
+#include "accel/scan/brute_force.h"
+#include "accel/bvh/dynamic_bvh.h"
+#include "accel/bvh/linear_bvh.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

@@ -4,9 +4,9 @@
 
 #include <vector>
 
-#include "core/accel/cache_model.h"
-#include "core/accel/counters.h"
-#include "core/accel/registry.h"
+#include "accel/model/cache_model.h"
+#include "accel/model/counters.h"
+#include "accel/registry.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

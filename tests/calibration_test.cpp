@@ -13,7 +13,7 @@
 
 #include "analysis/cost_model.h"
 #include "core/base/error.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "runner/calibration.h"
 #include "runner/experiment.h"
 #include "runner/merge.h"

@@ -2,7 +2,7 @@
 // the whole command line (rcbench::cli, cli/cli.h). tests/cli_test.cpp runs it beside the rcbench
 // executable: the same one-line errors, its structure in experiments, its runs under its own name.
 #include "cli/cli.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "tests/test_support.h"
 
 int main(int argc, char** argv) {

@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "core/accel/registry.h"
-#include "core/accel/structure.h"
+#include "accel/registry.h"
+#include "accel/interface/structure.h"
 #include "testing/conformance.h"
 #include "tests/test_support.h"
 

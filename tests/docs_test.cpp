@@ -226,8 +226,8 @@ TEST(Docs, EverySectionTheSourcesCiteExists) {
     std::vector<std::string> missing;
     std::map<std::string, std::set<std::string>> sections;
     const fs::path root(RCBENCH_SOURCE_DIR);
-    for (const char* dir :
-         {"analysis", "cli", "core", "runner", "tuner", "bench", "docs", "experiments", "scripts", "tests"}) {
+    for (const char* dir : {"analysis", "cli", "core", "accel", "sim", "runner", "tuner", "bench", "docs",
+                            "experiments", "scripts", "tests"}) {
         for (const auto& e : fs::recursive_directory_iterator(root / dir)) {
             if (!e.is_regular_file()) continue;
             const std::string ext = e.path().extension().string();
@@ -262,8 +262,8 @@ TEST(Docs, EverySectionTheSourcesCiteExists) {
 }
 
 // docs/architecture.md's layout table names every folder a newcomer meets: each top-level folder
-// (but the hidden ones, build trees, cmake/ and fetched data/) and every folder under core/, so a
-// folder that appears is described where the layout is read.
+// (but the hidden ones, build trees, cmake/ and fetched data/) and every folder under the stages
+// core/, accel/ and sim/, so a folder that appears is described where the layout is read.
 TEST(Docs, TheLayoutTableNamesEveryFolder) {
     const std::set<std::string> named =
         first_groups(read_source("docs/architecture.md"), {std::regex(R"(^\| `([a-z_/]+/)` \|)")});
@@ -280,12 +280,13 @@ TEST(Docs, TheLayoutTableNamesEveryFolder) {
         if (!e.is_directory() || name.front() == '.' || name.rfind("build", 0) == 0 || skipped.count(name)) continue;
         check(e.path());
     }
-    for (const auto& e : fs::recursive_directory_iterator(root / "core")) {
-        if (!e.is_directory()) continue;
-        const std::string name = e.path().filename().string();
-        if (name == "CMakeFiles") continue;
-        check(e.path());
-    }
+    for (const char* stage : {"core", "accel", "sim"})
+        for (const auto& e : fs::recursive_directory_iterator(root / stage)) {
+            if (!e.is_directory()) continue;
+            const std::string name = e.path().filename().string();
+            if (name == "CMakeFiles") continue;
+            check(e.path());
+        }
     EXPECT_TRUE(missing.empty()) << [&] {
         std::string s = "folders docs/architecture.md's layout table does not name:";
         for (const std::string& m : missing) s += " " + m;

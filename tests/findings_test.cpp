@@ -9,7 +9,7 @@
 #include <tuple>
 
 #include "analysis/findings.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "runner/store.h"
 #include "tests/test_support.h"
 

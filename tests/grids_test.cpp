@@ -7,10 +7,10 @@
 
 #include "core/base/error.h"
 #include "core/base/random.h"
-#include "core/accel/counters.h"
-#include "core/accel/registry.h"
-#include "core/accel/grid/hash_grid.h"
-#include "core/accel/grid/uniform_grid.h"
+#include "accel/model/counters.h"
+#include "accel/registry.h"
+#include "accel/grid/hash_grid.h"
+#include "accel/grid/uniform_grid.h"
 #include "core/truth/hit_lists.h"
 #include "tests/test_scenes.h"
 

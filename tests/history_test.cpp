@@ -16,7 +16,7 @@
 #include "analysis/charts.h"
 #include "analysis/report.h"
 #include "core/base/error.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "runner/history.h"
 #include "runner/run_experiment.h"
 #include "runner/store.h"

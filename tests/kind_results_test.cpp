@@ -17,12 +17,12 @@
 #include "analysis/report.h"
 #include "core/base/statistics.h"
 #include "analysis/validation.h"
-#include "core/accel/counter_fields.h"
-#include "core/accel/registry.h"
+#include "accel/model/counter_fields.h"
+#include "accel/registry.h"
 #include "core/base/number_text.h"
 #include "core/base/random.h"
 #include "core/scene/generate/generators.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "runner/experiment.h"
 #include "runner/merge.h"
 #include "runner/run_experiment.h"
@@ -150,7 +150,7 @@ TEST(KindResults, AFrameOfOneKindIsCastAndCountedAsOneBatchAsBefore) {
 }
 
 TEST(KindResults, EveryCounterIsReadThroughTheCoreList) {
-    // core/accel/counter_fields.h (kCounterFields) names each counter once: the simulator's JSON (per
+    // accel/model/counter_fields.h (kCounterFields) names each counter once: the simulator's JSON (per
     // frame and per kind) and the cost model's observations read it from there.
     Recording r = test::generated_scene("uniform", 1200, 3, 4);
     r.frames[0].kinds.assign(r.frames[0].rays.size(), QueryKind::any);

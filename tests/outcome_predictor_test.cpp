@@ -5,10 +5,10 @@
 #include <algorithm>
 #include <vector>
 
-#include "core/accel/counters.h"
-#include "core/accel/outcome_predictor.h"
+#include "accel/model/counters.h"
+#include "accel/model/outcome_predictor.h"
 #include "core/base/random.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

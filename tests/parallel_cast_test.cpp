@@ -15,18 +15,18 @@
 #include <thread>
 #include <vector>
 
-#include "core/accel/counter_fields.h"
-#include "core/accel/peers/bullet_dbvt.h"
-#include "core/accel/peers/embree_boxes.h"
-#include "core/accel/registry.h"
-#include "core/accel/scan/brute_force.h"
+#include "accel/model/counter_fields.h"
+#include "accel/peers/bullet_dbvt.h"
+#include "accel/peers/embree_boxes.h"
+#include "accel/registry.h"
+#include "accel/scan/brute_force.h"
 #include "core/base/error.h"
 #include "core/base/random.h"
-#include "core/accel/bvh/dynamic_bvh.h"
-#include "core/accel/grid/hash_grid.h"
-#include "core/accel/bvh/linear_bvh.h"
-#include "core/accel/grid/uniform_grid.h"
-#include "core/accel/bvh/wide_bvh.h"
+#include "accel/bvh/dynamic_bvh.h"
+#include "accel/grid/hash_grid.h"
+#include "accel/bvh/linear_bvh.h"
+#include "accel/grid/uniform_grid.h"
+#include "accel/bvh/wide_bvh.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

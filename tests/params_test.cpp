@@ -1,10 +1,10 @@
 // Typed parameters: JSON in and out, and validation messages with the JSON path.
 #include <gtest/gtest.h>
 
-#include "core/accel/bvh/dynamic_bvh.h"
-#include "core/accel/bvh/wide_bvh.h"
-#include "core/accel/params.h"
-#include "core/accel/registry.h"
+#include "accel/bvh/dynamic_bvh.h"
+#include "accel/bvh/wide_bvh.h"
+#include "accel/interface/params.h"
+#include "accel/registry.h"
 #include "tests/test_support.h"
 
 namespace rcb {

@@ -15,10 +15,10 @@
 #include "core/base/random.h"
 #include "core/scene/generate/generators.h"
 #include "core/scene/recording_io.h"
-#include "core/accel/peers/bullet_dbvt.h"
-#include "core/accel/peers/embree_boxes.h"
-#include "core/accel/peers/ode_spaces.h"
-#include "core/accel/registry.h"
+#include "accel/peers/bullet_dbvt.h"
+#include "accel/peers/embree_boxes.h"
+#include "accel/peers/ode_spaces.h"
+#include "accel/registry.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

@@ -7,13 +7,13 @@
 #include <algorithm>
 #include <cmath>
 
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/scene/generate/physics.h"
 #include "core/scene/phases.h"
 #include "core/scene/recording_io.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "runner/experiment.h"
 #include "tests/subprocess.h"
 #include "tests/test_scenes.h"

@@ -5,11 +5,11 @@
 #include <string>
 #include <vector>
 
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/scene/recording_io.h"
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "core/truth/ground_truth.h"
 #include "tests/test_scenes.h"
 

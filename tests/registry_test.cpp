@@ -6,8 +6,8 @@
 #include <vector>
 
 #include "core/base/error.h"
-#include "core/accel/registry.h"
-#include "core/sim/simulator.h"
+#include "accel/registry.h"
+#include "sim/simulator.h"
 #include "tests/test_scenes.h"
 #include "tests/test_support.h"
 

@@ -13,7 +13,7 @@
 
 #include "analysis/charts.h"
 #include "analysis/report.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "runner/experiment.h"
 #include "runner/run_experiment.h"
 #include "runner/store.h"

@@ -15,7 +15,7 @@
 #include "core/base/error.h"
 #include "core/base/number_text.h"
 #include "core/base/random.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "core/scene/recording_io.h"
 #include "analysis/cost_model.h"
 #include "runner/compare.h"

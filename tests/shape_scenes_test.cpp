@@ -11,7 +11,7 @@
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/scene/recording_io.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "runner/experiment.h"
 #include "tests/subprocess.h"
 #include "tests/test_scenes.h"

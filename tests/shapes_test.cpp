@@ -8,9 +8,9 @@
 
 #include "core/base/error.h"
 #include "core/truth/ground_truth.h"
-#include "core/accel/query_level.h"
+#include "accel/narrow/narrow_phase.h"
 #include "core/scene/recording_io.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "core/scene/shape.h"
 #include "tests/test_scenes.h"
 

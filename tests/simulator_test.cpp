@@ -4,10 +4,10 @@
 
 #include <algorithm>
 
-#include "core/accel/registry.h"
-#include "core/sim/cache_sweep.h"
-#include "core/sim/simulator.h"
-#include "core/accel/scan/brute_force.h"
+#include "accel/registry.h"
+#include "sim/cache_sweep.h"
+#include "sim/simulator.h"
+#include "accel/scan/brute_force.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

@@ -15,11 +15,11 @@
 
 #include "core/scene/generate/generators.h"
 #include "core/scene/recording_io.h"
-#include "core/accel/registry.h"
-#include "core/accel/bvh/dynamic_bvh.h"
-#include "core/accel/grid/hash_grid.h"
-#include "core/accel/bvh/linear_bvh.h"
-#include "core/accel/grid/uniform_grid.h"
+#include "accel/registry.h"
+#include "accel/bvh/dynamic_bvh.h"
+#include "accel/grid/hash_grid.h"
+#include "accel/bvh/linear_bvh.h"
+#include "accel/grid/uniform_grid.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {

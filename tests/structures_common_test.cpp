@@ -1,4 +1,4 @@
-// What several structures share (core/accel/common/, core/accel/grid/grid.h, core/accel/bvh/bvh_traversal.h): the loop
+// What several structures share (accel/common/, accel/grid/grid.h, accel/bvh/bvh_traversal.h): the loop
 // over a range of cells, the outlier trim, the slot tables in both layouts, the peers' exact collector, and
 // validate()'s one way to fail.
 #include <gtest/gtest.h>
@@ -8,11 +8,11 @@
 #include <string>
 #include <vector>
 
-#include "core/accel/structure.h"
-#include "core/accel/grid/grid.h"
-#include "core/accel/common/exact_collector.h"
-#include "core/accel/common/outlier_trim.h"
-#include "core/accel/common/slot_boxes.h"
+#include "accel/interface/structure.h"
+#include "accel/grid/grid.h"
+#include "accel/common/exact_collector.h"
+#include "accel/common/outlier_trim.h"
+#include "accel/common/slot_boxes.h"
 
 namespace rcb {
 namespace {

@@ -6,7 +6,7 @@
 #include <random>
 
 #include "core/base/random.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 
 namespace rcb::test {
 SimulationResult expect_matches_ground_truth(const Recording& r, const std::string& structure,

@@ -15,8 +15,8 @@
 
 #include "core/base/random.h"
 #include "core/scene/scene.h"
-#include "core/sim/simulator.h"
-#include "core/accel/structure.h"
+#include "sim/simulator.h"
+#include "accel/interface/structure.h"
 #include "runner/experiment.h"
 #include "testing/conformance.h"
 #include "tests/test_support.h"

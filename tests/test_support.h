@@ -13,8 +13,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/accel/registry.h"
-#include "core/accel/structure.h"
+#include "accel/registry.h"
+#include "accel/interface/structure.h"
 #include "core/base/geometry.h"
 #include "core/base/random.h"
 #include "testing/conformance.h"

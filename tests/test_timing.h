@@ -6,7 +6,7 @@
 #include <cmath>
 #include <cstdint>
 
-#include "core/sim/simulator.h"
+#include "sim/simulator.h"
 #include "tuner/tuning.h"
 
 namespace rcb::test {

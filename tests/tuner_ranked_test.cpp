@@ -8,7 +8,7 @@
 #include <cmath>
 #include <set>
 
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "tests/test_scenes.h"
 #include "tests/test_timing.h"
 #include "tuner/search.h"

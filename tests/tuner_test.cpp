@@ -13,7 +13,7 @@
 #include "core/base/json_input.h"
 #include "core/base/number_text.h"
 #include "core/base/random.h"
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "tests/test_scenes.h"
 #include "tests/test_timing.h"
 #include "tuner/run_tuning.h"

@@ -20,9 +20,9 @@
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "core/base/random.h"
-#include "core/accel/registry.h"
-#include "core/accel/scan/brute_force.h"
-#include "core/accel/bvh/wide_bvh.h"
+#include "accel/registry.h"
+#include "accel/scan/brute_force.h"
+#include "accel/bvh/wide_bvh.h"
 #include "core/truth/ground_truth.h"
 #include "tests/test_scenes.h"
 

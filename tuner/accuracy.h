@@ -9,7 +9,7 @@
 ///     precision>=P   correct / returned against the shapes' truth at least P on every scene
 ///
 /// The thesis measures speed only at the exact box level (§6); the query levels of
-/// core/accel/query_level.h make the broad phase's candidates and the narrow phase choices with a cost
+/// accel/narrow/narrow_phase.h make the broad phase's candidates and the narrow phase choices with a cost
 /// and an accuracy (eq. 5.2–5.3), and these constraints say which of them a caller accepts.
 
 #include <cstdint>

@@ -9,9 +9,9 @@
 #include "core/base/error.h"
 #include "core/base/json_input.h"
 #include "core/base/number_text.h"
-#include "core/accel/query_level.h"
-#include "core/accel/registry.h"
-#include "core/sim/simulator.h"
+#include "accel/narrow/narrow_phase.h"
+#include "accel/registry.h"
+#include "sim/simulator.h"
 #include "runner/experiment.h"
 
 namespace rcb {

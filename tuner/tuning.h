@@ -29,8 +29,8 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/cost_model.h"
-#include "core/accel/counters.h"
-#include "core/sim/simulator.h"
+#include "accel/model/counters.h"
+#include "sim/simulator.h"
 #include "runner/experiment.h"
 #include "tuner/accuracy.h"
 #include "tuner/search.h"
@@ -68,7 +68,7 @@ struct TuneSpec {
 };
 
 /// Sets the spec's accuracy constraint. One that allows inexact answers adds the query level
-/// (core/accel/query_level.h) to every structure's search space that does not name it already: the
+/// (accel/narrow/narrow_phase.h) to every structure's search space that does not name it already: the
 /// candidate level and the narrow phase then compete with the box level on speed.
 void set_accuracy(TuneSpec& spec, const AccuracyConstraint& accuracy);
 
@@ -134,7 +134,7 @@ std::optional<UpdatePrices> update_prices(const StructureModels& models);
 /// A counting replay of a configuration on a category (no timed rays, no verification): what
 /// predict_cost prices. One replay serves every use of a configuration's counts (the exhaustive
 /// check prices each configuration and compares their counts from the same replay). Given update
-/// prices it is untimed (untimed_replay, core/sim/simulator.h): each frame's update is predicted
+/// prices it is untimed (untimed_replay, sim/simulator.h): each frame's update is predicted
 /// from its counts. Without, the replay times its update and says so (`update_timed`).
 struct CountingReplay {
     /// A measured frame that cast rays: its update (predicted, or timed) and the counted rays.

@@ -21,9 +21,9 @@
 #include <core/base/error.h>
 #include <core/scene/recorder.h>
 #include <core/scene/recording_io.h>
-#include <core/accel/registry.h>
-#include <core/sim/simulator.h>
-#include <core/accel/structure.h>
+#include <accel/registry.h>
+#include <sim/simulator.h>
+#include <accel/interface/structure.h>
 
 #include "sweep_list.h"
 

@@ -4,7 +4,7 @@
 //
 //     engine_rcbench run quick_sweep.json --db sweep.db && engine_rcbench fit sweep.db
 #include <cli/cli.h>
-#include <core/accel/registry.h>
+#include <accel/registry.h>
 
 #include "sweep_list.h"
 

@@ -12,7 +12,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include <core/accel/structure.h>
+#include <accel/interface/structure.h>
 
 namespace engine {
 

@@ -17,8 +17,8 @@
 
 #include "core/base/error.h"
 #include "core/scene/recording_io.h"
-#include "core/accel/registry.h"
-#include "core/sim/simulator.h"
+#include "accel/registry.h"
+#include "sim/simulator.h"
 #include "testing/differential_settings.h"
 
 namespace {

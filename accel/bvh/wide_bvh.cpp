@@ -1,0 +1,726 @@
+#include "accel/bvh/wide_bvh.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include <unistd.h>
+
+namespace rcb {
+
+namespace {
+
+/// Half the surface area in double (boxes near the coordinate limit overflow float); 0 for the
+/// empty box.
+double area(const Aabb& b) { return sah_area<double>(b); }
+
+/// The centre without overflow near the coordinate limit.
+Vec3 centroid(const Aabb& b) { return WideBvhBuilder::centroid(b); }
+
+/// A move's share of a change for the rebuild trigger (Params::rebuild_after): how far its
+/// farthest face moved, in units of the object's longest edge (before or after, the longer),
+/// capped at one. A step much smaller than the object leaves the tree's partition as good as it
+/// was (the refit's growth is what rebuild_ratio watches); a move by its own size or more is as
+/// stale as a removal and an insertion. In double: boxes near the coordinate limit overflow float.
+double move_share(const Aabb& from, const Aabb& to) {
+#if defined(__AVX2__)
+    // The three axes at once, in double as below (one move each frame for every moving body: the
+    // scalar loop was half of a move's instructions). The fourth lane repeats z. Exact: the
+    // differences and maxima are the scalar ones, for boxes without NaN.
+    auto wide = [](const Vec3& v) { return _mm256_cvtps_pd(_mm_setr_ps(v.x, v.y, v.z, v.z)); };
+    const __m256d f_lo = wide(from.min), f_hi = wide(from.max), t_lo = wide(to.min), t_hi = wide(to.max);
+    const __m256d sign = _mm256_set1_pd(-0.0);
+    __m256d m = _mm256_max_pd(_mm256_andnot_pd(sign, _mm256_sub_pd(t_lo, f_lo)),
+                              _mm256_andnot_pd(sign, _mm256_sub_pd(t_hi, f_hi)));
+    __m256d e = _mm256_max_pd(_mm256_sub_pd(f_hi, f_lo), _mm256_sub_pd(t_hi, t_lo));
+    m = _mm256_max_pd(m, _mm256_permute2f128_pd(m, m, 1));
+    e = _mm256_max_pd(e, _mm256_permute2f128_pd(e, e, 1));
+    const double shift = _mm256_cvtsd_f64(_mm256_max_pd(m, _mm256_permute_pd(m, 5)));
+    const double size = std::max(0.0, _mm256_cvtsd_f64(_mm256_max_pd(e, _mm256_permute_pd(e, 5))));
+#else
+    double shift = 0, size = 0;
+    for (int a = 0; a < 3; ++a) {
+        shift = std::max({shift, std::abs(double(to.min[a]) - double(from.min[a])),
+                          std::abs(double(to.max[a]) - double(from.max[a]))});
+        size = std::max({size, double(from.max[a]) - double(from.min[a]), double(to.max[a]) - double(to.min[a])});
+    }
+#endif
+    if (shift == 0) return 0.0;
+    return shift < size ? shift / size : 1.0;  // a point's (size 0) or a far jump: a whole change
+}
+
+/// A move or remove of a uid the tree does not hold: the caller's error, as std::out_of_range (as
+/// the map's at() threw before the flat index).
+[[noreturn, gnu::cold, gnu::noinline]] void absent_uid(const char* what, Uid uid) {
+    throw std::out_of_range(std::string("wbvh: ") + what + " of uid " + std::to_string(uid) + ", not in the tree");
+}
+
+}  // namespace
+
+void WideBvh::Block::clear(int k) {
+    constexpr float inf = std::numeric_limits<float>::infinity();
+    for (int a = 0; a < 3; ++a) bound[a][k] = inf, bound[3 + a][k] = -inf;
+    ref[k] = kNone;
+}
+
+Aabb WideBvh::Block::bounds() const {
+    // All 8 lanes, branch-free: unused lanes hold the empty box, the identity of the union.
+    Aabb b;
+#if defined(__AVX2__)
+    // Each row's 8 lanes reduced in three steps (halves, pairs of pairs, pairs): min and max are
+    // exact, so this is the scalar loop's answer for boxes without NaN (which no box holds).
+    auto reduce = [](__m256 v, auto op) {
+        v = op(v, _mm256_permute2f128_ps(v, v, 1));
+        v = op(v, _mm256_shuffle_ps(v, v, 0x4e));
+        v = op(v, _mm256_shuffle_ps(v, v, 0xb1));
+        return _mm256_cvtss_f32(v);
+    };
+    auto lo = [](__m256 x, __m256 y) { return _mm256_min_ps(x, y); };
+    auto hi = [](__m256 x, __m256 y) { return _mm256_max_ps(x, y); };
+    for (int a = 0; a < 3; ++a) {
+        b.min[a] = reduce(_mm256_load_ps(bound[a]), lo);
+        b.max[a] = reduce(_mm256_load_ps(bound[3 + a]), hi);
+    }
+#else
+    for (int a = 0; a < 3; ++a) {
+        float lo = bound[a][0], hi = bound[3 + a][0];
+        for (int k = 1; k < kLanes; ++k) lo = std::min(lo, bound[a][k]), hi = std::max(hi, bound[3 + a][k]);
+        b.min[a] = lo, b.max[a] = hi;
+    }
+#endif
+    return b;
+}
+
+WideBvh::WideBvh() : WideBvh(Params{}) {}
+
+WideBvh::WideBvh(const Params& p)
+    : params_(p),
+      push_(parse_choice<Push>(kPushChoices, p.push, "wbvh push")),
+      queue_mode_(parse_choice<Queue>(kQueueChoices, p.queue_moves, "wbvh queue_moves")) {
+    set_cast_threads(p.cast_threads);
+}
+
+std::uint32_t WideBvh::allocate() {
+    std::uint32_t b;
+    if (free_ != kNone) {
+        b = free_;
+        free_ = blocks_[b].parent;
+        --free_count_;
+    } else {
+        blocks_.emplace_back();
+        b = std::uint32_t(blocks_.size() - 1);
+    }
+    Block& block = blocks_[b];
+    for (int k = 0; k < kLanes; ++k) block.clear(k);
+    block.parent = kNone;
+    block.depth = 0;
+    block.lane_in_parent = 0;
+    block.count = 0;
+    block.leaf = false;
+    block.dirty = false;
+    ++writes_;
+    return b;
+}
+
+void WideBvh::release(std::uint32_t b) {
+    Block& block = blocks_[b];
+    if (block.leaf) --leaves_;
+    block.count = 0;
+    block.leaf = false;
+    block.dirty = false;
+    block.parent = free_;
+    free_ = b;
+    ++free_count_;
+    ++writes_;
+}
+
+void WideBvh::mark(std::uint32_t b) {
+    changed_ = true;
+    if (blocks_[b].dirty) return;
+    blocks_[b].dirty = true;
+    dirty_.push_back(b);
+}
+
+void WideBvh::set_lane(std::uint32_t b, int k, const Aabb& box) {
+    Block& block = blocks_[b];
+    if (!block.leaf) {
+        const double w = weight(block.ref[k]), before = area(block.box(k)) * w, after = area(box) * w;
+        sah_sum_ += after - before;
+        sah_largest_term_ = std::max({sah_largest_term_, before, after});
+    }
+    block.set(k, box);
+    ++writes_;
+}
+
+// ---- build ----
+
+void WideBvh::build(std::span<const Object> objects) {
+    // A rebuild in progress is dropped, and queued moves: the new contents replace everything.
+    rebuild_.reset();
+    pending_.clear();
+    changes_ = 0;
+    weighted_changes_ = age_ = 0;
+    commits_ = 0;
+    std::vector<SahItem>& items = builder_.items();
+    items.clear();
+    items.reserve(objects.size());
+    Uid max_uid = 0;
+    for (const Object& o : objects) {
+        items.push_back({o.box, centroid(o.box), o.uid});
+        max_uid = std::max(max_uid, o.uid);
+    }
+    where_.clear();
+    where_.reserve(objects.size(), max_uid);
+    rebuilds_ = splits_ = reinserts_ = 0;
+    builder_.begin(*this);
+    builder_.step(*this, std::numeric_limits<std::uint64_t>::max());
+    builder_.end(*this);
+    rebuild_.estimate(builder_.work(), objects.size());
+    resolve_queue();
+}
+
+void WideBvh::rebuild() {
+    std::vector<SahItem>& items = builder_.items();
+    items.clear();
+    items.reserve(where_.size());
+    for (const Block& b : blocks_)
+        if (b.leaf)
+            for (int k = 0; k < b.count; ++k) items.push_back({b.box(k), centroid(b.box(k)), Uid(b.ref[k])});
+    builder_.begin(*this);
+    builder_.step(*this, std::numeric_limits<std::uint64_t>::max());
+    builder_.end(*this);
+    ++rebuilds_;
+    ++counts_.rebuilds;
+    counts_.rebuild_work += builder_.work();
+    age_ = 0;
+    commits_ = 0;
+}
+
+void WideBvh::clear_tree() {
+    blocks_.clear();
+    root_ = free_ = kNone;
+    free_count_ = leaves_ = 0;
+    dirty_.clear();
+    sah_sum_ = sah_largest_term_ = 0.0;
+    max_depth_ = 0;
+    changed_ = false;
+}
+
+void WideBvh::link(std::uint32_t b, std::uint32_t parent, int lane) {
+    blocks_[b].parent = parent;
+    blocks_[b].lane_in_parent = std::uint8_t(lane);
+    if (parent == kNone) {
+        root_ = b;
+        return;
+    }
+    blocks_[parent].ref[lane] = b;
+    const double term = area(blocks_[parent].box(lane)) * weight(b);
+    sah_sum_ += term;
+    sah_largest_term_ = std::max(sah_largest_term_, term);
+}
+
+// ---- changes ----
+
+std::uint32_t WideBvh::choose_leaf(const Aabb& box) const {
+    std::uint32_t b = root_;
+    while (!blocks_[b].leaf) {
+        const Block& block = blocks_[b];
+        int best = 0;
+        double best_growth = std::numeric_limits<double>::infinity(), best_area = best_growth;
+        for (int k = 0; k < block.count; ++k) {
+            const Aabb lane = block.box(k);
+            const double a = area(lane), growth = area(merge(lane, box)) - a;
+            if (growth < best_growth || (growth == best_growth && a < best_area))
+                best = k, best_growth = growth, best_area = a;
+        }
+        b = block.ref[best];
+    }
+    return b;
+}
+
+void WideBvh::insert(const Object& o) {
+    if (!pending_.empty()) apply_moves();
+    ++changes_;
+    weighted_changes_ += 1;
+    rebuild_.log_change(o.uid);
+    insert_object(o);
+}
+
+void WideBvh::insert_object(const Object& o) {
+    changed_ = true;
+    if (root_ == kNone) {
+        root_ = allocate();
+        Block& block = blocks_[root_];
+        block.leaf = true;
+        block.count = 1;
+        block.set(0, o.box);
+        block.ref[0] = o.uid;
+        ++leaves_;
+        where_.set(o.uid, root_ * kLanes);
+        grow_stack(0);
+        return;
+    }
+    const std::uint32_t leaf = choose_leaf(o.box);
+    Block& block = blocks_[leaf];
+    if (block.count == kLanes) {
+        split_leaf(leaf, o);
+        return;
+    }
+    const int k = block.count++;
+    block.set(k, o.box);
+    block.ref[k] = o.uid;
+    ++writes_;
+    where_.set(o.uid, leaf * kLanes + std::uint32_t(k));
+    if (leaf != root_) {  // its weight grew by one
+        const double a = area(blocks_[block.parent].box(block.lane_in_parent));
+        sah_sum_ += a;
+        sah_largest_term_ = std::max(sah_largest_term_, a);
+    }
+    mark(leaf);
+}
+
+void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
+    ++splits_;
+    ++counts_.splits;
+    std::array<SahItem, kLanes + 1> nine;
+    {
+        const Block& block = blocks_[leaf];
+        for (int k = 0; k < kLanes; ++k) {
+            nine[std::size_t(k)] = {block.box(k), centroid(block.box(k)), Uid(block.ref[k])};
+            rebuild_.log_relocation(Uid(block.ref[k]));
+        }
+    }
+    nine[kLanes] = {o.box, centroid(o.box), o.uid};
+    where_.set(o.uid, 0);
+    const std::uint32_t m = builder_.split(params_.bins, nine.data(), kLanes + 1);
+    // Take the leaf's term out of the running sum; set_lane below adds the new ones.
+    const std::uint32_t parent = blocks_[leaf].parent;
+    const int lane = blocks_[leaf].lane_in_parent;
+    if (parent != kNone) {
+        const double a = area(blocks_[parent].box(lane)) * weight(leaf);
+        sah_sum_ -= a;
+        sah_largest_term_ = std::max(sah_largest_term_, a);
+        blocks_[parent].clear(lane);
+        blocks_[parent].ref[lane] = leaf;
+        ++writes_;
+    }
+    const std::uint32_t other = allocate();
+    auto fill = [&](std::uint32_t b, const SahItem* items, std::uint32_t count) {
+        Block& block = blocks_[b];
+        for (int k = 0; k < kLanes; ++k) block.clear(k);
+        block.leaf = true;
+        block.count = std::uint8_t(count);
+        for (std::uint32_t i = 0; i < count; ++i) {
+            block.set(int(i), items[i].box);
+            block.ref[i] = items[i].id;
+            where_.set(items[i].id, b * kLanes + i);
+        }
+        ++writes_;  // the block, whole
+    };
+    fill(leaf, nine.data(), m);
+    fill(other, nine.data() + m, kLanes + 1 - m);
+    ++leaves_;
+    if (parent != kNone && blocks_[parent].count < kLanes) {
+        // Side by side in the parent.
+        Block& p = blocks_[parent];
+        const int k = p.count++;
+        p.ref[k] = other;
+        blocks_[other].parent = parent;
+        blocks_[other].lane_in_parent = std::uint8_t(k);
+        blocks_[other].depth = blocks_[leaf].depth;
+        set_lane(parent, lane, blocks_[leaf].bounds());
+        set_lane(parent, k, blocks_[other].bounds());
+        mark(parent);
+        return;
+    }
+    // Below a new inner node in the leaf's place (the parent is full, or the leaf is the root).
+    const std::uint32_t inner = allocate();
+    Block& in = blocks_[inner];
+    in.parent = parent;
+    in.lane_in_parent = std::uint8_t(lane);
+    in.depth = blocks_[leaf].depth;
+    in.count = 2;
+    in.ref[0] = leaf;
+    in.ref[1] = other;
+    for (int k = 0; k < 2; ++k) {
+        Block& c = blocks_[in.ref[k]];
+        c.parent = inner;
+        c.lane_in_parent = std::uint8_t(k);
+        c.depth = std::uint16_t(in.depth + 1);
+    }
+    grow_stack(in.depth + 1);
+    set_lane(inner, 0, blocks_[leaf].bounds());
+    set_lane(inner, 1, blocks_[other].bounds());
+    if (parent == kNone) {
+        root_ = inner;
+    } else {
+        blocks_[parent].ref[lane] = inner;
+        set_lane(parent, lane, blocks_[inner].bounds());
+        mark(parent);
+    }
+}
+
+void WideBvh::remove(Uid uid) {
+    if (!pending_.empty()) apply_moves();
+    ++changes_;
+    weighted_changes_ += 1;
+    rebuild_.log_change(uid);
+    remove_object(uid);
+}
+
+void WideBvh::remove_object(Uid uid) {
+    const std::uint32_t at = where_.find(uid);
+    if (at == WideBvhIndex::kAbsent) absent_uid("remove", uid);
+    const std::uint32_t b = at / kLanes;
+    const int k = int(at % kLanes);
+    where_.erase(uid);
+    Block& block = blocks_[b];
+    const int last = block.count - 1;
+    if (k != last) {
+        block.set(k, block.box(last));
+        block.ref[k] = block.ref[last];
+        ++writes_;
+        where_.set(Uid(block.ref[k]), b * kLanes + std::uint32_t(k));
+        rebuild_.log_relocation(Uid(block.ref[k]));
+    }
+    block.clear(last);
+    ++writes_;
+    --block.count;
+    changed_ = true;
+    if (b != root_) {  // its weight fell by one
+        const double a = area(blocks_[block.parent].box(block.lane_in_parent));
+        sah_sum_ -= a;
+        sah_largest_term_ = std::max(sah_largest_term_, a);
+    }
+    if (block.count == 0)
+        remove_block(b);
+    else
+        mark(b);
+}
+
+void WideBvh::remove_block(std::uint32_t b) {
+    if (b == root_) {
+        release(b);
+        root_ = kNone;
+        return;
+    }
+    const std::uint32_t parent = blocks_[b].parent;
+    const int lane = blocks_[b].lane_in_parent;
+    const double a = area(blocks_[parent].box(lane)) * weight(b);
+    sah_sum_ -= a;
+    sah_largest_term_ = std::max(sah_largest_term_, a);
+    release(b);
+    drop_child_lane(parent, lane);
+    if (blocks_[parent].count == 0)
+        remove_block(parent);
+    else
+        mark(parent);
+}
+
+void WideBvh::drop_child_lane(std::uint32_t b, int k) {
+    Block& block = blocks_[b];
+    const int last = block.count - 1;
+    if (k != last) {
+        block.set(k, block.box(last));
+        block.ref[k] = block.ref[last];
+        blocks_[block.ref[k]].lane_in_parent = std::uint8_t(k);
+        ++writes_;
+    }
+    block.clear(last);
+    ++writes_;
+    --block.count;
+}
+
+void WideBvh::reinsert(Uid uid, const Aabb& box) {
+    ++reinserts_;
+    ++counts_.reinserts;
+    weighted_changes_ += 1;  // a removal and an insertion
+    remove_object(uid);
+    insert_object(Object(uid, box));
+}
+
+void WideBvh::move(const Object& o) {
+    const std::uint32_t at = where_.find(o.uid);
+    if (at == WideBvhIndex::kAbsent) absent_uid("move", o.uid);
+    ++changes_;
+    rebuild_.log_change(o.uid);
+    if (queue_)
+        pending_.push_back({o.uid, o.box});
+    else
+        apply_move(at, o.uid, o.box);
+}
+
+void WideBvh::apply_moves() {
+    constexpr std::size_t kAhead = 8;  // moves in flight: a few hundred instructions' window
+    const std::size_t n = pending_.size();
+    for (std::size_t i = 0; i < n; ++i) {
+        if (i + kAhead < n) {
+            const std::uint32_t at = where_.find(pending_[i + kAhead].uid);
+            if (at != WideBvhIndex::kAbsent) {  // the 256-byte leaf, for writing
+                const char* leaf = reinterpret_cast<const char*>(&blocks_[at / kLanes]);
+                for (int line = 0; line < int(sizeof(Block)); line += 64) __builtin_prefetch(leaf + line, 1);
+            }
+        }
+        apply_move(where_.find(pending_[i].uid), pending_[i].uid, pending_[i].box);
+    }
+    pending_.clear();
+}
+
+void WideBvh::apply_move(std::uint32_t at, Uid uid, const Aabb& box) {
+    const std::uint32_t b = at / kLanes;
+    if (params_.reinsert && b != root_) {
+        const Block& leaf = blocks_[b];
+        const Aabb lane = blocks_[leaf.parent].box(leaf.lane_in_parent);
+        const Vec3 c = centroid(box);
+        if (!(lane.min.x <= c.x && c.x <= lane.max.x && lane.min.y <= c.y && c.y <= lane.max.y && lane.min.z <= c.z &&
+              c.z <= lane.max.z)) {
+            reinsert(uid, box);
+            return;
+        }
+    }
+    const int k = int(at % kLanes);
+    // Only rebuild_after reads the weight: without it a move is the lane's write alone.
+    if (params_.rebuild_after > 0) weighted_changes_ += move_share(blocks_[b].box(k), box);
+    blocks_[b].set(k, box);
+    ++writes_;
+    mark(b);
+}
+
+/// Bottom-up refit of the marked blocks in one pass, the deepest level first: a block's box is
+/// computed once and written into its lane in the parent, and the parent joins the level above
+/// only when that lane changed (above an unchanged lane the boxes already enclose what changed).
+/// So a block is refitted at most once per commit however many of its children changed, where a
+/// walk up from every marked block recomputed a shared ancestor once per changed child. While the
+/// pass runs, a block's `dirty` flag means "queued, not refitted yet".
+void WideBvh::refit() {
+    if (dirty_.empty()) return;
+    // Every block's depth is at most max_depth_ and a child's is its parent's plus one
+    // (validate_tree checks both), so the parent of a block at `level` belongs to level − 1.
+    if (refit_levels_.size() < std::size_t(max_depth_) + 1) refit_levels_.resize(std::size_t(max_depth_) + 1);
+    for (const std::uint32_t d : dirty_)
+        if (blocks_[d].dirty) refit_levels_[blocks_[d].depth].push_back(d);  // a released block is unmarked
+    dirty_.clear();
+    for (std::size_t level = refit_levels_.size(); level-- > 0;) {
+        std::vector<std::uint32_t>& queue = refit_levels_[level];
+        for (const std::uint32_t c : queue) {
+            Block& block = blocks_[c];
+            // Listed twice when released and reused after it was first marked: refitted once.
+            if (!block.dirty) continue;
+            block.dirty = false;
+            if (c == root_) continue;
+            const Aabb box = block.bounds();
+            ++refit_blocks_;
+            ++counts_.refit_blocks;
+            ++writes_;
+            const std::uint32_t p = block.parent;
+            const int lane = block.lane_in_parent;
+            Block& parent = blocks_[p];
+            const Aabb old = parent.box(lane);
+            if (box == old) continue;
+            // set_lane's work, inlined: both boxes are in use (never empty), and the weight is
+            // this block's.
+            const double w = weight(c), before = area(old) * w, after = area(box) * w;
+            sah_sum_ += after - before;
+            sah_largest_term_ = std::max({sah_largest_term_, before, after});
+            parent.set(lane, box);
+            ++writes_;
+            ++refit_lanes_;
+            ++counts_.refit_lanes;
+            if (!blocks_[p].dirty) {
+                blocks_[p].dirty = true;
+                refit_levels_[level - 1].push_back(p);
+            }
+        }
+        queue.clear();
+    }
+}
+
+void WideBvh::commit() {
+    if (!pending_.empty()) apply_moves();
+    refit_blocks_ = refit_lanes_ = 0;
+    refit();
+    resolve_queue();
+    rebuild_.open_commit();
+    if (!changed_) return;
+    changed_ = false;
+    if (sah_largest_term_ > 1e6 * std::abs(sah_sum_)) {
+        sah_sum_ = fresh_sah_sum();
+        sah_largest_term_ = std::abs(sah_sum_);
+    }
+    const std::uint64_t changes = changes_;
+    const double weighted = weighted_changes_;
+    changes_ = 0;
+    weighted_changes_ = 0;
+    age_ += weighted;
+    ++commits_;
+    rebuild_.commit(*this, changes, weighted);
+    counts_.rebuild_work += rebuild_.work();
+}
+
+// ---- rebuild trigger (the rebuild itself: wide_bvh_rebuild.cpp) ----
+
+bool WideBvh::rebuild_due() const {
+    if (root_ == kNone) return false;
+    const double ratio = params_.rebuild_ratio;
+    if (ratio > 0 && (ratio <= 1 || sah_growth() > ratio)) return true;
+    if (params_.rebuild_every > 0 && commits_ >= std::uint32_t(params_.rebuild_every)) return true;
+    return params_.rebuild_after > 0 && age_ >= params_.rebuild_after * double(where_.size());
+}
+
+// ---- measures and invariants ----
+
+double WideBvh::fresh_sah_sum() const {
+    double sum = 0.0;
+    for (std::uint32_t b = 0; b < blocks_.size(); ++b) {
+        const Block& block = blocks_[b];
+        if (block.count == 0 || b == root_) continue;
+        sum += area(blocks_[block.parent].box(block.lane_in_parent)) * weight(b);
+    }
+    return sum;
+}
+
+double WideBvh::total_sah() const {
+    return root_ == kNone ? 0.0 : area(blocks_[root_].bounds()) * weight(root_) + sah_sum_;
+}
+
+double WideBvh::sah_growth() const {
+    const double now = total_sah();
+    if (total_after_build_ > 0) return now / total_after_build_;
+    return now > 0 ? std::numeric_limits<double>::infinity() : 1.0;
+}
+
+double WideBvh::sah_cost() const {
+    if (root_ == kNone) return 0.0;
+    const double root_area = area(blocks_[root_].bounds());
+    // A zero-area root (points or segments only): every box is met by a ray that meets the root,
+    // so count the blocks and the objects.
+    if (!(root_area > 0)) return double(blocks_.size() - free_count_) + double(where_.size());
+    return (root_area * weight(root_) + sah_sum_) / root_area;
+}
+
+int WideBvh::depth() const {
+    if (root_ == kNone) return -1;
+    int deepest = 0;
+    for (const Block& b : blocks_)
+        if (b.leaf && b.count > 0) deepest = std::max(deepest, int(b.depth));
+    return deepest;
+}
+
+std::size_t WideBvh::l2_bytes() {
+    static const std::size_t bytes = [] {
+        const long b = sysconf(_SC_LEVEL2_CACHE_SIZE);
+        return b > 0 ? std::size_t(b) : std::size_t(1) << 20;
+    }();
+    return bytes;
+}
+
+std::size_t WideBvh::memory_bytes() const {
+    return blocks_.capacity() * sizeof(Block) + where_.memory_bytes() + dirty_.capacity() * sizeof(std::uint32_t) +
+           pending_.capacity() * sizeof(PendingMove) + refit_levels_bytes() + scratch_bytes() +
+           builder_.memory_bytes() + rebuild_.memory_bytes() + sizeof(*this);
+}
+
+nlohmann::json WideBvh::stats() const {
+    nlohmann::json stats = {{"sah_cost", sah_cost()}, {"sah_growth", sah_growth()},
+                            {"depth", depth()},       {"nodes", blocks_.size() - free_count_},
+                            {"leaves", leaves_},      {"rebuilds", rebuilds_},
+                            {"leaf_splits", splits_}, {"reinserts", reinserts_}};
+    // The weighted changes since the live tree's objects were gathered, per object: a rebuild
+    // starts at commit once this reaches rebuild_after.
+    stats["rebuild_age"] = where_.empty() ? 0.0 : age_ / double(where_.size());
+    stats["rebuild_commits"] = commits_;  // commits with changes since then (Params::rebuild_every)
+    // The last commit's refit: blocks whose box it computed (each at most once), and the lanes of
+    // their parents it rewrote (with any refit a query's prepare ran after it).
+    stats["refit_blocks"] = refit_blocks_;
+    stats["refit_lanes"] = refit_lanes_;
+    rebuild_.add_stats(stats);
+    return stats;
+}
+
+void WideBvh::validate() const {
+    validate_tree(true);
+    rebuild_.validate(*this);
+}
+
+void WideBvh::validate_tree(bool refitted) const {
+    // The next tree of a rebuild is checked before its refit: its lanes may not enclose yet.
+    auto fail = [refitted](const std::string& what) {
+        broken_invariant("wbvh", (refitted ? "" : "next tree: ") + what);
+    };
+    if (refitted && !dirty_.empty()) fail("blocks not refitted after changes (commit missing)");
+    if (!pending_.empty()) fail("moves not applied (commit missing)");
+    const auto total = std::uint32_t(blocks_.size());
+    std::uint32_t free_seen = 0;
+    for (std::uint32_t b = free_; b != kNone; b = blocks_[b].parent) {
+        if (b >= total) fail("free list points outside the block array");
+        if (blocks_[b].count != 0) fail("block " + std::to_string(b) + " on the free list is in use");
+        if (++free_seen > total) fail("free list has a cycle");
+    }
+    if (free_seen != free_count_)
+        fail("free list holds " + std::to_string(free_seen) + " blocks, count says " + std::to_string(free_count_));
+    std::uint32_t reached = 0, leaves = 0;
+    std::size_t objects = 0;
+    auto is_unused = [](const Block& b, int k) {
+        constexpr float inf = std::numeric_limits<float>::infinity();
+        for (int a = 0; a < 3; ++a)
+            if (b.bound[a][k] != inf || b.bound[3 + a][k] != -inf) return false;
+        return true;
+    };
+    if (root_ != kNone) {
+        if (root_ >= total || blocks_[root_].parent != kNone || blocks_[root_].depth != 0)
+            fail("root has a parent, a depth or is out of range");
+        std::vector<std::uint32_t> stack{root_};
+        while (!stack.empty()) {
+            const std::uint32_t b = stack.back();
+            stack.pop_back();
+            if (++reached > total) fail("tree has a cycle");
+            const Block& block = blocks_[b];
+            const std::string name = "block " + std::to_string(b);
+            if (block.count == 0 || block.count > kLanes) fail(name + " has " + std::to_string(block.count) + " lanes");
+            if (block.depth > max_depth_) fail(name + " is deeper than the stack allows");
+            if (refitted && block.dirty) fail(name + " is still marked for the refit");
+            for (int k = block.count; k < kLanes; ++k)
+                if (!is_unused(block, k)) fail(name + ": an unused lane holds a box that segments can meet");
+            if (block.leaf) {
+                ++leaves;
+                for (int k = 0; k < block.count; ++k) {
+                    ++objects;
+                    const Uid uid = block.ref[k];
+                    if (where_.find(uid) != b * kLanes + std::uint32_t(k))
+                        fail("uid " + std::to_string(uid) + " in " + name + " is not where the uid index says");
+                    const Aabb box = block.box(k);
+                    if (!(box.min.x <= box.max.x && box.min.y <= box.max.y && box.min.z <= box.max.z))
+                        fail("uid " + std::to_string(uid) + " has min > max");
+                }
+                continue;
+            }
+            for (int k = 0; k < block.count; ++k) {
+                const std::uint32_t c = block.ref[k];
+                if (c >= total) fail(name + ": child out of range");
+                const Block& child = blocks_[c];
+                if (child.parent != b || child.lane_in_parent != k)
+                    fail("block " + std::to_string(c) + " does not point back to lane " + std::to_string(k) + " of " +
+                         name);
+                if (child.depth != block.depth + 1) fail("block " + std::to_string(c) + " has a wrong depth");
+                if (refitted && child.count > 0 && !block.box(k).contains(child.bounds()))
+                    fail(name + " lane " + std::to_string(k) + " does not enclose its child");
+                stack.push_back(c);
+            }
+        }
+    }
+    if (objects != where_.size())
+        fail(std::to_string(where_.size()) + " live uids but " + std::to_string(objects) + " objects in the tree");
+    if (leaves != leaves_)
+        fail("leaf count says " + std::to_string(leaves_) + ", the tree has " + std::to_string(leaves));
+    if (reached + free_seen != total)
+        fail("blocks neither in the tree nor free: " + std::to_string(total - reached - free_seen));
+    const double fresh = fresh_sah_sum();
+    if (!(std::abs(fresh - sah_sum_) <= 1e-6 * std::max(std::abs(fresh), sah_largest_term_ * 1e-6) + 1e-300))
+        fail("running SAH sum " + std::to_string(sah_sum_) + " differs from the tree's " + std::to_string(fresh));
+}
+
+}  // namespace rcb
