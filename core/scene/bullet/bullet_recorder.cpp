@@ -105,7 +105,10 @@ std::string with_origin(const std::string& meta_json) {
     nlohmann::json meta = nlohmann::json::parse(meta_json, nullptr, false);
     if (!meta.is_object()) return meta_json;
     if (!meta.contains("generator")) meta["generator"] = "rcb::BulletRecorder";
-    if (!meta.contains("engine")) meta["engine"] = "Bullet " + std::to_string(btGetVersion());
+    const int version = btGetVersion();  // 324 for 3.24
+    if (!meta.contains("engine"))
+        meta["engine"] = "Bullet " + std::to_string(version / 100) + (version % 100 < 10 ? ".0" : ".") +
+                         std::to_string(version % 100);
     return meta.dump();
 }
 
