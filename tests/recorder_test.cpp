@@ -259,5 +259,45 @@ TEST_F(RecorderTest, DestructorNeverThrows) {
     EXPECT_FALSE(fs::exists(p));
 }
 
+TEST_F(RecorderTest, ShapesAndQueryKindsReadBack) {
+    const Shape ball = Shape::sphere({1, 2, 3}, 0.5f), moved = Shape::sphere({1, 1, 3}, 0.5f);
+    const Shape crate = Shape::obb({5, 0, 0}, {1, 0.5f, 0.25f}, {0.9f, 0, 0.1f, 0});
+    {
+        Recorder rec(path());
+        rec.insert(1, ball);
+        rec.insert(2, box(10));
+        rec.end_frame();
+        rec.move(1, moved);
+        rec.insert(3, crate);
+        rec.ray(seg(-1, 20));  // all hits: the kinds start only with the first other kind
+        rec.ray(seg(-1, 20), QueryKind::closest);
+        rec.ray(seg(-1, 20), QueryKind::any);
+        rec.end_frame();
+        rec.ray(seg(0, 1));  // a frame of all-hits rays keeps no kinds
+        rec.close();
+    }
+    const Recording r = read_recording(path());
+    ASSERT_EQ(r.initial.size(), 2u);
+    EXPECT_EQ(r.initial[0], shaped_object(1, ball));
+    EXPECT_EQ(r.initial[1], (Object{2, box(10)}));
+    ASSERT_EQ(r.frames.size(), 2u);
+    EXPECT_EQ(r.frames[0].moves, std::vector<Object>{shaped_object(1, moved)});
+    ASSERT_EQ(r.frames[0].inserts.size(), 1u);
+    EXPECT_EQ(r.frames[0].inserts[0].shape, shaped_object(3, crate).shape);  // the rotation normalised
+    EXPECT_EQ(r.frames[0].kinds, (std::vector<QueryKind>{QueryKind::all, QueryKind::closest, QueryKind::any}));
+    EXPECT_TRUE(r.frames[1].kinds.empty());
+
+    Recorder rec(path("bad.rcbscene"));
+    test::expect_input_error(
+        [&] {
+            rec.insert(4, Shape::sphere({0, 0, 0}, -1));
+        },
+        "frame 0: uid 4: sphere has a negative radius");
+    test::expect_input_error([&] { rec.insert(4, Shape{}); }, "frame 0: uid 4: a box-kind shape");
+    test::expect_input_error([&] { rec.move(4, ball); }, "move of unknown uid 4");
+    EXPECT_EQ(rec.live_count(), 0u);
+    rec.close();
+}
+
 }  // namespace
 }  // namespace rcb

@@ -30,10 +30,11 @@ struct Recorder::State {
     std::string path;
     std::string context;  // "recorder <path>", the start of every message
     Recording recording;
-    std::unordered_map<Uid, Aabb> live;  // after the current frame's changes so far
-    std::vector<Touched> touched;        // in first-change order
+    std::unordered_map<Uid, Object> live;  // after the current frame's changes so far
+    std::vector<Touched> touched;          // in first-change order
     std::unordered_set<Uid> touched_uids;
-    std::vector<Segment> rays;  // the current frame's
+    std::vector<Segment> rays;     // the current frame's
+    std::vector<QueryKind> kinds;  // one per ray, or empty while every ray is `all`
     std::uint32_t frame = 0;
     bool closed = false;
 
@@ -45,6 +46,13 @@ struct Recorder::State {
     }
     void check_box(Uid uid, const Aabb& box) const {
         if (std::string problem = box_problem(box); !problem.empty()) throw InputError(where(uid) + ": " + problem);
+    }
+    /// The object of a shape call: a non-box shape the format accepts, with its bounds as its box.
+    Object shaped(Uid uid, const Shape& shape) const {
+        if (shape.kind == ShapeKind::box) throw InputError(where(uid) + ": a box-kind shape (pass the box itself)");
+        if (std::string problem = shape_problem(shape, kMaxCoordinate); !problem.empty())
+            throw InputError(where(uid) + ": " + problem);
+        return shaped_object(uid, shape);
     }
     /// " (removed earlier in this frame)" when that is why `uid` is not live, for messages.
     std::string why_not_live(Uid uid) const {
@@ -64,12 +72,14 @@ struct Recorder::State {
             if (t.live_at_start && !live_now)
                 f.removes.push_back(t.uid);
             else if (!t.live_at_start && live_now)
-                f.inserts.push_back({t.uid, it->second});
+                f.inserts.push_back(it->second);
             else if (live_now)
-                f.moves.push_back({t.uid, it->second});
+                f.moves.push_back(it->second);
         }
         f.rays = std::move(rays);
+        f.kinds = std::move(kinds);
         rays.clear();
+        kinds.clear();
         touched.clear();
         touched_uids.clear();
         return f;
@@ -126,13 +136,22 @@ Recorder::~Recorder() {
 }
 
 void Recorder::insert(Uid uid, const Aabb& box) {
+    state_->check_open("insert");
+    state_->check_box(uid, box);
+    add(Object{uid, box});
+}
+
+void Recorder::insert(Uid uid, const Shape& shape) {
+    state_->check_open("insert");
+    add(state_->shaped(uid, shape));
+}
+
+void Recorder::add(const Object& o) {
     State& s = *state_;
-    s.check_open("insert");
-    s.check_box(uid, box);
-    if (s.live.count(uid))
-        throw InputError(s.where() + ": insert of uid " + std::to_string(uid) + ", which is already live");
-    s.touch(uid);
-    s.live.emplace(uid, box);
+    if (s.live.count(o.uid))
+        throw InputError(s.where() + ": insert of uid " + std::to_string(o.uid) + ", which is already live");
+    s.touch(o.uid);
+    s.live.emplace(o.uid, o);
 }
 
 void Recorder::remove(Uid uid) {
@@ -146,17 +165,26 @@ void Recorder::remove(Uid uid) {
 }
 
 void Recorder::move(Uid uid, const Aabb& box) {
-    State& s = *state_;
-    s.check_open("move");
-    s.check_box(uid, box);
-    auto it = s.live.find(uid);
-    if (it == s.live.end())
-        throw InputError(s.where() + ": move of unknown uid " + std::to_string(uid) + s.why_not_live(uid));
-    s.touch(uid);
-    it->second = box;
+    state_->check_open("move");
+    state_->check_box(uid, box);
+    change(Object{uid, box});
 }
 
-void Recorder::ray(const Segment& segment) {
+void Recorder::move(Uid uid, const Shape& shape) {
+    state_->check_open("move");
+    change(state_->shaped(uid, shape));
+}
+
+void Recorder::change(const Object& o) {
+    State& s = *state_;
+    auto it = s.live.find(o.uid);
+    if (it == s.live.end())
+        throw InputError(s.where() + ": move of unknown uid " + std::to_string(o.uid) + s.why_not_live(o.uid));
+    s.touch(o.uid);
+    it->second = o;
+}
+
+void Recorder::ray(const Segment& segment, QueryKind kind) {
     State& s = *state_;
     s.check_open("ray");
     auto label = [&] { return s.where() + ": ray " + std::to_string(s.rays.size()); };
@@ -165,6 +193,13 @@ void Recorder::ray(const Segment& segment) {
                          " cast before the first end_frame() (frame 0 is the initial objects only: call end_frame() "
                          "once the world is loaded)");
     if (std::string problem = segment_problem(segment); !problem.empty()) throw InputError(label() + ": " + problem);
+    if (int(kind) >= kQueryKinds) throw InputError(label() + ": unknown query kind " + std::to_string(int(kind)));
+    // The kinds stay empty while every ray asks for all hits (Frame::kinds), so such a recording
+    // keeps its older format version.
+    if (kind != QueryKind::all || !s.kinds.empty()) {
+        s.kinds.resize(s.rays.size(), QueryKind::all);
+        s.kinds.push_back(kind);
+    }
     s.rays.push_back(segment);
 }
 

@@ -38,6 +38,12 @@
 ///     insert of a live uid, remove or move of a uid that is not live, a box with a NaN or
 ///     infinite coordinate, one beyond ±kMaxCoordinate (recording_io.h) or with min > max, a ray
 ///     with such a coordinate, a ray before the first end_frame(), any call after close().
+/// Shapes and query kinds. insert() and move() take an object's box, or its exact shape (shape.h:
+/// obb, sphere, capsule, triangle), whose box is then the shape's bounds as the format stores it
+/// (shape_bounds); a shape with a problem (shape_problem) is refused as a bad box is. ray() takes
+/// what the engine asked of the ray (all hits, the closest, any: scene.h, QueryKind), all by default.
+/// The file is version 1, 2 or 3 as they need (recording_io.h: the lowest that holds them).
+///
 /// The constructor refuses meta that is not a JSON object and a path that cannot be written (empty,
 /// a directory, a missing or read-only folder), before the engine has run.
 ///
@@ -70,9 +76,11 @@ public:
     Recorder& operator=(const Recorder&) = delete;
 
     void insert(Uid uid, const Aabb& box);
+    void insert(Uid uid, const Shape& shape);
     void remove(Uid uid);
     void move(Uid uid, const Aabb& box);
-    void ray(const Segment& segment);
+    void move(Uid uid, const Shape& shape);
+    void ray(const Segment& segment, QueryKind kind = QueryKind::all);
     /// Closes the current frame (frame 0 the first time) and starts the next.
     void end_frame();
     /// Ends the current frame if it has any change or ray (else drops it), then writes the file.
@@ -88,6 +96,8 @@ public:
     const std::string& path() const;
 
 private:
+    void add(const Object& o);     // insert's checks after the object's own
+    void change(const Object& o);  // move's likewise
     struct State;
     std::unique_ptr<State> state_;
 };
