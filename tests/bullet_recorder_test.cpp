@@ -20,7 +20,7 @@
 
 #include <btBulletDynamicsCommon.h>
 
-#include "core/accel/registry.h"
+#include "accel/registry.h"
 #include "core/base/error.h"
 #include "core/base/random.h"
 #include "core/scene/bullet/bullet_recorder.h"

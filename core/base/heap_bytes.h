@@ -1,5 +1,5 @@
 #pragma once
-/// Bytes a container holds on the heap, for a structure's memory_bytes() (core/accel/structure.h):
+/// Bytes a container holds on the heap, for a structure's memory_bytes() (accel/interface/structure.h):
 /// capacity, not size, since that is what the process pays. One call sums several containers:
 ///
 ///     std::size_t memory_bytes() const override { return sizeof(*this) + rcb::heap_bytes(list_, index_); }
