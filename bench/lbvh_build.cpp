@@ -2,15 +2,18 @@
 // built from scratch (build(): the slot table, then the tree) and rebuilt twice, after 1% of the
 // objects moved and after they moved back (commit(): the tree only, what every frame pays),
 // `repeats` times for 1 and 2 build threads and for 1 thread with the radix sort only
-// (coherent_sort off), alternating in one process so that all see the same machine. Prints medians
-// with min and max, objects per second, the median time of each step of the rebuild
-// (LinearBvh::last_phases), how many rebuilds sorted from the last order, and the two-thread
-// speed-up. Pin it: `taskset -c 0 …` for one core, `taskset -c 0,1 …` for two.
+// (coherent_sort off), alternating in one process so that all see the same machine. Given a scene
+// recording instead (`rcbench scene gen` or `rcbench scene import`), each repeat builds its first
+// frame and rebuilds after each of its frames' changes (removes, inserts, moves), as `rcbench
+// simulate` does. Prints medians with min and max, objects per second, the median time of each step
+// of the rebuild (LinearBvh::last_phases), how many rebuilds sorted from the last order, and the
+// two-thread speed-up. Pin it: `taskset -c 0 …` for one core, `taskset -c 0,1 …` for two.
 //
-//   build/bench/lbvh_build [PRESET] [REPEATS]      PRESET: irreg-xl, clusters-xl, … (default irreg-xl)
+//   build/bench/lbvh_build [PRESET | SCENE.rcbscene] [REPEATS]   PRESET: irreg-xl, clusters-xl, …
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -19,6 +22,7 @@
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
 #include "accel/bvh/linear_bvh.h"
+#include "core/scene/recording_io.h"
 
 namespace {
 
@@ -36,24 +40,30 @@ void print(const char* what, const std::vector<double>& t, std::size_t n) {
                 double(n) / median(t) / 1e3);
 }
 
-int run(int argc, char** argv) {
-    if (argc > 3) throw InputError("usage: lbvh_build [PRESET] [REPEATS]");
-    const std::string preset = argc >= 2 ? argv[1] : "irreg-xl";
-    const int repeats = argc == 3 ? int(bench::count_arg(argv[2], "REPEATS", 1, 1000)) : 5;
+/// The preset's first frame, and two frames of changes: 1% of the objects move, then move back.
+Recording preset_rebuilds(const std::string& preset) {
     SceneSettings settings = preset_settings(preset);
     settings.frames = 1;
     settings.rays.per_frame = 1;
     settings.dynamics.insert_share = settings.dynamics.remove_share = 0;  // 1% moves
-    const Recording rec = generate_scene(settings);
-    const std::vector<Object>& objects = rec.initial;
-    const std::vector<Object>& moves = rec.frames.at(0).moves;
+    Recording rec = generate_scene(settings);
     std::unordered_map<Uid, Aabb> first_box;
-    for (const Object& o : objects) first_box.emplace(o.uid, o.box);
-    std::vector<Object> back;  // the moved objects' first boxes: the second rebuild moves them back
-    for (const Object& m : moves) back.push_back({m.uid, first_box.at(m.uid)});
-    const std::vector<Object>* const changes[] = {&moves, &back};
+    for (const Object& o : rec.initial) first_box.emplace(o.uid, o.box);
+    Frame back;  // the moved objects' first boxes: the second rebuild moves them back
+    for (const Object& m : rec.frames.at(0).moves) back.moves.push_back({m.uid, first_box.at(m.uid)});
+    rec.frames.push_back(std::move(back));
+    return rec;
+}
+
+int run(int argc, char** argv) {
+    if (argc > 3) throw InputError("usage: lbvh_build [PRESET | SCENE.rcbscene] [REPEATS]");
+    const std::string preset = argc >= 2 ? argv[1] : "irreg-xl";
+    const int repeats = argc == 3 ? int(bench::count_arg(argv[2], "REPEATS", 1, 1000)) : 5;
+    const Recording rec = std::filesystem::is_regular_file(preset) ? read_recording(preset) : preset_rebuilds(preset);
+    const std::vector<Object>& objects = rec.initial;
     const std::size_t n = objects.size();
-    std::printf("%s: %zu objects, %zu moves per rebuild, %d repeats\n", preset.c_str(), n, moves.size(), repeats);
+    std::printf("%s: %zu objects, %zu rebuilds per repeat (%zu changes in the first), %d repeats\n", preset.c_str(), n,
+                rec.frames.size(), rec.frames.empty() ? 0 : rec.frames[0].change_count(), repeats);
 
     LinearBvh one(LinearBvh::Params{.threads = 1}), two(LinearBvh::Params{.threads = 2}),
         radix(LinearBvh::Params{.threads = 1, .coherent_sort = false});
@@ -67,8 +77,10 @@ int run(int argc, char** argv) {
             Clock::time_point t0 = Clock::now();
             t.build(objects);
             s[k].build.push_back(ms_since(t0));
-            for (const std::vector<Object>* change : changes) {
-                for (const Object& m : *change) t.move(m);
+            for (const Frame& frame : rec.frames) {
+                for (Uid uid : frame.removes) t.remove(uid);
+                for (const Object& o : frame.inserts) t.insert(o);
+                for (const Object& m : frame.moves) t.move(m);
                 t0 = Clock::now();
                 t.commit();
                 s[k].rebuild.push_back(ms_since(t0));

@@ -10,6 +10,7 @@
 //             with timed_moves=1 each move is applied at once and timed apart (TSC cycles), its
 //             cycles going to `rewrite` or to `reinsert` by whether it reinserted (without the
 //             queue's prefetching)
+//             (with threads=2 the inserts are queued too and applied first in this phase)
 //   refit     the bottom-up refit of the changed blocks (prepare(), which commit would run)
 //   rebuild   the rest of commit(): the rebuild trigger and the progressive rebuild's step
 //
@@ -23,7 +24,7 @@
 //     bench keys: frames=N (the first N frames; all by default), warmup=W (3; not in the medians),
 //                 timed_moves=0|1 (0), rows=0|1 (0), kind, objects, seed (a generated scene
 //                 instead of a file)
-//     any other key is a wbvh parameter, e.g. reinsert=false
+//     any other key is a wbvh parameter, e.g. reinsert=false, threads=2 (the update's threads)
 #include <algorithm>
 #include <cstdio>
 #include <ctime>
@@ -235,6 +236,14 @@ int run(int argc, char** argv) {
         "inserts %.1f%%; moves that reinserted %.2f%%\n",
         measured.size(), 100 * sum.moves / t, 100 * sum.refit / t, 100 * sum.rebuild / t, 100 * sum.removes_inserts / t,
         sum.moves_n ? 100.0 * double(sum.reinserts) / double(sum.moves_n) : 0.0);
+    // Rebuild frames apart: a median over frames does not see them, and at 10^6 objects one
+    // frame's whole rebuild can outweigh the rest of a short run.
+    double rebuild_frames = 0, rebuild_frames_update = 0;
+    for (const FrameRow& r : measured)
+        if (r.rebuilds > 0 || r.rebuild_work > 0) ++rebuild_frames, rebuild_frames_update += r.total();
+    std::printf("frames with rebuild work: %.0f of %zu, %.1f%% of the update; update arena steps (threads=%d): %llu\n",
+                rebuild_frames, measured.size(), 100 * rebuild_frames_update / t, p.threads,
+                (unsigned long long)tree.parallel_steps());
     if (s.timed_moves) {
         const double c = std::max(1.0, sum.rewrite_cycles + sum.reinsert_cycles);
         std::printf(

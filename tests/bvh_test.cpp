@@ -186,6 +186,9 @@ TEST(LinearBvh, OneAndTwoThreadsBuildIdenticalTrees) {
     ASSERT_EQ(one.nodes().size(), two.nodes().size());
     EXPECT_TRUE(one.nodes() == two.nodes());
     EXPECT_TRUE(one.meta() == two.meta());
+    // The runs of equal codes (ordered by size, chunk by chunk on two threads) counted alike.
+    EXPECT_GT(one.stats()["tied_codes"].get<std::size_t>(), 10000u);
+    EXPECT_EQ(one.stats(), two.stats());
     for (Uid u = 0; u < 20000; ++u) {
         one.remove(u * 7), two.remove(u * 7);
         const Object moved{u * 7 + 1, test::random_box(rng, 1000)};

@@ -6,7 +6,7 @@
 // the defaults against a fresh build; the rebuild trigger's weight of small steps against jumps;
 // Embree's refit with a periodic rebuild (exact over many frames, the period honoured); the uid
 // index over dense and sparse uids; nested inserts into an empty tree; closest and any hit, the
-// closest against brute force where entries tie.
+// closest against brute force where entries tie; two update threads against one, bit for bit.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -16,6 +16,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
@@ -445,6 +446,85 @@ TEST(WideBvh, RefitComputesEachBlockOncePerCommit) {
         tree.cast(rays, hits);
         const Verification v = GroundTruth(live).verify(rays, hits);
         ASSERT_EQ(v.mismatches(), 0u) << commit;
+    }
+}
+
+/// The update on two threads (Params::threads): refit levels, move queues and insert queues run on
+/// the arena. Under frames where every object steps, some jump far (reinsertions, leaf splits),
+/// some move twice, and some are removed or inserted (leaves split and empty, blocks are released
+/// and reused), the tree, its counters, its writes, its stats and its answers
+/// equal one thread's after every commit, bit for bit, for the default policy, the progressive
+/// rebuild at every commit and the refit alone, with the moves queued or applied at once.
+TEST(WideBvh, TwoUpdateThreadsGiveTheOneThreadTreeBitForBit) {
+    constexpr int kObjects = 12000, kFrames = 12;
+    constexpr float kWorld = 200;
+    const std::vector<nlohmann::json> sets{
+        {{"queue_moves", "on"}},
+        {{"queue_moves", "on"}, {"rebuild_ratio", 1.0}, {"rebuild_speed", 0.5}},
+        {{"queue_moves", "on"}, {"reinsert", false}, {"rebuild_ratio", 0.0}, {"rebuild_every", 5}},
+        {{"queue_moves", "off"}}};  // moves applied at once, after the queued inserts
+    for (const nlohmann::json& set : sets) {
+        nlohmann::json with_threads = set;
+        with_threads["threads"] = 2;
+        const auto one_p = params_from_json<WideBvh::Params>(set, "params", "wbvh");
+        const auto two_p = params_from_json<WideBvh::Params>(with_threads, "params", "wbvh");
+        WideBvh one(one_p), two(two_p);
+        Random rng(77);
+        std::vector<Object> live;
+        Uid next = 0;
+        for (int i = 0; i < kObjects; ++i) live.push_back({next++, test::random_box(rng, kWorld)});
+        one.build(live);
+        two.build(live);
+        for (int frame = 0; frame < kFrames; ++frame) {
+            // A few removes and inserts first (they apply the queue), then every object moves.
+            for (int c = 0; c < 300; ++c) {
+                const std::size_t i = rng.below(live.size());
+                one.remove(live[i].uid), two.remove(live[i].uid);
+                live[i] = live.back();
+                live.pop_back();
+                const Object o{next++, test::random_box(rng, kWorld)};
+                one.insert(o), two.insert(o);
+                live.push_back(o);
+            }
+            for (Object& o : live) {
+                const double r = rng.uniform();
+                if (r < 0.02) {
+                    o.box = test::random_box(rng, kWorld);  // a far jump
+                } else {
+                    const Vec3 d{float(rng.uniform(-0.3, 0.3)), float(rng.uniform(-0.3, 0.3)),
+                                 float(rng.uniform(-0.3, 0.3))};
+                    o.box = {o.box.min + d, o.box.max + d};
+                }
+                one.move(o), two.move(o);
+                if (r > 0.995) one.move(o), two.move(o);  // the same uid twice in one queue
+            }
+            one.commit(), two.commit();
+            const std::string at = set.dump() + " frame " + std::to_string(frame);
+            ASSERT_EQ(one.fingerprint(), two.fingerprint()) << at;
+            ASSERT_EQ(one.writes(), two.writes()) << at;
+            ASSERT_EQ(one.stats().dump(), two.stats().dump()) << at;
+            const WideBvh::UpdateCounts &a = one.update_counts(), &b = two.update_counts();
+            ASSERT_EQ(std::tie(a.reinserts, a.splits, a.refit_blocks, a.refit_lanes, a.rebuild_work, a.rebuilds),
+                      std::tie(b.reinserts, b.splits, b.refit_blocks, b.refit_lanes, b.rebuild_work, b.rebuilds))
+                << at;
+            ASSERT_NO_THROW(two.validate()) << at;
+            std::vector<Segment> rays;
+            for (int k = 0; k < 40; ++k) rays.push_back(test::random_segment(rng, kWorld));
+            HitLists hits_one, hits_two;
+            one.cast(rays, hits_one);
+            two.cast(rays, hits_two);
+            ASSERT_EQ(hits_one.uids, hits_two.uids) << at;
+            ASSERT_EQ(GroundTruth(live).verify(rays, hits_two).mismatches(), 0u) << at;
+        }
+        EXPECT_EQ(one.parallel_steps(), 0u);
+        // At least each frame's inserts; the queued moves and the largest refit levels besides.
+        EXPECT_GE(two.parallel_steps(), std::uint64_t(set["queue_moves"] == "on" ? 2 * kFrames : kFrames))
+            << set.dump();
+        const nlohmann::json st = two.stats();
+        EXPECT_GT(st["reinserts"].get<int>() + st["rebuilds"].get<int>(), 0) << set.dump();
+        if (set.value("reinsert", true)) {
+            EXPECT_GT(st["leaf_splits"].get<int>(), 0) << set.dump();
+        }
     }
 }
 

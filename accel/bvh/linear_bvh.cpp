@@ -673,7 +673,7 @@ void LinearBvh::rebuild() {
         lap(phases_.codes);
         // 2. Sort; equal codes by size ("Equal codes" in docs/structures.md, Linear BVH).
         sort_codes(varying);
-        order_equal_codes();
+        order_equal_codes(chunks);
         lap(phases_.sort);
     }
     writes_ += n;  // the sorted codes (by the merge or the sort)
@@ -848,23 +848,36 @@ void LinearBvh::build_tree(std::size_t chunks, bool leaves_written) {
     crowds_ = crowds;
 }
 
-void LinearBvh::order_equal_codes() {
-    const std::size_t n = codes_.size();
-    tied_codes_ = 0;
-    for (std::size_t b = 0, e; b < n; b = e) {
-        for (e = b + 1; e < n && codes_[e] == codes_[b];) ++e;
-        if (e - b < 2) continue;
-        tied_codes_ += e - b;
-        // Keys: the half area's bits (monotone for non-negative floats) above the slot; the slot
-        // breaks ties, so the order does not depend on the sort.
-        std::uint64_t* keys = codes_tmp_.data();
-        for (std::size_t k = b; k < e; ++k) {
-            const std::uint32_t slot = order_[k];
-            keys[k - b] = std::uint64_t(std::bit_cast<std::uint32_t>(objects_.box(slot).half_area())) << 32 | slot;
+void LinearBvh::order_equal_codes(std::size_t chunks) {
+    const std::size_t n = codes_.size(), chunk_len = (n + chunks - 1) / chunks;
+    std::array<std::size_t, kMaxChunks> tied{};
+    // Each chunk orders the runs that start in it (a run may end in a later chunk): the runs are
+    // disjoint, and each sorts its keys in its own part of the scratch, so the chunks share nothing
+    // and the order does not depend on the cut.
+    parallel(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+        for (std::size_t c = c0; c < c1; ++c) {
+            const std::size_t cb = std::min(n, c * chunk_len), ce = std::min(n, cb + chunk_len);
+            std::size_t b = cb;
+            while (b > 0 && b < ce && codes_[b] == codes_[b - 1]) ++b;  // a run from the chunk before
+            for (std::size_t e; b < ce; b = e) {
+                for (e = b + 1; e < n && codes_[e] == codes_[b];) ++e;
+                if (e - b < 2) continue;
+                tied[c] += e - b;
+                // Keys: the half area's bits (monotone for non-negative floats) above the slot; the
+                // slot breaks ties, so the order does not depend on the sort.
+                std::uint64_t* keys = codes_tmp_.data() + b;
+                for (std::size_t k = b; k < e; ++k) {
+                    const std::uint32_t slot = order_[k];
+                    keys[k - b] =
+                        std::uint64_t(std::bit_cast<std::uint32_t>(objects_.box(slot).half_area())) << 32 | slot;
+                }
+                std::sort(keys, keys + (e - b));
+                for (std::size_t k = b; k < e; ++k) order_[k] = std::uint32_t(keys[k - b]);
+            }
         }
-        std::sort(keys, keys + (e - b));
-        for (std::size_t k = b; k < e; ++k) order_[k] = std::uint32_t(keys[k - b]);
-    }
+    });
+    tied_codes_ = 0;
+    for (std::size_t c = 0; c < chunks; ++c) tied_codes_ += tied[c];
 }
 
 void LinearBvh::trim_outliers(Aabb& cb) {

@@ -172,7 +172,7 @@ private:
     void parallel(std::size_t n, std::size_t grain, F&& f);
     void sort_codes(std::uint64_t varying);
     void trim_outliers(Aabb& centroid_bounds);
-    void order_equal_codes();
+    void order_equal_codes(std::size_t chunks);
     template <class Lap>
     bool resort(std::size_t chunks, Lap& lap, bool& bounds_known);
 

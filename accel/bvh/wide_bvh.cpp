@@ -102,6 +102,7 @@ WideBvh::WideBvh(const Params& p)
       push_(parse_choice<Push>(kPushChoices, p.push, "wbvh push")),
       queue_mode_(parse_choice<Queue>(kQueueChoices, p.queue_moves, "wbvh queue_moves")) {
     set_cast_threads(p.cast_threads);
+    if (p.threads > 1) update_arena_ = std::make_unique<CastArena>(p.threads);
 }
 
 std::uint32_t WideBvh::allocate() {
@@ -129,6 +130,7 @@ std::uint32_t WideBvh::allocate() {
 void WideBvh::release(std::uint32_t b) {
     Block& block = blocks_[b];
     if (block.leaf) --leaves_;
+    dirty_repeats_ |= block.dirty;  // listed in dirty_: listed again if reused and marked
     block.count = 0;
     block.leaf = false;
     block.dirty = false;
@@ -162,6 +164,7 @@ void WideBvh::build(std::span<const Object> objects) {
     // A rebuild in progress is dropped, and queued moves: the new contents replace everything.
     rebuild_.reset();
     pending_.clear();
+    pending_inserts_.clear();
     changes_ = 0;
     weighted_changes_ = age_ = 0;
     commits_ = 0;
@@ -225,8 +228,9 @@ void WideBvh::link(std::uint32_t b, std::uint32_t parent, int lane) {
 
 // ---- changes ----
 
-std::uint32_t WideBvh::choose_leaf(const Aabb& box) const {
+std::uint32_t WideBvh::choose_leaf(const Aabb& box, std::uint32_t* path) const {
     std::uint32_t b = root_;
+    if (path) *path++ = b;
     while (!blocks_[b].leaf) {
         const Block& block = blocks_[b];
         int best = 0;
@@ -238,16 +242,20 @@ std::uint32_t WideBvh::choose_leaf(const Aabb& box) const {
                 best = k, best_growth = growth, best_area = a;
         }
         b = block.ref[best];
+        if (path) *path++ = b;
     }
     return b;
 }
 
 void WideBvh::insert(const Object& o) {
-    if (!pending_.empty()) apply_moves();
+    if (!pending_.empty()) flush();  // the queued moves (and the inserts queued before them) first
     ++changes_;
     weighted_changes_ += 1;
     rebuild_.log_change(o.uid);
-    insert_object(o);
+    if (update_arena_ && root_ != kNone)
+        pending_inserts_.push_back(o);  // its leaf is looked for on the threads (apply_inserts())
+    else
+        insert_object(o);
 }
 
 void WideBvh::insert_object(const Object& o) {
@@ -264,7 +272,10 @@ void WideBvh::insert_object(const Object& o) {
         grow_stack(0);
         return;
     }
-    const std::uint32_t leaf = choose_leaf(o.box);
+    insert_into(choose_leaf(o.box), o);
+}
+
+void WideBvh::insert_into(std::uint32_t leaf, const Object& o) {
     Block& block = blocks_[leaf];
     if (block.count == kLanes) {
         split_leaf(leaf, o);
@@ -286,6 +297,9 @@ void WideBvh::insert_object(const Object& o) {
 void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
     ++splits_;
     ++counts_.splits;
+    // The leaf's lane in its parent (and the parent's other lanes), or the root, change.
+    note_changed(leaf);
+    if (blocks_[leaf].parent != kNone) note_changed(blocks_[leaf].parent);
     std::array<SahItem, kLanes + 1> nine;
     {
         const Block& block = blocks_[leaf];
@@ -365,7 +379,7 @@ void WideBvh::split_leaf(std::uint32_t leaf, const Object& o) {
 }
 
 void WideBvh::remove(Uid uid) {
-    if (!pending_.empty()) apply_moves();
+    flush();
     ++changes_;
     weighted_changes_ += 1;
     rebuild_.log_change(uid);
@@ -444,7 +458,12 @@ void WideBvh::reinsert(Uid uid, const Aabb& box) {
 }
 
 void WideBvh::move(const Object& o) {
-    const std::uint32_t at = where_.find(o.uid);
+    if (!queue_ && !pending_inserts_.empty()) apply_inserts();  // applied at once: after them
+    std::uint32_t at = where_.find(o.uid);
+    if (at == WideBvhIndex::kAbsent && !pending_inserts_.empty()) {  // inserted, not yet applied
+        apply_inserts();
+        at = where_.find(o.uid);
+    }
     if (at == WideBvhIndex::kAbsent) absent_uid("move", o.uid);
     ++changes_;
     rebuild_.log_change(o.uid);
@@ -455,6 +474,10 @@ void WideBvh::move(const Object& o) {
 }
 
 void WideBvh::apply_moves() {
+    if (update_arena_ && pending_.size() >= kParallelUpdate) {
+        apply_moves_parallel();
+        return;
+    }
     constexpr std::size_t kAhead = 8;  // moves in flight: a few hundred instructions' window
     const std::size_t n = pending_.size();
     for (std::size_t i = 0; i < n; ++i) {
@@ -470,17 +493,20 @@ void WideBvh::apply_moves() {
     pending_.clear();
 }
 
+bool WideBvh::leaves_leaf(std::uint32_t b, const Aabb& box) const {
+    if (!params_.reinsert || b == root_) return false;
+    const Block& leaf = blocks_[b];
+    const Aabb lane = blocks_[leaf.parent].box(leaf.lane_in_parent);
+    const Vec3 c = centroid(box);
+    return !(lane.min.x <= c.x && c.x <= lane.max.x && lane.min.y <= c.y && c.y <= lane.max.y && lane.min.z <= c.z &&
+             c.z <= lane.max.z);
+}
+
 void WideBvh::apply_move(std::uint32_t at, Uid uid, const Aabb& box) {
     const std::uint32_t b = at / kLanes;
-    if (params_.reinsert && b != root_) {
-        const Block& leaf = blocks_[b];
-        const Aabb lane = blocks_[leaf.parent].box(leaf.lane_in_parent);
-        const Vec3 c = centroid(box);
-        if (!(lane.min.x <= c.x && c.x <= lane.max.x && lane.min.y <= c.y && c.y <= lane.max.y && lane.min.z <= c.z &&
-              c.z <= lane.max.z)) {
-            reinsert(uid, box);
-            return;
-        }
+    if (leaves_leaf(b, box)) {
+        reinsert(uid, box);
+        return;
     }
     const int k = int(at % kLanes);
     // Only rebuild_after reads the weight: without it a move is the lane's write alone.
@@ -501,11 +527,17 @@ void WideBvh::refit() {
     // Every block's depth is at most max_depth_ and a child's is its parent's plus one
     // (validate_tree checks both), so the parent of a block at `level` belongs to level − 1.
     if (refit_levels_.size() < std::size_t(max_depth_) + 1) refit_levels_.resize(std::size_t(max_depth_) + 1);
+    if (update_arena_ && dirty_repeats_) unique_dirty();  // a parallel level lists each block once
     for (const std::uint32_t d : dirty_)
         if (blocks_[d].dirty) refit_levels_[blocks_[d].depth].push_back(d);  // a released block is unmarked
     dirty_.clear();
     for (std::size_t level = refit_levels_.size(); level-- > 0;) {
         std::vector<std::uint32_t>& queue = refit_levels_[level];
+        if (update_arena_ && queue.size() >= kParallelUpdate) {
+            refit_level_parallel(queue, level > 0 ? &refit_levels_[level - 1] : nullptr);
+            queue.clear();
+            continue;
+        }
         for (const std::uint32_t c : queue) {
             Block& block = blocks_[c];
             // Listed twice when released and reused after it was first marked: refitted once.
@@ -539,8 +571,220 @@ void WideBvh::refit() {
     }
 }
 
+// ---- the update on several threads (Params::threads) ----
+//
+// Engines thread the refit and the build, not the single change: Embree's BVHNRefitter::refit
+// (kernels/bvh/bvh_refit.cpp) refits the subtrees below a fixed depth in a parallel_for and the
+// few nodes above them on one thread; its builders (BVHNBuilderMorton, the SAH builders) split the
+// work by subtree. Jolt's BroadPhaseQuadTree runs UpdatePrepare (the next tree's build) as a job
+// beside the simulation and UpdateFinalize (the swap) on the caller. Here the refit runs level by
+// level, as refit() does: the blocks of a level are independent (each writes its own lane of its
+// parent, a level up), so threads take chunks of a level's queue, and the calling thread then adds
+// the SAH terms, counts and queues the parents in the queue's order. The queued moves (a physics
+// frame's) are independent too as long as no reinsertion touches their leaf; apply_moves_parallel()
+// looks them up, checks and weighs them on the threads, and rewrites their lanes there, while the
+// calling thread does everything whose order shows (the marks, the sums, the reinsertions) in the
+// queue's order. The tree, its answers and every counter are those of one thread, bit for bit
+// (the floating-point sums are added in the same order).
+
+template <class F>
+void WideBvh::in_chunks(std::size_t n, F&& f) {
+    // Four chunks per thread, taken one at a time (CastArena::run): a thread held up by cache misses
+    // takes fewer. The cut does not change any result.
+    const std::size_t chunks = std::size_t(update_arena_->threads()) * 4, len = (n + chunks - 1) / chunks;
+    update_arena_->run(chunks, [&](std::size_t c, int) {
+        const std::size_t b = std::min(n, c * len), e = std::min(n, b + len);
+        if (b < e) f(b, e);
+    });
+}
+
+void WideBvh::unique_dirty() {
+    // Each block at its first listing, the flag cleared meanwhile; released blocks (unmarked) drop.
+    std::size_t kept = 0;
+    for (const std::uint32_t d : dirty_)
+        if (blocks_[d].dirty) blocks_[d].dirty = false, dirty_[kept++] = d;
+    dirty_.resize(kept);
+    for (const std::uint32_t d : dirty_) blocks_[d].dirty = true;
+    dirty_repeats_ = false;
+}
+
+void WideBvh::refit_level_parallel(std::vector<std::uint32_t>& queue, std::vector<std::uint32_t>* up) {
+    const std::size_t n = queue.size();
+    ++parallel_steps_;
+    refit_records_.resize(n);
+    // A block of this level is read and unmarked by one thread only, and writes one lane of its
+    // parent (a level up, which no thread reads now): no two threads write the same bytes.
+    in_chunks(n, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) {
+            const std::uint32_t c = queue[i];
+            Block& block = blocks_[c];
+            RefitRecord& r = refit_records_[i];
+            block.dirty = false;
+            r.state = 0;
+            if (c == root_) continue;
+            const Aabb box = block.bounds();
+            Block& parent = blocks_[block.parent];
+            const int lane = block.lane_in_parent;
+            const Aabb old = parent.box(lane);
+            r.parent = block.parent;
+            r.state = 1;
+            if (box == old) continue;
+            const double w = weight(c);
+            r.before = area(old) * w, r.after = area(box) * w;
+            parent.set(lane, box);
+            r.state = 2;
+        }
+    });
+    for (std::size_t i = 0; i < n; ++i) {  // refit()'s bookkeeping, in the same order
+        const RefitRecord& r = refit_records_[i];
+        if (r.state == 0) continue;
+        ++refit_blocks_;
+        ++counts_.refit_blocks;
+        ++writes_;
+        if (r.state == 1) continue;
+        sah_sum_ += r.after - r.before;
+        sah_largest_term_ = std::max({sah_largest_term_, r.before, r.after});
+        ++writes_;
+        ++refit_lanes_;
+        ++counts_.refit_lanes;
+        Block& parent = blocks_[r.parent];
+        if (!parent.dirty) {
+            parent.dirty = true;
+            up->push_back(r.parent);
+        }
+    }
+}
+
+/// A move that stays in its leaf rewrites one lane and marks the leaf; a reinsertion changes the
+/// leaf it leaves and the one it enters (lanes, slots, counts), and a leaf split or a leaf that
+/// empties changes inner lanes. So the plan walks the queue on the calling thread, reading the tree
+/// only: the first move of a uid moved twice, or a reinsertion that would split or empty a leaf,
+/// ends it (that move and the rest go as apply_moves() does them); before it, the leaves each
+/// reinsertion leaves and enters (choose_leaf() on the inner lanes, which nothing before it
+/// changes) are marked touched. Every other move's slot, check and weight, taken from the tree as
+/// it was before the queue, are then what the sequential pass would find.
+std::size_t WideBvh::plan_moves() {
+    const std::size_t n = pending_.size();
+    slot_seen_.assign((blocks_.size() * kLanes + 63) / 64, 0);
+    block_touched_.assign((blocks_.size() + 63) / 64, 0);
+    leaf_count_.resize(blocks_.size());
+    auto count_of = [&](std::uint32_t leaf) -> std::uint8_t& {
+        std::uint64_t& word = block_touched_[leaf / 64];
+        const std::uint64_t bit = std::uint64_t(1) << (leaf % 64);
+        if (!(word & bit)) word |= bit, leaf_count_[leaf] = blocks_[leaf].count;
+        return leaf_count_[leaf];
+    };
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::uint32_t at = move_slot_[i];
+        std::uint64_t& seen = slot_seen_[at / 64];
+        const std::uint64_t bit = std::uint64_t(1) << (at % 64);
+        if (seen & bit) return i;  // the uid moved twice
+        seen |= bit;
+        if (!move_reinserts_[i]) continue;
+        const std::uint32_t from = at / kLanes;
+        if (count_of(from) == 1) return i;  // its leaf would empty
+        --count_of(from);
+        std::uint8_t& into = count_of(choose_leaf(pending_[i].box));
+        if (into == kLanes) return i;  // the leaf would split
+        ++into;
+    }
+    return n;
+}
+
+void WideBvh::apply_moves_parallel() {
+    const std::size_t n = pending_.size();
+    ++parallel_steps_;
+    const bool weigh = params_.rebuild_after > 0;
+    move_slot_.resize(n);
+    move_reinserts_.resize(n);
+    if (weigh) move_weight_.resize(n);
+    // 1. Slots, checks and weights against the tree before the queue (reads only).
+    in_chunks(n, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) {
+            const PendingMove& m = pending_[i];
+            const std::uint32_t at = where_.find(m.uid), b = at / kLanes;
+            move_slot_[i] = at;
+            move_reinserts_[i] = leaves_leaf(b, m.box);
+            if (weigh && !move_reinserts_[i]) move_weight_[i] = move_share(blocks_[b].box(int(at % kLanes)), m.box);
+        }
+    });
+    // 2. The plan (plan_moves()): before `stop`, a move is the threads' when it stays in an
+    // untouched leaf.
+    const std::size_t stop = plan_moves();
+    auto threads_own = [&](std::size_t i) {
+        const std::uint32_t b = move_slot_[i] / kLanes;
+        return !move_reinserts_[i] && !(block_touched_[b / 64] >> (b % 64) & 1);
+    };
+    // 3. Their lanes, on the threads: distinct lanes of leaves that nothing else before `stop`
+    // reads or writes.
+    in_chunks(stop, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i)
+            if (threads_own(i)) {
+                const std::uint32_t at = move_slot_[i];
+                blocks_[at / kLanes].set(int(at % kLanes), pending_[i].box);
+            }
+    });
+    // 4. In the queue's order: their weights, writes and marks, and the other moves whole.
+    constexpr std::size_t kAhead = 8;
+    for (std::size_t i = 0; i < n; ++i) {
+        if (i + kAhead < n) {  // the leaf's line with its mark, or the whole leaf from `stop` on
+            const std::uint32_t at = i + kAhead < stop ? move_slot_[i + kAhead] : where_.find(pending_[i + kAhead].uid);
+            const char* leaf = reinterpret_cast<const char*>(&blocks_[at / kLanes]);
+            for (int line = i + kAhead < stop ? 192 : 0; line < int(sizeof(Block)); line += 64)
+                __builtin_prefetch(leaf + line, 1);
+        }
+        if (i < stop && threads_own(i)) {
+            if (weigh) weighted_changes_ += move_weight_[i];
+            ++writes_;
+            mark(move_slot_[i] / kLanes);
+        } else {
+            apply_move(where_.find(pending_[i].uid), pending_[i].uid, pending_[i].box);
+        }
+    }
+    pending_.clear();
+}
+
+/// The leaves of the queued inserts are looked for on the threads first, each recording the blocks
+/// it read (choose_leaf() reads only inner blocks' lanes, counts and children, and the leaf flag).
+/// Then, in the queue's order on the calling thread, each is inserted as insert_object() does; a
+/// leaf split changes its leaf's parent (or the root), and an insert whose recorded path passes a
+/// block changed so looks for its leaf again. Nothing else in an insert changes what choose_leaf()
+/// reads, so every insert goes to the leaf the sequential pass would choose.
+void WideBvh::apply_inserts() {
+    const std::size_t n = pending_inserts_.size();
+    if (!update_arena_ || n < kParallelInserts) {
+        for (const Object& o : pending_inserts_) insert_object(o);
+        pending_inserts_.clear();
+        return;
+    }
+    ++parallel_steps_;
+    const std::size_t stride = std::size_t(max_depth_) + 1;  // a path holds depth + 1 blocks
+    insert_paths_.resize(n * stride);
+    in_chunks(n, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i) {
+            std::uint32_t* path = &insert_paths_[i * stride];
+            std::fill_n(path, stride, kNone);
+            choose_leaf(pending_inserts_[i].box, path);
+        }
+    });
+    inner_changed_.assign((blocks_.size() + 63) / 64, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::uint32_t* path = &insert_paths_[i * stride];
+        std::uint32_t leaf = kNone;
+        bool valid = true;
+        for (std::size_t d = 0; d < stride && path[d] != kNone; ++d) {
+            leaf = path[d];
+            valid &= !(inner_changed_[leaf / 64] >> (leaf % 64) & 1);
+        }
+        const Object& o = pending_inserts_[i];
+        insert_into(valid ? leaf : choose_leaf(o.box), o);
+    }
+    inner_changed_.clear();
+    pending_inserts_.clear();
+}
+
 void WideBvh::commit() {
-    if (!pending_.empty()) apply_moves();
+    flush();
     refit_blocks_ = refit_lanes_ = 0;
     refit();
     resolve_queue();
@@ -610,6 +854,21 @@ int WideBvh::depth() const {
     return deepest;
 }
 
+std::uint64_t WideBvh::fingerprint() const {
+    // FNV-1a over the fields (not the padding) of the blocks in use, in block order.
+    std::uint64_t h = 0xcbf29ce484222325ull;
+    auto add = [&h](std::uint64_t word) { h = (h ^ word) * 0x100000001b3ull; };
+    add(root_), add(free_), add(free_count_), add(blocks_.size());
+    for (const Block& b : blocks_) {
+        if (b.count == 0) continue;
+        for (const auto& row : b.bound)
+            for (const float f : row) add(std::bit_cast<std::uint32_t>(f));
+        for (const std::uint32_t r : b.ref) add(r);
+        add(b.parent), add(b.depth), add(b.lane_in_parent), add(b.count), add(b.leaf), add(b.dirty);
+    }
+    return h;
+}
+
 std::size_t WideBvh::l2_bytes() {
     static const std::size_t bytes = [] {
         const long b = sysconf(_SC_LEVEL2_CACHE_SIZE);
@@ -621,7 +880,12 @@ std::size_t WideBvh::l2_bytes() {
 std::size_t WideBvh::memory_bytes() const {
     return blocks_.capacity() * sizeof(Block) + where_.memory_bytes() + dirty_.capacity() * sizeof(std::uint32_t) +
            pending_.capacity() * sizeof(PendingMove) + refit_levels_bytes() + scratch_bytes() +
-           builder_.memory_bytes() + rebuild_.memory_bytes() + sizeof(*this);
+           refit_records_.capacity() * sizeof(RefitRecord) + move_slot_.capacity() * sizeof(std::uint32_t) +
+           move_reinserts_.capacity() + move_weight_.capacity() * sizeof(double) +
+           (slot_seen_.capacity() + block_touched_.capacity() + inner_changed_.capacity()) * sizeof(std::uint64_t) +
+           leaf_count_.capacity() + pending_inserts_.capacity() * sizeof(Object) +
+           insert_paths_.capacity() * sizeof(std::uint32_t) + builder_.memory_bytes() + rebuild_.memory_bytes() +
+           sizeof(*this);
 }
 
 nlohmann::json WideBvh::stats() const {
@@ -652,7 +916,7 @@ void WideBvh::validate_tree(bool refitted) const {
         broken_invariant("wbvh", (refitted ? "" : "next tree: ") + what);
     };
     if (refitted && !dirty_.empty()) fail("blocks not refitted after changes (commit missing)");
-    if (!pending_.empty()) fail("moves not applied (commit missing)");
+    if (!pending_.empty() || !pending_inserts_.empty()) fail("moves or inserts not applied (commit missing)");
     const auto total = std::uint32_t(blocks_.size());
     std::uint32_t free_seen = 0;
     for (std::uint32_t b = free_; b != kNone; b = blocks_[b].parent) {

@@ -12,7 +12,8 @@
 /// its running SAH sum grew by `rebuild_ratio`, a next tree is
 /// built from the live objects a budget of work per commit (`rebuild_speed` objects' share per
 /// change), the changes meanwhile are logged and replayed into it, and the trees swap; the live tree
-/// answers throughout. docs/structures.md has the details and the measurements.
+/// answers throughout. `threads` runs the refit and the queued moves and inserts of large frames on
+/// a task arena, with the one-thread result. docs/structures.md has the details and the measurements.
 ///
 /// This header holds the tree, its changes and its queries; the builder is in wide_bvh_build.h, the
 /// progressive rebuild in wide_bvh_rebuild.h (both friends of the tree, which they build).
@@ -21,6 +22,7 @@
 #include <array>
 #include <bit>
 #include <cstdint>
+#include <memory>
 #include <tuple>
 #include <vector>
 
@@ -97,6 +99,10 @@ public:
         /// cache (as `push`). The tree and its answers are the same either way.
         std::string queue_moves = "auto";
         int cast_threads = 1;
+        /// Threads of the update (the refit's levels, the queued moves and inserts, in a TBB task
+        /// arena kept for the tree's lifetime); the tree, its answers and its counters are the same
+        /// for every count ("The update on threads" in docs/structures.md).
+        int threads = 1;
 
         static constexpr auto fields() {
             return std::tuple{
@@ -131,7 +137,12 @@ public:
                       "moves queued and applied at commit in one pass that prefetches the leaves ahead (on), "
                       "applied at once (off), or auto (queued while the tree's blocks exceed the L2 cache)",
                       kQueueOptions},
-                cast_threads_field<Params>()};
+                cast_threads_field<Params>(),
+                Field{"threads", &Params::threads, 1, 64,
+                      "threads of the update: the refit's levels, the queued moves' lookups, checks and lane "
+                      "writes, and the queued inserts' leaf search (TBB task arena; the tree, answers and "
+                      "counters are the same for every count)",
+                      kNotTunedDefaultUnrecorded}};
         }
     };
 
@@ -145,7 +156,7 @@ public:
     void remove(Uid uid) override;
     void move(const Object& object) override;
     void commit() override;
-    std::size_t size() const override { return where_.size(); }
+    std::size_t size() const override { return where_.size() + pending_inserts_.size(); }
     std::uint64_t writes() const override { return writes_; }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
@@ -166,16 +177,20 @@ public:
         std::uint64_t reinserts = 0, splits = 0, refit_blocks = 0, refit_lanes = 0, rebuild_work = 0, rebuilds = 0;
     };
     const UpdateCounts& update_counts() const { return counts_; }
+    /// A hash of every block in use (lanes, links, counts, flags), the root and the free list: for
+    /// tests, the same for every update thread count.
+    std::uint64_t fingerprint() const;
+    /// Refit levels and move queues that ran on the update arena (Params::threads) since the tree
+    /// was made (for tests: the threads were used).
+    std::uint64_t parallel_steps() const { return parallel_steps_; }
     /// Applies the queued moves now (commit, insert, remove and queries do it first): for
     /// bench/wbvh_update.cpp, which times them apart from the refit.
-    void flush_moves() {
-        if (!pending_.empty()) apply_moves();
-    }
+    void flush_moves() { flush(); }
 
     // The traversal interface of StructureBase: the deferred refit, then const traversals with a
     // stack per thread.
     void prepare() {
-        if (!pending_.empty()) apply_moves();
+        flush();
         if (!dirty_.empty()) refit();
         fixed_push_ =
             push_ == Push::fixed || (push_ == Push::automatic && blocks_.size() * sizeof(Block) <= l2_bytes());
@@ -469,6 +484,18 @@ private:
     void apply_moves();
     /// One move (the former move()): rewrites the object's lane, or reinserts it (Params::reinsert).
     void apply_move(std::uint32_t at, Uid uid, const Aabb& box);
+    /// Whether a move of an object of leaf `b` to `box` reinserts it (Params::reinsert): its new
+    /// centre lies outside the leaf's lane in its parent.
+    bool leaves_leaf(std::uint32_t b, const Aabb& box) const;
+    /// The queued inserts, then the queued moves (every queued insert came before every queued move:
+    /// insert() applies the moves first).
+    void flush() {
+        if (!pending_inserts_.empty()) apply_inserts();
+        if (!pending_.empty()) apply_moves();
+    }
+    /// Applies the queued inserts in their order (Params::threads: their leaves looked for on the
+    /// arena first; wide_bvh.cpp).
+    void apply_inserts();
     /// Params::queue_moves as resolved for the tree's size (at build and at every commit).
     void resolve_queue() {
         queue_ = queue_mode_ == Queue::on ||
@@ -478,6 +505,35 @@ private:
     void release(std::uint32_t b);
     void mark(std::uint32_t b);
     void refit();
+
+    // ---- the update on several threads (Params::threads; wide_bvh.cpp) ----
+    /// Queues (a refit level, the queued moves) shorter than this stay on the calling thread:
+    /// entering the arena would cost more.
+    static constexpr std::size_t kParallelUpdate = 1024;
+    /// The same for queued inserts, whose leaf search alone is a descent of the whole tree.
+    static constexpr std::size_t kParallelInserts = 128;
+    /// Calls f(begin, end) over [0, n) cut into chunks, on the update arena's threads.
+    template <class F>
+    void in_chunks(std::size_t n, F&& f);
+    /// What refit() does for one block, computed on any thread: its box, its parent's lane
+    /// rewritten when it changed, and the SAH terms for the calling thread to add in queue order.
+    struct RefitRecord {
+        double before = 0, after = 0;  // the lane's SAH term before and after (state 2)
+        std::uint32_t parent = 0;
+        std::uint8_t state = 0;  // 0: the root (nothing), 1: its box unchanged, 2: its lane rewritten
+    };
+    /// One level of refit() on the arena: the blocks of `queue` (each listed once) in chunks, then
+    /// the sums, counters and the parents queued into `up` in queue order, as refit() does them.
+    void refit_level_parallel(std::vector<std::uint32_t>& queue, std::vector<std::uint32_t>* up);
+    /// Drops the repeats of a block from dirty_ (a block released and reused after it was marked),
+    /// which a parallel level must not see twice.
+    void unique_dirty();
+    /// apply_moves() on the arena; the tree and its counters are the sequential pass's
+    /// (wide_bvh.cpp has how).
+    void apply_moves_parallel();
+    /// The plan of apply_moves_parallel(): the leaves the queue's reinsertions touch, up to the
+    /// first move it cannot foresee, whose index it returns.
+    std::size_t plan_moves();
     /// The heap memory of refit_levels_.
     std::size_t refit_levels_bytes() const {
         std::size_t bytes = refit_levels_.capacity() * sizeof(std::vector<std::uint32_t>);
@@ -491,9 +547,17 @@ private:
     /// Hooks block `b` into lane `lane` of `parent` (or makes it the root) and adds its SAH term.
     void link(std::uint32_t b, std::uint32_t parent, int lane);
 
-    /// The leaf a new box goes to: the child of least area growth at every level.
-    std::uint32_t choose_leaf(const Aabb& box) const;
+    /// The leaf a new box goes to: the child of least area growth at every level. With `path`, the
+    /// blocks it reads are written there, the root first and the leaf last.
+    std::uint32_t choose_leaf(const Aabb& box, std::uint32_t* path = nullptr) const;
     void insert_object(const Object& o);
+    /// insert_object() into a non-empty tree once the leaf is chosen.
+    void insert_into(std::uint32_t leaf, const Object& o);
+    /// While apply_inserts() runs on the arena: block `b`'s lanes or children change (a leaf split),
+    /// so a leaf chosen through it beforehand is chosen again.
+    void note_changed(std::uint32_t b) {
+        if (b / 64 < inner_changed_.size()) inner_changed_[b / 64] |= std::uint64_t(1) << (b % 64);
+    }
     /// A move whose centre left its leaf's box (Params::reinsert): a remove and an insert. Apart
     /// from move(), which stays a lane's write for the moves that keep their leaf.
     [[gnu::noinline]] void reinsert(Uid uid, const Aabb& box);
@@ -560,6 +624,25 @@ private:
     /// writes(): one per block allocated (a build writes each so), freed or refitted, per lane a change
     /// or refit rewrites, and those of a progressive rebuild's next tree as it is built and replayed.
     std::uint64_t writes_ = 0;
+
+    // The update's threads (Params::threads > 1) and its scratch, kept between commits.
+    std::unique_ptr<CastArena> update_arena_;
+    std::vector<RefitRecord> refit_records_;
+    bool dirty_repeats_ = false;  // a marked block was released: dirty_ may list it twice
+    std::uint64_t parallel_steps_ = 0;
+    // Per queued move: its slot before the queue, whether it reinserts, its weight for the rebuild
+    // trigger; bits per slot and per leaf for the plan, and the counts it foresees for the leaves.
+    std::vector<std::uint32_t> move_slot_;
+    std::vector<std::uint8_t> move_reinserts_;
+    std::vector<double> move_weight_;
+    std::vector<std::uint64_t> slot_seen_, block_touched_;
+    std::vector<std::uint8_t> leaf_count_;  // per block whose bit is set in block_touched_
+    // Inserts queued while the update has threads (applied before anything reads the tree), the
+    // blocks each one's choose_leaf() read (a stride of max_depth_ + 1, kNone after the leaf), and
+    // the blocks a leaf split changed since (bits; empty while no parallel insert runs).
+    std::vector<Object> pending_inserts_;
+    std::vector<std::uint32_t> insert_paths_;
+    std::vector<std::uint64_t> inner_changed_;
 
     WideBvhBuilder builder_;  // builds this tree
     WideBvhRebuild rebuild_;  // builds the next one while this one answers

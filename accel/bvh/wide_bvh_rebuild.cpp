@@ -70,7 +70,7 @@ void WideBvhRebuild::start(const WideBvh& live) {
         WideBvh::Params p = live.params_;
         p.rebuild_ratio = p.rebuild_after = p.rebuild_speed = 0;
         p.rebuild_every = 0;
-        p.cast_threads = 1;
+        p.cast_threads = p.threads = 1;  // the next tree is built and replayed into on the calling thread
         next_ = std::make_unique<WideBvh>(p);
     }
     const std::size_t n = live.where_.size();
