@@ -77,7 +77,7 @@ struct Priors {
 Priors priors_of(const StructureCalibration* calibration) {
     Priors p;
     for (const CostTerm& term : cost_terms()) {
-        if (!term.prior) continue;
+        if (!term.prior || !term.run_prior) continue;
         const CalibratedTerm* t = calibration ? calibration->term(term.name) : nullptr;
         if (t && t->pinned)
             p.value[term.name] = t->value;

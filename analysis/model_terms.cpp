@@ -130,17 +130,26 @@ const std::vector<CostTerm>& cost_terms() {
          .prior = true,
          .in_tuning = true,
          .breakdown = value},
-        // What a reported hit costs beyond its box test (its entry in the ray's list; a grid's dropped
-        // hits, N_DUP, are left out: docs/model.md). Eq. 5.3 prices true and false positives alike;
-        // the calibration's stack and cluster pin it apart from C_RB where they can (fit_calibration).
+        // What a reported hit costs beyond its box test: its entry in the ray's list and, in a grid,
+        // the check against the objects met in earlier cells. Eq. 5.3 prices true and false
+        // positives alike; the calibration's stack and cluster pin it apart from C_RB where they can
+        // (fit_calibration), so that C_RB is a box test's cost. Rays through a map's rooms pay far
+        // more per hit than the micro-scenes' one-cell stack does (docs/model.md, "Hits"), so a
+        // run's fit takes it from its frames alone.
         {.name = "C_HIT",
          .target = raycast,
          .counters = {"N_TP"},
          .unit = "ns per reported hit",
          .prior = true,
+         .run_prior = false,
          .in_tuning = true,
-         .optional_in_json = true},
+         .optional_in_json = true,
+         .breakdown = where_priced},
         {.name = "c_object", .target = update, .counters = {"N_OBJ"}, .unit = "ns per object", .when_absent = keep},
+        // The cells, entries and nodes an update wrote (Structure::writes): an incremental tree
+        // that rebuilds when its height or SAH cost outgrew its guard rewrites the whole tree in
+        // that frame, at a price per change of ten times its usual one (docs/model.md).
+        {.name = "c_write", .target = update, .counters = {"N_UW"}, .unit = "ns per write"},
         {.name = "c_frame", .target = update, .counters = {}, .unit = "ns per frame", .when_absent = keep},
         // One price for any change (eq. 5.5 prices inserts, removes and moves apart; where a run
         // mixes them in one proportion, as the thesis' 1% dynamics everywhere, their own costs
@@ -163,11 +172,16 @@ const std::vector<ModelForm>& model_forms() {
         // (eq. 5.3).
         {"eq5.4", raycast, {"C_RB", "C_T", "C_RO", "C_PREP"}},
         {"with-coherence", raycast, {"C_RB", "C_T", "C_RO", "C_PREP", "C_MP"}, {"C_MP"}},
-        {"coherence-misses", raycast, {"C_RB", "C_T", "C_RO", "C_PREP", "C_MP", "C_MISS"}, {"C_MP", "C_MISS"}},
-        // Update: one price per change, and each configuration its own with a per-object cost (an
-        // incremental and a rebuilding mode of one structure update differently).
+        {"coherence-misses", raycast, {"C_RB", "C_T", "C_RO", "C_PREP", "C_MP", "C_MISS", "C_HIT"}, {"C_MP", "C_MISS"}},
+        // Update: one price per change, and each configuration its own with a per-object and a
+        // per-write cost (an incremental and a rebuilding mode of one structure update differently,
+        // and an incremental tree's rebuilds write what its changes alone do not say).
         {"per-change", update, {"c_change", "c_frame"}, {"c_change"}},
-        {"per-configuration-change", update, {"c_change", "c_frame", "c_object"}, {"c_change"}, Split::by_params},
+        {"per-configuration-change",
+         update,
+         {"c_change", "c_frame", "c_object", "c_write"},
+         {"c_change"},
+         Split::by_params},
     };
     return forms;
 }

@@ -6,8 +6,8 @@
 /// database column).
 ///
 /// The thesis' model (§5.1, eq. 5.4) per ray: C = C_RB·(N_TP + N_FP) + C_T·N_T + C_PREP; rcbench
-/// adds the narrow phase's C_RO·N_RO (eq. 5.3), unpredicted steps and lines fetched; C_HIT is a
-/// term of the calibration only (docs/model.md). Updates per frame: per change, per object.
+/// adds the narrow phase's C_RO·N_RO (eq. 5.3), unpredicted steps, lines fetched and reported
+/// hits (docs/model.md). Updates per frame: per change, per object, per write.
 
 #include <cstdint>
 #include <string>
@@ -115,6 +115,10 @@ struct CostTerm {
     WhenAbsent when_absent = WhenAbsent::drop;
     /// The calibration pass measures it: its pinned value is the fit's prior (linear_fit.h).
     bool prior = false;
+    /// With `prior`: a run's fit draws the term towards the calibration's value. False where the
+    /// micro-scenes price it apart from another term (C_HIT beside C_RB) but not at what the run's
+    /// scenes pay for it: the run's frames alone decide it.
+    bool run_prior = true;
     /// A tuning's cost_model carries it (the tuner's predict_cost and advise apply it).
     bool in_tuning = false;
     /// In a tuning's JSON, absent reads as 0: tunings written before the term existed lack it.

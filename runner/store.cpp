@@ -395,7 +395,7 @@ ALTER TABLE frame ADD COLUMN writes INTEGER NOT NULL DEFAULT 0;
 ALTER TABLE calibration ADD COLUMN n_miss REAL NOT NULL DEFAULT 0;
 )sql",
         // 15 → 16: the objects each calibration micro-scene's rays reported per ray
-        // (CalibrationPoint::n_tp; the prior of the cost model's C_HIT). 0 in calibrations stored before.
+        // (CalibrationPoint::n_tp: the calibration's C_HIT). 0 in calibrations stored before.
         R"sql(
 ALTER TABLE calibration ADD COLUMN n_tp REAL NOT NULL DEFAULT 0;
 )sql",

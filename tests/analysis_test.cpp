@@ -2,6 +2,8 @@
 // outliers, collinear designs flagged, and model selection picking the model that made the data.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <map>
 
 #include "analysis/cost_model.h"
@@ -29,7 +31,7 @@ std::vector<FrameObservation> synthetic_frames(double c_rb, double c_t, double c
             o.rays = 1000;
             o.n_rb = n_rb * (1 + 0.05 * rng.normal());
             o.n_t = n_t * (1 + 0.05 * rng.normal());
-            o.n_tp = 0.1 * o.n_rb;
+            o.n_tp = (0.05 + 0.02 * (c % 7)) * o.n_rb;  // hits, a share of the tests by configuration, free
             const double per_ray = c_rb * o.n_rb + c_t * o.n_t + c_prep;
             o.raycast_ns = o.rays * per_ray * (1 + noise * rng.normal()) * (f % 25 == 7 ? 3.0 : 1.0);
             o.inserts = 10 + c, o.removes = 5 + (7 * c) % 11, o.moves = 80 + 3 * ((5 * c) % 7), o.objects = 10000;
@@ -245,6 +247,115 @@ TEST(ModelSelection, UnpredictedStepsAndFetchedLinesGetTheirOwnCost) {
     // such candidate.
     const auto plain = fit_cost_models(synthetic_frames(0.8, 5.0, 40.0, 12, 1));
     for (const CandidateModel& x : plain[0].raycast) EXPECT_EQ(x.name, "eq5.4");
+}
+
+/// The coefficient of `m` named `name`, or whose name starts with it and contains `part` (a
+/// per-configuration copy); nullptr when none is.
+const Coefficient* coefficient(const CandidateModel& m, const std::string& name, const std::string& part = "") {
+    for (const Coefficient& c : m.fit.coefficients)
+        if (part.empty() ? c.name == name : c.name.rfind(name, 0) == 0 && c.name.find(part) != std::string::npos)
+            return &c;
+    return nullptr;
+}
+
+TEST(ModelSelection, AReportedHitGetsItsOwnCostOnlyWhereItCostsOne) {
+    // Unpredicted steps and fetched lines as above, and reported hits in a share of the box tests
+    // that varies by configuration (rays through rooms hit walls, rays over open ground seldom
+    // do): at 15 ns a hit beyond its test, the largest form prices them.
+    const std::vector<FrameObservation> steps = with_step_share(
+        with_step_share(synthetic_frames(0.8, 5.0, 40.0, 16, 21, 0.02), &FrameObservation::n_mp, 14.0, 0.02, 0.5, 5),
+        &FrameObservation::n_miss, 20.0, 0.05, 0.6, 6);
+    const auto with_hits = [&](double cost) {
+        std::vector<FrameObservation> frames = steps;
+        Random rng(8);
+        std::map<int, double> share;
+        for (FrameObservation& f : frames) {
+            if (!share.count(f.config_group)) share[f.config_group] = rng.uniform(0.01, 0.6);
+            f.n_tp = share[f.config_group] * f.n_rb;
+            f.raycast_ns += f.rays * cost * f.n_tp;
+        }
+        return frames;
+    };
+    const auto priced = fit_cost_models(with_hits(15.0));
+    const CandidateModel* m = priced[0].chosen("raycast");
+    ASSERT_NE(m, nullptr);
+    EXPECT_EQ(m->name, "coherence-misses");
+    const Coefficient* hit = coefficient(*m, "C_HIT");
+    ASSERT_NE(hit, nullptr);
+    EXPECT_LE(hit->ci_low, 15.0);
+    EXPECT_GE(hit->ci_high, 15.0);
+    for (const TermWorth& w : term_worth(*m))
+        if (w.term == "C_HIT") {
+            EXPECT_GT(w.without, 2 * m->heldout_error);
+        }
+    // Hits that cost nothing beyond their tests: the term is dropped, and says why.
+    const auto free = fit_cost_models(with_hits(0.0));
+    for (const CandidateModel& c : free[0].raycast) {
+        EXPECT_EQ(coefficient(c, "C_HIT"), nullptr) << c.name;
+        if (c.name == "coherence-misses") {
+            EXPECT_TRUE(std::any_of(c.dropped.begin(), c.dropped.end(),
+                                    [](const std::string& d) { return d.rfind("C_HIT", 0) == 0; }));
+        }
+    }
+}
+
+/// Frames of one structure in two configurations on scenes of 300 to 40000 objects, 1% of them
+/// changed per frame: a rebuilding mode (every object written, 70 ns per write) and an
+/// incremental one (250 ns per change, a few writes per change), whose frames in every third
+/// scene rebuild the tree (3 writes per object) with probability `rebuilds`, at `c_write` ns per
+/// write.
+std::vector<FrameObservation> update_frames(double rebuilds, double c_write, std::uint64_t seed) {
+    Random rng(seed);
+    std::vector<FrameObservation> frames;
+    for (int s = 0; s < 12; ++s) {
+        const double objects = std::round(rng.log_uniform(300, 40000)), changes = std::round(0.01 * objects);
+        for (int k = 0; k < 2; ++k)
+            for (int f = 0; f < 12; ++f) {
+                FrameObservation o;
+                o.structure = "tree";
+                o.scene = "scene" + std::to_string(s);
+                o.params = k ? "{\"mode\":\"incremental\"}" : "{\"mode\":\"rebuild\"}";
+                o.config_group = 2 * s + k;
+                o.objects = objects;
+                o.inserts = o.removes = std::round(0.1 * changes), o.moves = changes - 2 * o.inserts;
+                const bool rebuild = k == 0 || (s % 3 == 0 && rng.uniform(0, 1) < rebuilds);
+                o.writes = rebuild ? (k ? 3 : 4) * objects + rng.uniform(0, 50) : (6 + rng.uniform(0, 1)) * changes;
+                o.update_ns = (k ? 250 * changes + (rebuild ? c_write : 0) * o.writes : 70 * o.writes + 500) *
+                              (1 + 0.03 * rng.normal());
+                frames.push_back(o);
+            }
+    }
+    return frames;
+}
+
+TEST(ModelSelection, AnIncrementalTreesRebuildsArePricedByItsWrites) {
+    // Most frames of the rebuilding scenes rebuild: a price per change alone misses those scenes
+    // by 10x, the per-configuration form with writes prices them.
+    const auto models = fit_cost_models(update_frames(0.8, 17.0, 3));
+    const CandidateModel* m = models[0].chosen("update");
+    ASSERT_NE(m, nullptr);
+    EXPECT_EQ(m->name, "per-configuration-change");
+    const Coefficient* write = coefficient(*m, "c_write", "incremental");
+    ASSERT_NE(write, nullptr);
+    EXPECT_NEAR(write->value, 17.0, 3.0);
+    EXPECT_LT(m->heldout_error, 0.1);
+    for (const TermWorth& w : term_worth(*m))
+        if (w.term == write->name) {
+            EXPECT_GT(w.without, 2 * m->heldout_error);
+        }
+    // A tree that never rebuilds: its writes follow its changes and price nothing of their own, so
+    // the incremental mode's write column is dropped or cannot be told from 0.
+    const auto steady = fit_cost_models(update_frames(0.0, 0.0, 3));
+    const CandidateModel* s = steady[0].chosen("update");
+    ASSERT_NE(s, nullptr);
+    EXPECT_EQ(s->name, "per-configuration-change");  // the modes differ by 100x per change
+    if (const Coefficient* w = coefficient(*s, "c_write", "incremental")) {
+        EXPECT_TRUE(w->spans_zero || w->value < 1.0) << w->value;
+    }
+    const Coefficient* change = coefficient(*s, "c_change", "incremental");
+    ASSERT_NE(change, nullptr);
+    EXPECT_NEAR(change->value, 250.0, 25.0);
+    EXPECT_LT(s->heldout_error, 0.1);
 }
 
 TEST(ModelSelection, ChangesInOneProportionGetOnePrice) {
