@@ -10,7 +10,8 @@
 //
 // The scene follows `rcbench scene import`'s defaults: the file's boxes, then `frames` frames of 1%
 // changes and `rays` centre rays each (add_dynamics, seeded). Pin it and repeat it; for
-// instruction and cache-miss counts run it under valgrind (docs/structures.md, wbvh):
+// instruction and cache-miss counts run it under callgrind with --instr-atstart=no: the timed
+// batches alone are instrumented (docs/structures.md, wbvh):
 //
 //   build/bench/wbvh_rays BOXES.csv [key=value …]
 //   build/bench/wbvh_rays RECORDING.rcbscene [key=value …]   (its own frames and rays)
@@ -19,7 +20,8 @@
 //                 structure), rays=N (1000), ray_mix=MIX (center; as scene import's --ray-mix),
 //                 queries=PRESET (a game query preset instead, as --queries), seed=S (1),
 //                 kinds=all,closest,any (the batches timed; `mix`: each ray its recorded kind),
-//                 embree=low,medium (the Embree builds compared; none: wbvh alone), kind, objects
+//                 embree=low,medium (the Embree builds compared; none: wbvh alone), count=0|1 (1:
+//                 the counted pass; 0 leaves only the timed batches, for valgrind), kind, objects
 //                 (a generated scene)
 //     wbvh.KEY=VALUE: a wbvh parameter, e.g. wbvh.push=loop
 //     b.KEY=VALUE: a second wide BVH `wbvh_b` with these parameters, timed beside the first (A/B)
@@ -38,6 +40,13 @@
 #include "core/scene/import/csv.h"
 #include "core/scene/recording_io.h"
 
+#if __has_include(<valgrind/callgrind.h>)
+#include <valgrind/callgrind.h>
+#else
+#define CALLGRIND_START_INSTRUMENTATION
+#define CALLGRIND_STOP_INSTRUMENTATION
+#endif
+
 namespace {
 
 using namespace rcb;
@@ -52,6 +61,7 @@ struct Settings {
     std::string path;
     SceneSettings scene;
     std::uint32_t frames = 10, warmup = 2, reps = 1, rays = 1000;
+    bool count = true;
     std::string ray_mix = "center", queries;
     std::vector<std::string> kinds{"all", "closest", "any"};
     std::vector<std::string> embree{"low", "medium"};
@@ -99,6 +109,8 @@ Settings parse(int argc, char** argv) {
             s.reps = std::uint32_t(bench::count_arg(v, "reps", 1, 1000));
         else if (key == "rays")
             s.rays = std::uint32_t(bench::count_arg(v, "rays", 1, 10000000));
+        else if (key == "count")
+            s.count = bench::count_arg(v, "count", 0, 1) != 0;
         else if (key == "seed")
             s.scene.seed = bench::count_arg(v, "seed", 0, UINT64_MAX);
         else if (key == "objects")
@@ -187,21 +199,24 @@ void time_batch(std::vector<Candidate>& cs, std::size_t kind_index, const std::s
     for (std::uint32_t r = 0; r < s.reps; ++r, ++sample) {
         for (std::size_t k = 0; k < cs.size(); ++k) {
             Candidate& c = cs[(k + sample) % cs.size()];
+            CALLGRIND_START_INSTRUMENTATION;  // callgrind --instr-atstart=no: the batches alone
             const double t0 = cpu_ns();
             c.s->cast(frame.rays, kinds, c.hits);
             const double t = cpu_ns() - t0;
+            CALLGRIND_STOP_INSTRUMENTATION;
             if (measured) c.ns[kind_index].push_back(t / rays);
         }
         for (std::size_t k = 1; k < cs.size(); ++k) check_same(cs[0], cs[k], kind, kinds, f);
     }
-    if (!measured) return;
+    if (!measured || !s.count) return;
     for (Candidate& c : cs) c.s->cast_counted(frame.rays, kinds, c.hits, c.counted[kind_index]);
 }
 
 void report(const std::vector<Candidate>& cs, std::size_t ki, const std::string& kind, double rays) {
-    std::printf("\n%s hits: ns per ray (median, min, max over batches) | per ray: blocks N_T, child boxes hit N_TH, "
-                "object tests N_RB, hits N_TP, model N_MP, N_MISS\n",
-                kind.c_str());
+    std::printf(
+        "\n%s hits: ns per ray (median, min, max over batches) | per ray: blocks N_T, child boxes hit N_TH, "
+        "object tests N_RB, hits N_TP, model N_MP, N_MISS\n",
+        kind.c_str());
     for (const Candidate& c : cs) {
         const std::vector<double>& t = c.ns[ki];
         const Counters& n = c.counted[ki];
@@ -260,8 +275,8 @@ int run(int argc, char** argv) {
     const Recording rec = load(s);
     if (rec.frames.size() <= s.warmup) throw InputError("the scene has no frame after the warm-up");
     std::printf("%s: %zu objects, %zu frames (the first %u warm up), %zu rays in the last frame, %u reps\n",
-                s.path.empty() ? s.scene.kind.c_str() : s.path.c_str(), rec.initial.size(), rec.frames.size(),
-                s.warmup, rec.frames.back().rays.size(), s.reps);
+                s.path.empty() ? s.scene.kind.c_str() : s.path.c_str(), rec.initial.size(), rec.frames.size(), s.warmup,
+                rec.frames.back().rays.size(), s.reps);
     std::vector<Candidate> cs = make_candidates(s);
     for (Candidate& c : cs) {
         c.s->build(rec.initial);
