@@ -110,7 +110,7 @@ public:
                sizeof(*this);
     }
     nlohmann::json stats() const override { return {{"entries", entries_.size()}}; }
-    void validate() const override {
+    void check() const override {
         if (slot_.size() != entries_.size()) rcb::broken_invariant("sweep", "index and list differ in size");
         for (std::size_t i = 0; i < entries_.size(); ++i) {
             if (i > 0 && by_min_x(entries_[i], entries_[i - 1]))
