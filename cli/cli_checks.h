@@ -71,20 +71,22 @@ inline CLI::Validator non_empty() {
     return CLI::Validator([](std::string& text) -> std::string { return text.empty() ? "must not be empty" : ""; }, "");
 }
 
-/// An option's old name, kept as an alias for one release: hidden from --help, it sets what
-/// `new_name` sets and says so on stderr in one line ("rcbench: --validate is deprecated; use
-/// --check"). A flag with `T` bool, else an option with a value of type T.
+/// An option's old name, kept as an alias for one release: --help says it is deprecated, it sets
+/// what `new_name` sets and, once its value has passed the checks, says so on stderr in one line
+/// ("rcbench: --validate is deprecated; use --check"). A flag with `T` bool, else an option with a
+/// value of type T.
 template <class T>
 CLI::Option* add_deprecated_alias(CLI::App* cmd, const std::string& old_name, const std::string& new_name, T& target) {
     const auto say = [old_name, new_name] {
         std::cerr << "rcbench: " << old_name << " is deprecated; use " << new_name << '\n';
     };
-    CLI::Option* o = nullptr;
+    const std::string help = "Deprecated: use " + new_name;
     if constexpr (std::is_same_v<T, bool>)
-        o = cmd->add_flag_callback(old_name, [&target, say] { target = true, say(); });
+        return cmd->add_flag_callback(
+            old_name, [&target, say] { target = true, say(); }, help);
     else
-        o = cmd->add_option_function<T>(old_name, [&target, say](const T& v) { target = v, say(); });
-    return o->group("");
+        return cmd->add_option_function<T>(
+            old_name, [&target, say](const T& v) { target = v, say(); }, help);
 }
 
 /// The first old key that a file's scenes use (SceneSpec::deprecated), as one line on stderr
