@@ -131,7 +131,7 @@ int run(int argc, char** argv) {
                         st["sah_growth"].get<double>(), st["rebuilds"].get<int>());
         }
     }
-    tree.validate();
+    tree.check();
     WideBvh fresh(p);
     fresh.build(live.objects());
     const double n = double(std::max<std::size_t>(1, tree.size()));

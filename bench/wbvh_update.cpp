@@ -205,7 +205,7 @@ int run(int argc, char** argv) {
         if (s.rows) print_row(std::to_string(f + 1).c_str(), row);
         if (f >= s.warmup) measured.push_back(row);
     }
-    tree.validate();
+    tree.check();
     FrameRow med;
     med.lookup_flat = median_of(measured, [](const FrameRow& r) { return r.lookup_flat; });
     med.lookup_map = median_of(measured, [](const FrameRow& r) { return r.lookup_map; });

@@ -17,7 +17,7 @@ void add_cast_command(CLI::App& app) {
         std::string scene;
         std::string rays;
         StructureOptions structure;
-        std::string kind = "all";
+        std::string query_kind = "all";
     };
     auto o = std::make_shared<Options>();
     CLI::App* cmd =
@@ -25,11 +25,12 @@ void add_cast_command(CLI::App& app) {
                            "Cast your own segments (CSV) against a scene's frame 0: one JSON line of hits per ray\n"
                            "Cast the segments of a CSV file (x0,y0,z0,x1,y1,z1) against a scene's frame 0; "
                            "prints one JSON line per ray: {\"ray\": i, \"hits\": [uid, ...]}");
-    cmd->add_option("--kind", o->kind,
+    cmd->add_option("--query-kind", o->query_kind,
                     "Query kind of every ray: all (every hit, sorted by uid), closest (the nearest hit: smallest "
                     "entry t, then smallest uid) or any (one hit met); closest and any print at most one uid")
         ->capture_default_str()
         ->check(CLI::IsMember({"all", "closest", "any"}));
+    add_deprecated_alias(cmd, "--kind", "--query-kind", o->query_kind)->check(CLI::IsMember({"all", "closest", "any"}));
     cmd->add_option("--scene", o->scene, "Recording file, or a boxes CSV (uid,minx,miny,minz,maxx,maxy,maxz)")
         ->required()
         ->check(input_file());
@@ -45,7 +46,7 @@ void add_cast_command(CLI::App& app) {
         const std::vector<Segment> rays = read_rays_csv(o->rays);
         s->build(objects);
         s->commit();
-        const auto kind = QueryKind(std::find(std::begin(kQueryKindNames), std::end(kQueryKindNames), o->kind) -
+        const auto kind = QueryKind(std::find(std::begin(kQueryKindNames), std::end(kQueryKindNames), o->query_kind) -
                                     std::begin(kQueryKindNames));
         const std::vector<QueryKind> kinds(kind == QueryKind::all ? 0 : rays.size(), kind);
         HitLists hits;

@@ -7,12 +7,15 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <iostream>
 #include <limits>
 #include <string>
+#include <type_traits>
 
 #include <CLI/CLI.hpp>
 
 #include "analysis/repetitions.h"
+#include "runner/experiment.h"
 
 namespace rcb {
 
@@ -66,6 +69,35 @@ inline CLI::Validator run_id() { return whole_number(1, std::uint64_t(std::numer
 /// A non-empty text (names, folders).
 inline CLI::Validator non_empty() {
     return CLI::Validator([](std::string& text) -> std::string { return text.empty() ? "must not be empty" : ""; }, "");
+}
+
+/// An option's old name, kept as an alias for one release: --help says it is deprecated, it sets
+/// what `new_name` sets and, once its value has passed the checks, says so on stderr in one line
+/// ("rcbench: --validate is deprecated; use --check"). A flag with `T` bool, else an option with a
+/// value of type T.
+template <class T>
+CLI::Option* add_deprecated_alias(CLI::App* cmd, const std::string& old_name, const std::string& new_name, T& target) {
+    const auto say = [old_name, new_name] {
+        std::cerr << "rcbench: " << old_name << " is deprecated; use " << new_name << '\n';
+    };
+    const std::string help = "Deprecated: use " + new_name;
+    if constexpr (std::is_same_v<T, bool>)
+        return cmd->add_flag_callback(
+            old_name, [&target, say] { target = true, say(); }, help);
+    else
+        return cmd->add_option_function<T>(
+            old_name, [&target, say](const T& v) { target = v, say(); }, help);
+}
+
+/// The first old key that a file's scenes use (SceneSpec::deprecated), as one line on stderr
+/// naming the file; whether there was one.
+inline bool say_deprecated_keys(const std::string& file, const std::vector<SceneSpec>& scenes) {
+    for (const SceneSpec& s : scenes)
+        if (!s.deprecated.empty()) {
+            std::cerr << "rcbench: " << file << ": " << s.deprecated << '\n';
+            return true;
+        }
+    return false;
 }
 
 /// `--repetitions fastest-cast|fastest|median`: what stands for a cell's repetitions (analysis/repetitions.h).

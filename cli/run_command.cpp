@@ -167,6 +167,7 @@ void add_run_command(CLI::App& app) {
     cmd->add_flag("--dry-run", o->dry_run, "Print the plan and stop");
     cmd->callback([o] {
         const Experiment e = load_experiment(o->experiment);
+        say_deprecated_keys(o->experiment, e.scenes);
         if (!o->dry_run) {
             std::vector<std::string> inputs{o->experiment};
             for (const SceneSpec& scene : e.scenes) inputs.push_back(scene.path);

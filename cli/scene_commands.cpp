@@ -243,7 +243,7 @@ private:
 /// pile dropped onto them, streamed into `sink`; the recording's meta says which map and how it was
 /// placed.
 void pile_on_map(const SceneSettings& s, const std::string& file, const std::string& map, SceneSink& sink) {
-    if (s.kind != "pile") throw InputError("--on-map: only --kind pile is dropped onto a map, not " + s.kind);
+    if (s.kind != "pile") throw InputError("--on-map: only --generator pile is dropped onto a map, not " + s.kind);
     if (importer_for(file) != "bsp")
         throw InputError("--on-map: " + file + ": expected a Quake III / OpenArena map (.bsp or .pk3)");
     ImportOptions options;
@@ -262,43 +262,44 @@ void pile_on_map(const SceneSettings& s, const std::string& file, const std::str
     }
 }
 
-/// `scene gen`: a scene from a preset or a kind.
+/// `scene gen`: a scene from a preset or a generator.
 void add_gen_command(CLI::App& scene) {
     struct GenOptions {
         std::string preset;
-        std::string kind;
+        std::string generator;
         std::uint32_t objects = 0;
         std::string out;
         DynamicsOptions dyn;
         ShapeSettings shapes;
-        double time_step = 0;  // the kind's default
+        double time_step = 0;  // the generator's default
         std::string shape_set;
         double fill = 0;
         std::string on_map, map;
     };
     auto gen = std::make_shared<GenOptions>();
-    CLI::App* g = scene.add_subcommand("gen", "Generate a scene recording from a preset or a kind");
+    CLI::App* g = scene.add_subcommand("gen", "Generate a scene recording from a preset or a generator");
     g->add_option("--preset", gen->preset,
                   "Thesis scenes uni-s/m/l and irreg-s/m/l (99, 5104, 14021 objects), irreg-xl (1M); peer-comparison "
-                  "scenes jittered-m/l and clusters-m/l (5104, 14021), clusters-xl (1M); failure modes <kind>-s/m "
+                  "scenes jittered-m/l and clusters-m/l (5104, 14021), clusters-xl (1M); failure modes <generator>-s/m "
                   "(1000, 10000 objects)")
         ->check(CLI::IsMember(preset_names()));
-    g->add_option("--kind", gen->kind,
-                  "Instead of a preset, with --objects. Physics kinds (" + join(physics_kinds()) +
+    g->add_option("--generator", gen->generator,
+                  "Instead of a preset, with --objects. Physics generators (" + join(physics_kinds()) +
                       ") are simulated by Bullet: every awake body moves each frame, sleeping ones do not; the "
                       "--change-fraction, --insert-share, --remove-share and --move-scale options do not apply to them")
         ->check(CLI::IsMember(scene_kinds()));
+    add_deprecated_alias(g, "--kind", "--generator", gen->generator)->check(CLI::IsMember(scene_kinds()));
     g->add_option("--time-step", gen->time_step,
-                  "Physics kinds: seconds simulated per frame (default 1/60 in one Bullet step; Broadmark's "
+                  "Physics generators: seconds simulated per frame (default 1/60 in one Bullet step; Broadmark's "
                   "brownian, freefall and gravity 1/30 in 4 substeps, its generator's)")
         ->check(finite_range(1e-4, 0.1));
     g->add_option(
          "--shape-set", gen->shape_set,
-         "Broadmark's kinds (brownian, freefall, gravity): its object set, cubes (unit cubes), spheres "
+         "Broadmark's generators (brownian, freefall, gravity): its object set, cubes (unit cubes), spheres "
          "(diameter 1) or assorted (cubes, bars and slabs of 38:1, planks up to 57:1, random boxes; default cubes)")
         ->check(CLI::IsMember(broadmark_shape_sets()));
     g->add_option("--fill", gen->fill,
-                  "Broadmark's kinds: share of the arena the objects' unit volumes fill, which sizes the arena "
+                  "Broadmark's generators: share of the arena the objects' unit volumes fill, which sizes the arena "
                   "(default 0.1, its generator's ObjectDensity; its shipped wizard sets 0.01)")
         ->check(finite_range(1e-6, 0.5));
     g->add_option("--objects", gen->objects, "Object count (overrides the preset's)")
@@ -330,15 +331,15 @@ void add_gen_command(CLI::App& scene) {
         SceneSettings s;
         if (!gen->preset.empty())
             s = preset_settings(gen->preset);
-        else if (!gen->kind.empty())
-            s.kind = gen->kind;
+        else if (!gen->generator.empty())
+            s.kind = gen->generator;
         else
-            throw InputError("scene gen: give --preset or --kind");
-        if (!gen->kind.empty()) s.kind = gen->kind;
+            throw InputError("scene gen: give --preset or --generator");
+        if (!gen->generator.empty()) s.kind = gen->generator;
         if (gen->objects)
             s.objects = gen->objects;
         else if (gen->preset.empty())
-            throw InputError("scene gen: --kind needs --objects");
+            throw InputError("scene gen: --generator needs --objects");
         s.seed = gen->dyn.seed;
         s.frames = gen->dyn.frames;
         s.dynamics = gen->dyn.dynamics;

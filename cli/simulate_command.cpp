@@ -118,7 +118,8 @@ void add_simulate_command(CLI::App& app) {
         ->check(whole_number(0, 1'000'000));
     cmd->add_flag("--no-verify", o->no_verify, "Skip the ground-truth comparison (faster on huge scenes)");
     cmd->add_flag("--no-count", o->no_count, "Skip the counting pass (N_T, N_RB, N_TP)");
-    cmd->add_flag("--validate", o->sim.validate, "Check the structure's invariants after every frame");
+    cmd->add_flag("--check", o->sim.check, "Check the structure's invariants after the build and every frame");
+    add_deprecated_alias(cmd, "--validate", "--check", o->sim.check);
     cmd->add_option("--cache", o->cache,
                     "warm: each phase meets the caches as the last left them (the thesis' loop); cold: before each "
                     "frame's update, read a buffer twice the largest cache, so update and ray cast start cold "

@@ -56,6 +56,8 @@ void add_tune_command(CLI::App& app) {
     cmd->callback([o] {
         const AccuracyConstraint accuracy = parse_accuracy(o->accuracy);
         TuneSpec spec = load_tune_spec(o->file);
+        for (const TuneCategory& c : spec.categories)
+            if (say_deprecated_keys(o->file, c.scenes)) break;
         if (o->seed) spec.seed = *o->seed;
         set_accuracy(spec, accuracy);
         // The space's size up front: parameters a file leaves out are searched at the registry's

@@ -190,11 +190,11 @@ std::vector<json> expand_grid(const StructureInfo& info, const json& grid, const
 }
 
 const std::set<std::string> kSceneKeys = {
-    "name",           "preset",     "kind",           "objects",      "recording",       "import",
-    "import_options", "frames",     "rays_per_frame", "ray_mix",      "change_fraction", "insert_share",
-    "remove_share",   "move_scale", "rotated_share",  "sphere_share", "capsule_share",   "seed",
-    "seeds",          "query_mix",  "queries",        "time_step",    "shape_set",       "fill",
-    "start_frame",    "stride",     "phases"};
+    "name",         "preset",         "generator",  "kind",           "objects",      "recording",
+    "import",       "import_options", "frames",     "rays_per_frame", "ray_mix",      "change_fraction",
+    "insert_share", "remove_share",   "move_scale", "rotated_share",  "sphere_share", "capsule_share",
+    "seed",         "seeds",          "query_mix",  "queries",        "time_step",    "shape_set",
+    "fill",         "start_frame",    "stride",     "phases"};
 
 /// A missing file. Real maps and models are never committed: one under a data/ directory that
 /// scripts/fetch_maps.sh fills is fetched on demand, so the message names the command that does.
@@ -285,12 +285,14 @@ SceneSource parse_scene_source(const json& s, const std::string& path, const std
             fail(at(path, "preset"), e.what());
         }
         src.name = src.base.preset;
-    } else if (s.contains("kind")) {
-        src.base.kind = get_string(s, "kind", path, "");
+    } else if (s.contains("generator") || s.contains("kind")) {
+        // "kind" is the generator's old key, kept for one release.
+        const char* key = s.contains("generator") ? "generator" : "kind";
+        src.base.kind = get_string(s, key, path, "");
         const std::vector<std::string> kinds = scene_kinds();
         if (std::find(kinds.begin(), kinds.end(), src.base.kind) == kinds.end())
-            fail(at(path, "kind"), "expected one of " + join(kinds) + ", got " + json_excerpt(s["kind"]));
-        if (!s.contains("objects")) fail(path, "a scene given by \"kind\" needs \"objects\"");
+            fail(at(path, key), "expected one of " + join(kinds) + ", got " + json_excerpt(s[key]));
+        if (!s.contains("objects")) fail(path, "a scene given by \"" + std::string(key) + "\" needs \"objects\"");
         src.name = src.base.kind;
     } else {
         src.source = SceneSpec::Source::import;
@@ -435,9 +437,9 @@ void parse_scene(const json& s, const std::string& path, const SceneDefaults& d,
                  std::vector<SceneSpec>& out) {
     expect_object(s, path);
     check_keys(s, path, kSceneKeys);
-    int sources =
-        int(s.contains("preset")) + int(s.contains("kind")) + int(s.contains("recording")) + int(s.contains("import"));
-    if (sources != 1) fail(path, "give exactly one of \"preset\", \"kind\", \"recording\" or \"import\"");
+    int sources = int(s.contains("preset")) + int(s.contains("generator")) + int(s.contains("kind")) +
+                  int(s.contains("recording")) + int(s.contains("import"));
+    if (sources != 1) fail(path, "give exactly one of \"preset\", \"generator\", \"recording\" or \"import\"");
     if (s.contains("recording")) return parse_recording_scene(s, path, base_dir, out);
 
     SceneSource src = parse_scene_source(s, path, base_dir);
@@ -454,6 +456,7 @@ void parse_scene(const json& s, const std::string& path, const SceneDefaults& d,
         for (std::uint64_t seed : seeds) {
             SceneSpec spec = concrete_scene(src, src.base, mix, count, seed, objects.size() > 1, seeds.size() > 1);
             spec.where = path;
+            if (s.contains("kind")) spec.deprecated = at(path, "kind") + " is deprecated; use \"generator\"";
             add_windows(spec, windows, out);
         }
 }

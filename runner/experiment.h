@@ -17,8 +17,8 @@
 
 namespace rcb {
 
-/// One concrete scene of the plan: a preset or kind with its overrides and one seed, a recording
-/// file, or an imported CSV with dynamics.
+/// One concrete scene of the plan: a preset or generator with its overrides and one seed, a
+/// recording file, or an imported CSV with dynamics.
 struct SceneSpec {
     std::string name;    ///< for tables: the preset, the given name, or the file's stem
     nlohmann::json key;  ///< canonical description: identifies the scene in cell keys
@@ -27,6 +27,9 @@ struct SceneSpec {
     std::string path;               ///< recording or import: the file, resolved against the experiment's folder
     nlohmann::json import_options;  ///< import of a map or model: {"bsp_mode", "map", "model_mode"}
     std::string where;              ///< the JSON path of the entry it came from, for errors ("scenes[2]")
+    /// An old key the entry used, kept for one release, as the line the command prints
+    /// ("scenes[2].kind is deprecated; use \"generator\""); "" when none.
+    std::string deprecated;
 };
 
 /// One structure with one complete set of parameters.

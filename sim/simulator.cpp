@@ -30,9 +30,9 @@ TimingClock timing_clock(const nlohmann::json& params) {
     return TimingClock::thread;
 }
 
-void validate_or_throw(const Structure& s, const std::string& name, std::uint32_t frame) {
+void check_or_throw(const Structure& s, const std::string& name, std::uint32_t frame) {
     try {
-        s.validate();
+        s.check();
     } catch (const std::logic_error& e) {
         throw std::logic_error(name + ": invariant broken after frame " + std::to_string(frame) + ": " + e.what());
     }
@@ -324,7 +324,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
     if (options.timed_update) result.build_ns = build_watch.ns(result.clock), ++timed_phase_count;
     result.objects = recording.initial.size();
     result.memory_bytes = structure->memory_bytes();
-    if (options.validate) validate_or_throw(*structure, info.name, 0);
+    if (options.check || options.validate) check_or_throw(*structure, info.name, 0);
 
     LiveSet live(recording.initial);
     FrameBatches batches;
@@ -356,7 +356,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
         }
         fr.writes = structure->writes() - writes_before;
         live.apply(frame);
-        if (options.validate) validate_or_throw(*structure, info.name, fr.frame);
+        if (options.check || options.validate) check_or_throw(*structure, info.name, fr.frame);
 
         batches.split(frame);
         batches.timed_pass(*structure, options.timed_cast, result.clock);

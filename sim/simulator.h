@@ -51,7 +51,8 @@ struct SimulationOptions {
     /// Time the build and every frame's update; false: neither is timed (their times read 0). With
     /// timed_cast false too the run is an untimed replay: it counts and times nothing (untimed_replay).
     bool timed_update = true;
-    bool validate = false;            ///< call Structure::validate() after the build and every commit
+    bool check = false;               ///< call Structure::check() after the build and every commit
+    bool validate = false;            ///< check's old name, for one release: either turns the checks on
     std::uint32_t max_frames = 0;     ///< replay at most this many frames (0: all)
     std::uint32_t warmup_frames = 0;  ///< the first frames run but are left out of the summaries
     /// nullptr: warm, the thesis' loop (each phase meets the cache as the last left it). Otherwise

@@ -1,5 +1,5 @@
 // The conformance suite's checks (testing/conformance.h): exactness against the ground truth with
-// validate() after every frame, random parameters from the ParamSpecs, the fuzz scene, and the
+// check() after every frame, random parameters from the ParamSpecs, the fuzz scene, and the
 // refusal of bad parameters.
 #include "testing/conformance.h"
 
@@ -104,7 +104,7 @@ std::string ground_truth_failures(const Recording& r, const StructureInfo& info,
     SimulationOptions o;
     o.verify = true;
     o.count = true;
-    o.validate = true;
+    o.check = true;
     const std::string who = info.name + ' ' + params.dump() + " on scene " + scene_name;
     try {
         const SimulationResult res = simulate(r, info, params, o);

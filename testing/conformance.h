@@ -14,7 +14,7 @@
 ///                      flat, huge and far boxes, zero-length rays) at the fuzzer's settings
 ///                      (differential_settings.h);
 ///   BadParameters      every parameter refused outside its spec, naming "params.<name>";
-/// and validate() after the build and after every frame of every replay. A failure names the
+/// and check() after the build and after every frame of every replay. A failure names the
 /// scene, the parameters, the frame, the ray and the missing or extra uid.
 ///
 /// rcbench's own structures run the same functions (tests/conformance_test.cpp).
@@ -79,7 +79,7 @@ nlohmann::json random_params(const StructureInfo& info, Random& rng, const std::
 std::string describe_mismatches(const SimulationResult& res, const Recording& r, const std::string& scene_name);
 
 /// The check itself, without GoogleTest: replays `r` through the simulator with verification
-/// against the ground truth, the counting pass and validate() after every frame. "" when every ray
+/// against the ground truth, the counting pass and check() after every frame. "" when every ray
 /// is answered exactly, else one line per discrepancy the simulator kept ("scene S frame F ray R
 /// (closest): missed uid U"), after a first line naming the structure and parameters; a failed
 /// invariant or any other exception is reported the same way, naming the scene.

@@ -102,7 +102,7 @@ Recording with_rays(std::vector<Object> initial, std::vector<Frame> frames, std:
         live.apply(r.frames[f]);
         r.frames[f].rays = probe_rays(live.objects(), seed * 1000 + f, rays);
     }
-    validate_recording(r, "test scene");
+    refuse_invalid_recording(r, "test scene");
     return r;
 }
 
@@ -370,7 +370,7 @@ Recording fuzz_scene(std::uint64_t seed, std::uint32_t frames) {
         live.apply(frame);
         r.frames.push_back(std::move(frame));
     }
-    validate_recording(r, "conformance fuzz scene");
+    refuse_invalid_recording(r, "conformance fuzz scene");
     return r;
 }
 

@@ -225,7 +225,7 @@ TEST(AccuracyConstraint, TuningSearchesTheQueryLevelOnlyWhenInexactAnswersAreAll
     const std::string text =
         R"({"structures": ["ug"], "mode": "measured", "budget": 6, "frames": 3, "rays_per_frame": 200, "repetitions": 1,
             "space": {"ug": {"density": [1, 4]}},
-            "categories": [{"name": "small", "scenes": [{"kind": "irregular", "objects": 1500}]}]})";
+            "categories": [{"name": "small", "scenes": [{"generator": "irregular", "objects": 1500}]}]})";
     TuneSpec exact = parse_tune_spec(text, "t.json", ".");
     set_accuracy(exact, parse_accuracy("exact"));
     ASSERT_EQ(exact.space.at("ug").size(), 1u);  // density only

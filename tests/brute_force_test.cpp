@@ -102,7 +102,7 @@ TEST(BruteForce, ValidateCatchesABrokenIndex) {
     bf.build(std::vector<Object>{{1, {{0, 0, 0}, {1, 1, 1}}}, {2, {{2, 2, 2}, {3, 3, 3}}}});
     bf.remove(1);
     bf.insert({1, {{0, 0, 0}, {1, 1, 1}}});
-    EXPECT_NO_THROW(bf.validate());
+    EXPECT_NO_THROW(bf.check());
     EXPECT_EQ(bf.size(), 2u);
 }
 

@@ -123,7 +123,7 @@ TEST(Bvh, ZeroOneAndTwoObjects) {
 }
 
 /// 10 000 frames of churn (removes, inserts, moves of up to an object size): every frame checked
-/// against brute force (same float slab test, so the answers must be identical), validate() every
+/// against brute force (same float slab test, so the answers must be identical), check() every
 /// frame, and the SAH cost drift measured against a fresh binned-SAH build of the same objects.
 TEST(DynamicBvh, ChurnOf10000FramesStaysCorrectAndItsSahCostBounded) {
     constexpr int kObjects = 300, kFrames = 10000;
@@ -143,7 +143,7 @@ TEST(DynamicBvh, ChurnOf10000FramesStaysCorrectAndItsSahCostBounded) {
             for (int c = 0; c < 15; ++c) test::random_change(rng, live, next, kWorld, false, {&tree, &bf});
             tree.commit();
             bf.commit();
-            ASSERT_NO_THROW(tree.validate()) << "frame " << frame;
+            ASSERT_NO_THROW(tree.check()) << "frame " << frame;
             for (int k = 0; k < 3; ++k) {
                 const Segment ray = test::random_segment(rng, kWorld);
                 ASSERT_EQ(test::sorted_hits(tree, ray), test::sorted_hits(bf, ray))
@@ -181,8 +181,8 @@ TEST(LinearBvh, OneAndTwoThreadsBuildIdenticalTrees) {
     LinearBvh one(LinearBvh::Params{.threads = 1}), two(LinearBvh::Params{.threads = 2});
     one.build(objects);
     two.build(objects);
-    one.validate();
-    two.validate();
+    one.check();
+    two.check();
     ASSERT_EQ(one.nodes().size(), two.nodes().size());
     EXPECT_TRUE(one.nodes() == two.nodes());
     EXPECT_TRUE(one.meta() == two.meta());
@@ -196,8 +196,8 @@ TEST(LinearBvh, OneAndTwoThreadsBuildIdenticalTrees) {
     }
     one.commit();
     two.commit();
-    one.validate();
-    two.validate();
+    one.check();
+    two.check();
     EXPECT_TRUE(one.nodes() == two.nodes());
     EXPECT_TRUE(one.meta() == two.meta());
 }
@@ -213,7 +213,7 @@ TEST(LinearBvh, MostThreadsBuildTheOneThreadTree) {
     LinearBvh one(LinearBvh::Params{.threads = 1}), most(LinearBvh::Params{.threads = LinearBvh::kMaxThreads});
     one.build(objects);
     most.build(objects);
-    most.validate();
+    most.check();
     EXPECT_FALSE(most.last_resorted());
     EXPECT_TRUE(one.nodes() == most.nodes());
     EXPECT_TRUE(one.meta() == most.meta());
@@ -223,7 +223,7 @@ TEST(LinearBvh, MostThreadsBuildTheOneThreadTree) {
     }
     one.commit();
     most.commit();
-    most.validate();
+    most.check();
     EXPECT_TRUE(most.last_resorted());
     EXPECT_TRUE(one.nodes() == most.nodes());
     EXPECT_TRUE(one.meta() == most.meta());
@@ -288,7 +288,7 @@ TEST(LinearBvh, CoherentSortBuildsTheRadixSortsTree) {
             radix.commit();
             EXPECT_EQ(coherent.last_resorted(), frame != 10 && !beyond) << frame;
             EXPECT_FALSE(radix.last_resorted());
-            ASSERT_NO_THROW(coherent.validate()) << frame;
+            ASSERT_NO_THROW(coherent.check()) << frame;
             ASSERT_TRUE(coherent.codes() == radix.codes()) << frame;
             ASSERT_TRUE(coherent.nodes() == radix.nodes()) << frame;
             ASSERT_TRUE(coherent.meta() == radix.meta()) << frame;
@@ -318,7 +318,7 @@ TEST(LinearBvh, IsKarrasRadixTreeOfTheSortedCodes) {
         for (int threads : {1, 2}) {
             LinearBvh tree(LinearBvh::Params{.threads = threads, .outlier_guard = false});
             tree.build(objects);
-            tree.validate();
+            tree.check();
             const std::size_t n = objects.size();
             // Codes: centroids normalised to their bounds, 21 bits per axis, x in the highest bit.
             Aabb cb = Aabb::empty();

@@ -239,7 +239,7 @@ TEST(Calibration, TheRunsFitUsesItAndStoresLeaveOneSceneOut) {
     const test::TempDir temp("calibration", "fit");
     const fs::path& dir = temp.path();
     const Experiment e = parse_experiment(
-        R"({"frames": 3, "rays_per_frame": 100, "scenes": [{"preset": "uni-s"}, {"preset": "irreg-s"}, {"kind": "uniform", "objects": 300}], "structures": [{"name": "dbvh"}]})",
+        R"({"frames": 3, "rays_per_frame": 100, "scenes": [{"preset": "uni-s"}, {"preset": "irreg-s"}, {"generator": "uniform", "objects": 300}], "structures": [{"name": "dbvh"}]})",
         "exp.json", ".");
     RunOptions o;
     o.db = (dir / "r.db").string();

@@ -44,7 +44,7 @@ std::function<void(SimulationResult&)> made_up(std::map<std::string, std::vector
 std::string experiment_text(int repetitions, int max_repetitions) {
     return R"({"name": "ci", "frames": 2, "rays_per_frame": 20, "repetitions": )" + std::to_string(repetitions) +
            R"(, "max_repetitions": )" + std::to_string(max_repetitions) + R"(, "repeat_interval": 0.05,
-        "scenes": [{"kind": "uniform", "objects": 50}], "structures": [{"name": "bf"}, {"name": "ug"}]})";
+        "scenes": [{"generator": "uniform", "objects": 50}], "structures": [{"name": "bf"}, {"name": "ug"}]})";
 }
 
 /// The stored repetitions of a structure's cells in the run.

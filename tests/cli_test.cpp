@@ -74,6 +74,58 @@ TEST_F(Cli, ImportCsvAndCastOwnRays) {
     EXPECT_EQ(nlohmann::json::parse(sim.out)["frame"].size(), 4u);
 }
 
+// The old names of this release's renamed options and keys (simulate --validate, scene gen --kind,
+// cast --kind, a scene's "kind") still work as their new names do, each with one line on stderr
+// that names the new one, and --help says they are deprecated.
+TEST_F(Cli, OldNamesWorkAsTheNewOnesAndSayTheyAreDeprecated) {
+    const std::string gen = "scene gen --objects 40 --frames 2 --rays 20 --seed 5 -o ";
+    const Outcome fresh = run(gen + path("new.rcbscene") + " --generator uniform");
+    ASSERT_EQ(fresh.code, 0) << fresh.err;
+    EXPECT_EQ(fresh.err, "");
+    const Outcome old = run(gen + path("old.rcbscene") + " --kind uniform");
+    ASSERT_EQ(old.code, 0) << old.err;
+    EXPECT_EQ(old.err, "rcbench: --kind is deprecated; use --generator\n");
+    std::ifstream a(path("new.rcbscene"), std::ios::binary), b(path("old.rcbscene"), std::ios::binary);
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(a), {}), std::string(std::istreambuf_iterator<char>(b), {}));
+    expect_bad_input(run(gen + path("x.rcbscene") + " --kind cubes"), "--kind: cubes not in");
+
+    const std::string sim = "simulate --scene " + path("new.rcbscene") + " --structure dbvh --json ";
+    const Outcome checked = run(sim + "--check"), validated = run(sim + "--validate");
+    ASSERT_EQ(checked.code, 0) << checked.err;
+    ASSERT_EQ(validated.code, 0) << validated.err;
+    EXPECT_EQ(checked.err, "");
+    EXPECT_EQ(validated.err, "rcbench: --validate is deprecated; use --check\n");
+    EXPECT_EQ(nlohmann::json::parse(checked.out)["n_rb"], nlohmann::json::parse(validated.out)["n_rb"]);
+
+    write("boxes.csv", "uid,minx,miny,minz,maxx,maxy,maxz\n10,0,0,0,1,1,1\n11,2,0,0,3,1,1\n");
+    write("rays.csv", "x0,y0,z0,x1,y1,z1\n-1,0.5,0.5,4,0.5,0.5\n");
+    const std::string cast = "cast --scene " + path("boxes.csv") + " --rays " + path("rays.csv") + " --structure bf ";
+    const Outcome query_kind = run(cast + "--query-kind closest"), kind = run(cast + "--kind closest");
+    ASSERT_EQ(query_kind.code, 0) << query_kind.err;
+    ASSERT_EQ(kind.code, 0) << kind.err;
+    EXPECT_EQ(query_kind.out, "{\"hits\":[10],\"ray\":0}\n");
+    EXPECT_EQ(kind.out, query_kind.out);
+    EXPECT_EQ(query_kind.err, "");
+    EXPECT_EQ(kind.err, "rcbench: --kind is deprecated; use --query-kind\n");
+
+    const std::string scene = R"({"objects": 40, "frames": 2, "rays_per_frame": 20, ")";
+    write("new.json",
+          R"({"name": "x", "structures": [{"name": "bf"}], "scenes": [)" + scene + R"(generator": "uniform"}]})");
+    write("old.json",
+          R"({"name": "x", "structures": [{"name": "bf"}], "scenes": [)" + scene + R"(kind": "uniform"}]})");
+    const Outcome plan = run("run " + path("new.json") + " --dry-run"),
+                  old_plan = run("run " + path("old.json") + " --dry-run");
+    ASSERT_EQ(plan.code, 0) << plan.err;
+    ASSERT_EQ(old_plan.code, 0) << old_plan.err;
+    EXPECT_EQ(plan.err, "");
+    EXPECT_EQ(old_plan.err, "rcbench: " + path("old.json") + ": scenes[0].kind is deprecated; use \"generator\"\n");
+    EXPECT_EQ(old_plan.out, plan.out);
+
+    EXPECT_NE(run("simulate --help").out.find("Deprecated: use --check"), std::string::npos);
+    EXPECT_NE(run("scene gen --help").out.find("Deprecated: use --generator"), std::string::npos);
+    EXPECT_NE(run("cast --help").out.find("Deprecated: use --query-kind"), std::string::npos);
+}
+
 TEST_F(Cli, BadInputIsOneLineAndExitTwo) {
     const std::string scene = path("s.rcbscene");
     ASSERT_EQ(run("scene gen --preset uni-s --frames 1 -o " + scene).code, 0);
@@ -83,8 +135,8 @@ TEST_F(Cli, BadInputIsOneLineAndExitTwo) {
     expect_bad_input(run("simulate --scene " + scene + " --structure bf --param depth=3"),
                      "--param.depth: unknown parameter of bf");
     expect_bad_input(run("scene gen --preset uni-xxl -o " + path("x")), "--preset: uni-xxl not in {uni-s,");
-    expect_bad_input(run("scene gen --kind cubes --objects 10 -o " + path("x")),
-                     "--kind: cubes not in {uniform,irregular,jittered,clusters,stadium,");
+    expect_bad_input(run("scene gen --generator cubes --objects 10 -o " + path("x")),
+                     "--generator: cubes not in {uniform,irregular,jittered,clusters,stadium,");
     expect_bad_input(run("scene gen --preset uni-s --ray-mix sideways -o " + path("x")), "unknown mode 'sideways'");
     expect_bad_input(run("scene gen --preset uni-s --frames abc -o " + path("x")), "--frames");
     expect_bad_input(run("simulate --structure bf"), "--scene is required");
@@ -324,7 +376,7 @@ TEST_F(Cli, AProgramLinkingTheCliGivesTheExecutablesErrors) {
 
 TEST_F(Cli, AProgramLinkingTheCliRunsItsStructureAndItsRunsStayApart) {
     write("mine.json", R"({"name": "mine", "frames": 3, "rays_per_frame": 50,
-        "scenes": [{"kind": "uniform", "objects": 150}], "structures": [{"name": "toy_list"}, {"name": "bf"}]})");
+        "scenes": [{"generator": "uniform", "objects": 150}], "structures": [{"name": "toy_list"}, {"name": "bf"}]})");
     const Outcome ran = run_user("run " + path("mine.json") + " --db " + path("r.db"));
     ASSERT_EQ(ran.code, 0) << ran.err;
     EXPECT_NE(ran.out.find("toy_list"), std::string::npos) << ran.out;  // in the run's table
@@ -332,7 +384,7 @@ TEST_F(Cli, AProgramLinkingTheCliRunsItsStructureAndItsRunsStayApart) {
     expect_bad_input(run("run " + path("mine.json") + " --db " + path("r.db")),
                      "structures[0].name: unknown structure 'toy_list'");
     write("theirs.json", R"({"name": "theirs", "frames": 3, "rays_per_frame": 50,
-        "scenes": [{"kind": "uniform", "objects": 150}], "structures": [{"name": "bf"}]})");
+        "scenes": [{"generator": "uniform", "objects": 150}], "structures": [{"name": "bf"}]})");
     ASSERT_EQ(run("run " + path("theirs.json") + " --db " + path("r.db")).code, 0);
     // Each run names its program: the executable's name and a build id of 40 hex digits.
     const Outcome runs =
@@ -369,7 +421,7 @@ TEST_F(Cli, AProgramLinkingTheCliTunesAndAdvisesItsStructureOverItsParamSpecs) {
     write("tune.json", R"({"name": "toy", "structures": ["toy_list"], "mode": "measured", "budget": 3,
         "frames": 3, "warmup_frames": 1, "rays_per_frame": 50, "repetitions": 1,
         "space": {"toy_list": {"block": [2, 8, 32]}},
-        "categories": [{"name": "small", "scenes": [{"kind": "uniform", "objects": 150}]}]})");
+        "categories": [{"name": "small", "scenes": [{"generator": "uniform", "objects": 150}]}]})");
     const Outcome tuned = run_user("tune " + path("tune.json") + " --db " + path("t.db") + " --out-dir " + path("out"));
     ASSERT_EQ(tuned.code, 0) << tuned.err;
     const auto tuning = nlohmann::json::parse(bytes_of(path("out/tuning-toy.json")));
@@ -386,7 +438,7 @@ TEST_F(Cli, AProgramLinkingTheCliTunesAndAdvisesItsStructureOverItsParamSpecs) {
 
 TEST_F(Cli, CompareEndsWithThePerCellDifferenceBetweenTheTwoRuns) {
     write("e.json", R"({"name": "twice", "frames": 3, "rays_per_frame": 100,
-        "scenes": [{"kind": "uniform", "objects": 200}, {"kind": "irregular", "objects": 200}],
+        "scenes": [{"generator": "uniform", "objects": 200}, {"generator": "irregular", "objects": 200}],
         "structures": [{"name": "bf"}, {"name": "ug"}]})");
     ASSERT_EQ(run("run " + path("e.json") + " --db " + path("r.db")).code, 0);
     ASSERT_EQ(run("run " + path("e.json") + " --db " + path("r.db") + " --new-run").code, 0);

@@ -2,7 +2,7 @@
 // a program outside rcbench runs on its own structure (testing/conformance.h): exactness against
 // the double-precision ground truth on the hard scenes, every ray as all, closest and any hit, at
 // the defaults and at parameter sets drawn from its own ParamSpecs; the fuzz scene at the
-// differential fuzzer's settings; validate() after the build and after every frame; the refusal of
+// differential fuzzer's settings; check() after the build and after every frame; the refusal of
 // bad parameters. The seed is printed on failure; RCB_CONFORMANCE_SEED=<n> draws other sets.
 // Then the suite seen to fail: a structure that drops the last hit of its leaf is caught, naming
 // the scene, the ray and the missing uid, and a factory that accepts any parameter is caught too.
@@ -74,7 +74,7 @@ public:
     void move(const Object& o) override { list_.move(o); }
     std::size_t size() const override { return list_.size(); }
     std::size_t memory_bytes() const override { return list_.memory_bytes(); }
-    void validate() const override { list_.validate(); }
+    void check() const override { list_.check(); }
 
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit) {

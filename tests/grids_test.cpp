@@ -108,10 +108,10 @@ TEST(Grids, CellCountStaysBoundedAtTheRangeLimits) {
     UniformGrid ug(UniformGrid::Params{0.1, false});
     ug.build(objs);
     EXPECT_LE(ug.stats()["cells"].get<std::size_t>(), UniformGrid::kMaxCells);
-    ug.validate();
+    ug.check();
     HashGrid hg(HashGrid::Params{16.0, 6, 1, 4});
     hg.build(objs);
-    hg.validate();
+    hg.check();
     EXPECT_LT(hg.memory_bytes() / objs.size(), 4096u);
 }
 
@@ -147,14 +147,14 @@ TEST(Grids, MoveInsideTheSameCellsKeepsStructureAndCounters) {
         g->build(objs);
         const auto before = g->stats();
         g->move({5, {{5.1f, 0, 0}, {5.4f, 0.4f, 0.4f}}});
-        g->validate();
+        g->check();
         EXPECT_EQ(g->stats()["cells"], before["cells"]) << name;
         // Far outside the initial bounds, then back.
         g->move({5, {{-500, 300, 20}, {-499, 301, 21}}});
-        g->validate();
+        g->check();
         EXPECT_TRUE(g->cast_any({{-499.5f, 300.5f, 0}, {-499.5f, 300.5f, 100}})) << name;
         g->remove(5);
-        g->validate();
+        g->check();
         EXPECT_FALSE(g->cast_any({{-499.5f, 300.5f, 0}, {-499.5f, 300.5f, 100}})) << name;
         EXPECT_EQ(g->size(), 63u);
     }
@@ -222,7 +222,7 @@ TEST(Grids, LargeObjectsMoveBetweenTheListAndTheCells) {
         EXPECT_EQ(at_build, 0u) << name;
         auto check = [&](std::uint64_t large, const char* step) {
             g->commit(), bf->commit();
-            g->validate();
+            g->check();
             EXPECT_EQ(g->stats()["large_objects"].get<std::uint64_t>(), large) << name << ' ' << step;
             HitLists a, b;
             g->cast(rays, a), bf->cast(rays, b);
@@ -248,7 +248,7 @@ TEST(Grids, LargeObjectsMoveBetweenTheListAndTheCells) {
         auto off = find_structure(name).make({{"max_cells", 0}}, "params");
         off->build(objs);
         off->insert({5000, huge});
-        off->validate();
+        off->check();
         EXPECT_EQ(off->stats()["large_objects"].get<std::uint64_t>(), 0u) << name;
     }
 }
@@ -278,7 +278,7 @@ TEST(Grids, GuardsSwitchedOffSayWhenTheyWouldHaveFired) {
         auto off = find_structure(name).make({{"max_cells", 0}}, "params");
         off->build(objs);
         off->commit();
-        off->validate();
+        off->check();
         EXPECT_EQ(off->stats()["large_objects"].get<std::uint64_t>(), 0u);
         const std::uint64_t would_list = guards_off(*off).value("max_cells", std::uint64_t(0));
         EXPECT_GE(would_list, 300u);
@@ -298,7 +298,7 @@ TEST(Grids, GuardsSwitchedOffSayWhenTheyWouldHaveFired) {
     unguarded_params["entries_guard"] = false;
     auto unguarded = find_structure("hg").make(unguarded_params, "params");
     unguarded->build(flat);
-    unguarded->validate();
+    unguarded->check();
     EXPECT_GT(guards_off(*unguarded).value("entries_guard", std::uint64_t(0)), 0u);
     // One object 1e6 away: trimmed with the outlier guard, named without it.
     std::vector<Object> outlier = objs;
@@ -333,7 +333,7 @@ TEST(HashGrid, WithoutTheEntriesGuardTheCeilingBoundsTheWork) {
     ASSERT_NE(flat, scenes.end());
     auto grid = find_structure("hg").make(deep, "params");
     grid->build(flat->recording.initial);
-    grid->validate();
+    grid->check();
     const nlohmann::json st = grid->stats();
     ASSERT_LE(st["entries"].get<std::size_t>(), bound(flat->recording.initial.size()));
     EXPECT_GT(st["guards_off"].value("entries_ceiling", std::uint64_t(0)), 0u);

@@ -417,7 +417,7 @@ TEST(History, ShortCommit) {
 std::int64_t small_run(const std::string& db_path) {
     const Experiment e = parse_experiment(
         R"({"name": "history-report", "frames": 6, "rays_per_frame": 100,
-            "scenes": [{"kind": "uniform", "objects": 800}, {"kind": "irregular", "objects": 1500}],
+            "scenes": [{"generator": "uniform", "objects": 800}, {"generator": "irregular", "objects": 1500}],
             "structures": [{"name": "bf"}, {"name": "dbvh"}, {"name": "lbvh"}]})",
         "history-report.json", ".");
     RunOptions options;

@@ -414,7 +414,7 @@ TEST(BspImport, ScenePileDropsBodiesOntoAMap) {
         scratch("pile.pk3"), stored_zip({{"maps/floor.bsp", floor.bytes()}, {"maps/tiny.bsp", tiny_map().bytes()}}));
     const std::string out = scratch("pile.rcbscene").string(), bin = RCBENCH_BINARY;
     const std::string gen = bin + " scene gen --objects 40 --frames 60 --rays 10 ";
-    const ::test::Outcome ok = ::test::run_shell(gen + "--kind pile --on-map " + pk3 + " --map floor -o " + out);
+    const ::test::Outcome ok = ::test::run_shell(gen + "--generator pile --on-map " + pk3 + " --map floor -o " + out);
     ASSERT_EQ(ok.code, 0) << ok.err;
     const Recording r = read_recording(out);
     ASSERT_EQ(r.initial.size(), 42u);
@@ -436,10 +436,11 @@ TEST(BspImport, ScenePileDropsBodiesOntoAMap) {
                       none = scratch("none.rcbscene").string();
     const std::string tiny = write_file(scratch("pile-tiny.bsp"), tiny_map().bytes());
     for (const auto& [args, says] : std::vector<std::pair<std::string, std::string>>{
-             {"--kind freefall --on-map " + pk3 + " --map floor", "--on-map: only --kind pile is dropped onto a map"},
-             {"--kind pile --on-map " + csv, "expected a Quake III / OpenArena map"},
-             {"--kind pile --map floor", "--map: needs --on-map"},
-             {"--kind pile --on-map " + tiny, "pile-tiny.bsp: the map has room for 0 of 40 bodies"}}) {
+             {"--generator freefall --on-map " + pk3 + " --map floor",
+              "--on-map: only --generator pile is dropped onto a map"},
+             {"--generator pile --on-map " + csv, "expected a Quake III / OpenArena map"},
+             {"--generator pile --map floor", "--map: needs --on-map"},
+             {"--generator pile --on-map " + tiny, "pile-tiny.bsp: the map has room for 0 of 40 bodies"}}) {
         const ::test::Outcome o = ::test::run_shell(gen + args + " -o " + none);
         EXPECT_EQ(o.code, 2) << args << ": " << o.err;
         EXPECT_NE(o.err.find(says), std::string::npos) << args << ": " << o.err;

@@ -597,8 +597,8 @@ TEST(KindReport, QueryKindsSectionAndMotionLinesFromTheRun) {
     const std::string db_path = temp.file("r.db");
     const Experiment e = parse_experiment(
         R"({"name": "kinds-report", "frames": 4, "rays_per_frame": 150,
-            "scenes": [{"kind": "uniform", "name": "mixed", "objects": 1200, "query_mix": "closest:0.4,any:0.3,all:0.3"},
-                       {"kind": "uniform", "name": "plain", "objects": 800}],
+            "scenes": [{"generator": "uniform", "name": "mixed", "objects": 1200, "query_mix": "closest:0.4,any:0.3,all:0.3"},
+                       {"generator": "uniform", "name": "plain", "objects": 800}],
             "structures": [{"name": "bf"}, {"name": "dbvh"}]})",
         "kinds-report.json", ".");
     RunOptions options;

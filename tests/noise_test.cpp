@@ -32,7 +32,7 @@ namespace fs = std::filesystem;
 using test::count;
 
 const char* kThree = R"({"name": "noise", "frames": 3, "rays_per_frame": 200, "repetitions": 3,
-    "scenes": [{"kind": "uniform", "objects": 300}, {"kind": "irregular", "objects": 300}],
+    "scenes": [{"generator": "uniform", "objects": 300}, {"generator": "irregular", "objects": 300}],
     "structures": [{"name": "bf"}, {"name": "ug"}]})";
 
 TEST(NoisePlan, RepetitionROfEveryCellRunsBeforeRepetitionROnePlusOneOfAny) {
@@ -49,7 +49,7 @@ TEST(NoisePlan, EachRepetitionVisitsEveryCellOnceInItsOwnSeededOrder) {
     // 6 scenes × 5 configurations: 30! orders of a repetition's cells, so two repetitions in the
     // same order would be a coincidence.
     const char* text = R"({"name": "order", "frames": 2, "repetitions": 4,
-        "scenes": [{"kind": "uniform", "objects": [100, 200, 300, 400, 500, 600]}],
+        "scenes": [{"generator": "uniform", "objects": [100, 200, 300, 400, 500, 600]}],
         "structures": [{"name": "ug", "params": {"density": [1, 2, 4, 8, 16]}}]})";
     const Experiment e = parse_experiment(text, "order.json", ".");
     ASSERT_EQ(e.plan.size(), 4u * 30u);
@@ -81,7 +81,7 @@ TEST(NoisePlan, RepetitionsAreAddedWhereTheIntervalIsWideUpToTheCap) {
     const auto run = [&](const std::string& name, double step) {
         const std::string text = R"({"name": "added", "frames": 3, "rays_per_frame": 100, "repetitions": 2,
             "max_repetitions": 4, "repeat_interval": 0.05,
-            "scenes": [{"kind": "uniform", "objects": 200}, {"kind": "irregular", "objects": 200}],
+            "scenes": [{"generator": "uniform", "objects": 200}, {"generator": "irregular", "objects": 200}],
             "structures": [{"name": "bf"}, {"name": "ug"}]})";
         const Experiment e = parse_experiment(text, name, temp.path().string());
         EXPECT_EQ(e.plan.size(), 8u);
@@ -115,8 +115,8 @@ TEST(NoisePlan, InterleavedCellsAreStoredWithTheirOwnScenes) {
     // cell must name the scene its key was planned for, and the content hash of that scene.
     const test::TempDir temp("noise", "interleaved");
     const std::string text = R"({"name": "inter", "frames": 2, "rays_per_frame": 50, "repetitions": 2,
-        "scenes": [{"kind": "uniform", "objects": 150}, {"kind": "irregular", "objects": 250},
-                   {"kind": "clusters", "objects": 350}],
+        "scenes": [{"generator": "uniform", "objects": 150}, {"generator": "irregular", "objects": 250},
+                   {"generator": "clusters", "objects": 350}],
         "structures": [{"name": "bf"}, {"name": "ug", "params": {"density": [1, 4]}}]})";
     const Experiment e = parse_experiment(text, "inter.json", temp.path().string());
     RunOptions o;

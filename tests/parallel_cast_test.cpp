@@ -96,7 +96,7 @@ void expect_same_as_one_thread(const test::NamedScene& scene, bool candidates, c
             }
             EXPECT_EQ(a.cast_any(ray), b.cast_any(ray)) << where;
         }
-        b.validate();
+        b.check();
     }
     // Batches of kParallelRays or more run in chunks; the hard scenes cast 64 rays per frame.
     std::size_t big = 0;
@@ -233,7 +233,7 @@ public:
     void move(const Object&) override {}
     std::size_t size() const override { return 0; }
     std::size_t memory_bytes() const override { return 0; }
-    void validate() const override {}
+    void check() const override {}
 
     void prepare() {}
     void fit(HeavyScratch&) const {}

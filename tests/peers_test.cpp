@@ -89,7 +89,7 @@ void expect_exact_on_touching_rays(Peer& peer) {
     const std::vector<Object> objects = grid_boxes();
     peer.build(objects);
     peer.commit();
-    peer.validate();
+    peer.check();
     for (const Segment& seg : touching_rays())
         EXPECT_EQ(sorted_hits(peer, seg), expected_hits(objects, seg))
             << "segment (" << seg.p0.x << "," << seg.p0.y << "," << seg.p0.z << ") -> (" << seg.p1.x << "," << seg.p1.y
@@ -148,7 +148,7 @@ std::vector<test::NamedScene> scenes_at_magnitude(float m) {
         out.push_back({s.name + "-giant", std::move(giant)});
     }
     for (const test::NamedScene& s : out) {
-        validate_recording(s.recording, s.name);  // within the limit: a file could hold it
+        refuse_invalid_recording(s.recording, s.name);  // within the limit: a file could hold it
         EXPECT_LE(largest_coordinate(s.recording), m) << s.name;
     }
     return out;
@@ -171,7 +171,7 @@ std::vector<test::NamedScene> scenes_at_the_lower_limit() {
     for (const test::NamedScene& s : test::hard_scenes()) {
         const float scale = float(kMinCoordinate / smallest_nonzero_coordinate(s.recording) * 1.01);
         out.push_back({s.name + "-tiny", mapped(s.recording, [&](Vec3 p) { return p * scale; })});
-        validate_recording(out.back().recording, out.back().name);
+        refuse_invalid_recording(out.back().recording, out.back().name);
     }
     return out;
 }
@@ -253,7 +253,7 @@ TEST(Embree, ScenesBeyondItsRangeTakeTheExactFallbackInsteadOfAborting) {
                     << "length " << length << " offset " << offset << " " << params.dump() << " segment (" << seg.p0.x
                     << "," << seg.p0.y << "," << seg.p0.z << ") -> (" << seg.p1.x << "," << seg.p1.y << "," << seg.p1.z
                     << ")";
-            peer->validate();
+            peer->check();
             EXPECT_EQ(peer->stats()["in_range"].get<bool>(), length < 1e18f && offset < 1e18f);
         }
 }
@@ -376,7 +376,7 @@ TEST(Embree, UpdatesInsertRemoveAndMoveAcrossCommits) {
     peer.remove(7);
     peer.insert({1000, {{0.25f, 0.25f, -3}, {0.75f, 0.75f, -2}}});
     peer.commit();
-    peer.validate();
+    peer.check();
     EXPECT_EQ(peer.size(), objects.size());
     const Segment seg{{0.5f, 0.5f, -10}, {0.5f, 0.5f, 10}};
     EXPECT_EQ(sorted_hits(peer, seg), (std::vector<Uid>{0, 1, 2, 3, 1000}));
@@ -449,7 +449,7 @@ TEST(Ode, UpdatesKeepTheSpaceExactAndTheScaleGrows) {
         peer->remove(9);
         peer->remove(63);  // the last slot
         peer->commit();
-        peer->validate();
+        peer->check();
         EXPECT_EQ(peer->size(), 63u);
         EXPECT_EQ(peer->stats()["repads"].get<int>(), 2);
         EXPECT_EQ(sorted_hits(*peer, Segment{{1000.5f, 1000.5f, 0}, {1000.5f, 1000.5f, 1001}}),
@@ -540,7 +540,7 @@ TEST(Bullet, GrowsItsScaleAndRepadsWhenABoxLeavesIt) {
     peer.move({3, {{-5000, 0, 0}, {-4999, 1, 1}}});
     peer.remove(9);
     peer.commit();
-    peer.validate();
+    peer.check();
     EXPECT_EQ(peer.stats()["repads"].get<int>(), 2);
     EXPECT_EQ(sorted_hits(peer, Segment{{1000.5f, 1000.5f, 0}, {1000.5f, 1000.5f, 1001}}), (std::vector<Uid>{500}));
     EXPECT_EQ(sorted_hits(peer, Segment{{-4999, 0.5f, 0.5f}, {-6000, 0.5f, 0.5f}}), (std::vector<Uid>{3}));
@@ -652,7 +652,7 @@ TEST(BulletBroadphase, MovesInsideTheFatVolumeAreSkipped) {
         move_all(*peer, objects, -0.1f);
         EXPECT_EQ(stat(*peer, "skipped"), c.skipped_second);
         EXPECT_EQ(stat(*peer, "reinserts"), 128u - c.skipped_second);
-        peer->validate();
+        peer->check();
         const Segment seg{{0.5f, 0.5f, -1}, {0.5f, 0.5f, 9}};  // the x = -0.2..0.8 column: uids 0..3
         EXPECT_EQ(test::sorted_hits(*peer, seg), (std::vector<Uid>{0, 1, 2, 3}));
     }
@@ -675,7 +675,7 @@ TEST(BulletBroadphase, StillObjectsJoinTheFixedSetAndLeaveItWhenTheyMove) {
         peer->move(objects[5]);
         peer->commit();
         EXPECT_EQ(stat(*peer, "fixed_leaves"), raw ? 0u : 63u);
-        peer->validate();
+        peer->check();
         const Segment seg{{0.5f, 3.1f, -1}, {0.5f, 3.1f, 9}};  // only the grown box reaches y = 3.1 at x = 0.5
         EXPECT_EQ(test::sorted_hits(*peer, seg), (std::vector<Uid>{objects[5].uid}));
         peer->commit();
@@ -684,7 +684,7 @@ TEST(BulletBroadphase, StillObjectsJoinTheFixedSetAndLeaveItWhenTheyMove) {
         peer->remove(objects[63].uid);  // a fixed leaf and the last slot
         peer->remove(objects[0].uid);
         peer->commit();
-        peer->validate();
+        peer->check();
         EXPECT_EQ(stat(*peer, "fixed_leaves"), raw ? 0u : 62u);
     }
 }
@@ -731,7 +731,7 @@ TEST(OdeQuadTree, DividesTheScenesGroundPlaneFromTheBuildsBoundsGrownByTheMargin
         auto peer = find_structure("ode_quadtree").make({{"up", up}, {"depth", 4}}, "params");
         peer->build(objects);
         peer->commit();
-        peer->validate();
+        peer->check();
         const Segment down{{6.5f, 5, 6.5f}, {6.5f, -5, 6.5f}};  // through uid 3 * 16 + 3
         EXPECT_EQ(test::sorted_hits(*peer, down), (std::vector<Uid>{51})) << up;
     }
@@ -746,7 +746,7 @@ TEST(OdeSap, ScansEveryGeomLikeTheHashSpace) {
     OdeSap peer;
     peer.build(objects);
     peer.commit();
-    peer.validate();
+    peer.check();
     const Segment seg{{0.5f, 0.5f, -1}, {0.5f, 0.5f, 9}};
     HitLists out;
     Counters c;
@@ -775,7 +775,7 @@ TEST(EmbreeRefit, RebuildsAsThePolicySays) {
         peer->insert({1000, {{-3, 0, 0}, {-2, 1, 1}}});
         peer->commit();
         EXPECT_EQ(stat(*peer, "rebuilds"), c.after_insert);
-        peer->validate();
+        peer->check();
         EXPECT_EQ(test::sorted_hits(*peer, Segment{{-2.5f, 0.5f, -1}, {-2.5f, 0.5f, 2}}), (std::vector<Uid>{1000}));
         EXPECT_EQ(test::sorted_hits(*peer, Segment{{3.6f, 0.5f, -1}, {3.6f, 0.5f, 9}}),
                   (std::vector<Uid>{16, 17, 18, 19}));  // the x = 2..3 column moved by 1.5

@@ -30,9 +30,9 @@ namespace {
 /// A 500-body Brownian scene measured in two phases, with the game's query kinds, and a scene of
 /// boxes; two own structures and two peers, one of them in two configurations; two repetitions.
 const char* kExperiment = R"({"name": "physics-report", "rays_per_frame": 120, "repetitions": 2,
-    "scenes": [{"kind": "brownian", "objects": 500, "frames": 24, "queries": "game",
+    "scenes": [{"generator": "brownian", "objects": 500, "frames": 24, "queries": "game",
                 "phases": ["impact", "settling"], "name": "brownian-500"},
-               {"kind": "uniform", "objects": 400, "frames": 5, "name": "boxes"}],
+               {"generator": "uniform", "objects": 400, "frames": 5, "name": "boxes"}],
     "structures": [{"name": "dbvh"}, {"name": "wbvh"},
                    {"name": "embree", "grids": [{"quality": "low", "refit": true}, {"quality": "medium"}]},
                    {"name": "bullet_dbvt"}]})";

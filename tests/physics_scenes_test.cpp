@@ -311,13 +311,13 @@ TEST(PhysicsScenes, BadSettingsAreRefused) {
     const std::string bin = RCBENCH_BINARY;
     const test::TempDir dir("physics");
     for (const char* bad : {"--time-step 0", "--time-step 1", "--time-step nan"}) {
-        const ::test::Outcome o =
-            ::test::run_shell(bin + " scene gen --kind pile --objects 10 " + bad + " -o " + dir.file("x.rcbscene"));
+        const ::test::Outcome o = ::test::run_shell(bin + " scene gen --generator pile --objects 10 " + bad + " -o " +
+                                                    dir.file("x.rcbscene"));
         EXPECT_EQ(o.code, 2) << bad << ": " << o.err;
         EXPECT_NE(o.err.find("--time-step"), std::string::npos) << o.err;
     }
-    for (const char* bad : {"--kind brownian --shape-set cones", "--kind gravity --fill 0.9",
-                            "--kind pile --shape-set cubes", "--kind freefall --sphere-share 0.5"}) {
+    for (const char* bad : {"--generator brownian --shape-set cones", "--generator gravity --fill 0.9",
+                            "--generator pile --shape-set cubes", "--generator freefall --sphere-share 0.5"}) {
         const ::test::Outcome o =
             ::test::run_shell(bin + " scene gen --objects 10 " + std::string(bad) + " -o " + dir.file("x.rcbscene"));
         EXPECT_EQ(o.code, 2) << bad << ": " << o.err;
@@ -327,8 +327,8 @@ TEST(PhysicsScenes, BadSettingsAreRefused) {
 
 TEST(PhysicsScenes, ExperimentEntriesTakeShapeSetAndFill) {
     const Experiment e = parse_experiment(
-        R"({"scenes": [{"kind": "gravity", "objects": 100, "shape_set": "assorted", "fill": 0.01},
-                       {"kind": "freefall", "objects": 100}],
+        R"({"scenes": [{"generator": "gravity", "objects": 100, "shape_set": "assorted", "fill": 0.01},
+                       {"generator": "freefall", "objects": 100}],
             "structures": [{"name": "bf"}]})",
         "exp.json", ".");
     ASSERT_EQ(e.scenes.size(), 2u);
@@ -343,12 +343,13 @@ TEST(PhysicsScenes, ExperimentEntriesTakeShapeSetAndFill) {
             parse_experiment(R"({"scenes": [)" + scene + R"(], "structures": [{"name": "bf"}]})", "exp.json", ".");
         });
     };
-    EXPECT_EQ(error(R"({"kind": "pile", "objects": 10, "shape_set": "cubes"})"),
+    EXPECT_EQ(error(R"({"generator": "pile", "objects": 10, "shape_set": "cubes"})"),
               "exp.json: scenes[0].shape_set: only Broadmark's kinds (brownian, freefall, gravity) take shape_set");
-    EXPECT_EQ(error(R"({"kind": "brownian", "objects": 10, "shape_set": "cones"})"),
+    EXPECT_EQ(error(R"({"generator": "brownian", "objects": 10, "shape_set": "cones"})"),
               "exp.json: scenes[0].shape_set: unknown set 'cones' (known: cubes, spheres, assorted)");
-    EXPECT_NE(error(R"({"kind": "brownian", "objects": 10, "fill": 2})").find("exp.json: scenes[0].fill: expected"),
-              std::string::npos);
+    EXPECT_NE(
+        error(R"({"generator": "brownian", "objects": 10, "fill": 2})").find("exp.json: scenes[0].fill: expected"),
+        std::string::npos);
 }
 
 TEST(PhysicsScenes, MotionPhasesSplitTheFrames) {
@@ -379,11 +380,11 @@ TEST(PhysicsScenes, MotionPhasesSplitTheFrames) {
 
 TEST(PhysicsScenes, ExperimentsMeasureAWindowOfFrames) {
     const Experiment e = parse_experiment(
-        R"({"scenes": [{"kind": "pile", "objects": 120, "frames": 600, "rays_per_frame": 20,
+        R"({"scenes": [{"generator": "pile", "objects": 120, "frames": 600, "rays_per_frame": 20,
                         "phases": ["falling", "asleep"], "stride": 2},
-                       {"kind": "pile", "objects": 120, "frames": 600, "rays_per_frame": 20, "start_frame": 250,
+                       {"generator": "pile", "objects": 120, "frames": 600, "rays_per_frame": 20, "start_frame": 250,
                         "stride": 10},
-                       {"kind": "brownian", "objects": 100, "frames": 20, "phases": "asleep"}],
+                       {"generator": "brownian", "objects": 100, "frames": 20, "phases": "asleep"}],
             "structures": [{"name": "bf"}]})",
         "exp.json", ".");
     ASSERT_EQ(e.scenes.size(), 4u);
@@ -420,9 +421,9 @@ TEST(PhysicsScenes, ExperimentsMeasureAWindowOfFrames) {
             parse_experiment(R"({"scenes": [)" + scene + R"(], "structures": [{"name": "bf"}]})", "exp.json", ".");
         });
     };
-    EXPECT_EQ(error(R"({"kind": "pile", "objects": 10, "phases": "resting"})"),
+    EXPECT_EQ(error(R"({"generator": "pile", "objects": 10, "phases": "resting"})"),
               "exp.json: scenes[0].phases: expected one of falling, impact, settling, asleep, got \"resting\"");
-    EXPECT_EQ(error(R"({"kind": "pile", "objects": 10, "phases": ["asleep"], "start_frame": 3})"),
+    EXPECT_EQ(error(R"({"generator": "pile", "objects": 10, "phases": ["asleep"], "start_frame": 3})"),
               "exp.json: scenes[0].start_frame: give \"start_frame\" or \"phases\", not both");
 }
 
@@ -430,8 +431,9 @@ TEST(PhysicsScenes, SceneInfoShowsTheMotion) {
     const std::string bin = RCBENCH_BINARY;
     const test::TempDir dir("physics");
     const std::string file = dir.file("b.rcbscene");
-    ASSERT_EQ(::test::run_shell(bin + " scene gen --kind brownian --objects 100 --frames 5 --rays 10 -o " + file).code,
-              0);
+    ASSERT_EQ(
+        ::test::run_shell(bin + " scene gen --generator brownian --objects 100 --frames 5 --rays 10 -o " + file).code,
+        0);
     const ::test::Outcome info = ::test::run_shell(bin + " scene info --json " + file);
     ASSERT_EQ(info.code, 0) << info.err;
     const auto m = nlohmann::json::parse(info.out)["motion"];

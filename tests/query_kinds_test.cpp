@@ -420,10 +420,10 @@ TEST(QueryKinds, RecordingRoundTripsKindsAndValidatesThem) {
 
     Recording bad = r;
     bad.frames[1].kinds.pop_back();
-    EXPECT_THROW(validate_recording(bad, "bad"), InputError);
+    EXPECT_THROW(refuse_invalid_recording(bad, "bad"), InputError);
     bad = r;
     bad.frames[0].kinds[0] = QueryKind(7);
-    EXPECT_THROW(validate_recording(bad, "bad"), InputError);
+    EXPECT_THROW(refuse_invalid_recording(bad, "bad"), InputError);
     // A kind byte out of range in a file (encode_recording writes what it is given).
     try {
         decode_recording(encode_recording(bad), "k.rcbscene");

@@ -155,8 +155,8 @@ TEST(QueryPresets, SceneGenAndInfoOnTheCommandLine) {
     const std::string bin = RCBENCH_BINARY;
     const test::TempDir dir("presets");
     const std::string file = dir.file("g.rcbscene");
-    const ::test::Outcome gen = ::test::run_shell(bin + " scene gen --kind pile --objects 200 --frames 3 --rays 100 " +
-                                                  "--queries game -o " + file);
+    const ::test::Outcome gen = ::test::run_shell(
+        bin + " scene gen --generator pile --objects 200 --frames 3 --rays 100 " + "--queries game -o " + file);
     ASSERT_EQ(gen.code, 0) << gen.err;
     const ::test::Outcome info = ::test::run_shell(bin + " scene info --json " + file);
     ASSERT_EQ(info.code, 0) << info.err;
@@ -167,8 +167,8 @@ TEST(QueryPresets, SceneGenAndInfoOnTheCommandLine) {
     EXPECT_NE(table.out.find("query preset"), std::string::npos) << table.out;
     EXPECT_NE(table.out.find("closest 50.0%, any 30.0%, all 20.0%"), std::string::npos) << table.out;
     for (const char* bad : {"--queries game --ray-mix los", "--queries game --query-mix any", "--queries snipers"}) {
-        const ::test::Outcome o =
-            ::test::run_shell(bin + " scene gen --kind uniform --objects 10 " + bad + " -o " + dir.file("x.rcbscene"));
+        const ::test::Outcome o = ::test::run_shell(bin + " scene gen --generator uniform --objects 10 " + bad +
+                                                    " -o " + dir.file("x.rcbscene"));
         EXPECT_EQ(o.code, 2) << bad << ": " << o.err;
         EXPECT_NE(o.err.find("--queries"), std::string::npos) << o.err;
     }
@@ -183,9 +183,9 @@ std::string experiment_error(const std::string& scene) {
 
 TEST(QueryPresets, ExperimentEntriesTakePresetsPhysicsKindsAndTimeSteps) {
     const Experiment e = parse_experiment(
-        R"({"scenes": [{"kind": "brownian", "objects": 100, "queries": "game", "time_step": 0.01},
-                       {"kind": "pile", "objects": 100, "query_mix": "closest"},
-                       {"kind": "uniform", "objects": 100}],
+        R"({"scenes": [{"generator": "brownian", "objects": 100, "queries": "game", "time_step": 0.01},
+                       {"generator": "pile", "objects": 100, "query_mix": "closest"},
+                       {"generator": "uniform", "objects": 100}],
             "structures": [{"name": "bf"}]})",
         "exp.json", ".");
     ASSERT_EQ(e.scenes.size(), 3u);
@@ -196,17 +196,17 @@ TEST(QueryPresets, ExperimentEntriesTakePresetsPhysicsKindsAndTimeSteps) {
     EXPECT_EQ(e.scenes[0].key["ray_mix"], "fire:0.5,sight:0.3,sensor:0.2");
     EXPECT_FALSE(e.scenes[1].key.contains("time_step"));  // the default keeps older keys
     EXPECT_FALSE(e.scenes[2].key.contains("queries"));
-    EXPECT_EQ(experiment_error(R"({"kind": "pile", "objects": 10, "queries": "x"})"),
+    EXPECT_EQ(experiment_error(R"({"generator": "pile", "objects": 10, "queries": "x"})"),
               "exp.json: scenes[0].queries: unknown query preset 'x' (known: shots, visibility, sensors, game)");
-    EXPECT_EQ(experiment_error(R"({"kind": "pile", "objects": 10, "queries": "game", "ray_mix": "los"})"),
+    EXPECT_EQ(experiment_error(R"({"generator": "pile", "objects": 10, "queries": "game", "ray_mix": "los"})"),
               "exp.json: scenes[0].ray_mix: a query preset (\"queries\") sets the ray modes and their kinds");
-    EXPECT_EQ(experiment_error(R"({"kind": "uniform", "objects": 10, "time_step": 0.01})"),
+    EXPECT_EQ(experiment_error(R"({"generator": "uniform", "objects": 10, "time_step": 0.01})"),
               "exp.json: scenes[0].time_step: only a physics kind (pile, collapse, explosion, brownian, freefall, "
               "gravity) takes a time step");
-    EXPECT_EQ(experiment_error(R"({"kind": "pile", "objects": 10, "time_step": 1})")
+    EXPECT_EQ(experiment_error(R"({"generator": "pile", "objects": 10, "time_step": 1})")
                   .find("exp.json: scenes[0].time_step: expected a number in"),
               0u);
-    EXPECT_EQ(experiment_error(R"({"kind": "pile", "objects": 10, "change_fraction": 0.1})"),
+    EXPECT_EQ(experiment_error(R"({"generator": "pile", "objects": 10, "change_fraction": 0.1})"),
               "exp.json: scenes[0].change_fraction: a physics kind (pile) moves by its simulation, not by "
               "change_fraction");
     EXPECT_EQ(experiment_error(R"({"preset": "uni-s", "queries": "game", "seeds": [1]}, {"preset": "uni-s"})"), "");

@@ -230,7 +230,7 @@ protected:
 
 TEST_F(SceneGenCli, StreamsTheSameFileAndRefusesInOneLine) {
     const ::test::Outcome ok =
-        run("scene gen --kind brownian --objects 500 --frames 10 --rays 20 --seed 3 -o " + path("b.rcbscene"));
+        run("scene gen --generator brownian --objects 500 --frames 10 --rays 20 --seed 3 -o " + path("b.rcbscene"));
     ASSERT_EQ(ok.code, 0) << ok.err;
     EXPECT_NE(ok.out.find("500 objects, 10 frames, 200 rays"), std::string::npos) << ok.out;
     SceneSettings s;
@@ -241,7 +241,7 @@ TEST_F(SceneGenCli, StreamsTheSameFileAndRefusesInOneLine) {
     s.rays.per_frame = 20;
     EXPECT_EQ(file_bytes(path("b.rcbscene")), encode_recording(generate_scene(s)));
     for (const auto& [args, needle] :
-         {std::pair<std::string, std::string>{"--kind brownian --objects 1000000 --frames 2000",
+         {std::pair<std::string, std::string>{"--generator brownian --objects 1000000 --frames 2000",
                                               "--objects/--frames/--rays: the recording could take 90.1 GB on disk"},
           {"--preset uni-s --objects 30000000 --rays 100000000", "one frame would take"}}) {
         const ::test::Outcome r = run("scene gen " + args + " -o " + path("x.rcbscene"));
@@ -259,7 +259,8 @@ TEST_F(SceneGenCli, AKilledGenerationLeavesTheNameUntouched) {
     std::ofstream(out) << "before";
     ::test::RunOptions o;
     o.timeout_seconds = 4;
-    const ::test::Outcome r = run("scene gen --kind brownian --objects 2000 --frames 100000 --rays 10 -o " + out, o);
+    const ::test::Outcome r =
+        run("scene gen --generator brownian --objects 2000 --frames 100000 --rays 10 -o " + out, o);
     EXPECT_TRUE(r.timed_out) << r.code << " " << r.err;
     EXPECT_EQ(file_bytes(out), "before");
     ASSERT_TRUE(fs::exists(out + ".tmp"));

@@ -201,18 +201,18 @@ TEST(Recording, BadShapesAreRejectedNamingFileAndObject) {
     Recording r = shaped_recording();
     std::string bytes = encode_recording(r);
     // Patch the first shaped object's first float to NaN, then fix the section's checksum by
-    // re-encoding through a recording whose shape is invalid: validate_recording must refuse it.
+    // re-encoding through a recording whose shape is invalid: refuse_invalid_recording must refuse it.
     for (Object& o : r.initial)
         if (o.shape.kind == ShapeKind::triangle) {
             o.shape.v[0] = std::nanf("");
-            const std::string m = test::input_error_of([&] { validate_recording(r, "scene.rcbscene"); });
+            const std::string m = test::input_error_of([&] { refuse_invalid_recording(r, "scene.rcbscene"); });
             EXPECT_NE(m.find("scene.rcbscene"), std::string::npos) << m;
             EXPECT_NE(m.find("uid " + std::to_string(o.uid)), std::string::npos) << m;
             EXPECT_NE(m.find("non-finite"), std::string::npos) << m;
             EXPECT_EQ(m.find('\n'), std::string::npos);
             o.shape.v[0] = 0;
             o.box = Aabb{{0, 0, 0}, {1, 1, 1}};  // a box that is not the shape's bounds
-            EXPECT_THROW(validate_recording(r, "scene.rcbscene"), InputError);
+            EXPECT_THROW(refuse_invalid_recording(r, "scene.rcbscene"), InputError);
             break;
         }
     // An unknown kind byte in the file (with the section's checksum made right again).

@@ -78,7 +78,7 @@ TEST(RegistryList, TheTunersDefaultSpaceHasTheToy) {
     // naming none takes wbvh's whole space too, over the plan limit, so the toy is named here.
     const TuneSpec t = parse_tune_spec(
         R"({"mode": "measured", "structures": ["toy"],
-            "categories": [{"name": "small", "scenes": [{"kind": "irregular", "objects": 100}]}]})",
+            "categories": [{"name": "small", "scenes": [{"generator": "irregular", "objects": 100}]}]})",
         "t.json", ".");
     ASSERT_TRUE(t.space.count("toy"));
     const auto dims = default_space("toy");
@@ -122,12 +122,12 @@ TEST(RegistryList, TheFuzzersSettingsComeFromTheParamSpecs) {
 TEST(RegistryList, EveryFuzzerSettingMatchesTheGroundTruth) {
     toy();
     const Experiment e = parse_experiment(
-        R"({"frames": 3, "rays_per_frame": 60, "scenes": [{"kind": "irregular", "objects": 150, "sphere_share": 0.2}],
+        R"({"frames": 3, "rays_per_frame": 60, "scenes": [{"generator": "irregular", "objects": 150, "sphere_share": 0.2}],
             "structures": [{"name": "bf"}]})",
         "fuzz-settings.json", ".");
     const Recording r = load_scene(e.scenes.at(0));
     SimulationOptions o;
-    o.verify = o.count = o.validate = true;
+    o.verify = o.count = o.check = true;
     for (const auto& [info, settings] : fuzz::differential_plan())
         for (const nlohmann::json& s : settings)
             EXPECT_EQ(simulate(r, *info, s, o).mismatches(), 0u) << info->name << " " << s.dump();
@@ -148,7 +148,7 @@ TEST(RegistryList, TheReportAndItsFindingsShowTheToy) {
     fs::create_directories(dir);
     const Experiment e = parse_experiment(
         R"({"name": "registry-list", "frames": 3, "rays_per_frame": 50,
-            "scenes": [{"kind": "irregular", "objects": 60}, {"kind": "irregular", "objects": 240}],
+            "scenes": [{"generator": "irregular", "objects": 60}, {"generator": "irregular", "objects": 240}],
             "structures": [{"name": "bf"}, {"name": "toy"}, {"name": "toy", "params": {"block": 16}}]})",
         "registry-list.json", ".");
     RunOptions options;

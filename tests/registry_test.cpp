@@ -2,6 +2,9 @@
 // runs through the simulator and the differential check, and bad registrations are refused.
 #include <gtest/gtest.h>
 
+#include <optional>
+#include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -53,11 +56,41 @@ TEST(RegisterStructure, JoinsTheRegistryAfterTheBuiltIns) {
     EXPECT_TRUE(listed);
 }
 
+// A structure written for the last release overrides validate(), check()'s old name, and no
+// check(): for this release check() calls it, so the simulator's checks and the conformance suite
+// still reach its invariants.
+class LastReleaseStructure final : public Structure {
+public:
+    void build(std::span<const Object>) override {}
+    void insert(const Object&) override {}
+    void remove(Uid) override {}
+    void move(const Object&) override {}
+    using Structure::cast;
+    void cast(std::span<const Segment>, std::span<const QueryKind>, HitLists&) override {}
+    void cast_counted(std::span<const Segment>, std::span<const QueryKind>, HitLists&, Counters&) override {}
+    std::optional<Hit> cast_closest(const Segment&) override { return std::nullopt; }
+    bool cast_any(const Segment&) override { return false; }
+    void set_candidates_only(bool) override {}
+    std::size_t size() const override { return 0; }
+    std::size_t memory_bytes() const override { return 0; }
+    void validate() const override { broken_invariant("last_release", "its own validate() ran"); }
+};
+
+TEST(RegisterStructure, CheckCallsTheOldNameOfAStructureOfTheLastRelease) {
+    const LastReleaseStructure s;
+    try {
+        s.check();
+        FAIL() << "check() did not call validate()";
+    } catch (const std::logic_error& e) {
+        EXPECT_STREQ(e.what(), "last_release: its own validate() ran");
+    }
+}
+
 TEST(RegisterStructure, RunsThroughTheSimulatorAndMatchesTheGroundTruth) {
     registered();
     const Recording r = test::generated_scene("irregular", 1200, 5, 31, 0.1);
     SimulationOptions o;
-    o.validate = true;
+    o.check = true;
     const SimulationResult res = simulate(r, find_structure("test_list_scan"), nlohmann::json::object(), o);
     EXPECT_TRUE(res.verified);
     EXPECT_EQ(res.structure, "test_list_scan");

@@ -42,8 +42,8 @@ std::string read(const fs::path& p) {
 std::int64_t small_run(const std::string& db_path) {
     const Experiment e = parse_experiment(
         R"({"name": "report-test", "frames": 4, "rays_per_frame": 200,
-            "scenes": [{"kind": "uniform", "objects": 1500}, {"kind": "irregular", "name": "irregular-dense", "objects": 3000, "ray_mix": "dense,center"},
-                       {"kind": "irregular", "objects": 6000}],
+            "scenes": [{"generator": "uniform", "objects": 1500}, {"generator": "irregular", "name": "irregular-dense", "objects": 3000, "ray_mix": "dense,center"},
+                       {"generator": "irregular", "objects": 6000}],
             "structures": [{"name": "bf"}, {"name": "dbvh", "grids": [{"mode": "incremental"}, {"mode": "rebuild"}]}, {"name": "lbvh"}]})",
         "report-test.json", ".");
     RunOptions options;
@@ -114,7 +114,7 @@ TEST(Report, SpeedAgainstAccuracyNamesEachScenesParetoFrontFromTheData) {
     // below 1; the box level is exact on box scenes.
     const Experiment e = parse_experiment(
         R"({"name": "front-test", "frames": 3, "rays_per_frame": 200,
-            "scenes": [{"kind": "uniform", "objects": 1500}],
+            "scenes": [{"generator": "uniform", "objects": 1500}],
             "structures": [{"name": "ug", "grids": [{"query": "candidates"}, {"query": "boxes"}]}, {"name": "bf"}]})",
         "front-test.json", ".");
     RunOptions options;

@@ -76,8 +76,8 @@ TEST(Experiment, ValidationNamesTheJsonPath) {
               "");
     EXPECT_EQ(error_of(R"({"scenes": [{"recording": "missing.rcbscene"}], "structures": [{"name": "bf"}]})"),
               "exp.json: scenes[0].recording: file not found: missing.rcbscene");
-    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "kind": "uniform"}], "structures": [{"name": "bf"}]})"),
-              "exp.json: scenes[0]: give exactly one of \"preset\", \"kind\", \"recording\" or \"import\"");
+    EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "generator": "uniform"}], "structures": [{"name": "bf"}]})"),
+              "exp.json: scenes[0]: give exactly one of \"preset\", \"generator\", \"recording\" or \"import\"");
     EXPECT_EQ(error_of(R"({"scenes": [{"preset": "uni-s", "ray_mix": "up"}], "structures": [{"name": "bf"}]})")
                   .find("exp.json: scenes[0].ray_mix: ray mix 'up': unknown mode 'up'"),
               0u);
@@ -85,13 +85,14 @@ TEST(Experiment, ValidationNamesTheJsonPath) {
               "exp.json: scenes[0].objects[1]: expected an integer in 1..100000000, got -1");
     EXPECT_EQ(error_of(R"({"scenes": [], "structures": [{"name": "bf"}]})"),
               "exp.json: scenes: expected a non-empty list of scenes");
-    // Every generator kind is a scene kind, the failure modes included.
-    EXPECT_EQ(error_of(R"({"scenes": [{"kind": "same-centroid", "objects": 50}], "structures": [{"name": "bf"}]})"),
-              "");
-    EXPECT_EQ(error_of(R"({"scenes": [{"kind": "cubes", "objects": 50}], "structures": [{"name": "bf"}]})"),
-              "exp.json: scenes[0].kind: expected one of uniform, irregular, jittered, clusters, stadium, identical, "
-              "same-centroid, flat, "
-              "slivers, outlier, nested, pile, collapse, explosion, brownian, freefall, gravity, got \"cubes\"");
+    // Every generator is accepted, the failure modes included.
+    EXPECT_EQ(
+        error_of(R"({"scenes": [{"generator": "same-centroid", "objects": 50}], "structures": [{"name": "bf"}]})"), "");
+    EXPECT_EQ(
+        error_of(R"({"scenes": [{"generator": "cubes", "objects": 50}], "structures": [{"name": "bf"}]})"),
+        "exp.json: scenes[0].generator: expected one of uniform, irregular, jittered, clusters, stadium, identical, "
+        "same-centroid, flat, "
+        "slivers, outlier, nested, pile, collapse, explosion, brownian, freefall, gravity, got \"cubes\"");
     EXPECT_EQ(
         error_of(
             R"({"scenes": [{"preset": "uni-s"}], "structures": [{"name": "bf"}], "frames": 3, "warmup_frames": 3})"),
@@ -198,7 +199,7 @@ TEST(Experiment, RangeLevelsAreTheDecimalsTheyStandFor) {
 
 TEST(Experiment, PlanRunsRepetitionROfEveryCellBeforeRepetitionROnePlusOne) {
     const Experiment e = parse_experiment(
-        R"({"repetitions": 2, "seeds": [1, 2], "scenes": [{"preset": "uni-s"}, {"kind": "irregular", "objects": [100, 200]}],
+        R"({"repetitions": 2, "seeds": [1, 2], "scenes": [{"preset": "uni-s"}, {"generator": "irregular", "objects": [100, 200]}],
             "structures": [{"name": "bf"}]})",
         "e", ".");
     ASSERT_EQ(e.scenes.size(), 6u);  // uni-s × 2 seeds, irregular × 2 sizes × 2 seeds
@@ -491,7 +492,7 @@ std::int64_t count(const std::string& db_path, const std::string& sql) {
 void write_experiment(const fs::path& path, int repetitions) {
     std::ofstream(path)
         << R"({"name": "resume", "frames": 4, "rays_per_frame": 300, "repetitions": )" << repetitions
-        << R"(, "scenes": [{"kind": "irregular", "objects": 4000}, {"kind": "uniform", "objects": 3000}],
+        << R"(, "scenes": [{"generator": "irregular", "objects": 4000}, {"generator": "uniform", "objects": 3000}],
                              "structures": [{"name": "bf"}]})";
 }
 

@@ -117,9 +117,9 @@ TEST_F(SceneCategoryFiles, AdviseWithoutACategoryPicksTheCategoryOfTheScenesItRe
             "rays_per_frame": 100, "repetitions": 1, "warmup_frames": 0,
             "space": {"ug": {"density": [1, 4]}},
             "categories": [{"name": "given", "scenes": [
-                {"kind": "uniform", "objects": 1500, "seed": 1}, {"kind": "uniform", "objects": 1500, "seed": 2},
-                {"kind": "uniform", "objects": 1500, "seed": 3}, {"kind": "irregular", "objects": 4000, "seed": 1},
-                {"kind": "irregular", "objects": 4000, "seed": 2}, {"kind": "irregular", "objects": 4000, "seed": 3}]}]})",
+                {"generator": "uniform", "objects": 1500, "seed": 1}, {"generator": "uniform", "objects": 1500, "seed": 2},
+                {"generator": "uniform", "objects": 1500, "seed": 3}, {"generator": "irregular", "objects": 4000, "seed": 1},
+                {"generator": "irregular", "objects": 4000, "seed": 2}, {"generator": "irregular", "objects": 4000, "seed": 3}]}]})",
         "two.json", dir_.path().string());
     TuneOptions o;
     o.file = path("two.json");
@@ -162,8 +162,8 @@ TEST_F(SceneCategoryFiles, AdviseWithoutACategoryPicksTheCategoryOfTheScenesItRe
 TEST_F(SceneCategoryFiles, RunsStoreFeaturesAndDeriveCategoriesOrSayWhyNot) {
     const std::string bin = RCBENCH_BINARY, db = path("r.db"), exp = path("e.json");
     std::ofstream(exp) << R"({"name": "feat", "frames": 2, "rays_per_frame": 50, "repetitions": 1, "seeds": [1],
-        "scenes": [{"kind": "uniform", "objects": 800}, {"kind": "uniform", "objects": 900},
-                   {"kind": "irregular", "objects": 3000}, {"kind": "irregular", "objects": 3500}],
+        "scenes": [{"generator": "uniform", "objects": 800}, {"generator": "uniform", "objects": 900},
+                   {"generator": "irregular", "objects": 3000}, {"generator": "irregular", "objects": 3500}],
         "structures": [{"name": "bf"}]})";
     const ::test::Outcome run = ::test::run_shell(bin + " run " + exp + " --db " + db);
     ASSERT_EQ(run.code, 0) << run.err;

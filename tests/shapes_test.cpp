@@ -339,7 +339,7 @@ TEST(LeafVolumes, VolumesContainTheirShapes) {
         if (truth(seg, shape) != Contact::hit) continue;
         ++tested;
         for (LeafBv bv : {LeafBv::kdop14, LeafBv::kdop18, LeafBv::obb})
-            EXPECT_TRUE(segment_hits_volume(seg, o.box, tight_volume(o, bv))) << "case " << i << " bv " << int(bv);
+            EXPECT_TRUE(segment_hits_volume(seg, o.box, leaf_volume(o, bv))) << "case " << i << " bv " << int(bv);
     }
     EXPECT_GT(tested, 500);
 }

@@ -26,7 +26,7 @@ public:
     void move(const Object& o) override { bf_.move(o); }
     std::size_t size() const override { return bf_.size(); }
     std::size_t memory_bytes() const override { return bf_.memory_bytes(); }
-    void validate() const override { bf_.validate(); }
+    void check() const override { bf_.check(); }
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit) {
         std::vector<std::pair<Uid, float>> all;

@@ -168,7 +168,7 @@ TEST(Stability, InsideRaysStartAmongTheObjects) {
 }
 
 /// Every registered structure (peers included), at its defaults and with every guard off, gives the
-/// brute-force answers on every failure mode, with validate() after every frame.
+/// brute-force answers on every failure mode, with check() after every frame.
 TEST(Stability, EveryStructureIsExactOnEveryFailureMode) {
     for (const std::string& kind : failure_mode_kinds()) {
         const Recording r = generate_scene(failure_scene(kind, 700, 4, 3));
@@ -309,7 +309,7 @@ std::uint64_t stat(const SimulationResult& res, const char* key) {
 }
 
 /// Boxes that share a point: every structure stays exact at its defaults and with each crowd guard
-/// off (validate() after every frame), and each guard says that it fired, and only when on.
+/// off (check() after every frame), and each guard says that it fired, and only when on.
 TEST(Stability, CrowdGuardsStayExactAndReportFiring) {
     for (const char* kind : {"nested", "same-centroid"}) {
         const Recording r = crowd_scene(kind, 1500, 3);
@@ -399,7 +399,7 @@ TEST(Stability, ReportShowsWhereMethodsFail) {
     const fs::path& dir = temp.path();
     std::ofstream(dir / "mini.json")
         << R"({"name": "mini", "frames": 3, "rays_per_frame": 200, "ray_mix": "center,faces",
-        "scenes": [{"preset": "outlier-s"}, {"preset": "stadium-s"}, {"kind": "irregular", "objects": 1000}],
+        "scenes": [{"preset": "outlier-s"}, {"preset": "stadium-s"}, {"generator": "irregular", "objects": 1000}],
         "structures": [{"name": "bf"}, {"name": "ug", "params": {"outlier_guard": [true, false]}}]})";
     const std::string bin = RCBENCH_BINARY, d = dir.string();
     ASSERT_EQ(std::system((bin + " run " + d + "/mini.json --db " + d + "/mini.db >/dev/null 2>&1").c_str()), 0);

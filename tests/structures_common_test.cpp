@@ -1,6 +1,6 @@
 // What several structures share (accel/common/, accel/grid/grid.h, accel/bvh/bvh_traversal.h): the loop
 // over a range of cells, the outlier trim, the slot tables in both layouts, the peers' exact collector, and
-// validate()'s one way to fail.
+// check()'s one way to fail.
 #include <gtest/gtest.h>
 
 #include <limits>
@@ -74,7 +74,7 @@ void check_swap_remove() {
     EXPECT_EQ(t.find(2), nullptr);
     t.move(Object{4, box_at(9)});
     EXPECT_EQ(t.box(1), box_at(9));
-    EXPECT_NO_THROW(t.validate("t"));
+    EXPECT_NO_THROW(t.check("t"));
 }
 
 TEST(SlotTables, BothLayoutsKeepTheSlotsDenseOnRemove) {
@@ -93,8 +93,8 @@ TEST(SlotTables, ValidateNamesTheStructureAndTheBrokenInvariant) {
     SoaSlotBoxes t;
     t.insert(Object{7, {{1, 0, 0}, {0, 1, 1}}});  // min > max on x
     try {
-        t.validate("bf");
-        FAIL() << "validate accepted a box with min > max";
+        t.check("bf");
+        FAIL() << "check accepted a box with min > max";
     } catch (const std::logic_error& e) {
         EXPECT_EQ(std::string(e.what()), "bf: uid 7 has min > max");
     }

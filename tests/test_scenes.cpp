@@ -14,7 +14,7 @@ SimulationResult expect_matches_ground_truth(const Recording& r, const std::stri
     SimulationOptions o;
     o.verify = true;
     o.count = true;
-    o.validate = true;
+    o.check = true;
     SimulationResult res = simulate(r, find_structure(structure), params, o);
     EXPECT_EQ(res.mismatches(), 0u) << structure << ' ' << params.dump() << " on scene " << scene_name
                                     << describe_mismatches(res, r, scene_name);

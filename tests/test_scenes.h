@@ -3,7 +3,7 @@
 /// scenes themselves are the conformance suite's: testing/conformance.h).
 ///
 /// `expect_matches_ground_truth` replays a recording through the simulator with verification,
-/// the counting pass and Structure::validate() after every frame, and fails on any mismatch,
+/// the counting pass and Structure::check() after every frame, and fails on any mismatch,
 /// naming the structure, parameters and the first discrepancies.
 
 #include <filesystem>

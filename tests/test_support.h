@@ -86,7 +86,7 @@ public:
     void move(const Object& o) override { objects_[index_.at(o.uid)].box = o.box; }
     std::size_t size() const override { return objects_.size(); }
     std::size_t memory_bytes() const override { return objects_.capacity() * sizeof(Object) + index_.size() * 32; }
-    void validate() const override {
+    void check() const override {
         if (index_.size() != objects_.size()) throw std::logic_error("toy: index and list differ in size");
         for (std::size_t i = 0; i < objects_.size(); ++i)
             if (index_.at(objects_[i].uid) != i) throw std::logic_error("toy: index is stale");

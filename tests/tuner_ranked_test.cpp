@@ -117,7 +117,7 @@ TuneSpec ranked_spec(std::size_t budget) {
         parse_tune_spec(R"({"structures": ["ug"], "mode": "measured", "budget": )" + std::to_string(budget) +
                             R"(, "frames": 3, "rays_per_frame": 200, "repetitions": 2,
             "space": {"ug": {"density": [0.125, 0.25, 0.5, 1, 2, 4, 8, 16]}},
-            "categories": [{"name": "u", "scenes": [{"kind": "irregular", "objects": 2000}]}]})",
+            "categories": [{"name": "u", "scenes": [{"generator": "irregular", "objects": 2000}]}]})",
                         "t.json", ".");
     // Made-up times from the counters (C_RB 2, C_T 20, C_PREP 50 ns), so the verdicts do not follow
     // the clock of a loaded machine.

@@ -211,7 +211,7 @@ TEST(TunerExhaustiveCheck, ReplaysFiveSeedsOnTheMeasuredSurfaceAndRanksThePredic
         R"({"name": "ex", "mode": "measured", "structures": ["ug"], "budget": 3, "calibration": 4, "seed": 7,
             "frames": 3, "rays_per_frame": 200, "repetitions": 1,
             "space": {"ug": {"density": {"from": 0.25, "to": 16, "times": 2}}},
-            "categories": [{"name": "small", "scenes": [{"kind": "irregular", "objects": 1500}]}]})",
+            "categories": [{"name": "small", "scenes": [{"generator": "irregular", "objects": 1500}]}]})",
         "ex.json", ".");
     TuneOptions o;
     o.file = (dir / "ex.json").string();

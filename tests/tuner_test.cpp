@@ -166,7 +166,7 @@ TEST(Tune, PredictedThenVerifiedMeasuresItsCandidatesAndTheDefaults) {
     TuneSpec spec = parse_tune_spec(
         R"({"structures": ["ug"], "budget": 5, "calibration": 4, "verify_top": 2, "frames": 3, "rays_per_frame": 200, "repetitions": 1,
             "space": {"ug": {"density": {"from": 0.25, "to": 16, "times": 2}}},
-            "categories": [{"name": "small", "scenes": [{"kind": "irregular", "objects": 2000}]}]})",
+            "categories": [{"name": "small", "scenes": [{"generator": "irregular", "objects": 2000}]}]})",
         "t.json", ".");
     // Made-up times from the counters: how far the predicted search gets before it converges
     // depends on the predictions, which the replays' update times enter, and on a loaded machine
@@ -196,7 +196,7 @@ TEST(Tune, TheDefaultsSpelledAsAnIntegerAreMeasuredOnce) {
     const TuneSpec spec = parse_tune_spec(
         R"({"structures": ["ug"], "budget": 8, "frames": 2, "rays_per_frame": 50, "repetitions": 1,
             "space": {"ug": {"density": [2, 4]}},
-            "categories": [{"name": "small", "scenes": [{"kind": "uniform", "objects": 500}]}]})",
+            "categories": [{"name": "small", "scenes": [{"generator": "uniform", "objects": 500}]}]})",
         "t.json", ".");
     const CategoryTuning t = tune_category(spec, spec.categories[0]);
     ASSERT_EQ(t.structures.size(), 1u);
@@ -212,7 +212,7 @@ TEST(TuneRecordsForAdvise, EveryModeRecordsItsSpaceAndACostModel) {
             std::string(R"({"name": "rec", "structures": ["ug"], "budget": 4, "calibration": 4, "frames": 3,
                 "rays_per_frame": 200, "repetitions": 1, "mode": ")") +
                 mode + R"(", "space": {"ug": {"density": [0.5, 1, 2, 4, 8]}},
-                "categories": [{"name": "u", "scenes": [{"kind": "uniform", "objects": 2000}]}]})",
+                "categories": [{"name": "u", "scenes": [{"generator": "uniform", "objects": 2000}]}]})",
             "rec.json", dir.string());
         // Frames timed by eq. 5.4 itself (C_RB 2, C_T 20, C_PREP 50 ns): the model fitted to timed
         // frames of five configurations decides this test's verdict, and timed by the clock of a

@@ -95,7 +95,7 @@ TEST(UpdateWrites, AnEmptyCommitWritesNothingAndATinyMoveWrites) {
             // The incremental ones touch the object's cells or its leaf and a few blocks above it.
             EXPECT_LT(moved, 64u);
         }
-        s->validate();
+        s->check();
     }
 }
 
@@ -134,7 +134,7 @@ TEST(UpdateWrites, UniformGridMoveWritesTheCellsOfBothRanges) {
     EXPECT_EQ(writes_over(*s, [&] { s->move(Object(uid, shifted(to, Vec3{0.01f, 0.01f, 0.01f}))); }), k2);
     EXPECT_EQ(writes_over(*s, [&] { s->commit(); }), 0u);
     EXPECT_EQ(writes_over(*s, [&] { s->remove(uid); }), k2);
-    s->validate();
+    s->check();
 }
 
 TEST(UpdateWrites, GridsPayMoreToMoveALongObjectThanASmallOne) {
@@ -156,7 +156,7 @@ TEST(UpdateWrites, GridsPayMoreToMoveALongObjectThanASmallOne) {
             const std::uint64_t small_writes = move(small), long_writes = move(long_one);
             EXPECT_GT(small_writes, 0u);
             EXPECT_GE(long_writes, 4 * small_writes);
-            s->validate();
+            s->check();
             s->build(objects);  // back to the start for the next shift
             s->commit();
         }
@@ -189,7 +189,7 @@ std::vector<std::uint64_t> writes_per_frame(const Recording& r, const std::strin
         s->commit();
         seq.push_back(s->writes());
     }
-    s->validate();
+    s->check();
     return seq;
 }
 
@@ -232,7 +232,7 @@ TEST(UpdateWrites, WideBvhCountsTheBlocksOfItsProgressiveRebuild) {
     ASSERT_EQ(rebuilding->stats()["rebuilds"].get<int>(), 1);
     // The new tree's blocks were each written by its build, on top of the moves' lanes and refits.
     EXPECT_GE(with_rebuild, without + rebuilding->stats()["nodes"].get<std::uint64_t>());
-    rebuilding->validate();
+    rebuilding->check();
 }
 
 }  // namespace

@@ -1,6 +1,6 @@
 // The wide BVH (wbvh): differential tests against the ground truth on the hard scenes, generated
 // scenes and the presets over several parameter sets (progressive rebuilds in every phase among
-// them); churn with validate() after every change batch and answers against brute force (the same
+// them); churn with check() after every change batch and answers against brute force (the same
 // float slab test), for the whole-rebuild policy (the SAH growth it holds) and the progressive one
 // (every phase visited, the work per commit within its budget); the SAH cost after long churn at
 // the defaults against a fresh build; the rebuild trigger's weight of small steps against jumps;
@@ -111,7 +111,7 @@ TEST(WideBvh, MatchesGroundTruthOnThePresets) {
 }
 
 /// Churn: removes, inserts (leaves fill and split) and moves of up to an object size, then far
-/// jumps. validate() after every batch of changes (a commit each), answers checked against brute
+/// jumps. check() after every batch of changes (a commit each), answers checked against brute
 /// force, and, with the whole rebuild at once and no other trigger, the SAH cost: its growth since
 /// the last build never above rebuild_ratio at a commit, and within that bound (plus the slack of a
 /// different build order) of a fresh build.
@@ -135,7 +135,7 @@ TEST(WideBvh, ChurnKeepsTheTreeValidAndItsSahCostWithinThePolicy) {
                 for (int c = 0; c < 5; ++c) test::random_change(rng, live, next, kWorld, jumps, {&tree, &bf});
                 tree.commit();
                 bf.commit();
-                ASSERT_NO_THROW(tree.validate()) << "frame " << frame << " batch " << batch;
+                ASSERT_NO_THROW(tree.check()) << "frame " << frame << " batch " << batch;
                 if (ratio > 0) {
                     const nlohmann::json st = tree.stats();
                     ASSERT_LE(st["sah_growth"].get<double>(), ratio * (1 + 1e-9)) << "frame " << frame;
@@ -167,7 +167,7 @@ TEST(WideBvh, ChurnKeepsTheTreeValidAndItsSahCostWithinThePolicy) {
 
 /// A progressive rebuild started at every commit that follows a change, slow (many commits end
 /// mid-gather, mid-build, mid-replay or mid-dispose) and fast, under churn with far jumps now and
-/// then: validate() after every commit (which also checks that the next tree, or its gathered
+/// then: check() after every commit (which also checks that the next tree, or its gathered
 /// items, holds every live uid with its live box unless the uid is logged for the replay), answers
 /// against brute force after every commit, and the work of every commit within its budget plus one
 /// step (a replayed uid is the largest: 16 units).
@@ -191,7 +191,7 @@ TEST(WideBvh, ProgressiveRebuildStaysExactInEveryPhase) {
                 test::random_change(rng, live, next, kWorld, frame % 50 == 49, {&tree, &bf});
             tree.commit();
             bf.commit();
-            ASSERT_NO_THROW(tree.validate()) << "frame " << frame;
+            ASSERT_NO_THROW(tree.check()) << "frame " << frame;
             const nlohmann::json st = tree.stats();
             ++phases[st["rebuild_phase"].get<std::string>()];
             ASSERT_LE(st["rebuild_work"].get<std::uint64_t>(), st["rebuild_budget"].get<std::uint64_t>() + 16)
@@ -216,7 +216,7 @@ TEST(WideBvh, ProgressiveRebuildStaysExactInEveryPhase) {
 
 /// Edges of a progressive rebuild: every object removed while it runs (the next tree then empties
 /// in the replay, and the swap leaves an empty tree that takes inserts again), and build() in the
-/// middle of one (which drops it). validate() and brute force after every commit.
+/// middle of one (which drops it). check() and brute force after every commit.
 TEST(WideBvh, ProgressiveRebuildSurvivesEmptyingAndRebuilding) {
     constexpr float kWorld = 40;
     Random rng(11);
@@ -228,7 +228,7 @@ TEST(WideBvh, ProgressiveRebuildSurvivesEmptyingAndRebuilding) {
     tree.build(live);
     bf.build(live);
     auto check = [&](const std::string& when) {
-        ASSERT_NO_THROW(tree.validate()) << when;
+        ASSERT_NO_THROW(tree.check()) << when;
         for (int k = 0; k < 4; ++k) {
             const Segment ray = test::random_segment(rng, kWorld);
             ASSERT_EQ(test::sorted_hits(tree, ray), test::sorted_hits(bf, ray)) << when;
@@ -301,7 +301,7 @@ TEST(WideBvh, SahCostStaysNearAFreshBuildUnderLongChurnAtTheDefaults) {
             ASSERT_LE(st["rebuild_work"].get<std::uint64_t>(), st["rebuild_budget"].get<std::uint64_t>() + 16) << f;
             most_work = std::max(most_work, st["rebuild_work"].get<std::uint64_t>());
             if (f % 100 == 99) {
-                ASSERT_NO_THROW(tree.validate()) << f;
+                ASSERT_NO_THROW(tree.check()) << f;
                 WideBvh fresh(params);
                 fresh.build(live.objects());
                 last[policy] = tree.sah_cost() / fresh.sah_cost();
@@ -359,7 +359,7 @@ TEST(WideBvh, SmallStepsOfEveryObjectCountTheirShareTowardsARebuild) {
         bf.commit();
     };
     auto expect_exact = [&](int commit) {
-        ASSERT_NO_THROW(tree.validate()) << commit;
+        ASSERT_NO_THROW(tree.check()) << commit;
         for (int k = 0; k < 20; ++k) {
             const Segment ray = test::random_segment(rng, 26);
             ASSERT_EQ(test::sorted_hits(tree, ray), test::sorted_hits(bf, ray)) << commit;
@@ -410,7 +410,7 @@ TEST(WideBvh, RefitComputesEachBlockOncePerCommit) {
             tree.move(o);
         }
         tree.commit();
-        ASSERT_NO_THROW(tree.validate()) << step;
+        ASSERT_NO_THROW(tree.check()) << step;
         ASSERT_EQ(stat("nodes"), blocks);
         EXPECT_EQ(stat("refit_blocks"), blocks - 1) << step;
         EXPECT_EQ(stat("refit_lanes"), blocks - 1) << step;
@@ -436,7 +436,7 @@ TEST(WideBvh, RefitComputesEachBlockOncePerCommit) {
         const int changes = commit % 2 == 0 ? 10 : 600;
         for (int c = 0; c < changes; ++c) test::random_change(rng, live, next, 24, jumps, {&tree});
         tree.commit();
-        ASSERT_NO_THROW(tree.validate()) << commit;
+        ASSERT_NO_THROW(tree.check()) << commit;
         const nlohmann::json st = tree.stats();
         EXPECT_LE(st["refit_blocks"].get<std::uint64_t>(), st["nodes"].get<std::uint64_t>() - 1) << commit;
         EXPECT_LE(st["refit_lanes"].get<std::uint64_t>(), st["refit_blocks"].get<std::uint64_t>()) << commit;
@@ -507,7 +507,7 @@ TEST(WideBvh, TwoUpdateThreadsGiveTheOneThreadTreeBitForBit) {
             ASSERT_EQ(std::tie(a.reinserts, a.splits, a.refit_blocks, a.refit_lanes, a.rebuild_work, a.rebuilds),
                       std::tie(b.reinserts, b.splits, b.refit_blocks, b.refit_lanes, b.rebuild_work, b.rebuilds))
                 << at;
-            ASSERT_NO_THROW(two.validate()) << at;
+            ASSERT_NO_THROW(two.check()) << at;
             std::vector<Segment> rays;
             for (int k = 0; k < 40; ++k) rays.push_back(test::random_segment(rng, kWorld));
             HitLists hits_one, hits_two;
@@ -539,19 +539,19 @@ TEST(WideBvh, NestedInsertsIntoAnEmptyTree) {
         live.push_back({u, {{-h, -h, -h}, {h, h, h}}});
         tree.insert(live.back());
         tree.commit();
-        ASSERT_NO_THROW(tree.validate()) << u;
+        ASSERT_NO_THROW(tree.check()) << u;
     }
     const Segment ray{{0, 0, 0}, {1, 0, 0}};
     EXPECT_EQ(test::sorted_hits(tree, ray).size(), live.size());
     for (Uid u = 0; u < 300; u += 2) {
         tree.remove(u);
         tree.commit();
-        ASSERT_NO_THROW(tree.validate()) << u;
+        ASSERT_NO_THROW(tree.check()) << u;
     }
     EXPECT_EQ(test::sorted_hits(tree, ray).size(), 150u);
     for (Uid u = 1; u < 300; u += 2) tree.remove(u);
     tree.commit();
-    tree.validate();
+    tree.check();
     EXPECT_EQ(tree.size(), 0u);
     EXPECT_TRUE(test::sorted_hits(tree, ray).empty());
 }
@@ -676,7 +676,7 @@ TEST(WideBvh, RefitOnlyWithAPeriodicRebuildStaysExactAndHonoursThePeriod) {
             tree.commit();
             bf.commit();
             if (frame % 7 == 0) tree.commit();  // no changes: not a commit of the period
-            ASSERT_NO_THROW(tree.validate()) << frame;
+            ASSERT_NO_THROW(tree.check()) << frame;
             for (int k = 0; k < 10; ++k) {
                 const Segment ray = test::random_segment(rng, 22);
                 ASSERT_EQ(test::sorted_hits(tree, ray), test::sorted_hits(bf, ray)) << frame;
@@ -716,7 +716,7 @@ TEST(WideBvh, RefitOnlyWithAPeriodicRebuildStaysExactAndHonoursThePeriod) {
 }
 
 /// The uid index: dense uids in a flat array, sparse ones (up to 2^32 − 2) in a map, uids moving
-/// between them as the array grows, under inserts, removes and moves; validate() checks every uid
+/// between them as the array grows, under inserts, removes and moves; check() checks every uid
 /// against its lane, and the answers equal brute force.
 TEST(WideBvh, UidIndexTakesDenseAndSparseUids) {
     constexpr float kWorld = 30;
@@ -738,7 +738,7 @@ TEST(WideBvh, UidIndexTakesDenseAndSparseUids) {
     }
     tree.commit();
     bf.commit();
-    ASSERT_NO_THROW(tree.validate());
+    ASSERT_NO_THROW(tree.check());
     for (int round = 0; round < 20; ++round) {
         for (int c = 0; c < 40; ++c) {
             const std::size_t i = rng.below(live.size());
@@ -755,7 +755,7 @@ TEST(WideBvh, UidIndexTakesDenseAndSparseUids) {
         }
         tree.commit();
         bf.commit();
-        ASSERT_NO_THROW(tree.validate()) << round;
+        ASSERT_NO_THROW(tree.check()) << round;
         ASSERT_EQ(tree.size(), live.size());
         for (int k = 0; k < 10; ++k) {
             const Segment ray = test::random_segment(rng, kWorld);

@@ -202,7 +202,7 @@ double sah_cost(std::uint32_t root, BoxOf&& box_of, Children&& children, std::ui
     while (!stack.empty()) {
         const std::uint32_t n = stack.back();
         stack.pop_back();
-        if (++visited > node_count) break;  // a broken tree; validate() names it
+        if (++visited > node_count) break;  // a broken tree; check() names it
         sum += double(box_of(n).half_area());
         children(n, stack);
     }

@@ -574,7 +574,7 @@ nlohmann::json DynamicBvh::stats() const {
             {"crowds", crowds_.size()}};
 }
 
-void DynamicBvh::validate() const {
+void DynamicBvh::check() const {
     auto fail = [](const std::string& what) { broken_invariant("dbvh", what); };
     if (dirty_) fail("tree not rebuilt after changes (commit missing)");
     const std::uint32_t total = std::uint32_t(nodes_.size());

@@ -92,7 +92,7 @@ public:
     std::uint64_t writes() const override { return writes_; }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
-    void validate() const override;
+    void check() const override;
 
     // The traversal interface of StructureBase: the deferred rebuild and crowd search, then const
     // traversals with a stack per thread.

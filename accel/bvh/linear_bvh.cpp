@@ -914,11 +914,11 @@ nlohmann::json LinearBvh::stats() const {
             {"crowds", crowds_},      {"tied_codes", tied_codes_}, {"outlier_trimmed", trimmed_}};
 }
 
-void LinearBvh::validate() const {
+void LinearBvh::check() const {
     auto fail = [](const std::string& what) { broken_invariant("lbvh", what); };
     if (dirty_) fail("tree not rebuilt after changes (commit missing)");
     const std::size_t n = objects_.size();
-    objects_.validate("lbvh");
+    objects_.check("lbvh");
     if (nodes_.size() != (n ? 2 * n - 1 : 0))
         fail("node array has " + std::to_string(nodes_.size()) + " nodes for " + std::to_string(n) + " objects");
     for (std::size_t k = 1; k < codes_.size(); ++k)

@@ -72,7 +72,7 @@ public:
     static constexpr std::uint8_t kCrowd = 1, kShared = 2;
 
     /// 32 bytes, aligned: two to a cache line, none across two. It holds what the traversal reads;
-    /// what only the build and validate() need (height, flags) is kept per inner node in Meta.
+    /// what only the build and check() need (height, flags) is kept per inner node in Meta.
     struct alignas(32) Node {
         Aabb box;                // 24 B
         std::uint32_t child[2];  // 8 B: a leaf keeps its uid in child[0], kNullNode in child[1]
@@ -98,7 +98,7 @@ public:
     std::uint64_t writes() const override { return writes_; }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
-    void validate() const override;
+    void check() const override;
 
     // The traversal interface of StructureBase: the deferred rebuild, then const traversals with a
     // stack per thread.

@@ -525,7 +525,7 @@ void WideBvh::apply_move(std::uint32_t at, Uid uid, const Aabb& box) {
 void WideBvh::refit() {
     if (dirty_.empty()) return;
     // Every block's depth is at most max_depth_ and a child's is its parent's plus one
-    // (validate_tree checks both), so the parent of a block at `level` belongs to level − 1.
+    // (check_tree checks both), so the parent of a block at `level` belongs to level − 1.
     if (refit_levels_.size() < std::size_t(max_depth_) + 1) refit_levels_.resize(std::size_t(max_depth_) + 1);
     if (update_arena_ && dirty_repeats_) unique_dirty();  // a parallel level lists each block once
     for (const std::uint32_t d : dirty_)
@@ -905,12 +905,12 @@ nlohmann::json WideBvh::stats() const {
     return stats;
 }
 
-void WideBvh::validate() const {
-    validate_tree(true);
-    rebuild_.validate(*this);
+void WideBvh::check() const {
+    check_tree(true);
+    rebuild_.check(*this);
 }
 
-void WideBvh::validate_tree(bool refitted) const {
+void WideBvh::check_tree(bool refitted) const {
     // The next tree of a rebuild is checked before its refit: its lanes may not enclose yet.
     auto fail = [refitted](const std::string& what) {
         broken_invariant("wbvh", (refitted ? "" : "next tree: ") + what);

@@ -160,7 +160,7 @@ public:
     std::uint64_t writes() const override { return writes_; }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
-    void validate() const override;
+    void check() const override;
 
     /// Expected node visits plus object tests of a ray that meets the root's box (the SAH with
     /// C_T = C_I = 1): Σ over nodes of area(node) · (1 + objects if a leaf) / area(root).
@@ -578,9 +578,9 @@ private:
     /// Σ area(lane) · weight(child) over all non-root blocks, recomputed from the tree.
     double fresh_sah_sum() const;
     double total_sah() const;
-    /// The checks of validate() on this tree alone; `refitted` false (the next tree of a rebuild,
+    /// The checks of check() on this tree alone; `refitted` false (the next tree of a rebuild,
     /// while changes are replayed into it): lanes need not enclose their children yet.
-    void validate_tree(bool refitted) const;
+    void check_tree(bool refitted) const;
     /// Whether a commit starts a rebuild (Params::rebuild_ratio, rebuild_after).
     bool rebuild_due() const;
 

@@ -103,7 +103,7 @@ void WideBvhRebuild::advance(WideBvh& live, std::uint64_t budget) {
                     replay(live, log_[replay_cursor_++]);
                     w += kReplayUnits;
                 }
-                next_->apply_moves();  // the next tree holds what was replayed (validate())
+                next_->apply_moves();  // the next tree holds what was replayed (check())
                 if (replay_cursor_ == log_.size()) {
                     work_ += w, cycle_work_ += w, w = 0;
                     swap_trees(live);
@@ -214,7 +214,7 @@ void WideBvhRebuild::add_stats(nlohmann::json& stats) const {
     stats["last_rebuild_work"] = last_cycle_work_;
 }
 
-void WideBvhRebuild::validate(const WideBvh& live) const {
+void WideBvhRebuild::check(const WideBvh& live) const {
     auto fail = [](const std::string& what) { broken_invariant("wbvh", what); };
     if (phase_ == Phase::idle) {
         if (!log_.empty() || replay_cursor_ != 0 || !gather_skip_.empty()) fail("a change log without a rebuild");
@@ -234,7 +234,7 @@ void WideBvhRebuild::validate(const WideBvh& live) const {
         return at != WideBvhIndex::kAbsent && live.blocks_[at / kLanes].box(int(at % kLanes)) == box;
     };
     if (phase_ == Phase::replay) {
-        next_->validate_tree(false);
+        next_->check_tree(false);
         next_->where_.for_each([&](Uid uid, std::uint32_t at) {
             if (to_replay.count(uid) == 0 && !live_box(uid, next_->blocks_[at / kLanes].box(int(at % kLanes))))
                 fail("uid " + std::to_string(uid) + " of the next tree is not live with that box, and not logged");

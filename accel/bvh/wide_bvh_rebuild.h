@@ -64,8 +64,8 @@ public:
     }
     void add_stats(nlohmann::json& stats) const;
     std::size_t memory_bytes() const;
-    /// The rebuild's invariants against the live tree (WideBvh::validate()).
-    void validate(const WideBvh& live) const;
+    /// The rebuild's invariants against the live tree (WideBvh::check()).
+    void check(const WideBvh& live) const;
 
 private:
     void start(const WideBvh& live);

@@ -150,7 +150,7 @@ public:
 
     /// broken_invariant(who, …) unless the arrays agree in size, every slot's uid maps back to that
     /// slot, and every box has min <= max.
-    void validate(std::string_view who) const {
+    void check(std::string_view who) const {
         const std::size_t n = uids_.size();
         if (boxes_.size() != n || index_.size() != n)
             broken_invariant(who, "uid index has " + std::to_string(index_.size()) + " entries and " +

@@ -3,7 +3,7 @@
 /// cells with unbounded border cells, the 3D-DDA cell walk of Amanatides & Woo (1987, "A fast voxel
 /// traversal algorithm for ray tracing") restricted to a segment (thesis Algorithm 1), the loop over
 /// a range of cells, the lattice's bounds with the outlier guard, and the checks of an object table
-/// that validate() uses.
+/// that check() uses.
 
 #include <array>
 #include <cmath>

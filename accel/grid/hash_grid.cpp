@@ -468,7 +468,7 @@ nlohmann::json HashGrid::stats() const {
     return j;
 }
 
-void HashGrid::validate() const {
+void HashGrid::check() const {
     auto fail = [](const std::string& what) { broken_invariant("hg", what); };
     const std::vector<std::uint8_t> live = grid::live_slots(entries_, slot_, free_slots_, "hg");
     // Hash invariants: every key maps to a live cell carrying that key, and every live cell is keyed.

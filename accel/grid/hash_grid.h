@@ -5,7 +5,7 @@
 /// 3D-DDA over the top grid, recursing into subdivided cells (common/grid.h); a closest-hit ray
 /// stops at the first cell, at any level, entered after its best hit. Cells keep copies of
 /// their objects' boxes in blocks of four, as in the uniform grid. Split and collapse rules derive
-/// from integer cell ranges so insert, remove and validate agree; memory, large-object and outlier
+/// from integer cell ranges so insert, remove and check agree; memory, large-object and outlier
 /// guards keep it bounded on hostile scenes. docs/structures.md has the rules and the reasons.
 
 #include <algorithm>
@@ -124,7 +124,7 @@ public:
     std::uint64_t writes() const override { return writes_ + large_.writes(); }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
-    void validate() const override;
+    void check() const override;
 
     // The traversal interface of StructureBase.
     void prepare() {}

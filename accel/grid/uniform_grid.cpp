@@ -148,7 +148,7 @@ nlohmann::json UniformGrid::stats() const {
     return j;
 }
 
-void UniformGrid::validate() const {
+void UniformGrid::check() const {
     auto fail = [](const std::string& what) { broken_invariant("ug", what); };
     if (cells_.size() != std::size_t(lat_.res[0]) * lat_.res[1] * lat_.res[2])
         fail("cell array size differs from the resolution");

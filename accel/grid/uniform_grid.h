@@ -74,7 +74,7 @@ public:
     std::uint64_t writes() const override { return writes_ + large_.writes(); }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
-    void validate() const override;
+    void check() const override;
 
     // The traversal interface of StructureBase.
     void prepare() {}

@@ -104,25 +104,25 @@ Shape enclosing_obb(const Object& o) {
 
 }  // namespace
 
-TightVolume tight_volume(const Object& o, LeafBv kind) {
-    TightVolume v;
-    if (kind == LeafBv::aabb || o.shape.kind == ShapeKind::box) return v;
-    if (kind == LeafBv::obb) {
+LeafVolume leaf_volume(const Object& o, LeafBv bv) {
+    LeafVolume v;
+    if (bv == LeafBv::aabb || o.shape.kind == ShapeKind::box) return v;
+    if (bv == LeafBv::obb) {
         v.obb = enclosing_obb(o);
-        if (v.obb.kind == ShapeKind::obb) v.kind = kind;
+        if (v.obb.kind == ShapeKind::obb) v.bv = bv;
         return v;
     }
-    v.kind = kind;
-    for (int i = 0; i < diagonals(kind); ++i) {
-        const auto [lo, hi] = shape_extent(o.shape, diagonal(kind, i));
+    v.bv = bv;
+    for (int i = 0; i < diagonals(bv); ++i) {
+        const auto [lo, hi] = shape_extent(o.shape, diagonal(bv, i));
         v.slab[2 * i] = float_below(lo), v.slab[2 * i + 1] = float_above(hi);
     }
     return v;
 }
 
-bool segment_hits_volume(const Segment& s, const Aabb& box, const TightVolume& v) {
-    if (v.kind == LeafBv::aabb) return true;
-    if (v.kind == LeafBv::obb) return segment_hits_shape(s, v.obb);
+bool segment_hits_volume(const Segment& s, const Aabb& box, const LeafVolume& v) {
+    if (v.bv == LeafBv::aabb) return true;
+    if (v.bv == LeafBv::obb) return segment_hits_shape(s, v.obb);
     // The box's slabs, then each diagonal slab: the segment meets the k-DOP iff the parameter
     // intervals of all slabs overlap within [0, 1]. Conservative, so that no hit is lost: in double,
     // every slab widened by many roundings of the magnitude m of the values (a sum of up to three
@@ -146,8 +146,8 @@ bool segment_hits_volume(const Segment& s, const Aabb& box, const TightVolume& v
     };
     for (int a = 0; a < 3; ++a)
         if (!clip(p[a], d[a], box.min[a], box.max[a])) return false;
-    for (int i = 0; i < diagonals(v.kind); ++i) {
-        const Vec3d n = diagonal(v.kind, i);
+    for (int i = 0; i < diagonals(v.bv); ++i) {
+        const Vec3d n = diagonal(v.bv, i);
         if (!clip(dot(n, p), dot(n, d), v.slab[2 * i], v.slab[2 * i + 1])) return false;
     }
     return true;

@@ -29,16 +29,16 @@ ParamSpec leaf_bv_param_spec();
 /// The volume named by `params["leaf_bv"]` (aabb when absent); `params` is already validated.
 LeafBv leaf_bv_of(const nlohmann::json& params);
 
-/// A tighter volume than an object's box: the diagonal slabs of a k-DOP (the box's own slabs are
-/// the box), or an obb as a Shape. `kind` aabb: none (a box object, or a shape no tighter).
-struct TightVolume {
-    LeafBv kind = LeafBv::aabb;
+/// A leaf volume, tighter than an object's box: the diagonal slabs of a k-DOP (the box's own slabs are
+/// the box), or an obb as a Shape. `bv` aabb: none (a box object, or a shape no tighter).
+struct LeafVolume {
+    LeafBv bv = LeafBv::aabb;
     std::array<float, 12> slab{};  ///< k-DOP: lo, hi per diagonal direction
     Shape obb;
 };
 /// The volume of `object`'s shape, rounded outward: it contains the shape.
-TightVolume tight_volume(const Object& object, LeafBv kind);
+LeafVolume leaf_volume(const Object& object, LeafBv bv);
 /// Whether the segment meets the volume (intersected with `box`, the object's box).
-bool segment_hits_volume(const Segment& segment, const Aabb& box, const TightVolume& volume);
+bool segment_hits_volume(const Segment& segment, const Aabb& box, const LeafVolume& volume);
 
 }  // namespace rcb

@@ -84,11 +84,11 @@ void NarrowPhase::set(const Object& o) {
     shaped_ += o.shape.kind != ShapeKind::box;
     std::uint32_t volume = e.volume;
     if (bv_ != LeafBv::aabb) {
-        TightVolume v = tight_volume(o, bv_);
-        if (v.kind == LeafBv::aabb && volume != kNoVolume) {
+        LeafVolume v = leaf_volume(o, bv_);
+        if (v.bv == LeafBv::aabb && volume != kNoVolume) {
             free_volumes_.push_back(volume);
             volume = kNoVolume;
-        } else if (v.kind != LeafBv::aabb) {
+        } else if (v.bv != LeafBv::aabb) {
             if (volume == kNoVolume) {
                 if (free_volumes_.empty()) {
                     volume = std::uint32_t(volumes_.size());
@@ -223,11 +223,11 @@ bool NarrowPhase::cast_any(const Segment& segment) {
 std::size_t NarrowPhase::memory_bytes() const {
     return broad_->memory_bytes() + dense_.capacity() * sizeof(Entry) +
            sparse_.size() * (sizeof(Entry) + sizeof(Uid) + 2 * sizeof(void*)) +
-           volumes_.capacity() * sizeof(TightVolume) + free_volumes_.capacity() * sizeof(std::uint32_t);
+           volumes_.capacity() * sizeof(LeafVolume) + free_volumes_.capacity() * sizeof(std::uint32_t);
 }
 
-void NarrowPhase::validate() const {
-    broad_->validate();
+void NarrowPhase::check() const {
+    broad_->check();
     std::size_t live = sparse_.size(), shaped = 0;
     for (const Entry& e : dense_) live += e.live;
     for (const Entry& e : dense_) shaped += e.live && e.shape.kind != ShapeKind::box;

@@ -76,7 +76,7 @@ public:
     std::size_t size() const override { return broad_->size(); }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override { return broad_->stats(); }
-    void validate() const override;
+    void check() const override;
 
 private:
     struct Entry {
@@ -101,7 +101,7 @@ private:
     std::unique_ptr<Structure> broad_;
     bool shapes_;
     LeafBv bv_;
-    std::vector<TightVolume> volumes_;  // slots of the live objects' volumes, free ones listed
+    std::vector<LeafVolume> volumes_;  // slots of the live objects' volumes, free ones listed
     std::vector<std::uint32_t> free_volumes_;
     // uid → entry: a table indexed by uid while uids are dense (every generator's and importer's
     // are), so the narrow phase pays an array read per box hit; a hash map for the other uids.

@@ -280,7 +280,7 @@ const btDbvtNode* root_of(const btDbvtNode* node) {
 }
 
 /// Every internal node of `tree` encloses its children and is their parent.
-void validate_tree(const btDbvt& tree) {
+void check_tree(const btDbvt& tree) {
     std::vector<const btDbvtNode*> stack;
     if (tree.m_root) stack.push_back(tree.m_root);
     while (!stack.empty()) {
@@ -298,9 +298,9 @@ void validate_tree(const btDbvt& tree) {
 
 }  // namespace
 
-void BulletDbvt::validate() const {
+void BulletDbvt::check() const {
     const std::size_t n = objects_.size();
-    objects_.validate("bullet_dbvt");
+    objects_.check("bullet_dbvt");
     if (leaves_.size() != n || stage_.size() != n || position_.size() != n)
         broken_invariant("bullet_dbvt", "slot arrays differ in size");
     if (std::size_t(trees_[0]->m_leaves + trees_[1]->m_leaves) != n)
@@ -326,7 +326,7 @@ void BulletDbvt::validate() const {
     }
     if (staged_[0].size() + staged_[1].size() + std::size_t(trees_[1]->m_leaves) != n)
         broken_invariant("bullet_dbvt", "stage lists do not hold every dynamic slot");
-    for (const auto& tree : trees_) validate_tree(*tree);
+    for (const auto& tree : trees_) check_tree(*tree);
 }
 
 }  // namespace rcb

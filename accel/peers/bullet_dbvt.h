@@ -125,7 +125,7 @@ public:
     std::size_t size() const override { return objects_.size(); }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
-    void validate() const override;
+    void check() const override;
 
     /// StructureBase's hooks: the trees are ready after every change; a scratch is a ray stack.
     void prepare() {}

@@ -234,9 +234,9 @@ nlohmann::json EmbreeBoxes::stats() const {
             {"in_range", in_range_}};
 }
 
-void EmbreeBoxes::validate() const {
+void EmbreeBoxes::check() const {
     const std::size_t n = objects_.size();
-    objects_.validate("embree");
+    objects_.check("embree");
     if (dirty_ || n == 0 || !in_range_) return;
     // Embree's scene bounds must enclose every (padded) box we gave it.
     RTCBounds sb;

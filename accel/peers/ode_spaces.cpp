@@ -229,9 +229,9 @@ nlohmann::json OdeSpace::stats() const {
     return out;
 }
 
-void OdeSpace::validate(const char* who) const {
+void OdeSpace::check(const char* who) const {
     const std::size_t n = objects_.size();
-    objects_.validate(who);
+    objects_.check(who);
     if (ode_->geoms.size() != n) broken_invariant(who, "slot arrays differ in size");
     if (n == 0) return;
     if (std::size_t(dSpaceGetNumGeoms(ode_->space)) != n)

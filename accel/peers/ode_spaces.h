@@ -79,7 +79,7 @@ public:
     std::size_t size() const { return objects_.size(); }
     std::size_t memory_bytes() const;
     nlohmann::json stats() const;
-    void validate(const char* who) const;
+    void check(const char* who) const;
 
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit) {
@@ -120,7 +120,7 @@ public:
     std::size_t size() const override { return space_.size(); }
     std::size_t memory_bytes() const override { return space_.memory_bytes() + sizeof(Derived) - sizeof(OdeSpace); }
     nlohmann::json stats() const override { return space_.stats(); }
-    void validate() const override { space_.validate(name_); }
+    void check() const override { space_.check(name_); }
 
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit) {

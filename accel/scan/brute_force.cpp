@@ -56,6 +56,6 @@ void BruteForce::test_block(const SegmentSlabs& slabs, std::size_t begin, std::s
 
 std::size_t BruteForce::memory_bytes() const { return objects_.memory_bytes() + sizeof(*this) + scratch_bytes(); }
 
-void BruteForce::validate() const { objects_.validate("bf"); }
+void BruteForce::check() const { objects_.check("bf"); }
 
 }  // namespace rcb

@@ -42,7 +42,7 @@ public:
     void move(const Object& object) override;
     std::size_t size() const override { return objects_.size(); }
     std::size_t memory_bytes() const override;
-    void validate() const override;
+    void check() const override;
 
     // The traversal interface of StructureBase.
     void prepare() {}

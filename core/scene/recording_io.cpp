@@ -209,7 +209,7 @@ void check_object(const Object& o, const std::string& context) {
 namespace {
 
 /// Validates one frame's changes against the live uid set and applies them to it.
-void validate_frame(const Frame& f, std::unordered_set<Uid>& live, const std::string& context) {
+void refuse_invalid_frame(const Frame& f, std::unordered_set<Uid>& live, const std::string& context) {
     std::unordered_set<Uid> touched;
     auto once = [&](Uid uid) {
         if (!touched.insert(uid).second)
@@ -243,7 +243,7 @@ void validate_frame(const Frame& f, std::unordered_set<Uid>& live, const std::st
                              std::to_string(int(f.kinds[i])) + " (known: 0 all, 1 closest, 2 any)");
 }
 
-std::unordered_set<Uid> validate_initial(const std::vector<Object>& objects, const std::string& name) {
+std::unordered_set<Uid> refuse_invalid_initial(const std::vector<Object>& objects, const std::string& name) {
     std::unordered_set<Uid> live;
     live.reserve(objects.size());
     std::string context = frame_context(name, 0);
@@ -256,9 +256,10 @@ std::unordered_set<Uid> validate_initial(const std::vector<Object>& objects, con
 
 }  // namespace
 
-void validate_recording(const Recording& r, const std::string& name) {
-    std::unordered_set<Uid> live = validate_initial(r.initial, name);
-    for (std::size_t i = 0; i < r.frames.size(); ++i) validate_frame(r.frames[i], live, frame_context(name, i + 1));
+void refuse_invalid_recording(const Recording& r, const std::string& name) {
+    std::unordered_set<Uid> live = refuse_invalid_initial(r.initial, name);
+    for (std::size_t i = 0; i < r.frames.size(); ++i)
+        refuse_invalid_frame(r.frames[i], live, frame_context(name, i + 1));
 }
 
 namespace {
@@ -400,7 +401,7 @@ void RecordingReader::State::read_objects(Decoder& p, const std::string& where) 
     for (Object& o : initial) o = p.object(version);
     if (p.remaining() != 0)
         throw InputError(where + ": size does not match its count of " + std::to_string(n) + " objects");
-    live = validate_initial(initial, name);
+    live = refuse_invalid_initial(initial, name);
 }
 
 void RecordingReader::State::read_frame(Decoder& p, std::uint64_t length, const std::string& where, Frame& f) {
@@ -425,7 +426,7 @@ void RecordingReader::State::read_frame(Decoder& p, std::uint64_t length, const 
     for (Segment& s : f.rays) s.p0 = p.vec(), s.p1 = p.vec();
     if (version >= 3) read_kinds(p, f);
     if (p.remaining() != 0) throw InputError(where + ": size does not match its counts");
-    validate_frame(f, live, where);
+    refuse_invalid_frame(f, live, where);
     ++frames_seen;
 }
 
@@ -544,7 +545,7 @@ Recording decode_recording(const std::string& bytes, const std::string& name) {
 }
 
 void write_recording(const Recording& r, const std::string& path) {
-    validate_recording(r, path + " (not written)");
+    refuse_invalid_recording(r, path + " (not written)");
     std::string bytes = encode_recording(r);
     std::filesystem::path target(path);
     std::filesystem::path tmp = target;
@@ -592,7 +593,7 @@ void RecordingWriter::put(const std::string& bytes, bool flush) {
 
 void RecordingWriter::begin(const std::string& meta, const std::vector<Object>& initial) {
     if (begun_ || failed_ || finished_) throw InputError(path_ + ": the recording was begun already");
-    live_ = validate_initial(initial, path_ + " (not written)");
+    live_ = refuse_invalid_initial(initial, path_ + " (not written)");
     out_.open(tmp_, std::ios::binary | std::ios::trunc);
     if (!out_) throw InputError(path_ + ": cannot open for writing");
     begun_ = true;
@@ -605,7 +606,7 @@ void RecordingWriter::frame(const Frame& f) {
     if (!begun_ || failed_ || finished_)
         throw InputError(path_ + ": a frame given " + (begun_ ? "after an error or finish()" : "before begin()"));
     try {
-        validate_frame(f, live_, frame_context(path_ + " (not written)", frames_ + 1));
+        refuse_invalid_frame(f, live_, frame_context(path_ + " (not written)", frames_ + 1));
     } catch (...) {
         discard();
         throw;

@@ -46,9 +46,9 @@ inline constexpr std::uint32_t kRecordingVersion = 3;
 /// a shape, else 1.
 std::uint32_t recording_version(const Recording& recording);
 
-/// Validates first (validate_recording: a recording the reader would reject is never written; the
-/// InputError names `path`), then writes atomically: to a temporary file beside `path`, renamed
-/// over it when complete.
+/// Refuses first (refuse_invalid_recording: a recording the reader would reject is never written;
+/// the InputError names `path`), then writes atomically: to a temporary file beside `path`,
+/// renamed over it when complete.
 void write_recording(const Recording& recording, const std::string& path);
 Recording read_recording(const std::string& path);
 
@@ -59,7 +59,11 @@ Recording decode_recording(const std::string& bytes, const std::string& name);
 
 /// Checks a recording's contents (the same checks the reader makes); throws InputError naming
 /// `name`, the frame and the uid or ray.
-void validate_recording(const Recording& recording, const std::string& name);
+void refuse_invalid_recording(const Recording& recording, const std::string& name);
+/// refuse_invalid_recording's old name, kept for one release; it goes with the next.
+inline void validate_recording(const Recording& recording, const std::string& name) {
+    refuse_invalid_recording(recording, name);
+}
 
 /// The largest |coordinate| of a box or a segment's end point that rcbench accepts, wherever a
 /// scene or a ray enters (recordings read and written, CSV, BSP and model imports). Every structure

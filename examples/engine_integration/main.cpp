@@ -143,7 +143,7 @@ int main(int argc, char** argv) {
                             {"bf", nlohmann::json::object()},
                             {"dbvh", nlohmann::json::object()}};
         rcb::SimulationOptions options;  // verify every ray against the ground truth
-        options.validate = true;         // and check each structure's invariants after every commit
+        options.check = true;            // and check each structure's invariants after every commit
         options.warmup_frames = 5;
 
         std::printf("\n%-6s %-24s %9s %12s %12s %10s %10s\n", "name", "params", "build ms", "update us", "raycast us",

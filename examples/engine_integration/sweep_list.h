@@ -86,7 +86,7 @@ public:
     std::size_t memory_bytes() const override {
         return sizeof(*this) + rcb::heap_bytes(entries_, running_max_x_, boxes_);
     }
-    void validate() const override {  // a copy brought up to date afresh (by insertion sort: stable) equals this one
+    void check() const override {  // a copy brought up to date afresh (by insertion sort: stable) equals this one
         SweepList fresh(Params{true});
         fresh.build(entries_);
         if (std::tie(fresh.boxes_, fresh.entries_, fresh.running_max_x_) != std::tie(boxes_, entries_, running_max_x_))

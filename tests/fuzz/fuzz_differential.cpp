@@ -6,7 +6,7 @@
 /// structure, at its defaults and at the settings its ParamSpecs give (differential_settings.h:
 /// each choice and bool value, guards off, every number at the low end of its range), replays
 /// it through the simulator with verification against the double-precision ground truth and
-/// validate() after every frame. A mismatch or a failed invariant aborts.
+/// check() after every frame. A mismatch or a failed invariant aborts.
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -104,14 +104,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     FuzzedDataProvider in(data, size);
     const rcb::Recording r = scene(in);
     try {
-        rcb::validate_recording(r, "fuzz scene");
+        rcb::refuse_invalid_recording(r, "fuzz scene");
     } catch (const rcb::InputError&) {
         return 0;  // not a legal recording (cannot happen by construction; kept as a guard)
     }
     rcb::SimulationOptions o;
     o.verify = true;
     o.count = true;
-    o.validate = true;
+    o.check = true;
     static const auto plan = rcb::fuzz::differential_plan();
     for (const auto& [info, settings] : plan) {
         for (const nlohmann::json& params : settings) {
