@@ -1,4 +1,4 @@
-// Where a physics scene's generation spends its time: the Bullet world `rcbench scene gen --kind
+// Where a physics scene's generation spends its time: the Bullet world `rcbench scene gen --generator
 // KIND` builds (PhysicsRun, core/scene/generate/physics.h) stepped FRAMES frames, each frame timed
 // in three parts:
 //   bullet   PhysicsRun::step(): btDiscreteDynamicsWorld::stepSimulation (4 substeps for
@@ -15,7 +15,7 @@
 //                            [--deferred-collide] [--nncg] [--iterations N]
 //
 // FILE (default: a temporary file, deleted at the end) receives the recording, the same bytes as
-// `rcbench scene gen --kind KIND --objects OBJECTS --frames FRAMES --rays N --seed S -o FILE`.
+// `rcbench scene gen --generator KIND --objects OBJECTS --frames FRAMES --rays N --seed S -o FILE`.
 // The last three options change the Bullet world (BulletConfig, physics.h) to Broadmark's Bullet
 // engine's settings or another iteration count, to time what they would change; the scene then
 // differs from `scene gen`'s.
