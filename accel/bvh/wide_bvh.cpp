@@ -533,40 +533,12 @@ void WideBvh::refit() {
     dirty_.clear();
     for (std::size_t level = refit_levels_.size(); level-- > 0;) {
         std::vector<std::uint32_t>& queue = refit_levels_[level];
-        if (update_arena_ && queue.size() >= kParallelUpdate) {
-            refit_level_parallel(queue, level > 0 ? &refit_levels_[level - 1] : nullptr);
-            queue.clear();
-            continue;
-        }
-        for (const std::uint32_t c : queue) {
-            Block& block = blocks_[c];
-            // Listed twice when released and reused after it was first marked: refitted once.
-            if (!block.dirty) continue;
-            block.dirty = false;
-            if (c == root_) continue;
-            const Aabb box = block.bounds();
-            ++refit_blocks_;
-            ++counts_.refit_blocks;
-            ++writes_;
-            const std::uint32_t p = block.parent;
-            const int lane = block.lane_in_parent;
-            Block& parent = blocks_[p];
-            const Aabb old = parent.box(lane);
-            if (box == old) continue;
-            // set_lane's work, inlined: both boxes are in use (never empty), and the weight is
-            // this block's.
-            const double w = weight(c), before = area(old) * w, after = area(box) * w;
-            sah_sum_ += after - before;
-            sah_largest_term_ = std::max({sah_largest_term_, before, after});
-            parent.set(lane, box);
-            ++writes_;
-            ++refit_lanes_;
-            ++counts_.refit_lanes;
-            if (!blocks_[p].dirty) {
-                blocks_[p].dirty = true;
-                refit_levels_[level - 1].push_back(p);
-            }
-        }
+        std::vector<std::uint32_t>* up = level > 0 ? &refit_levels_[level - 1] : nullptr;
+        if (update_arena_ && queue.size() >= kParallelUpdate)
+            refit_level_parallel(queue, up);
+        else
+            for (const std::uint32_t c : queue)
+                if (blocks_[c].dirty) count_refit(refit_block(c), up);  // listed twice if released and reused
         queue.clear();
     }
 }
@@ -615,43 +587,47 @@ void WideBvh::refit_level_parallel(std::vector<std::uint32_t>& queue, std::vecto
     // A block of this level is read and unmarked by one thread only, and writes one lane of its
     // parent (a level up, which no thread reads now): no two threads write the same bytes.
     in_chunks(n, [&](std::size_t begin, std::size_t end) {
-        for (std::size_t i = begin; i < end; ++i) {
-            const std::uint32_t c = queue[i];
-            Block& block = blocks_[c];
-            RefitRecord& r = refit_records_[i];
-            block.dirty = false;
-            r.state = 0;
-            if (c == root_) continue;
-            const Aabb box = block.bounds();
-            Block& parent = blocks_[block.parent];
-            const int lane = block.lane_in_parent;
-            const Aabb old = parent.box(lane);
-            r.parent = block.parent;
-            r.state = 1;
-            if (box == old) continue;
-            const double w = weight(c);
-            r.before = area(old) * w, r.after = area(box) * w;
-            parent.set(lane, box);
-            r.state = 2;
-        }
+        for (std::size_t i = begin; i < end; ++i) refit_records_[i] = refit_block(queue[i]);
     });
-    for (std::size_t i = 0; i < n; ++i) {  // refit()'s bookkeeping, in the same order
-        const RefitRecord& r = refit_records_[i];
-        if (r.state == 0) continue;
-        ++refit_blocks_;
-        ++counts_.refit_blocks;
-        ++writes_;
-        if (r.state == 1) continue;
-        sah_sum_ += r.after - r.before;
-        sah_largest_term_ = std::max({sah_largest_term_, r.before, r.after});
-        ++writes_;
-        ++refit_lanes_;
-        ++counts_.refit_lanes;
-        Block& parent = blocks_[r.parent];
-        if (!parent.dirty) {
-            parent.dirty = true;
-            up->push_back(r.parent);
-        }
+    for (std::size_t i = 0; i < n; ++i) count_refit(refit_records_[i], up);  // in the queue's order
+}
+
+WideBvh::RefitRecord WideBvh::refit_block(std::uint32_t c) {
+    Block& block = blocks_[c];
+    RefitRecord r;
+    block.dirty = false;
+    if (c == root_) return r;
+    const Aabb box = block.bounds();
+    Block& parent = blocks_[block.parent];
+    const int lane = block.lane_in_parent;
+    const Aabb old = parent.box(lane);
+    r.parent = block.parent;
+    r.state = 1;
+    if (box == old) return r;
+    // set_lane's work without its sums (count_refit adds them in order): both boxes are in use
+    // (never empty), and the weight is this block's.
+    const double w = weight(c);
+    r.before = area(old) * w, r.after = area(box) * w;
+    parent.set(lane, box);
+    r.state = 2;
+    return r;
+}
+
+void WideBvh::count_refit(const RefitRecord& r, std::vector<std::uint32_t>* up) {
+    if (r.state == 0) return;
+    ++refit_blocks_;
+    ++counts_.refit_blocks;
+    ++writes_;
+    if (r.state == 1) return;
+    sah_sum_ += r.after - r.before;
+    sah_largest_term_ = std::max({sah_largest_term_, r.before, r.after});
+    ++writes_;
+    ++refit_lanes_;
+    ++counts_.refit_lanes;
+    Block& parent = blocks_[r.parent];
+    if (!parent.dirty) {
+        parent.dirty = true;
+        up->push_back(r.parent);
     }
 }
 

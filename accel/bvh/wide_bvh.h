@@ -525,6 +525,13 @@ private:
     /// One level of refit() on the arena: the blocks of `queue` (each listed once) in chunks, then
     /// the sums, counters and the parents queued into `up` in queue order, as refit() does them.
     void refit_level_parallel(std::vector<std::uint32_t>& queue, std::vector<std::uint32_t>* up);
+    /// One block of a refit level, on any thread: its bounds into its lane of the parent (a level
+    /// up, which nothing reads meanwhile), and what changed. Inlined: refit()'s loop calls it for
+    /// every refitted block.
+    [[gnu::always_inline]] inline RefitRecord refit_block(std::uint32_t c);
+    /// refit()'s bookkeeping of one block, in queue order on the calling thread: the counters, the
+    /// SAH sums, and the parent queued into `up` once.
+    void count_refit(const RefitRecord& r, std::vector<std::uint32_t>* up);
     /// Drops the repeats of a block from dirty_ (a block released and reused after it was marked),
     /// which a parallel level must not see twice.
     void unique_dirty();
