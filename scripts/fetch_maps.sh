@@ -22,6 +22,11 @@
 #   data/tracks-torcs/*.ac, *.acc   the race tracks of Debian's torcs-data package (TORCS 1.3.7,
 #                      GPL-2 data; a 333 MB download), each track's own AC3D mesh (the -relief
 #                      helper meshes left out): the fresh test set of experiments/tracks-torcs.json
+# With the argument `flightgear`, also:
+#   data/models-flightgear/*.ac   the airport buildings and structures of Debian's
+#                      flightgear-data-base package (FlightGear 2020.3 scenery, GPL-2 data; a 1.3 GB
+#                      download): Scenery/Models/Airport/*.ac, its vehicle subfolders left out; the
+#                      fresh test set of experiments/models-flightgear-airport.json
 # Uses `apt-get download` (no root needed: only the .deb is fetched, nothing is installed) and
 # `dpkg-deb -x` to unpack. Run it again to re-fetch; it skips what is already there.
 set -euo pipefail
@@ -79,4 +84,12 @@ if [ "${1:-}" = nexuiz ]; then
   mkdir -p data/maps-nexuiz
   find data/.debs/nexuiz-data -name 'data.pk3' -exec cp -u {} data/maps-nexuiz/ \;
   echo "fetch_maps: $(ls data/maps-nexuiz/*.pk3 | wc -l) pk3 files in data/maps-nexuiz/"
+fi
+
+if [ "${1:-}" = flightgear ]; then
+  fetch flightgear-data-base data/.debs/flightgear-data-base
+  mkdir -p data/models-flightgear
+  find data/.debs/flightgear-data-base -path '*/Scenery/Models/Airport/*' -name '*.ac' \
+    ! -path '*/Airport/*/*' -exec cp -u {} data/models-flightgear/ \;
+  echo "fetch_maps: $(ls data/models-flightgear/*.ac | wc -l) airport models in data/models-flightgear/"
 fi
