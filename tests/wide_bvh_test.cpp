@@ -72,6 +72,26 @@ std::vector<Object> lattice(int nx, int ny, int nz) {
     return live;
 }
 
+/// The irreg-m preset with `objects` objects, `frames` frames of `change` × the objects' changes,
+/// and no rays.
+SceneSettings irregular_churn(std::uint32_t objects, std::uint32_t frames, double change) {
+    SceneSettings s = preset_settings("irreg-m");
+    s.objects = objects;
+    s.frames = frames;
+    s.rays.per_frame = 0;
+    s.dynamics.change_fraction = change;
+    return s;
+}
+
+/// A recorded frame's changes into `tree`, committed, and into `live`.
+void replay_frame(const Frame& frame, WideBvh& tree, LiveSet& live) {
+    for (Uid uid : frame.removes) tree.remove(uid);
+    for (const Object& o : frame.inserts) tree.insert(o);
+    for (const Object& o : frame.moves) tree.move(o);
+    tree.commit();
+    live.apply(frame);
+}
+
 /// Random parameter sets on the hard scenes: conformance_test.cpp.
 TEST(WideBvh, MatchesGroundTruthOnEveryHardSceneWithChosenParams) {
     for (const test::NamedScene& s : test::hard_scenes())
@@ -274,11 +294,7 @@ TEST(WideBvh, ProgressiveRebuildSurvivesEmptyingAndRebuilding) {
 /// reinsertion) drifts well above it on the same churn; and no commit does more than its budget
 /// (plus one step), which is a small share of a whole rebuild.
 TEST(WideBvh, SahCostStaysNearAFreshBuildUnderLongChurnAtTheDefaults) {
-    SceneSettings s = preset_settings("irreg-m");
-    s.objects = 3000;
-    s.frames = 3000;
-    s.rays.per_frame = 0;
-    s.dynamics.change_fraction = 0.01;
+    SceneSettings s = irregular_churn(3000, 3000, 0.01);
     s.dynamics.move_scale = 1;
     const Recording r = generate_scene(s);
     const WideBvh::Params former{.rebuild_ratio = 1.5, .rebuild_after = 0, .rebuild_speed = 0, .reinsert = false};
@@ -291,12 +307,7 @@ TEST(WideBvh, SahCostStaysNearAFreshBuildUnderLongChurnAtTheDefaults) {
         std::uint64_t most_work = 0;
         int samples = 0;
         for (std::size_t f = 0; f < r.frames.size(); ++f) {
-            const Frame& frame = r.frames[f];
-            for (Uid uid : frame.removes) tree.remove(uid);
-            for (const Object& o : frame.inserts) tree.insert(o);
-            for (const Object& o : frame.moves) tree.move(o);
-            tree.commit();
-            live.apply(frame);
+            replay_frame(r.frames[f], tree, live);
             const nlohmann::json st = tree.stats();
             ASSERT_LE(st["rebuild_work"].get<std::uint64_t>(), st["rebuild_budget"].get<std::uint64_t>() + 16) << f;
             most_work = std::max(most_work, st["rebuild_work"].get<std::uint64_t>());
@@ -336,12 +347,7 @@ TEST(WideBvh, SahCostStaysNearAFreshBuildUnderLongChurnAtTheDefaults) {
 /// more; the stats report it as `inner_fill`, equal to the blocks' own count, and the answers equal
 /// the ground truth's.
 TEST(WideBvh, CollapseFillsInnerBlocksAndUpdatesKeepThemFull) {
-    SceneSettings s = preset_settings("irreg-m");
-    s.objects = 10000;
-    s.frames = 300;
-    s.rays.per_frame = 0;
-    s.dynamics.change_fraction = 0.05;
-    const Recording r = generate_scene(s);
+    const Recording r = generate_scene(irregular_churn(10000, 300, 0.05));
     auto fill = [](const WideBvh& tree) { return tree.stats()["inner_fill"].get<double>(); };
     {
         WideBvh narrow(WideBvh::Params{.width = 4});
@@ -362,12 +368,7 @@ TEST(WideBvh, CollapseFillsInnerBlocksAndUpdatesKeepThemFull) {
     Random rng(49);
     double lowest = built_fill;
     for (std::size_t f = 0; f < r.frames.size(); ++f) {
-        const Frame& frame = r.frames[f];
-        for (Uid uid : frame.removes) tree.remove(uid);
-        for (const Object& o : frame.inserts) tree.insert(o);
-        for (const Object& o : frame.moves) tree.move(o);
-        tree.commit();
-        live.apply(frame);
+        replay_frame(r.frames[f], tree, live);
         lowest = std::min(lowest, fill(tree));
         ASSERT_LE(tree.depth(), depth + 1) << f;
         if (f % 50 != 49) continue;
