@@ -162,17 +162,22 @@ LinearProblem build_problem(const std::vector<const FrameObservation*>& frames, 
 }
 
 /// The columns of `form` over `frames` (its target's), or none where the form does not apply: a
-/// required term that never occurs, a split into fewer than two configurations. A term that is 0
-/// in every frame is left out unless the table keeps it.
+/// required term that never occurs or that some frame did not record (NaN: stored before its
+/// counter existed), a split into fewer than two configurations. A term that is 0 in every frame
+/// is left out unless the table keeps it, and so is one not recorded in every frame.
 std::optional<std::vector<Column>> form_columns(const ModelForm& form,
                                                 const std::vector<const FrameObservation*>& frames,
                                                 const std::string& structure) {
+    const auto recorded = [&](const Term& t) {
+        return std::all_of(frames.begin(), frames.end(),
+                           [&](const FrameObservation* f) { return !std::isnan(t.value(*f)); });
+    };
     for (const char* name : form.required)
-        if (!occurs(frames, term_of(find_term(name)))) return std::nullopt;
+        if (const Term term = term_of(find_term(name)); !recorded(term) || !occurs(frames, term)) return std::nullopt;
     std::vector<Term> terms;
     for (const char* name : form.terms)
         if (Term term = term_of(find_term(name));
-            find_term(name).when_absent == WhenAbsent::keep || occurs(frames, term))
+            recorded(term) && (find_term(name).when_absent == WhenAbsent::keep || occurs(frames, term)))
             terms.push_back(std::move(term));
     if (form.split == Split::none) return columns_of(terms);
     std::set<std::string> params;

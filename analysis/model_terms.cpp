@@ -56,6 +56,8 @@ const std::vector<FrameCounter>& frame_counters() {
              [](const FrameResult& r) { return double(r.moves); }, nullptr},
             {"N_UW", "frame.writes", "writes", CounterScale::as_is, &F::writes,
              [](const FrameResult& r) { return double(r.writes); }, nullptr},
+            {"N_UP", "frame.update_work", "update_work", CounterScale::as_is, &F::update_work,
+             [](const FrameResult& r) { return double(r.update_work); }, nullptr},
             {"N_OBJ", "cell.objects", "objects", CounterScale::as_is, &F::objects, nullptr, nullptr},
             {"MB", "frame.memory_bytes", "memory_bytes", CounterScale::mebibytes, &F::memory_mb,
              [](const FrameResult& r) { return double(r.memory_bytes); }, nullptr},
@@ -151,6 +153,11 @@ const std::vector<CostTerm>& cost_terms() {
         // that frame, at a price per change of ten times its usual one (docs/model.md).
         {.name = "c_write", .target = update, .counters = {"N_UW"}, .unit = "ns per write"},
         {.name = "c_frame", .target = update, .counters = {}, .unit = "ns per frame", .when_absent = keep},
+        // What the update did that its writes do not show (Structure::update_work): a linear BVH's
+        // keys placed by a full radix sort, which a rebuild that merges from the last order skips
+        // (same writes, about half the time), and a wide BVH's blocks read by the descents of its
+        // reinsertions (docs/model.md, "Footprint of an update").
+        {.name = "c_work", .target = update, .counters = {"N_UP"}, .unit = "ns per unit of update work"},
         // One price for any change (eq. 5.5 prices inserts, removes and moves apart; where a run
         // mixes them in one proportion, as the thesis' 1% dynamics everywhere, their own costs
         // cannot be told apart, and no scene set measured so far told them apart: docs/model.md).
@@ -173,10 +180,14 @@ const std::vector<ModelForm>& model_forms() {
         {"eq5.4", raycast, {"C_RB", "C_T", "C_RO", "C_PREP"}},
         {"with-coherence", raycast, {"C_RB", "C_T", "C_RO", "C_PREP", "C_MP"}, {"C_MP"}},
         {"coherence-misses", raycast, {"C_RB", "C_T", "C_RO", "C_PREP", "C_MP", "C_MISS", "C_HIT"}, {"C_MP", "C_MISS"}},
-        // Update: one price per change, and each configuration its own with a per-object and a
-        // per-write cost (an incremental and a rebuilding mode of one structure update differently,
-        // and an incremental tree's rebuilds write what its changes alone do not say).
+        // Update: one price per change; one per change, object and unit of the update's work where
+        // a structure counts work its writes do not show (a tree that rebuilds every frame pays per
+        // object, a tree that reinserts per block its descents read); and each configuration its
+        // own with a per-object and a per-write cost (an incremental and a rebuilding mode of one
+        // structure update differently, and an incremental tree's rebuilds write what its changes
+        // alone do not say).
         {"per-change", update, {"c_change", "c_frame"}, {"c_change"}},
+        {"per-change-work", update, {"c_change", "c_frame", "c_object", "c_work"}, {"c_change", "c_work"}},
         {"per-configuration-change",
          update,
          {"c_change", "c_frame", "c_object", "c_write"},

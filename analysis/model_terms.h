@@ -7,7 +7,7 @@
 ///
 /// The thesis' model (§5.1, eq. 5.4) per ray: C = C_RB·(N_TP + N_FP) + C_T·N_T + C_PREP; rcbench
 /// adds the narrow phase's C_RO·N_RO (eq. 5.3), unpredicted steps, lines fetched and reported
-/// hits (docs/model.md). Updates per frame: per change, per object, per write.
+/// hits (docs/model.md). Updates per frame: per change, per object, per write, per unit of work.
 
 #include <cstdint>
 #include <string>
@@ -38,6 +38,9 @@ struct FrameObservation {
     double n_miss = 0;                   ///< lines a simulated private cache fetched per ray (0 where not counted)
     double inserts = 0, removes = 0, moves = 0, objects = 0;
     double writes = 0;  ///< cells, entries and nodes the frame's update wrote (0 where not counted)
+    /// The update's work beyond its writes (Structure::update_work; 0 where the structure counts
+    /// none, NaN where the run did not record it: a form that prices it is then not offered).
+    double update_work = 0;
     double memory_mb = 0;
     /// Where the structure's working set (memory_mb) sits: 0 within the first data cache, 1 within
     /// the second, …, the number of recorded caches (at most 3) beyond the last one (memory).

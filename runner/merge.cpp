@@ -128,13 +128,14 @@ void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to)
     Statement frames = in.prepare(
         "SELECT frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, extra, duplicate, "
         "n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, n_th, n_mp, "
-        "n_miss, update_wall_ns, raycast_wall_ns, writes, n_dup FROM frame WHERE cell_id = ? ORDER BY frame");
+        "n_miss, update_wall_ns, raycast_wall_ns, writes, n_dup, update_work FROM frame WHERE cell_id = ? ORDER BY "
+        "frame");
     frames.bind(1, from);
     Statement insert_frame = o.prepare(
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, "
         "missed, extra, duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, "
-        "n_ro_hits, n_th, n_mp, n_miss, update_wall_ns, raycast_wall_ns, writes, n_dup) "
-        "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "n_ro_hits, n_th, n_mp, n_miss, update_wall_ns, raycast_wall_ns, writes, n_dup, update_work) "
+        "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     while (frames.step()) {
         insert_frame.bind(1, to);
         for (int c = 0; c < 16; ++c) insert_frame.bind(c + 2, frames.int64(c));
@@ -148,6 +149,8 @@ void merge_frames(Database& o, Database& in, std::int64_t from, std::int64_t to)
             frames.is_null(c) ? insert_frame.bind_null(c + 2) : insert_frame.bind(c + 2, frames.int64(c));
         insert_frame.bind(30, frames.int64(28));
         insert_frame.bind(31, frames.int64(29));
+        // NULL in frames stored before the update's work was counted
+        frames.is_null(30) ? insert_frame.bind_null(32) : insert_frame.bind(32, frames.int64(30));
         insert_frame.run();
     }
     Statement kinds = in.prepare(

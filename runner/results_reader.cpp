@@ -245,7 +245,8 @@ std::vector<FrameCountersRow> read_frame_counters(Database& db, std::int64_t run
         FrameCountersRow r{s.text(0), s.text(1), s.int64(2), s.int64(3), s.int64(4),
                            s.real(5), s.real(6), s.real(7),  {}};
         r.counters.reserve(columns.size());
-        for (std::size_t i = 0; i < columns.size(); ++i) r.counters.push_back(s.real(8 + int(i)));
+        for (std::size_t i = 0; i < columns.size(); ++i)  // NULL: not recorded (NaN, never 0)
+            r.counters.push_back(s.is_null(8 + int(i)) ? NAN : s.real(8 + int(i)));
         out.push_back(std::move(r));
     }
     return out;

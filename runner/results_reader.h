@@ -131,7 +131,7 @@ struct FrameCountersRow {
     std::string structure, params;
     std::int64_t scene_id = 0, config_id = 0, frame = 0;
     double rays = 0, raycast_ns = 0, update_ns = 0;
-    std::vector<double> counters;  ///< in the order of the columns asked for
+    std::vector<double> counters;  ///< in the order of the columns asked for; NaN where NULL (not recorded)
 };
 /// The measured frames of run R with `columns` (e.g. "frame.n_rb", "cell.objects"): every frame
 /// of every repetition in cell and frame order, or with `fastest` one row per frame of a (scene,

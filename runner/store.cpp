@@ -427,6 +427,13 @@ ALTER TABLE calibration ADD COLUMN n_dup REAL NOT NULL DEFAULT 0;
 ALTER TABLE run ADD COLUMN binary TEXT NOT NULL DEFAULT 'rcbench';
 ALTER TABLE run ADD COLUMN binary_id TEXT NOT NULL DEFAULT '';
 )sql",
+        // 20 → 21: the update's work beyond its writes (Structure::update_work: keys a linear BVH's
+        // radix sort placed, blocks a wide BVH's descents read; the cost model's c_work), per frame.
+        // 0 where a structure counts none; NULL in frames stored before, which did not record it:
+        // a form that prices it is then not offered, rather than fitted to zeros.
+        R"sql(
+ALTER TABLE frame ADD COLUMN update_work INTEGER;
+)sql",
     };
     return all;
 }
@@ -837,8 +844,8 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
         "INSERT INTO frame(cell_id, frame, warmup, inserts, removes, moves, rays, update_ns, raycast_ns, hits, missed, "
         "extra, "
         "duplicate, n_t, n_rb, n_tp, memory_bytes, sah_cost, stats, returned, correct, relevant, n_ro, n_ro_hits, "
-        "n_th, n_mp, n_miss, update_wall_ns, raycast_wall_ns, writes, n_dup) VALUES "
-        "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "n_th, n_mp, n_miss, update_wall_ns, raycast_wall_ns, writes, n_dup, update_work) VALUES "
+        "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     Statement kind = db_.prepare(kFrameKindInsertSql);
     for (const FrameResult& fr : res.frames) {
         std::optional<double> sah;
@@ -851,7 +858,8 @@ bool ResultStore::store_cell(std::int64_t run_id, std::int64_t, const Cell& cell
                    std::int64_t(fr.returned), std::int64_t(fr.correct), std::int64_t(fr.relevant),
                    std::int64_t(fr.counters.n_ro), std::int64_t(fr.counters.n_ro_hits), std::int64_t(fr.counters.n_th),
                    std::int64_t(fr.counters.n_mp), std::int64_t(fr.counters.n_miss), std::int64_t(fr.update.wall_ns),
-                   std::int64_t(fr.raycast.wall_ns), std::int64_t(fr.writes), std::int64_t(fr.counters.n_dup));
+                   std::int64_t(fr.raycast.wall_ns), std::int64_t(fr.writes), std::int64_t(fr.counters.n_dup),
+                   std::int64_t(fr.update_work));
         f.run();
         for (const KindResult& k : fr.kinds)
             kind.bind_all(cell_id, std::int64_t(fr.frame), std::string(query_kind_name(k.kind)), std::int64_t(k.rays),

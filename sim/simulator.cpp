@@ -219,8 +219,8 @@ nlohmann::json SimulationResult::to_json() const {
     j["clock"] = clock_name(clock);
     j["cache"] = cold_cache_bytes ? "cold" : "warm";
     if (cold_cache_bytes) j["cache_sweep_bytes"] = cold_cache_bytes;
-    nlohmann::json frame, warmup, update, raycast, update_wall, raycast_wall, writes, rays, closest, any, hits, missed,
-        extra, duplicate, returned, correct, relevant, memory, stats;
+    nlohmann::json frame, warmup, update, raycast, update_wall, raycast_wall, writes, work, rays, closest, any, hits,
+        missed, extra, duplicate, returned, correct, relevant, memory, stats;
     std::array<nlohmann::json, kCounterFields.size()> counted;
     for (const FrameResult& f : frames) {
         frame.push_back(f.frame);
@@ -230,6 +230,7 @@ nlohmann::json SimulationResult::to_json() const {
         update_wall.push_back(f.update.wall_ns);
         raycast_wall.push_back(f.raycast.wall_ns);
         writes.push_back(f.writes);
+        work.push_back(f.update_work);
         rays.push_back(f.rays);
         closest.push_back(f.closest);
         any.push_back(f.any);
@@ -253,6 +254,7 @@ nlohmann::json SimulationResult::to_json() const {
     j["update_wall_ns"] = array(update_wall);
     j["raycast_wall_ns"] = array(raycast_wall);
     j["writes"] = array(writes);
+    j["update_work"] = array(work);
     j["rays"] = array(rays);
     j["rays_closest"] = array(closest);
     j["rays_any"] = array(any);
@@ -342,7 +344,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
             fr.any += k == QueryKind::any;
         }
 
-        const std::uint64_t writes_before = structure->writes();
+        const std::uint64_t writes_before = structure->writes(), work_before = structure->update_work();
         if (options.cold_cache) options.cold_cache->sweep();
         const Stopwatch update_watch;
         for (Uid uid : frame.removes) structure->remove(uid);
@@ -355,6 +357,7 @@ SimulationResult simulate(const Recording& recording, const StructureInfo& info,
             ++timed_phase_count;
         }
         fr.writes = structure->writes() - writes_before;
+        fr.update_work = structure->update_work() - work_before;
         live.apply(frame);
         if (options.check || options.validate) check_or_throw(*structure, info.name, fr.frame);
 

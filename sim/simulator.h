@@ -78,6 +78,7 @@ struct FrameResult {
     std::uint32_t inserts = 0, removes = 0, moves = 0, rays = 0;
     std::uint32_t closest = 0, any = 0;  ///< of the rays, those asking for the closest hit and any hit
     std::uint64_t writes = 0;            ///< cells, entries and nodes the update wrote (Structure::writes)
+    std::uint64_t update_work = 0;       ///< the update's work beyond its writes (Structure::update_work)
     std::uint64_t update_ns = 0;         ///< on the result's clock
     std::uint64_t raycast_ns = 0;        ///< on the result's clock
     Elapsed update, raycast;             ///< both clocks (wall − CPU: time the thread waited)

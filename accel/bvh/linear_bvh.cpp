@@ -575,6 +575,7 @@ bool LinearBvh::resort(std::size_t chunks, Lap& lap, bool& bounds_known) {
     r.join_runs();
     if (!r.sort_outliers() || !r.plan()) return false;
     r.merge();
+    update_work_ += outliers_all_.size();
     codes_.swap(codes_tmp_);
     order_.swap(order_tmp_);
     tied_codes_ = r.count_tied();
@@ -673,6 +674,7 @@ void LinearBvh::rebuild() {
         lap(phases_.codes);
         // 2. Sort; equal codes by size ("Equal codes" in docs/structures.md, Linear BVH).
         sort_codes(varying);
+        update_work_ += n;
         order_equal_codes(chunks);
         lap(phases_.sort);
     }

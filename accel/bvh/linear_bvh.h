@@ -96,6 +96,7 @@ public:
     void commit() override;
     std::size_t size() const override { return objects_.size(); }
     std::uint64_t writes() const override { return writes_; }
+    std::uint64_t update_work() const override { return update_work_; }
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
     void check() const override;
@@ -224,6 +225,10 @@ private:
     /// writes(): per rebuild, one per node of the new tree (2n − 1), per sorted Morton code (n) and,
     /// when sorting from the last order, per leaf record staged (n). Changes only mark the tree dirty.
     std::uint64_t writes_ = 0;
+    /// update_work(): per rebuild, the keys the radix sort placed (n), or on the merge from the last
+    /// order (resort()) the keys out of that order, which it sorts apart: what tells a rebuild that
+    /// sorted from one that merged, whose writes are alike (both write every code, leaf and node).
+    std::uint64_t update_work_ = 0;
 };
 
 }  // namespace rcb

@@ -277,6 +277,7 @@ void WideBvh::insert_object(const Object& o) {
 
 void WideBvh::insert_into(std::uint32_t leaf, const Object& o) {
     Block& block = blocks_[leaf];
+    update_work_ += block.depth + 1u;  // the descent that chose the leaf
     if (block.count == kLanes) {
         split_leaf(leaf, o);
         return;

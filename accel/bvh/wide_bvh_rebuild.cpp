@@ -83,8 +83,9 @@ void WideBvhRebuild::start(const WideBvh& live) {
 }
 
 void WideBvhRebuild::advance(WideBvh& live, std::uint64_t budget) {
-    // The next tree counts the blocks its build, replay and refit write; the live tree reports them.
-    const std::uint64_t next_writes = next_->writes_;
+    // The next tree counts the blocks its build, replay and refit write, and those its replay's
+    // descents read; the live tree reports them.
+    const std::uint64_t next_writes = next_->writes_, next_work = next_->update_work_;
     while (work_ < budget && phase_ != Phase::idle) {
         std::uint64_t w = 0;
         switch (phase_) {
@@ -130,6 +131,7 @@ void WideBvhRebuild::advance(WideBvh& live, std::uint64_t budget) {
         cycle_work_ += w;
     }
     live.writes_ += next_->writes_ - next_writes;
+    live.update_work_ += next_->update_work_ - next_work;
 }
 
 std::uint64_t WideBvhRebuild::gather_step(const WideBvh& live, std::uint64_t budget) {

@@ -61,6 +61,16 @@ public:
     /// carries it). The simulator records its growth over each frame's update (FrameResult::writes).
     /// 0 where a structure keeps none (brute force, the peers).
     virtual std::uint64_t writes() const { return 0; }
+    /// The update's work that its writes do not show, in the structure's own unit, summed since
+    /// construction; the simulator records its growth over each frame's update
+    /// (FrameResult::update_work) and the cost model prices it (c_work, docs/model.md). A unit is
+    ///  - linear BVH: a key placed by the full radix sort (n per rebuild that sorts; a rebuild that
+    ///    merges from the last order counts only the keys it sorted apart, those out of order);
+    ///  - wide BVH: a block read by the descent that chose an inserted or reinserted object's leaf
+    ///    (the leaf's depth + 1 per such object; a progressive rebuild's replay into its next tree
+    ///    included);
+    ///  - 0 where a structure counts none (its writes or changes say what its update does).
+    virtual std::uint64_t update_work() const { return 0; }
 
     /// The timed batch: ray i asks `kinds[i]` (every ray all hits when `kinds` is empty) and its
     /// list holds all its hits, or for closest and any at most one uid (the nearest: smallest t,
