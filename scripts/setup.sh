@@ -4,8 +4,8 @@
 # to the README's test command, which builds everything in the same build/.
 #   --deps-only    stop after the packages
 #   --test-tools   also install what CI's checks use: chromium (the report rendering test), clang with
-#                  its sanitizer and libFuzzer runtime (the sanitizer build), clang-format, and
-#                  libclang's Python bindings (scripts/check_function_length.py)
+#                  its sanitizer and libFuzzer runtime (the sanitizer build), Ninja (CI's builds),
+#                  clang-format, and libclang's Python bindings (scripts/check_function_length.py)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -15,7 +15,7 @@ deps_only=0
 for arg in "$@"; do
   case "$arg" in
     --deps-only) deps_only=1 ;;
-    --test-tools) packages+=(chromium clang libclang-rt-14-dev clang-format python3-clang-14) ;;
+    --test-tools) packages+=(chromium clang libclang-rt-14-dev ninja-build clang-format python3-clang-14) ;;
     *) echo "setup.sh: unknown option $arg (known: --deps-only, --test-tools)" >&2; exit 2 ;;
   esac
 done
