@@ -150,12 +150,12 @@ void query_kinds_section(Html& h, const std::vector<KindCell>& all_cells) {
                 return c;
         return nullptr;
     };
-    std::map<std::string, std::set<std::string>> scene_kinds;
-    for (const KindCell* c : cells) scene_kinds[c->scene].insert(c->kind);
+    std::map<std::string, std::set<std::string>> scene_query_kinds;
+    for (const KindCell* c : cells) scene_query_kinds[c->scene].insert(c->kind);
     std::vector<std::vector<std::string>> rows;
     for (const KindCell* c : cells) {
         const KindCell* all = find(*c, kQueryKindNames[0]);
-        const bool three = scene_kinds[c->scene].size() == std::size_t(kQueryKinds);
+        const bool three = scene_query_kinds[c->scene].size() == std::size_t(kQueryKinds);
         const bool faster = three && all && c->kind != kQueryKindNames[0] && c->ns_per_query > 0;
         rows.push_back({c->scene, config_label(c->structure, c->params), c->kind, fixed(c->rays, 0),
                         format_us(c->ns_per_query / 1e3), format_us(c->predicted_ns_per_query / 1e3),
@@ -691,15 +691,15 @@ void memory_build_section(Html& h, const Entries& es) {
     h.chart(growth_chart(points, category + " scenes"));
 }
 
-/// Failure-mode scenes (by their generator kind) against brute force and against a benign scene of
+/// Failure-mode scenes (by their generator) against brute force and against a benign scene of
 /// the same size, for every configuration.
 void failure_section(Html& h, const Entries& es) {
-    const std::vector<std::string> failure_kinds = failure_mode_kinds();
+    const std::vector<std::string> failure_generators = failure_mode_generators();
     std::vector<std::string> failure_scenes;
     for (const std::string& sc : es.scenes)
         for (const Entry& e : es.all)
-            if (e.scene == sc &&
-                std::find(failure_kinds.begin(), failure_kinds.end(), e.category) != failure_kinds.end()) {
+            if (e.scene == sc && std::find(failure_generators.begin(), failure_generators.end(), e.category) !=
+                                     failure_generators.end()) {
                 failure_scenes.push_back(sc);
                 break;
             }

@@ -113,15 +113,15 @@ TEST(RecordingStream, AFrameThatNeedsAHigherVersionRewritesTheFileSoFar) {
 
 TEST(RecordingStream, StreamedGenerationGivesTheSameBytesAsTheWholeRecording) {
     const test::TempDir dir("stream");
-    for (const std::string kind : {"brownian", "pile", "gravity"}) {
-        SCOPED_TRACE(kind);
+    for (const std::string generator : {"brownian", "pile", "gravity"}) {
+        SCOPED_TRACE(generator);
         SceneSettings s;
-        s.kind = kind;
+        s.generator = generator;
         s.objects = 300;
         s.frames = 12;
         s.seed = 5;
         s.rays.per_frame = 30;
-        const std::string path = dir.file(kind + ".rcbscene");
+        const std::string path = dir.file(generator + ".rcbscene");
         RecordingWriter w(path);
         stream_scene(s, w);
         w.finish();
@@ -137,7 +137,7 @@ TEST(RecordingStream, StreamedGenerationGivesTheSameBytesAsTheWholeRecording) {
 
 TEST(RecordingStream, APhysicsRunRecordsEachFrameAsGenerationDoes) {
     SceneSettings s;
-    s.kind = "freefall";
+    s.generator = "freefall";
     s.objects = 200;
     s.frames = 8;
     s.rays.per_frame = 10;
@@ -234,7 +234,7 @@ TEST_F(SceneGenCli, StreamsTheSameFileAndRefusesInOneLine) {
     ASSERT_EQ(ok.code, 0) << ok.err;
     EXPECT_NE(ok.out.find("500 objects, 10 frames, 200 rays"), std::string::npos) << ok.out;
     SceneSettings s;
-    s.kind = "brownian";
+    s.generator = "brownian";
     s.objects = 500;
     s.frames = 10;
     s.seed = 3;
