@@ -162,8 +162,8 @@ void query_kinds_section(Html& h, const std::vector<KindCell>& all_cells) {
                         std::isfinite(c->error) ? fixed(100 * c->error, 1) + "%" : "-",
                         faster ? fixed(all->ns_per_query / c->ns_per_query, 2) + "x" : "-"});
     }
-    h.table({"scene", "configuration", "kind", "rays per frame", "measured us per query", "predicted us per query",
-             "error", "speed-up against all"},
+    h.table({"scene", "configuration", "query kind", "rays per frame", "measured us per query",
+             "predicted us per query", "error", "speed-up against all"},
             rows,
             "Per query kind: each kind's rays are cast as a batch of their own (medians over measured frames, "
             "repetitions pooled). Predicted: the run's chosen ray-cast model (fitted on whole frames) on the kind's "
@@ -173,7 +173,7 @@ void query_kinds_section(Html& h, const std::vector<KindCell>& all_cells) {
     for (const KindError& e : kind_errors(all_cells))
         summary.push_back({e.structure, e.kind, std::to_string(e.cells),
                            std::isfinite(e.median_error) ? fixed(100 * e.median_error, 1) + "%" : "-"});
-    h.table({"structure", "kind", "cells", "median error"}, summary,
+    h.table({"structure", "query kind", "cells", "median error"}, summary,
             "One set of coefficients for every kind: median over (scene x configuration) cells of the error above, "
             "per structure and kind (all: whole frames of scenes without other kinds included). A kind whose error "
             "stands out costs per counted step what the model does not price");
