@@ -213,6 +213,13 @@ void check_object(const Object& o, const std::string& context) {
 
 namespace sections {
 
+void refuse_missing_folder(const std::string& path) {
+    std::error_code ec;
+    const std::filesystem::path folder = std::filesystem::absolute(path, ec).parent_path();
+    if (!std::filesystem::is_directory(folder, ec))
+        throw InputError(path + ": cannot open for writing (no folder " + folder.string() + ")");
+}
+
 std::string frame_context(const std::string& name, std::size_t frame) {
     return name + ": frame " + std::to_string(frame);
 }
@@ -509,6 +516,7 @@ Recording read_recording(const std::string& path) { return read_all(*sections::o
 
 void write_recording(const Recording& r, const std::string& path) {
     refuse_invalid_recording(r, path + " (not written)");
+    sections::refuse_missing_folder(path);
     // A hidden temporary file of a unique name beside `path`, renamed over it when complete: a
     // file of the user's, whatever its name, is never overwritten but `path` itself.
     write_file_atomically(path, encode_recording(r));

@@ -32,6 +32,11 @@ std::string objects_section(const std::vector<Object>& objects, std::uint32_t ve
 std::string frame_section(const Frame& frame, std::size_t number, std::uint32_t version);
 std::string end_section();
 
+/// InputError "<path>: cannot open for writing (no folder ...)" when the folder `path` would be
+/// written in does not exist: the recording's writers write into a folder, never make one (an
+/// engine's recorder whose folder went away writes nothing).
+void refuse_missing_folder(const std::string& path);
+
 /// "<name>: frame N": where a frame's errors say they are.
 std::string frame_context(const std::string& name, std::size_t frame);
 /// Refuses frame 0's objects (check_object, unique uids), naming `name` and frame 0; returns

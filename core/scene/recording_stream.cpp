@@ -94,6 +94,7 @@ void RecordingWriter::put(const std::string& bytes, bool flush) {
 void RecordingWriter::begin(const std::string& meta, const std::vector<Object>& initial) {
     if (begun_ || failed_ || finished_) throw InputError(path_ + ": the recording was begun already");
     live_ = sections::refuse_invalid_initial(initial, path_ + " (not written)");
+    sections::refuse_missing_folder(path_);
     tmp_ = create_temporary_file_for(path_);  // InputError naming the path when it cannot be written
     begun_ = true;
     out_.open(tmp_, std::ios::binary | std::ios::trunc);
