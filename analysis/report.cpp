@@ -150,20 +150,20 @@ void query_kinds_section(Html& h, const std::vector<KindCell>& all_cells) {
                 return c;
         return nullptr;
     };
-    std::map<std::string, std::set<std::string>> scene_kinds;
-    for (const KindCell* c : cells) scene_kinds[c->scene].insert(c->kind);
+    std::map<std::string, std::set<std::string>> scene_query_kinds;
+    for (const KindCell* c : cells) scene_query_kinds[c->scene].insert(c->kind);
     std::vector<std::vector<std::string>> rows;
     for (const KindCell* c : cells) {
         const KindCell* all = find(*c, kQueryKindNames[0]);
-        const bool three = scene_kinds[c->scene].size() == std::size_t(kQueryKinds);
+        const bool three = scene_query_kinds[c->scene].size() == std::size_t(kQueryKinds);
         const bool faster = three && all && c->kind != kQueryKindNames[0] && c->ns_per_query > 0;
         rows.push_back({c->scene, config_label(c->structure, c->params), c->kind, fixed(c->rays, 0),
                         format_us(c->ns_per_query / 1e3), format_us(c->predicted_ns_per_query / 1e3),
                         std::isfinite(c->error) ? fixed(100 * c->error, 1) + "%" : "-",
                         faster ? fixed(all->ns_per_query / c->ns_per_query, 2) + "x" : "-"});
     }
-    h.table({"scene", "configuration", "kind", "rays per frame", "measured us per query", "predicted us per query",
-             "error", "speed-up against all"},
+    h.table({"scene", "configuration", "query kind", "rays per frame", "measured us per query",
+             "predicted us per query", "error", "speed-up against all"},
             rows,
             "Per query kind: each kind's rays are cast as a batch of their own (medians over measured frames, "
             "repetitions pooled). Predicted: the run's chosen ray-cast model (fitted on whole frames) on the kind's "
@@ -173,7 +173,7 @@ void query_kinds_section(Html& h, const std::vector<KindCell>& all_cells) {
     for (const KindError& e : kind_errors(all_cells))
         summary.push_back({e.structure, e.kind, std::to_string(e.cells),
                            std::isfinite(e.median_error) ? fixed(100 * e.median_error, 1) + "%" : "-"});
-    h.table({"structure", "kind", "cells", "median error"}, summary,
+    h.table({"structure", "query kind", "cells", "median error"}, summary,
             "One set of coefficients for every kind: median over (scene x configuration) cells of the error above, "
             "per structure and kind (all: whole frames of scenes without other kinds included). A kind whose error "
             "stands out costs per counted step what the model does not price");
@@ -691,15 +691,15 @@ void memory_build_section(Html& h, const Entries& es) {
     h.chart(growth_chart(points, category + " scenes"));
 }
 
-/// Failure-mode scenes (by their generator kind) against brute force and against a benign scene of
+/// Failure-mode scenes (by their generator) against brute force and against a benign scene of
 /// the same size, for every configuration.
 void failure_section(Html& h, const Entries& es) {
-    const std::vector<std::string> failure_kinds = failure_mode_kinds();
+    const std::vector<std::string> failure_generators = failure_mode_generators();
     std::vector<std::string> failure_scenes;
     for (const std::string& sc : es.scenes)
         for (const Entry& e : es.all)
-            if (e.scene == sc &&
-                std::find(failure_kinds.begin(), failure_kinds.end(), e.category) != failure_kinds.end()) {
+            if (e.scene == sc && std::find(failure_generators.begin(), failure_generators.end(), e.category) !=
+                                     failure_generators.end()) {
                 failure_scenes.push_back(sc);
                 break;
             }

@@ -261,15 +261,15 @@ PeerSection comparisons_on(const Entries& es, const std::function<bool(const Ent
     PeerSection p;
     for (const Entry& e : es.all)
         if (keep(e)) p.entries.push_back(&e);
-    const std::vector<std::string> kinds = physics_kinds(), structures = structure_names();
+    const std::vector<std::string> generators = physics_generators(), structures = structure_names();
     const auto rank = [](const std::vector<std::string>& list, const std::string& name) {
         return std::find(list.begin(), list.end(), name) - list.begin();
     };
     std::stable_sort(p.entries.begin(), p.entries.end(), [&](const Entry* a, const Entry* b) {
-        return std::make_tuple(rank(kinds, a->category), a->objects, a->recording, a->window_order, a->window, a->scene,
-                               rank(structures, a->structure), a->label) <
-               std::make_tuple(rank(kinds, b->category), b->objects, b->recording, b->window_order, b->window, b->scene,
-                               rank(structures, b->structure), b->label);
+        return std::make_tuple(rank(generators, a->category), a->objects, a->recording, a->window_order, a->window,
+                               a->scene, rank(structures, a->structure), a->label) <
+               std::make_tuple(rank(generators, b->category), b->objects, b->recording, b->window_order, b->window,
+                               b->scene, rank(structures, b->structure), b->label);
     });
     for (const char* kind : kQueryKindNames)
         if (std::any_of(p.entries.begin(), p.entries.end(),
@@ -290,7 +290,7 @@ PeerSection comparisons_on(const Entries& es, const std::function<bool(const Ent
 }  // namespace
 
 PeerSection physics_section(const Entries& es) {
-    return comparisons_on(es, [](const Entry& e) { return is_physics_kind(e.category); });
+    return comparisons_on(es, [](const Entry& e) { return is_physics_generator(e.category); });
 }
 
 PeerSection peer_section(const Entries& es) {
@@ -298,7 +298,8 @@ PeerSection peer_section(const Entries& es) {
     for (const Entry& e : es.all)
         if (const StructureInfo* info = registered_structure(e.structure); info && info->origin == Origin::peer)
             with_peer.insert(e.scene);
-    return comparisons_on(es, [&](const Entry& e) { return !is_physics_kind(e.category) && with_peer.count(e.scene); });
+    return comparisons_on(
+        es, [&](const Entry& e) { return !is_physics_generator(e.category) && with_peer.count(e.scene); });
 }
 
 FailureCell failure_cell(const std::vector<Entry>& entries, const Entry& e) {

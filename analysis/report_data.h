@@ -142,7 +142,7 @@ std::string growth_category(const std::vector<Entry>& entries);
 /// family scan): its first configuration, or only its configuration at the defaults.
 const Entry* baseline_on(const std::vector<Entry>& entries, const std::string& scene, bool default_params_only);
 
-/// Comparisons against the peers: the physics section (scenes of a physics kind,
+/// Comparisons against the peers: the physics section (scenes of a physics generator,
 /// core/scene/generate/physics.h, each window of a recording, a phase or from a start frame, a
 /// scene of its own) and, for every other scene where a peer was measured, the same comparison.
 struct PeerBest {
@@ -163,7 +163,7 @@ struct PeerComparison {
     double ratio() const { return own && !peers.empty() ? own_ms / peers[best_peer].ms : NAN; }
 };
 struct PeerSection {
-    std::vector<const Entry*> entries;        ///< by scene kind, objects, recording, window, then registry order
+    std::vector<const Entry*> entries;        ///< by scene generator, objects, recording, window, then registry order
     std::vector<std::string> kinds;           ///< query kinds measured on them, in QueryKind order
     std::vector<PeerComparison> comparisons;  ///< per scene in entries' order: every ray, then each kind
 };

@@ -43,7 +43,7 @@ struct ValidationSplit {
 /// Each scene family (scene_family, model_terms.h: a map's brushes and triangles, a generator's
 /// ray-mode variants) left out in turn; none with one family.
 std::vector<ValidationSplit> family_out_splits(const std::vector<FrameObservation>& frames);
-/// Each scene category (generator kind, "import", "recording") left out in turn; none with one category.
+/// Each scene category (its generator, "import", "recording") left out in turn; none with one category.
 std::vector<ValidationSplit> generator_out_splits(const std::vector<FrameObservation>& frames);
 /// The scenes of the most objects, with their families, predicted from the others; none when
 /// every scene is among them.

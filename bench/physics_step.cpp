@@ -1,8 +1,8 @@
 // Where a physics scene's generation spends its time: the Bullet world `rcbench scene gen --generator
-// KIND` builds (PhysicsRun, core/scene/generate/physics.h) stepped FRAMES frames, each frame timed
+// GENERATOR` builds (PhysicsRun, core/scene/generate/physics.h) stepped FRAMES frames, each frame timed
 // in three parts:
 //   bullet   PhysicsRun::step(): btDiscreteDynamicsWorld::stepSimulation (4 substeps for
-//            Broadmark's kinds) and what a Broadmark kind does after a frame (kicks, turning pull)
+//            Broadmark's generators) and what a Broadmark generator does after a frame (kicks, turning pull)
 //   record   PhysicsRun::record(): each body's object from its transform, compared with the live
 //            set, and the frame's rays (rcbench's recording, in memory)
 //   write    RecordingWriter::frame(): validating, encoding and appending the frame to a file
@@ -50,11 +50,12 @@ struct Options {
 Options parse(int argc, char** argv) {
     if (argc < 4)
         throw InputError(
-            "usage: physics_step KIND OBJECTS FRAMES [--rays N] [--seed S] [--bullet-only] [--out FILE] "
+            "usage: physics_step GENERATOR OBJECTS FRAMES [--rays N] [--seed S] [--bullet-only] [--out FILE] "
             "[--deferred-collide] [--nncg] [--iterations N]");
     Options o;
-    o.settings.kind = argv[1];
-    if (!is_physics_kind(o.settings.kind)) throw InputError("KIND: '" + o.settings.kind + "' is not a physics kind");
+    o.settings.generator = argv[1];
+    if (!is_physics_generator(o.settings.generator))
+        throw InputError("GENERATOR: '" + o.settings.generator + "' is not a physics generator");
     o.settings.objects = std::uint32_t(bench::count_arg(argv[2], "OBJECTS", 1, 10'000'000));
     o.settings.frames = std::uint32_t(bench::count_arg(argv[3], "FRAMES", 1, 100'000));
     o.settings.rays.per_frame = 100;
@@ -138,7 +139,7 @@ int run(int argc, char** argv) {
     }
     if (!o.bullet_only) writer.finish();
     std::printf("physics_step %s: %u objects, %u frames, %u rays per frame%s; setup %.1f ms; awake at the end %zu\n",
-                o.settings.kind.c_str(), o.settings.objects, o.settings.frames, o.settings.rays.per_frame,
+                o.settings.generator.c_str(), o.settings.objects, o.settings.frames, o.settings.rays.per_frame,
                 o.bullet_only ? ", Bullet alone" : "", setup_ms, run.awake_bodies());
     std::printf("  bullet  %s broadphase collide, %s solver, %d iterations\n",
                 o.bullet.deferred_collide ? "deferred" : "immediate (Bullet's default)",

@@ -1,4 +1,4 @@
-// The wide BVH's quality under churn: a generated scene (irreg-l's kind by default) goes through
+// The wide BVH's quality under churn: a generated scene (irreg-l's generator by default) goes through
 // FRAMES frames of changes (1% of the live objects per frame: 80% moves of up to an object's size,
 // 10% inserts, 10% removes; seeded), applied as the simulator does (removes, inserts, moves, one
 // commit). Every K frames, and after the last, the maintained tree's SAH cost is compared with a
@@ -10,7 +10,7 @@
 // repeat it.
 //
 //   build/bench/wbvh_churn [OBJECTS] [FRAMES] [key=value …]
-//     bench keys: every=K (default 500), preset=NAME (default irreg-l: its kind), seed=S (1),
+//     bench keys: every=K (default 500), preset=NAME (default irreg-l: its generator), seed=S (1),
 //                 change_fraction=F (0.01), move_scale=M (1: up to the object's longest edge),
 //                 insert_share=I (0.1), remove_share=R (0.1)
 //     any other key is a wbvh parameter, e.g. rebuild_ratio=1.2
@@ -91,7 +91,7 @@ int run(int argc, char** argv) {
     s.dynamics.insert_share = insert_share;
     s.dynamics.remove_share = remove_share;
     const Recording rec = generate_scene(s);
-    std::printf("%s kind, %u objects, %u frames of %.3g%% changes (move_scale %.3g), seed %llu\nparams %s\n",
+    std::printf("preset %s, %u objects, %u frames of %.3g%% changes (move_scale %.3g), seed %llu\nparams %s\n",
                 preset.c_str(), objects, frames, change_fraction * 100, move_scale, (unsigned long long)seed,
                 params_to_json(p).dump().c_str());
 

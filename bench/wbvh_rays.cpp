@@ -15,14 +15,14 @@
 //
 //   build/bench/wbvh_rays BOXES.csv [key=value …]
 //   build/bench/wbvh_rays RECORDING.rcbscene [key=value …]   (its own frames and rays)
-//   build/bench/wbvh_rays kind=irregular objects=100000 [key=value …]
+//   build/bench/wbvh_rays generator=irregular objects=100000 [key=value …]
 //     bench keys: frames=F (10), warmup=W (2; not in the medians), reps=R (1: batches per frame and
 //                 structure), rays=N (1000), ray_mix=MIX (center; as scene import's --ray-mix),
 //                 queries=PRESET (a game query preset instead, as --queries), seed=S (1),
 //                 kinds=all,closest,any (the batches timed; `mix`: each ray its recorded kind),
 //                 embree=low,medium (the Embree builds compared; none: wbvh alone), count=0|1 (1:
-//                 the counted pass; 0 leaves only the timed batches, for valgrind), kind, objects
-//                 (a generated scene)
+//                 the counted pass; 0 leaves only the timed batches, for valgrind), generator
+//                 (`kind`, its old name, still works), objects (a generated scene)
 //     wbvh.KEY=VALUE: a wbvh parameter, e.g. wbvh.push=loop
 //     b.KEY=VALUE: a second wide BVH `wbvh_b` with these parameters, timed beside the first (A/B)
 #include <algorithm>
@@ -89,7 +89,7 @@ std::vector<std::string> parse_kinds(const std::string& text) {
 
 Settings parse(int argc, char** argv) {
     Settings s;
-    s.scene.kind.clear();
+    s.scene.generator.clear();
     s.scene.objects = 100000;
     for (int i = 1; i < argc; ++i) {
         const std::string arg = argv[i];
@@ -115,8 +115,8 @@ Settings parse(int argc, char** argv) {
             s.scene.seed = bench::count_arg(v, "seed", 0, UINT64_MAX);
         else if (key == "objects")
             s.scene.objects = std::uint32_t(bench::count_arg(v, "objects", 1, kMaxSceneObjects));
-        else if (key == "kind")
-            s.scene.kind = value;
+        else if (key == "generator" || key == "kind")
+            s.scene.generator = value;
         else if (key == "ray_mix")
             s.ray_mix = value;
         else if (key == "queries")
@@ -134,7 +134,8 @@ Settings parse(int argc, char** argv) {
             throw InputError("unknown key '" + key + "' (see the top of bench/wbvh_rays.cpp)");
         }
     }
-    if (s.path.empty() == s.scene.kind.empty()) throw InputError("give a scene file or kind=KIND, not both");
+    if (s.path.empty() == s.scene.generator.empty())
+        throw InputError("give a scene file or generator=GENERATOR, not both");
     if (s.warmup >= s.frames) throw InputError("warmup: must be below frames (" + std::to_string(s.frames) + ")");
     return s;
 }
@@ -275,8 +276,8 @@ int run(int argc, char** argv) {
     const Recording rec = load(s);
     if (rec.frames.size() <= s.warmup) throw InputError("the scene has no frame after the warm-up");
     std::printf("%s: %zu objects, %zu frames (the first %u warm up), %zu rays in the last frame, %u reps\n",
-                s.path.empty() ? s.scene.kind.c_str() : s.path.c_str(), rec.initial.size(), rec.frames.size(), s.warmup,
-                rec.frames.back().rays.size(), s.reps);
+                s.path.empty() ? s.scene.generator.c_str() : s.path.c_str(), rec.initial.size(), rec.frames.size(),
+                s.warmup, rec.frames.back().rays.size(), s.reps);
     std::vector<Candidate> cs = make_candidates(s);
     for (Candidate& c : cs) {
         c.s->build(rec.initial);

@@ -20,10 +20,10 @@
 // instruction shares with callgrind (docs/structures.md, wbvh):
 //
 //   build/bench/wbvh_update SCENE.rec [key=value …]
-//   build/bench/wbvh_update kind=brownian objects=10000 frames=40 seed=2 [key=value …]
+//   build/bench/wbvh_update generator=brownian objects=10000 frames=40 seed=2 [key=value …]
 //     bench keys: frames=N (the first N frames; all by default), warmup=W (3; not in the medians),
-//                 timed_moves=0|1 (0), rows=0|1 (0), kind, objects, seed (a generated scene
-//                 instead of a file)
+//                 timed_moves=0|1 (0), rows=0|1 (0), generator (`kind`, its old name,
+//                 still works), objects, seed (a generated scene instead of a file)
 //     any other key is a wbvh parameter, e.g. reinsert=false, threads=2 (the update's threads)
 #include <algorithm>
 #include <cstdio>
@@ -70,7 +70,7 @@ struct Settings {
 
 Settings parse(int argc, char** argv) {
     Settings s;
-    s.scene.kind.clear();
+    s.scene.generator.clear();
     s.scene.objects = 10000;
     s.scene.frames = 40;
     s.scene.seed = 1;
@@ -90,8 +90,8 @@ Settings parse(int argc, char** argv) {
             s.timed_moves = value.get<int>() != 0;
         else if (key == "rows")
             s.rows = value.get<int>() != 0;
-        else if (key == "kind")
-            s.scene.kind = value.get<std::string>();
+        else if (key == "generator" || key == "kind")
+            s.scene.generator = value.get<std::string>();
         else if (key == "objects")
             s.scene.objects = value.get<std::uint32_t>();
         else if (key == "seed")
@@ -99,7 +99,8 @@ Settings parse(int argc, char** argv) {
         else
             s.params[key] = value;
     }
-    if (s.path.empty() == s.scene.kind.empty()) throw InputError("give a recording file or kind=KIND, not both");
+    if (s.path.empty() == s.scene.generator.empty())
+        throw InputError("give a recording file or generator=GENERATOR, not both");
     if (s.frames != 0 && s.path.empty()) s.scene.frames = s.frames;
     s.scene.rays.per_frame = 0;
     return s;
@@ -179,8 +180,8 @@ int run(int argc, char** argv) {
     Recording rec = s.path.empty() ? generate_scene(s.scene) : read_recording(s.path);
     if (s.frames != 0 && rec.frames.size() > s.frames) rec.frames.resize(s.frames);
     std::printf("%s: %zu objects, %zu frames (the first %u warm up)\nparams %s\n",
-                s.path.empty() ? s.scene.kind.c_str() : s.path.c_str(), rec.initial.size(), rec.frames.size(), s.warmup,
-                params_to_json(p).dump().c_str());
+                s.path.empty() ? s.scene.generator.c_str() : s.path.c_str(), rec.initial.size(), rec.frames.size(),
+                s.warmup, params_to_json(p).dump().c_str());
 
     WideBvh tree(p);
     tree.build(rec.initial);

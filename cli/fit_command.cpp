@@ -156,7 +156,7 @@ void print_kind_table(Database& db, std::int64_t run, const std::vector<Structur
                  "priced by the structure's chosen ray-cast model from the batch's own counters; time per query in "
                  "us, median over the batches; error: median over (scene x configuration) cells of |predicted - "
                  "measured| / measured ray cast per frame (rcbench validate: intervals and kind transfer):\n";
-    TextTable t({"structure", "kind", "batches", "measured us/query", "predicted us/query", "error"});
+    TextTable t({"structure", "query kind", "batches", "measured us/query", "predicted us/query", "error"});
     for (const KindSummary& k : kind_summaries(models, load_kind_observations(db, run)))
         t.add({k.structure, k.kind, std::to_string(k.batches), format_us(k.ns_per_query / 1e3),
                format_us(k.predicted_ns_per_query / 1e3), percent(k.median_error)});

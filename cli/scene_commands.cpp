@@ -243,7 +243,8 @@ private:
 /// pile dropped onto them, streamed into `sink`; the recording's meta says which map and how it was
 /// placed.
 void pile_on_map(const SceneSettings& s, const std::string& file, const std::string& map, SceneSink& sink) {
-    if (s.kind != "pile") throw InputError("--on-map: only --generator pile is dropped onto a map, not " + s.kind);
+    if (s.generator != "pile")
+        throw InputError("--on-map: only --generator pile is dropped onto a map, not " + s.generator);
     if (importer_for(file) != "bsp")
         throw InputError("--on-map: " + file + ": expected a Quake III / OpenArena map (.bsp or .pk3)");
     ImportOptions options;
@@ -284,11 +285,11 @@ void add_gen_command(CLI::App& scene) {
                   "(1000, 10000 objects)")
         ->check(CLI::IsMember(preset_names()));
     g->add_option("--generator", gen->generator,
-                  "Instead of a preset, with --objects. Physics generators (" + join(physics_kinds()) +
+                  "Instead of a preset, with --objects. Physics generators (" + join(physics_generators()) +
                       ") are simulated by Bullet: every awake body moves each frame, sleeping ones do not; the "
                       "--change-fraction, --insert-share, --remove-share and --move-scale options do not apply to them")
-        ->check(CLI::IsMember(scene_kinds()));
-    add_deprecated_alias(g, "--kind", "--generator", gen->generator)->check(CLI::IsMember(scene_kinds()));
+        ->check(CLI::IsMember(scene_generators()));
+    add_deprecated_alias(g, "--kind", "--generator", gen->generator)->check(CLI::IsMember(scene_generators()));
     g->add_option("--time-step", gen->time_step,
                   "Physics generators: seconds simulated per frame (default 1/60 in one Bullet step; Broadmark's "
                   "brownian, freefall and gravity 1/30 in 4 substeps, its generator's)")
@@ -332,10 +333,10 @@ void add_gen_command(CLI::App& scene) {
         if (!gen->preset.empty())
             s = preset_settings(gen->preset);
         else if (!gen->generator.empty())
-            s.kind = gen->generator;
+            s.generator = gen->generator;
         else
             throw InputError("scene gen: give --preset or --generator");
-        if (!gen->generator.empty()) s.kind = gen->generator;
+        if (!gen->generator.empty()) s.generator = gen->generator;
         if (gen->objects)
             s.objects = gen->objects;
         else if (gen->preset.empty())
@@ -352,7 +353,7 @@ void add_gen_command(CLI::App& scene) {
         if (!gen->map.empty() && gen->on_map.empty()) throw InputError("--map: needs --on-map");
         check_output_path(gen->out, {gen->on_map}, "-o");
         // A physics scene may move every body in every frame.
-        const double changes = is_physics_kind(s.kind) ? s.objects : s.objects * s.dynamics.change_fraction;
+        const double changes = is_physics_generator(s.generator) ? s.objects : s.objects * s.dynamics.change_fraction;
         check_streamed_scene_size(s.objects, s.frames, s.rays.per_frame, changes, "--objects/--frames/--rays");
         // Each frame is written as it is made (RecordingWriter): the file's bytes are those of
         // write_recording, in the memory of one frame; an error leaves no file at -o.

@@ -101,7 +101,7 @@ void print_kinds(const KindValidation& k) {
         std::cout << "\nquery kinds: the run's model (fitted on whole frames) pricing each kind's batch from its own "
                      "counters; median over (scene x configuration) cells of |predicted - measured| / measured "
                      "ray cast per frame\n";
-        TextTable t({"  structure", "kind", "cells", "median error"});
+        TextTable t({"  structure", "query kind", "cells", "median error"});
         for (const KindError& e : k.check)
             t.add({"  " + e.structure, e.kind, std::to_string(e.cells), percent(e.median_error)});
         t.print(std::cout);

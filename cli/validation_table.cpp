@@ -68,7 +68,8 @@ TextTable spread_table(const ValidationGroup& group, const std::vector<Structure
 }
 
 TextTable kind_validation_table(const std::vector<ValidationGroup>& groups, const std::string& indent) {
-    TextTable t({indent + "structure", "kind", "cells", "scenes", "ray cast median", "ray cast p90", "misses (share)"});
+    TextTable t(
+        {indent + "structure", "query kind", "cells", "scenes", "ray cast median", "ray cast p90", "misses (share)"});
     std::map<std::string, std::vector<std::pair<std::string, const StructureValidation*>>> rows;  // by structure
     for (const ValidationGroup& g : groups) {
         const std::string kind = g.name.substr(g.name.find(':') + 1);

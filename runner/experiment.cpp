@@ -267,7 +267,7 @@ void parse_recording_scene(const json& s, const std::string& path, const std::st
     add_windows(spec, parse_measured_frames(s, path), out);
 }
 
-/// Where a generated or imported entry's objects come from: a preset, a kind, or a file to import.
+/// Where a generated or imported entry's objects come from: a preset, a generator, or a file to import.
 struct SceneSource {
     SceneSettings base;
     std::string name;  ///< before "name" overrides it
@@ -288,12 +288,12 @@ SceneSource parse_scene_source(const json& s, const std::string& path, const std
     } else if (s.contains("generator") || s.contains("kind")) {
         // "kind" is the generator's old key, kept for one release.
         const char* key = s.contains("generator") ? "generator" : "kind";
-        src.base.kind = get_string(s, key, path, "");
-        const std::vector<std::string> kinds = scene_kinds();
-        if (std::find(kinds.begin(), kinds.end(), src.base.kind) == kinds.end())
-            fail(at(path, key), "expected one of " + join(kinds) + ", got " + json_excerpt(s[key]));
+        src.base.generator = get_string(s, key, path, "");
+        const std::vector<std::string> generators = scene_generators();
+        if (std::find(generators.begin(), generators.end(), src.base.generator) == generators.end())
+            fail(at(path, key), "expected one of " + join(generators) + ", got " + json_excerpt(s[key]));
         if (!s.contains("objects")) fail(path, "a scene given by \"" + std::string(key) + "\" needs \"objects\"");
-        src.name = src.base.kind;
+        src.name = src.base.generator;
     } else {
         src.source = SceneSpec::Source::import;
         const std::string given = get_string(s, "import", path, "");
@@ -352,23 +352,24 @@ std::string parse_scene_rays(const json& s, const std::string& path, const Scene
 }
 
 /// The entry's frames, rays, dynamics, shapes and time step over the file's defaults; returns the
-/// ray mix's text. A physics kind moves by its simulation: the dynamics keys do not apply to it,
+/// ray mix's text. A physics generator's scene moves by its simulation: the dynamics keys do not apply to it,
 /// and only it takes a time step.
 std::string parse_scene_settings(const json& s, const std::string& path, const SceneDefaults& d, SceneSettings& base) {
     base.frames = static_cast<std::uint32_t>(get_uint(s, "frames", path, 1, 1'000'000, d.frames));
     const std::string mix = parse_scene_rays(s, path, d, base.rays);
-    const bool physics = is_physics_kind(base.kind) && !s.contains("import");
+    const bool physics = is_physics_generator(base.generator) && !s.contains("import");
     for (const char* k : {"change_fraction", "insert_share", "remove_share", "move_scale"})
         if (physics && s.contains(k))
-            fail(at(path, k), "a physics kind (" + base.kind + ") moves by its simulation, not by " + k);
+            fail(at(path, k), "a physics generator (" + base.generator + ") moves by its simulation, not by " + k);
     if (s.contains("time_step")) {
         if (!physics)
-            fail(at(path, "time_step"), "only a physics kind (" + join(physics_kinds()) + ") takes a time step");
+            fail(at(path, "time_step"),
+                 "only a physics generator (" + join(physics_generators()) + ") takes a time step");
         base.time_step = get_number(s, "time_step", path, 1e-4, 0.1, base.time_step);
     }
     for (const char* k : {"shape_set", "fill"})
-        if (s.contains(k) && !(physics && is_broadmark_kind(base.kind)))
-            fail(at(path, k), "only Broadmark's kinds (brownian, freefall, gravity) take " + std::string(k));
+        if (s.contains(k) && !(physics && is_broadmark_generator(base.generator)))
+            fail(at(path, k), "only Broadmark's generators (brownian, freefall, gravity) take " + std::string(k));
     base.shape_set = get_string(s, "shape_set", path, base.shape_set);
     if (const auto sets = broadmark_shape_sets();
         !base.shape_set.empty() && std::find(sets.begin(), sets.end(), base.shape_set) == sets.end())
@@ -413,7 +414,7 @@ SceneSpec concrete_scene(const SceneSource& src, const SceneSettings& base, cons
     if (!asks_all_only(base.rays.query_mix)) spec.key["query_mix"] = query_mix_json(base.rays.query_mix);
     if (!base.rays.queries.empty()) spec.key["queries"] = base.rays.queries;
     // A physics scene's time step, only when it is not the default: older keys stay as they were.
-    if (is_physics_kind(base.kind) && src.source != SceneSpec::Source::import &&
+    if (is_physics_generator(base.generator) && src.source != SceneSpec::Source::import &&
         base.time_step != SceneSettings{}.time_step)
         spec.key["time_step"] = base.time_step;
     // Broadmark's shape set and fill, only when given: older keys stay as they were.
@@ -423,7 +424,8 @@ SceneSpec concrete_scene(const SceneSource& src, const SceneSettings& base, cons
         spec.key["import"] = fs::path(src.file).filename().string();
         if (importer_for(src.file) != "csv") spec.key["import_options"] = spec.import_options = src.import_options;
     } else {
-        spec.key["kind"] = base.kind, spec.key["objects"] = count;
+        // The stored key keeps the generator's old name, as every stored run does.
+        spec.key["kind"] = base.generator, spec.key["objects"] = count;
         // Only when set: a box scene's key (and so its results' identity) stays as it was.
         if (base.shapes.any())
             spec.key["shapes"] = {{"rotated_share", base.shapes.rotated_share},

@@ -48,8 +48,8 @@ struct NamedScene {
 /// and churn (many inserts, removes, moves). Each has several frames; every ray asks for all hits.
 std::vector<NamedScene> hard_scenes();
 
-/// A generated scene of `kind` ("uniform"/"irregular"/...) with `objects`, `frames`, all ray modes.
-Recording generated_scene(const std::string& kind, std::uint32_t objects, std::uint32_t frames, std::uint64_t seed,
+/// A generated scene of `generator` ("uniform"/"irregular"/...) with `objects`, `frames`, all ray modes.
+Recording generated_scene(const std::string& generator, std::uint32_t objects, std::uint32_t frames, std::uint64_t seed,
                           double change_fraction = 0.05);
 
 /// `r` with every ray cast three times, as all, closest and any hit (the three query kinds).

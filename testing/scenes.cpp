@@ -135,10 +135,10 @@ std::vector<Frame> jiggle(const std::vector<Object>& initial, std::size_t frames
 
 }  // namespace
 
-Recording generated_scene(const std::string& kind, std::uint32_t objects, std::uint32_t frames, std::uint64_t seed,
+Recording generated_scene(const std::string& generator, std::uint32_t objects, std::uint32_t frames, std::uint64_t seed,
                           double change_fraction) {
     SceneSettings s;
-    s.kind = kind;
+    s.generator = generator;
     s.objects = objects;
     s.frames = frames;
     s.seed = seed;
@@ -272,7 +272,7 @@ std::vector<NamedScene> hard_scenes() {
     scenes.push_back({"uniform-small", generated_scene("uniform", 600, 4, 11)});
     scenes.push_back({"irregular-small", generated_scene("irregular", 1500, 4, 12)});
     scenes.push_back({"irregular-churn", generated_scene("irregular", 400, 40, 13, 0.3)});
-    // The peer-comparison kinds: boxes filling their cells to the faces; huge slabs over clusters.
+    // The peer-comparison generators: boxes filling their cells to the faces; huge slabs over clusters.
     scenes.push_back({"jittered-small", generated_scene("jittered", 700, 4, 14)});
     scenes.push_back({"clusters-small", generated_scene("clusters", 2000, 4, 15)});
     return scenes;

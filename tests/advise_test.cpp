@@ -25,7 +25,7 @@ const std::vector<double> kDensities{0.125, 0.25, 0.5, 1, 2, 4, 8, 16};
 
 Recording uniform_scene(std::uint32_t objects, std::uint64_t seed) {
     SceneSettings s;
-    s.kind = "uniform";
+    s.generator = "uniform";
     s.objects = objects;
     s.seed = seed;
     s.frames = 3;
@@ -422,7 +422,7 @@ TEST_F(AdviseFiles, PrintsTheScenesQueryKindsAndMotionAndWeighsByThem) {
     // A scene of game queries whose 5% of objects change per frame: advise reports those, not the
     // thesis' 1% and all-hits rays, and its per-frame costs are that scene's update plus ray cast.
     SceneSettings s;
-    s.kind = "uniform";
+    s.generator = "uniform";
     s.objects = 2000;
     s.frames = 3;
     s.dynamics.change_fraction = 0.05;

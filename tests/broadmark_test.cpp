@@ -188,11 +188,11 @@ TEST(Broadmark, EveryExportPassesBroadmarksReader) {
         std::filesystem::remove(dir.file("s.rcbscene"));
         std::filesystem::remove(dir.file("out.aabbs"));
     }
-    // rcbench's own scenes, of every kind that keeps its objects, pass too.
-    for (const char* kind : {"pile", "brownian", "gravity"}) {
-        SCOPED_TRACE(kind);
+    // rcbench's own scenes, of every generator that keeps its objects, pass too.
+    for (const char* generator : {"pile", "brownian", "gravity"}) {
+        SCOPED_TRACE(generator);
         SceneSettings s;
-        s.kind = kind;
+        s.generator = generator;
         s.objects = 40;
         s.frames = 3;
         s.rays.per_frame = 0;
@@ -204,7 +204,7 @@ TEST(Broadmark, EveryExportPassesBroadmarksReader) {
 
 TEST(Broadmark, RcbenchScenesGoOutAndComeBackWithTheirBoxes) {
     SceneSettings s;
-    s.kind = "pile";
+    s.generator = "pile";
     s.objects = 60;
     s.frames = 6;
     s.rays.per_frame = 0;

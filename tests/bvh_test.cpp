@@ -48,18 +48,18 @@ TEST(LinearBvh, MatchesGroundTruthOnEveryHardScene) {
 }
 
 TEST(DynamicBvh, MatchesGroundTruthOnGeneratedScenes) {
-    for (const char* kind : {"uniform", "irregular"})
+    for (const char* generator : {"uniform", "irregular"})
         for (const nlohmann::json& p : dbvh_param_sets(99)) {
-            const Recording r = test::generated_scene(kind, 400, 12, 7, 0.1);
-            test::expect_matches_ground_truth(r, "dbvh", p, kind);
+            const Recording r = test::generated_scene(generator, 400, 12, 7, 0.1);
+            test::expect_matches_ground_truth(r, "dbvh", p, generator);
         }
 }
 
 TEST(LinearBvh, MatchesGroundTruthOnGeneratedScenes) {
-    for (const char* kind : {"uniform", "irregular"})
+    for (const char* generator : {"uniform", "irregular"})
         for (int threads : {1, 2}) {
-            const Recording r = test::generated_scene(kind, 400, 12, 8, 0.1);
-            test::expect_matches_ground_truth(r, "lbvh", {{"threads", threads}}, kind);
+            const Recording r = test::generated_scene(generator, 400, 12, 8, 0.1);
+            test::expect_matches_ground_truth(r, "lbvh", {{"threads", threads}}, generator);
         }
 }
 

@@ -8,7 +8,10 @@
 
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
+#include "core/scene/generate/physics.h"
+#include "core/scene/generate/stream.h"
 #include "core/scene/recording_io.h"
+#include "core/scene/recording_stream.h"
 
 namespace rcb {
 namespace {
@@ -50,6 +53,51 @@ TEST(Generators, SameSeedSameBytesOtherSeedOtherScene) {
         EXPECT_NE(a, encode_recording(generate_scene(s))) << preset;
     }
 }
+
+// The generator's old names, kept for one release so that code written before the rename still
+// builds (with a deprecation warning, silenced here) and still picks its generator.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
+TEST(Generators, TheOldNamesStillWorkForOneRelease) {
+    EXPECT_EQ(scene_kinds(), scene_generators());
+    EXPECT_EQ(failure_mode_kinds(), failure_mode_generators());
+    EXPECT_EQ(physics_kinds(), physics_generators());
+    EXPECT_TRUE(is_physics_kind("pile"));
+    EXPECT_FALSE(is_physics_kind("uniform"));
+    EXPECT_TRUE(is_broadmark_kind("gravity"));
+    EXPECT_FALSE(is_broadmark_kind("pile"));
+
+    // SceneSettings::kind, set as old code sets it, names the generator in place of `generator`
+    // for every function that takes the settings.
+    SceneSettings old = preset_settings("uni-s");
+    old.frames = 3;
+    old.kind = "clusters";
+    SceneSettings now = old;
+    now.kind.clear();
+    now.generator = "clusters";
+    const Recording want = generate_scene(now);
+    EXPECT_EQ(nlohmann::json::parse(want.meta)["kind"], "clusters");
+    EXPECT_EQ(generate_scene(old), want);
+    RecordingCollector streamed;
+    stream_scene(old, streamed);
+    EXPECT_EQ(streamed.recording, want);
+    EXPECT_EQ(generate_objects(old), want.initial);
+    EXPECT_EQ(to_json(old), to_json(now));
+    EXPECT_EQ(with_generator(old).generator, "clusters");
+    EXPECT_TRUE(with_generator(old).kind.empty());
+
+    SceneSettings bodies;
+    bodies.kind = "brownian";
+    bodies.objects = 40;
+    bodies.frames = 2;
+    bodies.rays.per_frame = 5;
+    EXPECT_DOUBLE_EQ(physics_time_step(bodies), 1.0 / 30);  // Broadmark's, not rcbench's 1/60
+    SceneSettings bodies_now = bodies;
+    bodies_now.kind.clear();
+    bodies_now.generator = "brownian";
+    EXPECT_EQ(generate_physics_scene(bodies), generate_scene(bodies_now));
+}
+#pragma GCC diagnostic pop
 
 TEST(Generators, RayCountDoesNotChangeTheDynamics) {
     SceneSettings s = preset_settings("irreg-s");

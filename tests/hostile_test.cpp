@@ -1742,7 +1742,7 @@ TEST_F(Hostile, ArgumentsOfSceneCommands) {
          .places = {"--generator"},
          .writes = {"g.rcbscene"},
          .bad = true,
-         .what = "empty kind"},
+         .what = "empty generator"},
         {.args = gen({"-o", ""}), .places = {"-o", "--output"}, .bad = true, .what = "empty output"},
         {.args = gen({"-o", "adir"}), .places = {"-o", "--output", "adir"}, .bad = true, .what = "output is a folder"},
         {.args = gen({"-o", "/proc/self/x.rcbscene"}),

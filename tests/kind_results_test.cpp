@@ -543,6 +543,8 @@ TEST(KindCommands, ValidateTestAndFitShowEachKindAndSayWhenThereIsNone) {
     const ::test::Outcome t = rcbench({"validate", "--train", a, "--test", b, "--resamples", "20"});
     ASSERT_EQ(t.code, 0) << t.err;
     EXPECT_NE(t.out.find("per query kind (groups kind:KIND)"), std::string::npos) << t.out;
+    // The column says what the word means: the query kind, not the scene's generator.
+    EXPECT_EQ(row_starting(t.out, {"structure", "query", "kind", "cells"}).size(), 13u) << t.out;
     // "33.3% [33.1, 33.5]" twice (median and p90 with intervals), then the misses and their share.
     EXPECT_EQ(row_starting(t.out, {"tree", "closest", "8", "4"}).size(), 12u) << t.out;
     EXPECT_EQ(t.out.find("absent"), std::string::npos);
@@ -575,6 +577,7 @@ TEST(KindCommands, ValidateTestAndFitShowEachKindAndSayWhenThereIsNone) {
     const double ns = quantile(per_query, 0.5);
     const std::vector<std::string> row = row_starting(f.out, {"tree", "closest", "64"});
     ASSERT_EQ(row.size(), 6u) << f.out;
+    EXPECT_EQ(row_starting(f.out, {"structure", "query", "kind", "batches"}).size(), 9u) << f.out;
     EXPECT_EQ(row[3], fixed(ns / 1e3, ns < 1e3 ? 4 : 3));
     EXPECT_EQ(row[5].back(), '%');
     const ::test::Outcome plain = rcbench({"fit", a});

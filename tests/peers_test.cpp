@@ -602,9 +602,9 @@ Recording with_kinds(Recording r) {
 }
 
 /// A small physics scene (y-up, Bullet-driven) with mixed query kinds.
-Recording physics_scene(const std::string& kind, std::uint64_t seed) {
+Recording physics_scene(const std::string& generator, std::uint64_t seed) {
     SceneSettings s;
-    s.kind = kind;
+    s.generator = generator;
     s.objects = 150;
     s.frames = 10;
     s.seed = seed;
@@ -615,7 +615,8 @@ Recording physics_scene(const std::string& kind, std::uint64_t seed) {
 TEST(PeerEngines, EveryConfigurationIsExactForEveryQueryKind) {
     std::vector<test::NamedScene> scenes;
     for (const test::NamedScene& s : test::hard_scenes()) scenes.push_back({s.name, with_kinds(s.recording)});
-    for (const char* kind : {"pile", "explosion", "brownian"}) scenes.push_back({kind, physics_scene(kind, 3)});
+    for (const char* generator : {"pile", "explosion", "brownian"})
+        scenes.push_back({generator, physics_scene(generator, 3)});
     for (const auto& [name, params] : engine_configurations())
         for (const test::NamedScene& s : scenes) test::expect_matches_ground_truth(s.recording, name, params, s.name);
 }

@@ -1,5 +1,5 @@
 // Physics-driven scenes (core/scene/generate/physics.h): the same seed gives the same bytes for
-// every kind, each kind's motion has the character it is named for (within stated bounds), the
+// every generator, each one's motion has the character it is named for (within stated bounds), the
 // objects' shapes carry the bodies' rotations, bad settings are refused, and every structure
 // matches the ground truth on them.
 #include <gtest/gtest.h>
@@ -21,19 +21,21 @@
 namespace rcb {
 namespace {
 
-SceneSettings physics(const std::string& kind, std::uint32_t objects, std::uint32_t frames, std::uint64_t seed = 1) {
+SceneSettings physics(const std::string& generator, std::uint32_t objects, std::uint32_t frames,
+                      std::uint64_t seed = 1) {
     SceneSettings s;
-    s.kind = kind;
+    s.generator = generator;
     s.objects = objects;
     s.frames = frames;
     s.seed = seed;
     s.rays.per_frame = 50;
-    if (!is_broadmark_kind(kind)) s.shapes = {0.25, 0.2, 0.2};  // Broadmark's kinds take a shape set
+    if (!is_broadmark_generator(generator)) s.shapes = {0.25, 0.2, 0.2};  // Broadmark's generators take a shape set
     return s;
 }
 
-SceneSettings broadmark(const std::string& kind, const std::string& set, std::uint32_t objects, std::uint32_t frames) {
-    SceneSettings s = physics(kind, objects, frames);
+SceneSettings broadmark(const std::string& generator, const std::string& set, std::uint32_t objects,
+                        std::uint32_t frames) {
+    SceneSettings s = physics(generator, objects, frames);
     s.shape_set = set;
     s.rays.per_frame = 0;
     return s;
@@ -62,19 +64,19 @@ double mean_height(const std::vector<Object>& objects) {
 }
 
 TEST(PhysicsScenes, EveryKindIsDeterministicForASeed) {
-    for (const std::string& kind : physics_kinds()) {
-        SCOPED_TRACE(kind);
-        const std::string a = encode_recording(generate_scene(physics(kind, 150, 12)));
-        EXPECT_EQ(a, encode_recording(generate_scene(physics(kind, 150, 12))));
-        EXPECT_NE(a, encode_recording(generate_scene(physics(kind, 150, 12, 2))));
-        const Recording r = decode_recording(a, kind);  // the reader's checks: shapes valid, boxes their bounds
+    for (const std::string& generator : physics_generators()) {
+        SCOPED_TRACE(generator);
+        const std::string a = encode_recording(generate_scene(physics(generator, 150, 12)));
+        EXPECT_EQ(a, encode_recording(generate_scene(physics(generator, 150, 12))));
+        EXPECT_NE(a, encode_recording(generate_scene(physics(generator, 150, 12, 2))));
+        const Recording r = decode_recording(a, generator);  // the reader's checks: shapes valid, boxes their bounds
         EXPECT_EQ(r.initial.size(), 150u);
         EXPECT_EQ(r.frames.size(), 12u);
         for (const Frame& f : r.frames) {
             EXPECT_TRUE(f.inserts.empty() && f.removes.empty());
             EXPECT_EQ(f.rays.size(), 50u);
         }
-        EXPECT_EQ(nlohmann::json::parse(r.meta)["kind"], kind);
+        EXPECT_EQ(nlohmann::json::parse(r.meta)["kind"], generator);
     }
 }
 
@@ -155,21 +157,21 @@ TEST(PhysicsScenes, PileOnAMapLandsOnItsBoxes) {
     }
     EXPECT_GT(on_block, 0u);
     EXPECT_LE(off_edge, 8u);
-    // A map without room for the bodies, and a kind that is not a pile, are refused.
+    // A map without room for the bodies, and a generator that is not a pile, are refused.
     const std::vector<Aabb> slab{Aabb{{0, -1, 0}, {4, 0, 4}}};
     test::expect_input_error([&] { generate_physics_scene(physics("pile", 10, 1), slab); },
                              "the map has room for 0 of 10 bodies");
     test::expect_input_error([&] { generate_physics_scene(physics("freefall", 10, 1), map); },
-                             "only the pile kind is dropped onto a map, not freefall");
+                             "only the pile generator is dropped onto a map, not freefall");
 }
 
 TEST(PhysicsScenes, BrownianAndGravityMoveEveryBodyEveryFrame) {
     // Gravity's bodies never sleep; a brownian body that collisions slowed below the sleeping
     // thresholds rests until its next kick, a few of 200.
-    for (const char* kind : {"brownian", "gravity"}) {
-        SCOPED_TRACE(kind);
-        const double least = std::string(kind) == "gravity" ? 0.99 : 0.95;
-        for (double share : moved_shares(generate_scene(physics(kind, 200, 40)))) EXPECT_GE(share, least);
+    for (const char* generator : {"brownian", "gravity"}) {
+        SCOPED_TRACE(generator);
+        const double least = std::string(generator) == "gravity" ? 0.99 : 0.95;
+        for (double share : moved_shares(generate_scene(physics(generator, 200, 40)))) EXPECT_GE(share, least);
     }
 }
 
@@ -183,9 +185,9 @@ TEST(PhysicsScenes, BroadmarkScenesFollowItsGenerator) {
     // Broadmark's parameters (physics.cpp cites SimulationGenerator/Assets/Scripts): 500 unit cubes
     // fill 0.1 of an arena of side L = (500 / 0.1)^(1/3), spawned in a ball of radius 0.45 L, at
     // most 0.75 L/s, one frame 1/30 s; no body leaves the closed arena in 90 frames (3 s).
-    for (const char* kind : {"brownian", "freefall", "gravity"}) {
-        SCOPED_TRACE(kind);
-        const Recording r = generate_scene(broadmark(kind, "cubes", 500, 90));
+    for (const char* generator : {"brownian", "freefall", "gravity"}) {
+        SCOPED_TRACE(generator);
+        const Recording r = generate_scene(broadmark(generator, "cubes", 500, 90));
         const auto meta = nlohmann::json::parse(r.meta);
         const double side = std::cbrt(500 / 0.1), dt = 1.0 / 30;
         EXPECT_DOUBLE_EQ(meta["arena"].get<double>(), side);
@@ -299,9 +301,9 @@ TEST(PhysicsScenes, BadSettingsAreRefused) {
     test::expect_input_error([&] { generate_scene(b); }, "fill: expected a share of the arena in (0, 0.5]");
     b = physics("pile", 10, 2);
     b.shape_set = "cubes";
-    test::expect_input_error([&] { generate_scene(b); }, "shape_set: only Broadmark's kinds");
+    test::expect_input_error([&] { generate_scene(b); }, "shape_set: only Broadmark's generators");
     SceneSettings s = physics("pile", 10, 2);
-    s.time_step = -0.01;  // 0 takes the kind's default
+    s.time_step = -0.01;  // 0 takes the generator's default
     test::expect_input_error([&] { generate_scene(s); }, "time_step");
     s.time_step = std::nan("");
     test::expect_input_error([&] { generate_scene(s); }, "time_step");
@@ -343,8 +345,9 @@ TEST(PhysicsScenes, ExperimentEntriesTakeShapeSetAndFill) {
             parse_experiment(R"({"scenes": [)" + scene + R"(], "structures": [{"name": "bf"}]})", "exp.json", ".");
         });
     };
-    EXPECT_EQ(error(R"({"generator": "pile", "objects": 10, "shape_set": "cubes"})"),
-              "exp.json: scenes[0].shape_set: only Broadmark's kinds (brownian, freefall, gravity) take shape_set");
+    EXPECT_EQ(
+        error(R"({"generator": "pile", "objects": 10, "shape_set": "cubes"})"),
+        "exp.json: scenes[0].shape_set: only Broadmark's generators (brownian, freefall, gravity) take shape_set");
     EXPECT_EQ(error(R"({"generator": "brownian", "objects": 10, "shape_set": "cones"})"),
               "exp.json: scenes[0].shape_set: unknown set 'cones' (known: cubes, spheres, assorted)");
     EXPECT_NE(
@@ -455,14 +458,16 @@ TEST(PhysicsScenes, SceneInfoShowsTheMotion) {
 }
 
 TEST(PhysicsScenes, EveryStructureMatchesTheGroundTruth) {
-    for (const char* kind : {"pile", "explosion", "collapse", "brownian", "gravity"}) {
-        SceneSettings s = physics(kind, 150, 6);
-        s.shape_set = std::string(kind) == "gravity" ? "assorted" : std::string(kind) == "brownian" ? "spheres" : "";
+    for (const char* generator : {"pile", "explosion", "collapse", "brownian", "gravity"}) {
+        SceneSettings s = physics(generator, 150, 6);
+        s.shape_set = std::string(generator) == "gravity"    ? "assorted"
+                      : std::string(generator) == "brownian" ? "spheres"
+                                                             : "";
         s.rays.per_frame = 100;
         s.rays.mix = parse_ray_mix("center,los,shots,inside,ground");
         const Recording r = generate_scene(s);
         for (const StructureInfo& info : structure_registry()) {
-            SCOPED_TRACE(std::string(kind) + " / " + info.name);
+            SCOPED_TRACE(std::string(generator) + " / " + info.name);
             test::expect_matches_ground_truth(r, info.name);
         }
     }

@@ -1,7 +1,7 @@
 // Game query presets (generators.h, query_preset_mix): each ray carries its mode's kind, the rays
 // start outside their agent, the same seed gives the same bytes, scenes without a preset keep their
 // bytes, the preset is recorded in the meta and shown by scene info; experiment entries take presets,
-// physics kinds and a time step, and refuse what does not apply, naming the JSON path.
+// physics generators and a time step, and refuse what does not apply, naming the JSON path.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -92,7 +92,7 @@ TEST(QueryPresets, EachRayCarriesItsModesKindAndStartsOutsideItsAgent) {
 
 TEST(QueryPresets, SinglePresetsAskOneKind) {
     SceneSettings s;
-    s.kind = "irregular";
+    s.generator = "irregular";
     s.objects = 300;
     s.frames = 2;
     s.rays.per_frame = 40;
@@ -115,19 +115,19 @@ TEST(QueryPresets, SinglePresetsAskOneKind) {
 
 TEST(QueryPresets, SameSeedSameBytesAndScenesWithoutAPresetKeepTheirFormat) {
     const test::TempDir dir("presets");
-    for (const char* kind : {"irregular", "brownian"}) {
+    for (const char* generator : {"irregular", "brownian"}) {
         SceneSettings s;
-        s.kind = kind;
+        s.generator = generator;
         s.objects = 200;
         s.frames = 3;
         s.seed = 11;
         s.rays = with_query_preset(s.rays, "game");
         write_recording(generate_scene(s), dir.file("a.rcbscene"));
         write_recording(generate_scene(s), dir.file("b.rcbscene"));
-        EXPECT_EQ(file_bytes(dir.file("a.rcbscene")), file_bytes(dir.file("b.rcbscene"))) << kind;
+        EXPECT_EQ(file_bytes(dir.file("a.rcbscene")), file_bytes(dir.file("b.rcbscene"))) << generator;
         s.seed = 12;
         write_recording(generate_scene(s), dir.file("b.rcbscene"));
-        EXPECT_NE(file_bytes(dir.file("a.rcbscene")), file_bytes(dir.file("b.rcbscene"))) << kind;
+        EXPECT_NE(file_bytes(dir.file("a.rcbscene")), file_bytes(dir.file("b.rcbscene"))) << generator;
         // Without a preset: no kinds, no kind in the mix, no preset in the meta (the older bytes).
         s.rays = RaySettings{};
         const Recording plain = generate_scene(s);
@@ -139,7 +139,7 @@ TEST(QueryPresets, SameSeedSameBytesAndScenesWithoutAPresetKeepTheirFormat) {
 
 TEST(QueryPresets, PhysicsScenesAndBroadmarkRaysCarryTheirKinds) {
     SceneSettings s;
-    s.kind = "freefall";
+    s.generator = "freefall";
     s.objects = 100;
     s.frames = 2;
     s.rays.per_frame = 30;
@@ -201,13 +201,13 @@ TEST(QueryPresets, ExperimentEntriesTakePresetsPhysicsKindsAndTimeSteps) {
     EXPECT_EQ(experiment_error(R"({"generator": "pile", "objects": 10, "queries": "game", "ray_mix": "los"})"),
               "exp.json: scenes[0].ray_mix: a query preset (\"queries\") sets the ray modes and their kinds");
     EXPECT_EQ(experiment_error(R"({"generator": "uniform", "objects": 10, "time_step": 0.01})"),
-              "exp.json: scenes[0].time_step: only a physics kind (pile, collapse, explosion, brownian, freefall, "
+              "exp.json: scenes[0].time_step: only a physics generator (pile, collapse, explosion, brownian, freefall, "
               "gravity) takes a time step");
     EXPECT_EQ(experiment_error(R"({"generator": "pile", "objects": 10, "time_step": 1})")
                   .find("exp.json: scenes[0].time_step: expected a number in"),
               0u);
     EXPECT_EQ(experiment_error(R"({"generator": "pile", "objects": 10, "change_fraction": 0.1})"),
-              "exp.json: scenes[0].change_fraction: a physics kind (pile) moves by its simulation, not by "
+              "exp.json: scenes[0].change_fraction: a physics generator (pile) moves by its simulation, not by "
               "change_fraction");
     EXPECT_EQ(experiment_error(R"({"preset": "uni-s", "queries": "game", "seeds": [1]}, {"preset": "uni-s"})"), "");
 }

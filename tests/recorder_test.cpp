@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <sstream>
 
@@ -74,7 +75,8 @@ TEST_F(RecorderTest, RecordedFramesReadBackAsTheExpectedRecording) {
         EXPECT_TRUE(rec.closed());
     }
     EXPECT_EQ(read_recording(path()), expected);
-    EXPECT_FALSE(fs::exists(path() + ".tmp"));
+    // Nothing else is left in the folder: no temporary file.
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir_.path()), fs::directory_iterator{}), 1);
 }
 
 /// A generated scene (every kind of change, all ray modes), replayed call by call through the

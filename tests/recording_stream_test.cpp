@@ -30,6 +30,14 @@ std::string file_bytes(const std::string& path) {
     return s.str();
 }
 
+/// The names in `dir`, sorted.
+std::vector<std::string> names_in(const std::filesystem::path& dir) {
+    std::vector<std::string> names;
+    for (const fs::directory_entry& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+}
+
 /// A generated scene of `preset` with `frames` frames.
 Recording preset_scene(const char* preset, std::uint32_t frames) {
     SceneSettings s = preset_settings(preset);
@@ -113,15 +121,15 @@ TEST(RecordingStream, AFrameThatNeedsAHigherVersionRewritesTheFileSoFar) {
 
 TEST(RecordingStream, StreamedGenerationGivesTheSameBytesAsTheWholeRecording) {
     const test::TempDir dir("stream");
-    for (const std::string kind : {"brownian", "pile", "gravity"}) {
-        SCOPED_TRACE(kind);
+    for (const std::string generator : {"brownian", "pile", "gravity"}) {
+        SCOPED_TRACE(generator);
         SceneSettings s;
-        s.kind = kind;
+        s.generator = generator;
         s.objects = 300;
         s.frames = 12;
         s.seed = 5;
         s.rays.per_frame = 30;
-        const std::string path = dir.file(kind + ".rcbscene");
+        const std::string path = dir.file(generator + ".rcbscene");
         RecordingWriter w(path);
         stream_scene(s, w);
         w.finish();
@@ -137,7 +145,7 @@ TEST(RecordingStream, StreamedGenerationGivesTheSameBytesAsTheWholeRecording) {
 
 TEST(RecordingStream, APhysicsRunRecordsEachFrameAsGenerationDoes) {
     SceneSettings s;
-    s.kind = "freefall";
+    s.generator = "freefall";
     s.objects = 200;
     s.frames = 8;
     s.rays.per_frame = 10;
@@ -190,7 +198,7 @@ TEST(RecordingStream, AnUnfinishedOrRefusedWriterLeavesNoFile) {
         EXPECT_TRUE(fs::exists(w.temporary_path()));
     }  // destroyed before finish(): an interrupted generation
     EXPECT_EQ(file_bytes(path), "an existing file");
-    EXPECT_FALSE(fs::exists(path + ".tmp"));
+    EXPECT_EQ(names_in(dir.path()), std::vector<std::string>{"keep.rcbscene"});  // no temporary file left
     // A frame the reader would reject: refused naming the frame, nothing left behind.
     RecordingWriter w(path);
     w.begin(r.meta, r.initial);
@@ -202,6 +210,34 @@ TEST(RecordingStream, AnUnfinishedOrRefusedWriterLeavesNoFile) {
     EXPECT_FALSE(fs::exists(w.temporary_path()));
     test::expect_input_error([&] { w.finish(); }, "after an error");
     EXPECT_EQ(file_bytes(path), "an existing file");
+}
+
+TEST(RecordingStream, TheTemporaryFileNeverTakesAUsersFile) {
+    // The writer's temporary file is hidden and of a name unique in the folder, made when the
+    // recording begins: a file of the user's named "<path>.tmp" is left as it was, through a
+    // version upgrade (a second temporary file), a finished recording and an abandoned one.
+    const test::TempDir dir("stream");
+    const std::string path = dir.file("r.rcbscene");
+    std::ofstream(path + ".tmp") << "the user's notes";
+    Recording r = preset_scene("uni-s", 3);
+    r.frames[1].kinds.assign(r.frames[1].rays.size(), QueryKind::closest);  // version 1, then 3
+    {
+        RecordingWriter w(path);
+        EXPECT_EQ(w.temporary_path(), "");
+        w.begin(r.meta, r.initial);
+        const fs::path tmp = w.temporary_path();
+        EXPECT_EQ(tmp.parent_path(), dir.path());
+        EXPECT_EQ(tmp.filename().string().rfind(".r.rcbscene.", 0), 0u) << tmp;
+        w.frame(r.frames[0]);
+        w.frame(r.frames[1]);
+        EXPECT_EQ(w.version(), 3u);
+        EXPECT_EQ(names_in(dir.path()), (std::vector<std::string>{tmp.filename().string(), "r.rcbscene.tmp"}));
+    }  // abandoned
+    EXPECT_EQ(names_in(dir.path()), std::vector<std::string>{"r.rcbscene.tmp"});
+    write_streamed(r, path);
+    EXPECT_EQ(read_recording(path), r);
+    EXPECT_EQ(file_bytes(path + ".tmp"), "the user's notes");
+    EXPECT_EQ(names_in(dir.path()), (std::vector<std::string>{"r.rcbscene", "r.rcbscene.tmp"}));
 }
 
 TEST(RecordingStream, StreamedScenesAreBoundedByOneFrameAndTheFile) {
@@ -234,7 +270,7 @@ TEST_F(SceneGenCli, StreamsTheSameFileAndRefusesInOneLine) {
     ASSERT_EQ(ok.code, 0) << ok.err;
     EXPECT_NE(ok.out.find("500 objects, 10 frames, 200 rays"), std::string::npos) << ok.out;
     SceneSettings s;
-    s.kind = "brownian";
+    s.generator = "brownian";
     s.objects = 500;
     s.frames = 10;
     s.seed = 3;
@@ -263,9 +299,12 @@ TEST_F(SceneGenCli, AKilledGenerationLeavesTheNameUntouched) {
         run("scene gen --generator brownian --objects 2000 --frames 100000 --rays 10 -o " + out, o);
     EXPECT_TRUE(r.timed_out) << r.code << " " << r.err;
     EXPECT_EQ(file_bytes(out), "before");
-    ASSERT_TRUE(fs::exists(out + ".tmp"));
+    // The frames so far are in the hidden temporary file beside it, ".k.rcbscene.XXXXXX".
+    const std::vector<std::string> names = names_in(fs::path(out).parent_path());
+    ASSERT_EQ(names.size(), 2u);
+    ASSERT_EQ(names[0].rfind(".k.rcbscene.", 0), 0u) << names[0];
     // More than the header and frame 0's 2000 objects (29 bytes each or more): frames are on disk.
-    EXPECT_GT(fs::file_size(out + ".tmp"), 2000u * 29 + 1000);
+    EXPECT_GT(fs::file_size(fs::path(out).parent_path() / names[0]), 2000u * 29 + 1000);
 }
 
 }  // namespace

@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 
 #include "core/base/error.h"
 #include "core/scene/generate/generators.h"
@@ -21,6 +23,16 @@ Recording small_recording() {
     return generate_scene(s);
 }
 
+std::string file_bytes(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+/// How many files the folder holds.
+std::size_t entries(const test::TempDir& dir) {
+    return std::size_t(std::distance(std::filesystem::directory_iterator(dir.path()), {}));
+}
+
 std::string error_of(const std::string& bytes) {
     return test::input_error_of([&] { decode_recording(bytes, "scene.rcbscene"); });
 }
@@ -33,7 +45,29 @@ TEST(Recording, RoundTripsThroughAFile) {
     const std::string path = dir.file("r.rcbscene");
     write_recording(r, path);
     EXPECT_EQ(read_recording(path), r);
-    EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+    EXPECT_EQ(entries(dir), 1u);  // no temporary file left
+}
+
+TEST(Recording, WritingLeavesTheUsersOtherFilesAlone) {
+    // The temporary file has a name of its own, unique in the folder: a file of the user's named
+    // like a temporary file ("<path>.tmp") is neither written over nor removed.
+    const Recording r = small_recording();
+    const test::TempDir dir("recording", "neighbours");
+    const std::string path = dir.file("r.rcbscene");
+    std::ofstream(path + ".tmp") << "the user's notes";
+    write_recording(r, path);
+    EXPECT_EQ(read_recording(path), r);
+    EXPECT_EQ(file_bytes(path + ".tmp"), "the user's notes");
+    write_recording(r, path);  // over an existing recording too
+    EXPECT_EQ(file_bytes(path + ".tmp"), "the user's notes");
+    EXPECT_EQ(entries(dir), 2u);
+    // Refused: nothing is written, the user's file stays.
+    Recording bad = r;
+    bad.initial[1].uid = bad.initial[0].uid;
+    EXPECT_THROW(write_recording(bad, path), InputError);
+    EXPECT_EQ(file_bytes(path + ".tmp"), "the user's notes");
+    EXPECT_EQ(read_recording(path), r);
+    EXPECT_EQ(entries(dir), 2u);
 }
 
 TEST(Recording, HeaderIsLittleEndianAndVersioned) {
@@ -164,7 +198,7 @@ TEST(Recording, TheWriterRefusesWhatTheReaderWouldReject) {
               0u)
         << m;
     EXPECT_FALSE(std::filesystem::exists(path));
-    EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+    EXPECT_EQ(entries(dir), 0u);  // no temporary file either
     Recording dup = small_recording();
     dup.initial[1].uid = dup.initial[0].uid;
     EXPECT_THROW(write_recording(dup, path), InputError);

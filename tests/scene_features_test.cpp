@@ -18,9 +18,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-Recording scene(const std::string& kind, std::uint32_t objects, std::uint64_t seed) {
+Recording scene(const std::string& generator, std::uint32_t objects, std::uint64_t seed) {
     SceneSettings s;
-    s.kind = kind;
+    s.generator = generator;
     s.objects = objects;
     s.seed = seed;
     s.frames = 3;
@@ -102,7 +102,7 @@ TEST(DerivedCategories, OneCategoryWhenTheScenesDoNotDiffer) {
     std::vector<SceneFeatures> f;
     for (std::uint64_t seed : {1, 2, 3, 4}) f.push_back(compute_scene_features(scene("uniform", 1500, seed)));
     // Seeds of one generator differ only by noise; the scaling magnifies it, so a structureless
-    // group must not be split: every scene here is the same kind and size.
+    // group must not be split: every scene here has the same generator and size.
     const SceneClustering c = cluster_scenes(f, {}, 1);
     ASSERT_EQ(c.categories.size(), 1u) << c.rule;
     EXPECT_EQ(c.categories[0].members.size(), 4u);

@@ -31,9 +31,9 @@ namespace {
 constexpr std::uint64_t GOLDEN_UNI_S = 0x7f53b5b315db6a4eull;
 constexpr std::uint64_t GOLDEN_IRREG_M = 0x9ea4eec6a0684108ull;
 
-SceneSettings failure_scene(const std::string& kind, std::uint32_t objects, std::uint32_t frames,
+SceneSettings failure_scene(const std::string& generator, std::uint32_t objects, std::uint32_t frames,
                             std::uint64_t seed = 1) {
-    SceneSettings s = preset_settings(kind + "-s");
+    SceneSettings s = preset_settings(generator + "-s");
     s.objects = objects;
     s.frames = frames;
     s.seed = seed;
@@ -66,24 +66,24 @@ std::uint64_t box_tests(const SimulationResult& res) {
 }
 
 TEST(Stability, FailureModePresetsExistAndAreDeterministic) {
-    for (const std::string& kind : failure_mode_kinds()) {
+    for (const std::string& generator : failure_mode_generators()) {
         for (const char* size : {"-s", "-m"}) {
-            const SceneSettings s = preset_settings(kind + size);
-            EXPECT_EQ(s.kind, kind);
+            const SceneSettings s = preset_settings(generator + size);
+            EXPECT_EQ(s.generator, generator);
             EXPECT_EQ(s.objects, size[1] == 's' ? 1000u : 10000u);
         }
-        SceneSettings s = failure_scene(kind, 500, 3);
+        SceneSettings s = failure_scene(generator, 500, 3);
         const std::string a = encode_recording(generate_scene(s));
-        EXPECT_EQ(a, encode_recording(generate_scene(s))) << kind;
+        EXPECT_EQ(a, encode_recording(generate_scene(s))) << generator;
         s.seed = 2;
-        EXPECT_NE(a, encode_recording(generate_scene(s))) << kind;
-        EXPECT_EQ(generate_objects(s).size(), 500u) << kind;
+        EXPECT_NE(a, encode_recording(generate_scene(s))) << generator;
+        EXPECT_EQ(generate_objects(s).size(), 500u) << generator;
     }
     EXPECT_THROW(preset_settings("stadium-l"), InputError);
     EXPECT_NO_THROW(parse_ray_mix("faces"));
 }
 
-/// The thesis presets' recordings are unchanged by the failure-mode kinds and the faces mode
+/// The thesis presets' recordings are unchanged by the failure-mode generators and the faces mode
 /// (hashes from the generator before the failure modes, commit 630a7f7; a change here changes every stored
 /// result's scene).
 TEST(Stability, ThesisPresetsAreByteIdentical) {
@@ -97,7 +97,9 @@ TEST(Stability, ThesisPresetsAreByteIdentical) {
 }
 
 TEST(Stability, FailureModeScenesHaveTheirShape) {
-    const auto objects = [](const std::string& kind) { return generate_objects(failure_scene(kind, 2000, 1)); };
+    const auto objects = [](const std::string& generator) {
+        return generate_objects(failure_scene(generator, 2000, 1));
+    };
     {  // stadium: one box with 1000× the cluster's extent
         const auto o = objects("stadium");
         float longest = 0;
@@ -147,8 +149,8 @@ TEST(Stability, FailureModeScenesHaveTheirShape) {
 
 /// "inside" rays start inside (or on) a live object's box and leave the scene's bounds.
 TEST(Stability, InsideRaysStartAmongTheObjects) {
-    for (const char* kind : {"outlier", "same-centroid", "nested"}) {
-        SceneSettings s = failure_scene(kind, 800, 2);
+    for (const char* generator : {"outlier", "same-centroid", "nested"}) {
+        SceneSettings s = failure_scene(generator, 800, 2);
         s.rays.mix = parse_ray_mix("inside");
         const Recording r = generate_scene(s);
         LiveSet live(r.initial);
@@ -160,8 +162,8 @@ TEST(Stability, InsideRaysStartAmongTheObjects) {
                 const bool inside = std::any_of(live.objects().begin(), live.objects().end(), [&](const Object& o) {
                     return o.box.contains(Aabb{ray.p0, ray.p0});
                 });
-                EXPECT_TRUE(inside) << kind;
-                EXPECT_FALSE(bounds.contains(Aabb{ray.p1, ray.p1})) << kind;
+                EXPECT_TRUE(inside) << generator;
+                EXPECT_FALSE(bounds.contains(Aabb{ray.p1, ray.p1})) << generator;
             }
         }
     }
@@ -170,14 +172,14 @@ TEST(Stability, InsideRaysStartAmongTheObjects) {
 /// Every registered structure (peers included), at its defaults and with every guard off, gives the
 /// brute-force answers on every failure mode, with check() after every frame.
 TEST(Stability, EveryStructureIsExactOnEveryFailureMode) {
-    for (const std::string& kind : failure_mode_kinds()) {
-        const Recording r = generate_scene(failure_scene(kind, 700, 4, 3));
+    for (const std::string& generator : failure_mode_generators()) {
+        const Recording r = generate_scene(failure_scene(generator, 700, 4, 3));
         for (const StructureInfo& info : structure_registry())
-            test::expect_matches_ground_truth(r, info.name, {}, kind);
-        test::expect_matches_ground_truth(r, "ug", {{"outlier_guard", false}}, kind);
-        test::expect_matches_ground_truth(r, "hg", {{"outlier_guard", false}, {"entries_guard", false}}, kind);
-        test::expect_matches_ground_truth(r, "lbvh", {{"outlier_guard", false}}, kind);
-        test::expect_matches_ground_truth(r, "dbvh", {{"sah_guard", 0}}, kind);
+            test::expect_matches_ground_truth(r, info.name, {}, generator);
+        test::expect_matches_ground_truth(r, "ug", {{"outlier_guard", false}}, generator);
+        test::expect_matches_ground_truth(r, "hg", {{"outlier_guard", false}, {"entries_guard", false}}, generator);
+        test::expect_matches_ground_truth(r, "lbvh", {{"outlier_guard", false}}, generator);
+        test::expect_matches_ground_truth(r, "dbvh", {{"sah_guard", 0}}, generator);
     }
 }
 
@@ -294,11 +296,11 @@ TEST(Stability, DynamicBvhSahGuard) {
     EXPECT_LT(mean_cost(eager), mean_cost(off));
 }
 
-/// A crowd scene: `kind` with `objects`, a few frames of 5% changes, rays that start inside boxes
+/// A crowd scene: `generator` with `objects`, a few frames of 5% changes, rays that start inside boxes
 /// (inside every box of a nested stack for "shots": they start at object centres), along faces,
 /// and from the centre.
-Recording crowd_scene(const std::string& kind, std::uint32_t objects, std::uint32_t frames) {
-    SceneSettings s = failure_scene(kind, objects, frames, 5);
+Recording crowd_scene(const std::string& generator, std::uint32_t objects, std::uint32_t frames) {
+    SceneSettings s = failure_scene(generator, objects, frames, 5);
     s.rays.per_frame = 200;
     s.rays.mix = parse_ray_mix("inside:1,shots:1,faces:1,center:1");
     return generate_scene(s);
@@ -311,16 +313,16 @@ std::uint64_t stat(const SimulationResult& res, const char* key) {
 /// Boxes that share a point: every structure stays exact at its defaults and with each crowd guard
 /// off (check() after every frame), and each guard says that it fired, and only when on.
 TEST(Stability, CrowdGuardsStayExactAndReportFiring) {
-    for (const char* kind : {"nested", "same-centroid"}) {
-        const Recording r = crowd_scene(kind, 1500, 3);
+    for (const char* generator : {"nested", "same-centroid"}) {
+        const Recording r = crowd_scene(generator, 1500, 3);
         for (const StructureInfo& info : structure_registry())
-            test::expect_matches_ground_truth(r, info.name, {}, kind);
-        test::expect_matches_ground_truth(r, "ug", {{"max_cells", 0}}, kind);
-        test::expect_matches_ground_truth(r, "hg", {{"max_cells", 0}}, kind);
-        test::expect_matches_ground_truth(r, "hg", {{"max_cells", 1}, {"max_depth", 4}}, kind);
-        test::expect_matches_ground_truth(r, "lbvh", {{"crowd_guard", false}}, kind);
-        test::expect_matches_ground_truth(r, "dbvh", {{"crowd_guard", false}, {"height_guard", false}}, kind);
-        test::expect_matches_ground_truth(r, "dbvh", {{"mode", "rebuild"}}, kind);
+            test::expect_matches_ground_truth(r, info.name, {}, generator);
+        test::expect_matches_ground_truth(r, "ug", {{"max_cells", 0}}, generator);
+        test::expect_matches_ground_truth(r, "hg", {{"max_cells", 0}}, generator);
+        test::expect_matches_ground_truth(r, "hg", {{"max_cells", 1}, {"max_depth", 4}}, generator);
+        test::expect_matches_ground_truth(r, "lbvh", {{"crowd_guard", false}}, generator);
+        test::expect_matches_ground_truth(r, "dbvh", {{"crowd_guard", false}, {"height_guard", false}}, generator);
+        test::expect_matches_ground_truth(r, "dbvh", {{"mode", "rebuild"}}, generator);
     }
     const Recording r = crowd_scene("nested", 1500, 3);
     // Grids: the boxes as large as the scene are kept in the list of large objects.
@@ -352,28 +354,28 @@ TEST(Stability, CrowdGuardsStayExactAndReportFiring) {
 /// of a crowd the segment starts in, and a grid tests a box as large as the scene in every cell
 /// it crosses.
 TEST(Stability, WorkOnCrowdScenesIsBoundedByBruteForce) {
-    for (const char* kind : {"nested", "same-centroid"}) {
-        const Recording r = crowd_scene(kind, 3000, 2);
+    for (const char* generator : {"nested", "same-centroid"}) {
+        const Recording r = crowd_scene(generator, 3000, 2);
         const std::uint64_t bf = box_tests(counted(r, "bf", {}));
         for (const char* name : {"ug", "hg", "dbvh", "lbvh"}) {
             const SimulationResult res = counted(r, name, {});
             std::uint64_t work = 0;
             for (const FrameResult& f : res.frames) work += f.counters.n_t + f.counters.n_rb;
-            std::printf("%s %s: work %.2f x brute force's box tests\n", kind, name, double(work) / double(bf));
-            EXPECT_LE(work, bf + bf / 4) << kind << ' ' << name << ": work " << work << ", brute force " << bf;
+            std::printf("%s %s: work %.2f x brute force's box tests\n", generator, name, double(work) / double(bf));
+            EXPECT_LE(work, bf + bf / 4) << generator << ' ' << name << ": work " << work << ", brute force " << bf;
         }
         // Entries: an object below the large-object limit is in at most 27 cells; the hash grid adds
         // its budget of 16 per object below the top grid.
         const std::uint64_t n = r.initial.size() + 100;  // live objects stay near the initial count
-        EXPECT_LE(stat(counted(r, "ug", {}), "entries"), 27 * n) << kind;
-        EXPECT_LE(stat(counted(r, "hg", {}), "entries"), (27 + 16) * n) << kind;
+        EXPECT_LE(stat(counted(r, "ug", {}), "entries"), 27 * n) << generator;
+        EXPECT_LE(stat(counted(r, "hg", {}), "entries"), (27 + 16) * n) << generator;
     }
 }
 
 /// 10 000 frames of churn on a small scene, every structure verified and validated every frame.
 TEST(Stability, LongChurnStaysExact) {
     SceneSettings s;
-    s.kind = "irregular";
+    s.generator = "irregular";
     s.objects = 120;
     s.frames = 10000;
     s.seed = 9;
@@ -391,7 +393,7 @@ TEST(Stability, LongChurnStaysExact) {
 }
 
 /// The report's "Where methods fail" section, end to end through the CLI: failure scenes found by
-/// their kind, each configuration's correctness and its cost against brute force and the benign
+/// their generator, each configuration's correctness and its cost against brute force and the benign
 /// scene of the same size.
 TEST(Stability, ReportShowsWhereMethodsFail) {
     namespace fs = std::filesystem;

@@ -120,12 +120,12 @@ void random_change(Random& rng, std::vector<Object>& live, Uid& next, float worl
     }
 }
 
-SceneSpec generated_spec(const std::string& name, const std::string& kind, std::uint32_t objects, std::uint32_t frames,
-                         std::uint32_t rays, const nlohmann::json& key) {
+SceneSpec generated_spec(const std::string& name, const std::string& generator, std::uint32_t objects,
+                         std::uint32_t frames, std::uint32_t rays, const nlohmann::json& key) {
     SceneSpec s;
     s.name = name;
     s.source = SceneSpec::Source::generated;
-    s.settings.kind = kind;
+    s.settings.generator = generator;
     s.settings.objects = objects;
     s.settings.frames = frames;
     s.settings.rays.per_frame = rays;

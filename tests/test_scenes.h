@@ -46,10 +46,10 @@ void random_change(Random& rng, std::vector<Object>& live, Uid& next, float worl
 /// A segment with both ends uniform in [-5, world + 5)³.
 Segment random_segment(Random& rng, float world);
 
-/// A generated scene of `kind` named `name` as an experiment's or a tuning's scene: `objects`,
+/// A generated scene of `generator` named `name` as an experiment's or a tuning's scene: `objects`,
 /// `frames` of `rays` each; `key` tells its recording apart in the scene cache.
-SceneSpec generated_spec(const std::string& name, const std::string& kind, std::uint32_t objects, std::uint32_t frames,
-                         std::uint32_t rays, const nlohmann::json& key);
+SceneSpec generated_spec(const std::string& name, const std::string& generator, std::uint32_t objects,
+                         std::uint32_t frames, std::uint32_t rays, const nlohmann::json& key);
 
 /// Exact reference for the segment–box test: the set of t in [0, 1] with p0 + t·d inside the box,
 /// per axis, by case analysis in double (no reciprocals, no NaN handling).

@@ -100,10 +100,10 @@ TEST(WideBvh, MatchesGroundTruthOnEveryHardSceneWithChosenParams) {
 }
 
 TEST(WideBvh, MatchesGroundTruthOnGeneratedScenes) {
-    for (const char* kind : {"uniform", "irregular"})
+    for (const char* generator : {"uniform", "irregular"})
         for (const nlohmann::json& p : wbvh_param_sets(99)) {
-            const Recording r = test::generated_scene(kind, 600, 12, 7, 0.2);
-            test::expect_matches_ground_truth(r, "wbvh", p, kind);
+            const Recording r = test::generated_scene(generator, 600, 12, 7, 0.2);
+            test::expect_matches_ground_truth(r, "wbvh", p, generator);
         }
 }
 

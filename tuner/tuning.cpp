@@ -113,7 +113,7 @@ MeasuredCost summarise(const std::vector<SimulationResult>& runs, std::size_t sc
 std::string category_of(const SceneSpec& s) {
     if (s.source == SceneSpec::Source::import) return "import";
     if (s.source == SceneSpec::Source::recording) return "recording";
-    return s.settings.kind;
+    return s.settings.generator;
 }
 
 std::vector<json> levels_for(const ParamSpec& p) {
@@ -492,7 +492,7 @@ namespace {
 std::optional<CostCoefficients> chosen_coefficients(const std::vector<StructureModels>& models) {
     const CandidateModel* model = models.empty() ? nullptr : models.front().chosen("raycast");
     if (!model) return std::nullopt;
-    // A per-category model (a tuning category of several scene kinds): the first category's terms.
+    // A per-category model (a tuning category of several scene generators): the first category's terms.
     CostCoefficients c = CostCoefficients::from_fit(model->fit.coefficients, "");
     c.model = model->name + " (held-out error " + std::to_string(int(std::lround(100 * model->heldout_error))) + "%, " +
               model->fit.status() + ")";

@@ -64,6 +64,21 @@ struct TempFile {
     }
 };
 
+/// A new hidden file beside `target`, unique in its folder, open for writing (mode 0644); its path
+/// goes to `made`. InputError naming `path` when the folder cannot be written.
+int make_temporary(const fs::path& target, const std::string& path, std::string& made) {
+    std::error_code ec;
+    fs::create_directories(target.parent_path(), ec);  // a failure shows as mkstemp's below
+    // Hidden, unique per process, in the target's folder (rename is atomic within one file system).
+    // ("dir/." then the name: GCC 12 warns falsely, -Wrestrict, on "." + std::string&&.)
+    std::string pattern = (target.parent_path() / ".").concat(target.filename().string() + ".XXXXXX").string();
+    const int fd = ::mkstemp(pattern.data());
+    if (fd < 0) throw InputError(path + ": cannot write here (" + std::strerror(errno) + ")");
+    ::fchmod(fd, 0644);
+    made = pattern;
+    return fd;
+}
+
 void write_all(int fd, std::string_view bytes, const std::string& path) {
     for (std::size_t done = 0; done < bytes.size();) {
         const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
@@ -87,15 +102,8 @@ void write_file_atomically(const std::string& path, std::string_view bytes) {
         return;
     }
     const fs::path target = write_target(path);
-    fs::create_directories(target.parent_path(), ec);  // a failure shows as mkstemp's below
-    // Hidden, unique per process, in the target's folder (rename is atomic within one file system).
-    // ("dir/." then the name: GCC 12 warns falsely, -Wrestrict, on "." + std::string&&.)
-    std::string pattern = (target.parent_path() / ".").concat(target.filename().string() + ".XXXXXX").string();
     TempFile tmp;
-    tmp.fd = ::mkstemp(pattern.data());
-    if (tmp.fd < 0) throw InputError(path + ": cannot write here (" + std::strerror(errno) + ")");
-    tmp.path = pattern;
-    ::fchmod(tmp.fd, 0644);
+    tmp.fd = make_temporary(target, path, tmp.path);
     write_all(tmp.fd, bytes, path);
     if (::fsync(tmp.fd) != 0 && errno != EINVAL)
         throw std::runtime_error(path + ": write failed (" + std::strerror(errno) + ")");
@@ -107,6 +115,17 @@ void write_file_atomically(const std::string& path, std::string_view bytes) {
     if (::rename(tmp.path.c_str(), target.c_str()) != 0)
         throw InputError(path + ": cannot replace it (" + std::strerror(errno) + ")");
     tmp.path.clear();
+}
+
+std::string create_temporary_file_for(const std::string& path) {
+    std::string made;
+    ::close(make_temporary(write_target(path), path, made));
+    return made;
+}
+
+void replace_with_temporary_file(const std::string& temporary, const std::string& path) {
+    if (::rename(temporary.c_str(), write_target(path).c_str()) != 0)
+        throw InputError(path + ": cannot replace it (" + std::strerror(errno) + ")");
 }
 
 }  // namespace rcb

@@ -23,4 +23,13 @@ void check_output_path(const std::string& path, const std::vector<std::string>& 
 /// folder cannot be written (a bad output path), std::runtime_error when writing fails (disk full, I/O).
 void write_file_atomically(const std::string& path, std::string_view bytes);
 
+/// The temporary file write_file_atomically writes, for a writer that streams into it: a new
+/// empty file in the folder of the file `path` names (missing folders created), hidden and of a
+/// name unique there (mkstemp never opens a file that exists, so no file of the user's is ever
+/// written over), mode 0644; returns its path. InputError when the folder cannot be written.
+std::string create_temporary_file_for(const std::string& path);
+/// Renames `temporary` (create_temporary_file_for's) over the file `path` names (through a
+/// symbolic link, the file it names), as write_file_atomically does. InputError when it cannot.
+void replace_with_temporary_file(const std::string& temporary, const std::string& path);
+
 }  // namespace rcb

@@ -8,12 +8,11 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <unordered_set>
 
 #include "core/base/error.h"
-#include "core/scene/recording_stream.h"
+#include "core/base/output_file.h"
+#include "core/scene/recording_sections.h"
 
 namespace rcb {
 namespace {
@@ -76,6 +75,10 @@ public:
 private:
     std::string out_;
 };
+
+}  // namespace
+
+namespace sections {
 
 /// Bounds-checked little-endian reads; running past the end is a truncated file.
 class Decoder {
@@ -149,15 +152,17 @@ private:
     std::string context_;
 };
 
+}  // namespace sections
+
+namespace {
+
+using sections::Decoder;
+
 /// Version 3's byte per ray; a frame whose rays are all `all` keeps no kinds (Frame::kinds).
 void read_kinds(Decoder& p, Frame& f) {
     f.kinds.resize(f.rays.size());
     for (QueryKind& k : f.kinds) k = QueryKind(p.u8());
     if (std::all_of(f.kinds.begin(), f.kinds.end(), [](QueryKind k) { return k == QueryKind::all; })) f.kinds.clear();
-}
-
-std::string frame_context(const std::string& name, std::size_t frame) {
-    return name + ": frame " + std::to_string(frame);
 }
 
 }  // namespace
@@ -206,7 +211,18 @@ void check_object(const Object& o, const std::string& context) {
     if (!problem.empty()) throw InputError(context + ": uid " + std::to_string(o.uid) + ": " + problem);
 }
 
-namespace {
+namespace sections {
+
+void refuse_missing_folder(const std::string& path) {
+    std::error_code ec;
+    const std::filesystem::path folder = std::filesystem::absolute(path, ec).parent_path();
+    if (!std::filesystem::is_directory(folder, ec))
+        throw InputError(path + ": cannot open for writing (no folder " + folder.string() + ")");
+}
+
+std::string frame_context(const std::string& name, std::size_t frame) {
+    return name + ": frame " + std::to_string(frame);
+}
 
 /// Validates one frame's changes against the live uid set and applies them to it.
 void refuse_invalid_frame(const Frame& f, std::unordered_set<Uid>& live, const std::string& context) {
@@ -254,31 +270,21 @@ std::unordered_set<Uid> refuse_invalid_initial(const std::vector<Object>& object
     return live;
 }
 
-}  // namespace
-
-void refuse_invalid_recording(const Recording& r, const std::string& name) {
-    std::unordered_set<Uid> live = refuse_invalid_initial(r.initial, name);
-    for (std::size_t i = 0; i < r.frames.size(); ++i)
-        refuse_invalid_frame(r.frames[i], live, frame_context(name, i + 1));
-}
-
 namespace {
 
 bool any_shaped(const std::vector<Object>& objects) {
     return std::any_of(objects.begin(), objects.end(), [](const Object& o) { return o.shape.kind != ShapeKind::box; });
 }
 
-/// The lowest version that holds frame 0's objects: 2 when one has a shape.
+}  // namespace
+
 std::uint32_t objects_version(const std::vector<Object>& objects) { return any_shaped(objects) ? 2 : 1; }
 
-/// The lowest version that holds one frame: 3 for a query kind other than `all`, 2 for a shape.
 std::uint32_t frame_version(const Frame& f) {
     if (std::any_of(f.kinds.begin(), f.kinds.end(), [](QueryKind k) { return k != QueryKind::all; })) return 3;
     return any_shaped(f.inserts) || any_shaped(f.moves) ? 2 : 1;
 }
 
-// The file's pieces, each encoded alone: encode_recording joins them, RecordingWriter appends them
-// one at a time, so both write the same bytes.
 std::string header_bytes(std::uint32_t version) {
     Encoder e;
     e.bytes(std::string(kMagic, sizeof kMagic));
@@ -326,58 +332,18 @@ std::string end_section() {
     return e.take();
 }
 
-}  // namespace
-
-std::uint32_t recording_version(const Recording& r) {
-    std::uint32_t version = objects_version(r.initial);
-    for (const Frame& f : r.frames) version = std::max(version, frame_version(f));
-    return version;
+std::string Reading::take(std::uint64_t n) {
+    const std::uint64_t count = std::min(n, size - pos);
+    std::string out(count, '\0');
+    in->read(out.data(), static_cast<std::streamsize>(count));
+    if (std::uint64_t(in->gcount()) != count)
+        throw InputError(name + ": truncated (cannot read " + std::to_string(count) + " bytes at offset " +
+                         std::to_string(pos) + ")");
+    pos += count;
+    return out;
 }
 
-std::string encode_recording(const Recording& r) {
-    const std::uint32_t version = recording_version(r);
-    std::string out = header_bytes(version) + meta_section(r.meta) + objects_section(r.initial, version);
-    for (std::size_t i = 0; i < r.frames.size(); ++i) out += frame_section(r.frames[i], i + 1, version);
-    return out + end_section();
-}
-
-/// The reading side of RecordingReader: sections pulled one at a time from a file or from bytes in
-/// memory, checked as they come. `unterminated` accepts a file that stops after a whole frame
-/// without END: RecordingWriter's temporary file, read back to raise its version.
-struct RecordingReader::State {
-    std::ifstream file;
-    std::istringstream memory;
-    std::istream* in = nullptr;
-    std::uint64_t size = 0, pos = 0;
-    std::string name;
-    bool unterminated = false;
-
-    std::uint32_t version = 0;
-    std::string meta;
-    std::vector<Object> initial;
-    std::unordered_set<Uid> live;
-    std::size_t frames_seen = 0;
-    enum class Expect { meta, objs, frames, done } expect = Expect::meta;
-
-    /// Up to n bytes from the current position (fewer at the end of the input).
-    std::string take(std::uint64_t n) {
-        const std::uint64_t count = std::min(n, size - pos);
-        std::string out(count, '\0');
-        in->read(out.data(), static_cast<std::streamsize>(count));
-        if (std::uint64_t(in->gcount()) != count)
-            throw InputError(name + ": truncated (cannot read " + std::to_string(count) + " bytes at offset " +
-                             std::to_string(pos) + ")");
-        pos += count;
-        return out;
-    }
-    void read_header();
-    /// Reads one section; true when it was a frame (put in `frame`), false for META, OBJS and END.
-    bool section(Frame* frame);
-    void read_objects(Decoder& p, const std::string& where);
-    void read_frame(Decoder& p, std::uint64_t length, const std::string& where, Frame& f);
-};
-
-void RecordingReader::State::read_header() {
+void Reading::read_header() {
     const std::string head = take(sizeof kMagic + 8);
     Decoder header(head.data(), head.size(), name + ": header");
     if (head.size() < sizeof kMagic || std::memcmp(head.data(), kMagic, sizeof kMagic) != 0)
@@ -392,7 +358,7 @@ void RecordingReader::State::read_header() {
                          ")");
 }
 
-void RecordingReader::State::read_objects(Decoder& p, const std::string& where) {
+void Reading::read_objects(Decoder& p, const std::string& where) {
     std::uint32_t n = p.u32();
     const bool fits = version == 1 ? p.remaining() == std::uint64_t(n) * kObjectBytes
                                    : p.remaining() >= std::uint64_t(n) * kMinShapedObjectBytes;
@@ -404,7 +370,7 @@ void RecordingReader::State::read_objects(Decoder& p, const std::string& where) 
     live = refuse_invalid_initial(initial, name);
 }
 
-void RecordingReader::State::read_frame(Decoder& p, std::uint64_t length, const std::string& where, Frame& f) {
+void Reading::read_frame(Decoder& p, std::uint64_t length, const std::string& where, Frame& f) {
     std::uint32_t number = p.u32();
     if (number != frames_seen + 1)
         throw InputError(where + ": section carries frame number " + std::to_string(number) + " (out of order)");
@@ -430,7 +396,7 @@ void RecordingReader::State::read_frame(Decoder& p, std::uint64_t length, const 
     ++frames_seen;
 }
 
-bool RecordingReader::State::section(Frame* frame) {
+bool Reading::section(Frame* frame) {
     const std::uint64_t start = pos;
     if (start == size) {
         if (unterminated && expect == Expect::frames) {
@@ -477,202 +443,83 @@ bool RecordingReader::State::section(Frame* frame) {
     return false;
 }
 
-namespace {
+void Reading::read_prologue() {
+    read_header();
+    while (expect != Expect::frames) section(nullptr);
+}
 
-/// A reader state over the file at `path`, its header, META and OBJS read.
-std::unique_ptr<RecordingReader::State> open_reader(const std::string& path, bool unterminated) {
+std::unique_ptr<Reading> open_reading(const std::string& path, bool unterminated) {
     std::error_code ec;
     if (std::filesystem::is_directory(path, ec)) throw InputError(path + ": is a directory, not a scene recording");
-    auto state = std::make_unique<RecordingReader::State>();
-    state->file.open(path, std::ios::binary);
-    if (!state->file) throw InputError(path + ": cannot open (" + std::strerror(errno) + ")");
-    state->file.seekg(0, std::ios::end);
-    state->size = std::uint64_t(state->file.tellg());
-    state->file.seekg(0);
-    state->in = &state->file;
-    state->name = path;
-    state->unterminated = unterminated;
-    return state;
+    auto reading = std::make_unique<Reading>();
+    reading->file.open(path, std::ios::binary);
+    if (!reading->file) throw InputError(path + ": cannot open (" + std::strerror(errno) + ")");
+    reading->file.seekg(0, std::ios::end);
+    reading->size = std::uint64_t(reading->file.tellg());
+    reading->file.seekg(0);
+    reading->in = &reading->file;
+    reading->name = path;
+    reading->unterminated = unterminated;
+    return reading;
 }
 
-/// Reads the header, META and OBJS.
-void read_prologue(RecordingReader::State& s) {
-    s.read_header();
-    while (s.expect != RecordingReader::State::Expect::frames) s.section(nullptr);
+std::unique_ptr<Reading> memory_reading(const std::string& bytes, const std::string& name) {
+    auto reading = std::make_unique<Reading>();
+    reading->memory.str(bytes);
+    reading->in = &reading->memory;
+    reading->size = bytes.size();
+    reading->name = name;
+    return reading;
 }
 
-}  // namespace
+}  // namespace sections
 
-RecordingReader::RecordingReader(const std::string& path) : state_(open_reader(path, false)) { read_prologue(*state_); }
+void refuse_invalid_recording(const Recording& r, const std::string& name) {
+    std::unordered_set<Uid> live = sections::refuse_invalid_initial(r.initial, name);
+    for (std::size_t i = 0; i < r.frames.size(); ++i)
+        sections::refuse_invalid_frame(r.frames[i], live, sections::frame_context(name, i + 1));
+}
 
-RecordingReader::RecordingReader(std::unique_ptr<State> state) : state_(std::move(state)) { read_prologue(*state_); }
+std::uint32_t recording_version(const Recording& r) {
+    std::uint32_t version = sections::objects_version(r.initial);
+    for (const Frame& f : r.frames) version = std::max(version, sections::frame_version(f));
+    return version;
+}
 
-RecordingReader::~RecordingReader() = default;
-
-std::uint32_t RecordingReader::version() const { return state_->version; }
-const std::string& RecordingReader::meta() const { return state_->meta; }
-const std::vector<Object>& RecordingReader::initial() const { return state_->initial; }
-std::vector<Object> RecordingReader::take_initial() { return std::move(state_->initial); }
-
-bool RecordingReader::next(Frame& frame) {
-    while (state_->expect == State::Expect::frames)
-        if (state_->section(&frame)) return true;
-    return false;
+std::string encode_recording(const Recording& r) {
+    const std::uint32_t version = recording_version(r);
+    std::string out = sections::header_bytes(version) + sections::meta_section(r.meta) +
+                      sections::objects_section(r.initial, version);
+    for (std::size_t i = 0; i < r.frames.size(); ++i) out += sections::frame_section(r.frames[i], i + 1, version);
+    return out + sections::end_section();
 }
 
 namespace {
 
-/// Every frame of `reader` kept: the whole recording in memory.
-Recording read_all(RecordingReader& reader) {
+/// Every frame of `reading` kept: the whole recording in memory.
+Recording read_all(sections::Reading& reading) {
+    reading.read_prologue();
     Recording r;
-    r.meta = reader.meta();
-    r.initial = reader.take_initial();
-    Frame f;
-    while (reader.next(f)) r.frames.push_back(std::move(f));
+    r.meta = std::move(reading.meta);
+    r.initial = std::move(reading.initial);
+    for (Frame f; reading.section(&f);) r.frames.push_back(std::move(f));
     return r;
 }
 
 }  // namespace
 
 Recording decode_recording(const std::string& bytes, const std::string& name) {
-    auto state = std::make_unique<RecordingReader::State>();
-    state->memory.str(bytes);
-    state->in = &state->memory;
-    state->size = bytes.size();
-    state->name = name;
-    RecordingReader reader(std::move(state));
-    return read_all(reader);
+    return read_all(*sections::memory_reading(bytes, name));
 }
+
+Recording read_recording(const std::string& path) { return read_all(*sections::open_reading(path, false)); }
 
 void write_recording(const Recording& r, const std::string& path) {
     refuse_invalid_recording(r, path + " (not written)");
-    std::string bytes = encode_recording(r);
-    std::filesystem::path target(path);
-    std::filesystem::path tmp = target;
-    tmp += ".tmp";
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        if (!out) throw InputError(path + ": cannot open for writing");
-        out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-        out.flush();
-        if (!out) throw std::runtime_error(path + ": write failed");
-    }
-    std::error_code ec;
-    std::filesystem::rename(tmp, target, ec);
-    if (ec) throw std::runtime_error(path + ": cannot rename the temporary file into place: " + ec.message());
-}
-
-Recording read_recording(const std::string& path) {
-    RecordingReader reader(path);
-    return read_all(reader);
-}
-
-RecordingWriter::RecordingWriter(std::string path) : path_(std::move(path)), tmp_(path_ + ".tmp") {}
-
-RecordingWriter::~RecordingWriter() {
-    if (!finished_) discard();
-}
-
-void RecordingWriter::discard() noexcept {
-    if (out_.is_open()) out_.close();
-    std::error_code ec;
-    if (begun_) std::filesystem::remove(tmp_, ec);
-    failed_ = true;
-}
-
-void RecordingWriter::put(const std::string& bytes, bool flush) {
-    out_.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    if (flush) out_.flush();
-    if (!out_) {
-        const std::string why = std::strerror(errno);
-        discard();
-        throw std::runtime_error(path_ + ": write failed (" + why + "); nothing written");
-    }
-    bytes_ += bytes.size();
-}
-
-void RecordingWriter::begin(const std::string& meta, const std::vector<Object>& initial) {
-    if (begun_ || failed_ || finished_) throw InputError(path_ + ": the recording was begun already");
-    live_ = refuse_invalid_initial(initial, path_ + " (not written)");
-    out_.open(tmp_, std::ios::binary | std::ios::trunc);
-    if (!out_) throw InputError(path_ + ": cannot open for writing");
-    begun_ = true;
-    version_ = objects_version(initial);
-    objects_ = initial.size();
-    put(header_bytes(version_) + meta_section(meta) + objects_section(initial, version_), true);
-}
-
-void RecordingWriter::frame(const Frame& f) {
-    if (!begun_ || failed_ || finished_)
-        throw InputError(path_ + ": a frame given " + (begun_ ? "after an error or finish()" : "before begin()"));
-    try {
-        refuse_invalid_frame(f, live_, frame_context(path_ + " (not written)", frames_ + 1));
-    } catch (...) {
-        discard();
-        throw;
-    }
-    if (const std::uint32_t needed = frame_version(f); needed > version_) upgrade(needed);
-    // Flushed per frame: the file holds every whole frame given so far, and the writer keeps none.
-    put(frame_section(f, frames_ + 1, version_), true);
-    ++frames_;
-    rays_ += f.rays.size();
-}
-
-/// Re-encodes the temporary file at `version`: read back section by section (one frame at a
-/// time) into a second temporary file, which replaces it.
-void RecordingWriter::upgrade(std::uint32_t version) {
-    out_.close();
-    const std::string next = tmp_ + ".v" + std::to_string(version);
-    try {
-        auto state = open_reader(tmp_, true);
-        RecordingReader::State& in = *state;
-        read_prologue(in);
-        std::ofstream out(next, std::ios::binary | std::ios::trunc);
-        std::string bytes = header_bytes(version) + meta_section(in.meta) + objects_section(in.initial, version);
-        out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-        std::uint64_t total = bytes.size();
-        for (Frame f; in.section(&f);) {
-            bytes = frame_section(f, in.frames_seen, version);
-            out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-            total += bytes.size();
-        }
-        out.flush();
-        if (!out) throw std::runtime_error(std::strerror(errno));
-        out.close();
-        std::filesystem::rename(next, tmp_);
-        bytes_ = total;
-    } catch (const std::exception& e) {
-        std::error_code ec;
-        std::filesystem::remove(next, ec);
-        discard();
-        throw std::runtime_error(path_ + ": cannot rewrite the recording at version " + std::to_string(version) + " (" +
-                                 e.what() + "); nothing written");
-    }
-    version_ = version;
-    out_.open(tmp_, std::ios::binary | std::ios::app);
-    if (!out_) {
-        discard();
-        throw std::runtime_error(path_ + ": cannot reopen the temporary file; nothing written");
-    }
-}
-
-void RecordingWriter::finish() {
-    if (!begun_ || failed_ || finished_)
-        throw InputError(path_ + ": finish() " + (begun_ ? "after an error or a finish()" : "before begin()"));
-    put(end_section());
-    out_.flush();
-    out_.close();
-    if (!out_) {
-        discard();
-        throw std::runtime_error(path_ + ": write failed; nothing written");
-    }
-    std::error_code ec;
-    std::filesystem::rename(tmp_, path_, ec);
-    if (ec) {
-        discard();
-        throw std::runtime_error(path_ + ": cannot rename the temporary file into place: " + ec.message());
-    }
-    finished_ = true;
+    sections::refuse_missing_folder(path);
+    // A hidden temporary file of a unique name beside `path`, renamed over it when complete: a
+    // file of the user's, whatever its name, is never overwritten but `path` itself.
+    write_file_atomically(path, encode_recording(r));
 }
 
 }  // namespace rcb

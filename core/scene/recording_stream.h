@@ -16,6 +16,10 @@
 
 namespace rcb {
 
+namespace sections {
+struct Reading;  // recording_sections.h
+}  // namespace sections
+
 /// Where a scene goes as a generator makes it: the meta and frame 0's objects once, then each
 /// frame in order (numbered 1, 2, ...). A generator that streams into a sink keeps only the frame it
 /// is making, so the sink decides what is held: RecordingWriter (below) writes each frame
@@ -52,8 +56,9 @@ double streamed_file_bytes(double objects, double frames, double rays_per_frame,
 
 /// Writes a recording to `path` frame by frame, as a generator makes it (a SceneSink): each
 /// frame is validated (the reader's checks), encoded and appended to a temporary file beside `path`
-/// when frame() is called, so the writer holds no frame and a recording of any length is written
-/// in the memory of one frame. finish() appends END and renames the temporary file over `path`;
+/// (hidden, of a name unique in the folder: write_file_atomically's, core/base/output_file.h, so no
+/// file of the user's is written over) when frame() is called, so the writer holds no frame and a recording of any
+/// length is written in the memory of one frame. finish() appends END and renames the temporary file over `path`;
 /// destroyed unfinished (an error, an interrupted generation), the writer deletes the temporary
 /// file, and `path` is never touched. The bytes are encode_recording's for the same recording:
 /// the header's version is the lowest that holds every frame so far (recording_version), and the
@@ -66,7 +71,7 @@ public:
     RecordingWriter(const RecordingWriter&) = delete;
     RecordingWriter& operator=(const RecordingWriter&) = delete;
 
-    /// Opens the temporary file and writes the header, META and OBJS. InputError naming the path
+    /// Creates the temporary file and writes the header, META and OBJS. InputError naming the path
     /// for objects the reader would reject or a path that cannot be written.
     void begin(const std::string& meta, const std::vector<Object>& initial) override;
     /// Appends frame number frames() + 1. InputError "<path> (not written): frame N: ..." for a
@@ -76,7 +81,7 @@ public:
     void finish();
 
     const std::string& path() const { return path_; }
-    /// The temporary file the frames go to until finish().
+    /// The temporary file the frames go to until finish() (made by begin(); empty before).
     const std::string& temporary_path() const { return tmp_; }
     std::uint32_t frames() const { return frames_; }
     std::uint64_t rays() const { return rays_; }
@@ -118,12 +123,8 @@ public:
     /// Reads the next frame into `frame`; false once the END section is read (and nothing follows it).
     bool next(Frame& frame);
 
-    struct State;
-
 private:
-    explicit RecordingReader(std::unique_ptr<State> state);
-    friend Recording decode_recording(const std::string& bytes, const std::string& name);
-    std::unique_ptr<State> state_;
+    std::unique_ptr<sections::Reading> state_;
 };
 
 }  // namespace rcb

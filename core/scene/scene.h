@@ -96,6 +96,9 @@ private:
 inline constexpr std::uint64_t kMaxSceneObjects = std::uint64_t(1) << 26;
 inline constexpr std::uint64_t kMaxRecordingBytes = std::uint64_t(4) << 30;
 
+/// InputError "<where>: N objects, more than the limit of ..." beyond kMaxSceneObjects (NaN
+/// included): the bound both size checks (below, and recording_stream.h's) share.
+void check_object_count(double objects, const std::string& where);
 /// Bytes a recording of these counts takes in memory (about its file size).
 double recording_bytes(double objects, double frames, double rays_per_frame, double changes_per_frame);
 /// InputError "<where>: ..." naming the limit when a scene of these counts exceeds one of the bounds

@@ -416,22 +416,22 @@ std::vector<std::string> ray_mode_names() {
     return {"center", "dense", "los", "ground", "shots", "faces", "inside", "fire", "sight", "sensor"};
 }
 
-std::vector<std::string> scene_kinds() {
-    std::vector<std::string> kinds{"uniform",       "irregular", "jittered", "clusters", "stadium", "identical",
-                                   "same-centroid", "flat",      "slivers",  "outlier",  "nested"};
-    for (const std::string& k : physics_kinds()) kinds.push_back(k);
-    return kinds;
+std::vector<std::string> scene_generators() {
+    std::vector<std::string> generators{"uniform",       "irregular", "jittered", "clusters", "stadium", "identical",
+                                        "same-centroid", "flat",      "slivers",  "outlier",  "nested"};
+    for (const std::string& g : physics_generators()) generators.push_back(g);
+    return generators;
 }
 
-std::vector<std::string> failure_mode_kinds() {
+std::vector<std::string> failure_mode_generators() {
     return {"stadium", "identical", "same-centroid", "flat", "slivers", "outlier", "nested"};
 }
 
 std::vector<std::string> preset_names() {
     std::vector<std::string> names{"uni-s",    "uni-m",      "uni-l",      "irreg-s",    "irreg-m",    "irreg-l",
                                    "irreg-xl", "jittered-m", "jittered-l", "clusters-m", "clusters-l", "clusters-xl"};
-    for (const std::string& k : failure_mode_kinds())
-        for (const char* size : {"-s", "-m"}) names.push_back(k + size);
+    for (const std::string& g : failure_mode_generators())
+        for (const char* size : {"-s", "-m"}) names.push_back(g + size);
     return names;
 }
 
@@ -439,23 +439,23 @@ SceneSettings preset_settings(std::string_view name) {
     SceneSettings s;
     s.preset = std::string(name);
     const std::string n(name);
-    // Failure-mode presets: "<kind>-s" has 1 000 objects, "<kind>-m" 10 000.
-    for (const std::string& k : failure_mode_kinds()) {
-        if (n == k + "-s" || n == k + "-m") {
-            s.kind = k;
+    // Failure-mode presets: "<generator>-s" has 1 000 objects, "<generator>-m" 10 000.
+    for (const std::string& g : failure_mode_generators()) {
+        if (n == g + "-s" || n == g + "-m") {
+            s.generator = g;
             s.objects = n.back() == 's' ? 1000 : 10000;
             return s;
         }
     }
-    s.kind.clear();  // "x-l" is not a preset (SceneSettings' default kind must not make it one)
+    s.generator.clear();  // "x-l" is not a preset (SceneSettings' default generator must not make it one)
     if (n.rfind("uni-", 0) == 0)
-        s.kind = "uniform";
+        s.generator = "uniform";
     else if (n.rfind("irreg-", 0) == 0)
-        s.kind = "irregular";
+        s.generator = "irregular";
     else if (n.rfind("jittered-", 0) == 0 && n != "jittered-s")
-        s.kind = "jittered";
+        s.generator = "jittered";
     else if (n.rfind("clusters-", 0) == 0 && n != "clusters-s")
-        s.kind = "clusters";
+        s.generator = "clusters";
     const std::string size = n.substr(n.find('-') + 1);
     if (size == "s")
         s.objects = 99;
@@ -463,11 +463,11 @@ SceneSettings preset_settings(std::string_view name) {
         s.objects = 5104;
     else if (size == "l")
         s.objects = 14021;
-    else if (size == "xl" && (s.kind == "irregular" || s.kind == "clusters"))
+    else if (size == "xl" && (s.generator == "irregular" || s.generator == "clusters"))
         s.objects = 1'000'000;
     else
-        s.kind.clear();
-    if (n.find('-') == std::string::npos || s.kind.empty()) {
+        s.generator.clear();
+    if (n.find('-') == std::string::npos || s.generator.empty()) {
         throw InputError("unknown preset '" + n + "' (known: " + join(preset_names()) + ")");
     }
     return s;
@@ -635,18 +635,18 @@ namespace {
 
 std::vector<Object> generate_boxes(const SceneSettings& s) {
     Random rng(mix_seed(s.seed, kObjectStream));
-    if (s.kind == "uniform") return uniform_objects(s, rng);
-    if (s.kind == "irregular") return irregular_objects(s, rng);
-    if (s.kind == "jittered") return jittered_objects(s, rng);
-    if (s.kind == "clusters") return cluster_objects(s, rng);
-    if (s.kind == "stadium") return stadium_objects(s, rng);
-    if (s.kind == "identical") return stacked_objects(s, rng, true);
-    if (s.kind == "same-centroid") return stacked_objects(s, rng, false);
-    if (s.kind == "flat") return flat_objects(s, rng);
-    if (s.kind == "slivers") return sliver_objects(s, rng);
-    if (s.kind == "outlier") return outlier_objects(s, rng);
-    if (s.kind == "nested") return nested_objects(s, rng);
-    throw InputError("unknown scene kind '" + s.kind + "' (known: " + join(scene_kinds()) + ")");
+    if (s.generator == "uniform") return uniform_objects(s, rng);
+    if (s.generator == "irregular") return irregular_objects(s, rng);
+    if (s.generator == "jittered") return jittered_objects(s, rng);
+    if (s.generator == "clusters") return cluster_objects(s, rng);
+    if (s.generator == "stadium") return stadium_objects(s, rng);
+    if (s.generator == "identical") return stacked_objects(s, rng, true);
+    if (s.generator == "same-centroid") return stacked_objects(s, rng, false);
+    if (s.generator == "flat") return flat_objects(s, rng);
+    if (s.generator == "slivers") return sliver_objects(s, rng);
+    if (s.generator == "outlier") return outlier_objects(s, rng);
+    if (s.generator == "nested") return nested_objects(s, rng);
+    throw InputError("unknown scene generator '" + s.generator + "' (known: " + join(scene_generators()) + ")");
 }
 
 }  // namespace
@@ -658,9 +658,19 @@ std::array<float, 4> random_rotation(Random& rng) {
     return {float(b * std::cos(u3)), float(a * std::sin(u2)), float(a * std::cos(u2)), float(b * std::sin(u3))};
 }
 
-std::vector<Object> generate_objects(const SceneSettings& s) {
+SceneSettings with_generator(const SceneSettings& settings) {
+    SceneSettings s = settings;
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
+    if (!s.kind.empty()) s.generator = std::move(s.kind), s.kind.clear();
+#pragma GCC diagnostic pop
+    return s;
+}
+
+std::vector<Object> generate_objects(const SceneSettings& settings) {
+    const SceneSettings s = with_generator(settings);
     check_shapes(s.shapes);
-    if (is_physics_kind(s.kind)) {
+    if (is_physics_generator(s.generator)) {
         SceneSettings still = s;
         still.frames = 0;
         return generate_physics_scene(still).initial;
@@ -918,11 +928,13 @@ void add_rays(Recording& r, const RaySettings& rays, std::uint64_t seed) {
     }
 }
 
-nlohmann::json to_json(const SceneSettings& s) {
-    nlohmann::json j = {{"generator", "rcbench"}, {"kind", s.kind}, {"objects", s.objects}};
+nlohmann::json to_json(const SceneSettings& settings) {
+    const SceneSettings s = with_generator(settings);
+    nlohmann::json j = {{"generator", "rcbench"}, {"kind", s.generator}, {"objects", s.objects}};
     if (!s.preset.empty()) j["preset"] = s.preset;
-    if (is_physics_kind(s.kind)) j["time_step"] = physics_time_step(s);  // only there: other scenes' bytes stay
-    if (is_broadmark_kind(s.kind)) {
+    if (is_physics_generator(s.generator))
+        j["time_step"] = physics_time_step(s);  // only there: other scenes' bytes stay
+    if (is_broadmark_generator(s.generator)) {
         j["shape_set"] = s.shape_set.empty() ? "cubes" : s.shape_set;
         j["fill"] = s.fill > 0 ? s.fill : 0.1;
         j["arena"] = broadmark_arena_side(s.objects, s.fill);
@@ -935,16 +947,18 @@ nlohmann::json to_json(const SceneSettings& s) {
     return j;
 }
 
-void stream_scene(const SceneSettings& s, SceneSink& sink) {
-    if (is_physics_kind(s.kind)) return stream_physics_scene(s, sink);
+void stream_scene(const SceneSettings& settings, SceneSink& sink) {
+    const SceneSettings s = with_generator(settings);
+    if (is_physics_generator(s.generator)) return stream_physics_scene(s, sink);
     check_dynamics(s.dynamics);
     check_shapes(s.shapes);
     check_streamed_scene_size(s.objects, s.frames, s.rays.per_frame, s.objects * s.dynamics.change_fraction, "scene");
     stream_dynamics(generate_objects(s), s.dynamics, s.rays, s.frames, s.seed, to_json(s), sink);
 }
 
-Recording generate_scene(const SceneSettings& s) {
-    if (is_physics_kind(s.kind)) return generate_physics_scene(s);
+Recording generate_scene(const SceneSettings& settings) {
+    const SceneSettings s = with_generator(settings);
+    if (is_physics_generator(s.generator)) return generate_physics_scene(s);
     check_dynamics(s.dynamics);
     check_shapes(s.shapes);
     check_scene_size(s.objects, s.frames, s.rays.per_frame, s.objects * s.dynamics.change_fraction, "scene");

@@ -96,15 +96,19 @@ struct ShapeSettings {
     bool any() const { return rotated_share > 0 || sphere_share > 0 || capsule_share > 0; }
 };
 
+// The pragmas keep the deprecated `kind` below from warning in SceneSettings' own implicit
+// constructors (GCC warns there); code that names `kind` is still warned.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
 struct SceneSettings {
-    std::string kind = "irregular";  ///< one of scene_kinds()
+    std::string generator = "irregular";  ///< one of scene_generators()
     std::uint32_t objects = 14021;
     std::uint64_t seed = 1;
     std::uint32_t frames = 10;
-    /// Physics kinds (physics.h): seconds simulated per frame; 0 takes the kind's default
-    /// (physics_time_step: 1/60 for rcbench's kinds, Broadmark's 1/30 for its three).
+    /// Physics generators (physics.h): seconds simulated per frame; 0 takes the generator's
+    /// default (physics_time_step: 1/60 for rcbench's generators, Broadmark's 1/30 for its three).
     double time_step = 0;
-    /// Broadmark's kinds (brownian, freefall, gravity; physics.h): its object set, "cubes",
+    /// Broadmark's generators (brownian, freefall, gravity; physics.h): its object set, "cubes",
     /// "spheres" or "assorted" (empty: cubes), and the share of the arena's volume the objects'
     /// nominal unit volumes fill (0: Broadmark's 0.1).
     std::string shape_set;
@@ -113,28 +117,44 @@ struct SceneSettings {
     ShapeSettings shapes;
     RaySettings rays;
     std::string preset;  ///< the preset it came from, if any (recorded in the meta)
+    /// `generator`'s old name, kept for one release so that code written before the rename still
+    /// builds: when set, it names the generator in place of `generator` for every function here
+    /// that takes SceneSettings (with_generator). rcbench never sets it, so it reads empty. It goes
+    /// with the next release.
+    [[deprecated("use SceneSettings::generator")]] std::string kind = {};
 };
+#pragma GCC diagnostic pop
+
+/// `settings` with its deprecated `kind`, when set, moved into `generator`; the functions that take
+/// SceneSettings read their settings through it.
+SceneSettings with_generator(const SceneSettings& settings);
 
 /// The thesis' scenes (§6.1) by name: uni-s, uni-m, uni-l, irreg-s, irreg-m, irreg-l (99, 5 104
 /// and 14 021 objects), plus irreg-xl (1 000 000 objects). The peer-comparison scenes, harder than
 /// the thesis': jittered-m, jittered-l, clusters-m, clusters-l (5 104 and 14 021 objects) and
 /// clusters-xl (1 000 000).
-/// Failure-mode presets "<kind>-s" (1 000 objects) and "<kind>-m" (10 000) for every
-/// kind of failure_mode_kinds().
+/// Failure-mode presets "<generator>-s" (1 000 objects) and "<generator>-m" (10 000) for every
+/// generator of failure_mode_generators().
 SceneSettings preset_settings(std::string_view name);
 std::vector<std::string> preset_names();
 
-/// Every kind generate_scene knows: "uniform" and "irregular" (thesis §6.1), "jittered" and
+/// Every generator generate_scene knows: "uniform" and "irregular" (thesis §6.1), "jittered" and
 /// "clusters" (the peer-comparison scenes, generators.cpp says how they are drawn), the failure
-/// modes, and the physics kinds (physics.h).
-std::vector<std::string> scene_kinds();
+/// modes, and the physics generators (physics.h).
+std::vector<std::string> scene_generators();
 /// Scenes built to break a structure's assumptions: "stadium" (one huge box around a
 /// tiny dense cluster), "identical" (stacks of identical boxes), "same-centroid" (stacks with one
 /// centroid and sizes over four orders of magnitude), "flat" (zero-thickness boxes in one plane),
 /// "slivers" (long thin and zero-volume boxes), "outlier" (irregular plus one box 10^6 world sizes
 /// away), "nested" (every object shares one centroid: cubes nested around the origin, sizes over
 /// four orders of magnitude).
-std::vector<std::string> failure_mode_kinds();
+std::vector<std::string> failure_mode_generators();
+/// scene_generators' and failure_mode_generators' old names, kept for one release; they go with
+/// the next.
+[[deprecated("use scene_generators")]] inline std::vector<std::string> scene_kinds() { return scene_generators(); }
+[[deprecated("use failure_mode_generators")]] inline std::vector<std::string> failure_mode_kinds() {
+    return failure_mode_generators();
+}
 
 /// "center", "center:0.7,los:0.3": modes with weights. Throws InputError on unknown modes.
 std::vector<RayMode> parse_ray_mix(const std::string& text);
@@ -156,8 +176,8 @@ std::vector<QueryKind> ray_kinds(std::size_t rays, const RaySettings& settings, 
 /// [{"kind": "closest", "weight": 0.6}, …], as the recording's meta stores it.
 nlohmann::json query_mix_json(const std::vector<QueryShare>& mix);
 
-/// Frame 0's objects of a generated scene, shaped as `settings.shapes` asks (a physics kind's
-/// bodies at rest before its first step).
+/// Frame 0's objects of a generated scene, shaped as `settings.shapes` asks (a physics
+/// generator's bodies at rest before its first step).
 std::vector<Object> generate_objects(const SceneSettings& settings);
 
 /// Gives exactly round(share × n) of the objects each shape (chosen at random, the rotations too,

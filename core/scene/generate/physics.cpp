@@ -28,7 +28,7 @@ Vec3d vec(const btVector3& v) { return {double(v.x()), double(v.y()), double(v.z
 
 enum class BodyShape { box, rotated, sphere, capsule };
 
-/// One body as a kind lays it out: its shape inside a box of half extents `half`, its start.
+/// One body as a generator lays it out: its shape inside a box of half extents `half`, its start.
 struct BodySpec {
     BodyShape shape = BodyShape::box;
     Vec3d half{0.5, 0.5, 0.5};
@@ -41,7 +41,7 @@ struct StaticBox {
     Vec3d centre, half;
 };
 
-/// What a kind sets up: the bodies (uid = index), static colliders and ground, gravity, and whether bodies
+/// What a generator sets up: the bodies (uid = index), static colliders and ground, gravity, and whether bodies
 /// may fall asleep (Bullet's default thresholds) or stay awake.
 struct Setup {
     std::vector<BodySpec> bodies;
@@ -50,7 +50,7 @@ struct Setup {
     bool sleep = true;
     bool ground = false;  ///< the plane y = ground_height (a plane: a huge box makes resting contacts jitter)
     double ground_height = 0;
-    // Broadmark's kinds: its bodies' material, the substeps per frame and the arena's side.
+    // Broadmark's generators: its bodies' material, the substeps per frame and the arena's side.
     bool broadmark = false;
     int substeps = 1;
     double arena = 0;
@@ -261,7 +261,7 @@ std::vector<StaticBox> broadmark_walls(double side) {
 
 /// Broadmark's Start (Simulation.cs:29-37, 153-175): N bodies of the set, identity rotation, mass
 /// 1, at insideUnitSphere × 0.45 L from the arena's centre (they may overlap: the engine pushes them
-/// apart) with velocity insideUnitSphere × 0.75 L/s; gravity as the kind sets it.
+/// apart) with velocity insideUnitSphere × 0.75 L/s; gravity as the generator sets it.
 Setup broadmark_setup(const SceneSettings& settings, Random& rng) {
     Setup s;
     const std::size_t n = settings.objects;
@@ -279,9 +279,9 @@ Setup broadmark_setup(const SceneSettings& settings, Random& rng) {
     s.broadmark = true;
     s.substeps = kBroadmarkSubsteps;
     s.arena = side;
-    if (settings.kind == "brownian") s.gravity = {0, 0, 0};                          // Brownian.cs:26
-    if (settings.kind == "freefall") s.gravity = {0, -kBroadmarkGravity * side, 0};  // PhysxEngine.cs:14
-    if (settings.kind == "gravity") {
+    if (settings.generator == "brownian") s.gravity = {0, 0, 0};                          // Brownian.cs:26
+    if (settings.generator == "freefall") s.gravity = {0, -kBroadmarkGravity * side, 0};  // PhysxEngine.cs:14
+    if (settings.generator == "gravity") {
         s.gravity = Vec3d{kBroadmarkGravity * kGravityScale * side, 0, 0};  // Gravity.cs:24-29, along +x
         s.sleep = false;  // rcbench's choice: the pull never rests, and Bullet's setGravity skips sleeping bodies
     }
@@ -307,14 +307,14 @@ struct TurningPull {
 Setup make_setup(const SceneSettings& settings, std::span<const Aabb> map) {
     Random rng(mix_seed(settings.seed, kBodyStream));
     const std::vector<BodyShape> shapes = shape_mix(settings.objects, settings.shapes, rng);
-    const std::string& k = settings.kind;
-    if (!map.empty() && k != "pile") throw InputError("only the pile kind is dropped onto a map, not " + k);
+    const std::string& k = settings.generator;
+    if (!map.empty() && k != "pile") throw InputError("only the pile generator is dropped onto a map, not " + k);
     if (k == "pile" && !map.empty()) return map_pile_setup(settings.objects, shapes, rng, map);
     if (k == "pile") return pile_setup(settings.objects, shapes, rng);
     if (k == "explosion") return explosion_setup(settings.objects, shapes, rng);
     if (k == "collapse") return collapse_setup(settings.objects, shapes, rng);
-    if (is_broadmark_kind(k)) return broadmark_setup(settings, rng);
-    throw InputError("unknown physics kind '" + k + "' (known: " + join(physics_kinds()) + ")");
+    if (is_broadmark_generator(k)) return broadmark_setup(settings, rng);
+    throw InputError("unknown physics generator '" + k + "' (known: " + join(physics_generators()) + ")");
 }
 
 /// When bodies sleep (Bullet's btRigidBody::updateDeactivation and wantsSleeping, and
@@ -383,7 +383,7 @@ std::unique_ptr<btCollisionShape> collision_shape(const BodySpec& b) {
     }
 }
 
-/// A body's material and damping: rcbench's kinds have density 1 and restitution 0.3; Broadmark's
+/// A body's material and damping: rcbench's generators have density 1 and restitution 0.3; Broadmark's
 /// have mass 1 each (SimulationParameters.cs:34 ObjectMass), no damping but Unity's Rigidbody
 /// default angular drag of 0.05, and Unity's default physic material (friction 0.6, bounciness 0:
 /// ProjectSettings/DynamicsManager.asset names no default material).
@@ -468,16 +468,18 @@ Object body_object(Uid uid, const BodySpec& spec, const btRigidBody& body) {
 
 }  // namespace
 
-std::vector<std::string> physics_kinds() {
+std::vector<std::string> physics_generators() {
     return {"pile", "collapse", "explosion", "brownian", "freefall", "gravity"};
 }
 
-bool is_physics_kind(std::string_view kind) {
-    const auto kinds = physics_kinds();
-    return std::find(kinds.begin(), kinds.end(), kind) != kinds.end();
+bool is_physics_generator(std::string_view generator) {
+    const auto generators = physics_generators();
+    return std::find(generators.begin(), generators.end(), generator) != generators.end();
 }
 
-bool is_broadmark_kind(std::string_view kind) { return kind == "brownian" || kind == "freefall" || kind == "gravity"; }
+bool is_broadmark_generator(std::string_view generator) {
+    return generator == "brownian" || generator == "freefall" || generator == "gravity";
+}
 
 std::vector<std::string> broadmark_shape_sets() { return {"cubes", "spheres", "assorted"}; }
 
@@ -488,7 +490,7 @@ void check_time_step(double seconds) {
 
 double physics_time_step(const SceneSettings& settings) {
     if (settings.time_step != 0) return settings.time_step;
-    return is_broadmark_kind(settings.kind) ? kBroadmarkTimeStep : 1.0 / 60;
+    return is_broadmark_generator(with_generator(settings).generator) ? kBroadmarkTimeStep : 1.0 / 60;
 }
 
 double broadmark_arena_side(std::uint32_t objects, double fill) {
@@ -497,14 +499,14 @@ double broadmark_arena_side(std::uint32_t objects, double fill) {
 
 namespace {
 
-/// InputError for settings a kind does not take: shape shares for Broadmark's kinds (their set
+/// InputError for settings a generator does not take: shape shares for Broadmark's (their set
 /// gives the shapes), a shape set or fill for rcbench's, an unknown set, a fill outside (0, 0.5].
-void check_kind_settings(const SceneSettings& s) {
-    if (is_broadmark_kind(s.kind)) {
+void check_generator_settings(const SceneSettings& s) {
+    if (is_broadmark_generator(s.generator)) {
         if (s.shapes.any())
-            throw InputError("shapes: " + s.kind +
+            throw InputError("shapes: " + s.generator +
                              " is Broadmark's scene, whose shape set (cubes, spheres, assorted) gives the shapes; the "
-                             "rotated, sphere and capsule shares are for rcbench's kinds");
+                             "rotated, sphere and capsule shares are for rcbench's generators");
         const auto sets = broadmark_shape_sets();
         if (!s.shape_set.empty() && std::find(sets.begin(), sets.end(), s.shape_set) == sets.end())
             throw InputError("shape_set: unknown set '" + s.shape_set + "' (known: " + join(sets) + ")");
@@ -512,11 +514,11 @@ void check_kind_settings(const SceneSettings& s) {
             throw InputError("fill: expected a share of the arena in (0, 0.5], got " + std::to_string(s.fill));
     } else if (!s.shape_set.empty() || s.fill != 0) {
         throw InputError(std::string(s.shape_set.empty() ? "fill" : "shape_set") +
-                         ": only Broadmark's kinds (brownian, freefall, gravity) take it, not " + s.kind);
+                         ": only Broadmark's generators (brownian, freefall, gravity) take it, not " + s.generator);
     }
 }
 
-/// What a Broadmark kind does after each frame's simulation (Simulation.cs:64-82, Step, and the
+/// What a Broadmark generator does after each frame's simulation (Simulation.cs:64-82, Step, and the
 /// scenes' Step overrides, which call it first): bodies whose centre left the world box are made
 /// static (Simulation.cs:69-76); Brownian gives the next ceil(N/100) bodies in turn a new velocity
 /// insideUnitSphere × 0.75 L/s (Brownian.cs:24,30,40-43; a new velocity wakes a sleeping body, as
@@ -538,7 +540,7 @@ struct BroadmarkStep {
                 body->forceActivationState(DISABLE_SIMULATION);
             }
         }
-        if (settings.kind == "brownian") {
+        if (settings.generator == "brownian") {
             const std::size_t n = w.bodies.size(), kicks = std::size_t(std::ceil(double(n) / kBrownianCycle));
             Random rng(mix_seed(settings.seed, kKickStream + frame));
             for (std::size_t k = 0; k < kicks; ++k, next_kick = (next_kick + 1) % n) {
@@ -548,7 +550,7 @@ struct BroadmarkStep {
                 body.activate(true);
             }
         }
-        if (settings.kind == "gravity") {
+        if (settings.generator == "gravity") {
             pull.advance(time_step);
             w.world.setGravity(bt(pull.axis3 * (kBroadmarkGravity * kGravityScale * setup.arena)));
         }
@@ -576,11 +578,12 @@ struct PhysicsRun::State {
         : settings(s), time_step(step), setup(make_setup(s, map)), w(std::make_unique<World>(config)) {}
 };
 
-PhysicsRun::PhysicsRun(const SceneSettings& settings, std::span<const Aabb> map, const BulletConfig& config) {
+PhysicsRun::PhysicsRun(const SceneSettings& given, std::span<const Aabb> map, const BulletConfig& config) {
+    const SceneSettings settings = with_generator(given);
     const double time_step = physics_time_step(settings);
     check_time_step(time_step);
     check_shapes(settings.shapes);
-    check_kind_settings(settings);
+    check_generator_settings(settings);
     check_ray_settings(settings.rays);
     check_streamed_scene_size(double(settings.objects) + double(map.size()), settings.frames, settings.rays.per_frame,
                               settings.objects, "scene");

@@ -2,13 +2,13 @@
 /// Physics-driven scenes: bodies simulated by Bullet's rigid-body world instead of the thesis'
 /// protocol of moving 1% of the objects by a random shift (§5.2.1). Every awake body moves every
 /// frame by a small coherent step and bodies fall asleep, so the share of objects changing per
-/// frame swings from all to almost none. rcbench's own kinds:
+/// frame swings from all to almost none. rcbench's own generators:
 ///
 ///   pile       bodies dropped in a tall jittered block onto a ground, settling until most sleep
 ///   collapse   stacked brick walls, each knocked over by a ball thrown at it
 ///   explosion  a packed ball of bodies above a ground flung outward, then settling
 ///
-/// Broadmark's kinds (Serpa & Rodrigues 2019, "Broadmark: a testing framework for broad-phase
+/// Broadmark's generators (Serpa & Rodrigues 2019, "Broadmark: a testing framework for broad-phase
 /// collision detection algorithms"), built with the parameters of its scene generator
 /// (ppgia-unifor/Broadmark, SimulationGenerator/Assets/Scripts; physics.cpp cites file and line):
 /// N bodies of a shape set (cubes, spheres, assorted) spawned at random in a ball of radius
@@ -20,7 +20,7 @@
 ///   gravity    a pull of 0.3924 L/s² starting along +x that turns 1.94° per frame
 ///
 /// One frame is `time_step` seconds (btDiscreteDynamicsWorld, sequential impulse solver,
-/// btDbvtBroadphase, single thread) in one Bullet step (rcbench's kinds) or four (Broadmark's): the
+/// btDbvtBroadphase, single thread) in one Bullet step (rcbench's generators) or four (Broadmark's): the
 /// same settings give the same bytes on one build. A frame's moves are the bodies whose shape
 /// changed; each moved object's shape carries the body's rotation (an oriented box, a capsule's
 /// axis) and its box is that shape's bounds, so the ground truth is exact. Ground and walls are
@@ -37,18 +37,31 @@
 
 namespace rcb {
 
-std::vector<std::string> physics_kinds();
-bool is_physics_kind(std::string_view kind);
+/// The generators whose scenes Bullet simulates: pile, collapse, explosion, brownian, freefall, gravity.
+std::vector<std::string> physics_generators();
+bool is_physics_generator(std::string_view generator);
 
-/// brownian, freefall and gravity: the kinds that follow Broadmark's scene generator.
-bool is_broadmark_kind(std::string_view kind);
+/// brownian, freefall and gravity: the generators that follow Broadmark's scene generator.
+bool is_broadmark_generator(std::string_view generator);
+
+/// The old names of physics_generators, is_physics_generator and is_broadmark_generator, kept for
+/// one release; they go with the next.
+[[deprecated("use physics_generators")]] inline std::vector<std::string> physics_kinds() {
+    return physics_generators();
+}
+[[deprecated("use is_physics_generator")]] inline bool is_physics_kind(std::string_view generator) {
+    return is_physics_generator(generator);
+}
+[[deprecated("use is_broadmark_generator")]] inline bool is_broadmark_kind(std::string_view generator) {
+    return is_broadmark_generator(generator);
+}
 /// Broadmark's object sets (ObjectsTypes.cs): cubes, spheres, assorted.
 std::vector<std::string> broadmark_shape_sets();
 
 /// InputError unless `seconds` is a number in [1e-4, 0.1].
 void check_time_step(double seconds);
-/// The seconds one frame simulates: settings.time_step, or when 0 the kind's default (1/60 s for
-/// rcbench's kinds, Broadmark's FixedTimestep of 1/30 s for its three).
+/// The seconds one frame simulates: settings.time_step, or when 0 the generator's default (1/60 s
+/// for rcbench's generators, Broadmark's FixedTimestep of 1/30 s for its three).
 double physics_time_step(const SceneSettings& settings);
 
 /// Broadmark's arena side L for `objects` bodies filling `fill` of it (0: 0.1): the cube root of
@@ -56,10 +69,10 @@ double physics_time_step(const SceneSettings& settings);
 /// The arena is the cube [−L/2, L/2]³ around the origin.
 double broadmark_arena_side(std::uint32_t objects, double fill);
 
-/// A physics scene of `settings.kind` (one of physics_kinds()): objects, frames, shape shares
-/// (rcbench's kinds) or shape set and fill (Broadmark's), time step, seed and rays as `settings`
-/// says (its dynamics settings do not apply). InputError for a shape share given to a Broadmark
-/// kind, or a shape set or fill given to one of rcbench's.
+/// A physics scene of `settings.generator` (one of physics_generators()): objects, frames, shape
+/// shares (rcbench's generators) or shape set and fill (Broadmark's), time step, seed and rays as
+/// `settings` says (its dynamics settings do not apply). InputError for a shape share given to a
+/// Broadmark generator, or a shape set or fill given to one of rcbench's.
 ///
 /// `map` (pile only): static boxes, in metres with y up, to drop the bodies onto instead of the
 /// open ground: each body starts in its own free 2 m cell of a lattice over the map's bounds,
@@ -110,8 +123,8 @@ public:
     /// The recording's META text and frame 0's objects.
     const std::string& meta() const;
     const std::vector<Object>& initial() const;
-    /// Simulates the next frame: Bullet's step (Broadmark's kinds: 4 substeps) and what a Broadmark
-    /// kind does after each frame (kicks, the turning pull, bodies leaving the arena).
+    /// Simulates the next frame: Bullet's step (Broadmark's generators: 4 substeps) and what a
+    /// Broadmark generator does after each frame (kicks, the turning pull, bodies leaving the arena).
     void step();
     /// The frame last simulated as the recording keeps it: a move for each body whose object (box,
     /// shape, rotation) changed since the last record(), then the frame's rays and query kinds.
