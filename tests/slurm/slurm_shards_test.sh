@@ -51,7 +51,7 @@ cat >tiny.json <<'EOF'
   "rays_per_frame": 200,
   "repetitions": 2,
   "seeds": [7],
-  "scenes": [{"preset": "uni-s"}, {"kind": "irregular", "objects": 300, "ray_mix": "center:0.5,los:0.5"}],
+  "scenes": [{"preset": "uni-s"}, {"generator": "irregular", "objects": 300, "ray_mix": "center:0.5,los:0.5"}],
   "structures": [
     {"name": "bf"},
     {"name": "ug", "params": {"density": [1, 4]}},
