@@ -173,14 +173,16 @@ TEST(CellInterval, TheTableFollowsTheCellsThroughMergeAndMigration) {
         merge_into(m, *open_read_only(o.db));
         EXPECT_EQ(interval_rows(m.db()), want);
     }
-    // A database from before the table (schema 11, without the later n_miss, writes and n_dup
-    // columns, calibration.n_miss, n_tp, pass and n_dup, and model_validation.outside_range):
+    // A database from before the table (schema 11, without the later n_miss, writes, n_dup and
+    // update_work columns, calibration.n_miss, n_tp, pass and n_dup, and model_validation.outside_range):
     // migrating fills it from the stored cells.
     const std::string old = temp.file("old.db");
     fs::copy_file(o.db, old);
     {
         Database d(old, false);
-        d.exec("DROP TABLE cell_interval; ALTER TABLE frame DROP COLUMN n_miss; ALTER TABLE frame DROP COLUMN writes;");
+        d.exec(
+            "DROP TABLE cell_interval; ALTER TABLE frame DROP COLUMN n_miss; ALTER TABLE frame DROP COLUMN writes; "
+            "ALTER TABLE frame DROP COLUMN update_work;");
         d.exec(
             "ALTER TABLE frame DROP COLUMN n_dup; ALTER TABLE frame_kind DROP COLUMN n_dup; "
             "ALTER TABLE calibration DROP COLUMN n_dup;");
