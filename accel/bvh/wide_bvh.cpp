@@ -871,7 +871,7 @@ nlohmann::json WideBvh::stats() const {
                             {"leaves", leaves_},      {"rebuilds", rebuilds_},
                             {"leaf_splits", splits_}, {"reinserts", reinserts_}};
     // Children per inner block (of `width`): how full the collapse (wide_bvh_build.h) left them.
-    stats["inner_fill"] = WideBvhBuilder::shape(*this).fill();
+    stats["inner_fill"] = WideBvhBuilder::inner_fill(*this);
     // The weighted changes since the live tree's objects were gathered, per object: a rebuild
     // starts at commit once this reaches rebuild_after.
     stats["rebuild_age"] = where_.empty() ? 0.0 : age_ / double(where_.size());

@@ -214,18 +214,11 @@ std::uint64_t WideBvhBuilder::write_block(WideBvh& t, const Emit& e) {
     return std::uint64_t(count);
 }
 
-WideBvhBuilder::Shape WideBvhBuilder::shape(const WideBvh& t) {
-    Shape s;
-    if (t.root_ == kNone) return s;
-    for (const WideBvh::Block& b : t.blocks_) {
-        if (b.count == 0) continue;  // free
-        if (b.leaf)
-            ++s.leaves;
-        else
-            ++s.inner, s.children += b.count;
-    }
-    s.depth = t.depth();
-    return s;
+double WideBvhBuilder::inner_fill(const WideBvh& t) {
+    std::uint64_t inner = 0, children = 0;
+    for (const WideBvh::Block& b : t.blocks_)
+        if (b.count != 0 && !b.leaf) ++inner, children += b.count;  // a free block has count 0
+    return inner ? double(children) / double(inner) : 0.0;
 }
 
 void WideBvhBuilder::start_split(int part) {

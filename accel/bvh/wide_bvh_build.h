@@ -56,15 +56,9 @@ public:
     std::uint32_t split(int bins, SahItem* items, std::uint32_t n);
     std::size_t memory_bytes() const;
 
-    /// The shape of a tree: its inner blocks and their children, its leaves and the inner levels
-    /// above the deepest leaf (WideBvh::stats() reports the mean children per inner block as
-    /// `inner_fill`, which the collapse raises).
-    struct Shape {
-        std::uint64_t inner = 0, children = 0, leaves = 0;
-        int depth = -1;
-        double fill() const { return inner ? double(children) / double(inner) : 0.0; }
-    };
-    static Shape shape(const WideBvh& t);
+    /// The mean children per inner block of a tree (WideBvh::stats() reports it as `inner_fill`,
+    /// which the collapse raises); 0 without inner blocks.
+    static double inner_fill(const WideBvh& t);
 
 private:
     static constexpr std::uint32_t kNone = 0xffffffffu;
