@@ -27,6 +27,12 @@
 #                      flightgear-data-base package (FlightGear 2020.3 scenery, GPL-2 data; a 1.3 GB
 #                      download): Scenery/Models/Airport/*.ac, its vehicle subfolders left out; the
 #                      fresh test set of experiments/models-flightgear-airport.json
+# With the argument `scenery`, also:
+#   data/models-scenery/*.ac, *.obj   the fresh test set of experiments/models-scenery.json, by the
+#                      rule its description gives: the largest .ac of each top-level folder of
+#                      FlightGear's Scenery/Models but Airport/ (flightgear-data-base), and the
+#                      largest .obj of each folder of Debian's stellarium-data (Stellarium 0.22.2,
+#                      GPL-2 data; a 246 MB download)
 # Uses `apt-get download` (no root needed: only the .deb is fetched, nothing is installed) and
 # `dpkg-deb -x` to unpack. Run it again to re-fetch; it skips what is already there.
 set -euo pipefail
@@ -92,4 +98,21 @@ if [ "${1:-}" = flightgear ]; then
   find data/.debs/flightgear-data-base -path '*/Scenery/Models/Airport/*' -name '*.ac' \
     ! -path '*/Airport/*/*' -exec cp -u {} data/models-flightgear/ \;
   echo "fetch_maps: $(ls data/models-flightgear/*.ac | wc -l) airport models in data/models-flightgear/"
+fi
+
+if [ "${1:-}" = scenery ]; then
+  fetch flightgear-data-base data/.debs/flightgear-data-base
+  fetch stellarium-data data/.debs/stellarium-data
+  mkdir -p data/models-scenery
+  # largest FILE... : the largest of the files named on stdin, by size, if at least 100,000 bytes.
+  largest() { xargs -r -d '\n' stat -c '%s %n' | sort -rn | awk 'NR == 1 && $1 >= 100000 { print $2 }'; }
+  models=data/.debs/flightgear-data-base/usr/share/games/flightgear/Scenery/Models
+  for folder in "$models"/*/; do
+    [ "$(basename "$folder")" = Airport ] && continue
+    find "$folder" -name '*.ac' | largest | xargs -r -I{} cp -u {} data/models-scenery/
+  done
+  find data/.debs/stellarium-data -name '*.obj' -printf '%h\n' | sort -u | while read -r folder; do
+    find "$folder" -maxdepth 1 -name '*.obj' | largest | xargs -r -I{} cp -u {} data/models-scenery/
+  done
+  echo "fetch_maps: $(ls data/models-scenery | wc -l) models in data/models-scenery/"
 fi
