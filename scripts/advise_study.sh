@@ -25,7 +25,9 @@
 # experiments/tune-advise.json when RCB_TUNING is unset, else none), RCB_REPETITIONS (default 5),
 # RCB_SEED (advise --seed, the random baseline's; default the tuning's search seed), RCB_ADVISE_ARGS
 # (more advise options, split at spaces, e.g. "--verify-top 1 --refine 8"), RCB_BSP_MODE (how each
-# map is imported: brushes, the default, or triangles).
+# map is imported: brushes, the default, or triangles), RCB_MODELS_DIR (a folder of model files assimp
+# reads, e.g. data/models-scenery: its models take the maps' place, each named by its file name
+# without the extension and imported as triangles; the MAP arguments then name models).
 # Writes RCB_STUDY_DIR/MAP-MODE.rcbscene (20 frames of 1% dynamics, seed 1, kept and reused),
 # advise-MAP.json and summary.txt (tab-separated). Needs jq (scripts/setup.sh installs it). Pin it to an idle core (taskset -c 0):
 # every map measures each tuned space whole.
@@ -89,19 +91,28 @@ mode=${RCB_BSP_MODE:-brushes}
 [ "$mode" = brushes ] || [ "$mode" = triangles ] || fail "RCB_BSP_MODE=$mode: not brushes or triangles"
 [ -x "$rcbench" ] || fail "$rcbench is not an executable; build it or set RCBENCH"
 shopt -s nullglob
-pk3s=("${RCB_MAPS_DIR:-data/maps}"/*.pk3)
-((${#pk3s[@]} > 0)) || fail "no ${RCB_MAPS_DIR:-data/maps}/*.pk3; run scripts/fetch_maps.sh"
+# source_of[NAME]: the pk3 holding map NAME, or model NAME's file; import_args NAME: how to import it.
+declare -A source_of
+if [ -n "${RCB_MODELS_DIR:-}" ]; then
+  [ -d "$RCB_MODELS_DIR" ] || fail "RCB_MODELS_DIR=$RCB_MODELS_DIR: no such folder"
+  mode=triangles
+  for file in "$RCB_MODELS_DIR"/*; do [ -f "$file" ] && source_of[$(basename "${file%.*}")]=$file; done
+  ((${#source_of[@]} > 0)) || fail "RCB_MODELS_DIR=$RCB_MODELS_DIR holds no model file"
+  import_args() { echo --model-mode triangles; }
+else
+  pk3s=("${RCB_MAPS_DIR:-data/maps}"/*.pk3)
+  ((${#pk3s[@]} > 0)) || fail "no ${RCB_MAPS_DIR:-data/maps}/*.pk3; run scripts/fetch_maps.sh"
+  # Each pk3's maps, by the names import's --map takes.
+  for pk3 in "${pk3s[@]}"; do
+    while read -r m; do source_of[$m]=$pk3; done < <("$rcbench" scene maps "$pk3")
+  done
+  import_args() { echo --map "$1" --bsp-mode "$mode"; }
+fi
 mkdir -p "$dir"
-
-# Each pk3's maps, by the names import's --map takes.
-declare -A pk3_of
-for pk3 in "${pk3s[@]}"; do
-  while read -r m; do pk3_of[$m]=$pk3; done < <("$rcbench" scene maps "$pk3")
-done
 maps=("$@")
-if ((${#maps[@]} == 0)); then mapfile -t maps < <(printf '%s\n' "${!pk3_of[@]}" | sort); fi
+if ((${#maps[@]} == 0)); then mapfile -t maps < <(printf '%s\n' "${!source_of[@]}" | sort); fi
 
-for map in "${maps[@]}"; do [ -n "${pk3_of[$map]:-}" ] || fail "no map $map in ${pk3s[*]}"; done
+for map in "${maps[@]}"; do [ -n "${source_of[$map]:-}" ] || fail "no map or model $map"; done
 
 tuning=${RCB_TUNING:-}
 seen=${RCB_SEEN-}
@@ -120,9 +131,9 @@ if [ -n "${RCB_ADVISE_ARGS:-}" ]; then
   extra+=("${more[@]}")
 fi
 for map in "${maps[@]}"; do
-  pk3=${pk3_of[$map]}
   scene=$dir/$map-$mode.rcbscene
-  [ -f "$scene" ] || "$rcbench" scene import "$pk3" --map "$map" --bsp-mode "$mode" --frames 20 -o "$scene" >/dev/null
+  # shellcheck disable=SC2046 # import_args prints separate words, none with spaces
+  [ -f "$scene" ] || "$rcbench" scene import "${source_of[$map]}" $(import_args "$map") --frames 20 -o "$scene" >/dev/null
   "$rcbench" advise "$scene" --tuning "$tuning" --exhaustive --json --warmup 2 --repetitions "$reps" \
     "${extra[@]}" >"$dir/advise-$map.json"
 done
