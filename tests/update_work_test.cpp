@@ -1,7 +1,8 @@
 // Structure::update_work(): the update's work that its writes do not show. That the linear BVH
 // counts the keys its radix sort placed (none beyond the merged ones when it merges from the last
-// order), that the wide BVH counts the blocks of each reinsertion's descent, that the simulator
-// stores the count per frame, and that a run stored before it existed offers no form that prices it.
+// order), that the wide BVH counts the blocks of each reinsertion's descent and its rebuilds' work,
+// that the simulator stores the count per frame, and that a run stored before it existed offers no
+// form that prices it.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -136,6 +137,52 @@ TEST(UpdateWork, WideBvhCountsTheBlocksEachReinsertionsDescentRead) {
     keeping.commit();
     EXPECT_EQ(frame_of(keeping, far).work, 0u);
     keeping.check();
+}
+
+/// The growth of t's rebuild units over one frame in update_work()'s unit (16 per descent block),
+/// with its whole-unit remainder carried as update_work() carries it.
+std::uint64_t rebuild_blocks(std::uint64_t units_before, std::uint64_t units_after) {
+    return units_after / 16 - units_before / 16;
+}
+
+TEST(UpdateWork, WideBvhCountsItsRebuildsWorkBesideTheDescents) {
+    // A frame that starts or advances a rebuild takes the rebuild's time, which neither its
+    // descents nor its writes showed: update_work() adds the rebuild's units, 16 per block.
+    const std::vector<Object> objects = test::generated_scene("uniform", 2000, 1, 7).initial;
+    // A step far inside the object's leaf: no reinsertion, no descent; only the rebuild works.
+    const Object& first = objects[0];
+    auto nudge = [&](int i) {
+        const Vec3 d{0.001f * float(i), 0, 0};
+        return std::vector<Object>{Object(first.uid, Aabb{first.box.min + d, first.box.max + d})};
+    };
+    WideBvh::Params p;
+    p.rebuild_ratio = 0.5, p.rebuild_after = 0;  // a ratio in (0, 1]: a rebuild at every commit after a change
+    for (const double speed : {0.0, 4.0}) {      // the whole rebuild in the commit; a progressive one
+        SCOPED_TRACE(speed);
+        p.rebuild_speed = speed;
+        WideBvh t(p);
+        t.build(objects);
+        t.commit();
+        EXPECT_EQ(t.update_work(), 0u);  // the build is not an update
+        std::uint64_t total_units = 0;
+        for (int i = 1; i <= 40; ++i) {
+            const WideBvh::UpdateCounts before = t.update_counts();
+            const Growth g = frame_of(t, nudge(i));
+            const WideBvh::UpdateCounts& after = t.update_counts();
+            ASSERT_EQ(after.reinserts, before.reinserts);
+            total_units += after.rebuild_work - before.rebuild_work;
+            // A progressive rebuild's replay descends into its next tree, counted as before.
+            const std::uint64_t rebuilt = rebuild_blocks(before.rebuild_work, after.rebuild_work);
+            if (speed == 0.0)
+                EXPECT_EQ(g.work, rebuilt) << i;
+            else
+                EXPECT_GE(g.work, rebuilt) << i;
+        }
+        t.check();
+        EXPECT_GE(t.update_counts().rebuilds, speed == 0.0 ? 40u : 1u);
+        EXPECT_GT(total_units, 16u * objects.size());  // a build's work is several units per object
+        EXPECT_GE(t.update_work(), total_units / 16);
+    }
 }
 
 TEST(UpdateWork, EveryOtherStructureCountsNone) {

@@ -854,6 +854,19 @@ std::size_t WideBvh::l2_bytes() {
     return bytes;
 }
 
+/// A build's work units (an item binned, bounded or partitioned, an object written to a leaf;
+/// wide_bvh_rebuild.h) per block a descent reads, by their times: the unit in which update_work()
+/// counts the rebuilds' work beside the descents. Without it a frame of a progressive rebuild,
+/// which spends rebuild_speed objects' share of a build per change, shows no more work than one
+/// without, while it takes several times as long (docs/model.md, "Footprint of an update").
+constexpr std::uint64_t kBuildUnitsPerDescentBlock = 16;
+
+std::uint64_t WideBvh::update_work() const {
+    // The sum of the units since construction divided once, so that a frame's growth loses no
+    // remainder to rounding.
+    return update_work_ + counts_.rebuild_work / kBuildUnitsPerDescentBlock;
+}
+
 std::size_t WideBvh::memory_bytes() const {
     return blocks_.capacity() * sizeof(Block) + where_.memory_bytes() + dirty_.capacity() * sizeof(std::uint32_t) +
            pending_.capacity() * sizeof(PendingMove) + refit_levels_bytes() + scratch_bytes() +

@@ -158,7 +158,7 @@ public:
     void commit() override;
     std::size_t size() const override { return where_.size() + pending_inserts_.size(); }
     std::uint64_t writes() const override { return writes_; }
-    std::uint64_t update_work() const override { return update_work_; }
+    std::uint64_t update_work() const override;
     std::size_t memory_bytes() const override;
     nlohmann::json stats() const override;
     void check() const override;
@@ -632,9 +632,9 @@ private:
     /// writes(): one per block allocated (a build writes each so), freed or refitted, per lane a change
     /// or refit rewrites, and those of a progressive rebuild's next tree as it is built and replayed.
     std::uint64_t writes_ = 0;
-    /// update_work(): per object inserted or reinserted into a tree, the blocks on the path from the
-    /// root to the leaf it enters (the descent of choose_leaf() that chose it, whose reads no write
-    /// counts; a reinsertion is a move whose centre left its leaf).
+    /// Per object inserted or reinserted into a tree, the blocks on the path from the root to the
+    /// leaf it enters (the descent of choose_leaf() that chose it, whose reads no write counts; a
+    /// reinsertion is a move whose centre left its leaf). update_work() adds the rebuilds' work.
     std::uint64_t update_work_ = 0;
 
     // The update's threads (Params::threads > 1) and its scratch, kept between commits.
