@@ -543,6 +543,7 @@ void leave_one_scene_out(StructureModels& m, const std::vector<const FrameObserv
 }
 
 /// The counters whose range a model records (TrainedRange), each read from a frame.
+constexpr const char* kHitsPerRay = "N_TP per ray";
 struct RangeCounter {
     const char* name;
     bool per_ray;  ///< read only from frames with rays
@@ -554,6 +555,10 @@ const std::vector<RangeCounter>& range_counters() {
         {"objects", false, [](const FrameObservation& f) { return f.objects; }},
         {"N_RB per ray", true, [](const FrameObservation& f) { return f.n_rb; }},
         {"N_T per ray", true, [](const FrameObservation& f) { return f.n_t; }},
+        // Where a model prices a reported hit apart (C_HIT), the hits per ray it was fitted on: a
+        // grid's price per hit, taken from rooms' walls met one or two to a cell, is no price for the
+        // dozens of small triangles a ray meets in one cell of a dense mesh.
+        {kHitsPerRay, true, [](const FrameObservation& f) { return f.n_tp; }},
     };
     return counters;
 }
@@ -610,8 +615,12 @@ StructureModels fit_structure(const std::string& structure, const std::vector<co
 
 std::string outside_trained_range(const StructureModels& m, const std::vector<const FrameObservation*>& cell) {
     const auto text = [](double v) { return fixed(v, v >= 100 ? 0 : v >= 10 ? 1 : 2); };
+    const CandidateModel* ray = m.chosen("raycast");
+    const bool prices_hits =
+        ray && std::find(ray->problem.terms.begin(), ray->problem.terms.end(), "C_HIT") != ray->problem.terms.end();
     std::string out;
     for (const TrainedRange& r : m.trained) {
+        if (r.counter == kHitsPerRay && !prices_hits) continue;  // hits are box tests there: N_RB has them
         const auto c = std::find_if(range_counters().begin(), range_counters().end(),
                                     [&](const RangeCounter& x) { return r.counter == x.name; });
         const double v = cell_median(cell, *c);

@@ -102,7 +102,8 @@ struct CandidateModel {
 };
 
 /// What a structure's model was fitted on, per counter: the least and the most of its cells'
-/// medians (changes per frame, objects, N_RB and N_T per ray). A cell beyond it by more than
+/// medians (changes per frame, objects, N_RB and N_T per ray, and N_TP per ray where the chosen
+/// ray-cast model prices a hit apart, C_HIT). A cell beyond it by more than
 /// kRangeMargin is priced by extrapolation: a physics frame moving all 10^4 bodies, priced from
 /// thesis frames of at most a few hundred changes, missed by 5–10× (docs/model.md).
 struct TrainedRange {

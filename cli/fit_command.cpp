@@ -114,7 +114,8 @@ void print_nested_loso(Database& db, std::int64_t run, OverRepetitions how, cons
                  "families too, and the family predicted by the model so chosen; a cell it cannot price is a miss. "
                  "Absolute relative error per (scene x configuration) cell "
                  "of the median time per frame (update + rays x C) and of the median ray-cast time per frame; "
-                 "median and p90 over cells; outside range: cells whose changes per frame, objects, N_RB or N_T per "
+                 "median and p90 over cells; outside range: cells whose changes per frame, objects, N_RB, N_T or "
+                 "(where the model prices hits) N_TP per "
                  "ray lie beyond twice (or below half) the range the model was fitted on (rcbench validate: bootstrap "
                  "intervals and the other splits):\n";
     std::map<std::pair<std::string, std::string>, double> per_scene;

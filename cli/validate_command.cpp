@@ -54,7 +54,8 @@ void print_header(const BootstrapOptions& b) {
                  "held out by family (a map's brushes and triangles, a generator's ray-mode variants: docs/model.md), "
                  "in the outer splits and in each split's own model selection. Outside range: predicted cells whose "
                  "changes per frame, objects, "
-                 "N_RB or N_T per ray lie beyond twice (or below half) the range of the cells the model was fitted "
+                 "N_RB or N_T per ray (or N_TP, where the model prices hits) lie beyond twice (or below half) "
+                 "the range of the cells the model was fitted "
                  "on: priced by extrapolation (--json names the counters).\n";
 }
 

@@ -292,5 +292,27 @@ TEST(ModelSelection, ACellBeyondTheFittedRangeIsNamed) {
     EXPECT_EQ(outside_trained_range(m, cell), "changes per frame 10000 (fitted on 100–600)");
 }
 
+TEST(ModelSelection, HitsPerRayBeyondTheFittedRangeAreNamedWhereAHitIsPriced) {
+    // A model that prices a reported hit (C_HIT) extrapolates on a cell with twice the hits per ray
+    // of its fit (a dense mesh's dozens of small triangles in one cell); one that does not has the
+    // hits among its box tests, where N_RB's range speaks for them.
+    StructureModels m;
+    m.trained = {{"N_TP per ray", 1.0, 10.0}};
+    CandidateModel ray;
+    ray.target = "raycast";
+    ray.chosen = true;
+    ray.problem.terms = {"C_RB", "C_T", "C_PREP"};
+    m.raycast.push_back(ray);
+    FrameObservation f;
+    f.rays = 1000;
+    f.n_tp = 27;
+    const std::vector<const FrameObservation*> cell{&f};
+    EXPECT_EQ(outside_trained_range(m, cell), "");
+    m.raycast[0].problem.terms.push_back("C_HIT");
+    EXPECT_EQ(outside_trained_range(m, cell), "N_TP per ray 27.0 (fitted on 1.00–10.0)");
+    f.n_tp = 15;
+    EXPECT_EQ(outside_trained_range(m, cell), "");
+}
+
 }  // namespace
 }  // namespace rcb
