@@ -68,7 +68,8 @@ public:
     ///    merges from the last order counts only the keys it sorted apart, those out of order);
     ///  - wide BVH: a block read by the descent that chose an inserted or reinserted object's leaf
     ///    (the leaf's depth + 1 per such object; a progressive rebuild's replay into its next tree
-    ///    included);
+    ///    included), and a rebuild's work (gathering, building, replaying, freeing) at 16 of its
+    ///    units per block, their ratio in time (wide_bvh.cpp);
     ///  - 0 where a structure counts none (its writes or changes say what its update does).
     virtual std::uint64_t update_work() const { return 0; }
 
