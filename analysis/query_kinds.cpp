@@ -54,10 +54,6 @@ FrameObservation kind_observation(const FrameObservation& frame, const KindRow& 
     return o;
 }
 
-double relative_error(double predicted, double measured) {
-    return std::isfinite(predicted) && measured > 0 ? std::abs(predicted - measured) / measured : NAN;
-}
-
 ValidationSplit kinds_split(const std::vector<FrameObservation>& frames, const std::set<std::string>& from,
                             const std::set<std::string>& to) {
     const auto names = [](const std::set<std::string>& kinds) {
@@ -75,8 +71,6 @@ ValidationSplit kinds_split(const std::vector<FrameObservation>& frames, const s
 }
 
 }  // namespace
-
-bool run_has_query_kinds(Database& db, std::int64_t run) { return run_has_frame_kinds(db, run); }
 
 std::vector<FrameObservation> load_kind_observations(Database& db, std::int64_t run) {
     // Every repetition's frames: a kind's batch is matched to its own frame row, so the frames are

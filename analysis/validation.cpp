@@ -50,10 +50,6 @@ ValidationSplit transfer_split(const std::vector<FrameObservation>& frames, cons
     return s;
 }
 
-double relative_error(double predicted, double measured) {
-    return std::isfinite(predicted) && measured > 0 ? std::abs(predicted - measured) / measured : NAN;
-}
-
 /// What prices a frame: its ray cast per ray, or its update (ns); empty where nothing does.
 using Price = std::function<double(const FrameObservation&)>;
 
@@ -151,6 +147,10 @@ nlohmann::json error_json(const ErrorSummary& e) {
 }
 
 }  // namespace
+
+double relative_error(double predicted, double measured) {
+    return std::isfinite(predicted) && measured > 0 ? std::abs(predicted - measured) / measured : NAN;
+}
 
 std::vector<ValidationSplit> family_out_splits(const std::vector<FrameObservation>& frames) {
     std::map<std::string, std::string> family;  // per scene, worked out once
@@ -284,11 +284,6 @@ std::vector<ValidationGroup> validate_nested(const std::vector<FrameObservation>
     }
     for (ValidationGroup& g : out) g.structures = summarize(g.cells, options);
     return out;
-}
-
-TransferValidation validate_transfer(const std::vector<FrameObservation>& train, const ModelInputs& train_inputs,
-                                     const std::vector<FrameObservation>& test, const BootstrapOptions& options) {
-    return validate_transfer(fit_cost_models(train, train_inputs), test, options);
 }
 
 TransferValidation validate_transfer(const std::vector<StructureModels>& models,
