@@ -172,7 +172,7 @@ ReportData load_report_data(Database& db, std::int64_t run) {
     d.findings = evaluate_findings(db, run);
     d.history = load_run_history(db, run, d.head.experiment);
     d.motion = load_scene_motion(db, run);
-    if (run_has_query_kinds(db, run)) d.kind_frames = load_kind_observations(db, run);
+    if (run_has_frame_kinds(db, run)) d.kind_frames = load_kind_observations(db, run);
     return d;
 }
 
