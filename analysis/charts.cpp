@@ -10,6 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/base/error.h"
 #include "core/base/number_text.h"
 
 namespace rcb {
@@ -63,18 +64,11 @@ std::vector<std::size_t> pareto_front(const std::vector<TradeoffPoint>& points) 
 
 std::string front_reading(const std::string& scene, const std::string& measure,
                           const std::vector<TradeoffPoint>& points, const std::vector<std::size_t>& front) {
-    auto number = [](double v, int digits) {
-        std::ostringstream o;
-        o.setf(std::ios::fixed);
-        o.precision(digits);
-        o << v;
-        return o.str();
-    };
     std::string out = "On " + scene + ", the " + measure + " front is: ";
     for (std::size_t k = 0; k < front.size(); ++k) {
         const TradeoffPoint& p = points[front[k]];
-        out += (k ? ", " : "") + p.label + " (" + number(p.ms, p.ms < 0.1 ? 4 : 3) + " ms, " +
-               (k ? "" : measure + " ") + number(p.accuracy, 2) + ")";
+        out += (k ? ", " : "") + p.label + " (" + format_ms(p.ms) + " ms, " + (k ? "" : measure + " ") +
+               fixed(p.accuracy, 2) + ")";
     }
     return out + ".";
 }
@@ -137,20 +131,18 @@ std::string render_svg(const Chart& chart) {
     const std::string command =
         "gnuplot " + quoted((dir / "chart.gp").string()) + " 2>" + quoted((dir / "err.txt").string());
     const int rc = std::system(command.c_str());
-    std::ifstream svg_in(dir / "chart.svg");
-    std::ostringstream svg;
-    svg << svg_in.rdbuf();
-    std::ifstream err_in(dir / "err.txt");
-    std::ostringstream err;
-    err << err_in.rdbuf();
+    const auto read = [&](const char* name) {
+        std::ostringstream text;
+        text << std::ifstream(dir / name).rdbuf();
+        return text.str();
+    };
+    const std::string svg = read("chart.svg"), err = read("err.txt");
     std::error_code ec;
     fs::remove_all(dir, ec);
-    if (rc != 0 || svg.str().find("<svg") == std::string::npos)
-        throw std::runtime_error("gnuplot failed to draw '" + chart.title + "': " + err.str().substr(0, 300));
+    if (rc != 0 || svg.find("<svg") == std::string::npos)
+        throw std::runtime_error("gnuplot failed to draw '" + chart.title + "': " + err.substr(0, 300));
     // Drop the XML prolog and doctype so the SVG can sit inline in HTML.
-    std::string text = svg.str();
-    const auto start = text.find("<svg");
-    return text.substr(start);
+    return svg.substr(svg.find("<svg"));
 }
 
 double log_log_slope(const std::vector<double>& x, const std::vector<double>& y) {
@@ -208,8 +200,7 @@ Chart growth_chart(const std::vector<GrowthPoint>& points, const std::string& sc
         c.reading = "Too few object counts on " + scenes + " to fit slopes.";
         return c;
     }
-    std::string slopes;
-    for (const Fit& f : fits) slopes += (slopes.empty() ? "" : ", ") + f.label + " " + fixed(f.slope, 2);
+    const std::string slopes = join(fits, ", ", [](const Fit& f) { return f.label + " " + fixed(f.slope, 2); });
     const auto [flat, steep] =
         std::minmax_element(fits.begin(), fits.end(), [](const Fit& a, const Fit& b) { return a.slope < b.slope; });
     c.reading = "Least-squares slopes of log per-frame cost against log object count on " + scenes +

@@ -116,9 +116,7 @@ std::vector<Config> load_configs(Database& db, std::int64_t run, OverRepetitions
         Acc& a = acc.at(key);
         a.c.update_ms = median(a.update), a.c.ray_ms = median(a.ray), a.c.bytes_per_object = median(a.bytes);
         a.c.n_t = median(a.n_t), a.c.n_rb = median(a.n_rb), a.c.n_tp = median(a.n_tp);
-        a.c.frame = a.c.frame_lo = a.c.frame_hi = a.c.update_ms + a.c.ray_ms;
-        a.c.ray_lo = a.c.ray_hi = a.c.ray_ms;
-        a.c.update_lo = a.c.update_hi = a.c.update_ms;
+        a.c.frame = a.c.update_ms + a.c.ray_ms;  // the ranges over runs: merge_runs, read from two runs on
         out.push_back(a.c);
     }
     sort_for_listing(out);
@@ -270,11 +268,7 @@ Finding best_on(const std::vector<Scene>& scenes, const std::string& category, c
     }
     f.verdict = verdict(first == tested, near == tested || first > 0);
     f.summary = who + " is the fastest per frame on " + std::to_string(first) + " of " + std::to_string(tested) + " " +
-                category + " scenes" + (winners.empty() ? "." : "; elsewhere: " + [&] {
-                    std::string w;
-                    for (const std::string& x : winners) w += (w.empty() ? "" : "; ") + x;
-                    return w;
-                }() + ".");
+                category + " scenes" + (winners.empty() ? "." : "; elsewhere: " + join(winners, "; ") + ".");
     return f;
 }
 

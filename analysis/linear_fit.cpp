@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numeric>
 #include <set>
 #include <utility>
 
@@ -191,20 +192,13 @@ bool solve(ceres::Problem& problem) {
 /// the relative residuals. A non-finite result marks the fit as not converged.
 double set_quality(const LinearProblem& p, const std::vector<double>& beta, LinearFit& fit) {
     const std::size_t k = p.terms.size(), n = p.y.size();
-    double ss_res = 0, ss_tot = 0;
+    const double mean_y = std::accumulate(p.y.begin(), p.y.end(), 0.0) / double(n);
+    double ss_res = 0, ss_abs = 0, ss_tot = 0;
     for (std::size_t i = 0; i < n; ++i) {
         double pred = 0;
         for (std::size_t j = 0; j < k; ++j) pred += p.x[i][j] * beta[j];
         const double r = (pred - p.y[i]) / p.y[i];
         ss_res += r * r;
-    }
-    double mean_y = 0;
-    for (double y : p.y) mean_y += y;
-    mean_y /= double(n);
-    double ss_abs = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-        double pred = 0;
-        for (std::size_t j = 0; j < k; ++j) pred += p.x[i][j] * beta[j];
         ss_abs += (pred - p.y[i]) * (pred - p.y[i]);
         ss_tot += (p.y[i] - mean_y) * (p.y[i] - mean_y);
     }

@@ -15,9 +15,7 @@ namespace {
 
 /// The rank of a kind's name in QueryKind order (all, closest, any), for sorting.
 int kind_rank(const std::string& kind) {
-    for (int k = 0; k < kQueryKinds; ++k)
-        if (kind == kQueryKindNames[k]) return k;
-    return kQueryKinds;
+    return int(std::find(std::begin(kQueryKindNames), std::end(kQueryKindNames), kind) - std::begin(kQueryKindNames));
 }
 
 /// One frame_kind row: the kind, its rays and ray-cast time, and its counters by column name.
@@ -56,19 +54,13 @@ FrameObservation kind_observation(const FrameObservation& frame, const KindRow& 
     return o;
 }
 
-double relative_error(double predicted, double measured) {
-    return std::isfinite(predicted) && measured > 0 ? std::abs(predicted - measured) / measured : NAN;
-}
-
 ValidationSplit kinds_split(const std::vector<FrameObservation>& frames, const std::set<std::string>& from,
                             const std::set<std::string>& to) {
     const auto names = [](const std::set<std::string>& kinds) {
         std::vector<std::string> sorted(kinds.begin(), kinds.end());
         std::sort(sorted.begin(), sorted.end(),
                   [](const std::string& a, const std::string& b) { return kind_rank(a) < kind_rank(b); });
-        std::string text;
-        for (const std::string& k : sorted) text += (text.empty() ? "" : "+") + k;
-        return text;
+        return join(sorted, "+");
     };
     ValidationSplit s{kKindTransferGroup, names(from) + " -> " + names(to), {}, {}};
     for (std::size_t i = 0; i < frames.size(); ++i) {
@@ -79,8 +71,6 @@ ValidationSplit kinds_split(const std::vector<FrameObservation>& frames, const s
 }
 
 }  // namespace
-
-bool run_has_query_kinds(Database& db, std::int64_t run) { return run_has_frame_kinds(db, run); }
 
 std::vector<FrameObservation> load_kind_observations(Database& db, std::int64_t run) {
     // Every repetition's frames: a kind's batch is matched to its own frame row, so the frames are
@@ -148,18 +138,16 @@ std::vector<KindCell> kind_cells(const std::vector<StructureModels>& models,
 }
 
 std::vector<KindError> kind_errors(const std::vector<KindCell>& cells) {
-    std::map<std::tuple<std::string, int, std::string>, std::vector<double>> errors;
-    std::map<std::tuple<std::string, int, std::string>, std::size_t> counts;
+    // Per (structure, kind): its cells and the finite errors among them.
+    std::map<std::tuple<std::string, int, std::string>, std::pair<std::size_t, std::vector<double>>> errors;
     for (const KindCell& c : cells) {
-        const auto key = std::make_tuple(c.structure, kind_rank(c.kind), c.kind);
-        ++counts[key];
-        if (std::isfinite(c.error)) errors[key].push_back(c.error);
+        auto& [n, finite] = errors[std::make_tuple(c.structure, kind_rank(c.kind), c.kind)];
+        ++n;
+        if (std::isfinite(c.error)) finite.push_back(c.error);
     }
     std::vector<KindError> out;
-    for (const auto& [key, n] : counts) {
-        const auto it = errors.find(key);
-        out.push_back({std::get<0>(key), std::get<2>(key), n, it == errors.end() ? NAN : quantile(it->second, 0.5)});
-    }
+    for (const auto& [key, e] : errors)
+        out.push_back({std::get<0>(key), std::get<2>(key), e.first, quantile(e.second, 0.5)});
     return out;
 }
 

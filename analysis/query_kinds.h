@@ -24,9 +24,6 @@
 
 namespace rcb {
 
-/// Whether any frame of run `run` (and its shard siblings) has per-kind rows.
-bool run_has_query_kinds(Database& db, std::int64_t run);
-
 /// The run's measured frames per query kind: a frame with frame_kind rows gives one observation per
 /// kind (that batch's rays, ray-cast time and per-ray counters; the frame's changes, memory and
 /// objects), a frame without gives itself as kind "all". Each (scene, configuration, kind) is its

@@ -36,26 +36,11 @@ namespace {
 
 using namespace report;
 
+/// Text as HTML: the characters markup gives a meaning as entities.
 std::string html_escape(const std::string& s) {
     std::string out;
-    for (char c : s) {
-        switch (c) {
-            case '<':
-                out += "&lt;";
-                break;
-            case '>':
-                out += "&gt;";
-                break;
-            case '&':
-                out += "&amp;";
-                break;
-            case '"':
-                out += "&quot;";
-                break;
-            default:
-                out += c;
-        }
-    }
+    for (char c : s)
+        out += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : c == '"' ? "&quot;" : std::string(1, c);
     return out;
 }
 
@@ -336,9 +321,8 @@ void tradeoff_charts(Html& h, const Entries& es, const std::string& sc, const st
         double lowest = 1;
         for (const TradeoffPoint& p : points) lowest = std::min(lowest, p.accuracy);
         c.extra = "set yrange [" + fixed(std::max(0.0, lowest - 0.05), 2) + ":1.02]";
-        for (std::size_t i = 0; i < points.size(); ++i)
-            c.series.push_back(
-                {points[i].label, {points[i].ms}, {points[i].accuracy}, {}, false, es.style_of(points[i].label)});
+        for (const TradeoffPoint& p : points)
+            c.series.push_back({p.label, {p.ms}, {p.accuracy}, {}, false, es.style_of(p.label)});
         Series line{"Pareto front", {}, {}, {}, true, front_style};
         for (std::size_t i : front) line.x.push_back(points[i].ms), line.y.push_back(points[i].accuracy);
         c.series.push_back(line);
@@ -432,13 +416,10 @@ void predicted_chart(Html& h, const std::vector<StructureModels>& models, const 
                   (n && std::isfinite(n->raycast) ? " (repeats " + noise_text(n->raycast, n->raycast_p90) + ")" : "");
     }
     if (hi > 0) {
-        std::ostringstream ref;
-        ref << "set arrow from " << lo * 0.7 << "," << lo * 0.7 << " to " << hi * 1.4 << "," << hi * 1.4
-            << " nohead lc rgb '#444444'\n"
-            << "set arrow from " << lo * 0.7 << "," << lo * 0.7 * 1.1 << " to " << hi * 1.4 << "," << hi * 1.4 * 1.1
-            << " nohead dt 2 lc rgb '#999999'\n"
-            << "set arrow from " << lo * 0.7 << "," << lo * 0.7 * 0.9 << " to " << hi * 1.4 << "," << hi * 1.4 * 0.9
-            << " nohead dt 2 lc rgb '#999999'\n";
+        std::ostringstream ref;  // y = x solid, and the ±10% band dashed
+        for (const double band : {1.0, 1.1, 0.9})
+            ref << "set arrow from " << lo * 0.7 << "," << lo * 0.7 * band << " to " << hi * 1.4 << ","
+                << hi * 1.4 * band << " nohead " << (band == 1 ? "lc rgb '#444444'" : "dt 2 lc rgb '#999999'") << "\n";
         c.extra += ref.str();
     }
     c.reading =
@@ -523,7 +504,7 @@ void chosen_terms(Html& h, const std::vector<StructureModels>& models) {
     for (const StructureModels& m : models) {
         const CandidateModel* cm = m.chosen("raycast");
         if (!cm) continue;
-        std::string terms, against, dropped;
+        std::string terms, against;
         for (const Coefficient& co : cm->fit.coefficients) {
             terms += (terms.empty() ? "" : ", ") + co.name + " " + fixed(co.value, 3);
             if (std::isfinite(co.prior)) {
@@ -533,9 +514,8 @@ void chosen_terms(Html& h, const std::vector<StructureModels>& models) {
                            (co.at_bound ? " (at the 3× bound)" : "");
             }
         }
-        for (const std::string& d : cm->dropped) dropped += (dropped.empty() ? "" : "; ") + d;
         chosen_rows.push_back({m.structure, cm->name, terms, against.empty() ? "no calibration value" : against,
-                               dropped.empty() ? "-" : dropped,
+                               cm->dropped.empty() ? "-" : join(cm->dropped, "; "),
                                std::isfinite(cm->heldout_error) ? fixed(100 * cm->heldout_error, 1) + "%" : "-",
                                std::isfinite(m.loso_error) ? fixed(100 * m.loso_error, 1) + "%" : "-"});
     }
@@ -697,12 +677,10 @@ void failure_section(Html& h, const Entries& es) {
     const std::vector<std::string> failure_generators = failure_mode_generators();
     std::vector<std::string> failure_scenes;
     for (const std::string& sc : es.scenes)
-        for (const Entry& e : es.all)
-            if (e.scene == sc && std::find(failure_generators.begin(), failure_generators.end(), e.category) !=
-                                     failure_generators.end()) {
-                failure_scenes.push_back(sc);
-                break;
-            }
+        if (std::any_of(es.all.begin(), es.all.end(), [&](const Entry& e) {
+                return e.scene == sc && std::count(failure_generators.begin(), failure_generators.end(), e.category);
+            }))
+            failure_scenes.push_back(sc);
     if (failure_scenes.empty()) return;
     h.heading("Where methods fail");
     auto ratio = [](double r) { return std::isnan(r) ? std::string("-") : fixed(r, r < 10 ? 2 : 1); };
@@ -770,9 +748,8 @@ void history_section(Html& h, const History& history, const std::string& experim
                runs.end());
     if (runs.size() < 2) return;
     auto position = [&](std::int64_t id) {
-        for (std::size_t i = 0; i < runs.size(); ++i)
-            if (std::get<1>(runs[i]) == id) return double(i + 1);
-        return std::nan("");
+        const auto at = std::find_if(runs.begin(), runs.end(), [&](const auto& r) { return std::get<1>(r) == id; });
+        return at == runs.end() ? std::nan("") : double(at - runs.begin() + 1);
     };
     h.heading("History");
     Chart c;

@@ -37,8 +37,7 @@ void read_window(Entry& e, const std::string& spec) {
         e.window = phase + every;
         e.window_order = int(std::find(phases.begin(), phases.end(), phase) - phases.begin());
         const std::string suffix = "-" + phase;
-        if (e.scene.size() > suffix.size() &&
-            e.scene.compare(e.scene.size() - suffix.size(), suffix.size(), suffix) == 0)
+        if (e.scene.size() > suffix.size() && e.scene.ends_with(suffix))
             e.recording = e.scene.substr(0, e.scene.size() - suffix.size());
     } else if (m.contains("start_frame")) {
         e.window = "from frame " + m["start_frame"].dump() + every;
@@ -173,7 +172,7 @@ ReportData load_report_data(Database& db, std::int64_t run) {
     d.findings = evaluate_findings(db, run);
     d.history = load_run_history(db, run, d.head.experiment);
     d.motion = load_scene_motion(db, run);
-    if (run_has_query_kinds(db, run)) d.kind_frames = load_kind_observations(db, run);
+    if (run_has_frame_kinds(db, run)) d.kind_frames = load_kind_observations(db, run);
     return d;
 }
 

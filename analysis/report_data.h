@@ -108,11 +108,9 @@ struct Entries {
         : all(entries),
           scenes(unique_in_order(entries, [](const Entry& e) { return e.scene; })),
           labels(unique_in_order(entries, [](const Entry& e) { return e.label; })),
-          largest(scenes.front()) {
-        double most_objects = -1;
-        for (const Entry& e : all)
-            if (e.objects > most_objects) most_objects = e.objects, largest = e.scene;
-    }
+          largest(std::max_element(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
+                      return a.objects < b.objects;
+                  })->scene) {}
     /// A configuration keeps its colour and marker in every chart.
     int style_of(const std::string& label) const {
         return int(std::find(labels.begin(), labels.end(), label) - labels.begin()) + 1;

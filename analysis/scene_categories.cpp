@@ -38,16 +38,24 @@ constexpr std::size_t kMaxIterations = 100;
 constexpr FeatureValues kNoticeable = {0.1, 0.1, 0.1, 0.15, 0.05, 0.1, 0.15, 0.05, 0.05, 0.005};
 constexpr double kSeparation = 2;
 
+/// Moves each of `centres` to the mean of the points `assign` gives it; a centre without points stays.
+void move_to_means(const std::vector<FeatureValues>& points, const std::vector<std::size_t>& assign,
+                   std::vector<FeatureValues>& centres) {
+    std::vector<FeatureValues> sum(centres.size(), FeatureValues{});
+    std::vector<double> count(centres.size(), 0);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        count[assign[i]] += 1;
+        for (std::size_t f = 0; f < kSceneFeatureCount; ++f) sum[assign[i]][f] += points[i][f];
+    }
+    for (std::size_t c = 0; c < centres.size(); ++c)
+        if (count[c] > 0)
+            for (std::size_t f = 0; f < kSceneFeatureCount; ++f) centres[c][f] = sum[c][f] / count[c];
+}
+
 /// True when every two centroids differ by kSeparation noticeable differences in some feature.
 bool separated(const std::vector<FeatureValues>& scenes, const std::vector<std::size_t>& assign, std::size_t k) {
     std::vector<FeatureValues> c(k, FeatureValues{});
-    std::vector<double> count(k, 0);
-    for (std::size_t i = 0; i < scenes.size(); ++i) {
-        count[assign[i]] += 1;
-        for (std::size_t f = 0; f < kSceneFeatureCount; ++f) c[assign[i]][f] += scenes[i][f];
-    }
-    for (std::size_t a = 0; a < k; ++a)
-        for (std::size_t f = 0; f < kSceneFeatureCount; ++f) c[a][f] /= std::max(count[a], 1.0);
+    move_to_means(scenes, assign, c);
     for (std::size_t a = 0; a < k; ++a)
         for (std::size_t b = a + 1; b < k; ++b) {
             double most = 0;
@@ -135,18 +143,7 @@ KMeans kmeans(const std::vector<FeatureValues>& z, std::size_t k, std::uint64_t 
                 assign[i] = nearest;
             }
             if (!changed) break;
-            for (std::size_t c = 0; c < k; ++c) {
-                FeatureValues sum{};
-                std::size_t count = 0;
-                for (std::size_t i = 0; i < n; ++i)
-                    if (assign[i] == c) {
-                        ++count;
-                        for (std::size_t f = 0; f < kSceneFeatureCount; ++f) sum[f] += z[i][f];
-                    }
-                if (count == 0) continue;  // an empty cluster keeps its centre
-                for (double& v : sum) v /= double(count);
-                centres[c] = sum;
-            }
+            move_to_means(z, assign, centres);
         }
         double inertia = 0;
         for (std::size_t i = 0; i < n; ++i) inertia += distance2(z[i], centres[assign[i]]);
@@ -177,15 +174,18 @@ double silhouette(const std::vector<FeatureValues>& z, const std::vector<std::si
     return total / double(n);
 }
 
-/// Categories from an assignment: members, centroids, names; ordered by their first scene.
+/// Categories from their members: centroids, nearest fixed categories and each scene's category.
 void fill_categories(SceneClustering& out, const std::vector<SceneFeatures>& scenes,
                      const std::vector<std::vector<std::size_t>>& members, const std::vector<std::string>& fixed) {
     out.categories.clear();
+    out.assignment.assign(scenes.size(), 0);
     for (const std::vector<std::size_t>& m : members) {
         DerivedCategory c;
         c.members = m;
-        for (std::size_t i : m)
+        for (std::size_t i : m) {
+            out.assignment[i] = out.categories.size();
             for (std::size_t f = 0; f < kSceneFeatureCount; ++f) c.centroid[f] += scenes[i].values[f];
+        }
         for (double& v : c.centroid) v /= double(std::max<std::size_t>(m.size(), 1));
         c.z = out.scaling.standardize(c.centroid);
         std::map<std::string, std::size_t> votes;
@@ -271,9 +271,6 @@ SceneClustering cluster_scenes(const std::vector<SceneFeatures>& scenes, const s
         members[renumber[assign[i]]].push_back(i);
     }
     fill_categories(out, scenes, members, fixed_of);
-    out.assignment.assign(n, 0);
-    for (std::size_t c = 0; c < members.size(); ++c)
-        for (std::size_t i : members[c]) out.assignment[i] = c;
     // Names: two distinctive features, three if two categories would share a name, then a number.
     std::map<std::string, std::size_t> used;
     const std::size_t words = out.categories.size() > 1 ? 2 : 0;
@@ -293,11 +290,7 @@ SceneClustering group_scenes(const std::vector<SceneFeatures>& scenes, const std
     out.scaling = scaling_of(scenes);
     out.rule = "categories as named in the tuning file";
     fill_categories(out, scenes, members, {});
-    out.assignment.assign(scenes.size(), 0);
-    for (std::size_t c = 0; c < members.size(); ++c) {
-        out.categories[c].name = names[c];
-        for (std::size_t i : members[c]) out.assignment[i] = c;
-    }
+    for (std::size_t c = 0; c < members.size(); ++c) out.categories[c].name = names[c];
     return out;
 }
 

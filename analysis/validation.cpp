@@ -39,13 +39,8 @@ std::string ray_mode_of(const FrameObservation& f) { return f.ray_mix.empty() ? 
 /// The frames whose `key` is in `from` as train, those whose key is in `to` as test.
 ValidationSplit transfer_split(const std::vector<FrameObservation>& frames, const std::set<std::string>& from,
                                const std::set<std::string>& to) {
-    const auto names = [](const std::set<std::string>& modes) {
-        std::string text;
-        for (const std::string& m : modes) text += (text.empty() ? "" : "+") + m;
-        return text;
-    };
     ValidationSplit s;
-    s.name = "ray modes " + names(from) + " -> " + names(to);
+    s.name = "ray modes " + join(from, "+") + " -> " + join(to, "+");
     s.group = s.name;
     for (std::size_t i = 0; i < frames.size(); ++i) {
         const std::string mode = ray_mode_of(frames[i]);
@@ -55,37 +50,42 @@ ValidationSplit transfer_split(const std::vector<FrameObservation>& frames, cons
     return s;
 }
 
-double relative_error(double predicted, double measured) {
-    return std::isfinite(predicted) && measured > 0 ? std::abs(predicted - measured) / measured : NAN;
-}
+/// What prices a frame: its ray cast per ray, or its update (ns); empty where nothing does.
+using Price = std::function<double(const FrameObservation&)>;
 
-/// One cell's frames priced by `m` (null: no model).
-CellPrediction predict_cell(const std::vector<const FrameObservation*>& fs, const StructureModels* m) {
+/// One cell's frames priced: the ray cast by `ray`, and the frame (update + ray cast) where `update`
+/// prices the update too; with an update price, a cell whose frames it cannot price gets no ray-cast
+/// prediction either.
+CellPrediction price_cell(const std::vector<const FrameObservation*>& fs, const Price& ray, const Price& update) {
     CellPrediction c;
     c.structure = fs.front()->structure, c.scene = fs.front()->scene, c.params = fs.front()->params;
+    std::vector<double> frame, predicted_frame, raycast, predicted_raycast;
+    for (const FrameObservation* f : fs) {
+        frame.push_back(f->frame_ns());
+        if (f->rays > 0) raycast.push_back(f->raycast_ns);
+        if (!ray) continue;
+        const double cast = f->rays > 0 ? f->rays * ray(*f) : 0.0;
+        if (update) predicted_frame.push_back(update(*f) + cast);
+        if (f->rays > 0) predicted_raycast.push_back(cast);
+    }
+    c.frame_ns = quantile(frame, 0.5);
+    c.raycast_ns = quantile(raycast, 0.5);
+    if (ray && update) c.predicted_frame_ns = quantile_or_nan(predicted_frame, 0.5);
+    if (ray && (!update || c.predictable())) c.predicted_raycast_ns = quantile_or_nan(predicted_raycast, 0.5);
+    c.frame_error = relative_error(c.predicted_frame_ns, c.frame_ns);
+    c.raycast_error = relative_error(c.predicted_raycast_ns, c.raycast_ns);
+    return c;
+}
+
+/// One cell's frames priced by `m`'s chosen models (null: no model).
+CellPrediction predict_cell(const std::vector<const FrameObservation*>& fs, const StructureModels* m) {
     const bool model = m && m->predict_ray && m->predict_update;
+    CellPrediction c = price_cell(fs, model ? m->predict_ray : Price(), model ? m->predict_update : Price());
     if (model) {
         c.raycast_model = m->chosen("raycast")->name;
         c.update_model = m->chosen("update")->name;
         c.outside = outside_trained_range(*m, fs);
     }
-    std::vector<double> frame, predicted_frame, raycast, predicted_raycast;
-    for (const FrameObservation* f : fs) {
-        frame.push_back(f->frame_ns());
-        if (f->rays > 0) raycast.push_back(f->raycast_ns);
-        if (!model) continue;
-        const double cast = f->rays > 0 ? f->rays * m->predict_ray(*f) : 0.0;
-        predicted_frame.push_back(m->predict_update(*f) + cast);
-        if (f->rays > 0) predicted_raycast.push_back(cast);
-    }
-    c.frame_ns = quantile(frame, 0.5);
-    c.raycast_ns = quantile(raycast, 0.5);
-    if (model) {
-        c.predicted_frame_ns = quantile_or_nan(predicted_frame, 0.5);
-        c.predicted_raycast_ns = c.predictable() ? quantile_or_nan(predicted_raycast, 0.5) : NAN;
-    }
-    c.frame_error = relative_error(c.predicted_frame_ns, c.frame_ns);
-    c.raycast_error = relative_error(c.predicted_raycast_ns, c.raycast_ns);
     return c;
 }
 
@@ -147,6 +147,10 @@ nlohmann::json error_json(const ErrorSummary& e) {
 }
 
 }  // namespace
+
+double relative_error(double predicted, double measured) {
+    return std::isfinite(predicted) && measured > 0 ? std::abs(predicted - measured) / measured : NAN;
+}
 
 std::vector<ValidationSplit> family_out_splits(const std::vector<FrameObservation>& frames) {
     std::map<std::string, std::string> family;  // per scene, worked out once
@@ -282,11 +286,6 @@ std::vector<ValidationGroup> validate_nested(const std::vector<FrameObservation>
     return out;
 }
 
-TransferValidation validate_transfer(const std::vector<FrameObservation>& train, const ModelInputs& train_inputs,
-                                     const std::vector<FrameObservation>& test, const BootstrapOptions& options) {
-    return validate_transfer(fit_cost_models(train, train_inputs), test, options);
-}
-
 TransferValidation validate_transfer(const std::vector<StructureModels>& models,
                                      const std::vector<FrameObservation>& test, const BootstrapOptions& options) {
     std::vector<const FrameObservation*> frames;
@@ -330,21 +329,9 @@ ValidationGroup validate_calibration_only(const std::vector<FrameObservation>& f
             }
             return any ? ns : double(NAN);
         };
-        CellPrediction c;
+        CellPrediction c = price_cell(fs, per_ray, {});
         c.split = kCalibrationGroup;
-        c.structure = key.first, c.scene = fs.front()->scene, c.params = fs.front()->params;
         c.raycast_model = "calibration";
-        std::vector<double> frame, raycast, predicted;
-        for (const FrameObservation* f : fs) {
-            frame.push_back(f->frame_ns());
-            if (f->rays <= 0) continue;
-            raycast.push_back(f->raycast_ns);
-            predicted.push_back(f->rays * per_ray(*f));
-        }
-        c.frame_ns = quantile(frame, 0.5);
-        c.raycast_ns = quantile(raycast, 0.5);
-        c.predicted_raycast_ns = quantile_or_nan(predicted, 0.5);
-        c.raycast_error = relative_error(c.predicted_raycast_ns, c.raycast_ns);
         g.cells.push_back(std::move(c));
     }
     g.structures = summarize(g.cells, options, false);

@@ -59,6 +59,9 @@ std::vector<ValidationSplit> nested_splits(const std::vector<FrameObservation>& 
 inline constexpr const char* kFamilyOutGroup = "leave-one-family-out";
 inline constexpr const char* kTransferGroup = "transfer";
 
+/// |predicted − measured| / measured; NaN without a finite prediction or a positive measurement.
+double relative_error(double predicted, double measured);
+
 /// One (scene, configuration) cell predicted: medians over its frames (repetitions pooled).
 struct CellPrediction {
     std::string split, structure, scene, params;
@@ -131,10 +134,8 @@ struct TransferValidation {
     ValidationGroup group;                   ///< named kTransferGroup
     std::vector<std::string> unpredictable;  ///< structures of the test run the train run did not measure
 };
-TransferValidation validate_transfer(const std::vector<FrameObservation>& train, const ModelInputs& train_inputs,
-                                     const std::vector<FrameObservation>& test, const BootstrapOptions& options);
-/// The same with the train run's models already chosen and fitted (fit_cost_models on its frames),
-/// for a caller that prices more with them (the test run's query kinds) and fits once.
+/// `models`: the train run's, chosen and fitted (fit_cost_models on its frames), so that a caller
+/// that prices more with them (the test run's query kinds) fits once.
 TransferValidation validate_transfer(const std::vector<StructureModels>& models,
                                      const std::vector<FrameObservation>& test, const BootstrapOptions& options);
 

@@ -152,7 +152,7 @@ void print_nested_loso(Database& db, std::int64_t run, OverRepetitions how, cons
 /// Per structure and query kind (analysis/query_kinds.h): the chosen ray-cast model pricing each
 /// kind's batches from their own counters. Nothing when the run has no kinds.
 void print_kind_table(Database& db, std::int64_t run, const std::vector<StructureModels>& models) {
-    if (!run_has_query_kinds(db, run)) return;
+    if (!run_has_frame_kinds(db, run)) return;
     std::cout << "\nPer query kind: each kind's batches (frame_kind; a frame without kinds is one all-hits batch) "
                  "priced by the structure's chosen ray-cast model from the batch's own counters; time per query in "
                  "us, median over the batches; error: median over (scene x configuration) cells of |predicted - "

@@ -69,7 +69,7 @@ struct KindValidation {
 
 KindValidation validate_kinds(ResultStore& store, const LoadedRun& run, const BootstrapOptions& bootstrap) {
     KindValidation out;
-    if (!run_has_query_kinds(store.db(), run.run)) {
+    if (!run_has_frame_kinds(store.db(), run.run)) {
         out.absent = "the run has no query kinds (no frame_kind rows: every ray asked for all hits)";
         return out;
     }
@@ -120,7 +120,7 @@ struct FrozenKinds {
 FrozenKinds validate_test_kinds(Database& db, std::int64_t test_run, const std::vector<StructureModels>& models,
                                 const BootstrapOptions& bootstrap) {
     FrozenKinds out;
-    if (!run_has_query_kinds(db, test_run)) {
+    if (!run_has_frame_kinds(db, test_run)) {
         out.absent = "the test run has no query kinds (no frame_kind rows: every ray asked for all hits)";
         return out;
     }

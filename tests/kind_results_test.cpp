@@ -323,7 +323,7 @@ TEST(KindModel, EachKindIsPricedByTheRunsCoefficientsOnItsOwnCounters) {
     const test::TempDir temp("kinds", "model");
     write_hand_run(temp.file("k.db"), true);
     Database db(temp.file("k.db"), true);
-    ASSERT_TRUE(run_has_query_kinds(db, 1));
+    ASSERT_TRUE(run_has_frame_kinds(db, 1));
     const std::vector<StructureModels> models = fit_cost_models(load_observations(db, 1));
     ASSERT_EQ(models.size(), 1u);
     const CandidateModel* chosen = models[0].chosen("raycast");
@@ -378,7 +378,7 @@ TEST(KindModel, KindTransferExistsWithKindsAndIsAbsentWithout) {
     }
     {
         Database db(temp.file("plain.db"), true);
-        EXPECT_FALSE(run_has_query_kinds(db, 1));
+        EXPECT_FALSE(run_has_frame_kinds(db, 1));
         const std::vector<FrameObservation> frames = load_kind_observations(db, 1);
         EXPECT_EQ(frames.size(), 8u * 8);
         EXPECT_TRUE(kind_transfer_splits(frames).empty());

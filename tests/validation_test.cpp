@@ -137,7 +137,7 @@ TEST(TransferValidation, AFrozenModelPredictsAnotherRunWithinItsNoise) {
     EXPECT_NEAR(fitted_value(m->fit.coefficients, "C_RB", ""), kRb, 0.05 * kRb);
     EXPECT_NEAR(fitted_value(m->fit.coefficients, "C_T", ""), kT, 0.05 * kT);
 
-    const TransferValidation v = validate_transfer(a, {}, b, {500, 3});
+    const TransferValidation v = validate_transfer(models, b, {500, 3});
     EXPECT_EQ(v.unpredictable, std::vector<std::string>{"unknown"});
     ASSERT_EQ(v.group.structures.size(), 2u);  // in name order
     const StructureValidation &tree = v.group.structures[0], &unknown = v.group.structures[1];
