@@ -678,8 +678,4 @@ std::string findings_markdown(const std::vector<FindingsRun>& runs, OverRepetiti
     return md.str();
 }
 
-std::string findings_markdown(Database& db, std::int64_t run, OverRepetitions how) {
-    return findings_markdown({{&db, run}}, how);
-}
-
 }  // namespace rcb

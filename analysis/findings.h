@@ -57,6 +57,5 @@ std::vector<Finding> evaluate_findings(Database& db, std::int64_t run,
 /// the runs' provenance and the configurations they measured; the runs are read once.
 std::string findings_markdown(const std::vector<FindingsRun>& runs,
                               OverRepetitions how = OverRepetitions::fastest_cast);
-std::string findings_markdown(Database& db, std::int64_t run, OverRepetitions how = OverRepetitions::fastest_cast);
 
 }  // namespace rcb

@@ -289,15 +289,6 @@ LinearFit fit_linear(const LinearProblem& p, double huber_delta) {
     return fit;
 }
 
-double condition_number(const std::vector<std::vector<double>>& rows) {
-    const std::size_t k = rows.empty() ? 0 : rows.front().size();
-    if (k == 0 || rows.size() < k) return INFINITY;
-    Eigen::MatrixXd a(Eigen::Index(rows.size()), Eigen::Index(k));
-    for (std::size_t i = 0; i < rows.size(); ++i)
-        for (std::size_t j = 0; j < k; ++j) a(Eigen::Index(i), Eigen::Index(j)) = rows[i][j];
-    return column_scaled_condition(std::move(a));
-}
-
 std::vector<int> fold_of_rows(const LinearProblem& p, int k) {
     const std::vector<int>& unit = p.family.empty() ? p.group : p.family;
     std::vector<int> families(unit.begin(), unit.end());

@@ -70,11 +70,6 @@ inline constexpr double kIllConditioned = 1e3;
 
 LinearFit fit_linear(const LinearProblem& p, double huber_delta = 0.1);
 
-/// The condition number of `rows` (a matrix, one vector per row) with its columns scaled to unit
-/// norm; infinite where a column is 0 or there are fewer rows than columns. (Here because Eigen
-/// is built for the baseline in this file only: see analysis/CMakeLists.txt.)
-double condition_number(const std::vector<std::vector<double>>& rows);
-
 /// Held-out error by k-fold over scene families (never over cells or frames: a configuration's
 /// twin cell in a sibling scene would otherwise be in the fit that predicts it): for each
 /// configuration of a held-out family, the relative error of its predicted median frame against

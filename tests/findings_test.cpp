@@ -141,7 +141,7 @@ TEST(Findings, VerdictsFollowTheMeasurements) {
     EXPECT_EQ(by_source(f, "small scenes").verdict, Finding::Verdict::confirmed);
     EXPECT_EQ(by_source(f, "most promising").verdict, Finding::Verdict::confirmed);  // dbvh then hg
 
-    const std::string md = findings_markdown(db, run);
+    const std::string md = findings_markdown({{&db, run}});
     EXPECT_NE(md.find("**partly confirmed**"), std::string::npos);
     EXPECT_NE(md.find("**not tested by this run**: No stored fit"), std::string::npos);
 }
@@ -171,9 +171,9 @@ TEST(Findings, ARunsTimeOfAConfigurationIsEachFramesFastestRepetition) {
     EXPECT_EQ(cast.verdict, Finding::Verdict::confirmed) << cast.summary;
     const Finding median = by_source(evaluate_findings(db, run, OverRepetitions::median), "larger irregular");
     EXPECT_EQ(median.verdict, Finding::Verdict::refuted) << median.summary;  // 1.00 ms against 0.70 ms
-    EXPECT_NE(findings_markdown(db, run, OverRepetitions::fastest).find("each frame's fastest time"),
+    EXPECT_NE(findings_markdown({{&db, run}}, OverRepetitions::fastest).find("each frame's fastest time"),
               std::string::npos);
-    EXPECT_NE(findings_markdown(db, run).find("each frame's fastest ray cast and median update"), std::string::npos);
+    EXPECT_NE(findings_markdown({{&db, run}}).find("each frame's fastest ray cast and median update"), std::string::npos);
 }
 
 // Three runs of one experiment: figures are medians over the runs with their range, the verdict is
@@ -205,7 +205,7 @@ TEST(Findings, SeveralRunsGiveMediansRangesAndEachRunsVerdict) {
     // One run reads as before: no range, no count of runs.
     const std::vector<Finding> one = evaluate_findings(db, ids[2]);
     EXPECT_EQ(by_source(one, "uniform grid does very well").verdict, Finding::Verdict::refuted);
-    EXPECT_EQ(findings_markdown(db, ids[2]).find("Each run alone"), std::string::npos);
+    EXPECT_EQ(findings_markdown({{&db, ids[2]}}).find("Each run alone"), std::string::npos);
 }
 
 // Cells are measured in a shuffled order; the findings list scenes smallest first and each scene's
@@ -231,7 +231,7 @@ TEST(Findings, ScenesAndStructuresAreListedInOneOrderWhateverTheMeasuringOrder) 
     ASSERT_EQ(memory_a.evidence.size(), 2u);
     EXPECT_EQ(memory_a.evidence, memory_b.evidence);
     EXPECT_EQ(memory_a.evidence[0].rfind("uni-m, bytes per object: hg 100, ug 100", 0), 0u) << memory_a.evidence[0];
-    EXPECT_NE(findings_markdown(db, b).find("Configurations measured: ug defaults; hg defaults."), std::string::npos);
+    EXPECT_NE(findings_markdown({{&db, b}}).find("Configurations measured: ug defaults; hg defaults."), std::string::npos);
 }
 
 // Over several runs, a scene only a later run measured goes where its size puts it, not last; a
@@ -303,7 +303,7 @@ TEST(Findings, DenseRaysDecideTheFullSahClaimAndStayOutOfTheOthers) {
     EXPECT_EQ(sah.evidence[0].rfind("irr-dense:", 0), 0u) << sah.evidence[0];
     const Finding& hg = by_source(f, "larger irregular");
     EXPECT_EQ(hg.verdict, Finding::Verdict::confirmed) << hg.summary;  // irr only; on irr-dense dbvh wins
-    const std::string md = findings_markdown(db, run);
+    const std::string md = findings_markdown({{&db, run}});
     EXPECT_NE(md.find("Configurations measured: dbvh mode incremental/rebuild; hg defaults."), std::string::npos) << md;
 }
 

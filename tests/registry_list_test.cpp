@@ -163,7 +163,7 @@ TEST(RegistryList, TheReportAndItsFindingsShowTheToy) {
     for (const Finding& f : findings)
         for (const std::string& line : f.evidence) in_findings = in_findings || line.find("toy") != std::string::npos;
     EXPECT_TRUE(in_findings);
-    EXPECT_NE(findings_markdown(db, run).find(", toy;"), std::string::npos);
+    EXPECT_NE(findings_markdown({{&db, run}}).find(", toy;"), std::string::npos);
 
     write_report(db, run, (dir / "report.html").string());
     const std::string page = read(dir / "report.html");
