@@ -386,25 +386,6 @@ std::int64_t resolve_run(Database& db, std::int64_t run, const std::string& expe
     return *latest;
 }
 
-namespace {
-
-/// A stored counter as the observation holds it (per-ray counts only in frames with rays).
-void read_counter(const FrameCounter& c, double stored, FrameObservation& f) {
-    switch (c.scale) {
-        case CounterScale::per_ray:
-            if (f.rays > 0) f.*(c.field) = stored / f.rays;
-            break;
-        case CounterScale::mebibytes:
-            f.*(c.field) = stored / (1024.0 * 1024.0);
-            break;
-        case CounterScale::as_is:
-            f.*(c.field) = stored;
-            break;
-    }
-}
-
-}  // namespace
-
 std::vector<FrameObservation> load_observations(Database& db, std::int64_t run, OverRepetitions how) {
     std::vector<FrameObservation> out;
     std::map<std::tuple<std::int64_t, std::int64_t>, int> groups;
@@ -432,7 +413,8 @@ std::vector<FrameObservation> load_observations(Database& db, std::int64_t run, 
         f.raycast_ns = r.raycast_ns;
         f.update_ns =
             how == OverRepetitions::fastest_cast ? update_median.at({r.scene_id, r.config_id, r.frame}) : r.update_ns;
-        for (std::size_t i = 0; i < columns.size(); ++i) read_counter(frame_counters()[i], r.counters[i], f);
+        for (std::size_t i = 0; i < columns.size(); ++i)
+            f.*(frame_counters()[i].field) = scaled_count(frame_counters()[i].scale, r.counters[i], f.rays);
         out.push_back(f);
     }
     if (out.empty()) throw InputError("run " + std::to_string(run) + " has no measured frames to fit");

@@ -216,6 +216,18 @@ double term_value(const CostTerm& term, const FrameObservation& f) {
     return sum;
 }
 
+double scaled_count(CounterScale scale, double raw, double rays) {
+    switch (scale) {
+        case CounterScale::per_ray:
+            return rays > 0 ? raw / rays : 0.0;
+        case CounterScale::mebibytes:
+            return raw / (1024.0 * 1024.0);
+        case CounterScale::as_is:
+            break;
+    }
+    return raw;
+}
+
 FrameObservation observation_of(const FrameResult& frame, double objects) {
     FrameObservation o;
     o.rays = frame.rays;
@@ -223,17 +235,7 @@ FrameObservation observation_of(const FrameResult& frame, double objects) {
     o.update_ns = double(frame.update_ns);
     for (const FrameCounter& c : frame_counters()) {
         const double raw = c.counted ? double(frame.counters.*(c.counted)) : c.simulated ? c.simulated(frame) : objects;
-        switch (c.scale) {
-            case CounterScale::per_ray:
-                o.*(c.field) = frame.rays > 0 ? raw / frame.rays : 0.0;
-                break;
-            case CounterScale::mebibytes:
-                o.*(c.field) = raw / (1024.0 * 1024.0);
-                break;
-            case CounterScale::as_is:
-                o.*(c.field) = raw;
-                break;
-        }
+        o.*(c.field) = scaled_count(c.scale, raw, double(frame.rays));
     }
     return o;
 }

@@ -69,6 +69,9 @@ enum class CounterScale {
     as_is,      ///< a per-frame count (changes) or the scene's objects
 };
 
+/// A stored or simulated count `raw` of a frame with `rays` rays, scaled as `scale` says.
+double scaled_count(CounterScale scale, double raw, double rays);
+
 /// A counter of a measured frame: where the database keeps it, where the simulator counts it and
 /// where an observation holds it.
 struct FrameCounter {
