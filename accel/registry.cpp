@@ -1,4 +1,5 @@
 #include "accel/registry.h"
+#include "accel/builtin_structures.h"
 
 #include "accel/peers/bullet_dbvt.h"
 #include "accel/narrow/narrow_phase.h"
@@ -83,9 +84,23 @@ bool valid_name(const std::string& name) {
     return true;
 }
 
+/// The registry's size before the first register_structure: its first entries are rcbench's own
+/// (0 while none was added).
+std::size_t& own_entries() {
+    static std::size_t n = 0;
+    return n;
+}
+
 }  // namespace
 
 const std::deque<StructureInfo>& structure_registry() { return registry(); }
+
+bool rcbench_structure(std::string_view name) {
+    const std::size_t own = own_entries() ? own_entries() : registry().size();
+    for (std::size_t i = 0; i < own; ++i)
+        if (registry()[i].name == name) return true;
+    return false;
+}
 
 std::vector<std::string> structure_names(const std::function<bool(const StructureInfo&)>& keep) {
     std::vector<std::string> out;
@@ -150,6 +165,7 @@ const StructureInfo& register_structure(StructureInfo info) {
     if (!info.make) throw InputError(where + ": the entry has no factory (make is empty)");
     info = with_common_params(std::move(info));
     check_params(info.params, info.defaults(), where + ": default params", info.name);
+    if (own_entries() == 0) own_entries() = registry().size();
     registry().push_back(std::move(info));
     return registry().back();
 }

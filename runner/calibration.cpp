@@ -6,10 +6,13 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <random>
 
+#include "accel/builtin_structures.h"
 #include "accel/model/counter_fields.h"
 #include "core/base/error.h"
+#include "core/base/stopwatch.h"
 #include "core/truth/hit_lists.h"
 #include "sim/simulator.h"
 #include "runner/store.h"
@@ -104,12 +107,13 @@ struct MicroScene {
     int rays = kRays;
 };
 
-/// Batch `b` of the `index`-th micro-scene: its own generator, so any batch is the same bytes on
-/// every run whatever was drawn before it.
-std::vector<Segment> batch_of(const MicroScene& scene, std::size_t index, int b) {
+/// The first `rays` rays of batch `b` of the `index`-th micro-scene: its own generator, so any batch
+/// is the same bytes on every run whatever was drawn before it (and a cut batch, kCutRays, is the
+/// start of the full one).
+std::vector<Segment> batch_of(const MicroScene& scene, std::size_t index, int b, int rays) {
     Draw draw(kSeed + 0x9e3779b97f4a7c15ull * (std::uint64_t(index) * 256 + std::uint64_t(b) + 1));
     std::vector<Segment> out;
-    for (int r = 0; r < scene.rays; ++r) out.push_back(scene.ray(draw, r));
+    for (int r = 0; r < rays; ++r) out.push_back(scene.ray(draw, r));
     return out;
 }
 
@@ -254,13 +258,30 @@ bool outgrows_cache(const std::string& scene) {
 
 namespace {
 
+/// A structure's calibration budget: its own time so far (the lesser of the wall and the thread's
+/// CPU span, so that another process on the core does not spend it) against the seconds allowed.
+class Budget {
+public:
+    explicit Budget(double seconds) : ns_(seconds * 1e9) {}
+    /// Without a budget no clock is read (a system call), so a full calibration is as it was.
+    bool spent() const { return std::isfinite(ns_) && double(clock_.ns(TimingClock::thread)) >= ns_; }
+
+private:
+    Stopwatch clock_;
+    double ns_;
+};
+
 CalibrationPoint calibrate_on(const StructureInfo& info, const nlohmann::json& params, const MicroScene& scene,
-                              std::size_t index, int repeats) {
+                              std::size_t index, int repeats, const Budget& budget) {
+    // A scene begun with the budget spent: one batch of the first kCutRays rays.
+    const bool cut_before = budget.spent();
+    const int rays = cut_before ? std::min(scene.rays, kCutRays) : scene.rays;
+    if (cut_before) repeats = 1;
     std::unique_ptr<Structure> s = info.make(params, "calibration of " + info.name);
     s->build(scene.objects);
     s->commit();
     std::vector<std::vector<Segment>> batches;
-    for (int b = 0; b <= repeats; ++b) batches.push_back(batch_of(scene, index, b));
+    for (int b = 0; b <= repeats; ++b) batches.push_back(batch_of(scene, index, b, rays));
     HitLists hits;
     s->cast(batches[0], hits);  // warm the caches and branch predictors with rays of the kind
     std::vector<double> ns;
@@ -268,39 +289,50 @@ CalibrationPoint calibrate_on(const StructureInfo& info, const nlohmann::json& p
         const auto t0 = std::chrono::steady_clock::now();
         s->cast(batches[std::size_t(b)], hits);
         const auto t1 = std::chrono::steady_clock::now();
-        ns.push_back(double(std::chrono::duration_cast<std::chrono::nanoseconds>(t1 - t0).count()) /
-                     double(scene.rays));
+        ns.push_back(double(std::chrono::duration_cast<std::chrono::nanoseconds>(t1 - t0).count()) / double(rays));
     }
-    // Counted after every timed cast, so that counting does not change what they found cached.
+    // Counted after every timed cast, so that counting does not change what they found cached. The
+    // budget is checked here, between untimed casts: the batches counted are those the point keeps.
     Counters counters;
-    for (int b = 1; b <= repeats; ++b)
-        counters += counted_after(*s, batches[std::size_t(b) - 1], batches[std::size_t(b)], hits);
+    int counted = 0;
+    while (counted < repeats && (counted == 0 || !budget.spent())) {
+        ++counted;
+        counters += counted_after(*s, batches[std::size_t(counted) - 1], batches[std::size_t(counted)], hits);
+    }
+    ns.resize(std::size_t(counted));
     const Spread spread = spread_of(ns);
-    const double rays = double(scene.rays) * double(repeats);
+    const double measured = double(rays) * double(counted);
     CalibrationPoint p;
     p.scene = scene.name;
-    p.rays = std::uint32_t(scene.rays);
-    p.n_rb = double(counters.n_rb) / rays;
-    p.n_t = double(counters.n_t) / rays;
-    p.n_mp = double(counters.n_mp) / rays;
-    p.n_miss = double(counters.n_miss) / rays;
-    p.n_tp = double(counters.n_tp) / rays;
-    p.n_dup = double(counters.n_dup) / rays;
+    p.rays = std::uint32_t(rays);
+    p.n_rb = double(counters.n_rb) / measured;
+    p.n_t = double(counters.n_t) / measured;
+    p.n_mp = double(counters.n_mp) / measured;
+    p.n_miss = double(counters.n_miss) / measured;
+    p.n_tp = double(counters.n_tp) / measured;
+    p.n_dup = double(counters.n_dup) / measured;
     p.ns_per_ray = spread.median;
     p.mad = spread.mad;
+    p.repeats = counted;
+    p.cut = cut_before || counted < repeats;
     return p;
 }
 
 }  // namespace
 
-std::vector<CalibrationPoint> calibrate_structure(const StructureInfo& info, const nlohmann::json& params,
-                                                  int repeats) {
+double calibration_budget(const StructureInfo& info) {
+    return rcbench_structure(info.name) ? std::numeric_limits<double>::infinity() : kCalibrationBudgetSeconds;
+}
+
+std::vector<CalibrationPoint> calibrate_structure(const StructureInfo& info, const nlohmann::json& params, int repeats,
+                                                  double budget_seconds) {
     repeats = std::clamp(repeats, 1, 255);  // batch_of() keeps 256 seeds per scene
     std::vector<CalibrationPoint> out;
     const std::vector<MicroScene> scenes = micro_scenes();
+    const Budget budget(budget_seconds < 0 ? calibration_budget(info) : budget_seconds);
     for (std::size_t i = 0; i < scenes.size(); ++i) {
         try {
-            out.push_back(calibrate_on(info, params, scenes[i], i, repeats));
+            out.push_back(calibrate_on(info, params, scenes[i], i, repeats, budget));
         } catch (const std::exception&) {
             if (!outgrows_cache(scenes[i].name)) throw;
         }
@@ -326,13 +358,13 @@ std::vector<MeasuredPass> measure_pass(const CalibratedStructures& structures) {
 void store_pass(Database& db, std::int64_t run, std::int64_t pass, const std::vector<MeasuredPass>& measured) {
     Statement insert = db.prepare(
         "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, "
-        "n_tp, pass, n_dup) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
+        "n_tp, pass, n_dup, repeats, cut) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)");
     for (const MeasuredPass& m : measured)
         for (const CalibrationPoint& p : m.points) {
             insert.reset();
             insert
                 .bind_all(run, m.name, m.params.dump(), p.scene, std::int64_t(p.rays), p.n_rb, p.n_t, p.ns_per_ray,
-                          p.mad, p.n_mp, p.n_miss, p.n_tp, pass, p.n_dup)
+                          p.mad, p.n_mp, p.n_miss, p.n_tp, pass, p.n_dup, std::int64_t(p.repeats), std::int64_t(p.cut))
                 .run();
         }
 }
@@ -382,20 +414,23 @@ std::vector<CacheLevel> load_cache_sizes(Database& db, std::int64_t run) {
 std::vector<CalibrationPoint> load_calibration(Database& db, std::int64_t run, const std::string& structure) {
     std::vector<CalibrationPoint> out;
     Statement s = db.prepare(
-        "SELECT scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, n_tp, n_dup FROM calibration "
+        "SELECT scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, n_tp, n_dup, repeats, cut FROM calibration "
         "WHERE run_id = ? AND structure = ? ORDER BY rowid");
     s.bind_all(run, structure);
     while (s.step()) {
-        const CalibrationPoint p{s.text(0), std::uint32_t(s.int64(1)),
-                                 s.real(2), s.real(3),
-                                 s.real(4), s.real(5),
-                                 s.real(6), s.real(7),
-                                 s.real(8), s.real(9)};
+        CalibrationPoint p{s.text(0), std::uint32_t(s.int64(1)),
+                           s.real(2), s.real(3),
+                           s.real(4), s.real(5),
+                           s.real(6), s.real(7),
+                           s.real(8), s.real(9)};
+        p.repeats = int(s.int64(10));
+        p.cut = s.int64(11) != 0;
         const auto seen = std::find_if(out.begin(), out.end(), [&](const auto& q) { return q.scene == p.scene; });
         if (seen == out.end()) {
             out.push_back(p);
         } else {
-            // Counters are the same in every pass (fixed scenes and rays); the time is the fastest.
+            // Counters are the same in every pass (fixed scenes and rays) but where the budget cut one;
+            // the point is the fastest pass's, whole.
             const int passes = seen->passes + 1;
             if (p.ns_per_ray < seen->ns_per_ray) *seen = p;
             seen->passes = passes;

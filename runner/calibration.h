@@ -61,7 +61,23 @@ struct CalibrationPoint {
     double n_tp = 0;   ///< objects reported per ray: prices C_HIT apart from C_RB
     double n_dup = 0;  ///< box hits a grid dropped as already reported, per ray
     int passes = 1;    ///< calibration passes of the run this point is the fastest of (load_calibration)
+    /// Batches of `rays` both timed and counted: the time is their median, the counters their mean.
+    int repeats = 0;
+    /// Whether the structure's calibration budget (kCalibrationBudgetSeconds) cut this point short:
+    /// fewer batches than asked for, or kCutRays rays per batch.
+    bool cut = false;
 };
+
+/// The calibration's own time (the lesser of its wall and its thread's CPU time,
+/// core/base/stopwatch.h: a loaded machine does not spend it) for a structure a program registered
+/// (register_structure) or describes without registering. A slow one (a list scanned per ray, a
+/// structure that counts many steps per ray) stops counting batches once it is spent, and measures
+/// the micro-scenes after that on kCutRays rays with one batch, so that it costs seconds rather than
+/// minutes; such points are recorded as cut. rcbench's own structures are measured in full, whatever
+/// they take (the ODE peers' spaces are the slowest), so their points stay as they were.
+inline constexpr double kCalibrationBudgetSeconds = 4.0;
+/// Rays per batch of a micro-scene begun after the budget was spent: the first rays of its batches.
+inline constexpr int kCutRays = 32;
 
 /// Whether `scene` is a micro-scene whose structure outgrows a core's private cache (the lattice of
 /// 32768 boxes): its time includes the lines fetched, which only a structure that counts N_MISS can
@@ -72,12 +88,21 @@ bool outgrows_cache(const std::string& scene);
 /// cluster): a fit without C_HIT leaves it out.
 bool prices_hits(const std::string& scene);
 
+/// The budget calibrate_structure gives `info` by default: none (infinity) for rcbench's own
+/// structures (accel/builtin_structures.h), kCalibrationBudgetSeconds for any other.
+double calibration_budget(const StructureInfo& info);
+
 /// Builds `info` with `params` on every micro-scene and times `repeats` (1 to 255) batches of new
 /// rays after a warm-up batch; the counters are the timed batches' mean. Deterministic scenes and
 /// rays. A structure that cannot be built on the large lattice (a user's, with limits of its own)
 /// goes without those points. Takes about a second per structure (brute force: a few).
+/// `budget_seconds` of the calibration's own time (negative: calibration_budget(info)): once spent, the
+/// counting of the scene under way stops after the batch it counts (each point keeps at least one
+/// batch, and the times of the batches it counted), and every later scene is measured with one
+/// batch of kCutRays rays after a warm-up batch as large. The budget is checked outside the timed
+/// casts only, so it changes nothing of a calibration that does not spend it.
 std::vector<CalibrationPoint> calibrate_structure(const StructureInfo& info, const nlohmann::json& params,
-                                                  int repeats = 7);
+                                                  int repeats = 7, double budget_seconds = -1);
 
 /// calibrate_structure for the registered structure `name`, or no points when it cannot be built
 /// on the micro-scenes (a user's structure with its own limits): its fits then go without priors

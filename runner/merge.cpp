@@ -32,20 +32,21 @@ void check_integrity(Database& in) {
 /// before it finished gains the passes made since).
 void merge_calibration(Database& o, Database& in, std::int64_t from, std::int64_t to) {
     Statement cal = in.prepare(
-        "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, n_tp, pass, n_dup "
-        "FROM calibration "
+        "SELECT structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, n_tp, pass, n_dup, repeats, "
+        "cut FROM calibration "
         "WHERE run_id = ? ORDER BY rowid");
     cal.bind_all(from);
     Statement insert = o.prepare(
         "INSERT INTO calibration(run_id, structure, params, scene, rays, n_rb, n_t, ns_per_ray, mad, n_mp, n_miss, "
-        "n_tp, pass, n_dup) SELECT ?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12,?13,?14 WHERE NOT EXISTS (SELECT 1 FROM "
-        "calibration "
+        "n_tp, pass, n_dup, repeats, cut) SELECT ?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11,?12,?13,?14,?15,?16 WHERE NOT "
+        "EXISTS (SELECT 1 FROM calibration "
         "WHERE run_id = ?1 AND structure = ?2 AND scene = ?4 AND pass = ?13)");
     while (cal.step()) {
         insert.reset();
         insert
             .bind_all(to, cal.text(0), cal.text(1), cal.text(2), cal.int64(3), cal.real(4), cal.real(5), cal.real(6),
-                      cal.real(7), cal.real(8), cal.real(9), cal.real(10), cal.int64(11), cal.real(12))
+                      cal.real(7), cal.real(8), cal.real(9), cal.real(10), cal.int64(11), cal.real(12), cal.int64(13),
+                      cal.int64(14))
             .run();
     }
 }

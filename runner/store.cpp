@@ -434,6 +434,13 @@ ALTER TABLE run ADD COLUMN binary_id TEXT NOT NULL DEFAULT '';
         R"sql(
 ALTER TABLE frame ADD COLUMN update_work INTEGER;
 )sql",
+        // 21 → 22: what each calibration point measured (runner/calibration.h): the batches both
+        // timed and counted, and whether the structure's calibration budget cut it short. Every
+        // calibration stored before timed and counted 7 batches in full (the pass's only setting then).
+        R"sql(
+ALTER TABLE calibration ADD COLUMN repeats INTEGER NOT NULL DEFAULT 7;
+ALTER TABLE calibration ADD COLUMN cut INTEGER NOT NULL DEFAULT 0;
+)sql",
     };
     return all;
 }

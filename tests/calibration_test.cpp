@@ -1,6 +1,7 @@
 // The machine behind a run: cache sizes parsed from a sysfs folder (a fake one here), the
 // calibration micro-scenes varying the counters as designed, and both stored once per run.
 #include <gtest/gtest.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -21,6 +22,7 @@
 #include "runner/store.h"
 #include "tests/test_db.h"
 #include "tests/test_scenes.h"
+#include "tests/test_support.h"
 
 namespace rcb {
 namespace {
@@ -135,6 +137,110 @@ TEST(Calibration, SameRaysAndCountsOnEveryRun) {
     }
 }
 
+/// Rays the slow list below was asked to cast (every query calls traverse once per ray).
+std::uint64_t slow_casts = 0;
+
+std::uint64_t thread_cpu_ns() {
+    timespec t{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return std::uint64_t(t.tv_sec) * 1'000'000'000u + std::uint64_t(t.tv_nsec);
+}
+
+/// A deliberately slow structure: the tests' list (test::ToyList, 64 objects a block), spending
+/// `spin_us` of its thread's CPU time on every ray first, so that each cast costs the calibration's
+/// clock at least that much.
+class SlowList : public StructureBase<SlowList> {
+public:
+    struct Params {
+        int spin_us = 0;
+        static constexpr auto fields() {
+            return std::tuple{Field{"spin_us", &Params::spin_us, 0, 10000, "CPU time spent per ray, in us"}};
+        }
+    };
+    explicit SlowList(const Params& p) : spin_us_(p.spin_us), list_(test::ToyList::Params{64, false}) {}
+    void build(std::span<const Object> objects) override { list_.build(objects); }
+    void insert(const Object& o) override { list_.insert(o); }
+    void remove(Uid uid) override { list_.remove(uid); }
+    void move(const Object& o) override { list_.move(o); }
+    std::size_t size() const override { return list_.size(); }
+    std::size_t memory_bytes() const override { return list_.memory_bytes(); }
+    void check() const override { list_.check(); }
+
+    template <class Count, class Visit>
+    void traverse(const Segment& s, Count& count, Visit&& visit) {
+        ++slow_casts;
+        const std::uint64_t until = thread_cpu_ns() + std::uint64_t(spin_us_) * 1000u;
+        while (thread_cpu_ns() < until) {
+        }
+        list_.traverse(s, count, visit);
+    }
+
+private:
+    int spin_us_;
+    test::ToyList list_;
+};
+
+// rcbench's own structures are measured in full, whatever they take (their points stay as they were);
+// one a program registers, or describes without registering, gets the budget.
+TEST(CalibrationBudget, OnlyStructuresAProgramAddsHaveABudget) {
+    for (const char* name : {"bf", "lbvh", "ode_hash", "ode_sap"})
+        EXPECT_TRUE(std::isinf(calibration_budget(find_structure(name)))) << name;
+    const StructureInfo slow = describe_structure<SlowList>("slow_list", "a list that spins per ray");
+    EXPECT_EQ(calibration_budget(slow), kCalibrationBudgetSeconds);
+}
+
+// With its budget spent from the start, every micro-scene is one batch of kCutRays rays after a
+// warm-up batch as large: a fixed number of casts, whatever the structure costs per ray.
+TEST(CalibrationBudget, ASpentBudgetMeasuresEachSceneOnOneSmallBatch) {
+    const StructureInfo info = describe_structure<SlowList>("slow_list", "a list that spins per ray");
+    slow_casts = 0;
+    const std::vector<CalibrationPoint> points = calibrate_structure(info, info.defaults(), 7, 0.0);
+    ASSERT_EQ(points.size(), 13u);
+    for (const CalibrationPoint& p : points) {
+        EXPECT_EQ(p.rays, std::uint32_t(kCutRays)) << p.scene;
+        EXPECT_EQ(p.repeats, 1) << p.scene;
+        EXPECT_TRUE(p.cut) << p.scene;
+        EXPECT_GT(p.ns_per_ray, 0) << p.scene;
+    }
+    // The cut batch is the first rays of the full one: the stack's rays all cross its 256 boxes.
+    const auto stack = std::find_if(points.begin(), points.end(), [](const auto& p) { return p.scene == "stack"; });
+    ASSERT_NE(stack, points.end());
+    EXPECT_EQ(stack->n_rb, 256);
+    EXPECT_EQ(stack->n_tp, 256);
+    // Per scene: the warm-up, the timed batch, and the count of it after the warm-up (the warm-up
+    // alone, then both as one batch).
+    EXPECT_EQ(slow_casts, 13u * 5u * std::uint64_t(kCutRays));
+}
+
+// A structure that spends at least 100 us of CPU time on each ray (a full calibration asks it for
+// 12 x 29 x 512 + 29 x 128 casts: 18 s) stops within its budget of 0.2 s plus the one scene under
+// way when it ran out, and casts the remaining scenes' small batches: a bound in casts, which holds
+// on any machine, since each cast spends at least its share of the budget.
+TEST(CalibrationBudget, ASlowStructureStopsWithinItsBudgetInCasts) {
+    const StructureInfo info = describe_structure<SlowList>("slow_list", "a list that spins per ray");
+    constexpr double kBudget = 0.2;
+    constexpr int kSpinUs = 100, kFull = 512;
+    slow_casts = 0;
+    const std::vector<CalibrationPoint> points =
+        calibrate_structure(info, nlohmann::json{{"spin_us", kSpinUs}}, 7, kBudget);
+    ASSERT_EQ(points.size(), 13u);
+    const std::uint64_t within_budget = std::uint64_t(kBudget * 1e6 / kSpinUs);
+    // The scene under way: its warm-up and 7 timed batches, then one counted (3 batches' casts).
+    const std::uint64_t under_way = (1 + 7 + 3) * kFull;
+    const std::uint64_t cut_scenes = 13u * 5u * std::uint64_t(kCutRays);
+    EXPECT_LE(slow_casts, within_budget + under_way + cut_scenes);
+    EXPECT_LT(slow_casts, (12u * 29u * kFull + 29u * 128u) / 10);
+    // The first scene's 8 batches of 512 rays spend the budget: its point keeps one counted batch,
+    // and every later scene is cut to one small batch.
+    EXPECT_EQ(points[0].rays, std::uint32_t(kFull));
+    EXPECT_EQ(points[0].repeats, 1);
+    EXPECT_TRUE(points[0].cut);
+    for (std::size_t i = 1; i < points.size(); ++i) {
+        EXPECT_EQ(points[i].rays, std::uint32_t(kCutRays)) << points[i].scene;
+        EXPECT_TRUE(points[i].cut) << points[i].scene;
+    }
+}
+
 TEST(Calibration, StoredOncePerRun) {
     const test::TempDir temp("calibration", "run");
     const fs::path& dir = temp.path();
@@ -153,6 +259,10 @@ TEST(Calibration, StoredOncePerRun) {
     };
     EXPECT_EQ(load_calibration(store.db(), first.run, "bf").size(), 13u);
     EXPECT_EQ(load_calibration(store.db(), first.run, "dbvh").size(), 13u);  // one structure, one calibration
+    for (const CalibrationPoint& p : load_calibration(store.db(), first.run, "dbvh")) {
+        EXPECT_EQ(p.repeats, 7) << p.scene;  // rcbench's own: every batch timed and counted
+        EXPECT_FALSE(p.cut) << p.scene;
+    }
     EXPECT_EQ(count("calibration"), 26);
     EXPECT_EQ(std::size_t(count("run_cache")), read_cache_sizes().size());
     // Recording again (a resumed run) keeps what the run began with.

@@ -174,7 +174,8 @@ TEST(CellInterval, TheTableFollowsTheCellsThroughMergeAndMigration) {
         EXPECT_EQ(interval_rows(m.db()), want);
     }
     // A database from before the table (schema 11, without the later n_miss, writes, n_dup and
-    // update_work columns, calibration.n_miss, n_tp, pass and n_dup, and model_validation.outside_range):
+    // update_work columns, calibration.n_miss, n_tp, pass, n_dup, repeats and cut, and
+    // model_validation.outside_range):
     // migrating fills it from the stored cells.
     const std::string old = temp.file("old.db");
     fs::copy_file(o.db, old);
@@ -185,7 +186,8 @@ TEST(CellInterval, TheTableFollowsTheCellsThroughMergeAndMigration) {
             "ALTER TABLE frame DROP COLUMN update_work;");
         d.exec(
             "ALTER TABLE frame DROP COLUMN n_dup; ALTER TABLE frame_kind DROP COLUMN n_dup; "
-            "ALTER TABLE calibration DROP COLUMN n_dup;");
+            "ALTER TABLE calibration DROP COLUMN n_dup; ALTER TABLE calibration DROP COLUMN repeats; "
+            "ALTER TABLE calibration DROP COLUMN cut;");
         d.exec(
             "ALTER TABLE frame_kind DROP COLUMN n_miss; ALTER TABLE calibration DROP COLUMN n_miss; "
             "ALTER TABLE calibration DROP COLUMN n_tp; ALTER TABLE calibration DROP COLUMN pass; "

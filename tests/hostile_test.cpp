@@ -1144,6 +1144,7 @@ std::string structure(int i) {
     return names[i % 7];
 }
 
+// Over 30 s: 150 mutants, each through four or five rcbench processes (simulate: every structure).
 TEST_F(Hostile, RecordingsForSceneInfoSimulateCastAdvise) {
     ASSERT_NO_FATAL_FAILURE(make_recording());
     ASSERT_NO_FATAL_FAILURE(make_csvs());
@@ -1179,6 +1180,7 @@ TEST_F(Hostile, RecordingsForSceneInfoSimulateCastAdvise) {
     }
 }
 
+// Over 30 s: 200 mutant CSV files, each through two or three rcbench processes.
 TEST_F(Hostile, CsvForImportCastAdvise) {
     ASSERT_NO_FATAL_FAILURE(make_recording());
     ASSERT_NO_FATAL_FAILURE(make_csvs());
@@ -1220,6 +1222,7 @@ TEST_F(Hostile, CsvForImportCastAdvise) {
     }
 }
 
+// Over 30 s: 160 mutant models and maps, each imported by an rcbench process in every mode of its format.
 TEST_F(Hostile, ModelsAndMapsForSceneImport) {
     ASSERT_NO_FATAL_FAILURE(make_bsp());
     rcb::Random r(rcb::mix_seed(1, 3));
@@ -1261,6 +1264,7 @@ TEST_F(Hostile, ModelsAndMapsForSceneImport) {
 // ---------------------------------------------------------------------------------------------
 // Experiment and tuning files, a tuner's results.
 
+// Over 30 s: 400 mutants, each a `run --dry-run` process; every 8th also a whole run with its calibration.
 TEST_F(Hostile, ExperimentFilesForRun) {
     ASSERT_NO_FATAL_FAILURE(make_experiment());
     const json doc = experiment();

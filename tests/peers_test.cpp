@@ -191,6 +191,7 @@ std::vector<Object> boxes_with_a_giant(float length, float offset = 0) {
 
 TEST(Structures, EveryStructureIsExactAtTheCoordinateLimit) {
     // kMaxCoordinate (recording_io.h) is where every structure and peer must still be exact.
+    // Long: every structure and Embree configuration, each against the truth on every scene there.
     const std::vector<test::NamedScene> scenes = scenes_at_magnitude(float(kMaxCoordinate));
     std::vector<std::pair<std::string, nlohmann::json>> configs;
     for (const StructureInfo& info : structure_registry()) configs.push_back({info.name, nlohmann::json::object()});
