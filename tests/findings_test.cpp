@@ -173,7 +173,8 @@ TEST(Findings, ARunsTimeOfAConfigurationIsEachFramesFastestRepetition) {
     EXPECT_EQ(median.verdict, Finding::Verdict::refuted) << median.summary;  // 1.00 ms against 0.70 ms
     EXPECT_NE(findings_markdown({{&db, run}}, OverRepetitions::fastest).find("each frame's fastest time"),
               std::string::npos);
-    EXPECT_NE(findings_markdown({{&db, run}}).find("each frame's fastest ray cast and median update"), std::string::npos);
+    EXPECT_NE(findings_markdown({{&db, run}}).find("each frame's fastest ray cast and median update"),
+              std::string::npos);
 }
 
 // Three runs of one experiment: figures are medians over the runs with their range, the verdict is
@@ -231,7 +232,8 @@ TEST(Findings, ScenesAndStructuresAreListedInOneOrderWhateverTheMeasuringOrder) 
     ASSERT_EQ(memory_a.evidence.size(), 2u);
     EXPECT_EQ(memory_a.evidence, memory_b.evidence);
     EXPECT_EQ(memory_a.evidence[0].rfind("uni-m, bytes per object: hg 100, ug 100", 0), 0u) << memory_a.evidence[0];
-    EXPECT_NE(findings_markdown({{&db, b}}).find("Configurations measured: ug defaults; hg defaults."), std::string::npos);
+    EXPECT_NE(findings_markdown({{&db, b}}).find("Configurations measured: ug defaults; hg defaults."),
+              std::string::npos);
 }
 
 // Over several runs, a scene only a later run measured goes where its size puts it, not last; a
