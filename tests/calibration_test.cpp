@@ -1,7 +1,6 @@
 // The machine behind a run: cache sizes parsed from a sysfs folder (a fake one here), the
 // calibration micro-scenes varying the counters as designed, and both stored once per run.
 #include <gtest/gtest.h>
-#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -15,11 +14,13 @@
 #include "analysis/cost_model.h"
 #include "core/base/error.h"
 #include "accel/registry.h"
+#include "core/base/stopwatch.h"
 #include "runner/calibration.h"
 #include "runner/experiment.h"
 #include "runner/merge.h"
 #include "runner/run_experiment.h"
 #include "runner/store.h"
+#include "tests/forwarding_structure.h"
 #include "tests/test_db.h"
 #include "tests/test_scenes.h"
 #include "tests/test_support.h"
@@ -140,16 +141,10 @@ TEST(Calibration, SameRaysAndCountsOnEveryRun) {
 /// Rays the slow list below was asked to cast (every query calls traverse once per ray).
 std::uint64_t slow_casts = 0;
 
-std::uint64_t thread_cpu_ns() {
-    timespec t{};
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-    return std::uint64_t(t.tv_sec) * 1'000'000'000u + std::uint64_t(t.tv_nsec);
-}
-
 /// A deliberately slow structure: the tests' list (test::ToyList, 64 objects a block), spending
 /// `spin_us` of its thread's CPU time on every ray first, so that each cast costs the calibration's
 /// clock at least that much.
-class SlowList : public StructureBase<SlowList> {
+class SlowList : public test::Forwarding<SlowList, test::ToyList> {
 public:
     struct Params {
         int spin_us = 0;
@@ -157,27 +152,19 @@ public:
             return std::tuple{Field{"spin_us", &Params::spin_us, 0, 10000, "CPU time spent per ray, in us"}};
         }
     };
-    explicit SlowList(const Params& p) : spin_us_(p.spin_us), list_(test::ToyList::Params{64, false}) {}
-    void build(std::span<const Object> objects) override { list_.build(objects); }
-    void insert(const Object& o) override { list_.insert(o); }
-    void remove(Uid uid) override { list_.remove(uid); }
-    void move(const Object& o) override { list_.move(o); }
-    std::size_t size() const override { return list_.size(); }
-    std::size_t memory_bytes() const override { return list_.memory_bytes(); }
-    void check() const override { list_.check(); }
+    explicit SlowList(const Params& p) : Forwarding(test::ToyList::Params{64, false}), spin_us_(p.spin_us) {}
 
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit) {
         ++slow_casts;
-        const std::uint64_t until = thread_cpu_ns() + std::uint64_t(spin_us_) * 1000u;
-        while (thread_cpu_ns() < until) {
+        const Stopwatch spin;
+        while (spin.elapsed().cpu_ns < std::uint64_t(spin_us_) * 1000u) {
         }
-        list_.traverse(s, count, visit);
+        inner_.traverse(s, count, visit);
     }
 
 private:
     int spin_us_;
-    test::ToyList list_;
 };
 
 // rcbench's own structures are measured in full, whatever they take (their points stay as they were);

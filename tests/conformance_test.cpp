@@ -19,6 +19,7 @@
 #include "accel/registry.h"
 #include "accel/interface/structure.h"
 #include "testing/conformance.h"
+#include "tests/forwarding_structure.h"
 #include "tests/test_support.h"
 
 namespace rcb {
@@ -60,36 +61,25 @@ INSTANTIATE_TEST_SUITE_P(Registry, Conformance, ::testing::ValuesIn(registered_n
 
 /// A leaf loop that stops one short: the toy list (test_support.h) in one leaf of `block` objects
 /// per block, the last hit of each ray's traversal never reported. What the suite must catch.
-class DropsLastHit : public StructureBase<DropsLastHit> {
+class DropsLastHit : public test::Forwarding<DropsLastHit, test::ToyList> {
 public:
     struct Params {
         int block = 64;
         static constexpr auto fields() { return std::tuple{Field{"block", &Params::block, 1, 64, "objects per leaf"}}; }
     };
-    explicit DropsLastHit(const Params& p) : list_(test::ToyList::Params{p.block, false}) {}
-
-    void build(std::span<const Object> objects) override { list_.build(objects); }
-    void insert(const Object& o) override { list_.insert(o); }
-    void remove(Uid uid) override { list_.remove(uid); }
-    void move(const Object& o) override { list_.move(o); }
-    std::size_t size() const override { return list_.size(); }
-    std::size_t memory_bytes() const override { return list_.memory_bytes(); }
-    void check() const override { list_.check(); }
+    explicit DropsLastHit(const Params& p) : Forwarding(test::ToyList::Params{p.block, false}) {}
 
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit) {
         bool held = false;
         Uid held_uid = 0;
         float held_t = 0;
-        list_.traverse(s, count, [&](Uid uid, float t) {
+        inner_.traverse(s, count, [&](Uid uid, float t) {
             const bool go_on = !held || visit(held_uid, held_t);
             held = true, held_uid = uid, held_t = t;
             return go_on;
         });
     }
-
-private:
-    test::ToyList list_;
 };
 
 /// Described but not registered: the suite's checks take the entry itself, and a registered broken

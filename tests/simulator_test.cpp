@@ -8,29 +8,23 @@
 #include "sim/cache_sweep.h"
 #include "sim/simulator.h"
 #include "accel/scan/brute_force.h"
+#include "tests/forwarding_structure.h"
 #include "tests/test_scenes.h"
 
 namespace rcb {
 namespace {
 
 /// Brute force that forgets the last hit of every ray with two or more hits.
-class ForgetfulBruteForce : public StructureBase<ForgetfulBruteForce> {
+class ForgetfulBruteForce : public test::Forwarding<ForgetfulBruteForce, BruteForce> {
 public:
     struct Params {
         static constexpr auto fields() { return std::tuple{}; }
     };
     explicit ForgetfulBruteForce(const Params& = {}) {}
-    void build(std::span<const Object> o) override { bf_.build(o); }
-    void insert(const Object& o) override { bf_.insert(o); }
-    void remove(Uid u) override { bf_.remove(u); }
-    void move(const Object& o) override { bf_.move(o); }
-    std::size_t size() const override { return bf_.size(); }
-    std::size_t memory_bytes() const override { return bf_.memory_bytes(); }
-    void check() const override { bf_.check(); }
     template <class Count, class Visit>
     void traverse(const Segment& s, Count& count, Visit&& visit) {
         std::vector<std::pair<Uid, float>> all;
-        bf_.traverse(
+        inner_.traverse(
             s, count, [&](Uid u, float t) { return all.emplace_back(u, t), true; }, scratch_);
         if (all.size() >= 2) all.pop_back();
         for (auto [u, t] : all)
@@ -38,7 +32,6 @@ public:
     }
 
 private:
-    BruteForce bf_;
     BruteForceScratch scratch_;
 };
 
