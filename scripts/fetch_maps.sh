@@ -33,6 +33,11 @@
 #                      FlightGear's Scenery/Models but Airport/ (flightgear-data-base), and the
 #                      largest .obj of each folder of Debian's stellarium-data (Stellarium 0.22.2,
 #                      GPL-2 data; a 246 MB download)
+# With the argument `ai`, also:
+#   data/models-ai/*.ac   the fresh test set of experiments/models-ai.json, by the rule its
+#                      description gives: of the folders of AI/Aircraft in Debian's flightgear-data-ai
+#                      (FlightGear 2020.3's AI aircraft, GPL-2 data; a 287 MB download) whose largest
+#                      .ac has at least 100,000 bytes, every sixth in byte order, its largest .ac
 # Uses `apt-get download` (no root needed: only the .deb is fetched, nothing is installed) and
 # `dpkg-deb -x` to unpack. Run it again to re-fetch; it skips what is already there.
 set -euo pipefail
@@ -46,6 +51,9 @@ fetch() {  # fetch PACKAGE UNPACK_DIR
   mkdir -p "$dir"
   dpkg-deb -x data/.debs/"$pkg"_*.deb "$dir"
 }
+
+# largest: the largest of the files named on stdin, by size, if it has at least 100,000 bytes.
+largest() { xargs -r -d '\n' stat -c '%s %n' | sort -rn | awk 'NR == 1 && $1 >= 100000 { print $2 }'; }
 
 fetch openarena-081-maps data/.debs/openarena-081-maps
 find data/.debs/openarena-081-maps -name '*.pk3' -exec cp -u {} data/maps/ \;
@@ -104,8 +112,6 @@ if [ "${1:-}" = scenery ]; then
   fetch flightgear-data-base data/.debs/flightgear-data-base
   fetch stellarium-data data/.debs/stellarium-data
   mkdir -p data/models-scenery
-  # largest FILE... : the largest of the files named on stdin, by size, if at least 100,000 bytes.
-  largest() { xargs -r -d '\n' stat -c '%s %n' | sort -rn | awk 'NR == 1 && $1 >= 100000 { print $2 }'; }
   models=data/.debs/flightgear-data-base/usr/share/games/flightgear/Scenery/Models
   for folder in "$models"/*/; do
     [ "$(basename "$folder")" = Airport ] && continue
@@ -115,4 +121,16 @@ if [ "${1:-}" = scenery ]; then
     find "$folder" -maxdepth 1 -name '*.obj' | largest | xargs -r -I{} cp -u {} data/models-scenery/
   done
   echo "fetch_maps: $(ls data/models-scenery | wc -l) models in data/models-scenery/"
+fi
+
+if [ "${1:-}" = ai ]; then
+  fetch flightgear-data-ai data/.debs/flightgear-data-ai
+  mkdir -p data/models-ai
+  # Of AI/Aircraft's folders (byte order), those whose largest .ac has at least 100,000 bytes; of
+  # these the 1st, 7th, 13th, ... (every sixth), each folder's largest .ac.
+  aircraft=data/.debs/flightgear-data-ai/usr/share/games/flightgear/AI/Aircraft
+  find "$aircraft" -mindepth 1 -maxdepth 1 -type d | LC_ALL=C sort | while read -r folder; do
+    find "$folder" -name '*.ac' | largest
+  done | awk 'NR % 6 == 1' | xargs -r -d '\n' -I{} cp -u {} data/models-ai/
+  echo "fetch_maps: $(ls data/models-ai | wc -l) models in data/models-ai/"
 fi
