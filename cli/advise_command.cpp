@@ -185,6 +185,12 @@ void add_advise_command(CLI::App& app) {
                     "neighbour is faster (corrects what the model misranks; 0: none, and none with --verify-top 0)")
         ->capture_default_str()
         ->check(whole_number(0, 64));
+    cmd->add_option("--replays", o->replays,
+                    "Model method: at most this many counting replays of each tuned structure's space on the "
+                    "scene, ranked by the model (default: the tuning's search budget); a space no larger is "
+                    "replayed whole. Replays time nothing where the tuning holds update prices, so the pure "
+                    "model can rank a whole space at no timed cost; --exhaustive's baselines get the same replays")
+        ->check(whole_number(1, 10'000));
     CLI::Option* exhaustive = cmd->add_flag(
         "--exhaustive", o->exhaustive,
         "Also measure every configuration of each tuned structure's space on the scene and report how far "

@@ -312,6 +312,27 @@ TEST_F(AdviseFiles, ExhaustiveReportsThePureModelAndBaselinesOfTheSameBudget) {
     EXPECT_EQ(pure.budget.timed, 0u);  // the pure model: its row is the prediction
 }
 
+TEST_F(AdviseFiles, ReplaysSetHowMuchOfTheSpaceThePureModelRanks) {
+    // The tuning's search budget (4) replays part of the 8-level space; --replays 8 ranks all of
+    // it, and --replays 2 stays below the tuning's budget. The pure model times none of them.
+    json t = tuning_with(1.0, cost_model(2.0, 20.0));
+    t["budget"] = 4;
+    AdviseOptions o = options(write_tuning("t.json", t));
+    o.method = "model";
+    o.verify_top = 0;
+    o.refine = 0;
+    const Advice by_tuning = advise(o);
+    EXPECT_LE(ug_choice(by_tuning).budget.replays, 4u);
+    EXPECT_NE(ug_choice(by_tuning).ranking->search.algorithm, "enumeration");
+    o.replays = kDensities.size();
+    const Advice whole = advise(o);
+    EXPECT_EQ(ug_choice(whole).budget.replays, kDensities.size());
+    EXPECT_EQ(ug_choice(whole).ranking->search.algorithm, "enumeration");
+    EXPECT_EQ(ug_choice(whole).budget.timed, 0u);
+    o.replays = 2;
+    EXPECT_LE(ug_choice(advise(o)).budget.replays, 2u);
+}
+
 TEST_F(AdviseFiles, ThePureModelTimesNothingOnTheScene) {
     // --verify-top 0 with a tuning that holds the update's prices: the replays predict the update,
     // no candidate and no row is measured, so the simulator times no build, update or ray batch.
@@ -398,6 +419,7 @@ TEST_F(AdviseFiles, BadOptionsAndTuningsAreOneLineErrors) {
     expect_bad(::test::run_shell(bin + " advise " + scene + " --verify-top 17"), "--verify-top");
     expect_bad(::test::run_shell(bin + " advise " + scene + " --verify-top -1"), "--verify-top");
     expect_bad(::test::run_shell(bin + " advise " + scene + " --verify-top x"), "--verify-top");
+    expect_bad(::test::run_shell(bin + " advise " + scene + " --replays 0"), "--replays");
     expect_bad(::test::run_shell(bin + " advise " + scene + " --exhaustive"), "--exhaustive needs --tuning");
     expect_bad(::test::run_shell(bin + " advise " + scene + " --tuning " + none + " --category c --method model"),
                "none.json");

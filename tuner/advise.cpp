@@ -209,6 +209,7 @@ TuningSelection select_tuning(const AdviseOptions& o, const TuneCategory& scene)
     selection.tuned = read_category(t, o.tuning, selection.category);
     if (t.contains("budget") && t["budget"].is_number_unsigned() && t["budget"].get<std::size_t>() > 0)
         selection.budget = std::min<std::size_t>(t["budget"].get<std::size_t>(), 10'000);
+    if (o.replays) selection.budget = *o.replays;
     if (t.contains("seed") && t["seed"].is_number_unsigned()) selection.seed = t["seed"].get<std::uint64_t>();
     return selection;
 }

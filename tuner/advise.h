@@ -9,7 +9,8 @@
 ///             grid density depends on where its walls fall on the lattice)
 ///   model     the category's cost model (eq. 5.4, fitted while tuning) applied to this scene's own
 ///             counters: counting replays of the tuning's space on the scene (its search, with the
-///             tuning's budget and seed, from the category's parameters), ranked by predicted cost;
+///             tuning's budget or `replays` and its seed, from the category's parameters; a space
+///             within the budget is replayed whole), ranked by predicted cost;
 ///             the `verify_top` best (one per structure in effect: equal counts are one structure)
 ///             are measured beside the category's parameters; from the fastest of them a measured
 ///             descent (one level of one parameter at a time, two where one finds nothing; at
@@ -66,7 +67,10 @@ struct AdviseOptions {
     /// Model method: its best configurations measured beside the category's (0: the pure model,
     /// nothing timed on the scene)
     std::uint32_t verify_top = 3;
-    std::uint32_t refine = 6;           ///< model method: measurements of the descent from the fastest verified
+    std::uint32_t refine = 6;  ///< model method: measurements of the descent from the fastest verified
+    /// Model method: at most this many counting replays per tuned structure, a space no larger
+    /// replayed whole; none: the tuning's search budget
+    std::optional<std::size_t> replays;
     bool exhaustive = false;            ///< also measure every configuration of each tuned structure's space
     std::optional<std::uint64_t> seed;  ///< --exhaustive's random baseline; none: the tuning's search seed
     std::uint32_t repetitions = 3;      ///< measurements per structure
@@ -199,7 +203,7 @@ struct TuningSelection {
     std::string category;                         ///< empty without a tuning
     std::optional<CategoryChoice> chosen;         ///< when the scene's features chose the category
     std::map<std::string, TunedStructure> tuned;  ///< by structure
-    std::size_t budget = 30;                      ///< the tuning's search budget (the replays')
+    std::size_t budget = 30;                      ///< the replays' budget: --replays, else the tuning's search budget
     std::uint64_t seed = 1;                       ///< the tuning's search seed
 };
 
