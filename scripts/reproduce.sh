@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates the docs' figures from the results archive, with no timing (results/README.md).
 #
-#   scripts/reproduce.sh [--check] [--root DIR] [--rcbench BIN] [FIGURE...]
+#   scripts/reproduce.sh [--check] [--root DIR] [--rcbench BIN] [--shard K/N] [FIGURE...]
 #
 # docs/figures.json is the registry: each figure's name, the doc that shows it, the archived exports
 # it reads (results/archive/NAME.db.xz), optionally the archived file sets it reads
@@ -22,7 +22,9 @@
 # docs), when a registered figure has no markers, when a table of measured numbers stands outside
 # a figure (below), or when an export does not match its manifest.
 # --root: the checkout whose docs/, README.md and results/ are used (default: this script's);
-# --rcbench: the binary (default ROOT/build/rcbench). Exit 2 for bad arguments or registry.
+# --rcbench: the binary (default ROOT/build/rcbench); --shard K/N: only the figures whose place in
+# the registry, counted from 0, leaves K-1 when divided by N (the checks above still cover every
+# doc), so that ctest runs the figures as N tests side by side. Exit 2 for bad arguments or registry.
 set -euo pipefail
 
 usage() { sed -n '4p' "$0" | sed 's/^# *//'; }
@@ -32,11 +34,16 @@ check=0
 root="$(cd "$(dirname "$0")/.." && pwd)"
 rcbench=""
 selected=()
+shard=1 shards=1
 while (($#)); do
   case "$1" in
     --check) check=1 ;;
     --root) [[ $# -ge 2 ]] || die "--root needs a folder"; root="$2"; shift ;;
     --rcbench) [[ $# -ge 2 ]] || die "--rcbench needs a file"; rcbench="$2"; shift ;;
+    --shard)
+      [[ $# -ge 2 && "$2" =~ ^([1-9][0-9]*)/([1-9][0-9]*)$ ]] && ((BASH_REMATCH[1] <= BASH_REMATCH[2])) ||
+        die "--shard needs K/N with 1 <= K <= N, got '${2:-}'"
+      shard=${BASH_REMATCH[1]} shards=${BASH_REMATCH[2]}; shift ;;
     -h|--help) echo "usage: $(usage)"; exit 0 ;;
     -*) die "$1: unknown option (usage: $(usage))" ;;
     *) selected+=("$1") ;;
@@ -192,6 +199,7 @@ failed=()
 for i in "${!names[@]}"; do
   name="${names[$i]}"
   if ((${#selected[@]})) && ! printf '%s\n' "${selected[@]}" | grep -qxF -- "$name"; then continue; fi
+  ((i % shards == shard - 1)) || continue
   rel="$(jq -r --argjson i "$i" '.figures[$i].doc' "$registry")"
   doc="$root/$rel"
   open="<!-- figure: $name -->"

@@ -243,6 +243,28 @@ TEST(Archive, ADocFigureThatDiffersFromItsRegeneratedOutputFailsTheCheck) {
     EXPECT_NE(r.err.find("figure frames in docs/page.md differs"), std::string::npos) << r.err;
 }
 
+TEST(Archive, AShardRegeneratesItsShareOfTheFiguresAndChecksEveryDoc) {
+    // The mini checkout's one figure is figure 0: shard 1/2 holds it, shard 2/2 does not.
+    test::TempDir dir("archive");
+    const MiniCheckout c(dir);
+    ::test::Outcome r = c.reproduce({"--check", "--shard", "1/2"});
+    EXPECT_EQ(r.code, 1) << r.err;
+    EXPECT_NE(r.err.find("figure frames in docs/page.md differs"), std::string::npos) << r.err;
+    r = c.reproduce({"--check", "--shard", "2/2"});
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(r.out.find("figure frames"), std::string::npos) << r.out;
+    // The checks of every doc still run in a shard without the figure.
+    write_bytes(c.root / "README.md", "<!-- figure: unregistered -->\nnumbers\n<!-- /figure -->\n");
+    r = c.reproduce({"--check", "--shard", "2/2"});
+    EXPECT_EQ(r.code, 1) << r.err;
+    EXPECT_NE(r.err.find("marks figure unregistered"), std::string::npos) << r.err;
+    for (const char* bad : {"0/2", "3/2", "1", "a/b"}) {
+        r = c.reproduce({"--check", "--shard", bad});
+        EXPECT_EQ(r.code, 2) << bad;
+        EXPECT_NE(r.err.find("--shard needs K/N"), std::string::npos) << r.err;
+    }
+}
+
 TEST(Archive, ReproduceRefusesAFigureWithoutArchivedDataAndAnEditedExport) {
     test::TempDir dir("archive");
     const MiniCheckout c(dir);
