@@ -95,7 +95,8 @@ double calibration_budget(const StructureInfo& info);
 /// Builds `info` with `params` on every micro-scene and times `repeats` (1 to 255) batches of new
 /// rays after a warm-up batch; the counters are the timed batches' mean. Deterministic scenes and
 /// rays. A structure that cannot be built on the large lattice (a user's, with limits of its own)
-/// goes without those points. Takes about a second per structure (brute force: a few).
+/// goes without those points. Its time grows with the structure's build and ray costs; a slow one of
+/// a program's own is cut short by the budget below.
 /// `budget_seconds` of the calibration's own time (negative: calibration_budget(info)): once spent, the
 /// counting of the scene under way stops after the batch it counts (each point keeps at least one
 /// batch, and the times of the batches it counted), and every later scene is measured with one
